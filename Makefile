@@ -1,0 +1,35 @@
+# vcigen: two commands set everything up on a fresh machine: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+OUT    ?= results
+
+.PHONY: venv demo test test-fast lint generate bench clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+demo: venv            ## the paper's examples: CSV + energy plots in $(OUT)/
+	$(PY) examples/particle.py --out $(OUT)
+	$(PY) examples/star.py --out $(OUT)
+
+test: venv            ## the whole test suite
+	$(PY) -m pytest -q
+
+lint: venv
+	$(VENV)/bin/ruff check vcigen tests examples bench
+
+generate: venv        ## regenerate generated/ from the examples (one command)
+	$(VENV)/bin/vcigen generate --all
+
+bench: venv           ## speed against error, side by side (issue 5)
+	$(PY) bench/run.py
+
+clean:
+	rm -rf $(OUT) .pytest_cache build dist *.egg-info

@@ -1,0 +1,32 @@
+"""vcigen: variational collision integrators generated from a SymPy model.
+
+Fetecau, Marsden, Ortiz, West, *Nonsmooth Lagrangian Mechanics and
+Variational Collision Integrators*. The public API is shared/API.md.
+"""
+
+from .derive import DiscreteSystem, derive
+from .errors import CompileError, SolverError
+from .model import Model
+from .result import Impact, Result
+from .rules import MIDPOINT, RULES, TRAPEZOID, Rule, midpoint_rule
+from .simulator import Simulator, build
+from .stepper import Tolerances
+
+__all__ = [
+    "MIDPOINT",
+    "RULES",
+    "TRAPEZOID",
+    "CompileError",
+    "DiscreteSystem",
+    "Impact",
+    "Model",
+    "Result",
+    "Rule",
+    "Simulator",
+    "SolverError",
+    "Tolerances",
+    "build",
+    "derive",
+    "midpoint_rule",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,1 @@
+"""Backends: each turns a DiscreteSystem's routines into something that runs."""

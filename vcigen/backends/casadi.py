@@ -1,0 +1,153 @@
+"""Routines -> ``casadi.Function`` + ``casadi.rootfinder`` (Newton, exact Jacobian).
+
+Every Function is built once, at build time, with the parameters as an input.
+Each solve is one call of a Function that wraps the rootfinder and also
+returns the residual's infinity norm at the answer, so the stepper can check it.
+Every call takes and returns one flat vector (the fastest way across the
+Python/CasADi boundary).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..derive import DiscreteSystem
+from ..routines import Routine
+from .sym2casadi import to_casadi
+
+NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 40, "error_on_fail": False}
+
+
+def routine_to_function(r: Routine) -> ca.Function:
+    """One SX Function per routine: named inputs and outputs, CSE kept."""
+    ins = [ca.SX.sym(a.name, a.size) for a in r.inputs]
+    env = {s: ins[i][k] for i, a in enumerate(r.inputs) for k, s in enumerate(a.symbols)}
+    repl, reduced = r.cse()
+    for sym, expr in repl:
+        env[sym] = to_casadi(expr, env)
+    outs = []
+    for o, entries in zip(r.outputs, reduced):
+        rows, cols = o.shape
+        vals = [to_casadi(e, env) for e in entries]
+        mat = ca.SX(rows, cols)
+        for k, val in enumerate(vals):
+            mat[k // cols, k % cols] = val
+        outs.append(mat)
+    return ca.Function(r.name, ins, outs, [a.name for a in r.inputs], [o.name for o in r.outputs])
+
+
+class CasadiKernels:
+    """The stepper's kernels, evaluated by CasADi for one parameter vector."""
+
+    backend = "casadi"
+
+    def __init__(self, system: DiscreteSystem) -> None:
+        self.system = system
+        self.n, self.m = system.n, system.m
+        self.contact_names = system.contact_names
+        self.par = np.zeros(len(system.params))
+        self._buffers: dict[str, tuple] = {}
+        self.functions = {name: routine_to_function(r) for name, r in system.routines.items()}
+        self._solvers = {
+            name: self._solver(name)
+            for name in system.routines
+            if "x" in [a.name for a in system.routines[name].inputs]
+        }
+        self._step = self._smooth_step()
+        self._flat = {name: self._flatten(name) for name in ("legendre", "segment", "contacts")}
+
+    def bind(self, par: list[float]) -> CasadiKernels:
+        """Fix the parameter values for the next simulation."""
+        self.par = np.asarray(par, dtype=float)
+        return self
+
+    # -- building -------------------------------------------------------------
+    def _solver(self, name: str) -> ca.Function:
+        """``(guess, args..., par) -> (x, |res|_inf)`` in one flat vector each."""
+        f = self.functions[name]
+        r = self.system.routines[name]
+        x = ca.MX.sym("x", r.inputs[0].size)
+        rest = [ca.MX.sym(a.name, a.size) for a in r.inputs[1:]]
+        prm = ca.vertcat(*rest)
+        g = ca.Function(
+            "g",
+            [x, prm],
+            [f(x, *ca.vertsplit(prm, np.cumsum([0] + [a.size for a in r.inputs[1:]]).tolist()))[0]],
+        )
+        rf = ca.rootfinder(f"{name}_newton", "newton", g, NEWTON_OPTIONS)
+        guess = ca.MX.sym("guess", x.shape[0])
+        sol = rf(guess, prm)
+        res = ca.norm_inf(g(sol, prm))
+        return ca.Function(f"{name}_solve", [ca.vertcat(guess, prm)], [ca.vertcat(sol, res)])
+
+    def _smooth_step(self) -> ca.Function:
+        """Smooth step (46) and everything the stepper needs after it, in one call."""
+        n = self.n
+        vec = ca.MX.sym("in", 3 * n + 1 + len(self.par))
+        q0, p0, tau, guess, par = (
+            vec[:n],
+            vec[n : 2 * n],
+            vec[2 * n],
+            vec[2 * n + 1 : 3 * n + 1],
+            vec[3 * n + 1 :],
+        )
+        out = self._solvers["smooth"](ca.vertcat(guess, q0, p0, tau, par))
+        v, res = out[:n], out[n]
+        _, p1, e = self.functions["segment"](q0, v, tau, par)
+        phi1, _ = self.functions["contacts"](q0 + tau * v, par)
+        return ca.Function("smooth_step", [vec], [ca.vertcat(v, res, p1, e, phi1)])
+
+    def _flatten(self, name: str) -> ca.Function:
+        f = self.functions[name]
+        ins = [ca.SX.sym(a, f.size1_in(i)) for i, a in enumerate(f.name_in())]
+        outs = f(*ins)
+        return ca.Function(f"{name}_flat", [ca.vertcat(*ins)], [ca.vertcat(*[ca.vec(o.T) for o in outs])])
+
+    # -- the kernels interface --------------------------------------------------
+    def _call(self, f: ca.Function, *parts: np.ndarray | float) -> np.ndarray:
+        """Evaluate ``f`` on the concatenated parts (and the parameters) via a CasADi buffer."""
+        b = self._buffers.get(f.name())
+        if b is None:
+            arg, res = np.zeros(f.size1_in(0)), np.zeros(f.size1_out(0))
+            buf, trigger = f.buffer()
+            buf.set_arg(0, memoryview(arg))
+            buf.set_res(0, memoryview(res))
+            b = self._buffers[f.name()] = (arg, res, trigger, buf)
+        arg, res, trigger, _ = b
+        i = 0
+        for part in (*parts, self.par):
+            if np.ndim(part) == 0:
+                arg[i] = part
+                i += 1
+            else:
+                arg[i : i + len(part)] = part
+                i += len(part)
+        trigger()
+        return res.copy()
+
+    def smooth_step(self, q0, p0, tau, guess):
+        """``(v, |res|, p1, E_d, phi(q1))`` of the smooth step from ``(q0, p0)``."""
+        n = self.n
+        o = self._call(self._step, q0, p0, tau, guess)
+        return o[:n], o[n], o[n + 1 : 2 * n + 1], o[2 * n + 1], o[2 * n + 2 :]
+
+    def solve(self, name: str, guess, *args):
+        """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``."""
+        o = self._call(self._solvers[name], guess, *args)
+        return o[:-1], float(o[-1])
+
+    def legendre(self, q, v):
+        n = self.n
+        o = self._call(self._flat["legendre"], q, v)
+        return o[:n], o[n:].reshape(n, n)
+
+    def segment(self, q0, v, tau):
+        n = self.n
+        o = self._call(self._flat["segment"], q0, v, tau)
+        return o[:n], o[n : 2 * n], float(o[2 * n])
+
+    def contacts(self, q):
+        m, n = self.m, self.n
+        o = self._call(self._flat["contacts"], q)
+        return o[:m], o[m:].reshape(m, n)

@@ -1,0 +1,184 @@
+"""Discrete mechanics, symbolically: momenta, energy and every phase's residual.
+
+Pure SymPy: a :class:`~vcigen.model.Model` and a rule in, a
+:class:`DiscreteSystem` of :class:`~vcigen.routines.Routine` out. Nothing here
+knows about a backend.
+
+Every quantity is written in the segment start ``q0``, the segment velocity
+``v = (q1 - q0)/tau`` and the segment duration ``tau``. With the rule's mean
+Lagrangian ``l`` (``L_d = tau l``):
+
+* ``p-  = -D1 L_d = l_v - tau l_q0``   (50), (51)
+* ``p+  =  D2 L_d = l_v``              (50), (51)
+* ``E_d = -D3 L_d = v . l_v - l - tau l_tau``   (55)
+
+all polynomial in ``tau``, so sub-steps of vanishing length (impacts at
+``alpha -> 0`` or ``alpha -> 1``) are well conditioned (MATH.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from .model import Model
+from .routines import Arg, Output, Routine
+from .rules import Rule, get_rule
+
+
+def _vec(prefix: str, n: int) -> tuple[sp.Symbol, ...]:
+    return tuple(sp.Dummy(f"{prefix}{i}", real=True) for i in range(n))
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Momenta and energy of one segment ``(q0, v, tau)`` as expressions."""
+
+    q0: sp.Matrix
+    v: sp.Matrix
+    tau: sp.Symbol
+    p_minus: sp.Matrix
+    p_plus: sp.Matrix
+    energy: sp.Expr
+
+    def at(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr) -> tuple[sp.Matrix, sp.Matrix, sp.Expr]:
+        """``(p-, p+, E_d)`` with the segment's symbols replaced."""
+        rep = dict(zip(self.q0, q0)) | dict(zip(self.v, v)) | {self.tau: tau}
+        return (self.p_minus.xreplace(rep), self.p_plus.xreplace(rep), self.energy.xreplace(rep))
+
+
+def discrete_segment(model: Model, rule: Rule) -> Segment:
+    """Discrete momenta (50)-(51) and energy (55) of the rule's ``L_d``."""
+    n = model.n
+    q0, v, tau = sp.Matrix(_vec("q", n)), sp.Matrix(_vec("v", n)), sp.Dummy("tau", real=True)
+    qs, vs = model.coordinates, model.velocities
+
+    def lagrangian(qq: sp.Matrix, vv: sp.Matrix) -> sp.Expr:
+        return model.L.xreplace(dict(zip(qs, qq)) | dict(zip(vs, vv)))
+
+    ell = rule.mean_lagrangian(lagrangian, q0, v, tau)
+    ell_v = sp.Matrix([ell.diff(s) for s in v])
+    ell_q = sp.Matrix([ell.diff(s) for s in q0])
+    p_plus = ell_v
+    p_minus = ell_v - tau * ell_q
+    energy = (v.T * ell_v)[0] - ell - tau * ell.diff(tau)
+    return Segment(q0, v, tau, p_minus, p_plus, energy)
+
+
+@dataclass(frozen=True)
+class DiscreteSystem:
+    """Everything a backend needs: routines plus what they mean."""
+
+    model: Model
+    rule: Rule
+    contact_names: tuple[str, ...]
+    params: tuple[sp.Symbol, ...]
+    routines: dict[str, Routine] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return self.model.n
+
+    @property
+    def m(self) -> int:
+        return len(self.contact_names)
+
+
+def _residual_routine(name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str) -> Routine:
+    jac = res.jacobian(sp.Matrix(unknown.symbols))
+    return Routine(name, (unknown, *args), (Output("res", res), Output("jac", jac)), doc)
+
+
+def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
+    """Derive every routine of MATH.md for ``model`` under ``rule``."""
+    rule = get_rule(rule)
+    n = model.n
+    names = tuple(model.phi)
+    par = Arg("par", tuple(model.defaults))
+    seg = discrete_segment(model, rule)
+    qs, vs = model.coordinates, model.velocities
+
+    # Continuous Legendre transform and mass matrix, for the start and the reflected guess.
+    q, qd = _vec("q", n), _vec("v", n)
+    rep = dict(zip(qs, q)) | dict(zip(vs, qd))
+    mom = sp.Matrix([model.L.diff(s) for s in vs]).xreplace(rep)
+    legendre = Routine(
+        "legendre",
+        (Arg("q", q), Arg("v", qd), par),
+        (Output("momentum", mom), Output("mass", model.mass_matrix.xreplace(rep))),
+        "p = dL/dqdot and M = d2L/dqdot2 (start, reflected initial guess).",
+    )
+    segment = Routine(
+        "segment",
+        (Arg("q0", tuple(seg.q0)), Arg("v", tuple(seg.v)), Arg("tau", (seg.tau,)), par),
+        (
+            Output("p_minus", seg.p_minus),
+            Output("p_plus", seg.p_plus),
+            Output("energy", sp.Matrix([seg.energy])),
+        ),
+        "Discrete momenta p-(q0,q1,tau), p+(q0,q1,tau) (50)-(51) and E_d (55).",
+    )
+    qrep = dict(zip(qs, q))
+    phis = [model.phi[c].xreplace(qrep) for c in names]
+    phi_vec = sp.Matrix(phis) if phis else sp.zeros(0, 1)
+    grad = sp.Matrix([[ph.diff(s) for s in q] for ph in phis]) if phis else sp.zeros(0, n)
+    contacts = Routine(
+        "contacts",
+        (Arg("q", q), par),
+        (Output("phi", phi_vec), Output("grad", grad)),
+        "Contact functions phi_j(q) and their gradients (rows).",
+    )
+    routines = {r.name: r for r in (legendre, segment, contacts)}
+
+    # Smooth step (46): p_k = p-(q_k, q_k + h v, h).
+    q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
+    v = _vec("v", n)
+    pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau)
+    base = [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), par]
+    routines["smooth"] = _residual_routine(
+        "smooth", Arg("x", v), base, pm - sp.Matrix(p0), "Smooth step (46), (73): unknown v."
+    )
+
+    # Contact time and point (47), (74): unknowns (v, alpha), q~ = q_k + alpha tau v.
+    alpha = sp.Dummy("alpha", real=True)
+    pm_a, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), alpha * tau)
+    qt = sp.Matrix(q0) + alpha * tau * sp.Matrix(v)
+    for j, c in enumerate(names):
+        res = (pm_a - sp.Matrix(p0)).col_join(sp.Matrix([phis[j].xreplace(dict(zip(q, qt)))]))
+        routines[f"contact_time_{c}"] = _residual_routine(
+            f"contact_time_{c}",
+            Arg("x", (*v, alpha)),
+            base,
+            res,
+            f"Contact time and point (47), (74) on contact '{c}': unknowns (v, alpha).",
+        )
+
+    # Jump (48), (75), (76): unknowns (w, mu); mu >= 0 pushes into C along nrm.
+    qc, nrm, p_in, e_in = _vec("q", n), _vec("n", n), _vec("p", n), sp.Dummy("E", real=True)
+    w, mu, beta = _vec("w", n), sp.Dummy("mu", real=True), sp.Dummy("beta", real=True)
+    jargs = [Arg("qc", qc), Arg("nrm", nrm), Arg("p_in", p_in), Arg("e_in", (e_in,)), Arg("tau", (tau,)), par]
+
+    def jump_res(duration: sp.Expr) -> sp.Matrix:
+        pm_j, _, en_j = seg.at(sp.Matrix(qc), sp.Matrix(w), duration)
+        return (pm_j - sp.Matrix(p_in) - mu * sp.Matrix(nrm)).col_join(sp.Matrix([en_j - e_in]))
+
+    routines["jump"] = _residual_routine(
+        "jump",
+        Arg("x", (*w, mu)),
+        jargs,
+        jump_res(tau),
+        "Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu).",
+    )
+    # Several impacts in one step (78): the post-impact segment ends on contact j'.
+    qend = sp.Matrix(qc) + beta * tau * sp.Matrix(w)
+    for j, c in enumerate(names):
+        res = jump_res(beta * tau).col_join(sp.Matrix([phis[j].xreplace(dict(zip(q, qend)))]))
+        routines[f"jump_contact_{c}"] = _residual_routine(
+            f"jump_contact_{c}",
+            Arg("x", (*w, mu, beta)),
+            jargs,
+            res,
+            f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
+        )
+    return DiscreteSystem(model, rule, names, par.symbols, routines)

@@ -1,0 +1,215 @@
+"""The user's mechanical system: coordinates, Lagrangian, contacts, parameters.
+
+A :class:`Model` is validated once, at construction. Internally every
+coordinate and velocity is replaced by a *real* SymPy symbol, so that
+``Abs``, ``sign``, ``Min`` and ``Max`` in contacts or potentials
+differentiate cleanly whatever assumptions the user's symbols carry.
+"""
+
+from __future__ import annotations
+
+import keyword
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+_C_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_C_KEYWORDS = frozenset(
+    "auto break case char const continue default do double else enum extern float for "
+    "goto if inline int long register restrict return short signed sizeof static struct "
+    "switch typedef union unsigned void volatile while main".split()
+)
+
+
+def check_identifier(name: str, what: str) -> str:
+    """Return ``name`` if it is a usable C and Python identifier, else raise."""
+    if not isinstance(name, str) or not _C_IDENTIFIER.match(name):
+        raise ValueError(
+            f"{what} {name!r} is not a C identifier; use letters, digits and '_' "
+            "and start with a letter or '_'"
+        )
+    if name in _C_KEYWORDS or keyword.iskeyword(name):
+        raise ValueError(f"{what} {name!r} is a reserved word in C or Python; rename it")
+    return name
+
+
+def _is_time_function(expr: sp.Basic) -> bool:
+    return isinstance(expr, sp.core.function.AppliedUndef) and len(expr.args) == 1
+
+
+def _coordinate_name(c: sp.Basic) -> str:
+    return c.func.__name__ if _is_time_function(c) else str(c)
+
+
+@dataclass(frozen=True)
+class Model:
+    """A Lagrangian system with unilateral contacts ``phi_j(q) >= 0``.
+
+    Parameters follow ``shared/API.md``: ``q`` are SymPy symbols or
+    ``sympy.physics.mechanics`` dynamicsymbols (``qdot`` is then optional),
+    ``contacts`` maps names to ``phi_j(q)``, ``params`` maps symbols to their
+    default values.
+    """
+
+    name: str
+    q: Sequence[sp.Basic]
+    lagrangian: sp.Expr
+    qdot: Sequence[sp.Basic] | None = None
+    contacts: Mapping[str, sp.Expr] = field(default_factory=dict)
+    params: Mapping[sp.Symbol, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        check_identifier(self.name, "model name")
+        q = list(self.q)
+        if not q:
+            raise ValueError("model needs at least one coordinate in q")
+        qdot = self._velocities(q)
+        if len(set(q)) != len(q) or len(set(qdot)) != len(qdot):
+            raise ValueError("coordinates and velocities must be distinct symbols")
+        names = [_coordinate_name(c) for c in q]
+        real_q = [sp.Symbol(nm, real=True) for nm in names]
+        real_v = [sp.Symbol(f"{nm}_dot", real=True) for nm in names]
+        # Velocities first: for dynamicsymbols they are Derivatives of q.
+        subs = list(zip(qdot, real_v)) + list(zip(q, real_q))
+        lagr = sp.sympify(self.lagrangian).subs(subs)
+        contacts = {
+            check_identifier(cname, "contact name"): sp.sympify(phi).subs(subs)
+            for cname, phi in dict(self.contacts).items()
+        }
+        params = self._parameters()
+        object.__setattr__(self, "_coords", tuple(real_q))
+        object.__setattr__(self, "_vels", tuple(real_v))
+        object.__setattr__(self, "_lagr", lagr)
+        object.__setattr__(self, "_phis", contacts)
+        object.__setattr__(self, "_pars", params)
+        self._check_free_symbols()
+        self._check_contacts_depend_on_q_only()
+        self._check_regular()
+
+    # -- construction helpers -------------------------------------------------
+    def _velocities(self, q: list[sp.Basic]) -> list[sp.Basic]:
+        if self.qdot is not None:
+            qdot = list(self.qdot)
+        elif all(_is_time_function(c) for c in q):
+            t = q[0].args[0]
+            qdot = [c.diff(t) for c in q]
+        else:
+            raise ValueError(
+                "qdot is required when q holds plain symbols (it is optional only "
+                "for sympy.physics.mechanics dynamicsymbols)"
+            )
+        if len(qdot) != len(q):
+            raise ValueError(
+                f"q has {len(q)} entries but qdot has {len(qdot)}; give one velocity per coordinate"
+            )
+        for c in q:
+            if not (isinstance(c, sp.Symbol) or _is_time_function(c)):
+                raise ValueError(f"coordinate {c!r} is not a SymPy symbol or dynamicsymbol")
+        return qdot
+
+    def _parameters(self) -> dict[sp.Symbol, float]:
+        params: dict[sp.Symbol, float] = {}
+        for sym, val in dict(self.params).items():
+            if not isinstance(sym, sp.Symbol):
+                raise ValueError(f"parameter key {sym!r} is not a SymPy symbol")
+            check_identifier(sym.name, "parameter name")
+            try:
+                fval = float(val)
+            except (TypeError, ValueError):
+                raise ValueError(f"default of parameter {sym} is not a number: {val!r}") from None
+            if not math.isfinite(fval):
+                raise ValueError(f"default of parameter {sym} is not finite: {val!r}")
+            params[sym] = fval
+        return params
+
+    def _check_free_symbols(self) -> None:
+        allowed = set(self._coords) | set(self._vels) | set(self._pars)
+        for what, expr in [
+            ("the Lagrangian", self._lagr),
+            *((f"contact {n!r}", e) for n, e in self._phis.items()),
+        ]:
+            stray = expr.free_symbols - allowed
+            funcs = expr.atoms(sp.core.function.AppliedUndef, sp.Derivative)
+            if stray or funcs:
+                bad = ", ".join(sorted(str(s) for s in stray | funcs))
+                raise ValueError(
+                    f"{what} contains {bad}, which is neither a coordinate, a velocity "
+                    "nor a parameter; add it to params with a default value"
+                )
+        names = [s.name for s in (*self._coords, *self._pars)]
+        if len(set(names)) != len(names):
+            raise ValueError(f"coordinate and parameter names must be unique: {names}")
+
+    def _check_contacts_depend_on_q_only(self) -> None:
+        for n, e in self._phis.items():
+            if e.free_symbols & set(self._vels):
+                raise ValueError(f"contact {n!r} depends on a velocity; phi must be a function of q only")
+
+    def _check_regular(self) -> None:
+        mass = self.mass_matrix
+        if mass.free_symbols & set(self._coords) and mass.shape[0] > 3:
+            return  # symbolic determinant too costly; checked numerically at run time
+        det = sp.simplify(mass.det())
+        if det == 0:
+            raise ValueError(
+                "the Lagrangian is singular: d2L/dqdot2 has zero determinant, so the "
+                "velocities cannot be recovered from the momenta; every coordinate needs "
+                "kinetic energy"
+            )
+
+    # -- the internal, real-symbol view ---------------------------------------
+    @property
+    def coordinates(self) -> tuple[sp.Symbol, ...]:
+        """Real symbols standing for ``q``."""
+        return self._coords  # type: ignore[attr-defined]
+
+    @property
+    def velocities(self) -> tuple[sp.Symbol, ...]:
+        """Real symbols standing for ``qdot``."""
+        return self._vels  # type: ignore[attr-defined]
+
+    @property
+    def L(self) -> sp.Expr:
+        """The Lagrangian in the real symbols."""
+        return self._lagr  # type: ignore[attr-defined]
+
+    @property
+    def phi(self) -> dict[str, sp.Expr]:
+        """Contact functions by name, in the real symbols."""
+        return dict(self._phis)  # type: ignore[attr-defined]
+
+    @property
+    def defaults(self) -> dict[sp.Symbol, float]:
+        """Parameter symbols and their default values (insertion order kept)."""
+        return dict(self._pars)  # type: ignore[attr-defined]
+
+    @property
+    def n(self) -> int:
+        return len(self.coordinates)
+
+    @property
+    def mass_matrix(self) -> sp.Matrix:
+        """``d2L/dqdot2``, the matrix that must be nonsingular."""
+        v = sp.Matrix(self.velocities)
+        return sp.hessian(self.L, v)
+
+    @property
+    def coordinate_names(self) -> list[str]:
+        return [c.name for c in self.coordinates]
+
+    def resolve_params(self, overrides: Mapping[object, float] | None) -> list[float]:
+        """Default parameter values with ``overrides`` (keys: symbols or names)."""
+        values = dict(self.defaults)
+        by_name = {s.name: s for s in values}
+        for key, val in dict(overrides or {}).items():
+            name = key.name if isinstance(key, sp.Symbol) else key
+            if name not in by_name:
+                raise ValueError(f"unknown parameter {key!r}; the model has {sorted(by_name) or 'none'}")
+            fval = float(val)
+            if not math.isfinite(fval):
+                raise ValueError(f"parameter {name} is not finite: {val!r}")
+            values[by_name[name]] = fval
+        return list(values.values())

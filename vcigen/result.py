@@ -1,0 +1,106 @@
+"""What a simulation returns: the grid trajectory and the impact log."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Impact:
+    """One impact: time, contact name, impact point, step fraction, impulse.
+
+    ``alpha`` is ``(t - t_k)/h`` within the grid step ``k``; ``impulse`` is the
+    multiplier ``mu >= 0`` of (76) (the paper's ``lambda`` is ``-mu``).
+    ``energy_before``/``energy_after`` are ``E_d`` of the segments either side (48a).
+    """
+
+    t: float
+    contact: str
+    q: np.ndarray
+    alpha: float
+    impulse: float
+    step: int
+    energy_before: float
+    energy_after: float
+
+
+@dataclass
+class Result:
+    """Grid trajectory ``t_k = t0 + k h`` with momenta, energies and impacts."""
+
+    t: np.ndarray
+    q: np.ndarray
+    p: np.ndarray
+    energy: np.ndarray
+    impacts: list[Impact]
+    coordinate_names: list[str]
+    h: float
+    stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_impacts(self) -> int:
+        return len(self.impacts)
+
+    def max_energy_deviation(self) -> float:
+        """``max |E_k - E_0| / |E_0|`` over the run (absolute if ``E_0 == 0``)."""
+        if self.energy.size == 0:
+            return 0.0
+        e0 = self.energy[0]
+        scale = abs(e0) if e0 != 0 else 1.0
+        return float(np.max(np.abs(self.energy - e0)) / scale)
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write ``t, q..., p..., energy`` per grid point (energy of the step that starts there)."""
+        path = Path(path)
+        names = self.coordinate_names
+        header = ["t", *names, *(f"p_{c}" for c in names), "energy"]
+        energy = np.append(self.energy, np.nan)
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for k in range(self.t.size):
+                w.writerow(
+                    [
+                        repr(float(self.t[k])),
+                        *map(repr, self.q[k].tolist()),
+                        *map(repr, self.p[k].tolist()),
+                        repr(float(energy[k])),
+                    ]
+                )
+        return path
+
+    def impacts_to_csv(self, path: str | Path) -> Path:
+        """Write the impact log: ``t, contact, step, alpha, impulse, E_before, E_after, q...``."""
+        path = Path(path)
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(
+                [
+                    "t",
+                    "contact",
+                    "step",
+                    "alpha",
+                    "impulse",
+                    "energy_before",
+                    "energy_after",
+                    *self.coordinate_names,
+                ]
+            )
+            for im in self.impacts:
+                w.writerow(
+                    [
+                        repr(im.t),
+                        im.contact,
+                        im.step,
+                        repr(im.alpha),
+                        repr(im.impulse),
+                        repr(im.energy_before),
+                        repr(im.energy_after),
+                        *map(repr, im.q.tolist()),
+                    ]
+                )
+        return path

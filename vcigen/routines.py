@@ -1,0 +1,69 @@
+"""The intermediate form between derivation and backends.
+
+A :class:`Routine` is a named function from named input vectors to named
+output arrays, all SymPy. Every backend (CasADi, C) consumes exactly this.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+
+@dataclass(frozen=True)
+class Arg:
+    """A named input vector of symbols."""
+
+    name: str
+    symbols: tuple[sp.Symbol, ...]
+
+    @property
+    def size(self) -> int:
+        return len(self.symbols)
+
+
+@dataclass(frozen=True)
+class Output:
+    """A named output array (row-major when flattened)."""
+
+    name: str
+    expr: sp.Matrix
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return tuple(self.expr.shape)  # type: ignore[return-value]
+
+    @property
+    def size(self) -> int:
+        return self.expr.shape[0] * self.expr.shape[1]
+
+
+@dataclass(frozen=True)
+class Routine:
+    """Named inputs -> named outputs; the unit both backends compile."""
+
+    name: str
+    inputs: tuple[Arg, ...]
+    outputs: tuple[Output, ...]
+    doc: str = ""
+
+    def input(self, name: str) -> Arg:
+        return next(a for a in self.inputs if a.name == name)
+
+    def output(self, name: str) -> Output:
+        return next(o for o in self.outputs if o.name == name)
+
+    def flat_outputs(self) -> list[sp.Expr]:
+        """All output entries, output after output, row-major."""
+        return [e for o in self.outputs for e in o.expr]
+
+    def cse(self) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[list[sp.Expr]]]:
+        """Common subexpressions across all outputs; reduced entries per output."""
+        flat = self.flat_outputs()
+        repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t", real=True), optimizations="basic")
+        out, k = [], 0
+        for o in self.outputs:
+            out.append(list(reduced[k : k + o.size]))
+            k += o.size
+        return list(repl), out
