@@ -45,6 +45,8 @@ class Tolerances:
     admissible: float = 1e-9  # phi(q_k) >= -admissible at every grid point
     max_impacts_per_step: int = 64
     bracket_samples: int = 8
+    jump_restarts: tuple[float, ...] = (1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25)
+    dip: float = 0.25  # sample the segment map when the cubic's minimum of phi < dip * |slopes|
 
 
 @dataclass
@@ -139,15 +141,65 @@ class Stepper:
     ):
         """One grid step from ``(q_k, p_k)``; returns ``(q_k+1, p_k+1, E_d, v)``."""
         k = self.k
-        v, res, p1, e, phi1 = k.smooth_step(q, p, h, guess)
+        v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)
         self._check(res, p, step, t, "smooth")
-        if phi1.size == 0 or phi1.min() >= -self.tol.phi:
+        if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
             return q + h * v, p1, e, v
         seg = _Seg(q=q, t=t, tau=h, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
-        return self._impact_step(step, t, h, seg, phi1, impacts)
+        crossings = self._crossings(seg, phi0, phi1, d0, d1)
+        if not crossings:
+            return q + h * v, p1, e, v
+        return self._impact_step(step, t, h, seg, crossings, impacts)
+
+    # -- detection -----------------------------------------------------------------
+    def _crossings(self, seg: _Seg, phi0, phi1, d0, d1) -> dict[int, tuple[float, float]]:
+        """Contacts crossed in the segment, each with ``(s_hi, phi_j(q(s_hi)) < 0)``.
+
+        A contact is crossed if ``phi_j < 0`` at the end; or, with both ends admissible,
+        if ``phi_j`` dips below 0 inside (tunnelling, a grazing approach): the cubic
+        through the end values and slopes ``d = tau grad phi . v`` flags a dip, and the
+        segment map of (47)/(78) itself is then sampled at the dip.
+        """
+        tol = self.tol
+        out = {int(j): (1.0, float(phi1[j])) for j in np.flatnonzero(phi1 < -tol.phi)}
+        for j in np.flatnonzero((phi1 >= -tol.phi) & (d0 < 0) & (d1 > 0)):
+            if j == seg.contact:
+                continue
+            s_min, g_min = _hermite_min(phi0[j], phi1[j], d0[j], d1[j])
+            if g_min < tol.dip * (abs(d0[j]) + abs(d1[j])):
+                hit = self._sample_dip(seg, int(j), s_min)
+                if hit is not None:
+                    out[int(j)] = hit
+        return out
+
+    def _sample_dip(self, seg: _Seg, j: int, s_min: float) -> tuple[float, float] | None:
+        """Sample ``phi_j`` along the segment map near ``s_min``; a negative sample or ``None``."""
+        for s in (s_min, *np.linspace(0.0, 1.0, self.tol.bracket_samples + 2)[1:-1]):
+            if not 0.0 < s < 1.0:
+                continue
+            _, phi = self._sub_solve(seg, float(s), seg.x)
+            if phi[j] < -self.tol.phi:
+                return float(s), float(phi[j])
+        return None
+
+    def _segment_end(self, seg: _Seg, w) -> tuple[np.ndarray, dict[int, tuple[float, float]]]:
+        """End point of a post-impact segment and the contacts it crosses."""
+        k = self.k
+        q_end = seg.q + seg.tau * w
+        phi0, g0 = k.contacts(seg.q)
+        phi1, g1 = k.contacts(q_end)
+        p_start, p_end, _ = k.segment(seg.q, w, seg.tau)
+        d0 = seg.tau * (g0 @ self._velocity(seg.q, w, p_start))
+        d1 = seg.tau * (g1 @ self._velocity(q_end, w, p_end))
+        return q_end, self._crossings(seg, phi0, phi1, d0, d1)
+
+    def _velocity(self, q, v, p) -> np.ndarray:
+        """The velocity of momentum ``p`` at ``q``: one Newton step of ``dL/dqdot = p`` from ``v``."""
+        mom, mass = self.k.legendre(q, v)
+        return v + np.linalg.solve(mass, p - mom)
 
     # -- the impact step ---------------------------------------------------------
-    def _impact_step(self, step, t_k, h, seg: _Seg, phi_end, impacts):
+    def _impact_step(self, step, t_k, h, seg: _Seg, crossings, impacts):
         """Chain of segments (47), (48), (78), (79) until one ends inside C at ``t_k + h``."""
         k, tol = self.k, self.tol
         n = k.n
@@ -155,10 +207,10 @@ class Stepper:
         for _ in range(tol.max_impacts_per_step):
             # Earliest crossing over all crossed contacts (47)/(78).
             best = None
-            for j in np.flatnonzero(phi_end < -tol.phi):
-                x, s = self._contact_root(step, t_k, seg, int(j), phi_end[j])
+            for j, (s_hi, g_hi) in sorted(crossings.items()):
+                x, s = self._contact_root(step, t_k, seg, j, s_hi, g_hi)
                 if best is None or s < best[1]:
-                    best = (int(j), s, x)
+                    best = (j, s, x)
             j, s, x = best
             if pending is not None:  # the impulse at the previous impact, re-solved with beta (78)
                 impacts.append(replace(pending, impulse=float(x[n])))
@@ -192,9 +244,8 @@ class Stepper:
                 energy_before=e_in,
                 energy_after=e_after,
             )
-            q_end = seg.q + seg.tau * w
-            phi_end = k.contacts(q_end)[0]
-            if phi_end.min() >= -tol.phi:
+            q_end, crossings = self._segment_end(seg, w)
+            if not crossings:
                 impacts.append(pending)
                 return q_end, p_end, e_in, w
         raise SolverError(
@@ -206,49 +257,67 @@ class Stepper:
         )
 
     def _jump(self, step, t_k, seg: _Seg, v_in) -> np.ndarray:
-        """Solve (48) for ``(w, mu)`` from the reflected velocity; reject ``mu <= 0``."""
+        """Solve (48) for ``(w, mu)``: the physical root, ``mu > 0`` (MATH.md).
+
+        Newton starts from the reflected velocity; if it lands on a root with ``mu <= 0``
+        (the trajectory passing through the wall), it restarts from larger and smaller
+        impulses along the same normal. Near grazing the discrete energy balance (48a) can
+        have no root with ``mu > 0`` at all: that is a located ``SolverError``.
+        """
         k = self.k
-        w0, mu0 = reflected_guess(k, seg.q, v_in, seg.nrm)
-        x, res = k.solve("jump", np.append(w0, mu0), seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
-        self._check(res, seg.p_in, step, t_k, "jump", seg.e_in)
-        if not x[k.n] > 0:
-            raise SolverError(
-                step,
-                t_k,
-                "jump",
-                res,
-                f"non-physical root mu = {x[k.n]:.3e} <= 0 at the "
-                f"impact on '{k.contact_names[seg.contact]}' (grazing contact?)",
-            )
-        return x
+        n = k.n
+        vel = self._velocity(seg.q, v_in, seg.p_in)
+        mass = k.legendre(seg.q, vel)[1]
+        minv_n = np.linalg.solve(mass, seg.nrm)
+        mu0 = max(-2.0 * float(seg.nrm @ vel) / float(seg.nrm @ minv_n), 0.0)
+        mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
+        roots = []
+        for factor in self.tol.jump_restarts:
+            mu_try = mu_scale * factor
+            x0 = np.append(vel + mu_try * minv_n, mu_try)
+            x, res = k.solve("jump", x0, seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
+            if res <= self._scale(seg.p_in, seg.e_in):
+                if x[n] > 0:
+                    return x
+                roots.append(float(x[n]))
+        vn = float(seg.nrm @ vel) / float(np.linalg.norm(seg.nrm))
+        found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"
+        raise SolverError(
+            step,
+            t_k,
+            "jump",
+            float("nan") if not roots else 0.0,
+            f"no root with mu > 0 of the jump (48) on '{k.contact_names[seg.contact]}' at "
+            f"t = {seg.t:.12g} (roots found: mu = {found}); normal speed {vn:.3e} is too small for "
+            "the discrete energy balance (48a) at this h (grazing impact): reduce h",
+        )
 
     def _args(self, seg: _Seg) -> tuple:
         if seg.contact < 0:
             return (seg.q, seg.p_in, seg.tau)
         return (seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
 
-    def _contact_root(self, step, t_k, seg: _Seg, j: int, phi_end_j: float):
-        """Earliest root ``s`` in ``[0, 1]`` of ``phi_j`` along the segment map; ``(x, s)``.
+    def _contact_root(self, step, t_k, seg: _Seg, j: int, hi: float, g_hi: float):
+        """Earliest root ``s`` in ``[lo, hi]`` of ``phi_j`` along the segment map; ``(x, s)``.
 
         Newton on the whole system (47) or (78) from an interpolated guess; if it
         fails or leaves the bracket, a safeguarded scalar root on ``s`` instead.
         """
-        k, tol = self.k, self.tol
+        k = self.k
         first = seg.contact < 0
         name = ("contact_time_" if first else "jump_contact_") + k.contact_names[j]
         phase = "contact time" if first else "jump to contact"
-        lo, x_lo = 0.0, seg.x
-        phi_lo = k.contacts(seg.q)[0][j]
-        if not first and phi_lo <= tol.phi:  # leaving the contact just hit: step off the trivial root
-            lo, x_lo, phi_lo = self._leave(seg, j)
-        s0 = lo + (1 - lo) * float(np.clip(phi_lo / (phi_lo - phi_end_j), 0.0, 1.0))
+        lo, phi_lo = 0.0, k.contacts(seg.q)[0][j]
+        if not first and j == seg.contact:  # leaving the contact just hit: step off the trivial root
+            lo, phi_lo = self._leave(seg, j)
+        s0 = lo + (hi - lo) * float(np.clip(phi_lo / (phi_lo - g_hi), 0.0, 1.0))
         x, res = k.solve(name, np.append(seg.x, s0), *self._args(seg))
         s = float(x[-1])
-        ok = res <= self._scale(seg.p_in, seg.e_in) and lo - 1e-12 <= s <= 1 + 1e-12
+        ok = res <= self._scale(seg.p_in, seg.e_in) and lo - 1e-12 <= s <= hi + 1e-12
         if ok and not first:
             ok = x[k.n] > 0 and (s > lo or lo == 0)
         if not ok:
-            x, s, res = self._bracketed_root(step, t_k, seg, j, name, phase, lo, x_lo, phi_lo)
+            x, s, res = self._bracketed_root(step, t_k, seg, j, name, phase, lo, phi_lo, hi, g_hi)
         self._check(res, seg.p_in, step, t_k, phase, seg.e_in)
         return x, min(max(s, 0.0), 1.0)
 
@@ -264,17 +333,15 @@ class Stepper:
     def _leave(self, seg: _Seg, j: int):
         """After an impact on ``j``: a small fraction where ``phi_j > 0`` again."""
         for s in (1e-3, 1e-6, 1e-9):
-            x, phi = self._sub_solve(seg, s, seg.x)
+            _, phi = self._sub_solve(seg, s, seg.x)
             if phi[j] > self.tol.phi:
-                return s, x, phi[j]
-        return 0.0, seg.x, 0.0
+                return s, float(phi[j])
+        return 0.0, 0.0
 
-    def _bracketed_root(self, step, t_k, seg, j, name, phase, a, xa, ga):
-        """Illinois regula falsi on ``g(s) = phi_j(q(s))``, then a Newton polish."""
+    def _bracketed_root(self, step, t_k, seg, j, name, phase, a, ga, b, gb):
+        """Illinois regula falsi on ``g(s) = phi_j(q(s))`` over ``[a, b]``, then a Newton polish."""
         k = self.k
-        b = 1.0
-        xb, phib = self._sub_solve(seg, b, seg.x)
-        gb = phib[j]
+        xb, _ = self._sub_solve(seg, b, seg.x)
         if not (ga >= -self.tol.phi and gb < 0):
             raise SolverError(
                 step,
@@ -335,6 +402,14 @@ def reflected_guess(k: Kernels, q: np.ndarray, v_in: np.ndarray, nrm: np.ndarray
     minv_n = np.linalg.solve(mass, nrm)
     mu = -2.0 * float(nrm @ v_in) / float(nrm @ minv_n)
     return v_in + mu * minv_n, mu
+
+
+def _hermite_min(g0: float, g1: float, d0: float, d1: float) -> tuple[float, float]:
+    """Minimum over ``[0, 1]`` of the cubic with ends ``g0, g1`` and slopes ``d0, d1``."""
+    c = np.array([2 * g0 - 2 * g1 + d0 + d1, -3 * g0 + 3 * g1 - 2 * d0 - d1, d0, g0])
+    crit = [r.real for r in np.roots(np.polyder(c)) if abs(r.imag) < 1e-12 and 0 < r.real < 1]
+    s = min((0.0, 1.0, *crit), key=lambda x: np.polyval(c, x))
+    return float(s), float(np.polyval(c, s))
 
 
 def _grow(a: np.ndarray, rows: int) -> np.ndarray:

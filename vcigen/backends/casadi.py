@@ -95,8 +95,16 @@ class CasadiKernels:
         out = self._solvers["smooth"](ca.vertcat(guess, q0, p0, tau, par))
         v, res = out[:n], out[n]
         _, p1, e = self.functions["segment"](q0, v, tau, par)
-        phi1, _ = self.functions["contacts"](q0 + tau * v, par)
-        return ca.Function("smooth_step", [vec], [ca.vertcat(v, res, p1, e, phi1)])
+        phi0, grad0 = self.functions["contacts"](q0, par)
+        phi1, grad1 = self.functions["contacts"](q0 + tau * v, par)
+        # Slopes of phi along the segment map at s = 0 and s = 1: tau grad phi . qdot, with the
+        # continuous velocities of p0 and p1 (one Newton step of the Legendre transform from v).
+        mom0, mass0 = self.functions["legendre"](q0, v, par)
+        mom1, mass1 = self.functions["legendre"](q0 + tau * v, v, par)
+        vel0 = v + ca.solve(mass0, p0 - mom0)
+        vel1 = v + ca.solve(mass1, p1 - mom1)
+        d0, d1 = ca.mtimes(grad0, tau * vel0), ca.mtimes(grad1, tau * vel1)
+        return ca.Function("smooth_step", [vec], [ca.vertcat(v, res, p1, e, phi0, phi1, d0, d1)])
 
     def _flatten(self, name: str) -> ca.Function:
         f = self.functions[name]
@@ -127,10 +135,24 @@ class CasadiKernels:
         return res.copy()
 
     def smooth_step(self, q0, p0, tau, guess):
-        """``(v, |res|, p1, E_d, phi(q1))`` of the smooth step from ``(q0, p0)``."""
-        n = self.n
+        """Smooth step from ``(q0, p0)``: ``(v, |res|, p1, E_d, phi(q0), phi(q1), d0, d1)``.
+
+        ``d0``, ``d1`` are ``tau grad phi . qdot`` at both ends: the slopes of phi along the
+        sub-step map of (47), with ``qdot`` the velocities of ``p0`` and ``p1``.
+        """
+        n, m = self.n, self.m
         o = self._call(self._step, q0, p0, tau, guess)
-        return o[:n], o[n], o[n + 1 : 2 * n + 1], o[2 * n + 1], o[2 * n + 2 :]
+        c = 2 * n + 2
+        return (
+            o[:n],
+            o[n],
+            o[n + 1 : c - 1],
+            o[c - 1],
+            o[c : c + m],
+            o[c + m : c + 2 * m],
+            o[c + 2 * m : c + 3 * m],
+            o[c + 3 * m :],
+        )
 
     def solve(self, name: str, guess, *args):
         """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``."""
