@@ -27,6 +27,25 @@ from .routines import Arg, Output, Routine
 from .rules import Rule, get_rule
 
 
+KINK = 1e-12  # |u| below which sign(u), Heaviside(u) in a contact normal count as a kink
+
+
+def _cone_centre(expr: sp.Expr) -> sp.Expr:
+    """At a kink of phi (``Abs``, ``Min``, ``Max``) take the centre of the normal cone (86).
+
+    ``sign(u)`` and ``Heaviside(u)`` become 0 and 1/2 for ``|u| <= KINK``, so that a
+    kink hit exactly (a flat star's two vertices at once) does not pick a side from
+    round-off in the solver.
+    """
+    return expr.replace(
+        lambda e: isinstance(e, sp.sign),
+        lambda e: sp.Piecewise((-1, e.args[0] < -KINK), (0, e.args[0] <= KINK), (1, True)),
+    ).replace(
+        lambda e: isinstance(e, sp.Heaviside),
+        lambda e: sp.Piecewise((0, e.args[0] < -KINK), (sp.S.Half, e.args[0] <= KINK), (1, True)),
+    )
+
+
 def _vec(prefix: str, n: int) -> tuple[sp.Symbol, ...]:
     return tuple(sp.Dummy(f"{prefix}{i}", real=True) for i in range(n))
 
@@ -122,7 +141,7 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     qrep = dict(zip(qs, q))
     phis = [model.phi[c].xreplace(qrep) for c in names]
     phi_vec = sp.Matrix(phis) if phis else sp.zeros(0, 1)
-    grad = sp.Matrix([[ph.diff(s) for s in q] for ph in phis]) if phis else sp.zeros(0, n)
+    grad = sp.Matrix([[_cone_centre(ph.diff(s)) for s in q] for ph in phis]) if phis else sp.zeros(0, n)
     contacts = Routine(
         "contacts",
         (Arg("q", q), par),
