@@ -14,9 +14,10 @@ def drop_height(k: int, rel: float) -> float:
     return G * (k * H * (1 + rel)) ** 2 / 2
 
 
+@pytest.mark.parametrize("backend", ["casadi", "c"])
 @pytest.mark.parametrize("rule", ["trapezoid", "midpoint"])
-def test_impact_at_the_end_or_start_of_a_step(rule):
-    sim = simulator("particle", rule)
+def test_impact_at_the_end_or_start_of_a_step(rule, backend):
+    sim = simulator("particle", rule, backend)
     finals = []
     for rel in (-1e-13, -1e-15, 0.0, 1e-15, 1e-13):
         y0 = drop_height(30, rel)
@@ -36,8 +37,9 @@ def test_impact_at_the_end_or_start_of_a_step(rule):
     assert spread < 1e-9, spread
 
 
-def test_start_exactly_on_the_boundary_moving_in():
-    res = simulator("particle").simulate(q0=[0.0, 0.0], v0=[1.0, -3.0], h=H, t_end=0.1)
+@pytest.mark.parametrize("backend", ["casadi", "c"])
+def test_start_exactly_on_the_boundary_moving_in(backend):
+    res = simulator("particle", "trapezoid", backend).simulate(q0=[0.0, 0.0], v0=[1.0, -3.0], h=H, t_end=0.1)
     assert res.n_impacts == 1
     im = res.impacts[0]
     assert im.t == pytest.approx(0.0, abs=1e-12) and im.step == 0

@@ -30,7 +30,7 @@ def launch(overshoot):
     return math.sqrt(2 * G * (C - Y0 + overshoot))
 
 
-@pytest.fixture(scope="module", params=["casadi"])
+@pytest.fixture(scope="module", params=["casadi", "c"])
 def sims(request):
     model = ceiling_model()
     return (

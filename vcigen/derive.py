@@ -26,7 +26,6 @@ from .model import Model
 from .routines import Arg, Output, Routine
 from .rules import Rule, get_rule
 
-
 KINK = 1e-12  # |u| below which sign(u), Heaviside(u) in a contact normal count as a kink
 
 

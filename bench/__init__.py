@@ -1,0 +1,1 @@
+"""Alternative methods and references for the vcigen speed-vs-error benchmark."""

@@ -1,0 +1,245 @@
+"""Speed of the generated C against the CasADi backend and a hand-written C loop (issue 3).
+
+    .venv/bin/python bench/c_speed.py [--repeats 5]
+
+For the paper's particle (m = 1, g = 9.81, h = 0.01): ns per smooth step (a run high
+above the floor, no impact) and us per impact (the paper's run, its smooth steps
+subtracted) for
+
+* the generated C, both rules, its whole loop ``<model>_run`` called once through ctypes;
+* the CasADi backend (Python stepper over CasADi Functions);
+* ``bench/handwritten/particle.c``: Stormer-Verlet plus an analytic impact time, the
+  practical limit, called the same way.
+
+Every variant stores the same output (q, p, energy per step) into preallocated
+buffers; the best of ``--repeats`` runs counts. Prints a table with ratios and
+writes ``bench/results/c_speed.csv``. Targets: generated C within 1.5x of the
+hand-written loop per smooth step; C >= 100x faster per step than CasADi.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import ctypes
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import vcigen
+from vcigen.backends.cwrap import IMPACT_CAP, _Err, _ptr, _tol_struct
+from vcigen.cli import load_example
+
+HERE = Path(__file__).resolve().parent
+Q0, V0, H = [0.0, 1.0], [-2.0, 0.0], 0.01
+HIGH = [0.0, 1e9]  # 1e6 steps of free fall stay far above the floor
+N_SMOOTH_C, N_SMOOTH_CASADI = 1_000_000, 5_000
+N_IMPACTS_C, N_IMPACTS_CASADI = 1000, 40
+
+
+def best_of(repeats: int, fn) -> float:
+    """Smallest wall time of ``repeats`` calls of ``fn``."""
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+class Buffers:
+    """Preallocated, touched output buffers shared by the C variants."""
+
+    def __init__(self, steps: int) -> None:
+        self.Q, self.P, self.E = np.zeros((steps, 2)), np.zeros((steps, 2)), np.zeros(steps)
+        self.rec = np.zeros((IMPACT_CAP, 9))
+
+
+def generated_runner(rule: str, buf: Buffers):
+    """``run(q0, steps, max_impacts) -> (steps, impacts)`` over the generated ``particle_run``."""
+    sim = vcigen.build(load_example(HERE.parent / "examples" / "particle.py").model(), backend="c", rule=rule)
+    kern = sim.kernels.bind(sim.model.resolve_params(None))
+    tol = _tol_struct(sim.tol)
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        q, v = np.array(q0, dtype=float), np.array(V0)
+        p = kern.legendre(q, v)[0].copy()
+        err, sd, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
+        done = impacts = 0
+        while done < steps and impacts < max_impacts:  # the impact buffer is drained between chunks
+            rc = kern.run(
+                _ptr(kern.par),
+                ctypes.byref(tol),
+                H,
+                0.0,
+                done,
+                steps - done,
+                max_impacts - impacts,
+                _ptr(q),
+                _ptr(p),
+                _ptr(v),
+                _ptr(buf.Q[done:]),
+                _ptr(buf.P[done:]),
+                _ptr(buf.E[done:]),
+                _ptr(buf.rec),
+                IMPACT_CAP,
+                ctypes.byref(sd),
+                ctypes.byref(idone),
+                ctypes.byref(err),
+            )
+            assert rc == 0, err.reason
+            done, impacts = done + sd.value, impacts + idone.value
+        return done, impacts
+
+    return run
+
+
+def handwritten_runner(buf: Buffers):
+    """The same interface over ``bench/handwritten/particle.c``."""
+    out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / "libhw_particle.so"
+    subprocess.run(
+        [
+            "cc",
+            "-std=c99",
+            "-O2",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-fPIC",
+            "-shared",
+            "-o",
+            str(out),
+            str(HERE / "handwritten" / "particle.c"),
+            "-lm",
+        ],
+        check=True,
+    )
+    lib = ctypes.CDLL(str(out))
+    f = lib.hw_particle_run
+    f.restype = ctypes.c_long
+    f.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_double] * 3 + [ctypes.c_long] * 2 + [ctypes.c_void_p] * 5
+    imp = np.zeros(2 * (N_IMPACTS_C + 1))
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        n_imp = ctypes.c_long(0)
+        q, v = np.array(q0, dtype=float), np.array(V0)
+        done = f(
+            q.ctypes.data,
+            v.ctypes.data,
+            H,
+            1.0,
+            9.81,
+            steps,
+            max_impacts,
+            buf.Q.ctypes.data,
+            buf.P.ctypes.data,
+            buf.E.ctypes.data,
+            imp.ctypes.data,
+            ctypes.byref(n_imp),
+        )
+        return done, n_imp.value
+
+    return run
+
+
+def casadi_runner(rule: str):
+    sim = vcigen.build(
+        load_example(HERE.parent / "examples" / "particle.py").model(), backend="casadi", rule=rule
+    )
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        r = sim.simulate(q0, V0, H, t_end=steps * H, n_impacts=max_impacts)
+        return r.t.size - 1, len(r.impacts)
+
+    return run
+
+
+def measure(name: str, run, n_smooth: int, n_impacts: int, repeats: int) -> dict[str, float | str]:
+    """ns per smooth step; us per impact from the paper's run with its smooth steps subtracted."""
+    t_smooth = best_of(repeats, lambda: run(HIGH, n_smooth, 1))
+    steps, got = run(HIGH, n_smooth, 1)
+    assert got == 0 and steps == n_smooth, (name, steps, got)
+    ns_step = t_smooth / n_smooth * 1e9
+    steps, got = run(Q0, 10_000_000, n_impacts)
+    assert got == n_impacts, (name, got)
+    t_paper = best_of(repeats, lambda: run(Q0, 10_000_000, n_impacts))
+    us_impact = (t_paper - steps * ns_step * 1e-9) / n_impacts * 1e6
+    return {
+        "variant": name,
+        "ns_per_step": ns_step,
+        "us_per_impact": us_impact,
+        "steps": steps,
+        "impacts": got,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    buf = Buffers(N_SMOOTH_C + 1)
+    rows = [
+        measure(
+            "handwritten C (Verlet + analytic)",
+            handwritten_runner(buf),
+            N_SMOOTH_C,
+            N_IMPACTS_C,
+            args.repeats,
+        )
+    ]
+    for rule in ("trapezoid", "midpoint"):
+        rows.append(
+            measure(
+                f"generated C, {rule}", generated_runner(rule, buf), N_SMOOTH_C, N_IMPACTS_C, args.repeats
+            )
+        )
+    for rule in ("trapezoid", "midpoint"):
+        rows.append(
+            measure(
+                f"CasADi, {rule}",
+                casadi_runner(rule),
+                N_SMOOTH_CASADI,
+                N_IMPACTS_CASADI,
+                max(1, args.repeats // 2),
+            )
+        )
+    hw = rows[0]
+    casadi = {r["variant"].split(", ")[1]: r for r in rows if str(r["variant"]).startswith("CasADi")}
+    for r in rows:
+        r["step_vs_handwritten"] = r["ns_per_step"] / hw["ns_per_step"]
+        r["impact_vs_handwritten"] = r["us_per_impact"] / hw["us_per_impact"]
+        rule = str(r["variant"]).split(", ")[-1]
+        r["casadi_over_this_step"] = (
+            casadi[rule]["ns_per_step"] / r["ns_per_step"] if rule in casadi else float("nan")
+        )
+    print(
+        f"{'variant':36s} {'ns/step':>10s} {'us/impact':>10s} {'x hw step':>10s} {'x hw impact':>12s} "
+        f"{'CasADi/this':>12s}"
+    )
+    for r in rows:
+        print(
+            f"{r['variant']:36s} {r['ns_per_step']:10.1f} {r['us_per_impact']:10.3f} "
+            f"{r['step_vs_handwritten']:10.2f} "
+            f"{r['impact_vs_handwritten']:12.1f} {r['casadi_over_this_step']:12.0f}"
+        )
+    out = HERE / "results" / "c_speed.csv"
+    out.parent.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"written {out}")
+    gen = [r for r in rows if str(r["variant"]).startswith("generated")]
+    ok = all(r["step_vs_handwritten"] <= 1.5 for r in gen) and all(
+        r["casadi_over_this_step"] >= 100 for r in gen
+    )
+    print("targets (<= 1.5x hand-written per step, >= 100x CasADi):", "met" if ok else "NOT met")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

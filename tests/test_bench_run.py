@@ -1,0 +1,62 @@
+"""The benchmark sweep (bench/run.py) on a tiny configuration: files, columns, one ranking."""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench import run  # noqa: E402
+
+
+def test_tiny_sweep_writes_csv_and_ranks_vcigen_above_naive_verlet(tmp_path: Path) -> None:
+    argv = [
+        "--scenes",
+        "star_nonlinear",
+        "--methods",
+        "vcigen_casadi_trapezoid,verlet_full_flip",
+        "--hs",
+        "0.01,0.005",
+        "--phases",
+        "2",
+        "--no-long",
+        "--out",
+        str(tmp_path),
+    ]
+    assert run.main(argv) == 0
+    with (tmp_path / "star_nonlinear.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0].keys()) == run.CSV_COLUMNS
+    assert [(r["method"], float(r["h_or_tol"])) for r in rows] == [
+        ("vcigen_casadi_trapezoid", 0.01),
+        ("vcigen_casadi_trapezoid", 0.005),
+        ("verlet_full_flip", 0.01),
+        ("verlet_full_flip", 0.005),
+    ]
+    err = {(r["method"], float(r["h_or_tol"])): float(r["err_first"]) for r in rows}
+    for h in (0.01, 0.005):
+        assert err[("vcigen_casadi_trapezoid", h)] < err[("verlet_full_flip", h)]
+    for r in rows:
+        assert float(r["wall_s"]) > 0
+        assert r["phases"] == "2"
+    vc = [r for r in rows if r["method"].startswith("vcigen")]
+    assert all(float(r["max_violation"]) <= 1e-9 and float(r["missed"]) == 0 for r in vc)
+    summary = (tmp_path / "summary.md").read_text()
+    assert "Machine: nproc" in summary and "star_nonlinear" in summary
+    assert (tmp_path / "wp_star_nonlinear.png").stat().st_size > 0
+
+
+def test_impact_matching_and_wall_interpolation() -> None:
+    assert run.match_impacts([1.0, 2.0], [1.01, 1.5, 2.02]) == (0, 1)
+    assert run.match_impacts([1.0, 1.009], [1.0]) == (1, 0)
+    rows = [
+        run.Row("s", "m", h, 1, wall=w, err_first=e)
+        for h, w, e in ((0.01, 1.0, 1e-2), (0.005, 2.0, 1e-3), (0.0025, 4.0, 1e-4))
+    ]
+    w, flag = run.wall_at(rows, 1e-4)
+    assert flag == "" and abs(w - 4.0) < 1e-9
+    w, flag = run.wall_at(rows, 1e-5)
+    assert flag == "~" and abs(w - 8.0) < 1e-9
+    assert abs(run.order_of(rows) - run.order_of(rows[:2])) < 1e-9

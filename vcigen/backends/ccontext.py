@@ -1,0 +1,150 @@
+"""A :class:`~vcigen.derive.DiscreteSystem` -> the plain render context of the C templates.
+
+The context is a dict of strings, numbers and lists only (it can be dumped as
+JSON and read as the contract between Python and the templates). Python decides
+*what* is emitted here; the templates in ``templates/`` only lay it out.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Mapping
+from dataclasses import asdict
+from typing import Any
+
+import sympy as sp
+
+from .. import __version__
+from ..derive import DiscreteSystem
+from ..errors import PHASES
+from ..routines import Routine
+from ..stepper import Tolerances
+from .cprinter import print_routine_body
+from .cspecialise import Structure, detect, path_routines, phi_routine
+
+
+# The Newton of the CasADi backend (casadi.rootfinder 'newton'); the C solver uses the same.
+def c_number(v: object) -> str:
+    """A Python number as a C99 literal (infinities as ``HUGE_VAL`` from math.h)."""
+    if isinstance(v, float) and math.isinf(v):
+        return "HUGE_VAL" if v > 0 else "(-HUGE_VAL)"
+    if isinstance(v, float) and math.isnan(v):
+        raise ValueError("a tolerance is NaN; give a number")
+    return repr(v)
+
+
+NEWTON = {"abstol": 1e-13, "abstol_step": 1e-15, "max_iter": 40}
+# Damped (backtracking) steps only far from the root: |dx| > DAMP_MIN_STEP (1 + |x|).
+DAMPING = {"min_step": 1e-8, "max_halvings": 10}
+
+
+def model_hash(system: DiscreteSystem) -> str:
+    """A stable hash of the model, the rule and the vcigen version (stamped in the sources)."""
+    model = system.model
+    parts = [
+        __version__,
+        model.name,
+        system.rule.name,
+        ",".join(model.coordinate_names),
+        sp.srepr(model.L),
+        *(f"{c}:{sp.srepr(e)}" for c, e in model.phi.items()),
+        *(f"{s.name}={v!r}" for s, v in model.defaults.items()),
+    ]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
+
+
+def routine_context(r: Routine) -> dict[str, Any]:
+    """One routine as printable pieces: signature, temporaries, assignments."""
+    temps, outs = print_routine_body(r)
+    used = set().union(*(e.free_symbols for o in r.outputs for e in o.expr)) if r.outputs else set()
+    return {
+        "name": r.name,
+        "doc": r.doc,
+        "inputs": [{"name": a.name, "size": a.size} for a in r.inputs],
+        "outputs": [
+            {
+                "name": o.name,
+                "size": o.size,
+                "rows": o.shape[0],
+                "cols": o.shape[1],
+                "entries": [{"index": k, "expr": e} for k, e in entries],
+            }
+            for o, entries in zip(r.outputs, outs)
+        ],
+        "unused": [a.name for a in r.inputs if not set(a.symbols) & used],
+        "temps": [{"name": n, "expr": e} for n, e in temps],
+    }
+
+
+def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
+    """Residual routines in a fixed order with an integer id (the ctypes ``solve`` switch)."""
+    out = []
+    for name, r in system.routines.items():
+        if r.inputs[0].name != "x":
+            continue
+        offsets, k = [], 0
+        for a in r.inputs[1:-1]:  # everything between the unknown and par, flattened
+            offsets.append(k)
+            k += a.size
+        out.append({"id": len(out), "name": name, "nx": r.inputs[0].size, "offsets": offsets, "nargs": k})
+    return out
+
+
+def render_context(
+    system: DiscreteSystem, setup: Mapping[str, Any] | None = None, tol: Tolerances | None = None
+) -> dict[str, Any]:
+    """Everything the templates need, as plain data."""
+    model = system.model
+    structure: Structure = detect(system)
+    routines = list(system.routines.values()) + [phi_routine(system)]
+    if structure.explicit_path:
+        routines += path_routines(system)
+    prefix = model.name
+    setup = dict(setup or {})
+    n = system.n
+    return {
+        "prefix": prefix,
+        "PREFIX": prefix.upper(),
+        "model": model.name,
+        "rule": system.rule.name,
+        "rule_paper": system.rule.paper,
+        "hash": model_hash(system),
+        "version": __version__,
+        "n": n,
+        "m": system.m,
+        "npar": len(system.params),
+        "coordinates": list(model.coordinate_names),
+        "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
+        "params": [
+            {"index": k, "name": s.name, "default": repr(float(v))}
+            for k, (s, v) in enumerate(model.defaults.items())
+        ],
+        "phases": [
+            {"index": k, "name": ph, "macro": ph.upper().replace(" ", "_")} for k, ph in enumerate(PHASES)
+        ],
+        "tol": {k: c_number(v) for k, v in asdict(tol or Tolerances()).items()},
+        "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],
+        "newton": {k: repr(v) for k, v in NEWTON.items()},
+        "damping": {k: repr(v) for k, v in DAMPING.items()},
+        "structure": {
+            "smooth_linear": structure.smooth_linear,
+            "smooth_diagonal": structure.smooth_diagonal,
+            "explicit_path": structure.explicit_path,
+        },
+        "notes": structure.notes(system),
+        "routines": [routine_context(r) for r in routines],
+        "adapters": [
+            {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
+            for r in routines
+            if r.inputs[0].name == "x"
+        ],
+        "residuals": _residual_ids(system),
+        "setup": {
+            "q0": [repr(float(x)) for x in setup.get("q0", [0.0] * n)],
+            "v0": [repr(float(x)) for x in setup.get("v0", [0.0] * n)],
+            "h": repr(float(setup.get("h", 0.01))),
+            "t_end": repr(float(setup["t_end"])) if setup.get("t_end") is not None else "-1.0",
+            "n_impacts": str(int(setup["n_impacts"])) if setup.get("n_impacts") is not None else "-1",
+        },
+    }

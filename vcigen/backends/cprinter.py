@@ -1,0 +1,79 @@
+"""SymPy -> C99 expressions for the generated sources.
+
+A :class:`ArrayC99Printer` prints every input symbol of a routine as an array
+entry (``q0[1]``, ``par[0]``) and every CSE temporary as a local ``double``.
+Nothing the user typed reaches the C text except through this printer, so a
+model cannot inject code; names in C are built from validated identifiers only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+
+from ..routines import Routine
+
+# Integer powers up to this exponent are printed as products (exact, and fast without -ffast-math).
+_MAX_PRODUCT_POWER = 4
+
+
+class ArrayC99Printer(C99CodePrinter):
+    """A C99 printer with symbols mapped to C lvalues (array entries or locals)."""
+
+    def __init__(self, names: Mapping[sp.Symbol, str]) -> None:
+        super().__init__({"strict": False})
+        self._names = dict(names)
+
+    def _print_Symbol(self, expr: sp.Symbol) -> str:
+        try:
+            return self._names[expr]
+        except KeyError:
+            raise ValueError(f"symbol {expr!r} is not an input of the routine being printed") from None
+
+    _print_Dummy = _print_Symbol
+
+    def _print_Pow(self, expr: sp.Pow) -> str:
+        base, exp = expr.as_base_exp()
+        if exp.is_Integer and 2 <= int(exp) <= _MAX_PRODUCT_POWER:
+            b = self.parenthesize(base, 1000)  # always wrap non-atoms
+            return "(" + "*".join([b] * int(exp)) + ")"
+        return super()._print_Pow(expr)
+
+    def _print_Pi(self, expr: sp.Basic) -> str:
+        return self._print_Float(sp.Float(sp.pi, 17))  # M_PI is not C99
+
+    def _print_Exp1(self, expr: sp.Basic) -> str:
+        return self._print_Float(sp.Float(sp.E, 17))
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return repr(float(expr))
+
+    def _print_sign(self, expr: sp.Basic) -> str:
+        arg = self._print(expr.args[0])
+        return f"(double)(({arg} > 0) - ({arg} < 0))"
+
+
+def input_names(routine: Routine) -> dict[sp.Symbol, str]:
+    """Each input symbol of ``routine`` -> ``<arg>[<i>]``."""
+    return {s: f"{a.name}[{i}]" for a in routine.inputs for i, s in enumerate(a.symbols)}
+
+
+def print_routine_body(routine: Routine) -> tuple[list[tuple[str, str]], list[list[tuple[int, str]]]]:
+    """CSE'd body of ``routine``: ``(temporaries, outputs)``.
+
+    ``temporaries`` are ``(name, C expression)`` in evaluation order; each output
+    is a list of ``(flat index, C expression)`` for its nonzero entries (zeros are
+    written by the caller-visible body too, so every entry is listed).
+    """
+    repl, reduced = routine.cse()
+    names = input_names(routine)
+    temps = []
+    for sym, _ in repl:
+        names[sym] = sym.name
+    printer = ArrayC99Printer(names)
+    for sym, expr in repl:
+        temps.append((sym.name, printer.doprint(expr)))
+    outs = [[(k, printer.doprint(e)) for k, e in enumerate(entries)] for entries in reduced]
+    return temps, outs

@@ -1,0 +1,103 @@
+"""Structure of a scene that the generated C exploits, detected at generation time.
+
+* **Linear smooth step.** The smooth residual (46) is ``p-(q0, v, tau) - p0``;
+  when its Jacobian is free of ``v`` (a constant mass matrix), one Newton step
+  from any guess is exact: the C code does a single linear solve, no loop. When
+  the Jacobian is also diagonal the solve is a componentwise division.
+* **Explicit contact path.** Then ``v(alpha)`` is an explicit expression and the
+  contact time (47) reduces to a scalar root of ``g(s) = phi(q0 + s tau v(s tau))``,
+  solved by a safeguarded Newton on ``s`` (routine ``contact_path_<c>``).
+* **Contact values only.** Sub-solves along a segment need ``phi`` but not its
+  gradient: routine ``phi`` skips the gradients there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from ..derive import DiscreteSystem
+from ..routines import Arg, Output, Routine
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What the generated C specialises, and why (for the comment block)."""
+
+    smooth_linear: bool
+    smooth_diagonal: bool
+    explicit_path: bool
+
+    def notes(self, system: DiscreteSystem) -> list[str]:
+        """Plain-language lines for the top of the generated source."""
+        names = ", ".join(system.contact_names) or "none"
+        lines = [
+            f"contacts: {system.m} ({names}); only these are generated",
+            f"sizes fixed: n = {system.n}, m = {system.m}; {len(system.params)} parameters as runtime inputs",
+        ]
+        if self.smooth_diagonal:
+            lines.append(
+                "smooth step (46): residual linear in v with a diagonal Jacobian -> one division, no Newton"
+            )
+        elif self.smooth_linear:
+            lines.append(
+                "smooth step (46): residual linear in v (constant mass matrix) -> one LU solve, no Newton"
+            )
+        else:
+            lines.append("smooth step (46): configuration-dependent mass -> damped Newton")
+        if self.explicit_path:
+            lines.append(
+                "contact time (47): position explicit in alpha -> safeguarded scalar Newton on alpha"
+            )
+        else:
+            lines.append("contact time (47): Newton on (v, alpha)")
+        lines.append(
+            "grid test: phi and grad phi at q_k reused from the previous step; sub-solves use phi only"
+        )
+        return lines
+
+
+def detect(system: DiscreteSystem) -> Structure:
+    """Inspect the smooth residual's Jacobian (46) for linearity and diagonality."""
+    smooth = system.routines["smooth"]
+    x = set(smooth.inputs[0].symbols)
+    jac = smooth.output("jac").expr
+    linear = not (jac.free_symbols & x)
+    diagonal = linear and all(jac[i, k] == 0 for i in range(jac.rows) for k in range(jac.cols) if i != k)
+    return Structure(linear, diagonal, explicit_path=diagonal and system.m > 0)
+
+
+def phi_routine(system: DiscreteSystem) -> Routine:
+    """The contact values ``phi_j(q)`` alone (no gradients), for the grid test."""
+    c = system.routines["contacts"]
+    return Routine("phi", c.inputs, (c.outputs[0],), "Contact values phi_j(q) only (grid test).")
+
+
+def path_routines(system: DiscreteSystem) -> list[Routine]:
+    """``contact_path_<c>``: ``g(s)``, ``g'(s)`` and ``v(s)`` of the explicit segment map (47).
+
+    ``v(s)`` solves the smooth residual (46) over the duration ``s tau`` exactly
+    (diagonal, ``v``-free Jacobian): ``v_i = -r_i(0) / J_ii``.
+    """
+    smooth, contacts = system.routines["smooth"], system.routines["contacts"]
+    xs, q0, p0, tau, par = smooth.inputs
+    s = sp.Dummy("s", real=True)
+    at_s = {tau.symbols[0]: s * tau.symbols[0]}
+    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
+    res, jac = smooth.output("res").expr, smooth.output("jac").expr
+    v = sp.Matrix([-res[i].xreplace(zero).xreplace(at_s) / jac[i, i].xreplace(at_s) for i in range(system.n)])
+    q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
+    qsub = dict(zip(contacts.input("q").symbols, q_end))
+    out = []
+    for j, name in enumerate(system.contact_names):
+        g = contacts.output("phi").expr[j].xreplace(qsub)
+        out.append(
+            Routine(
+                f"contact_path_{name}",
+                (Arg("x", (s,)), q0, p0, tau, par),
+                (Output("g", sp.Matrix([g])), Output("dg", sp.Matrix([g.diff(s)])), Output("v", v)),
+                f"Contact '{name}' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47).",
+            )
+        )
+    return out

@@ -1,0 +1,254 @@
+"""The compiled model through ctypes: the stepper's kernels, and a simulator whose loop runs in C.
+
+:class:`CKernels` gives the kernels interface of :mod:`vcigen.stepper` (so the Python
+stepper can also run on the C kernels, for debugging); :class:`CSimulator` calls
+``<model>_run``, which takes whole chunks of grid steps (46)-(79) in C and resumes
+from ``(q, p)`` (plus the Newton guess ``v``), so runs of unknown length
+(``n_impacts``) grow their buffers chunk by chunk.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..derive import DiscreteSystem
+from ..errors import PHASES, SolverError
+from ..result import Impact, Result
+from ..simulator import Simulator
+from ..stepper import Tolerances, _n_steps
+
+_D = ctypes.POINTER(ctypes.c_double)
+IMPACT_CAP = 4096
+MAX_STEPS = 50_000_000
+
+
+class _Tol(ctypes.Structure):
+    _fields_ = [
+        ("residual", ctypes.c_double),
+        ("phi", ctypes.c_double),
+        ("admissible", ctypes.c_double),
+        ("max_impacts_per_step", ctypes.c_int),
+        ("bracket_samples", ctypes.c_int),
+        ("dip", ctypes.c_double),
+    ]
+
+
+class _Err(ctypes.Structure):
+    _fields_ = [
+        ("step", ctypes.c_long),
+        ("time", ctypes.c_double),
+        ("phase", ctypes.c_int),
+        ("residual", ctypes.c_double),
+        ("reason", ctypes.c_char * 256),
+    ]
+
+
+def _ptr(a: np.ndarray) -> Any:
+    return a.ctypes.data_as(_D)
+
+
+def _vec(x, size: int) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(x, dtype=float).reshape(size))
+
+
+class CKernels:
+    """The stepper's kernels (``smooth_step``, ``solve``, ``segment``, ``contacts``, ``legendre``) in C."""
+
+    backend = "c"
+
+    def __init__(self, system: DiscreteSystem, library: Path, ctx: dict[str, Any]) -> None:
+        self.system = system
+        self.library = Path(library)
+        self.n, self.m = system.n, system.m
+        self.contact_names = system.contact_names
+        self.par = np.array([float(v) for v in system.model.defaults.values()])
+        self._ids = {r["name"]: (r["id"], r["nx"]) for r in ctx["residuals"]}
+        self.lib = ctypes.CDLL(str(self.library))
+        pre = ctx["prefix"]
+        self._legendre = getattr(self.lib, f"{pre}_eval_legendre")
+        self._segment = getattr(self.lib, f"{pre}_eval_segment")
+        self._segment.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D]
+        self._contacts = getattr(self.lib, f"{pre}_eval_contacts")
+        self._smooth = getattr(self.lib, f"{pre}_eval_smooth_step")
+        self._smooth.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D, _D, _D, _D, _D]
+        self._solve = getattr(self.lib, f"{pre}_solve")
+        self._solve.argtypes = [ctypes.c_int, _D, _D, _D, _D]
+        self.run = getattr(self.lib, f"{pre}_run")
+        self.run.argtypes = [
+            _D,
+            ctypes.POINTER(_Tol),
+            ctypes.c_double,
+            ctypes.c_double,
+            ctypes.c_long,
+            ctypes.c_long,
+            ctypes.c_long,
+            _D,
+            _D,
+            _D,
+            _D,
+            _D,
+            _D,
+            _D,
+            ctypes.c_long,
+            ctypes.POINTER(ctypes.c_long),
+            ctypes.POINTER(ctypes.c_long),
+            ctypes.POINTER(_Err),
+        ]
+        self.run.restype = ctypes.c_int
+
+    def bind(self, par) -> CKernels:
+        """Fix the parameter values for the next simulation."""
+        self.par = _vec(par, len(self.system.params)) if len(par) else np.zeros(1)
+        return self
+
+    def legendre(self, q, v):
+        n = self.n
+        mom, mass = np.empty(n), np.empty(n * n)
+        self._legendre(_ptr(_vec(q, n)), _ptr(_vec(v, n)), _ptr(self.par), _ptr(mom), _ptr(mass))
+        return mom, mass.reshape(n, n)
+
+    def segment(self, q0, v, tau):
+        n = self.n
+        pm, pp, e = np.empty(n), np.empty(n), np.empty(1)
+        self._segment(
+            _ptr(_vec(q0, n)), _ptr(_vec(v, n)), float(tau), _ptr(self.par), _ptr(pm), _ptr(pp), _ptr(e)
+        )
+        return pm, pp, float(e[0])
+
+    def contacts(self, q):
+        n, m = self.n, self.m
+        phi, grad = np.empty(max(m, 1)), np.empty(max(m, 1) * n)
+        self._contacts(_ptr(_vec(q, n)), _ptr(self.par), _ptr(phi), _ptr(grad))
+        return phi[:m], grad[: m * n].reshape(m, n)
+
+    def smooth_step(self, q0, p0, tau, guess):
+        """``(v, |res|, p1, E_d, phi(q0), phi(q1), d0, d1)``, as the CasADi kernels."""
+        n, m = self.n, self.m
+        v, res, p1, e = np.empty(n), np.empty(1), np.empty(n), np.empty(1)
+        phi0, phi1, d0, d1 = (np.empty(max(m, 1)) for _ in range(4))
+        self._smooth(
+            _ptr(_vec(q0, n)),
+            _ptr(_vec(p0, n)),
+            float(tau),
+            _ptr(_vec(guess, n)),
+            _ptr(self.par),
+            _ptr(v),
+            _ptr(res),
+            _ptr(p1),
+            _ptr(e),
+            _ptr(phi0),
+            _ptr(phi1),
+            _ptr(d0),
+            _ptr(d1),
+        )
+        return v, float(res[0]), p1, float(e[0]), phi0[:m], phi1[:m], d0[:m], d1[:m]
+
+    def solve(self, name: str, guess, *args):
+        """The C Newton on residual routine ``name`` from ``guess``; ``(x, |res|_inf)``."""
+        rid, nx = self._ids[name]
+        x = _vec(guess, nx).copy()
+        flat = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in args])
+        res = np.empty(1)
+        self._solve(rid, _ptr(x), _ptr(flat), _ptr(self.par), _ptr(res))
+        return x, float(res[0])
+
+
+def _tol_struct(tol: Tolerances) -> _Tol:
+    return _Tol(tol.residual, tol.phi, tol.admissible, tol.max_impacts_per_step, tol.bracket_samples, tol.dip)
+
+
+def _grow(a: np.ndarray, rows: int) -> np.ndarray:
+    out = np.empty((rows, *a.shape[1:]))
+    out[: a.shape[0]] = a
+    return out
+
+
+class CSimulator(Simulator):
+    """A :class:`~vcigen.simulator.Simulator` whose time loop is ``<model>_run`` in C."""
+
+    def _run(self, kern: CKernels, q0, v0, h, t_end, n_impacts, t0, progress) -> Result:
+        n = kern.n
+        steps = _n_steps(h, t0, t_end, MAX_STEPS)
+        cap = steps if t_end is not None else 1024
+        Q, P, E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(max(cap, 1))
+        q, v = _vec(q0, n).copy(), _vec(v0, n).copy()
+        p = kern.legendre(q, v)[0].copy()
+        Q[0], P[0] = q, p
+        rec = np.empty((IMPACT_CAP, 7 + n))
+        tol = _tol_struct(self.tol)
+        err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
+        impacts: list[Impact] = []
+        done = 0
+        wall = time.perf_counter()
+        while done < steps and (n_impacts is None or len(impacts) < n_impacts):
+            if done >= cap:
+                cap *= 2
+                Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
+            chunk = min(cap - done, steps - done, 100_000 if progress else steps)
+            left = -1 if n_impacts is None else n_impacts - len(impacts)
+            rc = kern.run(
+                _ptr(kern.par),
+                ctypes.byref(tol),
+                h,
+                t0,
+                done,
+                chunk,
+                left,
+                _ptr(q),
+                _ptr(p),
+                _ptr(v),
+                _ptr(Q[done + 1 :]),
+                _ptr(P[done + 1 :]),
+                _ptr(E[done:]),
+                _ptr(rec),
+                IMPACT_CAP,
+                ctypes.byref(sdone),
+                ctypes.byref(idone),
+                ctypes.byref(err),
+            )
+            impacts += [_impact(r, kern.contact_names) for r in rec[: idone.value]]
+            done += sdone.value
+            if rc != 0:
+                raise SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
+            if progress:
+                print(f"  t = {t0 + done * h:.4g}, {done} steps, {len(impacts)} impacts", flush=True)
+            if sdone.value == 0:
+                break
+        if n_impacts is not None and t_end is None and len(impacts) < n_impacts and done >= steps:
+            warnings.warn(
+                f"stopped after max_steps = {MAX_STEPS} with {len(impacts)} of {n_impacts} impacts",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        wall = time.perf_counter() - wall
+        stats = {"wall_time": wall, "steps": done, "seconds_per_step": wall / max(done, 1)}
+        return Result(
+            t0 + h * np.arange(done + 1),
+            Q[: done + 1].copy(),
+            P[: done + 1].copy(),
+            E[:done].copy(),
+            impacts,
+            [str(s) for s in range(n)],
+            h,
+            stats,
+        )
+
+
+def _impact(r: np.ndarray, names: tuple[str, ...]) -> Impact:
+    """One C impact record ``t, contact, step, alpha, impulse, E_before, E_after, q...``."""
+    return Impact(
+        t=float(r[0]),
+        contact=names[int(r[1])],
+        q=r[7:].copy(),
+        alpha=float(r[3]),
+        impulse=float(r[4]),
+        step=int(r[2]),
+        energy_before=float(r[5]),
+        energy_after=float(r[6]),
+    )
