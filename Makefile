@@ -15,7 +15,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-demo: venv            ## the paper's examples: CSV + energy plots in $(OUT)/
+demo: venv            ## the paper's examples on both backends: CSV + energy plots in $(OUT)/
+	$(PY) examples/particle.py --out $(OUT) --backend c
+	$(PY) examples/star.py --out $(OUT) --backend c
 	$(PY) examples/particle.py --out $(OUT)
 	$(PY) examples/star.py --out $(OUT)
 

@@ -130,6 +130,7 @@ def render_context(
         "structure": {
             "smooth_linear": structure.smooth_linear,
             "smooth_diagonal": structure.smooth_diagonal,
+            "mass_diagonal": structure.mass_diagonal,
             "explicit_path": structure.explicit_path,
         },
         "notes": structure.notes(system),

@@ -28,6 +28,7 @@ class Structure:
     smooth_linear: bool
     smooth_diagonal: bool
     explicit_path: bool
+    mass_diagonal: bool = False
 
     def notes(self, system: DiscreteSystem) -> list[str]:
         """Plain-language lines for the top of the generated source."""
@@ -52,6 +53,8 @@ class Structure:
             )
         else:
             lines.append("contact time (47): Newton on (v, alpha)")
+        if self.mass_diagonal:
+            lines.append("velocity of a momentum (crossing slopes): constant diagonal mass -> one division")
         lines.append(
             "grid test: phi and grad phi at q_k reused from the previous step; sub-solves use phi only"
         )
@@ -65,7 +68,13 @@ def detect(system: DiscreteSystem) -> Structure:
     jac = smooth.output("jac").expr
     linear = not (jac.free_symbols & x)
     diagonal = linear and all(jac[i, k] == 0 for i in range(jac.rows) for k in range(jac.cols) if i != k)
-    return Structure(linear, diagonal, explicit_path=diagonal and system.m > 0)
+    leg = system.routines["legendre"]
+    mass = leg.output("mass").expr
+    state = set(leg.input("q").symbols) | set(leg.input("v").symbols)
+    mass_diagonal = not (mass.free_symbols & state) and all(
+        mass[i, k] == 0 for i in range(mass.rows) for k in range(mass.cols) if i != k
+    )
+    return Structure(linear, diagonal, explicit_path=diagonal and system.m > 0, mass_diagonal=mass_diagonal)
 
 
 def phi_routine(system: DiscreteSystem) -> Routine:

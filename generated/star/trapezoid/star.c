@@ -6,6 +6,7 @@
  *   - sizes fixed: n = 3, m = 1; 3 parameters as runtime inputs
  *   - smooth step (46): residual linear in v with a diagonal Jacobian -> one division, no Newton
  *   - contact time (47): position explicit in alpha -> safeguarded scalar Newton on alpha
+ *   - velocity of a momentum (crossing slopes): constant diagonal mass -> one division
  *   - grid test: phi and grad phi at q_k reused from the previous step; sub-solves use phi only
  */
 #include <math.h>
@@ -521,13 +522,26 @@ static inline void star_solve_smooth(const double *q0, const double *p0, double 
     }
 }
 
+/* The velocity of momentum p at q: one Newton step of dL/dqdot = p from v (Stepper._velocity). */
+static void star_velocity_par(const double *par, const double *q, const double *v, const double *p,
+    double *vel)
+{
+    double mom[STAR_N], mass[STAR_N * STAR_N];
+    int i;
+    star_legendre(q, v, par, mom, mass);
+    for (i = 0; i < STAR_N; ++i) { /* constant diagonal mass: one division */
+        vel[i] = v[i] + (p[i] - mom[i]) / mass[i * (STAR_N + 1)];
+    }
+
+}
+
 /* Kernels.smooth_step: (v, |res|, p1, E_d, phi(q1), grad phi(q1), d0, d1) of the smooth step from
- * (q0, p0), given phi and grad phi at q0; d = tau grad phi . v at both ends (slopes of phi). */
+ * (q0, p0), given phi and grad phi at q0; d = tau grad phi . qdot at both ends (slopes of phi). */
 static inline void star_smooth_step(const double *q0, const double *p0, double tau, const double *guess,
     const double *par, const double *grad0, double *v, double *res, double *p1, double *energy, double *phi1,
     double *grad1, double *d0, double *d1)
 {
-    double pm[STAR_N], q1[STAR_N], tv[STAR_N];
+    double pm[STAR_N], q1[STAR_N], vel0[STAR_N], vel1[STAR_N];
     int i, j;
     for (i = 0; i < STAR_N; ++i) {
         v[i] = guess[i];
@@ -536,17 +550,19 @@ static inline void star_smooth_step(const double *q0, const double *p0, double t
     star_segment(q0, v, &tau, par, pm, p1, energy);
     for (i = 0; i < STAR_N; ++i) {
         pm[i] -= p0[i];
-        tv[i] = tau * v[i];
-        q1[i] = q0[i] + tv[i];
+        q1[i] = q0[i] + tau * v[i];
     }
     *res = star_norm_inf(STAR_N, pm);
     star_contacts(q1, par, phi1, grad1);
+    /* Slopes of phi along the sub-step map, with the velocities of p0 and p1 (CasadiKernels). */
+    star_velocity_par(par, q0, v, p0, vel0);
+    star_velocity_par(par, q1, v, p1, vel1);
     for (j = 0; j < STAR_M; ++j) {
         d0[j] = 0.0;
         d1[j] = 0.0;
         for (i = 0; i < STAR_N; ++i) {
-            d0[j] += grad0[j * STAR_N + i] * tv[i];
-            d1[j] += grad1[j * STAR_N + i] * tv[i];
+            d0[j] += tau * grad0[j * STAR_N + i] * vel0[i];
+            d1[j] += tau * grad1[j * STAR_N + i] * vel1[i];
         }
     }
 }
@@ -852,22 +868,11 @@ static int star_contact_root(const star_ctx_t *c, const star_seg_t *seg, int j, 
     return 0;
 }
 
-/* Stepper._velocity: the velocity of momentum p at q, one Newton step of dL/dqdot = p from v. */
+/* Stepper._velocity: the velocity of momentum p at q (see velocity_par). */
 static void star_velocity(const star_ctx_t *c, const double *q, const double *v, const double *p,
     double *vel)
 {
-    double mom[STAR_N], mass[STAR_N * STAR_N];
-    int piv[STAR_N], i;
-    star_legendre(q, v, c->par, mom, mass);
-    for (i = 0; i < STAR_N; ++i) {
-        vel[i] = p[i] - mom[i];
-    }
-    if (star_lu(STAR_N, mass, piv)) {
-        star_lu_solve(STAR_N, mass, piv, vel);
-    }
-    for (i = 0; i < STAR_N; ++i) {
-        vel[i] += v[i];
-    }
+    star_velocity_par(c->par, q, v, p, vel);
 }
 
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
@@ -1046,24 +1051,9 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     double d0[STAR_M_DIM], d1[STAR_M_DIM], s_hi[STAR_M_DIM], g_hi[STAR_M_DIM], res, e1;
     int crossed[STAR_M_DIM], i, j, inside = 1;
     star_seg_t seg;
-    double q1[STAR_N], vel0[STAR_N], vel1[STAR_N];
     star_smooth_step(q, p, c->h, v, c->par, grad, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (star_check(c, res, p, NAN, STAR_PHASE_SMOOTH)) {
         return 1;
-    }
-    /* Slopes of phi along the sub-step map with the velocities of p_k and p_k+1 (CasadiKernels). */
-    for (i = 0; i < STAR_N; ++i) {
-        q1[i] = q[i] + c->h * v1[i];
-    }
-    star_velocity(c, q, v1, p, vel0);
-    star_velocity(c, q1, v1, p1, vel1);
-    for (j = 0; j < STAR_M; ++j) {
-        d0[j] = 0.0;
-        d1[j] = 0.0;
-        for (i = 0; i < STAR_N; ++i) {
-            d0[j] += c->h * grad[j * STAR_N + i] * vel0[i];
-            d1[j] += c->h * grad1[j * STAR_N + i] * vel1[i];
-        }
     }
     seg.contact = -1;
     for (j = 0; j < STAR_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
