@@ -823,8 +823,37 @@ def main(argv: Sequence[str] | None = None) -> int:
         longs, drift_runs = long_runs(sims, scenes, methods, args, out, skips)
     total = time.perf_counter() - total0
     write_summary(out / "summary.md", all_rows, longs, drift_runs, args.target, skips, total, args)
+    if out.resolve() == DEFAULT_OUT.resolve():
+        update_readme(out / "summary.md", ROOT / "README.md")
     log(f"[bench] done in {total:.0f}s; results in {out}")
     return 0
+
+
+README_START, README_END = "<!-- bench:start -->", "<!-- bench:end -->"
+
+
+def update_readme(summary: Path, readme: Path) -> bool:
+    """Copy the headline of ``summary.md`` (ratios at matched accuracy, long runs) into the README."""
+    doc = readme.read_text(encoding="utf-8") if readme.exists() else ""
+    if README_START not in doc or README_END not in doc:
+        return False
+    text = summary.read_text(encoding="utf-8")
+    block, scene = [], ""
+    for line in text.splitlines():
+        if line.startswith("Machine:"):
+            block += [line, ""]
+        elif line.startswith("## "):
+            scene = line[3:]
+        elif line.startswith("Wall time at matched accuracy"):
+            block.append(f"- **{scene}**: {line}")
+    if "## Long runs" in text:
+        long = text[text.index("## Long runs") :].split("\n![", 1)[0].strip()
+        block += ["", long.replace("## Long runs: energy", "**Long runs: energy.**")]
+    head, tail = doc.split(README_START, 1)[0], doc.split(README_END, 1)[1]
+    readme.write_text(
+        f"{head}{README_START}\n" + "\n".join(block) + f"\n{README_END}{tail}", encoding="utf-8"
+    )
+    return True
 
 
 def long_runs(sims, scenes, methods, args, out: Path, skips) -> tuple[list[LongRun], list[LongRun]]:

@@ -60,3 +60,22 @@ def test_impact_matching_and_wall_interpolation() -> None:
     w, flag = run.wall_at(rows, 1e-5)
     assert flag == "~" and abs(w - 8.0) < 1e-9
     assert abs(run.order_of(rows) - run.order_of(rows[:2])) < 1e-9
+
+
+def test_update_readme_copies_the_headline_between_markers(tmp_path):
+    from bench.run import README_END, README_START, update_readme
+
+    summary = tmp_path / "summary.md"
+    summary.write_text(
+        "Machine: test box\n\n## star\n\nWall time at matched accuracy x2\n\n"
+        "## Long runs: energy\n\n| a |\n|---|\n| 1 |\n\n![energy](e.png)\n"
+    )
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{README_START}\nold\n{README_END}\noutro\n")
+    assert update_readme(summary, readme)
+    text = readme.read_text()
+    assert "old" not in text and text.startswith("intro\n") and text.endswith("outro\n")
+    assert "- **star**: Wall time at matched accuracy x2" in text and "| 1 |" in text
+    assert "Machine: test box" in text and "e.png" not in text
+    readme.write_text("no markers")
+    assert not update_readme(summary, readme)
