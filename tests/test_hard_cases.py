@@ -151,23 +151,15 @@ def _gravity_corner_state(u=3.0, T=0.5):
     return [u * T, u * T - G * T**2 / 2], [-u, -u + G * T]
 
 
-_ORDER = pytest.mark.xfail(
-    strict=True,
-    reason="casadi (Python stepper) resolves a simultaneous corner impact sequentially: the contact listed first "  # noqa: E501
-    "gets its jump with a zero-length segment (beta = 0) whose E_d differs from E- by O(g^2 "
-    "(alpha h)^2), so the impulses differ (5.835 vs 6.040 at h = 0.3) and swapping the contacts "
-    "dict changes the trajectory by 8e-2; the C stepper passes",
-)
-
-
-@pytest.mark.parametrize(
-    "backend", [pytest.param(*BACKENDS[0].values, marks=_ORDER, id="casadi"), BACKENDS[1]]
-)
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_corner_under_gravity_does_not_depend_on_contact_order(backend):
     """Under gravity the corner is reached at t = 0.5 = alpha 2/3 of step 1 (an exact tie)."""
     q0, v0 = _gravity_corner_state()
     a, b = _corner_runs(backend, "trapezoid", "corner", q0, v0, 0.3, 0.9, {"g": G})
     np.testing.assert_allclose(b.q, a.q, rtol=0, atol=1e-12)
+    # One impact on both walls (normal-cone direction): equal shares, at the same instant.
+    assert len(a.impacts) == 2 and a.impacts[0].t == a.impacts[1].t
+    assert a.impacts[0].impulse == pytest.approx(a.impacts[1].impulse, rel=1e-12)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

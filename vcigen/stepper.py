@@ -46,6 +46,7 @@ class Tolerances:
     max_impacts_per_step: int = 64
     bracket_samples: int = 8
     jump_restarts: tuple[float, ...] = (1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25)
+    simultaneous: float = 1e-9  # crossings this close (fraction of the step) are one impact
     dip: float = 0.25  # sample the segment map when the cubic's minimum of phi < dip * |slopes|
 
 
@@ -203,50 +204,49 @@ class Stepper:
         """Chain of segments (47), (48), (78), (79) until one ends inside C at ``t_k + h``."""
         k, tol = self.k, self.tol
         n = k.n
-        pending: Impact | None = None
+        pending: list[tuple[Impact, float]] = []
         for _ in range(tol.max_impacts_per_step):
-            # Earliest crossing over all crossed contacts (47)/(78).
-            best = None
-            for j, (s_hi, g_hi) in sorted(crossings.items()):
-                x, s = self._contact_root(step, t_k, seg, j, s_hi, g_hi)
-                if best is None or s < best[1]:
-                    best = (j, s, x)
-            j, s, x = best
-            if pending is not None:  # the impulse at the previous impact, re-solved with beta (78)
-                impacts.append(replace(pending, impulse=float(x[n])))
+            # Earliest crossing over all crossed contacts (47)/(78); ties are one impact.
+            roots = {
+                j: self._contact_root(step, t_k, seg, j, s_hi, g_hi)
+                for j, (s_hi, g_hi) in sorted(crossings.items())
+            }
+            j = min(roots, key=lambda i: (roots[i][1], i))
+            x, s = roots[j]
+            group = [i for i in sorted(roots) if roots[i][1] - s <= tol.simultaneous]
+            # The impulse at the previous impact, re-solved with beta (78).
+            impacts.extend(replace(im, impulse=float(x[n]) * wgt) for im, wgt in pending)
             tau_c = s * seg.tau
             v_c = x[:n]
             q_c = seg.q + tau_c * v_c
             _, p_minus_c, e_c = k.segment(seg.q, v_c, tau_c)
             e_in = e_c if seg.contact < 0 else seg.e_in
             t_c = seg.t + tau_c
-            seg = _Seg(
-                q=q_c,
-                t=t_c,
-                tau=seg.tau - tau_c,
-                p_in=p_minus_c,
-                e_in=e_in,
-                nrm=k.contacts(q_c)[1][j],
-                contact=j,
-                x=x,
-            )
+            nrm, weights = self._normal(q_c, v_c, p_minus_c, group)
+            seg = _Seg(q=q_c, t=t_c, tau=seg.tau - tau_c, p_in=p_minus_c, e_in=e_in, nrm=nrm, contact=j, x=x)
             # Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept.
             seg.x = self._jump(step, t_k, seg, v_c)
             w = seg.x[:n]
             _, p_end, e_after = k.segment(seg.q, w, seg.tau)
-            pending = Impact(
-                t=t_c,
-                contact=k.contact_names[j],
-                q=q_c.copy(),
-                alpha=(t_c - t_k) / h,
-                impulse=float(seg.x[n]),
-                step=step,
-                energy_before=e_in,
-                energy_after=e_after,
-            )
+            pending = [
+                (
+                    Impact(
+                        t=t_c,
+                        contact=k.contact_names[i],
+                        q=q_c.copy(),
+                        alpha=(t_c - t_k) / h,
+                        impulse=float(seg.x[n]) * wgt,
+                        step=step,
+                        energy_before=e_in,
+                        energy_after=e_after,
+                    ),
+                    wgt,
+                )
+                for i, wgt in zip(group, weights)
+            ]
             q_end, crossings = self._segment_end(seg, w)
             if not crossings:
-                impacts.append(pending)
+                impacts.extend(im for im, _ in pending)
                 return q_end, p_end, e_in, w
         raise SolverError(
             step,
@@ -255,6 +255,25 @@ class Stepper:
             0.0,
             f"more than {tol.max_impacts_per_step} impacts in one step (chattering toward rest?); reduce h",
         )
+
+    def _normal(self, q_c, v_c, p_c, group: list[int]) -> tuple[np.ndarray, list[float]]:
+        """Impulse direction at an impact on the contacts ``group`` and each contact's share.
+
+        One contact: its gradient. Several at once (a corner, two vertices): the normal-cone
+        direction (86) ``sum_j w_j grad phi_j`` with ``w_j`` proportional to each contact's own
+        elastic impulse ``-(n_j . qdot)/(n_j M^-1 n_j)``, so that no contact is served first
+        and M-orthogonal walls reflect independently, whatever the order of the contacts.
+        """
+        grads = self.k.contacts(q_c)[1]
+        if len(group) == 1:
+            return grads[group[0]], [1.0]
+        vel = self._velocity(q_c, v_c, p_c)
+        mass = self.k.legendre(q_c, vel)[1]
+        c = np.array(
+            [max(-(grads[i] @ vel) / (grads[i] @ np.linalg.solve(mass, grads[i])), 0.0) for i in group]
+        )
+        c = c / c.sum() if c.sum() > 0 else np.full(len(group), 1.0 / len(group))
+        return sum(ci * grads[i] for ci, i in zip(c, group)), [float(ci) for ci in c]
 
     def _jump(self, step, t_k, seg: _Seg, v_in) -> np.ndarray:
         """Solve (48) for ``(w, mu)``: the physical root, ``mu > 0`` (MATH.md).

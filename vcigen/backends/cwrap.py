@@ -36,6 +36,7 @@ class _Tol(ctypes.Structure):
         ("max_impacts_per_step", ctypes.c_int),
         ("bracket_samples", ctypes.c_int),
         ("dip", ctypes.c_double),
+        ("simultaneous", ctypes.c_double),
     ]
 
 
@@ -160,7 +161,15 @@ class CKernels:
 
 
 def _tol_struct(tol: Tolerances) -> _Tol:
-    return _Tol(tol.residual, tol.phi, tol.admissible, tol.max_impacts_per_step, tol.bracket_samples, tol.dip)
+    return _Tol(
+        tol.residual,
+        tol.phi,
+        tol.admissible,
+        tol.max_impacts_per_step,
+        tol.bracket_samples,
+        tol.dip,
+        tol.simultaneous,
+    )
 
 
 def _grow(a: np.ndarray, rows: int) -> np.ndarray:
@@ -180,7 +189,8 @@ class CSimulator(Simulator):
         q, v = _vec(q0, n).copy(), _vec(v0, n).copy()
         p = kern.legendre(q, v)[0].copy()
         Q[0], P[0] = q, p
-        rec = np.empty((IMPACT_CAP, 7 + n))
+        impact_cap = max(IMPACT_CAP, 2 * self.tol.max_impacts_per_step * max(self.system.m, 1))
+        rec = np.empty((impact_cap, 7 + n))
         tol = _tol_struct(self.tol)
         err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         impacts: list[Impact] = []
@@ -207,7 +217,7 @@ class CSimulator(Simulator):
                 _ptr(P[done + 1 :]),
                 _ptr(E[done:]),
                 _ptr(rec),
-                IMPACT_CAP,
+                impact_cap,
                 ctypes.byref(sdone),
                 ctypes.byref(idone),
                 ctypes.byref(err),

@@ -46,6 +46,7 @@ void particle_default_tol(particle_tol_t *tol)
     tol->max_impacts_per_step = 64;
     tol->bracket_samples = 8;
     tol->dip = 0.25;
+    tol->simultaneous = 1e-09;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
 
@@ -781,6 +782,54 @@ static void particle_velocity(const particle_ctx_t *c, const double *q, const do
     particle_velocity_par(c->par, q, v, p, vel);
 }
 
+/* Stepper._normal: impulse direction at an impact on the contacts in group, and each one's share:
+ * one contact, its gradient; several at once, sum_j w_j grad phi_j with w_j proportional to each
+ * contact's own elastic impulse -(n_j . qdot)/(n_j M^-1 n_j) (normal cone (86), order-independent). */
+static void particle_normal(const particle_ctx_t *c, const double *q, const double *v, const double *p,
+    const double *grad, const int *group, int n_group, double *nrm, double *wgt)
+{
+    double vel[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], tmp[PARTICLE_N];
+    double num, den, sum = 0.0;
+    int piv[PARTICLE_N], i, g, ok;
+    const double *gj;
+    if (n_group == 1) {
+        for (i = 0; i < PARTICLE_N; ++i) {
+            nrm[i] = grad[group[0] * PARTICLE_N + i];
+        }
+        wgt[0] = 1.0;
+        return;
+    }
+    particle_velocity(c, q, v, p, vel);
+    particle_legendre(q, vel, c->par, mom, mass);
+    ok = particle_lu(PARTICLE_N, mass, piv);
+    for (g = 0; g < n_group; ++g) {
+        gj = grad + group[g] * PARTICLE_N;
+        num = 0.0;
+        den = 0.0;
+        for (i = 0; i < PARTICLE_N; ++i) {
+            tmp[i] = gj[i];
+        }
+        if (ok) {
+            particle_lu_solve(PARTICLE_N, mass, piv, tmp);
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            num -= gj[i] * vel[i];
+            den += gj[i] * tmp[i];
+        }
+        wgt[g] = num / den > 0.0 ? num / den : 0.0;
+        sum += wgt[g];
+    }
+    for (g = 0; g < n_group; ++g) {
+        wgt[g] = sum > 0.0 ? wgt[g] / sum : 1.0 / n_group;
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        nrm[i] = 0.0;
+        for (g = 0; g < n_group; ++g) {
+            nrm[i] += wgt[g] * grad[group[g] * PARTICLE_N + i];
+        }
+    }
+}
+
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
  * reflected velocity; if it lands on a root with mu <= 0 it restarts from larger and smaller impulses
  * along the same normal; no root with mu > 0 is a located failure. */
@@ -872,11 +921,11 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
     const double *par = c->par;
     double x[PARTICLE_NX_MAX] = {0.0}, x_best[PARTICLE_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[PARTICLE_N], pm[PARTICLE_N], p_c[PARTICLE_N], p_end[PARTICLE_N];
-    double q_end[PARTICLE_N], *r;
+    double q_end[PARTICLE_N], *r, s_all[PARTICLE_M_DIM] = {0.0}, wgt[PARTICLE_M_DIM], pend_w[PARTICLE_M_DIM];
     particle_seg_t next;
-    int i, j, k, best, pending = 0;
+    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group;
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
-        /* Earliest crossing over all crossed contacts (47)/(78). */
+        /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
         best = -1;
         for (j = 0; j < PARTICLE_M; ++j) {
             if (!crossed[j]) {
@@ -885,6 +934,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             if (particle_contact_root(c, seg, j, s_hi[j], g_hi[j], x, &s)) {
                 return 1;
             }
+            s_all[j] = s;
             if (best < 0 || s < s_best) {
                 best = j;
                 s_best = s;
@@ -893,10 +943,16 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
                 }
             }
         }
-        if (pending) { /* the impulse at the previous impact, re-solved with beta (78) */
-            rec[*n_rec * PARTICLE_W + 4] = x_best[PARTICLE_N];
-            ++*n_rec;
+        n_group = 0;
+        for (j = 0; j < PARTICLE_M; ++j) {
+            if (crossed[j] && s_all[j] - s_best <= c->tol->simultaneous) {
+                group[n_group++] = j;
+            }
         }
+        for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
+            rec[(*n_rec + g) * PARTICLE_W + 4] = x_best[PARTICLE_N] * pend_w[g];
+        }
+        *n_rec += n_pend;
         tau_c = s_best * seg->tau;
         for (i = 0; i < PARTICLE_N; ++i) {
             v_c[i] = x_best[i];
@@ -910,8 +966,8 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
         particle_contacts(next.q, par, phi, grad);
         for (i = 0; i < PARTICLE_N; ++i) {
             next.p_in[i] = p_c[i];
-            next.nrm[i] = grad[best * PARTICLE_N + i];
         }
+        particle_normal(c, next.q, v_c, p_c, grad, group, n_group, next.nrm, wgt);
         for (i = 0; i < PARTICLE_NX_MAX; ++i) {
             next.x[i] = x_best[i];
         }
@@ -921,20 +977,23 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             return 1;
         }
         particle_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
-        r = rec + *n_rec * PARTICLE_W;
-        r[0] = seg->t;
-        r[1] = best;
-        r[2] = (double)c->step;
-        r[3] = (seg->t - c->t_k) / c->h;
-        r[4] = seg->x[PARTICLE_N];
-        r[5] = seg->e_in;
-        r[6] = e_after;
-        for (i = 0; i < PARTICLE_N; ++i) {
-            r[7 + i] = seg->q[i];
+        for (g = 0; g < n_group; ++g) {
+            r = rec + (*n_rec + g) * PARTICLE_W;
+            r[0] = seg->t;
+            r[1] = group[g];
+            r[2] = (double)c->step;
+            r[3] = (seg->t - c->t_k) / c->h;
+            r[4] = seg->x[PARTICLE_N] * wgt[g];
+            r[5] = seg->e_in;
+            r[6] = e_after;
+            for (i = 0; i < PARTICLE_N; ++i) {
+                r[7 + i] = seg->q[i];
+            }
+            pend_w[g] = wgt[g];
         }
-        pending = 1;
+        n_pend = n_group;
         if (!particle_segment_end(c, seg, q_end, phi, grad, crossed, s_hi, g_hi)) {
-            ++*n_rec;
+            *n_rec += n_pend;
             for (i = 0; i < PARTICLE_N; ++i) {
                 q[i] = q_end[i];
                 p[i] = p_end[i];
@@ -1012,7 +1071,8 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
     *impacts_done = 0;
     particle_contacts(q, par, phi, grad);
     for (k = 0; k < n_steps; ++k) {
-        if ((max_impacts >= 0 && n_rec >= max_impacts) || impact_cap - n_rec < tol->max_impacts_per_step) {
+        if ((max_impacts >= 0 && n_rec >= max_impacts)
+            || impact_cap - n_rec < (long)tol->max_impacts_per_step * PARTICLE_M_DIM) {
             break;
         }
         c.step = step0 + k;

@@ -31,6 +31,7 @@ typedef struct {
     int max_impacts_per_step;
     int bracket_samples;
     double dip;
+    double simultaneous;
 } star_tol_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -49,6 +49,7 @@ void star_default_tol(star_tol_t *tol)
     tol->max_impacts_per_step = 64;
     tol->bracket_samples = 8;
     tol->dip = 0.25;
+    tol->simultaneous = 1e-09;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
 
@@ -875,6 +876,54 @@ static void star_velocity(const star_ctx_t *c, const double *q, const double *v,
     star_velocity_par(c->par, q, v, p, vel);
 }
 
+/* Stepper._normal: impulse direction at an impact on the contacts in group, and each one's share:
+ * one contact, its gradient; several at once, sum_j w_j grad phi_j with w_j proportional to each
+ * contact's own elastic impulse -(n_j . qdot)/(n_j M^-1 n_j) (normal cone (86), order-independent). */
+static void star_normal(const star_ctx_t *c, const double *q, const double *v, const double *p,
+    const double *grad, const int *group, int n_group, double *nrm, double *wgt)
+{
+    double vel[STAR_N], mom[STAR_N], mass[STAR_N * STAR_N], tmp[STAR_N];
+    double num, den, sum = 0.0;
+    int piv[STAR_N], i, g, ok;
+    const double *gj;
+    if (n_group == 1) {
+        for (i = 0; i < STAR_N; ++i) {
+            nrm[i] = grad[group[0] * STAR_N + i];
+        }
+        wgt[0] = 1.0;
+        return;
+    }
+    star_velocity(c, q, v, p, vel);
+    star_legendre(q, vel, c->par, mom, mass);
+    ok = star_lu(STAR_N, mass, piv);
+    for (g = 0; g < n_group; ++g) {
+        gj = grad + group[g] * STAR_N;
+        num = 0.0;
+        den = 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            tmp[i] = gj[i];
+        }
+        if (ok) {
+            star_lu_solve(STAR_N, mass, piv, tmp);
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            num -= gj[i] * vel[i];
+            den += gj[i] * tmp[i];
+        }
+        wgt[g] = num / den > 0.0 ? num / den : 0.0;
+        sum += wgt[g];
+    }
+    for (g = 0; g < n_group; ++g) {
+        wgt[g] = sum > 0.0 ? wgt[g] / sum : 1.0 / n_group;
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        nrm[i] = 0.0;
+        for (g = 0; g < n_group; ++g) {
+            nrm[i] += wgt[g] * grad[group[g] * STAR_N + i];
+        }
+    }
+}
+
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
  * reflected velocity; if it lands on a root with mu <= 0 it restarts from larger and smaller impulses
  * along the same normal; no root with mu > 0 is a located failure. */
@@ -966,11 +1015,11 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     const double *par = c->par;
     double x[STAR_NX_MAX] = {0.0}, x_best[STAR_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[STAR_N], pm[STAR_N], p_c[STAR_N], p_end[STAR_N];
-    double q_end[STAR_N], *r;
+    double q_end[STAR_N], *r, s_all[STAR_M_DIM] = {0.0}, wgt[STAR_M_DIM], pend_w[STAR_M_DIM];
     star_seg_t next;
-    int i, j, k, best, pending = 0;
+    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group;
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
-        /* Earliest crossing over all crossed contacts (47)/(78). */
+        /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
         best = -1;
         for (j = 0; j < STAR_M; ++j) {
             if (!crossed[j]) {
@@ -979,6 +1028,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             if (star_contact_root(c, seg, j, s_hi[j], g_hi[j], x, &s)) {
                 return 1;
             }
+            s_all[j] = s;
             if (best < 0 || s < s_best) {
                 best = j;
                 s_best = s;
@@ -987,10 +1037,16 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
                 }
             }
         }
-        if (pending) { /* the impulse at the previous impact, re-solved with beta (78) */
-            rec[*n_rec * STAR_W + 4] = x_best[STAR_N];
-            ++*n_rec;
+        n_group = 0;
+        for (j = 0; j < STAR_M; ++j) {
+            if (crossed[j] && s_all[j] - s_best <= c->tol->simultaneous) {
+                group[n_group++] = j;
+            }
         }
+        for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
+            rec[(*n_rec + g) * STAR_W + 4] = x_best[STAR_N] * pend_w[g];
+        }
+        *n_rec += n_pend;
         tau_c = s_best * seg->tau;
         for (i = 0; i < STAR_N; ++i) {
             v_c[i] = x_best[i];
@@ -1004,8 +1060,8 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
         star_contacts(next.q, par, phi, grad);
         for (i = 0; i < STAR_N; ++i) {
             next.p_in[i] = p_c[i];
-            next.nrm[i] = grad[best * STAR_N + i];
         }
+        star_normal(c, next.q, v_c, p_c, grad, group, n_group, next.nrm, wgt);
         for (i = 0; i < STAR_NX_MAX; ++i) {
             next.x[i] = x_best[i];
         }
@@ -1015,20 +1071,23 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             return 1;
         }
         star_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
-        r = rec + *n_rec * STAR_W;
-        r[0] = seg->t;
-        r[1] = best;
-        r[2] = (double)c->step;
-        r[3] = (seg->t - c->t_k) / c->h;
-        r[4] = seg->x[STAR_N];
-        r[5] = seg->e_in;
-        r[6] = e_after;
-        for (i = 0; i < STAR_N; ++i) {
-            r[7 + i] = seg->q[i];
+        for (g = 0; g < n_group; ++g) {
+            r = rec + (*n_rec + g) * STAR_W;
+            r[0] = seg->t;
+            r[1] = group[g];
+            r[2] = (double)c->step;
+            r[3] = (seg->t - c->t_k) / c->h;
+            r[4] = seg->x[STAR_N] * wgt[g];
+            r[5] = seg->e_in;
+            r[6] = e_after;
+            for (i = 0; i < STAR_N; ++i) {
+                r[7 + i] = seg->q[i];
+            }
+            pend_w[g] = wgt[g];
         }
-        pending = 1;
+        n_pend = n_group;
         if (!star_segment_end(c, seg, q_end, phi, grad, crossed, s_hi, g_hi)) {
-            ++*n_rec;
+            *n_rec += n_pend;
             for (i = 0; i < STAR_N; ++i) {
                 q[i] = q_end[i];
                 p[i] = p_end[i];
@@ -1106,7 +1165,8 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
     *impacts_done = 0;
     star_contacts(q, par, phi, grad);
     for (k = 0; k < n_steps; ++k) {
-        if ((max_impacts >= 0 && n_rec >= max_impacts) || impact_cap - n_rec < tol->max_impacts_per_step) {
+        if ((max_impacts >= 0 && n_rec >= max_impacts)
+            || impact_cap - n_rec < (long)tol->max_impacts_per_step * STAR_M_DIM) {
             break;
         }
         c.step = step0 + k;
