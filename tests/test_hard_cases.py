@@ -284,12 +284,6 @@ def test_parabola_tangent_to_ceiling_has_no_impact(backend, delta, t_apex):
     assert min_phi(sim, res) >= -1e-12
 
 
-_LEFT_BRACKET = (
-    "SolverError 'contact time solve failed, residual norm ~5e-17; Newton polish of the contact on "
-    "'ceiling' left the bracket [...]': the regula falsi brackets the entry root but the Newton "
-    "polish converges to the nearby exit root of the shallow crossing"
-)
-GRAZING_XFAIL: dict = {}  # the shallow-crossing cases were fixed in Stepper._bracketed_root
 GRAZING = [
     (1e-10, 0.5, 0.01),
     (1e-10, 0.505, 0.01),
@@ -307,10 +301,8 @@ def _grazing_params():
     for bp in BACKENDS:
         backend = bp.values[0]
         for case in GRAZING:
-            reason = GRAZING_XFAIL.get((backend, *case))
-            marks = list(bp.marks) + ([pytest.mark.xfail(strict=True, reason=reason)] if reason else [])
             out.append(
-                pytest.param(backend, *case, marks=marks, id=f"{backend}-{case[0]:g}-{case[1]}-{case[2]}")
+                pytest.param(backend, *case, marks=bp.marks, id=f"{backend}-{case[0]:g}-{case[1]}-{case[2]}")
             )
     return out
 

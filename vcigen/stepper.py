@@ -422,14 +422,6 @@ class Stepper:
             )
 
 
-def reflected_guess(k: Kernels, q: np.ndarray, v_in: np.ndarray, nrm: np.ndarray):
-    """``v+ = v- - 2 (n.v-)/(n M^-1 n) M^-1 n`` and ``mu = -2 (n.v-)/(n M^-1 n)`` (MATH.md)."""
-    mass = k.legendre(q, v_in)[1]
-    minv_n = np.linalg.solve(mass, nrm)
-    mu = -2.0 * float(nrm @ v_in) / float(nrm @ minv_n)
-    return v_in + mu * minv_n, mu
-
-
 def _hermite_min(g0: float, g1: float, d0: float, d1: float) -> tuple[float, float]:
     """Minimum over ``[0, 1]`` of the cubic with ends ``g0, g1`` and slopes ``d0, d1``."""
     c = np.array([2 * g0 - 2 * g1 + d0 + d1, -3 * g0 + 3 * g1 - 2 * d0 - d1, d0, g0])
