@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 PHASES = ("smooth", "contact time", "jump", "jump to contact", "start")
+# The reason of a SolverError for a step whose p_k+1 or E_d is not finite (both backends).
+NONFINITE = (
+    "non-finite state (an overflow, or a NaN from the model at these parameters); "
+    "check the parameters and the initial state, or reduce h"
+)
 
 
 class SolverError(RuntimeError):
@@ -10,6 +15,9 @@ class SolverError(RuntimeError):
 
     Carries the step index, the time, the phase (smooth, contact time, jump,
     jump to contact) and the residual norm; the message names all four.
+    Raised by ``simulate``, it also carries ``result``: the
+    :class:`~vcigen.Result` up to the last completed step (its impacts too), so
+    that a long run that fails late loses nothing it had computed.
     """
 
     def __init__(self, step: int, time: float, phase: str, residual: float, reason: str = "") -> None:
@@ -18,6 +26,7 @@ class SolverError(RuntimeError):
         self.phase = phase
         self.residual = residual
         self.reason = reason
+        self.result = None  # set by simulate: the Result up to the last completed step
         msg = f"step {step} (t = {time:.12g}): {phase} solve failed, residual norm {residual:.3e}"
         super().__init__(f"{msg}; {reason}" if reason else msg)
 

@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .errors import SolverError
+from .errors import NONFINITE, SolverError
 from .result import Impact, Result
 
 
@@ -103,7 +103,12 @@ class Stepper:
                 cap *= 2
                 Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
             t = t0 + step * h
-            q, p, e, v = self.step(step, t, h, q, p, v, impacts)
+            try:
+                q, p, e, v = self.step(step, t, h, q, p, v, impacts)
+            except SolverError as err:  # keep what was computed: the run up to the last completed step
+                kept = [im for im in impacts if im.step < step]
+                err.result = _result(t0, h, step, Q, P, E, kept, n, time.perf_counter() - wall)
+                raise
             step += 1
             Q[step], P[step], E[step - 1] = q, p, e
             if progress and time.perf_counter() > next_report:
@@ -116,19 +121,7 @@ class Stepper:
                     RuntimeWarning,
                     stacklevel=2,
                 )
-        wall = time.perf_counter() - wall
-        t_grid = t0 + h * np.arange(step + 1)
-        stats = {"wall_time": wall, "steps": step, "seconds_per_step": wall / max(step, 1)}
-        return Result(
-            t_grid,
-            Q[: step + 1].copy(),
-            P[: step + 1].copy(),
-            E[:step].copy(),
-            impacts,
-            [str(s) for s in range(n)],
-            h,
-            stats,
-        )
+        return _result(t0, h, step, Q, P, E, impacts, n, time.perf_counter() - wall)
 
     def step(
         self,
@@ -143,6 +136,8 @@ class Stepper:
         """One grid step from ``(q_k, p_k)``; returns ``(q_k+1, p_k+1, E_d, v)``."""
         k = self.k
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)
+        if not (math.isfinite(e) and np.isfinite(p1).all()):  # E_d is finite only if v is
+            raise SolverError(step, t, "smooth", float(e), NONFINITE)
         self._check(res, p, step, t, "smooth")
         if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
             return q + h * v, p1, e, v
@@ -420,6 +415,21 @@ class Stepper:
                 "Newton did not converge; reduce h or check "
                 "that the Lagrangian is regular along the trajectory",
             )
+
+
+def _result(t0: float, h: float, steps: int, Q, P, E, impacts: list[Impact], n: int, wall: float) -> Result:
+    """The :class:`Result` of the first ``steps`` grid steps held in the buffers."""
+    stats = {"wall_time": wall, "steps": steps, "seconds_per_step": wall / max(steps, 1)}
+    return Result(
+        t0 + h * np.arange(steps + 1),
+        Q[: steps + 1].copy(),
+        P[: steps + 1].copy(),
+        E[:steps].copy(),
+        impacts,
+        [str(s) for s in range(n)],
+        h,
+        stats,
+    )
 
 
 def _hermite_min(g0: float, g1: float, d0: float, d1: float) -> tuple[float, float]:

@@ -17,7 +17,8 @@ import sympy as sp
 
 from .. import __version__
 from ..derive import DiscreteSystem
-from ..errors import PHASES
+from ..errors import NONFINITE, PHASES
+from ..explicit import grid_routines
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
@@ -100,6 +101,8 @@ def render_context(
     routines = list(system.routines.values()) + [phi_routine(system)]
     if structure.explicit_path:
         routines += path_routines(system)
+    grid = grid_routines(system) if structure.explicit_grid else []
+    routines += grid
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -114,6 +117,7 @@ def render_context(
         "n": n,
         "m": system.m,
         "npar": len(system.params),
+        "nk": grid[0].outputs[0].size if grid else 0,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
@@ -123,6 +127,7 @@ def render_context(
         "phases": [
             {"index": k, "name": ph, "macro": ph.upper().replace(" ", "_")} for k, ph in enumerate(PHASES)
         ],
+        "nonfinite": NONFINITE,
         "tol": {k: c_number(v) for k, v in asdict(tol or Tolerances()).items()},
         "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],
         "newton": {k: repr(v) for k, v in NEWTON.items()},
@@ -132,6 +137,7 @@ def render_context(
             "smooth_diagonal": structure.smooth_diagonal,
             "mass_diagonal": structure.mass_diagonal,
             "explicit_path": structure.explicit_path,
+            "explicit_grid": structure.explicit_grid,
         },
         "notes": structure.notes(system),
         "routines": [routine_context(r) for r in routines],

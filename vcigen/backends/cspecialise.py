@@ -9,6 +9,11 @@
   solved by a safeguarded Newton on ``s`` (routine ``contact_path_<c>``).
 * **Contact values only.** Sub-solves along a segment need ``phi`` but not its
   gradient: routine ``phi`` skips the gradients there.
+* **Explicit grid step.** With a constant diagonal mass as well, a whole grid
+  step away from contacts is one straight-line routine ``grid_step``: ``v`` of
+  (46), ``q_k+1``, ``p_k+1``, ``E_d`` (55), ``phi(q_k+1)`` and its
+  slope. Every subexpression of ``(h, par)`` alone is hoisted out of the loop
+  into ``grid_consts``, computed once per run (no division is left in the loop).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from ..derive import DiscreteSystem
+from ..explicit import is_explicit
 from ..routines import Arg, Output, Routine
 
 
@@ -29,6 +35,8 @@ class Structure:
     smooth_diagonal: bool
     explicit_path: bool
     mass_diagonal: bool = False
+
+    explicit_grid: bool = False
 
     def notes(self, system: DiscreteSystem) -> list[str]:
         """Plain-language lines for the top of the generated source."""
@@ -55,6 +63,11 @@ class Structure:
             lines.append("contact time (47): Newton on (v, alpha)")
         if self.mass_diagonal:
             lines.append("velocity of a momentum (crossing slopes): constant diagonal mass -> one division")
+        if self.explicit_grid:
+            lines.append(
+                "grid step away from contacts: one straight-line routine (v, q, p, E_d, phi, "
+                "slope); subexpressions of (h, par) hoisted out of the loop, computed once per run"
+            )
         lines.append(
             "grid test: phi and grad phi at q_k reused from the previous step; sub-solves use phi only"
         )
@@ -74,7 +87,13 @@ def detect(system: DiscreteSystem) -> Structure:
     mass_diagonal = not (mass.free_symbols & state) and all(
         mass[i, k] == 0 for i in range(mass.rows) for k in range(mass.cols) if i != k
     )
-    return Structure(linear, diagonal, explicit_path=diagonal and system.m > 0, mass_diagonal=mass_diagonal)
+    return Structure(
+        linear,
+        diagonal,
+        explicit_path=diagonal and system.m > 0,
+        mass_diagonal=mass_diagonal,
+        explicit_grid=is_explicit(system),
+    )
 
 
 def phi_routine(system: DiscreteSystem) -> Routine:

@@ -21,7 +21,7 @@ from ..derive import DiscreteSystem
 from ..errors import PHASES, SolverError
 from ..result import Impact, Result
 from ..simulator import Simulator
-from ..stepper import Tolerances, _n_steps
+from ..stepper import Tolerances, _n_steps, _result
 
 _D = ctypes.POINTER(ctypes.c_double)
 IMPACT_CAP = 4096
@@ -225,7 +225,10 @@ class CSimulator(Simulator):
             impacts += [_impact(r, kern.contact_names) for r in rec[: idone.value]]
             done += sdone.value
             if rc != 0:
-                raise SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
+                error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
+                kept = [im for im in impacts if im.step < done]  # the run up to the last completed step
+                error.result = _result(t0, h, done, Q, P, E, kept, n, time.perf_counter() - wall)
+                raise error
             if progress:
                 print(f"  t = {t0 + done * h:.4g}, {done} steps, {len(impacts)} impacts", flush=True)
             if sdone.value == 0:
@@ -236,18 +239,7 @@ class CSimulator(Simulator):
                 RuntimeWarning,
                 stacklevel=3,
             )
-        wall = time.perf_counter() - wall
-        stats = {"wall_time": wall, "steps": done, "seconds_per_step": wall / max(done, 1)}
-        return Result(
-            t0 + h * np.arange(done + 1),
-            Q[: done + 1].copy(),
-            P[: done + 1].copy(),
-            E[:done].copy(),
-            impacts,
-            [str(s) for s in range(n)],
-            h,
-            stats,
-        )
+        return _result(t0, h, done, Q, P, E, impacts, n, time.perf_counter() - wall)
 
 
 def _impact(r: np.ndarray, names: tuple[str, ...]) -> Impact:

@@ -11,6 +11,9 @@
 /* array extents (a C array cannot be empty) */
 #define PARTICLE_M_DIM (PARTICLE_M > 0 ? PARTICLE_M : 1)
 #define PARTICLE_NPAR_DIM (PARTICLE_NPAR > 0 ? PARTICLE_NPAR : 1)
+/* run constants of the explicit grid step (subexpressions of h and the parameters) */
+#define PARTICLE_NK 7
+#define PARTICLE_NK_DIM (PARTICLE_NK > 0 ? PARTICLE_NK : 1)
 /* the largest unknown: (w, mu, beta) of (78) */
 #define PARTICLE_NX_MAX (PARTICLE_N + 2)
 /* one impact record: t, contact, step, alpha, impulse, energy_before, energy_after, q[N] */

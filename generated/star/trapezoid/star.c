@@ -7,6 +7,7 @@
  *   - smooth step (46): residual linear in v with a diagonal Jacobian -> one division, no Newton
  *   - contact time (47): position explicit in alpha -> safeguarded scalar Newton on alpha
  *   - velocity of a momentum (crossing slopes): constant diagonal mass -> one division
+ *   - grid step away from contacts: one straight-line routine (v, q, p, E_d, phi, slope); subexpressions of (h, par) hoisted out of the loop, computed once per run
  *   - grid test: phi and grad phi at q_k reused from the previous step; sub-solves use phi only
  */
 #include <math.h>
@@ -282,6 +283,65 @@ static inline void star_contact_path_floor(const double *x, const double *q0, co
     v[2] = t6;
 }
 
+/* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */
+static inline void star_grid_consts(const double *tau, const double *par, double *k)
+{
+    const double t0 = 1.0/par[0];
+    const double t1 = par[1]*par[0];
+    const double t2 = tau[0]*t1;
+    const double t3 = t0/((par[2])*(par[2]));
+    const double t4 = tau[0]*t0;
+    k[0] = t0;
+    k[1] = -1.0/2.0*t2;
+    k[2] = (192.0/29.0)*t3;
+    k[3] = -t2;
+    k[4] = (1.0/2.0)*t0;
+    k[5] = t1;
+    k[6] = (1.0/2.0)*tau[0]*par[1];
+    k[7] = (96.0/29.0)*t3;
+    k[8] = -1.0/2.0*par[2];
+    k[9] = t4;
+    k[10] = -96.0/29.0*t4/par[2];
+}
+
+/* Explicit grid step (46), (73): v, p_k+1 = p+ (51) and E_d (55); q_k+1 = q_k + h v. */
+static inline void star_grid_step(const double *q0, const double *p0, const double *k, double *v, double *p1, double *energy)
+{
+    const double t0 = k[1] + p0[1];
+    v[0] = k[0]*p0[0];
+    v[1] = k[0]*t0;
+    v[2] = k[2]*p0[2];
+    p1[0] = p0[0];
+    p1[1] = k[3] + p0[1];
+    p1[2] = p0[2];
+    energy[0] = ((p0[0])*(p0[0]))*k[4] + k[4]*((t0)*(t0)) + k[5]*q0[1] + k[6]*t0 + ((p0[2])*(p0[2]))*k[7];
+}
+
+/* phi at the end q of an explicit grid step and its slope h grad phi . M^-1 (p - p(q, 0)). */
+static inline void star_grid_end(const double *q, const double *p, const double *k, double *phi, double *d)
+{
+    const double t0 = sin(q[2]);
+    const double t1 = cos(q[2]);
+    phi[0] = k[8]*(fabs(t0) + fabs(t1)) + q[1];
+    d[0] = k[10]*p[2]*(-t0*((t1 < -1e-12) ? (
+   -1
+)
+: ((t1 <= 1e-12) ? (
+   0
+)
+: (
+   1
+))) + t1*((t0 < -1e-12) ? (
+   -1
+)
+: ((t0 <= 1e-12) ? (
+   0
+)
+: (
+   1
+)))) + k[9]*p[1];
+}
+
 /* Adapters: the routines with an unknown x, as star_fun for the solvers. */
 typedef void (*star_fun)(const double *x, const double *const *arg, double *const *out);
 
@@ -451,6 +511,7 @@ static void star_newton(star_fun f, const double *const *arg, int n, double *x, 
 
 #define STAR_N1 (STAR_N + 1)
 #define STAR_W STAR_IMPACT_WIDTH
+#define STAR_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -543,12 +604,13 @@ static inline void star_smooth_step(const double *q0, const double *p0, double t
     double *grad1, double *d0, double *d1)
 {
     double pm[STAR_N], q1[STAR_N], vel0[STAR_N], vel1[STAR_N];
+    double pp[STAR_N], e_seg, k[STAR_NK_DIM];
     int i, j;
-    for (i = 0; i < STAR_N; ++i) {
-        v[i] = guess[i];
-    }
-    star_solve_smooth(q0, p0, tau, par, v);
-    star_segment(q0, v, &tau, par, pm, p1, energy);
+    (void)guess;
+    /* the explicit grid step (vcigen.explicit): v, p1 and E_d as the loop of star_run has them */
+    star_grid_consts(&tau, par, k);
+    star_grid_step(q0, p0, k, v, p1, energy);
+    star_segment(q0, v, &tau, par, pm, pp, &e_seg);
     for (i = 0; i < STAR_N; ++i) {
         pm[i] -= p0[i];
         q1[i] = q0[i] + tau * v[i];
@@ -1111,6 +1173,12 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     int crossed[STAR_M_DIM], i, j, inside = 1;
     star_seg_t seg;
     star_smooth_step(q, p, c->h, v, c->par, grad, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+    for (i = 0, inside = isfinite(e1); i < STAR_N; ++i) { /* E_d is finite only if v is */
+        inside = inside && isfinite(p1[i]);
+    }
+    if (!inside) {
+        return star_fail(c, STAR_PHASE_SMOOTH, e1, "%s", STAR_NONFINITE);
+    }
     if (star_check(c, res, p, NAN, STAR_PHASE_SMOOTH)) {
         return 1;
     }
@@ -1149,41 +1217,197 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     return 0;
 }
 
+
+/* The slopes d_j = tau grad phi_j . qdot at (q, p), qdot the velocity of p (Kernels.smooth_step's d0). */
+static void star_slopes(const double *par, double tau, const double *q, const double *v, const double *p,
+    const double *grad, double *d)
+{
+    double vel[STAR_N];
+    int i, j;
+    star_velocity_par(par, q, v, p, vel);
+    for (j = 0; j < STAR_M; ++j) {
+        d[j] = 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            d[j] += tau * grad[j * STAR_N + i] * vel[i];
+        }
+    }
+}
+
+#if defined(__GNUC__)
+#define STAR_COLD __attribute__((noinline, cold))
+#define STAR_HOT __attribute__((noinline))
+#else
+#define STAR_COLD
+#define STAR_HOT
+#endif
+
+/* A grid step the explicit pre-test could not clear (a contact may be crossed, or the state is not
+ * finite): the general step (Stepper.step) from phi and grad phi at q_k, then the slopes d at q_k+1.
+ * Out of line, so that the loop of star_run keeps its state in registers. */
+STAR_COLD static int star_step_near(const star_ctx_t *c, double *q, double *p, double *v,
+    double *e, double *d, double *rec, long *n_rec)
+{
+    double phi[STAR_M_DIM], grad[STAR_M_DIM * STAR_N];
+    int rc;
+    star_contacts(q, c->par, phi, grad);
+    rc = star_step(c, q, p, v, e, phi, grad, rec, n_rec);
+    star_slopes(c->par, c->h, q, v, p, grad, d);
+    return rc;
+}
+
+/* Whether the next grid step might log more impacts than asked for or than the buffer holds. */
+static int star_full(long n_rec, long max_impacts, long rec_limit)
+{
+    return (max_impacts >= 0 && n_rec >= max_impacts) || n_rec > rec_limit;
+}
+
+/* The first of rows 0 .. n - 1 of (Q, P, E) with a non-finite entry, or n. */
+static long star_first_bad(long n, const double *Q, const double *P, const double *E)
+{
+    long s;
+    int i;
+    for (s = 0; s < n; ++s) {
+        int bad = !isfinite(E[s]);
+        for (i = 0; i < STAR_N; ++i) {
+            bad = bad || !isfinite(Q[s * STAR_N + i]) || !isfinite(P[s * STAR_N + i]);
+        }
+        if (bad) {
+            return s;
+        }
+    }
+    return n;
+}
+
+/* Explicit grid steps from (q, p) (in/out, with the slopes d at q and v the last step's velocity)
+ * while each step clears the pre-test of Stepper.step: its end is admissible and its slopes do not
+ * flag a dip (d0 < 0 < d1). Writes rows 0 .. of Q, P, E, adds E_d to *sum_e and returns the number
+ * of steps taken (n, or the step that needs the general step). Out of line and with its state in
+ * locals, so that the loop keeps it in registers. */
+STAR_HOT static long star_glide(const double *k, double h, double phi_min, long n, double *q_io,
+    double *p_io, double *v_io, double *d_io, double *Q, double *P, double *E, double *sum_e)
+{
+    double q[STAR_N], p[STAR_N], v[STAR_N], d[STAR_M_DIM], sum = 0.0;
+    long s;
+    int i, j;
+    for (i = 0; i < STAR_N; ++i) {
+        q[i] = q_io[i];
+        p[i] = p_io[i];
+        v[i] = v_io[i];
+    }
+    for (j = 0; j < STAR_M; ++j) {
+        d[j] = d_io[j];
+    }
+    for (s = 0; s < n; ++s) {
+        double q1[STAR_N], p1[STAR_N], e1, phi1[STAR_M_DIM], d1[STAR_M_DIM];
+        int clear = 1;
+        star_grid_step(q, p, k, v, p1, &e1);
+        for (i = 0; i < STAR_N; ++i) {
+            q1[i] = q[i] + h * v[i];
+        }
+        star_grid_end(q1, p1, k, phi1, d1);
+        for (j = 0; j < STAR_M; ++j) { /* without branches: one test per step */
+            clear &= !(phi1[j] < phi_min) & !((d[j] < 0) & (d1[j] > 0));
+        }
+        if (!clear) {
+            break;
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            q[i] = q1[i];
+            p[i] = p1[i];
+            Q[s * STAR_N + i] = q1[i];
+            P[s * STAR_N + i] = p1[i];
+        }
+        for (j = 0; j < STAR_M; ++j) {
+            d[j] = d1[j];
+        }
+        E[s] = e1;
+        sum += e1;
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        q_io[i] = q[i];
+        p_io[i] = p[i];
+        v_io[i] = v[i];
+    }
+    for (j = 0; j < STAR_M; ++j) {
+        d_io[j] = d[j];
+    }
+    *sum_e += sum;
+    return s;
+}
+
 int star_run(const double *par, const star_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, star_error_t *err)
 {
+    /* Stepper.step: explicit grid steps (star_glide) while they clear the pre-test, the general
+     * step for the others. A non-finite value is found after the loop, not per step: E_d holds the
+     * kinetic energy of v, and q_k+1 = q_k + h v, p_k+1 = p_k + h l_q0 keep a non-finite entry
+     * non-finite, so a non-finite sum of E_d or end state flags it; the first non-finite row is then
+     * the failed step. */
     star_ctx_t c;
-    double phi[STAR_M_DIM], grad[STAR_M_DIM * STAR_N];
-    long k, n_rec = 0;
-    int i;
+    double q0[STAR_N], p0[STAR_N], d[STAR_M_DIM], k[STAR_NK_DIM];
+    double phi[STAR_M_DIM], grad[STAR_M_DIM * STAR_N], sum_e = 0.0;
+    const long rec_limit = impact_cap - (long)tol->max_impacts_per_step * STAR_M_DIM;
+    long s = 0, bad, n_end = n_steps, n_rec = 0;
+    int i, rc = 0, finite = 1;
     c.par = par;
     c.tol = tol;
     c.err = err;
     c.h = h;
-    *steps_done = 0;
-    *impacts_done = 0;
+    for (i = 0; i < STAR_N; ++i) {
+        q0[i] = q[i];
+        p0[i] = p[i];
+    }
+    star_grid_consts(&h, par, k);
     star_contacts(q, par, phi, grad);
-    for (k = 0; k < n_steps; ++k) {
-        if ((max_impacts >= 0 && n_rec >= max_impacts)
-            || impact_cap - n_rec < (long)tol->max_impacts_per_step * STAR_M_DIM) {
+    star_slopes(par, h, q, v, p, grad, d);
+    if (star_full(n_rec, max_impacts, rec_limit)) {
+        n_end = 0;
+    }
+    while (s < n_end) {
+        s += star_glide(k, h, -tol->phi, n_end - s, q, p, v, d, Q + s * STAR_N,
+            P + s * STAR_N, E + s, &sum_e);
+        if (s == n_end) {
             break;
         }
-        c.step = step0 + k;
+        c.step = step0 + s;
         c.t_k = t0 + (double)c.step * h;
-        if (star_step(&c, q, p, v, &E[k], phi, grad, impacts, &n_rec)) {
-            *impacts_done = n_rec;
-            return 1;
+        rc = star_step_near(&c, q, p, v, &E[s], d, impacts, &n_rec);
+        if (rc) {
+            break;
         }
+        sum_e += E[s];
         for (i = 0; i < STAR_N; ++i) {
-            Q[k * STAR_N + i] = q[i];
-            P[k * STAR_N + i] = p[i];
+            Q[s * STAR_N + i] = q[i];
+            P[s * STAR_N + i] = p[i];
         }
-        *steps_done = k + 1;
-        *impacts_done = n_rec;
+        ++s;
+        if (star_full(n_rec, max_impacts, rec_limit)) {
+            break;
+        }
     }
-    return 0;
+    for (i = 0; i < STAR_N; ++i) {
+        finite = finite && isfinite(q[i]) && isfinite(p[i]);
+    }
+    bad = finite && isfinite(sum_e) ? s : star_first_bad(s, Q, P, E);
+    if (bad < s) { /* step `bad` went non-finite: the run ends before it, its impacts dropped */
+        for (i = 0; i < STAR_N; ++i) {
+            q[i] = bad > 0 ? Q[(bad - 1) * STAR_N + i] : q0[i];
+            p[i] = bad > 0 ? P[(bad - 1) * STAR_N + i] : p0[i];
+        }
+        while (n_rec > 0 && impacts[(n_rec - 1) * STAR_W + 2] >= (double)(step0 + bad)) {
+            --n_rec;
+        }
+        s = bad;
+        c.step = step0 + bad;
+        c.t_k = t0 + (double)c.step * h;
+        rc = star_fail(&c, STAR_PHASE_SMOOTH, E[bad], "%s", STAR_NONFINITE);
+    }
+    *steps_done = s;
+    *impacts_done = n_rec;
+    return rc;
 }
+
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */
 

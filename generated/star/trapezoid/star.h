@@ -11,6 +11,9 @@
 /* array extents (a C array cannot be empty) */
 #define STAR_M_DIM (STAR_M > 0 ? STAR_M : 1)
 #define STAR_NPAR_DIM (STAR_NPAR > 0 ? STAR_NPAR : 1)
+/* run constants of the explicit grid step (subexpressions of h and the parameters) */
+#define STAR_NK 11
+#define STAR_NK_DIM (STAR_NK > 0 ? STAR_NK : 1)
 /* the largest unknown: (w, mu, beta) of (78) */
 #define STAR_NX_MAX (STAR_N + 2)
 /* one impact record: t, contact, step, alpha, impulse, energy_before, energy_after, q[N] */

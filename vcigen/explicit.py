@@ -1,0 +1,144 @@
+"""The explicit grid step: one smooth step (46) as straight-line code, when the mass is constant.
+
+When the smooth residual (46) has a constant diagonal Jacobian and the mass
+matrix is constant and diagonal (a Lagrangian ``1/2 v.M v - V(q)`` whose
+discrete ``p-`` is linear in ``v``: every scene with a potential linear under
+the rule, the trapezoidal rule for any ``V``), a grid step needs no solve:
+
+* ``v_i = -r_i(0) / J_ii`` solves (46) exactly; ``q_k+1 = q_k + h v``;
+* ``p_k+1 = p+`` (50)-(51) and ``E_d`` (55) of the segment; ``M v`` cancels
+  symbolically against ``v = M^-1 (...)``, so ``p_k+1`` is ``p_k`` plus a force;
+* ``phi(q_k+1)`` and its slope ``d = h grad phi . M^-1 (p_k+1 - p(q_k+1, 0))``
+  for the crossing pre-test (as ``Kernels.smooth_step``'s ``d1``).
+
+Every subexpression of ``(h, par)`` alone is hoisted into run constants
+(``grid_consts``), so the step (``grid_step``, ``grid_end``) has no division.
+Both backends take ``v``, ``p_k+1`` and ``E_d`` of the smooth grid step from
+``grid_step``: one formula, the same round-off.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from .derive import DiscreteSystem
+from .routines import Arg, Output, Routine
+
+
+def is_explicit(system: DiscreteSystem) -> bool:
+    """Whether (46) has a constant diagonal Jacobian and the mass matrix is constant and diagonal."""
+    smooth, leg = system.routines["smooth"], system.routines["legendre"]
+    jac, mass = smooth.output("jac").expr, leg.output("mass").expr
+    state = set(smooth.inputs[0].symbols) | set(smooth.input("q0").symbols)
+    state |= set(leg.input("q").symbols) | set(leg.input("v").symbols)
+
+    def const_diag(a: sp.Matrix) -> bool:
+        off = (a[i, k] for i in range(a.rows) for k in range(a.cols) if i != k)
+        return not (a.free_symbols & state) and all(e == 0 for e in off)
+
+    return const_diag(jac) and const_diag(mass)
+
+
+Constants = list[tuple[sp.Symbol, sp.Expr]]
+
+
+def hoist(exprs: list[sp.Expr], varying: set[sp.Symbol]) -> tuple[Constants, list[sp.Expr]]:
+    """Replace every maximal subexpression free of ``varying`` by a constant symbol.
+
+    Inside a sum or product the invariant terms are grouped into one constant
+    (``(p0 - h g m / 2) / m`` -> ``(p0 + k1) k0``). Returns ``(constants, exprs)``
+    with the constants in order of first use; numbers stay literal.
+    """
+    consts: dict[sp.Expr, sp.Symbol] = {}
+
+    def const(e: sp.Expr) -> sp.Expr:
+        if e.is_number:
+            return e
+        if e not in consts:
+            consts[e] = sp.Dummy(f"k{len(consts)}", real=True)
+        return consts[e]
+
+    def visit(e: sp.Basic) -> sp.Basic:
+        if not isinstance(e, sp.Expr):  # a condition of a Piecewise, or one of its pairs
+            return e.func(*[visit(a) for a in e.args]) if e.args else e
+        if not e.free_symbols & varying:
+            return const(e)
+        if e.is_Atom:
+            return e
+        if isinstance(e, (sp.Add, sp.Mul)):
+            fixed = [a for a in e.args if not a.free_symbols & varying]
+            moving = [visit(a) for a in e.args if a.free_symbols & varying]
+            return e.func(const(e.func(*fixed)), *moving) if fixed else e.func(*moving)
+        return e.func(*[visit(a) for a in e.args])
+
+    out = [visit(e) for e in exprs]
+    return [(k, e) for e, k in consts.items()], out
+
+
+def _shorter(e: sp.Expr) -> sp.Expr:
+    """``e`` expanded if that takes fewer operations (E_d (55) collects to a short form)."""
+    x = sp.expand(e)
+    return x if sp.count_ops(x) < sp.count_ops(e) else e
+
+
+def grid_routines(system: DiscreteSystem) -> list[Routine]:
+    """``grid_consts(tau, par) -> k``, ``grid_step(q0, p0, k) -> v, p1, E``, ``grid_end(q, p, k) -> phi, d``.
+
+    One smooth grid step (46) as straight-line code, for a constant diagonal mass:
+    ``v_i = -r_i(0) / J_ii``, ``p1 = p+`` and ``E_d`` (55); the caller forms
+    ``q1 = q0 + tau v`` (as the stepper does); then ``phi(q1)`` and its slope
+    ``d = tau grad phi(q1) . M^-1 (p1 - p(q1, 0))``.
+    """
+    smooth, r = system.routines["smooth"], system.routines
+    xs, q0, p0, tau, par = smooth.inputs
+    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
+    res, jac = smooth.output("res").expr, smooth.output("jac").expr
+    v = sp.Matrix([-res[i].xreplace(zero) / jac[i, i] for i in range(system.n)])
+    h = tau.symbols[0]
+
+    def at(name: str, values: dict[str, sp.Matrix]) -> dict[sp.Symbol, sp.Expr]:
+        rep: dict[sp.Symbol, sp.Expr] = {}
+        for arg in r[name].inputs:
+            if arg.name in values:
+                rep.update(zip(arg.symbols, values[arg.name]))
+        return rep
+
+    seg_at = at("segment", {"q0": sp.Matrix(q0.symbols), "v": v, "tau": sp.Matrix([h])})
+    energy = _shorter(r["segment"].output("energy").expr[0]).xreplace(seg_at)
+    p1 = r["segment"].output("p_plus").expr.xreplace(seg_at)  # M v cancels against v = M^-1 (...)
+    q = Arg("q", tuple(r["contacts"].input("q").symbols))
+    p = Arg("p", tuple(sp.Dummy(f"p{i}", real=True) for i in range(system.n)))
+    phi, grad = r["contacts"].output("phi").expr, r["contacts"].output("grad").expr
+    leg = r["legendre"]
+    l_at = at("legendre", {"q": sp.Matrix(q.symbols), "v": sp.zeros(system.n, 1)})
+    mom0, mass = leg.output("momentum").expr.xreplace(l_at), leg.output("mass").expr.xreplace(l_at)
+    vel = sp.Matrix([(p.symbols[i] - mom0[i]) / mass[i, i] for i in range(system.n)])
+    d = h * grad * vel if system.m else sp.zeros(0, 1)
+    outputs = [("v", v), ("p1", p1), ("energy", sp.Matrix([energy])), ("phi", phi), ("d", d)]
+    flat = [e for _, o in outputs for e in o]
+    consts, reduced = hoist(flat, {*q0.symbols, *p0.symbols, *q.symbols, *p.symbols})
+    ks = Arg("k", tuple(k for k, _ in consts))
+    outs, i = [], 0
+    for name, o in outputs:
+        outs.append(Output(name, sp.Matrix(o.rows, o.cols, reduced[i : i + len(o)])))
+        i += len(o)
+    return [
+        Routine(
+            "grid_consts",
+            (tau, par),
+            (Output("k", sp.Matrix([e for _, e in consts]) if consts else sp.zeros(0, 1)),),
+            "Run constants of the explicit grid step: its subexpressions of (h, par) alone.",
+        ),
+        Routine(
+            "grid_step",
+            (q0, p0, ks),
+            tuple(outs[:3]),
+            "Explicit grid step (46), (73): v, p_k+1 = p+ (51) and E_d (55); q_k+1 = q_k + h v.",
+        ),
+        Routine(
+            "grid_end",
+            (q, p, ks),
+            tuple(outs[3:]),
+            "phi at the end q of an explicit grid step and its slope h grad phi . M^-1 (p - p(q, 0)).",
+        ),
+    ]
