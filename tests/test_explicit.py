@@ -19,7 +19,8 @@ from scenes import load_example, star_nonlinear
 
 import vcigen
 from vcigen.errors import NONFINITE
-from vcigen.explicit import grid_routines, hoist, is_explicit
+from vcigen.explicit import grid_routines, hoist, is_explicit, jump_quadratic
+from vcigen.stepper import quadratic_root
 
 RULES = ["trapezoid", "midpoint"]
 BACKENDS = [backend_param("casadi"), backend_param("c")]
@@ -185,3 +186,56 @@ def test_a_solver_error_keeps_the_impacts_before_it(backend: str) -> None:
     ok = sim.simulate([0.1, 0.0], [0.0, 2.0], 0.01, t_end=info.value.time)
     np.testing.assert_array_equal(ok.q, kept.q)
     assert [im.t for im in ok.impacts] == [im.t for im in kept.impacts]
+
+
+@pytest.mark.parametrize("name,rule", [("particle", "trapezoid"), ("star", "midpoint")])
+def test_jump_quadratic_roots_solve_the_jump(name: str, rule: str) -> None:
+    """Both roots of a mu^2 + b mu + c, put into w = w0 + mu dw, zero the residual of (48)."""
+    system = vcigen.derive(_model(name), rule)
+    quad = jump_quadratic(system)
+    assert quad is not None
+    par = np.array([float(v) for v in system.model.defaults.values()])
+    rng = np.random.default_rng(2)
+    n = system.n
+    for _ in range(5):
+        # a jump with a known root mu_star: w_star leaves qc with p-(w_star) = p_in + mu_star n
+        qc, nrm, w_star, mu_star, tau = (
+            rng.uniform(-1, 1, n),
+            rng.normal(size=n),
+            rng.normal(size=n),
+            0.7,
+            0.004,
+        )
+        p_minus, _, (e_in,) = _numeric(system.routines["segment"], qc, w_star, [tau], par)
+        p_in = p_minus - mu_star * nrm
+        (a, b, c), w0, dw = _numeric(quad, qc, nrm, p_in, [e_in], [tau], par)
+        roots = np.roots([a, b, c])
+        assert np.min(np.abs(roots - mu_star)) < 1e-12
+        for mu in roots:
+            assert abs(mu.imag) < 1e-12
+            x = np.append(w0 + mu.real * dw, mu.real)
+            (res, _) = _numeric(system.routines["jump"], x, qc, nrm, p_in, [e_in], [tau], par)
+            assert np.max(np.abs(res)) <= 1e-12 * (1 + abs(e_in) + np.max(np.abs(p_in)))
+
+
+def test_jump_quadratic_needs_a_quadratic_energy() -> None:
+    """Nonlinear gravity under the trapezoidal rule: explicit smooth step, but E_d is not quadratic in w."""
+    system = vcigen.derive(_model("star_nonlinear"), "trapezoid")
+    assert is_explicit(system) and jump_quadratic(system) is None
+
+
+def test_quadratic_root_is_where_newton_goes() -> None:
+    """The selected root is the one scalar Newton from mu_try converges to."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        r0, r1 = sorted(rng.normal(size=2) * 10 ** rng.uniform(-3, 1, 2))
+        a = rng.uniform(0.1, 2.0) * rng.choice([-1, 1])
+        b, c = -a * (r0 + r1), a * r0 * r1
+        mu_try = rng.normal() * 3
+        mu = quadratic_root(a, b, c, mu_try)
+        x = mu_try
+        for _ in range(200):
+            x -= (a * x * x + b * x + c) / (2 * a * x + b)
+        assert mu == pytest.approx(x, rel=1e-9, abs=1e-12)
+    assert quadratic_root(1.0, 0.0, 1.0, 0.5) is None  # no real root
+    assert quadratic_root(0.0, 2.0, -1.0, 5.0) == 0.5  # linear

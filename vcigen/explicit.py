@@ -142,3 +142,42 @@ def grid_routines(system: DiscreteSystem) -> list[Routine]:
             "phi at the end q of an explicit grid step and its slope h grad phi . M^-1 (p - p(q, 0)).",
         ),
     ]
+
+
+def jump_quadratic(system: DiscreteSystem) -> Routine | None:
+    """The jump (48) as a quadratic in ``mu``, when the scene is explicit and ``E_d`` quadratic in ``w``.
+
+    (48b) ``p-(w) = p_in + mu n`` is linear in ``w`` with the constant diagonal
+    Jacobian of (46): ``w = w0 + mu dw``, ``w0 = (p_in - p-(0)) / J``, ``dw = n / J``.
+    Then (48a) ``E_d(w) = E_in`` is ``a mu^2 + b mu + c = 0`` with ``a = dw.H dw / 2``,
+    ``b = grad E_d(w0) . dw``, ``c = E_d(w0) - E_in`` (exact: ``H``, the Hessian of
+    ``E_d`` in ``w``, is constant). Routine ``jump_quadratic(qc, nrm, p_in, e_in, tau, par)
+    -> coef (a, b, c), w0, dw``; ``None`` when the structure is not there.
+    """
+    if not is_explicit(system):
+        return None
+    n, r = system.n, system.routines
+    x, qc, nrm, p_in, e_in, tau, par = r["jump"].inputs
+    w = sp.Matrix(x.symbols[:n])
+    seg = r["segment"]
+    rep = dict(zip(seg.input("q0").symbols, qc.symbols)) | dict(zip(seg.input("v").symbols, w))
+    rep[seg.input("tau").symbols[0]] = tau.symbols[0]
+    p_minus = seg.output("p_minus").expr.xreplace(rep)
+    energy = _shorter(seg.output("energy").expr[0]).xreplace(rep)
+    hess = sp.hessian(energy, list(w))
+    if hess.free_symbols & set(w):
+        return None
+    zero = dict.fromkeys(w, sp.S.Zero)
+    jac = p_minus.jacobian(w)
+    w0 = sp.Matrix([(p_in.symbols[i] - p_minus[i].xreplace(zero)) / jac[i, i] for i in range(n)])
+    dw = sp.Matrix([nrm.symbols[i] / jac[i, i] for i in range(n)])
+    at_w0 = dict(zip(w, w0))
+    a = (dw.T * hess * dw)[0] / 2
+    b = sum((energy.diff(wi).xreplace(at_w0) * dw[i] for i, wi in enumerate(w)), sp.S.Zero)
+    c = energy.xreplace(at_w0) - e_in.symbols[0]
+    return Routine(
+        "jump_quadratic",
+        (qc, nrm, p_in, e_in, tau, par),
+        (Output("coef", sp.Matrix([a, b, c])), Output("w0", w0), Output("dw", dw)),
+        "Jump (48) as a mu^2 + b mu + c = 0 along w = w0 + mu dw (explicit scenes).",
+    )

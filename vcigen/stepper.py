@@ -34,6 +34,7 @@ class Kernels(Protocol):
     def segment(self, q0, v, tau): ...
     def contacts(self, q): ...
     def legendre(self, q, v): ...
+    def jump_quadratic(self, qc, nrm, p_in, e_in, tau): ...  # ((a, b, c), w0, dw) or None
 
 
 @dataclass(frozen=True)
@@ -275,8 +276,13 @@ class Stepper:
 
         Newton starts from the reflected velocity; if it lands on a root with ``mu <= 0``
         (the trajectory passing through the wall), it restarts from larger and smaller
-        impulses along the same normal. Near grazing the discrete energy balance (48a) can
-        have no root with ``mu > 0`` at all: that is a located ``SolverError``.
+        impulses along the same normal. Where (48) is a quadratic in ``mu``
+        (``Kernels.jump_quadratic``, :mod:`vcigen.explicit`) a start is replaced by the
+        root on its side of the vertex, the one Newton converges to, if that root is within
+        ``mu0`` of the elastic impulse ``mu0``, and Newton only checks it; a root further
+        away (grazing: the energy bias of (48a) dominates) is left to Newton from the
+        start, as without the closed form. Near grazing (48a) can have no root with ``mu > 0`` at all: that
+        is a located ``SolverError``.
         """
         k = self.k
         n = k.n
@@ -286,9 +292,15 @@ class Stepper:
         mu0 = max(-2.0 * float(seg.nrm @ vel) / float(seg.nrm @ minv_n), 0.0)
         mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
         roots = []
+        quad = k.jump_quadratic(seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
         for factor in self.tol.jump_restarts:
             mu_try = mu_scale * factor
             x0 = np.append(vel + mu_try * minv_n, mu_try)
+            if quad is not None:  # the root Newton from mu_try converges to, in closed form
+                (a, b, c), w0, dw = quad
+                mu_q = quadratic_root(a, b, c, mu_try)
+                if mu_q is not None and abs(mu_q - mu0) <= mu0:
+                    x0 = np.append(w0 + mu_q * dw, mu_q)
             x, res = k.solve("jump", x0, seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
             if res <= self._scale(seg.p_in, seg.e_in):
                 if x[n] > 0:
@@ -415,6 +427,22 @@ class Stepper:
                 "Newton did not converge; reduce h or check "
                 "that the Lagrangian is regular along the trajectory",
             )
+
+
+def quadratic_root(a: float, b: float, c: float, mu_try: float) -> float | None:
+    """The root of ``a mu^2 + b mu + c`` that Newton from ``mu_try`` converges to, or ``None``.
+
+    For a quadratic that is the root on ``mu_try``'s side of the vertex ``-b / 2a``; the
+    roots are formed without cancellation. ``None``: no real root, or ``mu_try`` at the vertex.
+    """
+    if a == 0.0:
+        return -c / b if b != 0.0 else None
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0 or not math.isfinite(disc) or mu_try == -b / (2.0 * a):
+        return None
+    big = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+    roots = sorted((big / a, c / big) if big != 0.0 else (0.0, 0.0))
+    return roots[1] if mu_try > -b / (2.0 * a) else roots[0]
 
 
 def _result(t0: float, h: float, steps: int, Q, P, E, impacts: list[Impact], n: int, wall: float) -> Result:

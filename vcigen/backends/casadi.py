@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from ..derive import DiscreteSystem
-from ..explicit import grid_routines, is_explicit
+from ..explicit import grid_routines, is_explicit, jump_quadratic
 from ..routines import Routine
 from .sym2casadi import to_casadi
 
@@ -56,6 +56,8 @@ class CasadiKernels:
             if "x" in [a.name for a in system.routines[name].inputs]
         }
         self._step = self._smooth_step()
+        quad = jump_quadratic(system)
+        self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
         self._flat = {name: self._flatten(name) for name in ("legendre", "segment", "contacts")}
 
     def bind(self, par: list[float]) -> CasadiKernels:
@@ -114,10 +116,13 @@ class CasadiKernels:
         return ca.Function("smooth_step", [vec], [ca.vertcat(v, res, p1, e, phi0, phi1, d0, d1)])
 
     def _flatten(self, name: str) -> ca.Function:
-        f = self.functions[name]
+        return self._flat_function(self.functions[name])
+
+    @staticmethod
+    def _flat_function(f: ca.Function) -> ca.Function:
         ins = [ca.SX.sym(a, f.size1_in(i)) for i, a in enumerate(f.name_in())]
         outs = f(*ins)
-        return ca.Function(f"{name}_flat", [ca.vertcat(*ins)], [ca.vertcat(*[ca.vec(o.T) for o in outs])])
+        return ca.Function(f"{f.name()}_flat", [ca.vertcat(*ins)], [ca.vertcat(*[ca.vec(o.T) for o in outs])])
 
     # -- the kernels interface --------------------------------------------------
     def _call(self, f: ca.Function, *parts: np.ndarray | float) -> np.ndarray:
@@ -180,3 +185,11 @@ class CasadiKernels:
         m, n = self.m, self.n
         o = self._call(self._flat["contacts"], q)
         return o[:m], o[m:].reshape(m, n)
+
+    def jump_quadratic(self, qc, nrm, p_in, e_in, tau):
+        """``((a, b, c), w0, dw)`` of the jump (48) as a quadratic in ``mu``, or ``None``."""
+        if self._quad is None:
+            return None
+        n = self.n
+        o = self._call(self._quad, qc, nrm, p_in, e_in, tau)
+        return (float(o[0]), float(o[1]), float(o[2])), o[3 : 3 + n], o[3 + n : 3 + 2 * n]

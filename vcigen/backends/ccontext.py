@@ -18,7 +18,7 @@ import sympy as sp
 from .. import __version__
 from ..derive import DiscreteSystem
 from ..errors import NONFINITE, PHASES
-from ..explicit import grid_routines
+from ..explicit import grid_routines, jump_quadratic
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
@@ -102,7 +102,8 @@ def render_context(
     if structure.explicit_path:
         routines += path_routines(system)
     grid = grid_routines(system) if structure.explicit_grid else []
-    routines += grid
+    quad = jump_quadratic(system)
+    routines += grid + ([quad] if quad else [])
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -138,6 +139,7 @@ def render_context(
             "mass_diagonal": structure.mass_diagonal,
             "explicit_path": structure.explicit_path,
             "explicit_grid": structure.explicit_grid,
+            "jump_quadratic": quad is not None,
         },
         "notes": structure.notes(system),
         "routines": [routine_context(r) for r in routines],

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from ..derive import DiscreteSystem
-from ..explicit import is_explicit
+from ..explicit import is_explicit, jump_quadratic
 from ..routines import Arg, Output, Routine
 
 
@@ -37,6 +37,7 @@ class Structure:
     mass_diagonal: bool = False
 
     explicit_grid: bool = False
+    jump_quadratic: bool = False
 
     def notes(self, system: DiscreteSystem) -> list[str]:
         """Plain-language lines for the top of the generated source."""
@@ -63,6 +64,8 @@ class Structure:
             lines.append("contact time (47): Newton on (v, alpha)")
         if self.mass_diagonal:
             lines.append("velocity of a momentum (crossing slopes): constant diagonal mass -> one division")
+        if self.jump_quadratic:
+            lines.append("jump (48): a quadratic in mu -> closed-form root, Newton only checks it")
         if self.explicit_grid:
             lines.append(
                 "grid step away from contacts: one straight-line routine (v, q, p, E_d, phi, "
@@ -93,6 +96,7 @@ def detect(system: DiscreteSystem) -> Structure:
         explicit_path=diagonal and system.m > 0,
         mass_diagonal=mass_diagonal,
         explicit_grid=is_explicit(system),
+        jump_quadratic=jump_quadratic(system) is not None,
     )
 
 

@@ -78,6 +78,9 @@ class CKernels:
         self._contacts = getattr(self.lib, f"{pre}_eval_contacts")
         self._smooth = getattr(self.lib, f"{pre}_eval_smooth_step")
         self._smooth.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D, _D, _D, _D, _D]
+        self._quad = getattr(self.lib, f"{pre}_eval_jump_quadratic", None)
+        if self._quad is not None:
+            self._quad.argtypes = [_D, _D, _D, ctypes.c_double, ctypes.c_double, _D, _D, _D, _D]
         self._solve = getattr(self.lib, f"{pre}_solve")
         self._solve.argtypes = [ctypes.c_int, _D, _D, _D, _D]
         self.run = getattr(self.lib, f"{pre}_run")
@@ -149,6 +152,25 @@ class CKernels:
             _ptr(d1),
         )
         return v, float(res[0]), p1, float(e[0]), phi0[:m], phi1[:m], d0[:m], d1[:m]
+
+    def jump_quadratic(self, qc, nrm, p_in, e_in, tau):
+        """``((a, b, c), w0, dw)`` of the jump (48) as a quadratic in ``mu``, or ``None``."""
+        if self._quad is None:
+            return None
+        n = self.n
+        coef, w0, dw = np.empty(3), np.empty(n), np.empty(n)
+        self._quad(
+            _ptr(_vec(qc, n)),
+            _ptr(_vec(nrm, n)),
+            _ptr(_vec(p_in, n)),
+            float(e_in),
+            float(tau),
+            _ptr(self.par),
+            _ptr(coef),
+            _ptr(w0),
+            _ptr(dw),
+        )
+        return (float(coef[0]), float(coef[1]), float(coef[2])), w0, dw
 
     def solve(self, name: str, guess, *args):
         """The C Newton on residual routine ``name`` from ``guess``; ``(x, |res|_inf)``."""

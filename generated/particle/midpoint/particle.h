@@ -67,6 +67,10 @@ void particle_eval_contacts(const double *q, const double *par, double *phi, dou
 void particle_eval_smooth_step(const double *q0, const double *p0, double tau, const double *guess,
     const double *par, double *v, double *res, double *p1, double *energy, double *phi0, double *phi1,
     double *d0, double *d1);
+/* The jump (48) as coef[0] mu^2 + coef[1] mu + coef[2] = 0 along w = w0 + mu dw
+ * (vcigen.stepper.Kernels.jump_quadratic). */
+void particle_eval_jump_quadratic(const double *qc, const double *nrm, const double *p_in, double e_in,
+    double tau, const double *par, double *coef, double *w0, double *dw);
 /* Newton on residual routine `id` from x (in/out); args are the routine's inputs between x and par,
  * concatenated. Returns 0, or 1 for an unknown id. */
 int particle_solve(int id, double *x, const double *args, const double *par, double *resnorm);

@@ -7,6 +7,7 @@
  *   - smooth step (46): residual linear in v with a diagonal Jacobian -> one division, no Newton
  *   - contact time (47): position explicit in alpha -> safeguarded scalar Newton on alpha
  *   - velocity of a momentum (crossing slopes): constant diagonal mass -> one division
+ *   - jump (48): a quadratic in mu -> closed-form root, Newton only checks it
  *   - grid step away from contacts: one straight-line routine (v, q, p, E_d, phi, slope); subexpressions of (h, par) hoisted out of the loop, computed once per run
  *   - grid test: phi and grad phi at q_k reused from the previous step; sub-solves use phi only
  */
@@ -338,6 +339,27 @@ static inline void star_grid_end(const double *q, const double *p, const double 
 : (
    1
 )))) + k[9]*p[1];
+}
+
+/* Jump (48) as a mu^2 + b mu + c = 0 along w = w0 + mu dw (explicit scenes). */
+static inline void star_jump_quadratic(const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *coef, double *w0, double *dw)
+{
+    const double t0 = 1.0/par[0];
+    const double t1 = pow(par[2], -2);
+    const double t2 = (192.0/29.0)*p_in[2]*t1;
+    const double t3 = par[1]*par[0];
+    const double t4 = t0*t1;
+    const double t5 = tau[0]*t3;
+    const double t6 = 2*p_in[1] - t5;
+    coef[0] = (1.0/58.0)*t0*(29*((nrm[0])*(nrm[0])) + 29*((nrm[1])*(nrm[1])) + 192*((nrm[2])*(nrm[2]))*t1);
+    coef[1] = t0*(nrm[0]*p_in[0] + nrm[1]*p_in[1] + nrm[2]*t2);
+    coef[2] = -e_in[0] + (1.0/2.0)*((p_in[0])*(p_in[0]))*t0 + (96.0/29.0)*((p_in[2])*(p_in[2]))*t4 + qc[1]*t3 + (1.0/4.0)*tau[0]*par[1]*t6 + (1.0/8.0)*t0*((t6)*(t6));
+    w0[0] = p_in[0]*t0;
+    w0[1] = t0*(p_in[1] - 1.0/2.0*t5);
+    w0[2] = t0*t2;
+    dw[0] = nrm[0]*t0;
+    dw[1] = nrm[1]*t0;
+    dw[2] = (192.0/29.0)*nrm[2]*t4;
 }
 
 /* Adapters: the routines with an unknown x, as star_fun for the solvers. */
@@ -987,6 +1009,38 @@ static void star_normal(const star_ctx_t *c, const double *q, const double *v, c
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
  * reflected velocity; if it lands on a root with mu <= 0 it restarts from larger and smaller impulses
  * along the same normal; no root with mu > 0 is a located failure. */
+/* stepper.quadratic_root: the root of coef[0] mu^2 + coef[1] mu + coef[2] that Newton from mu_try
+ * converges to (the one on mu_try's side of the vertex), formed without cancellation; 0 if none. */
+static int star_quadratic_root(const double *coef, double mu_try, double *mu)
+{
+    const double a = coef[0], b = coef[1], c = coef[2];
+    double disc, vertex, big, r0 = 0.0, r1 = 0.0;
+    if (a == 0.0) {
+        if (b == 0.0) {
+            return 0;
+        }
+        *mu = -c / b;
+        return 1;
+    }
+    disc = b * b - 4.0 * a * c;
+    vertex = -b / (2.0 * a);
+    if (disc < 0.0 || !isfinite(disc) || mu_try == vertex) {
+        return 0;
+    }
+    big = -0.5 * (b + copysign(sqrt(disc), b));
+    if (big != 0.0) {
+        r0 = big / a;
+        r1 = c / big;
+    }
+    if (r0 > r1) {
+        const double t = r0;
+        r0 = r1;
+        r1 = t;
+    }
+    *mu = mu_try > vertex ? r1 : r0;
+    return 1;
+}
+
 static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v_in)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
@@ -994,6 +1048,8 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     double vel[STAR_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
     int piv[STAR_N], i, k, n_roots = 0;
+    double coef[3], w0[STAR_N], dw[STAR_N], mu_q;
+    star_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
     star_velocity(c, seg->q, v_in, seg->p_in, vel);
     star_legendre(seg->q, vel, c->par, mom, mass);
     for (i = 0; i < STAR_N; ++i) {
@@ -1018,6 +1074,13 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
             x[i] = vel[i] + mu_try * minv_n[i];
         }
         x[STAR_N] = mu_try;
+        /* the root Newton converges to, in closed form, if within mu0 of the elastic impulse mu0 */
+        if (star_quadratic_root(coef, mu_try, &mu_q) && fabs(mu_q - mu0) <= mu0) {
+            for (i = 0; i < STAR_N; ++i) {
+                x[i] = w0[i] + mu_q * dw[i];
+            }
+            x[STAR_N] = mu_q;
+        }
         star_newton(star_fn_jump, arg, STAR_N1, x, &res);
         if (res <= star_scale(c, seg->p_in, seg->e_in)) {
             if (x[STAR_N] > 0) {
@@ -1433,6 +1496,12 @@ void star_eval_smooth_step(const double *q0, const double *p0, double tau, const
     double grad0[STAR_M_DIM * STAR_N], grad1[STAR_M_DIM * STAR_N];
     star_contacts(q0, par, phi0, grad0);
     star_smooth_step(q0, p0, tau, guess, par, grad0, v, res, p1, energy, phi1, grad1, d0, d1);
+}
+
+void star_eval_jump_quadratic(const double *qc, const double *nrm, const double *p_in, double e_in,
+    double tau, const double *par, double *coef, double *w0, double *dw)
+{
+    star_jump_quadratic(qc, nrm, p_in, &e_in, &tau, par, coef, w0, dw);
 }
 
 int star_solve(int id, double *x, const double *args, const double *par, double *resnorm)
