@@ -15,7 +15,7 @@ import pytest
 import sympy as sp
 from hard_scenes import backend_param, walls_oscillator
 from hard_scenes import double_pendulum as double_pendulum_model
-from scenes import load_example, star_nonlinear
+from scenes import billiard, load_example, star_nonlinear
 
 import vcigen
 from vcigen.errors import NONFINITE
@@ -31,6 +31,7 @@ def _model(name: str) -> vcigen.Model:
         "star_nonlinear": star_nonlinear,
         "walls_oscillator": walls_oscillator,
         "double_pendulum": double_pendulum_model,
+        "billiard": billiard,
     }
     return makers[name]() if name in makers else load_example(name).model()
 
@@ -46,6 +47,8 @@ def _model(name: str) -> vcigen.Model:
         ("star_nonlinear", "midpoint", False),  # V at the midpoint: (46) is nonlinear in v
         ("walls_oscillator", "midpoint", True),  # quadratic V: linear either way
         ("double_pendulum", "trapezoid", False),  # configuration-dependent mass
+        ("billiard", "trapezoid", True),  # quartic V: linear once (4 q + 4 h v)/4 - (q + h v) cancels
+        ("billiard", "midpoint", False),
     ],
 )
 def test_explicit_detection(name: str, rule: str, expected: bool) -> None:
@@ -119,18 +122,25 @@ def test_explicit_step_has_no_division(name: str) -> None:
                 assert not any(b.is_Pow and b.exp.is_negative for b in sp.preorder_traversal(e)), e
 
 
-@pytest.mark.parametrize("rule", RULES)
-def test_backends_are_bit_identical_until_the_first_impact(rule: str) -> None:
+@pytest.mark.parametrize(
+    "name,rule,setup",
+    [
+        ("star", "trapezoid", None),
+        ("star", "midpoint", None),
+        ("billiard", "trapezoid", {"q0": [0.2, 0.0], "v0": [0.3, 1.5], "h": 0.01}),  # nonlinear force
+    ],
+)
+def test_backends_are_bit_identical_until_the_first_impact(name: str, rule: str, setup: dict | None) -> None:
     """One formula, two renderings: the same floating-point operations on every smooth grid step."""
     pytest.importorskip("vcigen.backends.c")
-    ex = load_example("star")
-    s = ex.SETUP
+    s = setup or load_example(name).SETUP
+    model = _model(name)
     runs = [
-        vcigen.build(ex.model(), backend=b, rule=rule).simulate(s["q0"], s["v0"], s["h"], n_impacts=1)
+        vcigen.build(model, backend=b, rule=rule).simulate(s["q0"], s["v0"], s["h"], n_impacts=1)
         for b in ("c", "casadi")
     ]
     first = runs[0].impacts[0].step
-    assert first > 100  # a long stretch of smooth steps
+    assert first > 50  # a long stretch of smooth steps
     np.testing.assert_array_equal(runs[0].q[: first + 1], runs[1].q[: first + 1])
     np.testing.assert_array_equal(runs[0].p[: first + 1], runs[1].p[: first + 1])
 

@@ -19,16 +19,38 @@ Both backends take ``v``, ``p_k+1`` and ``E_d`` of the smooth grid step from
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import sympy as sp
 
 from .derive import DiscreteSystem
 from .routines import Arg, Output, Routine
 
 
+@lru_cache(maxsize=64)
+def _expanded(a: sp.ImmutableMatrix) -> sp.ImmutableMatrix:
+    return a.applyfunc(sp.expand)
+
+
+def expanded(a: sp.Matrix) -> sp.Matrix:
+    """``a`` with every entry expanded: terms that cancel only after expansion do.
+
+    The chain rule through ``V(q0 + tau v)`` leaves, e.g., ``(4 q + 4 tau v)/4 - (q + tau v)``
+    in the Jacobian of (46) under the trapezoidal rule; expanded, it is 0, and the
+    Jacobian is the constant mass matrix it is.
+    """
+    return sp.Matrix(_expanded(sp.ImmutableMatrix(a)))
+
+
+def smooth_jacobian(system: DiscreteSystem) -> sp.Matrix:
+    """The Jacobian of the smooth residual (46) in ``v``, expanded."""
+    return expanded(system.routines["smooth"].output("jac").expr)
+
+
 def is_explicit(system: DiscreteSystem) -> bool:
     """Whether (46) has a constant diagonal Jacobian and the mass matrix is constant and diagonal."""
     smooth, leg = system.routines["smooth"], system.routines["legendre"]
-    jac, mass = smooth.output("jac").expr, leg.output("mass").expr
+    jac, mass = smooth_jacobian(system), expanded(leg.output("mass").expr)
     state = set(smooth.inputs[0].symbols) | set(smooth.input("q0").symbols)
     state |= set(leg.input("q").symbols) | set(leg.input("v").symbols)
 
@@ -92,7 +114,7 @@ def grid_routines(system: DiscreteSystem) -> list[Routine]:
     smooth, r = system.routines["smooth"], system.routines
     xs, q0, p0, tau, par = smooth.inputs
     zero = dict.fromkeys(xs.symbols, sp.S.Zero)
-    res, jac = smooth.output("res").expr, smooth.output("jac").expr
+    res, jac = smooth.output("res").expr, smooth_jacobian(system)
     v = sp.Matrix([-res[i].xreplace(zero) / jac[i, i] for i in range(system.n)])
     h = tau.symbols[0]
 
@@ -111,7 +133,7 @@ def grid_routines(system: DiscreteSystem) -> list[Routine]:
     phi, grad = r["contacts"].output("phi").expr, r["contacts"].output("grad").expr
     leg = r["legendre"]
     l_at = at("legendre", {"q": sp.Matrix(q.symbols), "v": sp.zeros(system.n, 1)})
-    mom0, mass = leg.output("momentum").expr.xreplace(l_at), leg.output("mass").expr.xreplace(l_at)
+    mom0, mass = leg.output("momentum").expr.xreplace(l_at), expanded(leg.output("mass").expr).xreplace(l_at)
     vel = sp.Matrix([(p.symbols[i] - mom0[i]) / mass[i, i] for i in range(system.n)])
     d = h * grad * vel if system.m else sp.zeros(0, 1)
     outputs = [("v", v), ("p1", p1), ("energy", sp.Matrix([energy])), ("phi", phi), ("d", d)]
@@ -164,11 +186,11 @@ def jump_quadratic(system: DiscreteSystem) -> Routine | None:
     rep[seg.input("tau").symbols[0]] = tau.symbols[0]
     p_minus = seg.output("p_minus").expr.xreplace(rep)
     energy = _shorter(seg.output("energy").expr[0]).xreplace(rep)
-    hess = sp.hessian(energy, list(w))
+    hess = expanded(sp.hessian(energy, list(w)))
     if hess.free_symbols & set(w):
         return None
     zero = dict.fromkeys(w, sp.S.Zero)
-    jac = p_minus.jacobian(w)
+    jac = expanded(p_minus.jacobian(w))
     w0 = sp.Matrix([(p_in.symbols[i] - p_minus[i].xreplace(zero)) / jac[i, i] for i in range(n)])
     dw = sp.Matrix([nrm.symbols[i] / jac[i, i] for i in range(n)])
     at_w0 = dict(zip(w, w0))

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from ..derive import DiscreteSystem
-from ..explicit import is_explicit, jump_quadratic
+from ..explicit import expanded, is_explicit, jump_quadratic, smooth_jacobian
 from ..routines import Arg, Output, Routine
 
 
@@ -81,11 +81,11 @@ def detect(system: DiscreteSystem) -> Structure:
     """Inspect the smooth residual's Jacobian (46) for linearity and diagonality."""
     smooth = system.routines["smooth"]
     x = set(smooth.inputs[0].symbols)
-    jac = smooth.output("jac").expr
+    jac = smooth_jacobian(system)  # expanded: terms that cancel only then do
     linear = not (jac.free_symbols & x)
     diagonal = linear and all(jac[i, k] == 0 for i in range(jac.rows) for k in range(jac.cols) if i != k)
     leg = system.routines["legendre"]
-    mass = leg.output("mass").expr
+    mass = expanded(leg.output("mass").expr)
     state = set(leg.input("q").symbols) | set(leg.input("v").symbols)
     mass_diagonal = not (mass.free_symbols & state) and all(
         mass[i, k] == 0 for i in range(mass.rows) for k in range(mass.cols) if i != k
@@ -117,7 +117,7 @@ def path_routines(system: DiscreteSystem) -> list[Routine]:
     s = sp.Dummy("s", real=True)
     at_s = {tau.symbols[0]: s * tau.symbols[0]}
     zero = dict.fromkeys(xs.symbols, sp.S.Zero)
-    res, jac = smooth.output("res").expr, smooth.output("jac").expr
+    res, jac = smooth.output("res").expr, smooth_jacobian(system)
     v = sp.Matrix([-res[i].xreplace(zero).xreplace(at_s) / jac[i, i].xreplace(at_s) for i in range(system.n)])
     q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
     qsub = dict(zip(contacts.input("q").symbols, q_end))
