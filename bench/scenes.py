@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -76,21 +77,15 @@ class Scene:
 # ---------------------------------------------------------------- particle
 
 
+def _example_model(name: str) -> Any:
+    """The model of ``examples/<name>.py``: the bench runs the very scene the examples run."""
+    from vcigen.cli import load_example
+
+    return load_example(Path(__file__).resolve().parents[1] / "examples" / f"{name}.py").model()
+
+
 def _particle_model() -> Any:
-    import sympy as sp
-
-    import vcigen
-
-    x, y, xd, yd = sp.symbols("x y xd yd")
-    m, g = sp.symbols("m g", positive=True)
-    return vcigen.Model(
-        name="particle",
-        q=[x, y],
-        qdot=[xd, yd],
-        lagrangian=m / 2 * (xd**2 + yd**2) - m * g * y,
-        contacts={"floor": y},
-        params={m: 1.0, g: G},
-    )
+    return _example_model("particle")
 
 
 def particle() -> Scene:
@@ -131,6 +126,8 @@ def star_grad_phi(q: Array) -> Array:
 
 
 def _star_model(nonlinear: bool) -> Any:
+    if not nonlinear:
+        return _example_model("star")
     import sympy as sp
 
     import vcigen
@@ -138,17 +135,13 @@ def _star_model(nonlinear: bool) -> Any:
     x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
     m, g, ell, R = sp.symbols("m g L R", positive=True)
     inertia = sp.Rational(29, 192) * m * ell**2
-    pot = -m * g * R**2 / (R + y) if nonlinear else m * g * y
-    params = {m: STAR_M, g: G, ell: STAR_L}
-    if nonlinear:
-        params[R] = STAR_R
     return vcigen.Model(
-        name="star_nonlinear" if nonlinear else "star",
+        name="star_nonlinear",
         q=[x, y, th],
         qdot=[xd, yd, thd],
-        lagrangian=m / 2 * (xd**2 + yd**2) + inertia / 2 * thd**2 - pot,
+        lagrangian=m / 2 * (xd**2 + yd**2) + inertia / 2 * thd**2 + m * g * R**2 / (R + y),
         contacts={"floor": y - ell / 2 * (sp.Abs(sp.sin(th)) + sp.Abs(sp.cos(th)))},
-        params=params,
+        params={m: STAR_M, g: G, ell: STAR_L, R: STAR_R},
     )
 
 
