@@ -147,7 +147,14 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
         (Output("phi", phi_vec), Output("grad", grad)),
         "Contact functions phi_j(q) and their gradients (rows).",
     )
-    routines = {r.name: r for r in (legendre, segment, contacts)}
+    rest = model.restitution_of
+    restitution = Routine(
+        "restitution",
+        (par,),
+        (Output("e", sp.Matrix([rest[c] for c in names]) if names else sp.zeros(0, 1)),),
+        "Coefficient of restitution of each contact (1: elastic); the jump loses (1 - e^2)/2 of (39).",
+    )
+    routines = {r.name: r for r in (legendre, segment, contacts, restitution)}
 
     # Smooth step (46): p_k = p-(q_k, q_k + h v, h).
     q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)

@@ -51,7 +51,12 @@ class Model:
     Parameters follow ``shared/API.md``: ``q`` are SymPy symbols or
     ``sympy.physics.mechanics`` dynamicsymbols (``qdot`` is then optional),
     ``contacts`` maps names to ``phi_j(q)``, ``params`` maps symbols to their
-    default values.
+    default values. ``restitution`` (optional) maps contact names to a coefficient
+    ``e`` in [0, 1] — a number or an expression of parameters, so that it can be
+    changed at run time; contacts not named are elastic (``e = 1``). An impact on
+    contact j then loses ``(1 - e^2)/2 (n.qdot)^2 / (n.M^-1 n)`` of energy (the
+    frictionless ``f_t`` of eq. 39): the normal velocity leaves with ``e`` times its
+    incoming size.
     """
 
     name: str
@@ -60,6 +65,7 @@ class Model:
     qdot: Sequence[sp.Basic] | None = None
     contacts: Mapping[str, sp.Expr] = field(default_factory=dict)
     params: Mapping[sp.Symbol, float] = field(default_factory=dict)
+    restitution: Mapping[str, float | sp.Expr] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check_identifier(self.name, "model name")
@@ -80,11 +86,13 @@ class Model:
             for cname, phi in dict(self.contacts).items()
         }
         params = self._parameters()
+        rest = self._restitution(contacts, params)
         object.__setattr__(self, "_coords", tuple(real_q))
         object.__setattr__(self, "_vels", tuple(real_v))
         object.__setattr__(self, "_lagr", lagr)
         object.__setattr__(self, "_phis", contacts)
         object.__setattr__(self, "_pars", params)
+        object.__setattr__(self, "_rest", rest)
         self._check_free_symbols()
         self._check_contacts_depend_on_q_only()
         self._check_regular()
@@ -124,6 +132,32 @@ class Model:
                 raise ValueError(f"default of parameter {sym} is not finite: {val!r}")
             params[sym] = fval
         return params
+
+    def _restitution(
+        self, contacts: Mapping[str, sp.Expr], params: Mapping[sp.Symbol, float]
+    ) -> dict[str, sp.Expr]:
+        """Coefficient of restitution per contact (1 where not given), checked."""
+        rest = {name: sp.S.One for name in contacts}
+        for name, value in dict(self.restitution).items():
+            if name not in contacts:
+                raise ValueError(
+                    f"restitution is given for {name!r}, which is not a contact; "
+                    f"the contacts are {sorted(contacts) or 'none'}"
+                )
+            expr = sp.sympify(value)
+            stray = expr.free_symbols - set(params)
+            if stray:
+                bad = ", ".join(sorted(str(x) for x in stray))
+                raise ValueError(
+                    f"restitution of {name!r} contains {bad}, which is not a parameter; "
+                    "use a number or an expression of parameters"
+                )
+            if not expr.free_symbols:
+                e = float(expr)
+                if not 0.0 <= e <= 1.0:
+                    raise ValueError(f"restitution of {name!r} is {e}; it must lie in [0, 1]")
+            rest[name] = expr
+        return rest
 
     def _check_free_symbols(self) -> None:
         allowed = set(self._coords) | set(self._vels) | set(self._pars)
@@ -185,6 +219,22 @@ class Model:
     def defaults(self) -> dict[sp.Symbol, float]:
         """Parameter symbols and their default values (insertion order kept)."""
         return dict(self._pars)  # type: ignore[attr-defined]
+
+    @property
+    def restitution_of(self) -> dict[str, sp.Expr]:
+        """Coefficient of restitution by contact (1: elastic), numbers or expressions of parameters."""
+        return dict(self._rest)  # type: ignore[attr-defined]
+
+    def restitution_values(self, par: Sequence[float]) -> list[float]:
+        """The coefficients at parameter values ``par`` (model order); raises if one is outside [0, 1]."""
+        values = dict(zip(self.defaults, par))
+        out = []
+        for name, expr in self.restitution_of.items():
+            e = float(expr.xreplace(values))
+            if not 0.0 <= e <= 1.0:
+                raise ValueError(f"restitution of {name!r} is {e} at these parameters; it must lie in [0, 1]")
+            out.append(e)
+        return out
 
     @property
     def n(self) -> int:

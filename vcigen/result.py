@@ -15,7 +15,8 @@ class Impact:
 
     ``alpha`` is ``(t - t_k)/h`` within the grid step ``k``; ``impulse`` is the
     multiplier ``mu >= 0`` of (76) (the paper's ``lambda`` is ``-mu``).
-    ``energy_before``/``energy_after`` are ``E_d`` of the segments either side (48a).
+    ``energy_before``/``energy_after`` are ``E_d`` of the segments either side (48a):
+    equal for an elastic contact, apart by the loss of (39) with restitution ``e < 1``.
     """
 
     t: float

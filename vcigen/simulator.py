@@ -45,6 +45,7 @@ class Simulator:
         """Integrate from ``(q0, v0)`` with step ``h`` until ``t_end`` or ``n_impacts``."""
         q0a, v0a, h = self._validate(q0, v0, h, t_end, n_impacts, t0)
         par = self.model.resolve_params(params)
+        self.model.restitution_values(par)  # each in [0, 1] at these parameters, or a ValueError
         kern = self.kernels.bind(par)
         self._check_start(kern, q0a, v0a)
         res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)

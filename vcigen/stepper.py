@@ -35,6 +35,7 @@ class Kernels(Protocol):
     def contacts(self, q): ...
     def legendre(self, q, v): ...
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau): ...  # ((a, b, c), w0, dw) or None
+    def restitution(self): ...  # coefficient of restitution per contact
 
 
 @dataclass(frozen=True)
@@ -201,6 +202,8 @@ class Stepper:
         k, tol = self.k, self.tol
         n = k.n
         pending: list[tuple[Impact, float]] = []
+        restitution = k.restitution()
+        e_step = None  # E_d entering the step: the grid step's energy
         for _ in range(tol.max_impacts_per_step):
             # Earliest crossing over all crossed contacts (47)/(78); ties are one impact.
             roots = {
@@ -217,11 +220,15 @@ class Stepper:
             q_c = seg.q + tau_c * v_c
             _, p_minus_c, e_c = k.segment(seg.q, v_c, tau_c)
             e_in = e_c if seg.contact < 0 else seg.e_in
+            e_step = e_in if e_step is None else e_step
             t_c = seg.t + tau_c
             nrm, weights = self._normal(q_c, v_c, p_minus_c, group)
             seg = _Seg(q=q_c, t=t_c, tau=seg.tau - tau_c, p_in=p_minus_c, e_in=e_in, nrm=nrm, contact=j, x=x)
-            # Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept.
-            seg.x = self._jump(step, t_k, seg, v_c)
+            # Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept
+            # (less the loss of (39) with restitution; seg.e_in becomes the energy after).
+            elastic = all(restitution[i] == 1.0 for i in group)
+            e_rest = 1.0 if elastic else float(sum(wgt * restitution[i] for i, wgt in zip(group, weights)))
+            seg.x = self._jump(step, t_k, seg, v_c, e_rest)
             w = seg.x[:n]
             _, p_end, e_after = k.segment(seg.q, w, seg.tau)
             pending = [
@@ -243,7 +250,7 @@ class Stepper:
             q_end, crossings = self._segment_end(seg, w)
             if not crossings:
                 impacts.extend(im for im, _ in pending)
-                return q_end, p_end, e_in, w
+                return q_end, p_end, e_step, w
         raise SolverError(
             step,
             t_k,
@@ -271,8 +278,12 @@ class Stepper:
         c = c / c.sum() if c.sum() > 0 else np.full(len(group), 1.0 / len(group))
         return sum(ci * grads[i] for ci, i in zip(c, group)), [float(ci) for ci in c]
 
-    def _jump(self, step, t_k, seg: _Seg, v_in) -> np.ndarray:
+    def _jump(self, step, t_k, seg: _Seg, v_in, restitution: float = 1.0) -> np.ndarray:
         """Solve (48) for ``(w, mu)``: the physical root, ``mu > 0`` (MATH.md).
+
+        With a coefficient of restitution ``e < 1`` the energy equation (48a) keeps
+        ``E_d`` less the loss of (39), ``(1 - e^2)/2 (n.qdot)^2 / (n.M^-1 n)`` with ``qdot``
+        the incoming velocity at the impact point; ``seg.e_in`` becomes that energy.
 
         Newton starts from the reflected velocity; if it lands on a root with ``mu <= 0``
         (the trajectory passing through the wall), it restarts from larger and smaller
@@ -289,7 +300,10 @@ class Stepper:
         vel = self._velocity(seg.q, v_in, seg.p_in)
         mass = k.legendre(seg.q, vel)[1]
         minv_n = np.linalg.solve(mass, seg.nrm)
-        mu0 = max(-2.0 * float(seg.nrm @ vel) / float(seg.nrm @ minv_n), 0.0)
+        nv, nmn = float(seg.nrm @ vel), float(seg.nrm @ minv_n)
+        mu0 = max(-(1.0 + restitution) * nv / nmn, 0.0)  # the continuous impulse: n.qdot -> -e n.qdot
+        if restitution < 1.0 and nv < 0.0:  # (39): the energy the normal velocity loses
+            seg.e_in -= (1.0 - restitution * restitution) * nv * nv / (2.0 * nmn)
         mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
         roots = []
         quad = k.jump_quadratic(seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)

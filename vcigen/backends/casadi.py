@@ -58,7 +58,8 @@ class CasadiKernels:
         self._step = self._smooth_step()
         quad = jump_quadratic(system)
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
-        self._flat = {name: self._flatten(name) for name in ("legendre", "segment", "contacts")}
+        flat = ("legendre", "segment", "contacts", "restitution")
+        self._flat = {name: self._flatten(name) for name in flat}
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -121,7 +122,7 @@ class CasadiKernels:
     @staticmethod
     def _flat_function(f: ca.Function) -> ca.Function:
         ins = [ca.SX.sym(a, f.size1_in(i)) for i, a in enumerate(f.name_in())]
-        outs = f(*ins)
+        outs = f.call(ins)  # a list, also for a single output
         return ca.Function(f"{f.name()}_flat", [ca.vertcat(*ins)], [ca.vertcat(*[ca.vec(o.T) for o in outs])])
 
     # -- the kernels interface --------------------------------------------------
@@ -185,6 +186,12 @@ class CasadiKernels:
         m, n = self.m, self.n
         o = self._call(self._flat["contacts"], q)
         return o[:m], o[m:].reshape(m, n)
+
+    def restitution(self) -> np.ndarray:
+        """Coefficient of restitution of each contact at the bound parameters."""
+        if self.m == 0:
+            return np.zeros(0)
+        return self._call(self._flat["restitution"])[: self.m]
 
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau):
         """``((a, b, c), w0, dw)`` of the jump (48) as a quadratic in ``mu``, or ``None``."""

@@ -51,6 +51,7 @@ def model_hash(system: DiscreteSystem) -> str:
         sp.srepr(model.L),
         *(f"{c}:{sp.srepr(e)}" for c, e in model.phi.items()),
         *(f"{s.name}={v!r}" for s, v in model.defaults.items()),
+        *(f"e:{c}:{sp.srepr(e)}" for c, e in model.restitution_of.items() if e != 1),
     ]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 

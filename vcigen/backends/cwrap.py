@@ -78,6 +78,7 @@ class CKernels:
         self._contacts = getattr(self.lib, f"{pre}_eval_contacts")
         self._smooth = getattr(self.lib, f"{pre}_eval_smooth_step")
         self._smooth.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D, _D, _D, _D, _D]
+        self._rest = getattr(self.lib, f"{pre}_eval_restitution")
         self._quad = getattr(self.lib, f"{pre}_eval_jump_quadratic", None)
         if self._quad is not None:
             self._quad.argtypes = [_D, _D, _D, ctypes.c_double, ctypes.c_double, _D, _D, _D, _D]
@@ -152,6 +153,12 @@ class CKernels:
             _ptr(d1),
         )
         return v, float(res[0]), p1, float(e[0]), phi0[:m], phi1[:m], d0[:m], d1[:m]
+
+    def restitution(self) -> np.ndarray:
+        """Coefficient of restitution of each contact at the bound parameters."""
+        e = np.empty(max(self.m, 1))
+        self._rest(_ptr(self.par), _ptr(e))
+        return e[: self.m]
 
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau):
         """``((a, b, c), w0, dw)`` of the jump (48) as a quadratic in ``mu``, or ``None``."""

@@ -87,6 +87,13 @@ static inline void particle_contacts(const double *q, const double *par, double 
     grad[1] = 1;
 }
 
+/* Coefficient of restitution of each contact (1: elastic); the jump loses (1 - e^2)/2 of (39). */
+static inline void particle_restitution(const double *par, double *e)
+{
+    (void)par;
+    e[0] = 1;
+}
+
 /* Smooth step (46), (73): unknown v. */
 static inline void particle_smooth(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
@@ -919,7 +926,8 @@ static int particle_quadratic_root(const double *coef, double mu_try, double *mu
     return 1;
 }
 
-static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, const double *v_in)
+static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, const double *v_in,
+    double e_rest)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_n[PARTICLE_N], x[PARTICLE_N1];
@@ -927,7 +935,6 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
     const double *arg[6];
     int piv[PARTICLE_N], i, k, n_roots = 0;
     double coef[3], w0[PARTICLE_N], dw[PARTICLE_N], mu_q;
-    particle_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
     particle_velocity(c, seg->q, v_in, seg->p_in, vel);
     particle_legendre(seg->q, vel, c->par, mom, mass);
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -942,8 +949,13 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -2.0 * nv / nmn;
+    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
     mu0 = mu0 > 0.0 ? mu0 : 0.0;
+    if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
+        seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
+    }
+    particle_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
+
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
     particle_seg_args(seg, &seg->tau, c->par, arg);
     for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
@@ -1018,7 +1030,9 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
     double e_c, e_after, v_c[PARTICLE_N], pm[PARTICLE_N], p_c[PARTICLE_N], p_end[PARTICLE_N];
     double q_end[PARTICLE_N], *r, s_all[PARTICLE_M_DIM] = {0.0}, wgt[PARTICLE_M_DIM], pend_w[PARTICLE_M_DIM];
     particle_seg_t next;
-    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group;
+    double rest[PARTICLE_M_DIM], e_rest, e_before, e_step = 0.0;
+    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic;
+    particle_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
         best = -1;
@@ -1055,6 +1069,8 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
         }
         particle_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
+        e_before = next.e_in;
+        e_step = k == 0 ? e_before : e_step; /* E_d entering the step: the grid step's energy */
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
@@ -1067,8 +1083,15 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             next.x[i] = x_best[i];
         }
         *seg = next;
-        /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept. */
-        if (particle_solve_jump(c, seg, v_c)) {
+        /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
+         * loss of (39) with restitution; seg->e_in becomes the energy after). */
+        elastic = 1;
+        e_rest = 0.0;
+        for (g = 0; g < n_group; ++g) {
+            elastic = elastic && rest[group[g]] == 1.0;
+            e_rest += wgt[g] * rest[group[g]];
+        }
+        if (particle_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest)) {
             return 1;
         }
         particle_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
@@ -1079,7 +1102,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             r[2] = (double)c->step;
             r[3] = (seg->t - c->t_k) / c->h;
             r[4] = seg->x[PARTICLE_N] * wgt[g];
-            r[5] = seg->e_in;
+            r[5] = e_before;
             r[6] = e_after;
             for (i = 0; i < PARTICLE_N; ++i) {
                 r[7 + i] = seg->q[i];
@@ -1094,7 +1117,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
                 p[i] = p_end[i];
                 v[i] = seg->x[i];
             }
-            *e = seg->e_in;
+            *e = e_step;
             return 0;
         }
     }
@@ -1374,6 +1397,11 @@ void particle_eval_smooth_step(const double *q0, const double *p0, double tau, c
     double grad0[PARTICLE_M_DIM * PARTICLE_N], grad1[PARTICLE_M_DIM * PARTICLE_N];
     particle_contacts(q0, par, phi0, grad0);
     particle_smooth_step(q0, p0, tau, guess, par, grad0, v, res, p1, energy, phi1, grad1, d0, d1);
+}
+
+void particle_eval_restitution(const double *par, double *e)
+{
+    particle_restitution(par, e);
 }
 
 void particle_eval_jump_quadratic(const double *qc, const double *nrm, const double *p_in, double e_in,

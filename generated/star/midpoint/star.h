@@ -67,6 +67,8 @@ void star_eval_contacts(const double *q, const double *par, double *phi, double 
 void star_eval_smooth_step(const double *q0, const double *p0, double tau, const double *guess,
     const double *par, double *v, double *res, double *p1, double *energy, double *phi0, double *phi1,
     double *d0, double *d1);
+/* The coefficient of restitution of each contact (1: elastic). */
+void star_eval_restitution(const double *par, double *e);
 /* The jump (48) as coef[0] mu^2 + coef[1] mu + coef[2] = 0 along w = w0 + mu dw
  * (vcigen.stepper.Kernels.jump_quadratic). */
 void star_eval_jump_quadratic(const double *qc, const double *nrm, const double *p_in, double e_in,

@@ -121,6 +121,13 @@ static inline void star_contacts(const double *q, const double *par, double *phi
 ))));
 }
 
+/* Coefficient of restitution of each contact (1: elastic); the jump loses (1 - e^2)/2 of (39). */
+static inline void star_restitution(const double *par, double *e)
+{
+    (void)par;
+    e[0] = 1;
+}
+
 /* Smooth step (46), (73): unknown v. */
 static inline void star_smooth(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
@@ -1043,7 +1050,8 @@ static int star_quadratic_root(const double *coef, double mu_try, double *mu)
     return 1;
 }
 
-static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v_in)
+static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v_in,
+    double e_rest)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double mom[STAR_N], mass[STAR_N * STAR_N], minv_n[STAR_N], x[STAR_N1];
@@ -1051,7 +1059,6 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     const double *arg[6];
     int piv[STAR_N], i, k, n_roots = 0;
     double coef[3], w0[STAR_N], dw[STAR_N], mu_q;
-    star_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
     star_velocity(c, seg->q, v_in, seg->p_in, vel);
     star_legendre(seg->q, vel, c->par, mom, mass);
     for (i = 0; i < STAR_N; ++i) {
@@ -1066,8 +1073,13 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -2.0 * nv / nmn;
+    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
     mu0 = mu0 > 0.0 ? mu0 : 0.0;
+    if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
+        seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
+    }
+    star_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
+
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
     star_seg_args(seg, &seg->tau, c->par, arg);
     for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
@@ -1142,7 +1154,9 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     double e_c, e_after, v_c[STAR_N], pm[STAR_N], p_c[STAR_N], p_end[STAR_N];
     double q_end[STAR_N], *r, s_all[STAR_M_DIM] = {0.0}, wgt[STAR_M_DIM], pend_w[STAR_M_DIM];
     star_seg_t next;
-    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group;
+    double rest[STAR_M_DIM], e_rest, e_before, e_step = 0.0;
+    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group, elastic;
+    star_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
         best = -1;
@@ -1179,6 +1193,8 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
         }
         star_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
+        e_before = next.e_in;
+        e_step = k == 0 ? e_before : e_step; /* E_d entering the step: the grid step's energy */
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
@@ -1191,8 +1207,15 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             next.x[i] = x_best[i];
         }
         *seg = next;
-        /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept. */
-        if (star_solve_jump(c, seg, v_c)) {
+        /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
+         * loss of (39) with restitution; seg->e_in becomes the energy after). */
+        elastic = 1;
+        e_rest = 0.0;
+        for (g = 0; g < n_group; ++g) {
+            elastic = elastic && rest[group[g]] == 1.0;
+            e_rest += wgt[g] * rest[group[g]];
+        }
+        if (star_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest)) {
             return 1;
         }
         star_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
@@ -1203,7 +1226,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             r[2] = (double)c->step;
             r[3] = (seg->t - c->t_k) / c->h;
             r[4] = seg->x[STAR_N] * wgt[g];
-            r[5] = seg->e_in;
+            r[5] = e_before;
             r[6] = e_after;
             for (i = 0; i < STAR_N; ++i) {
                 r[7 + i] = seg->q[i];
@@ -1218,7 +1241,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
                 p[i] = p_end[i];
                 v[i] = seg->x[i];
             }
-            *e = seg->e_in;
+            *e = e_step;
             return 0;
         }
     }
@@ -1498,6 +1521,11 @@ void star_eval_smooth_step(const double *q0, const double *p0, double tau, const
     double grad0[STAR_M_DIM * STAR_N], grad1[STAR_M_DIM * STAR_N];
     star_contacts(q0, par, phi0, grad0);
     star_smooth_step(q0, p0, tau, guess, par, grad0, v, res, p1, energy, phi1, grad1, d0, d1);
+}
+
+void star_eval_restitution(const double *par, double *e)
+{
+    star_restitution(par, e);
 }
 
 void star_eval_jump_quadratic(const double *qc, const double *nrm, const double *p_in, double e_in,
