@@ -15,6 +15,7 @@ Backends: every test is parametrized over :data:`BACKENDS`; the C one is skipped
 from __future__ import annotations
 
 import importlib.util
+import math
 from functools import cache
 
 import numpy as np
@@ -197,6 +198,27 @@ def ceiling() -> vcigen.Model:
     )
 
 
+def ball(elastic: bool = False) -> vcigen.Model:
+    """A unit ball under gravity on the floor ``y = 0`` with restitution ``e`` (a parameter, 0.5)."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    e = sp.Symbol("e")
+    return vcigen.Model(
+        name="ball",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - G * y,
+        contacts={"floor": y},
+        params={e: 0.5},
+        restitution={} if elastic else {"floor": e},
+    )
+
+
+def zeno_time(e: float, height: float = 1.0) -> float:
+    """When a ball dropped from ``height`` with restitution ``e`` comes to rest: t_1 + 2 e v_1/(g (1 - e))."""
+    v1 = math.sqrt(2 * G * height)
+    return v1 / G + 2 * e * v1 / (G * (1 - e))
+
+
 def star() -> vcigen.Model:
     """The paper's star with ``Abs`` in phi (eq. 81), from ``examples/star.py``."""
     return load_example("star").model()
@@ -214,6 +236,8 @@ MAKERS = {
     "stiff_pendulum": stiff_pendulum,
     "ceiling": ceiling,
     "star": star,
+    "ball": ball,
+    "ball_elastic": lambda: ball(elastic=True),
 }
 
 BACKENDS = [backend_param("casadi"), backend_param("c")]
