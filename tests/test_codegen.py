@@ -165,6 +165,28 @@ def test_driver_reports_a_bad_start() -> None:
     assert b"violates contact 'floor'" in info.value.stderr
 
 
+@needs_cc
+def test_driver_help_and_bad_arguments(tmp_path: Path) -> None:
+    gen_dir = GENERATED / "star" / "trapezoid"
+    exe = tmp_path / "star"
+    subprocess.run(
+        ["cc", *CFLAGS, "-o", str(exe), str(gen_dir / "main.c"), str(gen_dir / "star.c"), "-lm"], check=True
+    )
+    helped = subprocess.run([str(exe), "--help"], capture_output=True, text=True, cwd=tmp_path)
+    assert helped.returncode == 0
+    assert "coordinates: x y theta; contacts: floor" in helped.stdout and "m=1 g=9.81 L=1" in helped.stdout
+    for bad in (
+        ["--h", "0.0x1"],
+        ["--param", "g=abc"],
+        ["--param", "nope=1"],
+        ["--q0", "0,1"],
+        ["--n-impacts", "-2"],
+    ):
+        run = subprocess.run([str(exe), *bad], capture_output=True, text=True, cwd=tmp_path)
+        assert run.returncode == 1 and "bad argument" in run.stderr, (bad, run.stderr)
+    assert not list(tmp_path.glob("*.csv"))  # nothing was run
+
+
 def test_missing_compiler_is_a_compile_error(tmp_path: Path) -> None:
     model = vcigen.cli.load_example(ROOT / "examples" / "particle.py").model()
     with pytest.raises(vcigen.CompileError, match="not found"):

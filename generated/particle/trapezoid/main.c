@@ -21,13 +21,36 @@
 static double Q[CHUNK * PARTICLE_N], P[CHUNK * PARTICLE_N], E[CHUNK];
 static double IMP[IMPACT_CAP * PARTICLE_IMPACT_WIDTH];
 
+/* A whole, finite number, or 0. */
+static int parse_number(const char *text, double *out)
+{
+    char *end;
+    *out = strtod(text, &end);
+    return end != text && *end == '\0' && isfinite(*out);
+}
+
+static void usage(FILE *f, const char *prog)
+{
+    int k;
+    fprintf(f, "usage: %s [--h H] [--t-end T] [--n-impacts N] [--q0 a,b,..] [--v0 a,b,..] "
+        "[--param NAME=VALUE ...] [--out PREFIX]\n", prog);
+    fprintf(f, "  coordinates: x y; contacts: floor\n");
+    fprintf(f, "  parameters (defaults):");
+    for (k = 0; k < PARTICLE_NPAR; ++k) {
+        fprintf(f, " %s=%g", particle_param_names[k], particle_param_defaults[k]);
+    }
+    fprintf(f, "%s\n", PARTICLE_NPAR ? "" : " none");
+    fprintf(f, "  defaults: --h 0.01 --n-impacts 1000 --out particle\n");
+}
+
 static int parse_vector(const char *text, double *out)
 {
     char *end;
     int i;
     for (i = 0; i < PARTICLE_N; ++i) {
         out[i] = strtod(text, &end);
-        if (end == text || (i < PARTICLE_N - 1 && *end != ',') || (i == PARTICLE_N - 1 && *end != '\0')) {
+        if (end == text || !isfinite(out[i]) || (i < PARTICLE_N - 1 && *end != ',')
+            || (i == PARTICLE_N - 1 && *end != '\0')) {
             return 0;
         }
         text = end + 1;
@@ -45,8 +68,7 @@ static int parse_param(const char *text, double *par)
     for (k = 0; k < PARTICLE_NPAR; ++k) {
         if (strlen(particle_param_names[k]) == (size_t)(eq - text)
             && strncmp(particle_param_names[k], text, (size_t)(eq - text)) == 0) {
-            par[k] = atof(eq + 1);
-            return 1;
+            return parse_number(eq + 1, &par[k]);
         }
     }
     return 0;
@@ -73,7 +95,7 @@ int main(int argc, char **argv)
     double h = 0.01, t_end = -1.0;
     long n_impacts = 1000, total, done = 0, n_imp = 0, k, steps_done, impacts_done;
     double q[PARTICLE_N], p[PARTICLE_N], v[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N];
-    double phi[PARTICLE_M_DIM], grad[PARTICLE_M_DIM * PARTICLE_N];
+    double phi[PARTICLE_M_DIM], grad[PARTICLE_M_DIM * PARTICLE_N], rest[PARTICLE_M_DIM];
     const char *out = "particle";
     char path[1024];
     particle_tol_t tol;
@@ -83,12 +105,17 @@ int main(int argc, char **argv)
     for (a = 1; a < argc; ++a) {
         const char *val = a + 1 < argc ? argv[a + 1] : 0;
         int ok = val != 0;
-        if (ok && strcmp(argv[a], "--h") == 0) {
-            h = atof(val);
+        char *end;
+        if (strcmp(argv[a], "--help") == 0 || strcmp(argv[a], "-h") == 0) {
+            usage(stdout, argv[0]);
+            return 0;
+        } else if (ok && strcmp(argv[a], "--h") == 0) {
+            ok = parse_number(val, &h);
         } else if (ok && strcmp(argv[a], "--t-end") == 0) {
-            t_end = atof(val);
+            ok = parse_number(val, &t_end);
         } else if (ok && strcmp(argv[a], "--n-impacts") == 0) {
-            n_impacts = atol(val);
+            n_impacts = strtol(val, &end, 10);
+            ok = end != val && *end == '\0' && n_impacts >= 0;
         } else if (ok && strcmp(argv[a], "--q0") == 0) {
             ok = parse_vector(val, q0);
         } else if (ok && strcmp(argv[a], "--v0") == 0) {
@@ -101,8 +128,9 @@ int main(int argc, char **argv)
             ok = 0;
         }
         if (!ok) {
-            fprintf(stderr, "usage: %s [--h H] [--t-end T] [--n-impacts N] [--q0 a,b,..] [--v0 a,b,..] "
-                "[--param NAME=VALUE] [--out PREFIX]; bad argument '%s'\n", argv[0], argv[a]);
+            fprintf(stderr, "bad argument '%s%s%s' (a flag with a number, a vector of 2, or NAME=VALUE of a "
+                "parameter)\n", argv[a], val ? " " : "", val ? val : "");
+            usage(stderr, argv[0]);
             return 1;
         }
         ++a;
@@ -112,6 +140,14 @@ int main(int argc, char **argv)
         return 1;
     }
     particle_default_tol(&tol);
+    particle_eval_restitution(par, rest);
+    for (j = 0; j < PARTICLE_M; ++j) {
+        if (!(rest[j] >= 0.0 && rest[j] <= 1.0)) {
+            fprintf(stderr, "restitution of contact '%s' is %g at these parameters; it must lie in [0, 1]\n",
+                particle_contact_names[j], rest[j]);
+            return 1;
+        }
+    }
     particle_eval_contacts(q0, par, phi, grad);
     for (j = 0; j < PARTICLE_M; ++j) {
         if (!(phi[j] >= -tol.admissible)) {
