@@ -7,6 +7,7 @@ impacts; grazing contact.
 """
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -332,3 +333,40 @@ def test_grazing_crossing_of_ceiling_is_tiny_impulse_or_clear_error(backend, del
     assert impact_energy_jumps(res).max() <= 1e-12 * abs(res.energy[0])
     assert min_phi(sim, res) >= -1e-9
     assert np.abs(res.q - parabola(q0, v0, res.t)).max() <= 10 * vn
+
+
+@pytest.mark.parametrize(("backend", "delta", "t_apex", "h"), _grazing_params())
+def test_grazing_reflect_takes_the_continuous_law_instead_of_an_error(backend, delta, t_apex, h):
+    """``Tolerances(grazing="reflect")``: where (48a) has no root mu > 0, the elastic law n.v -> -n.v.
+
+    The run goes on: impulse 2 m v_n exactly, E_d jumps by at most the O(g^2 h^2) bias
+    g^2 h^2 / 8 of the unequal sub-steps, admissible, within O(v_n) of the free parabola, and a
+    RuntimeWarning counts the reflected impacts. Without a grazing impact nothing changes.
+    """
+    vy = G * t_apex
+    q0, v0 = [0.0, 1.0 + delta - vy**2 / (2 * G)], [1.0, vy]
+    sim = simulator("ceiling", backend, tol=vcigen.Tolerances(grazing="reflect"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = sim.simulate(q0=q0, v0=v0, h=h, t_end=1.0)
+    reflected = res.stats["grazing_reflected"]
+    assert reflected == res.n_impacts <= 1
+    assert len([w for w in caught if "grazing impact(s)" in str(w.message)]) == (1 if reflected else 0)
+    vn = math.sqrt(2 * G * delta)
+    for im in res.impacts:
+        # 2 v_n at the computed contact point: v_n^2 = 2 g (delta - its height error ~1e-13)
+        assert im.impulse == pytest.approx(2 * vn, rel=1e-3)
+        assert abs(im.energy_after - im.energy_before) <= G * G * h * h / 8 * (1 + 1e-6)
+    assert min_phi(sim, res) >= -1e-9
+    assert np.abs(res.q - parabola(q0, v0, res.t)).max() <= 10 * vn + 1e-12
+    default = simulator("ceiling", backend)
+    if reflected:  # the same scene stops with the grazing SolverError by default
+        with pytest.raises(vcigen.SolverError, match="grazing"):
+            default.simulate(q0=q0, v0=v0, h=h, t_end=1.0)
+    else:
+        np.testing.assert_array_equal(default.simulate(q0=q0, v0=v0, h=h, t_end=1.0).q, res.q)
+
+
+def test_grazing_option_is_checked():
+    with pytest.raises(ValueError, match="grazing"):
+        vcigen.Tolerances(grazing="bounce")

@@ -12,7 +12,7 @@ from .derive import DiscreteSystem, derive
 from .model import Model
 from .result import Result
 from .rules import Rule
-from .stepper import Stepper, Tolerances
+from .stepper import Stepper, Tolerances, warn_reflected
 
 Backend = Literal["casadi", "c"]
 BACKENDS = ("casadi", "c")
@@ -50,6 +50,7 @@ class Simulator:
         self._check_start(kern, q0a, v0a)
         res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)
         res.coordinate_names = self.model.coordinate_names
+        warn_reflected(res.stats.get("grazing_reflected", 0))
         return res
 
     def _run(self, kern, q0, v0, h, t_end, n_impacts, t0, progress) -> Result:

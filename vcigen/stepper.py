@@ -50,6 +50,14 @@ class Tolerances:
     jump_restarts: tuple[float, ...] = (1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25)
     simultaneous: float = 1e-9  # crossings this close (fraction of the step) are one impact
     dip: float = 0.25  # sample the segment map when the cubic's minimum of phi < dip * |slopes|
+    # When (48a) has no root mu > 0 (a grazing impact: the O(h^2) energy bias of E_d exceeds the
+    # normal kinetic energy): "error" raises SolverError; "reflect" applies the continuous law
+    # n.qdot -> -e n.qdot instead, (48b) solved with mu = mu0, E_d reset, and warns.
+    grazing: str = "error"
+
+    def __post_init__(self) -> None:
+        if self.grazing not in ("error", "reflect"):
+            raise ValueError(f"Tolerances.grazing = {self.grazing!r}; use 'error' or 'reflect'")
 
 
 @dataclass
@@ -72,6 +80,7 @@ class Stepper:
     def __init__(self, kernels: Kernels, tol: Tolerances | None = None) -> None:
         self.k = kernels
         self.tol = tol or Tolerances()
+        self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
 
     # -- public -----------------------------------------------------------------
     def simulate(
@@ -123,7 +132,9 @@ class Stepper:
                     RuntimeWarning,
                     stacklevel=2,
                 )
-        return _result(t0, h, step, Q, P, E, impacts, n, time.perf_counter() - wall)
+        res = _result(t0, h, step, Q, P, E, impacts, n, time.perf_counter() - wall)
+        res.stats["grazing_reflected"] = self.reflected
+        return res
 
     def step(
         self,
@@ -320,6 +331,12 @@ class Stepper:
                 if x[n] > 0:
                     return x
                 roots.append(float(x[n]))
+        if self.tol.grazing == "reflect" and mu0 > 0.0:  # the continuous law, energy reset
+            w, res = k.solve("smooth", vel + mu0 * minv_n, seg.q, seg.p_in + mu0 * seg.nrm, seg.tau)
+            if res <= self._scale(seg.p_in, seg.e_in):
+                self.reflected += 1
+                seg.e_in = k.segment(seg.q, w, seg.tau)[2]
+                return np.append(w, mu0)
         vn = float(seg.nrm @ vel) / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"
         raise SolverError(
@@ -441,6 +458,18 @@ class Stepper:
                 "Newton did not converge; reduce h or check "
                 "that the Lagrangian is regular along the trajectory",
             )
+
+
+def warn_reflected(count: int, stacklevel: int = 2) -> None:
+    """Say how many grazing impacts took the continuous law (``Tolerances.grazing = "reflect"``)."""
+    if count:
+        warnings.warn(
+            f"{count} grazing impact(s) had no root mu > 0 of the energy balance (48a) and took the "
+            "continuous elastic law instead (Tolerances.grazing = 'reflect'); E_d jumps there by the "
+            "O(h^2) bias (see Impact.energy_before/energy_after)",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
 
 
 def quadratic_root(a: float, b: float, c: float, mu_try: float) -> float | None:

@@ -40,6 +40,13 @@ NEWTON = {"abstol": 1e-13, "abstol_step": 1e-15, "max_iter": 40}
 DAMPING = {"min_step": 1e-8, "max_halvings": 10}
 
 
+def _tol_context(tol: Tolerances) -> dict[str, str]:
+    """The tolerances as C literals (``grazing`` as the flag ``grazing_reflect``)."""
+    out = {k: c_number(v) for k, v in asdict(tol).items() if k not in ("grazing", "jump_restarts")}
+    out["grazing_reflect"] = "1" if tol.grazing == "reflect" else "0"
+    return out
+
+
 def model_hash(system: DiscreteSystem) -> str:
     """A stable hash of the model, the rule and the vcigen version (stamped in the sources)."""
     model = system.model
@@ -130,7 +137,7 @@ def render_context(
             {"index": k, "name": ph, "macro": ph.upper().replace(" ", "_")} for k, ph in enumerate(PHASES)
         ],
         "nonfinite": NONFINITE,
-        "tol": {k: c_number(v) for k, v in asdict(tol or Tolerances()).items()},
+        "tol": _tol_context(tol or Tolerances()),
         "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],
         "newton": {k: repr(v) for k, v in NEWTON.items()},
         "damping": {k: repr(v) for k, v in DAMPING.items()},

@@ -37,6 +37,7 @@ class _Tol(ctypes.Structure):
         ("bracket_samples", ctypes.c_int),
         ("dip", ctypes.c_double),
         ("simultaneous", ctypes.c_double),
+        ("grazing_reflect", ctypes.c_int),
     ]
 
 
@@ -47,6 +48,7 @@ class _Err(ctypes.Structure):
         ("phase", ctypes.c_int),
         ("residual", ctypes.c_double),
         ("reason", ctypes.c_char * 256),
+        ("reflected", ctypes.c_long),
     ]
 
 
@@ -198,6 +200,7 @@ def _tol_struct(tol: Tolerances) -> _Tol:
         tol.bracket_samples,
         tol.dip,
         tol.simultaneous,
+        int(tol.grazing == "reflect"),
     )
 
 
@@ -223,7 +226,7 @@ class CSimulator(Simulator):
         tol = _tol_struct(self.tol)
         err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         impacts: list[Impact] = []
-        done = 0
+        done = reflected = 0
         wall = time.perf_counter()
         while done < steps and (n_impacts is None or len(impacts) < n_impacts):
             if done >= cap:
@@ -253,6 +256,7 @@ class CSimulator(Simulator):
             )
             impacts += [_impact(r, kern.contact_names) for r in rec[: idone.value]]
             done += sdone.value
+            reflected += err.reflected
             if rc != 0:
                 error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
                 kept = [im for im in impacts if im.step < done]  # the run up to the last completed step
@@ -268,7 +272,9 @@ class CSimulator(Simulator):
                 RuntimeWarning,
                 stacklevel=3,
             )
-        return _result(t0, h, done, Q, P, E, impacts, n, time.perf_counter() - wall)
+        res = _result(t0, h, done, Q, P, E, impacts, n, time.perf_counter() - wall)
+        res.stats["grazing_reflected"] = reflected
+        return res
 
 
 def _impact(r: np.ndarray, names: tuple[str, ...]) -> Impact:

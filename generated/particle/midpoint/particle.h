@@ -35,6 +35,7 @@ typedef struct {
     int bracket_samples;
     double dip;
     double simultaneous;
+    int grazing_reflect; /* Tolerances.grazing == "reflect": the continuous law where (48a) has no root */
 } particle_tol_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */
@@ -44,6 +45,7 @@ typedef struct {
     int phase;
     double residual;
     char reason[256];
+    long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } particle_error_t;
 
 extern const char *const particle_coordinate_names[];

@@ -49,6 +49,7 @@ void particle_default_tol(particle_tol_t *tol)
     tol->bracket_samples = 8;
     tol->dip = 0.25;
     tol->simultaneous = 1e-09;
+    tol->grazing_reflect = 0;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
 
@@ -987,6 +988,28 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
             ++n_roots;
         }
     }
+    if (c->tol->grazing_reflect && mu0 > 0.0) { /* the continuous law, energy reset (Tolerances.grazing) */
+        double p_t[PARTICLE_N], pm[PARTICLE_N], pp[PARTICLE_N];
+        const double *sarg[4];
+        for (i = 0; i < PARTICLE_N; ++i) {
+            x[i] = vel[i] + mu0 * minv_n[i];
+            p_t[i] = seg->p_in[i] + mu0 * seg->nrm[i];
+        }
+        sarg[0] = seg->q;
+        sarg[1] = p_t;
+        sarg[2] = &seg->tau;
+        sarg[3] = c->par;
+        particle_newton(particle_fn_smooth, sarg, PARTICLE_N, x, &res);
+        if (res <= particle_scale(c, seg->p_in, seg->e_in)) {
+            ++c->err->reflected;
+            particle_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+            for (i = 0; i < PARTICLE_N; ++i) {
+                seg->x[i] = x[i];
+            }
+            seg->x[PARTICLE_N] = mu0;
+            return 0;
+        }
+    }
     return particle_fail(c, PARTICLE_PHASE_JUMP, n_roots ? 0.0 : NAN, "no root with mu > 0 of the jump (48) "
         "on '%s' at t = %.12g (%d roots with mu <= 0 found); normal speed %.3e is too small for the discrete "
         "energy balance (48a) at this h (grazing impact): reduce h", particle_contact_names[seg->contact],
@@ -1321,6 +1344,7 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
     c.tol = tol;
     c.err = err;
     c.h = h;
+    err->reflected = 0;
     for (i = 0; i < PARTICLE_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];

@@ -52,6 +52,7 @@ void star_default_tol(star_tol_t *tol)
     tol->bracket_samples = 8;
     tol->dip = 0.25;
     tol->simultaneous = 1e-09;
+    tol->grazing_reflect = 0;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
 
@@ -1104,6 +1105,28 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
             ++n_roots;
         }
     }
+    if (c->tol->grazing_reflect && mu0 > 0.0) { /* the continuous law, energy reset (Tolerances.grazing) */
+        double p_t[STAR_N], pm[STAR_N], pp[STAR_N];
+        const double *sarg[4];
+        for (i = 0; i < STAR_N; ++i) {
+            x[i] = vel[i] + mu0 * minv_n[i];
+            p_t[i] = seg->p_in[i] + mu0 * seg->nrm[i];
+        }
+        sarg[0] = seg->q;
+        sarg[1] = p_t;
+        sarg[2] = &seg->tau;
+        sarg[3] = c->par;
+        star_newton(star_fn_smooth, sarg, STAR_N, x, &res);
+        if (res <= star_scale(c, seg->p_in, seg->e_in)) {
+            ++c->err->reflected;
+            star_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+            for (i = 0; i < STAR_N; ++i) {
+                seg->x[i] = x[i];
+            }
+            seg->x[STAR_N] = mu0;
+            return 0;
+        }
+    }
     return star_fail(c, STAR_PHASE_JUMP, n_roots ? 0.0 : NAN, "no root with mu > 0 of the jump (48) "
         "on '%s' at t = %.12g (%d roots with mu <= 0 found); normal speed %.3e is too small for the discrete "
         "energy balance (48a) at this h (grazing impact): reduce h", star_contact_names[seg->contact],
@@ -1438,6 +1461,7 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
     c.tol = tol;
     c.err = err;
     c.h = h;
+    err->reflected = 0;
     for (i = 0; i < STAR_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];
