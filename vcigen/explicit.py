@@ -14,7 +14,10 @@ the rule, the trapezoidal rule for any ``V``), a grid step needs no solve:
 Every subexpression of ``(h, par)`` alone is hoisted into run constants
 (``grid_consts``), so the step (``grid_step``, ``grid_end``) has no division.
 Both backends take ``v``, ``p_k+1`` and ``E_d`` of the smooth grid step from
-``grid_step``: one formula, the same round-off.
+``grid_step``: one formula, the same round-off. Likewise, both solve the first
+contact time (47) along the explicit segment map (``contact_path_<c>``, when (46)
+has a diagonal, ``v``-free Jacobian) and the jump (48) from its quadratic in
+``mu`` (``jump_quadratic``, when ``E_d`` is quadratic in the velocity).
 """
 
 from __future__ import annotations
@@ -45,6 +48,18 @@ def expanded(a: sp.Matrix) -> sp.Matrix:
 def smooth_jacobian(system: DiscreteSystem) -> sp.Matrix:
     """The Jacobian of the smooth residual (46) in ``v``, expanded."""
     return expanded(system.routines["smooth"].output("jac").expr)
+
+
+def smooth_diagonal(system: DiscreteSystem) -> bool:
+    """Whether (46) is linear in ``v`` with a diagonal Jacobian (free of ``v``; it may hold ``q0``)."""
+    jac, x = smooth_jacobian(system), set(system.routines["smooth"].inputs[0].symbols)
+    off = (jac[i, k] for i in range(jac.rows) for k in range(jac.cols) if i != k)
+    return not (jac.free_symbols & x) and all(e == 0 for e in off)
+
+
+def has_explicit_path(system: DiscreteSystem) -> bool:
+    """Whether the contact time (47) reduces to a scalar root along the explicit segment map."""
+    return system.m > 0 and smooth_diagonal(system)
 
 
 def is_explicit(system: DiscreteSystem) -> bool:
@@ -203,3 +218,32 @@ def jump_quadratic(system: DiscreteSystem) -> Routine | None:
         (Output("coef", sp.Matrix([a, b, c])), Output("w0", w0), Output("dw", dw)),
         "Jump (48) as a mu^2 + b mu + c = 0 along w = w0 + mu dw (explicit scenes).",
     )
+
+
+def path_routines(system: DiscreteSystem) -> list[Routine]:
+    """``contact_path_<c>``: ``g(s)``, ``g'(s)`` and ``v(s)`` of the explicit segment map (47).
+
+    ``v(s)`` solves the smooth residual (46) over the duration ``s tau`` exactly
+    (diagonal, ``v``-free Jacobian): ``v_i = -r_i(0) / J_ii``.
+    """
+    smooth, contacts = system.routines["smooth"], system.routines["contacts"]
+    xs, q0, p0, tau, par = smooth.inputs
+    s = sp.Dummy("s", real=True)
+    at_s = {tau.symbols[0]: s * tau.symbols[0]}
+    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
+    res, jac = smooth.output("res").expr, smooth_jacobian(system)
+    v = sp.Matrix([-res[i].xreplace(zero).xreplace(at_s) / jac[i, i].xreplace(at_s) for i in range(system.n)])
+    q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
+    qsub = dict(zip(contacts.input("q").symbols, q_end))
+    out = []
+    for j, name in enumerate(system.contact_names):
+        g = contacts.output("phi").expr[j].xreplace(qsub)
+        out.append(
+            Routine(
+                f"contact_path_{name}",
+                (Arg("x", (s,)), q0, p0, tau, par),
+                (Output("g", sp.Matrix([g])), Output("dg", sp.Matrix([g.diff(s)])), Output("v", v)),
+                f"Contact '{name}' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47).",
+            )
+        )
+    return out

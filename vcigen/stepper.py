@@ -37,6 +37,10 @@ class Kernels(Protocol):
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau): ...  # ((a, b, c), w0, dw) or None
     def restitution(self): ...  # coefficient of restitution per contact
 
+    explicit_path: bool  # contact_path available: (47) as a scalar root along the segment map
+
+    def contact_path(self, j, s, q0, p0, tau): ...  # (g, g', v) at fraction s
+
 
 @dataclass(frozen=True)
 class Tolerances:
@@ -368,7 +372,10 @@ class Stepper:
         if not first and j == seg.contact:  # leaving the contact just hit: step off the trivial root
             lo, phi_lo = self._leave(seg, j)
         s0 = lo + (hi - lo) * float(np.clip(phi_lo / (phi_lo - g_hi), 0.0, 1.0))
-        x, res = k.solve(name, np.append(seg.x, s0), *self._args(seg))
+        if first and k.explicit_path:  # the position is explicit in s: a safeguarded scalar root
+            x, res = k.solve(name, self._path_root(seg, j, s0, hi), *self._args(seg))
+        else:
+            x, res = k.solve(name, np.append(seg.x, s0), *self._args(seg))
         s = float(x[-1])
         ok = res <= self._scale(seg.p_in, seg.e_in) and lo - 1e-12 <= s <= hi + 1e-12
         if ok and not first:
@@ -377,6 +384,32 @@ class Stepper:
             x, s, res = self._bracketed_root(step, t_k, seg, j, name, phase, lo, phi_lo, hi, g_hi)
         self._check(res, seg.p_in, step, t_k, phase, seg.e_in)
         return x, min(max(s, 0.0), 1.0)
+
+    def _path_root(self, seg: _Seg, j: int, s0: float, hi: float) -> np.ndarray:
+        """Newton on ``g(s) = phi_j(q(s tau))`` along the explicit segment map, kept in its bracket.
+
+        From ``s0`` in ``[0, hi]`` (``g(0) >= 0 > g(hi)``); a step leaving the bracket is a
+        bisection. Returns ``(v(s), s)``, the unknowns of (47), for Newton to check.
+        """
+        k = self.k
+        a, b, s = 0.0, hi, s0
+        for _ in range(100):
+            g, dg, _ = k.contact_path(j, s, seg.q, seg.p_in, seg.tau)
+            if g == 0:
+                break
+            if g < 0:
+                b = s
+            else:
+                a = s
+            sn = s - g / dg if dg != 0 else math.nan
+            if not (a < sn < b):
+                sn = 0.5 * (a + b)
+            if abs(sn - s) <= 4e-16 * (1.0 + abs(s)):
+                s = sn
+                break
+            s = sn
+        _, _, v = k.contact_path(j, s, seg.q, seg.p_in, seg.tau)
+        return np.append(v, s)
 
     def _sub_solve(self, seg: _Seg, s: float, guess) -> tuple[np.ndarray, float]:
         """The segment map at fraction ``s``: its unknowns and ``phi`` at its end."""

@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from ..derive import DiscreteSystem
-from ..explicit import grid_routines, is_explicit, jump_quadratic
+from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
 from ..routines import Routine
 from .sym2casadi import to_casadi
 
@@ -56,6 +56,9 @@ class CasadiKernels:
             if "x" in [a.name for a in system.routines[name].inputs]
         }
         self._step = self._smooth_step()
+        self.explicit_path = has_explicit_path(system)
+        paths = path_routines(system) if self.explicit_path else []
+        self._paths = [self._flat_function(routine_to_function(r)) for r in paths]
         quad = jump_quadratic(system)
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
         flat = ("legendre", "segment", "contacts", "restitution")
@@ -186,6 +189,12 @@ class CasadiKernels:
         m, n = self.m, self.n
         o = self._call(self._flat["contacts"], q)
         return o[:m], o[m:].reshape(m, n)
+
+    def contact_path(self, j: int, s: float, q0, p0, tau: float):
+        """``(g, g', v)`` of contact ``j`` along the explicit segment map at fraction ``s`` (47)."""
+        n = self.n
+        o = self._call(self._paths[j], s, q0, p0, tau)
+        return float(o[0]), float(o[1]), o[2 : 2 + n]
 
     def restitution(self) -> np.ndarray:
         """Coefficient of restitution of each contact at the bound parameters."""

@@ -18,11 +18,11 @@ import sympy as sp
 from .. import __version__
 from ..derive import DiscreteSystem
 from ..errors import NONFINITE, PHASES
-from ..explicit import grid_routines, jump_quadratic
+from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
-from .cspecialise import Structure, detect, path_routines, phi_routine
+from .cspecialise import Structure, detect, phi_routine
 
 
 # The Newton of the CasADi backend (casadi.rootfinder 'newton'); the C solver uses the same.

@@ -20,11 +20,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import sympy as sp
-
 from ..derive import DiscreteSystem
-from ..explicit import expanded, is_explicit, jump_quadratic, smooth_jacobian
-from ..routines import Arg, Output, Routine
+from ..explicit import (
+    expanded,
+    has_explicit_path,
+    is_explicit,
+    jump_quadratic,
+    smooth_diagonal,
+    smooth_jacobian,
+)
+from ..routines import Routine
 
 
 @dataclass(frozen=True)
@@ -83,7 +88,7 @@ def detect(system: DiscreteSystem) -> Structure:
     x = set(smooth.inputs[0].symbols)
     jac = smooth_jacobian(system)  # expanded: terms that cancel only then do
     linear = not (jac.free_symbols & x)
-    diagonal = linear and all(jac[i, k] == 0 for i in range(jac.rows) for k in range(jac.cols) if i != k)
+    diagonal = smooth_diagonal(system)
     leg = system.routines["legendre"]
     mass = expanded(leg.output("mass").expr)
     state = set(leg.input("q").symbols) | set(leg.input("v").symbols)
@@ -93,7 +98,7 @@ def detect(system: DiscreteSystem) -> Structure:
     return Structure(
         linear,
         diagonal,
-        explicit_path=diagonal and system.m > 0,
+        explicit_path=has_explicit_path(system),
         mass_diagonal=mass_diagonal,
         explicit_grid=is_explicit(system),
         jump_quadratic=jump_quadratic(system) is not None,
@@ -104,32 +109,3 @@ def phi_routine(system: DiscreteSystem) -> Routine:
     """The contact values ``phi_j(q)`` alone (no gradients), for the grid test."""
     c = system.routines["contacts"]
     return Routine("phi", c.inputs, (c.outputs[0],), "Contact values phi_j(q) only (grid test).")
-
-
-def path_routines(system: DiscreteSystem) -> list[Routine]:
-    """``contact_path_<c>``: ``g(s)``, ``g'(s)`` and ``v(s)`` of the explicit segment map (47).
-
-    ``v(s)`` solves the smooth residual (46) over the duration ``s tau`` exactly
-    (diagonal, ``v``-free Jacobian): ``v_i = -r_i(0) / J_ii``.
-    """
-    smooth, contacts = system.routines["smooth"], system.routines["contacts"]
-    xs, q0, p0, tau, par = smooth.inputs
-    s = sp.Dummy("s", real=True)
-    at_s = {tau.symbols[0]: s * tau.symbols[0]}
-    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
-    res, jac = smooth.output("res").expr, smooth_jacobian(system)
-    v = sp.Matrix([-res[i].xreplace(zero).xreplace(at_s) / jac[i, i].xreplace(at_s) for i in range(system.n)])
-    q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
-    qsub = dict(zip(contacts.input("q").symbols, q_end))
-    out = []
-    for j, name in enumerate(system.contact_names):
-        g = contacts.output("phi").expr[j].xreplace(qsub)
-        out.append(
-            Routine(
-                f"contact_path_{name}",
-                (Arg("x", (s,)), q0, p0, tau, par),
-                (Output("g", sp.Matrix([g])), Output("dg", sp.Matrix([g.diff(s)])), Output("v", v)),
-                f"Contact '{name}' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47).",
-            )
-        )
-    return out

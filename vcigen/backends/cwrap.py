@@ -81,6 +81,10 @@ class CKernels:
         self._smooth = getattr(self.lib, f"{pre}_eval_smooth_step")
         self._smooth.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D, _D, _D, _D, _D]
         self._rest = getattr(self.lib, f"{pre}_eval_restitution")
+        self.explicit_path = bool(ctx["structure"]["explicit_path"])
+        if self.explicit_path:
+            self._path = getattr(self.lib, f"{pre}_eval_contact_path")
+            self._path.argtypes = [ctypes.c_int, ctypes.c_double, _D, _D, ctypes.c_double, _D, _D, _D, _D]
         self._quad = getattr(self.lib, f"{pre}_eval_jump_quadratic", None)
         if self._quad is not None:
             self._quad.argtypes = [_D, _D, _D, ctypes.c_double, ctypes.c_double, _D, _D, _D, _D]
@@ -155,6 +159,14 @@ class CKernels:
             _ptr(d1),
         )
         return v, float(res[0]), p1, float(e[0]), phi0[:m], phi1[:m], d0[:m], d1[:m]
+
+    def contact_path(self, j: int, s: float, q0, p0, tau: float):
+        """``(g, g', v)`` of contact ``j`` along the explicit segment map at fraction ``s`` (47)."""
+        n = self.n
+        g, dg, v = np.empty(1), np.empty(1), np.empty(n)
+        q, p = _vec(q0, n), _vec(p0, n)
+        self._path(int(j), float(s), _ptr(q), _ptr(p), float(tau), _ptr(self.par), _ptr(g), _ptr(dg), _ptr(v))
+        return float(g[0]), float(dg[0]), v
 
     def restitution(self) -> np.ndarray:
         """Coefficient of restitution of each contact at the bound parameters."""

@@ -757,14 +757,13 @@ static const particle_fun particle_contact_path_fns[PARTICLE_M_DIM] = {
 
 /* Specialised first-segment contact time (47): the position is explicit in alpha, so the root of
  * g(s) = phi_j(q(s)) in [0, hi] is a safeguarded scalar Newton from s0 (bisection when a step leaves
- * the bracket). x = (v(s), s); returns the residual of the full system (47) at x, as Newton would. */
-static double particle_path_root(const particle_ctx_t *c, const particle_seg_t *seg, int j, double s0,
+ * the bracket); x = (v(s), s), for Newton to check (Stepper._path_root). */
+static void particle_path_root(const particle_ctx_t *c, const particle_seg_t *seg, int j, double s0,
     double hi, double *x)
 {
     const double *const arg[4] = {seg->q, seg->p_in, &seg->tau, c->par};
-    double g, dg, sn, a = 0.0, b = hi, s = s0, r[PARTICLE_N1], jac[PARTICLE_N1 * PARTICLE_N1];
+    double g, dg, sn, a = 0.0, b = hi, s = s0;
     double *const out[3] = {&g, &dg, x};
-    double *const rout[2] = {r, jac};
     int it;
     for (it = 0; it < 100; ++it) {
         particle_contact_path_fns[j](&s, arg, out);
@@ -788,8 +787,6 @@ static double particle_path_root(const particle_ctx_t *c, const particle_seg_t *
     }
     particle_contact_path_fns[j](&s, arg, out);
     x[PARTICLE_N] = s;
-    particle_contact_time_fns[j](x, arg, rout);
-    return particle_norm_inf(PARTICLE_N1, r);
 }
 
 /* Stepper._contact_root: earliest root s in [lo, hi] of phi_j along the segment map; (x, s).
@@ -817,8 +814,9 @@ static int particle_contact_root(const particle_ctx_t *c, const particle_seg_t *
     }
     x[nx - 1] = s0;
     particle_seg_args(seg, &seg->tau, c->par, arg);
-    if (first) {
-        res = particle_path_root(c, seg, j, s0, hi, x);
+    if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
+        particle_path_root(c, seg, j, s0, hi, x);
+        particle_newton(particle_contact_time_fns[j], arg, nx, x, &res);
     } else {
         particle_newton(particle_jump_contact_fns[j], arg, nx, x, &res);
     }
@@ -1421,6 +1419,14 @@ void particle_eval_smooth_step(const double *q0, const double *p0, double tau, c
     double grad0[PARTICLE_M_DIM * PARTICLE_N], grad1[PARTICLE_M_DIM * PARTICLE_N];
     particle_contacts(q0, par, phi0, grad0);
     particle_smooth_step(q0, p0, tau, guess, par, grad0, v, res, p1, energy, phi1, grad1, d0, d1);
+}
+
+void particle_eval_contact_path(int j, double s, const double *q0, const double *p0, double tau,
+    const double *par, double *g, double *dg, double *v)
+{
+    const double *const arg[4] = {q0, p0, &tau, par};
+    double *const out[3] = {g, dg, v};
+    particle_contact_path_fns[j](&s, arg, out);
 }
 
 void particle_eval_restitution(const double *par, double *e)

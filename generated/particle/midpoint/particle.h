@@ -69,6 +69,10 @@ void particle_eval_contacts(const double *q, const double *par, double *phi, dou
 void particle_eval_smooth_step(const double *q0, const double *p0, double tau, const double *guess,
     const double *par, double *v, double *res, double *p1, double *energy, double *phi0, double *phi1,
     double *d0, double *d1);
+/* g(s) = phi_j(q(s tau)), g'(s) and v(s) along the explicit segment map (47)
+ * (vcigen.stepper.Kernels.contact_path). */
+void particle_eval_contact_path(int j, double s, const double *q0, const double *p0, double tau,
+    const double *par, double *g, double *dg, double *v);
 /* The coefficient of restitution of each contact (1: elastic). */
 void particle_eval_restitution(const double *par, double *e);
 /* The jump (48) as coef[0] mu^2 + coef[1] mu + coef[2] = 0 along w = w0 + mu dw

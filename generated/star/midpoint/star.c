@@ -879,14 +879,13 @@ static const star_fun star_contact_path_fns[STAR_M_DIM] = {
 
 /* Specialised first-segment contact time (47): the position is explicit in alpha, so the root of
  * g(s) = phi_j(q(s)) in [0, hi] is a safeguarded scalar Newton from s0 (bisection when a step leaves
- * the bracket). x = (v(s), s); returns the residual of the full system (47) at x, as Newton would. */
-static double star_path_root(const star_ctx_t *c, const star_seg_t *seg, int j, double s0,
+ * the bracket); x = (v(s), s), for Newton to check (Stepper._path_root). */
+static void star_path_root(const star_ctx_t *c, const star_seg_t *seg, int j, double s0,
     double hi, double *x)
 {
     const double *const arg[4] = {seg->q, seg->p_in, &seg->tau, c->par};
-    double g, dg, sn, a = 0.0, b = hi, s = s0, r[STAR_N1], jac[STAR_N1 * STAR_N1];
+    double g, dg, sn, a = 0.0, b = hi, s = s0;
     double *const out[3] = {&g, &dg, x};
-    double *const rout[2] = {r, jac};
     int it;
     for (it = 0; it < 100; ++it) {
         star_contact_path_fns[j](&s, arg, out);
@@ -910,8 +909,6 @@ static double star_path_root(const star_ctx_t *c, const star_seg_t *seg, int j, 
     }
     star_contact_path_fns[j](&s, arg, out);
     x[STAR_N] = s;
-    star_contact_time_fns[j](x, arg, rout);
-    return star_norm_inf(STAR_N1, r);
 }
 
 /* Stepper._contact_root: earliest root s in [lo, hi] of phi_j along the segment map; (x, s).
@@ -939,8 +936,9 @@ static int star_contact_root(const star_ctx_t *c, const star_seg_t *seg, int j, 
     }
     x[nx - 1] = s0;
     star_seg_args(seg, &seg->tau, c->par, arg);
-    if (first) {
-        res = star_path_root(c, seg, j, s0, hi, x);
+    if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
+        star_path_root(c, seg, j, s0, hi, x);
+        star_newton(star_contact_time_fns[j], arg, nx, x, &res);
     } else {
         star_newton(star_jump_contact_fns[j], arg, nx, x, &res);
     }
@@ -1543,6 +1541,14 @@ void star_eval_smooth_step(const double *q0, const double *p0, double tau, const
     double grad0[STAR_M_DIM * STAR_N], grad1[STAR_M_DIM * STAR_N];
     star_contacts(q0, par, phi0, grad0);
     star_smooth_step(q0, p0, tau, guess, par, grad0, v, res, p1, energy, phi1, grad1, d0, d1);
+}
+
+void star_eval_contact_path(int j, double s, const double *q0, const double *p0, double tau,
+    const double *par, double *g, double *dg, double *v)
+{
+    const double *const arg[4] = {q0, p0, &tau, par};
+    double *const out[3] = {g, dg, v};
+    star_contact_path_fns[j](&s, arg, out);
 }
 
 void star_eval_restitution(const double *par, double *e)
