@@ -307,8 +307,9 @@ class Stepper:
         root on its side of the vertex, the one Newton converges to, if that root is within
         ``mu0`` of the elastic impulse ``mu0``, and Newton only checks it; a root further
         away (grazing: the energy bias of (48a) dominates) is left to Newton from the
-        start, as without the closed form. Near grazing (48a) can have no root with ``mu > 0`` at all: that
-        is a located ``SolverError``.
+        start, as without the closed form. Near grazing (48a) can have no root with
+        ``mu > 0`` at all: that is a located ``SolverError``, or with
+        ``Tolerances(grazing="reflect")`` the continuous law ``mu = mu0`` with (48b) alone.
         """
         k = self.k
         n = k.n
