@@ -65,21 +65,24 @@ def simulator(
 # ------------------------------------------------------------------ models
 
 
-def box(order: tuple[str, ...] = ("left", "right", "bottom", "top")) -> vcigen.Model:
+def box(order: tuple[str, ...] = ("left", "right", "bottom", "top"), lossy: bool = False) -> vcigen.Model:
     """A unit particle in the box ``0 <= x <= W``, ``0 <= y <= H`` under gravity ``g`` (default 0).
 
-    ``order`` fixes the order of the contacts dict (the answer must not depend on it).
+    ``order`` fixes the order of the contacts dict (the answer must not depend on it);
+    ``lossy``: every wall has the coefficient of restitution ``e`` (a parameter, 1 by default).
     """
     x, y, xd, yd = sp.symbols("x y xd yd")
     W, H, g = sp.symbols("W H g", positive=True)
+    e = sp.Symbol("e")
     walls = {"left": x, "right": W - x, "bottom": y, "top": H - y}
     return vcigen.Model(
-        name="box",
+        name="box_lossy" if lossy else "box",
         q=[x, y],
         qdot=[xd, yd],
         lagrangian=(xd**2 + yd**2) / 2 - g * y,
         contacts={k: walls[k] for k in order},
-        params={W: 1.0, H: 1.0, g: 0.0},
+        params={W: 1.0, H: 1.0, g: 0.0, **({e: 1.0} if lossy else {})},
+        restitution=dict.fromkeys(order, e) if lossy else {},
     )
 
 
@@ -227,6 +230,7 @@ def star() -> vcigen.Model:
 MAKERS = {
     "box": box,
     "box_reversed": lambda: box(("top", "bottom", "right", "left")),
+    "box_lossy": lambda: box(lossy=True),
     "corner": corner,
     "corner_reversed": lambda: corner(("bottom", "left")),
     "walls": walls,

@@ -116,3 +116,40 @@ def test_solver_errors_are_rare_over_a_seeded_sweep(backend):
         errors.append(_check(*_billiard_run(backend, "trapezoid", *bil, *rng.uniform(-3, 3, 2), h)))
     errors = [e for e in errors if e]
     assert len(errors) <= 2, errors
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@SETTINGS
+@given(
+    W=st.floats(0.2, 2.0),
+    H=st.floats(0.2, 2.0),
+    g=st.sampled_from([0.0, 9.81]),
+    e=st.floats(0.0, 1.0),
+    fx=unit,
+    fy=unit,
+    vx=speed,
+    vy=speed,
+    h=step,
+)
+def test_random_lossy_box_admissible_and_energy_never_gained(backend, W, H, g, e, fx, fy, vx, vy, h):
+    """Restitution e on every wall: admissible, no impact adds energy (it loses (39)), or a clear error.
+
+    Without resting contact a body that comes to rest under gravity ends the run with a
+    SolverError (grazing, or the (78) solve); it must name the step and phase and keep the
+    run up to there.
+    """
+    sim = simulator("box_lossy", backend)
+    params = {"W": W, "H": H, "g": g, "e": e}
+    try:
+        res = sim.simulate(q0=[fx * W, fy * H], v0=[vx, vy], h=h, t_end=1.0, params=params)
+    except vcigen.SolverError as err:
+        assert err.phase in PHASES and math.isfinite(err.time)
+        assert err.result is not None and len(err.result.t) == err.step + 1
+        SOLVER_ERRORS.append(f"box_lossy {backend} e={e}: {err}")
+        res = err.result
+    assert min_phi(sim, res, params) >= -1e-9
+    assert np.all(np.isfinite(res.q)) and np.all(np.isfinite(res.p))
+    scale = max(1.0, float(np.max(np.abs(res.energy))))
+    for im in res.impacts:
+        assert im.energy_after <= im.energy_before + 1e-10 * scale
+        assert im.impulse > 0
