@@ -118,7 +118,7 @@ def test_solver_errors_are_rare_over_a_seeded_sweep(backend):
     assert len(errors) <= 2, errors
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("backend", [b for b in BACKENDS if b.values[0] == "c"])  # CasADi: test_restitution
 @SETTINGS
 @given(
     W=st.floats(0.2, 2.0),
