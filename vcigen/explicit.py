@@ -50,11 +50,23 @@ def smooth_jacobian(system: DiscreteSystem) -> sp.Matrix:
     return expanded(system.routines["smooth"].output("jac").expr)
 
 
+def _diagonal_free_of(a: sp.Matrix, symbols: set[sp.Symbol]) -> bool:
+    """Whether ``a`` is diagonal and free of ``symbols``."""
+    off = (a[i, k] for i in range(a.rows) for k in range(a.cols) if i != k)
+    return not (a.free_symbols & symbols) and all(e == 0 for e in off)
+
+
 def smooth_diagonal(system: DiscreteSystem) -> bool:
     """Whether (46) is linear in ``v`` with a diagonal Jacobian (free of ``v``; it may hold ``q0``)."""
-    jac, x = smooth_jacobian(system), set(system.routines["smooth"].inputs[0].symbols)
-    off = (jac[i, k] for i in range(jac.rows) for k in range(jac.cols) if i != k)
-    return not (jac.free_symbols & x) and all(e == 0 for e in off)
+    return _diagonal_free_of(smooth_jacobian(system), set(system.routines["smooth"].inputs[0].symbols))
+
+
+def mass_diagonal(system: DiscreteSystem) -> bool:
+    """Whether the mass matrix ``d2L/dqdot2`` is constant and diagonal."""
+    leg = system.routines["legendre"]
+    return _diagonal_free_of(
+        expanded(leg.output("mass").expr), set(leg.input("q").symbols) | set(leg.input("v").symbols)
+    )
 
 
 def has_explicit_path(system: DiscreteSystem) -> bool:
@@ -64,16 +76,9 @@ def has_explicit_path(system: DiscreteSystem) -> bool:
 
 def is_explicit(system: DiscreteSystem) -> bool:
     """Whether (46) has a constant diagonal Jacobian and the mass matrix is constant and diagonal."""
-    smooth, leg = system.routines["smooth"], system.routines["legendre"]
-    jac, mass = smooth_jacobian(system), expanded(leg.output("mass").expr)
+    smooth = system.routines["smooth"]
     state = set(smooth.inputs[0].symbols) | set(smooth.input("q0").symbols)
-    state |= set(leg.input("q").symbols) | set(leg.input("v").symbols)
-
-    def const_diag(a: sp.Matrix) -> bool:
-        off = (a[i, k] for i in range(a.rows) for k in range(a.cols) if i != k)
-        return not (a.free_symbols & state) and all(e == 0 for e in off)
-
-    return const_diag(jac) and const_diag(mass)
+    return _diagonal_free_of(smooth_jacobian(system), state) and mass_diagonal(system)
 
 
 Constants = list[tuple[sp.Symbol, sp.Expr]]
@@ -112,6 +117,7 @@ def hoist(exprs: list[sp.Expr], varying: set[sp.Symbol]) -> tuple[Constants, lis
     return [(k, e) for e, k in consts.items()], out
 
 
+@lru_cache(maxsize=64)
 def _shorter(e: sp.Expr) -> sp.Expr:
     """``e`` expanded if that takes fewer operations (E_d (55) collects to a short form)."""
     x = sp.expand(e)

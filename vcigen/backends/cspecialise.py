@@ -22,10 +22,10 @@ from dataclasses import dataclass
 
 from ..derive import DiscreteSystem
 from ..explicit import (
-    expanded,
     has_explicit_path,
     is_explicit,
     jump_quadratic,
+    mass_diagonal,
     smooth_diagonal,
     smooth_jacobian,
 )
@@ -88,18 +88,11 @@ def detect(system: DiscreteSystem) -> Structure:
     x = set(smooth.inputs[0].symbols)
     jac = smooth_jacobian(system)  # expanded: terms that cancel only then do
     linear = not (jac.free_symbols & x)
-    diagonal = smooth_diagonal(system)
-    leg = system.routines["legendre"]
-    mass = expanded(leg.output("mass").expr)
-    state = set(leg.input("q").symbols) | set(leg.input("v").symbols)
-    mass_diagonal = not (mass.free_symbols & state) and all(
-        mass[i, k] == 0 for i in range(mass.rows) for k in range(mass.cols) if i != k
-    )
     return Structure(
         linear,
-        diagonal,
+        smooth_diagonal(system),
         explicit_path=has_explicit_path(system),
-        mass_diagonal=mass_diagonal,
+        mass_diagonal=mass_diagonal(system),
         explicit_grid=is_explicit(system),
         jump_quadratic=jump_quadratic(system) is not None,
     )
