@@ -625,15 +625,32 @@ static void star_velocity_par(const double *par, const double *q, const double *
 
 }
 
+/* The slopes d_j = tau grad phi_j . qdot at (q, p), qdot the velocity of p: of phi along the sub-step
+ * map at an end of a segment (Kernels.smooth_step's d0, d1; Stepper._segment_end). */
+static void star_slopes(const double *par, double tau, const double *q, const double *v, const double *p,
+    const double *grad, double *d)
+{
+    double vel[STAR_N], gw;
+    int i, j;
+    star_velocity_par(par, q, v, p, vel);
+    for (j = 0; j < STAR_M; ++j) {
+        gw = 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            gw += grad[j * STAR_N + i] * vel[i];
+        }
+        d[j] = tau * gw;
+    }
+}
+
 /* Kernels.smooth_step: (v, |res|, p1, E_d, phi(q1), grad phi(q1), d0, d1) of the smooth step from
  * (q0, p0), given phi and grad phi at q0; d = tau grad phi . qdot at both ends (slopes of phi). */
 static inline void star_smooth_step(const double *q0, const double *p0, double tau, const double *guess,
     const double *par, const double *grad0, double *v, double *res, double *p1, double *energy, double *phi1,
     double *grad1, double *d0, double *d1)
 {
-    double pm[STAR_N], q1[STAR_N], vel0[STAR_N], vel1[STAR_N];
+    double pm[STAR_N], q1[STAR_N];
     double pp[STAR_N], e_seg, k[STAR_NK_DIM];
-    int i, j;
+    int i;
     (void)guess;
     /* the explicit grid step (vcigen.explicit): v, p1 and E_d as the loop of star_run has them */
     star_grid_consts(&tau, par, k);
@@ -646,16 +663,8 @@ static inline void star_smooth_step(const double *q0, const double *p0, double t
     *res = star_norm_inf(STAR_N, pm);
     star_contacts(q1, par, phi1, grad1);
     /* Slopes of phi along the sub-step map, with the velocities of p0 and p1 (CasadiKernels). */
-    star_velocity_par(par, q0, v, p0, vel0);
-    star_velocity_par(par, q1, v, p1, vel1);
-    for (j = 0; j < STAR_M; ++j) {
-        d0[j] = 0.0;
-        d1[j] = 0.0;
-        for (i = 0; i < STAR_N; ++i) {
-            d0[j] += tau * grad0[j * STAR_N + i] * vel0[i];
-            d1[j] += tau * grad1[j * STAR_N + i] * vel1[i];
-        }
-    }
+    star_slopes(par, tau, q0, v, p0, grad0, d0);
+    star_slopes(par, tau, q1, v, p1, grad1, d1);
 }
 
 /* The inputs of a segment's residual routines between the unknown and par (Stepper._args). */
@@ -1137,27 +1146,16 @@ static int star_segment_end(const star_ctx_t *c, const star_seg_t *seg, double *
     double *phi1, double *grad1, int *crossed, double *s_hi, double *g_hi)
 {
     double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N], d0[STAR_M_DIM];
-    double d1[STAR_M_DIM], gw0, gw1, p_start[STAR_N], p_end[STAR_N], e;
-    double vel0[STAR_N], vel1[STAR_N];
-    int i, j;
+    double d1[STAR_M_DIM], p_start[STAR_N], p_end[STAR_N], e;
+    int i;
     for (i = 0; i < STAR_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
     star_contacts(seg->q, c->par, phi0, grad0);
     star_contacts(q_end, c->par, phi1, grad1);
     star_segment(seg->q, seg->x, &seg->tau, c->par, p_start, p_end, &e);
-    star_velocity(c, seg->q, seg->x, p_start, vel0);
-    star_velocity(c, q_end, seg->x, p_end, vel1);
-    for (j = 0; j < STAR_M; ++j) {
-        gw0 = 0.0;
-        gw1 = 0.0;
-        for (i = 0; i < STAR_N; ++i) {
-            gw0 += grad0[j * STAR_N + i] * vel0[i];
-            gw1 += grad1[j * STAR_N + i] * vel1[i];
-        }
-        d0[j] = seg->tau * gw0;
-        d1[j] = seg->tau * gw1;
-    }
+    star_slopes(c->par, seg->tau, seg->q, seg->x, p_start, grad0, d0);
+    star_slopes(c->par, seg->tau, q_end, seg->x, p_end, grad1, d1);
     return star_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
@@ -1322,21 +1320,6 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     return 0;
 }
 
-
-/* The slopes d_j = tau grad phi_j . qdot at (q, p), qdot the velocity of p (Kernels.smooth_step's d0). */
-static void star_slopes(const double *par, double tau, const double *q, const double *v, const double *p,
-    const double *grad, double *d)
-{
-    double vel[STAR_N];
-    int i, j;
-    star_velocity_par(par, q, v, p, vel);
-    for (j = 0; j < STAR_M; ++j) {
-        d[j] = 0.0;
-        for (i = 0; i < STAR_N; ++i) {
-            d[j] += tau * grad[j * STAR_N + i] * vel[i];
-        }
-    }
-}
 
 #if defined(__GNUC__)
 #define STAR_COLD __attribute__((noinline, cold))
