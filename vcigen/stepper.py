@@ -342,7 +342,7 @@ class Stepper:
                 self.reflected += 1
                 seg.e_in = k.segment(seg.q, w, seg.tau)[2]
                 return np.append(w, mu0)
-        vn = float(seg.nrm @ vel) / float(np.linalg.norm(seg.nrm))
+        vn = nv / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"
         raise SolverError(
             step,
