@@ -75,8 +75,12 @@ def test_apex_just_below_ceiling_is_not_an_impact(sims):
 
 @pytest.mark.parametrize("overshoot", [1e-6, 1e-9, 0.0])
 def test_grazing_the_ceiling_does_not_crash_or_jump_wrongly(sims, overshoot):
-    """Normal velocity -> 0 at contact: a tiny impulse at most, energy kept, no loop."""
-    sim, _ = sims
+    """Normal velocity -> 0 at contact: a tiny impulse at most, energy kept, no loop.
+
+    The paper's method alone (``Tolerances(grazing="error")``); the default resolves a rootless
+    grazing impact by the continuous law instead (tests/test_sustained.py).
+    """
+    sim = vcigen.build(ceiling_model(), backend=sims[0].backend, tol=Tolerances(grazing="error"))
     try:
         res = sim.simulate(q0=[0.0, Y0], v0=[1.0, launch(overshoot)], h=0.1, t_end=0.6)
     except vcigen.SolverError as err:  # allowed only as a documented, located failure

@@ -32,7 +32,12 @@ def load_example(path: str | Path) -> ModuleType:
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
-    spec.loader.exec_module(module)
+    folder = str(path.resolve().parent)  # an example may import its folder's helpers (_common.py)
+    sys.path.insert(0, folder)
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(folder)
     if not callable(getattr(module, "model", None)):
         raise SystemExit(f"vcigen: {path} does not define model() -> vcigen.Model")
     return module

@@ -24,6 +24,7 @@ import sympy as sp
 
 from .model import Model
 from .routines import Arg, Output, Routine
+from .rows import Rows, contact_rows
 from .rules import Rule, get_rule
 
 KINK = 1e-12  # |u| below which sign(u), Heaviside(u) in a contact normal count as a kink
@@ -93,6 +94,7 @@ class DiscreteSystem:
     contact_names: tuple[str, ...]
     params: tuple[sp.Symbol, ...]
     routines: dict[str, Routine] = field(default_factory=dict)
+    rows: Rows | None = None  # rows of sustained contact and bilateral constraints (vcigen.rows)
 
     @property
     def n(self) -> int:
@@ -101,6 +103,11 @@ class DiscreteSystem:
     @property
     def m(self) -> int:
         return len(self.contact_names)
+
+    @property
+    def r(self) -> int:
+        """Number of rows (``0``: no contact and no constraint, nothing is ever sustained)."""
+        return 0 if self.rows is None else self.rows.size
 
 
 def _residual_routine(name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str) -> Routine:
@@ -206,4 +213,96 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
             res,
             f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
         )
-    return DiscreteSystem(model, rule, names, par.symbols, routines)
+    rows = contact_rows(model)
+    if rows.size:
+        routines.update(sustained_routines(model, seg, rows, par, phis, q))
+    return DiscreteSystem(model, rule, names, par.symbols, routines, rows)
+
+
+def _no_dirac(e: sp.Expr) -> sp.Expr:
+    """Second derivatives of ``Abs``: the Dirac mass at a kink is the impact's business, not a force."""
+    return _cone_centre(e.replace(lambda x: isinstance(x, sp.DiracDelta), lambda x: sp.S.Zero))
+
+
+def sustained_routines(
+    model: Model, seg: Segment, rows: Rows, par: Arg, phis: list[sp.Expr], q: tuple[sp.Symbol, ...]
+) -> dict[str, Routine]:
+    """Routines of sustained contact (MATH.md): rows, free dynamics, the constrained step, the projection.
+
+    * ``rows(q, u)``: ``psi_r``, ``grad psi_r`` and the curvature ``u . Hess psi_r . u``;
+    * ``dynamics(q, u)``: ``dL/dq - (d2L/dqdot dq) u`` (so that ``M qddot = rhs``) and each contact's
+      curvature, for the normal acceleration ``d2 phi/dt2`` that says whether forces press a body in;
+    * ``rattle``: the constrained discrete Euler-Lagrange step (RATTLE in position-momentum form),
+      unknowns ``(v, Lam)`` with ``Lam = tau/2 lambda`` an impulse: ``p-(q0, v, tau) = p0 + sum act_r
+      Lam_r grad psi_r(q0)``, ``psi_r(q0 + tau v) = 0`` where ``act_r = 1`` and ``Lam_r = 0`` elsewhere;
+    * ``rattle_project``: the end momentum ``p1 = p+ + sum act_r Lam'_r grad psi_r(q1)`` whose velocity
+      ``u`` is tangent to every active row: unknowns ``(u, Lam')``, ``dL/dqdot(q1, u) = p1``,
+      ``grad psi_r . u = 0``.
+    """
+    n, nr = model.n, rows.size
+    qs, vs = model.coordinates, model.velocities
+    qrep = dict(zip(qs, q))
+    u = _vec("u", n)
+    rep = qrep | dict(zip(vs, u))
+    psi = [e.xreplace(qrep) for e in rows.exprs]
+    grad = sp.Matrix([[_cone_centre(ps.diff(s)) for s in q] for ps in psi])
+    umat = sp.Matrix(u)
+    curv = sp.Matrix([(umat.T * sp.hessian(ps, q).applyfunc(_no_dirac) * umat)[0] for ps in psi])
+    out = {
+        "rows": Routine(
+            "rows",
+            (Arg("q", q), Arg("u", u), par),
+            (Output("psi", sp.Matrix(psi)), Output("grad", grad), Output("curv", curv)),
+            "Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u.",
+        )
+    }
+    lq = sp.Matrix([model.L.diff(s) for s in qs]).xreplace(rep)
+    mixed = sp.Matrix([[model.L.diff(vi).diff(qk) for qk in qs] for vi in vs]).xreplace(rep)
+    rhs = lq - mixed * umat
+    ccurv = [(umat.T * sp.hessian(ph, q).applyfunc(_no_dirac) * umat)[0] for ph in phis]
+    out["dynamics"] = Routine(
+        "dynamics",
+        (Arg("q", q), Arg("u", u), par),
+        (Output("rhs", rhs), Output("curv", sp.Matrix(ccurv) if ccurv else sp.zeros(0, 1))),
+        "Free dynamics M qddot = rhs and contact curvatures, for the normal acceleration of a contact.",
+    )
+    q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
+    v, lam, act = _vec("v", n), _vec("L", nr), _vec("a", nr)
+    pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau)
+    g0 = grad.xreplace(dict(zip(q, q0)))
+    alam = sp.Matrix([a * lm for a, lm in zip(act, lam)])
+    q1 = sp.Matrix(q0) + tau * sp.Matrix(v)
+    psi1 = [ps.xreplace(dict(zip(q, q1))) for ps in psi]
+    res = (pm - sp.Matrix(p0) - g0.T * alam).col_join(
+        sp.Matrix([a * ps + (1 - a) * lm for a, ps, lm in zip(act, psi1, lam)])
+    )
+    out["rattle"] = _residual_routine(
+        "rattle",
+        Arg("x", (*v, *lam)),
+        [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), Arg("act", act), par],
+        res,
+        "Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda.",
+    )
+    p1 = _vec("p", n)
+    mom = sp.Matrix([model.L.diff(s) for s in vs]).xreplace(rep)
+    gu = grad * umat
+    res = (mom - sp.Matrix(p1) - grad.T * alam).col_join(
+        sp.Matrix([a * gi + (1 - a) * lm for a, gi, lm in zip(act, gu, lam)])
+    )
+    out["rattle_project"] = _residual_routine(
+        "rattle_project",
+        Arg("x", (*u, *lam)),
+        [Arg("q1", q), Arg("p1", p1), Arg("act", act), par],
+        res,
+        "End momentum of a constrained step, velocity tangent to the active rows: unknowns (u, Lam').",
+    )
+    return out
+
+
+def set_rows(kernels, system: DiscreteSystem) -> None:
+    """The row bookkeeping every kernels object carries (``r``, and per row its contact, constraint)."""
+    rows = system.rows
+    kernels.r = system.r
+    kernels.row_contact = rows.contact if rows else ()
+    kernels.row_constraint = rows.constraint if rows else ()
+    kernels.row_bilateral = rows.bilateral if rows else ()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-PHASES = ("smooth", "contact time", "jump", "jump to contact", "start")
+PHASES = ("smooth", "contact time", "jump", "jump to contact", "start", "sustained")
 # The reason of a SolverError for a step whose p_k+1 or E_d is not finite (both backends).
 NONFINITE = (
     "non-finite state (an overflow, or a NaN from the model at these parameters); "

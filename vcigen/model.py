@@ -66,6 +66,7 @@ class Model:
     contacts: Mapping[str, sp.Expr] = field(default_factory=dict)
     params: Mapping[sp.Symbol, float] = field(default_factory=dict)
     restitution: Mapping[str, float | sp.Expr] = field(default_factory=dict)
+    constraints: Mapping[str, sp.Expr] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check_identifier(self.name, "model name")
@@ -85,6 +86,13 @@ class Model:
             check_identifier(cname, "contact name"): sp.sympify(phi).subs(subs)
             for cname, phi in dict(self.contacts).items()
         }
+        constraints = {
+            check_identifier(cname, "constraint name"): sp.sympify(g).subs(subs)
+            for cname, g in dict(self.constraints).items()
+        }
+        clash = set(constraints) & set(contacts)
+        if clash:
+            raise ValueError(f"{sorted(clash)} name both a contact and a constraint; use distinct names")
         params = self._parameters()
         rest = self._restitution(contacts, params)
         object.__setattr__(self, "_coords", tuple(real_q))
@@ -93,8 +101,10 @@ class Model:
         object.__setattr__(self, "_phis", contacts)
         object.__setattr__(self, "_pars", params)
         object.__setattr__(self, "_rest", rest)
+        object.__setattr__(self, "_cons", constraints)
         self._check_free_symbols()
         self._check_contacts_depend_on_q_only()
+        self._check_constraints()
         self._check_regular()
 
     # -- construction helpers -------------------------------------------------
@@ -164,6 +174,7 @@ class Model:
         for what, expr in [
             ("the Lagrangian", self._lagr),
             *((f"contact {n!r}", e) for n, e in self._phis.items()),
+            *((f"constraint {n!r}", e) for n, e in self._cons.items()),
         ]:
             stray = expr.free_symbols - allowed
             funcs = expr.atoms(sp.core.function.AppliedUndef, sp.Derivative)
@@ -181,6 +192,18 @@ class Model:
         for n, e in self._phis.items():
             if e.free_symbols & set(self._vels):
                 raise ValueError(f"contact {n!r} depends on a velocity; phi must be a function of q only")
+
+    def _check_constraints(self) -> None:
+        """Bilateral constraints ``g_i(q) = 0``: functions of ``q`` that depend on ``q``."""
+        for n, e in self._cons.items():
+            if e.free_symbols & set(self._vels):
+                raise ValueError(
+                    f"constraint {n!r} depends on a velocity; constraints must be holonomic, g(q) = 0"
+                )
+            if not e.free_symbols & set(self._coords):
+                raise ValueError(
+                    f"constraint {n!r} = {e} does not depend on any coordinate; it constrains nothing"
+                )
 
     def _check_regular(self) -> None:
         mass = self.mass_matrix
@@ -235,6 +258,11 @@ class Model:
                 raise ValueError(f"restitution of {name!r} is {e} at these parameters; it must lie in [0, 1]")
             out.append(e)
         return out
+
+    @property
+    def constraint(self) -> dict[str, sp.Expr]:
+        """Bilateral holonomic constraints ``g_i(q) = 0`` by name, in the real symbols."""
+        return dict(self._cons)  # type: ignore[attr-defined]
 
     @property
     def n(self) -> int:

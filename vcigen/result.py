@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+KINDS = ("elastic", "restitution", "plastic", "grazing")  # Impact.kind (MATH.md, Sustained contact)
+
 
 @dataclass(frozen=True)
 class Impact:
@@ -16,7 +18,9 @@ class Impact:
     ``alpha`` is ``(t - t_k)/h`` within the grid step ``k``; ``impulse`` is the
     multiplier ``mu >= 0`` of (76) (the paper's ``lambda`` is ``-mu``).
     ``energy_before``/``energy_after`` are ``E_d`` of the segments either side (48a):
-    equal for an elastic contact, apart by the loss of (39) with restitution ``e < 1``.
+    equal for an elastic contact, apart by the loss of (39) with restitution ``e < 1``
+    (for a plastic impact, or one during sustained contact: apart by the kinetic energy lost).
+    ``kind`` says which law resolved it (MATH.md, *Sustained contact*).
     """
 
     t: float
@@ -27,6 +31,7 @@ class Impact:
     step: int
     energy_before: float
     energy_after: float
+    kind: str = "elastic"  # "elastic", "restitution", "plastic" (starts sustained contact) or "grazing"
 
 
 @dataclass
@@ -41,6 +46,10 @@ class Result:
     coordinate_names: list[str]
     h: float
     stats: dict[str, float] = field(default_factory=dict)
+    active: np.ndarray | None = None  # (N, m) bool: contact j in sustained contact at grid point k
+    contact_force: np.ndarray | None = None  # (N-1, m): mean multiplier lambda_j >= 0 over each grid step
+    constraint_force: np.ndarray | None = None  # (N-1, n_constraints): the bilateral multipliers
+    liftoffs: list[tuple[float, str]] = field(default_factory=list)  # (t, contact) per release
 
     @property
     def n_impacts(self) -> int:
@@ -75,7 +84,7 @@ class Result:
         return path
 
     def impacts_to_csv(self, path: str | Path) -> Path:
-        """Write the impact log: ``t, contact, step, alpha, impulse, E_before, E_after, q...``."""
+        """Write the impact log: ``t, contact, step, alpha, impulse, E_before, E_after, q..., kind``."""
         path = Path(path)
         with path.open("w", newline="") as fh:
             w = csv.writer(fh)
@@ -89,6 +98,7 @@ class Result:
                     "energy_before",
                     "energy_after",
                     *self.coordinate_names,
+                    "kind",
                 ]
             )
             for im in self.impacts:
@@ -102,6 +112,7 @@ class Result:
                         repr(im.energy_before),
                         repr(im.energy_after),
                         *map(repr, im.q.tolist()),
+                        im.kind,
                     ]
                 )
         return path

@@ -16,6 +16,7 @@ from .stepper import Stepper, Tolerances, warn_reflected
 
 Backend = Literal["casadi", "c"]
 BACKENDS = ("casadi", "c")
+CONSTRAINT_TOL = 1e-9  # |g(q0)| and |grad g . v0| accepted at the start (bilateral constraints)
 
 
 class Simulator:
@@ -82,6 +83,24 @@ class Simulator:
                 raise ValueError(
                     f"q0 violates contact '{name}' (phi = {val:.6g} < 0); start inside the admissible set"
                 )
+        if kern.r and self.model.constraint:
+            psi, grad, _ = kern.rows(q0, v0)
+            for r in range(kern.r):
+                i = kern.row_constraint[r]
+                if i < 0:
+                    continue
+                name = list(self.model.constraint)[i]
+                if not abs(psi[r]) <= CONSTRAINT_TOL:
+                    raise ValueError(
+                        f"q0 violates constraint '{name}' (g = {psi[r]:.6g}); start on every constraint "
+                        f"(|g| <= {CONSTRAINT_TOL:g})"
+                    )
+                rate = float(grad[r] @ v0)
+                if not abs(rate) <= CONSTRAINT_TOL * (1.0 + float(np.abs(grad[r]).max() * np.abs(v0).max())):
+                    raise ValueError(
+                        f"v0 is not tangent to constraint '{name}' (dg/dt = {rate:.6g}); give a velocity "
+                        "with grad g . v0 = 0"
+                    )
         _, mass = kern.legendre(q0, v0)
         if not np.all(np.isfinite(mass)) or np.linalg.cond(mass) > 1e12:
             raise ValueError(

@@ -22,6 +22,7 @@ import numpy as np
 
 from .errors import NONFINITE, SolverError
 from .result import Impact, Result
+from .sustained import SustainedSteps, SustainLog
 
 
 class Kernels(Protocol):
@@ -41,6 +42,14 @@ class Kernels(Protocol):
 
     def contact_path(self, j, s, q0, p0, tau): ...  # (g, g', v) at fraction s
 
+    r: int  # rows of sustained contact (vcigen.rows); row_contact, row_constraint, row_bilateral per row
+
+    def rows(self, q, u): ...  # (psi, grad psi, u . Hess psi . u) of every row
+    def dynamics(self, q, u): ...  # (rhs of M qddot = rhs, each contact's curvature u . Hess phi . u)
+
+
+GRAZING_MODES = ("contact", "error", "reflect")
+
 
 @dataclass(frozen=True)
 class Tolerances:
@@ -54,14 +63,20 @@ class Tolerances:
     jump_restarts: tuple[float, ...] = (1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25)
     simultaneous: float = 1e-9  # crossings this close (fraction of the step) are one impact
     dip: float = 0.25  # sample the segment map when the cubic's minimum of phi < dip * |slopes|
-    # When (48a) has no root mu > 0 (a grazing impact: the O(h^2) energy bias of E_d exceeds the
-    # normal kinetic energy): "error" raises SolverError; "reflect" applies the continuous law
-    # n.qdot -> -e n.qdot instead, (48b) solved with mu = mu0, E_d reset, and warns.
-    grazing: str = "error"
+    # Impacts the jump (48) cannot resolve (MATH.md, Sustained contact). "contact" (default): an
+    # impact whose outgoing normal speed is below rest * h * |d2phi/dt2| with forces pressing in, or
+    # with no root mu > 0 of (48a), is plastic and the contact is held (sustained contact, lift-off);
+    # a rootless one with forces not pressing in is grazing (n.qdot -> -e n.qdot). The paper's method
+    # alone: "error" raises SolverError where (48a) has no root mu > 0; "reflect" applies the continuous
+    # law n.qdot -> -e n.qdot there instead, (48b) solved with mu = mu0, E_d reset, and warns.
+    grazing: str = "contact"
+    rest: float = 1.0  # the jump's speed resolution, in units of h |d2phi/dt2| (mode "contact")
 
     def __post_init__(self) -> None:
-        if self.grazing not in ("error", "reflect"):
-            raise ValueError(f"Tolerances.grazing = {self.grazing!r}; use 'error' or 'reflect'")
+        if self.grazing not in GRAZING_MODES:
+            raise ValueError(f"Tolerances.grazing = {self.grazing!r}; use one of {list(GRAZING_MODES)}")
+        if not (math.isfinite(self.rest) and self.rest >= 0):
+            raise ValueError(f"Tolerances.rest = {self.rest!r}; use a number >= 0")
 
 
 @dataclass
@@ -78,13 +93,14 @@ class _Seg:
     x: np.ndarray  # the segment's unknowns: v, or (w, mu) after an impact
 
 
-class Stepper:
+class Stepper(SustainedSteps):
     """Runs the method of MATH.md on a set of kernels."""
 
     def __init__(self, kernels: Kernels, tol: Tolerances | None = None) -> None:
         self.k = kernels
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
+        self._init_sustained()
 
     # -- public -----------------------------------------------------------------
     def simulate(
@@ -108,6 +124,10 @@ class Stepper:
         Q[0], P[0] = q, p
         impacts: list[Impact] = []
         v = np.asarray(v0, dtype=float).copy()
+        self._h = h
+        self._start_sustained(q, v, h)
+        sus = SustainLog(k, cap)
+        sus.active[0] = self.contact_activity()
         wall = time.perf_counter()
         step = 0
         next_report = wall + 5.0
@@ -117,15 +137,18 @@ class Stepper:
             if step >= cap:
                 cap *= 2
                 Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
+                sus.grow(cap)
             t = t0 + step * h
             try:
                 q, p, e, v = self.step(step, t, h, q, p, v, impacts)
             except SolverError as err:  # keep what was computed: the run up to the last completed step
                 kept = [im for im in impacts if im.step < step]
                 err.result = _result(t0, h, step, Q, P, E, kept, n, time.perf_counter() - wall)
+                sus.attach(err.result, step, [lo for lo in self.liftoffs if lo[0] < t])
                 raise
             step += 1
             Q[step], P[step], E[step - 1] = q, p, e
+            sus.record(step, self.contact_activity(), self._force, self._cforce)
             if progress and time.perf_counter() > next_report:
                 next_report += 5.0
                 print(f"  t = {t:.4g}, {step} steps, {len(impacts)} impacts", flush=True)
@@ -138,7 +161,19 @@ class Stepper:
                 )
         res = _result(t0, h, step, Q, P, E, impacts, n, time.perf_counter() - wall)
         res.stats["grazing_reflected"] = self.reflected
+        sus.attach(res, step, self.liftoffs)
+        res.stats.update({f"impacts_{kind}": count for kind, count in self.kinds.items()})
+        res.stats["liftoffs"] = len(self.liftoffs)
         return res
+
+    def contact_activity(self) -> np.ndarray:
+        """Per contact: is any of its rows active (in sustained contact)?"""
+        k = self.k
+        out = np.zeros(k.m, dtype=bool)
+        for r in np.flatnonzero(self.act):
+            if k.row_contact[r] >= 0:
+                out[k.row_contact[r]] = True
+        return out
 
     def step(
         self,
@@ -152,6 +187,12 @@ class Stepper:
     ):
         """One grid step from ``(q_k, p_k)``; returns ``(q_k+1, p_k+1, E_d, v)``."""
         k = self.k
+        self._force = np.zeros(k.m)
+        self._cforce = np.zeros(len(k.system.model.constraint) if k.r else 0)
+        self._events = 0
+        self._h = h
+        if self.act.any():  # sustained contact or bilateral constraints: the constrained chain
+            return self._chain(step, t, h, q, p, t, h, guess, impacts, None)
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)
         if not (math.isfinite(e) and np.isfinite(p1).all()):  # E_d is finite only if v is
             raise SolverError(step, t, "smooth", float(e), NONFINITE)
@@ -212,13 +253,16 @@ class Stepper:
         return v + np.linalg.solve(mass, p - mom)
 
     # -- the impact step ---------------------------------------------------------
-    def _impact_step(self, step, t_k, h, seg: _Seg, crossings, impacts):
-        """Chain of segments (47), (48), (78), (79) until one ends inside C at ``t_k + h``."""
+    def _impact_step(self, step, t_k, h, seg: _Seg, crossings, impacts, e_step=None):
+        """Chain of segments (47), (48), (78), (79) until one ends inside C at ``t_k + h``.
+
+        A plastic impact (mode ``"contact"``) hands the rest of the step to the constrained
+        chain (:mod:`vcigen.sustained`). ``e_step``: E_d of the grid step, if an earlier phase fixed it.
+        """
         k, tol = self.k, self.tol
         n = k.n
         pending: list[tuple[Impact, float]] = []
         restitution = k.restitution()
-        e_step = None  # E_d entering the step: the grid step's energy
         for _ in range(tol.max_impacts_per_step):
             # Earliest crossing over all crossed contacts (47)/(78); ties are one impact.
             roots = {
@@ -243,7 +287,16 @@ class Stepper:
             # (less the loss of (39) with restitution; seg.e_in becomes the energy after).
             elastic = all(restitution[i] == 1.0 for i in group)
             e_rest = 1.0 if elastic else float(sum(wgt * restitution[i] for i, wgt in zip(group, weights)))
-            seg.x = self._jump(step, t_k, seg, v_c, e_rest)
+            x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
+            if x_jump is None:  # plastic: the contact is held for the rest of the step
+                if self.k.r:
+                    self._count_event(step, t_k)
+                p_plus, lam, loss, rows = self._plastic_entry(step, t_k, h, q_c, p_minus_c, v_c, t_c, group)
+                for i in group:
+                    own = sum(lam[r] for r in rows if k.row_contact[r] == i)
+                    self._log(impacts, t_c, i, q_c, (t_c - t_k) / h, own, step, e_in, e_in - loss, "plastic")
+                return self._chain(step, t_k, h, q_c, p_plus, t_c, seg.tau, v_c, impacts, e_step)
+            seg.x = x_jump
             w = seg.x[:n]
             _, p_end, e_after = k.segment(seg.q, w, seg.tau)
             pending = [
@@ -257,11 +310,16 @@ class Stepper:
                         step=step,
                         energy_before=e_in,
                         energy_after=e_after,
+                        kind=kind
+                        if kind == "grazing"
+                        else ("elastic" if restitution[i] == 1.0 else "restitution"),
                     ),
                     wgt,
                 )
                 for i, wgt in zip(group, weights)
             ]
+            for im, _ in pending:
+                self.kinds[im.kind] += 1
             q_end, crossings = self._segment_end(seg, w)
             if not crossings:
                 impacts.extend(im for im, _ in pending)
@@ -293,7 +351,7 @@ class Stepper:
         c = c / c.sum() if c.sum() > 0 else np.full(len(group), 1.0 / len(group))
         return sum(ci * grads[i] for ci, i in zip(c, group)), [float(ci) for ci in c]
 
-    def _jump(self, step, t_k, seg: _Seg, v_in, restitution: float = 1.0) -> np.ndarray:
+    def _jump(self, step, t_k, seg: _Seg, v_in, restitution: float = 1.0, group=(), weights=()):
         """Solve (48) for ``(w, mu)``: the physical root, ``mu > 0`` (MATH.md).
 
         With a coefficient of restitution ``e < 1`` the energy equation (48a) keeps
@@ -310,6 +368,10 @@ class Stepper:
         start, as without the closed form. Near grazing (48a) can have no root with
         ``mu > 0`` at all: that is a located ``SolverError``, or with
         ``Tolerances(grazing="reflect")`` the continuous law ``mu = mu0`` with (48b) alone.
+
+        Mode ``"contact"`` (default, :mod:`vcigen.sustained`): ``(None, "plastic")`` where forces press
+        the body in and the outgoing normal speed is below the jump's resolution, or (48a) has no root;
+        a rootless impact not pressed in takes the continuous law (``"grazing"``). Returns ``(x, kind)``.
         """
         k = self.k
         n = k.n
@@ -318,6 +380,11 @@ class Stepper:
         minv_n = np.linalg.solve(mass, seg.nrm)
         nv, nmn = float(seg.nrm @ vel), float(seg.nrm @ minv_n)
         mu0 = max(-(1.0 + restitution) * nv / nmn, 0.0)  # the continuous impulse: n.qdot -> -e n.qdot
+        sustain = self.tol.grazing == "contact" and k.r > 0
+        accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
+        pressed = accel < 0.0
+        if pressed and self._settles(nv, accel, restitution, self._h):
+            return None, "plastic"
         if restitution < 1.0 and nv < 0.0:  # (39): the energy the normal velocity loses
             seg.e_in -= (1.0 - restitution * restitution) * nv * nv / (2.0 * nmn)
         mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
@@ -334,14 +401,17 @@ class Stepper:
             x, res = k.solve("jump", x0, seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
             if res <= self._scale(seg.p_in, seg.e_in):
                 if x[n] > 0:
-                    return x
+                    return x, "jump"
                 roots.append(float(x[n]))
-        if self.tol.grazing == "reflect" and mu0 > 0.0:  # the continuous law, energy reset
+        if pressed:
+            return None, "plastic"
+        reflect = self.tol.grazing == "reflect" and mu0 > 0.0
+        if reflect or sustain:  # the continuous law, energy reset
             w, res = k.solve("smooth", vel + mu0 * minv_n, seg.q, seg.p_in + mu0 * seg.nrm, seg.tau)
             if res <= self._scale(seg.p_in, seg.e_in):
-                self.reflected += 1
+                self.reflected += reflect
                 seg.e_in = k.segment(seg.q, w, seg.tau)[2]
-                return np.append(w, mu0)
+                return np.append(w, mu0), "grazing"
         vn = nv / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"
         raise SolverError(

@@ -12,7 +12,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..derive import DiscreteSystem
+from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
 from ..routines import Routine
 from .sym2casadi import to_casadi
@@ -61,8 +61,9 @@ class CasadiKernels:
         self._paths = [self._flat_function(routine_to_function(r)) for r in paths]
         quad = jump_quadratic(system)
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
-        flat = ("legendre", "segment", "contacts", "restitution")
+        flat = ("legendre", "segment", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
         self._flat = {name: self._flatten(name) for name in flat}
+        set_rows(self, system)
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -201,6 +202,18 @@ class CasadiKernels:
         if self.m == 0:
             return np.zeros(0)
         return self._call(self._flat["restitution"])[: self.m]
+
+    def rows(self, q, u):
+        """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""
+        r, n = self.r, self.n
+        o = self._call(self._flat["rows"], q, u)
+        return o[:r], o[r : r + r * n].reshape(r, n), o[r + r * n :]
+
+    def dynamics(self, q, u):
+        """``(rhs, curv)``: ``M qddot = rhs`` without constraints, and each contact's curvature."""
+        n = self.n
+        o = self._call(self._flat["dynamics"], q, u)
+        return o[:n], o[n:]
 
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau):
         """``((a, b, c), w0, dw)`` of the jump (48) as a quadratic in ``mu``, or ``None``."""

@@ -19,6 +19,7 @@ from .. import __version__
 from ..derive import DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
+from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
@@ -44,6 +45,7 @@ def _tol_context(tol: Tolerances) -> dict[str, str]:
     """The tolerances as C literals (``grazing`` as the flag ``grazing_reflect``)."""
     out = {k: c_number(v) for k, v in asdict(tol).items() if k not in ("grazing", "jump_restarts")}
     out["grazing_reflect"] = "1" if tol.grazing == "reflect" else "0"
+    out["grazing_contact"] = "1" if tol.grazing == "contact" else "0"
     return out
 
 
@@ -59,6 +61,7 @@ def model_hash(system: DiscreteSystem) -> str:
         *(f"{c}:{sp.srepr(e)}" for c, e in model.phi.items()),
         *(f"{s.name}={v!r}" for s, v in model.defaults.items()),
         *(f"e:{c}:{sp.srepr(e)}" for c, e in model.restitution_of.items() if e != 1),
+        *(f"g:{c}:{sp.srepr(e)}" for c, e in model.constraint.items()),
     ]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
@@ -125,6 +128,15 @@ def render_context(
         "version": __version__,
         "n": n,
         "m": system.m,
+        "r": system.r,
+        "nc": len(model.constraint),
+        "kinds": [{"index": k, "name": nm, "macro": nm.upper()} for k, nm in enumerate(KINDS)],
+        "rows": [
+            {"index": i, "name": nm, "contact": c, "constraint": k}
+            for i, (nm, c, k) in enumerate(
+                zip(system.rows.names, system.rows.contact, system.rows.constraint) if system.rows else ()
+            )
+        ],
         "npar": len(system.params),
         "nk": grid[0].outputs[0].size if grid else 0,
         "coordinates": list(model.coordinate_names),

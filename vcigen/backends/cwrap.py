@@ -17,11 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from ..derive import DiscreteSystem
+from ..derive import DiscreteSystem, set_rows
 from ..errors import PHASES, SolverError
-from ..result import Impact, Result
+from ..result import KINDS, Impact, Result
 from ..simulator import Simulator
-from ..stepper import Tolerances, _n_steps, _result
+from ..stepper import Stepper, Tolerances, _n_steps, _result
+from ..sustained import SustainLog
 
 _D = ctypes.POINTER(ctypes.c_double)
 IMPACT_CAP = 4096
@@ -38,6 +39,8 @@ class _Tol(ctypes.Structure):
         ("dip", ctypes.c_double),
         ("simultaneous", ctypes.c_double),
         ("grazing_reflect", ctypes.c_int),
+        ("grazing_contact", ctypes.c_int),
+        ("rest", ctypes.c_double),
     ]
 
 
@@ -50,6 +53,25 @@ class _Err(ctypes.Structure):
         ("reason", ctypes.c_char * 256),
         ("reflected", ctypes.c_long),
     ]
+
+
+def sustain_struct(r: int, m: int, nc: int) -> type[ctypes.Structure]:
+    """The ``<model>_sustain_t`` of a model with ``r`` rows, ``m`` contacts, ``nc`` constraints."""
+
+    class _Sustain(ctypes.Structure):
+        _fields_ = [
+            ("act", ctypes.c_int * max(r, 1)),
+            ("lam", ctypes.c_double * max(r, 1)),
+            ("force", ctypes.c_double * max(m, 1)),
+            ("cforce", ctypes.c_double * max(nc, 1)),
+            ("liftoffs", _D),
+            ("liftoff_cap", ctypes.c_long),
+            ("n_liftoffs", ctypes.c_long),
+            ("kinds", ctypes.c_long * 4),
+            ("events", ctypes.c_int),
+        ]
+
+    return _Sustain
 
 
 def _ptr(a: np.ndarray) -> Any:
@@ -88,6 +110,10 @@ class CKernels:
         self._quad = getattr(self.lib, f"{pre}_eval_jump_quadratic", None)
         if self._quad is not None:
             self._quad.argtypes = [_D, _D, _D, ctypes.c_double, ctypes.c_double, _D, _D, _D, _D]
+        set_rows(self, system)
+        if self.r:
+            self._rows = getattr(self.lib, f"{pre}_eval_rows")
+            self._dynamics = getattr(self.lib, f"{pre}_eval_dynamics")
         self._solve = getattr(self.lib, f"{pre}_solve")
         self._solve.argtypes = [ctypes.c_int, _D, _D, _D, _D]
         self.run = getattr(self.lib, f"{pre}_run")
@@ -110,8 +136,14 @@ class CKernels:
             ctypes.POINTER(ctypes.c_long),
             ctypes.POINTER(ctypes.c_long),
             ctypes.POINTER(_Err),
+            ctypes.c_void_p,
+            _D,
+            _D,
+            _D,
         ]
         self.run.restype = ctypes.c_int
+        self.nc = len(system.model.constraint)
+        self.Sustain = sustain_struct(self.r, self.m, self.nc)
 
     def bind(self, par) -> CKernels:
         """Fix the parameter values for the next simulation."""
@@ -168,6 +200,20 @@ class CKernels:
         self._path(int(j), float(s), _ptr(q), _ptr(p), float(tau), _ptr(self.par), _ptr(g), _ptr(dg), _ptr(v))
         return float(g[0]), float(dg[0]), v
 
+    def rows(self, q, u):
+        """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""
+        n, r = self.n, self.r
+        psi, grad, curv = np.empty(r), np.empty(r * n), np.empty(r)
+        self._rows(_ptr(_vec(q, n)), _ptr(_vec(u, n)), _ptr(self.par), _ptr(psi), _ptr(grad), _ptr(curv))
+        return psi, grad.reshape(r, n), curv
+
+    def dynamics(self, q, u):
+        """``(rhs, curv)``: ``M qddot = rhs`` without constraints, and each contact's curvature."""
+        n, m = self.n, self.m
+        rhs, curv = np.empty(n), np.empty(max(m, 1))
+        self._dynamics(_ptr(_vec(q, n)), _ptr(_vec(u, n)), _ptr(self.par), _ptr(rhs), _ptr(curv))
+        return rhs, curv[:m]
+
     def restitution(self) -> np.ndarray:
         """Coefficient of restitution of each contact at the bound parameters."""
         e = np.empty(max(self.m, 1))
@@ -213,6 +259,8 @@ def _tol_struct(tol: Tolerances) -> _Tol:
         tol.dip,
         tol.simultaneous,
         int(tol.grazing == "reflect"),
+        int(tol.grazing == "contact"),
+        tol.rest,
     )
 
 
@@ -233,8 +281,20 @@ class CSimulator(Simulator):
         q, v = _vec(q0, n).copy(), _vec(v0, n).copy()
         p = kern.legendre(q, v)[0].copy()
         Q[0], P[0] = q, p
-        impact_cap = max(IMPACT_CAP, 2 * self.tol.max_impacts_per_step * max(self.system.m, 1))
-        rec = np.empty((impact_cap, 7 + n))
+        m, nc = kern.m, kern.nc
+        impact_cap = max(IMPACT_CAP, 2 * self.tol.max_impacts_per_step * (max(m, 1) + max(kern.r, 1)))
+        rec = np.empty((impact_cap, 8 + n))
+        starter = Stepper(kern, self.tol)  # the active rows at the start: the same rule as the Python stepper
+        starter._start_sustained(q, v, h)
+        sus = kern.Sustain()
+        for r, held in enumerate(starter.act):
+            sus.act[r] = int(held)
+        lift_buf = np.empty((max(IMPACT_CAP, 4 * self.tol.max_impacts_per_step * max(kern.r, 1)), 2))
+        sus.liftoffs, sus.liftoff_cap = _ptr(lift_buf), lift_buf.shape[0]
+        log = SustainLog(kern, cap)
+        log.active[0] = starter.contact_activity()
+        A, F, FC = np.zeros((cap, max(m, 1))), np.zeros((cap, max(m, 1))), np.zeros((cap, max(nc, 1)))
+        liftoffs: list[tuple[float, str]] = []
         tol = _tol_struct(self.tol)
         err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         impacts: list[Impact] = []
@@ -244,7 +304,10 @@ class CSimulator(Simulator):
             if done >= cap:
                 cap *= 2
                 Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
+                log.grow(cap)
+                A, F, FC = np.zeros((cap, max(m, 1))), np.zeros((cap, max(m, 1))), np.zeros((cap, max(nc, 1)))
             chunk = min(cap - done, steps - done, 100_000 if progress else steps)
+            sus.n_liftoffs = 0
             left = -1 if n_impacts is None else n_impacts - len(impacts)
             rc = kern.run(
                 _ptr(kern.par),
@@ -265,14 +328,24 @@ class CSimulator(Simulator):
                 ctypes.byref(sdone),
                 ctypes.byref(idone),
                 ctypes.byref(err),
+                ctypes.byref(sus),
+                _ptr(A),
+                _ptr(F),
+                _ptr(FC),
             )
             impacts += [_impact(r, kern.contact_names) for r in rec[: idone.value]]
-            done += sdone.value
+            liftoffs += [(float(t), kern.contact_names[int(j)]) for t, j in lift_buf[: sus.n_liftoffs]]
+            k = sdone.value
+            log.active[done + 1 : done + 1 + k] = A[:k, :m] != 0.0
+            log.force[done : done + k] = F[:k, :m]
+            log.cforce[done : done + k] = FC[:k, :nc]
+            done += k
             reflected += err.reflected
             if rc != 0:
                 error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
                 kept = [im for im in impacts if im.step < done]  # the run up to the last completed step
                 error.result = _result(t0, h, done, Q, P, E, kept, n, time.perf_counter() - wall)
+                log.attach(error.result, done, [lo for lo in liftoffs if lo[0] < t0 + done * h])
                 raise error
             if progress:
                 print(f"  t = {t0 + done * h:.4g}, {done} steps, {len(impacts)} impacts", flush=True)
@@ -286,18 +359,22 @@ class CSimulator(Simulator):
             )
         res = _result(t0, h, done, Q, P, E, impacts, n, time.perf_counter() - wall)
         res.stats["grazing_reflected"] = reflected
+        log.attach(res, done, liftoffs)
+        res.stats.update({f"impacts_{kind}": int(sus.kinds[i]) for i, kind in enumerate(KINDS)})
+        res.stats["liftoffs"] = len(liftoffs)
         return res
 
 
 def _impact(r: np.ndarray, names: tuple[str, ...]) -> Impact:
-    """One C impact record ``t, contact, step, alpha, impulse, E_before, E_after, q...``."""
+    """One C impact record ``t, contact, step, alpha, impulse, E_before, E_after, q..., kind``."""
     return Impact(
         t=float(r[0]),
         contact=names[int(r[1])],
-        q=r[7:].copy(),
+        q=r[7:-1].copy(),
         alpha=float(r[3]),
         impulse=float(r[4]),
         step=int(r[2]),
         energy_before=float(r[5]),
         energy_after=float(r[6]),
+        kind=KINDS[int(r[-1])],
     )

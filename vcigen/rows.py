@@ -1,0 +1,86 @@
+"""Rows of sustained contact: smooth constraint functions the constrained step holds at 0.
+
+A contact in sustained contact is held as ``psi_r(q) = 0`` (MATH.md, *Sustained contact*).
+For a smooth contact the row is ``phi_j`` itself. A contact with *concave kinks*, each
+``Abs(u_i)`` entering ``phi_j`` with a coefficient ``<= 0`` (the star's
+``y - L/2 (|sin theta| + |cos theta|)``, eq. 81), is the minimum of its smooth branches
+``psi_sigma = phi_j(Abs(u_i) -> sigma_i u_i)``, ``sigma_i = +-1``: the admissible set is the
+intersection of ``psi_sigma >= 0`` and each branch is one vertex or face of the body. Those
+branches are the rows, so that a body resting on a face (two branches at 0: the kink of
+eq. 86) is two smooth constraints with two multipliers ``lambda >= 0``. Bilateral
+``constraints`` of the model are rows too, always active, with multipliers of either sign.
+
+Pure SymPy: a model in, plain data out.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .model import Model
+
+MAX_BRANCH_KINKS = 4  # at most 2**4 branch rows per contact; more kinks keep phi as one row
+
+
+@dataclass(frozen=True)
+class Rows:
+    """The rows: expression, owning contact (index into the contacts, or -1), bilateral flag."""
+
+    exprs: tuple[sp.Expr, ...]
+    contact: tuple[int, ...]  # contact index of each row; -1 for a bilateral constraint
+    constraint: tuple[int, ...]  # constraint index of each row; -1 for a contact row
+    names: tuple[str, ...]  # "floor", "floor[+-]" for a branch, or the constraint's name
+
+    @property
+    def size(self) -> int:
+        return len(self.exprs)
+
+    @property
+    def bilateral(self) -> tuple[bool, ...]:
+        return tuple(c >= 0 for c in self.constraint)
+
+
+def _concave_kinks(phi: sp.Expr) -> list[sp.Abs] | None:
+    """The ``Abs`` atoms of ``phi`` if each enters linearly with a coefficient ``<= 0``, else None."""
+    atoms = sorted(phi.atoms(sp.Abs), key=sp.default_sort_key)
+    if not atoms or len(atoms) > MAX_BRANCH_KINKS:
+        return None
+    if phi.atoms(sp.sign, sp.Heaviside, sp.Min, sp.Max, sp.Piecewise):
+        return None
+    dummies = [sp.Dummy(f"a{i}") for i in range(len(atoms))]
+    flat = phi.xreplace(dict(zip(atoms, dummies)))
+    if flat.atoms(sp.Abs):  # nested: an Abs inside another
+        return None
+    for a in dummies:
+        coeff = flat.diff(a)
+        if coeff.free_symbols & set(dummies) or not coeff.is_nonpositive:
+            return None
+    return atoms
+
+
+def contact_rows(model: Model) -> Rows:
+    """Rows of every contact (its smooth branches, see the module) and every bilateral constraint."""
+    exprs, owner, cons, names = [], [], [], []
+    for j, (name, phi) in enumerate(model.phi.items()):
+        kinks = _concave_kinks(phi)
+        if kinks is None:
+            exprs.append(phi)
+            owner.append(j)
+            cons.append(-1)
+            names.append(name)
+            continue
+        for signs in itertools.product((1, -1), repeat=len(kinks)):
+            rep = {a: s * a.args[0] for a, s in zip(kinks, signs)}
+            exprs.append(phi.xreplace(rep))
+            owner.append(j)
+            cons.append(-1)
+            names.append(f"{name}[{''.join('+' if s > 0 else '-' for s in signs)}]")
+    for i, (name, g) in enumerate(model.constraint.items()):
+        exprs.append(g)
+        owner.append(-1)
+        cons.append(i)
+        names.append(name)
+    return Rows(tuple(exprs), tuple(owner), tuple(cons), tuple(names))

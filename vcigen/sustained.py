@@ -1,0 +1,432 @@
+"""Sustained contact: the phases of MATH.md *Sustained contact*, for :class:`vcigen.stepper.Stepper`.
+
+A grid step with active rows (``vcigen.rows``: contacts held at ``psi_r = 0`` and bilateral
+constraints) is a chain of *constrained segments*, each the constrained discrete
+Euler-Lagrange step (RATTLE in position-momentum form; routines ``rattle`` and
+``rattle_project``), cut where
+
+* an active contact's force would turn negative (**lift-off**, located as the root of the
+  continuous contact force along the sub-step map, like the contact time (47)); the rest of
+  the step runs without it;
+* an inactive row is crossed (an **impact while another contact is active**), resolved by
+  the impulse law below.
+
+Entry: a free impact (47)-(48) whose outgoing normal speed is below what the jump resolves at
+this ``h`` (``e |dphi/dt| <= Tolerances.rest * h * |d2phi/dt2|`` with forces pressing in),
+or for which (48a) has no root ``mu > 0`` while forces press the body in, is completed as a
+*plastic* impact: normal velocity to 0, tangential momentum kept, the contact active. Where
+forces do not press it in, a rootless impact is *grazing*: the continuous law
+``n.qdot -> -e n.qdot`` (touch and go).
+
+**Impulse law** (at an impact with rows active, and for the plastic entry): the frictionless
+Newton law on the rows ``S`` involved, ``p+ = p- + G_S^T Lam``, with target normal velocities
+``-e_r g_r.qdot-`` (0 for plastic and active rows), ``Lam_r >= 0`` enforced by releasing the most
+negative row and solving again.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import SolverError
+from .result import KINDS, Impact
+
+ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at the bracket ends|
+LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
+EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
+
+
+class SustainedSteps:
+    """The sustained-contact phases; mixed into :class:`~vcigen.stepper.Stepper`."""
+
+    # -- state of a run ------------------------------------------------------------
+    def _init_sustained(self) -> None:
+        """No contact held; bilateral constraints always are."""
+        k = self.k
+        self.act = np.array(k.row_bilateral, dtype=bool) if k.r else np.zeros(0, dtype=bool)
+        self.liftoffs: list[tuple[float, str]] = []
+        self.kinds = {kind: 0 for kind in KINDS}
+        self._lam = np.zeros(k.r)
+
+    def _start_sustained(self, q0, v0, h: float) -> None:
+        """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in."""
+        k = self.k
+        self._init_sustained()
+        if not k.r or self.tol.grazing != "contact":
+            return
+        psi, grad, _ = k.rows(q0, v0)
+        acc = self._accel(q0, v0, np.zeros(k.r))
+        rates, accs = grad @ v0, self._row_accel(q0, v0, acc)
+        for r in range(k.r):
+            if k.row_bilateral[r] or abs(psi[r]) > self.tol.admissible:
+                continue
+            if self._settles(rates[r], accs[r], 1.0, h):  # at rest to the resolution of the jump
+                self.act[r] = True
+
+    def _settles(self, rate: float, acc: float, e: float, h: float) -> bool:
+        """Forces press the row in and the outgoing normal speed is below the jump's resolution."""
+        return acc < 0.0 and e * abs(rate) <= self.tol.rest * h * abs(acc)
+
+    def _accel(self, q, u, lam_rows) -> np.ndarray:
+        """``qddot`` from ``M qddot = rhs + sum lam_r grad psi_r`` (lam: force per unit time)."""
+        k = self.k
+        rhs, _ = k.dynamics(q, u)
+        mass = k.legendre(q, u)[1]
+        if k.r and np.any(lam_rows):
+            rhs = rhs + k.rows(q, u)[1].T @ lam_rows
+        return np.linalg.solve(mass, rhs)
+
+    def _row_accel(self, q, u, acc) -> np.ndarray:
+        """``d2 psi_r / dt2 = grad psi_r . qddot + u . Hess psi_r . u`` for every row."""
+        _, grad, curv = self.k.rows(q, u)
+        return grad @ acc + curv
+
+    def _contact_forces(self, q, u) -> np.ndarray:
+        """The force ``lambda_r`` of each active row keeping ``d2 psi_r/dt2 = 0`` at ``(q, u)`` (0 elsewhere).
+
+        ``G M^-1 (rhs + G^T lambda) + curv = 0`` over the active rows: the continuous normal force at
+        the discrete state, second-order accurate where the state is; lift-off is where it vanishes.
+        """
+        k = self.k
+        out = np.zeros(k.r)
+        rows = np.flatnonzero(self.act)
+        if rows.size == 0:
+            return out
+        rhs, _ = k.dynamics(q, u)
+        mass = k.legendre(q, u)[1]
+        _, grad, curv = k.rows(q, u)
+        g = grad[rows]
+        minv = np.linalg.solve(mass, np.column_stack([rhs, g.T]))
+        out[rows] = np.linalg.solve(g @ minv[:, 1:], -(g @ minv[:, 0] + curv[rows]))
+        return out
+
+    def _contact_accel(self, q, u, nrm, group, weights) -> float:
+        """``d2 phi/dt2`` along the impulse direction ``nrm`` of a free impact on ``group``."""
+        acc = self._accel(q, u, np.zeros(self.k.r))
+        curv = self.k.dynamics(q, u)[1]
+        return float(nrm @ acc + sum(w * curv[j] for j, w in zip(group, weights)))
+
+    # -- the chain of constrained segments ---------------------------------------------
+    def _constrained(self, step, t_k, q, p, tau, guess):
+        """One constrained segment (RATTLE): ``(v, Lam, q1, p+, E_d, Lam', p1, u1)``, ``u1`` of ``p1``."""
+        k = self.k
+        n = k.n
+        act = self.act.astype(float)
+        x0 = np.concatenate([guess, np.where(self.act, self._lam * (tau / self._h), 0.0)])
+        x, res = k.solve("rattle", x0, q, p, tau, act)
+        self._check(res, p, step, t_k, "sustained")
+        v, lam = x[:n], x[n:]
+        q1 = q + tau * v
+        _, p_plus, e_seg = k.segment(q, v, tau)
+        y, res = k.solve("rattle_project", np.concatenate([v, np.zeros(k.r)]), q1, p_plus, act)
+        self._check(res, p_plus, step, t_k, "sustained")
+        lam1 = y[n:]
+        p1 = p_plus + k.rows(q1, y[:n])[1].T @ lam1
+        return v, lam, q1, p_plus, e_seg, lam1, p1, y[:n]
+
+    def _chain(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
+        """The rest of a grid step from ``(q, p)`` at ``t`` (``tau`` left) with the active rows held."""
+        k, tol = self.k, self.tol
+        while True:
+            if tau <= 1e-13 * h:
+                return q, p, (e_step if e_step is not None else math.nan), guess
+            if not self.act.any():
+                return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
+            v, lam, q1, _, e_seg, lam1, p1, u1 = self._constrained(step, t_k, q, p, tau, guess)
+            e_step = e_seg if e_step is None else e_step
+            unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool)
+            events = {}
+            f1 = self._contact_forces(q1, u1)
+            pulled = unilateral & (f1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))))
+            if pulled.any():
+                f0 = self._contact_forces(q, self._velocity(q, v, p))
+                for r in np.flatnonzero(pulled):
+                    events[int(r)] = (
+                        "lift",
+                        self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
+                    )
+            if any(s == 0.0 for _, s in events.values()):  # pulled at the segment start: release there
+                r = min(r for r, (_, s) in events.items() if s == 0.0)
+                self._release(step, t_k, t, r)
+                continue
+            psi1 = k.rows(q1, v)[0]
+            cross = ~self.act & (psi1 < -tol.phi)
+            if not events and not cross.any():
+                self._book(lam + lam1)
+                self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
+                return q1, p1, e_step, v
+            for r in np.flatnonzero(cross):
+                events[int(r)] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, int(r), psi1[r]))
+            r0 = min(events, key=lambda r: (events[r][1], r))
+            s = events[r0][1]
+            self._count_event(step, t_k)
+            v, lam, q, _, e_sub, lam1, p, _ = self._constrained(step, t_k, q, p, s * tau, v)
+            self._book(lam + lam1)
+            t, tau, guess = t + s * tau, (1.0 - s) * tau, v
+            if events[r0][0] == "lift":
+                self._release(step, t_k, t, r0)
+                continue
+            group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
+            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub)
+
+    def _free_rest(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
+        """A free remainder of the grid step from ``(q, p)``: smooth (46), or the impact chain (47)-(79)."""
+        from .stepper import _Seg
+
+        k = self.k
+        v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, tau, guess)
+        self._check(res, p, step, t_k, "smooth")
+        e_step = e if e_step is None else e_step
+        if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
+            return q + tau * v, p1, e_step, v
+        seg = _Seg(q=q, t=t, tau=tau, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
+        crossings = self._crossings(seg, phi0, phi1, d0, d1)
+        if not crossings:
+            return q + tau * v, p1, e_step, v
+        q1, p1, _, w = self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        return q1, p1, e_step, w
+
+    def _release(self, step, t_k, t, r: int) -> None:
+        """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact."""
+        k = self.k
+        self.act[r] = False
+        j = k.row_contact[r]
+        if not any(self.act[i] for i in range(k.r) if k.row_contact[i] == j):
+            self.liftoffs.append((float(t), k.contact_names[j]))
+
+    def _book(self, impulses) -> None:
+        """Add the constraint impulses of a segment (``Lam + Lam'``, per row) to the step's forces."""
+        k = self.k
+        for r in np.flatnonzero(impulses):
+            if k.row_contact[r] >= 0:
+                self._force[k.row_contact[r]] += impulses[r] / self._h
+            else:
+                self._cforce[k.row_constraint[r]] += impulses[r] / self._h
+
+    def _count_event(self, step, t_k) -> None:
+        self._events += 1
+        if self._events > self.tol.max_impacts_per_step:
+            raise SolverError(
+                step,
+                t_k,
+                "sustained",
+                0.0,
+                f"more than {self.tol.max_impacts_per_step} impacts and lift-offs in one step; reduce h",
+            )
+
+    # -- events inside a constrained segment -------------------------------------------
+    def _sub_end(self, step, t_k, q, p, tau, s, guess):
+        """The constrained sub-step map at fraction ``s``: ``(v, q_end, u_end)``."""
+        v, _, q1, _, _, _, _, u1 = self._constrained(step, t_k, q, p, s * tau, guess)
+        return v, q1, u1
+
+    def _liftoff_fraction(self, step, t_k, q, p, tau, guess, r, f0, f1) -> float:
+        """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end) vanishes.
+
+        ``0`` if the force at the segment start ``f0`` is already negative (release at the start); else the
+        root in ``[0, 1]`` of the force along the sub-step map (Illinois), taken on its negative side so
+        that the released body leaves (``f1 < 0``).
+        """
+        if f0 < 0:
+            return 0.0
+        a, ga, b, gb = 0.0, float(f0), 1.0, float(f1)
+        tiny = EPS_LAM * (1.0 + abs(ga) + abs(gb))
+        side, v = 0, guess
+        for _ in range(LIFT_ITER):
+            c = (a * gb - b * ga) / (gb - ga)
+            if not a < c < b:
+                c = 0.5 * (a + b)
+            v, q1, u1 = self._sub_end(step, t_k, q, p, tau, c, v)
+            gc = float(self._contact_forces(q1, u1)[r])
+            if gc < 0:
+                b, gb = c, gc
+                ga = ga / 2 if side == -1 else ga
+                side = -1
+            else:
+                a, ga = c, gc
+                gb = gb / 2 if side == 1 else gb
+                side = 1
+            if b - a <= 1e-12 or abs(gc) <= tiny:
+                break
+        return b
+
+    def _row_crossing(self, step, t_k, q, p, tau, guess, r, g1) -> float:
+        """Fraction where inactive row ``r`` reaches 0 along the constrained sub-step map (Illinois)."""
+        k = self.k
+        a, ga, b, gb = 0.0, float(k.rows(q, guess)[0][r]), 1.0, float(g1)
+        ga = max(ga, 0.0)
+        tiny = ROOT_EPS * max(ga, -gb)
+        side = 0
+        v = guess
+        for _ in range(200):
+            c = (a * gb - b * ga) / (gb - ga) if gb != ga else 0.5 * (a + b)
+            if not a < c < b:
+                c = 0.5 * (a + b)
+            v, q1, _ = self._sub_end(step, t_k, q, p, tau, c, v)
+            gc = float(k.rows(q1, v)[0][r])
+            if gc <= 0:
+                b, gb = c, gc
+                ga = ga / 2 if side == -1 else ga
+                side = -1
+            else:
+                a, ga = c, gc
+                gb = gb / 2 if side == 1 else gb
+                side = 1
+            if abs(gc) <= tiny:
+                return c
+            if b - a <= 4e-16:
+                break
+        return b
+
+    # -- impacts with rows ---------------------------------------------------------------
+    def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
+        """Frictionless Newton law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``).
+
+        Returns ``(p+, Lam, vel-, vel+, dropped)``; rows whose impulse would pull (``Lam_r`` below
+        ``-EPS_LAM (1 + |p|)``) are left out one at a time, the most negative first, and listed in
+        ``dropped`` (the caller releases the active ones).
+        """
+        k = self.k
+        vel = self._velocity(q, guess, p)
+        mass = k.legendre(q, vel)[1]
+        grad = k.rows(q, vel)[1]
+        rows = [int(r) for r in np.flatnonzero(self.act)] + [r for r in hit if not self.act[r]]
+        tgt = {r: 0.0 for r in rows} | dict(targets)
+        bilateral = np.asarray(k.row_bilateral, dtype=bool)
+        lam_full = np.zeros(k.r)
+        dropped: list[int] = []
+        lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
+        while rows:
+            g = grad[rows]
+            a = g @ np.linalg.solve(mass, g.T)
+            rhs = np.array([tgt[r] for r in rows]) - g @ vel
+            try:
+                lam = np.linalg.solve(a, rhs)
+            except np.linalg.LinAlgError:
+                raise SolverError(
+                    step,
+                    t_k,
+                    "sustained",
+                    math.nan,
+                    f"impulse law: the normals of the {len(rows)} contacts involved are dependent",
+                ) from None
+            neg = [(lam[i], r) for i, r in enumerate(rows) if lam[i] < -lam_eps and not bilateral[r]]
+            if not neg:
+                lam_full[rows] = lam
+                break
+            rows.remove(min(neg)[1])
+            dropped.append(min(neg)[1])
+        p_plus = p + grad.T @ lam_full
+        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped
+
+    def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before):
+        """An impact on rows ``group`` during sustained contact; returns the momentum after it."""
+        k = self.k
+        rest = k.restitution()
+        vel = self._velocity(q, v, p)
+        lam_now = np.where(self.act, self._lam, 0.0) * 2.0 / self._h
+        acc = self._row_accel(q, vel, self._accel(q, vel, lam_now))
+        grad = k.rows(q, vel)[1]
+        targets, plastic = {}, []
+        for r in group:
+            e = float(rest[k.row_contact[r]])
+            rate = float(grad[r] @ vel)
+            if self.tol.grazing == "contact" and self._settles(rate, acc[r], e, h):
+                plastic.append(r)
+            else:
+                targets[r] = -e * rate
+        p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, group, targets)
+        mass = k.legendre(q, vel_m)[1]
+        loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
+        for r in dropped:
+            if self.act[r] and r not in group:  # an active row the impact pulls off
+                self._release(step, t_k, t, r)
+        for r in plastic:
+            self.act[r] = r not in dropped
+        by_contact: dict[int, list[int]] = {}
+        for r in group:
+            by_contact.setdefault(k.row_contact[r], []).append(r)
+        for j, rs in by_contact.items():
+            kind = (
+                "plastic"
+                if any(self.act[r] for r in rs)
+                else ("elastic" if rest[j] == 1.0 else "restitution")
+            )
+            self._log(
+                impacts,
+                t,
+                j,
+                q,
+                (t - t_k) / h,
+                float(sum(lam[r] for r in rs)),
+                step,
+                e_before,
+                e_before - loss,
+                kind,
+            )
+        return p_plus
+
+    def _plastic_entry(self, step, t_k, h, q, p, v, t, group_contacts):
+        """Plastic impact on contacts ``group_contacts`` at ``q``: their touching rows become active."""
+        k = self.k
+        psi = k.rows(q, v)[0]
+        rows = []
+        for j in group_contacts:
+            own = [r for r in range(k.r) if k.row_contact[r] == j]
+            low = min(psi[r] for r in own)
+            rows += [r for r in own if psi[r] <= low + self.tol.admissible]
+        p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, rows, {})
+        for r in rows:
+            self.act[r] = r not in dropped
+        mass = k.legendre(q, vel_m)[1]
+        loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
+        return p_plus, lam, loss, rows
+
+    def _log(self, impacts, t, j, q, alpha, impulse, step, e_before, e_after, kind) -> None:
+        self.kinds[kind] += 1
+        impacts.append(
+            Impact(
+                t=float(t),
+                contact=self.k.contact_names[j],
+                q=np.array(q, dtype=float),
+                alpha=float(alpha),
+                impulse=float(impulse),
+                step=step,
+                energy_before=float(e_before),
+                energy_after=float(e_after),
+                kind=kind,
+            )
+        )
+
+
+class SustainLog:
+    """Per grid point and step: which contacts are active, and the mean constraint forces."""
+
+    def __init__(self, kernels, cap: int) -> None:
+        k = kernels
+        self.m = k.m
+        self.nc = len(k.system.model.constraint) if k.r else 0
+        self.active = np.zeros((cap + 1, self.m), dtype=bool)
+        self.force = np.zeros((cap, self.m))
+        self.cforce = np.zeros((cap, self.nc))
+
+    def grow(self, cap: int) -> None:
+        for name, rows in (("active", cap + 1), ("force", cap), ("cforce", cap)):
+            old = getattr(self, name)
+            new = np.zeros((rows, old.shape[1]), dtype=old.dtype)
+            new[: old.shape[0]] = old
+            setattr(self, name, new)
+
+    def record(self, step: int, active, force, cforce) -> None:
+        """Grid point ``step`` reached: its active contacts, and the forces of the step before it."""
+        self.active[step] = active
+        self.force[step - 1] = force
+        self.cforce[step - 1] = cforce
+
+    def attach(self, res, steps: int, liftoffs) -> None:
+        res.active = self.active[: steps + 1].copy()
+        res.contact_force = self.force[:steps].copy()
+        res.constraint_force = self.cforce[:steps].copy()
+        res.liftoffs = list(liftoffs)
