@@ -36,6 +36,7 @@ from .result import KINDS, Impact
 ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at the bracket ends|
 LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
+MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 
 
 class SustainedSteps:
@@ -284,40 +285,56 @@ class SustainedSteps:
     def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
         """Frictionless Newton law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``).
 
-        Returns ``(p+, Lam, vel-, vel+, dropped)``; rows whose impulse would pull (``Lam_r`` below
-        ``-EPS_LAM (1 + |p|)``) are left out one at a time, the most negative first, and listed in
-        ``dropped`` (the caller releases the active ones).
+        The complementarity problem of the rows ``S`` involved: impulses ``Lam >= 0`` and outgoing normal
+        velocities ``g_r.qdot+ >= target_r``, one of the two tight for every row (bilateral rows: equality,
+        ``Lam`` free). Its Delassus matrix ``G M^-1 G^T`` is positive definite, so the solution is unique;
+        it is found by trying the sets of tight rows from the largest (every row, the usual case) down.
+        Returns ``(p+, Lam, vel-, vel+, dropped)``, ``dropped`` the rows left with no impulse (the caller
+        releases the active ones).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
         mass = k.legendre(q, vel)[1]
         grad = k.rows(q, vel)[1]
         rows = [int(r) for r in np.flatnonzero(self.act)] + [r for r in hit if not self.act[r]]
+        if len(rows) > MAX_LAW_ROWS:
+            raise SolverError(
+                step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
+            )
         tgt = {r: 0.0 for r in rows} | dict(targets)
-        bilateral = np.asarray(k.row_bilateral, dtype=bool)
-        lam_full = np.zeros(k.r)
-        dropped: list[int] = []
+        free = [not k.row_bilateral[r] for r in rows]
+        g = grad[rows]
+        w = g @ np.linalg.solve(mass, g.T)
+        b = np.array([tgt[r] for r in rows]) - g @ vel
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
-        while rows:
-            g = grad[rows]
-            a = g @ np.linalg.solve(mass, g.T)
-            rhs = np.array([tgt[r] for r in rows]) - g @ vel
-            try:
-                lam = np.linalg.solve(a, rhs)
-            except np.linalg.LinAlgError:
-                raise SolverError(
-                    step,
-                    t_k,
-                    "sustained",
-                    math.nan,
-                    f"impulse law: the normals of the {len(rows)} contacts involved are dependent",
-                ) from None
-            neg = [(lam[i], r) for i, r in enumerate(rows) if lam[i] < -lam_eps and not bilateral[r]]
-            if not neg:
-                lam_full[rows] = lam
+        vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
+        n = len(rows)
+        for mask in range((1 << n) - 1, -1, -1):
+            tight = [i for i in range(n) if mask >> i & 1]
+            if any(not free[i] and not mask >> i & 1 for i in range(n)):
+                continue
+            lam = np.zeros(n)
+            if tight:
+                try:
+                    lam[tight] = np.linalg.solve(w[np.ix_(tight, tight)], b[tight])
+                except np.linalg.LinAlgError:
+                    continue
+            gap = w @ lam - b  # g_r.qdot+ - target_r
+            if all(lam[i] >= -lam_eps or not free[i] for i in tight) and all(
+                gap[i] >= -vel_eps for i in range(n) if not mask >> i & 1
+            ):
                 break
-            rows.remove(min(neg)[1])
-            dropped.append(min(neg)[1])
+        else:
+            raise SolverError(
+                step,
+                t_k,
+                "sustained",
+                math.nan,
+                f"impulse law: no solution on {n} contacts (dependent normals?)",
+            )
+        lam_full = np.zeros(k.r)
+        lam_full[rows] = lam
+        dropped = [r for i, r in enumerate(rows) if not mask >> i & 1]
         p_plus = p + grad.T @ lam_full
         return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped
 
@@ -340,11 +357,11 @@ class SustainedSteps:
         p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, group, targets)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
-        for r in dropped:
-            if self.act[r] and r not in group:  # an active row the impact pulls off
+        for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution
+            if self.act[r] and r not in group and not self._settles(float(grad[r] @ vel_p), acc[r], 1.0, h):
                 self._release(step, t_k, t, r)
-        for r in plastic:
-            self.act[r] = r not in dropped
+        for r in plastic:  # pressed in and settling: held (its force, checked next, may release it)
+            self.act[r] = True
         by_contact: dict[int, list[int]] = {}
         for r in group:
             by_contact.setdefault(k.row_contact[r], []).append(r)
@@ -372,14 +389,14 @@ class SustainedSteps:
         """Plastic impact on contacts ``group_contacts`` at ``q``: their touching rows become active."""
         k = self.k
         psi = k.rows(q, v)[0]
-        rows = []
+        rows, lowest = [], []
         for j in group_contacts:
             own = [r for r in range(k.r) if k.row_contact[r] == j]
-            low = min(psi[r] for r in own)
-            rows += [r for r in own if psi[r] <= low + self.tol.admissible]
+            lowest.append(min(own, key=lambda r: (psi[r], r)))
+            rows += [r for r in own if psi[r] <= psi[lowest[-1]] + self.tol.admissible]
         p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, rows, {})
-        for r in rows:
-            self.act[r] = r not in dropped
+        for r in rows:  # the touching row of each contact is held; another branch at a kink if it presses
+            self.act[r] = r in lowest or r not in dropped
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         return p_plus, lam, loss, rows
