@@ -27,6 +27,7 @@ negative row and solving again.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,6 +38,36 @@ ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at
 LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
+
+
+class End(NamedTuple):
+    """Evaluations at the end ``(q1, u1)`` of a constrained segment: rows, their gradients and curvatures,
+    the free dynamics' right-hand side and the mass matrix."""
+
+    psi: np.ndarray | None
+    grad: np.ndarray
+    curv: np.ndarray
+    rhs: np.ndarray
+    mass: np.ndarray
+
+
+def rattle_segment(k, q, p, tau, x0, act):
+    """``Kernels.rattle_segment`` from the kernels' single calls (the C kernels use this).
+
+    The constrained step ``rattle`` from ``x0``, ``p+`` and ``E_d`` of its segment, the projection
+    ``rattle_project`` from ``(v, 0)``, and the evaluations at the end:
+    ``(x, |res|, p+, E_d, y, |res'|, end)``.
+    """
+    n = k.n
+    x, res = k.solve("rattle", x0, q, p, tau, act)
+    v = x[:n]
+    q1 = q + tau * v
+    _, p_plus, e_seg = k.segment(q, v, tau)
+    y, res1 = k.solve("rattle_project", np.concatenate([v, np.zeros(k.r)]), q1, p_plus, act)
+    u1 = y[:n]
+    psi, grad, curv = k.rows(q1, u1)
+    end = End(psi, grad, curv, k.dynamics(q1, u1)[0], k.legendre(q1, u1)[1])
+    return x, res, p_plus, e_seg, y, res1, end
 
 
 class SustainedSteps:
@@ -91,13 +122,18 @@ class SustainedSteps:
         the discrete state, second-order accurate where the state is; lift-off is where it vanishes.
         """
         k = self.k
-        out = np.zeros(k.r)
+        if not self.act.any():
+            return np.zeros(k.r)
+        _, grad, curv = k.rows(q, u)
+        return self._forces(End(None, grad, curv, k.dynamics(q, u)[0], k.legendre(q, u)[1]))
+
+    def _forces(self, end: End) -> np.ndarray:
+        """:meth:`_contact_forces` from the evaluations at a segment's end."""
+        out = np.zeros(self.k.r)
         rows = np.flatnonzero(self.act)
         if rows.size == 0:
             return out
-        rhs, _ = k.dynamics(q, u)
-        mass = k.legendre(q, u)[1]
-        _, grad, curv = k.rows(q, u)
+        rhs, mass, grad, curv = end.rhs, end.mass, end.grad, end.curv
         g = grad[rows]
         minv = np.linalg.solve(mass, np.column_stack([rhs, g.T]))
         out[rows] = np.linalg.solve(g @ minv[:, 1:], -(g @ minv[:, 0] + curv[rows]))
@@ -111,21 +147,21 @@ class SustainedSteps:
 
     # -- the chain of constrained segments ---------------------------------------------
     def _constrained(self, step, t_k, q, p, tau, guess):
-        """One constrained segment (RATTLE): ``(v, Lam, q1, p+, E_d, Lam', p1, u1)``, ``u1`` of ``p1``."""
+        """One constrained segment (RATTLE): ``(v, Lam, q1, p+, E_d, Lam', p1, u1, end)``.
+
+        ``u1`` is the velocity of ``p1``; ``end`` holds the rows, dynamics and mass at ``(q1, u1)``
+        (``Kernels.rattle_segment``: one call of the kernels for all of it).
+        """
         k = self.k
         n = k.n
         act = self.act.astype(float)
         x0 = np.concatenate([guess, np.where(self.act, self._lam * (tau / self._h), 0.0)])
-        x, res = k.solve("rattle", x0, q, p, tau, act)
+        x, res, p_plus, e_seg, y, res1, end = k.rattle_segment(q, p, tau, x0, act)
         self._check(res, p, step, t_k, "sustained")
-        v, lam = x[:n], x[n:]
-        q1 = q + tau * v
-        _, p_plus, e_seg = k.segment(q, v, tau)
-        y, res = k.solve("rattle_project", np.concatenate([v, np.zeros(k.r)]), q1, p_plus, act)
-        self._check(res, p_plus, step, t_k, "sustained")
-        lam1 = y[n:]
-        p1 = p_plus + k.rows(q1, y[:n])[1].T @ lam1
-        return v, lam, q1, p_plus, e_seg, lam1, p1, y[:n]
+        self._check(res1, p_plus, step, t_k, "sustained")
+        v, lam, lam1 = x[:n], x[n:], y[n:]
+        p1 = p_plus + end.grad.T @ lam1
+        return v, lam, q + tau * v, p_plus, e_seg, lam1, p1, y[:n], end
 
     def _chain(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
         """The rest of a grid step from ``(q, p)`` at ``t`` (``tau`` left) with the active rows held."""
@@ -135,11 +171,11 @@ class SustainedSteps:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
-            v, lam, q1, _, e_seg, lam1, p1, u1 = self._constrained(step, t_k, q, p, tau, guess)
+            v, lam, q1, _, e_seg, lam1, p1, _, end = self._constrained(step, t_k, q, p, tau, guess)
             e_step = e_seg if e_step is None else e_step
             unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool)
             events = {}
-            f1 = self._contact_forces(q1, u1)
+            f1 = self._forces(end)
             pulled = unilateral & (f1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))))
             if pulled.any():
                 f0 = self._contact_forces(q, self._velocity(q, v, p))
@@ -152,7 +188,7 @@ class SustainedSteps:
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 self._release(step, t_k, t, r)
                 continue
-            psi1 = k.rows(q1, v)[0]
+            psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi)
             if not events and not cross.any():
                 self._book(lam + lam1)
@@ -163,7 +199,7 @@ class SustainedSteps:
             r0 = min(events, key=lambda r: (events[r][1], r))
             s = events[r0][1]
             self._count_event(step, t_k)
-            v, lam, q, _, e_sub, lam1, p, _ = self._constrained(step, t_k, q, p, s * tau, v)
+            v, lam, q, _, e_sub, lam1, p, _, _ = self._constrained(step, t_k, q, p, s * tau, v)
             self._book(lam + lam1)
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             if events[r0][0] == "lift":
@@ -219,9 +255,9 @@ class SustainedSteps:
 
     # -- events inside a constrained segment -------------------------------------------
     def _sub_end(self, step, t_k, q, p, tau, s, guess):
-        """The constrained sub-step map at fraction ``s``: ``(v, q_end, u_end)``."""
-        v, _, q1, _, _, _, _, u1 = self._constrained(step, t_k, q, p, s * tau, guess)
-        return v, q1, u1
+        """The constrained sub-step map at fraction ``s``: ``(v, end)`` (the evaluations at its end)."""
+        v, *_, end = self._constrained(step, t_k, q, p, s * tau, guess)
+        return v, end
 
     def _liftoff_fraction(self, step, t_k, q, p, tau, guess, r, f0, f1) -> float:
         """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end) vanishes.
@@ -239,8 +275,8 @@ class SustainedSteps:
             c = (a * gb - b * ga) / (gb - ga)
             if not a < c < b:
                 c = 0.5 * (a + b)
-            v, q1, u1 = self._sub_end(step, t_k, q, p, tau, c, v)
-            gc = float(self._contact_forces(q1, u1)[r])
+            v, end = self._sub_end(step, t_k, q, p, tau, c, v)
+            gc = float(self._forces(end)[r])
             if gc < 0:
                 b, gb = c, gc
                 ga = ga / 2 if side == -1 else ga
@@ -265,8 +301,8 @@ class SustainedSteps:
             c = (a * gb - b * ga) / (gb - ga) if gb != ga else 0.5 * (a + b)
             if not a < c < b:
                 c = 0.5 * (a + b)
-            v, q1, _ = self._sub_end(step, t_k, q, p, tau, c, v)
-            gc = float(k.rows(q1, v)[0][r])
+            v, end = self._sub_end(step, t_k, q, p, tau, c, v)
+            gc = float(end.psi[r])
             if gc <= 0:
                 b, gb = c, gc
                 ga = ga / 2 if side == -1 else ga

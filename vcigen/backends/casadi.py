@@ -15,6 +15,7 @@ import numpy as np
 from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
 from ..routines import Routine
+from ..sustained import End
 from .sym2casadi import to_casadi
 
 NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 40, "error_on_fail": False}
@@ -64,6 +65,7 @@ class CasadiKernels:
         flat = ("legendre", "segment", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
+        self._rattle = self._rattle_segment() if system.r else None
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -119,6 +121,26 @@ class CasadiKernels:
         vel1 = v + ca.solve(mass1, p1 - mom1)
         d0, d1 = ca.mtimes(grad0, tau * vel0), ca.mtimes(grad1, tau * vel1)
         return ca.Function("smooth_step", [vec], [ca.vertcat(v, res, p1, e, phi0, phi1, d0, d1)])
+
+    def _rattle_segment(self) -> ca.Function:
+        """``vcigen.sustained.rattle_segment`` in one call: both solves and the evaluations at the end."""
+        n, r, npar = self.n, self.r, len(self.par)
+        vec = ca.MX.sym("in", 2 * n + 1 + (n + r) + r + npar)
+        parts = np.cumsum([0, n, n, 1, n + r, r, npar]).tolist()
+        q, p, tau, x0, act, par = (vec[parts[i] : parts[i + 1]] for i in range(6))
+        out = self._solvers["rattle"](ca.vertcat(x0, q, p, tau, act, par))
+        x, res = out[: n + r], out[n + r]
+        v = x[:n]
+        q1 = q + tau * v
+        _, p_plus, e_seg = self.functions["segment"](q, v, tau, par)
+        out = self._solvers["rattle_project"](ca.vertcat(v, ca.MX.zeros(r), q1, p_plus, act, par))
+        y, res1 = out[: n + r], out[n + r]
+        u1 = y[:n]
+        psi, grad, curv = self.functions["rows"](q1, u1, par)
+        rhs, _ = self.functions["dynamics"](q1, u1, par)
+        _, mass = self.functions["legendre"](q1, u1, par)
+        flat = ca.vertcat(x, res, p_plus, e_seg, y, res1, psi, ca.vec(grad.T), curv, rhs, ca.vec(mass.T))
+        return ca.Function("rattle_segment", [vec], [flat])
 
     def _flatten(self, name: str) -> ca.Function:
         return self._flat_function(self.functions[name])
@@ -202,6 +224,15 @@ class CasadiKernels:
         if self.m == 0:
             return np.zeros(0)
         return self._call(self._flat["restitution"])[: self.m]
+
+    def rattle_segment(self, q, p, tau, x0, act):
+        """A constrained segment and the evaluations at its end (``vcigen.sustained.rattle_segment``)."""
+        n, r = self.n, self.r
+        o = self._call(self._rattle, q, p, tau, x0, act)
+        cuts = np.cumsum([0, n + r, 1, n, 1, n + r, 1, r, r * n, r, n, n * n]).tolist()
+        x, res, p_plus, e, y, res1, psi, grad, curv, rhs, mass = (o[a:b] for a, b in zip(cuts, cuts[1:]))
+        end = End(psi, grad.reshape(r, n), curv, rhs, mass.reshape(n, n))
+        return x, float(res[0]), p_plus, float(e[0]), y, float(res1[0]), end
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

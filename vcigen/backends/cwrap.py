@@ -22,7 +22,7 @@ from ..errors import PHASES, SolverError
 from ..result import KINDS, Impact, Result
 from ..simulator import Simulator
 from ..stepper import Stepper, Tolerances, _n_steps, _result
-from ..sustained import SustainLog
+from ..sustained import SustainLog, rattle_segment
 
 _D = ctypes.POINTER(ctypes.c_double)
 IMPACT_CAP = 4096
@@ -199,6 +199,10 @@ class CKernels:
         q, p = _vec(q0, n), _vec(p0, n)
         self._path(int(j), float(s), _ptr(q), _ptr(p), float(tau), _ptr(self.par), _ptr(g), _ptr(dg), _ptr(v))
         return float(g[0]), float(dg[0]), v
+
+    def rattle_segment(self, q, p, tau, x0, act):
+        """A constrained segment and the evaluations at its end (``vcigen.sustained.rattle_segment``)."""
+        return rattle_segment(self, q, p, tau, x0, act)
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""
