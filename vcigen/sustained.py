@@ -159,7 +159,8 @@ class SustainedSteps:
         x, res, p_plus, e_seg, y, res1, end = k.rattle_segment(q, p, tau, x0, act)
         self._check(res, p, step, t_k, "sustained")
         self._check(res1, p_plus, step, t_k, "sustained")
-        v, lam, lam1 = x[:n], x[n:], y[n:]
+        v = x[:n]
+        lam, lam1 = np.where(self.act, x[n:], 0.0), np.where(self.act, y[n:], 0.0)  # 0 off the active rows
         p1 = p_plus + end.grad.T @ lam1
         return v, lam, q + tau * v, p_plus, e_seg, lam1, p1, y[:n], end
 
