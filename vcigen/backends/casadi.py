@@ -9,6 +9,8 @@ Python/CasADi boundary).
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 import numpy as np
 
@@ -18,7 +20,14 @@ from ..routines import Routine
 from ..sustained import End
 from .sym2casadi import to_casadi
 
-NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 40, "error_on_fail": False}
+# A failed solve is reported by its residual (NaN for a non-finite answer), not by warnings on stderr.
+NEWTON_OPTIONS = {
+    "abstol": 1e-13,
+    "abstolStep": 1e-15,
+    "max_iter": 40,
+    "error_on_fail": False,
+    "show_eval_warnings": False,
+}
 
 
 def routine_to_function(r: Routine) -> ca.Function:
@@ -37,6 +46,15 @@ def routine_to_function(r: Routine) -> ca.Function:
             mat[k // cols, k % cols] = val
         outs.append(mat)
     return ca.Function(r.name, ins, outs, [a.name for a in r.inputs], [o.name for o in r.outputs])
+
+
+def _residual(sol_and_res: np.ndarray) -> float:
+    """The residual norm of a solve (last entry), NaN if the solution is not finite.
+
+    CasADi's ``norm_inf`` skips NaN entries, so a diverged Newton can report a small residual; the C
+    Newton's norm is NaN there (``<model>_norm_inf``), and so is this one.
+    """
+    return float(sol_and_res[-1]) if np.isfinite(sol_and_res).all() else math.nan
 
 
 class CasadiKernels:
@@ -196,7 +214,7 @@ class CasadiKernels:
     def solve(self, name: str, guess, *args):
         """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``."""
         o = self._call(self._solvers[name], guess, *args)
-        return o[:-1], float(o[-1])
+        return o[:-1], _residual(o)
 
     def legendre(self, q, v):
         n = self.n
@@ -232,7 +250,7 @@ class CasadiKernels:
         cuts = np.cumsum([0, n + r, 1, n, 1, n + r, 1, r, r * n, r, n, n * n]).tolist()
         x, res, p_plus, e, y, res1, psi, grad, curv, rhs, mass = (o[a:b] for a, b in zip(cuts, cuts[1:]))
         end = End(psi, grad.reshape(r, n), curv, rhs, mass.reshape(n, n))
-        return x, float(res[0]), p_plus, float(e[0]), y, float(res1[0]), end
+        return x, _residual(np.append(x, res)), p_plus, float(e[0]), y, _residual(np.append(y, res1)), end
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""
