@@ -20,6 +20,7 @@ demo: venv            ## the paper's examples on both backends: CSV + energy plo
 	$(PY) examples/star.py --out $(OUT) --backend c
 	$(PY) examples/particle.py --out $(OUT)
 	$(PY) examples/star.py --out $(OUT)
+	$(PY) examples/contact/ball_to_rest.py --out $(OUT) --backend c
 
 test: venv            ## the whole test suite
 	$(PY) -m pytest -q

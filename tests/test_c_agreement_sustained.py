@@ -128,7 +128,9 @@ def test_c_and_casadi_agree_through_sustained_contact(name: str) -> None:
     for ic, ia in zip(c.impacts, ca.impacts):
         assert abs(ic.t - ia.t) <= tol and abs(ic.impulse - ia.impulse) <= tol * 10
     assert [lo[1] for lo in c.liftoffs] == [lo[1] for lo in ca.liftoffs]
-    np.testing.assert_allclose([lo[0] for lo in c.liftoffs], [lo[0] for lo in ca.liftoffs], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(
+        [lo[0] for lo in c.liftoffs], [lo[0] for lo in ca.liftoffs], rtol=0, atol=1e-10
+    )
     assert _counts(c) == _counts(ca)
 
 

@@ -91,6 +91,7 @@ class _Seg:
     nrm: np.ndarray | None  # contact normal at the start (after an impact)
     contact: int  # contact hit at the start, -1 for the first segment
     x: np.ndarray  # the segment's unknowns: v, or (w, mu) after an impact
+    rest: float = 1.0  # the coefficient of restitution of the impact at the start
 
 
 class Stepper(SustainedSteps):
@@ -100,6 +101,7 @@ class Stepper(SustainedSteps):
         self.k = kernels
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
+        self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
         self._init_sustained()
 
     # -- public -----------------------------------------------------------------
@@ -164,6 +166,7 @@ class Stepper(SustainedSteps):
         sus.attach(res, step, self.liftoffs)
         res.stats.update({f"impacts_{kind}": count for kind, count in self.kinds.items()})
         res.stats["liftoffs"] = len(self.liftoffs)
+        res.stats["jump_fallbacks"] = self.fallbacks
         return res
 
     def contact_activity(self) -> np.ndarray:
@@ -265,10 +268,23 @@ class Stepper(SustainedSteps):
         restitution = k.restitution()
         for _ in range(tol.max_impacts_per_step):
             # Earliest crossing over all crossed contacts (47)/(78); ties are one impact.
-            roots = {
-                j: self._contact_root(step, t_k, seg, j, s_hi, g_hi)
-                for j, (s_hi, g_hi) in sorted(crossings.items())
-            }
+            try:
+                roots = {
+                    j: self._contact_root(step, t_k, seg, j, s_hi, g_hi)
+                    for j, (s_hi, g_hi) in sorted(crossings.items())
+                }
+            except SolverError:
+                if not (tol.grazing == "contact" and seg.contact >= 0):
+                    raise
+                # (78) unsolvable (a lossy impact into a corner): the impact at the segment start takes
+                # the continuous law instead, and the rest of the step starts afresh from it (47).
+                seg, crossings, e_after, mu = self._restart(seg)
+                impacts.extend(replace(im, impulse=mu * wgt, energy_after=e_after) for im, wgt in pending)
+                pending = []
+                if not crossings:
+                    q_end = seg.q + seg.tau * seg.x[:n]
+                    return q_end, k.segment(seg.q, seg.x[:n], seg.tau)[1], e_step, seg.x[:n]
+                continue
             j = min(roots, key=lambda i: (roots[i][1], i))
             x, s = roots[j]
             group = [i for i in sorted(roots) if roots[i][1] - s <= tol.simultaneous]
@@ -287,6 +303,7 @@ class Stepper(SustainedSteps):
             # (less the loss of (39) with restitution; seg.e_in becomes the energy after).
             elastic = all(restitution[i] == 1.0 for i in group)
             e_rest = 1.0 if elastic else float(sum(wgt * restitution[i] for i, wgt in zip(group, weights)))
+            seg.rest = e_rest
             x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
                 if self.k.r:
@@ -331,6 +348,24 @@ class Stepper(SustainedSteps):
             0.0,
             f"more than {tol.max_impacts_per_step} impacts in one step (chattering toward rest?); reduce h",
         )
+
+    def _restart(self, seg: _Seg):
+        """The impact at the start of ``seg`` by the continuous law ``n.qdot -> -e n.qdot``; the rest of the
+        step as a first segment from there: ``(segment, its crossings, E_d after, mu)``."""
+        k = self.k
+        n = k.n
+        vel = self._velocity(seg.q, seg.x[:n], seg.p_in)
+        mass = k.legendre(seg.q, vel)[1]
+        minv_n = np.linalg.solve(mass, seg.nrm)
+        mu = max(-(1.0 + seg.rest) * float(seg.nrm @ vel) / float(seg.nrm @ minv_n), 0.0)
+        p_plus = seg.p_in + mu * seg.nrm
+        self.fallbacks += 1
+        v, _, _, e, phi0, phi1, d0, d1 = k.smooth_step(seg.q, p_plus, seg.tau, vel + mu * minv_n)
+        fresh = _Seg(q=seg.q, t=seg.t, tau=seg.tau, p_in=p_plus, e_in=math.nan, nrm=None, contact=-1, x=v)
+        crossings = {}
+        if phi1.size and (phi1.min() < -self.tol.phi or ((d0 < 0) & (d1 > 0)).any()):
+            crossings = self._crossings(fresh, phi0, phi1, d0, d1)
+        return fresh, crossings, e, mu
 
     def _normal(self, q_c, v_c, p_c, group: list[int]) -> tuple[np.ndarray, list[float]]:
         """Impulse direction at an impact on the contacts ``group`` and each contact's share.

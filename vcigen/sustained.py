@@ -264,8 +264,8 @@ class SustainedSteps:
         """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end) vanishes.
 
         ``0`` if the force at the segment start ``f0`` is already negative (release at the start); else the
-        root in ``[0, 1]`` of the force along the sub-step map (Illinois), taken on its negative side so
-        that the released body leaves (``f1 < 0``).
+        root in ``[0, 1]`` of the force along the sub-step map (Illinois): where ``|force| <= EPS_LAM`` scale,
+        or else the bracket's negative end, so that the released body leaves.
         """
         if f0 < 0:
             return 0.0
@@ -286,7 +286,9 @@ class SustainedSteps:
                 a, ga = c, gc
                 gb = gb / 2 if side == 1 else gb
                 side = 1
-            if b - a <= 1e-12 or abs(gc) <= tiny:
+            if abs(gc) <= tiny:
+                return c
+            if b - a <= 1e-12:
                 break
         return b
 

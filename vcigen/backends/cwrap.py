@@ -21,7 +21,7 @@ from ..derive import DiscreteSystem, set_rows
 from ..errors import PHASES, SolverError
 from ..result import KINDS, Impact, Result
 from ..simulator import Simulator
-from ..stepper import Stepper, Tolerances, _n_steps, _result
+from ..stepper import Tolerances, _n_steps, _result
 from ..sustained import SustainLog, rattle_segment
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -68,6 +68,7 @@ def sustain_struct(r: int, m: int, nc: int) -> type[ctypes.Structure]:
             ("liftoff_cap", ctypes.c_long),
             ("n_liftoffs", ctypes.c_long),
             ("kinds", ctypes.c_long * 4),
+            ("fallbacks", ctypes.c_long),
             ("events", ctypes.c_int),
         ]
 
@@ -142,6 +143,8 @@ class CKernels:
             _D,
         ]
         self.run.restype = ctypes.c_int
+        self.start = getattr(self.lib, f"{pre}_start")
+        self.start.argtypes = [_D, ctypes.POINTER(_Tol), ctypes.c_double, _D, _D, ctypes.c_void_p]
         self.nc = len(system.model.constraint)
         self.Sustain = sustain_struct(self.r, self.m, self.nc)
 
@@ -288,18 +291,15 @@ class CSimulator(Simulator):
         m, nc = kern.m, kern.nc
         impact_cap = max(IMPACT_CAP, 2 * self.tol.max_impacts_per_step * (max(m, 1) + max(kern.r, 1)))
         rec = np.empty((impact_cap, 8 + n))
-        starter = Stepper(kern, self.tol)  # the active rows at the start: the same rule as the Python stepper
-        starter._start_sustained(q, v, h)
         sus = kern.Sustain()
-        for r, held in enumerate(starter.act):
-            sus.act[r] = int(held)
+        tol = _tol_struct(self.tol)
+        kern.start(_ptr(kern.par), ctypes.byref(tol), h, _ptr(q), _ptr(v), ctypes.byref(sus))
         lift_buf = np.empty((max(IMPACT_CAP, 4 * self.tol.max_impacts_per_step * max(kern.r, 1)), 2))
         sus.liftoffs, sus.liftoff_cap = _ptr(lift_buf), lift_buf.shape[0]
         log = SustainLog(kern, cap)
-        log.active[0] = starter.contact_activity()
+        log.active[0] = [any(sus.act[r] for r in range(kern.r) if kern.row_contact[r] == j) for j in range(m)]
         A, F, FC = np.zeros((cap, max(m, 1))), np.zeros((cap, max(m, 1))), np.zeros((cap, max(nc, 1)))
         liftoffs: list[tuple[float, str]] = []
-        tol = _tol_struct(self.tol)
         err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         impacts: list[Impact] = []
         done = reflected = 0
@@ -366,6 +366,7 @@ class CSimulator(Simulator):
         log.attach(res, done, liftoffs)
         res.stats.update({f"impacts_{kind}": int(sus.kinds[i]) for i, kind in enumerate(KINDS)})
         res.stats["liftoffs"] = len(liftoffs)
+        res.stats["jump_fallbacks"] = int(sus.fallbacks)
         return res
 
 

@@ -20,6 +20,9 @@
 
 static double Q[CHUNK * PARTICLE_N], P[CHUNK * PARTICLE_N], E[CHUNK];
 static double IMP[IMPACT_CAP * PARTICLE_IMPACT_WIDTH];
+static double ACT[CHUNK * PARTICLE_M_DIM], FORCE[CHUNK * PARTICLE_M_DIM], CFORCE[CHUNK * PARTICLE_NC_DIM];
+static double LIFT[IMPACT_CAP * 2];
+static const char *const KIND_NAMES[] = { "elastic", "restitution", "plastic", "grazing", };
 
 /* A whole, finite number, or 0. */
 static int parse_number(const char *text, double *out)
@@ -100,6 +103,7 @@ int main(int argc, char **argv)
     char path[1024];
     particle_tol_t tol;
     particle_error_t err;
+    particle_sustain_t sus = {0};
     FILE *traj, *imp;
     int a, i, j, rc = 0;
     for (a = 1; a < argc; ++a) {
@@ -157,6 +161,9 @@ int main(int argc, char **argv)
         }
     }
     particle_eval_legendre(q0, v0, par, p, mass);
+    particle_start(par, &tol, h, q0, v0, &sus); /* the rows held at the start */
+    sus.liftoffs = LIFT;
+    sus.liftoff_cap = IMPACT_CAP;
     for (i = 0; i < PARTICLE_N; ++i) {
         q[i] = q0[i];
         v[i] = v0[i];
@@ -171,7 +178,7 @@ int main(int argc, char **argv)
         return 1;
     }
     fprintf(traj, "t,x,y,p_x,p_y,energy\n");
-    fprintf(imp, "t,contact,step,alpha,impulse,energy_before,energy_after,x,y\n");
+    fprintf(imp, "t,contact,step,alpha,impulse,energy_before,energy_after,x,y,kind\n");
     while (done < total && (n_impacts < 0 || n_imp < n_impacts)) {
         double q_prev[PARTICLE_N], p_prev[PARTICLE_N];
         for (i = 0; i < PARTICLE_N; ++i) {
@@ -180,7 +187,8 @@ int main(int argc, char **argv)
         }
         rc = particle_run(par, &tol, h, 0.0, done, total - done < CHUNK ? total - done : CHUNK,
             n_impacts < 0 ? -1 : n_impacts - n_imp, q, p, v, Q, P, E, IMP, IMPACT_CAP, &steps_done,
-            &impacts_done, &err);
+            &impacts_done, &err, &sus, ACT, FORCE, CFORCE);
+        sus.n_liftoffs = 0; /* the driver does not write the lift-offs */
         for (k = 0; k < steps_done; ++k) {
             write_row(traj, (double)(done + k) * h, k == 0 ? q_prev : &Q[(k - 1) * PARTICLE_N],
                 k == 0 ? p_prev : &P[(k - 1) * PARTICLE_N], E[k]);
@@ -192,7 +200,7 @@ int main(int argc, char **argv)
             for (i = 0; i < PARTICLE_N; ++i) {
                 fprintf(imp, ",%.17g", r[7 + i]);
             }
-            fprintf(imp, "\n");
+            fprintf(imp, ",%s\n", KIND_NAMES[(int)r[7 + PARTICLE_N]]);
         }
         if (steps_done > 0) {
             for (i = 0; i < PARTICLE_N; ++i) {

@@ -38,6 +38,7 @@ const char *const particle_phase_names[] = {
     "jump",
     "jump to contact",
     "start",
+    "sustained",
     0};
 
 void particle_default_tol(particle_tol_t *tol)
@@ -50,6 +51,8 @@ void particle_default_tol(particle_tol_t *tol)
     tol->dip = 0.25;
     tol->simultaneous = 1e-09;
     tol->grazing_reflect = 0;
+    tol->grazing_contact = 1;
+    tol->rest = 1.0;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
 
@@ -177,6 +180,64 @@ static inline void particle_jump_contact_floor(const double *x, const double *qc
     jac[15] = tau[0]*x[1];
 }
 
+/* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */
+static inline void particle_rows(const double *q, const double *u, const double *par, double *psi, double *grad, double *curv)
+{
+    (void)u;
+    (void)par;
+    psi[0] = q[1];
+    grad[0] = 0;
+    grad[1] = 1;
+    curv[0] = 0;
+}
+
+/* Free dynamics M qddot = rhs and contact curvatures, for the normal acceleration of a contact. */
+static inline void particle_dynamics(const double *q, const double *u, const double *par, double *rhs, double *curv)
+{
+    (void)q;
+    (void)u;
+    rhs[0] = 0;
+    rhs[1] = -par[1]*par[0];
+    curv[0] = 0;
+}
+
+/* Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda. */
+static inline void particle_rattle(const double *x, const double *q0, const double *p0, const double *tau, const double *act, const double *par, double *res, double *jac)
+{
+    const double t0 = act[0] - 1;
+    res[0] = -p0[0] + x[0]*par[0];
+    res[1] = -x[2]*act[0] - p0[1] + (1.0/2.0)*tau[0]*par[1]*par[0] + x[1]*par[0];
+    res[2] = -x[2]*t0 + act[0]*(q0[1] + tau[0]*x[1]);
+    jac[0] = par[0];
+    jac[1] = 0;
+    jac[2] = 0;
+    jac[3] = 0;
+    jac[4] = par[0];
+    jac[5] = -act[0];
+    jac[6] = 0;
+    jac[7] = act[0]*tau[0];
+    jac[8] = -t0;
+}
+
+/* End momentum of a constrained step, velocity tangent to the active rows: unknowns (u, Lam'). */
+static inline void particle_rattle_project(const double *x, const double *q1, const double *p1, const double *act, const double *par, double *res, double *jac)
+{
+    (void)q1;
+    const double t0 = act[0] - 1;
+    res[0] = -p1[0] + x[0]*par[0];
+    res[1] = -x[2]*act[0] - p1[1] + x[1]*par[0];
+    res[2] = -x[2]*t0 + act[0]*x[1];
+    jac[0] = par[0];
+    jac[1] = 0;
+    jac[2] = 0;
+    jac[3] = 0;
+    jac[4] = par[0];
+    jac[5] = -act[0];
+    jac[6] = 0;
+    jac[7] = act[0];
+    jac[8] = -t0;
+}
+
 /* Contact values phi_j(q) only (grid test). */
 static inline void particle_phi(const double *q, const double *par, double *phi)
 {
@@ -269,6 +330,16 @@ static void particle_fn_jump(const double *x, const double *const *arg, double *
 static void particle_fn_jump_contact_floor(const double *x, const double *const *arg, double *const *out)
 {
     particle_jump_contact_floor(x, arg[0], arg[1], arg[2], arg[3], arg[4], arg[5], out[0], out[1]);
+}
+
+static void particle_fn_rattle(const double *x, const double *const *arg, double *const *out)
+{
+    particle_rattle(x, arg[0], arg[1], arg[2], arg[3], arg[4], out[0], out[1]);
+}
+
+static void particle_fn_rattle_project(const double *x, const double *const *arg, double *const *out)
+{
+    particle_rattle_project(x, arg[0], arg[1], arg[2], arg[3], out[0], out[1]);
 }
 
 static void particle_fn_contact_path_floor(const double *x, const double *const *arg, double *const *out)
@@ -424,6 +495,7 @@ typedef struct {
     const double *par;
     const particle_tol_t *tol;
     particle_error_t *err;
+    particle_sustain_t *sus;
     long step;
     double t_k;
     double h;
@@ -439,6 +511,7 @@ typedef struct {
     double nrm[PARTICLE_N];    /* contact normal at the start (after an impact) */
     int contact;                   /* contact hit at the start, -1 for the first segment */
     double x[PARTICLE_NX_MAX]; /* the segment's unknowns: v, or (w, mu) after an impact */
+    double rest;                   /* the coefficient of restitution of the impact at the start */
 } particle_seg_t;
 
 static const particle_fun particle_contact_time_fns[PARTICLE_M_DIM] = {
@@ -899,6 +972,837 @@ static void particle_normal(const particle_ctx_t *c, const double *q, const doub
     }
 }
 
+/* Whether any row is held: sustained contact or a bilateral constraint (the step is the constrained chain). */
+static inline int particle_held(const particle_sustain_t *sus)
+{
+    int r, held = 0;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        held = held || sus->act[r];
+    }
+    return held;
+}
+
+/* ---- sustained contact: vcigen/sustained.py once more, the same phases, names and order ---- */
+
+#define PARTICLE_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
+#define PARTICLE_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
+#define PARTICLE_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define PARTICLE_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+
+/* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
+static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
+static const int particle_row_constraint[PARTICLE_R_DIM] = { -1, };
+
+static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, int *crossed,
+    double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
+    double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
+ * resolution. */
+static int particle_settles(const particle_ctx_t *c, double rate, double acc, double e)
+{
+    return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
+/* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+static void particle_start_sustained(const particle_ctx_t *c, const double *q, const double *v);
+
+/* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
+static void particle_accel(const particle_ctx_t *c, const double *q, const double *u, const double *lam_rows,
+    double *acc)
+{
+    double curv[PARTICLE_M_DIM], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], rc[PARTICLE_R_DIM];
+    int piv[PARTICLE_N], i, r, any = 0;
+    particle_dynamics(q, u, c->par, acc, curv);
+    particle_legendre(q, u, c->par, mom, mass);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        any = any || lam_rows[r] != 0.0;
+    }
+    if (any) {
+        particle_rows(q, u, c->par, psi, grad, rc);
+        for (r = 0; r < PARTICLE_R; ++r) {
+            for (i = 0; i < PARTICLE_N; ++i) {
+                acc[i] += grad[r * PARTICLE_N + i] * lam_rows[r];
+            }
+        }
+    }
+    if (particle_lu(PARTICLE_N, mass, piv)) {
+        particle_lu_solve(PARTICLE_N, mass, piv, acc);
+    }
+}
+
+/* SustainedSteps._row_accel: d2 psi_r/dt2 = grad psi_r . qddot + u . Hess psi_r . u for every row. */
+static void particle_row_accel(const particle_ctx_t *c, const double *q, const double *u, const double *acc,
+    double *out)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
+    int i, r;
+    particle_rows(q, u, c->par, psi, grad, out);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        for (i = 0; i < PARTICLE_N; ++i) {
+            out[r] += grad[r * PARTICLE_N + i] * acc[i];
+        }
+    }
+}
+
+/* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
+ * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void particle_contact_forces(const particle_ctx_t *c, const double *q, const double *u, double *out)
+{
+    double rhs[PARTICLE_N], ccurv[PARTICLE_M_DIM], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double minv_g[PARTICLE_R_DIM * PARTICLE_N], a[PARTICLE_R_DIM * PARTICLE_R_DIM], b[PARTICLE_R_DIM];
+    int rows[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
+    int nr = 0, i, k, l, r;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        out[r] = 0.0;
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return;
+    }
+    particle_dynamics(q, u, c->par, rhs, ccurv);
+    particle_legendre(q, u, c->par, mom, mass);
+    particle_rows(q, u, c->par, psi, grad, curv);
+    if (!particle_lu(PARTICLE_N, mass, piv)) {
+        return;
+    }
+    particle_lu_solve(PARTICLE_N, mass, piv, rhs);
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < PARTICLE_N; ++i) {
+            minv_g[k * PARTICLE_N + i] = grad[rows[k] * PARTICLE_N + i];
+        }
+        particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        b[k] = -curv[rows[k]];
+        for (i = 0; i < PARTICLE_N; ++i) {
+            b[k] -= grad[rows[k] * PARTICLE_N + i] * rhs[i];
+        }
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < PARTICLE_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
+            }
+        }
+    }
+    if (!particle_lu(nr, a, piv)) {
+        return;
+    }
+    particle_lu_solve(nr, a, piv, b);
+    for (k = 0; k < nr; ++k) {
+        out[rows[k]] = b[k];
+    }
+}
+
+/* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
+static double particle_contact_accel(const particle_ctx_t *c, const double *q, const double *u,
+    const double *nrm, const int *group, const double *wgt, int n_group)
+{
+    double zero[PARTICLE_R_DIM] = {0.0}, acc[PARTICLE_N], rhs[PARTICLE_N], curv[PARTICLE_M_DIM];
+    double out = 0.0;
+    int i, g;
+    particle_accel(c, q, u, zero, acc);
+    particle_dynamics(q, u, c->par, rhs, curv);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        out += nrm[i] * acc[i];
+    }
+    for (g = 0; g < n_group; ++g) {
+        out += wgt[g] * curv[group[g]];
+    }
+    return out;
+}
+
+/* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
+ * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
+static int particle_constrained(const particle_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
+{
+    double x[PARTICLE_NX_MAX], y[PARTICLE_NX_MAX], act[PARTICLE_R_DIM], pm[PARTICLE_N], pp[PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], res;
+    const double *arg[5];
+    int i, r;
+    for (i = 0; i < PARTICLE_N; ++i) {
+        x[i] = guess[i];
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        act[r] = c->sus->act[r] ? 1.0 : 0.0;
+        x[PARTICLE_N + r] = c->sus->act[r] ? c->sus->lam[r] * (tau / c->h) : 0.0;
+    }
+    arg[0] = q;
+    arg[1] = p;
+    arg[2] = &tau;
+    arg[3] = act;
+    arg[4] = c->par;
+    particle_newton(particle_fn_rattle, arg, PARTICLE_N + PARTICLE_R, x, &res);
+    if (particle_check(c, res, p, NAN, PARTICLE_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        v[i] = x[i];
+        q1[i] = q[i] + tau * v[i];
+        y[i] = v[i];
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam[r] = c->sus->act[r] ? x[PARTICLE_N + r] : 0.0; /* 0 off the active rows */
+        y[PARTICLE_N + r] = 0.0;
+    }
+    particle_segment(q, v, &tau, c->par, pm, pp, e_seg);
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    particle_newton(particle_fn_rattle_project, arg, PARTICLE_N + PARTICLE_R, y, &res);
+    if (particle_check(c, res, pp, NAN, PARTICLE_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    particle_rows(q1, y, c->par, psi, grad, curv);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[PARTICLE_N + r] : 0.0;
+        for (i = 0; i < PARTICLE_N; ++i) {
+            p1[i] += grad[r * PARTICLE_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
+static void particle_release(const particle_ctx_t *c, double t, int r)
+{
+    particle_sustain_t *s = c->sus;
+    const int j = particle_row_contact[r];
+    int i, held = 0;
+    s->act[r] = 0;
+    for (i = 0; i < PARTICLE_R; ++i) {
+        held = held || (s->act[i] && particle_row_contact[i] == j);
+    }
+    if (!held && s->n_liftoffs < s->liftoff_cap) {
+        s->liftoffs[2 * s->n_liftoffs] = t;
+        s->liftoffs[2 * s->n_liftoffs + 1] = j;
+        ++s->n_liftoffs;
+    }
+}
+
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
+static void particle_book(const particle_ctx_t *c, const double *lam, const double *lam1)
+{
+    int r;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        const double imp = lam[r] + lam1[r];
+        if (imp == 0.0) {
+            continue;
+        }
+        if (particle_row_contact[r] >= 0) {
+            c->sus->force[particle_row_contact[r]] += imp / c->h;
+        } else {
+            c->sus->cforce[particle_row_constraint[r]] += imp / c->h;
+        }
+    }
+}
+
+/* SustainedSteps._count_event. */
+static int particle_count_event(const particle_ctx_t *c)
+{
+    if (++c->sus->events > c->tol->max_impacts_per_step) {
+        return particle_fail(c, PARTICLE_PHASE_SUSTAINED, 0.0, "more than %d impacts and lift-offs in one step; "
+            "reduce h", c->tol->max_impacts_per_step);
+    }
+    return 0;
+}
+
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+static int particle_sub_end(const particle_ctx_t *c, const double *q, const double *p, double tau, double s,
+    const double *guess, double *v, double *q1, double *u1)
+{
+    double lam[PARTICLE_R_DIM], lam1[PARTICLE_R_DIM], p1[PARTICLE_N], e_seg;
+    return particle_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
+}
+
+/* SustainedSteps._liftoff_fraction: the fraction where row r's force (contact_forces at the sub-step's
+ * end) vanishes: 0 if the start force f0 is already negative, else the root in [0, 1] (Illinois): where
+ * |force| <= EPS_LAM scale, or else the bracket's negative end, so that the released body leaves. */
+static int particle_liftoff_fraction(const particle_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, int r, double f0, double f1, double *s_out)
+{
+    double v[PARTICLE_N], vn[PARTICLE_N], q1[PARTICLE_N], u1[PARTICLE_N], f[PARTICLE_R_DIM];
+    double a = 0.0, ga = f0, b = 1.0, gb = f1, cc, gc, tiny;
+    int i, it, side = 0;
+    if (f0 < 0) {
+        *s_out = 0.0;
+        return 0;
+    }
+    tiny = PARTICLE_EPS_LAM * (1.0 + fabs(ga) + fabs(gb));
+    for (i = 0; i < PARTICLE_N; ++i) {
+        v[i] = guess[i];
+    }
+    for (it = 0; it < PARTICLE_LIFT_ITER; ++it) {
+        cc = (a * gb - b * ga) / (gb - ga);
+        if (!(a < cc && cc < b)) {
+            cc = 0.5 * (a + b);
+        }
+        if (particle_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
+            return 1;
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            v[i] = vn[i];
+        }
+        particle_contact_forces(c, q1, u1, f);
+        gc = f[r];
+        if (gc < 0) {
+            b = cc;
+            gb = gc;
+            ga = side == -1 ? ga / 2 : ga;
+            side = -1;
+        } else {
+            a = cc;
+            ga = gc;
+            gb = side == 1 ? gb / 2 : gb;
+            side = 1;
+        }
+        if (fabs(gc) <= tiny) {
+            *s_out = cc;
+            return 0;
+        }
+        if (b - a <= 1e-12) {
+            break;
+        }
+    }
+    *s_out = b;
+    return 0;
+}
+
+/* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
+ * map (Illinois). */
+static int particle_row_crossing(const particle_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, int r, double g1, double *s_out)
+{
+    double v[PARTICLE_N], vn[PARTICLE_N], u1[PARTICLE_N], q1[PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double a = 0.0, ga, b = 1.0, gb = g1, cc, gc, tiny;
+    int i, it, side = 0;
+    particle_rows(q, guess, c->par, psi, grad, curv);
+    ga = psi[r] > 0.0 ? psi[r] : 0.0;
+    tiny = PARTICLE_ROOT_EPS * (ga > -gb ? ga : -gb);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        v[i] = guess[i];
+    }
+    for (it = 0; it < 200; ++it) {
+        cc = (a * gb - b * ga) / (gb - ga);
+        if (!(a < cc && cc < b)) {
+            cc = 0.5 * (a + b);
+        }
+        if (particle_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
+            return 1;
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            v[i] = vn[i];
+        }
+        particle_rows(q1, v, c->par, psi, grad, curv);
+        gc = psi[r];
+        if (gc <= 0) {
+            b = cc;
+            gb = gc;
+            ga = side == -1 ? ga / 2 : ga;
+            side = -1;
+        } else {
+            a = cc;
+            ga = gc;
+            gb = side == 1 ? gb / 2 : gb;
+            side = 1;
+        }
+        if (fabs(gc) <= tiny) {
+            *s_out = cc;
+            return 0;
+        }
+        if (b - a <= 4e-16) {
+            break;
+        }
+    }
+    *s_out = b;
+    return 0;
+}
+
+/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
+ * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
+ * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
+ * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
+ * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+static int particle_impulse_law(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped)
+{
+    double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_g[PARTICLE_R_DIM * PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double w[PARTICLE_R_DIM * PARTICLE_R_DIM] = {0.0}, b[PARTICLE_R_DIM] = {0.0}, a[PARTICLE_R_DIM * PARTICLE_R_DIM];
+    double lam[PARTICLE_R_DIM], sol[PARTICLE_R_DIM], lam_eps, vel_eps, gap;
+    int rows[PARTICLE_R_DIM], tight[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
+    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    long mask = 0;
+    particle_velocity(c, q, guess, p, vel_m);
+    particle_legendre(q, vel_m, c->par, mom, mass);
+    particle_rows(q, vel_m, c->par, psi, grad, curv);
+    lam_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(PARTICLE_N, p));
+    vel_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(PARTICLE_N, vel_m));
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam_full[r] = 0.0;
+        dropped[r] = 0;
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    for (k = 0; k < n_hit; ++k) {
+        if (!c->sus->act[hit[k]]) {
+            rows[nr++] = hit[k];
+        }
+    }
+    if (nr > PARTICLE_MAX_LAW_ROWS) {
+        return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
+    }
+    ok = particle_lu(PARTICLE_N, mass, piv);
+    for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
+        for (i = 0; i < PARTICLE_N; ++i) {
+            minv_g[k * PARTICLE_N + i] = grad[rows[k] * PARTICLE_N + i];
+        }
+        if (ok) {
+            particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
+        }
+    }
+    for (k = 0; k < nr; ++k) {
+        b[k] = tgt[rows[k]];
+        for (i = 0; i < PARTICLE_N; ++i) {
+            b[k] -= grad[rows[k] * PARTICLE_N + i] * vel_m[i];
+        }
+        for (l = 0; l < nr; ++l) {
+            w[k * nr + l] = 0.0;
+            for (i = 0; i < PARTICLE_N; ++i) {
+                w[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
+            }
+        }
+    }
+    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+        int valid = 1;
+        nt = 0;
+        for (k = 0; k < nr; ++k) {
+            if (mask >> k & 1) {
+                tight[nt++] = k;
+            } else if (particle_row_constraint[rows[k]] >= 0) {
+                valid = 0; /* a bilateral row is always tight */
+            }
+            lam[k] = 0.0;
+        }
+        if (!valid) {
+            continue;
+        }
+        for (k = 0; k < nt; ++k) {
+            sol[k] = b[tight[k]];
+            for (l = 0; l < nt; ++l) {
+                a[k * nt + l] = w[tight[k] * nr + tight[l]];
+            }
+        }
+        if (nt > 0) {
+            if (!particle_lu(nt, a, piv)) {
+                continue;
+            }
+            particle_lu_solve(nt, a, piv, sol);
+        }
+        for (k = 0; k < nt; ++k) {
+            lam[tight[k]] = sol[k];
+            if (sol[k] < -lam_eps && particle_row_constraint[rows[tight[k]]] < 0) {
+                valid = 0;
+            }
+        }
+        for (k = 0; k < nr && valid; ++k) {
+            if (mask >> k & 1) {
+                continue;
+            }
+            gap = -b[k]; /* g_r.qdot+ - target_r */
+            for (l = 0; l < nr; ++l) {
+                gap += w[k * nr + l] * lam[l];
+            }
+            valid = gap >= -vel_eps;
+        }
+        if (valid) {
+            found = 1;
+            for (k = 0; k < nr; ++k) {
+                lam_full[rows[k]] = lam[k];
+                dropped[rows[k]] = !(mask >> k & 1);
+            }
+        }
+    }
+    if (!found) {
+        return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
+            "(dependent normals?)", nr);
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        p_plus[i] = p[i];
+        for (r = 0; r < PARTICLE_R; ++r) {
+            p_plus[i] += grad[r * PARTICLE_N + i] * lam_full[r];
+        }
+    }
+    particle_velocity(c, q, vel_m, p_plus, vel_p);
+    return 0;
+}
+
+/* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
+static double particle_loss(const particle_ctx_t *c, const double *q, const double *vel_m, const double *vel_p)
+{
+    double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], km = 0.0, kp = 0.0;
+    int i, l;
+    particle_legendre(q, vel_m, c->par, mom, mass);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        for (l = 0; l < PARTICLE_N; ++l) {
+            km += vel_m[i] * mass[i * PARTICLE_N + l] * vel_m[l];
+            kp += vel_p[i] * mass[i * PARTICLE_N + l] * vel_p[l];
+        }
+    }
+    return 0.5 * (km - kp);
+}
+
+/* SustainedSteps._log: one impact record (t, contact, step, alpha, impulse, E before, E after, q, kind). */
+static void particle_log(const particle_ctx_t *c, double *rec, long *n_rec, double t, int j, const double *q,
+    double impulse, double e_before, double e_after, int kind)
+{
+    double *r = rec + *n_rec * PARTICLE_W;
+    int i;
+    r[0] = t;
+    r[1] = j;
+    r[2] = (double)c->step;
+    r[3] = (t - c->t_k) / c->h;
+    r[4] = impulse;
+    r[5] = e_before;
+    r[6] = e_after;
+    for (i = 0; i < PARTICLE_N; ++i) {
+        r[7 + i] = q[i];
+    }
+    r[7 + PARTICLE_N] = kind;
+    ++c->sus->kinds[kind];
+    ++*n_rec;
+}
+
+/* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
+ * after it. */
+static int particle_chain_impact(const particle_ctx_t *c, const double *q, double *p, const double *v,
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+{
+    double rest[PARTICLE_M_DIM], vel[PARTICLE_N], lam_now[PARTICLE_R_DIM], acc[PARTICLE_N];
+    double racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
+    double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
+    double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
+    int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], i, g, r, j, any, done;
+    particle_restitution(c->par, rest);
+    particle_velocity(c, q, v, p, vel);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
+        tgt[r] = 0.0;
+        plastic[r] = 0;
+    }
+    particle_accel(c, q, vel, lam_now, acc);
+    particle_row_accel(c, q, vel, acc, racc);
+    particle_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        r = group[g];
+        j = particle_row_contact[r];
+        e = j >= 0 ? rest[j] : 1.0; /* group rows are contact rows */
+        rate = 0.0;
+        for (i = 0; i < PARTICLE_N; ++i) {
+            rate += grad[r * PARTICLE_N + i] * vel[i];
+        }
+        if (c->tol->grazing_contact && particle_settles(c, rate, racc[r], e)) {
+            plastic[r] = 1;
+        } else {
+            tgt[r] = -e * rate;
+        }
+    }
+    if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+        return 1;
+    }
+    loss = particle_loss(c, q, vel_m, vel_p);
+    for (r = 0; r < PARTICLE_R; ++r) { /* an active row the impact pulls off */
+        int in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+            rate = 0.0;
+            for (i = 0; i < PARTICLE_N; ++i) {
+                rate += grad[r * PARTICLE_N + i] * vel_p[i];
+            }
+            if (!particle_settles(c, rate, racc[r], 1.0)) {
+                particle_release(c, t, r);
+            }
+        }
+    }
+    for (r = 0; r < PARTICLE_R; ++r) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[r]) {
+            c->sus->act[r] = 1;
+        }
+    }
+    for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
+        j = particle_row_contact[group[g]];
+        if (j < 0) {
+            continue;
+        }
+        done = 0;
+        for (r = 0; r < g; ++r) {
+            done = done || particle_row_contact[group[r]] == j;
+        }
+        if (done) {
+            continue;
+        }
+        any = 0;
+        imp = 0.0;
+        for (r = g; r < n_group; ++r) {
+            if (particle_row_contact[group[r]] == j) {
+                any = any || c->sus->act[group[r]];
+                imp += lam[group[r]];
+            }
+        }
+        particle_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? PARTICLE_KIND_PLASTIC
+            : (rest[j] == 1.0 ? PARTICLE_KIND_ELASTIC : PARTICLE_KIND_RESTITUTION));
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        p[i] = p_plus[i];
+    }
+    return 0;
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+static int particle_plastic_entry(const particle_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double tgt[PARTICLE_R_DIM] = {0.0}, vel_m[PARTICLE_N], vel_p[PARTICLE_N];
+    int dropped[PARTICLE_R_DIM], lowest[PARTICLE_R_DIM] = {0}, g, r, k, low;
+    particle_rows(q, v, c->par, psi, grad, curv);
+    *n_rows = 0;
+    for (g = 0; g < n_group; ++g) {
+        low = -1;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            if (particle_row_contact[r] == group[g] && (low < 0 || psi[r] < psi[low])) {
+                low = r;
+            }
+        }
+        if (low < 0) {
+            continue;
+        }
+        lowest[low] = 1;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            if (particle_row_contact[r] == group[g] && psi[r] <= psi[low] + c->tol->admissible) {
+                rows[(*n_rows)++] = r;
+            }
+        }
+    }
+    if (particle_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+        return 1;
+    }
+    for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
+        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+    }
+    *loss = particle_loss(c, q, vel_m, vel_p);
+    return 0;
+}
+
+/* SustainedSteps._free_rest: a free remainder of the grid step from (q, p) at t (tau left): the smooth
+ * step (46), or the impact chain (47)-(79). q, p, v in/out; *e_step the grid step's E_d (NaN: not yet). */
+static int particle_free_rest(const particle_ctx_t *c, double *q, double *p, double t, double tau, double *v,
+    double *e_step, double *rec, long *n_rec)
+{
+    double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N], phi1[PARTICLE_M_DIM];
+    double grad1[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM], d1[PARTICLE_M_DIM], v1[PARTICLE_N];
+    double p1[PARTICLE_N], s_hi[PARTICLE_M_DIM], g_hi[PARTICLE_M_DIM], res, e1, e_imp;
+    int crossed[PARTICLE_M_DIM], i, j, inside = 1;
+    particle_seg_t seg;
+    particle_contacts(q, c->par, phi0, grad0);
+    particle_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+    if (particle_check(c, res, p, NAN, PARTICLE_PHASE_SMOOTH)) {
+        return 1;
+    }
+    if (!isfinite(*e_step)) {
+        *e_step = e1;
+    }
+    for (j = 0; j < PARTICLE_M; ++j) {
+        inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
+    }
+    if (!inside) {
+        for (i = 0; i < PARTICLE_N; ++i) {
+            seg.q[i] = q[i];
+            seg.p_in[i] = p[i];
+            seg.nrm[i] = 0.0;
+        }
+        for (i = 0; i < PARTICLE_NX_MAX; ++i) {
+            seg.x[i] = i < PARTICLE_N ? v1[i] : 0.0;
+        }
+        seg.t = t;
+        seg.tau = tau;
+        seg.e_in = NAN;
+        seg.contact = -1;
+        seg.rest = 1.0;
+        if (particle_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
+            return particle_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
+                *e_step);
+        }
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        q[i] += tau * v1[i];
+        p[i] = p1[i];
+        v[i] = v1[i];
+    }
+    return 0;
+}
+
+/* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
+ * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
+static int particle_chain(const particle_ctx_t *c, double *q, double *p, double t, double tau, double *v,
+    double *e_step, double *rec, long *n_rec)
+{
+    double vv[PARTICLE_N], lam[PARTICLE_R_DIM], lam1[PARTICLE_R_DIM], q1[PARTICLE_N], p1[PARTICLE_N];
+    double psi1[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
+    double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
+    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, r, r0, start, any, pulled, n_group;
+    for (;;) {
+        if (tau <= 1e-13 * c->h) {
+            return 0;
+        }
+        any = 0;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            any = any || c->sus->act[r];
+        }
+        if (!any) {
+            return particle_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+        }
+        if (particle_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+            return 1;
+        }
+        if (!isfinite(*e_step)) {
+            *e_step = e_seg;
+        }
+        particle_contact_forces(c, q1, u1, f1);
+        f_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(PARTICLE_R, f1));
+        start = -1;
+        pulled = 0;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            ev[r] = c->sus->act[r] && particle_row_constraint[r] < 0 && f1[r] < -f_eps;
+            pulled = pulled || ev[r];
+        }
+        if (pulled) {
+            particle_velocity(c, q, vv, p, vel);
+            particle_contact_forces(c, q, vel, f0);
+            for (r = 0; r < PARTICLE_R; ++r) {
+                if (ev[r]) {
+                    if (particle_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                        return 1;
+                    }
+                    if (s_ev[r] == 0.0 && start < 0) {
+                        start = r;
+                    }
+                }
+            }
+        }
+        if (start >= 0) { /* pulled at the segment start: release there */
+            particle_release(c, t, start);
+            continue;
+        }
+        particle_rows(q1, vv, c->par, psi1, grad, curv);
+        any = 0;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+        }
+        if (!any) {
+            particle_book(c, lam, lam1);
+            for (r = 0; r < PARTICLE_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < PARTICLE_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            return 0;
+        }
+        for (r = 0; r < PARTICLE_R; ++r) {
+            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+                if (particle_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
+                    return 1;
+                }
+                ev[r] = 2;
+            }
+        }
+        r0 = -1;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            if (ev[r] && (r0 < 0 || s_ev[r] < s_ev[r0])) {
+                r0 = r;
+            }
+        }
+        s = s_ev[r0];
+        if (particle_count_event(c)) {
+            return 1;
+        }
+        if (particle_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+            return 1;
+        }
+        particle_book(c, lam, lam1);
+        for (i = 0; i < PARTICLE_N; ++i) {
+            q[i] = q1[i];
+            p[i] = p1[i];
+        }
+        t += s * tau;
+        tau = (1.0 - s) * tau;
+        if (ev[r0] == 1) {
+            particle_release(c, t, r0);
+            continue;
+        }
+        n_group = 0;
+        for (r = 0; r < PARTICLE_R; ++r) {
+            if (ev[r] == 2 && s_ev[r] - s <= c->tol->simultaneous) {
+                group[n_group++] = r;
+            }
+        }
+        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+            return 1;
+        }
+    }
+}
+
+static void particle_start_sustained(const particle_ctx_t *c, const double *q, const double *v)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double zero[PARTICLE_R_DIM] = {0.0}, acc[PARTICLE_N], racc[PARTICLE_R_DIM], rate;
+    int i, r;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        c->sus->act[r] = particle_row_constraint[r] >= 0;
+        c->sus->lam[r] = 0.0;
+    }
+    if (!c->tol->grazing_contact) {
+        return;
+    }
+    particle_rows(q, v, c->par, psi, grad, curv);
+    particle_accel(c, q, v, zero, acc);
+    particle_row_accel(c, q, v, acc, racc);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        if (particle_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < PARTICLE_N; ++i) {
+            rate += grad[r * PARTICLE_N + i] * v[i];
+        }
+        if (particle_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
+            c->sus->act[r] = 1;
+        }
+    }
+}
+
+
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
  * reflected velocity; if it lands on a root with mu <= 0 it restarts from larger and smaller impulses
  * along the same normal; no root with mu > 0 is a located failure. */
@@ -934,15 +1838,22 @@ static int particle_quadratic_root(const double *coef, double mu_try, double *mu
     return 1;
 }
 
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
+ * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, const double *v_in,
-    double e_rest)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_n[PARTICLE_N], x[PARTICLE_N1];
     double vel[PARTICLE_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[PARTICLE_N], i, k, n_roots = 0;
+    int piv[PARTICLE_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    double accel = 0.0;
     double coef[3], w0[PARTICLE_N], dw[PARTICLE_N], mu_q;
+    *kind = PARTICLE_KIND_ELASTIC;
+    (void)group;
+    (void)wgt;
+    (void)n_group;
     particle_velocity(c, seg->q, v_in, seg->p_in, vel);
     particle_legendre(seg->q, vel, c->par, mom, mass);
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -959,6 +1870,13 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
     }
     mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
     mu0 = mu0 > 0.0 ? mu0 : 0.0;
+    if (sustain) {
+        accel = particle_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        pressed = accel < 0.0;
+        if (pressed && particle_settles(c, nv, accel, e_rest)) {
+            return 2;
+        }
+    }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
     }
@@ -990,7 +1908,10 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
             ++n_roots;
         }
     }
-    if (c->tol->grazing_reflect && mu0 > 0.0) { /* the continuous law, energy reset (Tolerances.grazing) */
+    if (pressed) {
+        return 2;
+    }
+    if ((c->tol->grazing_reflect && mu0 > 0.0) || sustain) { /* the continuous law, energy reset */
         double p_t[PARTICLE_N], pm[PARTICLE_N], pp[PARTICLE_N];
         const double *sarg[4];
         for (i = 0; i < PARTICLE_N; ++i) {
@@ -1003,7 +1924,8 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
         sarg[3] = c->par;
         particle_newton(particle_fn_smooth, sarg, PARTICLE_N, x, &res);
         if (res <= particle_scale(c, seg->p_in, seg->e_in)) {
-            ++c->err->reflected;
+            c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
+            *kind = PARTICLE_KIND_GRAZING;
             particle_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
             for (i = 0; i < PARTICLE_N; ++i) {
                 seg->x[i] = x[i];
@@ -1037,29 +1959,98 @@ static int particle_segment_end(const particle_ctx_t *c, const particle_seg_t *s
     return particle_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* Stepper._restart: the impact at the start of seg by the continuous law n.qdot -> -e n.qdot; the rest of the
+ * step as a first segment from there (seg in place). Out: E_d after, mu; returns the number of contacts the
+ * fresh segment crosses (crossed, s_hi, g_hi). */
+static int particle_restart(const particle_ctx_t *c, particle_seg_t *seg, double *e_new, double *mu,
+    int *crossed, double *s_hi, double *g_hi)
+{
+    double vel[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_n[PARTICLE_N];
+    double guess[PARTICLE_N], v[PARTICLE_N], p1[PARTICLE_N], res, nv = 0.0, nmn = 0.0;
+    double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N], phi1[PARTICLE_M_DIM];
+    double grad1[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM], d1[PARTICLE_M_DIM];
+    int piv[PARTICLE_N], i;
+    particle_velocity(c, seg->q, seg->x, seg->p_in, vel);
+    particle_legendre(seg->q, vel, c->par, mom, mass);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        minv_n[i] = seg->nrm[i];
+    }
+    if (particle_lu(PARTICLE_N, mass, piv)) {
+        particle_lu_solve(PARTICLE_N, mass, piv, minv_n);
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        nv += seg->nrm[i] * vel[i];
+        nmn += seg->nrm[i] * minv_n[i];
+    }
+    *mu = -(1.0 + seg->rest) * nv / nmn;
+    *mu = *mu > 0.0 ? *mu : 0.0;
+    for (i = 0; i < PARTICLE_N; ++i) {
+        seg->p_in[i] += *mu * seg->nrm[i];
+        guess[i] = vel[i] + *mu * minv_n[i];
+    }
+    ++c->sus->fallbacks;
+    particle_contacts(seg->q, c->par, phi0, grad0);
+    particle_smooth_step(seg->q, seg->p_in, seg->tau, guess, c->par, grad0, v, &res, p1, e_new, phi1, grad1, d0, d1);
+    for (i = 0; i < PARTICLE_NX_MAX; ++i) {
+        seg->x[i] = i < PARTICLE_N ? v[i] : 0.0;
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        seg->nrm[i] = 0.0;
+    }
+    seg->e_in = NAN;
+    seg->contact = -1;
+    seg->rest = 1.0;
+    return particle_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
+}
+
 /* Stepper._impact_step: chain of segments (47), (48), (78), (79) until one ends inside C at t_k + h.
  * Impact records go to rec at *n_rec (room for max_impacts_per_step); on success (q, p, e, v) and
  * phi, grad phi at q are the step's results. */
 static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
-    double *rec, long *n_rec)
+    double *rec, long *n_rec, double e_step_in)
 {
     const double *par = c->par;
     double x[PARTICLE_NX_MAX] = {0.0}, x_best[PARTICLE_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[PARTICLE_N], pm[PARTICLE_N], p_c[PARTICLE_N], p_end[PARTICLE_N];
     double q_end[PARTICLE_N], *r, s_all[PARTICLE_M_DIM] = {0.0}, wgt[PARTICLE_M_DIM], pend_w[PARTICLE_M_DIM];
     particle_seg_t next;
-    double rest[PARTICLE_M_DIM], e_rest, e_before, e_step = 0.0;
-    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic;
+    double rest[PARTICLE_M_DIM], e_rest, e_before, e_step = e_step_in;
+    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic, kind, rc, restarted;
     particle_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
         best = -1;
+        restarted = 0;
         for (j = 0; j < PARTICLE_M; ++j) {
             if (!crossed[j]) {
                 continue;
             }
             if (particle_contact_root(c, seg, j, s_hi[j], g_hi[j], x, &s)) {
+                if (c->tol->grazing_contact && seg->contact >= 0) {
+                    /* (78) unsolvable (a lossy impact into a corner): the impact at the segment start takes the
+                     * continuous law instead, and the rest of the step starts afresh from it (47). */
+                    double e_new, mu;
+                    const int n_cross = particle_restart(c, seg, &e_new, &mu, crossed, s_hi, g_hi);
+                    for (g = 0; g < n_pend; ++g) {
+                        rec[(*n_rec + g) * PARTICLE_W + 4] = mu * pend_w[g];
+                        rec[(*n_rec + g) * PARTICLE_W + 6] = e_new;
+                    }
+                    *n_rec += n_pend;
+                    n_pend = 0;
+                    if (n_cross == 0) {
+                        for (i = 0; i < PARTICLE_N; ++i) {
+                            q[i] = seg->q[i] + seg->tau * seg->x[i];
+                            v[i] = seg->x[i];
+                        }
+                        particle_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
+                        particle_contacts(q, par, phi, grad);
+                        *e = e_step;
+                        return 0;
+                    }
+                    restarted = 1;
+                    break;
+                }
                 return 1;
             }
             s_all[j] = s;
@@ -1070,6 +2061,9 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
                     x_best[i] = x[i];
                 }
             }
+        }
+        if (restarted) {
+            continue;
         }
         n_group = 0;
         for (j = 0; j < PARTICLE_M; ++j) {
@@ -1089,10 +2083,11 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
         particle_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
-        e_step = k == 0 ? e_before : e_step; /* E_d entering the step: the grid step's energy */
+        e_step = isfinite(e_step) ? e_step : e_before; /* E_d entering the step: the grid step's energy */
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
+        next.rest = 1.0;
         particle_contacts(next.q, par, phi, grad);
         for (i = 0; i < PARTICLE_N; ++i) {
             next.p_in[i] = p_c[i];
@@ -1110,9 +2105,37 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             elastic = elastic && rest[group[g]] == 1.0;
             e_rest += wgt[g] * rest[group[g]];
         }
-        if (particle_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest)) {
+        seg->rest = elastic ? 1.0 : e_rest;
+        rc = particle_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        if (rc == 1) {
             return 1;
         }
+        if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
+            double p_plus[PARTICLE_N], lam[PARTICLE_R_DIM], loss, own;
+            int rows[PARTICLE_R_DIM] = {0}, n_rows = 0, l;
+            if (particle_count_event(c)
+                || particle_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                return 1;
+            }
+            for (g = 0; g < n_group; ++g) {
+                own = 0.0;
+                for (l = 0; l < n_rows; ++l) {
+                    own += particle_row_contact[rows[l]] == group[g] ? lam[rows[l]] : 0.0;
+                }
+                particle_log(c, rec, n_rec, seg->t, group[g], seg->q, own, e_before, e_before - loss,
+                    PARTICLE_KIND_PLASTIC);
+            }
+            for (i = 0; i < PARTICLE_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = p_plus[i];
+                v[i] = v_c[i];
+            }
+            rc = particle_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            particle_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
+
         particle_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * PARTICLE_W;
@@ -1126,6 +2149,9 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             for (i = 0; i < PARTICLE_N; ++i) {
                 r[7 + i] = seg->q[i];
             }
+            r[7 + PARTICLE_N] = kind == PARTICLE_KIND_GRAZING ? kind
+                : (rest[group[g]] == 1.0 ? PARTICLE_KIND_ELASTIC : PARTICLE_KIND_RESTITUTION);
+            ++c->sus->kinds[(int)r[7 + PARTICLE_N]];
             pend_w[g] = wgt[g];
         }
         n_pend = n_group;
@@ -1153,6 +2179,22 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
     double d0[PARTICLE_M_DIM], d1[PARTICLE_M_DIM], s_hi[PARTICLE_M_DIM], g_hi[PARTICLE_M_DIM], res, e1;
     int crossed[PARTICLE_M_DIM], i, j, inside = 1;
     particle_seg_t seg;
+    for (j = 0; j < PARTICLE_M; ++j) {
+        c->sus->force[j] = 0.0;
+    }
+    for (j = 0; j < PARTICLE_NC; ++j) {
+        c->sus->cforce[j] = 0.0;
+    }
+    c->sus->events = 0;
+    if (particle_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
+        double e_step = NAN;
+        int rc = particle_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
+        if (!particle_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
+            particle_contacts(q, c->par, phi, grad);
+        }
+        *e = e_step;
+        return rc;
+    }
     particle_smooth_step(q, p, c->h, v, c->par, grad, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     for (i = 0, inside = isfinite(e1); i < PARTICLE_N; ++i) { /* E_d is finite only if v is */
         inside = inside && isfinite(p1[i]);
@@ -1164,6 +2206,7 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
         return 1;
     }
     seg.contact = -1;
+    seg.rest = 1.0;
     for (j = 0; j < PARTICLE_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
     }
@@ -1180,7 +2223,7 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
         seg.tau = c->h;
         seg.e_in = NAN;
         if (particle_crossings(c, &seg, phi, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return particle_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, e, v, phi, grad, rec, n_rec);
+            return particle_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, e, v, phi, grad, rec, n_rec, NAN);
         }
     }
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -1196,6 +2239,32 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
     }
     *e = e1;
     return 0;
+}
+
+/* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
+static void particle_record(const particle_sustain_t *sus, long s, double *A, double *F, double *FC)
+{
+    int j;
+    int r;
+    for (j = 0; j < PARTICLE_M; ++j) {
+        A[s * PARTICLE_M + j] = 0.0;
+        F[s * PARTICLE_M + j] = sus->force[j];
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        if (sus->act[r] && particle_row_contact[r] >= 0) {
+            A[s * PARTICLE_M + particle_row_contact[r]] = 1.0;
+        }
+    }
+    for (j = 0; j < PARTICLE_NC; ++j) {
+        FC[s * PARTICLE_NC + j] = sus->cforce[j];
+    }
+}
+
+
+/* Whether the lift-off log might overflow in the next grid step. */
+static int particle_liftoffs_full(const particle_sustain_t *sus, int max_events)
+{
+    return sus->n_liftoffs > sus->liftoff_cap - (long)max_events * PARTICLE_R_DIM;
 }
 
 
@@ -1214,10 +2283,32 @@ PARTICLE_COLD static int particle_step_near(const particle_ctx_t *c, double *q, 
     double *e, double *d, double *rec, long *n_rec)
 {
     double phi[PARTICLE_M_DIM], grad[PARTICLE_M_DIM * PARTICLE_N];
+    const int held = particle_held(c->sus);
     int rc;
-    particle_contacts(q, c->par, phi, grad);
+    if (!held) {
+        particle_contacts(q, c->par, phi, grad);
+    }
     rc = particle_step(c, q, p, v, e, phi, grad, rec, n_rec);
-    particle_slopes(c->par, c->h, q, v, p, grad, d);
+    if (!particle_held(c->sus)) { /* the slopes at q_k+1 for the glide's pre-test */
+        if (held) {
+            particle_contacts(q, c->par, phi, grad);
+        }
+        particle_slopes(c->par, c->h, q, v, p, grad, d);
+    }
+    return rc;
+}
+
+/* A grid step in sustained contact (or with bilateral constraints): as step_near, but not a cold path,
+ * since a body at rest takes every step here. */
+PARTICLE_HOT static int particle_step_held(const particle_ctx_t *c, double *q, double *p, double *v,
+    double *e, double *d, double *rec, long *n_rec)
+{
+    double phi[PARTICLE_M_DIM], grad[PARTICLE_M_DIM * PARTICLE_N];
+    int rc = particle_step(c, q, p, v, e, phi, grad, rec, n_rec);
+    if (!particle_held(c->sus)) { /* released: the slopes at q_k+1 for the glide's pre-test */
+        particle_contacts(q, c->par, phi, grad);
+        particle_slopes(c->par, c->h, q, v, p, grad, d);
+    }
     return rc;
 }
 
@@ -1303,7 +2394,8 @@ PARTICLE_HOT static long particle_glide(const double *k, double h, double phi_mi
 
 int particle_run(const double *par, const particle_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
-    double *impacts, long impact_cap, long *steps_done, long *impacts_done, particle_error_t *err)
+    double *impacts, long impact_cap, long *steps_done, long *impacts_done, particle_error_t *err,
+    particle_sustain_t *sus, double *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (particle_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the
@@ -1313,12 +2405,13 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
     particle_ctx_t c;
     double q0[PARTICLE_N], p0[PARTICLE_N], d[PARTICLE_M_DIM], k[PARTICLE_NK_DIM];
     double phi[PARTICLE_M_DIM], grad[PARTICLE_M_DIM * PARTICLE_N], sum_e = 0.0;
-    const long rec_limit = impact_cap - (long)tol->max_impacts_per_step * PARTICLE_M_DIM;
+    const long rec_limit = impact_cap - (long)tol->max_impacts_per_step * (PARTICLE_M_DIM + PARTICLE_R_DIM);
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
     c.tol = tol;
     c.err = err;
+    c.sus = sus;
     c.h = h;
     err->reflected = 0;
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -1332,14 +2425,17 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
         n_end = 0;
     }
     while (s < n_end) {
-        s += particle_glide(k, h, -tol->phi, n_end - s, q, p, v, d, Q + s * PARTICLE_N,
-            P + s * PARTICLE_N, E + s, &sum_e);
-        if (s == n_end) {
-            break;
+        if (!particle_held(sus)) {
+            s += particle_glide(k, h, -tol->phi, n_end - s, q, p, v, d, Q + s * PARTICLE_N,
+                P + s * PARTICLE_N, E + s, &sum_e);
+            if (s == n_end) {
+                break;
+            }
         }
         c.step = step0 + s;
         c.t_k = t0 + (double)c.step * h;
-        rc = particle_step_near(&c, q, p, v, &E[s], d, impacts, &n_rec);
+        rc = particle_held(sus) ? particle_step_held(&c, q, p, v, &E[s], d, impacts, &n_rec)
+                                     : particle_step_near(&c, q, p, v, &E[s], d, impacts, &n_rec);
         if (rc) {
             break;
         }
@@ -1348,8 +2444,9 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
             Q[s * PARTICLE_N + i] = q[i];
             P[s * PARTICLE_N + i] = p[i];
         }
+        particle_record(sus, s, A, F, FC);
         ++s;
-        if (particle_full(n_rec, max_impacts, rec_limit)) {
+        if (particle_full(n_rec, max_impacts, rec_limit) || particle_liftoffs_full(sus, tol->max_impacts_per_step)) {
             break;
         }
     }
@@ -1375,6 +2472,20 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
     return rc;
 }
 
+
+void particle_start(const double *par, const particle_tol_t *tol, double h, const double *q, const double *v,
+    particle_sustain_t *sus)
+{
+    particle_ctx_t c;
+    c.par = par;
+    c.tol = tol;
+    c.err = 0;
+    c.sus = sus;
+    c.step = 0;
+    c.t_k = 0.0;
+    c.h = h;
+    particle_start_sustained(&c, q, v);
+}
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */
 
@@ -1412,6 +2523,17 @@ void particle_eval_contact_path(int j, double s, const double *q0, const double 
     particle_contact_path_fns[j](&s, arg, out);
 }
 
+void particle_eval_rows(const double *q, const double *u, const double *par, double *psi, double *grad,
+    double *curv)
+{
+    particle_rows(q, u, par, psi, grad, curv);
+}
+
+void particle_eval_dynamics(const double *q, const double *u, const double *par, double *rhs, double *curv)
+{
+    particle_dynamics(q, u, par, rhs, curv);
+}
+
 void particle_eval_restitution(const double *par, double *e)
 {
     particle_restitution(par, e);
@@ -1444,6 +2566,16 @@ int particle_solve(int id, double *x, const double *args, const double *par, dou
     case 3: { /* jump_contact_floor */
         const double *const arg[] = { args + 0, args + 2, args + 4, args + 6, args + 7, par };
         particle_newton(particle_fn_jump_contact_floor, arg, 4, x, resnorm);
+        return 0;
+    }
+    case 4: { /* rattle */
+        const double *const arg[] = { args + 0, args + 2, args + 4, args + 5, par };
+        particle_newton(particle_fn_rattle, arg, 3, x, resnorm);
+        return 0;
+    }
+    case 5: { /* rattle_project */
+        const double *const arg[] = { args + 0, args + 2, args + 4, par };
+        particle_newton(particle_fn_rattle_project, arg, 3, x, resnorm);
         return 0;
     }
     default:

@@ -8,16 +8,27 @@
 #define PARTICLE_N 2
 #define PARTICLE_M 1
 #define PARTICLE_NPAR 2
+/* rows of sustained contact (contact branches and bilateral constraints, vcigen.rows) */
+#define PARTICLE_R 1
+#define PARTICLE_R_DIM (PARTICLE_R > 0 ? PARTICLE_R : 1)
+#define PARTICLE_NC 0
+#define PARTICLE_NC_DIM (PARTICLE_NC > 0 ? PARTICLE_NC : 1)
 /* array extents (a C array cannot be empty) */
 #define PARTICLE_M_DIM (PARTICLE_M > 0 ? PARTICLE_M : 1)
 #define PARTICLE_NPAR_DIM (PARTICLE_NPAR > 0 ? PARTICLE_NPAR : 1)
 /* run constants of the explicit grid step (subexpressions of h and the parameters) */
 #define PARTICLE_NK 7
 #define PARTICLE_NK_DIM (PARTICLE_NK > 0 ? PARTICLE_NK : 1)
-/* the largest unknown: (w, mu, beta) of (78) */
-#define PARTICLE_NX_MAX (PARTICLE_N + 2)
-/* one impact record: t, contact, step, alpha, impulse, energy_before, energy_after, q[N] */
-#define PARTICLE_IMPACT_WIDTH (7 + PARTICLE_N)
+/* the largest unknown: (w, mu, beta) of (78), or (v, Lam) of the constrained step */
+#define PARTICLE_NX_MAX (PARTICLE_N + (PARTICLE_R > 2 ? PARTICLE_R : 2))
+/* one impact record: t, contact, step, alpha, impulse, energy_before, energy_after, q[N], kind */
+#define PARTICLE_IMPACT_WIDTH (8 + PARTICLE_N)
+/* Impact.kind, in the order of vcigen.result.KINDS */
+#define PARTICLE_KIND_ELASTIC 0
+#define PARTICLE_KIND_RESTITUTION 1
+#define PARTICLE_KIND_PLASTIC 2
+#define PARTICLE_KIND_GRAZING 3
+
 
 /* Phases of a failed solve, in the order of vcigen.errors.PHASES. */
 #define PARTICLE_PHASE_SMOOTH 0
@@ -25,6 +36,7 @@
 #define PARTICLE_PHASE_JUMP 2
 #define PARTICLE_PHASE_JUMP_TO_CONTACT 3
 #define PARTICLE_PHASE_START 4
+#define PARTICLE_PHASE_SUSTAINED 5
 
 /* Acceptance thresholds, as vcigen.Tolerances. */
 typedef struct {
@@ -36,7 +48,24 @@ typedef struct {
     double dip;
     double simultaneous;
     int grazing_reflect; /* Tolerances.grazing == "reflect": the continuous law where (48a) has no root */
+    int grazing_contact; /* Tolerances.grazing == "contact": plastic impacts and sustained contact */
+    double rest;         /* Tolerances.rest: the jump's speed resolution in units of h |d2phi/dt2| */
 } particle_tol_t;
+
+/* Sustained contact across the calls of run (vcigen.sustained): the active rows, the Newton guess of
+ * their impulses, the forces of the step being taken, the lift-off log and the impact counts by kind. */
+typedef struct {
+    int act[PARTICLE_R_DIM];       /* row r held: sustained contact or bilateral constraint */
+    double lam[PARTICLE_R_DIM];    /* the last step's impulses Lam_r, per step h (the guess) */
+    double force[PARTICLE_M_DIM];  /* mean multiplier of each contact over the current step */
+    double cforce[PARTICLE_NC_DIM]; /* mean multiplier of each constraint over the current step */
+    double *liftoffs;                  /* (liftoff_cap, 2): t and contact of each release */
+    long liftoff_cap;
+    long n_liftoffs;                   /* in/out */
+    long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
+    long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
+    int events;                        /* impacts and lift-offs of sustained contact in this step */
+} particle_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */
 typedef struct {
@@ -73,6 +102,11 @@ void particle_eval_smooth_step(const double *q0, const double *p0, double tau, c
  * (vcigen.stepper.Kernels.contact_path). */
 void particle_eval_contact_path(int j, double s, const double *q0, const double *p0, double tau,
     const double *par, double *g, double *dg, double *v);
+/* Rows of sustained contact (vcigen.rows): psi_r, grad psi_r, u . Hess psi_r . u. */
+void particle_eval_rows(const double *q, const double *u, const double *par, double *psi, double *grad,
+    double *curv);
+/* Free dynamics M qddot = rhs and each contact's curvature u . Hess phi_j . u. */
+void particle_eval_dynamics(const double *q, const double *u, const double *par, double *rhs, double *curv);
 /* The coefficient of restitution of each contact (1: elastic). */
 void particle_eval_restitution(const double *par, double *e);
 /* The jump (48) as coef[0] mu^2 + coef[1] mu + coef[2] = 0 along w = w0 + mu dw
@@ -83,11 +117,17 @@ void particle_eval_jump_quadratic(const double *qc, const double *nrm, const dou
  * concatenated. Returns 0, or 1 for an unknown id. */
 int particle_solve(int id, double *x, const double *args, const double *par, double *resnorm);
 /* Grid steps step0 .. step0 + n_steps - 1 from (q, p) (updated in place; v is the Newton guess).
- * Writes the states after each step to Q, P, E and impact records to impacts; stops early once
- * max_impacts (< 0: no limit) impacts are logged or the impact buffer might overflow.
- * Returns 0, or 1 with err filled. */
+ * Writes the states after each step to Q, P, E, the active contacts and mean contact forces to
+ * A, F (n_steps x M) and the constraint forces to FC (n_steps x NC), impact records to impacts and
+ * lift-offs to sus; stops early once max_impacts (< 0: no limit) impacts are logged or a buffer might
+ * overflow. Returns 0, or 1 with err filled. */
+/* The rows held at the start (q, v): bilateral constraints, and contacts touched at rest with forces pressing
+ * in (vcigen.sustained.SustainedSteps._start_sustained); fills sus->act and clears sus->lam. */
+void particle_start(const double *par, const particle_tol_t *tol, double h, const double *q, const double *v,
+    particle_sustain_t *sus);
 int particle_run(const double *par, const particle_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
-    double *impacts, long impact_cap, long *steps_done, long *impacts_done, particle_error_t *err);
+    double *impacts, long impact_cap, long *steps_done, long *impacts_done, particle_error_t *err,
+    particle_sustain_t *sus, double *A, double *F, double *FC);
 
 #endif

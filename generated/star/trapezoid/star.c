@@ -41,6 +41,7 @@ const char *const star_phase_names[] = {
     "jump",
     "jump to contact",
     "start",
+    "sustained",
     0};
 
 void star_default_tol(star_tol_t *tol)
@@ -53,6 +54,8 @@ void star_default_tol(star_tol_t *tol)
     tol->dip = 0.25;
     tol->simultaneous = 1e-09;
     tol->grazing_reflect = 0;
+    tol->grazing_contact = 1;
+    tol->rest = 1.0;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
 
@@ -266,6 +269,236 @@ static inline void star_jump_contact_floor(const double *x, const double *qc, co
     jac[24] = tau[0]*(x[1] + x[2]*t15);
 }
 
+/* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */
+static inline void star_rows(const double *q, const double *u, const double *par, double *psi, double *grad, double *curv)
+{
+    const double t0 = sin(q[2]);
+    const double t1 = cos(q[2]);
+    const double t2 = (1.0/2.0)*par[2];
+    const double t3 = t2*(t0 + t1);
+    const double t4 = -t3;
+    const double t5 = t2*(t0 - t1);
+    const double t6 = -t5;
+    const double t7 = ((u[2])*(u[2]));
+    const double t8 = t3*t7;
+    const double t9 = t5*t7;
+    psi[0] = q[1] + t4;
+    psi[1] = q[1] + t6;
+    psi[2] = q[1] + t5;
+    psi[3] = q[1] + t3;
+    grad[0] = 0;
+    grad[1] = 1;
+    grad[2] = t5;
+    grad[3] = 0;
+    grad[4] = 1;
+    grad[5] = t4;
+    grad[6] = 0;
+    grad[7] = 1;
+    grad[8] = t3;
+    grad[9] = 0;
+    grad[10] = 1;
+    grad[11] = t6;
+    curv[0] = t8;
+    curv[1] = t9;
+    curv[2] = -t9;
+    curv[3] = -t8;
+}
+
+/* Free dynamics M qddot = rhs and contact curvatures, for the normal acceleration of a contact. */
+static inline void star_dynamics(const double *q, const double *u, const double *par, double *rhs, double *curv)
+{
+    const double t0 = sin(q[2]);
+    const double t1 = cos(q[2]);
+    rhs[0] = 0;
+    rhs[1] = -par[1]*par[0];
+    rhs[2] = 0;
+    curv[0] = (1.0/2.0)*((u[2])*(u[2]))*par[2]*(t0*((t0 < -1e-12) ? (
+   -1
+)
+: ((t0 <= 1e-12) ? (
+   0
+)
+: (
+   1
+))) + t1*((t1 < -1e-12) ? (
+   -1
+)
+: ((t1 <= 1e-12) ? (
+   0
+)
+: (
+   1
+))));
+}
+
+/* Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda. */
+static inline void star_rattle(const double *x, const double *q0, const double *p0, const double *tau, const double *act, const double *par, double *res, double *jac)
+{
+    const double t0 = x[3]*act[0];
+    const double t1 = x[5]*act[2];
+    const double t2 = ((par[2])*(par[2]));
+    const double t3 = sin(q0[2]);
+    const double t4 = cos(q0[2]);
+    const double t5 = t3 + t4;
+    const double t6 = par[2]*t5;
+    const double t7 = t3 - t4;
+    const double t8 = par[2]*t7;
+    const double t9 = act[0] - 1;
+    const double t10 = q0[2] + tau[0]*x[2];
+    const double t11 = sin(t10);
+    const double t12 = cos(t10);
+    const double t13 = par[2]*(t11 + t12);
+    const double t14 = 2*q0[1] + 2*tau[0]*x[1];
+    const double t15 = act[1] - 1;
+    const double t16 = par[2]*(t11 - t12);
+    const double t17 = act[2] - 1;
+    const double t18 = act[3] - 1;
+    const double t19 = act[0]*tau[0];
+    const double t20 = (1.0/2.0)*t16;
+    const double t21 = act[1]*tau[0];
+    const double t22 = (1.0/2.0)*t13;
+    const double t23 = act[2]*tau[0];
+    const double t24 = act[3]*tau[0];
+    res[0] = -p0[0] + x[0]*par[0];
+    res[1] = -x[4]*act[1] - x[6]*act[3] - p0[1] + (1.0/2.0)*tau[0]*par[1]*par[0] + x[1]*par[0] - t0 - t1;
+    res[2] = (1.0/2.0)*x[4]*act[1]*par[2]*t5 + (1.0/2.0)*x[6]*act[3]*par[2]*t7 - p0[2] + (29.0/192.0)*x[2]*par[0]*t2 - 1.0/2.0*t0*t8 - 1.0/2.0*t1*t6;
+    res[3] = -x[3]*t9 + (1.0/2.0)*act[0]*(-t13 + t14);
+    res[4] = -x[4]*t15 + (1.0/2.0)*act[1]*(t14 - t16);
+    res[5] = -x[5]*t17 + (1.0/2.0)*act[2]*(t14 + t16);
+    res[6] = -x[6]*t18 + (1.0/2.0)*act[3]*(t13 + t14);
+    jac[0] = par[0];
+    jac[1] = 0;
+    jac[2] = 0;
+    jac[3] = 0;
+    jac[4] = 0;
+    jac[5] = 0;
+    jac[6] = 0;
+    jac[7] = 0;
+    jac[8] = par[0];
+    jac[9] = 0;
+    jac[10] = -act[0];
+    jac[11] = -act[1];
+    jac[12] = -act[2];
+    jac[13] = -act[3];
+    jac[14] = 0;
+    jac[15] = 0;
+    jac[16] = (29.0/192.0)*par[0]*t2;
+    jac[17] = -1.0/2.0*act[0]*t8;
+    jac[18] = (1.0/2.0)*act[1]*t6;
+    jac[19] = -1.0/2.0*act[2]*t6;
+    jac[20] = (1.0/2.0)*act[3]*t8;
+    jac[21] = 0;
+    jac[22] = t19;
+    jac[23] = t19*t20;
+    jac[24] = -t9;
+    jac[25] = 0;
+    jac[26] = 0;
+    jac[27] = 0;
+    jac[28] = 0;
+    jac[29] = t21;
+    jac[30] = -t21*t22;
+    jac[31] = 0;
+    jac[32] = -t15;
+    jac[33] = 0;
+    jac[34] = 0;
+    jac[35] = 0;
+    jac[36] = t23;
+    jac[37] = t22*t23;
+    jac[38] = 0;
+    jac[39] = 0;
+    jac[40] = -t17;
+    jac[41] = 0;
+    jac[42] = 0;
+    jac[43] = t24;
+    jac[44] = -t20*t24;
+    jac[45] = 0;
+    jac[46] = 0;
+    jac[47] = 0;
+    jac[48] = -t18;
+}
+
+/* End momentum of a constrained step, velocity tangent to the active rows: unknowns (u, Lam'). */
+static inline void star_rattle_project(const double *x, const double *q1, const double *p1, const double *act, const double *par, double *res, double *jac)
+{
+    const double t0 = x[3]*act[0];
+    const double t1 = x[5]*act[2];
+    const double t2 = ((par[2])*(par[2]));
+    const double t3 = sin(q1[2]);
+    const double t4 = cos(q1[2]);
+    const double t5 = t3 + t4;
+    const double t6 = par[2]*t5;
+    const double t7 = t3 - t4;
+    const double t8 = par[2]*t7;
+    const double t9 = act[0] - 1;
+    const double t10 = 2*x[1];
+    const double t11 = x[2]*par[2];
+    const double t12 = t11*t7;
+    const double t13 = act[1] - 1;
+    const double t14 = t11*t5;
+    const double t15 = act[2] - 1;
+    const double t16 = act[3] - 1;
+    const double t17 = (1.0/2.0)*act[0]*t8;
+    const double t18 = (1.0/2.0)*act[1]*t6;
+    const double t19 = (1.0/2.0)*act[2]*t6;
+    const double t20 = (1.0/2.0)*act[3]*t8;
+    res[0] = -p1[0] + x[0]*par[0];
+    res[1] = -x[4]*act[1] - x[6]*act[3] - p1[1] + x[1]*par[0] - t0 - t1;
+    res[2] = (1.0/2.0)*x[4]*act[1]*par[2]*t5 + (1.0/2.0)*x[6]*act[3]*par[2]*t7 - p1[2] + (29.0/192.0)*x[2]*par[0]*t2 - 1.0/2.0*t0*t8 - 1.0/2.0*t1*t6;
+    res[3] = -x[3]*t9 + (1.0/2.0)*act[0]*(t10 + t12);
+    res[4] = -x[4]*t13 + (1.0/2.0)*act[1]*(t10 - t14);
+    res[5] = -x[5]*t15 + (1.0/2.0)*act[2]*(t10 + t14);
+    res[6] = -x[6]*t16 + (1.0/2.0)*act[3]*(t10 - t12);
+    jac[0] = par[0];
+    jac[1] = 0;
+    jac[2] = 0;
+    jac[3] = 0;
+    jac[4] = 0;
+    jac[5] = 0;
+    jac[6] = 0;
+    jac[7] = 0;
+    jac[8] = par[0];
+    jac[9] = 0;
+    jac[10] = -act[0];
+    jac[11] = -act[1];
+    jac[12] = -act[2];
+    jac[13] = -act[3];
+    jac[14] = 0;
+    jac[15] = 0;
+    jac[16] = (29.0/192.0)*par[0]*t2;
+    jac[17] = -t17;
+    jac[18] = t18;
+    jac[19] = -t19;
+    jac[20] = t20;
+    jac[21] = 0;
+    jac[22] = act[0];
+    jac[23] = t17;
+    jac[24] = -t9;
+    jac[25] = 0;
+    jac[26] = 0;
+    jac[27] = 0;
+    jac[28] = 0;
+    jac[29] = act[1];
+    jac[30] = -t18;
+    jac[31] = 0;
+    jac[32] = -t13;
+    jac[33] = 0;
+    jac[34] = 0;
+    jac[35] = 0;
+    jac[36] = act[2];
+    jac[37] = t19;
+    jac[38] = 0;
+    jac[39] = 0;
+    jac[40] = -t15;
+    jac[41] = 0;
+    jac[42] = 0;
+    jac[43] = act[3];
+    jac[44] = -t20;
+    jac[45] = 0;
+    jac[46] = 0;
+    jac[47] = 0;
+    jac[48] = -t16;
+}
+
 /* Contact values phi_j(q) only (grid test). */
 static inline void star_phi(const double *q, const double *par, double *phi)
 {
@@ -393,6 +626,16 @@ static void star_fn_jump(const double *x, const double *const *arg, double *cons
 static void star_fn_jump_contact_floor(const double *x, const double *const *arg, double *const *out)
 {
     star_jump_contact_floor(x, arg[0], arg[1], arg[2], arg[3], arg[4], arg[5], out[0], out[1]);
+}
+
+static void star_fn_rattle(const double *x, const double *const *arg, double *const *out)
+{
+    star_rattle(x, arg[0], arg[1], arg[2], arg[3], arg[4], out[0], out[1]);
+}
+
+static void star_fn_rattle_project(const double *x, const double *const *arg, double *const *out)
+{
+    star_rattle_project(x, arg[0], arg[1], arg[2], arg[3], out[0], out[1]);
 }
 
 static void star_fn_contact_path_floor(const double *x, const double *const *arg, double *const *out)
@@ -548,6 +791,7 @@ typedef struct {
     const double *par;
     const star_tol_t *tol;
     star_error_t *err;
+    star_sustain_t *sus;
     long step;
     double t_k;
     double h;
@@ -563,6 +807,7 @@ typedef struct {
     double nrm[STAR_N];    /* contact normal at the start (after an impact) */
     int contact;                   /* contact hit at the start, -1 for the first segment */
     double x[STAR_NX_MAX]; /* the segment's unknowns: v, or (w, mu) after an impact */
+    double rest;                   /* the coefficient of restitution of the impact at the start */
 } star_seg_t;
 
 static const star_fun star_contact_time_fns[STAR_M_DIM] = {
@@ -1023,6 +1268,837 @@ static void star_normal(const star_ctx_t *c, const double *q, const double *v, c
     }
 }
 
+/* Whether any row is held: sustained contact or a bilateral constraint (the step is the constrained chain). */
+static inline int star_held(const star_sustain_t *sus)
+{
+    int r, held = 0;
+    for (r = 0; r < STAR_R; ++r) {
+        held = held || sus->act[r];
+    }
+    return held;
+}
+
+/* ---- sustained contact: vcigen/sustained.py once more, the same phases, names and order ---- */
+
+#define STAR_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
+#define STAR_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
+#define STAR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define STAR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+
+/* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
+static const int star_row_contact[STAR_R_DIM] = { 0, 0, 0, 0, };
+static const int star_row_constraint[STAR_R_DIM] = { -1, -1, -1, -1, };
+
+static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
+    double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
+    double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
+ * resolution. */
+static int star_settles(const star_ctx_t *c, double rate, double acc, double e)
+{
+    return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
+/* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+static void star_start_sustained(const star_ctx_t *c, const double *q, const double *v);
+
+/* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
+static void star_accel(const star_ctx_t *c, const double *q, const double *u, const double *lam_rows,
+    double *acc)
+{
+    double curv[STAR_M_DIM], mom[STAR_N], mass[STAR_N * STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], rc[STAR_R_DIM];
+    int piv[STAR_N], i, r, any = 0;
+    star_dynamics(q, u, c->par, acc, curv);
+    star_legendre(q, u, c->par, mom, mass);
+    for (r = 0; r < STAR_R; ++r) {
+        any = any || lam_rows[r] != 0.0;
+    }
+    if (any) {
+        star_rows(q, u, c->par, psi, grad, rc);
+        for (r = 0; r < STAR_R; ++r) {
+            for (i = 0; i < STAR_N; ++i) {
+                acc[i] += grad[r * STAR_N + i] * lam_rows[r];
+            }
+        }
+    }
+    if (star_lu(STAR_N, mass, piv)) {
+        star_lu_solve(STAR_N, mass, piv, acc);
+    }
+}
+
+/* SustainedSteps._row_accel: d2 psi_r/dt2 = grad psi_r . qddot + u . Hess psi_r . u for every row. */
+static void star_row_accel(const star_ctx_t *c, const double *q, const double *u, const double *acc,
+    double *out)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N];
+    int i, r;
+    star_rows(q, u, c->par, psi, grad, out);
+    for (r = 0; r < STAR_R; ++r) {
+        for (i = 0; i < STAR_N; ++i) {
+            out[r] += grad[r * STAR_N + i] * acc[i];
+        }
+    }
+}
+
+/* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
+ * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void star_contact_forces(const star_ctx_t *c, const double *q, const double *u, double *out)
+{
+    double rhs[STAR_N], ccurv[STAR_M_DIM], mom[STAR_N], mass[STAR_N * STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double minv_g[STAR_R_DIM * STAR_N], a[STAR_R_DIM * STAR_R_DIM], b[STAR_R_DIM];
+    int rows[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
+    int nr = 0, i, k, l, r;
+    for (r = 0; r < STAR_R; ++r) {
+        out[r] = 0.0;
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return;
+    }
+    star_dynamics(q, u, c->par, rhs, ccurv);
+    star_legendre(q, u, c->par, mom, mass);
+    star_rows(q, u, c->par, psi, grad, curv);
+    if (!star_lu(STAR_N, mass, piv)) {
+        return;
+    }
+    star_lu_solve(STAR_N, mass, piv, rhs);
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < STAR_N; ++i) {
+            minv_g[k * STAR_N + i] = grad[rows[k] * STAR_N + i];
+        }
+        star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        b[k] = -curv[rows[k]];
+        for (i = 0; i < STAR_N; ++i) {
+            b[k] -= grad[rows[k] * STAR_N + i] * rhs[i];
+        }
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < STAR_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
+            }
+        }
+    }
+    if (!star_lu(nr, a, piv)) {
+        return;
+    }
+    star_lu_solve(nr, a, piv, b);
+    for (k = 0; k < nr; ++k) {
+        out[rows[k]] = b[k];
+    }
+}
+
+/* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
+static double star_contact_accel(const star_ctx_t *c, const double *q, const double *u,
+    const double *nrm, const int *group, const double *wgt, int n_group)
+{
+    double zero[STAR_R_DIM] = {0.0}, acc[STAR_N], rhs[STAR_N], curv[STAR_M_DIM];
+    double out = 0.0;
+    int i, g;
+    star_accel(c, q, u, zero, acc);
+    star_dynamics(q, u, c->par, rhs, curv);
+    for (i = 0; i < STAR_N; ++i) {
+        out += nrm[i] * acc[i];
+    }
+    for (g = 0; g < n_group; ++g) {
+        out += wgt[g] * curv[group[g]];
+    }
+    return out;
+}
+
+/* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
+ * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
+static int star_constrained(const star_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
+{
+    double x[STAR_NX_MAX], y[STAR_NX_MAX], act[STAR_R_DIM], pm[STAR_N], pp[STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], res;
+    const double *arg[5];
+    int i, r;
+    for (i = 0; i < STAR_N; ++i) {
+        x[i] = guess[i];
+    }
+    for (r = 0; r < STAR_R; ++r) {
+        act[r] = c->sus->act[r] ? 1.0 : 0.0;
+        x[STAR_N + r] = c->sus->act[r] ? c->sus->lam[r] * (tau / c->h) : 0.0;
+    }
+    arg[0] = q;
+    arg[1] = p;
+    arg[2] = &tau;
+    arg[3] = act;
+    arg[4] = c->par;
+    star_newton(star_fn_rattle, arg, STAR_N + STAR_R, x, &res);
+    if (star_check(c, res, p, NAN, STAR_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        v[i] = x[i];
+        q1[i] = q[i] + tau * v[i];
+        y[i] = v[i];
+    }
+    for (r = 0; r < STAR_R; ++r) {
+        lam[r] = c->sus->act[r] ? x[STAR_N + r] : 0.0; /* 0 off the active rows */
+        y[STAR_N + r] = 0.0;
+    }
+    star_segment(q, v, &tau, c->par, pm, pp, e_seg);
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    star_newton(star_fn_rattle_project, arg, STAR_N + STAR_R, y, &res);
+    if (star_check(c, res, pp, NAN, STAR_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    star_rows(q1, y, c->par, psi, grad, curv);
+    for (i = 0; i < STAR_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < STAR_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[STAR_N + r] : 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            p1[i] += grad[r * STAR_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
+static void star_release(const star_ctx_t *c, double t, int r)
+{
+    star_sustain_t *s = c->sus;
+    const int j = star_row_contact[r];
+    int i, held = 0;
+    s->act[r] = 0;
+    for (i = 0; i < STAR_R; ++i) {
+        held = held || (s->act[i] && star_row_contact[i] == j);
+    }
+    if (!held && s->n_liftoffs < s->liftoff_cap) {
+        s->liftoffs[2 * s->n_liftoffs] = t;
+        s->liftoffs[2 * s->n_liftoffs + 1] = j;
+        ++s->n_liftoffs;
+    }
+}
+
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
+static void star_book(const star_ctx_t *c, const double *lam, const double *lam1)
+{
+    int r;
+    for (r = 0; r < STAR_R; ++r) {
+        const double imp = lam[r] + lam1[r];
+        if (imp == 0.0) {
+            continue;
+        }
+        if (star_row_contact[r] >= 0) {
+            c->sus->force[star_row_contact[r]] += imp / c->h;
+        } else {
+            c->sus->cforce[star_row_constraint[r]] += imp / c->h;
+        }
+    }
+}
+
+/* SustainedSteps._count_event. */
+static int star_count_event(const star_ctx_t *c)
+{
+    if (++c->sus->events > c->tol->max_impacts_per_step) {
+        return star_fail(c, STAR_PHASE_SUSTAINED, 0.0, "more than %d impacts and lift-offs in one step; "
+            "reduce h", c->tol->max_impacts_per_step);
+    }
+    return 0;
+}
+
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+static int star_sub_end(const star_ctx_t *c, const double *q, const double *p, double tau, double s,
+    const double *guess, double *v, double *q1, double *u1)
+{
+    double lam[STAR_R_DIM], lam1[STAR_R_DIM], p1[STAR_N], e_seg;
+    return star_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
+}
+
+/* SustainedSteps._liftoff_fraction: the fraction where row r's force (contact_forces at the sub-step's
+ * end) vanishes: 0 if the start force f0 is already negative, else the root in [0, 1] (Illinois): where
+ * |force| <= EPS_LAM scale, or else the bracket's negative end, so that the released body leaves. */
+static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, int r, double f0, double f1, double *s_out)
+{
+    double v[STAR_N], vn[STAR_N], q1[STAR_N], u1[STAR_N], f[STAR_R_DIM];
+    double a = 0.0, ga = f0, b = 1.0, gb = f1, cc, gc, tiny;
+    int i, it, side = 0;
+    if (f0 < 0) {
+        *s_out = 0.0;
+        return 0;
+    }
+    tiny = STAR_EPS_LAM * (1.0 + fabs(ga) + fabs(gb));
+    for (i = 0; i < STAR_N; ++i) {
+        v[i] = guess[i];
+    }
+    for (it = 0; it < STAR_LIFT_ITER; ++it) {
+        cc = (a * gb - b * ga) / (gb - ga);
+        if (!(a < cc && cc < b)) {
+            cc = 0.5 * (a + b);
+        }
+        if (star_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
+            return 1;
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            v[i] = vn[i];
+        }
+        star_contact_forces(c, q1, u1, f);
+        gc = f[r];
+        if (gc < 0) {
+            b = cc;
+            gb = gc;
+            ga = side == -1 ? ga / 2 : ga;
+            side = -1;
+        } else {
+            a = cc;
+            ga = gc;
+            gb = side == 1 ? gb / 2 : gb;
+            side = 1;
+        }
+        if (fabs(gc) <= tiny) {
+            *s_out = cc;
+            return 0;
+        }
+        if (b - a <= 1e-12) {
+            break;
+        }
+    }
+    *s_out = b;
+    return 0;
+}
+
+/* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
+ * map (Illinois). */
+static int star_row_crossing(const star_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, int r, double g1, double *s_out)
+{
+    double v[STAR_N], vn[STAR_N], u1[STAR_N], q1[STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double a = 0.0, ga, b = 1.0, gb = g1, cc, gc, tiny;
+    int i, it, side = 0;
+    star_rows(q, guess, c->par, psi, grad, curv);
+    ga = psi[r] > 0.0 ? psi[r] : 0.0;
+    tiny = STAR_ROOT_EPS * (ga > -gb ? ga : -gb);
+    for (i = 0; i < STAR_N; ++i) {
+        v[i] = guess[i];
+    }
+    for (it = 0; it < 200; ++it) {
+        cc = (a * gb - b * ga) / (gb - ga);
+        if (!(a < cc && cc < b)) {
+            cc = 0.5 * (a + b);
+        }
+        if (star_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
+            return 1;
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            v[i] = vn[i];
+        }
+        star_rows(q1, v, c->par, psi, grad, curv);
+        gc = psi[r];
+        if (gc <= 0) {
+            b = cc;
+            gb = gc;
+            ga = side == -1 ? ga / 2 : ga;
+            side = -1;
+        } else {
+            a = cc;
+            ga = gc;
+            gb = side == 1 ? gb / 2 : gb;
+            side = 1;
+        }
+        if (fabs(gc) <= tiny) {
+            *s_out = cc;
+            return 0;
+        }
+        if (b - a <= 4e-16) {
+            break;
+        }
+    }
+    *s_out = b;
+    return 0;
+}
+
+/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
+ * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
+ * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
+ * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
+ * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+static int star_impulse_law(const star_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped)
+{
+    double mom[STAR_N], mass[STAR_N * STAR_N], minv_g[STAR_R_DIM * STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double w[STAR_R_DIM * STAR_R_DIM] = {0.0}, b[STAR_R_DIM] = {0.0}, a[STAR_R_DIM * STAR_R_DIM];
+    double lam[STAR_R_DIM], sol[STAR_R_DIM], lam_eps, vel_eps, gap;
+    int rows[STAR_R_DIM], tight[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
+    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    long mask = 0;
+    star_velocity(c, q, guess, p, vel_m);
+    star_legendre(q, vel_m, c->par, mom, mass);
+    star_rows(q, vel_m, c->par, psi, grad, curv);
+    lam_eps = STAR_EPS_LAM * (1.0 + star_norm_inf(STAR_N, p));
+    vel_eps = STAR_EPS_LAM * (1.0 + star_norm_inf(STAR_N, vel_m));
+    for (r = 0; r < STAR_R; ++r) {
+        lam_full[r] = 0.0;
+        dropped[r] = 0;
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    for (k = 0; k < n_hit; ++k) {
+        if (!c->sus->act[hit[k]]) {
+            rows[nr++] = hit[k];
+        }
+    }
+    if (nr > STAR_MAX_LAW_ROWS) {
+        return star_fail(c, STAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
+    }
+    ok = star_lu(STAR_N, mass, piv);
+    for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
+        for (i = 0; i < STAR_N; ++i) {
+            minv_g[k * STAR_N + i] = grad[rows[k] * STAR_N + i];
+        }
+        if (ok) {
+            star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
+        }
+    }
+    for (k = 0; k < nr; ++k) {
+        b[k] = tgt[rows[k]];
+        for (i = 0; i < STAR_N; ++i) {
+            b[k] -= grad[rows[k] * STAR_N + i] * vel_m[i];
+        }
+        for (l = 0; l < nr; ++l) {
+            w[k * nr + l] = 0.0;
+            for (i = 0; i < STAR_N; ++i) {
+                w[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
+            }
+        }
+    }
+    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+        int valid = 1;
+        nt = 0;
+        for (k = 0; k < nr; ++k) {
+            if (mask >> k & 1) {
+                tight[nt++] = k;
+            } else if (star_row_constraint[rows[k]] >= 0) {
+                valid = 0; /* a bilateral row is always tight */
+            }
+            lam[k] = 0.0;
+        }
+        if (!valid) {
+            continue;
+        }
+        for (k = 0; k < nt; ++k) {
+            sol[k] = b[tight[k]];
+            for (l = 0; l < nt; ++l) {
+                a[k * nt + l] = w[tight[k] * nr + tight[l]];
+            }
+        }
+        if (nt > 0) {
+            if (!star_lu(nt, a, piv)) {
+                continue;
+            }
+            star_lu_solve(nt, a, piv, sol);
+        }
+        for (k = 0; k < nt; ++k) {
+            lam[tight[k]] = sol[k];
+            if (sol[k] < -lam_eps && star_row_constraint[rows[tight[k]]] < 0) {
+                valid = 0;
+            }
+        }
+        for (k = 0; k < nr && valid; ++k) {
+            if (mask >> k & 1) {
+                continue;
+            }
+            gap = -b[k]; /* g_r.qdot+ - target_r */
+            for (l = 0; l < nr; ++l) {
+                gap += w[k * nr + l] * lam[l];
+            }
+            valid = gap >= -vel_eps;
+        }
+        if (valid) {
+            found = 1;
+            for (k = 0; k < nr; ++k) {
+                lam_full[rows[k]] = lam[k];
+                dropped[rows[k]] = !(mask >> k & 1);
+            }
+        }
+    }
+    if (!found) {
+        return star_fail(c, STAR_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
+            "(dependent normals?)", nr);
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        p_plus[i] = p[i];
+        for (r = 0; r < STAR_R; ++r) {
+            p_plus[i] += grad[r * STAR_N + i] * lam_full[r];
+        }
+    }
+    star_velocity(c, q, vel_m, p_plus, vel_p);
+    return 0;
+}
+
+/* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
+static double star_loss(const star_ctx_t *c, const double *q, const double *vel_m, const double *vel_p)
+{
+    double mom[STAR_N], mass[STAR_N * STAR_N], km = 0.0, kp = 0.0;
+    int i, l;
+    star_legendre(q, vel_m, c->par, mom, mass);
+    for (i = 0; i < STAR_N; ++i) {
+        for (l = 0; l < STAR_N; ++l) {
+            km += vel_m[i] * mass[i * STAR_N + l] * vel_m[l];
+            kp += vel_p[i] * mass[i * STAR_N + l] * vel_p[l];
+        }
+    }
+    return 0.5 * (km - kp);
+}
+
+/* SustainedSteps._log: one impact record (t, contact, step, alpha, impulse, E before, E after, q, kind). */
+static void star_log(const star_ctx_t *c, double *rec, long *n_rec, double t, int j, const double *q,
+    double impulse, double e_before, double e_after, int kind)
+{
+    double *r = rec + *n_rec * STAR_W;
+    int i;
+    r[0] = t;
+    r[1] = j;
+    r[2] = (double)c->step;
+    r[3] = (t - c->t_k) / c->h;
+    r[4] = impulse;
+    r[5] = e_before;
+    r[6] = e_after;
+    for (i = 0; i < STAR_N; ++i) {
+        r[7 + i] = q[i];
+    }
+    r[7 + STAR_N] = kind;
+    ++c->sus->kinds[kind];
+    ++*n_rec;
+}
+
+/* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
+ * after it. */
+static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, const double *v,
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+{
+    double rest[STAR_M_DIM], vel[STAR_N], lam_now[STAR_R_DIM], acc[STAR_N];
+    double racc[STAR_R_DIM], psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N];
+    double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
+    double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;
+    int plastic[STAR_R_DIM], dropped[STAR_R_DIM], i, g, r, j, any, done;
+    star_restitution(c->par, rest);
+    star_velocity(c, q, v, p, vel);
+    for (r = 0; r < STAR_R; ++r) {
+        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
+        tgt[r] = 0.0;
+        plastic[r] = 0;
+    }
+    star_accel(c, q, vel, lam_now, acc);
+    star_row_accel(c, q, vel, acc, racc);
+    star_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        r = group[g];
+        j = star_row_contact[r];
+        e = j >= 0 ? rest[j] : 1.0; /* group rows are contact rows */
+        rate = 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            rate += grad[r * STAR_N + i] * vel[i];
+        }
+        if (c->tol->grazing_contact && star_settles(c, rate, racc[r], e)) {
+            plastic[r] = 1;
+        } else {
+            tgt[r] = -e * rate;
+        }
+    }
+    if (star_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+        return 1;
+    }
+    loss = star_loss(c, q, vel_m, vel_p);
+    for (r = 0; r < STAR_R; ++r) { /* an active row the impact pulls off */
+        int in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+            rate = 0.0;
+            for (i = 0; i < STAR_N; ++i) {
+                rate += grad[r * STAR_N + i] * vel_p[i];
+            }
+            if (!star_settles(c, rate, racc[r], 1.0)) {
+                star_release(c, t, r);
+            }
+        }
+    }
+    for (r = 0; r < STAR_R; ++r) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[r]) {
+            c->sus->act[r] = 1;
+        }
+    }
+    for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
+        j = star_row_contact[group[g]];
+        if (j < 0) {
+            continue;
+        }
+        done = 0;
+        for (r = 0; r < g; ++r) {
+            done = done || star_row_contact[group[r]] == j;
+        }
+        if (done) {
+            continue;
+        }
+        any = 0;
+        imp = 0.0;
+        for (r = g; r < n_group; ++r) {
+            if (star_row_contact[group[r]] == j) {
+                any = any || c->sus->act[group[r]];
+                imp += lam[group[r]];
+            }
+        }
+        star_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? STAR_KIND_PLASTIC
+            : (rest[j] == 1.0 ? STAR_KIND_ELASTIC : STAR_KIND_RESTITUTION));
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        p[i] = p_plus[i];
+    }
+    return 0;
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+static int star_plastic_entry(const star_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double tgt[STAR_R_DIM] = {0.0}, vel_m[STAR_N], vel_p[STAR_N];
+    int dropped[STAR_R_DIM], lowest[STAR_R_DIM] = {0}, g, r, k, low;
+    star_rows(q, v, c->par, psi, grad, curv);
+    *n_rows = 0;
+    for (g = 0; g < n_group; ++g) {
+        low = -1;
+        for (r = 0; r < STAR_R; ++r) {
+            if (star_row_contact[r] == group[g] && (low < 0 || psi[r] < psi[low])) {
+                low = r;
+            }
+        }
+        if (low < 0) {
+            continue;
+        }
+        lowest[low] = 1;
+        for (r = 0; r < STAR_R; ++r) {
+            if (star_row_contact[r] == group[g] && psi[r] <= psi[low] + c->tol->admissible) {
+                rows[(*n_rows)++] = r;
+            }
+        }
+    }
+    if (star_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+        return 1;
+    }
+    for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
+        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+    }
+    *loss = star_loss(c, q, vel_m, vel_p);
+    return 0;
+}
+
+/* SustainedSteps._free_rest: a free remainder of the grid step from (q, p) at t (tau left): the smooth
+ * step (46), or the impact chain (47)-(79). q, p, v in/out; *e_step the grid step's E_d (NaN: not yet). */
+static int star_free_rest(const star_ctx_t *c, double *q, double *p, double t, double tau, double *v,
+    double *e_step, double *rec, long *n_rec)
+{
+    double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N], phi1[STAR_M_DIM];
+    double grad1[STAR_M_DIM * STAR_N], d0[STAR_M_DIM], d1[STAR_M_DIM], v1[STAR_N];
+    double p1[STAR_N], s_hi[STAR_M_DIM], g_hi[STAR_M_DIM], res, e1, e_imp;
+    int crossed[STAR_M_DIM], i, j, inside = 1;
+    star_seg_t seg;
+    star_contacts(q, c->par, phi0, grad0);
+    star_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+    if (star_check(c, res, p, NAN, STAR_PHASE_SMOOTH)) {
+        return 1;
+    }
+    if (!isfinite(*e_step)) {
+        *e_step = e1;
+    }
+    for (j = 0; j < STAR_M; ++j) {
+        inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
+    }
+    if (!inside) {
+        for (i = 0; i < STAR_N; ++i) {
+            seg.q[i] = q[i];
+            seg.p_in[i] = p[i];
+            seg.nrm[i] = 0.0;
+        }
+        for (i = 0; i < STAR_NX_MAX; ++i) {
+            seg.x[i] = i < STAR_N ? v1[i] : 0.0;
+        }
+        seg.t = t;
+        seg.tau = tau;
+        seg.e_in = NAN;
+        seg.contact = -1;
+        seg.rest = 1.0;
+        if (star_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
+            return star_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
+                *e_step);
+        }
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        q[i] += tau * v1[i];
+        p[i] = p1[i];
+        v[i] = v1[i];
+    }
+    return 0;
+}
+
+/* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
+ * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
+static int star_chain(const star_ctx_t *c, double *q, double *p, double t, double tau, double *v,
+    double *e_step, double *rec, long *n_rec)
+{
+    double vv[STAR_N], lam[STAR_R_DIM], lam1[STAR_R_DIM], q1[STAR_N], p1[STAR_N];
+    double psi1[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double s_ev[STAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_N], f0[STAR_R_DIM];
+    double f1[STAR_R_DIM], vel[STAR_N], f_eps;
+    int ev[STAR_R_DIM], group[STAR_R_DIM], i, r, r0, start, any, pulled, n_group;
+    for (;;) {
+        if (tau <= 1e-13 * c->h) {
+            return 0;
+        }
+        any = 0;
+        for (r = 0; r < STAR_R; ++r) {
+            any = any || c->sus->act[r];
+        }
+        if (!any) {
+            return star_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+        }
+        if (star_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+            return 1;
+        }
+        if (!isfinite(*e_step)) {
+            *e_step = e_seg;
+        }
+        star_contact_forces(c, q1, u1, f1);
+        f_eps = STAR_EPS_LAM * (1.0 + star_norm_inf(STAR_R, f1));
+        start = -1;
+        pulled = 0;
+        for (r = 0; r < STAR_R; ++r) {
+            ev[r] = c->sus->act[r] && star_row_constraint[r] < 0 && f1[r] < -f_eps;
+            pulled = pulled || ev[r];
+        }
+        if (pulled) {
+            star_velocity(c, q, vv, p, vel);
+            star_contact_forces(c, q, vel, f0);
+            for (r = 0; r < STAR_R; ++r) {
+                if (ev[r]) {
+                    if (star_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                        return 1;
+                    }
+                    if (s_ev[r] == 0.0 && start < 0) {
+                        start = r;
+                    }
+                }
+            }
+        }
+        if (start >= 0) { /* pulled at the segment start: release there */
+            star_release(c, t, start);
+            continue;
+        }
+        star_rows(q1, vv, c->par, psi1, grad, curv);
+        any = 0;
+        for (r = 0; r < STAR_R; ++r) {
+            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+        }
+        if (!any) {
+            star_book(c, lam, lam1);
+            for (r = 0; r < STAR_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < STAR_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            return 0;
+        }
+        for (r = 0; r < STAR_R; ++r) {
+            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+                if (star_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
+                    return 1;
+                }
+                ev[r] = 2;
+            }
+        }
+        r0 = -1;
+        for (r = 0; r < STAR_R; ++r) {
+            if (ev[r] && (r0 < 0 || s_ev[r] < s_ev[r0])) {
+                r0 = r;
+            }
+        }
+        s = s_ev[r0];
+        if (star_count_event(c)) {
+            return 1;
+        }
+        if (star_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+            return 1;
+        }
+        star_book(c, lam, lam1);
+        for (i = 0; i < STAR_N; ++i) {
+            q[i] = q1[i];
+            p[i] = p1[i];
+        }
+        t += s * tau;
+        tau = (1.0 - s) * tau;
+        if (ev[r0] == 1) {
+            star_release(c, t, r0);
+            continue;
+        }
+        n_group = 0;
+        for (r = 0; r < STAR_R; ++r) {
+            if (ev[r] == 2 && s_ev[r] - s <= c->tol->simultaneous) {
+                group[n_group++] = r;
+            }
+        }
+        if (star_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+            return 1;
+        }
+    }
+}
+
+static void star_start_sustained(const star_ctx_t *c, const double *q, const double *v)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double zero[STAR_R_DIM] = {0.0}, acc[STAR_N], racc[STAR_R_DIM], rate;
+    int i, r;
+    for (r = 0; r < STAR_R; ++r) {
+        c->sus->act[r] = star_row_constraint[r] >= 0;
+        c->sus->lam[r] = 0.0;
+    }
+    if (!c->tol->grazing_contact) {
+        return;
+    }
+    star_rows(q, v, c->par, psi, grad, curv);
+    star_accel(c, q, v, zero, acc);
+    star_row_accel(c, q, v, acc, racc);
+    for (r = 0; r < STAR_R; ++r) {
+        if (star_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            rate += grad[r * STAR_N + i] * v[i];
+        }
+        if (star_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
+            c->sus->act[r] = 1;
+        }
+    }
+}
+
+
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
  * reflected velocity; if it lands on a root with mu <= 0 it restarts from larger and smaller impulses
  * along the same normal; no root with mu > 0 is a located failure. */
@@ -1058,15 +2134,22 @@ static int star_quadratic_root(const double *coef, double mu_try, double *mu)
     return 1;
 }
 
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
+ * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v_in,
-    double e_rest)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double mom[STAR_N], mass[STAR_N * STAR_N], minv_n[STAR_N], x[STAR_N1];
     double vel[STAR_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[STAR_N], i, k, n_roots = 0;
+    int piv[STAR_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    double accel = 0.0;
     double coef[3], w0[STAR_N], dw[STAR_N], mu_q;
+    *kind = STAR_KIND_ELASTIC;
+    (void)group;
+    (void)wgt;
+    (void)n_group;
     star_velocity(c, seg->q, v_in, seg->p_in, vel);
     star_legendre(seg->q, vel, c->par, mom, mass);
     for (i = 0; i < STAR_N; ++i) {
@@ -1083,6 +2166,13 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     }
     mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
     mu0 = mu0 > 0.0 ? mu0 : 0.0;
+    if (sustain) {
+        accel = star_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        pressed = accel < 0.0;
+        if (pressed && star_settles(c, nv, accel, e_rest)) {
+            return 2;
+        }
+    }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
     }
@@ -1114,7 +2204,10 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
             ++n_roots;
         }
     }
-    if (c->tol->grazing_reflect && mu0 > 0.0) { /* the continuous law, energy reset (Tolerances.grazing) */
+    if (pressed) {
+        return 2;
+    }
+    if ((c->tol->grazing_reflect && mu0 > 0.0) || sustain) { /* the continuous law, energy reset */
         double p_t[STAR_N], pm[STAR_N], pp[STAR_N];
         const double *sarg[4];
         for (i = 0; i < STAR_N; ++i) {
@@ -1127,7 +2220,8 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
         sarg[3] = c->par;
         star_newton(star_fn_smooth, sarg, STAR_N, x, &res);
         if (res <= star_scale(c, seg->p_in, seg->e_in)) {
-            ++c->err->reflected;
+            c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
+            *kind = STAR_KIND_GRAZING;
             star_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
             for (i = 0; i < STAR_N; ++i) {
                 seg->x[i] = x[i];
@@ -1161,29 +2255,98 @@ static int star_segment_end(const star_ctx_t *c, const star_seg_t *seg, double *
     return star_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* Stepper._restart: the impact at the start of seg by the continuous law n.qdot -> -e n.qdot; the rest of the
+ * step as a first segment from there (seg in place). Out: E_d after, mu; returns the number of contacts the
+ * fresh segment crosses (crossed, s_hi, g_hi). */
+static int star_restart(const star_ctx_t *c, star_seg_t *seg, double *e_new, double *mu,
+    int *crossed, double *s_hi, double *g_hi)
+{
+    double vel[STAR_N], mom[STAR_N], mass[STAR_N * STAR_N], minv_n[STAR_N];
+    double guess[STAR_N], v[STAR_N], p1[STAR_N], res, nv = 0.0, nmn = 0.0;
+    double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N], phi1[STAR_M_DIM];
+    double grad1[STAR_M_DIM * STAR_N], d0[STAR_M_DIM], d1[STAR_M_DIM];
+    int piv[STAR_N], i;
+    star_velocity(c, seg->q, seg->x, seg->p_in, vel);
+    star_legendre(seg->q, vel, c->par, mom, mass);
+    for (i = 0; i < STAR_N; ++i) {
+        minv_n[i] = seg->nrm[i];
+    }
+    if (star_lu(STAR_N, mass, piv)) {
+        star_lu_solve(STAR_N, mass, piv, minv_n);
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        nv += seg->nrm[i] * vel[i];
+        nmn += seg->nrm[i] * minv_n[i];
+    }
+    *mu = -(1.0 + seg->rest) * nv / nmn;
+    *mu = *mu > 0.0 ? *mu : 0.0;
+    for (i = 0; i < STAR_N; ++i) {
+        seg->p_in[i] += *mu * seg->nrm[i];
+        guess[i] = vel[i] + *mu * minv_n[i];
+    }
+    ++c->sus->fallbacks;
+    star_contacts(seg->q, c->par, phi0, grad0);
+    star_smooth_step(seg->q, seg->p_in, seg->tau, guess, c->par, grad0, v, &res, p1, e_new, phi1, grad1, d0, d1);
+    for (i = 0; i < STAR_NX_MAX; ++i) {
+        seg->x[i] = i < STAR_N ? v[i] : 0.0;
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        seg->nrm[i] = 0.0;
+    }
+    seg->e_in = NAN;
+    seg->contact = -1;
+    seg->rest = 1.0;
+    return star_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
+}
+
 /* Stepper._impact_step: chain of segments (47), (48), (78), (79) until one ends inside C at t_k + h.
  * Impact records go to rec at *n_rec (room for max_impacts_per_step); on success (q, p, e, v) and
  * phi, grad phi at q are the step's results. */
 static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
-    double *rec, long *n_rec)
+    double *rec, long *n_rec, double e_step_in)
 {
     const double *par = c->par;
     double x[STAR_NX_MAX] = {0.0}, x_best[STAR_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[STAR_N], pm[STAR_N], p_c[STAR_N], p_end[STAR_N];
     double q_end[STAR_N], *r, s_all[STAR_M_DIM] = {0.0}, wgt[STAR_M_DIM], pend_w[STAR_M_DIM];
     star_seg_t next;
-    double rest[STAR_M_DIM], e_rest, e_before, e_step = 0.0;
-    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group, elastic;
+    double rest[STAR_M_DIM], e_rest, e_before, e_step = e_step_in;
+    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group, elastic, kind, rc, restarted;
     star_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
         best = -1;
+        restarted = 0;
         for (j = 0; j < STAR_M; ++j) {
             if (!crossed[j]) {
                 continue;
             }
             if (star_contact_root(c, seg, j, s_hi[j], g_hi[j], x, &s)) {
+                if (c->tol->grazing_contact && seg->contact >= 0) {
+                    /* (78) unsolvable (a lossy impact into a corner): the impact at the segment start takes the
+                     * continuous law instead, and the rest of the step starts afresh from it (47). */
+                    double e_new, mu;
+                    const int n_cross = star_restart(c, seg, &e_new, &mu, crossed, s_hi, g_hi);
+                    for (g = 0; g < n_pend; ++g) {
+                        rec[(*n_rec + g) * STAR_W + 4] = mu * pend_w[g];
+                        rec[(*n_rec + g) * STAR_W + 6] = e_new;
+                    }
+                    *n_rec += n_pend;
+                    n_pend = 0;
+                    if (n_cross == 0) {
+                        for (i = 0; i < STAR_N; ++i) {
+                            q[i] = seg->q[i] + seg->tau * seg->x[i];
+                            v[i] = seg->x[i];
+                        }
+                        star_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
+                        star_contacts(q, par, phi, grad);
+                        *e = e_step;
+                        return 0;
+                    }
+                    restarted = 1;
+                    break;
+                }
                 return 1;
             }
             s_all[j] = s;
@@ -1194,6 +2357,9 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
                     x_best[i] = x[i];
                 }
             }
+        }
+        if (restarted) {
+            continue;
         }
         n_group = 0;
         for (j = 0; j < STAR_M; ++j) {
@@ -1213,10 +2379,11 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
         star_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
-        e_step = k == 0 ? e_before : e_step; /* E_d entering the step: the grid step's energy */
+        e_step = isfinite(e_step) ? e_step : e_before; /* E_d entering the step: the grid step's energy */
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
+        next.rest = 1.0;
         star_contacts(next.q, par, phi, grad);
         for (i = 0; i < STAR_N; ++i) {
             next.p_in[i] = p_c[i];
@@ -1234,9 +2401,37 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             elastic = elastic && rest[group[g]] == 1.0;
             e_rest += wgt[g] * rest[group[g]];
         }
-        if (star_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest)) {
+        seg->rest = elastic ? 1.0 : e_rest;
+        rc = star_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        if (rc == 1) {
             return 1;
         }
+        if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
+            double p_plus[STAR_N], lam[STAR_R_DIM], loss, own;
+            int rows[STAR_R_DIM] = {0}, n_rows = 0, l;
+            if (star_count_event(c)
+                || star_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                return 1;
+            }
+            for (g = 0; g < n_group; ++g) {
+                own = 0.0;
+                for (l = 0; l < n_rows; ++l) {
+                    own += star_row_contact[rows[l]] == group[g] ? lam[rows[l]] : 0.0;
+                }
+                star_log(c, rec, n_rec, seg->t, group[g], seg->q, own, e_before, e_before - loss,
+                    STAR_KIND_PLASTIC);
+            }
+            for (i = 0; i < STAR_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = p_plus[i];
+                v[i] = v_c[i];
+            }
+            rc = star_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            star_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
+
         star_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * STAR_W;
@@ -1250,6 +2445,9 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             for (i = 0; i < STAR_N; ++i) {
                 r[7 + i] = seg->q[i];
             }
+            r[7 + STAR_N] = kind == STAR_KIND_GRAZING ? kind
+                : (rest[group[g]] == 1.0 ? STAR_KIND_ELASTIC : STAR_KIND_RESTITUTION);
+            ++c->sus->kinds[(int)r[7 + STAR_N]];
             pend_w[g] = wgt[g];
         }
         n_pend = n_group;
@@ -1277,6 +2475,22 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     double d0[STAR_M_DIM], d1[STAR_M_DIM], s_hi[STAR_M_DIM], g_hi[STAR_M_DIM], res, e1;
     int crossed[STAR_M_DIM], i, j, inside = 1;
     star_seg_t seg;
+    for (j = 0; j < STAR_M; ++j) {
+        c->sus->force[j] = 0.0;
+    }
+    for (j = 0; j < STAR_NC; ++j) {
+        c->sus->cforce[j] = 0.0;
+    }
+    c->sus->events = 0;
+    if (star_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
+        double e_step = NAN;
+        int rc = star_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
+        if (!star_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
+            star_contacts(q, c->par, phi, grad);
+        }
+        *e = e_step;
+        return rc;
+    }
     star_smooth_step(q, p, c->h, v, c->par, grad, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     for (i = 0, inside = isfinite(e1); i < STAR_N; ++i) { /* E_d is finite only if v is */
         inside = inside && isfinite(p1[i]);
@@ -1288,6 +2502,7 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
         return 1;
     }
     seg.contact = -1;
+    seg.rest = 1.0;
     for (j = 0; j < STAR_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
     }
@@ -1304,7 +2519,7 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
         seg.tau = c->h;
         seg.e_in = NAN;
         if (star_crossings(c, &seg, phi, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return star_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, e, v, phi, grad, rec, n_rec);
+            return star_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, e, v, phi, grad, rec, n_rec, NAN);
         }
     }
     for (i = 0; i < STAR_N; ++i) {
@@ -1320,6 +2535,32 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     }
     *e = e1;
     return 0;
+}
+
+/* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
+static void star_record(const star_sustain_t *sus, long s, double *A, double *F, double *FC)
+{
+    int j;
+    int r;
+    for (j = 0; j < STAR_M; ++j) {
+        A[s * STAR_M + j] = 0.0;
+        F[s * STAR_M + j] = sus->force[j];
+    }
+    for (r = 0; r < STAR_R; ++r) {
+        if (sus->act[r] && star_row_contact[r] >= 0) {
+            A[s * STAR_M + star_row_contact[r]] = 1.0;
+        }
+    }
+    for (j = 0; j < STAR_NC; ++j) {
+        FC[s * STAR_NC + j] = sus->cforce[j];
+    }
+}
+
+
+/* Whether the lift-off log might overflow in the next grid step. */
+static int star_liftoffs_full(const star_sustain_t *sus, int max_events)
+{
+    return sus->n_liftoffs > sus->liftoff_cap - (long)max_events * STAR_R_DIM;
 }
 
 
@@ -1338,10 +2579,32 @@ STAR_COLD static int star_step_near(const star_ctx_t *c, double *q, double *p, d
     double *e, double *d, double *rec, long *n_rec)
 {
     double phi[STAR_M_DIM], grad[STAR_M_DIM * STAR_N];
+    const int held = star_held(c->sus);
     int rc;
-    star_contacts(q, c->par, phi, grad);
+    if (!held) {
+        star_contacts(q, c->par, phi, grad);
+    }
     rc = star_step(c, q, p, v, e, phi, grad, rec, n_rec);
-    star_slopes(c->par, c->h, q, v, p, grad, d);
+    if (!star_held(c->sus)) { /* the slopes at q_k+1 for the glide's pre-test */
+        if (held) {
+            star_contacts(q, c->par, phi, grad);
+        }
+        star_slopes(c->par, c->h, q, v, p, grad, d);
+    }
+    return rc;
+}
+
+/* A grid step in sustained contact (or with bilateral constraints): as step_near, but not a cold path,
+ * since a body at rest takes every step here. */
+STAR_HOT static int star_step_held(const star_ctx_t *c, double *q, double *p, double *v,
+    double *e, double *d, double *rec, long *n_rec)
+{
+    double phi[STAR_M_DIM], grad[STAR_M_DIM * STAR_N];
+    int rc = star_step(c, q, p, v, e, phi, grad, rec, n_rec);
+    if (!star_held(c->sus)) { /* released: the slopes at q_k+1 for the glide's pre-test */
+        star_contacts(q, c->par, phi, grad);
+        star_slopes(c->par, c->h, q, v, p, grad, d);
+    }
     return rc;
 }
 
@@ -1427,7 +2690,8 @@ STAR_HOT static long star_glide(const double *k, double h, double phi_min, long 
 
 int star_run(const double *par, const star_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
-    double *impacts, long impact_cap, long *steps_done, long *impacts_done, star_error_t *err)
+    double *impacts, long impact_cap, long *steps_done, long *impacts_done, star_error_t *err,
+    star_sustain_t *sus, double *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (star_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the
@@ -1437,12 +2701,13 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
     star_ctx_t c;
     double q0[STAR_N], p0[STAR_N], d[STAR_M_DIM], k[STAR_NK_DIM];
     double phi[STAR_M_DIM], grad[STAR_M_DIM * STAR_N], sum_e = 0.0;
-    const long rec_limit = impact_cap - (long)tol->max_impacts_per_step * STAR_M_DIM;
+    const long rec_limit = impact_cap - (long)tol->max_impacts_per_step * (STAR_M_DIM + STAR_R_DIM);
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
     c.tol = tol;
     c.err = err;
+    c.sus = sus;
     c.h = h;
     err->reflected = 0;
     for (i = 0; i < STAR_N; ++i) {
@@ -1456,14 +2721,17 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
         n_end = 0;
     }
     while (s < n_end) {
-        s += star_glide(k, h, -tol->phi, n_end - s, q, p, v, d, Q + s * STAR_N,
-            P + s * STAR_N, E + s, &sum_e);
-        if (s == n_end) {
-            break;
+        if (!star_held(sus)) {
+            s += star_glide(k, h, -tol->phi, n_end - s, q, p, v, d, Q + s * STAR_N,
+                P + s * STAR_N, E + s, &sum_e);
+            if (s == n_end) {
+                break;
+            }
         }
         c.step = step0 + s;
         c.t_k = t0 + (double)c.step * h;
-        rc = star_step_near(&c, q, p, v, &E[s], d, impacts, &n_rec);
+        rc = star_held(sus) ? star_step_held(&c, q, p, v, &E[s], d, impacts, &n_rec)
+                                     : star_step_near(&c, q, p, v, &E[s], d, impacts, &n_rec);
         if (rc) {
             break;
         }
@@ -1472,8 +2740,9 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
             Q[s * STAR_N + i] = q[i];
             P[s * STAR_N + i] = p[i];
         }
+        star_record(sus, s, A, F, FC);
         ++s;
-        if (star_full(n_rec, max_impacts, rec_limit)) {
+        if (star_full(n_rec, max_impacts, rec_limit) || star_liftoffs_full(sus, tol->max_impacts_per_step)) {
             break;
         }
     }
@@ -1499,6 +2768,20 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
     return rc;
 }
 
+
+void star_start(const double *par, const star_tol_t *tol, double h, const double *q, const double *v,
+    star_sustain_t *sus)
+{
+    star_ctx_t c;
+    c.par = par;
+    c.tol = tol;
+    c.err = 0;
+    c.sus = sus;
+    c.step = 0;
+    c.t_k = 0.0;
+    c.h = h;
+    star_start_sustained(&c, q, v);
+}
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */
 
@@ -1536,6 +2819,17 @@ void star_eval_contact_path(int j, double s, const double *q0, const double *p0,
     star_contact_path_fns[j](&s, arg, out);
 }
 
+void star_eval_rows(const double *q, const double *u, const double *par, double *psi, double *grad,
+    double *curv)
+{
+    star_rows(q, u, par, psi, grad, curv);
+}
+
+void star_eval_dynamics(const double *q, const double *u, const double *par, double *rhs, double *curv)
+{
+    star_dynamics(q, u, par, rhs, curv);
+}
+
 void star_eval_restitution(const double *par, double *e)
 {
     star_restitution(par, e);
@@ -1568,6 +2862,16 @@ int star_solve(int id, double *x, const double *args, const double *par, double 
     case 3: { /* jump_contact_floor */
         const double *const arg[] = { args + 0, args + 3, args + 6, args + 9, args + 10, par };
         star_newton(star_fn_jump_contact_floor, arg, 5, x, resnorm);
+        return 0;
+    }
+    case 4: { /* rattle */
+        const double *const arg[] = { args + 0, args + 3, args + 6, args + 7, par };
+        star_newton(star_fn_rattle, arg, 7, x, resnorm);
+        return 0;
+    }
+    case 5: { /* rattle_project */
+        const double *const arg[] = { args + 0, args + 3, args + 6, par };
+        star_newton(star_fn_rattle_project, arg, 7, x, resnorm);
         return 0;
     }
     default:
