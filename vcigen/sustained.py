@@ -141,8 +141,8 @@ class SustainedSteps:
 
     def _contact_accel(self, q, u, nrm, group, weights) -> float:
         """``d2 phi/dt2`` along the impulse direction ``nrm`` of a free impact on ``group``."""
-        acc = self._accel(q, u, np.zeros(self.k.r))
-        curv = self.k.dynamics(q, u)[1]
+        rhs, curv = self.k.dynamics(q, u)
+        acc = np.linalg.solve(self.k.legendre(q, u)[1], rhs)
         return float(nrm @ acc + sum(w * curv[j] for j, w in zip(group, weights)))
 
     # -- the chain of constrained segments ---------------------------------------------
