@@ -1108,11 +1108,14 @@ static void particle_contact_forces(const particle_ctx_t *c, const double *q, co
 static double particle_contact_accel(const particle_ctx_t *c, const double *q, const double *u,
     const double *nrm, const int *group, const double *wgt, int n_group)
 {
-    double zero[PARTICLE_R_DIM] = {0.0}, acc[PARTICLE_N], rhs[PARTICLE_N], curv[PARTICLE_M_DIM];
+    double acc[PARTICLE_N], curv[PARTICLE_M_DIM], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N];
     double out = 0.0;
     int i, g;
-    particle_accel(c, q, u, zero, acc);
-    particle_dynamics(q, u, c->par, rhs, curv);
+    particle_dynamics(q, u, c->par, acc, curv);
+    particle_legendre(q, u, c->par, mom, mass);
+    for (i = 0; i < PARTICLE_N; ++i) { /* constant diagonal mass: one division (as its LU would) */
+        acc[i] /= mass[i * (PARTICLE_N + 1)];
+    }
     for (i = 0; i < PARTICLE_N; ++i) {
         out += nrm[i] * acc[i];
     }

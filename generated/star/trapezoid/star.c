@@ -1399,11 +1399,14 @@ static void star_contact_forces(const star_ctx_t *c, const double *q, const doub
 static double star_contact_accel(const star_ctx_t *c, const double *q, const double *u,
     const double *nrm, const int *group, const double *wgt, int n_group)
 {
-    double zero[STAR_R_DIM] = {0.0}, acc[STAR_N], rhs[STAR_N], curv[STAR_M_DIM];
+    double acc[STAR_N], curv[STAR_M_DIM], mom[STAR_N], mass[STAR_N * STAR_N];
     double out = 0.0;
     int i, g;
-    star_accel(c, q, u, zero, acc);
-    star_dynamics(q, u, c->par, rhs, curv);
+    star_dynamics(q, u, c->par, acc, curv);
+    star_legendre(q, u, c->par, mom, mass);
+    for (i = 0; i < STAR_N; ++i) { /* constant diagonal mass: one division (as its LU would) */
+        acc[i] /= mass[i * (STAR_N + 1)];
+    }
     for (i = 0; i < STAR_N; ++i) {
         out += nrm[i] * acc[i];
     }

@@ -1104,11 +1104,14 @@ static void ball_to_rest_contact_forces(const ball_to_rest_ctx_t *c, const doubl
 static double ball_to_rest_contact_accel(const ball_to_rest_ctx_t *c, const double *q, const double *u,
     const double *nrm, const int *group, const double *wgt, int n_group)
 {
-    double zero[BALL_TO_REST_R_DIM] = {0.0}, acc[BALL_TO_REST_N], rhs[BALL_TO_REST_N], curv[BALL_TO_REST_M_DIM];
+    double acc[BALL_TO_REST_N], curv[BALL_TO_REST_M_DIM], mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N];
     double out = 0.0;
     int i, g;
-    ball_to_rest_accel(c, q, u, zero, acc);
-    ball_to_rest_dynamics(q, u, c->par, rhs, curv);
+    ball_to_rest_dynamics(q, u, c->par, acc, curv);
+    ball_to_rest_legendre(q, u, c->par, mom, mass);
+    for (i = 0; i < BALL_TO_REST_N; ++i) { /* constant diagonal mass: one division (as its LU would) */
+        acc[i] /= mass[i * (BALL_TO_REST_N + 1)];
+    }
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         out += nrm[i] * acc[i];
     }

@@ -1131,11 +1131,14 @@ static void pendulum_wall_contact_forces(const pendulum_wall_ctx_t *c, const dou
 static double pendulum_wall_contact_accel(const pendulum_wall_ctx_t *c, const double *q, const double *u,
     const double *nrm, const int *group, const double *wgt, int n_group)
 {
-    double zero[PENDULUM_WALL_R_DIM] = {0.0}, acc[PENDULUM_WALL_N], rhs[PENDULUM_WALL_N], curv[PENDULUM_WALL_M_DIM];
+    double acc[PENDULUM_WALL_N], curv[PENDULUM_WALL_M_DIM], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N];
     double out = 0.0;
     int i, g;
-    pendulum_wall_accel(c, q, u, zero, acc);
-    pendulum_wall_dynamics(q, u, c->par, rhs, curv);
+    pendulum_wall_dynamics(q, u, c->par, acc, curv);
+    pendulum_wall_legendre(q, u, c->par, mom, mass);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) { /* constant diagonal mass: one division (as its LU would) */
+        acc[i] /= mass[i * (PENDULUM_WALL_N + 1)];
+    }
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         out += nrm[i] * acc[i];
     }

@@ -1139,11 +1139,14 @@ static void slide_off_dome_contact_forces(const slide_off_dome_ctx_t *c, const d
 static double slide_off_dome_contact_accel(const slide_off_dome_ctx_t *c, const double *q, const double *u,
     const double *nrm, const int *group, const double *wgt, int n_group)
 {
-    double zero[SLIDE_OFF_DOME_R_DIM] = {0.0}, acc[SLIDE_OFF_DOME_N], rhs[SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_M_DIM];
+    double acc[SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_M_DIM], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N];
     double out = 0.0;
     int i, g;
-    slide_off_dome_accel(c, q, u, zero, acc);
-    slide_off_dome_dynamics(q, u, c->par, rhs, curv);
+    slide_off_dome_dynamics(q, u, c->par, acc, curv);
+    slide_off_dome_legendre(q, u, c->par, mom, mass);
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) { /* constant diagonal mass: one division (as its LU would) */
+        acc[i] /= mass[i * (SLIDE_OFF_DOME_N + 1)];
+    }
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         out += nrm[i] * acc[i];
     }

@@ -1398,11 +1398,14 @@ static void star_settles_contact_forces(const star_settles_ctx_t *c, const doubl
 static double star_settles_contact_accel(const star_settles_ctx_t *c, const double *q, const double *u,
     const double *nrm, const int *group, const double *wgt, int n_group)
 {
-    double zero[STAR_SETTLES_R_DIM] = {0.0}, acc[STAR_SETTLES_N], rhs[STAR_SETTLES_N], curv[STAR_SETTLES_M_DIM];
+    double acc[STAR_SETTLES_N], curv[STAR_SETTLES_M_DIM], mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N];
     double out = 0.0;
     int i, g;
-    star_settles_accel(c, q, u, zero, acc);
-    star_settles_dynamics(q, u, c->par, rhs, curv);
+    star_settles_dynamics(q, u, c->par, acc, curv);
+    star_settles_legendre(q, u, c->par, mom, mass);
+    for (i = 0; i < STAR_SETTLES_N; ++i) { /* constant diagonal mass: one division (as its LU would) */
+        acc[i] /= mass[i * (STAR_SETTLES_N + 1)];
+    }
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         out += nrm[i] * acc[i];
     }
