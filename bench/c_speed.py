@@ -57,7 +57,8 @@ class Buffers:
 
     def __init__(self, steps: int) -> None:
         self.Q, self.P, self.E = np.zeros((steps, 2)), np.zeros((steps, 2)), np.zeros(steps)
-        self.rec = np.zeros((IMPACT_CAP, 9))
+        self.rec = np.zeros((IMPACT_CAP, 10))  # t, contact, step, alpha, impulse, E before/after, q (2), kind
+        self.A, self.F, self.FC = np.zeros(steps), np.zeros(steps), np.zeros(steps)  # active, forces
 
 
 def generated_runner(rule: str, buf: Buffers):
@@ -65,11 +66,14 @@ def generated_runner(rule: str, buf: Buffers):
     sim = vcigen.build(load_example(HERE.parent / "examples" / "particle.py").model(), backend="c", rule=rule)
     kern = sim.kernels.bind(sim.model.resolve_params(None))
     tol = _tol_struct(sim.tol)
+    lift = np.zeros((IMPACT_CAP, 2))
 
     def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
         q, v = np.array(q0, dtype=float), np.array(V0)
         p = kern.legendre(q, v)[0].copy()
         err, sd, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
+        sus = kern.Sustain()  # no contact held at the start (the runs start in free flight)
+        sus.liftoffs, sus.liftoff_cap = _ptr(lift), IMPACT_CAP
         done = impacts = 0
         while done < steps and impacts < max_impacts:  # the impact buffer is drained between chunks
             rc = kern.run(
@@ -91,6 +95,10 @@ def generated_runner(rule: str, buf: Buffers):
                 ctypes.byref(sd),
                 ctypes.byref(idone),
                 ctypes.byref(err),
+                ctypes.byref(sus),
+                _ptr(buf.A[done:]),
+                _ptr(buf.F[done:]),
+                _ptr(buf.FC[done:]),
             )
             assert rc == 0, err.reason
             done, impacts = done + sd.value, impacts + idone.value
