@@ -150,7 +150,8 @@ class Stepper(SustainedSteps):
                 raise
             step += 1
             Q[step], P[step], E[step - 1] = q, p, e
-            sus.record(step, self.contact_activity(), self._force, self._cforce)
+            if self._chained or self._booked:  # the log is zero where nothing is held
+                sus.record(step, self.contact_activity(), self._force, self._cforce)
             if progress and time.perf_counter() > next_report:
                 next_report += 5.0
                 print(f"  t = {t:.4g}, {step} steps, {len(impacts)} impacts", flush=True)
@@ -190,12 +191,17 @@ class Stepper(SustainedSteps):
     ):
         """One grid step from ``(q_k, p_k)``; returns ``(q_k+1, p_k+1, E_d, v)``."""
         k = self.k
-        self._force = np.zeros(k.m)
-        self._cforce = np.zeros(len(k.system.model.constraint) if k.r else 0)
+        if self._booked:  # the forces of the step before: cleared only if a constraint acted
+            self._force[:] = 0.0
+            self._cforce[:] = 0.0
+            self._booked = False
         self._events = 0
         self._h = h
-        if self.act.any():  # sustained contact or bilateral constraints: the constrained chain
-            return self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+        self._chained = False
+        if self._held:  # sustained contact or bilateral constraints: the constrained chain
+            out = self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+            self._held = bool(self.act.any())
+            return out
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)
         if not (math.isfinite(e) and np.isfinite(p1).all()):  # E_d is finite only if v is
             raise SolverError(step, t, "smooth", float(e), NONFINITE)
@@ -206,7 +212,9 @@ class Stepper(SustainedSteps):
         crossings = self._crossings(seg, phi0, phi1, d0, d1)
         if not crossings:
             return q + h * v, p1, e, v
-        return self._impact_step(step, t, h, seg, crossings, impacts)
+        out = self._impact_step(step, t, h, seg, crossings, impacts)
+        self._held = bool(self.act.any())  # a plastic impact may have started sustained contact
+        return out
 
     # -- detection -----------------------------------------------------------------
     def _crossings(self, seg: _Seg, phi0, phi1, d0, d1) -> dict[int, tuple[float, float]]:

@@ -81,6 +81,11 @@ class SustainedSteps:
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
         self._lam = np.zeros(k.r)
+        self._force = np.zeros(k.m)  # mean multipliers of the step being taken, per contact
+        self._cforce = np.zeros(len(k.system.model.constraint) if k.r else 0)  # and per constraint
+        self._booked = False  # whether a constraint acted in it
+        self._chained = False  # whether it ran the constrained chain (the active set may have changed)
+        self._held = bool(self.act.any())  # whether any row is active at the start of the next step
 
     def _start_sustained(self, q0, v0, h: float) -> None:
         """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in."""
@@ -96,6 +101,7 @@ class SustainedSteps:
                 continue
             if self._settles(rates[r], accs[r], 1.0, h):  # at rest to the resolution of the jump
                 self.act[r] = True
+        self._held = bool(self.act.any())
 
     def _settles(self, rate: float, acc: float, e: float, h: float) -> bool:
         """Forces press the row in and the outgoing normal speed is below the jump's resolution."""
@@ -167,6 +173,7 @@ class SustainedSteps:
     def _chain(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
         """The rest of a grid step from ``(q, p)`` at ``t`` (``tau`` left) with the active rows held."""
         k, tol = self.k, self.tol
+        self._chained = True
         while True:
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
@@ -237,6 +244,7 @@ class SustainedSteps:
     def _book(self, impulses) -> None:
         """Add the constraint impulses of a segment (``Lam + Lam'``, per row) to the step's forces."""
         k = self.k
+        self._booked = True
         for r in np.flatnonzero(impulses):
             if k.row_contact[r] >= 0:
                 self._force[k.row_contact[r]] += impulses[r] / self._h
