@@ -58,7 +58,8 @@ class Buffers:
     def __init__(self, steps: int) -> None:
         self.Q, self.P, self.E = np.zeros((steps, 2)), np.zeros((steps, 2)), np.zeros(steps)
         self.rec = np.zeros((IMPACT_CAP, 10))  # t, contact, step, alpha, impulse, E before/after, q (2), kind
-        self.A, self.F, self.FC = np.zeros(steps), np.zeros(steps), np.zeros(steps)  # active, forces
+        self.A = np.zeros(steps, dtype=np.uint8)  # active contact per step (the one contact)
+        self.F, self.FC = np.zeros(steps), np.zeros(steps)  # its mean force, the constraint forces (none)
 
 
 def generated_runner(rule: str, buf: Buffers):
@@ -96,7 +97,7 @@ def generated_runner(rule: str, buf: Buffers):
                 ctypes.byref(idone),
                 ctypes.byref(err),
                 ctypes.byref(sus),
-                _ptr(buf.A[done:]),
+                buf.A[done:].ctypes.data_as(ctypes.c_void_p),
                 _ptr(buf.F[done:]),
                 _ptr(buf.FC[done:]),
             )

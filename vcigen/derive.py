@@ -247,7 +247,12 @@ def sustained_routines(
     psi = [e.xreplace(qrep) for e in rows.exprs]
     grad = sp.Matrix([[_cone_centre(ps.diff(s)) for s in q] for ps in psi])
     umat = sp.Matrix(u)
-    curv = sp.Matrix([(umat.T * sp.hessian(ps, q).applyfunc(_no_dirac) * umat)[0] for ps in psi])
+
+    def curvature(f: sp.Expr) -> sp.Expr:
+        """``u . Hess f . u``: the part of ``d2 f/dt2`` the velocity alone gives."""
+        return (umat.T * sp.hessian(f, q).applyfunc(_no_dirac) * umat)[0]
+
+    curv = sp.Matrix([curvature(ps) for ps in psi])
     out = {
         "rows": Routine(
             "rows",
@@ -259,7 +264,7 @@ def sustained_routines(
     lq = sp.Matrix([model.L.diff(s) for s in qs]).xreplace(rep)
     mixed = sp.Matrix([[model.L.diff(vi).diff(qk) for qk in qs] for vi in vs]).xreplace(rep)
     rhs = lq - mixed * umat
-    ccurv = [(umat.T * sp.hessian(ph, q).applyfunc(_no_dirac) * umat)[0] for ph in phis]
+    ccurv = [curvature(ph) for ph in phis]
     out["dynamics"] = Routine(
         "dynamics",
         (Arg("q", q), Arg("u", u), par),

@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import NONFINITE, SolverError
 from .result import Impact, Result
-from .sustained import SustainedSteps, SustainLog
+from .sustained import SustainedSteps, SustainLog, held_contacts
 
 
 class Kernels(Protocol):
@@ -172,12 +172,7 @@ class Stepper(SustainedSteps):
 
     def contact_activity(self) -> np.ndarray:
         """Per contact: is any of its rows active (in sustained contact)?"""
-        k = self.k
-        out = np.zeros(k.m, dtype=bool)
-        for r in np.flatnonzero(self.act):
-            if k.row_contact[r] >= 0:
-                out[k.row_contact[r]] = True
-        return out
+        return held_contacts(self.k, self.act)
 
     def step(
         self,
@@ -314,8 +309,7 @@ class Stepper(SustainedSteps):
             seg.rest = e_rest
             x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
-                if self.k.r:
-                    self._count_event(step, t_k)
+                self._count_event(step, t_k)
                 p_plus, lam, loss, rows = self._plastic_entry(step, t_k, h, q_c, p_minus_c, v_c, t_c, group)
                 for i in group:
                     own = sum(lam[r] for r in rows if k.row_contact[r] == i)
@@ -357,15 +351,22 @@ class Stepper(SustainedSteps):
             f"more than {tol.max_impacts_per_step} impacts in one step (chattering toward rest?); reduce h",
         )
 
+    def _continuous_law(self, q, v_in, p_in, nrm, e: float):
+        """The continuous impulse law at an impact: ``(qdot-, M^-1 n, n.qdot-, n.M^-1 n, mu0)``.
+
+        ``mu0 = max(-(1 + e) n.qdot- / n.M^-1 n, 0)`` turns ``n.qdot`` into ``-e n.qdot``; ``qdot-`` is
+        the velocity of ``p_in`` at ``q`` (Newton from ``v_in``).
+        """
+        vel = self._velocity(q, v_in, p_in)
+        minv_n = np.linalg.solve(self.k.legendre(q, vel)[1], nrm)
+        nv, nmn = float(nrm @ vel), float(nrm @ minv_n)
+        return vel, minv_n, nv, nmn, max(-(1.0 + e) * nv / nmn, 0.0)
+
     def _restart(self, seg: _Seg):
         """The impact at the start of ``seg`` by the continuous law ``n.qdot -> -e n.qdot``; the rest of the
         step as a first segment from there: ``(segment, its crossings, E_d after, mu)``."""
         k = self.k
-        n = k.n
-        vel = self._velocity(seg.q, seg.x[:n], seg.p_in)
-        mass = k.legendre(seg.q, vel)[1]
-        minv_n = np.linalg.solve(mass, seg.nrm)
-        mu = max(-(1.0 + seg.rest) * float(seg.nrm @ vel) / float(seg.nrm @ minv_n), 0.0)
+        vel, minv_n, _, _, mu = self._continuous_law(seg.q, seg.x[: k.n], seg.p_in, seg.nrm, seg.rest)
         p_plus = seg.p_in + mu * seg.nrm
         self.fallbacks += 1
         v, _, _, e, phi0, phi1, d0, d1 = k.smooth_step(seg.q, p_plus, seg.tau, vel + mu * minv_n)
@@ -418,11 +419,7 @@ class Stepper(SustainedSteps):
         """
         k = self.k
         n = k.n
-        vel = self._velocity(seg.q, v_in, seg.p_in)
-        mass = k.legendre(seg.q, vel)[1]
-        minv_n = np.linalg.solve(mass, seg.nrm)
-        nv, nmn = float(seg.nrm @ vel), float(seg.nrm @ minv_n)
-        mu0 = max(-(1.0 + restitution) * nv / nmn, 0.0)  # the continuous impulse: n.qdot -> -e n.qdot
+        vel, minv_n, nv, nmn, mu0 = self._continuous_law(seg.q, v_in, seg.p_in, seg.nrm, restitution)
         sustain = self.tol.grazing == "contact" and k.r > 0
         accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
         pressed = accel < 0.0

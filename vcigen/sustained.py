@@ -465,6 +465,15 @@ class SustainedSteps:
         )
 
 
+def held_contacts(kernels, act) -> np.ndarray:
+    """Per contact: is any of its rows in ``act`` (the active rows) held?"""
+    out = np.zeros(kernels.m, dtype=bool)
+    for r in np.flatnonzero(act):
+        if kernels.row_contact[r] >= 0:
+            out[kernels.row_contact[r]] = True
+    return out
+
+
 class SustainLog:
     """Per grid point and step: which contacts are active, and the mean constraint forces."""
 

@@ -22,7 +22,7 @@ from ..errors import PHASES, SolverError
 from ..result import KINDS, Impact, Result
 from ..simulator import Simulator
 from ..stepper import Tolerances, _n_steps, _result
-from ..sustained import SustainLog, rattle_segment
+from ..sustained import SustainLog, held_contacts, rattle_segment
 
 _D = ctypes.POINTER(ctypes.c_double)
 IMPACT_CAP = 4096
@@ -138,7 +138,7 @@ class CKernels:
             ctypes.POINTER(ctypes.c_long),
             ctypes.POINTER(_Err),
             ctypes.c_void_p,
-            _D,
+            ctypes.c_void_p,
             _D,
             _D,
         ]
@@ -288,7 +288,7 @@ class CSimulator(Simulator):
         q, v = _vec(q0, n).copy(), _vec(v0, n).copy()
         p = kern.legendre(q, v)[0].copy()
         Q[0], P[0] = q, p
-        m, nc = kern.m, kern.nc
+        m = kern.m
         impact_cap = max(IMPACT_CAP, 2 * self.tol.max_impacts_per_step * (max(m, 1) + max(kern.r, 1)))
         rec = np.empty((impact_cap, 8 + n))
         sus = kern.Sustain()
@@ -296,9 +296,8 @@ class CSimulator(Simulator):
         kern.start(_ptr(kern.par), ctypes.byref(tol), h, _ptr(q), _ptr(v), ctypes.byref(sus))
         lift_buf = np.empty((max(IMPACT_CAP, 4 * self.tol.max_impacts_per_step * max(kern.r, 1)), 2))
         sus.liftoffs, sus.liftoff_cap = _ptr(lift_buf), lift_buf.shape[0]
-        log = SustainLog(kern, cap)
-        log.active[0] = [any(sus.act[r] for r in range(kern.r) if kern.row_contact[r] == j) for j in range(m)]
-        A, F, FC = np.zeros((cap, max(m, 1))), np.zeros((cap, max(m, 1))), np.zeros((cap, max(nc, 1)))
+        log = SustainLog(kern, cap)  # the C loop writes its rows (active, forces) in place
+        log.active[0] = held_contacts(kern, list(sus.act)[: kern.r])
         liftoffs: list[tuple[float, str]] = []
         err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         impacts: list[Impact] = []
@@ -309,7 +308,6 @@ class CSimulator(Simulator):
                 cap *= 2
                 Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
                 log.grow(cap)
-                A, F, FC = np.zeros((cap, max(m, 1))), np.zeros((cap, max(m, 1))), np.zeros((cap, max(nc, 1)))
             chunk = min(cap - done, steps - done, 100_000 if progress else steps)
             sus.n_liftoffs = 0
             left = -1 if n_impacts is None else n_impacts - len(impacts)
@@ -333,17 +331,13 @@ class CSimulator(Simulator):
                 ctypes.byref(idone),
                 ctypes.byref(err),
                 ctypes.byref(sus),
-                _ptr(A),
-                _ptr(F),
-                _ptr(FC),
+                log.active[done + 1 :].ctypes.data_as(ctypes.c_void_p),
+                _ptr(log.force[done:]),
+                _ptr(log.cforce[done:]),
             )
             impacts += [_impact(r, kern.contact_names) for r in rec[: idone.value]]
             liftoffs += [(float(t), kern.contact_names[int(j)]) for t, j in lift_buf[: sus.n_liftoffs]]
-            k = sdone.value
-            log.active[done + 1 : done + 1 + k] = A[:k, :m] != 0.0
-            log.force[done : done + k] = F[:k, :m]
-            log.cforce[done : done + k] = FC[:k, :nc]
-            done += k
+            done += sdone.value
             reflected += err.reflected
             if rc != 0:
                 error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())

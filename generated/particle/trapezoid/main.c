@@ -20,7 +20,8 @@
 
 static double Q[CHUNK * PARTICLE_N], P[CHUNK * PARTICLE_N], E[CHUNK];
 static double IMP[IMPACT_CAP * PARTICLE_IMPACT_WIDTH];
-static double ACT[CHUNK * PARTICLE_M_DIM], FORCE[CHUNK * PARTICLE_M_DIM], CFORCE[CHUNK * PARTICLE_NC_DIM];
+static unsigned char ACT[CHUNK * PARTICLE_M_DIM];
+static double FORCE[CHUNK * PARTICLE_M_DIM], CFORCE[CHUNK * PARTICLE_NC_DIM];
 static double LIFT[IMPACT_CAP * 2];
 static const char *const KIND_NAMES[] = { "elastic", "restitution", "plastic", "grazing", };
 

@@ -1846,38 +1846,52 @@ static int particle_quadratic_root(const double *coef, double mu_try, double *mu
     return 1;
 }
 
+/* Stepper._continuous_law: the continuous impulse law at an impact: qdot- (the velocity of p_in at q,
+ * Newton from v_in), M^-1 n, n.qdot-, n.M^-1 n; returns mu0 = max(-(1 + e) n.qdot- / n.M^-1 n, 0). */
+static double particle_continuous_law(const particle_ctx_t *c, const double *q, const double *v_in,
+    const double *p_in, const double *nrm, double e, double *vel, double *minv_n, double *nv, double *nmn)
+{
+    double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], mu0;
+    int piv[PARTICLE_N], i;
+    particle_velocity(c, q, v_in, p_in, vel);
+    particle_legendre(q, vel, c->par, mom, mass);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        minv_n[i] = nrm[i];
+    }
+    if (particle_lu(PARTICLE_N, mass, piv)) {
+        particle_lu_solve(PARTICLE_N, mass, piv, minv_n);
+    }
+    *nv = 0.0;
+    *nmn = 0.0;
+    for (i = 0; i < PARTICLE_N; ++i) {
+        *nv += nrm[i] * vel[i];
+        *nmn += nrm[i] * minv_n[i];
+    }
+    mu0 = -(1.0 + e) * *nv / *nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
+    return mu0 > 0.0 ? mu0 : 0.0;
+}
+
 /* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
  * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, const double *v_in,
     double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
-    double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_n[PARTICLE_N], x[PARTICLE_N1];
-    double vel[PARTICLE_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
+    double minv_n[PARTICLE_N], x[PARTICLE_N1];
+    double vel[PARTICLE_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[PARTICLE_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
     double coef[3], w0[PARTICLE_N], dw[PARTICLE_N], mu_q;
     *kind = PARTICLE_KIND_ELASTIC;
     (void)group;
     (void)wgt;
     (void)n_group;
-    particle_velocity(c, seg->q, v_in, seg->p_in, vel);
-    particle_legendre(seg->q, vel, c->par, mom, mass);
+    mu0 = particle_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PARTICLE_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (particle_lu(PARTICLE_N, mass, piv)) {
-        particle_lu_solve(PARTICLE_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < PARTICLE_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
-    mu0 = mu0 > 0.0 ? mu0 : 0.0;
     if (sustain) {
         accel = particle_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
         pressed = accel < 0.0;
@@ -1973,25 +1987,12 @@ static int particle_segment_end(const particle_ctx_t *c, const particle_seg_t *s
 static int particle_restart(const particle_ctx_t *c, particle_seg_t *seg, double *e_new, double *mu,
     int *crossed, double *s_hi, double *g_hi)
 {
-    double vel[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_n[PARTICLE_N];
-    double guess[PARTICLE_N], v[PARTICLE_N], p1[PARTICLE_N], res, nv = 0.0, nmn = 0.0;
+    double vel[PARTICLE_N], minv_n[PARTICLE_N], guess[PARTICLE_N], v[PARTICLE_N], p1[PARTICLE_N];
+    double res, nv, nmn;
     double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N], phi1[PARTICLE_M_DIM];
     double grad1[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM], d1[PARTICLE_M_DIM];
-    int piv[PARTICLE_N], i;
-    particle_velocity(c, seg->q, seg->x, seg->p_in, vel);
-    particle_legendre(seg->q, vel, c->par, mom, mass);
-    for (i = 0; i < PARTICLE_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (particle_lu(PARTICLE_N, mass, piv)) {
-        particle_lu_solve(PARTICLE_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < PARTICLE_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
-    }
-    *mu = -(1.0 + seg->rest) * nv / nmn;
-    *mu = *mu > 0.0 ? *mu : 0.0;
+    int i;
+    *mu = particle_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PARTICLE_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
         guess[i] = vel[i] + *mu * minv_n[i];
@@ -2250,17 +2251,17 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
 }
 
 /* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
-static void particle_record(const particle_sustain_t *sus, long s, double *A, double *F, double *FC)
+static void particle_record(const particle_sustain_t *sus, long s, unsigned char *A, double *F, double *FC)
 {
     int j;
     int r;
     for (j = 0; j < PARTICLE_M; ++j) {
-        A[s * PARTICLE_M + j] = 0.0;
+        A[s * PARTICLE_M + j] = 0;
         F[s * PARTICLE_M + j] = sus->force[j];
     }
     for (r = 0; r < PARTICLE_R; ++r) {
         if (sus->act[r] && particle_row_contact[r] >= 0) {
-            A[s * PARTICLE_M + particle_row_contact[r]] = 1.0;
+            A[s * PARTICLE_M + particle_row_contact[r]] = 1;
         }
     }
     for (j = 0; j < PARTICLE_NC; ++j) {
@@ -2403,7 +2404,7 @@ PARTICLE_HOT static long particle_glide(const double *k, double h, double phi_mi
 int particle_run(const double *par, const particle_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, particle_error_t *err,
-    particle_sustain_t *sus, double *A, double *F, double *FC)
+    particle_sustain_t *sus, unsigned char *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (particle_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the

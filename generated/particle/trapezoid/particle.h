@@ -128,6 +128,6 @@ void particle_start(const double *par, const particle_tol_t *tol, double h, cons
 int particle_run(const double *par, const particle_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, particle_error_t *err,
-    particle_sustain_t *sus, double *A, double *F, double *FC);
+    particle_sustain_t *sus, unsigned char *A, double *F, double *FC);
 
 #endif

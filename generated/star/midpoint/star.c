@@ -2135,38 +2135,52 @@ static int star_quadratic_root(const double *coef, double mu_try, double *mu)
     return 1;
 }
 
+/* Stepper._continuous_law: the continuous impulse law at an impact: qdot- (the velocity of p_in at q,
+ * Newton from v_in), M^-1 n, n.qdot-, n.M^-1 n; returns mu0 = max(-(1 + e) n.qdot- / n.M^-1 n, 0). */
+static double star_continuous_law(const star_ctx_t *c, const double *q, const double *v_in,
+    const double *p_in, const double *nrm, double e, double *vel, double *minv_n, double *nv, double *nmn)
+{
+    double mom[STAR_N], mass[STAR_N * STAR_N], mu0;
+    int piv[STAR_N], i;
+    star_velocity(c, q, v_in, p_in, vel);
+    star_legendre(q, vel, c->par, mom, mass);
+    for (i = 0; i < STAR_N; ++i) {
+        minv_n[i] = nrm[i];
+    }
+    if (star_lu(STAR_N, mass, piv)) {
+        star_lu_solve(STAR_N, mass, piv, minv_n);
+    }
+    *nv = 0.0;
+    *nmn = 0.0;
+    for (i = 0; i < STAR_N; ++i) {
+        *nv += nrm[i] * vel[i];
+        *nmn += nrm[i] * minv_n[i];
+    }
+    mu0 = -(1.0 + e) * *nv / *nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
+    return mu0 > 0.0 ? mu0 : 0.0;
+}
+
 /* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
  * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v_in,
     double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
-    double mom[STAR_N], mass[STAR_N * STAR_N], minv_n[STAR_N], x[STAR_N1];
-    double vel[STAR_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
+    double minv_n[STAR_N], x[STAR_N1];
+    double vel[STAR_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[STAR_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
     double coef[3], w0[STAR_N], dw[STAR_N], mu_q;
     *kind = STAR_KIND_ELASTIC;
     (void)group;
     (void)wgt;
     (void)n_group;
-    star_velocity(c, seg->q, v_in, seg->p_in, vel);
-    star_legendre(seg->q, vel, c->par, mom, mass);
+    mu0 = star_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < STAR_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (star_lu(STAR_N, mass, piv)) {
-        star_lu_solve(STAR_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < STAR_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
-    mu0 = mu0 > 0.0 ? mu0 : 0.0;
     if (sustain) {
         accel = star_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
         pressed = accel < 0.0;
@@ -2262,25 +2276,12 @@ static int star_segment_end(const star_ctx_t *c, const star_seg_t *seg, double *
 static int star_restart(const star_ctx_t *c, star_seg_t *seg, double *e_new, double *mu,
     int *crossed, double *s_hi, double *g_hi)
 {
-    double vel[STAR_N], mom[STAR_N], mass[STAR_N * STAR_N], minv_n[STAR_N];
-    double guess[STAR_N], v[STAR_N], p1[STAR_N], res, nv = 0.0, nmn = 0.0;
+    double vel[STAR_N], minv_n[STAR_N], guess[STAR_N], v[STAR_N], p1[STAR_N];
+    double res, nv, nmn;
     double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N], phi1[STAR_M_DIM];
     double grad1[STAR_M_DIM * STAR_N], d0[STAR_M_DIM], d1[STAR_M_DIM];
-    int piv[STAR_N], i;
-    star_velocity(c, seg->q, seg->x, seg->p_in, vel);
-    star_legendre(seg->q, vel, c->par, mom, mass);
-    for (i = 0; i < STAR_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (star_lu(STAR_N, mass, piv)) {
-        star_lu_solve(STAR_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < STAR_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
-    }
-    *mu = -(1.0 + seg->rest) * nv / nmn;
-    *mu = *mu > 0.0 ? *mu : 0.0;
+    int i;
+    *mu = star_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < STAR_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
         guess[i] = vel[i] + *mu * minv_n[i];
@@ -2539,17 +2540,17 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
 }
 
 /* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
-static void star_record(const star_sustain_t *sus, long s, double *A, double *F, double *FC)
+static void star_record(const star_sustain_t *sus, long s, unsigned char *A, double *F, double *FC)
 {
     int j;
     int r;
     for (j = 0; j < STAR_M; ++j) {
-        A[s * STAR_M + j] = 0.0;
+        A[s * STAR_M + j] = 0;
         F[s * STAR_M + j] = sus->force[j];
     }
     for (r = 0; r < STAR_R; ++r) {
         if (sus->act[r] && star_row_contact[r] >= 0) {
-            A[s * STAR_M + star_row_contact[r]] = 1.0;
+            A[s * STAR_M + star_row_contact[r]] = 1;
         }
     }
     for (j = 0; j < STAR_NC; ++j) {
@@ -2692,7 +2693,7 @@ STAR_HOT static long star_glide(const double *k, double h, double phi_min, long 
 int star_run(const double *par, const star_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, star_error_t *err,
-    star_sustain_t *sus, double *A, double *F, double *FC)
+    star_sustain_t *sus, unsigned char *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (star_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the

@@ -20,7 +20,8 @@
 
 static double Q[CHUNK * STAR_N], P[CHUNK * STAR_N], E[CHUNK];
 static double IMP[IMPACT_CAP * STAR_IMPACT_WIDTH];
-static double ACT[CHUNK * STAR_M_DIM], FORCE[CHUNK * STAR_M_DIM], CFORCE[CHUNK * STAR_NC_DIM];
+static unsigned char ACT[CHUNK * STAR_M_DIM];
+static double FORCE[CHUNK * STAR_M_DIM], CFORCE[CHUNK * STAR_NC_DIM];
 static double LIFT[IMPACT_CAP * 2];
 static const char *const KIND_NAMES[] = { "elastic", "restitution", "plastic", "grazing", };
 

@@ -1842,38 +1842,52 @@ static int ball_to_rest_quadratic_root(const double *coef, double mu_try, double
     return 1;
 }
 
+/* Stepper._continuous_law: the continuous impulse law at an impact: qdot- (the velocity of p_in at q,
+ * Newton from v_in), M^-1 n, n.qdot-, n.M^-1 n; returns mu0 = max(-(1 + e) n.qdot- / n.M^-1 n, 0). */
+static double ball_to_rest_continuous_law(const ball_to_rest_ctx_t *c, const double *q, const double *v_in,
+    const double *p_in, const double *nrm, double e, double *vel, double *minv_n, double *nv, double *nmn)
+{
+    double mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], mu0;
+    int piv[BALL_TO_REST_N], i;
+    ball_to_rest_velocity(c, q, v_in, p_in, vel);
+    ball_to_rest_legendre(q, vel, c->par, mom, mass);
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        minv_n[i] = nrm[i];
+    }
+    if (ball_to_rest_lu(BALL_TO_REST_N, mass, piv)) {
+        ball_to_rest_lu_solve(BALL_TO_REST_N, mass, piv, minv_n);
+    }
+    *nv = 0.0;
+    *nmn = 0.0;
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        *nv += nrm[i] * vel[i];
+        *nmn += nrm[i] * minv_n[i];
+    }
+    mu0 = -(1.0 + e) * *nv / *nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
+    return mu0 > 0.0 ? mu0 : 0.0;
+}
+
 /* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
  * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int ball_to_rest_solve_jump(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t *seg, const double *v_in,
     double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
-    double mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], minv_n[BALL_TO_REST_N], x[BALL_TO_REST_N1];
-    double vel[BALL_TO_REST_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
+    double minv_n[BALL_TO_REST_N], x[BALL_TO_REST_N1];
+    double vel[BALL_TO_REST_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[BALL_TO_REST_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
     double coef[3], w0[BALL_TO_REST_N], dw[BALL_TO_REST_N], mu_q;
     *kind = BALL_TO_REST_KIND_ELASTIC;
     (void)group;
     (void)wgt;
     (void)n_group;
-    ball_to_rest_velocity(c, seg->q, v_in, seg->p_in, vel);
-    ball_to_rest_legendre(seg->q, vel, c->par, mom, mass);
+    mu0 = ball_to_rest_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (ball_to_rest_lu(BALL_TO_REST_N, mass, piv)) {
-        ball_to_rest_lu_solve(BALL_TO_REST_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < BALL_TO_REST_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
-    mu0 = mu0 > 0.0 ? mu0 : 0.0;
     if (sustain) {
         accel = ball_to_rest_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
         pressed = accel < 0.0;
@@ -1969,25 +1983,12 @@ static int ball_to_rest_segment_end(const ball_to_rest_ctx_t *c, const ball_to_r
 static int ball_to_rest_restart(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t *seg, double *e_new, double *mu,
     int *crossed, double *s_hi, double *g_hi)
 {
-    double vel[BALL_TO_REST_N], mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], minv_n[BALL_TO_REST_N];
-    double guess[BALL_TO_REST_N], v[BALL_TO_REST_N], p1[BALL_TO_REST_N], res, nv = 0.0, nmn = 0.0;
+    double vel[BALL_TO_REST_N], minv_n[BALL_TO_REST_N], guess[BALL_TO_REST_N], v[BALL_TO_REST_N], p1[BALL_TO_REST_N];
+    double res, nv, nmn;
     double phi0[BALL_TO_REST_M_DIM], grad0[BALL_TO_REST_M_DIM * BALL_TO_REST_N], phi1[BALL_TO_REST_M_DIM];
     double grad1[BALL_TO_REST_M_DIM * BALL_TO_REST_N], d0[BALL_TO_REST_M_DIM], d1[BALL_TO_REST_M_DIM];
-    int piv[BALL_TO_REST_N], i;
-    ball_to_rest_velocity(c, seg->q, seg->x, seg->p_in, vel);
-    ball_to_rest_legendre(seg->q, vel, c->par, mom, mass);
-    for (i = 0; i < BALL_TO_REST_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (ball_to_rest_lu(BALL_TO_REST_N, mass, piv)) {
-        ball_to_rest_lu_solve(BALL_TO_REST_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < BALL_TO_REST_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
-    }
-    *mu = -(1.0 + seg->rest) * nv / nmn;
-    *mu = *mu > 0.0 ? *mu : 0.0;
+    int i;
+    *mu = ball_to_rest_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
         guess[i] = vel[i] + *mu * minv_n[i];
@@ -2246,17 +2247,17 @@ static int ball_to_rest_step(const ball_to_rest_ctx_t *c, double *q, double *p, 
 }
 
 /* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
-static void ball_to_rest_record(const ball_to_rest_sustain_t *sus, long s, double *A, double *F, double *FC)
+static void ball_to_rest_record(const ball_to_rest_sustain_t *sus, long s, unsigned char *A, double *F, double *FC)
 {
     int j;
     int r;
     for (j = 0; j < BALL_TO_REST_M; ++j) {
-        A[s * BALL_TO_REST_M + j] = 0.0;
+        A[s * BALL_TO_REST_M + j] = 0;
         F[s * BALL_TO_REST_M + j] = sus->force[j];
     }
     for (r = 0; r < BALL_TO_REST_R; ++r) {
         if (sus->act[r] && ball_to_rest_row_contact[r] >= 0) {
-            A[s * BALL_TO_REST_M + ball_to_rest_row_contact[r]] = 1.0;
+            A[s * BALL_TO_REST_M + ball_to_rest_row_contact[r]] = 1;
         }
     }
     for (j = 0; j < BALL_TO_REST_NC; ++j) {
@@ -2399,7 +2400,7 @@ BALL_TO_REST_HOT static long ball_to_rest_glide(const double *k, double h, doubl
 int ball_to_rest_run(const double *par, const ball_to_rest_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, ball_to_rest_error_t *err,
-    ball_to_rest_sustain_t *sus, double *A, double *F, double *FC)
+    ball_to_rest_sustain_t *sus, unsigned char *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (ball_to_rest_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the

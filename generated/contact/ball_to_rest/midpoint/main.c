@@ -20,7 +20,8 @@
 
 static double Q[CHUNK * BALL_TO_REST_N], P[CHUNK * BALL_TO_REST_N], E[CHUNK];
 static double IMP[IMPACT_CAP * BALL_TO_REST_IMPACT_WIDTH];
-static double ACT[CHUNK * BALL_TO_REST_M_DIM], FORCE[CHUNK * BALL_TO_REST_M_DIM], CFORCE[CHUNK * BALL_TO_REST_NC_DIM];
+static unsigned char ACT[CHUNK * BALL_TO_REST_M_DIM];
+static double FORCE[CHUNK * BALL_TO_REST_M_DIM], CFORCE[CHUNK * BALL_TO_REST_NC_DIM];
 static double LIFT[IMPACT_CAP * 2];
 static const char *const KIND_NAMES[] = { "elastic", "restitution", "plastic", "grazing", };
 

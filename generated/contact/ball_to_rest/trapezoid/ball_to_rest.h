@@ -128,6 +128,6 @@ void ball_to_rest_start(const double *par, const ball_to_rest_tol_t *tol, double
 int ball_to_rest_run(const double *par, const ball_to_rest_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, ball_to_rest_error_t *err,
-    ball_to_rest_sustain_t *sus, double *A, double *F, double *FC);
+    ball_to_rest_sustain_t *sus, unsigned char *A, double *F, double *FC);
 
 #endif

@@ -20,7 +20,8 @@
 
 static double Q[CHUNK * PENDULUM_WALL_N], P[CHUNK * PENDULUM_WALL_N], E[CHUNK];
 static double IMP[IMPACT_CAP * PENDULUM_WALL_IMPACT_WIDTH];
-static double ACT[CHUNK * PENDULUM_WALL_M_DIM], FORCE[CHUNK * PENDULUM_WALL_M_DIM], CFORCE[CHUNK * PENDULUM_WALL_NC_DIM];
+static unsigned char ACT[CHUNK * PENDULUM_WALL_M_DIM];
+static double FORCE[CHUNK * PENDULUM_WALL_M_DIM], CFORCE[CHUNK * PENDULUM_WALL_NC_DIM];
 static double LIFT[IMPACT_CAP * 2];
 static const char *const KIND_NAMES[] = { "elastic", "restitution", "plastic", "grazing", };
 

@@ -1874,38 +1874,52 @@ static int pendulum_wall_quadratic_root(const double *coef, double mu_try, doubl
     return 1;
 }
 
+/* Stepper._continuous_law: the continuous impulse law at an impact: qdot- (the velocity of p_in at q,
+ * Newton from v_in), M^-1 n, n.qdot-, n.M^-1 n; returns mu0 = max(-(1 + e) n.qdot- / n.M^-1 n, 0). */
+static double pendulum_wall_continuous_law(const pendulum_wall_ctx_t *c, const double *q, const double *v_in,
+    const double *p_in, const double *nrm, double e, double *vel, double *minv_n, double *nv, double *nmn)
+{
+    double mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], mu0;
+    int piv[PENDULUM_WALL_N], i;
+    pendulum_wall_velocity(c, q, v_in, p_in, vel);
+    pendulum_wall_legendre(q, vel, c->par, mom, mass);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        minv_n[i] = nrm[i];
+    }
+    if (pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
+        pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_n);
+    }
+    *nv = 0.0;
+    *nmn = 0.0;
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        *nv += nrm[i] * vel[i];
+        *nmn += nrm[i] * minv_n[i];
+    }
+    mu0 = -(1.0 + e) * *nv / *nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
+    return mu0 > 0.0 ? mu0 : 0.0;
+}
+
 /* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
  * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_seg_t *seg, const double *v_in,
     double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
-    double mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], minv_n[PENDULUM_WALL_N], x[PENDULUM_WALL_N1];
-    double vel[PENDULUM_WALL_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
+    double minv_n[PENDULUM_WALL_N], x[PENDULUM_WALL_N1];
+    double vel[PENDULUM_WALL_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[PENDULUM_WALL_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
     double coef[3], w0[PENDULUM_WALL_N], dw[PENDULUM_WALL_N], mu_q;
     *kind = PENDULUM_WALL_KIND_ELASTIC;
     (void)group;
     (void)wgt;
     (void)n_group;
-    pendulum_wall_velocity(c, seg->q, v_in, seg->p_in, vel);
-    pendulum_wall_legendre(seg->q, vel, c->par, mom, mass);
+    mu0 = pendulum_wall_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
-        pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
-    mu0 = mu0 > 0.0 ? mu0 : 0.0;
     if (sustain) {
         accel = pendulum_wall_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
         pressed = accel < 0.0;
@@ -2001,25 +2015,12 @@ static int pendulum_wall_segment_end(const pendulum_wall_ctx_t *c, const pendulu
 static int pendulum_wall_restart(const pendulum_wall_ctx_t *c, pendulum_wall_seg_t *seg, double *e_new, double *mu,
     int *crossed, double *s_hi, double *g_hi)
 {
-    double vel[PENDULUM_WALL_N], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], minv_n[PENDULUM_WALL_N];
-    double guess[PENDULUM_WALL_N], v[PENDULUM_WALL_N], p1[PENDULUM_WALL_N], res, nv = 0.0, nmn = 0.0;
+    double vel[PENDULUM_WALL_N], minv_n[PENDULUM_WALL_N], guess[PENDULUM_WALL_N], v[PENDULUM_WALL_N], p1[PENDULUM_WALL_N];
+    double res, nv, nmn;
     double phi0[PENDULUM_WALL_M_DIM], grad0[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N], phi1[PENDULUM_WALL_M_DIM];
     double grad1[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N], d0[PENDULUM_WALL_M_DIM], d1[PENDULUM_WALL_M_DIM];
-    int piv[PENDULUM_WALL_N], i;
-    pendulum_wall_velocity(c, seg->q, seg->x, seg->p_in, vel);
-    pendulum_wall_legendre(seg->q, vel, c->par, mom, mass);
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
-        pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
-    }
-    *mu = -(1.0 + seg->rest) * nv / nmn;
-    *mu = *mu > 0.0 ? *mu : 0.0;
+    int i;
+    *mu = pendulum_wall_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
         guess[i] = vel[i] + *mu * minv_n[i];
@@ -2278,17 +2279,17 @@ static int pendulum_wall_step(const pendulum_wall_ctx_t *c, double *q, double *p
 }
 
 /* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
-static void pendulum_wall_record(const pendulum_wall_sustain_t *sus, long s, double *A, double *F, double *FC)
+static void pendulum_wall_record(const pendulum_wall_sustain_t *sus, long s, unsigned char *A, double *F, double *FC)
 {
     int j;
     int r;
     for (j = 0; j < PENDULUM_WALL_M; ++j) {
-        A[s * PENDULUM_WALL_M + j] = 0.0;
+        A[s * PENDULUM_WALL_M + j] = 0;
         F[s * PENDULUM_WALL_M + j] = sus->force[j];
     }
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         if (sus->act[r] && pendulum_wall_row_contact[r] >= 0) {
-            A[s * PENDULUM_WALL_M + pendulum_wall_row_contact[r]] = 1.0;
+            A[s * PENDULUM_WALL_M + pendulum_wall_row_contact[r]] = 1;
         }
     }
     for (j = 0; j < PENDULUM_WALL_NC; ++j) {
@@ -2431,7 +2432,7 @@ PENDULUM_WALL_HOT static long pendulum_wall_glide(const double *k, double h, dou
 int pendulum_wall_run(const double *par, const pendulum_wall_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, pendulum_wall_error_t *err,
-    pendulum_wall_sustain_t *sus, double *A, double *F, double *FC)
+    pendulum_wall_sustain_t *sus, unsigned char *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (pendulum_wall_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the

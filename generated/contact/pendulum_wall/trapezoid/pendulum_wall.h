@@ -128,6 +128,6 @@ void pendulum_wall_start(const double *par, const pendulum_wall_tol_t *tol, doub
 int pendulum_wall_run(const double *par, const pendulum_wall_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, pendulum_wall_error_t *err,
-    pendulum_wall_sustain_t *sus, double *A, double *F, double *FC);
+    pendulum_wall_sustain_t *sus, unsigned char *A, double *F, double *FC);
 
 #endif

@@ -20,7 +20,8 @@
 
 static double Q[CHUNK * SLIDE_OFF_DOME_N], P[CHUNK * SLIDE_OFF_DOME_N], E[CHUNK];
 static double IMP[IMPACT_CAP * SLIDE_OFF_DOME_IMPACT_WIDTH];
-static double ACT[CHUNK * SLIDE_OFF_DOME_M_DIM], FORCE[CHUNK * SLIDE_OFF_DOME_M_DIM], CFORCE[CHUNK * SLIDE_OFF_DOME_NC_DIM];
+static unsigned char ACT[CHUNK * SLIDE_OFF_DOME_M_DIM];
+static double FORCE[CHUNK * SLIDE_OFF_DOME_M_DIM], CFORCE[CHUNK * SLIDE_OFF_DOME_NC_DIM];
 static double LIFT[IMPACT_CAP * 2];
 static const char *const KIND_NAMES[] = { "elastic", "restitution", "plastic", "grazing", };
 

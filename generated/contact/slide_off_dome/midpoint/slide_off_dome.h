@@ -128,6 +128,6 @@ void slide_off_dome_start(const double *par, const slide_off_dome_tol_t *tol, do
 int slide_off_dome_run(const double *par, const slide_off_dome_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, slide_off_dome_error_t *err,
-    slide_off_dome_sustain_t *sus, double *A, double *F, double *FC);
+    slide_off_dome_sustain_t *sus, unsigned char *A, double *F, double *FC);
 
 #endif

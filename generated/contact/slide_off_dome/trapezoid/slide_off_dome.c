@@ -1881,38 +1881,52 @@ static int slide_off_dome_quadratic_root(const double *coef, double mu_try, doub
     return 1;
 }
 
+/* Stepper._continuous_law: the continuous impulse law at an impact: qdot- (the velocity of p_in at q,
+ * Newton from v_in), M^-1 n, n.qdot-, n.M^-1 n; returns mu0 = max(-(1 + e) n.qdot- / n.M^-1 n, 0). */
+static double slide_off_dome_continuous_law(const slide_off_dome_ctx_t *c, const double *q, const double *v_in,
+    const double *p_in, const double *nrm, double e, double *vel, double *minv_n, double *nv, double *nmn)
+{
+    double mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], mu0;
+    int piv[SLIDE_OFF_DOME_N], i;
+    slide_off_dome_velocity(c, q, v_in, p_in, vel);
+    slide_off_dome_legendre(q, vel, c->par, mom, mass);
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        minv_n[i] = nrm[i];
+    }
+    if (slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv)) {
+        slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_n);
+    }
+    *nv = 0.0;
+    *nmn = 0.0;
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        *nv += nrm[i] * vel[i];
+        *nmn += nrm[i] * minv_n[i];
+    }
+    mu0 = -(1.0 + e) * *nv / *nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
+    return mu0 > 0.0 ? mu0 : 0.0;
+}
+
 /* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
  * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
 static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_dome_seg_t *seg, const double *v_in,
     double e_rest, const int *group, const double *wgt, int n_group, int *kind)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
-    double mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_n[SLIDE_OFF_DOME_N], x[SLIDE_OFF_DOME_N1];
-    double vel[SLIDE_OFF_DOME_N], nv = 0.0, nmn = 0.0, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
+    double minv_n[SLIDE_OFF_DOME_N], x[SLIDE_OFF_DOME_N1];
+    double vel[SLIDE_OFF_DOME_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int piv[SLIDE_OFF_DOME_N], i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
     double coef[3], w0[SLIDE_OFF_DOME_N], dw[SLIDE_OFF_DOME_N], mu_q;
     *kind = SLIDE_OFF_DOME_KIND_ELASTIC;
     (void)group;
     (void)wgt;
     (void)n_group;
-    slide_off_dome_velocity(c, seg->q, v_in, seg->p_in, vel);
-    slide_off_dome_legendre(seg->q, vel, c->par, mom, mass);
+    mu0 = slide_off_dome_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv)) {
-        slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
         nn += seg->nrm[i] * seg->nrm[i];
         pp += seg->p_in[i] * seg->p_in[i];
     }
-    mu0 = -(1.0 + e_rest) * nv / nmn; /* the continuous impulse: n.qdot -> -e n.qdot */
-    mu0 = mu0 > 0.0 ? mu0 : 0.0;
     if (sustain) {
         accel = slide_off_dome_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
         pressed = accel < 0.0;
@@ -2008,25 +2022,12 @@ static int slide_off_dome_segment_end(const slide_off_dome_ctx_t *c, const slide
 static int slide_off_dome_restart(const slide_off_dome_ctx_t *c, slide_off_dome_seg_t *seg, double *e_new, double *mu,
     int *crossed, double *s_hi, double *g_hi)
 {
-    double vel[SLIDE_OFF_DOME_N], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_n[SLIDE_OFF_DOME_N];
-    double guess[SLIDE_OFF_DOME_N], v[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], res, nv = 0.0, nmn = 0.0;
+    double vel[SLIDE_OFF_DOME_N], minv_n[SLIDE_OFF_DOME_N], guess[SLIDE_OFF_DOME_N], v[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N];
+    double res, nv, nmn;
     double phi0[SLIDE_OFF_DOME_M_DIM], grad0[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N], phi1[SLIDE_OFF_DOME_M_DIM];
     double grad1[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N], d0[SLIDE_OFF_DOME_M_DIM], d1[SLIDE_OFF_DOME_M_DIM];
-    int piv[SLIDE_OFF_DOME_N], i;
-    slide_off_dome_velocity(c, seg->q, seg->x, seg->p_in, vel);
-    slide_off_dome_legendre(seg->q, vel, c->par, mom, mass);
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        minv_n[i] = seg->nrm[i];
-    }
-    if (slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv)) {
-        slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_n);
-    }
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        nv += seg->nrm[i] * vel[i];
-        nmn += seg->nrm[i] * minv_n[i];
-    }
-    *mu = -(1.0 + seg->rest) * nv / nmn;
-    *mu = *mu > 0.0 ? *mu : 0.0;
+    int i;
+    *mu = slide_off_dome_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
         guess[i] = vel[i] + *mu * minv_n[i];
@@ -2285,17 +2286,17 @@ static int slide_off_dome_step(const slide_off_dome_ctx_t *c, double *q, double 
 }
 
 /* After grid step s: the active contacts at its end and its mean forces into row s of A, F and FC. */
-static void slide_off_dome_record(const slide_off_dome_sustain_t *sus, long s, double *A, double *F, double *FC)
+static void slide_off_dome_record(const slide_off_dome_sustain_t *sus, long s, unsigned char *A, double *F, double *FC)
 {
     int j;
     int r;
     for (j = 0; j < SLIDE_OFF_DOME_M; ++j) {
-        A[s * SLIDE_OFF_DOME_M + j] = 0.0;
+        A[s * SLIDE_OFF_DOME_M + j] = 0;
         F[s * SLIDE_OFF_DOME_M + j] = sus->force[j];
     }
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         if (sus->act[r] && slide_off_dome_row_contact[r] >= 0) {
-            A[s * SLIDE_OFF_DOME_M + slide_off_dome_row_contact[r]] = 1.0;
+            A[s * SLIDE_OFF_DOME_M + slide_off_dome_row_contact[r]] = 1;
         }
     }
     for (j = 0; j < SLIDE_OFF_DOME_NC; ++j) {
@@ -2438,7 +2439,7 @@ SLIDE_OFF_DOME_HOT static long slide_off_dome_glide(const double *k, double h, d
 int slide_off_dome_run(const double *par, const slide_off_dome_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, slide_off_dome_error_t *err,
-    slide_off_dome_sustain_t *sus, double *A, double *F, double *FC)
+    slide_off_dome_sustain_t *sus, unsigned char *A, double *F, double *FC)
 {
     /* Stepper.step: explicit grid steps (slide_off_dome_glide) while they clear the pre-test, the general
      * step for the others. A non-finite value is found after the loop, not per step: E_d holds the

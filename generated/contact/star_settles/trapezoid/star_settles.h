@@ -128,6 +128,6 @@ void star_settles_start(const double *par, const star_settles_tol_t *tol, double
 int star_settles_run(const double *par, const star_settles_tol_t *tol, double h, double t0, long step0,
     long n_steps, long max_impacts, double *q, double *p, double *v, double *Q, double *P, double *E,
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, star_settles_error_t *err,
-    star_settles_sustain_t *sus, double *A, double *F, double *FC);
+    star_settles_sustain_t *sus, unsigned char *A, double *F, double *FC);
 
 #endif
