@@ -40,6 +40,34 @@ EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release fo
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 
 
+def _illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int, guess) -> float:
+    """Illinois regula falsi for the root of ``value`` on ``[0, 1]`` (``value(0) = ga >= 0 > gb = value(1)``).
+
+    ``value(s, guess) -> (g(s), guess')`` evaluates the sub-step map at ``s`` from a warm guess. Returns
+    the first ``s`` with ``|g(s)| <= tiny``, or else, once the bracket is narrower than ``width`` (or after
+    ``iters`` evaluations), its end where ``g < 0``.
+    """
+    a, b, side, v = 0.0, 1.0, 0, guess
+    for _ in range(iters):
+        c = (a * gb - b * ga) / (gb - ga)
+        if not a < c < b:
+            c = 0.5 * (a + b)
+        gc, v = value(c, v)
+        if gc < 0:
+            b, gb = c, gc
+            ga = ga / 2 if side == -1 else ga
+            side = -1
+        else:
+            a, ga = c, gc
+            gb = gb / 2 if side == 1 else gb
+            side = 1
+        if abs(gc) <= tiny:
+            return c
+        if b - a <= width:
+            break
+    return b
+
+
 class End(NamedTuple):
     """Evaluations at the end ``(q1, u1)`` of a constrained segment: rows, their gradients and curvatures,
     the free dynamics' right-hand side and the mass matrix."""
@@ -277,56 +305,23 @@ class SustainedSteps:
         """
         if f0 < 0:
             return 0.0
-        a, ga, b, gb = 0.0, float(f0), 1.0, float(f1)
-        tiny = EPS_LAM * (1.0 + abs(ga) + abs(gb))
-        side, v = 0, guess
-        for _ in range(LIFT_ITER):
-            c = (a * gb - b * ga) / (gb - ga)
-            if not a < c < b:
-                c = 0.5 * (a + b)
+        ga, gb = float(f0), float(f1)
+
+        def force(c, v):
             v, end = self._sub_end(step, t_k, q, p, tau, c, v)
-            gc = float(self._forces(end)[r])
-            if gc < 0:
-                b, gb = c, gc
-                ga = ga / 2 if side == -1 else ga
-                side = -1
-            else:
-                a, ga = c, gc
-                gb = gb / 2 if side == 1 else gb
-                side = 1
-            if abs(gc) <= tiny:
-                return c
-            if b - a <= 1e-12:
-                break
-        return b
+            return float(self._forces(end)[r]), v
+
+        return _illinois(force, ga, gb, EPS_LAM * (1.0 + abs(ga) + abs(gb)), 1e-12, LIFT_ITER, guess)
 
     def _row_crossing(self, step, t_k, q, p, tau, guess, r, g1) -> float:
         """Fraction where inactive row ``r`` reaches 0 along the constrained sub-step map (Illinois)."""
-        k = self.k
-        a, ga, b, gb = 0.0, float(k.rows(q, guess)[0][r]), 1.0, float(g1)
-        ga = max(ga, 0.0)
-        tiny = ROOT_EPS * max(ga, -gb)
-        side = 0
-        v = guess
-        for _ in range(200):
-            c = (a * gb - b * ga) / (gb - ga) if gb != ga else 0.5 * (a + b)
-            if not a < c < b:
-                c = 0.5 * (a + b)
+        ga, gb = max(float(self.k.rows(q, guess)[0][r]), 0.0), float(g1)
+
+        def height(c, v):
             v, end = self._sub_end(step, t_k, q, p, tau, c, v)
-            gc = float(end.psi[r])
-            if gc <= 0:
-                b, gb = c, gc
-                ga = ga / 2 if side == -1 else ga
-                side = -1
-            else:
-                a, ga = c, gc
-                gb = gb / 2 if side == 1 else gb
-                side = 1
-            if abs(gc) <= tiny:
-                return c
-            if b - a <= 4e-16:
-                break
-        return b
+            return float(end.psi[r]), v
+
+        return _illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess)
 
     # -- impacts with rows ---------------------------------------------------------------
     def _impulse_law(self, step, t_k, q, p, guess, hit, targets):

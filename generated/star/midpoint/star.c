@@ -1523,24 +1523,20 @@ static int star_sub_end(const star_ctx_t *c, const double *q, const double *p, d
     return star_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* SustainedSteps._liftoff_fraction: the fraction where row r's force (contact_forces at the sub-step's
- * end) vanishes: 0 if the start force f0 is already negative, else the root in [0, 1] (Illinois): where
- * |force| <= EPS_LAM scale, or else the bracket's negative end, so that the released body leaves. */
-static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const double *p, double tau,
-    const double *guess, int r, double f0, double f1, double *s_out)
+/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
+ * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+ * height = 0) at the sub-step's end. *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * narrower than width (or after iters evaluations), its end where value < 0. */
+static int star_illinois(const star_ctx_t *c, int r, int height, const double *q, const double *p,
+    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
 {
     double v[STAR_N], vn[STAR_N], q1[STAR_N], u1[STAR_N], f[STAR_R_DIM];
-    double a = 0.0, ga = f0, b = 1.0, gb = f1, cc, gc, tiny;
+    double grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], a = 0.0, b = 1.0, cc, gc;
     int i, it, side = 0;
-    if (f0 < 0) {
-        *s_out = 0.0;
-        return 0;
-    }
-    tiny = STAR_EPS_LAM * (1.0 + fabs(ga) + fabs(gb));
     for (i = 0; i < STAR_N; ++i) {
         v[i] = guess[i];
     }
-    for (it = 0; it < STAR_LIFT_ITER; ++it) {
+    for (it = 0; it < iters; ++it) {
         cc = (a * gb - b * ga) / (gb - ga);
         if (!(a < cc && cc < b)) {
             cc = 0.5 * (a + b);
@@ -1551,7 +1547,11 @@ static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const dou
         for (i = 0; i < STAR_N; ++i) {
             v[i] = vn[i];
         }
-        star_contact_forces(c, q1, u1, f);
+        if (height) {
+            star_rows(q1, v, c->par, f, grad, curv);
+        } else {
+            star_contact_forces(c, q1, u1, f);
+        }
         gc = f[r];
         if (gc < 0) {
             b = cc;
@@ -1568,7 +1568,7 @@ static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const dou
             *s_out = cc;
             return 0;
         }
-        if (b - a <= 1e-12) {
+        if (b - a <= width) {
             break;
         }
     }
@@ -1576,55 +1576,30 @@ static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const dou
     return 0;
 }
 
+/* SustainedSteps._liftoff_fraction: the fraction where row r's force (contact_forces at the sub-step's
+ * end) vanishes: 0 if the start force f0 is already negative, else the root in [0, 1] (illinois): where
+ * |force| <= EPS_LAM scale, or else the bracket's negative end, so that the released body leaves. */
+static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const double *p, double tau,
+    const double *guess, int r, double f0, double f1, double *s_out)
+{
+    if (f0 < 0) {
+        *s_out = 0.0;
+        return 0;
+    }
+    return star_illinois(c, r, 0, q, p, tau, guess, f0, f1, STAR_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+        1e-12, STAR_LIFT_ITER, s_out);
+}
+
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
- * map (Illinois). */
+ * map (illinois). */
 static int star_row_crossing(const star_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, int r, double g1, double *s_out)
 {
-    double v[STAR_N], vn[STAR_N], u1[STAR_N], q1[STAR_N];
-    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
-    double a = 0.0, ga, b = 1.0, gb = g1, cc, gc, tiny;
-    int i, it, side = 0;
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], ga;
     star_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    tiny = STAR_ROOT_EPS * (ga > -gb ? ga : -gb);
-    for (i = 0; i < STAR_N; ++i) {
-        v[i] = guess[i];
-    }
-    for (it = 0; it < 200; ++it) {
-        cc = (a * gb - b * ga) / (gb - ga);
-        if (!(a < cc && cc < b)) {
-            cc = 0.5 * (a + b);
-        }
-        if (star_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
-            return 1;
-        }
-        for (i = 0; i < STAR_N; ++i) {
-            v[i] = vn[i];
-        }
-        star_rows(q1, v, c->par, psi, grad, curv);
-        gc = psi[r];
-        if (gc <= 0) {
-            b = cc;
-            gb = gc;
-            ga = side == -1 ? ga / 2 : ga;
-            side = -1;
-        } else {
-            a = cc;
-            ga = gc;
-            gb = side == 1 ? gb / 2 : gb;
-            side = 1;
-        }
-        if (fabs(gc) <= tiny) {
-            *s_out = cc;
-            return 0;
-        }
-        if (b - a <= 4e-16) {
-            break;
-        }
-    }
-    *s_out = b;
-    return 0;
+    return star_illinois(c, r, 1, q, p, tau, guess, ga, g1, STAR_ROOT_EPS * (ga > -g1 ? ga : -g1),
+        4e-16, 200, s_out);
 }
 
 /* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
