@@ -21,6 +21,7 @@ demo: venv            ## the paper's examples on both backends: CSV + energy plo
 	$(PY) examples/particle.py --out $(OUT)
 	$(PY) examples/star.py --out $(OUT)
 	$(PY) examples/contact/ball_to_rest.py --out $(OUT) --backend c
+	$(PY) examples/forced/impact_oscillator.py --out $(OUT) --backend c
 
 test: venv            ## the whole test suite
 	$(PY) -m pytest -q
@@ -31,8 +32,10 @@ lint: venv
 generate: venv        ## regenerate generated/ from the examples (one command)
 	$(VENV)/bin/vcigen generate --all
 
-bench: venv           ## speed against error, side by side (issue 5)
+bench: venv           ## speed against error, side by side (issue 5); the forced scene with MuJoCo where it installs
 	$(PY) bench/run.py
+	-$(VENV)/bin/pip install -q mujoco || echo "mujoco does not install here: bench/forced.py skips it"
+	$(PY) bench/forced.py
 
 clean:
 	rm -rf $(OUT) .pytest_cache build dist *.egg-info

@@ -59,12 +59,19 @@ class Segment:
     tau: sp.Symbol
     p_minus: sp.Matrix
     p_plus: sp.Matrix
-    energy: sp.Expr
+    energy: sp.Expr  # E_d + f_d+ . v: the energy at the segment's end (E_d without forces)
+    energy_start: sp.Expr  # E_d - f_d- . v: the energy at its start (E_d without forces)
+    work: sp.Expr  # (f_d- + f_d+) . v = energy - energy_start: the discrete work over the segment
 
     def at(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr) -> tuple[sp.Matrix, sp.Matrix, sp.Expr]:
         """``(p-, p+, E_d)`` with the segment's symbols replaced."""
         rep = dict(zip(self.q0, q0)) | dict(zip(self.v, v)) | {self.tau: tau}
         return (self.p_minus.xreplace(rep), self.p_plus.xreplace(rep), self.energy.xreplace(rep))
+
+    def start_energy(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr) -> sp.Expr:
+        """The energy at the segment's start, with its symbols replaced: what (48a) keeps across an impact."""
+        rep = dict(zip(self.q0, q0)) | dict(zip(self.v, v)) | {self.tau: tau}
+        return self.energy_start.xreplace(rep)
 
 
 def discrete_segment(model: Model, rule: Rule) -> Segment:
@@ -82,7 +89,37 @@ def discrete_segment(model: Model, rule: Rule) -> Segment:
     p_plus = ell_v
     p_minus = ell_v - tau * ell_q
     energy = (v.T * ell_v)[0] - ell - tau * ell.diff(tau)
-    return Segment(q0, v, tau, p_minus, p_plus, energy)
+    if not model.force:
+        return Segment(q0, v, tau, p_minus, p_plus, energy, energy, sp.S.Zero)
+    f_minus, f_plus = discrete_forces(model, rule, q0, v, tau)
+    e_in, e_out = (v.T * f_minus)[0], (v.T * f_plus)[0]
+    pm, pp = p_minus - f_minus, p_plus + f_plus
+    return Segment(q0, v, tau, pm, pp, energy + e_out, energy - e_in, e_in + e_out)
+
+
+def time_slot(model: Model) -> sp.Symbol:
+    """The symbol of the time a segment starts at (the last entry of ``par`` when forces depend on time)."""
+    return model.time_symbol if model.time_symbol is not None else sp.Dummy("t", real=True)
+
+
+def force_at(model: Model, q: sp.Matrix, v: sp.Matrix, t: sp.Expr) -> sp.Matrix:
+    """The generalized force ``F(q, v, t)`` as a column."""
+    rep = dict(zip(model.coordinates, q)) | dict(zip(model.velocities, v))
+    if model.time_symbol is not None:
+        rep[model.time_symbol] = t
+    return sp.Matrix([f.xreplace(rep) for f in model.force])
+
+
+def discrete_forces(model: Model, rule: Rule, q0: sp.Matrix, v: sp.Matrix, tau: sp.Symbol):
+    """``(f_d-, f_d+)`` of the segment ``(q0, v, tau)`` starting at the time slot (MATH.md, Forcing).
+
+    With them ``p- = -D1 L_d - f_d-`` and ``p+ = D2 L_d + f_d+`` (discrete Lagrange-d'Alembert); the
+    alpha-variation with the time component ``F_t = -F . qdot`` (37) of the same quadrature keeps
+    ``E_d - f_d- . v`` of the segment after an impact equal to ``E_d + f_d+ . v`` of the one before.
+    """
+    if rule.discrete_forces is None:
+        raise ValueError(f"rule {rule.name!r} has no discrete forces; forces need trapezoid or midpoint")
+    return rule.discrete_forces(lambda q, vv, t: force_at(model, q, vv, t), q0, v, tau, time_slot(model))
 
 
 @dataclass(frozen=True)
@@ -105,6 +142,11 @@ class DiscreteSystem:
         return len(self.contact_names)
 
     @property
+    def timed(self) -> bool:
+        """Whether the forces depend on time: then ``par`` ends with the time a segment starts at."""
+        return self.model.time_symbol is not None
+
+    @property
     def r(self) -> int:
         """Number of rows (``0``: no contact and no constraint, nothing is ever sustained)."""
         return 0 if self.rows is None else self.rows.size
@@ -120,7 +162,7 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     rule = get_rule(rule)
     n = model.n
     names = tuple(model.phi)
-    par = Arg("par", tuple(model.defaults))
+    par = Arg("par", tuple(model.defaults) + ((model.time_symbol,) if model.time_symbol is not None else ()))
     seg = discrete_segment(model, rule)
     qs, vs = model.coordinates, model.velocities
 
@@ -142,7 +184,8 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
             Output("p_plus", seg.p_plus),
             Output("energy", sp.Matrix([seg.energy])),
         ),
-        "Discrete momenta p-(q0,q1,tau), p+(q0,q1,tau) (50)-(51) and E_d (55).",
+        "Discrete momenta p-(q0,q1,tau), p+(q0,q1,tau) (50)-(51) and E_d (55)"
+        + (" + f_d+ . v, the energy at the segment's end (forces)." if model.force else "."),
     )
     qrep = dict(zip(qs, q))
     phis = [model.phi[c].xreplace(qrep) for c in names]
@@ -192,7 +235,8 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     jargs = [Arg("qc", qc), Arg("nrm", nrm), Arg("p_in", p_in), Arg("e_in", (e_in,)), Arg("tau", (tau,)), par]
 
     def jump_res(duration: sp.Expr) -> sp.Matrix:
-        pm_j, _, en_j = seg.at(sp.Matrix(qc), sp.Matrix(w), duration)
+        pm_j, _, _ = seg.at(sp.Matrix(qc), sp.Matrix(w), duration)
+        en_j = seg.start_energy(sp.Matrix(qc), sp.Matrix(w), duration)
         return (pm_j - sp.Matrix(p_in) - mu * sp.Matrix(nrm)).col_join(sp.Matrix([en_j - e_in]))
 
     routines["jump"] = _residual_routine(
@@ -264,6 +308,8 @@ def sustained_routines(
     lq = sp.Matrix([model.L.diff(s) for s in qs]).xreplace(rep)
     mixed = sp.Matrix([[model.L.diff(vi).diff(qk) for qk in qs] for vi in vs]).xreplace(rep)
     rhs = lq - mixed * umat
+    if model.force:  # Lagrange-d'Alembert: M qddot = dL/dq - (d2L/dqdot dq) qdot + F(q, qdot, t)
+        rhs = rhs + force_at(model, sp.Matrix(q), umat, time_slot(model))
     ccurv = [curvature(ph) for ph in phis]
     out["dynamics"] = Routine(
         "dynamics",

@@ -70,12 +70,20 @@ def mass_diagonal(system: DiscreteSystem) -> bool:
 
 
 def has_explicit_path(system: DiscreteSystem) -> bool:
-    """Whether the contact time (47) reduces to a scalar root along the explicit segment map."""
-    return system.m > 0 and smooth_diagonal(system)
+    """Whether the contact time (47) reduces to a scalar root along the explicit segment map.
+
+    Not with forces: the map's closed form assumes the momentum of a segment does not depend on time.
+    """
+    return system.m > 0 and not system.model.force and smooth_diagonal(system)
 
 
 def is_explicit(system: DiscreteSystem) -> bool:
-    """Whether (46) has a constant diagonal Jacobian and the mass matrix is constant and diagonal."""
+    """Whether (46) has a constant diagonal Jacobian and the mass matrix is constant and diagonal.
+
+    Not with forces: the explicit grid step hoists what depends on ``(h, par)`` out of the loop.
+    """
+    if system.model.force:
+        return False
     smooth = system.routines["smooth"]
     state = set(smooth.inputs[0].symbols) | set(smooth.input("q0").symbols)
     return _diagonal_free_of(smooth_jacobian(system), state) and mass_diagonal(system)

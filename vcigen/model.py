@@ -56,7 +56,9 @@ class Model:
     changed at run time; contacts not named are elastic (``e = 1``). An impact on
     contact j then loses ``(1 - e^2)/2 (n.qdot)^2 / (n.M^-1 n)`` of energy (the
     frictionless ``f_t`` of eq. 39): the normal velocity leaves with ``e`` times its
-    incoming size.
+    incoming size. ``forces`` (optional) is a generalized force ``F(q, qdot, t, params)``, one
+    entry per coordinate (Lagrange-d'Alembert, paper §2.5, MATH.md *Forcing*); ``time`` is the
+    symbol for time that it may use.
     """
 
     name: str
@@ -67,6 +69,8 @@ class Model:
     params: Mapping[sp.Symbol, float] = field(default_factory=dict)
     restitution: Mapping[str, float | sp.Expr] = field(default_factory=dict)
     constraints: Mapping[str, sp.Expr] = field(default_factory=dict)
+    forces: Sequence[sp.Expr] | None = None
+    time: sp.Symbol | None = None
 
     def __post_init__(self) -> None:
         check_identifier(self.name, "model name")
@@ -95,6 +99,7 @@ class Model:
             raise ValueError(f"{sorted(clash)} name both a contact and a constraint; use distinct names")
         params = self._parameters()
         rest = self._restitution(contacts, params)
+        time_sym, forces = self._forces_of(q, subs, names, params)
         object.__setattr__(self, "_coords", tuple(real_q))
         object.__setattr__(self, "_vels", tuple(real_v))
         object.__setattr__(self, "_lagr", lagr)
@@ -102,6 +107,8 @@ class Model:
         object.__setattr__(self, "_pars", params)
         object.__setattr__(self, "_rest", rest)
         object.__setattr__(self, "_cons", constraints)
+        object.__setattr__(self, "_time", time_sym)
+        object.__setattr__(self, "_forces", forces)
         self._check_free_symbols()
         self._check_contacts_depend_on_q_only()
         self._check_constraints()
@@ -142,6 +149,51 @@ class Model:
                 raise ValueError(f"default of parameter {sym} is not finite: {val!r}")
             params[sym] = fval
         return params
+
+    def _forces_of(self, q, subs, names, params) -> tuple[sp.Symbol | None, tuple[sp.Expr, ...]]:
+        """The generalized force ``F(q, qdot, t, params)``, one entry per coordinate (Lagrange-d'Alembert).
+
+        The time symbol becomes a real symbol of the same name. Checked: the length, and that every
+        symbol is a coordinate, a velocity, a parameter or the time symbol.
+        """
+        time_sym = None
+        if self.time is not None:
+            if not isinstance(self.time, sp.Symbol):
+                raise ValueError(f"time = {self.time!r} is not a SymPy symbol")
+            check_identifier(self.time.name, "time symbol")
+            taken = set(names) | {s.name for s in params}
+            if self.time in q or self.time in params or self.time.name in taken:
+                raise ValueError(
+                    f"time symbol {self.time} is also a coordinate or a parameter; give time its own symbol"
+                )
+            time_sym = sp.Symbol(self.time.name, real=True)
+        if self.forces is None:
+            return time_sym, ()
+        forces = list(self.forces) if not isinstance(self.forces, (sp.Expr, str)) else [self.forces]
+        if len(forces) != len(q):
+            raise ValueError(
+                f"forces has {len(forces)} entries but q has {len(q)}; "
+                "give one generalized force per coordinate"
+            )
+        tsub = [(self.time, time_sym)] if time_sym is not None else []
+        out = []
+        allowed = set(s for _, s in subs) | set(params) | ({time_sym} if time_sym is not None else set())
+        for i, f in enumerate(forces):
+            try:
+                expr = sp.sympify(f).subs(subs).subs(tsub)
+            except (sp.SympifyError, TypeError):
+                raise ValueError(f"force {i} ({names[i]}) is not an expression: {f!r}") from None
+            stray = expr.free_symbols - allowed
+            funcs = expr.atoms(sp.core.function.AppliedUndef, sp.Derivative)
+            if stray or funcs:
+                bad = ", ".join(sorted(str(x) for x in stray | funcs))
+                hint = "" if time_sym is not None else " (a force of time needs Model(time=t))"
+                raise ValueError(
+                    f"force {i} ({names[i]}) contains {bad}, which is neither a coordinate, a velocity, "
+                    f"a parameter nor the time symbol{hint}"
+                )
+            out.append(expr)
+        return time_sym, tuple(out)
 
     def _restitution(
         self, contacts: Mapping[str, sp.Expr], params: Mapping[sp.Symbol, float]
@@ -263,6 +315,18 @@ class Model:
     def constraint(self) -> dict[str, sp.Expr]:
         """Bilateral holonomic constraints ``g_i(q) = 0`` by name, in the real symbols."""
         return dict(self._cons)  # type: ignore[attr-defined]
+
+    @property
+    def force(self) -> tuple[sp.Expr, ...]:
+        """The generalized force per coordinate in the real symbols; ``()`` without forces or all 0."""
+        forces = self._forces  # type: ignore[attr-defined]
+        return forces if any(f != 0 for f in forces) else ()
+
+    @property
+    def time_symbol(self) -> sp.Symbol | None:
+        """The real symbol standing for time in :attr:`force`, if the force depends on time."""
+        t = self._time  # type: ignore[attr-defined]
+        return t if t is not None and any(t in f.free_symbols for f in self.force) else None
 
     @property
     def n(self) -> int:

@@ -50,6 +50,8 @@ class Result:
     contact_force: np.ndarray | None = None  # (N-1, m): mean multiplier lambda_j >= 0 over each grid step
     constraint_force: np.ndarray | None = None  # (N-1, n_constraints): the bilateral multipliers
     liftoffs: list[tuple[float, str]] = field(default_factory=list)  # (t, contact) per release
+    work: np.ndarray | None = None  # (N-1,): discrete work of the forces over each grid step (vcigen.work)
+    energy_at_end: bool = False  # energy[k] is the energy at the end of step k (forces), else E_d entering it
 
     @property
     def n_impacts(self) -> int:
@@ -62,6 +64,25 @@ class Result:
         e0 = self.energy[0]
         scale = abs(e0) if e0 != 0 else 1.0
         return float(np.max(np.abs(self.energy - e0)) / scale)
+
+    def energy_balance(self) -> np.ndarray:
+        """``(N-1,)``: ``E_k - E_0 - sum_{i=1..k} W_i + (restitution and plastic losses up to step k)``.
+
+        Zero but for the method's own bounded O(h^2) energy error, with or without forces (MATH.md,
+        *Forcing*): with forces ``energy`` is the energy at the end of each step and ``work`` the work
+        over it.
+        """
+        e = self.energy
+        if e.size == 0:
+            return e.copy()
+        work = np.zeros(e.size) if self.work is None else np.asarray(self.work, dtype=float)
+        lost = np.zeros(e.size)
+        shift = 0 if self.energy_at_end else 1  # without forces an impact step reports E_d before its impacts
+        for im in self.impacts:
+            if im.step + shift < e.size:
+                lost[im.step + shift] += im.energy_before - im.energy_after
+        acc = np.cumsum(work) - work[0]
+        return e - e[0] - acc + np.cumsum(lost) - lost[0]
 
     def to_csv(self, path: str | Path) -> Path:
         """Write ``t, q..., p..., energy`` per grid point (energy of the step that starts there)."""

@@ -16,6 +16,8 @@ import sympy as sp
 
 # L(q, v) -> expression, with q and v sequences of expressions.
 LagrangianFn = Callable[[Sequence[sp.Expr], Sequence[sp.Expr]], sp.Expr]
+# F(q, v, t) -> the generalized force (a column), for the discrete forces of Lagrange-d'Alembert.
+ForceFn = Callable[[sp.Matrix, sp.Matrix, sp.Expr], sp.Matrix]
 
 
 @dataclass(frozen=True)
@@ -27,11 +29,19 @@ class Rule:
     symmetric: bool
     mean_lagrangian: Callable[[LagrangianFn, sp.Matrix, sp.Matrix, sp.Symbol], sp.Expr]
     paper: str
+    # (F, q0, v, tau, t0) -> (f_d-, f_d+): the discrete forces at the segment's two ends (MATH.md, Forcing),
+    # the rule's own quadrature of int F . dq over the segment.
+    discrete_forces: Callable[..., tuple[sp.Matrix, sp.Matrix]] | None = None
 
 
 def _trapezoid(L: LagrangianFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol) -> sp.Expr:
     """``L_d = h/2 [L(q0, v) + L(q1, v)]``, ``q1 = q0 + h v``; eq. (71) for ``T - V``."""
     return (L(q0, v) + L(q0 + h * v, v)) / 2
+
+
+def _trapezoid_forces(F: ForceFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol, t0: sp.Expr):
+    """``f_d- = h/2 F(q0, v, t0)``, ``f_d+ = h/2 F(q1, v, t0 + h)`` (the trapezoid at each end)."""
+    return h / 2 * F(q0, v, t0), h / 2 * F(q0 + h * v, v, t0 + h)
 
 
 def midpoint_rule(gamma: sp.Rational = sp.S.Half) -> Rule:
@@ -40,6 +50,10 @@ def midpoint_rule(gamma: sp.Rational = sp.S.Half) -> Rule:
     def ld(L: LagrangianFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol) -> sp.Expr:
         return L(q0 + gamma * h * v, v)
 
+    def forces(F: ForceFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol, t0: sp.Expr):
+        f = h * F(q0 + gamma * h * v, v, t0 + gamma * h)
+        return (1 - gamma) * f, gamma * f
+
     order = 2 if gamma == sp.Rational(1, 2) else 1
     return Rule(
         name="midpoint" if gamma == sp.Rational(1, 2) else f"midpoint_{gamma}",
@@ -47,10 +61,18 @@ def midpoint_rule(gamma: sp.Rational = sp.S.Half) -> Rule:
         symmetric=order == 2,
         mean_lagrangian=ld,
         paper="(57)",
+        discrete_forces=forces,
     )
 
 
-TRAPEZOID = Rule("trapezoid", order=2, symmetric=True, mean_lagrangian=_trapezoid, paper="(71)")
+TRAPEZOID = Rule(
+    "trapezoid",
+    order=2,
+    symmetric=True,
+    mean_lagrangian=_trapezoid,
+    paper="(71)",
+    discrete_forces=_trapezoid_forces,
+)
 MIDPOINT = midpoint_rule()
 
 RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT)}

@@ -9,10 +9,12 @@ from typing import Literal
 import numpy as np
 
 from .derive import DiscreteSystem, derive
+from .errors import SolverError
 from .model import Model
 from .result import Result
 from .rules import Rule
 from .stepper import Stepper, Tolerances, warn_reflected
+from .work import step_work, work_function
 
 Backend = Literal["casadi", "c"]
 BACKENDS = ("casadi", "c")
@@ -27,6 +29,7 @@ class Simulator:
         self.model: Model = system.model
         self.kernels = kernels
         self.tol = tol or Tolerances()
+        self._work = work_function(system)
 
     @property
     def backend(self) -> str:
@@ -47,9 +50,18 @@ class Simulator:
         q0a, v0a, h = self._validate(q0, v0, h, t_end, n_impacts, t0)
         par = self.model.resolve_params(params)
         self.model.restitution_values(par)  # each in [0, 1] at these parameters, or a ValueError
+        if self.system.timed:
+            par = [*par, float(t0)]  # the time slot: where each segment starts (Kernels.at)
         kern = self.kernels.bind(par)
         self._check_start(kern, q0a, v0a)
-        res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)
+        try:
+            res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)
+        except SolverError as err:
+            if err.result is not None:
+                err.result.work = step_work(err.result, self._work, par)
+            raise
+        res.work = step_work(res, self._work, par)
+        res.energy_at_end = bool(self.model.force)
         res.coordinate_names = self.model.coordinate_names
         warn_reflected(res.stats.get("grazing_reflected", 0))
         return res

@@ -37,6 +37,7 @@ class Kernels(Protocol):
     def legendre(self, q, v): ...
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau): ...  # ((a, b, c), w0, dw) or None
     def restitution(self): ...  # coefficient of restitution per contact
+    def at(self, t): ...  # segments start at t: the time slot of forces of time (last parameter)
 
     explicit_path: bool  # contact_path available: (47) as a scalar root along the segment map
 
@@ -102,6 +103,9 @@ class Stepper(SustainedSteps):
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
+        self._timed = bool(getattr(kernels, "timed", False))  # forces of time: kernels.at(t) per segment
+        system = getattr(kernels, "system", None)
+        self._forced = bool(system is not None and system.model.force)  # energy: the last segment's
         self._init_sustained()
 
     # -- public -----------------------------------------------------------------
@@ -127,6 +131,7 @@ class Stepper(SustainedSteps):
         impacts: list[Impact] = []
         v = np.asarray(v0, dtype=float).copy()
         self._h = h
+        self._at(t0)
         self._start_sustained(q, v, h)
         sus = SustainLog(k, cap)
         sus.active[0] = self.contact_activity()
@@ -193,6 +198,7 @@ class Stepper(SustainedSteps):
         self._events = 0
         self._h = h
         self._chained = False
+        self._at(t)
         if self._held:  # sustained contact or bilateral constraints: the constrained chain
             out = self._chain(step, t, h, q, p, t, h, guess, impacts, None)
             self._held = bool(self.act.any())
@@ -211,6 +217,11 @@ class Stepper(SustainedSteps):
         self._held = bool(self.act.any())  # a plastic impact may have started sustained contact
         return out
 
+    def _at(self, t: float) -> None:
+        """Segments start at ``t``: the time the forces see (``Kernels.at``; only with forces of time)."""
+        if self._timed:
+            self.k.at(t)
+
     # -- detection -----------------------------------------------------------------
     def _crossings(self, seg: _Seg, phi0, phi1, d0, d1) -> dict[int, tuple[float, float]]:
         """Contacts crossed in the segment, each with ``(s_hi, phi_j(q(s_hi)) < 0)``.
@@ -221,6 +232,7 @@ class Stepper(SustainedSteps):
         segment map of (47)/(78) itself is then sampled at the dip.
         """
         tol = self.tol
+        self._at(seg.t)
         out = {int(j): (1.0, float(phi1[j])) for j in np.flatnonzero(phi1 < -tol.phi)}
         for j in np.flatnonzero((phi1 >= -tol.phi) & (d0 < 0) & (d1 > 0)):
             if j == seg.contact:
@@ -245,6 +257,7 @@ class Stepper(SustainedSteps):
     def _segment_end(self, seg: _Seg, w) -> tuple[np.ndarray, dict[int, tuple[float, float]]]:
         """End point of a post-impact segment and the contacts it crosses."""
         k = self.k
+        self._at(seg.t)
         q_end = seg.q + seg.tau * w
         phi0, g0 = k.contacts(seg.q)
         phi1, g1 = k.contacts(q_end)
@@ -286,7 +299,9 @@ class Stepper(SustainedSteps):
                 pending = []
                 if not crossings:
                     q_end = seg.q + seg.tau * seg.x[:n]
-                    return q_end, k.segment(seg.q, seg.x[:n], seg.tau)[1], e_step, seg.x[:n]
+                    self._at(seg.t)
+                    _, p_end, e_end = k.segment(seg.q, seg.x[:n], seg.tau)
+                    return q_end, p_end, (e_end if self._forced else e_step), seg.x[:n]
                 continue
             j = min(roots, key=lambda i: (roots[i][1], i))
             x, s = roots[j]
@@ -296,6 +311,7 @@ class Stepper(SustainedSteps):
             tau_c = s * seg.tau
             v_c = x[:n]
             q_c = seg.q + tau_c * v_c
+            self._at(seg.t)
             _, p_minus_c, e_c = k.segment(seg.q, v_c, tau_c)
             e_in = e_c if seg.contact < 0 else seg.e_in
             e_step = e_in if e_step is None else e_step
@@ -317,6 +333,7 @@ class Stepper(SustainedSteps):
                 return self._chain(step, t_k, h, q_c, p_plus, t_c, seg.tau, v_c, impacts, e_step)
             seg.x = x_jump
             w = seg.x[:n]
+            self._at(seg.t)
             _, p_end, e_after = k.segment(seg.q, w, seg.tau)
             pending = [
                 (
@@ -328,7 +345,7 @@ class Stepper(SustainedSteps):
                         impulse=float(seg.x[n]) * wgt,
                         step=step,
                         energy_before=e_in,
-                        energy_after=e_after,
+                        energy_after=seg.e_in if self._forced else e_after,  # forces: the energy at its start
                         kind=kind
                         if kind == "grazing"
                         else ("elastic" if restitution[i] == 1.0 else "restitution"),
@@ -342,7 +359,7 @@ class Stepper(SustainedSteps):
             q_end, crossings = self._segment_end(seg, w)
             if not crossings:
                 impacts.extend(im for im, _ in pending)
-                return q_end, p_end, e_step, w
+                return q_end, p_end, (e_after if self._forced else e_step), w
         raise SolverError(
             step,
             t_k,
@@ -366,6 +383,7 @@ class Stepper(SustainedSteps):
         """The impact at the start of ``seg`` by the continuous law ``n.qdot -> -e n.qdot``; the rest of the
         step as a first segment from there: ``(segment, its crossings, E_d after, mu)``."""
         k = self.k
+        self._at(seg.t)
         vel, minv_n, _, _, mu = self._continuous_law(seg.q, seg.x[: k.n], seg.p_in, seg.nrm, seg.rest)
         p_plus = seg.p_in + mu * seg.nrm
         self.fallbacks += 1
@@ -419,6 +437,7 @@ class Stepper(SustainedSteps):
         """
         k = self.k
         n = k.n
+        self._at(seg.t)
         vel, minv_n, nv, nmn, mu0 = self._continuous_law(seg.q, v_in, seg.p_in, seg.nrm, restitution)
         sustain = self.tol.grazing == "contact" and k.r > 0
         accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
@@ -479,6 +498,7 @@ class Stepper(SustainedSteps):
         first = seg.contact < 0
         name = ("contact_time_" if first else "jump_contact_") + k.contact_names[j]
         phase = "contact time" if first else "jump to contact"
+        self._at(seg.t)
         lo, phi_lo = 0.0, k.contacts(seg.q)[0][j]
         if not first and j == seg.contact:  # leaving the contact just hit: step off the trivial root
             lo, phi_lo = self._leave(seg, j)
@@ -525,6 +545,7 @@ class Stepper(SustainedSteps):
     def _sub_solve(self, seg: _Seg, s: float, guess) -> tuple[np.ndarray, float]:
         """The segment map at fraction ``s``: its unknowns and ``phi`` at its end."""
         k = self.k
+        self._at(seg.t)
         if seg.contact < 0:
             x, _ = k.solve("smooth", guess, seg.q, seg.p_in, s * seg.tau)
         else:
@@ -542,7 +563,7 @@ class Stepper(SustainedSteps):
     def _bracketed_root(self, step, t_k, seg, j, name, phase, a, ga, b, gb):
         """Illinois regula falsi on ``g(s) = phi_j(q(s))`` over ``[a, b]``, then a Newton polish."""
         k = self.k
-        xb, _ = self._sub_solve(seg, b, seg.x)
+        xb, _ = self._sub_solve(seg, b, seg.x)  # sets the segment's time
         if not (ga >= -self.tol.phi and gb < 0):
             raise SolverError(
                 step,

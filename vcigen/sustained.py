@@ -94,7 +94,12 @@ def rattle_segment(k, q, p, tau, x0, act):
     y, res1 = k.solve("rattle_project", np.concatenate([v, np.zeros(k.r)]), q1, p_plus, act)
     u1 = y[:n]
     psi, grad, curv = k.rows(q1, u1)
+    t0 = k.t
+    if k.timed:  # the forces at the segment's end, at its time
+        k.at(t0 + tau)
     end = End(psi, grad, curv, k.dynamics(q1, u1)[0], k.legendre(q1, u1)[1])
+    if k.timed:
+        k.at(t0)
     return x, res, p_plus, e_seg, y, res1, end
 
 
@@ -203,12 +208,13 @@ class SustainedSteps:
         k, tol = self.k, self.tol
         self._chained = True
         while True:
+            self._at(t)
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             v, lam, q1, _, e_seg, lam1, p1, _, end = self._constrained(step, t_k, q, p, tau, guess)
-            e_step = e_seg if e_step is None else e_step
+            e_step = e_seg if (e_step is None or self._forced) else e_step
             unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool)
             events = {}
             f1 = self._forces(end)
@@ -236,6 +242,7 @@ class SustainedSteps:
             s = events[r0][1]
             self._count_event(step, t_k)
             v, lam, q, _, e_sub, lam1, p, _, _ = self._constrained(step, t_k, q, p, s * tau, v)
+            e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             if events[r0][0] == "lift":
@@ -249,17 +256,18 @@ class SustainedSteps:
         from .stepper import _Seg
 
         k = self.k
+        self._at(t)
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, tau, guess)
         self._check(res, p, step, t_k, "smooth")
-        e_step = e if e_step is None else e_step
+        e_step = e if (e_step is None or self._forced) else e_step
         if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
             return q + tau * v, p1, e_step, v
         seg = _Seg(q=q, t=t, tau=tau, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
         crossings = self._crossings(seg, phi0, phi1, d0, d1)
         if not crossings:
             return q + tau * v, p1, e_step, v
-        q1, p1, _, w = self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
-        return q1, p1, e_step, w
+        q1, p1, e_end, w = self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        return q1, p1, (e_end if self._forced else e_step), w
 
     def _release(self, step, t_k, t, r: int) -> None:
         """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact."""
@@ -383,6 +391,7 @@ class SustainedSteps:
     def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before):
         """An impact on rows ``group`` during sustained contact; returns the momentum after it."""
         k = self.k
+        self._at(t)
         rest = k.restitution()
         vel = self._velocity(q, v, p)
         lam_now = np.where(self.act, self._lam, 0.0) * 2.0 / self._h

@@ -67,6 +67,7 @@ class CasadiKernels:
         self.n, self.m = system.n, system.m
         self.contact_names = system.contact_names
         self.par = np.zeros(len(system.params))
+        self.timed, self.t = system.timed, 0.0
         self._buffers: dict[str, tuple] = {}
         self.functions = {name: routine_to_function(r) for name, r in system.routines.items()}
         self._solvers = {
@@ -84,6 +85,12 @@ class CasadiKernels:
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
+
+    def at(self, t: float) -> None:
+        """Segments start at ``t``: the time slot (last parameter) of forces that depend on time."""
+        self.t = float(t)
+        if self.timed:
+            self.par[-1] = t
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -155,7 +162,9 @@ class CasadiKernels:
         y, res1 = out[: n + r], out[n + r]
         u1 = y[:n]
         psi, grad, curv = self.functions["rows"](q1, u1, par)
-        rhs, _ = self.functions["dynamics"](q1, u1, par)
+        # the forces at the segment's end, at its time (the last parameter slot: the time it starts)
+        par_end = ca.vertcat(par[:-1], par[-1] + tau) if self.timed else par
+        rhs, _ = self.functions["dynamics"](q1, u1, par_end)
         _, mass = self.functions["legendre"](q1, u1, par)
         flat = ca.vertcat(x, res, p_plus, e_seg, y, res1, psi, ca.vec(grad.T), curv, rhs, ca.vec(mass.T))
         return ca.Function("rattle_segment", [vec], [flat])

@@ -138,6 +138,8 @@ def render_context(
             )
         ],
         "npar": len(system.params),
+        "timed": system.timed,  # the last parameter slot is the time a segment starts at (forces of time)
+        "forced": bool(model.force),  # a step's energy is its last segment's (Lagrange-d'Alembert)
         "nk": grid[0].outputs[0].size if grid else 0,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],

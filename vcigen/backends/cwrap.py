@@ -93,7 +93,8 @@ class CKernels:
         self.library = Path(library)
         self.n, self.m = system.n, system.m
         self.contact_names = system.contact_names
-        self.par = np.array([float(v) for v in system.model.defaults.values()])
+        self.par = np.array([float(v) for v in system.model.defaults.values()] + [0.0] * system.timed)
+        self.timed, self.t = system.timed, 0.0
         self._ids = {r["name"]: (r["id"], r["nx"]) for r in ctx["residuals"]}
         self.lib = ctypes.CDLL(str(self.library))
         pre = ctx["prefix"]
@@ -147,6 +148,12 @@ class CKernels:
         self.start.argtypes = [_D, ctypes.POINTER(_Tol), ctypes.c_double, _D, _D, ctypes.c_void_p]
         self.nc = len(system.model.constraint)
         self.Sustain = sustain_struct(self.r, self.m, self.nc)
+
+    def at(self, t: float) -> None:
+        """Segments start at ``t``: the time slot (last parameter) of forces that depend on time."""
+        self.t = float(t)
+        if self.timed:
+            self.par[-1] = t
 
     def bind(self, par) -> CKernels:
         """Fix the parameter values for the next simulation."""

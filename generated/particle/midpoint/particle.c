@@ -521,6 +521,13 @@ static const particle_fun particle_jump_contact_fns[PARTICLE_M_DIM] = {
     particle_fn_jump_contact_floor,
 };
 
+/* Stepper._at: segments start at t, the time the forces see (the last parameter slot; forces of time only). */
+static inline void particle_at(const particle_ctx_t *c, double t)
+{
+    (void)c;
+    (void)t;
+}
+
 /* Fill err and return 1 (stepper: raise SolverError(step, t_k, phase, residual, reason)). */
 static int particle_fail(const particle_ctx_t *c, int phase, double residual, const char *fmt, ...)
 {
@@ -644,6 +651,7 @@ static void particle_sub_solve(const particle_ctx_t *c, const particle_seg_t *se
     const double tau = s * seg->tau;
     double q_end[PARTICLE_N];
     int i;
+    particle_at(c, seg->t);
     if (seg->contact < 0) {
         for (i = 0; i < PARTICLE_N; ++i) {
             x[i] = guess[i];
@@ -755,6 +763,7 @@ static int particle_crossings(const particle_ctx_t *c, const particle_seg_t *seg
 {
     double s_min, g_min;
     int j, count = 0;
+    particle_at(c, seg->t);
     for (j = 0; j < PARTICLE_M; ++j) {
         crossed[j] = 0;
         if (phi1[j] < -c->tol->phi) {
@@ -883,6 +892,7 @@ static int particle_contact_root(const particle_ctx_t *c, const particle_seg_t *
     const double *arg[6];
     double lo = 0.0, phi_lo, ratio, s0, s, res, phi[PARTICLE_M_DIM];
     int i, ok;
+    particle_at(c, seg->t);
     particle_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
@@ -895,6 +905,7 @@ static int particle_contact_root(const particle_ctx_t *c, const particle_seg_t *
         x[i] = seg->x[i];
     }
     x[nx - 1] = s0;
+    particle_at(c, seg->t); /* leave() solved at the same segment's time */
     particle_seg_args(seg, &seg->tau, c->par, arg);
     if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
         particle_path_root(c, seg, j, s0, hi, x);
@@ -1221,6 +1232,15 @@ static int particle_count_event(const particle_ctx_t *c)
     return 0;
 }
 
+/* The contact forces at the end (q1, u1) of a constrained segment of duration tau from the segment start: the
+ * forces of time at its end's time (rattle_segment's End). */
+static void particle_end_forces(const particle_ctx_t *c, const double *q1, const double *u1, double tau,
+    double *f)
+{
+    (void)tau;
+    particle_contact_forces(c, q1, u1, f);
+}
+
 /* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
 static int particle_sub_end(const particle_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
@@ -1256,7 +1276,7 @@ static int particle_illinois(const particle_ctx_t *c, int r, int height, const d
         if (height) {
             particle_rows(q1, v, c->par, f, grad, curv);
         } else {
-            particle_contact_forces(c, q1, u1, f);
+            particle_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
         if (gc < 0) {
@@ -1475,6 +1495,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], i, g, r, j, any, done;
+    particle_at(c, t);
     particle_restitution(c->par, rest);
     particle_velocity(c, q, v, p, vel);
     for (r = 0; r < PARTICLE_R; ++r) {
@@ -1599,6 +1620,7 @@ static int particle_free_rest(const particle_ctx_t *c, double *q, double *p, dou
     double p1[PARTICLE_N], s_hi[PARTICLE_M_DIM], g_hi[PARTICLE_M_DIM], res, e1, e_imp;
     int crossed[PARTICLE_M_DIM], i, j, inside = 1;
     particle_seg_t seg;
+    particle_at(c, t);
     particle_contacts(q, c->par, phi0, grad0);
     particle_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (particle_check(c, res, p, NAN, PARTICLE_PHASE_SMOOTH)) {
@@ -1625,8 +1647,9 @@ static int particle_free_rest(const particle_ctx_t *c, double *q, double *p, dou
         seg.contact = -1;
         seg.rest = 1.0;
         if (particle_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return particle_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
-                *e_step);
+            const int rc = particle_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
+                rec, n_rec, *e_step);
+            return rc;
         }
     }
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -1648,6 +1671,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
     int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, r, r0, start, any, pulled, n_group;
     for (;;) {
+        particle_at(c, t);
         if (tau <= 1e-13 * c->h) {
             return 0;
         }
@@ -1664,7 +1688,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
-        particle_contact_forces(c, q1, u1, f1);
+        particle_end_forces(c, q1, u1, tau, f1);
         f_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(PARTICLE_R, f1));
         start = -1;
         pulled = 0;
@@ -1857,6 +1881,7 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
     (void)group;
     (void)wgt;
     (void)n_group;
+    particle_at(c, seg->t);
     mu0 = particle_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PARTICLE_N; ++i) {
         nn += seg->nrm[i] * seg->nrm[i];
@@ -1940,6 +1965,7 @@ static int particle_segment_end(const particle_ctx_t *c, const particle_seg_t *s
     double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM];
     double d1[PARTICLE_M_DIM], p_start[PARTICLE_N], p_end[PARTICLE_N], e;
     int i;
+    particle_at(c, seg->t);
     for (i = 0; i < PARTICLE_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
@@ -1962,6 +1988,7 @@ static int particle_restart(const particle_ctx_t *c, particle_seg_t *seg, double
     double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N], phi1[PARTICLE_M_DIM];
     double grad1[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM], d1[PARTICLE_M_DIM];
     int i;
+    particle_at(c, seg->t);
     *mu = particle_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PARTICLE_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
@@ -2022,6 +2049,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
                             q[i] = seg->q[i] + seg->tau * seg->x[i];
                             v[i] = seg->x[i];
                         }
+                        particle_at(c, seg->t);
                         particle_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
                         particle_contacts(q, par, phi, grad);
                         *e = e_step;
@@ -2059,6 +2087,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             v_c[i] = x_best[i];
             next.q[i] = seg->q[i] + tau_c * v_c[i];
         }
+        particle_at(c, seg->t);
         particle_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
@@ -2115,6 +2144,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             return rc;
         }
 
+        particle_at(c, seg->t);
         particle_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * PARTICLE_W;
@@ -2158,6 +2188,7 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
     double d0[PARTICLE_M_DIM], d1[PARTICLE_M_DIM], s_hi[PARTICLE_M_DIM], g_hi[PARTICLE_M_DIM], res, e1;
     int crossed[PARTICLE_M_DIM], i, j, inside = 1;
     particle_seg_t seg;
+    particle_at(c, c->t_k);
     for (j = 0; j < PARTICLE_M; ++j) {
         c->sus->force[j] = 0.0;
     }

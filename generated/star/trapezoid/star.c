@@ -817,6 +817,13 @@ static const star_fun star_jump_contact_fns[STAR_M_DIM] = {
     star_fn_jump_contact_floor,
 };
 
+/* Stepper._at: segments start at t, the time the forces see (the last parameter slot; forces of time only). */
+static inline void star_at(const star_ctx_t *c, double t)
+{
+    (void)c;
+    (void)t;
+}
+
 /* Fill err and return 1 (stepper: raise SolverError(step, t_k, phase, residual, reason)). */
 static int star_fail(const star_ctx_t *c, int phase, double residual, const char *fmt, ...)
 {
@@ -940,6 +947,7 @@ static void star_sub_solve(const star_ctx_t *c, const star_seg_t *seg, double s,
     const double tau = s * seg->tau;
     double q_end[STAR_N];
     int i;
+    star_at(c, seg->t);
     if (seg->contact < 0) {
         for (i = 0; i < STAR_N; ++i) {
             x[i] = guess[i];
@@ -1051,6 +1059,7 @@ static int star_crossings(const star_ctx_t *c, const star_seg_t *seg, const doub
 {
     double s_min, g_min;
     int j, count = 0;
+    star_at(c, seg->t);
     for (j = 0; j < STAR_M; ++j) {
         crossed[j] = 0;
         if (phi1[j] < -c->tol->phi) {
@@ -1179,6 +1188,7 @@ static int star_contact_root(const star_ctx_t *c, const star_seg_t *seg, int j, 
     const double *arg[6];
     double lo = 0.0, phi_lo, ratio, s0, s, res, phi[STAR_M_DIM];
     int i, ok;
+    star_at(c, seg->t);
     star_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
@@ -1191,6 +1201,7 @@ static int star_contact_root(const star_ctx_t *c, const star_seg_t *seg, int j, 
         x[i] = seg->x[i];
     }
     x[nx - 1] = s0;
+    star_at(c, seg->t); /* leave() solved at the same segment's time */
     star_seg_args(seg, &seg->tau, c->par, arg);
     if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
         star_path_root(c, seg, j, s0, hi, x);
@@ -1517,6 +1528,15 @@ static int star_count_event(const star_ctx_t *c)
     return 0;
 }
 
+/* The contact forces at the end (q1, u1) of a constrained segment of duration tau from the segment start: the
+ * forces of time at its end's time (rattle_segment's End). */
+static void star_end_forces(const star_ctx_t *c, const double *q1, const double *u1, double tau,
+    double *f)
+{
+    (void)tau;
+    star_contact_forces(c, q1, u1, f);
+}
+
 /* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
 static int star_sub_end(const star_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
@@ -1552,7 +1572,7 @@ static int star_illinois(const star_ctx_t *c, int r, int height, const double *q
         if (height) {
             star_rows(q1, v, c->par, f, grad, curv);
         } else {
-            star_contact_forces(c, q1, u1, f);
+            star_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
         if (gc < 0) {
@@ -1771,6 +1791,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], i, g, r, j, any, done;
+    star_at(c, t);
     star_restitution(c->par, rest);
     star_velocity(c, q, v, p, vel);
     for (r = 0; r < STAR_R; ++r) {
@@ -1895,6 +1916,7 @@ static int star_free_rest(const star_ctx_t *c, double *q, double *p, double t, d
     double p1[STAR_N], s_hi[STAR_M_DIM], g_hi[STAR_M_DIM], res, e1, e_imp;
     int crossed[STAR_M_DIM], i, j, inside = 1;
     star_seg_t seg;
+    star_at(c, t);
     star_contacts(q, c->par, phi0, grad0);
     star_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (star_check(c, res, p, NAN, STAR_PHASE_SMOOTH)) {
@@ -1921,8 +1943,9 @@ static int star_free_rest(const star_ctx_t *c, double *q, double *p, double t, d
         seg.contact = -1;
         seg.rest = 1.0;
         if (star_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return star_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
-                *e_step);
+            const int rc = star_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
+                rec, n_rec, *e_step);
+            return rc;
         }
     }
     for (i = 0; i < STAR_N; ++i) {
@@ -1944,6 +1967,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     double f1[STAR_R_DIM], vel[STAR_N], f_eps;
     int ev[STAR_R_DIM], group[STAR_R_DIM], i, r, r0, start, any, pulled, n_group;
     for (;;) {
+        star_at(c, t);
         if (tau <= 1e-13 * c->h) {
             return 0;
         }
@@ -1960,7 +1984,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
-        star_contact_forces(c, q1, u1, f1);
+        star_end_forces(c, q1, u1, tau, f1);
         f_eps = STAR_EPS_LAM * (1.0 + star_norm_inf(STAR_R, f1));
         start = -1;
         pulled = 0;
@@ -2153,6 +2177,7 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     (void)group;
     (void)wgt;
     (void)n_group;
+    star_at(c, seg->t);
     mu0 = star_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < STAR_N; ++i) {
         nn += seg->nrm[i] * seg->nrm[i];
@@ -2236,6 +2261,7 @@ static int star_segment_end(const star_ctx_t *c, const star_seg_t *seg, double *
     double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N], d0[STAR_M_DIM];
     double d1[STAR_M_DIM], p_start[STAR_N], p_end[STAR_N], e;
     int i;
+    star_at(c, seg->t);
     for (i = 0; i < STAR_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
@@ -2258,6 +2284,7 @@ static int star_restart(const star_ctx_t *c, star_seg_t *seg, double *e_new, dou
     double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N], phi1[STAR_M_DIM];
     double grad1[STAR_M_DIM * STAR_N], d0[STAR_M_DIM], d1[STAR_M_DIM];
     int i;
+    star_at(c, seg->t);
     *mu = star_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < STAR_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
@@ -2318,6 +2345,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
                             q[i] = seg->q[i] + seg->tau * seg->x[i];
                             v[i] = seg->x[i];
                         }
+                        star_at(c, seg->t);
                         star_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
                         star_contacts(q, par, phi, grad);
                         *e = e_step;
@@ -2355,6 +2383,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             v_c[i] = x_best[i];
             next.q[i] = seg->q[i] + tau_c * v_c[i];
         }
+        star_at(c, seg->t);
         star_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
@@ -2411,6 +2440,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             return rc;
         }
 
+        star_at(c, seg->t);
         star_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * STAR_W;
@@ -2454,6 +2484,7 @@ static int star_step(const star_ctx_t *c, double *q, double *p, double *v, doubl
     double d0[STAR_M_DIM], d1[STAR_M_DIM], s_hi[STAR_M_DIM], g_hi[STAR_M_DIM], res, e1;
     int crossed[STAR_M_DIM], i, j, inside = 1;
     star_seg_t seg;
+    star_at(c, c->t_k);
     for (j = 0; j < STAR_M; ++j) {
         c->sus->force[j] = 0.0;
     }

@@ -527,6 +527,13 @@ static const ball_to_rest_fun ball_to_rest_jump_contact_fns[BALL_TO_REST_M_DIM] 
     ball_to_rest_fn_jump_contact_floor,
 };
 
+/* Stepper._at: segments start at t, the time the forces see (the last parameter slot; forces of time only). */
+static inline void ball_to_rest_at(const ball_to_rest_ctx_t *c, double t)
+{
+    (void)c;
+    (void)t;
+}
+
 /* Fill err and return 1 (stepper: raise SolverError(step, t_k, phase, residual, reason)). */
 static int ball_to_rest_fail(const ball_to_rest_ctx_t *c, int phase, double residual, const char *fmt, ...)
 {
@@ -650,6 +657,7 @@ static void ball_to_rest_sub_solve(const ball_to_rest_ctx_t *c, const ball_to_re
     const double tau = s * seg->tau;
     double q_end[BALL_TO_REST_N];
     int i;
+    ball_to_rest_at(c, seg->t);
     if (seg->contact < 0) {
         for (i = 0; i < BALL_TO_REST_N; ++i) {
             x[i] = guess[i];
@@ -761,6 +769,7 @@ static int ball_to_rest_crossings(const ball_to_rest_ctx_t *c, const ball_to_res
 {
     double s_min, g_min;
     int j, count = 0;
+    ball_to_rest_at(c, seg->t);
     for (j = 0; j < BALL_TO_REST_M; ++j) {
         crossed[j] = 0;
         if (phi1[j] < -c->tol->phi) {
@@ -889,6 +898,7 @@ static int ball_to_rest_contact_root(const ball_to_rest_ctx_t *c, const ball_to_
     const double *arg[6];
     double lo = 0.0, phi_lo, ratio, s0, s, res, phi[BALL_TO_REST_M_DIM];
     int i, ok;
+    ball_to_rest_at(c, seg->t);
     ball_to_rest_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
@@ -901,6 +911,7 @@ static int ball_to_rest_contact_root(const ball_to_rest_ctx_t *c, const ball_to_
         x[i] = seg->x[i];
     }
     x[nx - 1] = s0;
+    ball_to_rest_at(c, seg->t); /* leave() solved at the same segment's time */
     ball_to_rest_seg_args(seg, &seg->tau, c->par, arg);
     if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
         ball_to_rest_path_root(c, seg, j, s0, hi, x);
@@ -1227,6 +1238,15 @@ static int ball_to_rest_count_event(const ball_to_rest_ctx_t *c)
     return 0;
 }
 
+/* The contact forces at the end (q1, u1) of a constrained segment of duration tau from the segment start: the
+ * forces of time at its end's time (rattle_segment's End). */
+static void ball_to_rest_end_forces(const ball_to_rest_ctx_t *c, const double *q1, const double *u1, double tau,
+    double *f)
+{
+    (void)tau;
+    ball_to_rest_contact_forces(c, q1, u1, f);
+}
+
 /* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
 static int ball_to_rest_sub_end(const ball_to_rest_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
@@ -1262,7 +1282,7 @@ static int ball_to_rest_illinois(const ball_to_rest_ctx_t *c, int r, int height,
         if (height) {
             ball_to_rest_rows(q1, v, c->par, f, grad, curv);
         } else {
-            ball_to_rest_contact_forces(c, q1, u1, f);
+            ball_to_rest_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
         if (gc < 0) {
@@ -1481,6 +1501,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp;
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
+    ball_to_rest_at(c, t);
     ball_to_rest_restitution(c->par, rest);
     ball_to_rest_velocity(c, q, v, p, vel);
     for (r = 0; r < BALL_TO_REST_R; ++r) {
@@ -1605,6 +1626,7 @@ static int ball_to_rest_free_rest(const ball_to_rest_ctx_t *c, double *q, double
     double p1[BALL_TO_REST_N], s_hi[BALL_TO_REST_M_DIM], g_hi[BALL_TO_REST_M_DIM], res, e1, e_imp;
     int crossed[BALL_TO_REST_M_DIM], i, j, inside = 1;
     ball_to_rest_seg_t seg;
+    ball_to_rest_at(c, t);
     ball_to_rest_contacts(q, c->par, phi0, grad0);
     ball_to_rest_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (ball_to_rest_check(c, res, p, NAN, BALL_TO_REST_PHASE_SMOOTH)) {
@@ -1631,8 +1653,9 @@ static int ball_to_rest_free_rest(const ball_to_rest_ctx_t *c, double *q, double
         seg.contact = -1;
         seg.rest = 1.0;
         if (ball_to_rest_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return ball_to_rest_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
-                *e_step);
+            const int rc = ball_to_rest_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
+                rec, n_rec, *e_step);
+            return rc;
         }
     }
     for (i = 0; i < BALL_TO_REST_N; ++i) {
@@ -1654,6 +1677,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     double f1[BALL_TO_REST_R_DIM], vel[BALL_TO_REST_N], f_eps;
     int ev[BALL_TO_REST_R_DIM], group[BALL_TO_REST_R_DIM], i, r, r0, start, any, pulled, n_group;
     for (;;) {
+        ball_to_rest_at(c, t);
         if (tau <= 1e-13 * c->h) {
             return 0;
         }
@@ -1670,7 +1694,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
-        ball_to_rest_contact_forces(c, q1, u1, f1);
+        ball_to_rest_end_forces(c, q1, u1, tau, f1);
         f_eps = BALL_TO_REST_EPS_LAM * (1.0 + ball_to_rest_norm_inf(BALL_TO_REST_R, f1));
         start = -1;
         pulled = 0;
@@ -1863,6 +1887,7 @@ static int ball_to_rest_solve_jump(const ball_to_rest_ctx_t *c, ball_to_rest_seg
     (void)group;
     (void)wgt;
     (void)n_group;
+    ball_to_rest_at(c, seg->t);
     mu0 = ball_to_rest_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         nn += seg->nrm[i] * seg->nrm[i];
@@ -1946,6 +1971,7 @@ static int ball_to_rest_segment_end(const ball_to_rest_ctx_t *c, const ball_to_r
     double phi0[BALL_TO_REST_M_DIM], grad0[BALL_TO_REST_M_DIM * BALL_TO_REST_N], d0[BALL_TO_REST_M_DIM];
     double d1[BALL_TO_REST_M_DIM], p_start[BALL_TO_REST_N], p_end[BALL_TO_REST_N], e;
     int i;
+    ball_to_rest_at(c, seg->t);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
@@ -1968,6 +1994,7 @@ static int ball_to_rest_restart(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t 
     double phi0[BALL_TO_REST_M_DIM], grad0[BALL_TO_REST_M_DIM * BALL_TO_REST_N], phi1[BALL_TO_REST_M_DIM];
     double grad1[BALL_TO_REST_M_DIM * BALL_TO_REST_N], d0[BALL_TO_REST_M_DIM], d1[BALL_TO_REST_M_DIM];
     int i;
+    ball_to_rest_at(c, seg->t);
     *mu = ball_to_rest_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
@@ -2028,6 +2055,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
                             q[i] = seg->q[i] + seg->tau * seg->x[i];
                             v[i] = seg->x[i];
                         }
+                        ball_to_rest_at(c, seg->t);
                         ball_to_rest_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
                         ball_to_rest_contacts(q, par, phi, grad);
                         *e = e_step;
@@ -2065,6 +2093,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
             v_c[i] = x_best[i];
             next.q[i] = seg->q[i] + tau_c * v_c[i];
         }
+        ball_to_rest_at(c, seg->t);
         ball_to_rest_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
@@ -2121,6 +2150,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
             return rc;
         }
 
+        ball_to_rest_at(c, seg->t);
         ball_to_rest_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * BALL_TO_REST_W;
@@ -2164,6 +2194,7 @@ static int ball_to_rest_step(const ball_to_rest_ctx_t *c, double *q, double *p, 
     double d0[BALL_TO_REST_M_DIM], d1[BALL_TO_REST_M_DIM], s_hi[BALL_TO_REST_M_DIM], g_hi[BALL_TO_REST_M_DIM], res, e1;
     int crossed[BALL_TO_REST_M_DIM], i, j, inside = 1;
     ball_to_rest_seg_t seg;
+    ball_to_rest_at(c, c->t_k);
     for (j = 0; j < BALL_TO_REST_M; ++j) {
         c->sus->force[j] = 0.0;
     }

@@ -40,10 +40,10 @@ static void usage(FILE *f, const char *prog)
         "[--param NAME=VALUE ...] [--out PREFIX]\n", prog);
     fprintf(f, "  coordinates: x y; contacts: wall\n");
     fprintf(f, "  parameters (defaults):");
-    for (k = 0; k < PENDULUM_WALL_NPAR; ++k) {
+    for (k = 0; k < 4; ++k) { /* the model's parameters (not the time slot) */
         fprintf(f, " %s=%g", pendulum_wall_param_names[k], pendulum_wall_param_defaults[k]);
     }
-    fprintf(f, "%s\n", PENDULUM_WALL_NPAR ? "" : " none");
+    fprintf(f, "%s\n", "");
     fprintf(f, "  defaults: --h 0.01 --t-end 20.0 --out pendulum_wall\n");
 }
 
@@ -69,7 +69,7 @@ static int parse_param(const char *text, double *par)
     if (eq == 0) {
         return 0;
     }
-    for (k = 0; k < PENDULUM_WALL_NPAR; ++k) {
+    for (k = 0; k < 4; ++k) { /* the model's parameters (not the time slot) */
         if (strlen(pendulum_wall_param_names[k]) == (size_t)(eq - text)
             && strncmp(pendulum_wall_param_names[k], text, (size_t)(eq - text)) == 0) {
             return parse_number(eq + 1, &par[k]);

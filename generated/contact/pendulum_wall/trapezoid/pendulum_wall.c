@@ -554,6 +554,13 @@ static const pendulum_wall_fun pendulum_wall_jump_contact_fns[PENDULUM_WALL_M_DI
     pendulum_wall_fn_jump_contact_wall,
 };
 
+/* Stepper._at: segments start at t, the time the forces see (the last parameter slot; forces of time only). */
+static inline void pendulum_wall_at(const pendulum_wall_ctx_t *c, double t)
+{
+    (void)c;
+    (void)t;
+}
+
 /* Fill err and return 1 (stepper: raise SolverError(step, t_k, phase, residual, reason)). */
 static int pendulum_wall_fail(const pendulum_wall_ctx_t *c, int phase, double residual, const char *fmt, ...)
 {
@@ -677,6 +684,7 @@ static void pendulum_wall_sub_solve(const pendulum_wall_ctx_t *c, const pendulum
     const double tau = s * seg->tau;
     double q_end[PENDULUM_WALL_N];
     int i;
+    pendulum_wall_at(c, seg->t);
     if (seg->contact < 0) {
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             x[i] = guess[i];
@@ -788,6 +796,7 @@ static int pendulum_wall_crossings(const pendulum_wall_ctx_t *c, const pendulum_
 {
     double s_min, g_min;
     int j, count = 0;
+    pendulum_wall_at(c, seg->t);
     for (j = 0; j < PENDULUM_WALL_M; ++j) {
         crossed[j] = 0;
         if (phi1[j] < -c->tol->phi) {
@@ -916,6 +925,7 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
     const double *arg[6];
     double lo = 0.0, phi_lo, ratio, s0, s, res, phi[PENDULUM_WALL_M_DIM];
     int i, ok;
+    pendulum_wall_at(c, seg->t);
     pendulum_wall_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
@@ -928,6 +938,7 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
         x[i] = seg->x[i];
     }
     x[nx - 1] = s0;
+    pendulum_wall_at(c, seg->t); /* leave() solved at the same segment's time */
     pendulum_wall_seg_args(seg, &seg->tau, c->par, arg);
     if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
         pendulum_wall_path_root(c, seg, j, s0, hi, x);
@@ -1254,6 +1265,15 @@ static int pendulum_wall_count_event(const pendulum_wall_ctx_t *c)
     return 0;
 }
 
+/* The contact forces at the end (q1, u1) of a constrained segment of duration tau from the segment start: the
+ * forces of time at its end's time (rattle_segment's End). */
+static void pendulum_wall_end_forces(const pendulum_wall_ctx_t *c, const double *q1, const double *u1, double tau,
+    double *f)
+{
+    (void)tau;
+    pendulum_wall_contact_forces(c, q1, u1, f);
+}
+
 /* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
 static int pendulum_wall_sub_end(const pendulum_wall_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
@@ -1289,7 +1309,7 @@ static int pendulum_wall_illinois(const pendulum_wall_ctx_t *c, int r, int heigh
         if (height) {
             pendulum_wall_rows(q1, v, c->par, f, grad, curv);
         } else {
-            pendulum_wall_contact_forces(c, q1, u1, f);
+            pendulum_wall_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
         if (gc < 0) {
@@ -1508,6 +1528,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
+    pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
     pendulum_wall_velocity(c, q, v, p, vel);
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
@@ -1632,6 +1653,7 @@ static int pendulum_wall_free_rest(const pendulum_wall_ctx_t *c, double *q, doub
     double p1[PENDULUM_WALL_N], s_hi[PENDULUM_WALL_M_DIM], g_hi[PENDULUM_WALL_M_DIM], res, e1, e_imp;
     int crossed[PENDULUM_WALL_M_DIM], i, j, inside = 1;
     pendulum_wall_seg_t seg;
+    pendulum_wall_at(c, t);
     pendulum_wall_contacts(q, c->par, phi0, grad0);
     pendulum_wall_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (pendulum_wall_check(c, res, p, NAN, PENDULUM_WALL_PHASE_SMOOTH)) {
@@ -1658,8 +1680,9 @@ static int pendulum_wall_free_rest(const pendulum_wall_ctx_t *c, double *q, doub
         seg.contact = -1;
         seg.rest = 1.0;
         if (pendulum_wall_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return pendulum_wall_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
-                *e_step);
+            const int rc = pendulum_wall_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
+                rec, n_rec, *e_step);
+            return rc;
         }
     }
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
@@ -1681,6 +1704,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     double f1[PENDULUM_WALL_R_DIM], vel[PENDULUM_WALL_N], f_eps;
     int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, r, r0, start, any, pulled, n_group;
     for (;;) {
+        pendulum_wall_at(c, t);
         if (tau <= 1e-13 * c->h) {
             return 0;
         }
@@ -1697,7 +1721,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
-        pendulum_wall_contact_forces(c, q1, u1, f1);
+        pendulum_wall_end_forces(c, q1, u1, tau, f1);
         f_eps = PENDULUM_WALL_EPS_LAM * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_R, f1));
         start = -1;
         pulled = 0;
@@ -1890,6 +1914,7 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
     (void)group;
     (void)wgt;
     (void)n_group;
+    pendulum_wall_at(c, seg->t);
     mu0 = pendulum_wall_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         nn += seg->nrm[i] * seg->nrm[i];
@@ -1973,6 +1998,7 @@ static int pendulum_wall_segment_end(const pendulum_wall_ctx_t *c, const pendulu
     double phi0[PENDULUM_WALL_M_DIM], grad0[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N], d0[PENDULUM_WALL_M_DIM];
     double d1[PENDULUM_WALL_M_DIM], p_start[PENDULUM_WALL_N], p_end[PENDULUM_WALL_N], e;
     int i;
+    pendulum_wall_at(c, seg->t);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
@@ -1995,6 +2021,7 @@ static int pendulum_wall_restart(const pendulum_wall_ctx_t *c, pendulum_wall_seg
     double phi0[PENDULUM_WALL_M_DIM], grad0[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N], phi1[PENDULUM_WALL_M_DIM];
     double grad1[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N], d0[PENDULUM_WALL_M_DIM], d1[PENDULUM_WALL_M_DIM];
     int i;
+    pendulum_wall_at(c, seg->t);
     *mu = pendulum_wall_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
@@ -2055,6 +2082,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
                             q[i] = seg->q[i] + seg->tau * seg->x[i];
                             v[i] = seg->x[i];
                         }
+                        pendulum_wall_at(c, seg->t);
                         pendulum_wall_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
                         pendulum_wall_contacts(q, par, phi, grad);
                         *e = e_step;
@@ -2092,6 +2120,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
             v_c[i] = x_best[i];
             next.q[i] = seg->q[i] + tau_c * v_c[i];
         }
+        pendulum_wall_at(c, seg->t);
         pendulum_wall_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
@@ -2148,6 +2177,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
             return rc;
         }
 
+        pendulum_wall_at(c, seg->t);
         pendulum_wall_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * PENDULUM_WALL_W;
@@ -2191,6 +2221,7 @@ static int pendulum_wall_step(const pendulum_wall_ctx_t *c, double *q, double *p
     double d0[PENDULUM_WALL_M_DIM], d1[PENDULUM_WALL_M_DIM], s_hi[PENDULUM_WALL_M_DIM], g_hi[PENDULUM_WALL_M_DIM], res, e1;
     int crossed[PENDULUM_WALL_M_DIM], i, j, inside = 1;
     pendulum_wall_seg_t seg;
+    pendulum_wall_at(c, c->t_k);
     for (j = 0; j < PENDULUM_WALL_M; ++j) {
         c->sus->force[j] = 0.0;
     }

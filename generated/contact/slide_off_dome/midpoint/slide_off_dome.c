@@ -557,6 +557,13 @@ static const slide_off_dome_fun slide_off_dome_jump_contact_fns[SLIDE_OFF_DOME_M
     slide_off_dome_fn_jump_contact_dome,
 };
 
+/* Stepper._at: segments start at t, the time the forces see (the last parameter slot; forces of time only). */
+static inline void slide_off_dome_at(const slide_off_dome_ctx_t *c, double t)
+{
+    (void)c;
+    (void)t;
+}
+
 /* Fill err and return 1 (stepper: raise SolverError(step, t_k, phase, residual, reason)). */
 static int slide_off_dome_fail(const slide_off_dome_ctx_t *c, int phase, double residual, const char *fmt, ...)
 {
@@ -680,6 +687,7 @@ static void slide_off_dome_sub_solve(const slide_off_dome_ctx_t *c, const slide_
     const double tau = s * seg->tau;
     double q_end[SLIDE_OFF_DOME_N];
     int i;
+    slide_off_dome_at(c, seg->t);
     if (seg->contact < 0) {
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             x[i] = guess[i];
@@ -791,6 +799,7 @@ static int slide_off_dome_crossings(const slide_off_dome_ctx_t *c, const slide_o
 {
     double s_min, g_min;
     int j, count = 0;
+    slide_off_dome_at(c, seg->t);
     for (j = 0; j < SLIDE_OFF_DOME_M; ++j) {
         crossed[j] = 0;
         if (phi1[j] < -c->tol->phi) {
@@ -919,6 +928,7 @@ static int slide_off_dome_contact_root(const slide_off_dome_ctx_t *c, const slid
     const double *arg[6];
     double lo = 0.0, phi_lo, ratio, s0, s, res, phi[SLIDE_OFF_DOME_M_DIM];
     int i, ok;
+    slide_off_dome_at(c, seg->t);
     slide_off_dome_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
@@ -931,6 +941,7 @@ static int slide_off_dome_contact_root(const slide_off_dome_ctx_t *c, const slid
         x[i] = seg->x[i];
     }
     x[nx - 1] = s0;
+    slide_off_dome_at(c, seg->t); /* leave() solved at the same segment's time */
     slide_off_dome_seg_args(seg, &seg->tau, c->par, arg);
     if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
         slide_off_dome_path_root(c, seg, j, s0, hi, x);
@@ -1257,6 +1268,15 @@ static int slide_off_dome_count_event(const slide_off_dome_ctx_t *c)
     return 0;
 }
 
+/* The contact forces at the end (q1, u1) of a constrained segment of duration tau from the segment start: the
+ * forces of time at its end's time (rattle_segment's End). */
+static void slide_off_dome_end_forces(const slide_off_dome_ctx_t *c, const double *q1, const double *u1, double tau,
+    double *f)
+{
+    (void)tau;
+    slide_off_dome_contact_forces(c, q1, u1, f);
+}
+
 /* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
 static int slide_off_dome_sub_end(const slide_off_dome_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
@@ -1292,7 +1312,7 @@ static int slide_off_dome_illinois(const slide_off_dome_ctx_t *c, int r, int hei
         if (height) {
             slide_off_dome_rows(q1, v, c->par, f, grad, curv);
         } else {
-            slide_off_dome_contact_forces(c, q1, u1, f);
+            slide_off_dome_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
         if (gc < 0) {
@@ -1511,6 +1531,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
+    slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
     slide_off_dome_velocity(c, q, v, p, vel);
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
@@ -1635,6 +1656,7 @@ static int slide_off_dome_free_rest(const slide_off_dome_ctx_t *c, double *q, do
     double p1[SLIDE_OFF_DOME_N], s_hi[SLIDE_OFF_DOME_M_DIM], g_hi[SLIDE_OFF_DOME_M_DIM], res, e1, e_imp;
     int crossed[SLIDE_OFF_DOME_M_DIM], i, j, inside = 1;
     slide_off_dome_seg_t seg;
+    slide_off_dome_at(c, t);
     slide_off_dome_contacts(q, c->par, phi0, grad0);
     slide_off_dome_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (slide_off_dome_check(c, res, p, NAN, SLIDE_OFF_DOME_PHASE_SMOOTH)) {
@@ -1661,8 +1683,9 @@ static int slide_off_dome_free_rest(const slide_off_dome_ctx_t *c, double *q, do
         seg.contact = -1;
         seg.rest = 1.0;
         if (slide_off_dome_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return slide_off_dome_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
-                *e_step);
+            const int rc = slide_off_dome_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
+                rec, n_rec, *e_step);
+            return rc;
         }
     }
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
@@ -1684,6 +1707,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps;
     int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, r, r0, start, any, pulled, n_group;
     for (;;) {
+        slide_off_dome_at(c, t);
         if (tau <= 1e-13 * c->h) {
             return 0;
         }
@@ -1700,7 +1724,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
-        slide_off_dome_contact_forces(c, q1, u1, f1);
+        slide_off_dome_end_forces(c, q1, u1, tau, f1);
         f_eps = SLIDE_OFF_DOME_EPS_LAM * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, f1));
         start = -1;
         pulled = 0;
@@ -1893,6 +1917,7 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
     (void)group;
     (void)wgt;
     (void)n_group;
+    slide_off_dome_at(c, seg->t);
     mu0 = slide_off_dome_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         nn += seg->nrm[i] * seg->nrm[i];
@@ -1976,6 +2001,7 @@ static int slide_off_dome_segment_end(const slide_off_dome_ctx_t *c, const slide
     double phi0[SLIDE_OFF_DOME_M_DIM], grad0[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N], d0[SLIDE_OFF_DOME_M_DIM];
     double d1[SLIDE_OFF_DOME_M_DIM], p_start[SLIDE_OFF_DOME_N], p_end[SLIDE_OFF_DOME_N], e;
     int i;
+    slide_off_dome_at(c, seg->t);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
@@ -1998,6 +2024,7 @@ static int slide_off_dome_restart(const slide_off_dome_ctx_t *c, slide_off_dome_
     double phi0[SLIDE_OFF_DOME_M_DIM], grad0[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N], phi1[SLIDE_OFF_DOME_M_DIM];
     double grad1[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N], d0[SLIDE_OFF_DOME_M_DIM], d1[SLIDE_OFF_DOME_M_DIM];
     int i;
+    slide_off_dome_at(c, seg->t);
     *mu = slide_off_dome_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
@@ -2058,6 +2085,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
                             q[i] = seg->q[i] + seg->tau * seg->x[i];
                             v[i] = seg->x[i];
                         }
+                        slide_off_dome_at(c, seg->t);
                         slide_off_dome_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
                         slide_off_dome_contacts(q, par, phi, grad);
                         *e = e_step;
@@ -2095,6 +2123,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
             v_c[i] = x_best[i];
             next.q[i] = seg->q[i] + tau_c * v_c[i];
         }
+        slide_off_dome_at(c, seg->t);
         slide_off_dome_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
@@ -2151,6 +2180,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
             return rc;
         }
 
+        slide_off_dome_at(c, seg->t);
         slide_off_dome_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * SLIDE_OFF_DOME_W;
@@ -2194,6 +2224,7 @@ static int slide_off_dome_step(const slide_off_dome_ctx_t *c, double *q, double 
     double d0[SLIDE_OFF_DOME_M_DIM], d1[SLIDE_OFF_DOME_M_DIM], s_hi[SLIDE_OFF_DOME_M_DIM], g_hi[SLIDE_OFF_DOME_M_DIM], res, e1;
     int crossed[SLIDE_OFF_DOME_M_DIM], i, j, inside = 1;
     slide_off_dome_seg_t seg;
+    slide_off_dome_at(c, c->t_k);
     for (j = 0; j < SLIDE_OFF_DOME_M; ++j) {
         c->sus->force[j] = 0.0;
     }

@@ -816,6 +816,13 @@ static const star_settles_fun star_settles_jump_contact_fns[STAR_SETTLES_M_DIM] 
     star_settles_fn_jump_contact_floor,
 };
 
+/* Stepper._at: segments start at t, the time the forces see (the last parameter slot; forces of time only). */
+static inline void star_settles_at(const star_settles_ctx_t *c, double t)
+{
+    (void)c;
+    (void)t;
+}
+
 /* Fill err and return 1 (stepper: raise SolverError(step, t_k, phase, residual, reason)). */
 static int star_settles_fail(const star_settles_ctx_t *c, int phase, double residual, const char *fmt, ...)
 {
@@ -939,6 +946,7 @@ static void star_settles_sub_solve(const star_settles_ctx_t *c, const star_settl
     const double tau = s * seg->tau;
     double q_end[STAR_SETTLES_N];
     int i;
+    star_settles_at(c, seg->t);
     if (seg->contact < 0) {
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             x[i] = guess[i];
@@ -1050,6 +1058,7 @@ static int star_settles_crossings(const star_settles_ctx_t *c, const star_settle
 {
     double s_min, g_min;
     int j, count = 0;
+    star_settles_at(c, seg->t);
     for (j = 0; j < STAR_SETTLES_M; ++j) {
         crossed[j] = 0;
         if (phi1[j] < -c->tol->phi) {
@@ -1178,6 +1187,7 @@ static int star_settles_contact_root(const star_settles_ctx_t *c, const star_set
     const double *arg[6];
     double lo = 0.0, phi_lo, ratio, s0, s, res, phi[STAR_SETTLES_M_DIM];
     int i, ok;
+    star_settles_at(c, seg->t);
     star_settles_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
@@ -1190,6 +1200,7 @@ static int star_settles_contact_root(const star_settles_ctx_t *c, const star_set
         x[i] = seg->x[i];
     }
     x[nx - 1] = s0;
+    star_settles_at(c, seg->t); /* leave() solved at the same segment's time */
     star_settles_seg_args(seg, &seg->tau, c->par, arg);
     if (first) { /* the scalar root, then Newton checks it (Stepper._contact_root) */
         star_settles_path_root(c, seg, j, s0, hi, x);
@@ -1516,6 +1527,15 @@ static int star_settles_count_event(const star_settles_ctx_t *c)
     return 0;
 }
 
+/* The contact forces at the end (q1, u1) of a constrained segment of duration tau from the segment start: the
+ * forces of time at its end's time (rattle_segment's End). */
+static void star_settles_end_forces(const star_settles_ctx_t *c, const double *q1, const double *u1, double tau,
+    double *f)
+{
+    (void)tau;
+    star_settles_contact_forces(c, q1, u1, f);
+}
+
 /* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
 static int star_settles_sub_end(const star_settles_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
@@ -1551,7 +1571,7 @@ static int star_settles_illinois(const star_settles_ctx_t *c, int r, int height,
         if (height) {
             star_settles_rows(q1, v, c->par, f, grad, curv);
         } else {
-            star_settles_contact_forces(c, q1, u1, f);
+            star_settles_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
         if (gc < 0) {
@@ -1770,6 +1790,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     double curv[STAR_SETTLES_R_DIM], tgt[STAR_SETTLES_R_DIM], p_plus[STAR_SETTLES_N] = {0.0}, lam[STAR_SETTLES_R_DIM];
     double vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N], rate, e, loss, imp;
     int plastic[STAR_SETTLES_R_DIM], dropped[STAR_SETTLES_R_DIM], i, g, r, j, any, done;
+    star_settles_at(c, t);
     star_settles_restitution(c->par, rest);
     star_settles_velocity(c, q, v, p, vel);
     for (r = 0; r < STAR_SETTLES_R; ++r) {
@@ -1894,6 +1915,7 @@ static int star_settles_free_rest(const star_settles_ctx_t *c, double *q, double
     double p1[STAR_SETTLES_N], s_hi[STAR_SETTLES_M_DIM], g_hi[STAR_SETTLES_M_DIM], res, e1, e_imp;
     int crossed[STAR_SETTLES_M_DIM], i, j, inside = 1;
     star_settles_seg_t seg;
+    star_settles_at(c, t);
     star_settles_contacts(q, c->par, phi0, grad0);
     star_settles_smooth_step(q, p, tau, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
     if (star_settles_check(c, res, p, NAN, STAR_SETTLES_PHASE_SMOOTH)) {
@@ -1920,8 +1942,9 @@ static int star_settles_free_rest(const star_settles_ctx_t *c, double *q, double
         seg.contact = -1;
         seg.rest = 1.0;
         if (star_settles_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
-            return star_settles_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1, rec, n_rec,
-                *e_step);
+            const int rc = star_settles_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
+                rec, n_rec, *e_step);
+            return rc;
         }
     }
     for (i = 0; i < STAR_SETTLES_N; ++i) {
@@ -1943,6 +1966,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     double f1[STAR_SETTLES_R_DIM], vel[STAR_SETTLES_N], f_eps;
     int ev[STAR_SETTLES_R_DIM], group[STAR_SETTLES_R_DIM], i, r, r0, start, any, pulled, n_group;
     for (;;) {
+        star_settles_at(c, t);
         if (tau <= 1e-13 * c->h) {
             return 0;
         }
@@ -1959,7 +1983,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
-        star_settles_contact_forces(c, q1, u1, f1);
+        star_settles_end_forces(c, q1, u1, tau, f1);
         f_eps = STAR_SETTLES_EPS_LAM * (1.0 + star_settles_norm_inf(STAR_SETTLES_R, f1));
         start = -1;
         pulled = 0;
@@ -2152,6 +2176,7 @@ static int star_settles_solve_jump(const star_settles_ctx_t *c, star_settles_seg
     (void)group;
     (void)wgt;
     (void)n_group;
+    star_settles_at(c, seg->t);
     mu0 = star_settles_continuous_law(c, seg->q, v_in, seg->p_in, seg->nrm, e_rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         nn += seg->nrm[i] * seg->nrm[i];
@@ -2235,6 +2260,7 @@ static int star_settles_segment_end(const star_settles_ctx_t *c, const star_sett
     double phi0[STAR_SETTLES_M_DIM], grad0[STAR_SETTLES_M_DIM * STAR_SETTLES_N], d0[STAR_SETTLES_M_DIM];
     double d1[STAR_SETTLES_M_DIM], p_start[STAR_SETTLES_N], p_end[STAR_SETTLES_N], e;
     int i;
+    star_settles_at(c, seg->t);
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         q_end[i] = seg->q[i] + seg->tau * seg->x[i];
     }
@@ -2257,6 +2283,7 @@ static int star_settles_restart(const star_settles_ctx_t *c, star_settles_seg_t 
     double phi0[STAR_SETTLES_M_DIM], grad0[STAR_SETTLES_M_DIM * STAR_SETTLES_N], phi1[STAR_SETTLES_M_DIM];
     double grad1[STAR_SETTLES_M_DIM * STAR_SETTLES_N], d0[STAR_SETTLES_M_DIM], d1[STAR_SETTLES_M_DIM];
     int i;
+    star_settles_at(c, seg->t);
     *mu = star_settles_continuous_law(c, seg->q, seg->x, seg->p_in, seg->nrm, seg->rest, vel, minv_n, &nv, &nmn);
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         seg->p_in[i] += *mu * seg->nrm[i];
@@ -2317,6 +2344,7 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
                             q[i] = seg->q[i] + seg->tau * seg->x[i];
                             v[i] = seg->x[i];
                         }
+                        star_settles_at(c, seg->t);
                         star_settles_segment(seg->q, seg->x, &seg->tau, par, pm, p, &e_after);
                         star_settles_contacts(q, par, phi, grad);
                         *e = e_step;
@@ -2354,6 +2382,7 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
             v_c[i] = x_best[i];
             next.q[i] = seg->q[i] + tau_c * v_c[i];
         }
+        star_settles_at(c, seg->t);
         star_settles_segment(seg->q, v_c, &tau_c, par, pm, p_c, &e_c);
         next.e_in = seg->contact < 0 ? e_c : seg->e_in;
         e_before = next.e_in;
@@ -2410,6 +2439,7 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
             return rc;
         }
 
+        star_settles_at(c, seg->t);
         star_settles_segment(seg->q, seg->x, &seg->tau, par, pm, p_end, &e_after);
         for (g = 0; g < n_group; ++g) {
             r = rec + (*n_rec + g) * STAR_SETTLES_W;
@@ -2453,6 +2483,7 @@ static int star_settles_step(const star_settles_ctx_t *c, double *q, double *p, 
     double d0[STAR_SETTLES_M_DIM], d1[STAR_SETTLES_M_DIM], s_hi[STAR_SETTLES_M_DIM], g_hi[STAR_SETTLES_M_DIM], res, e1;
     int crossed[STAR_SETTLES_M_DIM], i, j, inside = 1;
     star_settles_seg_t seg;
+    star_settles_at(c, c->t_k);
     for (j = 0; j < STAR_SETTLES_M; ++j) {
         c->sus->force[j] = 0.0;
     }

@@ -1,0 +1,220 @@
+"""A forced scene side by side: the damped, driven impact oscillator (Lagrange-d'Alembert forces).
+
+    .venv/bin/python bench/forced.py [--long 1000000]
+
+``x'' + 0.3 x' + 4 x = 2 cos(1.7 t)``, a stop at ``x = 0.5`` with restitution 0.8, from rest, to
+t = 10 (two impacts); the reference is the exact piecewise flow with impacts located on it by brentq
+(``tests/forced_scenes.py``). Per method: the max error over a 0.01 grid of times against it, the
+energy behaviour, and the wall time of one run (best of 3).
+
+* vcigen, C and CasADi, trapezoid: ``h`` from 0.02 to 0.00125; energy: max ``|res.energy_balance()|``.
+* scipy ``solve_ivp`` RK45 and DOP853 with event location (terminal event at the stop, restart with
+  ``v -> -e v``), ``rtol`` 1e-4 .. 1e-10 (``atol = rtol * 1e-2``), dense output on the grid.
+* MuJoCo (where it installs from PyPI; skipped with a message otherwise): a slide joint with
+  stiffness 4 and damping 0.3, a motor driven by ``2 cos(1.7 t)``, the stop as a joint limit whose
+  soft constraint is tuned to restitution 0.8 (``solreflimit = "0.005 0.071"``: a linear spring-damper
+  with damping ratio 0.071 rebounds with e = 0.8), RK4, ``timestep`` 0.004 .. 0.0005.
+
+Then ``--long`` steps of vcigen (C, h = 0.01) on the driven oscillator without damping, the stop out of
+reach (the drive does work both ways), and with damping and the stop: the balance's max, its drift (mean
+of the last tenth minus the first tenth) and Σ|W|. Writes ``bench/results/forced.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests"))
+
+import forced_scenes as fs  # noqa: E402
+from scipy.integrate import solve_ivp  # noqa: E402
+
+import vcigen  # noqa: E402
+
+T_END = 10.0
+GRID = np.round(np.arange(0.0, T_END + 1e-9, 0.01), 12)
+
+
+def best_of(fn, *args, repeats: int = 3, **kw):
+    out, best = None, math.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = fn(*args, **kw)
+        best = min(best, time.perf_counter() - start)
+    return out, best
+
+
+def vcigen_rows(exact: np.ndarray) -> list[dict]:
+    rows = []
+    for backend in ("c", "casadi"):
+        sim = vcigen.build(fs.driven_oscillator(), backend=backend)
+        for h in (0.02, 0.01, 0.005, 0.0025, 0.00125):
+            res, wall = best_of(sim.simulate, q0=[0.0], v0=[0.0], h=h, t_end=T_END)
+            on = np.isin(np.round(res.t, 12), GRID)
+            err = float(np.max(np.abs(res.q[on, 0] - exact[np.isin(GRID, np.round(res.t, 12))])))
+            rows.append(
+                {
+                    "method": f"vcigen {backend}",
+                    "setting": f"h={h}",
+                    "error": err,
+                    "wall": wall,
+                    "impacts": len(res.impacts),
+                    "energy": float(np.max(np.abs(res.energy_balance()))),
+                }
+            )
+    return rows
+
+
+def scipy_run(method: str, rtol: float):
+    c, k, A, W, d, e = fs.DAMPING, fs.STIFFNESS, fs.AMPLITUDE, fs.DRIVE, fs.WALL, fs.REST
+
+    def rhs(t, y):
+        return [y[1], -c * y[1] - k * y[0] + A * math.cos(W * t)]
+
+    def hit(t, y):
+        return y[0] - d
+
+    hit.terminal, hit.direction = True, 1.0
+    t, y, out, hits = 0.0, [0.0, 0.0], np.empty(GRID.size), 0
+    while True:
+        sol = solve_ivp(
+            rhs, (t, T_END), y, method=method, rtol=rtol, atol=rtol * 1e-2, events=hit, dense_output=True
+        )
+        end = sol.t_events[0][0] if sol.status == 1 else T_END
+        sel = (GRID >= t) & (GRID <= end)
+        out[sel] = sol.sol(GRID[sel])[0]
+        if sol.status != 1:
+            return out, hits
+        hits += 1
+        t, y = end, [d, -e * sol.y_events[0][0][1]]
+
+
+def scipy_rows(exact: np.ndarray) -> list[dict]:
+    rows = []
+    for method in ("RK45", "DOP853"):
+        for rtol in (1e-4, 1e-6, 1e-8, 1e-10):
+            (x, hits), wall = best_of(scipy_run, method, rtol)
+            rows.append(
+                {
+                    "method": f"scipy {method}+events",
+                    "setting": f"rtol={rtol:g}",
+                    "error": float(np.max(np.abs(x - exact))),
+                    "wall": wall,
+                    "impacts": hits,
+                    "energy": math.nan,
+                }
+            )
+    return rows
+
+
+MJCF = """<mujoco><option timestep="{h}" gravity="0 0 0" integrator="RK4"/>
+<worldbody><body><joint name="x" type="slide" axis="1 0 0" stiffness="{k}" damping="{c}" limited="true"
+ range="-100 {d}" solreflimit="0.005 0.071"/><geom type="sphere" size="0.01" mass="1"/></body></worldbody>
+<actuator><motor joint="x" gear="1" ctrllimited="false"/></actuator></mujoco>"""
+
+
+def mujoco_rows(exact: np.ndarray) -> list[dict]:
+    try:
+        import mujoco
+    except ImportError as exc:
+        print(f"mujoco: skipped ({exc}; pip install mujoco)")
+        return []
+    rows = []
+    for h in (0.004, 0.002, 0.001, 0.0005):
+        xml = MJCF.format(h=h, k=fs.STIFFNESS, c=fs.DAMPING, d=fs.WALL)
+        model = mujoco.MjModel.from_xml_string(xml)
+        data = mujoco.MjData(model)
+        every = round(0.01 / h)
+
+        def run(model, data, every):
+            mujoco.mj_resetData(model, data)
+            xs, hits, inside = np.empty(GRID.size), 0, False
+            xs[0] = data.qpos[0]
+            for i in range(1, GRID.size):
+                for _ in range(every):
+                    data.ctrl[0] = fs.AMPLITUDE * math.cos(fs.DRIVE * data.time)
+                    mujoco.mj_step(model, data)
+                    touching = data.qpos[0] > fs.WALL - 1e-9 or data.nefc > 0
+                    hits += touching and not inside
+                    inside = touching
+                xs[i] = data.qpos[0]
+            return xs, hits
+
+        (x, hits), wall = best_of(run, model, data, every)
+        rows.append(
+            {
+                "method": f"MuJoCo {mujoco.__version__} RK4",
+                "setting": f"dt={h}",
+                "error": float(np.max(np.abs(x - exact))),
+                "wall": wall,
+                "impacts": hits,
+                "energy": math.nan,
+            }
+        )
+    return rows
+
+
+def long_rows(steps: int) -> list[dict]:
+    sim = vcigen.build(fs.driven_oscillator(), backend="c")
+    rows = []
+    for label, params in (
+        ("undamped drive, stop out of reach", {"c": 0.0, "d": 100.0}),
+        ("damped drive, stop e = 0.8", {}),
+    ):
+        start = time.perf_counter()
+        res = sim.simulate(q0=[0.0], v0=[0.0], h=0.01, t_end=steps * 0.01, params=params)
+        wall = time.perf_counter() - start
+        bal = res.energy_balance()
+        n = bal.size
+        rows.append(
+            {
+                "method": f"vcigen c, {steps} steps",
+                "setting": label,
+                "impacts": len(res.impacts),
+                "wall": wall,
+                "error": math.nan,
+                "energy": float(np.max(np.abs(bal))),
+                "drift": float(np.mean(bal[-n // 10 :]) - np.mean(bal[: n // 10])),
+                "work": float(np.sum(np.abs(res.work))),
+            }
+        )
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--long", type=int, default=1_000_000, help="steps of the long balance runs")
+    a = ap.parse_args()
+    exact = fs.driven_exact_grid(0.0, 0.0, GRID)
+    rows = vcigen_rows(exact) + scipy_rows(exact) + mujoco_rows(exact) + long_rows(a.long)
+    print(
+        f"{'method':34s} {'setting':34s} {'impacts':>7s} {'max error':>10s} {'wall [ms]':>10s} {'energy':>9s}"
+    )
+    for r in rows:
+        extra = f"  drift {r['drift']:.1e}, sum|W| {r['work']:.4g}" if "drift" in r else ""
+        print(
+            f"{r['method']:34s} {r['setting']:34s} {r['impacts']:7d} {r['error']:10.2e} "
+            f"{1e3 * r['wall']:10.3f}"
+            f" {r['energy']:9.1e}{extra}"
+        )
+    out = HERE / "results" / "forced.csv"
+    out.parent.mkdir(exist_ok=True)
+    keys = ["method", "setting", "impacts", "error", "wall", "energy", "drift", "work"]
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in keys})
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

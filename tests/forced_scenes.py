@@ -1,0 +1,116 @@
+"""Forced scenes and their closed forms (MATH.md, *Forcing*), for the tests of Lagrange-d'Alembert forces.
+
+The damped, driven oscillator ``x'' + c x' + w^2 x = A cos(W t)`` against a wall ``x <= d`` with
+restitution ``e``: between impacts the flow is the exact solution of the linear ODE (homogeneous plus
+particular), an impact is located on it by ``scipy.optimize.brentq`` to round-off, and the velocity leaves
+with ``-e`` times its incoming value. No vcigen inside.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sympy as sp
+from scipy.optimize import brentq
+
+import vcigen
+
+DAMPING, STIFFNESS, AMPLITUDE, DRIVE, WALL, REST = 0.3, 4.0, 2.0, 1.7, 0.5, 0.8
+
+
+def driven_oscillator(time_symbol: bool = True) -> vcigen.Model:
+    """A unit mass on a spring ``k``, viscous damping ``c``, drive ``A cos(W t)``, a wall at ``x = d``."""
+    x, xd, t = sp.symbols("x xd t")
+    c, k, A, W, d, e = sp.symbols("c k A W d e")
+    drive = A * sp.cos(W * t) if time_symbol else A
+    return vcigen.Model(
+        name="driven" if time_symbol else "pushed",
+        q=[x],
+        qdot=[xd],
+        lagrangian=xd**2 / 2 - k * x**2 / 2,
+        contacts={"wall": d - x},
+        params={c: DAMPING, k: STIFFNESS, A: AMPLITUDE, W: DRIVE, d: WALL, e: REST},
+        restitution={"wall": e},
+        forces=[-c * xd + drive],
+        time=t if time_symbol else None,
+    )
+
+
+class LinearFlow:
+    """Exact flow of ``x'' + c x' + k x = A cos(W t)`` (underdamped) from ``(t0, x0, v0)``."""
+
+    def __init__(self, c: float, k: float, A: float, W: float) -> None:
+        self.zeta_w = c / 2
+        self.wd = math.sqrt(k - self.zeta_w**2)
+        den = (k - W**2) ** 2 + (c * W) ** 2
+        self.a, self.b, self.W = A * (k - W**2) / den, A * c * W / den, W  # x_p = a cos + b sin
+
+    def particular(self, t):
+        W = self.W
+        return self.a * np.cos(W * t) + self.b * np.sin(W * t), W * (
+            -self.a * np.sin(W * t) + self.b * np.cos(W * t)
+        )
+
+    def __call__(self, t0: float, x0: float, v0: float, t):
+        xp0, vp0 = self.particular(t0)
+        c1 = x0 - xp0
+        c2 = (v0 - vp0 + self.zeta_w * c1) / self.wd
+        s = np.asarray(t) - t0
+        env = np.exp(-self.zeta_w * s)
+        cs, sn = np.cos(self.wd * s), np.sin(self.wd * s)
+        xh = env * (c1 * cs + c2 * sn)
+        vh = env * (-self.zeta_w * (c1 * cs + c2 * sn) + self.wd * (-c1 * sn + c2 * cs))
+        xp, vp = self.particular(t)
+        return xh + xp, vh + vp
+
+
+def _height(s: float, flow, t: float, x: float, v: float, wall: float) -> float:
+    return float(flow(t, x, v, s)[0]) - wall
+
+
+def driven_exact(
+    x0: float,
+    v0: float,
+    t_end: float,
+    t0: float = 0.0,
+    wall: float = WALL,
+    e: float = REST,
+    drive: bool = True,
+):
+    """``(x(t_end), v(t_end), impact times)`` of the driven oscillator against the wall, exactly."""
+    flow = LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE if drive else 0.0)
+    t, x, v, hits = t0, x0, v0, []
+    probe = 1e-3
+    while True:
+        # the first crossing of x = wall after t, on a fine grid, then brentq to round-off
+        grid = np.arange(t + probe, t_end + probe, probe)
+        grid[-1] = min(grid[-1], t_end)
+        xs, _ = flow(t, x, v, grid)
+        above = np.flatnonzero(xs > wall)
+        if above.size == 0:
+            xe, ve = flow(t, x, v, t_end)
+            return float(xe), float(ve), hits
+        i = above[0]
+        lo = t if i == 0 else grid[i - 1]
+        ti = brentq(_height, lo, grid[i], args=(flow, t, x, v, wall), xtol=1e-15, rtol=1e-15)
+        _, vi = flow(t, x, v, ti)
+        hits.append(ti)
+        t, x, v = ti, wall, -e * float(vi)
+
+
+def driven_exact_grid(x0: float, v0: float, ts: np.ndarray, **kw) -> np.ndarray:
+    """``x`` of the exact driven oscillator (:func:`driven_exact`) at every time of ``ts``."""
+    _, _, hits = driven_exact(x0, v0, float(ts[-1]), float(ts[0]), **kw)
+    flow = LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE if kw.get("drive", True) else 0.0)
+    e = kw.get("e", REST)
+    out = np.empty(ts.size)
+    t, x, v = float(ts[0]), x0, v0
+    for tb in [*hits, math.inf]:
+        sel = (ts >= t) & (ts < tb)
+        out[sel] = flow(t, x, v, ts[sel])[0]
+        if tb == math.inf:
+            break
+        _, vb = flow(t, x, v, tb)
+        t, x, v = tb, kw.get("wall", WALL), -e * float(vb)
+    return out

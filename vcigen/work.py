@@ -1,0 +1,63 @@
+"""The discrete work of the forces (Lagrange-d'Alembert, MATH.md *Forcing*), booked per grid step.
+
+A segment ``(q0, v, tau)`` starting at ``t0`` does the work ``(f_d- + f_d+) . v`` of the rule's
+discrete forces, which is exactly the difference of the energies at its two ends
+(``vcigen.derive.Segment``). Across an impact the energy at the end of one segment is the energy
+at the start of the next (the alpha-variation with (37)); so with ``res.energy`` the energy at the end
+of each step, ``E_k - E_{k-1} - W_k`` is the smooth steps' own bounded O(h^2) error and restitution
+losses alone. The work is booked from the run's segments: grid points and impact points.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import sympy as sp
+
+from .derive import DiscreteSystem, discrete_segment
+from .result import Result
+
+WorkFn = Callable[..., np.ndarray]
+
+
+def work_function(system: DiscreteSystem) -> WorkFn | None:
+    """``(q0 (K, n), v (K, n), tau (K,), par) -> (K,)`` of the segment work, or ``None`` without forces."""
+    model = system.model
+    if not model.force:
+        return None
+    seg = discrete_segment(model, system.rule)
+    par = [sp.Symbol(f"_par{i}") for i in range(len(system.params))]
+    expr = seg.work.xreplace(dict(zip(system.params, par)))
+    fn = sp.lambdify([*seg.q0, *seg.v, seg.tau, *par], expr, modules="numpy")
+
+    def work(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values) -> np.ndarray:
+        args = list(values) if not system.timed else [*list(values)[:-1], t0]
+        out = fn(*q0.T, *v.T, tau, *args)
+        return np.broadcast_to(np.asarray(out, dtype=float), tau.shape).copy()
+
+    return work
+
+
+def step_work(res: Result, work: WorkFn | None, par) -> np.ndarray:
+    """``(N-1,)``: the discrete work over each grid step, summed over its segments (0 without forces)."""
+    steps = res.energy.size
+    if work is None or steps == 0:
+        return np.zeros(steps)
+    q, t, h = res.q, res.t, res.h
+    out = work(q[:-1], (q[1:] - q[:-1]) / h, np.full(steps, h), t[:-1], par)
+    by_step: dict[int, list] = {}
+    for im in res.impacts:
+        if im.step < steps:
+            by_step.setdefault(im.step, []).append(im)
+    for k, ims in by_step.items():
+        ims.sort(key=lambda im: im.t)
+        ts = np.array([t[k], *(im.t for im in ims), t[k + 1]])
+        qs = np.array([q[k], *(im.q for im in ims), q[k + 1]])
+        tau = np.diff(ts)
+        keep = tau > 1e-14 * h  # simultaneous impacts: no segment between them
+        if not keep.any():
+            continue
+        dq = np.diff(qs, axis=0)[keep]
+        out[k] = float(np.sum(work(qs[:-1][keep], dq / tau[keep, None], tau[keep], ts[:-1][keep], par)))
+    return out
