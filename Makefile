@@ -32,10 +32,11 @@ lint: venv
 generate: venv        ## regenerate generated/ from the examples (one command)
 	$(VENV)/bin/vcigen generate --all
 
-bench: venv           ## speed against error, side by side (issue 5); the forced scene with MuJoCo where it installs
+bench: venv           ## speed against error, side by side; forced and frictional scenes with the engines that install
 	$(PY) bench/run.py
-	-$(VENV)/bin/pip install -q mujoco || echo "mujoco does not install here: bench/forced.py skips it"
+	-$(VENV)/bin/pip install -q mujoco pymunk pybullet || echo "an engine does not install here: the benches skip it"
 	$(PY) bench/forced.py
+	$(PY) bench/friction.py
 
 clean:
 	rm -rf $(OUT) .pytest_cache build dist *.egg-info

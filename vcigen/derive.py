@@ -154,6 +154,8 @@ class DiscreteSystem:
 
 def _residual_routine(name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str) -> Routine:
     jac = res.jacobian(sp.Matrix(unknown.symbols))
+    if jac.has(sp.DiracDelta):  # sign() in a row (a stick row's tangent): its Dirac mass is no force
+        jac = jac.applyfunc(lambda e: e.replace(lambda x: isinstance(x, sp.DiracDelta), lambda x: sp.S.Zero))
     return Routine(name, (unknown, *args), (Output("res", res), Output("jac", jac)), doc)
 
 
@@ -162,7 +164,11 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     rule = get_rule(rule)
     n = model.n
     names = tuple(model.phi)
-    par = Arg("par", tuple(model.defaults) + ((model.time_symbol,) if model.time_symbol is not None else ()))
+    rows = contact_rows(model)
+    # friction in sustained contact, set by the stepper (vcigen.sustained): slips, refs, branches
+    slots = rows.slips + rows.refs + tuple(b for bs in rows.branches for b in bs)
+    time = (model.time_symbol,) if model.time_symbol is not None else ()
+    par = Arg("par", tuple(model.defaults) + slots + time)
     seg = discrete_segment(model, rule)
     qs, vs = model.coordinates, model.velocities
 
@@ -205,6 +211,27 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
         "Coefficient of restitution of each contact (1: elastic); the jump loses (1 - e^2)/2 of (39).",
     )
     routines = {r.name: r for r in (legendre, segment, contacts, restitution)}
+    if model.friction_of:
+        fr = model.friction_of
+        mus = sp.Matrix([fr[c][0] if c in fr else sp.S.Zero for c in names])
+        tgrad = sp.Matrix(
+            [[_no_dirac(fr[c][1].xreplace(qrep).diff(s)) if c in fr else sp.S.Zero for s in q] for c in names]
+        )
+        routines["friction"] = Routine(
+            "friction",
+            (Arg("q", q), par),
+            (
+                Output("mu", mus),
+                Output("tgrad", tgrad),
+                Output(
+                    "branch",
+                    sp.Matrix([u.xreplace(qrep) for us in rows.branch_args for u in us])
+                    if any(rows.branch_args)
+                    else sp.zeros(0, 1),
+                ),
+            ),
+            "Coulomb friction of each contact: mu_f (0: frictionless) and the tangent's gradient (MATH.md).",
+        )
 
     # Smooth step (46): p_k = p-(q_k, q_k + h v, h).
     q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
@@ -257,7 +284,6 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
             res,
             f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
         )
-    rows = contact_rows(model)
     if rows.size:
         routines.update(sustained_routines(model, seg, rows, par, phis, q))
     return DiscreteSystem(model, rule, names, par.symbols, routines, rows)
@@ -289,7 +315,15 @@ def sustained_routines(
     u = _vec("u", n)
     rep = qrep | dict(zip(vs, u))
     psi = [e.xreplace(qrep) for e in rows.exprs]
-    grad = sp.Matrix([[_cone_centre(ps.diff(s)) for s in q] for ps in psi])
+    grad = sp.Matrix([[_no_dirac(ps.diff(s)) for s in q] for ps in psi])
+    # The force direction of each row: grad psi_r, plus slip_f grad tangent_f on the rows of a slipping
+    # frictional contact f (Coulomb: -mu_f s lambda along the tangent; MATH.md *Friction*).
+    dirs = grad.copy()
+    for f, j in enumerate(rows.frictional):
+        srow = rows.sticks.index(f)
+        for r in range(nr):
+            if rows.contact[r] == j:
+                dirs[r, :] = dirs[r, :] + rows.slips[f] * grad[srow, :]
     umat = sp.Matrix(u)
 
     def curvature(f: sp.Expr) -> sp.Expr:
@@ -320,7 +354,7 @@ def sustained_routines(
     q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
     v, lam, act = _vec("v", n), _vec("L", nr), _vec("a", nr)
     pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau)
-    g0 = grad.xreplace(dict(zip(q, q0)))
+    g0 = dirs.xreplace(dict(zip(q, q0)))
     alam = sp.Matrix([a * lm for a, lm in zip(act, lam)])
     q1 = sp.Matrix(q0) + tau * sp.Matrix(v)
     psi1 = [ps.xreplace(dict(zip(q, q1))) for ps in psi]
@@ -337,7 +371,7 @@ def sustained_routines(
     p1 = _vec("p", n)
     mom = sp.Matrix([model.L.diff(s) for s in vs]).xreplace(rep)
     gu = grad * umat
-    res = (mom - sp.Matrix(p1) - grad.T * alam).col_join(
+    res = (mom - sp.Matrix(p1) - dirs.T * alam).col_join(
         sp.Matrix([a * gi + (1 - a) * lm for a, gi, lm in zip(act, gu, lam)])
     )
     out["rattle_project"] = _residual_routine(
@@ -357,3 +391,7 @@ def set_rows(kernels, system: DiscreteSystem) -> None:
     kernels.row_contact = rows.contact if rows else ()
     kernels.row_constraint = rows.constraint if rows else ()
     kernels.row_bilateral = rows.bilateral if rows else ()
+    kernels.row_stick = rows.sticks if rows else ()  # frictional contact of a stick row, -1 otherwise
+    kernels.frictional = rows.frictional if rows else ()  # contact index of each frictional contact
+    kernels.friction_slot = len(system.model.defaults)  # par[slot:]: nf slips, nf refs, the branch signs
+    kernels.branch_count = tuple(len(b) for b in rows.branches) if rows else ()

@@ -71,6 +71,7 @@ class Model:
     constraints: Mapping[str, sp.Expr] = field(default_factory=dict)
     forces: Sequence[sp.Expr] | None = None
     time: sp.Symbol | None = None
+    friction: Mapping[str, tuple] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check_identifier(self.name, "model name")
@@ -100,6 +101,7 @@ class Model:
         params = self._parameters()
         rest = self._restitution(contacts, params)
         time_sym, forces = self._forces_of(q, subs, names, params)
+        fric = self._friction(contacts, params, subs, real_q)
         object.__setattr__(self, "_coords", tuple(real_q))
         object.__setattr__(self, "_vels", tuple(real_v))
         object.__setattr__(self, "_lagr", lagr)
@@ -109,6 +111,7 @@ class Model:
         object.__setattr__(self, "_cons", constraints)
         object.__setattr__(self, "_time", time_sym)
         object.__setattr__(self, "_forces", forces)
+        object.__setattr__(self, "_fric", fric)
         self._check_free_symbols()
         self._check_contacts_depend_on_q_only()
         self._check_constraints()
@@ -194,6 +197,47 @@ class Model:
                 )
             out.append(expr)
         return time_sym, tuple(out)
+
+    def _friction(self, contacts, params, subs, real_q) -> dict[str, tuple[sp.Expr, sp.Expr]]:
+        """Coulomb friction per contact: ``(mu_f, tangent)``, ``mu_f >= 0`` a number or an expression of
+        parameters, ``tangent`` an expression of ``q`` whose rate is the sliding velocity (MATH.md).
+        """
+        out = {}
+        for name, spec in dict(self.friction).items():
+            if name not in contacts:
+                raise ValueError(
+                    f"friction is given for {name!r}, which is not a contact; "
+                    f"the contacts are {sorted(contacts) or 'none'}"
+                )
+            if not isinstance(spec, (tuple, list)) or len(spec) != 2:
+                raise ValueError(f"friction of {name!r} must be a pair (mu_f, tangent), got {spec!r}")
+            mu, tangent = spec
+            mu = sp.sympify(mu)
+            stray = mu.free_symbols - set(params)
+            if stray:
+                bad = ", ".join(sorted(str(x) for x in stray))
+                raise ValueError(
+                    f"friction coefficient of {name!r} contains {bad}, which is not a parameter; "
+                    "use a number or an expression of parameters"
+                )
+            if not mu.free_symbols and not float(mu) >= 0.0:
+                raise ValueError(f"friction coefficient of {name!r} is {mu}; it must be >= 0")
+            if isinstance(tangent, (tuple, list)):
+                if len(tangent) != 1:
+                    raise ValueError(
+                        f"friction of {name!r}: {len(tangent)} tangents (an isotropic cone in 3-D) are not "
+                        "supported yet; give one tangent expression"
+                    )
+                tangent = tangent[0]
+            tan = sp.sympify(tangent).subs(subs)
+            extra = tan.free_symbols - set(real_q) - set(params)
+            if extra or not tan.free_symbols & set(real_q):
+                raise ValueError(
+                    f"friction tangent of {name!r} = {tangent} must be an expression of the coordinates "
+                    "(and parameters) that depends on q"
+                )
+            out[name] = (mu, tan)
+        return out
 
     def _restitution(
         self, contacts: Mapping[str, sp.Expr], params: Mapping[sp.Symbol, float]
@@ -321,6 +365,24 @@ class Model:
         """The generalized force per coordinate in the real symbols; ``()`` without forces or all 0."""
         forces = self._forces  # type: ignore[attr-defined]
         return forces if any(f != 0 for f in forces) else ()
+
+    @property
+    def friction_of(self) -> dict[str, tuple[sp.Expr, sp.Expr]]:
+        """Coulomb friction by contact: ``(mu_f, tangent)`` in the real symbols (frictional contacts only)."""
+        return dict(self._fric)  # type: ignore[attr-defined]
+
+    def friction_values(self, par: Sequence[float]) -> list[float]:
+        """``mu_f`` of every contact (0 where frictionless) at ``par``; raises if one is negative."""
+        values = dict(zip(self.defaults, par))
+        out = []
+        for name in self.phi:
+            mu = float(self.friction_of[name][0].xreplace(values)) if name in self.friction_of else 0.0
+            if not mu >= 0.0:
+                raise ValueError(
+                    f"friction coefficient of {name!r} is {mu} at these parameters; it must be >= 0"
+                )
+            out.append(mu)
+        return out
 
     @property
     def time_symbol(self) -> sp.Symbol | None:

@@ -51,6 +51,7 @@ class Result:
     constraint_force: np.ndarray | None = None  # (N-1, n_constraints): the bilateral multipliers
     liftoffs: list[tuple[float, str]] = field(default_factory=list)  # (t, contact) per release
     work: np.ndarray | None = None  # (N-1,): discrete work of the forces over each grid step (vcigen.work)
+    friction_work: np.ndarray | None = None  # (N-1,): the part of work done by friction in sustained contact
     energy_at_end: bool = False  # energy[k] is the energy at the end of step k (forces), else E_d entering it
 
     @property
@@ -76,12 +77,18 @@ class Result:
         if e.size == 0:
             return e.copy()
         work = np.zeros(e.size) if self.work is None else np.asarray(self.work, dtype=float)
+        fric = np.zeros(e.size) if self.friction_work is None else np.asarray(self.friction_work, dtype=float)
+        work = work - fric  # the forces' part: booked per step; friction in sustained contact: per middle
         lost = np.zeros(e.size)
         shift = 0 if self.energy_at_end else 1  # without forces an impact step reports E_d before its impacts
         for im in self.impacts:
             if im.step + shift < e.size:
                 lost[im.step + shift] += im.energy_before - im.energy_after
-        acc = np.cumsum(work) - work[0]
+        if self.energy_at_end:  # forces: E_k is the energy at the end of step k
+            acc = np.cumsum(work) - work[0]
+        else:  # E_d of a step is its energy half-way: the work between the middles of the steps
+            acc = _mid_sum(work)
+        acc = acc + _mid_sum(fric)  # RATTLE's E_d does not hold friction's half step: middle to middle
         return e - e[0] - acc + np.cumsum(lost) - lost[0]
 
     def to_csv(self, path: str | Path) -> Path:
@@ -137,3 +144,8 @@ class Result:
                     ]
                 )
         return path
+
+
+def _mid_sum(work: np.ndarray) -> np.ndarray:
+    """``sum_{i=1..k} (W_{i-1} + W_i) / 2``: the work from the middle of step 0 to the middle of step k."""
+    return np.concatenate([[0.0], np.cumsum(0.5 * (work[:-1] + work[1:]))])

@@ -32,7 +32,17 @@ class Rows:
     exprs: tuple[sp.Expr, ...]
     contact: tuple[int, ...]  # contact index of each row; -1 for a bilateral constraint
     constraint: tuple[int, ...]  # constraint index of each row; -1 for a contact row
-    names: tuple[str, ...]  # "floor", "floor[+-]" for a branch, or the constraint's name
+    names: tuple[str, ...]  # "floor", "floor[+-]" for a branch, the constraint's name, "floor/stick"
+    stick: tuple[int, ...] = ()  # frictional contact index of a stick row (vcigen.friction), -1 otherwise
+    slips: tuple[sp.Symbol, ...] = ()  # per frictional contact: its slip coefficient -mu_f s (a par slot)
+    refs: tuple[
+        sp.Symbol, ...
+    ] = ()  # per frictional contact: the tangent's value while it sticks (a par slot)
+    frictional: tuple[int, ...] = ()  # per frictional contact: its contact index
+    # per frictional contact: the sign() atoms of its tangent become par slots while it sticks (the branch it
+    # sticks on, so that a kinked body's tangent stays that of one vertex or face), and their arguments
+    branches: tuple[tuple[sp.Symbol, ...], ...] = ()
+    branch_args: tuple[tuple[sp.Expr, ...], ...] = ()
 
     @property
     def size(self) -> int:
@@ -41,6 +51,11 @@ class Rows:
     @property
     def bilateral(self) -> tuple[bool, ...]:
         return tuple(c >= 0 for c in self.constraint)
+
+    @property
+    def sticks(self) -> tuple[int, ...]:
+        """``stick`` padded to every row (-1: not a stick row)."""
+        return self.stick or (-1,) * self.size
 
 
 def _concave_kinks(phi: sp.Expr) -> list[sp.Abs] | None:
@@ -83,4 +98,34 @@ def contact_rows(model: Model) -> Rows:
         owner.append(-1)
         cons.append(i)
         names.append(name)
-    return Rows(tuple(exprs), tuple(owner), tuple(cons), tuple(names))
+    # Stick rows (Coulomb friction in sustained contact): tangent(q) - ref = 0 while a contact sticks.
+    stick = [-1] * len(exprs)
+    slips, refs, frictional, branches, branch_args = [], [], [], [], []
+    contacts = list(model.phi)
+    for f, (name, (_, tangent)) in enumerate(model.friction_of.items()):
+        slips.append(sp.Symbol(f"slip_{name}", real=True))
+        refs.append(sp.Symbol(f"stick_{name}", real=True))
+        frictional.append(contacts.index(name))
+        atoms = sorted(tangent.atoms(sp.sign), key=sp.default_sort_key)
+        sigma = tuple(sp.Symbol(f"branch_{name}_{i}", real=True) for i in range(len(atoms)))
+        branches.append(sigma)
+        branch_args.append(tuple(a.args[0] for a in atoms))
+        exprs.append(tangent.xreplace(dict(zip(atoms, sigma))) - refs[-1])
+        owner.append(-1)
+        cons.append(-1)
+        names.append(f"{name}/stick")
+        stick.append(f)
+    if not frictional:
+        return Rows(tuple(exprs), tuple(owner), tuple(cons), tuple(names))
+    return Rows(
+        tuple(exprs),
+        tuple(owner),
+        tuple(cons),
+        tuple(names),
+        tuple(stick),
+        tuple(slips),
+        tuple(refs),
+        tuple(frictional),
+        tuple(branches),
+        tuple(branch_args),
+    )

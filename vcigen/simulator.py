@@ -14,7 +14,7 @@ from .model import Model
 from .result import Result
 from .rules import Rule
 from .stepper import Stepper, Tolerances, warn_reflected
-from .work import step_work, work_function
+from .work import friction_work, step_work, tangent_function, work_function
 
 Backend = Literal["casadi", "c"]
 BACKENDS = ("casadi", "c")
@@ -30,6 +30,7 @@ class Simulator:
         self.kernels = kernels
         self.tol = tol or Tolerances()
         self._work = work_function(system)
+        self._friction = tangent_function(system)
 
     @property
     def backend(self) -> str:
@@ -50,6 +51,13 @@ class Simulator:
         q0a, v0a, h = self._validate(q0, v0, h, t_end, n_impacts, t0)
         par = self.model.resolve_params(params)
         self.model.restitution_values(par)  # each in [0, 1] at these parameters, or a ValueError
+        mu_f = self.model.friction_values(par)  # each >= 0, or a ValueError
+        rows = self.system.rows
+        slots = 2 * len(rows.frictional) + sum(len(b) for b in rows.branches) if rows else 0
+        par = [
+            *par,
+            *([0.0] * slots),
+        ]  # friction slots: slip coefficients, stick values, branches (sustained)
         if self.system.timed:
             par = [*par, float(t0)]  # the time slot: where each segment starts (Kernels.at)
         kern = self.kernels.bind(par)
@@ -58,9 +66,12 @@ class Simulator:
             res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)
         except SolverError as err:
             if err.result is not None:
-                err.result.work = step_work(err.result, self._work, par)
+                err.result.work = step_work(err.result, self._work, par) + friction_work(
+                    err.result, self._friction, mu_f, par
+                )
             raise
-        res.work = step_work(res, self._work, par)
+        res.friction_work = friction_work(res, self._friction, mu_f, par)
+        res.work = step_work(res, self._work, par) + res.friction_work
         res.energy_at_end = bool(self.model.force)
         res.coordinate_names = self.model.coordinate_names
         warn_reflected(res.stats.get("grazing_reflected", 0))

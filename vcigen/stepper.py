@@ -21,6 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from .errors import NONFINITE, SolverError
+from .friction import impact_law
 from .result import Impact, Result
 from .sustained import SustainedSteps, SustainLog, held_contacts
 
@@ -379,6 +380,26 @@ class Stepper(SustainedSteps):
         nv, nmn = float(nrm @ vel), float(nrm @ minv_n)
         return vel, minv_n, nv, nmn, max(-(1.0 + e) * nv / nmn, 0.0)
 
+    def _frictional_law(self, seg: _Seg, vel, group, restitution: float):
+        """Friction at an impact on one frictional contact (:func:`vcigen.friction.impact_law`).
+
+        ``seg.nrm`` becomes the impulse direction ``n + (mu_t/mu_n) t``; returns ``(mu_n, M^-1 nrm, dK)``, or
+        ``None`` (no friction here: frictionless contact, several contacts at once, or no normal impulse).
+        """
+        k = self.k
+        if not getattr(k, "frictional", ()) or len(group) != 1:
+            return None
+        mu_f, tgrad, _ = k.friction(seg.q)
+        j = group[0]
+        if mu_f[j] <= 0.0:
+            return None
+        mass = k.legendre(seg.q, vel)[1]
+        mu_n, mu_t, dk, an, at = impact_law(vel, mass, seg.nrm, tgrad[j], float(mu_f[j]), restitution)
+        if not mu_n > 0.0:
+            return None
+        seg.nrm = seg.nrm + (mu_t / mu_n) * tgrad[j]
+        return mu_n, an + (mu_t / mu_n) * at, dk
+
     def _restart(self, seg: _Seg):
         """The impact at the start of ``seg`` by the continuous law ``n.qdot -> -e n.qdot``; the rest of the
         step as a first segment from there: ``(segment, its crossings, E_d after, mu)``."""
@@ -444,7 +465,11 @@ class Stepper(SustainedSteps):
         pressed = accel < 0.0
         if pressed and self._settles(nv, accel, restitution, self._h):
             return None, "plastic"
-        if restitution < 1.0 and nv < 0.0:  # (39): the energy the normal velocity loses
+        law = self._frictional_law(seg, vel, group, restitution) if nv < 0.0 else None
+        if law is not None:  # Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK
+            mu0, minv_n, dk = law
+            seg.e_in += dk
+        elif restitution < 1.0 and nv < 0.0:  # (39): the energy the normal velocity loses
             seg.e_in -= (1.0 - restitution * restitution) * nv * nv / (2.0 * nmn)
         mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
         roots = []

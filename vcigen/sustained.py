@@ -31,12 +31,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .derive import KINK
 from .errors import SolverError
 from .result import KINDS, Impact
 
 ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at the bracket ends|
 LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
+SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 
 
@@ -111,6 +113,19 @@ class SustainedSteps:
         """No contact held; bilateral constraints always are."""
         k = self.k
         self.act = np.array(k.row_bilateral, dtype=bool) if k.r else np.zeros(0, dtype=bool)
+        nf = len(getattr(k, "frictional", ()))
+        self._stick_rows = [
+            k.row_stick.index(f) for f in range(nf)
+        ]  # the stick row of each frictional contact
+        self._slip = np.zeros(nf)  # -mu_f s of each frictional contact while it slips (s: sliding direction)
+        self._ref = np.zeros(nf)  # its tangent's value while it sticks
+        self._mu_f = k.friction(np.zeros(k.n))[0][list(k.frictional)] if nf else np.zeros(0)
+        counts = getattr(k, "branch_count", ())
+        self._branch = np.zeros(sum(counts))  # the signs each sticking tangent is frozen at
+        self._branch_of = [list(range(sum(counts[:f]), sum(counts[: f + 1]))) for f in range(nf)]
+        self._held_rows = [0] * nf  # the active rows (a bitmask) each frictional contact's mode was set on
+        if nf:
+            k.set_friction(self._slip, self._ref, self._branch)
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
         self._lam = np.zeros(k.r)
@@ -130,10 +145,11 @@ class SustainedSteps:
         acc = self._accel(q0, v0, np.zeros(k.r))
         rates, accs = grad @ v0, self._row_accel(q0, v0, acc)
         for r in range(k.r):
-            if k.row_bilateral[r] or abs(psi[r]) > self.tol.admissible:
+            if k.row_bilateral[r] or k.row_stick[r] >= 0 or abs(psi[r]) > self.tol.admissible:
                 continue
             if self._settles(rates[r], accs[r], 1.0, h):  # at rest to the resolution of the jump
                 self.act[r] = True
+        self._friction_modes(q0, v0)
         self._held = bool(self.act.any())
 
     def _settles(self, rate: float, acc: float, e: float, h: float) -> bool:
@@ -146,7 +162,7 @@ class SustainedSteps:
         rhs, _ = k.dynamics(q, u)
         mass = k.legendre(q, u)[1]
         if k.r and np.any(lam_rows):
-            rhs = rhs + k.rows(q, u)[1].T @ lam_rows
+            rhs = rhs + self._dirs(k.rows(q, u)[1]).T @ lam_rows
         return np.linalg.solve(mass, rhs)
 
     def _row_accel(self, q, u, acc) -> np.ndarray:
@@ -174,9 +190,122 @@ class SustainedSteps:
             return out
         rhs, mass, grad, curv = end.rhs, end.mass, end.grad, end.curv
         g = grad[rows]
-        minv = np.linalg.solve(mass, np.column_stack([rhs, g.T]))
+        minv = np.linalg.solve(mass, np.column_stack([rhs, self._dirs(grad)[rows].T]))
         out[rows] = np.linalg.solve(g @ minv[:, 1:], -(g @ minv[:, 0] + curv[rows]))
         return out
+
+    # -- Coulomb friction in sustained contact (MATH.md, Friction) -------------------------
+    def _dirs(self, grad: np.ndarray) -> np.ndarray:
+        """The force direction of each row: ``grad psi_r``, plus ``slip_f grad tangent_f`` on the rows of a
+        slipping frictional contact ``f`` (the same as the derived ``rattle``)."""
+        if not self._slip.any():
+            return grad
+        out = grad.copy()
+        for f, j in enumerate(self.k.frictional):
+            if self._slip[f]:
+                rows = [r for r in range(self.k.r) if self.k.row_contact[r] == j]
+                out[rows] += self._slip[f] * grad[self._stick_rows[f]]
+        return out
+
+    def _set_friction(self) -> None:
+        if self._stick_rows:
+            self.k.set_friction(self._slip, self._ref, self._branch)
+
+    def _friction_modes(self, q, u) -> None:
+        """Stick or slip for each frictional contact at ``(q, u)``: off when it is not held; on entering
+        sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it."""
+        k = self.k
+        if not self._stick_rows:
+            return
+        for f, j in enumerate(k.frictional):
+            sr = self._stick_rows[f]
+            mask = sum(1 << r for r in range(k.r) if self.act[r] and k.row_contact[r] == j)
+            if not mask or self._mu_f[f] <= 0.0:
+                self.act[sr], self._slip[f] = False, 0.0
+            elif mask != self._held_rows[f]:  # another vertex or face in contact: its own branch, mode anew
+                self.act[sr], self._slip[f] = False, 0.0
+            self._held_rows[f] = mask
+            if mask and self._mu_f[f] > 0.0 and not self.act[sr] and self._slip[f] == 0.0:
+                self._freeze_branch(f, q)
+                sliding = float(k.rows(q, u)[1][sr] @ u)
+                if abs(sliding) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+                    self._stick(f, q, u)
+                else:
+                    self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
+        self._set_friction()
+
+    def _freeze_branch(self, f: int, q) -> None:
+        """The signs of frictional contact ``f``'s tangent at ``q`` (0 at a kink: the face's centre) into its
+        branch slots: its stick row is then that vertex's or face's smooth tangent."""
+        if self._branch_of[f]:
+            args = self.k.friction(q)[2]
+            for b in self._branch_of[f]:
+                self._branch[b] = 0.0 if abs(args[b]) <= KINK else math.copysign(1.0, args[b])
+            self._set_friction()
+
+    def _stick(self, f: int, q, u) -> None:
+        """Frictional contact ``f`` sticks where its tangent is now (on the branch its mode was set on)."""
+        k = self.k
+        sr = self._stick_rows[f]
+        self._ref[f] += float(k.rows(q, u)[0][sr])
+        self.act[sr], self._slip[f] = True, 0.0
+
+    def _cone_margin(self, f: int, forces) -> float:
+        """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone."""
+        k = self.k
+        j = k.frictional[f]
+        normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
+        return float(self._mu_f[f] * normal - abs(forces[self._stick_rows[f]]))
+
+    def _friction_events(self, step, t_k, q, p, tau, v, u1, end, f1, events) -> None:
+        """A slipping contact that stops inside the segment ("stop"), a sticking one whose force leaves the
+        cone ("slide"): each located as a root along the sub-step map (Illinois), as a lift-off is."""
+        k = self.k
+        for f in range(len(self._stick_rows)):
+            sr = self._stick_rows[f]
+            if self._slip[f]:
+                s = -math.copysign(1.0, self._slip[f])  # the sliding direction
+                g1 = s * float(end.grad[sr] @ u1)
+                if g1 < 0.0:
+                    g0 = s * float(k.rows(q, self._velocity(q, v, p))[1][sr] @ self._velocity(q, v, p))
+
+                    def sliding(c, w, s=s, sr=sr):
+                        w, end_c, u_c = self._sub_state(step, t_k, q, p, tau, c, w)
+                        return s * float(end_c.grad[sr] @ u_c), w
+
+                    frac = 0.0 if g0 <= 0.0 else _illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, v)
+                    events[sr] = ("stop", frac)
+            elif self.act[sr]:
+                g1 = self._cone_margin(f, f1)
+                if g1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))):
+                    g0 = self._cone_margin(f, self._contact_forces(q, self._velocity(q, v, p)))
+
+                    def margin(c, w, f=f):
+                        w, end_c, _ = self._sub_state(step, t_k, q, p, tau, c, w)
+                        return self._cone_margin(f, self._forces(end_c)), w
+
+                    tiny = EPS_LAM * (1.0 + abs(g0) + abs(g1))
+                    frac = 0.0 if g0 < 0.0 else _illinois(margin, g0, g1, tiny, 1e-12, LIFT_ITER, v)
+                    events[sr] = ("slide", frac)
+
+    def _sub_state(self, step, t_k, q, p, tau, s, guess):
+        """The constrained sub-step map at fraction ``s``: ``(v, end, u_end)``."""
+        v, *_, u1, end = self._constrained(step, t_k, q, p, s * tau, guess)
+        return v, end, u1
+
+    def _friction_switch(self, kind: str, sr: int, q, u) -> None:
+        """At a located friction event: a stopped contact sticks; a sliding one slips against its force."""
+        f = self.k.row_stick[sr]
+        sliding = float(self.k.rows(q, u)[1][sr] @ u)
+        if kind == "stop" and abs(sliding) > SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+            self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)  # an impact turned it: slip that way
+        elif kind == "stop":
+            self._stick(f, q, u)
+        else:
+            lam = self._contact_forces(q, u)[sr]
+            self.act[sr] = False
+            self._slip[f] = -self._mu_f[f] * math.copysign(1.0, -lam)  # it slides the way the force pushes
+        self._set_friction()
 
     def _contact_accel(self, q, u, nrm, group, weights) -> float:
         """``d2 phi/dt2`` along the impulse direction ``nrm`` of a free impact on ``group``."""
@@ -200,7 +329,7 @@ class SustainedSteps:
         self._check(res1, p_plus, step, t_k, "sustained")
         v = x[:n]
         lam, lam1 = np.where(self.act, x[n:], 0.0), np.where(self.act, y[n:], 0.0)  # 0 off the active rows
-        p1 = p_plus + end.grad.T @ lam1
+        p1 = p_plus + self._dirs(end.grad).T @ lam1
         return v, lam, q + tau * v, p_plus, e_seg, lam1, p1, y[:n], end
 
     def _chain(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
@@ -211,13 +340,17 @@ class SustainedSteps:
             self._at(t)
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
+            if self._stick_rows:
+                self._friction_modes(q, self._velocity(q, guess, p))
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
-            v, lam, q1, _, e_seg, lam1, p1, _, end = self._constrained(step, t_k, q, p, tau, guess)
+            v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)
             e_step = e_seg if (e_step is None or self._forced) else e_step
-            unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool)
+            unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool) & (np.asarray(k.row_stick) < 0)
             events = {}
             f1 = self._forces(end)
+            if self._stick_rows:
+                self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
             pulled = unilateral & (f1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))))
             if pulled.any():
                 f0 = self._contact_forces(q, self._velocity(q, v, p))
@@ -226,12 +359,16 @@ class SustainedSteps:
                         "lift",
                         self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
                     )
-            if any(s == 0.0 for _, s in events.values()):  # pulled at the segment start: release there
+            if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
-                self._release(step, t_k, t, r)
+                if events[r][0] == "lift":
+                    self._release(step, t_k, t, r)
+                else:
+                    self._count_event(step, t_k)  # stick <-> slip at one instant: bounded, never a loop
+                    self._friction_switch(events[r][0], r, q, self._velocity(q, v, p))
                 continue
             psi1 = end.psi
-            cross = ~self.act & (psi1 < -tol.phi)
+            cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
             if not events and not cross.any():
                 self._book(lam + lam1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
@@ -247,6 +384,9 @@ class SustainedSteps:
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             if events[r0][0] == "lift":
                 self._release(step, t_k, t, r0)
+                continue
+            if events[r0][0] in ("stop", "slide"):
+                self._friction_switch(events[r0][0], r0, q, self._velocity(q, v, p))
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub)
@@ -282,6 +422,8 @@ class SustainedSteps:
         k = self.k
         self._booked = True
         for r in np.flatnonzero(impulses):
+            if k.row_stick and k.row_stick[r] >= 0:
+                continue  # a stick row's force is tangential: not a normal force
             if k.row_contact[r] >= 0:
                 self._force[k.row_contact[r]] += impulses[r] / self._h
             else:
@@ -352,7 +494,7 @@ class SustainedSteps:
                 step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
             )
         tgt = {r: 0.0 for r in rows} | dict(targets)
-        free = [not k.row_bilateral[r] for r in rows]
+        free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
         g = grad[rows]
         w = g @ np.linalg.solve(mass, g.T)
         b = np.array([tgt[r] for r in rows]) - g @ vel

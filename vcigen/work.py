@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 import sympy as sp
 
-from .derive import DiscreteSystem, discrete_segment
+from .derive import DiscreteSystem, _no_dirac, discrete_segment
 from .result import Result
 
 WorkFn = Callable[..., np.ndarray]
@@ -60,4 +60,47 @@ def step_work(res: Result, work: WorkFn | None, par) -> np.ndarray:
             continue
         dq = np.diff(qs, axis=0)[keep]
         out[k] = float(np.sum(work(qs[:-1][keep], dq / tau[keep, None], tau[keep], ts[:-1][keep], par)))
+    return out
+
+
+def tangent_function(system: DiscreteSystem):
+    """``q (K, n), par -> (K, nf, n)``: the tangent gradients of the frictional contacts, or ``None``."""
+    model = system.model
+    if not model.friction_of:
+        return None
+    q = list(model.coordinates)
+    par = list(model.defaults)
+    grads = [[_no_dirac(t.diff(s)) for s in q] for _, t in model.friction_of.values()]
+    fn = sp.lambdify([*q, *par], grads, modules="numpy")
+    index = [list(model.phi).index(c) for c in model.friction_of]
+
+    def tangents(qs: np.ndarray, values) -> np.ndarray:
+        out = fn(*qs.T, *list(values)[: len(par)])
+        return np.stack(
+            [np.stack([np.broadcast_to(np.asarray(g, float), qs.shape[:1]) for g in row], -1) for row in out],
+            1,
+        )
+
+    tangents.index = index
+    return tangents
+
+
+def friction_work(res: Result, tangents, mu_f, par) -> np.ndarray:
+    """``(N-1,)``: the work of Coulomb friction in sustained contact, ``-mu_f lambda h |t . v|`` per step with
+    the mean normal force ``lambda`` of ``res.contact_force`` and the tangent gradient ``t`` at the step's
+    midpoint (0 while a contact sticks, to round-off). Friction at impacts is in each impact's energy loss."""
+    steps = res.energy.size
+    if tangents is None or steps == 0 or res.contact_force is None:
+        return np.zeros(steps)
+    q = res.q
+    mid = 0.5 * (q[:-1] + q[1:])
+    grads = tangents(mid, par)
+    out = np.zeros(steps)
+    for f, j in enumerate(tangents.index):
+        lam = res.contact_force[:, j]
+        held = lam != 0.0
+        if not held.any() or mu_f[j] <= 0.0:
+            continue
+        slide = np.abs(np.einsum("kn,kn->k", grads[held, f], q[1:][held] - q[:-1][held]))
+        out[held] -= mu_f[j] * lam[held] * slide
     return out

@@ -82,9 +82,19 @@ class CasadiKernels:
         quad = jump_quadratic(system)
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
         flat = ("legendre", "segment", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
+        flat += ("friction",) if "friction" in system.routines else ()
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
+        self.frictional_impacts = "friction" in system.routines
         self._rattle = self._rattle_segment() if system.r else None
+
+    def set_friction(self, slips, refs, branch) -> None:
+        """The friction slots of the parameters: each frictional contact's slip coefficient and stick value,
+        then the branch signs its tangent sticks on."""
+        i, nf = self.friction_slot, len(self.frictional)
+        self.par[i : i + nf] = slips
+        self.par[i + nf : i + 2 * nf] = refs
+        self.par[i + 2 * nf : i + 2 * nf + len(branch)] = branch
 
     def at(self, t: float) -> None:
         """Segments start at ``t``: the time slot (last parameter) of forces that depend on time."""
@@ -245,6 +255,13 @@ class CasadiKernels:
         n = self.n
         o = self._call(self._paths[j], s, q0, p0, tau)
         return float(o[0]), float(o[1]), o[2 : 2 + n]
+
+    def friction(self, q):
+        """``(mu_f, grad psi, branch)`` at ``q``: each contact's mu_f (0: frictionless) and tangent gradient,
+        and the arguments of the sign() atoms of the frictional tangents."""
+        m, n = self.m, self.n
+        o = self._call(self._flat["friction"], q)
+        return o[:m], o[m : m + m * n].reshape(m, n), o[m + m * n :]
 
     def restitution(self) -> np.ndarray:
         """Coefficient of restitution of each contact at the bound parameters."""

@@ -16,7 +16,7 @@ from typing import Any
 import sympy as sp
 
 from .. import __version__
-from ..derive import DiscreteSystem
+from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..result import KINDS
@@ -62,6 +62,8 @@ def model_hash(system: DiscreteSystem) -> str:
         *(f"{s.name}={v!r}" for s, v in model.defaults.items()),
         *(f"e:{c}:{sp.srepr(e)}" for c, e in model.restitution_of.items() if e != 1),
         *(f"g:{c}:{sp.srepr(e)}" for c, e in model.constraint.items()),
+        *(f"F:{sp.srepr(f)}" for f in model.force),
+        *(f"f:{c}:{sp.srepr(mu)}:{sp.srepr(t)}" for c, (mu, t) in model.friction_of.items()),
     ]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
@@ -132,14 +134,34 @@ def render_context(
         "nc": len(model.constraint),
         "kinds": [{"index": k, "name": nm, "macro": nm.upper()} for k, nm in enumerate(KINDS)],
         "rows": [
-            {"index": i, "name": nm, "contact": c, "constraint": k}
-            for i, (nm, c, k) in enumerate(
-                zip(system.rows.names, system.rows.contact, system.rows.constraint) if system.rows else ()
+            {"index": i, "name": nm, "contact": c, "constraint": k, "stick": f, "free": int(k >= 0 or f >= 0)}
+            for i, (nm, c, k, f) in enumerate(
+                zip(system.rows.names, system.rows.contact, system.rows.constraint, system.rows.sticks)
+                if system.rows
+                else ()
             )
         ],
+        # Coulomb friction in sustained contact (vcigen.sustained): frictional contacts, their stick rows,
+        # and where their slots (slip coefficients, then stick values) start in par
+        "nf": len(system.rows.frictional) if system.rows else 0,
+        "fric": [
+            {"index": f, "contact": j, "stick_row": system.rows.sticks.index(f)}
+            for f, j in enumerate(system.rows.frictional if system.rows else ())
+        ],
+        "fslot": len(model.defaults),
+        "nb": sum(len(b) for b in system.rows.branches) if system.rows else 0,
+        "branch_first": [
+            sum(len(b) for b in system.rows.branches[:f]) for f in range(len(system.rows.branches))
+        ]
+        if system.rows
+        else [],
+        "branch_count": [len(b) for b in system.rows.branches] if system.rows else [],
+        "kink": c_number(KINK),
         "npar": len(system.params),
         "timed": system.timed,  # the last parameter slot is the time a segment starts at (forces of time)
+        "mutable_par": system.timed or bool(system.rows and system.rows.frictional),  # the run's own par copy
         "forced": bool(model.force),  # a step's energy is its last segment's (Lagrange-d'Alembert)
+        "frictional": bool(model.friction_of),  # Coulomb friction at impacts (<model>_frictional_law)
         "nk": grid[0].outputs[0].size if grid else 0,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],

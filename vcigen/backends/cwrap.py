@@ -55,8 +55,9 @@ class _Err(ctypes.Structure):
     ]
 
 
-def sustain_struct(r: int, m: int, nc: int) -> type[ctypes.Structure]:
-    """The ``<model>_sustain_t`` of a model with ``r`` rows, ``m`` contacts, ``nc`` constraints."""
+def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ctypes.Structure]:
+    """The ``<model>_sustain_t`` of a model with ``r`` rows, ``m`` contacts, ``nc`` constraints, ``nf``
+    frictional contacts."""
 
     class _Sustain(ctypes.Structure):
         _fields_ = [
@@ -70,6 +71,10 @@ def sustain_struct(r: int, m: int, nc: int) -> type[ctypes.Structure]:
             ("kinds", ctypes.c_long * 4),
             ("fallbacks", ctypes.c_long),
             ("events", ctypes.c_int),
+            ("slip", ctypes.c_double * max(nf, 1)),
+            ("ref", ctypes.c_double * max(nf, 1)),
+            ("branch", ctypes.c_double * max(nb, 1)),
+            ("held_rows", ctypes.c_ulong * max(nf, 1)),
         ]
 
     return _Sustain
@@ -147,7 +152,15 @@ class CKernels:
         self.start = getattr(self.lib, f"{pre}_start")
         self.start.argtypes = [_D, ctypes.POINTER(_Tol), ctypes.c_double, _D, _D, ctypes.c_void_p]
         self.nc = len(system.model.constraint)
-        self.Sustain = sustain_struct(self.r, self.m, self.nc)
+        self.Sustain = sustain_struct(self.r, self.m, self.nc, len(self.frictional), sum(self.branch_count))
+
+    def set_friction(self, slips, refs, branch) -> None:
+        """The friction slots of the parameters: each frictional contact's slip coefficient and stick value,
+        then the branch signs its tangent sticks on."""
+        i, nf = self.friction_slot, len(self.frictional)
+        self.par[i : i + nf] = slips
+        self.par[i + nf : i + 2 * nf] = refs
+        self.par[i + 2 * nf : i + 2 * nf + len(branch)] = branch
 
     def at(self, t: float) -> None:
         """Segments start at ``t``: the time slot (last parameter) of forces that depend on time."""

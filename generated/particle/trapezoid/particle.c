@@ -1008,6 +1008,21 @@ static inline int particle_held(const particle_sustain_t *sus)
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
 static const int particle_row_constraint[PARTICLE_R_DIM] = { -1, };
+/* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
+static const int particle_row_stick[PARTICLE_R_DIM] = { -1, };
+static const int particle_row_free[PARTICLE_R_DIM] = { 0, };
+
+/* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
+ * a slipping frictional contact f (the derived rattle's). */
+static void particle_dirs(const particle_ctx_t *c, const double *grad, double *dirs)
+{
+    int i, r;
+    for (i = 0; i < PARTICLE_R * PARTICLE_N; ++i) {
+        dirs[i] = grad[i];
+    }
+    (void)c;
+    (void)r;
+}
 
 static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
@@ -1037,10 +1052,12 @@ static void particle_accel(const particle_ctx_t *c, const double *q, const doubl
         any = any || lam_rows[r] != 0.0;
     }
     if (any) {
+        double dirs[PARTICLE_R_DIM * PARTICLE_N];
         particle_rows(q, u, c->par, psi, grad, rc);
+        particle_dirs(c, grad, dirs);
         for (r = 0; r < PARTICLE_R; ++r) {
             for (i = 0; i < PARTICLE_N; ++i) {
-                acc[i] += grad[r * PARTICLE_N + i] * lam_rows[r];
+                acc[i] += dirs[r * PARTICLE_N + i] * lam_rows[r];
             }
         }
     }
@@ -1070,6 +1087,7 @@ static void particle_contact_forces(const particle_ctx_t *c, const double *q, co
     double rhs[PARTICLE_N], ccurv[PARTICLE_M_DIM], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N];
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double minv_g[PARTICLE_R_DIM * PARTICLE_N], a[PARTICLE_R_DIM * PARTICLE_R_DIM], b[PARTICLE_R_DIM];
+    double dirs[PARTICLE_R_DIM * PARTICLE_N];
     int rows[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
     int nr = 0, i, k, l, r;
     for (r = 0; r < PARTICLE_R; ++r) {
@@ -1084,13 +1102,14 @@ static void particle_contact_forces(const particle_ctx_t *c, const double *q, co
     particle_dynamics(q, u, c->par, rhs, ccurv);
     particle_legendre(q, u, c->par, mom, mass);
     particle_rows(q, u, c->par, psi, grad, curv);
+    particle_dirs(c, grad, dirs);
     if (!particle_lu(PARTICLE_N, mass, piv)) {
         return;
     }
     particle_lu_solve(PARTICLE_N, mass, piv, rhs);
     for (k = 0; k < nr; ++k) {
         for (i = 0; i < PARTICLE_N; ++i) {
-            minv_g[k * PARTICLE_N + i] = grad[rows[k] * PARTICLE_N + i];
+            minv_g[k * PARTICLE_N + i] = dirs[rows[k] * PARTICLE_N + i];
         }
         particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
     }
@@ -1143,6 +1162,7 @@ static int particle_constrained(const particle_ctx_t *c, const double *q, const 
 {
     double x[PARTICLE_NX_MAX], y[PARTICLE_NX_MAX], act[PARTICLE_R_DIM], pm[PARTICLE_N], pp[PARTICLE_N];
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], res;
+    double dirs[PARTICLE_R_DIM * PARTICLE_N];
     const double *arg[5];
     int i, r;
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -1180,6 +1200,7 @@ static int particle_constrained(const particle_ctx_t *c, const double *q, const 
         return 1;
     }
     particle_rows(q1, y, c->par, psi, grad, curv);
+    particle_dirs(c, grad, dirs);
     for (i = 0; i < PARTICLE_N; ++i) {
         p1[i] = pp[i];
         u1[i] = y[i];
@@ -1187,7 +1208,7 @@ static int particle_constrained(const particle_ctx_t *c, const double *q, const 
     for (r = 0; r < PARTICLE_R; ++r) {
         lam1[r] = c->sus->act[r] ? y[PARTICLE_N + r] : 0.0;
         for (i = 0; i < PARTICLE_N; ++i) {
-            p1[i] += grad[r * PARTICLE_N + i] * lam1[r];
+            p1[i] += dirs[r * PARTICLE_N + i] * lam1[r];
         }
     }
     return 0;
@@ -1216,7 +1237,7 @@ static void particle_book(const particle_ctx_t *c, const double *lam, const doub
     int r;
     for (r = 0; r < PARTICLE_R; ++r) {
         const double imp = lam[r] + lam1[r];
-        if (imp == 0.0) {
+        if (imp == 0.0 || particle_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
         if (particle_row_contact[r] >= 0) {
@@ -1256,7 +1277,8 @@ static int particle_sub_end(const particle_ctx_t *c, const double *q, const doub
 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end. *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int particle_illinois(const particle_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1278,12 +1300,13 @@ static int particle_illinois(const particle_ctx_t *c, int r, int height, const d
         for (i = 0; i < PARTICLE_N; ++i) {
             v[i] = vn[i];
         }
-        if (height) {
+        if (height == 1) {
             particle_rows(q1, v, c->par, f, grad, curv);
         } else {
             particle_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
+
         if (gc < 0) {
             b = cc;
             gb = gc;
@@ -1396,8 +1419,8 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
         for (k = 0; k < nr; ++k) {
             if (mask >> k & 1) {
                 tight[nt++] = k;
-            } else if (particle_row_constraint[rows[k]] >= 0) {
-                valid = 0; /* a bilateral row is always tight */
+            } else if (particle_row_free[rows[k]]) {
+                valid = 0; /* a bilateral (or stick) row is always tight */
             }
             lam[k] = 0.0;
         }
@@ -1418,7 +1441,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
         }
         for (k = 0; k < nt; ++k) {
             lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && particle_row_constraint[rows[tight[k]]] < 0) {
+            if (sol[k] < -lam_eps && !particle_row_free[rows[tight[k]]]) {
                 valid = 0;
             }
         }
@@ -1698,7 +1721,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         start = -1;
         pulled = 0;
         for (r = 0; r < PARTICLE_R; ++r) {
-            ev[r] = c->sus->act[r] && particle_row_constraint[r] < 0 && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !particle_row_free[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -1715,14 +1738,14 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
                 }
             }
         }
-        if (start >= 0) { /* pulled at the segment start: release there */
+        if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             particle_release(c, t, start);
             continue;
         }
         particle_rows(q1, vv, c->par, psi1, grad, curv);
         any = 0;
         for (r = 0; r < PARTICLE_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || (!c->sus->act[r] && particle_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any) {
             particle_book(c, lam, lam1);
@@ -1737,7 +1760,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             return 0;
         }
         for (r = 0; r < PARTICLE_R; ++r) {
-            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+            if (!c->sus->act[r] && particle_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
                 if (particle_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
                     return 1;
                 }
@@ -1789,6 +1812,17 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
         c->sus->act[r] = particle_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
     }
+    for (i = 0; i < PARTICLE_NF_DIM; ++i) {
+        c->sus->slip[i] = 0.0;
+        c->sus->ref[i] = 0.0;
+    }
+    for (i = 0; i < PARTICLE_NB_DIM; ++i) {
+        c->sus->branch[i] = 0.0;
+    }
+    for (i = 0; i < PARTICLE_NF_DIM; ++i) {
+        c->sus->held_rows[i] = 0;
+    }
+
     if (!c->tol->grazing_contact) {
         return;
     }
@@ -1796,7 +1830,7 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
     particle_accel(c, q, v, zero, acc);
     particle_row_accel(c, q, v, acc, racc);
     for (r = 0; r < PARTICLE_R; ++r) {
-        if (particle_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+        if (particle_row_constraint[r] >= 0 || particle_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
         }
         rate = 0.0;
@@ -2424,11 +2458,13 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
+
     c.tol = tol;
     c.err = err;
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
+
     for (i = 0; i < PARTICLE_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];

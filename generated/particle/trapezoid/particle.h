@@ -13,6 +13,11 @@
 #define PARTICLE_R_DIM (PARTICLE_R > 0 ? PARTICLE_R : 1)
 #define PARTICLE_NC 0
 #define PARTICLE_NC_DIM (PARTICLE_NC > 0 ? PARTICLE_NC : 1)
+/* frictional contacts (Coulomb friction in sustained contact: stick rows and slip coefficients) */
+#define PARTICLE_NF 0
+#define PARTICLE_NF_DIM (PARTICLE_NF > 0 ? PARTICLE_NF : 1)
+#define PARTICLE_NB 0
+#define PARTICLE_NB_DIM (PARTICLE_NB > 0 ? PARTICLE_NB : 1)
 /* array extents (a C array cannot be empty) */
 #define PARTICLE_M_DIM (PARTICLE_M > 0 ? PARTICLE_M : 1)
 #define PARTICLE_NPAR_DIM (PARTICLE_NPAR > 0 ? PARTICLE_NPAR : 1)
@@ -65,6 +70,10 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
+    double slip[PARTICLE_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
+    double ref[PARTICLE_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
+    double branch[PARTICLE_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
+    unsigned long held_rows[PARTICLE_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
 } particle_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -1299,6 +1299,21 @@ static inline int star_held(const star_sustain_t *sus)
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_row_contact[STAR_R_DIM] = { 0, 0, 0, 0, };
 static const int star_row_constraint[STAR_R_DIM] = { -1, -1, -1, -1, };
+/* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
+static const int star_row_stick[STAR_R_DIM] = { -1, -1, -1, -1, };
+static const int star_row_free[STAR_R_DIM] = { 0, 0, 0, 0, };
+
+/* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
+ * a slipping frictional contact f (the derived rattle's). */
+static void star_dirs(const star_ctx_t *c, const double *grad, double *dirs)
+{
+    int i, r;
+    for (i = 0; i < STAR_R * STAR_N; ++i) {
+        dirs[i] = grad[i];
+    }
+    (void)c;
+    (void)r;
+}
 
 static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
@@ -1328,10 +1343,12 @@ static void star_accel(const star_ctx_t *c, const double *q, const double *u, co
         any = any || lam_rows[r] != 0.0;
     }
     if (any) {
+        double dirs[STAR_R_DIM * STAR_N];
         star_rows(q, u, c->par, psi, grad, rc);
+        star_dirs(c, grad, dirs);
         for (r = 0; r < STAR_R; ++r) {
             for (i = 0; i < STAR_N; ++i) {
-                acc[i] += grad[r * STAR_N + i] * lam_rows[r];
+                acc[i] += dirs[r * STAR_N + i] * lam_rows[r];
             }
         }
     }
@@ -1361,6 +1378,7 @@ static void star_contact_forces(const star_ctx_t *c, const double *q, const doub
     double rhs[STAR_N], ccurv[STAR_M_DIM], mom[STAR_N], mass[STAR_N * STAR_N];
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
     double minv_g[STAR_R_DIM * STAR_N], a[STAR_R_DIM * STAR_R_DIM], b[STAR_R_DIM];
+    double dirs[STAR_R_DIM * STAR_N];
     int rows[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
     int nr = 0, i, k, l, r;
     for (r = 0; r < STAR_R; ++r) {
@@ -1375,13 +1393,14 @@ static void star_contact_forces(const star_ctx_t *c, const double *q, const doub
     star_dynamics(q, u, c->par, rhs, ccurv);
     star_legendre(q, u, c->par, mom, mass);
     star_rows(q, u, c->par, psi, grad, curv);
+    star_dirs(c, grad, dirs);
     if (!star_lu(STAR_N, mass, piv)) {
         return;
     }
     star_lu_solve(STAR_N, mass, piv, rhs);
     for (k = 0; k < nr; ++k) {
         for (i = 0; i < STAR_N; ++i) {
-            minv_g[k * STAR_N + i] = grad[rows[k] * STAR_N + i];
+            minv_g[k * STAR_N + i] = dirs[rows[k] * STAR_N + i];
         }
         star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
     }
@@ -1434,6 +1453,7 @@ static int star_constrained(const star_ctx_t *c, const double *q, const double *
 {
     double x[STAR_NX_MAX], y[STAR_NX_MAX], act[STAR_R_DIM], pm[STAR_N], pp[STAR_N];
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], res;
+    double dirs[STAR_R_DIM * STAR_N];
     const double *arg[5];
     int i, r;
     for (i = 0; i < STAR_N; ++i) {
@@ -1471,6 +1491,7 @@ static int star_constrained(const star_ctx_t *c, const double *q, const double *
         return 1;
     }
     star_rows(q1, y, c->par, psi, grad, curv);
+    star_dirs(c, grad, dirs);
     for (i = 0; i < STAR_N; ++i) {
         p1[i] = pp[i];
         u1[i] = y[i];
@@ -1478,7 +1499,7 @@ static int star_constrained(const star_ctx_t *c, const double *q, const double *
     for (r = 0; r < STAR_R; ++r) {
         lam1[r] = c->sus->act[r] ? y[STAR_N + r] : 0.0;
         for (i = 0; i < STAR_N; ++i) {
-            p1[i] += grad[r * STAR_N + i] * lam1[r];
+            p1[i] += dirs[r * STAR_N + i] * lam1[r];
         }
     }
     return 0;
@@ -1507,7 +1528,7 @@ static void star_book(const star_ctx_t *c, const double *lam, const double *lam1
     int r;
     for (r = 0; r < STAR_R; ++r) {
         const double imp = lam[r] + lam1[r];
-        if (imp == 0.0) {
+        if (imp == 0.0 || star_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
         if (star_row_contact[r] >= 0) {
@@ -1547,7 +1568,8 @@ static int star_sub_end(const star_ctx_t *c, const double *q, const double *p, d
 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end. *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int star_illinois(const star_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1569,12 +1591,13 @@ static int star_illinois(const star_ctx_t *c, int r, int height, const double *q
         for (i = 0; i < STAR_N; ++i) {
             v[i] = vn[i];
         }
-        if (height) {
+        if (height == 1) {
             star_rows(q1, v, c->par, f, grad, curv);
         } else {
             star_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
+
         if (gc < 0) {
             b = cc;
             gb = gc;
@@ -1687,8 +1710,8 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
         for (k = 0; k < nr; ++k) {
             if (mask >> k & 1) {
                 tight[nt++] = k;
-            } else if (star_row_constraint[rows[k]] >= 0) {
-                valid = 0; /* a bilateral row is always tight */
+            } else if (star_row_free[rows[k]]) {
+                valid = 0; /* a bilateral (or stick) row is always tight */
             }
             lam[k] = 0.0;
         }
@@ -1709,7 +1732,7 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
         }
         for (k = 0; k < nt; ++k) {
             lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && star_row_constraint[rows[tight[k]]] < 0) {
+            if (sol[k] < -lam_eps && !star_row_free[rows[tight[k]]]) {
                 valid = 0;
             }
         }
@@ -1989,7 +2012,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         start = -1;
         pulled = 0;
         for (r = 0; r < STAR_R; ++r) {
-            ev[r] = c->sus->act[r] && star_row_constraint[r] < 0 && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_row_free[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2006,14 +2029,14 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
                 }
             }
         }
-        if (start >= 0) { /* pulled at the segment start: release there */
+        if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             star_release(c, t, start);
             continue;
         }
         star_rows(q1, vv, c->par, psi1, grad, curv);
         any = 0;
         for (r = 0; r < STAR_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || (!c->sus->act[r] && star_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any) {
             star_book(c, lam, lam1);
@@ -2028,7 +2051,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
             return 0;
         }
         for (r = 0; r < STAR_R; ++r) {
-            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+            if (!c->sus->act[r] && star_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
                 if (star_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
                     return 1;
                 }
@@ -2080,6 +2103,17 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
         c->sus->act[r] = star_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
     }
+    for (i = 0; i < STAR_NF_DIM; ++i) {
+        c->sus->slip[i] = 0.0;
+        c->sus->ref[i] = 0.0;
+    }
+    for (i = 0; i < STAR_NB_DIM; ++i) {
+        c->sus->branch[i] = 0.0;
+    }
+    for (i = 0; i < STAR_NF_DIM; ++i) {
+        c->sus->held_rows[i] = 0;
+    }
+
     if (!c->tol->grazing_contact) {
         return;
     }
@@ -2087,7 +2121,7 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
     star_accel(c, q, v, zero, acc);
     star_row_accel(c, q, v, acc, racc);
     for (r = 0; r < STAR_R; ++r) {
-        if (star_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+        if (star_row_constraint[r] >= 0 || star_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
         }
         rate = 0.0;
@@ -2715,11 +2749,13 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
+
     c.tol = tol;
     c.err = err;
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
+
     for (i = 0; i < STAR_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];

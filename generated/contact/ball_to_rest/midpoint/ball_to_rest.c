@@ -1004,6 +1004,21 @@ static inline int ball_to_rest_held(const ball_to_rest_sustain_t *sus)
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_to_rest_row_contact[BALL_TO_REST_R_DIM] = { 0, };
 static const int ball_to_rest_row_constraint[BALL_TO_REST_R_DIM] = { -1, };
+/* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
+static const int ball_to_rest_row_stick[BALL_TO_REST_R_DIM] = { -1, };
+static const int ball_to_rest_row_free[BALL_TO_REST_R_DIM] = { 0, };
+
+/* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
+ * a slipping frictional contact f (the derived rattle's). */
+static void ball_to_rest_dirs(const ball_to_rest_ctx_t *c, const double *grad, double *dirs)
+{
+    int i, r;
+    for (i = 0; i < BALL_TO_REST_R * BALL_TO_REST_N; ++i) {
+        dirs[i] = grad[i];
+    }
+    (void)c;
+    (void)r;
+}
 
 static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
@@ -1033,10 +1048,12 @@ static void ball_to_rest_accel(const ball_to_rest_ctx_t *c, const double *q, con
         any = any || lam_rows[r] != 0.0;
     }
     if (any) {
+        double dirs[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
         ball_to_rest_rows(q, u, c->par, psi, grad, rc);
+        ball_to_rest_dirs(c, grad, dirs);
         for (r = 0; r < BALL_TO_REST_R; ++r) {
             for (i = 0; i < BALL_TO_REST_N; ++i) {
-                acc[i] += grad[r * BALL_TO_REST_N + i] * lam_rows[r];
+                acc[i] += dirs[r * BALL_TO_REST_N + i] * lam_rows[r];
             }
         }
     }
@@ -1066,6 +1083,7 @@ static void ball_to_rest_contact_forces(const ball_to_rest_ctx_t *c, const doubl
     double rhs[BALL_TO_REST_N], ccurv[BALL_TO_REST_M_DIM], mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N];
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
     double minv_g[BALL_TO_REST_R_DIM * BALL_TO_REST_N], a[BALL_TO_REST_R_DIM * BALL_TO_REST_R_DIM], b[BALL_TO_REST_R_DIM];
+    double dirs[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     int rows[BALL_TO_REST_R_DIM], piv[BALL_TO_REST_R_DIM > BALL_TO_REST_N ? BALL_TO_REST_R_DIM : BALL_TO_REST_N];
     int nr = 0, i, k, l, r;
     for (r = 0; r < BALL_TO_REST_R; ++r) {
@@ -1080,13 +1098,14 @@ static void ball_to_rest_contact_forces(const ball_to_rest_ctx_t *c, const doubl
     ball_to_rest_dynamics(q, u, c->par, rhs, ccurv);
     ball_to_rest_legendre(q, u, c->par, mom, mass);
     ball_to_rest_rows(q, u, c->par, psi, grad, curv);
+    ball_to_rest_dirs(c, grad, dirs);
     if (!ball_to_rest_lu(BALL_TO_REST_N, mass, piv)) {
         return;
     }
     ball_to_rest_lu_solve(BALL_TO_REST_N, mass, piv, rhs);
     for (k = 0; k < nr; ++k) {
         for (i = 0; i < BALL_TO_REST_N; ++i) {
-            minv_g[k * BALL_TO_REST_N + i] = grad[rows[k] * BALL_TO_REST_N + i];
+            minv_g[k * BALL_TO_REST_N + i] = dirs[rows[k] * BALL_TO_REST_N + i];
         }
         ball_to_rest_lu_solve(BALL_TO_REST_N, mass, piv, minv_g + k * BALL_TO_REST_N);
     }
@@ -1139,6 +1158,7 @@ static int ball_to_rest_constrained(const ball_to_rest_ctx_t *c, const double *q
 {
     double x[BALL_TO_REST_NX_MAX], y[BALL_TO_REST_NX_MAX], act[BALL_TO_REST_R_DIM], pm[BALL_TO_REST_N], pp[BALL_TO_REST_N];
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM], res;
+    double dirs[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     const double *arg[5];
     int i, r;
     for (i = 0; i < BALL_TO_REST_N; ++i) {
@@ -1176,6 +1196,7 @@ static int ball_to_rest_constrained(const ball_to_rest_ctx_t *c, const double *q
         return 1;
     }
     ball_to_rest_rows(q1, y, c->par, psi, grad, curv);
+    ball_to_rest_dirs(c, grad, dirs);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         p1[i] = pp[i];
         u1[i] = y[i];
@@ -1183,7 +1204,7 @@ static int ball_to_rest_constrained(const ball_to_rest_ctx_t *c, const double *q
     for (r = 0; r < BALL_TO_REST_R; ++r) {
         lam1[r] = c->sus->act[r] ? y[BALL_TO_REST_N + r] : 0.0;
         for (i = 0; i < BALL_TO_REST_N; ++i) {
-            p1[i] += grad[r * BALL_TO_REST_N + i] * lam1[r];
+            p1[i] += dirs[r * BALL_TO_REST_N + i] * lam1[r];
         }
     }
     return 0;
@@ -1212,7 +1233,7 @@ static void ball_to_rest_book(const ball_to_rest_ctx_t *c, const double *lam, co
     int r;
     for (r = 0; r < BALL_TO_REST_R; ++r) {
         const double imp = lam[r] + lam1[r];
-        if (imp == 0.0) {
+        if (imp == 0.0 || ball_to_rest_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
         if (ball_to_rest_row_contact[r] >= 0) {
@@ -1252,7 +1273,8 @@ static int ball_to_rest_sub_end(const ball_to_rest_ctx_t *c, const double *q, co
 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end. *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int ball_to_rest_illinois(const ball_to_rest_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1274,12 +1296,13 @@ static int ball_to_rest_illinois(const ball_to_rest_ctx_t *c, int r, int height,
         for (i = 0; i < BALL_TO_REST_N; ++i) {
             v[i] = vn[i];
         }
-        if (height) {
+        if (height == 1) {
             ball_to_rest_rows(q1, v, c->par, f, grad, curv);
         } else {
             ball_to_rest_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
+
         if (gc < 0) {
             b = cc;
             gb = gc;
@@ -1392,8 +1415,8 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
         for (k = 0; k < nr; ++k) {
             if (mask >> k & 1) {
                 tight[nt++] = k;
-            } else if (ball_to_rest_row_constraint[rows[k]] >= 0) {
-                valid = 0; /* a bilateral row is always tight */
+            } else if (ball_to_rest_row_free[rows[k]]) {
+                valid = 0; /* a bilateral (or stick) row is always tight */
             }
             lam[k] = 0.0;
         }
@@ -1414,7 +1437,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
         }
         for (k = 0; k < nt; ++k) {
             lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && ball_to_rest_row_constraint[rows[tight[k]]] < 0) {
+            if (sol[k] < -lam_eps && !ball_to_rest_row_free[rows[tight[k]]]) {
                 valid = 0;
             }
         }
@@ -1694,7 +1717,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         start = -1;
         pulled = 0;
         for (r = 0; r < BALL_TO_REST_R; ++r) {
-            ev[r] = c->sus->act[r] && ball_to_rest_row_constraint[r] < 0 && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !ball_to_rest_row_free[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -1711,14 +1734,14 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
                 }
             }
         }
-        if (start >= 0) { /* pulled at the segment start: release there */
+        if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             ball_to_rest_release(c, t, start);
             continue;
         }
         ball_to_rest_rows(q1, vv, c->par, psi1, grad, curv);
         any = 0;
         for (r = 0; r < BALL_TO_REST_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || (!c->sus->act[r] && ball_to_rest_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any) {
             ball_to_rest_book(c, lam, lam1);
@@ -1733,7 +1756,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
             return 0;
         }
         for (r = 0; r < BALL_TO_REST_R; ++r) {
-            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+            if (!c->sus->act[r] && ball_to_rest_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
                 if (ball_to_rest_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
                     return 1;
                 }
@@ -1785,6 +1808,17 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
         c->sus->act[r] = ball_to_rest_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
     }
+    for (i = 0; i < BALL_TO_REST_NF_DIM; ++i) {
+        c->sus->slip[i] = 0.0;
+        c->sus->ref[i] = 0.0;
+    }
+    for (i = 0; i < BALL_TO_REST_NB_DIM; ++i) {
+        c->sus->branch[i] = 0.0;
+    }
+    for (i = 0; i < BALL_TO_REST_NF_DIM; ++i) {
+        c->sus->held_rows[i] = 0;
+    }
+
     if (!c->tol->grazing_contact) {
         return;
     }
@@ -1792,7 +1826,7 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
     ball_to_rest_accel(c, q, v, zero, acc);
     ball_to_rest_row_accel(c, q, v, acc, racc);
     for (r = 0; r < BALL_TO_REST_R; ++r) {
-        if (ball_to_rest_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+        if (ball_to_rest_row_constraint[r] >= 0 || ball_to_rest_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
         }
         rate = 0.0;
@@ -2420,11 +2454,13 @@ int ball_to_rest_run(const double *par, const ball_to_rest_tol_t *tol, double h,
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
+
     c.tol = tol;
     c.err = err;
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
+
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];

@@ -13,6 +13,11 @@
 #define BALL_TO_REST_R_DIM (BALL_TO_REST_R > 0 ? BALL_TO_REST_R : 1)
 #define BALL_TO_REST_NC 0
 #define BALL_TO_REST_NC_DIM (BALL_TO_REST_NC > 0 ? BALL_TO_REST_NC : 1)
+/* frictional contacts (Coulomb friction in sustained contact: stick rows and slip coefficients) */
+#define BALL_TO_REST_NF 0
+#define BALL_TO_REST_NF_DIM (BALL_TO_REST_NF > 0 ? BALL_TO_REST_NF : 1)
+#define BALL_TO_REST_NB 0
+#define BALL_TO_REST_NB_DIM (BALL_TO_REST_NB > 0 ? BALL_TO_REST_NB : 1)
 /* array extents (a C array cannot be empty) */
 #define BALL_TO_REST_M_DIM (BALL_TO_REST_M > 0 ? BALL_TO_REST_M : 1)
 #define BALL_TO_REST_NPAR_DIM (BALL_TO_REST_NPAR > 0 ? BALL_TO_REST_NPAR : 1)
@@ -65,6 +70,10 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
+    double slip[BALL_TO_REST_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
+    double ref[BALL_TO_REST_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
+    double branch[BALL_TO_REST_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
+    unsigned long held_rows[BALL_TO_REST_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
 } ball_to_rest_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -1031,6 +1031,21 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };
 static const int pendulum_wall_row_constraint[PENDULUM_WALL_R_DIM] = { -1, 0, };
+/* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
+static const int pendulum_wall_row_stick[PENDULUM_WALL_R_DIM] = { -1, -1, };
+static const int pendulum_wall_row_free[PENDULUM_WALL_R_DIM] = { 0, 1, };
+
+/* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
+ * a slipping frictional contact f (the derived rattle's). */
+static void pendulum_wall_dirs(const pendulum_wall_ctx_t *c, const double *grad, double *dirs)
+{
+    int i, r;
+    for (i = 0; i < PENDULUM_WALL_R * PENDULUM_WALL_N; ++i) {
+        dirs[i] = grad[i];
+    }
+    (void)c;
+    (void)r;
+}
 
 static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
@@ -1060,10 +1075,12 @@ static void pendulum_wall_accel(const pendulum_wall_ctx_t *c, const double *q, c
         any = any || lam_rows[r] != 0.0;
     }
     if (any) {
+        double dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
         pendulum_wall_rows(q, u, c->par, psi, grad, rc);
+        pendulum_wall_dirs(c, grad, dirs);
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
             for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                acc[i] += grad[r * PENDULUM_WALL_N + i] * lam_rows[r];
+                acc[i] += dirs[r * PENDULUM_WALL_N + i] * lam_rows[r];
             }
         }
     }
@@ -1093,6 +1110,7 @@ static void pendulum_wall_contact_forces(const pendulum_wall_ctx_t *c, const dou
     double rhs[PENDULUM_WALL_N], ccurv[PENDULUM_WALL_M_DIM], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N];
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     double minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], a[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM], b[PENDULUM_WALL_R_DIM];
+    double dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     int rows[PENDULUM_WALL_R_DIM], piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
     int nr = 0, i, k, l, r;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
@@ -1107,13 +1125,14 @@ static void pendulum_wall_contact_forces(const pendulum_wall_ctx_t *c, const dou
     pendulum_wall_dynamics(q, u, c->par, rhs, ccurv);
     pendulum_wall_legendre(q, u, c->par, mom, mass);
     pendulum_wall_rows(q, u, c->par, psi, grad, curv);
+    pendulum_wall_dirs(c, grad, dirs);
     if (!pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
         return;
     }
     pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, rhs);
     for (k = 0; k < nr; ++k) {
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            minv_g[k * PENDULUM_WALL_N + i] = grad[rows[k] * PENDULUM_WALL_N + i];
+            minv_g[k * PENDULUM_WALL_N + i] = dirs[rows[k] * PENDULUM_WALL_N + i];
         }
         pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_g + k * PENDULUM_WALL_N);
     }
@@ -1166,6 +1185,7 @@ static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double 
 {
     double x[PENDULUM_WALL_NX_MAX], y[PENDULUM_WALL_NX_MAX], act[PENDULUM_WALL_R_DIM], pm[PENDULUM_WALL_N], pp[PENDULUM_WALL_N];
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], res;
+    double dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     const double *arg[5];
     int i, r;
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
@@ -1203,6 +1223,7 @@ static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double 
         return 1;
     }
     pendulum_wall_rows(q1, y, c->par, psi, grad, curv);
+    pendulum_wall_dirs(c, grad, dirs);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         p1[i] = pp[i];
         u1[i] = y[i];
@@ -1210,7 +1231,7 @@ static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double 
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         lam1[r] = c->sus->act[r] ? y[PENDULUM_WALL_N + r] : 0.0;
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            p1[i] += grad[r * PENDULUM_WALL_N + i] * lam1[r];
+            p1[i] += dirs[r * PENDULUM_WALL_N + i] * lam1[r];
         }
     }
     return 0;
@@ -1239,7 +1260,7 @@ static void pendulum_wall_book(const pendulum_wall_ctx_t *c, const double *lam, 
     int r;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         const double imp = lam[r] + lam1[r];
-        if (imp == 0.0) {
+        if (imp == 0.0 || pendulum_wall_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
         if (pendulum_wall_row_contact[r] >= 0) {
@@ -1279,7 +1300,8 @@ static int pendulum_wall_sub_end(const pendulum_wall_ctx_t *c, const double *q, 
 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end. *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int pendulum_wall_illinois(const pendulum_wall_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1301,12 +1323,13 @@ static int pendulum_wall_illinois(const pendulum_wall_ctx_t *c, int r, int heigh
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             v[i] = vn[i];
         }
-        if (height) {
+        if (height == 1) {
             pendulum_wall_rows(q1, v, c->par, f, grad, curv);
         } else {
             pendulum_wall_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
+
         if (gc < 0) {
             b = cc;
             gb = gc;
@@ -1419,8 +1442,8 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
         for (k = 0; k < nr; ++k) {
             if (mask >> k & 1) {
                 tight[nt++] = k;
-            } else if (pendulum_wall_row_constraint[rows[k]] >= 0) {
-                valid = 0; /* a bilateral row is always tight */
+            } else if (pendulum_wall_row_free[rows[k]]) {
+                valid = 0; /* a bilateral (or stick) row is always tight */
             }
             lam[k] = 0.0;
         }
@@ -1441,7 +1464,7 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
         }
         for (k = 0; k < nt; ++k) {
             lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && pendulum_wall_row_constraint[rows[tight[k]]] < 0) {
+            if (sol[k] < -lam_eps && !pendulum_wall_row_free[rows[tight[k]]]) {
                 valid = 0;
             }
         }
@@ -1721,7 +1744,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         start = -1;
         pulled = 0;
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
-            ev[r] = c->sus->act[r] && pendulum_wall_row_constraint[r] < 0 && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !pendulum_wall_row_free[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -1738,14 +1761,14 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
                 }
             }
         }
-        if (start >= 0) { /* pulled at the segment start: release there */
+        if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             pendulum_wall_release(c, t, start);
             continue;
         }
         pendulum_wall_rows(q1, vv, c->par, psi1, grad, curv);
         any = 0;
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || (!c->sus->act[r] && pendulum_wall_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any) {
             pendulum_wall_book(c, lam, lam1);
@@ -1760,7 +1783,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
             return 0;
         }
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
-            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+            if (!c->sus->act[r] && pendulum_wall_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
                 if (pendulum_wall_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
                     return 1;
                 }
@@ -1812,6 +1835,17 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
         c->sus->act[r] = pendulum_wall_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
     }
+    for (i = 0; i < PENDULUM_WALL_NF_DIM; ++i) {
+        c->sus->slip[i] = 0.0;
+        c->sus->ref[i] = 0.0;
+    }
+    for (i = 0; i < PENDULUM_WALL_NB_DIM; ++i) {
+        c->sus->branch[i] = 0.0;
+    }
+    for (i = 0; i < PENDULUM_WALL_NF_DIM; ++i) {
+        c->sus->held_rows[i] = 0;
+    }
+
     if (!c->tol->grazing_contact) {
         return;
     }
@@ -1819,7 +1853,7 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
     pendulum_wall_accel(c, q, v, zero, acc);
     pendulum_wall_row_accel(c, q, v, acc, racc);
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
-        if (pendulum_wall_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+        if (pendulum_wall_row_constraint[r] >= 0 || pendulum_wall_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
         }
         rate = 0.0;
@@ -2447,11 +2481,13 @@ int pendulum_wall_run(const double *par, const pendulum_wall_tol_t *tol, double 
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
+
     c.tol = tol;
     c.err = err;
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
+
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];

@@ -13,6 +13,11 @@
 #define PENDULUM_WALL_R_DIM (PENDULUM_WALL_R > 0 ? PENDULUM_WALL_R : 1)
 #define PENDULUM_WALL_NC 1
 #define PENDULUM_WALL_NC_DIM (PENDULUM_WALL_NC > 0 ? PENDULUM_WALL_NC : 1)
+/* frictional contacts (Coulomb friction in sustained contact: stick rows and slip coefficients) */
+#define PENDULUM_WALL_NF 0
+#define PENDULUM_WALL_NF_DIM (PENDULUM_WALL_NF > 0 ? PENDULUM_WALL_NF : 1)
+#define PENDULUM_WALL_NB 0
+#define PENDULUM_WALL_NB_DIM (PENDULUM_WALL_NB > 0 ? PENDULUM_WALL_NB : 1)
 /* array extents (a C array cannot be empty) */
 #define PENDULUM_WALL_M_DIM (PENDULUM_WALL_M > 0 ? PENDULUM_WALL_M : 1)
 #define PENDULUM_WALL_NPAR_DIM (PENDULUM_WALL_NPAR > 0 ? PENDULUM_WALL_NPAR : 1)
@@ -65,6 +70,10 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
+    double slip[PENDULUM_WALL_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
+    double ref[PENDULUM_WALL_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
+    double branch[PENDULUM_WALL_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
+    unsigned long held_rows[PENDULUM_WALL_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
 } pendulum_wall_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

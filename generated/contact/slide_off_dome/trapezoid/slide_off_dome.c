@@ -1043,6 +1043,21 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int slide_off_dome_row_contact[SLIDE_OFF_DOME_R_DIM] = { 0, };
 static const int slide_off_dome_row_constraint[SLIDE_OFF_DOME_R_DIM] = { -1, };
+/* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
+static const int slide_off_dome_row_stick[SLIDE_OFF_DOME_R_DIM] = { -1, };
+static const int slide_off_dome_row_free[SLIDE_OFF_DOME_R_DIM] = { 0, };
+
+/* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
+ * a slipping frictional contact f (the derived rattle's). */
+static void slide_off_dome_dirs(const slide_off_dome_ctx_t *c, const double *grad, double *dirs)
+{
+    int i, r;
+    for (i = 0; i < SLIDE_OFF_DOME_R * SLIDE_OFF_DOME_N; ++i) {
+        dirs[i] = grad[i];
+    }
+    (void)c;
+    (void)r;
+}
 
 static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_dome_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
@@ -1072,10 +1087,12 @@ static void slide_off_dome_accel(const slide_off_dome_ctx_t *c, const double *q,
         any = any || lam_rows[r] != 0.0;
     }
     if (any) {
+        double dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
         slide_off_dome_rows(q, u, c->par, psi, grad, rc);
+        slide_off_dome_dirs(c, grad, dirs);
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-                acc[i] += grad[r * SLIDE_OFF_DOME_N + i] * lam_rows[r];
+                acc[i] += dirs[r * SLIDE_OFF_DOME_N + i] * lam_rows[r];
             }
         }
     }
@@ -1105,6 +1122,7 @@ static void slide_off_dome_contact_forces(const slide_off_dome_ctx_t *c, const d
     double rhs[SLIDE_OFF_DOME_N], ccurv[SLIDE_OFF_DOME_M_DIM], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N];
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM], b[SLIDE_OFF_DOME_R_DIM];
+    double dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     int rows[SLIDE_OFF_DOME_R_DIM], piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
     int nr = 0, i, k, l, r;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
@@ -1119,13 +1137,14 @@ static void slide_off_dome_contact_forces(const slide_off_dome_ctx_t *c, const d
     slide_off_dome_dynamics(q, u, c->par, rhs, ccurv);
     slide_off_dome_legendre(q, u, c->par, mom, mass);
     slide_off_dome_rows(q, u, c->par, psi, grad, curv);
+    slide_off_dome_dirs(c, grad, dirs);
     if (!slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv)) {
         return;
     }
     slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, rhs);
     for (k = 0; k < nr; ++k) {
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            minv_g[k * SLIDE_OFF_DOME_N + i] = grad[rows[k] * SLIDE_OFF_DOME_N + i];
+            minv_g[k * SLIDE_OFF_DOME_N + i] = dirs[rows[k] * SLIDE_OFF_DOME_N + i];
         }
         slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_g + k * SLIDE_OFF_DOME_N);
     }
@@ -1178,6 +1197,7 @@ static int slide_off_dome_constrained(const slide_off_dome_ctx_t *c, const doubl
 {
     double x[SLIDE_OFF_DOME_NX_MAX], y[SLIDE_OFF_DOME_NX_MAX], act[SLIDE_OFF_DOME_R_DIM], pm[SLIDE_OFF_DOME_N], pp[SLIDE_OFF_DOME_N];
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM], res;
+    double dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     const double *arg[5];
     int i, r;
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
@@ -1215,6 +1235,7 @@ static int slide_off_dome_constrained(const slide_off_dome_ctx_t *c, const doubl
         return 1;
     }
     slide_off_dome_rows(q1, y, c->par, psi, grad, curv);
+    slide_off_dome_dirs(c, grad, dirs);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         p1[i] = pp[i];
         u1[i] = y[i];
@@ -1222,7 +1243,7 @@ static int slide_off_dome_constrained(const slide_off_dome_ctx_t *c, const doubl
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         lam1[r] = c->sus->act[r] ? y[SLIDE_OFF_DOME_N + r] : 0.0;
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            p1[i] += grad[r * SLIDE_OFF_DOME_N + i] * lam1[r];
+            p1[i] += dirs[r * SLIDE_OFF_DOME_N + i] * lam1[r];
         }
     }
     return 0;
@@ -1251,7 +1272,7 @@ static void slide_off_dome_book(const slide_off_dome_ctx_t *c, const double *lam
     int r;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         const double imp = lam[r] + lam1[r];
-        if (imp == 0.0) {
+        if (imp == 0.0 || slide_off_dome_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
         if (slide_off_dome_row_contact[r] >= 0) {
@@ -1291,7 +1312,8 @@ static int slide_off_dome_sub_end(const slide_off_dome_ctx_t *c, const double *q
 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end. *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int slide_off_dome_illinois(const slide_off_dome_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1313,12 +1335,13 @@ static int slide_off_dome_illinois(const slide_off_dome_ctx_t *c, int r, int hei
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             v[i] = vn[i];
         }
-        if (height) {
+        if (height == 1) {
             slide_off_dome_rows(q1, v, c->par, f, grad, curv);
         } else {
             slide_off_dome_end_forces(c, q1, u1, cc * tau, f);
         }
         gc = f[r];
+
         if (gc < 0) {
             b = cc;
             gb = gc;
@@ -1431,8 +1454,8 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
         for (k = 0; k < nr; ++k) {
             if (mask >> k & 1) {
                 tight[nt++] = k;
-            } else if (slide_off_dome_row_constraint[rows[k]] >= 0) {
-                valid = 0; /* a bilateral row is always tight */
+            } else if (slide_off_dome_row_free[rows[k]]) {
+                valid = 0; /* a bilateral (or stick) row is always tight */
             }
             lam[k] = 0.0;
         }
@@ -1453,7 +1476,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
         }
         for (k = 0; k < nt; ++k) {
             lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && slide_off_dome_row_constraint[rows[tight[k]]] < 0) {
+            if (sol[k] < -lam_eps && !slide_off_dome_row_free[rows[tight[k]]]) {
                 valid = 0;
             }
         }
@@ -1733,7 +1756,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         start = -1;
         pulled = 0;
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            ev[r] = c->sus->act[r] && slide_off_dome_row_constraint[r] < 0 && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !slide_off_dome_row_free[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -1750,14 +1773,14 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
                 }
             }
         }
-        if (start >= 0) { /* pulled at the segment start: release there */
+        if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             slide_off_dome_release(c, t, start);
             continue;
         }
         slide_off_dome_rows(q1, vv, c->par, psi1, grad, curv);
         any = 0;
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || (!c->sus->act[r] && slide_off_dome_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any) {
             slide_off_dome_book(c, lam, lam1);
@@ -1772,7 +1795,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
             return 0;
         }
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            if (!c->sus->act[r] && psi1[r] < -c->tol->phi) {
+            if (!c->sus->act[r] && slide_off_dome_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
                 if (slide_off_dome_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
                     return 1;
                 }
@@ -1824,6 +1847,17 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         c->sus->act[r] = slide_off_dome_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
     }
+    for (i = 0; i < SLIDE_OFF_DOME_NF_DIM; ++i) {
+        c->sus->slip[i] = 0.0;
+        c->sus->ref[i] = 0.0;
+    }
+    for (i = 0; i < SLIDE_OFF_DOME_NB_DIM; ++i) {
+        c->sus->branch[i] = 0.0;
+    }
+    for (i = 0; i < SLIDE_OFF_DOME_NF_DIM; ++i) {
+        c->sus->held_rows[i] = 0;
+    }
+
     if (!c->tol->grazing_contact) {
         return;
     }
@@ -1831,7 +1865,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
     slide_off_dome_accel(c, q, v, zero, acc);
     slide_off_dome_row_accel(c, q, v, acc, racc);
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        if (slide_off_dome_row_constraint[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
+        if (slide_off_dome_row_constraint[r] >= 0 || slide_off_dome_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
         }
         rate = 0.0;
@@ -2459,11 +2493,13 @@ int slide_off_dome_run(const double *par, const slide_off_dome_tol_t *tol, doubl
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
     c.par = par;
+
     c.tol = tol;
     c.err = err;
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
+
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         q0[i] = q[i];
         p0[i] = p[i];

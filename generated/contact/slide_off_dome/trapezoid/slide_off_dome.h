@@ -13,6 +13,11 @@
 #define SLIDE_OFF_DOME_R_DIM (SLIDE_OFF_DOME_R > 0 ? SLIDE_OFF_DOME_R : 1)
 #define SLIDE_OFF_DOME_NC 0
 #define SLIDE_OFF_DOME_NC_DIM (SLIDE_OFF_DOME_NC > 0 ? SLIDE_OFF_DOME_NC : 1)
+/* frictional contacts (Coulomb friction in sustained contact: stick rows and slip coefficients) */
+#define SLIDE_OFF_DOME_NF 0
+#define SLIDE_OFF_DOME_NF_DIM (SLIDE_OFF_DOME_NF > 0 ? SLIDE_OFF_DOME_NF : 1)
+#define SLIDE_OFF_DOME_NB 0
+#define SLIDE_OFF_DOME_NB_DIM (SLIDE_OFF_DOME_NB > 0 ? SLIDE_OFF_DOME_NB : 1)
 /* array extents (a C array cannot be empty) */
 #define SLIDE_OFF_DOME_M_DIM (SLIDE_OFF_DOME_M > 0 ? SLIDE_OFF_DOME_M : 1)
 #define SLIDE_OFF_DOME_NPAR_DIM (SLIDE_OFF_DOME_NPAR > 0 ? SLIDE_OFF_DOME_NPAR : 1)
@@ -65,6 +70,10 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
+    double slip[SLIDE_OFF_DOME_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
+    double ref[SLIDE_OFF_DOME_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
+    double branch[SLIDE_OFF_DOME_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
+    unsigned long held_rows[SLIDE_OFF_DOME_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
 } slide_off_dome_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

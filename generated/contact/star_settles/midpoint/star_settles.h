@@ -13,6 +13,11 @@
 #define STAR_SETTLES_R_DIM (STAR_SETTLES_R > 0 ? STAR_SETTLES_R : 1)
 #define STAR_SETTLES_NC 0
 #define STAR_SETTLES_NC_DIM (STAR_SETTLES_NC > 0 ? STAR_SETTLES_NC : 1)
+/* frictional contacts (Coulomb friction in sustained contact: stick rows and slip coefficients) */
+#define STAR_SETTLES_NF 0
+#define STAR_SETTLES_NF_DIM (STAR_SETTLES_NF > 0 ? STAR_SETTLES_NF : 1)
+#define STAR_SETTLES_NB 0
+#define STAR_SETTLES_NB_DIM (STAR_SETTLES_NB > 0 ? STAR_SETTLES_NB : 1)
 /* array extents (a C array cannot be empty) */
 #define STAR_SETTLES_M_DIM (STAR_SETTLES_M > 0 ? STAR_SETTLES_M : 1)
 #define STAR_SETTLES_NPAR_DIM (STAR_SETTLES_NPAR > 0 ? STAR_SETTLES_NPAR : 1)
@@ -65,6 +70,10 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
+    double slip[STAR_SETTLES_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
+    double ref[STAR_SETTLES_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
+    double branch[STAR_SETTLES_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
+    unsigned long held_rows[STAR_SETTLES_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
 } star_settles_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -1,0 +1,279 @@
+"""Coulomb friction at impacts (MATH.md, *Friction*) on both backends, against the closed forms.
+
+A disk bouncing on a rough floor (``q = (x, y, theta)``, sliding velocity ``xd - r thetad``) leaves each
+impact
+with the tangential velocity and spin of Coulomb's impulse law: the normal impulse ``m (1 + e) |vy|``, and a
+tangential impulse that stops the sliding (slip then roll) if it fits in the cone ``mu_f`` times the normal
+one, or else the cone's edge against the sliding (slip throughout). Friction never adds energy (a property
+test over random frictional boxes); bad friction is refused. In sustained contact (MATH.md *Friction*): a
+block slides to a stop after v^2/(2 mu g), stays on an incline when tan a <= mu and otherwise accelerates at
+g (sin a - mu cos a), a rising push breaks the stick where it reaches mu g, a sliding disk starts to roll.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+import pytest
+import sympy as sp
+from hard_scenes import BACKENDS, G
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import vcigen
+
+MASS, INERTIA, RADIUS, MU, REST = 1.0, 0.5, 1.0, 0.3, 0.7
+
+
+def disk() -> vcigen.Model:
+    x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
+    m, inertia, r, g, mu, e = sp.symbols("m I r g mu e")
+    return vcigen.Model(
+        name="rough_disk",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=m / 2 * (xd**2 + yd**2) + inertia / 2 * thd**2 - m * g * y,
+        contacts={"floor": y - r},
+        params={m: MASS, inertia: INERTIA, r: RADIUS, g: G, mu: MU, e: REST},
+        restitution={"floor": e},
+        friction={"floor": (mu, x - r * th)},
+    )
+
+
+def rough_box() -> vcigen.Model:
+    """A unit particle in the unit box under gravity g, every wall with restitution e and friction mu."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    e, mu, g = sp.symbols("e mu g")
+    walls = {"left": (x, y), "right": (1 - x, y), "bottom": (y, x), "top": (1 - y, x)}
+    return vcigen.Model(
+        name="rough_box",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={k: phi for k, (phi, _) in walls.items()},
+        params={e: 1.0, mu: 0.5, g: 0.0},
+        restitution=dict.fromkeys(walls, e),
+        friction={k: (mu, tan) for k, (_, tan) in walls.items()},
+    )
+
+
+@cache
+def sim(name: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build({"disk": disk, "box": rough_box}[name](), backend=backend)
+
+
+def coulomb(vx: float, vy: float, w: float):
+    """Velocity and spin after an impact on the floor by Coulomb's law: ``(vx+, vy+, w+, rolls)``."""
+    pn = MASS * (1 + REST) * (-vy)
+    slide = vx - RADIUS * w
+    stick = -slide / (1 / MASS + RADIUS**2 / INERTIA)
+    rolls = abs(stick) <= MU * pn
+    pt = stick if rolls else -MU * pn * math.copysign(1.0, slide)
+    return vx + pt / MASS, -REST * vy, w - RADIUS * pt / INERTIA, rolls
+
+
+@pytest.mark.parametrize("spin, rolls", [(5.0, True), (30.0, False)])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_disk_leaves_the_floor_with_coulombs_velocity_and_spin(backend, spin, rolls):
+    """Dropped from height 1 with (vx, w) = (2, spin): after the first impact vx and w (constant in flight)
+    are Coulomb's to O(h^2); the kinetic energy lost is the impulse law's."""
+    vx0 = 2.0
+    vy = -math.sqrt(2 * G * 1.0)
+    vx1, _, w1, roll = coulomb(vx0, vy, spin)
+    assert roll == rolls
+    errs = []
+    for h in (0.01, 0.005):
+        res = sim("disk", backend).simulate(q0=[0.0, 2.0, 0.0], v0=[vx0, 0.0, spin], h=h, t_end=0.9)
+        assert len(res.impacts) == 1
+        k = res.impacts[0].step + 2
+        vx, w = res.p[k, 0] / MASS, res.p[k, 2] / INERTIA
+        errs.append(max(abs(vx - vx1), abs(w - w1)))
+        if rolls:
+            assert abs(vx - RADIUS * w) < 1e-3  # rolling: no sliding after the impact
+        k_in = 0.5 * MASS * (vx0**2 + vy**2) + 0.5 * INERTIA * spin**2
+        k_out = 0.5 * MASS * (vx1**2 + (REST * vy) ** 2) + 0.5 * INERTIA * w1**2
+        im = res.impacts[0]
+        assert abs((im.energy_before - im.energy_after) - (k_in - k_out)) < 1e-2 * (k_in - k_out)
+    assert errs[1] < 5e-5 and errs[1] < errs[0] / 3, errs
+
+
+def test_c_equals_casadi_with_friction():
+    """Four bounces of the spinning disk: the same trajectory and impacts on both backends."""
+    out = [
+        sim("disk", b).simulate(q0=[0.0, 2.0, 0.0], v0=[2.0, 0.0, 30.0], h=0.01, t_end=2.2)
+        for b in ("casadi", "c")
+    ]
+    a, b = out
+    assert len(a.impacts) == len(b.impacts) >= 4
+    np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(a.p, b.p, rtol=0, atol=1e-10)
+    for ia, ib in zip(a.impacts, b.impacts):
+        assert abs(ia.t - ib.t) < 1e-10 and abs(ia.energy_after - ib.energy_after) < 1e-10
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@settings(
+    max_examples=15,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    x=st.floats(0.1, 0.9),
+    y=st.floats(0.1, 0.9),
+    angle=st.floats(0.0, 2 * math.pi),
+    e=st.floats(0.0, 1.0),
+    mu=st.floats(0.0, 1.5),
+    g=st.sampled_from([0.0, G]),
+)
+def test_friction_never_adds_energy(backend, x, y, angle, e, mu, g):
+    """Random rough boxes, with and without gravity (then they come to rest, slide and stick on the floor):
+    no impact raises the energy, E_d never rises by more than the jump's resolution, friction's work <= 0."""
+    res = sim("box", backend).simulate(
+        q0=[x, y],
+        v0=[2 * math.cos(angle), 2 * math.sin(angle)],
+        h=0.01,
+        t_end=3.0,
+        params={"e": e, "mu": mu, "g": g},
+    )
+    for im in res.impacts:
+        assert im.energy_after <= im.energy_before + 1e-12
+    assert np.all(res.work <= 0.0)
+    # E_d's own jumps at a plastic entry or a landing are within the jump's resolution (g h)^2 / 8 (MATH.md)
+    assert np.all(np.diff(res.energy) <= (g * 0.01) ** 2 / 8 + 1e-9 * (1 + abs(res.energy[0])))
+    assert res.energy[-1] <= res.energy[0] + (g * 0.01) ** 2 / 8 + 1e-12
+
+
+def test_bad_friction_is_refused():
+    x, y, xd, yd, z = sp.symbols("x y xd yd z")
+    mu = sp.Symbol("mu")
+    base = dict(name="bad", q=[x, y], qdot=[xd, yd], lagrangian=(xd**2 + yd**2) / 2, contacts={"floor": y})
+    with pytest.raises(ValueError, match="'wall', which is not a contact"):
+        vcigen.Model(friction={"wall": (0.3, x)}, **base)
+    with pytest.raises(ValueError, match="must be >= 0"):
+        vcigen.Model(friction={"floor": (-0.1, x)}, **base)
+    with pytest.raises(ValueError, match="contains z, which is not a parameter"):
+        vcigen.Model(friction={"floor": (z, x)}, **base)
+    with pytest.raises(ValueError, match="must be an expression of the coordinates"):
+        vcigen.Model(friction={"floor": (0.3, xd)}, **base)
+    with pytest.raises(ValueError, match="pair"):
+        vcigen.Model(friction={"floor": 0.3}, **base)
+    with pytest.raises(ValueError, match="not supported yet"):
+        vcigen.Model(friction={"floor": (0.3, (x, y))}, **base)
+    m = vcigen.Model(friction={"floor": (mu, x)}, params={mu: 0.2}, **base)
+    with pytest.raises(ValueError, match="friction coefficient of 'floor' is -1.0"):
+        vcigen.build(m, backend="casadi").simulate(
+            q0=[0, 1], v0=[0, 0], h=0.01, t_end=0.1, params={"mu": -1.0}
+        )
+
+
+def block() -> vcigen.Model:
+    """A unit block (a particle) on a rough incline of angle ``a`` (coordinates along and normal to it),
+    pushed along it by ``F t`` (0 by default)."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    g, mu, a, push = sp.symbols("g mu a F")
+    return vcigen.Model(
+        name="rough_block",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * (y * sp.cos(a) + x * sp.sin(a)),
+        contacts={"floor": y},
+        params={g: G, mu: 0.4, a: 0.0, push: 0.0},
+        friction={"floor": (mu, x)},
+        forces=[push * t, 0],
+        time=t,
+    )
+
+
+@cache
+def block_sim(backend: str) -> vcigen.Simulator:
+    return vcigen.build(block(), backend=backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_block_slides_to_a_stop_after_v2_over_2_mu_g(backend):
+    """Sliding at v on a level floor: friction mu g decelerates it exactly; it stops at t = v/(mu g) after
+    v^2/(2 mu g) and sticks; the work of friction is -v^2/2 (all its kinetic energy)."""
+    v, mu = 2.0, 0.4
+    for h in (0.01, 0.003):
+        res = block_sim(backend).simulate(q0=[0.0, 0.0], v0=[v, 0.0], h=h, t_end=1.0)
+        t = res.t
+        ts = v / (mu * G)
+        exact = np.where(t < ts, v * t - mu * G * t**2 / 2, v**2 / (2 * mu * G))
+        assert np.max(np.abs(res.q[:, 0] - exact)) < 1e-12
+        assert np.all(res.active[:, 0]) and np.max(np.abs(res.q[:, 1])) < 1e-12
+        assert abs(res.work.sum() + v**2 / 2) < 1e-12
+        assert np.max(np.abs(res.energy_balance())) < 0.05 * h
+        assert np.max(np.abs(res.p[t > ts + h, 0])) < 1e-15
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("angle", [0.3, 0.5])
+def test_block_on_an_incline_sticks_or_slides_at_g_sin_minus_mu_cos(backend, angle):
+    """At rest on an incline: it stays put when tan(a) <= mu, else accelerates at g (sin a - mu cos a)."""
+    mu = 0.4
+    res = block_sim(backend).simulate(q0=[0.0, 0.0], v0=[0.0, 0.0], h=0.01, t_end=1.0, params={"a": angle})
+    acc = G * (math.sin(angle) - mu * math.cos(angle)) if math.tan(angle) > mu else 0.0
+    np.testing.assert_allclose(-res.q[:, 0], acc * res.t**2 / 2, rtol=0, atol=1e-12)
+    assert np.all(res.active[:, 0])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_rising_push_breaks_the_stick_when_it_reaches_mu_g(backend):
+    """Pushed by F t along a level floor: it sticks until F t = mu g (the stick force leaves Coulomb's cone),
+    then slides with x'' = F t - mu g, x = F (t - t*)^3 / 6: the transition located inside the step."""
+    push, mu = 3.0, 0.4
+    t_star = mu * G / push
+    errs = []
+    for h in (0.02, 0.01):
+        res = block_sim(backend).simulate(q0=[0.0, 0.0], v0=[0.0, 0.0], h=h, t_end=2.0, params={"F": push})
+        t = res.t
+        exact = push * np.clip(t - t_star, 0.0, None) ** 3 / 6
+        errs.append(float(np.max(np.abs(res.q[:, 0] - exact))))
+        assert np.max(np.abs(res.q[t <= t_star, 0])) < 1e-15
+    assert errs[1] < 1e-4 and errs[1] < errs[0] / 3, errs
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_sliding_disk_rolls_when_friction_has_matched_its_spin(backend):
+    """A disk set down sliding (vx = 1, no spin): friction mu m g slows it and spins it up until
+    vx = r w at t* = vx0 / (mu g (1 + m r^2 / I)); then it rolls at vx0 I / (I + m r^2), friction idle."""
+    vx0 = 1.0
+    ts = vx0 / (MU * G * (1 + MASS * RADIUS**2 / INERTIA))
+    vroll = vx0 * MASS * RADIUS**2 / (INERTIA + MASS * RADIUS**2)
+    res = sim("disk", backend).simulate(q0=[0.0, RADIUS, 0.0], v0=[vx0, 0.0, 0.0], h=0.01, t_end=1.0)
+    t = res.t
+    exact = np.where(t < ts, vx0 * t - MU * G * t**2 / 2, vx0 * ts - MU * G * ts**2 / 2 + vroll * (t - ts))
+    assert np.max(np.abs(res.q[:, 0] - exact)) < 1e-12
+    late = t > ts + 0.02
+    np.testing.assert_allclose(res.p[late, 0] / MASS, vroll, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res.p[late, 2] / INERTIA, vroll / RADIUS, rtol=0, atol=1e-12)
+
+
+def test_c_equals_casadi_in_stick_and_slip():
+    """A block pushed from stick into slip on an incline: the same trajectory on both backends."""
+    run = dict(q0=[0.0, 0.0], v0=[0.0, 0.0], h=0.01, t_end=2.0, params={"F": 3.0, "a": 0.2})
+    a, b = (block_sim(bk).simulate(**run) for bk in ("casadi", "c"))
+    np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(a.work, b.work, rtol=0, atol=1e-11)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_star_with_friction_settles_and_stops(backend):
+    """The paper's star with e = 0.8 and mu = 0.5 (examples/friction/star_friction.py): it comes to rest on a
+    face (all momenta 0, y = L/2, theta a multiple of pi/2) and no impact raises the energy."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "friction" / "star_friction.py"
+    spec = importlib.util.spec_from_file_location("star_friction_example", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    res = vcigen.build(mod.model(), backend=backend).simulate(**mod.SETUP)
+    assert np.max(np.abs(res.p[-200:])) < 1e-12
+    assert abs(res.q[-1, 1] - 0.5) < 1e-12
+    assert abs(math.remainder(res.q[-1, 2], math.pi / 2)) < 1e-9
+    assert all(im.energy_after <= im.energy_before + 1e-12 for im in res.impacts)
+    assert abs(res.energy[-1] - G * 0.5) < 1e-9
