@@ -162,6 +162,116 @@ def mujoco_rows(exact: np.ndarray) -> list[dict]:
     return rows
 
 
+def _drive(t: float, x: float, v: float) -> float:
+    """The oscillator's force: spring, damping and drive (what an engine applies each step)."""
+    return -fs.STIFFNESS * x - fs.DAMPING * v + fs.AMPLITUDE * math.cos(fs.DRIVE * t)
+
+
+def pymunk_rows(exact: np.ndarray) -> list[dict]:
+    """pymunk: a point mass (radius 1e-3, no rotation) against a static segment at the stop, restitution
+    0.8 (elasticities 0.8 and 1 multiply), the force applied before each step."""
+    try:
+        import pymunk
+    except ImportError as exc:
+        print(f"pymunk: skipped ({exc}; pip install pymunk)")
+        return []
+    rows = []
+    radius = 1e-3
+    for dt in (0.001, 0.0001):
+
+        def run(dt):
+            space = pymunk.Space()
+            body = pymunk.Body(1.0, float("inf"))
+            ball = pymunk.Circle(body, radius)
+            ball.elasticity = fs.REST
+            wall = pymunk.Segment(space.static_body, (fs.WALL + radius, -1), (fs.WALL + radius, 1), 0)
+            wall.elasticity = 1.0
+            space.add(body, ball, wall)
+            xs, hits, inside, t = np.empty(GRID.size), 0, False, 0.0
+            xs[0] = 0.0
+            for i in range(1, GRID.size):
+                for _ in range(round(0.01 / dt)):
+                    body.force = (_drive(t, body.position.x, body.velocity.x), 0.0)
+                    space.step(dt)
+                    t += dt
+                    touching = body.position.x >= fs.WALL - 1e-6
+                    hits += touching and not inside
+                    inside = touching
+                xs[i] = body.position.x
+            return xs, hits
+
+        (x, hits), wall_time = best_of(run, dt)
+        rows.append(
+            {
+                "method": f"pymunk {pymunk.version}",
+                "setting": f"dt={dt}",
+                "error": float(np.max(np.abs(x - exact))),
+                "wall": wall_time,
+                "impacts": hits,
+                "energy": math.nan,
+            }
+        )
+    return rows
+
+
+def pybullet_rows(exact: np.ndarray) -> list[dict]:
+    """PyBullet: a sphere (radius 0.01) against a static box face at the stop, restitution 0.8 (the
+    product of the two bodies'), the force applied before each step."""
+    try:
+        import pybullet as pb
+    except ImportError as exc:
+        print(f"pybullet: skipped ({exc}; pip install pybullet)")
+        return []
+    rows = []
+    radius = 0.01
+    for dt in (0.001, 0.0001):
+
+        def run(dt):
+            cid = pb.connect(pb.DIRECT)
+            pb.setGravity(0, 0, 0, physicsClientId=cid)
+            pb.setTimeStep(dt, physicsClientId=cid)
+            wall_shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5, 1, 1], physicsClientId=cid)
+            wall = pb.createMultiBody(
+                0, wall_shape, basePosition=[fs.WALL + radius + 0.5, 0, 0], physicsClientId=cid
+            )
+            shape = pb.createCollisionShape(pb.GEOM_SPHERE, radius=radius, physicsClientId=cid)
+            ball = pb.createMultiBody(1.0, shape, basePosition=[0, 0, 0], physicsClientId=cid)
+            pb.changeDynamics(wall, -1, restitution=1.0, physicsClientId=cid)
+            pb.changeDynamics(
+                ball, -1, restitution=fs.REST, linearDamping=0, angularDamping=0, physicsClientId=cid
+            )
+            xs, hits, inside, t = np.empty(GRID.size), 0, False, 0.0
+            xs[0] = 0.0
+            for i in range(1, GRID.size):
+                for _ in range(round(0.01 / dt)):
+                    (x, _, _), _ = pb.getBasePositionAndOrientation(ball, physicsClientId=cid)
+                    v = pb.getBaseVelocity(ball, physicsClientId=cid)[0][0]
+                    pb.applyExternalForce(
+                        ball, -1, [_drive(t, x, v), 0, 0], [x, 0, 0], pb.WORLD_FRAME, physicsClientId=cid
+                    )
+                    pb.stepSimulation(physicsClientId=cid)
+                    t += dt
+                    touching = x >= fs.WALL - 1e-4
+                    hits += touching and not inside
+                    inside = touching
+                xs[i] = pb.getBasePositionAndOrientation(ball, physicsClientId=cid)[0][0]
+            pb.disconnect(cid)
+            return xs, hits
+
+        (x, hits), wall_time = best_of(run, dt)
+        rows.append(
+            {
+                "method": "PyBullet",
+                "setting": f"dt={dt}",
+                "error": float(np.max(np.abs(x - exact))),
+                "wall": wall_time,
+                "impacts": hits,
+                "energy": math.nan,
+            }
+        )
+    return rows
+
+
 def long_rows(steps: int) -> list[dict]:
     sim = vcigen.build(fs.driven_oscillator(), backend="c")
     rows = []
@@ -194,7 +304,8 @@ def main() -> None:
     ap.add_argument("--long", type=int, default=1_000_000, help="steps of the long balance runs")
     a = ap.parse_args()
     exact = fs.driven_exact_grid(0.0, 0.0, GRID)
-    rows = vcigen_rows(exact) + scipy_rows(exact) + mujoco_rows(exact) + long_rows(a.long)
+    rows = vcigen_rows(exact) + scipy_rows(exact) + mujoco_rows(exact) + pymunk_rows(exact)
+    rows += pybullet_rows(exact) + long_rows(a.long)
     print(
         f"{'method':34s} {'setting':34s} {'impacts':>7s} {'max error':>10s} {'wall [ms]':>10s} {'energy':>9s}"
     )
