@@ -132,6 +132,7 @@ class DiscreteSystem:
     params: tuple[sp.Symbol, ...]
     routines: dict[str, Routine] = field(default_factory=dict)
     rows: Rows | None = None  # rows of sustained contact and bilateral constraints (vcigen.rows)
+    segment: Segment | None = None  # the rule's momenta, energies and work as expressions (vcigen.work)
 
     @property
     def n(self) -> int:
@@ -286,7 +287,7 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
         )
     if rows.size:
         routines.update(sustained_routines(model, seg, rows, par, phis, q))
-    return DiscreteSystem(model, rule, names, par.symbols, routines, rows)
+    return DiscreteSystem(model, rule, names, par.symbols, routines, rows, seg)
 
 
 def _no_dirac(e: sp.Expr) -> sp.Expr:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 import sympy as sp
 
-from .derive import DiscreteSystem, _no_dirac, discrete_segment
+from .derive import DiscreteSystem
 from .result import Result
 
 WorkFn = Callable[..., np.ndarray]
@@ -23,10 +23,9 @@ WorkFn = Callable[..., np.ndarray]
 
 def work_function(system: DiscreteSystem) -> WorkFn | None:
     """``(q0 (K, n), v (K, n), tau (K,), par) -> (K,)`` of the segment work, or ``None`` without forces."""
-    model = system.model
-    if not model.force:
+    seg = system.segment
+    if not system.model.force or seg is None:
         return None
-    seg = discrete_segment(model, system.rule)
     par = [sp.Symbol(f"_par{i}") for i in range(len(system.params))]
     expr = seg.work.xreplace(dict(zip(system.params, par)))
     fn = sp.lambdify([*seg.q0, *seg.v, seg.tau, *par], expr, modules="numpy")
@@ -64,24 +63,22 @@ def step_work(res: Result, work: WorkFn | None, par) -> np.ndarray:
 
 
 def tangent_function(system: DiscreteSystem):
-    """``q (K, n), par -> (K, nf, n)``: the tangent gradients of the frictional contacts, or ``None``."""
-    model = system.model
-    if not model.friction_of:
+    """``q (K, n), par -> (K, m, n)``: each contact's tangent gradient (the derived ``friction`` routine's
+    ``tgrad``; 0 where frictionless), or ``None`` without friction."""
+    routine = system.routines.get("friction")
+    if routine is None:
         return None
-    q = list(model.coordinates)
-    par = list(model.defaults)
-    grads = [[_no_dirac(t.diff(s)) for s in q] for _, t in model.friction_of.values()]
+    q, par = routine.input("q").symbols, routine.input("par").symbols
+    grads = routine.output("tgrad").expr.tolist()
     fn = sp.lambdify([*q, *par], grads, modules="numpy")
-    index = [list(model.phi).index(c) for c in model.friction_of]
 
     def tangents(qs: np.ndarray, values) -> np.ndarray:
-        out = fn(*qs.T, *list(values)[: len(par)])
+        out = fn(*qs.T, *values)
         return np.stack(
             [np.stack([np.broadcast_to(np.asarray(g, float), qs.shape[:1]) for g in row], -1) for row in out],
             1,
         )
 
-    tangents.index = index
     return tangents
 
 
@@ -96,11 +93,11 @@ def friction_work(res: Result, tangents, mu_f, par) -> np.ndarray:
     mid = 0.5 * (q[:-1] + q[1:])
     grads = tangents(mid, par)
     out = np.zeros(steps)
-    for f, j in enumerate(tangents.index):
+    for j, mu in enumerate(mu_f):
         lam = res.contact_force[:, j]
         held = lam != 0.0
-        if not held.any() or mu_f[j] <= 0.0:
+        if not held.any() or mu <= 0.0:
             continue
-        slide = np.abs(np.einsum("kn,kn->k", grads[held, f], q[1:][held] - q[:-1][held]))
+        slide = np.abs(np.einsum("kn,kn->k", grads[held, j], q[1:][held] - q[:-1][held]))
         out[held] -= mu_f[j] * lam[held] * slide
     return out

@@ -85,7 +85,6 @@ class CasadiKernels:
         flat += ("friction",) if "friction" in system.routines else ()
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
-        self.frictional_impacts = "friction" in system.routines
         self._rattle = self._rattle_segment() if system.r else None
 
     def set_friction(self, slips, refs, branch) -> None:
