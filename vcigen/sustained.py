@@ -261,16 +261,17 @@ class SustainedSteps:
         """A slipping contact that stops inside the segment ("stop"), a sticking one whose force leaves the
         cone ("slide"): each located as a root along the sub-step map (Illinois), as a lift-off is."""
         k = self.k
+        vel0 = self._velocity(q, v, p)
         for f in range(len(self._stick_rows)):
             sr = self._stick_rows[f]
             if self._slip[f]:
                 s = -math.copysign(1.0, self._slip[f])  # the sliding direction
                 g1 = s * float(end.grad[sr] @ u1)
                 if g1 < 0.0:
-                    g0 = s * float(k.rows(q, self._velocity(q, v, p))[1][sr] @ self._velocity(q, v, p))
+                    g0 = s * float(k.rows(q, vel0)[1][sr] @ vel0)
 
                     def sliding(c, w, s=s, sr=sr):
-                        w, end_c, u_c = self._sub_state(step, t_k, q, p, tau, c, w)
+                        w, end_c, u_c = self._sub_end(step, t_k, q, p, tau, c, w)
                         return s * float(end_c.grad[sr] @ u_c), w
 
                     frac = 0.0 if g0 <= 0.0 else _illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, v)
@@ -278,20 +279,15 @@ class SustainedSteps:
             elif self.act[sr]:
                 g1 = self._cone_margin(f, f1)
                 if g1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))):
-                    g0 = self._cone_margin(f, self._contact_forces(q, self._velocity(q, v, p)))
+                    g0 = self._cone_margin(f, self._contact_forces(q, vel0))
 
                     def margin(c, w, f=f):
-                        w, end_c, _ = self._sub_state(step, t_k, q, p, tau, c, w)
+                        w, end_c, _ = self._sub_end(step, t_k, q, p, tau, c, w)
                         return self._cone_margin(f, self._forces(end_c)), w
 
                     tiny = EPS_LAM * (1.0 + abs(g0) + abs(g1))
                     frac = 0.0 if g0 < 0.0 else _illinois(margin, g0, g1, tiny, 1e-12, LIFT_ITER, v)
                     events[sr] = ("slide", frac)
-
-    def _sub_state(self, step, t_k, q, p, tau, s, guess):
-        """The constrained sub-step map at fraction ``s``: ``(v, end, u_end)``."""
-        v, *_, u1, end = self._constrained(step, t_k, q, p, s * tau, guess)
-        return v, end, u1
 
     def _friction_switch(self, kind: str, sr: int, q, u) -> None:
         """At a located friction event: a stopped contact sticks; a sliding one slips against its force."""
@@ -442,9 +438,10 @@ class SustainedSteps:
 
     # -- events inside a constrained segment -------------------------------------------
     def _sub_end(self, step, t_k, q, p, tau, s, guess):
-        """The constrained sub-step map at fraction ``s``: ``(v, end)`` (the evaluations at its end)."""
-        v, *_, end = self._constrained(step, t_k, q, p, s * tau, guess)
-        return v, end
+        """The constrained sub-step map at fraction ``s``: ``(v, end, u_end)`` (the evaluations at its end and
+        the end velocity)."""
+        v, *_, u1, end = self._constrained(step, t_k, q, p, s * tau, guess)
+        return v, end, u1
 
     def _liftoff_fraction(self, step, t_k, q, p, tau, guess, r, f0, f1) -> float:
         """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end) vanishes.
@@ -458,7 +455,7 @@ class SustainedSteps:
         ga, gb = float(f0), float(f1)
 
         def force(c, v):
-            v, end = self._sub_end(step, t_k, q, p, tau, c, v)
+            v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
             return float(self._forces(end)[r]), v
 
         return _illinois(force, ga, gb, EPS_LAM * (1.0 + abs(ga) + abs(gb)), 1e-12, LIFT_ITER, guess)
@@ -468,7 +465,7 @@ class SustainedSteps:
         ga, gb = max(float(self.k.rows(q, guess)[0][r]), 0.0), float(g1)
 
         def height(c, v):
-            v, end = self._sub_end(step, t_k, q, p, tau, c, v)
+            v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
             return float(end.psi[r]), v
 
         return _illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess)

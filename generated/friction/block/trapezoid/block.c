@@ -556,6 +556,7 @@ typedef struct {
     long step;
     double t_k;
     double h;
+    double mu_f[BLOCK_NF]; /* each frictional contact's mu_f at these parameters (SustainedSteps._mu_f) */
 } block_ctx_t;
 
 /* The segment under construction (stepper._Seg): its start and incoming data. */
@@ -1084,13 +1085,18 @@ static void block_set_friction(const block_ctx_t *c)
 /* Each frictional contact's first branch slot and how many (the sign() atoms of its tangent). */
 
 
-/* SustainedSteps._mu_f: the friction coefficient of frictional contact f at these parameters. */
-static double block_mu_f(const block_ctx_t *c, int f)
+/* SustainedSteps._mu_f, once per call of run or start: each frictional contact's mu_f at these parameters;
+ * and the friction state into the parameter slots. */
+static void block_init_friction(block_ctx_t *c)
 {
     double q[BLOCK_N] = {0.0}, mu[BLOCK_M_DIM], tg[BLOCK_M_DIM * BLOCK_N];
     double br[BLOCK_NB_DIM];
+    int f;
     block_friction(q, c->par, mu, tg, br);
-    return mu[block_fric_contact[f]];
+    for (f = 0; f < BLOCK_NF; ++f) {
+        c->mu_f[f] = mu[block_fric_contact[f]];
+    }
+    block_set_friction(c);
 }
 
 /* SustainedSteps._freeze_branch: the signs of frictional contact f's tangent at q (0 at a kink: the face's
@@ -1384,7 +1390,7 @@ static double block_cone_margin(const block_ctx_t *c, int f, const double *force
             normal += forces[r];
         }
     }
-    return block_mu_f(c, f) * normal - fabs(forces[block_stick_row[f]]);
+    return c->mu_f[f] * normal - fabs(forces[block_stick_row[f]]);
 }
 
 /* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
@@ -1413,7 +1419,7 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
                 mask |= 1UL << r;
             }
         }
-        mf = block_mu_f(c, f);
+        mf = c->mu_f[f];
         if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
@@ -1448,13 +1454,13 @@ static void block_friction_switch(const block_ctx_t *c, int kind, int sr, const 
         sliding += grad[sr * BLOCK_N + i] * u[i];
     }
     if (kind == 3 && fabs(sliding) > BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, u))) {
-        c->sus->slip[f] = -block_mu_f(c, f) * (sliding > 0.0 ? 1.0 : -1.0); /* an impact turned it */
+        c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0); /* an impact turned it */
     } else if (kind == 3) {
         block_stick(c, f, q, u);
     } else {
         block_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
-        c->sus->slip[f] = -block_mu_f(c, f) * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
     }
     block_set_friction(c);
 }
@@ -1934,11 +1940,12 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 }
             }
         }
-        for (i = 0; i < BLOCK_NF; ++i) { /* SustainedSteps._friction_events */
+        block_velocity(c, q, vv, p, vel); /* SustainedSteps._friction_events */
+        for (i = 0; i < BLOCK_NF; ++i) {
             const int sr = block_stick_row[i];
-            double g0, g1 = 0.0, sgn, vel0[BLOCK_N];
+            const double *vel0 = vel;
+            double g0, g1 = 0.0, sgn;
             int l;
-            block_velocity(c, q, vv, p, vel0);
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N], curv0[BLOCK_R_DIM];
                 sgn = c->sus->slip[i] > 0.0 ? -1.0 : 1.0;
@@ -2789,7 +2796,7 @@ int block_run(const double *par, const block_tol_t *tol, double h, double t0, lo
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
-    block_set_friction(&c); /* the friction state carried over from the last call */
+    block_init_friction(&c); /* mu_f, and the friction state carried over from the last call */
 
     for (i = 0; i < BLOCK_N; ++i) {
         q0[i] = q[i];
@@ -2866,6 +2873,7 @@ void block_start(const double *par, const block_tol_t *tol, double h, const doub
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+    block_init_friction(&c);
     block_start_sustained(&c, q, v);
 }
 

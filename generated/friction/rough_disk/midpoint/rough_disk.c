@@ -632,6 +632,7 @@ typedef struct {
     long step;
     double t_k;
     double h;
+    double mu_f[ROUGH_DISK_NF]; /* each frictional contact's mu_f at these parameters (SustainedSteps._mu_f) */
 } rough_disk_ctx_t;
 
 /* The segment under construction (stepper._Seg): its start and incoming data. */
@@ -1160,13 +1161,18 @@ static void rough_disk_set_friction(const rough_disk_ctx_t *c)
 /* Each frictional contact's first branch slot and how many (the sign() atoms of its tangent). */
 
 
-/* SustainedSteps._mu_f: the friction coefficient of frictional contact f at these parameters. */
-static double rough_disk_mu_f(const rough_disk_ctx_t *c, int f)
+/* SustainedSteps._mu_f, once per call of run or start: each frictional contact's mu_f at these parameters;
+ * and the friction state into the parameter slots. */
+static void rough_disk_init_friction(rough_disk_ctx_t *c)
 {
     double q[ROUGH_DISK_N] = {0.0}, mu[ROUGH_DISK_M_DIM], tg[ROUGH_DISK_M_DIM * ROUGH_DISK_N];
     double br[ROUGH_DISK_NB_DIM];
+    int f;
     rough_disk_friction(q, c->par, mu, tg, br);
-    return mu[rough_disk_fric_contact[f]];
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        c->mu_f[f] = mu[rough_disk_fric_contact[f]];
+    }
+    rough_disk_set_friction(c);
 }
 
 /* SustainedSteps._freeze_branch: the signs of frictional contact f's tangent at q (0 at a kink: the face's
@@ -1460,7 +1466,7 @@ static double rough_disk_cone_margin(const rough_disk_ctx_t *c, int f, const dou
             normal += forces[r];
         }
     }
-    return rough_disk_mu_f(c, f) * normal - fabs(forces[rough_disk_stick_row[f]]);
+    return c->mu_f[f] * normal - fabs(forces[rough_disk_stick_row[f]]);
 }
 
 /* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
@@ -1489,7 +1495,7 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
                 mask |= 1UL << r;
             }
         }
-        mf = rough_disk_mu_f(c, f);
+        mf = c->mu_f[f];
         if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
@@ -1524,13 +1530,13 @@ static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int 
         sliding += grad[sr * ROUGH_DISK_N + i] * u[i];
     }
     if (kind == 3 && fabs(sliding) > ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u))) {
-        c->sus->slip[f] = -rough_disk_mu_f(c, f) * (sliding > 0.0 ? 1.0 : -1.0); /* an impact turned it */
+        c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0); /* an impact turned it */
     } else if (kind == 3) {
         rough_disk_stick(c, f, q, u);
     } else {
         rough_disk_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
-        c->sus->slip[f] = -rough_disk_mu_f(c, f) * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
     }
     rough_disk_set_friction(c);
 }
@@ -2010,11 +2016,12 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 }
             }
         }
-        for (i = 0; i < ROUGH_DISK_NF; ++i) { /* SustainedSteps._friction_events */
+        rough_disk_velocity(c, q, vv, p, vel); /* SustainedSteps._friction_events */
+        for (i = 0; i < ROUGH_DISK_NF; ++i) {
             const int sr = rough_disk_stick_row[i];
-            double g0, g1 = 0.0, sgn, vel0[ROUGH_DISK_N];
+            const double *vel0 = vel;
+            double g0, g1 = 0.0, sgn;
             int l;
-            rough_disk_velocity(c, q, vv, p, vel0);
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv0[ROUGH_DISK_R_DIM];
                 sgn = c->sus->slip[i] > 0.0 ? -1.0 : 1.0;
@@ -2865,7 +2872,7 @@ int rough_disk_run(const double *par, const rough_disk_tol_t *tol, double h, dou
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
-    rough_disk_set_friction(&c); /* the friction state carried over from the last call */
+    rough_disk_init_friction(&c); /* mu_f, and the friction state carried over from the last call */
 
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         q0[i] = q[i];
@@ -2942,6 +2949,7 @@ void rough_disk_start(const double *par, const rough_disk_tol_t *tol, double h, 
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+    rough_disk_init_friction(&c);
     rough_disk_start_sustained(&c, q, v);
 }
 

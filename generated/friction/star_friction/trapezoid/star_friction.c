@@ -887,6 +887,7 @@ typedef struct {
     long step;
     double t_k;
     double h;
+    double mu_f[STAR_FRICTION_NF]; /* each frictional contact's mu_f at these parameters (SustainedSteps._mu_f) */
 } star_friction_ctx_t;
 
 /* The segment under construction (stepper._Seg): its start and incoming data. */
@@ -1417,13 +1418,18 @@ static const int star_friction_branch_first[STAR_FRICTION_NF] = { 0, };
 static const int star_friction_branch_count[STAR_FRICTION_NF] = { 2, };
 
 
-/* SustainedSteps._mu_f: the friction coefficient of frictional contact f at these parameters. */
-static double star_friction_mu_f(const star_friction_ctx_t *c, int f)
+/* SustainedSteps._mu_f, once per call of run or start: each frictional contact's mu_f at these parameters;
+ * and the friction state into the parameter slots. */
+static void star_friction_init_friction(star_friction_ctx_t *c)
 {
     double q[STAR_FRICTION_N] = {0.0}, mu[STAR_FRICTION_M_DIM], tg[STAR_FRICTION_M_DIM * STAR_FRICTION_N];
     double br[STAR_FRICTION_NB_DIM];
+    int f;
     star_friction_friction(q, c->par, mu, tg, br);
-    return mu[star_friction_fric_contact[f]];
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        c->mu_f[f] = mu[star_friction_fric_contact[f]];
+    }
+    star_friction_set_friction(c);
 }
 
 /* SustainedSteps._freeze_branch: the signs of frictional contact f's tangent at q (0 at a kink: the face's
@@ -1724,7 +1730,7 @@ static double star_friction_cone_margin(const star_friction_ctx_t *c, int f, con
             normal += forces[r];
         }
     }
-    return star_friction_mu_f(c, f) * normal - fabs(forces[star_friction_stick_row[f]]);
+    return c->mu_f[f] * normal - fabs(forces[star_friction_stick_row[f]]);
 }
 
 /* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
@@ -1753,7 +1759,7 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
                 mask |= 1UL << r;
             }
         }
-        mf = star_friction_mu_f(c, f);
+        mf = c->mu_f[f];
         if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
@@ -1788,13 +1794,13 @@ static void star_friction_friction_switch(const star_friction_ctx_t *c, int kind
         sliding += grad[sr * STAR_FRICTION_N + i] * u[i];
     }
     if (kind == 3 && fabs(sliding) > STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, u))) {
-        c->sus->slip[f] = -star_friction_mu_f(c, f) * (sliding > 0.0 ? 1.0 : -1.0); /* an impact turned it */
+        c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0); /* an impact turned it */
     } else if (kind == 3) {
         star_friction_stick(c, f, q, u);
     } else {
         star_friction_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
-        c->sus->slip[f] = -star_friction_mu_f(c, f) * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
     }
     star_friction_set_friction(c);
 }
@@ -2274,11 +2280,12 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 }
             }
         }
-        for (i = 0; i < STAR_FRICTION_NF; ++i) { /* SustainedSteps._friction_events */
+        star_friction_velocity(c, q, vv, p, vel); /* SustainedSteps._friction_events */
+        for (i = 0; i < STAR_FRICTION_NF; ++i) {
             const int sr = star_friction_stick_row[i];
-            double g0, g1 = 0.0, sgn, vel0[STAR_FRICTION_N];
+            const double *vel0 = vel;
+            double g0, g1 = 0.0, sgn;
             int l;
-            star_friction_velocity(c, q, vv, p, vel0);
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[STAR_FRICTION_R_DIM], grad0[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv0[STAR_FRICTION_R_DIM];
                 sgn = c->sus->slip[i] > 0.0 ? -1.0 : 1.0;
@@ -3129,7 +3136,7 @@ int star_friction_run(const double *par, const star_friction_tol_t *tol, double 
     c.sus = sus;
     c.h = h;
     err->reflected = 0;
-    star_friction_set_friction(&c); /* the friction state carried over from the last call */
+    star_friction_init_friction(&c); /* mu_f, and the friction state carried over from the last call */
 
     for (i = 0; i < STAR_FRICTION_N; ++i) {
         q0[i] = q[i];
@@ -3206,6 +3213,7 @@ void star_friction_start(const double *par, const star_friction_tol_t *tol, doub
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+    star_friction_init_friction(&c);
     star_friction_start_sustained(&c, q, v);
 }
 
