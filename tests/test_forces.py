@@ -15,7 +15,7 @@ from functools import cache
 import numpy as np
 import pytest
 import sympy as sp
-from forced_scenes import REST, WALL, driven_exact, driven_exact_grid, driven_oscillator
+from forced_scenes import REST, driven_exact, driven_exact_grid, driven_oscillator
 from hard_scenes import BACKENDS, G
 
 import vcigen
@@ -148,9 +148,7 @@ def test_work_is_zero_without_forces_and_matches_damping():
     )
     free = vcigen.Model(name="free", q=[x], qdot=[xd], lagrangian=xd**2 / 2 - x**2 / 2)
     res = vcigen.build(damped, backend="casadi").simulate(q0=[1.0], v0=[0.0], h=0.01, t_end=5.0)
-    assert np.all(res.work[np.abs(res.q[:-1, 0]) > 0.1] <= 0) or np.all(res.work <= 1e-15)
-    exact_e = lambda t: None  # noqa: E731 (documentation: the closed form is checked through the balance)
-    del exact_e
+    assert np.all(res.work <= 0.0)  # damping: (f- + f+) . v = -c h v^2
     assert abs(res.energy_balance()[-1]) < 1e-4
     # the energy itself follows the exact decay: E(t) of x = e^{-ct/2}(cos wd t + c/(2wd) sin wd t)
     wd = math.sqrt(1 - 0.01)
@@ -239,4 +237,3 @@ def test_forced_scene_is_never_explicit():
     system = derive(driven_oscillator())
     assert system.timed and not is_explicit(system) and not has_explicit_path(system)
     assert system.routines["smooth"].inputs[-1].symbols[-1].name == "t"
-    assert WALL > 0
