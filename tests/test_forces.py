@@ -15,7 +15,17 @@ from functools import cache
 import numpy as np
 import pytest
 import sympy as sp
-from forced_scenes import REST, driven_exact, driven_exact_grid, driven_oscillator
+from forced_scenes import (
+    AMPLITUDE,
+    DAMPING,
+    DRIVE,
+    REST,
+    STIFFNESS,
+    LinearFlow,
+    driven_exact,
+    driven_exact_grid,
+    driven_oscillator,
+)
 from hard_scenes import BACKENDS, G
 
 import vcigen
@@ -81,8 +91,6 @@ def test_impact_keeps_the_energy_at_the_impact_point(backend):
     for im in res.impacts:
         assert im.energy_before > im.energy_after
     # the loss is that of the located impact velocity, to O(h^2)
-    from forced_scenes import AMPLITUDE, DAMPING, DRIVE, STIFFNESS, LinearFlow
-
     flow = LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE)
     _, v_hit = flow(0.0, 0.0, 0.0, hits[0])
     loss = (1 - REST**2) * float(v_hit) ** 2 / 2
