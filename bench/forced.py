@@ -36,20 +36,12 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 import forced_scenes as fs  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
+from timing import best_of  # noqa: E402
 
 import vcigen  # noqa: E402
 
 T_END = 10.0
 GRID = np.round(np.arange(0.0, T_END + 1e-9, 0.01), 12)
-
-
-def best_of(fn, *args, repeats: int = 3, **kw):
-    out, best = None, math.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = fn(*args, **kw)
-        best = min(best, time.perf_counter() - start)
-    return out, best
 
 
 def vcigen_rows(exact: np.ndarray) -> list[dict]:

@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import csv
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 import sympy as sp
+from timing import best_of
 
 import vcigen
 
@@ -33,15 +33,6 @@ STOP = V / (MU * G)
 DIST = V**2 / (2 * MU * G)
 EXACT = np.where(GRID < STOP, V * GRID - MU * G * GRID**2 / 2, DIST)
 HERE = Path(__file__).resolve().parent
-
-
-def best_of(fn, *args, repeats: int = 3):
-    out, best = None, math.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = fn(*args)
-        best = min(best, time.perf_counter() - start)
-    return out, best
 
 
 def row(method, setting, xs, vs, wall):

@@ -76,10 +76,11 @@ def driven_exact(
     t0: float = 0.0,
     wall: float = WALL,
     e: float = REST,
-    drive: bool = True,
+    flow: LinearFlow | None = None,
 ):
-    """``(x(t_end), v(t_end), impact times)`` of the driven oscillator against the wall, exactly."""
-    flow = LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE if drive else 0.0)
+    """``(x(t_end), v(t_end), impact times)`` of the driven oscillator against the wall, exactly (``flow``:
+    another ``LinearFlow`` than this module's coefficients)."""
+    flow = flow or LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE)
     t, x, v, hits = t0, x0, v0, []
     probe = 1e-3
     while True:
@@ -99,11 +100,12 @@ def driven_exact(
         t, x, v = ti, wall, -e * float(vi)
 
 
-def driven_exact_grid(x0: float, v0: float, ts: np.ndarray, **kw) -> np.ndarray:
+def driven_exact_grid(
+    x0: float, v0: float, ts: np.ndarray, wall: float = WALL, e: float = REST, flow: LinearFlow | None = None
+) -> np.ndarray:
     """``x`` of the exact driven oscillator (:func:`driven_exact`) at every time of ``ts``."""
-    _, _, hits = driven_exact(x0, v0, float(ts[-1]), float(ts[0]), **kw)
-    flow = LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE if kw.get("drive", True) else 0.0)
-    e = kw.get("e", REST)
+    flow = flow or LinearFlow(DAMPING, STIFFNESS, AMPLITUDE, DRIVE)
+    _, _, hits = driven_exact(x0, v0, float(ts[-1]), float(ts[0]), wall, e, flow)
     out = np.empty(ts.size)
     t, x, v = float(ts[0]), x0, v0
     for tb in [*hits, math.inf]:
@@ -112,5 +114,5 @@ def driven_exact_grid(x0: float, v0: float, ts: np.ndarray, **kw) -> np.ndarray:
         if tb == math.inf:
             break
         _, vb = flow(t, x, v, tb)
-        t, x, v = tb, kw.get("wall", WALL), -e * float(vb)
+        t, x, v = tb, wall, -e * float(vb)
     return out
