@@ -52,30 +52,28 @@ class Simulator:
         par = self.model.resolve_params(params)
         self.model.restitution_values(par)  # each in [0, 1] at these parameters, or a ValueError
         mu_f = self.model.friction_values(par)  # each >= 0, or a ValueError
-        rows = self.system.rows
-        slots = 2 * len(rows.frictional) + sum(len(b) for b in rows.branches) if rows else 0
-        par = [
-            *par,
-            *([0.0] * slots),
-        ]  # friction slots: slip coefficients, stick values, branches (sustained)
-        if self.system.timed:
-            par = [*par, float(t0)]  # the time slot: where each segment starts (Kernels.at)
+        # the slots the stepper sets: friction in sustained contact (0 at the start), then the time a segment
+        # starts at (Kernels.at), last
+        slots = len(self.system.params) - len(par) - self.system.timed
+        par = par + [0.0] * slots + ([float(t0)] if self.system.timed else [])
         kern = self.kernels.bind(par)
         self._check_start(kern, q0a, v0a)
         try:
             res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)
         except SolverError as err:
             if err.result is not None:
-                err.result.work = step_work(err.result, self._work, par) + friction_work(
-                    err.result, self._friction, mu_f, par
-                )
+                self._book_work(err.result, mu_f, par)
             raise
-        res.friction_work = friction_work(res, self._friction, mu_f, par)
-        res.work = step_work(res, self._work, par) + res.friction_work
-        res.energy_at_end = bool(self.model.force)
+        self._book_work(res, mu_f, par)
         res.coordinate_names = self.model.coordinate_names
         warn_reflected(res.stats.get("grazing_reflected", 0))
         return res
+
+    def _book_work(self, res: Result, mu_f: list[float], par: list[float]) -> None:
+        """``res.work`` (forces, friction in sustained contact: ``vcigen.work``) and what its energy means."""
+        res.friction_work = friction_work(res, self._friction, mu_f, par)
+        res.work = step_work(res, self._work, par) + res.friction_work
+        res.energy_at_end = bool(self.model.force)
 
     def _run(self, kern, q0, v0, h, t_end, n_impacts, t0, progress) -> Result:
         return Stepper(kern, self.tol).simulate(
