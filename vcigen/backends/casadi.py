@@ -18,6 +18,7 @@ from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
 from ..routines import Routine
 from ..sustained import End
+from .slots import ParameterSlots
 from .sym2casadi import to_casadi
 
 # A failed solve is reported by its residual (NaN for a non-finite answer), not by warnings on stderr.
@@ -57,7 +58,7 @@ def _residual(sol_and_res: np.ndarray) -> float:
     return float(sol_and_res[-1]) if np.isfinite(sol_and_res).all() else math.nan
 
 
-class CasadiKernels:
+class CasadiKernels(ParameterSlots):
     """The stepper's kernels, evaluated by CasADi for one parameter vector."""
 
     backend = "casadi"
@@ -86,20 +87,6 @@ class CasadiKernels:
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
-
-    def set_friction(self, slips, refs, branch) -> None:
-        """The friction slots of the parameters: each frictional contact's slip coefficient and stick value,
-        then the branch signs its tangent sticks on."""
-        i, nf = self.friction_slot, len(self.frictional)
-        self.par[i : i + nf] = slips
-        self.par[i + nf : i + 2 * nf] = refs
-        self.par[i + 2 * nf : i + 2 * nf + len(branch)] = branch
-
-    def at(self, t: float) -> None:
-        """Segments start at ``t``: the time slot (last parameter) of forces that depend on time."""
-        self.t = float(t)
-        if self.timed:
-            self.par[-1] = t
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""

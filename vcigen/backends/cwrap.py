@@ -23,6 +23,7 @@ from ..result import KINDS, Impact, Result
 from ..simulator import Simulator
 from ..stepper import Tolerances, _n_steps, _result
 from ..sustained import SustainLog, held_contacts, rattle_segment
+from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
 IMPACT_CAP = 4096
@@ -88,7 +89,7 @@ def _vec(x, size: int) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(x, dtype=float).reshape(size))
 
 
-class CKernels:
+class CKernels(ParameterSlots):
     """The stepper's kernels (``smooth_step``, ``solve``, ``segment``, ``contacts``, ``legendre``) in C."""
 
     backend = "c"
@@ -153,20 +154,6 @@ class CKernels:
         self.start.argtypes = [_D, ctypes.POINTER(_Tol), ctypes.c_double, _D, _D, ctypes.c_void_p]
         self.nc = len(system.model.constraint)
         self.Sustain = sustain_struct(self.r, self.m, self.nc, len(self.frictional), sum(self.branch_count))
-
-    def set_friction(self, slips, refs, branch) -> None:
-        """The friction slots of the parameters: each frictional contact's slip coefficient and stick value,
-        then the branch signs its tangent sticks on."""
-        i, nf = self.friction_slot, len(self.frictional)
-        self.par[i : i + nf] = slips
-        self.par[i + nf : i + 2 * nf] = refs
-        self.par[i + 2 * nf : i + 2 * nf + len(branch)] = branch
-
-    def at(self, t: float) -> None:
-        """Segments start at ``t``: the time slot (last parameter) of forces that depend on time."""
-        self.t = float(t)
-        if self.timed:
-            self.par[-1] = t
 
     def bind(self, par) -> CKernels:
         """Fix the parameter values for the next simulation."""
