@@ -11,6 +11,7 @@ from .result import Impact, Result
 from .rules import MIDPOINT, RULES, TRAPEZOID, Rule, midpoint_rule
 from .simulator import Simulator, build
 from .stepper import Tolerances
+from .sweep import SweepError, sweep
 
 __all__ = [
     "MIDPOINT",
@@ -24,9 +25,11 @@ __all__ = [
     "Rule",
     "Simulator",
     "SolverError",
+    "SweepError",
     "Tolerances",
     "build",
     "derive",
     "midpoint_rule",
+    "sweep",
 ]
 __version__ = "0.1.0"
