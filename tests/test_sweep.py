@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import csv
 import importlib
+import os
+import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import vcigen
+from vcigen import cli
 
 distributed = pytest.importorskip("distributed")
 
@@ -122,3 +127,32 @@ def test_without_dask_the_error_says_what_to_install(model, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(ImportError, match=r"pip install 'dask\[distributed\]'"):
         vcigen.sweep(model, runs(1))
+
+
+@pytest.mark.slow
+def test_the_monte_carlo_example_runs_in_its_fast_setting(client, tmp_path):
+    """examples/contact/star_rest_time.py --n 40 on this module's cluster: its rows are the serial runs'."""
+    root = Path(__file__).resolve().parents[1]
+    script = root / "examples" / "contact" / "star_rest_time.py"
+    argv = [sys.executable, str(script), "--n", "40", "--t-end", "20", "--seed", "3", "--out", str(tmp_path)]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run(
+        [*argv, "--scheduler", client.scheduler.address], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "sweep: 40 runs of 4000 steps" in proc.stdout
+    assert (tmp_path / "star_rest_time.png").stat().st_size > 1000
+    with (tmp_path / "star_rest_time.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    example = cli.load_example(script)
+    starts = example.starts(40, 3)
+    assert len(rows) == 40
+    np.testing.assert_array_equal([[float(r[c]) for c in example.START] for r in rows], starts)
+    settled = [r for r in rows if r["settled"] == "1"]
+    assert len(settled) >= 36  # the star comes to rest within 20 s from almost every drop
+    assert max(abs(float(r["rest_energy_dev"])) for r in settled) < 1e-9  # E_d at rest = m vx^2/2 + m g L/2
+    sim = vcigen.build(example.model(), backend="c")
+    for k in (0, 17, 39):  # the reduced values are those of serial runs
+        want = example.rest_time(sim.simulate(**example.run_of(starts[k], 0.005, 20.0)))
+        got = [rows[k][c] for c in ("settled", "rest_time", "impacts", "plastic")]
+        assert [str(int(want[0])), repr(want[1]), str(want[2]), str(want[3])] == got
