@@ -120,6 +120,8 @@ def test_bad_runs_are_named(client, model):
         vcigen.sweep(model, runs(1), backend="fortran", client=client)
     with pytest.raises(ValueError, match="client must be"):
         vcigen.sweep(model, runs(1), client=42)
+    with pytest.raises(RuntimeError, match="sweep run 0: reduce raised ZeroDivisionError"):
+        vcigen.sweep(model, runs(2), client=client, reduce=lambda res: 1 / 0, batch_size=2)
     assert vcigen.sweep(model, [], client=client) == []
 
 

@@ -15,8 +15,9 @@ A run whose step cannot be solved (``SolverError``): with ``errors="raise"`` (th
 sweep stops, cancels what is left and raises :class:`SweepError` (a ``SolverError``) naming the
 run's index, with the failed run's partial result in ``.result``; with ``errors="return"`` the
 ``SolverError`` takes the run's place in the list (its ``.result`` and ``.run`` set; ``reduce``
-is not applied to it). A run with bad input raises ``ValueError`` naming its index; keywords
-that ``simulate`` does not take are caught before anything starts.
+is not applied to it). A run with bad input raises ``ValueError`` naming its index (keywords
+that ``simulate`` does not take are caught before anything starts); a ``reduce`` that raises
+gives a ``RuntimeError`` naming the run and the error.
 
 Dask is optional (``pip install 'vcigen[dask]'``); it is imported only when ``sweep`` runs.
 """
@@ -212,6 +213,8 @@ def _settle(index: int, run: Mapping[str, Any], kind: str, value: Any, errors: O
         return value
     if kind == "value":
         raise ValueError(f"sweep run {index} ({_describe(run)}): {value}")
+    if kind == "reduce":
+        raise RuntimeError(f"sweep run {index}: reduce raised {value}")
     err, result = value
     err.result = result
     if errors == "raise":
@@ -246,8 +249,9 @@ def run_batch(
     spec: _Spec, batch: Sequence[tuple[int, dict]], reduce, stop_at_error: bool
 ) -> list[tuple[int, str, Any]]:
     """On a worker: ``(index, "ok", result or reduce(result))`` per run; a failed run gives
-    ``(index, "solver", (err, err.result))`` or ``(index, "value", message)``; with
-    ``stop_at_error`` the batch ends at its first failure."""
+    ``(index, "solver", (err, err.result))``, ``(index, "value", message)`` (bad input) or
+    ``(index, "reduce", message)`` (``reduce`` raised); the batch ends at a bad input, a failing
+    ``reduce``, and, with ``stop_at_error``, at a ``SolverError``."""
     sim = worker_simulator(spec)
     out = []
     for index, run in batch:
@@ -261,5 +265,12 @@ def run_batch(
         except ValueError as err:
             out.append((index, "value", str(err)))
             break
-        out.append((index, "ok", reduce(res) if reduce is not None else res))
+        if reduce is None:
+            out.append((index, "ok", res))
+            continue
+        try:
+            out.append((index, "ok", reduce(res)))
+        except Exception as err:  # noqa: BLE001 - the user's function: its error goes back named
+            out.append((index, "reduce", f"{type(err).__name__}: {err}"))
+            break
     return out
