@@ -13,7 +13,9 @@ t_end = 2: 400 steps, a few impacts), K runs from K different starts (C backend)
 
 Per run: wall time / K, the best of ``--repeats``. Speed-ups are against the loop, and 2 workers
 against 1. ``sweep overhead`` is (sweep on 1 worker - loop) / K: what a run costs beyond ``simulate``
-itself when it goes through Dask. The machine is shared: read ratios from one run of this script.
+itself when it goes through Dask; ``loop inside a worker task`` times the same loop inside one task
+on the 1-worker cluster, so that the worker's own speed is told apart from what Dask adds.
+The machine is shared: read ratios from one run of this script.
 Writes ``bench/results/many_runs.csv``.
 """
 
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import importlib
 import sys
 import time
 from pathlib import Path
@@ -35,6 +38,7 @@ import vcigen  # noqa: E402
 from bench.timing import best_of  # noqa: E402
 from vcigen.cli import load_example  # noqa: E402
 
+sweep_module = importlib.import_module("vcigen.sweep")  # the module (vcigen.sweep is the function)
 OUT = ROOT / "bench" / "results" / "many_runs.csv"
 COLUMNS = ["scene", "k", "steps_per_run", "variant", "workers", "us_per_run", "vs_loop", "seconds"]
 
@@ -60,6 +64,12 @@ SCENES = {"particle": particle_runs, "star": star_runs}
 def impacts(res: vcigen.Result) -> int:
     """The reduce of the timed sweeps: one number per run travels back."""
     return res.n_impacts
+
+
+def loop_on_worker(spec, runs: list[dict], repeats: int) -> float:
+    """On a worker: the best wall time of the plain loop over ``runs`` with the worker's simulator."""
+    sim = sweep_module.worker_simulator(spec)
+    return best_of(lambda: [sim.simulate(**r) for r in runs], repeats=repeats)[1]
 
 
 def measure(name: str, k: int, workers: list[int], repeats: int) -> list[dict]:
@@ -91,6 +101,10 @@ def measure(name: str, k: int, workers: list[int], repeats: int) -> list[dict]:
             full, wall = best_of(vcigen.sweep, model, runs, repeats=repeats, **kw)
             assert all(np.array_equal(a.q, b.q) for a, b in zip(full, serial))
             rows.append(_row(name, k, steps, "sweep, full results", w, wall, loop))
+            if w == 1:  # the same loop, timed inside one task on the worker: what Dask adds is the rest
+                spec = sweep_module.SimulatorSpec(model, "c", "trapezoid", None, {})
+                wall = client.submit(loop_on_worker, spec, runs, repeats, pure=False).result()
+                rows.append(_row(name, k, steps, "loop inside a worker task", w, wall, loop))
         finally:
             client.close()
             cluster.close()

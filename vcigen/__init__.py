@@ -11,7 +11,7 @@ from .result import Impact, Result
 from .rules import MIDPOINT, RULES, TRAPEZOID, Rule, midpoint_rule
 from .simulator import Simulator, build
 from .stepper import Tolerances
-from .sweep import SweepError, sweep
+from .sweep import sweep
 
 __all__ = [
     "MIDPOINT",
@@ -25,7 +25,6 @@ __all__ = [
     "Rule",
     "Simulator",
     "SolverError",
-    "SweepError",
     "Tolerances",
     "build",
     "derive",

@@ -12,12 +12,12 @@ back in the order of ``runs`` and are the results a serial loop of ``simulate`` 
 simulator code runs on the same input.
 
 A run whose step cannot be solved (``SolverError``): with ``errors="raise"`` (the default) the
-sweep stops, cancels what is left and raises :class:`SweepError` (a ``SolverError``) naming the
-run's index, with the failed run's partial result in ``.result``; with ``errors="return"`` the
-``SolverError`` takes the run's place in the list (its ``.result`` and ``.run`` set; ``reduce``
-is not applied to it). A run with bad input raises ``ValueError`` naming its index (keywords
-that ``simulate`` does not take are caught before anything starts); a ``reduce`` that raises
-gives a ``RuntimeError`` naming the run and the error.
+sweep stops, cancels what is left and raises that run's ``SolverError``, its message starting
+``sweep run i:``, with ``.run = i`` and the failed run's partial result in ``.result`` (as
+``simulate_many`` does); with ``errors="return"`` the ``SolverError`` takes the run's place in the
+list (``.run`` and ``.result`` set; ``reduce`` is not applied to it). A run with bad input
+raises ``ValueError`` naming its index (keywords that ``simulate`` does not take are caught
+before anything starts); a ``reduce`` that raises gives a ``RuntimeError`` naming the run.
 
 Dask is optional (``pip install 'vcigen[dask]'``); it is imported only when ``sweep`` runs.
 """
@@ -46,20 +46,6 @@ ON_ERROR = ("raise", "return")
 BATCHES_PER_THREAD = 8  # default batching: about this many tasks per worker thread
 WORKER_CACHE = 8  # simulators kept per worker process (least recently used dropped)
 SIMULATE_KEYWORDS = tuple(p for p in inspect.signature(Simulator.simulate).parameters if p != "self")
-
-
-class SweepError(SolverError):
-    """Run ``run`` of a sweep could not be solved; the fields and ``.result`` are that run's."""
-
-    def __init__(self, run: int, err: SolverError) -> None:
-        super().__init__(err.step, err.time, err.phase, err.residual, err.reason)
-        self.run = run
-        self.result = err.result
-        RuntimeError.__init__(self, f"sweep run {run}: {err}")
-
-    def __reduce__(self):
-        err = SolverError(self.step, self.time, self.phase, self.residual, self.reason)
-        return (type(self), (self.run, err))
 
 
 def sweep(
@@ -103,7 +89,7 @@ def sweep(
     if not todo:
         return []
     distributed = _import_distributed()
-    spec = _Spec(model, backend, rule, tol, build_options)
+    spec = SimulatorSpec(model, backend, rule, tol, build_options)
     own = None
     if client is None:
         own = client = _local_client(distributed, workers)
@@ -137,7 +123,7 @@ def _check_run(index: int, run: Mapping[str, Any]) -> dict[str, Any]:
     return {"progress": False, **run}
 
 
-class _Spec:
+class SimulatorSpec:
     """What a worker needs to build the simulator, and a key naming it in the worker's cache."""
 
     def __init__(self, model: Model, backend: str, rule, tol, options: Mapping[str, Any]) -> None:
@@ -186,7 +172,7 @@ def _batch_size(n_runs: int, threads: int) -> int:
     return max(1, math.ceil(n_runs / (BATCHES_PER_THREAD * threads)))
 
 
-def _run(distributed, client, spec: _Spec, todo, size: int, reduce, errors: OnError, progress: bool):
+def _run(distributed, client, spec: SimulatorSpec, todo, size: int, reduce, errors: OnError, progress: bool):
     indexed = list(enumerate(todo))
     batches = [indexed[i : i + size] for i in range(0, len(indexed), size)]
     futures = [
@@ -216,10 +202,10 @@ def _settle(index: int, run: Mapping[str, Any], kind: str, value: Any, errors: O
     if kind == "reduce":
         raise RuntimeError(f"sweep run {index}: reduce raised {value}")
     err, result = value
-    err.result = result
+    err.result, err.run = result, index
     if errors == "raise":
-        raise SweepError(index, err)
-    err.run = index
+        err.args = (f"sweep run {index}: {err.args[0]}",)
+        raise err
     return err
 
 
@@ -233,7 +219,7 @@ _SIMULATORS: OrderedDict[str, Simulator] = OrderedDict()
 _LOCK = threading.Lock()
 
 
-def worker_simulator(spec: _Spec) -> Simulator:
+def worker_simulator(spec: SimulatorSpec) -> Simulator:
     """The simulator of ``spec`` in this process: built the first time, then kept."""
     with _LOCK:
         sim = _SIMULATORS.get(spec.key)
@@ -246,7 +232,7 @@ def worker_simulator(spec: _Spec) -> Simulator:
 
 
 def run_batch(
-    spec: _Spec, batch: Sequence[tuple[int, dict]], reduce, stop_at_error: bool
+    spec: SimulatorSpec, batch: Sequence[tuple[int, dict]], reduce, stop_at_error: bool
 ) -> list[tuple[int, str, Any]]:
     """On a worker: ``(index, "ok", result or reduce(result))`` per run; a failed run gives
     ``(index, "solver", (err, err.result))``, ``(index, "value", message)`` (bad input) or
