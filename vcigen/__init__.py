@@ -11,6 +11,7 @@ from .result import Impact, Result
 from .rules import MIDPOINT, RULES, TRAPEZOID, Rule, midpoint_rule
 from .simulator import Simulator, build
 from .stepper import Tolerances
+from .sweep import sweep
 
 __all__ = [
     "MIDPOINT",
@@ -28,5 +29,6 @@ __all__ = [
     "build",
     "derive",
     "midpoint_rule",
+    "sweep",
 ]
 __version__ = "0.1.0"

@@ -27,17 +27,26 @@ def run_example(
         run["n_impacts"] = args.n_impacts
     sim = build(model(), backend=args.backend, rule=args.rule)
     res = sim.simulate(**run, progress=True)
-    out = Path(args.out)
+    write_run(name, res, args.out, args.backend, args.rule, run["h"], note)
+    return res
+
+
+def write_run(
+    name: str, res: Result, out: str | Path, backend: str, rule: str, h: float, note: str = ""
+) -> list[Path]:
+    """``<out>/<name>_<backend>_<rule>.csv``, ``..._impacts.csv``, ``..._energy.png``; print the summary."""
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    stem = f"{name}_{args.backend}_{args.rule}"
-    res.to_csv(out / f"{stem}.csv")
-    res.impacts_to_csv(out / f"{stem}_impacts.csv")
+    stem = f"{name}_{backend}_{rule}"
+    paths = [out / f"{stem}.csv", out / f"{stem}_impacts.csv", out / f"{stem}_energy.png"]
+    res.to_csv(paths[0])
+    res.impacts_to_csv(paths[1])
     plot_energy(
         res,
-        out / f"{stem}_energy.png",
-        title=f"{name} ({args.backend}, {args.rule}, h = {run['h']}): "
+        paths[2],
+        title=f"{name} ({backend}, {rule}, h = {h}): "
         f"{res.n_impacts} impacts, max |dE|/E = {res.max_energy_deviation():.2e}",
     )
-    print(summary(f"{name} [{args.backend}, {args.rule}]", res) + (f" -- {note}" if note else ""))
-    print(f"  wrote {out / stem}.csv, {stem}_impacts.csv, {stem}_energy.png")
-    return res
+    print(summary(f"{name} [{backend}, {rule}]", res) + (f" -- {note}" if note else ""))
+    print(f"  wrote {paths[0]}, {paths[1].name}, {paths[2].name}")
+    return paths
