@@ -1,4 +1,4 @@
-"""``vcigen.casadi_functions``: the step maps as CasADi Functions (API.md, *Sensitivities and CasADi functions*).
+"""``vcigen.casadi_functions``: the step maps as CasADi Functions (API.md, *Sensitivities ...*).
 
 Two checks. Consistency of the API: along a run of ``vcigen.build(model, backend="casadi").simulate``, every
 grid step without an impact equals ``"step"`` and every step with one impact equals ``"impact_<c>"``
@@ -110,7 +110,12 @@ def exact_and_fd(name: str, k: int, eps: float = 1e-6):
 
     def one_step(zz):
         r = sim.simulate(
-            q0=zz[:n], v0=zz[n : 2 * n], h=h, t_end=res.t[k] + h, t0=res.t[k], params=dict(zip(names, zz[2 * n :]))
+            q0=zz[:n],
+            v0=zz[n : 2 * n],
+            h=h,
+            t_end=res.t[k] + h,
+            t0=res.t[k],
+            params=dict(zip(names, zz[2 * n :])),
         )
         assert len(r.impacts) == len(imps), "the perturbation changed the mode"
         return np.concatenate([r.q[-1], r.p[-1]])

@@ -1,4 +1,4 @@
-"""The step maps as ``casadi.Function``: differentiable through ``casadi.rootfinder`` (MATH.md, *Exact sensitivities*).
+"""The step maps as ``casadi.Function``, differentiable through ``casadi.rootfinder`` (MATH.md).
 
 ``casadi_functions(model, rule)`` returns
 
@@ -160,7 +160,9 @@ class _Phases:
         )
 
 
-def functions_of(system: DiscreteSystem, newton_options: Mapping[str, object] | None = None) -> dict[str, ca.Function]:
+def functions_of(
+    system: DiscreteSystem, newton_options: Mapping[str, object] | None = None
+) -> dict[str, ca.Function]:
     """:func:`casadi_functions` of an already derived system."""
     ph = _Phases(system, FUNCTION_NEWTON_OPTIONS if newton_options is None else newton_options)
     out = {"step": ph.step()}
