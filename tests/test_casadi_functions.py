@@ -73,6 +73,10 @@ def test_functions_reproduce_the_backend_step_by_step(name):
             q1, p1, alpha, mu = (np.asarray(o).ravel() for o in out)
             assert abs(alpha[0] - im.alpha) <= 1e-12, (k, alpha, im.alpha)
             assert abs(mu[0] - im.impulse) <= 1e-12 * (1 + abs(im.impulse)), (k, mu, im.impulse)
+            qc, pc, alpha_c = (
+                np.asarray(o).ravel() for o in fs[f"contact_{im.contact}"](res.q[k], res.p[k], h, par)
+            )
+            assert np.abs(qc - im.q).max() <= 1e-12 * (1 + np.abs(im.q).max()) and alpha_c[0] == alpha[0], k
             checked["impact"] += 1
         assert np.abs(q1 - res.q[k + 1]).max() <= 1e-12 * (1 + np.abs(res.q[k + 1]).max()), k
         assert np.abs(p1 - res.p[k + 1]).max() <= 1e-12 * scale, k
@@ -165,7 +169,7 @@ def test_parameters_and_frictional_contacts():
     frictional contact has no impact Function (friction at impacts is not covered)."""
     block = load_example("friction/block").model()
     fs = vcigen.casadi_functions(block)
-    assert set(fs) == {"step"}
+    assert set(fs) == {"step", "contact_floor"}
     par = vcigen.casadi_parameters(block, fs["step"], t=2.5)
     assert par.size == fs["step"].size1_in("par") > len(block.defaults)
     assert np.all(par[len(block.defaults) :] == 0.0)

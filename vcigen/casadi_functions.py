@@ -7,7 +7,10 @@
 * ``"impact_<c>"`` for each frictionless contact ``c``: ``(q, p, h, par) -> (q1, p1, alpha, mu)``, one step
   holding one impact on ``c``: the contact time and point (47) (unknowns ``v``, ``alpha``), the jump (48)
   (unknowns ``w``, ``mu``; tangential momentum kept, ``E_d`` kept less the loss (39) of a restitution
-  ``e < 1``) and ``p1 = p+`` of the segment after the impact (49).
+  ``e < 1``) and ``p1 = p+`` of the segment after the impact (49);
+* ``"contact_<c>"`` for each contact: ``(q, p, h, par) -> (qc, pc, alpha)``, the impact point ``q~``, the
+  incoming momentum ``p~- = p+(q, q~, alpha h)`` and ``alpha`` of the same step (47) alone (to constrain
+  where an impact happens).
 
 Every phase is a ``casadi.rootfinder`` (Newton) over the residuals :func:`vcigen.derive` writes down, the
 same ones the CasADi backend solves. A rootfinder's outputs are differentiated by the implicit-function
@@ -42,7 +45,7 @@ from .model import Model
 from .rules import Rule
 
 # Newton as in the CasADi backend, but a failed solve raises instead of returning a wrong root.
-FUNCTION_NEWTON_OPTIONS = NEWTON_OPTIONS | {"abstol": 1e-15, "error_on_fail": True}
+FUNCTION_NEWTON_OPTIONS = NEWTON_OPTIONS | {"abstol": 1e-15, "abstolStep": 1e-13, "error_on_fail": True}
 
 
 def casadi_functions(
@@ -55,7 +58,9 @@ def casadi_functions(
     * ``step(q[n], p[n], h, par[P]) -> (q1[n], p1[n])`` -- smooth step (46), (51);
     * ``impact_<c>(q[n], p[n], h, par[P]) -> (q1[n], p1[n], alpha, mu)`` -- contact time (47), jump (48),
       ``p+`` (49); ``alpha`` is the fraction of the step at the impact, ``mu >= 0`` the impulse along
-      ``grad phi_c`` (the paper's ``lambda`` is ``-mu``).
+      ``grad phi_c`` (the paper's ``lambda`` is ``-mu``);
+    * ``contact_<c>(q[n], p[n], h, par[P]) -> (qc[n], pc[n], alpha)`` -- the impact point and incoming
+      momentum of that step (47).
 
     ``newton_options`` go to ``casadi.rootfinder(..., "newton", ...)`` (default
     :data:`FUNCTION_NEWTON_OPTIONS`: a failed solve raises).
@@ -110,8 +115,7 @@ class _Phases:
         return ca.vertcat(par[:-1], par[-1] + dt) if self.system.timed else par
 
     def step(self) -> ca.Function:
-        n = self.n
-        q, p, h, par = ca.MX.sym("q", n), ca.MX.sym("p", n), ca.MX.sym("h"), ca.MX.sym("par", self.npar)
+        q, p, h, par = self.inputs()
         v = self.smooth(q, p, h, par)
         _, p1, _ = self.f["segment"](q, v, h, par)
         return ca.Function(
@@ -122,20 +126,42 @@ class _Phases:
             ["q1", "p1"],
         )
 
-    def impact(self, j: int, contact: str) -> ca.Function:
-        """One step holding one impact on contact ``j``: (47), (48), (49)."""
+    def inputs(self):
+        """The symbols ``(q, p, h, par)`` every Function takes."""
         n = self.n
-        q, p, h, par = ca.MX.sym("q", n), ca.MX.sym("p", n), ca.MX.sym("h"), ca.MX.sym("par", self.npar)
-        # Contact time and point (47): from the smooth step's v and the interpolated crossing of phi_j.
+        return ca.MX.sym("q", n), ca.MX.sym("p", n), ca.MX.sym("h"), ca.MX.sym("par", self.npar)
+
+    def crossing(self, j: int, contact: str, q, p, h, par):
+        """Contact time and point (47) on contact ``j``: ``(v, alpha, q~, p~-, E-)``, from the smooth step's
+        ``v`` and the interpolated crossing of ``phi_j`` (the stepper's start)."""
+        n = self.n
         v = self.smooth(q, p, h, par)
         phi0 = self.f["contacts"](q, par)[0][j]
         phi1 = self.f["contacts"](q + h * v, par)[0][j]
         s0 = ca.fmin(ca.fmax(phi0 / (phi0 - phi1), 0.0), 1.0)
         x = self.rootfinder(f"contact_time_{contact}")(ca.vertcat(v, s0), ca.vertcat(q, p, h, par))
         v_c, alpha = x[:n], x[n]
+        _, p_in, e_c = self.f["segment"](q, v_c, alpha * h, par)
+        return v_c, alpha, q + alpha * h * v_c, p_in, e_c
+
+    def contact(self, j: int, contact: str) -> ca.Function:
+        """The impact point of a step striking contact ``j`` (47): ``(q, p, h, par) -> (qc, pc, alpha)``."""
+        q, p, h, par = self.inputs()
+        _, alpha, q_c, p_in, _ = self.crossing(j, contact, q, p, h, par)
+        return ca.Function(
+            f"contact_{contact}",
+            [q, p, h, par],
+            [q_c, p_in, alpha],
+            ["q", "p", "h", "par"],
+            ["qc", "pc", "alpha"],
+        )
+
+    def impact(self, j: int, contact: str) -> ca.Function:
+        """One step holding one impact on contact ``j``: (47), (48), (49)."""
+        n = self.n
+        q, p, h, par = self.inputs()
+        v_c, alpha, q_c, p_in, e_c = self.crossing(j, contact, q, p, h, par)
         tau_c = alpha * h
-        q_c = q + tau_c * v_c
-        _, p_in, e_c = self.f["segment"](q, v_c, tau_c, par)
         # Jump (48) from the reflected velocity; energy kept less the loss (39) of restitution e.
         par_c = self.timed(par, tau_c)
         nrm = self.f["contacts"](q_c, par_c)[1][j, :].T
@@ -170,4 +196,5 @@ def functions_of(
     for j, c in enumerate(system.contact_names):
         if c not in frictional:
             out[f"impact_{c}"] = ph.impact(j, c)
+        out[f"contact_{c}"] = ph.contact(j, c)
     return out
