@@ -36,9 +36,11 @@ if __name__ == "__main__":
     for fast in (True, False):
         out = load_example("optimise/shooting").solve(fast=fast, verbose=False)
         print(f"\nshooting (fast={fast}): residuals " + ", ".join(f"{r:.1e}" for r in out["residuals"]))
-        out = load_example("optimise/throw").solve(fast=fast, verbose=False)
-        gap = np.abs(out["replayed"] - out["target"]).max()
-        print(
-            f"throw (fast={fast}): {out['iterations']} IPOPT iterations, |v0|^2 = {out['effort']:.4f}, "
-            f"replayed impact point {out['replayed']} vs target {out['target']}: {gap:.1e}"
-        )
+        for torque in (False, True):
+            out = load_example("optimise/throw").solve(fast=fast, verbose=False, torque=torque)
+            gap = np.abs(out["replayed"] - out["target"]).max()
+            print(
+                f"throw (fast={fast}, torque={torque}): {out['iterations']} IPOPT iterations, "
+                f"x = {out['x']}, |x|^2 = {out['effort']:.4f}, "
+                f"replayed impact point {out['replayed']} vs {out['target']}: {gap:.1e}"
+            )

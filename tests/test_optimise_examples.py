@@ -2,6 +2,7 @@
 bounces, IPOPT to a throw whose replay with ``simulate`` strikes the wall at the prescribed point."""
 
 import numpy as np
+import pytest
 from scenes import load_example
 
 
@@ -18,8 +19,10 @@ def test_shooting_converges_quadratically_to_the_launch_that_made_the_target():
     assert out["bounces"] == out["true_bounces"] == ["right", "bottom"]
 
 
-def test_throw_is_solved_and_replayed_at_the_target():
-    out = load_example("optimise/throw").solve(fast=True, verbose=False)
+@pytest.mark.parametrize("torque", [False, True], ids=["v0", "torque"])
+def test_throw_is_solved_and_replayed_at_the_target(torque):
+    """Decision variables the initial velocity, or constant joint torques from rest (forces, parameters)."""
+    out = load_example("optimise/throw").solve(fast=True, verbose=False, torque=torque)
     assert out["success"], out["status"]
     assert out["impacts"] == 1 and out["impact_step"] == out["k_steps"]  # the mode sequence of the NLP
     assert np.abs(out["replayed"] - out["target"]).max() <= 1e-9, (out["replayed"], out["target"])

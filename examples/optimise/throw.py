@@ -11,10 +11,15 @@ their rootfinders; IPOPT (``casadi.nlpsol``) with exact first derivatives (limit
 
     min |v0|^2  s.t.  y_tip(q~) = y*,  0.05 <= alpha <= 0.95,  mu >= 0,  phi(q_k) >= 0 (k = 1..K)
 
-The answer is replayed with ``vcigen.build(model).simulate``: its first impact must be on the wall in step
-K + 1 at the prescribed point.
+With ``--torque`` the decision variables are instead two constant joint torques ``u`` (parameters of a
+Lagrange-d'Alembert force ``F = (u1, u2)``) from rest, and the objective ``|u|^2``: ``par`` is an input of
+every Function, so the derivatives with respect to parameters are exact too.
 
-    python examples/optimise/throw.py [--fast]
+The answer is replayed with ``vcigen.build(model).simulate``: its first impact must be on the wall in step
+K + 1 at the prescribed point. A trial point where a rootfinder fails (outside the mode) is an evaluation
+error for IPOPT, which backtracks; CasADi prints the failed call's inputs.
+
+    python examples/optimise/throw.py [--fast] [--torque]
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+import sympy as sp
 
 import vcigen
 from vcigen.backends.casadi import routine_to_function
@@ -34,12 +40,26 @@ from hard_scenes import double_pendulum  # noqa: E402
 
 Q0 = np.array([0.0, 0.0])  # hanging straight down, the tip at (0, -2)
 V_GUESS = np.array([2.5, 3.5])  # IPOPT's start; its first impact fixes K
+U_GUESS = np.array([10.0, 10.0])  # the same with --torque (from rest)
 WALL, Y_TARGET = 1.2, -1.5
 
 
-def model() -> vcigen.Model:
-    """The double pendulum against the wall x = 1.2 (``tests/hard_scenes.py``, shared with the hard cases)."""
-    return double_pendulum()
+def model(torque: bool = False) -> vcigen.Model:
+    """The double pendulum against the wall x = 1.2 (``tests/hard_scenes.py``, shared with the hard cases);
+    ``torque``: with constant joint torques ``u1``, ``u2`` (parameters, Lagrange-d'Alembert forces)."""
+    base = double_pendulum()
+    if not torque:
+        return base
+    u1, u2 = sp.symbols("u1 u2")
+    return vcigen.Model(
+        name="double_pendulum_torque",
+        q=list(base.coordinates),
+        qdot=list(base.velocities),
+        lagrangian=base.L,
+        contacts=base.phi,
+        params={**base.defaults, u1: 0.0, u2: 0.0},
+        forces=[u1, u2],
+    )
 
 
 def tip(q) -> tuple:
@@ -47,12 +67,16 @@ def tip(q) -> tuple:
     return ca.sin(q[0]) + ca.sin(q[1]), -ca.cos(q[0]) - ca.cos(q[1])
 
 
-def nlp(fs: dict[str, ca.Function], par, h: float, k_steps: int):
-    """The problem's expressions in the decision variables ``v0``; ``p0 = M(q0) v0``."""
-    m = model()
-    legendre = vcigen.derive(m).routines["legendre"]
-    v0 = ca.MX.sym("v0", 2)
-    q, p = ca.MX(Q0), routine_to_function(legendre)(Q0, v0, par)[0]
+def nlp(fs: dict[str, ca.Function], par, h: float, k_steps: int, torque: bool):
+    """The problem's expressions in the decision variables ``x``: ``v0`` (``p0 = M(q0) v0``), or the two
+    torques (the last two parameters) from rest."""
+    legendre = routine_to_function(vcigen.derive(model(torque)).routines["legendre"])
+    x = ca.MX.sym("x", 2)
+    if torque:
+        par = ca.vertcat(par[:-2], x)
+        q, p = ca.MX(Q0), ca.MX.zeros(2)
+    else:
+        q, p = ca.MX(Q0), legendre(Q0, x, par)[0]
     admissible = []
     for _ in range(k_steps):
         q, p = fs["step"](q, p, h, par)
@@ -62,30 +86,36 @@ def nlp(fs: dict[str, ca.Function], par, h: float, k_steps: int):
     g = ca.vertcat(tip(qc)[1] - Y_TARGET, alpha, mu, *admissible)
     lbg = [0.0, 0.05, 0.0] + [0.0] * k_steps
     ubg = [0.0, 0.95, ca.inf] + [ca.inf] * k_steps
-    return v0, ca.sumsqr(v0), g, lbg, ubg
+    return x, ca.sumsqr(x), g, lbg, ubg
 
 
-def solve(fast: bool = False, verbose: bool = True) -> dict:
+def solve(fast: bool = False, verbose: bool = True, torque: bool = False) -> dict:
     """Solve with IPOPT, then replay with ``simulate``."""
     h = 0.02 if fast else 0.005
-    m = model()
+    m = model(torque)
     sim = vcigen.build(m)
-    k_steps = sim.simulate(q0=Q0, v0=V_GUESS, h=h, n_impacts=1, t_end=1.0).impacts[0].step  # the guess's mode
+    guess = U_GUESS if torque else V_GUESS
+
+    def run(x, t_end, n_impacts=None):
+        v0, params = (np.zeros(2), {"u1": x[0], "u2": x[1]}) if torque else (x, None)
+        return sim.simulate(q0=Q0, v0=v0, h=h, t_end=t_end, n_impacts=n_impacts, params=params)
+
+    k_steps = run(guess, 2.0, 1).impacts[0].step  # the mode sequence of the guess: K smooth steps, an impact
     fs = vcigen.casadi_functions(m)
     par = vcigen.casadi_parameters(m, fs["step"])
-    v0, f, g, lbg, ubg = nlp(fs, par, h, k_steps)
+    x, f, g, lbg, ubg = nlp(fs, par, h, k_steps, torque)
     opts = {"ipopt.hessian_approximation": "limited-memory", "ipopt.tol": 1e-10, "ipopt.print_level": 0}
     opts["print_time"] = False
-    solver = ca.nlpsol("throw", "ipopt", {"x": v0, "f": f, "g": g}, opts)
-    sol = solver(x0=V_GUESS, lbg=lbg, ubg=ubg)
+    solver = ca.nlpsol("throw", "ipopt", {"x": x, "f": f, "g": g}, opts)
+    sol = solver(x0=guess, lbg=lbg, ubg=ubg)
     stats = solver.stats()
-    v_opt = np.asarray(sol["x"]).ravel()
-    res = sim.simulate(q0=Q0, v0=v_opt, h=h, t_end=(k_steps + 1) * h)
+    x_opt = np.asarray(sol["x"]).ravel()
+    res = run(x_opt, (k_steps + 1) * h)
     im = res.impacts[0]
     point = np.array([np.sin(im.q[0]) + np.sin(im.q[1]), -np.cos(im.q[0]) - np.cos(im.q[1])])
     out = {
-        "v0": v_opt,
-        "effort": float(v_opt @ v_opt),
+        "x": x_opt,
+        "effort": float(x_opt @ x_opt),
         "iterations": int(stats["iter_count"]),
         "status": stats["return_status"],
         "success": bool(stats["success"]),
@@ -98,8 +128,9 @@ def solve(fast: bool = False, verbose: bool = True) -> dict:
         "impacts": len(res.impacts),
     }
     if verbose:
+        what = "torques u" if torque else "v0"
         print(f"IPOPT: {out['status']} after {out['iterations']} iterations; h = {h}, K = {k_steps} smooth")
-        print(f"v0 = {v_opt}, |v0|^2 = {out['effort']:.10f}")
+        print(f"{what} = {x_opt}, |{what.split()[-1]}|^2 = {out['effort']:.10f}")
         print(f"target impact point      {out['target']}")
         print(f"replayed with simulate   {point} (step {im.step}, alpha {im.alpha:.6f}, mu {im.impulse:.6f})")
         print(f"distance {np.abs(point - out['target']).max():.2e}")
@@ -109,4 +140,8 @@ def solve(fast: bool = False, verbose: bool = True) -> dict:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fast", action="store_true", help="h = 0.02 instead of 0.005")
-    solve(parser.parse_args().fast)
+    parser.add_argument(
+        "--torque", action="store_true", help="constant joint torques from rest instead of v0"
+    )
+    a = parser.parse_args()
+    solve(a.fast, torque=a.torque)
