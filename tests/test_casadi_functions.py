@@ -34,23 +34,26 @@ PARAMS = {"box_lossy": {"e": 0.6, "g": 9.81}}
 
 
 @cache
-def scene(name: str):
+def scene(name: str, rule: str = "trapezoid"):
     """``(model, functions, simulator)`` of a scene, built once."""
     model = SCENES[name][0]()
-    return model, vcigen.casadi_functions(model), vcigen.build(model, backend="casadi")
+    return model, vcigen.casadi_functions(model, rule), vcigen.build(model, backend="casadi", rule=rule)
 
 
 @cache
-def run(name: str) -> vcigen.Result:
+def run(name: str, rule: str = "trapezoid") -> vcigen.Result:
     _, _, q0, v0, h, t_end = (None, *SCENES[name])
-    _, _, sim = scene(name)
+    _, _, sim = scene(name, rule)
     return sim.simulate(q0=q0, v0=v0, h=h, t_end=t_end, params=PARAMS.get(name))
 
 
-@pytest.mark.parametrize("name", list(SCENES))
-def test_functions_reproduce_the_backend_step_by_step(name):
-    model, fs, _ = scene(name)
-    res = run(name)
+@pytest.mark.parametrize(
+    "name,rule",
+    [(n, "trapezoid") for n in SCENES] + [(n, "midpoint") for n in ("star", "double_pendulum", "driven")],
+)
+def test_functions_reproduce_the_backend_step_by_step(name, rule):
+    model, fs, _ = scene(name, rule)
+    res = run(name, rule)
     h = res.h
     by_step: dict[int, list] = {}
     for im in res.impacts:
@@ -178,3 +181,17 @@ def test_parameters_and_frictional_contacts():
     par = vcigen.casadi_parameters(model, fd["impact_wall"], {"e": 0.5}, t=2.5)
     assert par[-1] == 2.5 and par.size == len(model.defaults) + 1
     assert par[list(map(str, model.defaults)).index("e")] == 0.5
+
+
+def test_bad_input_is_refused_and_a_wrong_mode_shows_in_alpha():
+    with pytest.raises(ValueError, match="vcigen.Model"):
+        vcigen.casadi_functions("particle")
+    with pytest.raises(ValueError, match="rule"):
+        vcigen.casadi_functions(scene("particle")[0], rule="euler")
+    model, fs, _ = scene("particle")
+    par = vcigen.casadi_parameters(model, fs["step"])
+    # far above the floor: the step holds no impact. The equations (47)-(48) still have a root, outside the
+    # mode: alpha outside [0, 1] says so (the caller checks the mode; the Functions do not)
+    for p0 in ([0.0, 1.0], [0.0, 0.0]):
+        _, _, alpha, _ = fs["impact_floor"]([0.0, 5.0], p0, 0.01, par)
+        assert not 0.0 <= float(alpha) <= 1.0, float(alpha)

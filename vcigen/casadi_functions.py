@@ -29,7 +29,8 @@ impacts (a corner, two vertices at once), friction at an impact (no ``impact_<c>
 contact), plastic or grazing impacts and sustained contact (where (48a) has no root ``mu > 0`` the
 rootfinder fails). The Functions do not check that the mode holds (no crossing in ``"step"``, the earliest
 crossing on ``c`` in ``"impact_<c>"``): the caller fixes the mode sequence, for instance from a run of
-``simulate``.
+``simulate``, and checks ``0 <= alpha <= 1`` and ``mu > 0`` (out of its mode an impact Function returns the
+root of the same equations with ``alpha`` outside ``[0, 1]``, or fails to converge and raises).
 """
 
 from __future__ import annotations
@@ -65,6 +66,8 @@ def casadi_functions(
     ``newton_options`` go to ``casadi.rootfinder(..., "newton", ...)`` (default
     :data:`FUNCTION_NEWTON_OPTIONS`: a failed solve raises).
     """
+    if not isinstance(model, Model):
+        raise ValueError(f"casadi_functions() needs a vcigen.Model, got {type(model).__name__}")
     return functions_of(derive(model, rule), newton_options)
 
 

@@ -78,7 +78,9 @@ def solve(fast: bool = False, verbose: bool = True) -> dict:
         sequence = modes(sim.simulate(q0=Q0, v0=v, h=h, t_end=T))  # the mode sequence at this iterate
         if sequence not in built:
             built[sequence] = chain(fs, sequence, h, par)
-        q_t, jac, _ = (np.asarray(o) for o in built[sequence](v))
+        q_t, jac, alphas = (np.asarray(o) for o in built[sequence](v))
+        if not np.all((alphas >= 0.0) & (alphas <= 1.0)):  # the chain left the mode simulate found
+            raise RuntimeError(f"impact fractions {alphas.ravel()} outside [0, 1] at v0 = {v}")
         r = q_t.ravel() - target
         residuals.append(float(np.abs(r).max()))
         if verbose:
