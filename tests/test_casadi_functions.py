@@ -195,3 +195,51 @@ def test_bad_input_is_refused_and_a_wrong_mode_shows_in_alpha():
     for p0 in ([0.0, 1.0], [0.0, 0.0]):
         _, _, alpha, _ = fs["impact_floor"]([0.0, 5.0], p0, 0.01, par)
         assert not 0.0 <= float(alpha) <= 1.0, float(alpha)
+
+
+def trajectory_jacobian(model, q0, v0, h: float, t_end: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """``d(q_N, p_N)/d v0`` of a whole run: the Functions composed along the run's mode sequence (exact), and
+    central differences of whole ``simulate`` runs; and the number of impacts."""
+    fs = vcigen.casadi_functions(model)
+    sim = vcigen.build(model)
+    par = vcigen.casadi_parameters(model, fs["step"])
+    res = sim.simulate(q0=q0, v0=v0, h=h, t_end=t_end)
+    modes = ["step"] * (res.t.size - 1)
+    for im in res.impacts:
+        assert modes[im.step] == "step", "one impact per step"
+        modes[im.step] = f"impact_{im.contact}"
+    n = model.n
+    v = ca.MX.sym("v", n)
+    q, p = ca.MX(np.asarray(q0, dtype=float)), legendre(model)(q0, v, par)[0]
+    for mode in modes:
+        out = fs[mode](q=q, p=p, h=h, par=par)
+        q, p = out["q1"], out["p1"]
+    exact = np.asarray(ca.Function("run_jacobian", [v], [ca.jacobian(ca.vertcat(q, p), v)])(v0))
+    fd = np.empty_like(exact)
+    for i in range(n):
+        dv = np.zeros(n)
+        dv[i] = 1e-6
+        ends = []
+        for sign in (1, -1):
+            r = sim.simulate(q0=q0, v0=np.asarray(v0) + sign * dv, h=h, t_end=t_end)
+            assert [(im.step, im.contact) for im in r.impacts] == [
+                (im.step, im.contact) for im in res.impacts
+            ]
+            ends.append(np.concatenate([r.q[-1], r.p[-1]]))
+        fd[:, i] = (ends[0] - ends[1]) / 2e-6
+    return exact, fd, len(res.impacts)
+
+
+@pytest.mark.parametrize(
+    "name,q0,v0,h,t_end",
+    [
+        ("double_pendulum", [0.3, 0.6], [1.5, 2.0], 0.01, 0.6),
+        ("star", [0.0, 1.2, 0.0], [-2.0, 0.0, 5.0], 0.005, 1.2),
+    ],
+)
+def test_run_jacobian_through_impacts_matches_finite_differences(name, q0, v0, h, t_end):
+    """Products along the run (MATH.md, *Exact sensitivities*): ``d(q_N, p_N)/d v0`` through every impact."""
+    exact, fd, impacts = trajectory_jacobian(scene(name)[0], q0, v0, h, t_end)
+    rel = np.abs(exact - fd).max() / np.abs(exact).max()
+    print(f"{name}: {impacts} impacts, relative FD agreement {rel:.1e}")
+    assert impacts >= 1 and rel <= 1e-6, (impacts, rel)
