@@ -45,7 +45,9 @@ from .derive import DiscreteSystem, derive
 from .model import Model
 from .rules import Rule
 
-# Newton as in the CasADi backend, but a failed solve raises instead of returning a wrong root.
+# Newton as in the CasADi backend, but a failed solve raises instead of returning a wrong root, and it stops
+# on a step below 1e-13 (the backend: residual 1e-13), so alpha matches the backend's to 1e-12. These are
+# absolute: for unknowns of order 1e3 and more pass a larger "abstolStep" in ``newton_options``.
 FUNCTION_NEWTON_OPTIONS = NEWTON_OPTIONS | {"abstol": 1e-15, "abstolStep": 1e-13, "error_on_fail": True}
 
 
