@@ -4,6 +4,7 @@ Fetecau, Marsden, Ortiz, West, *Nonsmooth Lagrangian Mechanics and
 Variational Collision Integrators*. The public API is shared/API.md.
 """
 
+from .casadi_functions import casadi_functions, casadi_parameters
 from .derive import DiscreteSystem, derive
 from .errors import CompileError, SolverError
 from .model import Model
@@ -27,6 +28,8 @@ __all__ = [
     "SolverError",
     "Tolerances",
     "build",
+    "casadi_functions",
+    "casadi_parameters",
     "derive",
     "midpoint_rule",
     "sweep",

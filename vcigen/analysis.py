@@ -40,9 +40,34 @@ def symplectic_defect(
         dz = np.zeros(d)
         dz[i] = eps
         jac[:, i] = (step_map(z + dz) - step_map(z - dz)) / (2 * eps)
-    n = d // 2
+    return jacobian_symplectic_defect(jac)
+
+
+def jacobian_symplectic_defect(jac: np.ndarray) -> float:
+    """``max |J^T Omega J - Omega|`` of a ``2n x 2n`` Jacobian, ``Omega = [[0, I], [-I, 0]]`` (sec. 3.3)."""
+    jac = np.asarray(jac, dtype=float)
+    n = jac.shape[0] // 2
     omega = np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
     return float(np.max(np.abs(jac.T @ omega @ jac - omega)))
+
+
+def step_jacobian(function, q: np.ndarray, p: np.ndarray, h: float, par: np.ndarray) -> np.ndarray:
+    """The exact Jacobian ``d(q1, p1)/d(q, p)`` of a step map of :func:`vcigen.casadi_functions`
+    (``"step"`` or ``"impact_<c>"``): ``casadi.jacobian`` through its rootfinders (implicit functions)."""
+    import casadi as ca
+
+    q = np.asarray(q, dtype=float)
+    n = q.size
+    z = ca.MX.sym("z", 2 * n)
+    out = function(q=z[:n], p=z[n:], h=h, par=par)
+    jac = ca.Function("step_jacobian", [z], [ca.jacobian(ca.vertcat(out["q1"], out["p1"]), z)])
+    return np.asarray(jac(np.concatenate([q, np.asarray(p, dtype=float)])))
+
+
+def exact_symplectic_defect(function, q: np.ndarray, p: np.ndarray, h: float, par: np.ndarray) -> float:
+    """``max |J^T Omega J - Omega|`` of a step map of :func:`vcigen.casadi_functions` at ``(q, p)`` with its
+    exact Jacobian (:func:`step_jacobian`): round-off for a smooth or elastic impact step (sec. 3.3)."""
+    return jacobian_symplectic_defect(step_jacobian(function, q, p, h, par))
 
 
 def plot_energy(res: Result, path: str | Path, title: str = "") -> Path:
