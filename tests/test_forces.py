@@ -156,8 +156,8 @@ def test_work_is_zero_without_forces_and_matches_damping():
     )
     free = vcigen.Model(name="free", q=[x], qdot=[xd], lagrangian=xd**2 / 2 - x**2 / 2)
     res = vcigen.build(damped, backend="casadi").simulate(q0=[1.0], v0=[0.0], h=0.01, t_end=5.0)
-    # damping: each node's kick J = -c h vbar does the work J . vbar = -c h |vbar|^2 <= 0 (vcigen.work), so the
-    # work done up to any step is <= 0 (a single step's need not be: it holds a part of two nodes)
+    # damping: each node's kick J = -c h vbar does the work J . vbar = -c h |vbar|^2 <= 0 (vcigen.work), so
+    # the work done up to any step is <= 0 (a single step's need not be: it holds a part of two nodes)
     assert np.all(np.cumsum(res.work) <= 0.0)
     assert abs(res.energy_balance()[-1]) < 1e-4
     # the energy itself follows the exact decay: E(t) of x = e^{-ct/2}(cos wd t + c/(2wd) sin wd t)

@@ -15,14 +15,23 @@ the kick ``J = f_d+ + f_d-``. A kick ``J`` changes the kinetic energy ``1/2 p M^
 
 which for damping ``F = -c v`` (trapezoid) is ``c h/4 |v+ - v-|^2 >= 0``: O(h^3) a node, of one sign, an
 O(h^2) drift over a run. With it the force part of the balance telescopes exactly, for both rules, and
-what is left of ``E_k - E_0 - sum W + losses`` is the conservative mismatch of the discrete energy, bounded.
-Step ``k``'s work is its segments' work plus ``c`` of the node it starts at (step 0 has none); a node that
-is also an impact (a sub-segment of zero length there) takes no ``c``.
+what is left of ``E_k - E_0 - sum W + losses`` is the conservative mismatch of the discrete energy: for a
+quadratic V it telescopes (trapezoid) or vanishes (midpoint). With a third derivative ``D3V`` of V its
+remainder ``-(h^3/12) D3V[v, v, v]`` a step sums, on a forced trajectory, to
+``(h^2/6) int grad^2 V(qdot, M^-1 F) dt`` (both rules): where ``L = 1/2 qdot^T M qdot + b . qdot - V(q)``
+with ``M``, ``b`` constant and V not quadratic, the kick is booked at
+``vbar + (h^2/6) M^-1 grad^2 V(q_k) vbar`` instead, which removes it. For a mass matrix of ``q`` no such
+term is built: an O(h^2) drift is left.
+
+Step ``k``'s work is its segments' work plus the correction of the node it starts at (step 0 has none); a
+node that is also an impact (a sub-segment of zero length there) takes none. Impacts leave an O(h^2) bias
+each: (48a) equates the energies of two sub-segments of different lengths (README, *Forces*).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
@@ -31,19 +40,31 @@ from .derive import DiscreteSystem
 from .result import Result
 
 ForceFn = Callable[..., tuple[np.ndarray, np.ndarray]]
+CurvatureFn = Callable[..., np.ndarray]
 TINY = 1e-14  # a sub-segment shorter than TINY * h is no segment (simultaneous impacts, an impact on a node)
 
 
-def work_function(system: DiscreteSystem) -> ForceFn | None:
-    """``(q0 (K, n), v (K, n), tau (K,), t0 (K,), par) -> (f_d- (K, n), f_d+ (K, n))`` of the segments, or
-    ``None`` without forces."""
+@dataclass(frozen=True)
+class Booking:
+    """What books the work: the segments' discrete forces and, where ``L`` allows, the kick's h^2 term."""
+
+    forces: ForceFn  # (q0 (K, n), v (K, n), tau (K,), t0 (K,), par) -> (f_d- (K, n), f_d+ (K, n))
+    curvature: CurvatureFn | None  # (q (K, n), par) -> (K, n, n): M^-1 grad^2 V, or None (module docstring)
+
+
+def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
+    """``rows`` as a numpy function of ``args`` and then the parameter vector ``par``."""
+    par = [sp.Symbol(f"_par{i}") for i in range(len(system.params))]
+    rep = dict(zip(system.params, par))
+    return sp.lambdify([*args, *par], [[e.xreplace(rep) for e in row] for row in rows], modules="numpy")
+
+
+def work_function(system: DiscreteSystem) -> Booking | None:
+    """The :class:`Booking` of ``system``'s forces, or ``None`` without forces."""
     seg = system.segment
     if not system.model.force or seg is None:
         return None
-    par = [sp.Symbol(f"_par{i}") for i in range(len(system.params))]
-    rep = dict(zip(system.params, par))
-    exprs = [[f.xreplace(rep) for f in seg.f_minus], [f.xreplace(rep) for f in seg.f_plus]]
-    fn = sp.lambdify([*seg.q0, *seg.v, seg.tau, *par], exprs, modules="numpy")
+    fn = _lambdify(system, [*seg.q0, *seg.v, seg.tau], [list(seg.f_minus), list(seg.f_plus)])
 
     def forces(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values):
         args = list(values) if not system.timed else [*list(values)[:-1], t0]
@@ -52,20 +73,47 @@ def work_function(system: DiscreteSystem) -> ForceFn | None:
             np.stack([np.broadcast_to(np.asarray(f, float), tau.shape) for f in fs], -1) for fs in (fm, fp)
         )
 
-    return forces
+    return Booking(forces, _curvature(system))
+
+
+def _curvature(system: DiscreteSystem) -> CurvatureFn | None:
+    """``M^-1 grad^2 V (q)`` when ``L = 1/2 qdot^T M qdot + b . qdot - V(q)`` with ``M``, ``b`` constant (no
+    ``d2L/dq dqdot``); ``None`` otherwise."""
+    model = system.model
+    qs, vs = model.coordinates, model.velocities
+    mass = model.mass_matrix
+    if mass.free_symbols & set(qs + vs) or any(model.L.diff(a).diff(b) != 0 for a in qs for b in vs):
+        return None
+    hess = -sp.hessian(model.L, sp.Matrix(qs))
+    if not hess.free_symbols & set(qs):  # V quadratic: the kick at vbar is exact, the h^2 term only bounded
+        return None
+    curv = mass.inv() * hess
+    n = model.n
+    fn = _lambdify(system, list(qs), [list(curv.row(i)) for i in range(n)])
+
+    def curvature(q: np.ndarray, values) -> np.ndarray:
+        out = fn(*q.T, *values)  # L holds no time: the time slot's value does not matter
+        return np.stack(
+            [np.stack([np.broadcast_to(np.asarray(c, float), q.shape[:1]) for c in row], -1) for row in out],
+            1,
+        )
+
+    return curvature
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("kn,kn->k", a, b)
 
 
-def step_work(res: Result, forces: ForceFn | None, par) -> np.ndarray:
+def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     """``(N-1,)``: the discrete work over each grid step: its segments' ``(f_d- + f_d+) . v`` (split at its
-    impacts) plus, at the grid node it starts at, ``(f_d+ - f_d-) . (v+ - v-) / 2`` (module docstring).
+    impacts) plus, at the grid node it starts at, ``(f_d+ - f_d-) . (v+ - v-) / 2`` and, with a curvature,
+    ``(h^2/6) J . M^-1 grad^2 V vbar`` (module docstring).
     Exactly 0 without forces."""
     steps = res.energy.size
-    if forces is None or steps == 0:
+    if booking is None or steps == 0:
         return np.zeros(steps)
+    forces = booking.forces
     q, t, h = res.q, res.t, res.h
     v = (q[1:] - q[:-1]) / h
     fm, fp = forces(q[:-1], v, np.full(steps, h), t[:-1], par)
@@ -92,6 +140,9 @@ def step_work(res: Result, forces: ForceFn | None, par) -> np.ndarray:
         out[k] = float(np.sum(_dot(gm + gp, vs)))
         v_start[k], f_start[k], v_end[k], f_end[k] = vs[0], gm[0], vs[-1], gp[-1]
     node = _dot(f_end[:-1] - f_start[1:], v_start[1:] - v_end[:-1]) / 2  # grid nodes 1 .. steps-1
+    if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
+        kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
+        node += h * h / 6 * np.einsum("kn,knm,km->k", kick, booking.curvature(q[1:steps], par), vbar)
     out[1:] += np.where(on_node[1:steps], 0.0, node)
     return out
 
