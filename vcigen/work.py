@@ -121,24 +121,34 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     # the segments either side of each grid node: the last of step k-1 (v_end, f_end) and the first of step k
     v_start, f_start, v_end, f_end = v.copy(), fm.copy(), v.copy(), fp.copy()
     on_node = np.zeros(steps + 1, dtype=bool)  # an impact sits on grid node k
-    by_step: dict[int, list] = {}
-    for im in res.impacts:
-        if im.step < steps:
-            by_step.setdefault(im.step, []).append(im)
-    for k, ims in by_step.items():
-        ims.sort(key=lambda im: im.t)
-        ts = np.array([t[k], *(im.t for im in ims), t[k + 1]])
-        qs = np.array([q[k], *(im.q for im in ims), q[k + 1]])
+    ims = [im for im in res.impacts if im.step < steps]
+    if ims:  # the impact steps, split at their impacts: all their sub-segments in one call
+        hit = np.array([im.step for im in ims])
+        ks = np.unique(hit)
+        owner = np.concatenate([ks, hit, ks])
+        place = np.concatenate(
+            [np.zeros(ks.size), np.ones(hit.size), np.full(ks.size, 2.0)]
+        )  # start, hit, end
+        ts = np.concatenate([t[ks], [im.t for im in ims], t[ks + 1]])
+        qs = np.concatenate([q[ks], np.array([im.q for im in ims]).reshape(hit.size, -1), q[ks + 1]])
+        order = np.lexsort((ts, place, owner))
+        owner, ts, qs = owner[order], ts[order], qs[order]
         tau = np.diff(ts)
-        keep = tau > TINY * h
-        on_node[k] |= not keep[0]
-        on_node[k + 1] |= not keep[-1]
-        if not keep.any():
-            continue
-        vs = np.diff(qs, axis=0)[keep] / tau[keep, None]
-        gm, gp = forces(qs[:-1][keep], vs, tau[keep], ts[:-1][keep], par)
-        out[k] = float(np.sum(_dot(gm + gp, vs)))
-        v_start[k], f_start[k], v_end[k], f_end[k] = vs[0], gm[0], vs[-1], gp[-1]
+        inside = owner[1:] == owner[:-1]  # consecutive points of one step bound a segment
+        keep = inside & (tau > TINY * h)
+        first, last = np.flatnonzero(place[order][:-1] == 0), np.flatnonzero(place[order][1:] == 2)
+        on_node[ks] |= ~keep[first]
+        on_node[ks + 1] |= ~keep[last]
+        seg = np.flatnonzero(keep)
+        vs = (qs[seg + 1] - qs[seg]) / tau[seg, None]
+        gm, gp = forces(qs[seg], vs, tau[seg], ts[seg], par)
+        out[ks] = 0.0
+        np.add.at(out, owner[seg], _dot(gm + gp, vs))
+        _, head = np.unique(owner[seg], return_index=True)  # the first kept segment of each impact step
+        _, tail = np.unique(owner[seg][::-1], return_index=True)
+        tail = seg.size - 1 - tail  # and the last
+        k = owner[seg][head]
+        v_start[k], f_start[k], v_end[k], f_end[k] = vs[head], gm[head], vs[tail], gp[tail]
     node = _dot(f_end[:-1] - f_start[1:], v_start[1:] - v_end[:-1]) / 2  # grid nodes 1 .. steps-1
     if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
         kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
