@@ -137,8 +137,9 @@ def test_energy_balance_has_no_drift_under_a_periodic_drive():
 
 
 def test_energy_balance_with_damping_and_impacts_is_second_order_in_the_work_done():
-    """With dissipation and impacts the balance accumulates an O(h^2) relative error of the dissipated energy
-    (the modified force of the discrete flow), never O(h): |balance| / sum |W| after 2e5 steps."""
+    """With dissipation and impacts the balance accumulates an O(h^2) bias of each impact (README, *Forces*:
+    (48a) equates the energies of two sub-segments of different lengths), never O(h): |balance| / sum |W|
+    after 2e5 steps."""
     rel = []
     for h in (0.02, 0.01):
         res = driven("c").simulate(q0=[0.0], v0=[0.0], h=h, t_end=2000.0)
