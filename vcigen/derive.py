@@ -61,7 +61,8 @@ class Segment:
     p_plus: sp.Matrix
     energy: sp.Expr  # E_d + f_d+ . v: the energy at the segment's end (E_d without forces)
     energy_start: sp.Expr  # E_d - f_d- . v: the energy at its start (E_d without forces)
-    work: sp.Expr  # (f_d- + f_d+) . v = energy - energy_start: the discrete work over the segment
+    f_minus: sp.Matrix  # f_d-, the discrete force at the segment's start (0 without forces)
+    f_plus: sp.Matrix  # f_d+, at its end; (f_d- + f_d+) . v = energy - energy_start (vcigen.work)
 
     def at(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr) -> tuple[sp.Matrix, sp.Matrix, sp.Expr]:
         """``(p-, p+, E_d)`` with the segment's symbols replaced."""
@@ -90,11 +91,12 @@ def discrete_segment(model: Model, rule: Rule) -> Segment:
     p_minus = ell_v - tau * ell_q
     energy = (v.T * ell_v)[0] - ell - tau * ell.diff(tau)
     if not model.force:
-        return Segment(q0, v, tau, p_minus, p_plus, energy, energy, sp.S.Zero)
+        zero = sp.zeros(n, 1)
+        return Segment(q0, v, tau, p_minus, p_plus, energy, energy, zero, zero)
     f_minus, f_plus = discrete_forces(model, rule, q0, v, tau)
     e_in, e_out = (v.T * f_minus)[0], (v.T * f_plus)[0]
     pm, pp = p_minus - f_minus, p_plus + f_plus
-    return Segment(q0, v, tau, pm, pp, energy + e_out, energy - e_in, e_in + e_out)
+    return Segment(q0, v, tau, pm, pp, energy + e_out, energy - e_in, f_minus, f_plus)
 
 
 def time_slot(model: Model) -> sp.Symbol:
@@ -132,7 +134,7 @@ class DiscreteSystem:
     params: tuple[sp.Symbol, ...]
     routines: dict[str, Routine] = field(default_factory=dict)
     rows: Rows | None = None  # rows of sustained contact and bilateral constraints (vcigen.rows)
-    segment: Segment | None = None  # the rule's momenta, energies and work as expressions (vcigen.work)
+    segment: Segment | None = None  # the rule's momenta, energies and discrete forces (vcigen.work)
 
     @property
     def n(self) -> int:

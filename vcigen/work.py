@@ -1,16 +1,37 @@
 """The discrete work of the forces (Lagrange-d'Alembert, MATH.md *Forcing*), booked per grid step.
 
-A segment ``(q0, v, tau)`` starting at ``t0`` does the work ``(f_d- + f_d+) . v`` of the rule's
-discrete forces, which is exactly the difference of the energies at its two ends
-(``vcigen.derive.Segment``). Across an impact the energy at the end of one segment is the energy
-at the start of the next (the alpha-variation with (37)); so with ``res.energy`` the energy at the end
-of each step, ``E_k - E_{k-1} - W_k`` is the smooth steps' own bounded O(h^2) error and restitution
-losses alone. The work is booked from the run's segments: grid points and impact points.
+A segment ``(q0, v, tau)`` starting at ``t0`` carries the discrete forces ``f_d-`` (at its start) and
+``f_d+`` (at its end); ``(f_d- + f_d+) . v`` is exactly the difference of its end energies
+(``vcigen.derive.Segment``). Across an impact the energy at the end of one segment is the energy at the
+start of the next (the alpha-variation with (37)), so there the segments' work is exact.
+
+At a grid node the time is not varied and the two energies differ: the node joins a segment ``(v-, f_d+)``
+to the next ``(v+, f_d-)`` through the DEL ``p+(seg-) = p-(seg+)``, i.e. the conservative map followed by
+the kick ``J = f_d+ + f_d-``. A kick ``J`` changes the kinetic energy ``1/2 p M^-1 p`` by exactly
+``J . (v- + v+)/2`` (M constant), so the node's work is ``J . (v- + v+)/2``, not the old
+``f_d+ . v- + f_d- . v+``; the two differ by
+
+    c = (f_d+ - f_d-) . (v+ - v-) / 2,
+
+which for damping ``F = -c v`` (trapezoid) is ``c h/4 |v+ - v-|^2 >= 0``: O(h^3) a node, of one sign, an
+O(h^2) drift over a run. With it the force part of the balance telescopes exactly, for both rules, and
+what is left of ``E_k - E_0 - sum W + losses`` is the conservative mismatch of the discrete energy: for a
+quadratic V it telescopes (trapezoid) or vanishes (midpoint). With a third derivative ``D3V`` of V its
+remainder ``-(h^3/12) D3V[v, v, v]`` a step sums, on a forced trajectory, to
+``(h^2/6) int grad^2 V(qdot, M^-1 F) dt`` (both rules): where ``L = 1/2 qdot^T M qdot + b . qdot - V(q)``
+with ``M``, ``b`` constant and V not quadratic, the kick is booked at
+``vbar + (h^2/6) M^-1 grad^2 V(q_k) vbar`` instead, which removes it. For a mass matrix of ``q`` no such
+term is built: an O(h^2) drift is left.
+
+Step ``k``'s work is its segments' work plus the correction of the node it starts at (step 0 has none); a
+node that is also an impact (a sub-segment of zero length there) takes none. Impacts leave an O(h^2) bias
+each: (48a) equates the energies of two sub-segments of different lengths (README, *Forces*).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
@@ -18,47 +39,121 @@ import sympy as sp
 from .derive import DiscreteSystem
 from .result import Result
 
-WorkFn = Callable[..., np.ndarray]
+ForceFn = Callable[..., tuple[np.ndarray, np.ndarray]]
+CurvatureFn = Callable[..., np.ndarray]
+TINY = 1e-14  # a sub-segment shorter than TINY * h is no segment (simultaneous impacts, an impact on a node)
 
 
-def work_function(system: DiscreteSystem) -> WorkFn | None:
-    """``(q0 (K, n), v (K, n), tau (K,), par) -> (K,)`` of the segment work, or ``None`` without forces."""
+@dataclass(frozen=True)
+class Booking:
+    """What books the work: the segments' discrete forces and, where ``L`` allows, the kick's h^2 term."""
+
+    forces: ForceFn  # (q0 (K, n), v (K, n), tau (K,), t0 (K,), par) -> (f_d- (K, n), f_d+ (K, n))
+    curvature: CurvatureFn | None  # (q (K, n), par) -> (K, n, n): M^-1 grad^2 V, or None (module docstring)
+
+
+def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
+    """``rows`` as a numpy function of ``args`` and then the parameter vector ``par``."""
+    par = [sp.Symbol(f"_par{i}") for i in range(len(system.params))]
+    rep = dict(zip(system.params, par))
+    return sp.lambdify([*args, *par], [[e.xreplace(rep) for e in row] for row in rows], modules="numpy")
+
+
+def work_function(system: DiscreteSystem) -> Booking | None:
+    """The :class:`Booking` of ``system``'s forces, or ``None`` without forces."""
     seg = system.segment
     if not system.model.force or seg is None:
         return None
-    par = [sp.Symbol(f"_par{i}") for i in range(len(system.params))]
-    expr = seg.work.xreplace(dict(zip(system.params, par)))
-    fn = sp.lambdify([*seg.q0, *seg.v, seg.tau, *par], expr, modules="numpy")
+    fn = _lambdify(system, [*seg.q0, *seg.v, seg.tau], [list(seg.f_minus), list(seg.f_plus)])
 
-    def work(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values) -> np.ndarray:
+    def forces(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values):
         args = list(values) if not system.timed else [*list(values)[:-1], t0]
-        out = fn(*q0.T, *v.T, tau, *args)
-        return np.broadcast_to(np.asarray(out, dtype=float), tau.shape).copy()
+        fm, fp = fn(*q0.T, *v.T, tau, *args)
+        return tuple(
+            np.stack([np.broadcast_to(np.asarray(f, float), tau.shape) for f in fs], -1) for fs in (fm, fp)
+        )
 
-    return work
+    return Booking(forces, _curvature(system))
 
 
-def step_work(res: Result, work: WorkFn | None, par) -> np.ndarray:
-    """``(N-1,)``: the discrete work over each grid step, summed over its segments (0 without forces)."""
+def _curvature(system: DiscreteSystem) -> CurvatureFn | None:
+    """``M^-1 grad^2 V (q)`` when ``L = 1/2 qdot^T M qdot + b . qdot - V(q)`` with ``M``, ``b`` constant (no
+    ``d2L/dq dqdot``); ``None`` otherwise."""
+    model = system.model
+    qs, vs = model.coordinates, model.velocities
+    mass = model.mass_matrix
+    if mass.free_symbols & set(qs + vs) or any(model.L.diff(a).diff(b) != 0 for a in qs for b in vs):
+        return None
+    hess = -sp.hessian(model.L, sp.Matrix(qs))
+    if not hess.free_symbols & set(qs):  # V quadratic: the kick at vbar is exact, the h^2 term only bounded
+        return None
+    curv = mass.inv() * hess
+    n = model.n
+    fn = _lambdify(system, list(qs), [list(curv.row(i)) for i in range(n)])
+
+    def curvature(q: np.ndarray, values) -> np.ndarray:
+        out = fn(*q.T, *values)  # L holds no time: the time slot's value does not matter
+        return np.stack(
+            [np.stack([np.broadcast_to(np.asarray(c, float), q.shape[:1]) for c in row], -1) for row in out],
+            1,
+        )
+
+    return curvature
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("kn,kn->k", a, b)
+
+
+def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
+    """``(N-1,)``: the discrete work over each grid step: its segments' ``(f_d- + f_d+) . v`` (split at its
+    impacts) plus, at the grid node it starts at, ``(f_d+ - f_d-) . (v+ - v-) / 2`` and, with a curvature,
+    ``(h^2/6) J . M^-1 grad^2 V vbar`` (module docstring).
+    Exactly 0 without forces."""
     steps = res.energy.size
-    if work is None or steps == 0:
+    if booking is None or steps == 0:
         return np.zeros(steps)
+    forces = booking.forces
     q, t, h = res.q, res.t, res.h
-    out = work(q[:-1], (q[1:] - q[:-1]) / h, np.full(steps, h), t[:-1], par)
-    by_step: dict[int, list] = {}
-    for im in res.impacts:
-        if im.step < steps:
-            by_step.setdefault(im.step, []).append(im)
-    for k, ims in by_step.items():
-        ims.sort(key=lambda im: im.t)
-        ts = np.array([t[k], *(im.t for im in ims), t[k + 1]])
-        qs = np.array([q[k], *(im.q for im in ims), q[k + 1]])
+    v = (q[1:] - q[:-1]) / h
+    fm, fp = forces(q[:-1], v, np.full(steps, h), t[:-1], par)
+    out = _dot(fm + fp, v)
+    # the segments either side of each grid node: the last of step k-1 (v_end, f_end) and the first of step k
+    v_start, f_start, v_end, f_end = v.copy(), fm.copy(), v.copy(), fp.copy()
+    on_node = np.zeros(steps + 1, dtype=bool)  # an impact sits on grid node k
+    ims = [im for im in res.impacts if im.step < steps]
+    if ims:  # the impact steps, split at their impacts: all their sub-segments in one call
+        hit = np.array([im.step for im in ims])
+        ks = np.unique(hit)
+        owner = np.concatenate([ks, hit, ks])
+        place = np.concatenate(
+            [np.zeros(ks.size), np.ones(hit.size), np.full(ks.size, 2.0)]
+        )  # start, hit, end
+        ts = np.concatenate([t[ks], [im.t for im in ims], t[ks + 1]])
+        qs = np.concatenate([q[ks], np.array([im.q for im in ims]).reshape(hit.size, -1), q[ks + 1]])
+        order = np.lexsort((ts, place, owner))
+        owner, ts, qs = owner[order], ts[order], qs[order]
         tau = np.diff(ts)
-        keep = tau > 1e-14 * h  # simultaneous impacts: no segment between them
-        if not keep.any():
-            continue
-        dq = np.diff(qs, axis=0)[keep]
-        out[k] = float(np.sum(work(qs[:-1][keep], dq / tau[keep, None], tau[keep], ts[:-1][keep], par)))
+        inside = owner[1:] == owner[:-1]  # consecutive points of one step bound a segment
+        keep = inside & (tau > TINY * h)
+        first, last = np.flatnonzero(place[order][:-1] == 0), np.flatnonzero(place[order][1:] == 2)
+        on_node[ks] |= ~keep[first]
+        on_node[ks + 1] |= ~keep[last]
+        seg = np.flatnonzero(keep)
+        vs = (qs[seg + 1] - qs[seg]) / tau[seg, None]
+        gm, gp = forces(qs[seg], vs, tau[seg], ts[seg], par)
+        out[ks] = 0.0
+        np.add.at(out, owner[seg], _dot(gm + gp, vs))
+        _, head = np.unique(owner[seg], return_index=True)  # the first kept segment of each impact step
+        _, tail = np.unique(owner[seg][::-1], return_index=True)
+        tail = seg.size - 1 - tail  # and the last
+        k = owner[seg][head]
+        v_start[k], f_start[k], v_end[k], f_end[k] = vs[head], gm[head], vs[tail], gp[tail]
+    node = _dot(f_end[:-1] - f_start[1:], v_start[1:] - v_end[:-1]) / 2  # grid nodes 1 .. steps-1
+    if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
+        kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
+        node += h * h / 6 * np.einsum("kn,knm,km->k", kick, booking.curvature(q[1:steps], par), vbar)
+    out[1:] += np.where(on_node[1:steps], 0.0, node)
     return out
 
 
