@@ -155,7 +155,7 @@ def cone_impulse(g, h, b, mu_f: float, a: float) -> tuple[float, float]:
             break
         hi *= 2.0
         f_hi = infeasible(hi)
-    else:
+    if f_hi < 0.0:
         return 0.0, 0.0
     nu = _illinois_up(infeasible, 0.0, hi, f_lo, f_hi)
     m1, m2 = lagrangian_min(nu)
