@@ -1,4 +1,4 @@
-"""A spun ball bouncing on a rough floor in 3-D: Coulomb's cone at every impact, its path curving, then rolling.
+"""A spun ball bouncing on a rough floor in 3-D: Coulomb's cone at every impact, its path curving, rolling.
 
 q = (x, y, z, ax, ay): the centre and rotation angles about the x and y axes (m = 1, I = 2/5, a uniform ball
 of radius 1; the spin about z does not slide and is left out), floor z >= r with restitution e = 0.7 and
@@ -94,8 +94,9 @@ def report(res: vcigen.Result) -> None:
     late = res.t > t_roll + 0.01
     got = res.p[late, :2] / M
     print(
-        f"landed at t = {landing[-1].t:.4f} sliding at |u| = {math.hypot(*u):.4f}: rolls from t = {t_roll:.4f} at "
-        f"v = ({v_roll[0]:+.6f}, {v_roll[1]:+.6f}); simulated ({got[-1, 0]:+.6f}, {got[-1, 1]:+.6f}), "
+        f"landed at t = {landing[-1].t:.4f} sliding at |u| = {math.hypot(*u):.4f}: "
+        f"rolls from t = {t_roll:.4f} at v = ({v_roll[0]:+.6f}, {v_roll[1]:+.6f}); "
+        f"simulated ({got[-1, 0]:+.6f}, {got[-1, 1]:+.6f}), "
         f"max error {np.max(np.abs(got - v_roll)):.1e}"
     )
     slide_late = [math.hypot(*sliding(*state(res, i))) for i in np.flatnonzero(late)]
