@@ -8,6 +8,8 @@ backends, against closed forms and scipy.
 * A ball (``x, y, z`` and rotation angles ``ax, ay`` about x and y, sliding velocity ``(xd - r ayd, yd + r
   axd)``) bouncing on a rough floor leaves with Coulomb's impulse law: the stick impulse if it fits in the
   cone ``mu P_n``, else ``-mu P_n u/|u|`` along the incoming sliding ``u``.
+* A turning rod's end hitting the floor (the tangents coupled to the normal through the rotation) leaves with
+  the least-energy impulse over the cone under Newton's law, found independently by scipy's SLSQP.
 * The impulse over the cone (:func:`vcigen.friction.cone_impulse`) against scipy's SLSQP; friction never adds
   energy (random rough 3-D boxes); bad friction is refused; C = CasADi.
 """
@@ -146,6 +148,20 @@ def test_puck_slides_straight_to_a_stop_after_v2_over_2_mu_g(backend):
         assert np.all(res.active[:, 0]) and np.max(np.abs(res.q[:, 2])) < 1e-12
         assert abs(res.work.sum() + v * v / 2) < 1e-12
         assert np.max(np.abs(res.p[t > ts + h, :2])) < 1e-15
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("slope", [0.5, 1.5])
+def test_puck_at_rest_on_an_incline_sticks_or_slides_downhill(backend, slope):
+    """At rest on an incline with tan a = slope mu: it stays put (slope < 1), or the stick breaks at once and
+    it slides straight downhill at g (sin a - mu cos a), exactly (slope > 1)."""
+    angle = math.atan(slope * MU)
+    res = sim("puck", backend).simulate(
+        q0=[0.0, 0.0, 0.0], v0=[0.0, 0.0, 0.0], h=0.01, t_end=1.0, params={"a": angle}
+    )
+    acc = G * (math.sin(angle) - MU * math.cos(angle)) if slope > 1 else 0.0
+    np.testing.assert_allclose(res.q[:, 1], -acc * res.t**2 / 2, rtol=0, atol=1e-13)
+    assert np.max(np.abs(res.q[:, 0])) == 0.0 and np.all(res.active[:, 0])
 
 
 @cache
