@@ -10,6 +10,11 @@ inside, the contact sticks (with ``n.A t = 0``, e.g. a disk on a floor: the slid
 rolling); at an end it slips. ``mu_t = 0`` is in the interval, so the energy never rises above the
 frictionless law's, which never rises above the incoming one. The stepper then solves the jump (48) along
 the impulse direction ``n + (mu_t / mu_n) t`` with the energy target changed by ``dK``.
+
+With two tangents (the isotropic cone of a 3-D contact, :func:`cone_law`) ``mu_t`` is a 2-vector and the
+interval becomes the convex slice ``|mu_t| <= mu_f (a - b.mu_t)`` of the cone, over which the quadratic is
+minimised exactly by two monotone 1-D roots (:func:`cone_impulse`); the direction is then
+``n + (mu_t1/mu_n) t1 + (mu_t2/mu_n) t2``.
 """
 
 from __future__ import annotations

@@ -198,7 +198,7 @@ class Model:
             out.append(expr)
         return time_sym, tuple(out)
 
-    def _friction(self, contacts, params, subs, real_q) -> dict[str, tuple[sp.Expr, sp.Expr]]:
+    def _friction(self, contacts, params, subs, real_q) -> dict[str, tuple[sp.Expr, sp.Expr | tuple]]:
         """Coulomb friction per contact: ``(mu_f, tangent)``, ``mu_f >= 0`` a number or an expression of
         parameters, ``tangent`` an expression of ``q`` whose rate is the sliding velocity (MATH.md), or a
         tuple of two such (the two sliding velocities of a 3-D contact: an isotropic cone).
