@@ -332,6 +332,32 @@ def test_rod_end_impact_with_coupled_normal_against_slsqp(backend, case, sticks)
     assert errs[1] < 1e-3 and errs[1] < errs[0] / 12, errs
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_ball_set_down_sliding_rolls_when_friction_has_matched_its_spin(backend):
+    """A ball set down on the floor sliding with spin: the sliding velocity u shrinks along a fixed direction
+    at mu g (1 + m r^2 / I) while the centre decelerates at mu g along -u/|u|, until it rolls at
+    t* = |u0| / (mu g (1 + m r^2 / I)); then it rolls on straight at constant velocity. Exact."""
+    v0, w0 = np.array([1.0, 0.5]), np.array([2.0, -1.5])
+    u0 = np.array([v0[0] - RADIUS * w0[1], v0[1] + RADIUS * w0[0]])
+    decel = BALL_MU * G * u0 / math.hypot(*u0)
+    ts = math.hypot(*u0) / (BALL_MU * G * (1 + MASS * RADIUS**2 / INERTIA))
+    res = sim("ball", backend).simulate(
+        q0=[0.0, 0.0, RADIUS, 0.0, 0.0], v0=[*v0, 0.0, *w0], h=0.01, t_end=1.0
+    )
+    t = res.t[:, None]
+    tc = np.minimum(t, ts)
+    exact = v0 * tc - decel * tc**2 / 2 + (v0 - decel * ts) * np.maximum(t - ts, 0.0)
+    assert np.max(np.abs(res.q[:, :2] - exact)) < 1e-12
+    late = res.t > ts + 0.02
+    np.testing.assert_allclose(
+        res.p[late, :2] / MASS, np.broadcast_to(v0 - decel * ts, (late.sum(), 2)), atol=1e-12
+    )
+    w = res.p[late, 3:] / INERTIA
+    np.testing.assert_allclose(res.p[late, 0] / MASS - RADIUS * w[:, 1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(res.p[late, 1] / MASS + RADIUS * w[:, 0], 0.0, atol=1e-12)
+    assert np.all(res.active[:, 0])
+
+
 def test_cone_impulse_is_the_minimiser_over_the_cone():
     """The impulse law's minimisation against scipy's SLSQP on random instances (b = 0 and b != 0, narrow and
     wide cones, mu_f |b| >= 1 included): feasible, and never above SLSQP's minimum."""
