@@ -160,8 +160,8 @@ def test_bad_friction_is_refused():
         vcigen.Model(friction={"floor": (0.3, xd)}, **base)
     with pytest.raises(ValueError, match="pair"):
         vcigen.Model(friction={"floor": 0.3}, **base)
-    with pytest.raises(ValueError, match="not supported yet"):
-        vcigen.Model(friction={"floor": (0.3, (x, y))}, **base)
+    with pytest.raises(ValueError, match="has 3 tangents"):
+        vcigen.Model(friction={"floor": (0.3, (x, y, x + y))}, **base)
     m = vcigen.Model(friction={"floor": (mu, x)}, params={mu: 0.2}, **base)
     with pytest.raises(ValueError, match="friction coefficient of 'floor' is -1.0"):
         vcigen.build(m, backend="casadi").simulate(

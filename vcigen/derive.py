@@ -215,11 +215,24 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     )
     routines = {r.name: r for r in (legendre, segment, contacts, restitution)}
     if model.friction_of:
-        fr = model.friction_of
+        fr, tans = model.friction_of, model.tangents_of
         mus = sp.Matrix([fr[c][0] if c in fr else sp.S.Zero for c in names])
-        tgrad = sp.Matrix(
-            [[_no_dirac(fr[c][1].xreplace(qrep).diff(s)) if c in fr else sp.S.Zero for s in q] for c in names]
-        )
+
+        def tangent_grads(d: int) -> sp.Matrix:
+            """Each contact's gradient of its tangent ``d`` (0 where it has none)."""
+            return sp.Matrix(
+                [
+                    [
+                        _no_dirac(tans[c][d].xreplace(qrep).diff(s))
+                        if len(tans.get(c, ())) > d
+                        else sp.S.Zero
+                        for s in q
+                    ]
+                    for c in names
+                ]
+            )
+
+        tgrad = tangent_grads(0)
         routines["friction"] = Routine(
             "friction",
             (Arg("q", q), par),
@@ -235,6 +248,13 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
             ),
             "Coulomb friction of each contact: mu_f (0: frictionless) and the tangent's gradient (MATH.md).",
         )
+        if any(len(t) == 2 for t in tans.values()):
+            routines["friction_cone"] = Routine(
+                "friction_cone",
+                (Arg("q", q), par),
+                (Output("tgrad2", tangent_grads(1)),),
+                "The second tangent's gradient of each contact with an isotropic cone (0 elsewhere).",
+            )
 
     # Smooth step (46): p_k = p-(q_k, q_k + h v, h).
     q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
@@ -398,3 +418,7 @@ def set_rows(kernels, system: DiscreteSystem) -> None:
     kernels.frictional = rows.frictional if rows else ()  # contact index of each frictional contact
     kernels.friction_slot = len(system.model.defaults)  # par[slot:]: nf slips, nf refs, the branch signs
     kernels.branch_count = tuple(len(b) for b in rows.branches) if rows else ()
+    # per frictional contact: its partner (the other tangent of a cone contact), -1 for one tangent
+    kernels.partner = (rows.partner or (-1,) * len(rows.frictional)) if rows else ()
+    tans = system.model.tangents_of
+    kernels.cone = tuple(len(tans.get(c, ())) == 2 for c in system.contact_names)  # per contact: two tangents

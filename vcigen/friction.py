@@ -10,6 +10,11 @@ inside, the contact sticks (with ``n.A t = 0``, e.g. a disk on a floor: the slid
 rolling); at an end it slips. ``mu_t = 0`` is in the interval, so the energy never rises above the
 frictionless law's, which never rises above the incoming one. The stepper then solves the jump (48) along
 the impulse direction ``n + (mu_t / mu_n) t`` with the energy target changed by ``dK``.
+
+With two tangents (the isotropic cone of a 3-D contact, :func:`cone_law`) ``mu_t`` is a 2-vector and the
+interval becomes the convex slice ``|mu_t| <= mu_f (a - b.mu_t)`` of the cone, over which the quadratic is
+minimised exactly by two monotone 1-D roots (:func:`cone_impulse`); the direction is then
+``n + (mu_t1/mu_n) t1 + (mu_t2/mu_n) t2``.
 """
 
 from __future__ import annotations
@@ -34,3 +39,131 @@ def impact_law(vel: np.ndarray, mass: np.ndarray, n: np.ndarray, t: np.ndarray, 
     mu_n = a - b * mu_t
     dk = mu_t * dv + 0.5 * mu_t * mu_t * dad + a * nv + 0.5 * a * a * nn
     return mu_n, mu_t, dk, an, at
+
+
+CONE_ITER = 200  # iterations of each 1-D root of the cone's impulse at most (doublings of its bracket too)
+
+
+def cone_law(
+    vel: np.ndarray, mass: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: np.ndarray, mu_f: float, e: float
+):
+    """:func:`impact_law` with two tangents (the isotropic cone of a 3-D contact): ``(mu_n, mu_t, dK, M^-1 n,
+    M^-1 (t1, t2))`` with ``mu_t`` the tangential impulse, a 2-vector.
+
+    As in one dimension, with ``A = M^-1``, ``b_i = n.A t_i / n.A n`` and ``d_i = t_i - b_i n``: ``mu_n = a -
+    b.mu_t`` and the kinetic energy after is ``a n.qdot + a^2 n.A n / 2 + g.mu_t + mu_t.H mu_t / 2`` with
+    ``g_i = d_i.qdot`` and ``H_ij = d_i.A d_j``. It is minimised (:func:`cone_impulse`) over Coulomb's cone
+    ``|mu_t| <= mu_f (a - b.mu_t)``: inside it the contact sticks, else the impulse is on its edge.
+    """
+    an, at1, at2 = np.linalg.solve(mass, np.column_stack([n, t1, t2])).T
+    nv, nn = float(n @ vel), float(n @ an)
+    nt = (float(n @ at1), float(n @ at2))
+    a = max(-(1.0 + e) * nv / nn, 0.0)
+    b = (nt[0] / nn, nt[1] / nn)
+    g = (float(t1 @ vel) - b[0] * nv, float(t2 @ vel) - b[1] * nv)
+    h = (float(t1 @ at1) - nt[0] * nt[0] / nn, float(t1 @ at2) - nt[0] * nt[1] / nn)
+    h = (h[0], h[1], float(t2 @ at2) - nt[1] * nt[1] / nn)  # H = [[h0, h1], [h1, h2]]
+    m1, m2 = cone_impulse(g, h, b, mu_f, a)
+    mu_n = a - b[0] * m1 - b[1] * m2
+    dk = (
+        a * nv
+        + 0.5 * a * a * nn
+        + g[0] * m1
+        + g[1] * m2
+        + 0.5 * (h[0] * m1 * m1 + 2 * h[1] * m1 * m2 + h[2] * m2 * m2)
+    )
+    return mu_n, np.array([m1, m2]), dk, an, np.stack([at1, at2])
+
+
+def _eigen(h):
+    """Eigenvalues ``l1 <= l2`` of the symmetric 2x2 ``[[h0, h1], [h1, h2]]`` and the unit eigenvector
+    ``(c, s)`` of ``l1`` (that of ``l2`` is ``(-s, c)``)."""
+    mean, half = 0.5 * (h[0] + h[2]), 0.5 * (h[0] - h[2])
+    rad = math.hypot(half, h[1])
+    if rad == 0.0:
+        return mean, mean, 1.0, 0.0
+    ang = 0.5 * math.atan2(h[1], half)  # the eigenvector of the larger eigenvalue is (cos ang, sin ang)
+    return mean - rad, mean + rad, -math.sin(ang), math.cos(ang)
+
+
+def _illinois_up(fn, lo: float, hi: float, f_lo: float, f_hi: float) -> float:
+    """Illinois on ``[lo, hi]`` for the root of increasing ``fn`` (``f_lo <= 0 <= f_hi``): the end where
+    ``fn >= 0`` once the bracket is as narrow as the doubles allow (or ``fn = 0``)."""
+    side = 0
+    for _ in range(CONE_ITER):
+        c = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+        if not lo < c < hi:
+            c = 0.5 * (lo + hi)
+            if not lo < c < hi:
+                break
+        fc = fn(c)
+        if fc == 0.0:
+            return c
+        if fc > 0.0:
+            hi, f_hi = c, fc
+            f_lo = f_lo / 2 if side == 1 else f_lo
+            side = 1
+        else:
+            lo, f_lo = c, fc
+            f_hi = f_hi / 2 if side == -1 else f_hi
+            side = -1
+        if hi - lo <= 4e-16 * hi:
+            break
+    return hi
+
+
+def cone_impulse(g, h, b, mu_f: float, a: float) -> tuple[float, float]:
+    """``argmin g.m + m.H m / 2`` over ``|m| <= mu_f (a - b.m)`` (``m`` in R^2, ``H = [[h0, h1], [h1, h2]]``
+    positive definite, ``a > 0``): exact, by two monotone 1-D roots.
+
+    The set is convex (a slice of Coulomb's cone), so the minimiser is unique. If the unconstrained one
+    ``-H^-1 g`` is inside, it is the answer (stick). Else it is ``m(nu)``, the minimiser of the Lagrangian
+    ``g.m + m.H m / 2 + nu (|m| + mu_f b.m)``, at the multiplier ``nu > 0`` where
+    ``c(nu) = |m(nu)| - mu_f (a - b.m(nu))`` reaches 0; ``c`` is the derivative of the concave dual, so
+    it decreases with ``nu``. For one
+    ``nu``, with ``gt = g + nu mu_f b``: ``m = 0`` if ``|gt| <= nu``, else ``m = -(H + sI)^-1 gt`` at the
+    ``s > 0`` where ``|s (H + sI)^-1 gt| = nu``, increasing in ``s`` and bracketed by the eigenvalues of
+    ``H``. The root returned is the feasible end of the last bracket: the impulse is inside the cone.
+    """
+    det = h[0] * h[2] - h[1] * h[1]
+    if not (mu_f > 0.0 and a > 0.0 and h[0] > 0.0 and det > 0.0):
+        return 0.0, 0.0
+    m1, m2 = -(h[2] * g[0] - h[1] * g[1]) / det, -(h[0] * g[1] - h[1] * g[0]) / det
+    if math.hypot(m1, m2) <= mu_f * (a - b[0] * m1 - b[1] * m2):
+        return m1, m2  # stick
+    l1, l2, c, s = _eigen(h)
+
+    def lagrangian_min(nu: float) -> tuple[float, float]:
+        gt = (g[0] + nu * mu_f * b[0], g[1] + nu * mu_f * b[1])
+        norm = math.hypot(*gt)
+        if norm <= nu:
+            return 0.0, 0.0
+        y1, y2 = c * gt[0] + s * gt[1], -s * gt[0] + c * gt[1]  # gt in H's eigenbasis
+
+        def excess(sh: float) -> float:  # |sh (H + sh I)^-1 gt| - nu, increasing in sh
+            return math.hypot(sh * y1 / (l1 + sh), sh * y2 / (l2 + sh)) - nu
+
+        lo, hi = nu * l1 / (norm - nu), nu * l2 / (norm - nu)
+        sh = _illinois_up(excess, lo, hi, excess(lo), excess(hi)) if hi > lo else lo
+        z1, z2 = -y1 / (l1 + sh), -y2 / (l2 + sh)
+        return c * z1 - s * z2, s * z1 + c * z2
+
+    def infeasible(nu: float) -> float:  # -c(nu): increasing in nu
+        p1, p2 = lagrangian_min(nu)
+        return mu_f * (a - b[0] * p1 - b[1] * p2) - math.hypot(p1, p2)
+
+    f_lo = infeasible(0.0)
+    hi = max(math.hypot(*g), 1e-300)
+    f_hi = infeasible(hi)
+    for _ in range(CONE_ITER):
+        if f_hi >= 0.0:
+            break
+        hi *= 2.0
+        f_hi = infeasible(hi)
+    if f_hi < 0.0:
+        return 0.0, 0.0
+    nu = _illinois_up(infeasible, 0.0, hi, f_lo, f_hi)
+    m1, m2 = lagrangian_min(nu)
+    if g[0] * m1 + g[1] * m2 + 0.5 * (h[0] * m1 * m1 + 2 * h[1] * m1 * m2 + h[2] * m2 * m2) > 0.0:
+        return 0.0, 0.0  # never above the frictionless law (round-off only)
+    return m1, m2

@@ -198,9 +198,10 @@ class Model:
             out.append(expr)
         return time_sym, tuple(out)
 
-    def _friction(self, contacts, params, subs, real_q) -> dict[str, tuple[sp.Expr, sp.Expr]]:
+    def _friction(self, contacts, params, subs, real_q) -> dict[str, tuple[sp.Expr, sp.Expr | tuple]]:
         """Coulomb friction per contact: ``(mu_f, tangent)``, ``mu_f >= 0`` a number or an expression of
-        parameters, ``tangent`` an expression of ``q`` whose rate is the sliding velocity (MATH.md).
+        parameters, ``tangent`` an expression of ``q`` whose rate is the sliding velocity (MATH.md), or a
+        tuple of two such (the two sliding velocities of a 3-D contact: an isotropic cone).
         """
         out = {}
         for name, spec in dict(self.friction).items():
@@ -222,21 +223,25 @@ class Model:
                 )
             if not mu.free_symbols and not float(mu) >= 0.0:
                 raise ValueError(f"friction coefficient of {name!r} is {mu}; it must be >= 0")
-            if isinstance(tangent, (tuple, list)):
-                if len(tangent) != 1:
-                    raise ValueError(
-                        f"friction of {name!r}: {len(tangent)} tangents (an isotropic cone in 3-D) are not "
-                        "supported yet; give one tangent expression"
-                    )
-                tangent = tangent[0]
-            tan = sp.sympify(tangent).subs(subs)
-            extra = tan.free_symbols - set(real_q) - set(params)
-            if extra or not tan.free_symbols & set(real_q):
+            tangents = tuple(tangent) if isinstance(tangent, (tuple, list)) else (tangent,)
+            if len(tangents) not in (1, 2):
                 raise ValueError(
-                    f"friction tangent of {name!r} = {tangent} must be an expression of the coordinates "
-                    "(and parameters) that depends on q"
+                    f"friction of {name!r} has {len(tangents)} tangents; give one tangent expression, or a "
+                    "tuple of two (the isotropic cone of a 3-D contact)"
                 )
-            out[name] = (mu, tan)
+            tans = []
+            for tangent in tangents:
+                tan = sp.sympify(tangent).subs(subs)
+                extra = tan.free_symbols - set(real_q) - set(params)
+                if extra or not tan.free_symbols & set(real_q):
+                    raise ValueError(
+                        f"friction tangent of {name!r} = {tangent} must be an expression of the coordinates "
+                        "(and parameters) that depends on q"
+                    )
+                tans.append(tan)
+            if len(tans) == 2 and sp.simplify(tans[0] - tans[1]) == 0:
+                raise ValueError(f"friction of {name!r}: its two tangents are the same expression")
+            out[name] = (mu, tans[0] if len(tans) == 1 else tuple(tans))
         return out
 
     def _restitution(
@@ -367,9 +372,15 @@ class Model:
         return forces if any(f != 0 for f in forces) else ()
 
     @property
-    def friction_of(self) -> dict[str, tuple[sp.Expr, sp.Expr]]:
-        """Coulomb friction by contact: ``(mu_f, tangent)`` in the real symbols (frictional contacts only)."""
+    def friction_of(self) -> dict[str, tuple[sp.Expr, sp.Expr | tuple[sp.Expr, sp.Expr]]]:
+        """Coulomb friction by contact: ``(mu_f, tangent)`` in the real symbols (frictional contacts only);
+        ``tangent`` a tuple of two for the isotropic cone of a 3-D contact."""
         return dict(self._fric)  # type: ignore[attr-defined]
+
+    @property
+    def tangents_of(self) -> dict[str, tuple[sp.Expr, ...]]:
+        """The tangent expressions of each frictional contact: one, or two (an isotropic cone)."""
+        return {c: t if isinstance(t, tuple) else (t,) for c, (_, t) in self.friction_of.items()}
 
     def friction_values(self, par: Sequence[float]) -> list[float]:
         """``mu_f`` of every contact (0 where frictionless) at ``par``; raises if one is negative."""

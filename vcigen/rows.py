@@ -43,6 +43,8 @@ class Rows:
     # sticks on, so that a kinked body's tangent stays that of one vertex or face), and their arguments
     branches: tuple[tuple[sp.Symbol, ...], ...] = ()
     branch_args: tuple[tuple[sp.Expr, ...], ...] = ()
+    # per frictional contact: the other tangent's frictional contact of a two-tangent (cone) contact, or -1
+    partner: tuple[int, ...] = ()
 
     @property
     def size(self) -> int:
@@ -98,23 +100,29 @@ def contact_rows(model: Model) -> Rows:
         owner.append(-1)
         cons.append(i)
         names.append(name)
-    # Stick rows (Coulomb friction in sustained contact): tangent(q) - ref = 0 while a contact sticks.
+    # Stick rows (Coulomb friction in sustained contact): tangent(q) - ref = 0 while a contact sticks. A
+    # contact with two tangents (an isotropic cone) has two of them, each with its own slots: the two
+    # "frictional contacts" f of one contact are partners, switched together (vcigen.sustained).
     stick = [-1] * len(exprs)
-    slips, refs, frictional, branches, branch_args = [], [], [], [], []
+    slips, refs, frictional, branches, branch_args, partner = [], [], [], [], [], []
     contacts = list(model.phi)
-    for f, (name, (_, tangent)) in enumerate(model.friction_of.items()):
-        slips.append(sp.Symbol(f"slip_{name}", real=True))
-        refs.append(sp.Symbol(f"stick_{name}", real=True))
-        frictional.append(contacts.index(name))
-        atoms = sorted(tangent.atoms(sp.sign), key=sp.default_sort_key)
-        sigma = tuple(sp.Symbol(f"branch_{name}_{i}", real=True) for i in range(len(atoms)))
-        branches.append(sigma)
-        branch_args.append(tuple(a.args[0] for a in atoms))
-        exprs.append(tangent.xreplace(dict(zip(atoms, sigma))) - refs[-1])
-        owner.append(-1)
-        cons.append(-1)
-        names.append(f"{name}/stick")
-        stick.append(f)
+    for name, tangents in model.tangents_of.items():
+        for d, tangent in enumerate(tangents):
+            tag = name if d == 0 else f"{name}_{d + 1}"
+            f = len(frictional)
+            slips.append(sp.Symbol(f"slip_{tag}", real=True))
+            refs.append(sp.Symbol(f"stick_{tag}", real=True))
+            frictional.append(contacts.index(name))
+            partner.append(-1 if len(tangents) == 1 else (f + 1 if d == 0 else f - 1))
+            atoms = sorted(tangent.atoms(sp.sign), key=sp.default_sort_key)
+            sigma = tuple(sp.Symbol(f"branch_{tag}_{i}", real=True) for i in range(len(atoms)))
+            branches.append(sigma)
+            branch_args.append(tuple(a.args[0] for a in atoms))
+            exprs.append(tangent.xreplace(dict(zip(atoms, sigma))) - refs[-1])
+            owner.append(-1)
+            cons.append(-1)
+            names.append(f"{name}/stick" if d == 0 else f"{name}/stick{d + 1}")
+            stick.append(f)
     if not frictional:
         return Rows(tuple(exprs), tuple(owner), tuple(cons), tuple(names))
     return Rows(
@@ -128,4 +136,5 @@ def contact_rows(model: Model) -> Rows:
         tuple(frictional),
         tuple(branches),
         tuple(branch_args),
+        tuple(partner),
     )

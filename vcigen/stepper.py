@@ -21,7 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from .errors import NONFINITE, SolverError
-from .friction import impact_law
+from .friction import cone_law, impact_law
 from .result import Impact, Result
 from .sustained import SustainedSteps, SustainLog, held_contacts
 
@@ -394,6 +394,13 @@ class Stepper(SustainedSteps):
         if mu_f[j] <= 0.0:
             return None
         mass = k.legendre(seg.q, vel)[1]
+        if getattr(k, "cone", ()) and k.cone[j]:  # two tangents: the isotropic cone
+            t2 = k.friction_cone(seg.q)[j]
+            mu_n, mu_t, dk, an, at = cone_law(vel, mass, seg.nrm, tgrad[j], t2, float(mu_f[j]), restitution)
+            if not mu_n > 0.0:
+                return None
+            seg.nrm = seg.nrm + (mu_t[0] / mu_n) * tgrad[j] + (mu_t[1] / mu_n) * t2
+            return mu_n, an + (mu_t[0] / mu_n) * at[0] + (mu_t[1] / mu_n) * at[1], dk
         mu_n, mu_t, dk, an, at = impact_law(vel, mass, seg.nrm, tgrad[j], float(mu_f[j]), restitution)
         if not mu_n > 0.0:
             return None

@@ -124,6 +124,7 @@ class SustainedSteps:
         self._branch = np.zeros(sum(counts))  # the signs each sticking tangent is frozen at
         self._branch_of = [list(range(sum(counts[:f]), sum(counts[: f + 1]))) for f in range(nf)]
         self._held_rows = [0] * nf  # the active rows (a bitmask) each frictional contact's mode was set on
+        self._partner = list(getattr(k, "partner", ())) or [-1] * nf  # the other tangent of a cone contact
         if nf:
             k.set_friction(self._slip, self._ref, self._branch)
         self.liftoffs: list[tuple[float, str]] = []
@@ -211,9 +212,10 @@ class SustainedSteps:
         if self._stick_rows:
             self.k.set_friction(self._slip, self._ref, self._branch)
 
-    def _friction_modes(self, q, u) -> None:
+    def _friction_modes(self, q, u, tau: float | None = None) -> None:
         """Stick or slip for each frictional contact at ``(q, u)``: off when it is not held; on entering
-        sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it."""
+        sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+        Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a segment of ``tau``."""
         k = self.k
         if not self._stick_rows:
             return
@@ -225,6 +227,8 @@ class SustainedSteps:
             elif mask != self._held_rows[f]:  # another vertex or face in contact: its own branch, mode anew
                 self.act[sr], self._slip[f] = False, 0.0
             self._held_rows[f] = mask
+            if self._partner[f] >= 0:
+                continue  # a cone: both tangents at once, below
             if mask and self._mu_f[f] > 0.0 and not self.act[sr] and self._slip[f] == 0.0:
                 self._freeze_branch(f, q)
                 sliding = float(k.rows(q, u)[1][sr] @ u)
@@ -232,6 +236,88 @@ class SustainedSteps:
                     self._stick(f, q, u)
                 else:
                     self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
+        self._cone_modes(q, u, tau)
+        self._set_friction()
+
+    # -- isotropic cones: a contact with two tangents, frictional contacts f and its partner ----------------
+    def _cones(self):
+        """``(f, partner)`` of each cone contact, ``f`` its first tangent."""
+        return [(f, p) for f, p in enumerate(self._partner) if p > f]
+
+    def _sliding(self, f: int, p: int, grad, u) -> np.ndarray:
+        """The sliding velocity of cone ``(f, p)``: both tangents' rates ``grad tangent . u``."""
+        return np.array([float(grad[self._stick_rows[f]] @ u), float(grad[self._stick_rows[p]] @ u)])
+
+    def _cone_modes(self, q, u, tau: float | None) -> None:
+        """Stick or slip of each cone contact at ``(q, u)``, as :meth:`_friction_modes` for one tangent: on
+        entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips with the
+        force ``-mu_f lambda s`` along the sliding direction ``s``. A slipping cone's ``s`` is aimed anew at
+        the start of every segment (:meth:`_cone_aim`) and frozen over it."""
+        k = self.k
+        for f, p in self._cones():
+            if not self._held_rows[f] or self._mu_f[f] <= 0.0 or self.act[self._stick_rows[f]]:
+                continue
+            if self._slip[f] == 0.0 and self._slip[p] == 0.0:
+                self._freeze_branch(f, q)
+                self._freeze_branch(p, q)
+                w = self._sliding(f, p, k.rows(q, u)[1], u)
+                if math.hypot(*w) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+                    self._stick(f, q, u)
+                    self._stick(p, q, u)
+                    continue
+                self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
+            if tau is not None:
+                self._cone_aim(f, p, q, u, tau)
+
+    def _cone_aim(self, f: int, p: int, q, u, tau: float) -> None:
+        """The slip direction of cone ``(f, p)`` over a segment of ``tau`` from ``(q, u)``: the sliding
+        velocity predicted at the segment's midpoint, ``w + tau/2 dw/dt`` (``dw/dt = grad tangent . qddot +
+        u . Hess tangent . u`` with the contact forces at the start and the start's direction), normalised.
+        Explicit and second order (the direction of the chord of RATTLE's step to O(tau^2); exact while the
+        sliding keeps its direction); the start's direction if the prediction turns back (a stop in the
+        segment, located by :meth:`_friction_events`)."""
+        k = self.k
+        _, grad, curv = k.rows(q, u)
+        w = self._sliding(f, p, grad, u)
+        if math.hypot(*w) > SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+            self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
+            self._set_friction()
+        acc = self._accel(q, u, self._contact_forces(q, u))
+        sf, sp_ = self._stick_rows[f], self._stick_rows[p]
+        mid = w + 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
+        norm = math.hypot(*mid)
+        if norm > 0.0 and float(mid @ self._slip[[f, p]]) < 0.0:  # along -slip: the way it slides
+            self._slip[[f, p]] = -self._mu_f[f] * mid / norm
+            self._set_friction()
+
+    def _cone_stop(self, f: int, p: int, step, t_k, q, p0, tau, v, u1, end, vel0, events) -> None:
+        """A slipping cone that stops inside the segment: its sliding velocity along the frozen slip direction
+        ``s`` at the segment's end is negative; located along the sub-step map (Illinois) where it is 0."""
+        s = -self._slip[[f, p]] / self._mu_f[f]
+        g1 = float(s @ self._sliding(f, p, end.grad, u1))
+        if g1 >= 0.0:
+            return
+        g0 = float(s @ self._sliding(f, p, self.k.rows(q, vel0)[1], vel0))
+
+        def along(c, w):
+            w, end_c, u_c = self._sub_end(step, t_k, q, p0, tau, c, w)
+            return float(s @ self._sliding(f, p, end_c.grad, u_c)), w
+
+        frac = 0.0 if g0 <= 0.0 else _illinois(along, g0, g1, 1e-14, 1e-13, LIFT_ITER, v)
+        events[self._stick_rows[f]] = ("stop", frac)
+
+    def _cone_switch(self, kind: str, f: int, p: int, q, u) -> None:
+        """At a located event of cone ``(f, p)``: a stop sticks both tangents (what sliding is left across
+        the frozen direction, O(tau^2), goes with it); a stick force out of the cone slips the way it
+        pushes, ``s = -lambda_t / |lambda_t|``."""
+        if kind == "stop":
+            self._stick(f, q, u)
+            self._stick(p, q, u)
+        else:
+            forces = self._contact_forces(q, u)
+            lam = np.array([forces[self._stick_rows[f]], forces[self._stick_rows[p]]])
+            self.act[self._stick_rows[f]] = self.act[self._stick_rows[p]] = False
+            self._slip[[f, p]] = self._mu_f[f] * lam / max(math.hypot(*lam), 1e-300)
         self._set_friction()
 
     def _freeze_branch(self, f: int, q) -> None:
@@ -255,6 +341,9 @@ class SustainedSteps:
         k = self.k
         j = k.frictional[f]
         normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
+        if self._partner[f] >= 0:  # a cone: the length of the tangential force
+            tangential = math.hypot(forces[self._stick_rows[f]], forces[self._stick_rows[self._partner[f]]])
+            return float(self._mu_f[f] * normal - tangential)
         return float(self._mu_f[f] * normal - abs(forces[self._stick_rows[f]]))
 
     def _friction_events(self, step, t_k, q, p, tau, v, u1, end, f1, events) -> None:
@@ -264,7 +353,11 @@ class SustainedSteps:
         vel0 = self._velocity(q, v, p)
         for f in range(len(self._stick_rows)):
             sr = self._stick_rows[f]
-            if self._slip[f]:
+            if 0 <= self._partner[f] < f:
+                continue  # a cone's second tangent: its events are its first's
+            if self._partner[f] >= 0 and (self._slip[f] or self._slip[self._partner[f]]):
+                self._cone_stop(f, self._partner[f], step, t_k, q, p, tau, v, u1, end, vel0, events)
+            elif self._slip[f]:
                 s = -math.copysign(1.0, self._slip[f])  # the sliding direction
                 g1 = s * float(end.grad[sr] @ u1)
                 if g1 < 0.0:
@@ -292,6 +385,9 @@ class SustainedSteps:
     def _friction_switch(self, kind: str, sr: int, q, u) -> None:
         """At a located friction event: a stopped contact sticks; a sliding one slips against its force."""
         f = self.k.row_stick[sr]
+        if self._partner[f] >= 0:
+            self._cone_switch(kind, f, self._partner[f], q, u)
+            return
         sliding = float(self.k.rows(q, u)[1][sr] @ u)
         if kind == "stop" and abs(sliding) > SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
             self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)  # an impact turned it: slip that way
@@ -337,7 +433,7 @@ class SustainedSteps:
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
-                self._friction_modes(q, self._velocity(q, guess, p))
+                self._friction_modes(q, self._velocity(q, guess, p), tau)
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)

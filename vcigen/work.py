@@ -159,20 +159,30 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
 
 def tangent_function(system: DiscreteSystem):
     """``q (K, n), par -> (K, m, n)``: each contact's tangent gradient (the derived ``friction`` routine's
-    ``tgrad``; 0 where frictionless), or ``None`` without friction."""
+    ``tgrad``; 0 where frictionless), or ``None`` without friction. With isotropic cones, ``(K, m, 2, n)``:
+    the second tangent's (``friction_cone``'s ``tgrad2``) too."""
     routine = system.routines.get("friction")
     if routine is None:
         return None
     q, par = routine.input("q").symbols, routine.input("par").symbols
+    cone = system.routines.get("friction_cone")
     grads = routine.output("tgrad").expr.tolist()
-    fn = sp.lambdify([*q, *par], grads, modules="numpy")
+    fns = [sp.lambdify([*q, *par], grads, modules="numpy")]
+    if cone is not None:
+        fns.append(sp.lambdify([*q, *par], cone.output("tgrad2").expr.tolist(), modules="numpy"))
 
     def tangents(qs: np.ndarray, values) -> np.ndarray:
-        out = fn(*qs.T, *values)
-        return np.stack(
-            [np.stack([np.broadcast_to(np.asarray(g, float), qs.shape[:1]) for g in row], -1) for row in out],
-            1,
-        )
+        out = [
+            np.stack(
+                [
+                    np.stack([np.broadcast_to(np.asarray(g, float), qs.shape[:1]) for g in row], -1)
+                    for row in fn(*qs.T, *values)
+                ],
+                1,
+            )
+            for fn in fns
+        ]
+        return out[0] if len(out) == 1 else np.stack(out, 2)
 
     return tangents
 
@@ -193,6 +203,10 @@ def friction_work(res: Result, tangents, mu_f, par) -> np.ndarray:
         held = lam != 0.0
         if not held.any() or mu <= 0.0:
             continue
-        slide = np.abs(np.einsum("kn,kn->k", grads[held, j], q[1:][held] - q[:-1][held]))
+        dq = q[1:][held] - q[:-1][held]
+        if grads.ndim == 3:
+            slide = np.abs(np.einsum("kn,kn->k", grads[held, j], dq))
+        else:  # isotropic cones: the length of the two-tangent sliding
+            slide = np.hypot(*np.einsum("kdn,kn->dk", grads[held, j], dq))
         out[held] -= mu_f[j] * lam[held] * slide
     return out

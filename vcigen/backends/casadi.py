@@ -84,6 +84,7 @@ class CasadiKernels(ParameterSlots):
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
         flat = ("legendre", "segment", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
         flat += ("friction",) if "friction" in system.routines else ()
+        flat += ("friction_cone",) if "friction_cone" in system.routines else ()
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
@@ -248,6 +249,11 @@ class CasadiKernels(ParameterSlots):
         m, n = self.m, self.n
         o = self._call(self._flat["friction"], q)
         return o[:m], o[m : m + m * n].reshape(m, n), o[m + m * n :]
+
+    def friction_cone(self, q):
+        """``(m, n)``: each contact's second tangent gradient (0 unless it has an isotropic cone)."""
+        m, n = self.m, self.n
+        return self._call(self._flat["friction_cone"], q)[: m * n].reshape(m, n).copy()
 
     def restitution(self) -> np.ndarray:
         """Coefficient of restitution of each contact at the bound parameters."""

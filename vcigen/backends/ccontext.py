@@ -162,6 +162,10 @@ def render_context(
         "mutable_par": system.timed or bool(system.rows and system.rows.frictional),  # the run's own par copy
         "forced": bool(model.force),  # a step's energy is its last segment's (Lagrange-d'Alembert)
         "frictional": bool(model.friction_of),  # Coulomb friction at impacts (<model>_frictional_law)
+        # isotropic cones (two tangents): per contact whether it has one, per frictional contact its partner
+        "cone": "friction_cone" in system.routines,
+        "cone_contact": [int(len(model.tangents_of.get(c, ())) == 2) for c in system.contact_names],
+        "partner": list(system.rows.partner) if system.rows and system.rows.partner else [],
         "nk": grid[0].outputs[0].size if grid else 0,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
