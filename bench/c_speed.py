@@ -53,24 +53,27 @@ def best_of(repeats: int, fn) -> float:
 
 
 class Buffers:
-    """Preallocated, touched output buffers shared by the C variants."""
+    """Preallocated, touched output buffers shared by the C variants (``n`` coordinates)."""
 
-    def __init__(self, steps: int) -> None:
-        self.Q, self.P, self.E = np.zeros((steps, 2)), np.zeros((steps, 2)), np.zeros(steps)
+    def __init__(self, steps: int, n: int = 2) -> None:
+        self.Q, self.P, self.E = np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps)
         self.rec = np.zeros((IMPACT_CAP, 10))  # t, contact, step, alpha, impulse, E before/after, q (2), kind
         self.A = np.zeros(steps, dtype=np.uint8)  # active contact per step (the one contact)
         self.F, self.FC = np.zeros(steps), np.zeros(steps)  # its mean force, the constraint forces (none)
 
 
-def generated_runner(rule: str, buf: Buffers):
-    """``run(q0, steps, max_impacts) -> (steps, impacts)`` over the generated ``particle_run``."""
-    sim = vcigen.build(load_example(HERE.parent / "examples" / "particle.py").model(), backend="c", rule=rule)
+def generated_runner(rule: str, buf: Buffers, model=None, h: float = H, v0=V0):
+    """``run(q0, steps, max_impacts) -> (steps, impacts)`` over the generated ``<model>_run`` (the
+    particle's unless ``model`` is given, started with velocity ``v0``, step ``h``)."""
+    if model is None:
+        model = load_example(HERE.parent / "examples" / "particle.py").model()
+    sim = vcigen.build(model, backend="c", rule=rule)
     kern = sim.kernels.bind(sim.model.resolve_params(None))
     tol = _tol_struct(sim.tol)
     lift = np.zeros((IMPACT_CAP, 2))
 
     def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
-        q, v = np.array(q0, dtype=float), np.array(V0)
+        q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)
         p = kern.legendre(q, v)[0].copy()
         err, sd, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         sus = kern.Sustain()  # no contact held at the start (the runs start in free flight)
@@ -80,7 +83,7 @@ def generated_runner(rule: str, buf: Buffers):
             rc = kern.run(
                 _ptr(kern.par),
                 ctypes.byref(tol),
-                H,
+                h,
                 0.0,
                 done,
                 steps - done,
@@ -188,10 +191,198 @@ def measure(name: str, run, n_smooth: int, n_impacts: int, repeats: int) -> dict
     }
 
 
+# ------------------------------------------------------ models without explicit structure (issue 14)
+
+CHAIN_H, CHAIN_G = 1e-3, 9.81
+CHAIN_FAR = 10.0  # a wall the chain cannot reach: smooth steps only
+CHAIN_START = {2: ([0.4, -0.3], [1.0, -0.5]), 3: ([0.4, -0.3, 0.2], [1.0, -0.5, 0.8])}
+N_CHAIN_C, N_CHAIN_CASADI, N_AGREE = 200_000, 2_000, 5_000
+PW_Q0, PW_V0, PW_H = [0.0, 0.0], [6.0, 8.0], 0.005  # the scene bench.scenes.pendulum_wall
+
+
+def chain_model(n: int, wall: float):
+    """``n`` unit point masses on unit rods, angles from the downward vertical, the wall ``x = wall``
+    (n = 2 is ``tests/hard_scenes.double_pendulum``): ``M_ij = l_i l_j sum_{k >= max(i, j)} m_k
+    cos(q_i - q_j)``."""
+    import sympy as sp
+
+    q = sp.symbols(f"theta1:{n + 1}")
+    w = sp.symbols(f"omega1:{n + 1}")
+    x = sum(sp.sin(q[i]) for i in range(n))
+    kinetic = sum(
+        sp.Rational(n - max(i, j), 2) * w[i] * w[j] * sp.cos(q[i] - q[j]) for i in range(n) for j in range(n)
+    )
+    potential = -CHAIN_G * sum((n - i) * sp.cos(q[i]) for i in range(n))
+    return vcigen.Model(
+        name=f"chain{n}", q=list(q), qdot=list(w), lagrangian=kinetic - potential, contacts={"wall": wall - x}
+    )
+
+
+def handwritten_chain_runner(n: int, rule: str, buf: Buffers):
+    """``run(q0, steps, max_impacts)`` over ``bench/handwritten/chain.c`` (``CHAIN_N = n``): Newton on v with
+    the hand-derived Jacobian, the far wall checked at each step end."""
+    out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / f"libhw_chain{n}.so"
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", f"-DCHAIN_N={n}"]
+    subprocess.run(["cc", *flags, "-o", str(out), str(HERE / "handwritten" / "chain.c"), "-lm"], check=True)
+    f = getattr(ctypes.CDLL(str(out)), f"hw_chain_{rule}")
+    f.restype = ctypes.c_long
+    f.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2 + [ctypes.c_double]
+    f.argtypes += [ctypes.c_long] + [ctypes.c_void_p] * 3
+    ones = np.ones(n)
+    v0 = np.array(CHAIN_START[n][1])
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        q = np.array(q0, dtype=float)
+        args = (
+            ones.ctypes.data,
+            ones.ctypes.data,
+            CHAIN_G,
+            CHAIN_FAR,
+            q.ctypes.data,
+            v0.ctypes.data,
+            CHAIN_H,
+        )
+        done = f(*args, steps, buf.Q.ctypes.data, buf.P.ctypes.data, buf.E.ctypes.data)
+        return done, 0
+
+    return run
+
+
+def casadi_chain_runner(n: int, rule: str):
+    sim = vcigen.build(chain_model(n, CHAIN_FAR), backend="casadi", rule=rule)
+    v0 = CHAIN_START[n][1]
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        r = sim.simulate(q0, v0, CHAIN_H, t_end=steps * CHAIN_H, n_impacts=max_impacts)
+        return r.t.size - 1, len(r.impacts)
+
+    return run
+
+
+def interleaved(runs: dict[str, object], q0, steps: int, max_impacts: int, repeats: int) -> dict[str, float]:
+    """Smallest wall time of each of ``runs`` over ``repeats`` rounds, the variants taken in turn in each
+    round (on a loaded machine the load drifts; a ratio of two variants timed apart would carry it)."""
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeats):
+        for name, run in runs.items():
+            t = time.perf_counter()
+            run(q0, steps, max_impacts)
+            best[name] = min(best[name], time.perf_counter() - t)
+    return best
+
+
+def smooth_ns(runs: dict[str, object], q0, steps: int, repeats: int) -> dict[str, float]:
+    """ns per smooth step of each of ``runs`` from ``q0``; asserts no impact and no early stop."""
+    for name, run in runs.items():
+        done, got = run(q0, steps, 1)
+        assert got == 0 and done == steps, (name, done, got)
+    return {name: t / steps * 1e9 for name, t in interleaved(runs, q0, steps, 1, repeats).items()}
+
+
+def chain_rows(repeats: int) -> list[dict[str, float | str]]:
+    """Per model (double and triple pendulum) and rule: ns per smooth step of the hand-written loop, the
+    generated C and the CasADi backend, and the largest |q| difference of the generated C from the hand
+    loop over the first ``N_AGREE`` steps (same trajectory to solver tolerance)."""
+    rows: list[dict[str, float | str]] = []
+    for n in (2, 3):
+        q0 = CHAIN_START[n][0]
+        buf, ref = Buffers(N_CHAIN_C + 1, n), Buffers(N_AGREE, n)
+        model = chain_model(n, CHAIN_FAR)
+        for rule in ("trapezoid", "midpoint"):
+            hw = handwritten_chain_runner(n, rule, buf)
+            gen = generated_runner(rule, buf, model=model, h=CHAIN_H, v0=CHAIN_START[n][1])
+            ns = smooth_ns({"hand": hw, "generated": gen}, q0, N_CHAIN_C, repeats)
+            hand_ns, gen_ns = ns["hand"], ns["generated"]
+            casadi = {"casadi": casadi_chain_runner(n, rule)}
+            casadi_ns = smooth_ns(casadi, q0, N_CHAIN_CASADI, max(1, repeats // 2))["casadi"]
+            handwritten_chain_runner(n, rule, ref)(q0, N_AGREE, 1)
+            gen(q0, N_AGREE, 1)
+            dq = float(np.max(np.abs(buf.Q[:N_AGREE] - ref.Q)))
+            rows.append(
+                {
+                    "model": f"chain{n}",
+                    "rule": rule,
+                    "hand_ns": hand_ns,
+                    "generated_ns": gen_ns,
+                    "generated_vs_hand": gen_ns / hand_ns,
+                    "casadi_ns": casadi_ns,
+                    "casadi_vs_generated": casadi_ns / gen_ns,
+                    "max_dq": dq,
+                }
+            )
+    return rows
+
+
+def pendulum_impact_rows(repeats: int) -> list[dict[str, float | str]]:
+    """us per impact of the generated C on the double pendulum against the wall x = 1.2 (the scene
+    ``pendulum_wall``, h = 0.005, an impact every ~200 steps): a run's time less its smooth steps at the
+    rate of the same run with the wall out of reach."""
+    rows: list[dict[str, float | str]] = []
+    far, near = chain_model(2, CHAIN_FAR), chain_model(2, 1.2)
+    for rule in ("trapezoid", "midpoint"):
+        buf = Buffers(N_CHAIN_C + 1, 2)
+        runs = {
+            "far": generated_runner(rule, buf, model=far, h=PW_H, v0=PW_V0),
+            "near": generated_runner(rule, buf, model=near, h=PW_H, v0=PW_V0),
+        }
+        assert runs["far"](PW_Q0, N_CHAIN_C, N_CHAIN_C) == (N_CHAIN_C, 0)
+        steps, got = runs["near"](PW_Q0, N_CHAIN_C, N_CHAIN_C)
+        assert steps == N_CHAIN_C and got > 100, (steps, got)
+        t = interleaved(runs, PW_Q0, N_CHAIN_C, N_CHAIN_C, repeats)
+        smooth = t["far"] / N_CHAIN_C * 1e9
+        us = (t["near"] - (steps - got) * smooth * 1e-9) / got * 1e6
+        rows.append(
+            {
+                "model": "chain2",
+                "rule": rule,
+                "ns_per_step": smooth,
+                "us_per_impact": us,
+                "steps": steps,
+                "impacts": got,
+            }
+        )
+    return rows
+
+
+def print_chain(rows, impacts) -> None:
+    print(
+        f"\n{'model':8s} {'rule':10s} {'hand ns':>9s} {'gen ns':>9s} {'gen/hand':>9s} {'CasADi ns':>10s} "
+        f"{'CasADi/gen':>10s} {'max |dq|':>9s}"
+    )
+    for r in rows:
+        print(
+            f"{r['model']:8s} {r['rule']:10s} {r['hand_ns']:9.1f} {r['generated_ns']:9.1f} "
+            f"{r['generated_vs_hand']:9.2f} {r['casadi_ns']:10.0f} {r['casadi_vs_generated']:10.0f} "
+            f"{r['max_dq']:9.1e}"
+        )
+    for r in impacts:
+        print(
+            f"double pendulum against the wall, {r['rule']}: {r['us_per_impact']:.2f} us per impact "
+            f"({r['impacts']} impacts in {r['steps']} steps, smooth {r['ns_per_step']:.0f} ns/step)"
+        )
+    out = HERE / "results" / "c_speed_chain.csv"
+    out.parent.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"written {out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--only", choices=("particle", "chain"), help="one table only")
     args = ap.parse_args(argv)
+    if args.only != "particle":
+        chain = chain_rows(args.repeats)
+        print_chain(chain, pendulum_impact_rows(args.repeats))
+        chain_ok = all(r["generated_vs_hand"] <= 1.5 for r in chain)
+        print(
+            "chain target (generated <= 1.5x hand-written per smooth step):", "met" if chain_ok else "NOT met"
+        )
+    if args.only == "chain":
+        return 0
     buf = Buffers(N_SMOOTH_C + 1)
     rows = [
         measure(
