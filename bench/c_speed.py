@@ -271,6 +271,47 @@ def interleaved(runs: dict[str, object], q0, steps: int, max_impacts: int, repea
     return best
 
 
+def casadi_limit_runner(n: int, rule: str):
+    """The CasADi backend's limit: a plain Python loop over ``casadi.rootfinder`` ('newton', the backend's
+    options) on the same smooth residual (46), then ``p+`` and ``E_d`` (segment) and ``phi`` at the step end,
+    each a CasADi call on numpy arrays; no detection beyond ``phi >= 0``, no checks, stored as the others."""
+    import casadi as ca
+
+    from vcigen.backends.casadi import NEWTON_OPTIONS, routine_to_function
+
+    system = vcigen.derive(chain_model(n, CHAIN_FAR), rule)
+    smooth = routine_to_function(system.routines["smooth"])
+    segment = routine_to_function(system.routines["segment"])
+    contacts = routine_to_function(system.routines["contacts"])
+    x, q0, p0, par = (
+        ca.MX.sym("x", n),
+        ca.MX.sym("q0", n),
+        ca.MX.sym("p0", n),
+        ca.MX.sym("par", len(system.params)),
+    )
+    h = ca.MX.sym("h")
+    g = ca.Function("g", [x, ca.vertcat(q0, p0, h, par)], [smooth(x, q0, p0, h, par)[0]])
+    rf = ca.rootfinder("smooth_newton", "newton", g, NEWTON_OPTIONS)
+    pars = np.array(vcigen.Model.resolve_params(chain_model(n, CHAIN_FAR), None), dtype=float)
+    v0 = np.array(CHAIN_START[n][1])
+
+    def run(q_start, steps: int, max_impacts: int) -> tuple[int, int]:
+        q, v = np.array(q_start, dtype=float), v0.copy()
+        p = np.array(routine_to_function(system.routines["legendre"])(q, v, pars)[0]).ravel()
+        Q, P, E = np.empty((steps, n)), np.empty((steps, n)), np.empty(steps)
+        for k in range(steps):
+            v = np.array(rf(v, np.concatenate([q, p, [CHAIN_H], pars]))).ravel()
+            _, p1, e = segment(q, v, CHAIN_H, pars)
+            q = q + CHAIN_H * v
+            p = np.array(p1).ravel()
+            Q[k], P[k], E[k] = q, p, float(e)
+            if float(contacts(q, pars)[0][0]) < 0:
+                return k + 1, 1
+        return steps, 0
+
+    return run
+
+
 def smooth_ns(runs: dict[str, object], q0, steps: int, repeats: int) -> dict[str, float]:
     """ns per smooth step of each of ``runs`` from ``q0``; asserts no impact and no early stop."""
     for name, run in runs.items():
@@ -293,8 +334,9 @@ def chain_rows(repeats: int) -> list[dict[str, float | str]]:
             gen = generated_runner(rule, buf, model=model, h=CHAIN_H, v0=CHAIN_START[n][1])
             ns = smooth_ns({"hand": hw, "generated": gen}, q0, N_CHAIN_C, repeats)
             hand_ns, gen_ns = ns["hand"], ns["generated"]
-            casadi = {"casadi": casadi_chain_runner(n, rule)}
-            casadi_ns = smooth_ns(casadi, q0, N_CHAIN_CASADI, max(1, repeats // 2))["casadi"]
+            casadi = {"casadi": casadi_chain_runner(n, rule), "limit": casadi_limit_runner(n, rule)}
+            cas = smooth_ns(casadi, q0, N_CHAIN_CASADI, max(1, repeats // 2))
+            casadi_ns = cas["casadi"]
             handwritten_chain_runner(n, rule, ref)(q0, N_AGREE, 1)
             gen(q0, N_AGREE, 1)
             dq = float(np.max(np.abs(buf.Q[:N_AGREE] - ref.Q)))
@@ -306,6 +348,8 @@ def chain_rows(repeats: int) -> list[dict[str, float | str]]:
                     "generated_ns": gen_ns,
                     "generated_vs_hand": gen_ns / hand_ns,
                     "casadi_ns": casadi_ns,
+                    "casadi_limit_ns": cas["limit"],
+                    "casadi_vs_limit": casadi_ns / cas["limit"],
                     "casadi_vs_generated": casadi_ns / gen_ns,
                     "max_dq": dq,
                 }
@@ -347,13 +391,13 @@ def pendulum_impact_rows(repeats: int) -> list[dict[str, float | str]]:
 def print_chain(rows, impacts) -> None:
     print(
         f"\n{'model':8s} {'rule':10s} {'hand ns':>9s} {'gen ns':>9s} {'gen/hand':>9s} {'CasADi ns':>10s} "
-        f"{'CasADi/gen':>10s} {'max |dq|':>9s}"
+        f"{'CasADi/gen':>10s} {'limit ns':>10s} {'CasADi/lim':>10s} {'max |dq|':>9s}"
     )
     for r in rows:
         print(
             f"{r['model']:8s} {r['rule']:10s} {r['hand_ns']:9.1f} {r['generated_ns']:9.1f} "
             f"{r['generated_vs_hand']:9.2f} {r['casadi_ns']:10.0f} {r['casadi_vs_generated']:10.0f} "
-            f"{r['max_dq']:9.1e}"
+            f"{r['casadi_limit_ns']:10.0f} {r['casadi_vs_limit']:10.2f} {r['max_dq']:9.1e}"
         )
     for r in impacts:
         print(

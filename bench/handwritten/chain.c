@@ -24,7 +24,7 @@ typedef struct {
     double sd[N][N], cd[N][N]; /* sin, cos of q_i - q_j */
 } trig_t;
 
-static void trig_all(const double *q, trig_t *t)
+static inline void trig_all(const double *q, trig_t *t)
 {
     int i, j;
     for (i = 0; i < N; ++i) {
@@ -44,7 +44,7 @@ static void trig_all(const double *q, trig_t *t)
 }
 
 /* Solve a x = b (N x N, a destroyed) by Gaussian elimination without pivoting (M is SPD-dominated). */
-static void solve(double a[N][N], double *b)
+static inline void solve(double a[N][N], double *b)
 {
     int i, j, k;
     for (k = 0; k < N; ++k) {
@@ -64,7 +64,7 @@ static void solve(double a[N][N], double *b)
     }
 }
 
-static double norm_inf(const double *r)
+static inline double norm_inf(const double *r)
 {
     double big = 0.0;
     int i;
@@ -99,7 +99,7 @@ static void setup(chain_t *ch, const double *m, const double *l, double g, doubl
     ch->xw = xw;
 }
 
-static double potential(const chain_t *ch, const trig_t *t)
+static inline double potential(const chain_t *ch, const trig_t *t)
 {
     double v = 0.0;
     int i;
@@ -109,7 +109,7 @@ static double potential(const chain_t *ch, const trig_t *t)
     return v;
 }
 
-static double wall(const chain_t *ch, const trig_t *t)
+static inline double wall(const chain_t *ch, const trig_t *t)
 {
     double x = 0.0;
     int i;
@@ -120,7 +120,7 @@ static double wall(const chain_t *ch, const trig_t *t)
 }
 
 /* M(q) w and G(q, w). */
-static void mass_times(const chain_t *ch, const trig_t *t, const double *w, double *mw)
+static inline void mass_times(const chain_t *ch, const trig_t *t, const double *w, double *mw)
 {
     int i, k;
     for (i = 0; i < N; ++i) {
@@ -131,7 +131,7 @@ static void mass_times(const chain_t *ch, const trig_t *t, const double *w, doub
     }
 }
 
-static void force(const chain_t *ch, const trig_t *t, const double *w, double *gq)
+static inline void force(const chain_t *ch, const trig_t *t, const double *w, double *gq)
 {
     int i, k;
     for (i = 0; i < N; ++i) {
@@ -143,8 +143,10 @@ static void force(const chain_t *ch, const trig_t *t, const double *w, double *g
     }
 }
 
-/* Newton stops at |F|_inf <= TOL (the generated code's abstol) or after MAX_IT steps. */
+/* Newton stops at |F|_inf <= TOL or |dv|_inf <= TOL_STEP (the generated code's abstol, abstol_step: the
+ * residual's round-off can stay above TOL) or after MAX_IT steps. */
 #define TOL 1e-13
+#define TOL_STEP 1e-15
 #define MAX_IT 40
 
 long hw_chain_trapezoid(const double *m, const double *l, double g, double xw, const double *q0, const double *v0,
@@ -174,8 +176,9 @@ long hw_chain_trapezoid(const double *m, const double *l, double g, double xw, c
                 t1.sd[i][i] = 0.0;
                 t1.cd[i][i] = 1.0;
                 for (j = i + 1; j < N; ++j) {
-                    sd1 = sin(q1[i] - q1[j]);
-                    cd1 = cos(q1[i] - q1[j]);
+                    const double dq = q1[i] - q1[j];
+                    sd1 = sin(dq);
+                    cd1 = cos(dq);
                     t1.sd[i][j] = sd1;
                     t1.sd[j][i] = -sd1;
                     t1.cd[i][j] = t1.cd[j][i] = cd1;
@@ -205,6 +208,9 @@ long hw_chain_trapezoid(const double *m, const double *l, double g, double xw, c
             solve(jac, f);
             for (i = 0; i < N; ++i) {
                 v[i] -= f[i];
+            }
+            if (norm_inf(f) <= TOL_STEP) {
+                break;
             }
         }
         for (i = 0; i < N; ++i) {
@@ -265,12 +271,11 @@ long hw_chain_midpoint(const double *m, const double *l, double g, double xw, co
             }
             /* J = Mm + h/2 B(qm, v) - h/2 Gw(qm, v) - h^2/4 Gq(qm, v) */
             for (i = 0; i < N; ++i) {
-                double b = 0.0, bc = 0.0;
+                double bc = 0.0;
                 for (j = 0; j < N; ++j) {
                     const double a = ch.c[i][j];
                     jac[i][j] = a * tm.cd[i][j] + 0.5 * h * (a * tm.sd[i][j] * v[j] + a * tm.sd[i][j] * v[i])
                         - 0.25 * h * h * a * tm.cd[i][j] * v[i] * v[j];
-                    b += a * tm.sd[i][j] * v[j];
                     bc += a * tm.cd[i][j] * v[j];
                 }
                 jac[i][i] += 0.25 * h * h * (v[i] * bc + ch.gl[i] * tm.c[i]);
@@ -278,6 +283,9 @@ long hw_chain_midpoint(const double *m, const double *l, double g, double xw, co
             solve(jac, f);
             for (i = 0; i < N; ++i) {
                 v[i] -= f[i];
+            }
+            if (norm_inf(f) <= TOL_STEP) {
+                break;
             }
         }
         for (i = 0; i < N; ++i) {
