@@ -15,6 +15,13 @@ Every variant stores the same output (q, p, energy per step) into preallocated
 buffers; the best of ``--repeats`` runs counts. Prints a table with ratios and
 writes ``bench/results/c_speed.csv``. Targets: generated C within 1.5x of the
 hand-written loop per smooth step; C >= 100x faster per step than CasADi.
+
+Models without explicit structure (issue 14; ``--only chain`` for this table alone, written to
+``bench/results/c_speed_chain.csv``): the double and triple pendulum (``chain_model``), h = 1e-3,
+both rules, ns per smooth step of ``bench/handwritten/chain.c`` (Newton with the hand-derived
+Jacobian), the generated C, the CasADi backend, a plain ``casadi.rootfinder`` loop and the CasADi
+kernel alone, the variants timed in turn; and us per impact of the generated C on the double
+pendulum against the wall (``pendulum_wall``). Target: generated C within 1.5x of the hand loop.
 """
 
 from __future__ import annotations
@@ -317,6 +324,28 @@ def casadi_limit_runner(n: int, rule: str):
     return run
 
 
+def casadi_kernel_runner(n: int, rule: str):
+    """The CasADi backend's kernel alone: ``Kernels.smooth_step`` (one Function call per step) in a bare
+    Python loop, stored as the others; against the backend's ``simulate``, the Python stepper's share."""
+    sim = vcigen.build(chain_model(n, CHAIN_FAR), backend="casadi", rule=rule)
+    kern = sim.kernels.bind(sim.model.resolve_params(None))
+    v0 = np.array(CHAIN_START[n][1])
+
+    def run(q_start, steps: int, max_impacts: int) -> tuple[int, int]:
+        q, v = np.array(q_start, dtype=float), v0.copy()
+        p = kern.legendre(q, v)[0]
+        Q, P, E = np.empty((steps, n)), np.empty((steps, n)), np.empty(steps)
+        for k in range(steps):
+            v, _, p, e, _, phi1, _, _ = kern.smooth_step(q, p, CHAIN_H, v)
+            q = q + CHAIN_H * v
+            Q[k], P[k], E[k] = q, p, e
+            if phi1.min() < 0:
+                return k + 1, 1
+        return steps, 0
+
+    return run
+
+
 def smooth_ns(runs: dict[str, object], q0, steps: int, repeats: int) -> dict[str, float]:
     """ns per smooth step of each of ``runs`` from ``q0``; asserts no impact and no early stop."""
     for name, run in runs.items():
@@ -339,7 +368,11 @@ def chain_rows(repeats: int) -> list[dict[str, float | str]]:
             gen = generated_runner(rule, buf, model=model, h=CHAIN_H, v0=CHAIN_START[n][1])
             ns = smooth_ns({"hand": hw, "generated": gen}, q0, N_CHAIN_C, repeats)
             hand_ns, gen_ns = ns["hand"], ns["generated"]
-            casadi = {"casadi": casadi_chain_runner(n, rule), "limit": casadi_limit_runner(n, rule)}
+            casadi = {
+                "casadi": casadi_chain_runner(n, rule),
+                "limit": casadi_limit_runner(n, rule),
+                "kernel": casadi_kernel_runner(n, rule),
+            }
             cas = smooth_ns(casadi, q0, N_CHAIN_CASADI, max(1, repeats // 2))
             casadi_ns = cas["casadi"]
             handwritten_chain_runner(n, rule, ref)(q0, N_AGREE, 1)
@@ -355,6 +388,7 @@ def chain_rows(repeats: int) -> list[dict[str, float | str]]:
                     "casadi_ns": casadi_ns,
                     "casadi_limit_ns": cas["limit"],
                     "casadi_vs_limit": casadi_ns / cas["limit"],
+                    "casadi_vs_kernel": casadi_ns / cas["kernel"],
                     "casadi_vs_generated": casadi_ns / gen_ns,
                     "max_dq": dq,
                 }
@@ -390,13 +424,14 @@ def pendulum_impact_rows() -> list[dict[str, float | str]]:
 def print_chain(rows, impacts) -> None:
     print(
         f"\n{'model':8s} {'rule':10s} {'hand ns':>9s} {'gen ns':>9s} {'gen/hand':>9s} {'CasADi ns':>10s} "
-        f"{'CasADi/gen':>10s} {'limit ns':>10s} {'CasADi/lim':>10s} {'max |dq|':>9s}"
+        f"{'CasADi/gen':>10s} {'limit ns':>10s} {'CasADi/lim':>10s} {'CasADi/krn':>10s} {'max |dq|':>9s}"
     )
     for r in rows:
         print(
             f"{r['model']:8s} {r['rule']:10s} {r['hand_ns']:9.1f} {r['generated_ns']:9.1f} "
             f"{r['generated_vs_hand']:9.2f} {r['casadi_ns']:10.0f} {r['casadi_vs_generated']:10.0f} "
-            f"{r['casadi_limit_ns']:10.0f} {r['casadi_vs_limit']:10.2f} {r['max_dq']:9.1e}"
+            f"{r['casadi_limit_ns']:10.0f} {r['casadi_vs_limit']:10.2f} {r['casadi_vs_kernel']:10.2f} "
+            f"{r['max_dq']:9.1e}"
         )
     for r in impacts:
         print(
