@@ -15,6 +15,13 @@ Every variant stores the same output (q, p, energy per step) into preallocated
 buffers; the best of ``--repeats`` runs counts. Prints a table with ratios and
 writes ``bench/results/c_speed.csv``. Targets: generated C within 1.5x of the
 hand-written loop per smooth step; C >= 100x faster per step than CasADi.
+
+Models without explicit structure (issue 14; ``--only chain`` for this table alone, written to
+``bench/results/c_speed_chain.csv``): the double and triple pendulum (``chain_model``), h = 1e-3,
+both rules, ns per smooth step of ``bench/handwritten/chain.c`` (Newton with the hand-derived
+Jacobian), the generated C, the CasADi backend, a plain ``casadi.rootfinder`` loop and the CasADi
+kernel alone, the variants timed in turn; and us per impact of the generated C on the double
+pendulum against the wall (``pendulum_wall``). Target: generated C within 1.5x of the hand loop.
 """
 
 from __future__ import annotations
@@ -53,37 +60,42 @@ def best_of(repeats: int, fn) -> float:
 
 
 class Buffers:
-    """Preallocated, touched output buffers shared by the C variants."""
+    """Preallocated, touched output buffers shared by the C variants (``n`` coordinates)."""
 
-    def __init__(self, steps: int) -> None:
-        self.Q, self.P, self.E = np.zeros((steps, 2)), np.zeros((steps, 2)), np.zeros(steps)
+    def __init__(self, steps: int, n: int = 2) -> None:
+        self.Q, self.P, self.E = np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps)
         self.rec = np.zeros((IMPACT_CAP, 10))  # t, contact, step, alpha, impulse, E before/after, q (2), kind
         self.A = np.zeros(steps, dtype=np.uint8)  # active contact per step (the one contact)
         self.F, self.FC = np.zeros(steps), np.zeros(steps)  # its mean force, the constraint forces (none)
 
 
-def generated_runner(rule: str, buf: Buffers):
-    """``run(q0, steps, max_impacts) -> (steps, impacts)`` over the generated ``particle_run``."""
-    sim = vcigen.build(load_example(HERE.parent / "examples" / "particle.py").model(), backend="c", rule=rule)
+def generated_runner(rule: str, buf: Buffers, model=None, h: float = H, v0=V0):
+    """``run(q0, steps, max_impacts) -> (steps, impacts)`` over the generated ``<model>_run`` (the
+    particle's unless ``model`` is given, started with velocity ``v0``, step ``h``)."""
+    if model is None:
+        model = load_example(HERE.parent / "examples" / "particle.py").model()
+    sim = vcigen.build(model, backend="c", rule=rule)
     kern = sim.kernels.bind(sim.model.resolve_params(None))
     tol = _tol_struct(sim.tol)
     lift = np.zeros((IMPACT_CAP, 2))
 
-    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
-        q, v = np.array(q0, dtype=float), np.array(V0)
+    def run(q0, steps: int, max_impacts: int, calls: list | None = None) -> tuple[int, int]:
+        """``calls``: one step per call of ``<model>_run``, each call's (wall time, impacts) appended."""
+        q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)
         p = kern.legendre(q, v)[0].copy()
         err, sd, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
         sus = kern.Sustain()  # no contact held at the start (the runs start in free flight)
         sus.liftoffs, sus.liftoff_cap = _ptr(lift), IMPACT_CAP
         done = impacts = 0
         while done < steps and impacts < max_impacts:  # the impact buffer is drained between chunks
+            t = time.perf_counter()
             rc = kern.run(
                 _ptr(kern.par),
                 ctypes.byref(tol),
-                H,
+                h,
                 0.0,
                 done,
-                steps - done,
+                steps - done if calls is None else 1,
                 max_impacts - impacts,
                 _ptr(q),
                 _ptr(p),
@@ -101,6 +113,8 @@ def generated_runner(rule: str, buf: Buffers):
                 _ptr(buf.F[done:]),
                 _ptr(buf.FC[done:]),
             )
+            if calls is not None:
+                calls.append((time.perf_counter() - t, idone.value))
             assert rc == 0, err.reason
             done, impacts = done + sd.value, impacts + idone.value
         return done, impacts
@@ -188,10 +202,265 @@ def measure(name: str, run, n_smooth: int, n_impacts: int, repeats: int) -> dict
     }
 
 
+# ------------------------------------------------------ models without explicit structure (issue 14)
+
+CHAIN_H, CHAIN_G = 1e-3, 9.81
+CHAIN_FAR = 10.0  # a wall the chain cannot reach: smooth steps only
+CHAIN_START = {2: ([0.4, -0.3], [1.0, -0.5]), 3: ([0.4, -0.3, 0.2], [1.0, -0.5, 0.8])}
+N_CHAIN_C, N_CHAIN_CASADI, N_AGREE = 200_000, 2_000, 5_000
+PW_Q0, PW_V0, PW_H = [0.0, 0.0], [6.0, 8.0], 0.005  # the scene bench.scenes.pendulum_wall
+N_STEPWISE = 60_000  # single-step calls for the cost per impact
+
+
+def chain_model(n: int, wall: float):
+    """``n`` unit point masses on unit rods, angles from the downward vertical, the wall ``x = wall``
+    (n = 2 is ``tests/hard_scenes.double_pendulum``): ``M_ij = l_i l_j sum_{k >= max(i, j)} m_k
+    cos(q_i - q_j)``."""
+    import sympy as sp
+
+    q = sp.symbols(f"theta1:{n + 1}")
+    w = sp.symbols(f"omega1:{n + 1}")
+    x = sum(sp.sin(q[i]) for i in range(n))
+    kinetic = sum(
+        sp.Rational(n - max(i, j), 2) * w[i] * w[j] * sp.cos(q[i] - q[j]) for i in range(n) for j in range(n)
+    )
+    potential = -CHAIN_G * sum((n - i) * sp.cos(q[i]) for i in range(n))
+    return vcigen.Model(
+        name=f"chain{n}", q=list(q), qdot=list(w), lagrangian=kinetic - potential, contacts={"wall": wall - x}
+    )
+
+
+def handwritten_chain_runner(n: int, rule: str, buf: Buffers):
+    """``run(q0, steps, max_impacts)`` over ``bench/handwritten/chain.c`` (``CHAIN_N = n``): Newton on v with
+    the hand-derived Jacobian, the far wall checked at each step end."""
+    out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / f"libhw_chain{n}.so"
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared", f"-DCHAIN_N={n}"]
+    subprocess.run(["cc", *flags, "-o", str(out), str(HERE / "handwritten" / "chain.c"), "-lm"], check=True)
+    f = getattr(ctypes.CDLL(str(out)), f"hw_chain_{rule}")
+    f.restype = ctypes.c_long
+    f.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2 + [ctypes.c_double]
+    f.argtypes += [ctypes.c_long] + [ctypes.c_void_p] * 3
+    ones = np.ones(n)
+    v0 = np.array(CHAIN_START[n][1])
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        q = np.array(q0, dtype=float)
+        args = (
+            ones.ctypes.data,
+            ones.ctypes.data,
+            CHAIN_G,
+            CHAIN_FAR,
+            q.ctypes.data,
+            v0.ctypes.data,
+            CHAIN_H,
+        )
+        done = f(*args, steps, buf.Q.ctypes.data, buf.P.ctypes.data, buf.E.ctypes.data)
+        return done, 0
+
+    return run
+
+
+def casadi_chain_runner(n: int, rule: str):
+    sim = vcigen.build(chain_model(n, CHAIN_FAR), backend="casadi", rule=rule)
+    v0 = CHAIN_START[n][1]
+
+    def run(q0, steps: int, max_impacts: int) -> tuple[int, int]:
+        r = sim.simulate(q0, v0, CHAIN_H, t_end=steps * CHAIN_H, n_impacts=max_impacts)
+        return r.t.size - 1, len(r.impacts)
+
+    return run
+
+
+def interleaved(runs: dict[str, object], q0, steps: int, max_impacts: int, repeats: int) -> dict[str, float]:
+    """Smallest wall time of each of ``runs`` over ``repeats`` rounds, the variants taken in turn in each
+    round (on a loaded machine the load drifts; a ratio of two variants timed apart would carry it)."""
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeats):
+        for name, run in runs.items():
+            t = time.perf_counter()
+            run(q0, steps, max_impacts)
+            best[name] = min(best[name], time.perf_counter() - t)
+    return best
+
+
+def casadi_limit_runner(n: int, rule: str):
+    """The CasADi backend's limit: a plain Python loop over ``casadi.rootfinder`` ('newton', the backend's
+    options) on the same smooth residual (46), then ``p+`` and ``E_d`` (segment) and ``phi`` at the step end,
+    each a CasADi call on numpy arrays; no detection beyond ``phi >= 0``, no checks, stored as the others."""
+    import casadi as ca
+
+    from vcigen.backends.casadi import NEWTON_OPTIONS, routine_to_function
+
+    system = vcigen.derive(chain_model(n, CHAIN_FAR), rule)
+    smooth = routine_to_function(system.routines["smooth"])
+    segment = routine_to_function(system.routines["segment"])
+    contacts = routine_to_function(system.routines["contacts"])
+    x, q0, p0, par = (
+        ca.MX.sym("x", n),
+        ca.MX.sym("q0", n),
+        ca.MX.sym("p0", n),
+        ca.MX.sym("par", len(system.params)),
+    )
+    h = ca.MX.sym("h")
+    g = ca.Function("g", [x, ca.vertcat(q0, p0, h, par)], [smooth(x, q0, p0, h, par)[0]])
+    rf = ca.rootfinder("smooth_newton", "newton", g, NEWTON_OPTIONS)
+    pars = np.array(vcigen.Model.resolve_params(chain_model(n, CHAIN_FAR), None), dtype=float)
+    v0 = np.array(CHAIN_START[n][1])
+
+    def run(q_start, steps: int, max_impacts: int) -> tuple[int, int]:
+        q, v = np.array(q_start, dtype=float), v0.copy()
+        p = np.array(routine_to_function(system.routines["legendre"])(q, v, pars)[0]).ravel()
+        Q, P, E = np.empty((steps, n)), np.empty((steps, n)), np.empty(steps)
+        for k in range(steps):
+            v = np.array(rf(v, np.concatenate([q, p, [CHAIN_H], pars]))).ravel()
+            _, p1, e = segment(q, v, CHAIN_H, pars)
+            q = q + CHAIN_H * v
+            p = np.array(p1).ravel()
+            Q[k], P[k], E[k] = q, p, float(e)
+            if float(contacts(q, pars)[0][0]) < 0:
+                return k + 1, 1
+        return steps, 0
+
+    return run
+
+
+def casadi_kernel_runner(n: int, rule: str):
+    """The CasADi backend's kernel alone: ``Kernels.smooth_step`` (one Function call per step) in a bare
+    Python loop, stored as the others; against the backend's ``simulate``, the Python stepper's share."""
+    sim = vcigen.build(chain_model(n, CHAIN_FAR), backend="casadi", rule=rule)
+    kern = sim.kernels.bind(sim.model.resolve_params(None))
+    v0 = np.array(CHAIN_START[n][1])
+
+    def run(q_start, steps: int, max_impacts: int) -> tuple[int, int]:
+        q, v = np.array(q_start, dtype=float), v0.copy()
+        p = kern.legendre(q, v)[0]
+        Q, P, E = np.empty((steps, n)), np.empty((steps, n)), np.empty(steps)
+        for k in range(steps):
+            v, _, p, e, _, phi1, _, _ = kern.smooth_step(q, p, CHAIN_H, v)
+            q = q + CHAIN_H * v
+            Q[k], P[k], E[k] = q, p, e
+            if phi1.min() < 0:
+                return k + 1, 1
+        return steps, 0
+
+    return run
+
+
+def smooth_ns(runs: dict[str, object], q0, steps: int, repeats: int) -> dict[str, float]:
+    """ns per smooth step of each of ``runs`` from ``q0``; asserts no impact and no early stop."""
+    for name, run in runs.items():
+        done, got = run(q0, steps, 1)
+        assert got == 0 and done == steps, (name, done, got)
+    return {name: t / steps * 1e9 for name, t in interleaved(runs, q0, steps, 1, repeats).items()}
+
+
+def chain_rows(repeats: int) -> list[dict[str, float | str]]:
+    """Per model (double and triple pendulum) and rule: ns per smooth step of the hand-written loop, the
+    generated C and the CasADi backend, and the largest |q| difference of the generated C from the hand
+    loop over the first ``N_AGREE`` steps (same trajectory to solver tolerance)."""
+    rows: list[dict[str, float | str]] = []
+    for n in (2, 3):
+        q0 = CHAIN_START[n][0]
+        buf, ref = Buffers(N_CHAIN_C + 1, n), Buffers(N_AGREE, n)
+        model = chain_model(n, CHAIN_FAR)
+        for rule in ("trapezoid", "midpoint"):
+            hw = handwritten_chain_runner(n, rule, buf)
+            gen = generated_runner(rule, buf, model=model, h=CHAIN_H, v0=CHAIN_START[n][1])
+            ns = smooth_ns({"hand": hw, "generated": gen}, q0, N_CHAIN_C, repeats)
+            hand_ns, gen_ns = ns["hand"], ns["generated"]
+            casadi = {
+                "casadi": casadi_chain_runner(n, rule),
+                "limit": casadi_limit_runner(n, rule),
+                "kernel": casadi_kernel_runner(n, rule),
+            }
+            cas = smooth_ns(casadi, q0, N_CHAIN_CASADI, max(1, repeats // 2))
+            casadi_ns = cas["casadi"]
+            handwritten_chain_runner(n, rule, ref)(q0, N_AGREE, 1)
+            gen(q0, N_AGREE, 1)
+            dq = float(np.max(np.abs(buf.Q[:N_AGREE] - ref.Q)))
+            rows.append(
+                {
+                    "model": f"chain{n}",
+                    "rule": rule,
+                    "hand_ns": hand_ns,
+                    "generated_ns": gen_ns,
+                    "generated_vs_hand": gen_ns / hand_ns,
+                    "casadi_ns": casadi_ns,
+                    "casadi_limit_ns": cas["limit"],
+                    "casadi_vs_limit": casadi_ns / cas["limit"],
+                    "casadi_vs_kernel": casadi_ns / cas["kernel"],
+                    "casadi_vs_generated": casadi_ns / gen_ns,
+                    "max_dq": dq,
+                }
+            )
+    return rows
+
+
+def per_impact_us(run, q0, steps: int) -> tuple[float, int]:
+    """us per impact from ``steps`` single-step calls of ``<model>_run``: the median call with an impact
+    less the median call without (the same call overhead and the same trajectory in both, so neither
+    the call nor a different smooth trajectory enters the figure); and the number of impacts."""
+    calls: list[tuple[float, int]] = []
+    run(q0, steps, 10**9, calls)
+    t = np.array([c[0] for c in calls])
+    hit = np.array([c[1] > 0 for c in calls])
+    assert hit.sum() > 20, hit.sum()
+    return float(np.median(t[hit]) - np.median(t[~hit])) * 1e6, int(hit.sum())
+
+
+def pendulum_impact_rows() -> list[dict[str, float | str]]:
+    """us per impact of the generated C on the double pendulum against the wall x = 1.2 (the scene
+    ``pendulum_wall``, h = 0.005, an impact every ~200 steps), both rules, by :func:`per_impact_us`. (The
+    particle's, in its own table, subtracts its smooth steps from a run of 1 mm bounces instead: its
+    impact, 0.2 us, is below the resolution of one call.)"""
+    rows: list[dict[str, float | str]] = []
+    for rule in ("trapezoid", "midpoint"):
+        run = generated_runner(rule, Buffers(N_STEPWISE + 1, 2), model=chain_model(2, 1.2), h=PW_H, v0=PW_V0)
+        us, got = per_impact_us(run, PW_Q0, N_STEPWISE)
+        rows.append({"model": "double pendulum", "rule": rule, "us_per_impact": us, "impacts": got})
+    return rows
+
+
+def print_chain(rows, impacts) -> None:
+    print(
+        f"\n{'model':8s} {'rule':10s} {'hand ns':>9s} {'gen ns':>9s} {'gen/hand':>9s} {'CasADi ns':>10s} "
+        f"{'CasADi/gen':>10s} {'limit ns':>10s} {'CasADi/lim':>10s} {'CasADi/krn':>10s} {'max |dq|':>9s}"
+    )
+    for r in rows:
+        print(
+            f"{r['model']:8s} {r['rule']:10s} {r['hand_ns']:9.1f} {r['generated_ns']:9.1f} "
+            f"{r['generated_vs_hand']:9.2f} {r['casadi_ns']:10.0f} {r['casadi_vs_generated']:10.0f} "
+            f"{r['casadi_limit_ns']:10.0f} {r['casadi_vs_limit']:10.2f} {r['casadi_vs_kernel']:10.2f} "
+            f"{r['max_dq']:9.1e}"
+        )
+    for r in impacts:
+        print(
+            f"generated C, {r['model']}, {r['rule']}: {r['us_per_impact']:.2f} us per impact "
+            f"(median of {r['impacts']} impact steps less the median smooth step, one step per call)"
+        )
+    out = HERE / "results" / "c_speed_chain.csv"
+    out.parent.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"written {out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--only", choices=("particle", "chain"), help="one table only")
     args = ap.parse_args(argv)
+    if args.only != "particle":
+        chain = chain_rows(args.repeats)
+        print_chain(chain, pendulum_impact_rows())
+        chain_ok = all(r["generated_vs_hand"] <= 1.5 for r in chain)
+        print(
+            "chain target (generated <= 1.5x hand-written per smooth step):", "met" if chain_ok else "NOT met"
+        )
+    if args.only == "chain":
+        return 0
     buf = Buffers(N_SMOOTH_C + 1)
     rows = [
         measure(

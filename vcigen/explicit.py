@@ -126,7 +126,7 @@ def hoist(exprs: list[sp.Expr], varying: set[sp.Symbol]) -> tuple[Constants, lis
 
 
 @lru_cache(maxsize=64)
-def _shorter(e: sp.Expr) -> sp.Expr:
+def shorter(e: sp.Expr) -> sp.Expr:
     """``e`` expanded if that takes fewer operations (E_d (55) collects to a short form)."""
     x = sp.expand(e)
     return x if sp.count_ops(x) < sp.count_ops(e) else e
@@ -155,7 +155,7 @@ def grid_routines(system: DiscreteSystem) -> list[Routine]:
         return rep
 
     seg_at = at("segment", {"q0": sp.Matrix(q0.symbols), "v": v, "tau": sp.Matrix([h])})
-    energy = _shorter(r["segment"].output("energy").expr[0]).xreplace(seg_at)
+    energy = shorter(r["segment"].output("energy").expr[0]).xreplace(seg_at)
     p1 = r["segment"].output("p_plus").expr.xreplace(seg_at)  # M v cancels against v = M^-1 (...)
     q = Arg("q", tuple(r["contacts"].input("q").symbols))
     p = Arg("p", tuple(sp.Dummy(f"p{i}", real=True) for i in range(system.n)))
@@ -214,7 +214,7 @@ def jump_quadratic(system: DiscreteSystem) -> Routine | None:
     rep = dict(zip(seg.input("q0").symbols, qc.symbols)) | dict(zip(seg.input("v").symbols, w))
     rep[seg.input("tau").symbols[0]] = tau.symbols[0]
     p_minus = seg.output("p_minus").expr.xreplace(rep)
-    energy = _shorter(seg.output("energy").expr[0]).xreplace(rep)
+    energy = shorter(seg.output("energy").expr[0]).xreplace(rep)
     hess = expanded(sp.hessian(energy, list(w)))
     if hess.free_symbols & set(w):
         return None

@@ -19,6 +19,7 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
+from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
@@ -117,6 +118,9 @@ def render_context(
     grid = grid_routines(system) if structure.explicit_grid else []
     quad = jump_quadratic(system)
     routines += grid + ([quad] if quad else [])
+    # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants
+    implicit = implicit_routines(system) if not structure.smooth_linear else []
+    routines += implicit
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -167,6 +171,7 @@ def render_context(
         "cone_contact": [int(len(model.tangents_of.get(c, ())) == 2) for c in system.contact_names],
         "partner": list(system.rows.partner) if system.rows and system.rows.partner else [],
         "nk": grid[0].outputs[0].size if grid else 0,
+        "nks_dim": max(1, implicit[0].outputs[0].size) if implicit else 1,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
@@ -188,13 +193,24 @@ def render_context(
             "explicit_path": structure.explicit_path,
             "explicit_grid": structure.explicit_grid,
             "jump_quadratic": quad is not None,
+            "implicit_grid": bool(implicit),
+            # its invariants carried from step to step (not when par changes between steps: time, friction)
+            "carry": bool(implicit) and not (system.timed or bool(system.rows and system.rows.frictional)),
         },
-        "notes": structure.notes(system),
+        "notes": structure.notes(system)
+        + (
+            [
+                "grid step: Newton on the step's invariants (hoisted, carried from the step before), a "
+                "fixed-size solve; p+, E_d, phi, the end slope and the next invariants from one CSE'd routine"
+            ]
+            if implicit
+            else []
+        ),
         "routines": [routine_context(r) for r in routines],
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            if r.inputs[0].name == "x"
+            if r.inputs[0].name == "x" and r.name not in {s.name for s in implicit}  # called directly
         ],
         "residuals": _residual_ids(system),
         "setup": {
