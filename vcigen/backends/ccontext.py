@@ -19,6 +19,7 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
+from ..held import has_held_path, held_routines
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
@@ -117,6 +118,8 @@ def render_context(
     grid = grid_routines(system) if structure.explicit_grid else []
     quad = jump_quadratic(system)
     routines += grid + ([quad] if quad else [])
+    held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
+    routines += held
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -163,6 +166,8 @@ def render_context(
         "forced": bool(model.force),  # a step's energy is its last segment's (Lagrange-d'Alembert)
         "frictional": bool(model.friction_of),  # Coulomb friction at impacts (<model>_frictional_law)
         "nk": grid[0].outputs[0].size if grid else 0,
+        "held": bool(held),
+        "nkh": held[0].outputs[0].size if held else 0,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
