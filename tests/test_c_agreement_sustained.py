@@ -163,7 +163,7 @@ def test_python_stepper_on_c_kernels_is_the_c_loop(name: str) -> None:
 
 # -- the held grid step (vcigen.held): straight-line steps in sustained contact ----------------------
 def _box() -> vcigen.Model:
-    """A rectangle (2 x 1) with a contact at each vertex, resting on its long face: two nonlinear rows held."""
+    """A 2 x 1 rectangle with a contact at each vertex, resting on its long face: two nonlinear rows held."""
     x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
     contacts = {
         f"v{i}": y + a * sp.sin(th) + b * sp.cos(th)
@@ -222,8 +222,8 @@ def _stepper_run(name: str, backend: str, held: bool):
 
 @pytest.mark.parametrize("name", sorted(HELD))
 def test_held_step_is_the_general_chain_to_solver_tolerance(name: str) -> None:
-    """The held step against the constrained chain (two Newton solves on n + R unknowns), the same scene on the
-    C kernels: the same trajectory to the Newton tolerance, the same events, lift-offs and forces."""
+    """The held step against the constrained chain (two Newton solves on n + R unknowns), the same scene on
+    the C kernels: the same trajectory to the Newton tolerance, the same events, lift-offs and forces."""
     fast, taken = _stepper_run(name, "c", True)
     slow, none = _stepper_run(name, "c", False)
     steps = len(fast.t) - 1
@@ -245,8 +245,8 @@ def test_held_step_is_the_general_chain_to_solver_tolerance(name: str) -> None:
 
 @pytest.mark.parametrize("name", sorted(HELD))
 def test_held_step_c_loop_casadi_and_python(name: str) -> None:
-    """The C loop's held glide is the Python stepper on the C kernels bit for bit (to 1e-12), and CasADi's held
-    step (vcigen.held.held_step on its routines) the same trajectory to round-off."""
+    """The C loop's held glide is the Python stepper on the C kernels bit for bit (to 1e-12), and CasADi's
+    held step (vcigen.held.held_step on its routines) the same trajectory to round-off."""
     _, q0, v0, h, t_end = HELD[name]
     c = held_sim(name, "c").simulate(q0, v0, h, t_end=t_end)
     py, _ = _stepper_run(name, "c", True)
