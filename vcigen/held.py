@@ -56,11 +56,31 @@ def has_held_path(system: DiscreteSystem) -> bool:
     )
 
 
+def _row_hessian(system: DiscreteSystem, r: int) -> sp.Matrix:
+    rows = system.routines["rows"]
+    return sp.hessian(rows.output("psi").expr[r], rows.input("q").symbols).applyfunc(_no_dirac)
+
+
+def hess_pattern(system: DiscreteSystem) -> list[tuple[int, int, int]]:
+    """``(i, j, weight)``, ``i <= j``, where some row's Hessian is not identically 0 (weight 2 off the
+    diagonal): ``u . Hess psi_r . u = sum weight u_i H_ij u_j`` over them. Empty for rows linear in ``q``
+    (floors, walls)."""
+    hs = [_row_hessian(system, r) for r in range(system.r)]
+    n = system.n
+    return [
+        (i, j, 1 if i == j else 2)
+        for i in range(n)
+        for j in range(i, n)
+        if any(sp.simplify(hm[i, j]) != 0 for hm in hs)
+    ]
+
+
 def held_routines(system: DiscreteSystem) -> list[Routine]:
     """``held_consts(tau, par) -> k`` and the four pieces of the held step, all reading ``k``:
 
     * ``held_free(q0, p0, k) -> v0, jinv``: the free velocity of (46) over ``h`` and ``1/J_ii``;
-    * ``held_rows(q, k) -> psi, grad, hess``: every row's value, gradient and Hessian (row-major);
+    * ``held_rows(q, k) -> psi, grad, hess``: every row's value, gradient and the entries of its Hessian
+      on :func:`hess_pattern` (the curvature ``u . Hess psi . u`` needs no others);
     * ``held_segment(q0, v, k) -> p_plus, energy``: ``p+`` (51) and ``E_d`` (55) of the segment;
     * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``.
     """
@@ -77,7 +97,12 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     q = Arg("q", tuple(rows.input("q").symbols))
     psi = rows.output("psi").expr
     grad = rows.output("grad").expr
-    hess = sp.Matrix([list(sp.hessian(psi[k], q.symbols).applyfunc(_no_dirac)) for k in range(system.r)])
+    pattern = hess_pattern(system)
+    hess = sp.Matrix(
+        system.r,
+        len(pattern),
+        [_row_hessian(system, r)[i, j] for r in range(system.r) for i, j, _ in pattern],
+    )
     seg = r["segment"]
     v = Arg("v", tuple(seg.input("v").symbols))
     seg_rep = dict(zip(seg.input("q0").symbols, q0.symbols)) | {seg.input("tau").symbols[0]: h}
@@ -196,7 +221,10 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     lam1_a = apply_small(w, -(g1 @ (minv * p_plus)))
     u1 = minv * p_plus + minv * (g1.T @ lam1_a)
     p1 = p_plus + g1.T @ lam1_a
-    curv = np.array([u1 @ hess[r].reshape(k.n, k.n) @ u1 for r in rows])
+    curv = np.zeros(len(rows))
+    for a, r in enumerate(rows):  # u1 . Hess psi_r . u1 on the pattern, in its order (as the C loop)
+        for m, (i, j, wgt) in enumerate(k.held_pattern):
+            curv[a] += wgt * u1[i] * hess[r, m] * u1[j]
     f_a = apply_small(w, -(g1 @ acc + curv))
     forces = np.zeros(k.r)
     forces[rows] = f_a

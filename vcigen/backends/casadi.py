@@ -16,7 +16,7 @@ import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
-from ..held import has_held_path, held_routines, held_step
+from ..held import has_held_path, held_routines, held_step, hess_pattern
 from ..routines import Routine
 from ..sustained import End
 from .slots import ParameterSlots
@@ -95,6 +95,7 @@ class CasadiKernels(ParameterSlots):
             else {}
         )
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
+        self.held_pattern = hess_pattern(system) if self.held else []
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -285,7 +286,18 @@ class CasadiKernels(ParameterSlots):
 
     def _held_call(self, name: str, sizes: tuple[int, ...], *args) -> list[np.ndarray]:
         """Routine ``name`` of :func:`vcigen.held.held_routines` (its inputs end with ``k``, not ``par``)."""
-        o = np.asarray(self._held[name](np.concatenate([np.atleast_1d(a) for a in args]))).ravel()
+        f = self._held[name]
+        b = self._buffers.get(f.name())
+        if b is None:  # a CasADi buffer, as in _call (these routines read k, not par)
+            arg, res = np.zeros(f.size1_in(0)), np.zeros(f.size1_out(0))
+            buf, trigger = f.buffer()
+            buf.set_arg(0, memoryview(arg))
+            buf.set_res(0, memoryview(res))
+            b = self._buffers[f.name()] = (arg, res, trigger, buf)
+        arg, res, trigger, _ = b
+        arg[:] = np.concatenate(args)
+        trigger()
+        o = res.copy()
         cuts = np.cumsum((0, *sizes)).tolist()
         return [o[a:z] for a, z in zip(cuts, cuts[1:])]
 
@@ -294,10 +306,11 @@ class CasadiKernels(ParameterSlots):
         return self._held_call("held_free", (self.n, self.n), q0, p0, kc)
 
     def held_rows(self, q, kc):
-        """``(psi, grad, hess)`` of every row at ``q`` (``hess``: one row-major ``n x n`` block per row)."""
+        """``(psi, grad, hess)`` of every row at ``q`` (``hess``: its Hessian on ``held.hess_pattern``)."""
         n, r = self.n, self.r
-        psi, grad, hess = self._held_call("held_rows", (r, r * n, r * n * n), q, kc)
-        return psi, grad.reshape(r, n), hess.reshape(r, n * n)
+        nh = len(self.held_pattern)
+        psi, grad, hess = self._held_call("held_rows", (r, r * n, r * nh), q, kc)
+        return psi, grad.reshape(r, n), hess.reshape(r, nh)
 
     def held_segment(self, q0, v, kc):
         """``(p+, E_d)`` of the segment ``(q0, v)`` over ``h``."""

@@ -19,7 +19,7 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..held import has_held_path, held_routines
+from ..held import has_held_path, held_routines, hess_pattern
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
@@ -168,6 +168,10 @@ def render_context(
         "nk": grid[0].outputs[0].size if grid else 0,
         "held": bool(held),
         "nkh": held[0].outputs[0].size if held else 0,
+        "held_hess": [{"i": i, "j": j, "w": c_number(float(w))} for i, j, w in hess_pattern(system)]
+        if held
+        else [],
+        "nh_dim": max(len(hess_pattern(system)), 1) if held else 1,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
