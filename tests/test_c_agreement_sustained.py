@@ -289,3 +289,34 @@ def test_no_held_step_without_the_structure() -> None:
     )
     assert not has_held_path(derive(polar))
     assert has_held_path(derive(_ball())) and has_held_path(derive(_star()))
+
+
+def test_held_step_keeps_the_solver_error_contract() -> None:
+    """A held run driven into a NaN region (V = sqrt(1 - x) past x = 1): the held step does not take the step,
+    the general chain raises the SolverError, at the same step on both backends and with the held step off,
+    and its .result holds the run so far, held throughout."""
+    model = vcigen.Model(
+        name="ag_held_nan",
+        q=[X, Y],
+        qdot=[XD, YD],
+        lagrangian=(XD**2 + YD**2) / 2 - G * Y - sp.sqrt(1 - X),
+        contacts={"floor": Y},
+    )
+    errors = {}
+    for backend in ("c", "casadi"):
+        s = vcigen.build(model, backend=backend)
+        assert s.kernels.held
+        with pytest.raises(vcigen.SolverError) as info:
+            s.simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=2.0)
+        errors[backend] = info.value
+    kern = vcigen.build(model, backend="c").kernels.bind([])
+    kern.held = False
+    with pytest.raises(vcigen.SolverError) as info:
+        Stepper(kern, vcigen.Tolerances()).simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=2.0)
+    kern.held = True
+    errors["chain"] = info.value
+    where = {k: (e.step, e.phase) for k, e in errors.items()}
+    assert len(set(where.values())) == 1, where
+    err = errors["c"]
+    assert 60 <= err.step <= 100 and err.result.active.all()  # x = 1 before t = 1 (pushed toward it)
+    np.testing.assert_allclose(err.result.q, errors["casadi"].result.q, rtol=0, atol=1e-9)
