@@ -35,10 +35,10 @@ import sympy as sp
 from .derive import DiscreteSystem, _no_dirac
 from .explicit import _shorter, expanded, hoist, is_explicit, smooth_jacobian
 from .routines import Arg, Output, Routine
+from .sustained import EPS_LAM
 
 HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
 ABSTOL, ABSTOL_STEP = 1e-13, 1e-15  # the general Newton's (backends.ccontext.NEWTON)
-EPS_LAM = 1e-14  # sustained.EPS_LAM
 
 
 def has_held_path(system: DiscreteSystem) -> bool:
