@@ -1,6 +1,6 @@
 """Cost of a grid step in sustained contact against a free step of the same model (C and CasADi).
 
-    .venv/bin/python bench/sustained_cost.py [--steps 200000] [--casadi-steps 1000] [--repeats 5]
+    .venv/bin/python -m bench.sustained_cost [--steps 200000] [--casadi-steps 1000] [--repeats 5]
 
 Target (the issue): a sustained-contact step in C costs at most 3x a free step.
 
@@ -15,18 +15,24 @@ through ``res.active``; "free" never touches it, checked through ``res.active`` 
   slides to and fro along the floor, the spring pulling it back, normal force
   ``g - k (r - l0)/r > 0``; free: ``c = 10`` (the same code, the floor out of reach: the swing
   stays above ``y = -5``), the same start.
+* ``box``: a 2 x 1 rectangle with a contact at each vertex, sliding on its long face (``q0 = (0, 0.5, 0)``,
+  ``v0 = (1, 0, 0)``: two vertex rows held) against free high up.
 * ``star``: the star of ``examples/star.py`` resting on a face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``, slides) against free high up (``q0 = (0, 1e6, 0)``, same ``v0``).
 
-The particle's and the star's free step is the C backend's explicit straight-line grid step
-(constant diagonal mass, ~10-30 ns). Their ``*_general`` variants multiply the kinetic energy by
+The particle's, the box's and the star's free step is the C backend's explicit straight-line grid step
+(constant diagonal mass), and their sustained step the held grid step (``vcigen.held``: straight-line
+code in the held rows' multipliers). Their ``*_general`` variants multiply the kinetic energy by
 ``(1 + eps x)`` with the parameter ``eps = 0``: the same dynamics (checked: same end state), but
 the mass is configuration-dependent to the code generator, so every free step takes the general
-path (damped Newton on (46), no explicit grid step). The table gives, per backend, ns per step of
+path (damped Newton on (46), no explicit grid step; in contact the constrained chain, two Newton solves
+on ``n + R`` unknowns). The table gives, per backend, ns per step of
 each run (best of ``--repeats``, all runs of a backend interleaved round-robin), the ratio sustained/free,
 and for the explicit scenes also sustained / free of the ``_general`` variant. Times are the
 simulator's own loop time (``res.stats["wall_time"]``: the C loop, or the CasADi stepper's loop),
-not the Python set-up of ``simulate``. Writes ``bench/results/sustained_cost.csv``.
+not the Python set-up of ``simulate``; for C also the CPU time of that loop (``time.thread_time``
+around ``<model>_run``), which a loaded machine does not inflate. Writes
+``bench/results/sustained_cost.csv``.
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,6 +66,22 @@ def particle(general: bool = False) -> vcigen.Model:
         qdot=[xd, yd],
         lagrangian=kinetic * ((1 + eps * x) if general else 1) - G * y,
         contacts={"floor": y},
+        params={eps: 0.0} if general else {},
+    )
+
+
+def box(general: bool = False) -> vcigen.Model:
+    """A 2 x 1 rectangle (unit mass) with a contact at each vertex: on its long face two rows are held."""
+    x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
+    eps = sp.Symbol("eps")
+    kinetic = (xd**2 + yd**2) / 2 + sp.Rational(5, 24) * thd**2
+    corners = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+    return vcigen.Model(
+        name="sc_box_general" if general else "sc_box",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=kinetic * ((1 + eps * x) if general else 1) - G * y,
+        contacts={f"v{i}": y + a * sp.sin(th) + b * sp.cos(th) for i, (a, b) in enumerate(corners)},
         params={eps: 0.0} if general else {},
     )
 
@@ -119,6 +142,16 @@ SCENES = [
         dict(q0=[1.0, -math.pi / 2], v0=[0.0, 1.0], params={"c": 10.0}),
     ),
     Scene(
+        "box", box, dict(q0=[0.0, 0.5, 0.0], v0=[1.0, 0.0, 0.0]), dict(q0=[0.0, 1e6, 0.0], v0=[1.0, 0.0, 0.0])
+    ),
+    Scene(
+        "box_general",
+        lambda: box(True),
+        dict(q0=[0.0, 0.5, 0.0], v0=[1.0, 0.0, 0.0]),
+        dict(q0=[0.0, 1e6, 0.0], v0=[1.0, 0.0, 0.0]),
+        reference="box",
+    ),
+    Scene(
         "star",
         star,
         dict(q0=[0.0, 0.5, 0.0], v0=[1.0, 0.0, 0.0]),
@@ -142,22 +175,46 @@ def check(scene: str, kind: str, res: vcigen.Result, steps: int) -> str:
     """What the run did; raise if a sustained run is not active throughout or a free one touches."""
     assert res.t.size == steps + 1, (scene, kind, res.t.size)
     if kind == "sustained":
-        ok = bool(res.active.all()) and not res.impacts and not res.liftoffs
+        held = res.active[0]  # the contacts held at the start (the box: two of its four vertices)
+        ok = bool(held.any() and (res.active == held).all()) and not res.impacts and not res.liftoffs
         assert ok, f"{scene}: the sustained run left the contact ({len(res.liftoffs)} lift-offs)"
         return f"active throughout, mean force {float(res.contact_force.mean()):.4g}"
     assert not res.active.any() and not res.impacts, f"{scene}: the free run touched the contact"
     return "never touches"
 
 
+def cpu_clock(sim: vcigen.Simulator) -> list[float]:
+    """Count the CPU time of the C loop (``<model>_run``) of ``sim``'s runs: a loaded machine's wall time
+    holds the time the process waits for a core; its CPU time does not."""
+    spent = [0.0]
+    loop = sim.kernels.run
+
+    def timed(*args):
+        t = time.thread_time()
+        rc = loop(*args)
+        spent[0] += time.thread_time() - t
+        return rc
+
+    sim.kernels.run = timed
+    return spent
+
+
 def measure(scenes: list[Scene], backend: str, steps: int, repeats: int) -> list[dict]:
-    """Best of ``repeats`` of every (scene, sustained/free) run, all interleaved round-robin."""
+    """Best of ``repeats`` of every (scene, sustained/free) run, all interleaved round-robin: the loop's wall
+    time and (C) its CPU time."""
     best = {(sc.name, kind): math.inf for sc in scenes for kind in ("sustained", "free")}
+    cpu = dict(best)
+    clocks = {sc.name: cpu_clock(sc.sims[backend]) for sc in scenes} if backend == "c" else {}
     notes, ends = {}, {}
     for _ in range(repeats):
         for sc in scenes:
             for kind in ("sustained", "free"):
+                before = clocks[sc.name][0] if clocks else 0.0
                 res = run(sc.sims[backend], getattr(sc, kind), steps)
                 best[sc.name, kind] = min(best[sc.name, kind], res.stats["wall_time"])
+                cpu[sc.name, kind] = min(
+                    cpu[sc.name, kind], clocks[sc.name][0] - before if clocks else math.nan
+                )
                 if (sc.name, kind) not in notes:
                     notes[sc.name, kind] = check(sc.name, kind, res, steps)
                     ends[sc.name, kind] = res.q[-1].copy()
@@ -169,6 +226,9 @@ def measure(scenes: list[Scene], backend: str, steps: int, repeats: int) -> list
             ns_sustained=best[sc.name, "sustained"] / steps * 1e9,
             ns_free=best[sc.name, "free"] / steps * 1e9,
             ratio=best[sc.name, "sustained"] / best[sc.name, "free"],
+            cpu_ns_sustained=cpu[sc.name, "sustained"] / steps * 1e9,
+            cpu_ns_free=cpu[sc.name, "free"] / steps * 1e9,
+            cpu_ratio=cpu[sc.name, "sustained"] / cpu[sc.name, "free"],
             notes=f"sustained: {notes[sc.name, 'sustained']}; free: {notes[sc.name, 'free']}",
             ends={kind: ends[sc.name, kind] for kind in ("sustained", "free")},
         )
@@ -201,6 +261,7 @@ def main(argv: list[str] | None = None) -> int:
                     assert gap <= 1e-6 * scale, (scene.name, kind, gap)
                 ref["ns_free_general"] = row["ns_free"]
                 ref["ratio_vs_general_free"] = ref["ns_sustained"] / row["ns_free"]
+                ref["cpu_ratio_vs_general_free"] = ref["cpu_ns_sustained"] / row["cpu_ns_free"]
         rows += got
     cols = [
         "scene",
@@ -211,6 +272,10 @@ def main(argv: list[str] | None = None) -> int:
         "ratio",
         "ns_free_general",
         "ratio_vs_general_free",
+        "cpu_ns_sustained",
+        "cpu_ns_free",
+        "cpu_ratio",
+        "cpu_ratio_vs_general_free",
         "notes",
     ]
     print(
@@ -224,6 +289,15 @@ def main(argv: list[str] | None = None) -> int:
             f" {r['ns_free']:>11.1f} {r['ratio']:>7.2f} {'' if gen is None else f'{gen:.1f}':>16}"
             f" {'' if gen is None else format(r['ratio_vs_general_free'], '.2f'):>17}"
         )
+    print("CPU time of the C loop (the same runs; the ratios to read on a loaded machine):")
+    print(f"{'scene':<18} {'sustained ns':>13} {'free ns':>11} {'ratio':>7} {'ratio vs general free':>22}")
+    for r in rows:
+        if r["backend"] == "c":
+            gen = r.get("cpu_ratio_vs_general_free")
+            print(
+                f"{r['scene']:<18} {r['cpu_ns_sustained']:>13.1f} {r['cpu_ns_free']:>11.1f}"
+                f" {r['cpu_ratio']:>7.2f} {'' if gen is None else format(gen, '.2f'):>22}"
+            )
     for r in rows:
         print(f"  {r['scene']} ({r['backend']}): {r['notes']}")
     a.csv.parent.mkdir(parents=True, exist_ok=True)

@@ -159,3 +159,164 @@ def test_python_stepper_on_c_kernels_is_the_c_loop(name: str) -> None:
     np.testing.assert_allclose(
         [lo[0] for lo in py.liftoffs], [lo[0] for lo in c.liftoffs], rtol=0, atol=1e-12
     )
+
+
+# -- the held grid step (vcigen.held): straight-line steps in sustained contact ----------------------
+def _box() -> vcigen.Model:
+    """A 2 x 1 rectangle with a contact at each vertex, resting on its long face: two nonlinear rows held."""
+    x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
+    contacts = {
+        f"v{i}": y + a * sp.sin(th) + b * sp.cos(th)
+        for i, (a, b) in enumerate([(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)])
+    }
+    return vcigen.Model(
+        name="ag_box",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=(xd**2 + yd**2) / 2 + sp.Rational(5, 24) * thd**2 - G * y,
+        contacts=contacts,
+    )
+
+
+HELD = {  # name: (model, q0, v0, h, t_end); each starts held and stays held for most of its steps
+    "slide": (_ball, [0.0, 0.0], [1.0, 0.0], 0.001, 1.0),  # one linear row: one exact Newton step
+    "box": (_box, [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 1.0),  # slides on a face: two nonlinear rows
+    "star": (
+        _star,
+        [0.0, 0.5, 0.0],
+        [1.0, 0.0, 0.0],
+        0.001,
+        1.0,
+    ),  # the Abs contact on a face: two branch rows
+    "pendulum": SCENES["pendulum"],  # a bilateral row (a circle in q) against a wall
+    "dome": SCENES["dome"],  # a nonlinear row to its lift-off
+}
+
+
+@cache
+def held_sim(name: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(HELD[name][0](), backend=backend)
+
+
+def _stepper_run(name: str, backend: str, held: bool):
+    """The Python stepper on ``backend``'s kernels, with or without the held step; the held steps taken."""
+    s = held_sim(name, backend)
+    _, q0, v0, h, t_end = HELD[name]
+    kern = s.kernels.bind(s.model.resolve_params(None))
+    assert kern.held  # the scene has the structure
+    taken = []
+    step = kern.held_step
+
+    def counted(*args):
+        out = step(*args)
+        taken.append(out is not None)
+        return out
+
+    kern.held, kern.held_step = held, counted
+    try:
+        return Stepper(kern, s.tol).simulate(q0, v0, h, t_end=t_end), sum(taken)
+    finally:
+        kern.held = True
+        del kern.held_step
+
+
+@pytest.mark.parametrize("name", sorted(HELD))
+def test_held_step_is_the_general_chain_to_solver_tolerance(name: str) -> None:
+    """The held step against the constrained chain (two Newton solves on n + R unknowns), the same scene on
+    the C kernels: the same trajectory to the Newton tolerance, the same events, lift-offs and forces."""
+    fast, taken = _stepper_run(name, "c", True)
+    slow, none = _stepper_run(name, "c", False)
+    steps = len(fast.t) - 1
+    assert none == 0 and taken >= steps // 2, (taken, steps)  # it is what takes the held steps
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(fast.p, slow.p, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(fast.energy, slow.energy, rtol=0, atol=1e-10)
+    np.testing.assert_array_equal(fast.active, slow.active)
+    np.testing.assert_allclose(fast.contact_force, slow.contact_force, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fast.constraint_force, slow.constraint_force, rtol=0, atol=1e-8)
+    assert [(i.contact, i.kind, i.step) for i in fast.impacts] == [
+        (i.contact, i.kind, i.step) for i in slow.impacts
+    ]
+    assert [lo[1] for lo in fast.liftoffs] == [lo[1] for lo in slow.liftoffs]
+    np.testing.assert_allclose(
+        [lo[0] for lo in fast.liftoffs], [lo[0] for lo in slow.liftoffs], rtol=0, atol=1e-9
+    )
+
+
+@pytest.mark.parametrize("name", sorted(HELD))
+def test_held_step_c_loop_casadi_and_python(name: str) -> None:
+    """The C loop's held glide is the Python stepper on the C kernels bit for bit (to 1e-12), and CasADi's
+    held step (vcigen.held.held_step on its routines) the same trajectory to round-off."""
+    _, q0, v0, h, t_end = HELD[name]
+    c = held_sim(name, "c").simulate(q0, v0, h, t_end=t_end)
+    py, _ = _stepper_run(name, "c", True)
+    ca, taken = _stepper_run(name, "casadi", True)
+    assert taken >= (len(c.t) - 1) // 2
+    np.testing.assert_allclose(py.q, c.q, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(py.active, c.active)
+    np.testing.assert_allclose(py.contact_force, c.contact_force, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ca.q, c.q, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(ca.active, c.active)
+    np.testing.assert_allclose(ca.contact_force, c.contact_force, rtol=0, atol=1e-6)
+    assert [(i.contact, i.kind, i.step) for i in ca.impacts] == [
+        (i.contact, i.kind, i.step) for i in c.impacts
+    ]
+    np.testing.assert_allclose([lo[0] for lo in ca.liftoffs], [lo[0] for lo in c.liftoffs], rtol=0, atol=1e-9)
+
+
+def test_held_scenes_exercise_what_they_are_for() -> None:
+    """The held scenes hold rows throughout or lift off, so that the agreement above is not vacuous."""
+    runs = {name: _stepper_run(name, "c", True)[0] for name in HELD}
+    assert runs["slide"].active.all() and not runs["slide"].impacts
+    assert runs["star"].active.all() and abs(runs["star"].contact_force.mean() - G) < 1e-9
+    assert len(runs["dome"].liftoffs) == 1
+    assert runs["box"].active[:, :2].all() and not runs["box"].active[:, 2:].any()
+    assert np.all(np.abs(runs["pendulum"].constraint_force) > 0)
+
+
+def test_no_held_step_without_the_structure() -> None:
+    """A configuration-dependent mass, or friction, keeps the general chain (vcigen.held.has_held_path)."""
+    from vcigen.derive import derive
+    from vcigen.held import has_held_path
+
+    r, th, rd, thd = sp.symbols("r theta rd thetad")
+    polar = vcigen.Model(
+        name="ag_polar",
+        q=[r, th],
+        qdot=[rd, thd],
+        lagrangian=(rd**2 + r**2 * thd**2) / 2 - G * r * sp.sin(th),
+        contacts={"floor": r * sp.sin(th) + 1},
+    )
+    assert not has_held_path(derive(polar))
+    assert has_held_path(derive(_ball())) and has_held_path(derive(_star()))
+
+
+def test_held_step_keeps_the_solver_error_contract() -> None:
+    """A held run driven into a NaN region (V = sqrt(1 - x) past x = 1): the held step does not take the step,
+    the general chain raises the SolverError, at the same step on both backends and with the held step off,
+    and its .result holds the run so far, held throughout."""
+    model = vcigen.Model(
+        name="ag_held_nan",
+        q=[X, Y],
+        qdot=[XD, YD],
+        lagrangian=(XD**2 + YD**2) / 2 - G * Y - sp.sqrt(1 - X),
+        contacts={"floor": Y},
+    )
+    errors = {}
+    for backend in ("c", "casadi"):
+        s = vcigen.build(model, backend=backend)
+        assert s.kernels.held
+        with pytest.raises(vcigen.SolverError) as info:
+            s.simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=2.0)
+        errors[backend] = info.value
+    kern = vcigen.build(model, backend="c").kernels.bind([])
+    kern.held = False
+    with pytest.raises(vcigen.SolverError) as info:
+        Stepper(kern, vcigen.Tolerances()).simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=2.0)
+    kern.held = True
+    errors["chain"] = info.value
+    where = {k: (e.step, e.phase) for k, e in errors.items()}
+    assert len(set(where.values())) == 1, where
+    err = errors["c"]
+    assert 60 <= err.step <= 100 and err.result.active.all()  # x = 1 before t = 1 (pushed toward it)
+    np.testing.assert_allclose(err.result.q, errors["casadi"].result.q, rtol=0, atol=1e-9)

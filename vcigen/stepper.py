@@ -22,6 +22,7 @@ import numpy as np
 
 from .errors import NONFINITE, SolverError
 from .friction import cone_law, impact_law
+from .held import HeldSteps
 from .result import Impact, Result
 from .sustained import SustainedSteps, SustainLog, held_contacts
 
@@ -96,7 +97,7 @@ class _Seg:
     rest: float = 1.0  # the coefficient of restitution of the impact at the start
 
 
-class Stepper(SustainedSteps):
+class Stepper(SustainedSteps, HeldSteps):
     """Runs the method of MATH.md on a set of kernels."""
 
     def __init__(self, kernels: Kernels, tol: Tolerances | None = None) -> None:
@@ -200,8 +201,8 @@ class Stepper(SustainedSteps):
         self._h = h
         self._chained = False
         self._at(t)
-        if self._held:  # sustained contact or bilateral constraints: the constrained chain
-            out = self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+        if self._held:  # sustained contact or constraints: the held step (vcigen.held), else the chain
+            out = self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
             self._held = bool(self.act.any())
             return out
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
+from ..held import has_held_path, held_routines, held_step, hess_pattern
 from ..routines import Routine
 from ..sustained import End
 from .slots import ParameterSlots
@@ -88,6 +89,14 @@ class CasadiKernels(ParameterSlots):
         self._flat = {name: self._flatten(name) for name in flat}
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
+        self.held = has_held_path(system)  # the held grid step (vcigen.held)
+        self._held = (
+            {r.name: self._flat_function(routine_to_function(r)) for r in held_routines(system)}
+            if self.held
+            else {}
+        )
+        self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
+        self.held_pattern = hess_pattern(system) if self.held else []
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -269,6 +278,54 @@ class CasadiKernels(ParameterSlots):
         x, res, p_plus, e, y, res1, psi, grad, curv, rhs, mass = (o[a:b] for a, b in zip(cuts, cuts[1:]))
         end = End(psi, grad.reshape(r, n), curv, rhs, mass.reshape(n, n))
         return x, _residual(np.append(x, res)), p_plus, float(e[0]), y, _residual(np.append(y, res1)), end
+
+    # -- the held grid step (vcigen.held) ----------------------------------------------
+    def held_step(self, q, p, lam_in, act, h: float, residual: float, phi_tol: float):
+        """``vcigen.held.held_step`` on these kernels."""
+        return held_step(self, q, p, lam_in, act, h, residual, phi_tol)
+
+    def held_consts(self, h: float) -> np.ndarray:
+        """The run constants of the held step at ``h`` and the bound parameters (kept while they hold)."""
+        if self._held_k is None or self._held_k[0] != h or not np.array_equal(self._held_k[1], self.par):
+            self._held_k = (h, self.par.copy(), self._call(self._held["held_consts"], h))
+        return self._held_k[2]
+
+    def _held_call(self, name: str, sizes: tuple[int, ...], *args) -> list[np.ndarray]:
+        """Routine ``name`` of :func:`vcigen.held.held_routines` (its inputs end with ``k``, not ``par``)."""
+        f = self._held[name]
+        b = self._buffers.get(f.name())
+        if b is None:  # a CasADi buffer, as in _call (these routines read k, not par)
+            arg, res = np.zeros(f.size1_in(0)), np.zeros(f.size1_out(0))
+            buf, trigger = f.buffer()
+            buf.set_arg(0, memoryview(arg))
+            buf.set_res(0, memoryview(res))
+            b = self._buffers[f.name()] = (arg, res, trigger, buf)
+        arg, res, trigger, _ = b
+        arg[:] = np.concatenate(args)
+        trigger()
+        o = res.copy()
+        cuts = np.cumsum((0, *sizes)).tolist()
+        return [o[a:z] for a, z in zip(cuts, cuts[1:])]
+
+    def held_free(self, q0, p0, kc):
+        """``(v0, 1/J_ii)``: the free velocity of (46) over ``h`` and the inverse Jacobian."""
+        return self._held_call("held_free", (self.n, self.n), q0, p0, kc)
+
+    def held_rows(self, q, kc):
+        """``(psi, grad, hess)`` of every row at ``q`` (``hess``: its Hessian on ``held.hess_pattern``)."""
+        n, r = self.n, self.r
+        nh = len(self.held_pattern)
+        psi, grad, hess = self._held_call("held_rows", (r, r * n, r * nh), q, kc)
+        return psi, grad.reshape(r, n), hess.reshape(r, nh)
+
+    def held_segment(self, q0, v, kc):
+        """``(p+, E_d)`` of the segment ``(q0, v)`` over ``h``."""
+        pp, e = self._held_call("held_segment", (self.n, 1), q0, v, kc)
+        return pp, float(e[0])
+
+    def held_end(self, q, kc):
+        """``(M^-1 rhs(q), 1/M_ii)``."""
+        return self._held_call("held_end", (self.n, self.n), q, kc)
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

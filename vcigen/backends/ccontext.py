@@ -20,6 +20,7 @@ from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..implicit import implicit_routines
+from ..held import has_held_path, held_routines, hess_pattern
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
@@ -121,6 +122,8 @@ def render_context(
     # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants
     implicit = implicit_routines(system) if not structure.smooth_linear else []
     routines += implicit
+    held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
+    routines += held
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -172,6 +175,12 @@ def render_context(
         "partner": list(system.rows.partner) if system.rows and system.rows.partner else [],
         "nk": grid[0].outputs[0].size if grid else 0,
         "nks_dim": max(1, implicit[0].outputs[0].size) if implicit else 1,
+        "held": bool(held),
+        "nkh": held[0].outputs[0].size if held else 0,
+        "held_hess": [{"i": i, "j": j, "w": c_number(float(w))} for i, j, w in hess_pattern(system)]
+        if held
+        else [],
+        "nh_dim": max(len(hess_pattern(system)), 1) if held else 1,
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [

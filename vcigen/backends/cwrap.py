@@ -19,6 +19,7 @@ import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
 from ..errors import PHASES, SolverError
+from ..held import Held
 from ..result import KINDS, Impact, Result
 from ..simulator import Simulator
 from ..stepper import Tolerances, _n_steps, _result
@@ -122,6 +123,11 @@ class CKernels(ParameterSlots):
         if self.r:
             self._rows = getattr(self.lib, f"{pre}_eval_rows")
             self._dynamics = getattr(self.lib, f"{pre}_eval_dynamics")
+        self.held = bool(ctx.get("held"))  # the held grid step (vcigen.held)
+        if self.held:
+            self._held = getattr(self.lib, f"{pre}_eval_held_step")
+            self._held.argtypes = [_D, ctypes.c_double, ctypes.c_double, ctypes.c_double] + [_D] * 9
+            self._held.restype = ctypes.c_int
         self._solve = getattr(self.lib, f"{pre}_solve")
         self._solve.argtypes = [ctypes.c_int, _D, _D, _D, _D]
         self.run = getattr(self.lib, f"{pre}_run")
@@ -213,6 +219,24 @@ class CKernels(ParameterSlots):
     def rattle_segment(self, q, p, tau, x0, act):
         """A constrained segment and the evaluations at its end (``vcigen.sustained.rattle_segment``)."""
         return rattle_segment(self, q, p, tau, x0, act)
+
+    def held_step(self, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
+        """``vcigen.held.held_step``, by the C loop's own ``<model>_held_step``."""
+        n, r = self.n, self.r
+        lam, lam1, q1, p1, v, e = (
+            np.array(lam_in, dtype=float),  # a copy: the C step writes Lam into it
+            np.empty(r),
+            np.empty(n),
+            np.empty(n),
+            np.empty(n),
+            np.empty(1),
+        )
+        acts = _vec(np.asarray(act, dtype=float), r)
+        ok = self._held(
+            _ptr(self.par), float(h), float(residual), float(phi_tol), _ptr(_vec(q, n)), _ptr(_vec(p, n)),
+            _ptr(acts), _ptr(lam), _ptr(lam1), _ptr(q1), _ptr(p1), _ptr(v), _ptr(e),
+        )  # fmt: skip
+        return Held(q1, p1, v, lam, lam1, float(e[0])) if ok else None
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

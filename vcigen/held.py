@@ -1,0 +1,265 @@
+"""The held grid step: a grid step in sustained contact as straight-line code, when the mass is constant.
+
+The constrained step of MATH.md *Sustained contact* (RATTLE, routines ``rattle`` and
+``rattle_project``) is two Newton solves on ``n + R`` unknowns. When the scene is explicit
+(:func:`vcigen.explicit.is_explicit`: (46) has a constant diagonal Jacobian ``J``, the mass
+``M`` is constant and diagonal, no forces), the momentum is ``M qdot`` and no friction acts,
+both reduce to the ``R_A`` multipliers of the active rows ``A``:
+
+* ``rattle``: ``p-(q0, v, h) = p0 + G0^T Lam`` is linear in ``v`` with the Jacobian ``J``, so
+  ``v = v0 + J^-1 G0^T Lam`` (``v0`` the free grid step of :mod:`vcigen.explicit`, ``G0`` the
+  active rows' gradients at ``q0``); left are the ``R_A`` equations ``psi_A(q0 + h v(Lam)) = 0``,
+  Newton in ``Lam`` with the Jacobian ``h G1 J^-1 G0^T`` (``G1`` at ``q1``), from the previous
+  step's multipliers. Rows linear in ``q`` (floors, walls) converge in one step.
+* ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
+  ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
+* the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
+  same ``W``; ``curv_r = u1 . Hess psi_r(q1) . u1``.
+
+One evaluation of the rows at ``q1`` (``held_rows``: values, gradients, Hessians) serves the
+Newton test, the projection, the forces, the crossing test of the inactive rows, and the next
+step's ``G0``. Every subexpression of ``(h, par)`` alone is hoisted into run constants
+(``held_consts``). A step whose end shows an event (a force turning negative, an inactive row
+crossed), whose solve does not converge or whose state is not finite is not taken: the general
+chain (:mod:`vcigen.sustained`) takes it from the same start. The C loop (``<model>_held_glide``
+in ``templates/sustained.c.j2``) and :func:`held_step` are one algorithm.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import sympy as sp
+
+from .derive import DiscreteSystem, _no_dirac
+from .explicit import _shorter, expanded, hoist, is_explicit, smooth_jacobian
+from .routines import Arg, Output, Routine
+from .sustained import EPS_LAM
+
+HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
+ABSTOL, ABSTOL_STEP = 1e-13, 1e-15  # the general Newton's (backends.ccontext.NEWTON)
+
+
+def has_held_path(system: DiscreteSystem) -> bool:
+    """Whether the held step applies: rows, an explicit scene, momentum ``M qdot``, no friction."""
+    if not system.r or system.rows.frictional or not is_explicit(system):
+        return False
+    leg = system.routines["legendre"]
+    q, v = leg.input("q").symbols, leg.input("v").symbols
+    mom = expanded(leg.output("momentum").expr - leg.output("mass").expr * sp.Matrix(v))
+    rhs = system.routines["dynamics"].output("rhs").expr
+    return (
+        all(e == 0 for e in mom)
+        and not (rhs.free_symbols & set(system.routines["dynamics"].input("u").symbols))
+        and bool(q)
+    )
+
+
+def _row_hessian(system: DiscreteSystem, r: int) -> sp.Matrix:
+    rows = system.routines["rows"]
+    return sp.hessian(rows.output("psi").expr[r], rows.input("q").symbols).applyfunc(_no_dirac)
+
+
+def hess_pattern(system: DiscreteSystem) -> list[tuple[int, int, int]]:
+    """``(i, j, weight)``, ``i <= j``, where some row's Hessian is not identically 0 (weight 2 off the
+    diagonal): ``u . Hess psi_r . u = sum weight u_i H_ij u_j`` over them. Empty for rows linear in ``q``
+    (floors, walls)."""
+    hs = [_row_hessian(system, r) for r in range(system.r)]
+    n = system.n
+    return [
+        (i, j, 1 if i == j else 2)
+        for i in range(n)
+        for j in range(i, n)
+        if any(sp.simplify(hm[i, j]) != 0 for hm in hs)
+    ]
+
+
+def held_routines(system: DiscreteSystem) -> list[Routine]:
+    """``held_consts(tau, par) -> k`` and the four pieces of the held step, all reading ``k``:
+
+    * ``held_free(q0, p0, k) -> v0, jinv``: the free velocity of (46) over ``h`` and ``1/J_ii``;
+    * ``held_rows(q, k) -> psi, grad, hess``: every row's value, gradient and the entries of its Hessian
+      on :func:`hess_pattern` (the curvature ``u . Hess psi . u`` needs no others);
+    * ``held_segment(q0, v, k) -> p_plus, energy``: ``p+`` (51) and ``E_d`` (55) of the segment;
+    * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``.
+    """
+    r = system.routines
+    smooth = r["smooth"]
+    xs, q0, p0, tau, par = smooth.inputs
+    h = tau.symbols[0]
+    n = system.n
+    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
+    res, jac = smooth.output("res").expr, smooth_jacobian(system)
+    v0 = sp.Matrix([-res[i].xreplace(zero) / jac[i, i] for i in range(n)])
+    jinv = sp.Matrix([1 / jac[i, i] for i in range(n)])
+    rows = r["rows"]
+    q = Arg("q", tuple(rows.input("q").symbols))
+    psi = rows.output("psi").expr
+    grad = rows.output("grad").expr
+    pattern = hess_pattern(system)
+    hess = sp.Matrix(
+        system.r,
+        len(pattern),
+        [_row_hessian(system, r)[i, j] for r in range(system.r) for i, j, _ in pattern],
+    )
+    seg = r["segment"]
+    v = Arg("v", tuple(seg.input("v").symbols))
+    seg_rep = dict(zip(seg.input("q0").symbols, q0.symbols)) | {seg.input("tau").symbols[0]: h}
+    p_plus = seg.output("p_plus").expr.xreplace(seg_rep)
+    energy = _shorter(seg.output("energy").expr[0]).xreplace(seg_rep)
+    dyn, leg = r["dynamics"], r["legendre"]
+    u0 = dict.fromkeys(dyn.input("u").symbols, sp.S.Zero)
+    rhs = dyn.output("rhs").expr.xreplace(u0).xreplace(dict(zip(dyn.input("q").symbols, q.symbols)))
+    mass = expanded(leg.output("mass").expr)
+    minv = sp.Matrix([1 / mass[i, i] for i in range(n)])
+    acc = sp.Matrix([rhs[i] * minv[i] for i in range(n)])
+    pieces = [
+        ("held_free", (q0, p0), [("v0", v0), ("jinv", jinv)], "Free velocity of (46) over h and 1/J_ii."),
+        ("held_rows", (q,), [("psi", psi), ("grad", grad), ("hess", hess)], "Rows, gradients, Hessians."),
+        (
+            "held_segment",
+            (q0, v),
+            [("p_plus", p_plus), ("energy", sp.Matrix([energy]))],
+            "p+ (51), E_d (55).",
+        ),
+        ("held_end", (q,), [("acc", acc), ("minv", minv)], "M^-1 rhs(q) and 1/M_ii."),
+    ]
+    flat = [e for _, _, outs, _ in pieces for _, o in outs for e in o]
+    varying = {*q0.symbols, *p0.symbols, *q.symbols, *v.symbols}
+    consts, reduced = hoist(flat, varying)
+    ks = Arg("k", tuple(k for k, _ in consts))
+    out = [
+        Routine(
+            "held_consts",
+            (tau, par),
+            (Output("k", sp.Matrix([e for _, e in consts]) if consts else sp.zeros(1, 1)),),
+            "Run constants of the held step: its subexpressions of (h, par) alone.",
+        )
+    ]
+    i = 0
+    for name, ins, outs, doc in pieces:
+        made = []
+        for oname, o in outs:
+            made.append(Output(oname, sp.Matrix(o.rows, o.cols, reduced[i : i + len(o)])))
+            i += len(o)
+        out.append(Routine(name, (*ins, ks), tuple(made), doc))
+    return out
+
+
+def factor_small(a: np.ndarray):
+    """``a`` factored for :func:`apply_small` (the C ``<model>_held_factor``): for 1 and 2 unknowns its
+    inverse in closed form, above ``a`` itself (solved by LU); ``None`` if singular."""
+    na = a.shape[0]
+    if na == 1:
+        return None if not a[0, 0] != 0.0 else np.array([[1.0 / a[0, 0]]])
+    if na == 2:
+        det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+        if not det != 0.0:
+            return None
+        inv = 1.0 / det
+        return np.array([[a[1, 1] * inv, -a[0, 1] * inv], [-a[1, 0] * inv, a[0, 0] * inv]])
+    return None if np.linalg.matrix_rank(a) < na else a
+
+
+def apply_small(f: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The solution of ``a x = b`` from ``f = factor_small(a)`` (the C ``<model>_held_apply``)."""
+    if len(b) == 1:
+        return np.array([b[0] * f[0, 0]])
+    if len(b) == 2:
+        return np.array([f[0, 0] * b[0] + f[0, 1] * b[1], f[1, 0] * b[0] + f[1, 1] * b[1]])
+    return np.linalg.solve(f, b)
+
+
+class Held(NamedTuple):
+    """A held grid step that cleared its tests: the end state and what the step books."""
+
+    q1: np.ndarray
+    p1: np.ndarray
+    v: np.ndarray
+    lam: np.ndarray  # Lam per row (0 off the active rows)
+    lam1: np.ndarray  # Lam' per row
+    energy: float
+
+
+def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
+    """One held grid step from ``(q, p)`` (the C ``<model>_held_step``), or ``None`` if it does not clear.
+
+    ``k``: the kernels (``held_consts``, ``held_free``, ``held_rows``, ``held_segment``, ``held_end``);
+    ``lam_in``: the previous step's multipliers (the Newton start); ``act``: the active rows;
+    ``residual``: ``Tolerances.residual`` (the accepted residual, relative to ``1 + |p|``), ``phi_tol``:
+    ``Tolerances.phi`` (an inactive row below ``-phi_tol`` is crossed).
+    """
+    kc = k.held_consts(h)
+    rows = [int(r) for r in np.flatnonzero(act)]
+    v0, jinv = k.held_free(q, p, kc)
+    g0 = k.held_rows(q, kc)[1][rows]
+    x = np.array([lam_in[r] for r in rows])
+    res = np.nan
+    for it in range(HELD_ITER + 1):
+        v = v0 + jinv * (g0.T @ x)
+        q1 = q + h * v
+        psi, grad, hess = k.held_rows(q1, kc)
+        res = float(np.max(np.abs(psi[rows]))) if np.isfinite(psi[rows]).all() else np.nan
+        if res <= ABSTOL or it == HELD_ITER or not res == res:
+            break
+        jac = factor_small(grad[rows] @ ((h * jinv)[:, None] * g0.T))
+        if jac is None:
+            break
+        d = apply_small(jac, psi[rows])
+        if np.max(np.abs(d)) <= ABSTOL_STEP:
+            break
+        x = x - d
+    if not res <= residual * (1.0 + float(np.max(np.abs(p)))):
+        return None
+    p_plus, energy = k.held_segment(q, v, kc)
+    acc, minv = k.held_end(q1, kc)
+    g1 = grad[rows]
+    w = factor_small(g1 @ (minv[:, None] * g1.T))  # the Delassus matrix, the projection's and the forces'
+    if w is None:
+        return None
+    lam1_a = apply_small(w, -(g1 @ (minv * p_plus)))
+    u1 = minv * p_plus + minv * (g1.T @ lam1_a)
+    p1 = p_plus + g1.T @ lam1_a
+    curv = np.zeros(len(rows))
+    for a, r in enumerate(rows):  # u1 . Hess psi_r . u1 on the pattern, in its order (as the C loop)
+        for m, (i, j, wgt) in enumerate(k.held_pattern):
+            curv[a] += wgt * u1[i] * hess[r, m] * u1[j]
+    f_a = apply_small(w, -(g1 @ acc + curv))
+    forces = np.zeros(k.r)
+    forces[rows] = f_a
+    f_eps = EPS_LAM * (1.0 + float(np.max(np.abs(forces))))
+    unilateral = [r for r in rows if not k.row_bilateral[r]]
+    if any(forces[r] < -f_eps for r in unilateral):
+        return None  # a lift-off inside the step
+    idle = [r for r in range(k.r) if not act[r]]
+    if any(psi[r] < -phi_tol for r in idle):
+        return None  # an inactive row crossed
+    if not (
+        np.isfinite(q1).all() and np.isfinite(p1).all() and np.isfinite(energy) and np.isfinite(f_a).all()
+    ):
+        return None
+    lam, lam1 = np.zeros(k.r), np.zeros(k.r)
+    lam[rows], lam1[rows] = x, lam1_a
+    return Held(q1, p1, v, lam, lam1, float(energy))
+
+
+class HeldSteps:
+    """The held grid step in :class:`~vcigen.stepper.Stepper` (the C loop's ``<model>_held_glide``)."""
+
+    def _held_step(self, h: float, q, p):
+        """A held grid step from ``(q, p)`` if the kernels have it and it clears its tests, else ``None``.
+
+        Taken, it books what ``SustainedSteps._chain`` books for a segment with no event: the impulses
+        ``Lam + Lam'`` as the step's forces and ``Lam`` as the next step's Newton start.
+        """
+        k = self.k
+        if not getattr(k, "held", False):
+            return None
+        out = k.held_step(q, p, self._lam, self.act, h, self.tol.residual, self.tol.phi)
+        if out is None:
+            return None
+        self._chained = True
+        self._book(out.lam + out.lam1)
+        self._lam = np.where(self.act, out.lam * (self._h / h), 0.0)
+        return out.q1, out.p1, out.energy, out.v
