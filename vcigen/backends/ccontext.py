@@ -19,8 +19,8 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..implicit import implicit_routines
 from ..held import has_held_path, held_routines, hess_pattern
+from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
