@@ -33,7 +33,7 @@ import numpy as np
 import sympy as sp
 
 from .derive import DiscreteSystem, _no_dirac
-from .explicit import _shorter, expanded, hoist, is_explicit, smooth_jacobian
+from .explicit import expanded, hoist, is_explicit, shorter, smooth_jacobian
 from .routines import Arg, Output, Routine
 from .sustained import EPS_LAM
 
@@ -107,7 +107,7 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     v = Arg("v", tuple(seg.input("v").symbols))
     seg_rep = dict(zip(seg.input("q0").symbols, q0.symbols)) | {seg.input("tau").symbols[0]: h}
     p_plus = seg.output("p_plus").expr.xreplace(seg_rep)
-    energy = _shorter(seg.output("energy").expr[0]).xreplace(seg_rep)
+    energy = shorter(seg.output("energy").expr[0]).xreplace(seg_rep)
     dyn, leg = r["dynamics"], r["legendre"]
     u0 = dict.fromkeys(dyn.input("u").symbols, sp.S.Zero)
     rhs = dyn.output("rhs").expr.xreplace(u0).xreplace(dict(zip(dyn.input("q").symbols, q.symbols)))
