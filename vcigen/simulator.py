@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from functools import partial
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -26,6 +26,17 @@ ErrorMode = Literal["raise", "return"]
 ERROR_MODES = ("raise", "return")
 CONSTRAINT_TOL = 1e-9  # |g(q0)| and |grad g . v0| accepted at the start (bilateral constraints)
 MAX_CONDITION = 1e12  # cond(d2L/dqdot2) accepted at the start
+
+
+class Start(NamedTuple):
+    """One run of ``simulate_many``, checked: its start, its ``params`` and what they resolve to."""
+
+    q0: np.ndarray
+    v0: np.ndarray
+    p0: np.ndarray  # dL/dqdot(q0, v0)
+    params: Mapping[object, float] | None
+    par: list[float]  # the kernels' parameter vector
+    mu_f: list[float]  # each contact's friction coefficient
 
 
 class Simulator:
@@ -105,8 +116,15 @@ class Simulator:
             raise ValueError(f"errors = {errors!r}; use one of {list(ERROR_MODES)}")
         if int(threads) != threads or threads < 1:
             raise ValueError(f"threads = {threads!r} must be a whole number >= 1")
-        starts = self._many_starts(q0s, v0s, params)
         h = self._validate(h, t_end, n_impacts, t0)
+        starts = []
+        for i, (q0, v0, par_i) in enumerate(self._many_starts(q0s, v0s, params)):
+            try:
+                par, mu_f = self._parameters(par_i, t0)
+                p0 = self._check_start(self.kernels.bind(par), q0, v0)
+            except ValueError as exc:
+                raise ValueError(f"run {i}: {exc}") from None
+            starts.append(Start(q0, v0, p0, par_i, par, mu_f))
         out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
         return _many_outcome(out, errors)
 
@@ -114,9 +132,11 @@ class Simulator:
         """One ``simulate`` per run, after one another (the Python stepper)."""
         out: list[Result | SolverError] = []
         with Progress(len(starts), f"simulate_many {self.model.name}", enabled=progress) as bar:
-            for i, (q0, v0, params) in enumerate(starts):
+            for i, st in enumerate(starts):
                 try:
-                    out.append(self.simulate(q0, v0, h, t_end, n_impacts, params, t0, progress=False))
+                    out.append(
+                        self.simulate(st.q0, st.v0, h, t_end, n_impacts, st.params, t0, progress=False)
+                    )
                 except SolverError as err:
                     out.append(err)
                 bar.update(i + 1)

@@ -366,7 +366,8 @@ class Stepper(SustainedSteps):
             t_k,
             "jump",
             0.0,
-            f"more than {tol.max_impacts_per_step} impacts in one step (chattering toward rest?); reduce h",
+            f"more than {tol.max_impacts_per_step} impacts in one step (Tolerances.max_impacts_per_step); "
+            "raise it if the impacts are real, or reduce h",
         )
 
     def _continuous_law(self, q, v_in, p_in, nrm, e: float):

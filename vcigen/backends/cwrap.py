@@ -83,6 +83,11 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
     return _Sustain
 
 
+def _par_array(par) -> np.ndarray:
+    """The parameter vector as C reads it (one unused entry for a model without parameters)."""
+    return np.array(par, dtype=float) if len(par) else np.zeros(1)
+
+
 def _ptr(a: np.ndarray) -> Any:
     return a.ctypes.data_as(_D)
 
@@ -176,7 +181,7 @@ class CKernels(ParameterSlots):
 
     def bind(self, par) -> CKernels:
         """Fix the parameter values for the next simulation."""
-        self.par = _vec(par, len(self.system.params)) if len(par) else np.zeros(1)
+        self.par = _par_array(par)
         return self
 
     def legendre(self, q, v):
@@ -342,18 +347,9 @@ class CSimulator(Simulator):
         batch in one call per thread until its runs are done (a run whose buffer filled resumes)."""
         kern, tol, rooms = self.kernels, self._tol_struct(), self._rooms(self.kernels)
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
-        runs, books = [], []
-        for i, (q0, v0, params) in enumerate(starts):
-            try:
-                par, mu_f = self._parameters(params, t0)
-                kern.bind(par)
-                p0 = self._check_start(kern, q0, v0)
-            except ValueError as exc:
-                raise ValueError(f"run {i}: {exc}") from None
-            runs.append(CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, rooms))
-            books.append((mu_f, par))
+        runs = [CRun(kern, _par_array(st.par), st.q0, st.v0, st.p0, steps, n_impacts, rooms) for st in starts]
         out: list[Result | SolverError] = []
-        size, wall0 = (len(runs) if not progress else 8), time.perf_counter()
+        size = len(runs) if not progress else 8
         reflected = 0
         with Progress(len(runs), f"simulate_many {self.model.name}", enabled=progress) as bar:
             first = 0
@@ -362,7 +358,8 @@ class CSimulator(Simulator):
                 start = time.perf_counter()
                 _run_batch(kern, tol, h, t0, batch, threads)
                 took = time.perf_counter() - start
-                for run, (mu_f, par) in zip(batch, books[first : first + size]):
+                for run, st in zip(batch, starts[first : first + size]):
+                    mu_f, par = st.mu_f, st.par
                     if run.rc:
                         err = run.error(t0, h, took / len(batch))
                         self._finish(err.result, mu_f, par)
@@ -378,7 +375,6 @@ class CSimulator(Simulator):
                 if progress:  # about a quarter second per batch, growing at most 8-fold
                     size = max(1, min(8 * size, int(0.25 * len(batch) / max(took, 1e-9))))
         warn_reflected(reflected, stacklevel=3)
-        del wall0
         return out
 
 
