@@ -11,6 +11,13 @@ the steps without an impact subtracted) for
 * ``bench/handwritten/particle.c``: Stormer-Verlet plus an analytic impact time, the
   practical limit, called the same way.
 
+Then (``user_main``, alone with ``--user-only``) what a user sees from Python, the C backend called
+as a user calls it (``simulate`` / ``simulate_many`` with default options): the particle's 1000
+impacts by ``n_impacts=`` and by ``t_end=``, against the same steps without impacts (us per impact
+seen from Python); the fixed cost of a ``simulate`` call (double pendulum, 0 and 33 steps); and
+``simulate_many`` against a loop of ``simulate`` (per run), with 1 and 2 threads. Writes
+``bench/results/c_speed_user.csv``.
+
 Every variant stores the same output (q, p, energy per step) into preallocated
 buffers; the best of ``--repeats`` runs counts. Prints a table with ratios and
 writes ``bench/results/c_speed.csv``. Targets: generated C within 1.5x of the

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import sympy as sp
 from hard_scenes import backend_param, simulator
 
 import vcigen
@@ -132,3 +133,29 @@ def test_simulate_many_bad_input(kwargs: dict, message: str) -> None:
     sim = simulator("ball", "casadi")
     with pytest.raises(ValueError, match=message):
         sim.simulate_many(h=0.01, t_end=0.1, **kwargs)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_simulate_many_with_a_constraint_and_no_contact(backend: str) -> None:
+    """A particle on a bilateral rod (no contact at all): each run starts its constraint held, stays on
+    the rod, and equals its own ``simulate``; rod lengths per run."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    length = sp.Symbol("l", positive=True)
+    model = vcigen.Model(
+        name="rod_many",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - 9.81 * y,
+        constraints={"rod": x**2 + y**2 - length**2},
+        params={length: 1.0},
+    )
+    sim = vcigen.build(model, backend=backend)
+    lengths = [1.0, 2.0, 0.5]
+    q0s = [[0.6 * r, -0.8 * r] for r in lengths]
+    v0s = [[0.8, 0.6], [0.0, 0.0], [-0.4, -0.3]]
+    params = [{"l": r} for r in lengths]
+    steps = 300 if backend == "c" else 40
+    many = sim.simulate_many(q0s, v0s, 0.01, t_end=steps * 0.01, params=params)
+    for q0, v0, par, r, res in zip(q0s, v0s, params, lengths, many):
+        assert np.abs(np.hypot(res.q[:, 0], res.q[:, 1]) - r).max() <= 1e-12
+        assert_same(res, sim.simulate(q0, v0, 0.01, t_end=steps * 0.01, params=par))

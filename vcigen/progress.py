@@ -83,7 +83,7 @@ class Progress:
             self._draw(elapsed, end="")
             self._next_draw = now + REDRAW
         else:
-            quarter = int(4 * min(self.done / self.total, 1.0))
+            quarter = min(int(4 * self.done / self.total), 3)  # the end is close()'s line
             if not self.shown or quarter > self._quarter:
                 self._quarter = quarter
                 self._draw(elapsed, end="\n")

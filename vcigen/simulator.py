@@ -51,6 +51,7 @@ class Simulator:
         self._friction = tangent_function(system)
         self._inverse: LegendreInverse | None = None  # built when a Result's v is first read
         self._defaults: tuple[list[float], list[float]] | None = None  # _parameters(None)
+        self._coordinate_names = tuple(self.model.coordinate_names)
 
     @property
     def backend(self) -> str:
@@ -117,10 +118,12 @@ class Simulator:
         if int(threads) != threads or threads < 1:
             raise ValueError(f"threads = {threads!r} must be a whole number >= 1")
         h = self._validate(h, t_end, n_impacts, t0)
-        starts = []
+        starts, resolved = [], {}  # params resolved once per mapping object (one for all runs, or each)
         for i, (q0, v0, par_i) in enumerate(self._many_starts(q0s, v0s, params)):
             try:
-                par, mu_f = self._parameters(par_i, t0)
+                if id(par_i) not in resolved:
+                    resolved[id(par_i)] = self._parameters(par_i, t0)
+                par, mu_f = resolved[id(par_i)]
                 p0 = self._check_start(self.kernels.bind(par), q0, v0)
             except ValueError as exc:
                 raise ValueError(f"run {i}: {exc}") from None
@@ -147,7 +150,7 @@ class Simulator:
         res.friction_work = friction_work(res, self._friction, mu_f, par)
         res.work = step_work(res, self._work, par) + res.friction_work
         res.energy_at_end = bool(self.model.force)
-        res.coordinate_names = self.model.coordinate_names
+        res.coordinate_names = list(self._coordinate_names)
         res.contact_names = self.system.contact_names
         res.velocity_of = partial(self._velocity, par=par)
 

@@ -34,6 +34,7 @@ class Job(ctypes.Structure):
         *(
             (name, ctypes.c_long)
             for name in (
+                "fresh",
                 "step0",
                 "n_steps",
                 "max_impacts",
@@ -78,7 +79,8 @@ class CRun:
         self.kern, self.steps, self.n_impacts = kern, steps, n_impacts
         self.rec_room, self.lift_room = rooms  # the records one step may write (run stops short of it)
         self.par = par
-        self.q, self.p, self.v = q0.copy(), p0.copy(), v0.copy()
+        state = np.concatenate((q0, p0, v0))  # q, p, v: in/out of every call
+        self.q, self.p, self.v = state[:n], state[n : 2 * n], state[2 * n :]
         cap = steps if n_impacts is None else min(steps, FIRST_CAP)
         self.cap = cap
         self.Q, self.P, self.E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(cap)
@@ -90,11 +92,13 @@ class CRun:
         self.sus, self.err = kern.Sustain(), kern.Error()
         self.done = self.n_rec = self.n_lift = self.reflected = 0
         self.rc = 0
+        self.started = False
         self.finished = steps == 0 or n_impacts == 0
         job = self.job = Job()
-        job.par, job.q, job.p, job.v = _addr(par), _addr(self.q), _addr(self.p), _addr(self.v)
+        at = _addr(state)
+        job.par, job.q, job.p, job.v = _addr(par), at, at + 8 * n, at + 16 * n
         job.sus, job.err = ctypes.addressof(self.sus), ctypes.addressof(self.err)
-        job.A0 = _addr(self.A)
+        job.A0, job.fresh = _addr(self.A), 1
         self._rows()
 
     def _rows(self) -> None:
@@ -134,8 +138,8 @@ class CRun:
     def collect(self) -> None:
         """Take in what the last call did; ``finished`` when the run is over (or failed: ``rc``)."""
         job = self.job
-        fresh = job.A0 is not None
-        job.A0 = None  # the start is done once
+        fresh = self.started is False
+        self.started = True  # run_many cleared job.fresh: the start is done once
         self.done += job.steps_done
         self.n_rec += job.impacts_done
         self.n_lift += job.liftoffs_done
@@ -172,7 +176,7 @@ class CRun:
             active=_cut(self.A, s + 1),
             contact_force=_cut(self.F, s),
             constraint_force=_cut(self.FC, s),
-            liftoffs=[(float(t), names[int(j)]) for t, j in lifts],
+            liftoffs=[(float(t), names[int(j)]) for t, j in lifts.tolist()] if len(lifts) else [],
         )
         self.Q = self.P = self.E = self.A = self.F = self.FC = None  # type: ignore[assignment]
         stats = res.stats
