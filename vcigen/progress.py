@@ -49,6 +49,7 @@ class Progress:
         self.enabled = bool(enabled) and self.total > 0
         self.min_seconds = float(min_seconds)
         self.stream = stream if stream is not None else sys.stderr
+        self.enabled = self.enabled and self.stream is not None  # no stderr (pythonw): nothing to draw on
         try:
             self.tty = bool(self.stream.isatty())
         except (AttributeError, ValueError):

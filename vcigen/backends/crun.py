@@ -178,7 +178,8 @@ class CRun:
             constraint_force=_cut(self.FC, s),
             liftoffs=[(float(t), names[int(j)]) for t, j in lifts.tolist()] if len(lifts) else [],
         )
-        self.Q = self.P = self.E = self.A = self.F = self.FC = None  # type: ignore[assignment]
+        # the result owns the grid buffers; the records are copied: let them all go with this run
+        self.Q = self.P = self.E = self.A = self.F = self.FC = self.rec = self.lift = None  # type: ignore[assignment]
         stats = res.stats
         stats["grazing_reflected"] = self.reflected
         kinds = self.sus.kinds
