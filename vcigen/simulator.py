@@ -123,8 +123,11 @@ class Simulator:
             try:
                 if id(par_i) not in resolved:
                     resolved[id(par_i)] = self._parameters(par_i, t0)
+                    self.kernels.bind(resolved[id(par_i)][0])
+                elif i and par_i is not starts[-1].params:
+                    self.kernels.bind(resolved[id(par_i)][0])
                 par, mu_f = resolved[id(par_i)]
-                p0 = self._check_start(self.kernels.bind(par), q0, v0)
+                p0 = self._check_start(self.kernels, q0, v0)
             except ValueError as exc:
                 raise ValueError(f"run {i}: {exc}") from None
             starts.append(Start(q0, v0, p0, par_i, par, mu_f))

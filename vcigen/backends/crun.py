@@ -21,7 +21,11 @@ from ..result import Result
 from ..stepper import done_fraction
 
 MAX_STEPS = 50_000_000
-FIRST_CAP = 1024  # grid rows of a run of unknown length, doubled as needed
+# A run of unknown length (n_impacts) reserves this many bytes per grid buffer: address space, not
+# memory (pages are touched only as the run writes them; the result's arrays are views of the rows
+# written), so such a run costs what the run of known length does; past it, buffers double.
+RESERVE_BYTES = 1 << 22
+FIRST_CAP_MANY = 1024  # grid rows each run of simulate_many starts with (doubled as needed)
 FIRST_RECORDS = 256  # impact records and lift-offs beyond the room one step needs, doubled as needed
 
 
@@ -74,14 +78,20 @@ class CRun:
         steps: int,
         n_impacts: int | None,
         rooms: tuple[int, int],
+        par_at: int = 0,
+        first_cap: int | None = None,
     ) -> None:
+        """``par_at``: the address of ``par`` when the caller has it (runs sharing one parameter vector);
+        ``first_cap``: the grid rows a run of unknown length starts with (default: ``RESERVE_BYTES``)."""
         n, m = kern.n, kern.m
         self.kern, self.steps, self.n_impacts = kern, steps, n_impacts
         self.rec_room, self.lift_room = rooms  # the records one step may write (run stops short of it)
         self.par = par
         state = np.concatenate((q0, p0, v0))  # q, p, v: in/out of every call
         self.q, self.p, self.v = state[:n], state[n : 2 * n], state[2 * n :]
-        cap = steps if n_impacts is None else min(steps, FIRST_CAP)
+        if first_cap is None:
+            first_cap = RESERVE_BYTES // (8 * max(n, m, kern.nc, 1))
+        cap = steps if n_impacts is None else min(steps, first_cap)
         self.cap = cap
         self.Q, self.P, self.E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(cap)
         self.Q[0], self.P[0] = q0, p0
@@ -96,10 +106,10 @@ class CRun:
         self.finished = steps == 0 or n_impacts == 0
         job = self.job = Job()
         at = _addr(state)
-        job.par, job.q, job.p, job.v = _addr(par), at, at + 8 * n, at + 16 * n
+        job.par, job.q, job.p, job.v = par_at or _addr(par), at, at + 8 * n, at + 16 * n
         job.sus, job.err = ctypes.addressof(self.sus), ctypes.addressof(self.err)
-        job.A0, job.fresh = _addr(self.A), 1
         self._rows()
+        job.A0, job.fresh = self._aA, 1
 
     def _rows(self) -> None:
         """The addresses of the grid buffers (after they are (re)allocated)."""
@@ -163,9 +173,13 @@ class CRun:
             lifts = self.lift[: self.n_lift]
             lifts = lifts[lifts[:, 0] < t0 + s * h]
         else:
-            rec, lifts = self.rec[: self.n_rec].copy(), self.lift[: self.n_lift]
+            rec = self.rec[: self.n_rec].copy() if self.n_rec else self.rec[:0]
+            lifts = self.lift[: self.n_lift]
+        t = np.arange(s + 1, dtype=float)
+        t *= h
+        t += t0  # t0 + h k, as the Python stepper's grid
         res = Result(
-            t0 + h * np.arange(s + 1),
+            t,
             _cut(self.Q, s + 1),
             _cut(self.P, s + 1),
             _cut(self.E, s),
@@ -182,9 +196,8 @@ class CRun:
         self.Q = self.P = self.E = self.A = self.F = self.FC = self.rec = self.lift = None  # type: ignore[assignment]
         stats = res.stats
         stats["grazing_reflected"] = self.reflected
-        kinds = self.sus.kinds
-        for i, kind in enumerate(KINDS):
-            stats[f"impacts_{kind}"] = kinds[i]
+        for kind, count in zip(KINDS, self.sus.kinds):
+            stats[f"impacts_{kind}"] = count
         stats["liftoffs"] = len(res.liftoffs)
         stats["jump_fallbacks"] = self.sus.fallbacks
         return res
@@ -198,8 +211,9 @@ class CRun:
 
 
 def _cut(a: np.ndarray, rows: int) -> np.ndarray:
-    """The first ``rows`` rows of a buffer nobody else holds, without a copy where possible."""
-    return a if a.shape[0] == rows else _resize(a, rows)
+    """The first ``rows`` rows of a buffer: a view, not a copy (a buffer grown by doubling wastes at most
+    half its rows; shrinking it in place would copy whenever the allocator cannot shrink in place)."""
+    return a if a.shape[0] == rows else a[:rows]
 
 
 def run_jobs(kern: Any, tol: Any, h: float, t0: float, runs: list[CRun], chunk: int) -> None:

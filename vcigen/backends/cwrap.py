@@ -25,7 +25,7 @@ from ..result import Result
 from ..simulator import Simulator
 from ..stepper import Tolerances, _n_steps, warn_reflected
 from ..sustained import rattle_segment
-from .crun import MAX_STEPS, CRun, chunk_steps, run_jobs
+from .crun import FIRST_CAP_MANY, MAX_STEPS, CRun, chunk_steps, run_jobs
 from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -347,7 +347,14 @@ class CSimulator(Simulator):
         batch in one call per thread until its runs are done (a run whose buffer filled resumes)."""
         kern, tol, rooms = self.kernels, self._tol_struct(), self._rooms(self.kernels)
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
-        runs = [CRun(kern, _par_array(st.par), st.q0, st.v0, st.p0, steps, n_impacts, rooms) for st in starts]
+        pars: dict[int, tuple[np.ndarray, int]] = {}  # one C parameter vector per distinct params
+        runs = []
+        for st in starts:
+            if id(st.par) not in pars:
+                arr = _par_array(st.par)
+                pars[id(st.par)] = (arr, arr.ctypes.data)
+            arr, at = pars[id(st.par)]
+            runs.append(CRun(kern, arr, st.q0, st.v0, st.p0, steps, n_impacts, rooms, at, FIRST_CAP_MANY))
         out: list[Result | SolverError] = []
         size = len(runs) if not progress else 8
         reflected = 0
