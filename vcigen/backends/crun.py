@@ -26,6 +26,7 @@ MAX_STEPS = 50_000_000
 # written), so such a run costs what the run of known length does; past it, buffers double.
 RESERVE_BYTES = 1 << 22
 FIRST_CAP_MANY = 1024  # grid rows each run of simulate_many starts with (doubled as needed)
+FIRST_RECORDS_MANY = 16  # impact records and lift-offs of each run of simulate_many beyond one step's room
 FIRST_RECORDS = 256  # impact records and lift-offs beyond the room one step needs, doubled as needed
 
 
@@ -97,8 +98,7 @@ class CRun:
         self.Q[0], self.P[0] = q0, p0
         self.A = np.zeros((cap + 1, m), dtype=np.bool_)  # rows the glide skips stay 0: nothing held
         self.F, self.FC = np.zeros((cap, m)), np.zeros((cap, kern.nc))
-        self.rec = np.empty((self.rec_room + FIRST_RECORDS, RECORD_HEAD + 1 + n))
-        self.lift = np.empty((self.lift_room + FIRST_RECORDS, 2))
+        self.rec = self.lift = None  # given by lend() or made by arm(), when the run first needs them
         self.sus, self.err = kern.Sustain(), kern.Error()
         self.done = self.n_rec = self.n_lift = self.reflected = 0
         self.rc = 0
@@ -131,10 +131,13 @@ class CRun:
             ):
                 _resize(getattr(self, name), rows)
             self._rows()
+        if self.rec is None:
+            self.lend(np.empty((self.rec_room + FIRST_RECORDS, RECORD_HEAD + 1 + n)),
+                      np.empty((self.lift_room + FIRST_RECORDS, 2)))  # fmt: skip
         if self.rec.shape[0] - self.n_rec <= self.rec_room:
-            _resize(self.rec, 2 * self.rec.shape[0])
+            self.rec = _doubled(self.rec)
         if self.lift.shape[0] - self.n_lift <= self.lift_room:
-            _resize(self.lift, 2 * self.lift.shape[0])
+            self.lift = _doubled(self.lift)
         d, job = self.done, self.job
         job.Q, job.P, job.E = self._aQ + 8 * n * (d + 1), self._aP + 8 * n * (d + 1), self._aE + 8 * d
         job.A, job.F, job.FC = self._aA + m * (d + 1), self._aF + 8 * m * d, self._aFC + 8 * nc * d
@@ -144,6 +147,10 @@ class CRun:
         job.step0, job.n_steps = d, min(chunk, self.cap - d, self.steps - d)
         job.max_impacts = -1 if self.n_impacts is None else self.n_impacts - self.n_rec
         return job
+
+    def lend(self, rec: np.ndarray, lift: np.ndarray) -> None:
+        """Give the run its impact-record and lift-off buffers (views of a batch's block, or its own)."""
+        self.rec, self.lift = rec, lift
 
     def collect(self) -> None:
         """Take in what the last call did; ``finished`` when the run is over (or failed: ``rc``)."""
@@ -167,6 +174,8 @@ class CRun:
         """The :class:`Result` of the steps done; its arrays are the buffers, cut to size."""
         kern, s = self.kern, self.done
         names = kern.contact_names
+        if self.rec is None:  # never ran (no step to take)
+            self.lend(np.empty((0, RECORD_HEAD + 1 + kern.n)), np.empty((0, 2)))
         if self.rc:
             keep = self.rec[: self.n_rec, 2] < s  # the run up to the last completed step
             rec = self.rec[: self.n_rec][keep]
@@ -210,10 +219,31 @@ class CRun:
         return error
 
 
+def _doubled(a: np.ndarray) -> np.ndarray:
+    """``a`` with twice the rows: in place if it owns its data, else (a view of a batch's block) a copy."""
+    if a.base is None:
+        return _resize(a, 2 * a.shape[0])
+    out = np.empty((2 * a.shape[0], *a.shape[1:]))
+    out[: a.shape[0]] = a
+    return out
+
+
 def _cut(a: np.ndarray, rows: int) -> np.ndarray:
     """The first ``rows`` rows of a buffer: a view, not a copy (a buffer grown by doubling wastes at most
     half its rows; shrinking it in place would copy whenever the allocator cannot shrink in place)."""
     return a if a.shape[0] == rows else a[:rows]
+
+
+def lend_records(runs: list[CRun], width: int) -> None:
+    """One block of impact-record and lift-off buffers for ``runs`` (each its rows), instead of two
+    allocations per run; a run that needs more gets its own, doubled."""
+    if not runs:
+        return
+    rec_rows, lift_rows = runs[0].rec_room + FIRST_RECORDS_MANY, runs[0].lift_room + FIRST_RECORDS_MANY
+    rec = np.empty((len(runs), rec_rows, width))
+    lift = np.empty((len(runs), lift_rows, 2))
+    for i, r in enumerate(runs):
+        r.lend(rec[i], lift[i])
 
 
 def run_jobs(kern: Any, tol: Any, h: float, t0: float, runs: list[CRun], chunk: int) -> None:

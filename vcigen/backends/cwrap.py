@@ -10,6 +10,7 @@ stepper can also run on the C kernels, for debugging); :class:`CSimulator` calls
 from __future__ import annotations
 
 import ctypes
+import gc
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -20,12 +21,13 @@ import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
 from ..errors import SolverError
+from ..impacts import RECORD_HEAD
 from ..progress import Progress
 from ..result import Result
-from ..simulator import Simulator
+from ..simulator import Simulator, Start
 from ..stepper import Tolerances, _n_steps, warn_reflected
 from ..sustained import rattle_segment
-from .crun import FIRST_CAP_MANY, MAX_STEPS, CRun, chunk_steps, run_jobs
+from .crun import FIRST_CAP_MANY, MAX_STEPS, CRun, chunk_steps, lend_records, run_jobs
 from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -348,21 +350,35 @@ class CSimulator(Simulator):
         kern, tol, rooms = self.kernels, self._tol_struct(), self._rooms(self.kernels)
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
         pars: dict[int, tuple[np.ndarray, int]] = {}  # one C parameter vector per distinct params
-        runs = []
-        for st in starts:
+
+        def make(st: Start) -> CRun:
             if id(st.par) not in pars:
                 arr = _par_array(st.par)
                 pars[id(st.par)] = (arr, arr.ctypes.data)
             arr, at = pars[id(st.par)]
-            runs.append(CRun(kern, arr, st.q0, st.v0, st.p0, steps, n_impacts, rooms, at, FIRST_CAP_MANY))
+            return CRun(kern, arr, st.q0, st.v0, st.p0, steps, n_impacts, rooms, at, FIRST_CAP_MANY)
+
+        gc_was_on = gc.isenabled()
+        gc.disable()  # thousands of new objects and no cycle among them: no collection passes meanwhile
+        try:
+            return self._batches(starts, make, tol, h, t_end, n_impacts, t0, progress, threads)
+        finally:
+            if gc_was_on:
+                gc.enable()
+
+    def _batches(
+        self, starts, make, tol, h, t_end, n_impacts, t0, progress, threads
+    ) -> list[Result | SolverError]:
+        kern = self.kernels
         out: list[Result | SolverError] = []
-        size = len(runs) if not progress else 8
+        size = len(starts) if not progress else 8
         reflected = 0
-        with Progress(len(runs), f"simulate_many {self.model.name}", enabled=progress) as bar:
+        with Progress(len(starts), f"simulate_many {self.model.name}", enabled=progress) as bar:
             first = 0
-            while first < len(runs):
-                batch = runs[first : first + size]
+            while first < len(starts):
                 start = time.perf_counter()
+                batch = [make(st) for st in starts[first : first + size]]  # buffers made batch by batch
+                lend_records([r for r in batch if not r.finished], RECORD_HEAD + 1 + kern.n)
                 _run_batch(kern, tol, h, t0, batch, threads)
                 took = time.perf_counter() - start
                 for run, st in zip(batch, starts[first : first + size]):
