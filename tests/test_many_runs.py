@@ -69,6 +69,10 @@ def test_simulate_many_n_impacts_equals_serial_runs(backend: str) -> None:
     q0s = [[0.0, 1.0], [0.0, 2.0], [0.0, 0.3]]
     v0s = [[0.0, 0.0]] * 3
     many = sim.simulate_many(q0s, v0s, 0.01, n_impacts=n, params={"e": 1.0})
+    # a run of unknown length reuses the buffers of the last one (C): let that one leave a ball held
+    # on the floor in them (active contact, forces), which the next runs must not inherit
+    held = sim.simulate([0.0, 0.2], [0.0, 0.0], 0.01, n_impacts=20, t_end=3.0, params={"e": 0.5})
+    assert held.active.any() and held.contact_force.any()
     for q0, v0, res in zip(q0s, v0s, many):
         assert res.n_impacts == n
         assert_same(res, sim.simulate(q0, v0, 0.01, n_impacts=n, params={"e": 1.0}))
