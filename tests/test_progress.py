@@ -9,6 +9,7 @@ from functools import partial
 import pytest
 from hard_scenes import simulator
 
+import vcigen.backends.cwrap
 import vcigen.simulator
 from vcigen.progress import Progress, format_seconds
 
@@ -71,13 +72,21 @@ def test_format_seconds(s: float, text: str) -> None:
 
 def test_simulate_shows_progress_only_when_long_and_asked(monkeypatch, capsys) -> None:
     """A 0.01 s run prints nothing by default (no per-chunk lines); a run longer than the threshold
-    (lowered to 0.02 s here) shows the bar on stderr, and not with progress=False."""
+    (lowered to 0 here: any run) shows the bar on stderr, and not with progress=False."""
     sim = simulator("ball", "casadi")
     sim.simulate([0.0, 1.0], [0.0, 0.0], 0.01, t_end=0.05)
     assert capsys.readouterr() == ("", "")
-    monkeypatch.setattr(vcigen.simulator, "Progress", partial(Progress, min_seconds=0.02))
-    sim.simulate([0.0, 1.0], [0.0, 0.0], 0.005, t_end=5.0, params={"e": 1.0})  # 1000 Python steps: > 0.02 s
+    for module in (vcigen.simulator, vcigen.backends.cwrap):  # simulate; the C backend's simulate_many
+        monkeypatch.setattr(module, "Progress", partial(Progress, min_seconds=0.0))
+    sim.simulate([0.0, 1.0], [0.0, 0.0], 0.005, t_end=5.0, params={"e": 1.0})
     err = capsys.readouterr().err
     assert "simulate ball: [" in err and "100.0%" in err
     sim.simulate([0.0, 1.0], [0.0, 0.0], 0.005, t_end=5.0, params={"e": 1.0}, progress=False)
+    assert capsys.readouterr() == ("", "")
+    csim = simulator("ball", "c")  # the C loop reports between its calls
+    csim.simulate([0.0, 1.0], [0.0, 0.0], 0.005, t_end=5.0, params={"e": 1.0})
+    assert "100.0%" in capsys.readouterr().err
+    csim.simulate_many([[0.0, 1.0]] * 3, [[0.0, 0.0]] * 3, 0.005, t_end=5.0)
+    assert "simulate_many ball: [" in capsys.readouterr().err
+    csim.simulate_many([[0.0, 1.0]] * 3, [[0.0, 0.0]] * 3, 0.005, t_end=5.0, progress=False)
     assert capsys.readouterr() == ("", "")
