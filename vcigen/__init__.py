@@ -6,6 +6,7 @@ Variational Collision Integrators*. The public API is shared/API.md.
 
 from .derive import DiscreteSystem, derive
 from .errors import CompileError, SolverError
+from .impacts import ImpactTable
 from .model import Model
 from .result import Impact, Result
 from .rules import MIDPOINT, RULES, TRAPEZOID, Rule, midpoint_rule
@@ -19,6 +20,7 @@ __all__ = [
     "CompileError",
     "DiscreteSystem",
     "Impact",
+    "ImpactTable",
     "Model",
     "Result",
     "Rule",
