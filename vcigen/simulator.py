@@ -52,6 +52,7 @@ class Simulator:
         self._inverse: LegendreInverse | None = None  # built when a Result's v is first read
         self._defaults: tuple[list[float], list[float]] | None = None  # _parameters(None)
         self._coordinate_names = tuple(self.model.coordinate_names)
+        self._constraint_names = tuple(self.model.constraint)  # (a property that builds a dict)
 
     @property
     def backend(self) -> str:
@@ -227,13 +228,13 @@ class Simulator:
                 raise ValueError(
                     f"q0 violates contact '{name}' (phi = {val:.6g} < 0); start inside the admissible set"
                 )
-        if kern.r and self.model.constraint:
+        if kern.r and self._constraint_names:
             psi, grad, _ = kern.rows(q0, v0)
             for r in range(kern.r):
                 i = kern.row_constraint[r]
                 if i < 0:
                     continue
-                name = list(self.model.constraint)[i]
+                name = self._constraint_names[i]
                 if not abs(psi[r]) <= CONSTRAINT_TOL:
                     raise ValueError(
                         f"q0 violates constraint '{name}' (g = {psi[r]:.6g}); start on every constraint "
