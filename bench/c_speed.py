@@ -1,6 +1,6 @@
 """Speed of the generated C against the CasADi backend and a hand-written C loop (issue 3).
 
-    .venv/bin/python bench/c_speed.py [--repeats 5]
+    .venv/bin/python bench/c_speed.py [--repeats 5] [--user-only]
 
 For the paper's particle (m = 1, g = 9.81, h = 0.01): ns per smooth step (a run high
 above the floor, no impact) and us per impact (1 mm bounces, an impact every ~3 steps,
@@ -10,6 +10,13 @@ the steps without an impact subtracted) for
 * the CasADi backend (Python stepper over CasADi Functions);
 * ``bench/handwritten/particle.c``: Stormer-Verlet plus an analytic impact time, the
   practical limit, called the same way.
+
+Then (``user_main``, alone with ``--user-only``) what a user sees from Python, the C backend called
+as a user calls it (``simulate`` / ``simulate_many`` with default options): the particle's 1000
+impacts by ``n_impacts=`` and by ``t_end=``, against the same steps without impacts (us per impact
+seen from Python); the fixed cost of a ``simulate`` call (double pendulum, 0 and 33 steps); and
+``simulate_many`` against a loop of ``simulate`` (per run), with 1 and 2 threads. Writes
+``bench/results/c_speed_user.csv``.
 
 Every variant stores the same output (q, p, energy per step) into preallocated
 buffers; the best of ``--repeats`` runs counts. Prints a table with ratios and
@@ -447,11 +454,110 @@ def print_chain(rows, impacts) -> None:
     print(f"written {out}")
 
 
+# ---- what a user sees from Python (issue 13): simulate and simulate_many as a user calls them ----------
+
+N_USER_IMPACTS = 1000  # the paper's particle, h = 0.01
+DP_Q0, DP_V0 = [0.3, 0.6], [1.5, 2.0]  # the double pendulum striking its wall (tests/hard_scenes.py)
+N_MANY = 1000  # runs of simulate_many
+
+
+def best_cpu(repeats: int, fn) -> float:
+    """Smallest CPU time (``time.process_time``: the time this process ran, so a machine shared with
+    other jobs inflates it far less than wall time) of ``repeats`` calls of ``fn``."""
+    times = []
+    for _ in range(repeats):
+        t = time.process_time()
+        fn()
+        times.append(time.process_time() - t)
+    return min(times)
+
+
+def user_rows(repeats: int) -> list[dict[str, float | str]]:
+    """CPU times of ``simulate`` / ``simulate_many`` calls (C backend, default options), best of
+    ``repeats`` (wall time for the threads rows): the particle's 1000 impacts (``n_impacts=`` and the
+    equivalent ``t_end=``, and the same steps high above the floor, so the difference is the cost of
+    the impacts as Python sees them), and the fixed cost of a call on the double pendulum (0 and 33
+    steps); ``simulate_many`` against a loop of ``simulate`` (skipped where the simulator has no
+    ``simulate_many``)."""
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    from hard_scenes import double_pendulum
+
+    part = vcigen.build(load_example(HERE.parent / "examples" / "particle.py").model(), backend="c")
+    res = part.simulate(Q0, V0, H, n_impacts=N_USER_IMPACTS)
+    t_end, steps = float(res.t[-1]), res.t.size - 1
+    t_n = best_cpu(repeats, lambda: part.simulate(Q0, V0, H, n_impacts=N_USER_IMPACTS))
+    t_t = best_cpu(repeats, lambda: part.simulate(Q0, V0, H, t_end=t_end))
+    t_s = best_cpu(repeats, lambda: part.simulate(HIGH, V0, H, t_end=t_end))
+    t_read = best_cpu(repeats, lambda: [im.t for im in res.impacts])
+    rows: list[dict[str, float | str]] = [
+        {"what": f"particle n_impacts={N_USER_IMPACTS} ({steps} steps)", "us": t_n * 1e6},
+        {"what": "particle, the same run by t_end", "us": t_t * 1e6},
+        {"what": "particle, the same steps without impacts", "us": t_s * 1e6},
+        {
+            "what": "per impact seen from Python (n_impacts run - no impacts) / 1000",
+            "us": (t_n - t_s) / N_USER_IMPACTS * 1e6,
+        },
+        {"what": "n_impacts run / t_end run (ratio)", "us": t_n / t_t},
+        {"what": "reading every res.impacts[i].t, per impact", "us": t_read / N_USER_IMPACTS * 1e6},
+    ]
+    dp = vcigen.build(double_pendulum(), backend="c")
+    reps = max(repeats, 200)  # short calls: many repeats, the best is the call without interference
+    for te, label in ((0.0, "0 steps: the fixed cost"), (0.33, "33 steps, 1 impact")):
+        rows.append(
+            {
+                "what": f"double pendulum simulate, {label}",
+                "us": best_cpu(reps, lambda te=te: dp.simulate(DP_Q0, DP_V0, 0.01, t_end=te)) * 1e6,
+            }
+        )
+    if not hasattr(dp, "simulate_many"):
+        return rows
+    rng = np.random.default_rng(1)
+    q0s = np.array(DP_Q0) + 0.01 * rng.standard_normal((N_MANY, 2))
+    v0s = np.tile(DP_V0, (N_MANY, 1))
+    for te, label in ((0.0, "0 steps"), (0.33, "33 steps")):
+        loop = best_cpu(repeats, lambda te=te: [dp.simulate(q, v, 0.01, t_end=te) for q, v in zip(q0s, v0s)])
+        many = best_cpu(repeats, lambda te=te: dp.simulate_many(q0s, v0s, 0.01, t_end=te))
+        rows.append(
+            {"what": f"double pendulum, {label}: loop of simulate, per run", "us": loop / N_MANY * 1e6}
+        )
+        rows.append({"what": f"double pendulum, {label}: simulate_many, per run", "us": many / N_MANY * 1e6})
+    for threads in (1, 2):
+        many = best_of(repeats, lambda th=threads: dp.simulate_many(q0s, v0s, 0.01, t_end=3.3, threads=th))
+        rows.append(
+            {
+                "what": f"double pendulum, 330 steps: simulate_many threads={threads}, per run",
+                "us": many / N_MANY * 1e6,
+            }
+        )
+    return rows
+
+
+def user_main(repeats: int) -> None:
+    """Print :func:`user_rows` and write ``bench/results/c_speed_user.csv``."""
+    rows = user_rows(repeats)
+    print(f"\n{'simulate as a user calls it (C backend; CPU time, threads rows wall time)':78s} {'us':>10s}")
+    for r in rows:
+        print(f"{r['what']:78s} {r['us']:10.2f}")
+    out = HERE / "results" / "c_speed_user.csv"
+    out.parent.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=["what", "us"])
+        w.writeheader()
+        w.writerows(rows)
+    print(f"written {out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--only", choices=("particle", "chain"), help="one table only")
+    ap.add_argument(
+        "--user-only", action="store_true", help="only simulate / simulate_many as a user calls them"
+    )
     args = ap.parse_args(argv)
+    if args.user_only:
+        user_main(args.repeats)
+        return 0
     if args.only != "particle":
         chain = chain_rows(args.repeats)
         print_chain(chain, pendulum_impact_rows())
@@ -518,6 +624,7 @@ def main(argv: list[str] | None = None) -> int:
         r["casadi_over_this_step"] >= 100 for r in gen
     )
     print("targets (<= 1.5x hand-written per step, >= 100x CasADi):", "met" if ok else "NOT met")
+    user_main(args.repeats)
     return 0
 
 

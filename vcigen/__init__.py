@@ -7,6 +7,7 @@ Variational Collision Integrators*. The public API is shared/API.md.
 from .casadi_functions import casadi_functions, casadi_parameters
 from .derive import DiscreteSystem, derive
 from .errors import CompileError, SolverError
+from .impacts import ImpactTable
 from .model import Model
 from .result import Impact, Result
 from .rules import MIDPOINT, RULES, TRAPEZOID, Rule, midpoint_rule
@@ -21,6 +22,7 @@ __all__ = [
     "CompileError",
     "DiscreteSystem",
     "Impact",
+    "ImpactTable",
     "Model",
     "Result",
     "Rule",

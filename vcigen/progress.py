@@ -49,6 +49,7 @@ class Progress:
         self.enabled = bool(enabled) and self.total > 0
         self.min_seconds = float(min_seconds)
         self.stream = stream if stream is not None else sys.stderr
+        self.enabled = self.enabled and self.stream is not None  # no stderr (pythonw): nothing to draw on
         try:
             self.tty = bool(self.stream.isatty())
         except (AttributeError, ValueError):
@@ -83,7 +84,7 @@ class Progress:
             self._draw(elapsed, end="")
             self._next_draw = now + REDRAW
         else:
-            quarter = int(4 * min(self.done / self.total, 1.0))
+            quarter = min(int(4 * self.done / self.total), 3)  # the end is close()'s line
             if not self.shown or quarter > self._quarter:
                 self._quarter = quarter
                 self._draw(elapsed, end="\n")

@@ -3,35 +3,15 @@
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-KINDS = ("elastic", "restitution", "plastic", "grazing")  # Impact.kind (MATH.md, Sustained contact)
+from .impacts import KINDS, Impact, Impacts, ImpactTable
 
-
-@dataclass(frozen=True)
-class Impact:
-    """One impact: time, contact name, impact point, step fraction, impulse.
-
-    ``alpha`` is ``(t - t_k)/h`` within the grid step ``k``; ``impulse`` is the
-    multiplier ``mu >= 0`` of (76) (the paper's ``lambda`` is ``-mu``).
-    ``energy_before``/``energy_after`` are ``E_d`` of the segments either side (48a):
-    equal for an elastic contact, apart by the loss of (39) with restitution ``e < 1``
-    (for a plastic impact, or one during sustained contact: apart by the kinetic energy lost).
-    ``kind`` says which law resolved it (MATH.md, *Sustained contact*).
-    """
-
-    t: float
-    contact: str
-    q: np.ndarray
-    alpha: float
-    impulse: float
-    step: int
-    energy_before: float
-    energy_after: float
-    kind: str = "elastic"  # "elastic", "restitution", "plastic" (starts sustained contact) or "grazing"
+__all__ = ["KINDS", "Impact", "ImpactTable", "Impacts", "Result"]
 
 
 @dataclass
@@ -42,7 +22,7 @@ class Result:
     q: np.ndarray
     p: np.ndarray
     energy: np.ndarray
-    impacts: list[Impact]
+    impacts: Sequence[Impact]  # a list (Python stepper) or Impacts, made from impact_table on access (C)
     coordinate_names: list[str]
     h: float
     stats: dict[str, float] = field(default_factory=dict)
@@ -53,10 +33,45 @@ class Result:
     work: np.ndarray | None = None  # (N-1,): discrete work of the forces over each grid step (vcigen.work)
     friction_work: np.ndarray | None = None  # (N-1,): the part of work done by friction in sustained contact
     energy_at_end: bool = False  # energy[k] is the energy at the end of step k (forces), else E_d entering it
+    contact_names: tuple[str, ...] = ()  # the model's contacts (ImpactTable.contact indexes them)
+    # (q (N, n), p (N, n)) -> (N, n): the continuous Legendre transform inverted (Result.v); set by simulate
+    velocity_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = field(
+        default=None, repr=False, compare=False
+    )
+    _table: ImpactTable | None = field(default=None, init=False, repr=False, compare=False)
+    _v: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def n_impacts(self) -> int:
         return len(self.impacts)
+
+    @property
+    def impact_table(self) -> ImpactTable:
+        """The impact log as arrays (:class:`~vcigen.impacts.ImpactTable`), one entry per impact."""
+        if isinstance(self.impacts, Impacts):
+            return self.impacts.table
+        if self._table is None or len(self._table) != len(self.impacts):
+            names = self.contact_names or tuple(dict.fromkeys(im.contact for im in self.impacts))
+            self._table = ImpactTable.from_impacts(self.impacts, names, self.q.shape[1])
+        return self._table
+
+    @property
+    def v(self) -> np.ndarray:
+        """``(N, n)``: the velocity of each grid momentum, ``dL/dqdot(q_k, v_k) = p_k`` solved for ``v_k``
+        (the continuous Legendre transform inverted at ``(q_k, p_k)``; ``vcigen.velocity``)."""
+        if self._v is None:
+            if self.velocity_of is None:
+                raise ValueError(
+                    "this Result does not know its model's Legendre transform (not from simulate)"
+                )
+            self._v = self.velocity_of(self.q, self.p)
+        return self._v
+
+    def __getstate__(self) -> dict:
+        """For pickling (``vcigen.sweep``): ``v`` computed, the model's Legendre inverse left behind."""
+        if self.velocity_of is not None and self._v is None:
+            self._v = self.velocity_of(self.q, self.p)
+        return {**self.__dict__, "velocity_of": None}
 
     def max_energy_deviation(self) -> float:
         """``max |E_k - E_0| / |E_0|`` over the run (absolute if ``E_0 == 0``)."""
@@ -81,9 +96,10 @@ class Result:
         work = work - fric  # the forces' part: booked per step; friction in sustained contact: per middle
         lost = np.zeros(e.size)
         shift = 0 if self.energy_at_end else 1  # without forces an impact step reports E_d before its impacts
-        for im in self.impacts:
-            if im.step + shift < e.size:
-                lost[im.step + shift] += im.energy_before - im.energy_after
+        tab = self.impact_table
+        at = tab.step + shift
+        inside = at < e.size
+        np.add.at(lost, at[inside], (tab.energy_before - tab.energy_after)[inside])
         if self.energy_at_end:  # forces: E_k is the energy at the end of step k
             acc = np.cumsum(work) - work[0]
         else:  # E_d of a step is its energy half-way: the work between the middles of the steps

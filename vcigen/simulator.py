@@ -4,25 +4,43 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Literal
+from functools import partial
+from typing import Literal, NamedTuple
 
 import numpy as np
 
+from .backends import registry
 from .derive import DiscreteSystem, derive
 from .errors import SolverError
 from .model import Model
+from .progress import Progress
 from .result import Result
 from .rules import Rule
 from .stepper import Stepper, Tolerances, warn_reflected
+from .velocity import LegendreInverse
 from .work import friction_work, step_work, tangent_function, work_function
 
 Backend = Literal["casadi", "c"]
-BACKENDS = ("casadi", "c")
+BACKENDS = ("casadi", "c")  # the built-in backends (vcigen.backends.registry.names() has any others)
+ErrorMode = Literal["raise", "return"]
+ERROR_MODES = ("raise", "return")
 CONSTRAINT_TOL = 1e-9  # |g(q0)| and |grad g . v0| accepted at the start (bilateral constraints)
+MAX_CONDITION = 1e12  # cond(d2L/dqdot2) accepted at the start
+
+
+class Start(NamedTuple):
+    """One run of ``simulate_many``, checked: its start, its ``params`` and what they resolve to."""
+
+    q0: np.ndarray
+    v0: np.ndarray
+    p0: np.ndarray  # dL/dqdot(q0, v0)
+    params: Mapping[object, float] | None
+    par: list[float]  # the kernels' parameter vector
+    mu_f: list[float]  # each contact's friction coefficient
 
 
 class Simulator:
-    """A model compiled for one backend and rule; call :meth:`simulate`."""
+    """A model compiled for one backend and rule; call :meth:`simulate` or :meth:`simulate_many`."""
 
     def __init__(self, system: DiscreteSystem, kernels, tol: Tolerances | None = None) -> None:
         self.system = system
@@ -31,6 +49,10 @@ class Simulator:
         self.tol = tol or Tolerances()
         self._work = work_function(system)
         self._friction = tangent_function(system)
+        self._inverse: LegendreInverse | None = None  # built when a Result's v is first read
+        self._defaults: tuple[list[float], list[float]] | None = None  # _parameters(None)
+        self._coordinate_names = tuple(self.model.coordinate_names)
+        self._constraint_names = tuple(self.model.constraint)  # (a property that builds a dict)
 
     @property
     def backend(self) -> str:
@@ -45,46 +67,132 @@ class Simulator:
         n_impacts: int | None = None,
         params: Mapping[object, float] | None = None,
         t0: float = 0.0,
-        progress: bool = False,
+        progress: bool = True,
     ) -> Result:
-        """Integrate from ``(q0, v0)`` with step ``h`` until ``t_end`` or ``n_impacts``."""
-        q0a, v0a, h = self._validate(q0, v0, h, t_end, n_impacts, t0)
-        par = self.model.resolve_params(params)
-        self.model.restitution_values(par)  # each in [0, 1] at these parameters, or a ValueError
-        mu_f = self.model.friction_values(par)  # each >= 0, or a ValueError
-        # the slots the stepper sets: friction in sustained contact (0 at the start), then the time a segment
-        # starts at (Kernels.at), last
-        slots = len(self.system.params) - len(par) - self.system.timed
-        par = par + [0.0] * slots + ([float(t0)] if self.system.timed else [])
+        """Integrate from ``(q0, v0)`` with step ``h`` until ``t_end`` or ``n_impacts``.
+
+        ``progress``: a progress bar on stderr (``vcigen.progress``) for a run projected to take more than
+        2 s; nothing for shorter runs, nothing at all with ``progress=False``.
+        """
+        q0a, v0a = self._start_vectors(q0, v0)
+        h = self._validate(h, t_end, n_impacts, t0)
+        par, mu_f = self._parameters(params, t0)
         kern = self.kernels.bind(par)
-        self._check_start(kern, q0a, v0a)
-        try:
-            res = self._run(kern, q0a, v0a, h, t_end, n_impacts, t0, progress)
-        except SolverError as err:
-            if err.result is not None:
-                self._book_work(err.result, mu_f, par)
-            raise
-        self._book_work(res, mu_f, par)
-        res.coordinate_names = self.model.coordinate_names
+        p0 = self._check_start(kern, q0a, v0a)
+        with Progress(1.0, f"simulate {self.model.name}", enabled=progress) as bar:
+            try:
+                res = self._run(kern, q0a, v0a, p0, h, t_end, n_impacts, t0, bar)
+            except SolverError as err:
+                if err.result is not None:
+                    self._finish(err.result, mu_f, par)
+                raise
+        self._finish(res, mu_f, par)
         warn_reflected(res.stats.get("grazing_reflected", 0))
         return res
 
-    def _book_work(self, res: Result, mu_f: list[float], par: list[float]) -> None:
-        """``res.work`` (forces, friction in sustained contact: ``vcigen.work``) and what its energy means."""
+    def simulate_many(
+        self,
+        q0s: Sequence[Sequence[float]],
+        v0s: Sequence[Sequence[float]],
+        h: float,
+        t_end: float | None = None,
+        n_impacts: int | None = None,
+        params: Mapping[object, float] | Sequence[Mapping[object, float] | None] | None = None,
+        t0: float = 0.0,
+        progress: bool = True,
+        errors: ErrorMode = "raise",
+        threads: int = 1,
+    ) -> list[Result | SolverError]:
+        """``K`` runs from ``q0s[i], v0s[i]`` (shape ``(K, n)``), each equal to ``simulate`` with the same
+        arguments; ``params`` is one mapping for all runs or a sequence of ``K`` (``None``: the defaults).
+
+        A run that raises :class:`~vcigen.SolverError`: with ``errors="raise"`` (default) the first such
+        run's error is raised once all runs are done, its message starting ``run i:``, with ``.run = i``,
+        ``.result`` (that run up to its last completed step) and ``.results`` (the list, that error in
+        run ``i``'s place); with ``errors="return"`` the list holds the error in place of the result.
+        Bad input (any run's) raises ``ValueError`` naming the run before anything runs. ``threads``: the
+        C backend splits the runs over that many threads (results identical); the CasADi backend runs
+        them one after another.
+        """
+        if errors not in ERROR_MODES:
+            raise ValueError(f"errors = {errors!r}; use one of {list(ERROR_MODES)}")
+        if int(threads) != threads or threads < 1:
+            raise ValueError(f"threads = {threads!r} must be a whole number >= 1")
+        h = self._validate(h, t_end, n_impacts, t0)
+        starts, resolved = [], {}  # params resolved once per mapping object (one for all runs, or each)
+        for i, (q0, v0, par_i) in enumerate(self._many_starts(q0s, v0s, params)):
+            try:
+                if id(par_i) not in resolved:
+                    resolved[id(par_i)] = self._parameters(par_i, t0)
+                    self.kernels.bind(resolved[id(par_i)][0])
+                elif i and par_i is not starts[-1].params:
+                    self.kernels.bind(resolved[id(par_i)][0])
+                par, mu_f = resolved[id(par_i)]
+                p0 = self._check_start(self.kernels, q0, v0)
+            except ValueError as exc:
+                raise ValueError(f"run {i}: {exc}") from None
+            starts.append(Start(q0, v0, p0, par_i, par, mu_f))
+        out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
+        return _many_outcome(out, errors)
+
+    def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
+        """One ``simulate`` per run, after one another (the Python stepper)."""
+        out: list[Result | SolverError] = []
+        with Progress(len(starts), f"simulate_many {self.model.name}", enabled=progress) as bar:
+            for i, st in enumerate(starts):
+                try:
+                    out.append(
+                        self.simulate(st.q0, st.v0, h, t_end, n_impacts, st.params, t0, progress=False)
+                    )
+                except SolverError as err:
+                    out.append(err)
+                bar.update(i + 1)
+        return out
+
+    def _finish(self, res: Result, mu_f: list[float], par: list[float]) -> None:
+        """What ``simulate`` adds to a run: the work (``vcigen.work``), names, the Legendre inverse."""
         res.friction_work = friction_work(res, self._friction, mu_f, par)
         res.work = step_work(res, self._work, par) + res.friction_work
         res.energy_at_end = bool(self.model.force)
+        res.coordinate_names = list(self._coordinate_names)
+        res.contact_names = self.system.contact_names
+        res.velocity_of = partial(self._velocity, par=par)
 
-    def _run(self, kern, q0, v0, h, t_end, n_impacts, t0, progress) -> Result:
+    def _velocity(self, q: np.ndarray, p: np.ndarray, par: list[float]) -> np.ndarray:
+        if self._inverse is None:
+            self._inverse = LegendreInverse(self.system)
+        return self._inverse(q, p, par)
+
+    def _parameters(
+        self, params: Mapping[object, float] | None, t0: float = 0.0
+    ) -> tuple[list[float], list[float]]:
+        """The parameter vector of the kernels at ``params`` (checked) and each contact's ``mu_f``."""
+        if params is None and self._defaults is not None:
+            par, mu_f = self._defaults
+        else:
+            par = self.model.resolve_params(params)
+            self.model.restitution_values(par)  # each in [0, 1] at these parameters, or a ValueError
+            mu_f = self.model.friction_values(par)  # each >= 0, or a ValueError
+            # the slots the stepper sets: friction in sustained contact (0 at the start), then the time a
+            # segment starts at (Kernels.at), last
+            slots = len(self.system.params) - len(par) - self.system.timed
+            par = par + [0.0] * slots
+            if params is None:
+                self._defaults = par, mu_f
+        return (par + [float(t0)] if self.system.timed else par), mu_f
+
+    def _run(self, kern, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
         return Stepper(kern, self.tol).simulate(
             q0, v0, h, t_end=t_end, n_impacts=n_impacts, t0=t0, progress=progress
         )
 
     # -- validation ------------------------------------------------------------------
-    def _validate(self, q0, v0, h, t_end, n_impacts, t0):
+    def _start_vectors(self, q0, v0) -> tuple[np.ndarray, np.ndarray]:
         n = self.model.n
-        q0a = _vector("q0", q0, n)
-        v0a = _vector("v0", v0, n)
+        return _vector("q0", q0, n), _vector("v0", v0, n)
+
+    def _validate(self, h, t_end, n_impacts, t0) -> float:
+        """``h`` as a float, once ``h``, ``t_end``, ``n_impacts`` and ``t0`` are checked."""
         h = _finite("h", h)
         if h <= 0:
             raise ValueError(f"h = {h} must be > 0")
@@ -95,22 +203,38 @@ class Simulator:
             raise ValueError(f"t_end = {t_end} is before t0 = {t0}")
         if n_impacts is not None and (int(n_impacts) != n_impacts or n_impacts < 0):
             raise ValueError(f"n_impacts = {n_impacts!r} must be a whole number >= 0")
-        return q0a, v0a, h
+        return h
 
-    def _check_start(self, kern, q0, v0) -> None:
+    def _many_starts(self, q0s, v0s, params) -> list[tuple[np.ndarray, np.ndarray, Mapping | None]]:
+        """``(q0, v0, params)`` of each run of ``simulate_many`` (shapes checked; the rest per run)."""
+        n = self.model.n
+        q = _matrix("q0s", q0s, n)
+        v = _matrix("v0s", v0s, n)
+        if q.shape[0] != v.shape[0]:
+            raise ValueError(f"q0s has {q.shape[0]} runs but v0s has {v.shape[0]}")
+        if params is None or isinstance(params, Mapping):
+            per_run = [params] * q.shape[0]
+        else:
+            per_run = list(params)
+            if len(per_run) != q.shape[0]:
+                raise ValueError(f"params has {len(per_run)} entries but there are {q.shape[0]} runs")
+        return list(zip(q, v, per_run))
+
+    def _check_start(self, kern, q0, v0) -> np.ndarray:
+        """A ``ValueError`` if ``(q0, v0)`` is no admissible start; else ``p0 = dL/dqdot(q0, v0)``."""
         phi, _ = kern.contacts(q0)
         for name, val in zip(self.system.contact_names, phi):
             if not val >= -self.tol.admissible:
                 raise ValueError(
                     f"q0 violates contact '{name}' (phi = {val:.6g} < 0); start inside the admissible set"
                 )
-        if kern.r and self.model.constraint:
+        if kern.r and self._constraint_names:
             psi, grad, _ = kern.rows(q0, v0)
             for r in range(kern.r):
                 i = kern.row_constraint[r]
                 if i < 0:
                     continue
-                name = list(self.model.constraint)[i]
+                name = self._constraint_names[i]
                 if not abs(psi[r]) <= CONSTRAINT_TOL:
                     raise ValueError(
                         f"q0 violates constraint '{name}' (g = {psi[r]:.6g}); start on every constraint "
@@ -122,12 +246,14 @@ class Simulator:
                         f"v0 is not tangent to constraint '{name}' (dg/dt = {rate:.6g}); give a velocity "
                         "with grad g . v0 = 0"
                     )
-        _, mass = kern.legendre(q0, v0)
-        if not np.all(np.isfinite(mass)) or np.linalg.cond(mass) > 1e12:
+        p0, mass = kern.legendre(q0, v0)
+        cond = _condition(mass)
+        if not cond <= MAX_CONDITION:
             raise ValueError(
-                f"d2L/dqdot2 is singular or not finite at (q0, v0) (cond = {np.linalg.cond(mass):.3g}); "
+                f"d2L/dqdot2 is singular or not finite at (q0, v0) (cond = {cond:.3g}); "
                 "the Lagrangian must be regular where the model is used"
             )
+        return p0
 
 
 def _finite(name: str, x: object) -> float:
@@ -140,6 +266,49 @@ def _finite(name: str, x: object) -> float:
     return val
 
 
+def _condition(mass: np.ndarray) -> float:
+    """The 2-norm condition number of the symmetric ``mass`` (inf if singular or not finite): ``|lambda|``
+    largest over smallest, in closed form for ``n <= 2`` (the start of every run pays for it)."""
+    n = mass.shape[0]
+    if n == 1:
+        a = abs(float(mass[0, 0]))
+        return 1.0 if 0.0 < a < math.inf else math.inf
+    if n == 2:
+        a, b, d = float(mass[0, 0]), 0.5 * float(mass[0, 1] + mass[1, 0]), float(mass[1, 1])
+        mid, rad = 0.5 * (a + d), math.hypot(0.5 * (a - d), b)
+        lo, hi = sorted((abs(mid - rad), abs(mid + rad)))
+        return hi / lo if lo > 0.0 and math.isfinite(hi) else math.inf
+    if not np.isfinite(mass).all():
+        return math.inf
+    lam = np.abs(np.linalg.eigvalsh(0.5 * (mass + mass.T)))
+    return float(lam.max() / lam.min()) if lam.min() > 0 else math.inf
+
+
+def _matrix(name: str, x, n: int) -> np.ndarray:
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of shape (K, {n}), got {x!r}") from None
+    if arr.ndim != 2 or arr.shape[1] != n:
+        raise ValueError(f"{name} has shape {arr.shape}; it must be (K, {n}), one row per run")
+    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if bad.size:
+        raise ValueError(f"{name}[{bad[0]}] = {arr[bad[0]].tolist()} contains a non-finite number")
+    return arr
+
+
+def _many_outcome(out: list[Result | SolverError], errors: str) -> list[Result | SolverError]:
+    """``simulate_many``'s list, or its first failed run's error raised (``errors="raise"``)."""
+    for i, r in enumerate(out):
+        if isinstance(r, SolverError):
+            r.run = i  # type: ignore[attr-defined]
+            if errors == "raise":
+                r.args = (f"run {i}: {r.args[0]}",)
+                r.results = out  # type: ignore[attr-defined]
+                raise r
+    return out
+
+
 def _vector(name: str, x: Sequence[float], n: int) -> np.ndarray:
     try:
         arr = np.asarray(x, dtype=float).reshape(-1)
@@ -147,7 +316,7 @@ def _vector(name: str, x: Sequence[float], n: int) -> np.ndarray:
         raise ValueError(f"{name} must be a sequence of {n} numbers, got {x!r}") from None
     if arr.size != n:
         raise ValueError(f"{name} has {arr.size} entries but the model has {n} coordinates")
-    if not np.all(np.isfinite(arr)):
+    if not all(map(math.isfinite, arr.tolist())):
         raise ValueError(f"{name} = {arr.tolist()} contains a non-finite number")
     return arr
 
@@ -159,16 +328,8 @@ def build(
     tol: Tolerances | None = None,
     **options,
 ) -> Simulator:
-    """Derive ``model`` under ``rule`` and compile it for ``backend``."""
+    """Derive ``model`` under ``rule`` and compile it for ``backend`` (``vcigen.backends.registry``)."""
     if not isinstance(model, Model):
         raise ValueError(f"build() needs a vcigen.Model, got {type(model).__name__}")
-    if backend not in BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; choose one of {list(BACKENDS)}")
-    system = derive(model, rule)
-    if backend == "casadi":
-        from .backends.casadi import CasadiKernels
-
-        return Simulator(system, CasadiKernels(system), tol)
-    from .backends.c import build_c
-
-    return build_c(system, tol=tol or Tolerances(), **options)
+    make = registry.factory(backend)  # a ValueError listing the backends, before any work
+    return make(derive(model, rule), tol=tol or Tolerances(), **options)

@@ -23,6 +23,7 @@ import numpy as np
 from .errors import NONFINITE, SolverError
 from .friction import cone_law, impact_law
 from .held import HeldSteps
+from .progress import Progress
 from .result import Impact, Result
 from .sustained import SustainedSteps, SustainLog, held_contacts
 
@@ -120,7 +121,7 @@ class Stepper(SustainedSteps, HeldSteps):
         n_impacts: int | None = None,
         t0: float = 0.0,
         max_steps: int = 50_000_000,
-        progress: bool = False,
+        progress: Progress | None = None,
     ) -> Result:
         k = self.k
         q = np.array(q0, dtype=float)
@@ -139,7 +140,7 @@ class Stepper(SustainedSteps, HeldSteps):
         sus.active[0] = self.contact_activity()
         wall = time.perf_counter()
         step = 0
-        next_report = wall + 5.0
+        bar = progress if progress is not None and progress.enabled else None
         while step < steps:
             if n_impacts is not None and len(impacts) >= n_impacts:
                 break
@@ -159,9 +160,8 @@ class Stepper(SustainedSteps, HeldSteps):
             Q[step], P[step], E[step - 1] = q, p, e
             if self._chained or self._booked:  # the log is zero where nothing is held
                 sus.record(step, self.contact_activity(), self._force, self._cforce)
-            if progress and time.perf_counter() > next_report:
-                next_report += 5.0
-                print(f"  t = {t:.4g}, {step} steps, {len(impacts)} impacts", flush=True)
+            if bar is not None:
+                bar.update(done_fraction(step, steps, max_steps, len(impacts), n_impacts))
         else:
             if n_impacts is not None and t_end is None and len(impacts) < n_impacts:
                 warnings.warn(
@@ -367,7 +367,8 @@ class Stepper(SustainedSteps, HeldSteps):
             t_k,
             "jump",
             0.0,
-            f"more than {tol.max_impacts_per_step} impacts in one step (chattering toward rest?); reduce h",
+            f"more than {tol.max_impacts_per_step} impacts in one step (Tolerances.max_impacts_per_step); "
+            "raise it if the impacts are real, or reduce h",
         )
 
     def _continuous_law(self, q, v_in, p_in, nrm, e: float):
@@ -684,6 +685,14 @@ def quadratic_root(a: float, b: float, c: float, mu_try: float) -> float | None:
     big = -0.5 * (b + math.copysign(math.sqrt(disc), b))
     roots = sorted((big / a, c / big) if big != 0.0 else (0.0, 0.0))
     return roots[1] if mu_try > -b / (2.0 * a) else roots[0]
+
+
+def done_fraction(steps_done: int, steps: int, max_steps: int, impacts: int, n_impacts: int | None) -> float:
+    """How much of a run is done: its steps of a ``t_end`` run, its impacts of ``n_impacts``, the larger."""
+    f = steps_done / steps if steps < max_steps else 0.0
+    if n_impacts:
+        f = max(f, impacts / n_impacts)
+    return min(f, 1.0)
 
 
 def _result(t0: float, h: float, steps: int, Q, P, E, impacts: list[Impact], n: int, wall: float) -> Result:

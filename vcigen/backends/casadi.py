@@ -18,6 +18,8 @@ from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
 from ..held import has_held_path, held_routines, held_step, hess_pattern
 from ..routines import Routine
+from ..simulator import Simulator
+from ..stepper import Tolerances
 from ..sustained import End
 from .slots import ParameterSlots
 from .sym2casadi import to_casadi
@@ -346,3 +348,9 @@ class CasadiKernels(ParameterSlots):
         n = self.n
         o = self._call(self._quad, qc, nrm, p_in, e_in, tau)
         return (float(o[0]), float(o[1]), float(o[2])), o[3 : 3 + n], o[3 + n : 3 + 2 * n]
+
+
+def build_casadi(system: DiscreteSystem, tol: Tolerances | None = None, **options: object) -> Simulator:
+    """The Python stepper over CasADi Functions (the ``"casadi"`` backend; ``options`` of the C backend,
+    such as ``cc``, do not apply and are ignored)."""
+    return Simulator(system, CasadiKernels(system), tol)

@@ -2,33 +2,37 @@
 
 :class:`CKernels` gives the kernels interface of :mod:`vcigen.stepper` (so the Python
 stepper can also run on the C kernels, for debugging); :class:`CSimulator` calls
-``<model>_run``, which takes whole chunks of grid steps (46)-(79) in C and resumes
-from ``(q, p)`` (plus the Newton guess ``v``), so runs of unknown length
-(``n_impacts``) grow their buffers chunk by chunk.
+``<model>_run_many`` (through :mod:`vcigen.backends.crun`), which takes whole runs of grid steps
+(46)-(79) in C, one run or many per call, and resumes a run from ``(q, p)`` (plus the Newton guess
+``v``) when one of its buffers must grow (geometrically).
 """
 
 from __future__ import annotations
 
 import ctypes
+import gc
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
-from ..errors import PHASES, SolverError
+from ..errors import SolverError
 from ..held import Held
-from ..result import KINDS, Impact, Result
-from ..simulator import Simulator
-from ..stepper import Tolerances, _n_steps, _result
-from ..sustained import SustainLog, held_contacts, rattle_segment
+from ..impacts import RECORD_HEAD
+from ..progress import Progress
+from ..result import Result
+from ..simulator import Simulator, Start
+from ..stepper import Tolerances, _n_steps, warn_reflected
+from ..sustained import rattle_segment
+from .crun import FIRST_CAP_MANY, MAX_STEPS, CRun, chunk_steps, lend_records, run_jobs
 from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
-IMPACT_CAP = 4096
-MAX_STEPS = 50_000_000
+IMPACT_CAP = 4096  # impact records of one call in bench/c_speed.py's raw runner
 
 
 class _Tol(ctypes.Structure):
@@ -82,6 +86,11 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
     return _Sustain
 
 
+def _par_array(par) -> np.ndarray:
+    """The parameter vector as C reads it (one unused entry for a model without parameters)."""
+    return np.array(par, dtype=float) if len(par) else np.zeros(1)
+
+
 def _ptr(a: np.ndarray) -> Any:
     return a.ctypes.data_as(_D)
 
@@ -106,9 +115,15 @@ class CKernels(ParameterSlots):
         self.lib = ctypes.CDLL(str(self.library))
         pre = ctx["prefix"]
         self._legendre = getattr(self.lib, f"{pre}_eval_legendre")
+        self._legendre.argtypes = [ctypes.c_void_p] * 5
         self._segment = getattr(self.lib, f"{pre}_eval_segment")
         self._segment.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D]
         self._contacts = getattr(self.lib, f"{pre}_eval_contacts")
+        self._contacts.argtypes = [ctypes.c_void_p] * 4
+        # scratch for legendre and contacts (the start of every run): q, v, p, M, phi, grad phi
+        size = max(self.m, 1)
+        self._scratch = [np.empty(k) for k in (self.n, self.n, self.n, self.n * self.n, size, size * self.n)]
+        self._at = [a.__array_interface__["data"][0] for a in self._scratch]
         self._smooth = getattr(self.lib, f"{pre}_eval_smooth_step")
         self._smooth.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D, _D, _D, _D, _D]
         self._rest = getattr(self.lib, f"{pre}_eval_restitution")
@@ -156,6 +171,17 @@ class CKernels(ParameterSlots):
             _D,
         ]
         self.run.restype = ctypes.c_int
+        self.run_many = getattr(self.lib, f"{pre}_run_many")
+        self.run_many.argtypes = [
+            ctypes.POINTER(_Tol),
+            ctypes.c_double,
+            ctypes.c_double,
+            ctypes.c_long,
+            ctypes.c_void_p,
+        ]
+        self.run_many.restype = None
+        self.Error = _Err
+        self.coordinate_names = list(system.model.coordinate_names)
         self.start = getattr(self.lib, f"{pre}_start")
         self.start.argtypes = [_D, ctypes.POINTER(_Tol), ctypes.c_double, _D, _D, ctypes.c_void_p]
         self.nc = len(system.model.constraint)
@@ -163,14 +189,15 @@ class CKernels(ParameterSlots):
 
     def bind(self, par) -> CKernels:
         """Fix the parameter values for the next simulation."""
-        self.par = _vec(par, len(self.system.params)) if len(par) else np.zeros(1)
+        self.par = _par_array(par)
         return self
 
     def legendre(self, q, v):
-        n = self.n
-        mom, mass = np.empty(n), np.empty(n * n)
-        self._legendre(_ptr(_vec(q, n)), _ptr(_vec(v, n)), _ptr(self.par), _ptr(mom), _ptr(mass))
-        return mom, mass.reshape(n, n)
+        sq, sv, smom, smass = self._scratch[:4]
+        sq[:], sv[:] = q, v
+        at = self._at
+        self._legendre(at[0], at[1], self.par.__array_interface__["data"][0], at[2], at[3])
+        return smom.copy(), smass.reshape(self.n, self.n).copy()
 
     def segment(self, q0, v, tau):
         n = self.n
@@ -182,9 +209,11 @@ class CKernels(ParameterSlots):
 
     def contacts(self, q):
         n, m = self.n, self.m
-        phi, grad = np.empty(max(m, 1)), np.empty(max(m, 1) * n)
-        self._contacts(_ptr(_vec(q, n)), _ptr(self.par), _ptr(phi), _ptr(grad))
-        return phi[:m], grad[: m * n].reshape(m, n)
+        sq, sphi, sgrad = self._scratch[0], self._scratch[4], self._scratch[5]
+        sq[:] = q
+        at = self._at
+        self._contacts(at[0], self.par.__array_interface__["data"][0], at[4], at[5])
+        return sphi[:m].copy(), sgrad[: m * n].reshape(m, n).copy()
 
     def smooth_step(self, q0, p0, tau, guess):
         """``(v, |res|, p1, E_d, phi(q0), phi(q1), d0, d1)``, as the CasADi kernels."""
@@ -302,109 +331,119 @@ def _tol_struct(tol: Tolerances) -> _Tol:
     )
 
 
-def _grow(a: np.ndarray, rows: int) -> np.ndarray:
-    out = np.empty((rows, *a.shape[1:]))
-    out[: a.shape[0]] = a
-    return out
-
-
 class CSimulator(Simulator):
-    """A :class:`~vcigen.simulator.Simulator` whose time loop is ``<model>_run`` in C."""
+    """A :class:`~vcigen.simulator.Simulator` whose time loop is ``<model>_run_many`` in C (``crun``)."""
 
-    def _run(self, kern: CKernels, q0, v0, h, t_end, n_impacts, t0, progress) -> Result:
-        n = kern.n
+    def __init__(self, system: DiscreteSystem, kernels: CKernels, tol: Tolerances | None = None) -> None:
+        super().__init__(system, kernels, tol)
+        self._tol: tuple[Tolerances, _Tol] | None = None
+
+    def _tol_struct(self) -> _Tol:
+        """The C tolerances of ``self.tol``, made once (again if ``tol`` is replaced)."""
+        if self._tol is None or self._tol[0] is not self.tol:
+            self._tol = (self.tol, _tol_struct(self.tol))
+        return self._tol[1]
+
+    def _rooms(self, kern: CKernels) -> tuple[int, int]:
+        """The impact records and lift-offs one grid step may write (``<model>_run`` keeps that room)."""
+        per = self.tol.max_impacts_per_step
+        return per * (max(kern.m, 1) + max(kern.r, 1)), per * max(kern.r, 1)
+
+    def _run(self, kern: CKernels, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
-        cap = steps if t_end is not None else 1024
-        Q, P, E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(max(cap, 1))
-        q, v = _vec(q0, n).copy(), _vec(v0, n).copy()
-        p = kern.legendre(q, v)[0].copy()
-        Q[0], P[0] = q, p
-        m = kern.m
-        impact_cap = max(IMPACT_CAP, 2 * self.tol.max_impacts_per_step * (max(m, 1) + max(kern.r, 1)))
-        rec = np.empty((impact_cap, 8 + n))
-        sus = kern.Sustain()
-        tol = _tol_struct(self.tol)
-        kern.start(_ptr(kern.par), ctypes.byref(tol), h, _ptr(q), _ptr(v), ctypes.byref(sus))
-        lift_buf = np.empty((max(IMPACT_CAP, 4 * self.tol.max_impacts_per_step * max(kern.r, 1)), 2))
-        sus.liftoffs, sus.liftoff_cap = _ptr(lift_buf), lift_buf.shape[0]
-        log = SustainLog(kern, cap)  # the C loop writes its rows (active, forces) in place
-        log.active[0] = held_contacts(kern, list(sus.act)[: kern.r])
-        liftoffs: list[tuple[float, str]] = []
-        err, sdone, idone = _Err(), ctypes.c_long(0), ctypes.c_long(0)
-        impacts: list[Impact] = []
-        done = reflected = 0
+        run = CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, self._rooms(kern))
+        tol = self._tol_struct()
         wall = time.perf_counter()
-        while done < steps and (n_impacts is None or len(impacts) < n_impacts):
-            if done >= cap:
-                cap *= 2
-                Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
-                log.grow(cap)
-            chunk = min(cap - done, steps - done, 100_000 if progress else steps)
-            sus.n_liftoffs = 0
-            left = -1 if n_impacts is None else n_impacts - len(impacts)
-            rc = kern.run(
-                _ptr(kern.par),
-                ctypes.byref(tol),
-                h,
-                t0,
-                done,
-                chunk,
-                left,
-                _ptr(q),
-                _ptr(p),
-                _ptr(v),
-                _ptr(Q[done + 1 :]),
-                _ptr(P[done + 1 :]),
-                _ptr(E[done:]),
-                _ptr(rec),
-                impact_cap,
-                ctypes.byref(sdone),
-                ctypes.byref(idone),
-                ctypes.byref(err),
-                ctypes.byref(sus),
-                log.active[done + 1 :].ctypes.data_as(ctypes.c_void_p),
-                _ptr(log.force[done:]),
-                _ptr(log.cforce[done:]),
-            )
-            impacts += [_impact(r, kern.contact_names) for r in rec[: idone.value]]
-            liftoffs += [(float(t), kern.contact_names[int(j)]) for t, j in lift_buf[: sus.n_liftoffs]]
-            done += sdone.value
-            reflected += err.reflected
-            if rc != 0:
-                error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
-                kept = [im for im in impacts if im.step < done]  # the run up to the last completed step
-                error.result = _result(t0, h, done, Q, P, E, kept, n, time.perf_counter() - wall)
-                log.attach(error.result, done, [lo for lo in liftoffs if lo[0] < t0 + done * h])
-                raise error
-            if progress:
-                print(f"  t = {t0 + done * h:.4g}, {done} steps, {len(impacts)} impacts", flush=True)
-            if sdone.value == 0:
-                break
-        if n_impacts is not None and t_end is None and len(impacts) < n_impacts and done >= steps:
-            warnings.warn(
-                f"stopped after max_steps = {MAX_STEPS} with {len(impacts)} of {n_impacts} impacts",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-        res = _result(t0, h, done, Q, P, E, impacts, n, time.perf_counter() - wall)
-        res.stats["grazing_reflected"] = reflected
-        log.attach(res, done, liftoffs)
-        res.stats.update({f"impacts_{kind}": int(sus.kinds[i]) for i, kind in enumerate(KINDS)})
-        res.stats["liftoffs"] = len(liftoffs)
-        res.stats["jump_fallbacks"] = int(sus.fallbacks)
-        return res
+        rate = None
+        while not run.finished:
+            chunk = chunk_steps(rate, steps - run.done) if progress.enabled else steps
+            start, before = time.perf_counter(), run.done
+            run_jobs(kern, tol, h, t0, [run], chunk)
+            if run.done > before:
+                rate = (time.perf_counter() - start) / (run.done - before)
+            progress.update(run.fraction())
+        wall = time.perf_counter() - wall
+        if run.rc:
+            raise run.error(t0, h, wall)
+        _warn_short(run, t_end, n_impacts, stacklevel=4)
+        return run.result(t0, h, wall)
+
+    def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
+        """All runs through ``<model>_run_many``: in batches (of runs) sized for the progress bar, each
+        batch in one call per thread until its runs are done (a run whose buffer filled resumes)."""
+        kern, tol, rooms = self.kernels, self._tol_struct(), self._rooms(self.kernels)
+        steps = _n_steps(h, t0, t_end, MAX_STEPS)
+        pars: dict[int, tuple[np.ndarray, int]] = {}  # one C parameter vector per distinct params
+
+        def make(st: Start) -> CRun:
+            if id(st.par) not in pars:
+                arr = _par_array(st.par)
+                pars[id(st.par)] = (arr, arr.ctypes.data)
+            arr, at = pars[id(st.par)]
+            return CRun(kern, arr, st.q0, st.v0, st.p0, steps, n_impacts, rooms, at, FIRST_CAP_MANY)
+
+        gc_was_on = gc.isenabled()
+        gc.disable()  # thousands of new objects and no cycle among them: no collection passes meanwhile
+        try:
+            return self._batches(starts, make, tol, h, t_end, n_impacts, t0, progress, threads)
+        finally:
+            if gc_was_on:
+                gc.enable()
+
+    def _batches(
+        self, starts, make, tol, h, t_end, n_impacts, t0, progress, threads
+    ) -> list[Result | SolverError]:
+        kern = self.kernels
+        out: list[Result | SolverError] = []
+        size = len(starts) if not progress else 8
+        reflected = 0
+        with Progress(len(starts), f"simulate_many {self.model.name}", enabled=progress) as bar:
+            first = 0
+            while first < len(starts):
+                start = time.perf_counter()
+                batch = [make(st) for st in starts[first : first + size]]  # buffers made batch by batch
+                lend_records([r for r in batch if not r.finished], RECORD_HEAD + 1 + kern.n)
+                _run_batch(kern, tol, h, t0, batch, threads)
+                took = time.perf_counter() - start
+                for run, st in zip(batch, starts[first : first + size]):
+                    mu_f, par = st.mu_f, st.par
+                    if run.rc:
+                        err = run.error(t0, h, took / len(batch))
+                        self._finish(err.result, mu_f, par)
+                        out.append(err)
+                    else:
+                        _warn_short(run, t_end, n_impacts, stacklevel=5)
+                        res = run.result(t0, h, took / len(batch))
+                        self._finish(res, mu_f, par)
+                        reflected += res.stats["grazing_reflected"]
+                        out.append(res)
+                first += len(batch)
+                bar.update(first)
+                if progress:  # about a quarter second per batch, growing at most 8-fold
+                    size = max(1, min(8 * size, int(0.25 * len(batch) / max(took, 1e-9))))
+        warn_reflected(reflected, stacklevel=3)
+        return out
 
 
-def _impact(r: np.ndarray, names: tuple[str, ...]) -> Impact:
-    """One C impact record ``t, contact, step, alpha, impulse, E_before, E_after, q..., kind``."""
-    return Impact(
-        t=float(r[0]),
-        contact=names[int(r[1])],
-        q=r[7:-1].copy(),
-        alpha=float(r[3]),
-        impulse=float(r[4]),
-        step=int(r[2]),
-        energy_before=float(r[5]),
-        energy_after=float(r[6]),
-        kind=KINDS[int(r[-1])],
-    )
+def _run_batch(kern: CKernels, tol: _Tol, h: float, t0: float, runs: list[CRun], threads: int) -> None:
+    """``runs`` to their end: calls of ``<model>_run_many`` (one per thread, ctypes releases the GIL)
+    until none is left unfinished (a run stops early only when one of its buffers must grow)."""
+    pending = [r for r in runs if not r.finished]
+    while pending:
+        if threads > 1 and len(pending) > 1:
+            parts = [pending[i::threads] for i in range(threads)]
+            with ThreadPoolExecutor(threads) as pool:
+                list(pool.map(lambda part: run_jobs(kern, tol, h, t0, part, MAX_STEPS), parts))
+        else:
+            run_jobs(kern, tol, h, t0, pending, MAX_STEPS)
+        pending = [r for r in pending if not r.finished]
+
+
+def _warn_short(run: CRun, t_end, n_impacts, stacklevel: int) -> None:
+    """An ``n_impacts`` run without ``t_end`` that reached ``max_steps`` first says so."""
+    if n_impacts is not None and t_end is None and run.n_rec < n_impacts and run.done >= run.steps:
+        warnings.warn(
+            f"stopped after max_steps = {MAX_STEPS} with {run.n_rec} of {n_impacts} impacts",
+            RuntimeWarning,
+            stacklevel=stacklevel,
+        )

@@ -1,0 +1,262 @@
+"""Runs of the generated C loop from Python: one :class:`CRun` per run holds its buffers, and
+:func:`run_jobs` hands any number of them to ``<model>_run_many`` in one call.
+
+A run's buffers (grid rows, impact records, lift-offs) grow geometrically: when ``<model>_run``
+stops because one might overflow (a run of unknown length, ``n_impacts``, or many impacts), the
+buffer doubles and the run resumes from ``(q, p, v)`` and its sustain state, which gives the same
+trajectory as one call (the loop keeps no other state between steps). The impact log stays in the
+C records and becomes a :class:`~vcigen.impacts.ImpactTable` at the end: no object per impact.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any
+
+import numpy as np
+
+from ..errors import PHASES, SolverError
+from ..impacts import KINDS, RECORD_HEAD, Impacts
+from ..result import Result
+from ..stepper import done_fraction
+
+MAX_STEPS = 50_000_000
+# A run of unknown length (n_impacts) reserves this many bytes per grid buffer: address space, not
+# memory (pages are touched only as the run writes them; the result's arrays are views of the rows
+# written), so such a run costs what the run of known length does; past it, buffers double.
+RESERVE_BYTES = 1 << 22
+FIRST_CAP_MANY = 1024  # grid rows each run of simulate_many starts with (doubled as needed)
+FIRST_RECORDS_MANY = 16  # impact records and lift-offs of each run of simulate_many beyond one step's room
+FIRST_RECORDS = 256  # impact records and lift-offs beyond the room one step needs, doubled as needed
+
+
+class Job(ctypes.Structure):
+    """``<model>_job_t`` (model.h.j2): every field 8 bytes wide."""
+
+    _fields_ = [
+        *((name, ctypes.c_void_p) for name in ("par", "q", "p", "v", "Q", "P", "E", "A", "F", "FC")),
+        *((name, ctypes.c_void_p) for name in ("impacts", "liftoffs", "sus", "err", "A0")),
+        *(
+            (name, ctypes.c_long)
+            for name in (
+                "fresh",
+                "step0",
+                "n_steps",
+                "max_impacts",
+                "impact_cap",
+                "liftoff_cap",
+                "steps_done",
+                "impacts_done",
+                "liftoffs_done",
+                "rc",
+            )
+        ),
+    ]
+
+
+def _addr(a: np.ndarray) -> int:
+    """The address of ``a``'s data (0 for an empty array, which C never reads); quicker than ``a.ctypes``."""
+    return ctypes.addressof(ctypes.c_char.from_buffer(a)) if a.nbytes else 0
+
+
+def _resize(a: np.ndarray, rows: int) -> np.ndarray:
+    """``a`` (a buffer nobody else holds) with ``rows`` rows, in place where the allocator can (``realloc``:
+    a large block is remapped, not copied); new rows are zero."""
+    a.resize((rows, *a.shape[1:]), refcheck=False)
+    return a
+
+
+class CRun:
+    """One run of ``<model>_run``: its state, buffers and counts, and its :class:`Job`."""
+
+    def __init__(
+        self,
+        kern: Any,
+        par: np.ndarray,
+        q0: np.ndarray,
+        v0: np.ndarray,
+        p0: np.ndarray,
+        steps: int,
+        n_impacts: int | None,
+        rooms: tuple[int, int],
+        par_at: int = 0,
+        first_cap: int | None = None,
+    ) -> None:
+        """``par_at``: the address of ``par`` when the caller has it (runs sharing one parameter vector);
+        ``first_cap``: the grid rows a run of unknown length starts with (default: ``RESERVE_BYTES``)."""
+        n, m = kern.n, kern.m
+        self.kern, self.steps, self.n_impacts = kern, steps, n_impacts
+        self.rec_room, self.lift_room = rooms  # the records one step may write (run stops short of it)
+        self.par = par
+        state = np.concatenate((q0, p0, v0))  # q, p, v: in/out of every call
+        self.q, self.p, self.v = state[:n], state[n : 2 * n], state[2 * n :]
+        if first_cap is None:
+            first_cap = RESERVE_BYTES // (8 * max(n, m, kern.nc, 1))
+        cap = steps if n_impacts is None else min(steps, first_cap)
+        self.cap = cap
+        self.Q, self.P, self.E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(cap)
+        self.Q[0], self.P[0] = q0, p0
+        self.A = np.zeros((cap + 1, m), dtype=np.bool_)  # rows the glide skips stay 0: nothing held
+        self.F, self.FC = np.zeros((cap, m)), np.zeros((cap, kern.nc))
+        self.rec = self.lift = None  # given by lend() or made by arm(), when the run first needs them
+        self.sus, self.err = kern.Sustain(), kern.Error()
+        self.done = self.n_rec = self.n_lift = self.reflected = 0
+        self.rc = 0
+        self.started = False
+        self.finished = steps == 0 or n_impacts == 0
+        job = self.job = Job()
+        at = _addr(state)
+        job.par, job.q, job.p, job.v = par_at or _addr(par), at, at + 8 * n, at + 16 * n
+        job.sus, job.err = ctypes.addressof(self.sus), ctypes.addressof(self.err)
+        self._rows()
+        job.A0, job.fresh = self._aA, 1
+
+    def _rows(self) -> None:
+        """The addresses of the grid buffers (after they are (re)allocated)."""
+        self._aQ, self._aP, self._aE = _addr(self.Q), _addr(self.P), _addr(self.E)
+        self._aA, self._aF, self._aFC = _addr(self.A), _addr(self.F), _addr(self.FC)
+
+    def arm(self, chunk: int) -> Job:
+        """Point the job at the next ``chunk`` steps (at most), growing any buffer that lacks room."""
+        n, m, nc = self.kern.n, self.kern.m, self.kern.nc
+        if self.done >= self.cap:
+            self.cap = cap = min(2 * self.cap, self.steps)
+            for name, rows in (
+                ("Q", cap + 1),
+                ("P", cap + 1),
+                ("E", cap),
+                ("A", cap + 1),
+                ("F", cap),
+                ("FC", cap),
+            ):
+                _resize(getattr(self, name), rows)
+            self._rows()
+        if self.rec is None:
+            self.lend(np.empty((self.rec_room + FIRST_RECORDS, RECORD_HEAD + 1 + n)),
+                      np.empty((self.lift_room + FIRST_RECORDS, 2)))  # fmt: skip
+        if self.rec.shape[0] - self.n_rec <= self.rec_room:
+            self.rec = _doubled(self.rec)
+        if self.lift.shape[0] - self.n_lift <= self.lift_room:
+            self.lift = _doubled(self.lift)
+        d, job = self.done, self.job
+        job.Q, job.P, job.E = self._aQ + 8 * n * (d + 1), self._aP + 8 * n * (d + 1), self._aE + 8 * d
+        job.A, job.F, job.FC = self._aA + m * (d + 1), self._aF + 8 * m * d, self._aFC + 8 * nc * d
+        job.impacts = _addr(self.rec) + 8 * self.rec.shape[1] * self.n_rec
+        job.impact_cap = self.rec.shape[0] - self.n_rec
+        job.liftoffs, job.liftoff_cap = _addr(self.lift) + 16 * self.n_lift, self.lift.shape[0] - self.n_lift
+        job.step0, job.n_steps = d, min(chunk, self.cap - d, self.steps - d)
+        job.max_impacts = -1 if self.n_impacts is None else self.n_impacts - self.n_rec
+        return job
+
+    def lend(self, rec: np.ndarray, lift: np.ndarray) -> None:
+        """Give the run its impact-record and lift-off buffers (views of a batch's block, or its own)."""
+        self.rec, self.lift = rec, lift
+
+    def collect(self) -> None:
+        """Take in what the last call did; ``finished`` when the run is over (or failed: ``rc``)."""
+        job = self.job
+        fresh = self.started is False
+        self.started = True  # run_many cleared job.fresh: the start is done once
+        self.done += job.steps_done
+        self.n_rec += job.impacts_done
+        self.n_lift += job.liftoffs_done
+        self.reflected += self.err.reflected
+        self.rc = job.rc
+        full = self.n_impacts is not None and self.n_rec >= self.n_impacts
+        stuck = job.steps_done == 0 and job.n_steps > 0 and not fresh  # no room was lacking: nothing to do
+        self.finished = bool(self.rc) or self.done >= self.steps or full or stuck
+
+    def fraction(self) -> float:
+        """How much of the run is done (steps, or impacts of ``n_impacts``)."""
+        return done_fraction(self.done, self.steps, MAX_STEPS, self.n_rec, self.n_impacts)
+
+    def result(self, t0: float, h: float, wall: float) -> Result:
+        """The :class:`Result` of the steps done; its arrays are the buffers, cut to size."""
+        kern, s = self.kern, self.done
+        names = kern.contact_names
+        if self.rec is None:  # never ran (no step to take)
+            self.lend(np.empty((0, RECORD_HEAD + 1 + kern.n)), np.empty((0, 2)))
+        if self.rc:
+            keep = self.rec[: self.n_rec, 2] < s  # the run up to the last completed step
+            rec = self.rec[: self.n_rec][keep]
+            lifts = self.lift[: self.n_lift]
+            lifts = lifts[lifts[:, 0] < t0 + s * h]
+        else:
+            rec = self.rec[: self.n_rec].copy() if self.n_rec else self.rec[:0]
+            lifts = self.lift[: self.n_lift]
+        t = np.arange(s + 1, dtype=float)
+        t *= h
+        t += t0  # t0 + h k, as the Python stepper's grid
+        res = Result(
+            t,
+            _cut(self.Q, s + 1),
+            _cut(self.P, s + 1),
+            _cut(self.E, s),
+            Impacts(records=rec, names=names),
+            kern.coordinate_names,
+            h,
+            {"wall_time": wall, "steps": s, "seconds_per_step": wall / max(s, 1)},
+            active=_cut(self.A, s + 1),
+            contact_force=_cut(self.F, s),
+            constraint_force=_cut(self.FC, s),
+            liftoffs=[(float(t), names[int(j)]) for t, j in lifts.tolist()] if len(lifts) else [],
+        )
+        # the result owns the grid buffers; the records are copied: let them all go with this run
+        self.Q = self.P = self.E = self.A = self.F = self.FC = self.rec = self.lift = None  # type: ignore[assignment]
+        stats = res.stats
+        stats["grazing_reflected"] = self.reflected
+        for kind, count in zip(KINDS, self.sus.kinds):
+            stats[f"impacts_{kind}"] = count
+        stats["liftoffs"] = len(res.liftoffs)
+        stats["jump_fallbacks"] = self.sus.fallbacks
+        return res
+
+    def error(self, t0: float, h: float, wall: float) -> SolverError:
+        """The :class:`SolverError` of a failed run, with the run up to its last completed step."""
+        err = self.err
+        error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
+        error.result = self.result(t0, h, wall)
+        return error
+
+
+def _doubled(a: np.ndarray) -> np.ndarray:
+    """``a`` with twice the rows: in place if it owns its data, else (a view of a batch's block) a copy."""
+    if a.base is None:
+        return _resize(a, 2 * a.shape[0])
+    out = np.empty((2 * a.shape[0], *a.shape[1:]))
+    out[: a.shape[0]] = a
+    return out
+
+
+def _cut(a: np.ndarray, rows: int) -> np.ndarray:
+    """The first ``rows`` rows of a buffer: a view, not a copy (a buffer grown by doubling wastes at most
+    half its rows; shrinking it in place would copy whenever the allocator cannot shrink in place)."""
+    return a if a.shape[0] == rows else a[:rows]
+
+
+def lend_records(runs: list[CRun], width: int) -> None:
+    """One block of impact-record and lift-off buffers for ``runs`` (each its rows), instead of two
+    allocations per run; a run that needs more gets its own, doubled."""
+    if not runs:
+        return
+    rec_rows, lift_rows = runs[0].rec_room + FIRST_RECORDS_MANY, runs[0].lift_room + FIRST_RECORDS_MANY
+    rec = np.empty((len(runs), rec_rows, width))
+    lift = np.empty((len(runs), lift_rows, 2))
+    for i, r in enumerate(runs):
+        r.lend(rec[i], lift[i])
+
+
+def run_jobs(kern: Any, tol: Any, h: float, t0: float, runs: list[CRun], chunk: int) -> None:
+    """One call of ``<model>_run_many`` over ``runs`` (each at most ``chunk`` steps further)."""
+    jobs = (ctypes.c_void_p * len(runs))(*(ctypes.addressof(r.arm(chunk)) for r in runs))
+    kern.run_many(ctypes.byref(tol), h, t0, len(runs), jobs)
+    for r in runs:
+        r.collect()
+
+
+def chunk_steps(rate: float | None, steps_left: int, seconds: float = 0.25) -> int:
+    """Steps for the next call while a progress bar is on: about ``seconds`` at the measured ``rate``
+    (seconds per step), 65536 before anything is measured."""
+    if rate is None or rate <= 0:
+        return min(steps_left, 65536)
+    return max(1024, min(steps_left, int(seconds / rate)))
