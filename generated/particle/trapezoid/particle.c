@@ -314,6 +314,58 @@ static inline void particle_jump_quadratic(const double *qc, const double *nrm, 
     dw[1] = nrm[1]*t0;
 }
 
+/* Run constants of the held step: its subexpressions of (h, par) alone. */
+static inline void particle_held_consts(const double *tau, const double *par, double *k)
+{
+    const double t0 = (1.0/2.0)*par[0];
+    const double t1 = tau[0]*par[1]*t0;
+    k[0] = 1.0/par[0];
+    k[1] = -t1;
+    k[2] = par[0];
+    k[3] = t0;
+    k[4] = par[1]*par[0];
+    k[5] = t1;
+    k[6] = -par[1];
+}
+
+/* Free velocity of (46) over h and 1/J_ii. */
+static inline void particle_held_free(const double *q0, const double *p0, const double *k, double *v0, double *jinv)
+{
+    (void)q0;
+    v0[0] = k[0]*p0[0];
+    v0[1] = k[0]*(k[1] + p0[1]);
+    jinv[0] = k[0];
+    jinv[1] = k[0];
+}
+
+/* Rows, gradients, Hessians. */
+static inline void particle_held_rows(const double *q, const double *k, double *psi, double *grad, double *hess)
+{
+    (void)k;
+    (void)hess; /* empty: the scene has no contacts */
+    psi[0] = q[1];
+    grad[0] = 0;
+    grad[1] = 1;
+}
+
+/* p+ (51), E_d (55). */
+static inline void particle_held_segment(const double *q0, const double *v, const double *k, double *p_plus, double *energy)
+{
+    p_plus[0] = k[2]*v[0];
+    p_plus[1] = k[1] + k[2]*v[1];
+    energy[0] = ((v[0])*(v[0]))*k[3] + ((v[1])*(v[1]))*k[3] + k[4]*q0[1] + k[5]*v[1];
+}
+
+/* M^-1 rhs(q) and 1/M_ii. */
+static inline void particle_held_end(const double *q, const double *k, double *acc, double *minv)
+{
+    (void)q;
+    acc[0] = 0;
+    acc[1] = k[6];
+    minv[0] = k[0];
+    minv[1] = k[0];
+}
+
 /* Adapters: the routines with an unknown x, as particle_fun for the solvers. */
 typedef void (*particle_fun)(const double *x, const double *const *arg, double *const *out);
 
@@ -426,7 +478,6 @@ static double particle_norm_inf(int n, const double *r)
     }
     return big;
 }
-
 /* Newton on f(x) = 0 from x (in/out), as the CasADi backend's rootfinder: stop when |f|_inf <=
  * 1e-13 or |dx|_inf <= 1e-15 (step not taken), at most 40
  * steps. A step longer than 1e-08 (1 + |x|) is halved (up to 10
@@ -441,17 +492,18 @@ static void particle_newton(particle_fun f, const double *const *arg, int n, dou
     int piv[PARTICLE_NX_MAX];
     int i, iter, halving;
     double fn, ft, lam;
+
     f(x, arg, out);
     fn = particle_norm_inf(n, r);
     for (iter = 0; iter < 40; ++iter) {
         if (fn <= 1e-13) {
             break;
         }
-        if (!particle_lu(n, jac, piv)) {
-            break;
-        }
         for (i = 0; i < n; ++i) {
             dx[i] = r[i];
+        }
+        if (!particle_lu(n, jac, piv)) {
+            break;
         }
         particle_lu_solve(n, jac, piv, dx);
         if (particle_norm_inf(n, dx) <= 1e-15) {
@@ -1278,7 +1330,9 @@ static int particle_sub_end(const particle_ctx_t *c, const double *q, const doub
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
- * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
+ * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
+ * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int particle_illinois(const particle_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1843,6 +1897,323 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
     }
 }
 
+/* ---- the held grid step (vcigen/held.py): a grid step in sustained contact as straight-line code ---- */
+#define PARTICLE_HELD_ITER 8 /* held.HELD_ITER: Newton iterations at most, then the general chain */
+#define PARTICLE_NKH 7
+#define PARTICLE_NH_DIM 1 /* Hessian entries a row may need (held.hess_pattern) */
+#if defined(__GNUC__)
+#define PARTICLE_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
+#define PARTICLE_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
+#else
+#define PARTICLE_HELD_HOT
+#define PARTICLE_HELD_INLINE static inline
+#endif
+
+/* held.factor_small, held.apply_small: the small systems a x = b of the held step, a factored once for one or
+ * two right-hand sides: 1 and 2 unknowns in closed form (a becomes its inverse), LU above; 0 if singular. */
+PARTICLE_HELD_INLINE int particle_held_factor(int na, double *a, int *piv)
+{
+    if (na == 1) {
+        if (!(a[0] != 0.0)) {
+            return 0;
+        }
+        a[0] = 1.0 / a[0];
+        return 1;
+    }
+    if (na == 2) {
+        const double det = a[0] * a[3] - a[1] * a[2], a0 = a[0];
+        double inv;
+        if (!(det != 0.0)) {
+            return 0;
+        }
+        inv = 1.0 / det;
+        a[0] = a[3] * inv;
+        a[1] = -a[1] * inv;
+        a[2] = -a[2] * inv;
+        a[3] = a0 * inv;
+        return 1;
+    }
+    return particle_lu(na, a, piv);
+}
+
+PARTICLE_HELD_INLINE void particle_held_apply(int na, const double *a, const int *piv, double *b)
+{
+    if (na == 1) {
+        b[0] *= a[0];
+    } else if (na == 2) {
+        const double b0 = b[0];
+        b[0] = a[0] * b0 + a[1] * b[1];
+        b[1] = a[2] * b0 + a[3] * b[1];
+    } else {
+        particle_lu_solve(na, a, piv, b);
+    }
+}
+
+/* held.held_step: one held grid step from (q, p) over h with the active rows rows[0 .. na) (act: per row);
+ * g0 holds the active rows' gradients at q (na x N, in the order of rows), lam the previous step's multipliers
+ * per row (the Newton start). Returns 0 if the step cleared its tests: then (q1, p1, v, *e) its end, lam and
+ * lam1 its Lam and Lam' per row, g1 the active rows' gradients at q1. Returns 1 (nothing written to lam) if it
+ * did not: the general chain takes it. The active rows' data are gathered into small arrays of na rows, so
+ * that with na fixed (<model>_held_glide) every loop has fixed bounds. */
+PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double residual, double phi_tol,
+    const int *act, const int *rows, int na, const double *q, const double *p, const double *g0, double *lam,
+    double *lam1, double *q1, double *p1, double *v, double *e, double *g1)
+{
+    double v0[PARTICLE_N], jinv[PARTICLE_N], gl[PARTICLE_N], pp[PARTICLE_N], acc[PARTICLE_N];
+    double minv[PARTICLE_N], u1[PARTICLE_N], psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
+    double hess[PARTICLE_R_DIM * PARTICLE_NH_DIM], x[PARTICLE_R_DIM] = {0.0}, d[PARTICLE_R_DIM];
+    double jac[PARTICLE_R_DIM * PARTICLE_R_DIM], w[PARTICLE_R_DIM * PARTICLE_R_DIM];
+    double l1[PARTICLE_R_DIM], f[PARTICLE_R_DIM], res = NAN, f_eps, curv;
+    int piv[PARTICLE_R_DIM], i, a, b, r, it, finite;
+    particle_held_free(q, p, kh, v0, jinv);
+    for (a = 0; a < na; ++a) {
+        x[a] = lam[rows[a]];
+    }
+    for (it = 0;; ++it) { /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam */
+        gl[0] = 0.0;
+        gl[1] = 0.0;
+        for (a = 0; a < na; ++a) { /* loops over the coordinates unrolled at generation */
+            gl[0] += g0[a * PARTICLE_N + 0] * x[a];
+            gl[1] += g0[a * PARTICLE_N + 1] * x[a];
+        }
+        v[0] = v0[0] + jinv[0] * gl[0];
+        q1[0] = q[0] + h * v[0];
+        v[1] = v0[1] + jinv[1] * gl[1];
+        q1[1] = q[1] + h * v[1];
+        particle_held_rows(q1, kh, psi, grad, hess);
+        for (a = 0; a < na; ++a) {
+            d[a] = psi[rows[a]];
+            g1[a * PARTICLE_N + 0] = grad[rows[a] * PARTICLE_N + 0];
+            g1[a * PARTICLE_N + 1] = grad[rows[a] * PARTICLE_N + 1];
+        }
+        res = particle_norm_inf(na, d);
+        if (res <= 1e-13 || it == PARTICLE_HELD_ITER || res != res) {
+            break;
+        }
+        for (a = 0; a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
+            for (b = 0; b < na; ++b) {
+                jac[a * na + b] = 0.0;
+                jac[a * na + b] += g1[a * PARTICLE_N + 0] * (h * jinv[0] * g0[b * PARTICLE_N + 0]);
+                jac[a * na + b] += g1[a * PARTICLE_N + 1] * (h * jinv[1] * g0[b * PARTICLE_N + 1]);
+
+            }
+        }
+        if (!particle_held_factor(na, jac, piv)) {
+            break;
+        }
+        particle_held_apply(na, jac, piv, d);
+        if (particle_norm_inf(na, d) <= 1e-15) {
+            break;
+        }
+        for (a = 0; a < na; ++a) {
+            x[a] -= d[a];
+        }
+    }
+    if (!(res <= residual * (1.0 + particle_norm_inf(PARTICLE_N, p)))) {
+        return 1;
+    }
+    particle_held_segment(q, v, kh, pp, e);
+    particle_held_end(q1, kh, acc, minv);
+    for (a = 0; a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
+        l1[a] = 0.0;
+        f[a] = 0.0;
+        l1[a] += g1[a * PARTICLE_N + 0] * (minv[0] * pp[0]);
+        f[a] += g1[a * PARTICLE_N + 0] * acc[0];
+        l1[a] += g1[a * PARTICLE_N + 1] * (minv[1] * pp[1]);
+        f[a] += g1[a * PARTICLE_N + 1] * acc[1];
+        l1[a] = -l1[a];
+        for (b = 0; b < na; ++b) {
+            w[a * na + b] = 0.0;
+            w[a * na + b] += g1[a * PARTICLE_N + 0] * (minv[0] * g1[b * PARTICLE_N + 0]);
+            w[a * na + b] += g1[a * PARTICLE_N + 1] * (minv[1] * g1[b * PARTICLE_N + 1]);
+        }
+    }
+    if (!particle_held_factor(na, w, piv)) {
+        return 1;
+    }
+    particle_held_apply(na, w, piv, l1); /* rattle_project: W Lam' = -G1 M^-1 p+ */
+    gl[0] = 0.0;
+    gl[1] = 0.0;
+    for (a = 0; a < na; ++a) {
+        gl[0] += g1[a * PARTICLE_N + 0] * l1[a];
+        gl[1] += g1[a * PARTICLE_N + 1] * l1[a];
+    }
+    u1[0] = minv[0] * pp[0] + minv[0] * gl[0];
+    p1[0] = pp[0] + gl[0];
+    u1[1] = minv[1] * pp[1] + minv[1] * gl[1];
+    p1[1] = pp[1] + gl[1];
+    (void)u1;
+
+    for (a = 0; a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
+        curv = 0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
+
+        f[a] = -(f[a] + curv);
+    }
+    particle_held_apply(na, w, piv, f);
+    f_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(na, f));
+    finite = isfinite(*e) && isfinite(f_eps);
+    for (a = 0; a < na; ++a) {
+        finite = finite && (particle_row_free[rows[a]] || !(f[a] < -f_eps)); /* a lift-off inside the step */
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        finite = finite && (act[r] || particle_row_stick[r] >= 0 || !(psi[r] < -phi_tol)); /* a row crossed */
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        finite = finite && isfinite(q1[i]) && isfinite(p1[i]);
+    }
+    if (!finite) {
+        return 1;
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam[r] = 0.0;
+        lam1[r] = 0.0;
+    }
+    for (a = 0; a < na; ++a) {
+        lam[rows[a]] = x[a];
+        lam1[rows[a]] = l1[a];
+    }
+    return 0;
+}
+
+/* The loop of <model>_held_glide over na active rows (inlined for na = 1 and 2, so that its loops are unrolled):
+ * held steps from (q, p, v, lam, g0), in/out, while each clears its tests; returns the number taken. */
+PARTICLE_HELD_INLINE long particle_held_loop(const particle_ctx_t *c, const double *kh, long n, const int *act,
+    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *g0,
+    double *Q, double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+{
+    double q1[PARTICLE_N], p1[PARTICLE_N], lam1[PARTICLE_R_DIM], g1[PARTICLE_R_DIM * PARTICLE_N] = {0.0};
+    double e, sum = 0.0, imp;
+    const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
+    int i, j, r;
+    long s;
+    for (s = 0; s < n; ++s) {
+        if (particle_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, &e, g1)) {
+            break;
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            q[i] = q1[i];
+            p[i] = p1[i];
+            Q[s * PARTICLE_N + i] = q1[i];
+            P[s * PARTICLE_N + i] = p1[i];
+        }
+        for (i = 0; i < na * PARTICLE_N; ++i) {
+            g0[i] = g1[i];
+        }
+        E[s] = e;
+        sum += e;
+        for (j = 0; j < PARTICLE_M; ++j) { /* SustainedSteps._book, then <model>_record */
+            F[s * PARTICLE_M + j] = 0.0;
+            A[s * PARTICLE_M + j] = held[j];
+        }
+        for (j = 0; j < PARTICLE_NC; ++j) {
+            FC[s * PARTICLE_NC + j] = 0.0;
+        }
+        for (r = 0; r < PARTICLE_R; ++r) {
+            imp = lam[r] + lam1[r];
+            if (imp == 0.0) {
+                continue;
+            }
+            if (particle_row_contact[r] >= 0) {
+                F[s * PARTICLE_M + particle_row_contact[r]] += imp / h;
+            } else {
+                FC[s * PARTICLE_NC + particle_row_constraint[r]] += imp / h;
+            }
+        }
+    }
+    *sum_e += sum;
+    return s;
+}
+
+/* The held glide (Stepper.step on a held start, through held.held_step): held grid steps from (q, p) (in/out,
+ * v the last step's velocity) while each clears its tests; writes rows 0 .. of Q, P, E and of the logs A, F,
+ * FC (as <model>_record), adds E_d to *sum_e and returns the number of steps taken (n, or the step the general
+ * chain takes). The rows' gradients at the end of a step are those at the start of the next. */
+PARTICLE_HELD_HOT static long particle_held_glide(const particle_ctx_t *c, const double *kh, long n, double *q_io,
+    double *p_io, double *v_io, double *Q, double *P, double *E, unsigned char *A, double *F, double *FC,
+    double *sum_e)
+{
+    double q[PARTICLE_N], p[PARTICLE_N], v[PARTICLE_N], lam[PARTICLE_R_DIM];
+    double g0[PARTICLE_R_DIM * PARTICLE_N], grad[PARTICLE_R_DIM * PARTICLE_N], psi[PARTICLE_R_DIM];
+    double hess[PARTICLE_R_DIM * PARTICLE_NH_DIM];
+    int act[PARTICLE_R_DIM], rows[PARTICLE_R_DIM], na = 0, i, j, r;
+    unsigned char held[PARTICLE_M_DIM];
+    long s;
+    for (j = 0; j < PARTICLE_M; ++j) {
+        held[j] = 0;
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        act[r] = c->sus->act[r];
+        lam[r] = c->sus->lam[r];
+        if (act[r]) {
+            rows[na++] = r;
+            if (particle_row_contact[r] >= 0) {
+                held[particle_row_contact[r]] = 1;
+            }
+        }
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        q[i] = q_io[i];
+        p[i] = p_io[i];
+        v[i] = v_io[i];
+    }
+    particle_held_rows(q, kh, psi, grad, hess);
+    for (r = 0; r < na; ++r) { /* the active rows' gradients at q */
+        for (i = 0; i < PARTICLE_N; ++i) {
+            g0[r * PARTICLE_N + i] = grad[rows[r] * PARTICLE_N + i];
+        }
+    }
+    if (na == 1) {
+        s = particle_held_loop(c, kh, n, act, rows, 1, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
+    } else {
+        s = particle_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        q_io[i] = q[i];
+        p_io[i] = p[i];
+        v_io[i] = v[i];
+    }
+    if (s > 0) { /* the state a general step after the glide reads: multipliers, forces */
+        for (r = 0; r < PARTICLE_R; ++r) {
+            c->sus->lam[r] = act[r] ? lam[r] * (c->h / c->h) : 0.0;
+        }
+        for (j = 0; j < PARTICLE_M; ++j) {
+            c->sus->force[j] = F[(s - 1) * PARTICLE_M + j];
+        }
+        for (j = 0; j < PARTICLE_NC; ++j) {
+            c->sus->cforce[j] = FC[(s - 1) * PARTICLE_NC + j];
+        }
+        c->sus->events = 0;
+    }
+    return s;
+}
+
+/* The kernels interface (Kernels.held_step): one held grid step from (q, p) over h, the active rows act (per
+ * row, 0 or 1) and the previous multipliers lam (in; Lam out, with lam1: Lam'). 0: not taken; 1: taken, with
+ * its end (q1, p1), velocity v and E_d e. */
+int particle_eval_held_step(const double *par, double h, double residual, double phi_tol, const double *q,
+    const double *p, const double *act_d, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
+{
+    double kh[PARTICLE_NKH], psi[PARTICLE_R_DIM], g0[PARTICLE_R_DIM * PARTICLE_N];
+    double g1[PARTICLE_R_DIM * PARTICLE_N] = {0.0}, hess[PARTICLE_R_DIM * PARTICLE_NH_DIM];
+    double grad[PARTICLE_R_DIM * PARTICLE_N];
+    int act[PARTICLE_R_DIM], rows[PARTICLE_R_DIM], na = 0, r, i, a;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        act[r] = act_d[r] != 0.0;
+        if (act[r]) {
+            rows[na++] = r;
+        }
+    }
+    particle_held_consts(&h, par, kh);
+    particle_held_rows(q, kh, psi, grad, hess);
+    for (a = 0; a < na; ++a) {
+        for (i = 0; i < PARTICLE_N; ++i) {
+            g0[a * PARTICLE_N + i] = grad[rows[a] * PARTICLE_N + i];
+        }
+    }
+    return !particle_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, e, g1);
+}
+
+
 
 /* Stepper._jump: solve (48) for (w, mu), the physical root mu > 0 (MATH.md). Newton starts from the
  * reflected velocity; if it lands on a root with mu <= 0 it restarts from larger and smaller impulses
@@ -2214,8 +2585,9 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             return 0;
         }
     }
-    return particle_fail(c, PARTICLE_PHASE_JUMP, 0.0, "more than %d impacts in one step (chattering toward "
-        "rest?); reduce h", c->tol->max_impacts_per_step);
+    return particle_fail(c, PARTICLE_PHASE_JUMP, 0.0, "more than %d impacts in one step "
+        "(Tolerances.max_impacts_per_step); raise it if the impacts are real, or reduce h",
+        c->tol->max_impacts_per_step);
 }
 
 /* Stepper.step: one grid step from (q_k, p_k), in place; v is the guess in and the velocity out;
@@ -2237,6 +2609,7 @@ static int particle_step(const particle_ctx_t *c, double *q, double *p, double *
     c->sus->events = 0;
     if (particle_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
+
         int rc = particle_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
         if (!particle_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
             particle_contacts(q, c->par, phi, grad);
@@ -2454,6 +2827,7 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
     particle_ctx_t c;
     double q0[PARTICLE_N], p0[PARTICLE_N], d[PARTICLE_M_DIM], k[PARTICLE_NK_DIM];
     double phi[PARTICLE_M_DIM], grad[PARTICLE_M_DIM * PARTICLE_N], sum_e = 0.0;
+    double kh[PARTICLE_NKH]; /* run constants of the held step (vcigen.held) */
     const long rec_limit = impact_cap - (long)tol->max_impacts_per_step * (PARTICLE_M_DIM + PARTICLE_R_DIM);
     long s = 0, bad, n_end = n_steps, n_rec = 0;
     int i, rc = 0, finite = 1;
@@ -2470,6 +2844,7 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
         p0[i] = p[i];
     }
     particle_grid_consts(&h, par, k);
+    particle_held_consts(&h, par, kh);
     particle_contacts(q, par, phi, grad);
     particle_slopes(par, h, q, v, p, grad, d);
     if (particle_full(n_rec, max_impacts, rec_limit)) {
@@ -2479,6 +2854,13 @@ int particle_run(const double *par, const particle_tol_t *tol, double h, double 
         if (!particle_held(sus)) {
             s += particle_glide(k, h, -tol->phi, n_end - s, q, p, v, d, Q + s * PARTICLE_N,
                 P + s * PARTICLE_N, E + s, &sum_e);
+            if (s == n_end) {
+                break;
+            }
+        }
+        else { /* held: straight-line held steps while they clear their tests (vcigen.held) */
+            s += particle_held_glide(&c, kh, n_end - s, q, p, v, Q + s * PARTICLE_N, P + s * PARTICLE_N,
+                E + s, A + s * PARTICLE_M, F + s * PARTICLE_M, FC + s * PARTICLE_NC, &sum_e);
             if (s == n_end) {
                 break;
             }
@@ -2535,7 +2917,44 @@ void particle_start(const double *par, const particle_tol_t *tol, double h, cons
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+
     particle_start_sustained(&c, q, v);
+}
+
+/* A fresh run's contacts held at the start: row 0 of A (as record writes the rows after it). */
+static void particle_record_start(const particle_sustain_t *sus, unsigned char *A0)
+{
+    int j;
+    int r;
+    for (j = 0; j < PARTICLE_M; ++j) {
+        A0[j] = 0;
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        if (sus->act[r] && particle_row_contact[r] >= 0) {
+            A0[particle_row_contact[r]] = 1;
+        }
+    }
+}
+
+void particle_run_many(const particle_tol_t *tol, double h, double t0, long n_jobs,
+    particle_job_t *const *jobs)
+{
+    long i;
+    for (i = 0; i < n_jobs; ++i) {
+        particle_job_t *j = jobs[i];
+        if (j->fresh) {
+            particle_start(j->par, tol, h, j->q, j->v, j->sus);
+            particle_record_start(j->sus, j->A0);
+            j->fresh = 0;
+        }
+        j->sus->liftoffs = j->liftoffs;
+        j->sus->liftoff_cap = j->liftoff_cap;
+        j->sus->n_liftoffs = 0;
+        j->rc = particle_run(j->par, tol, h, t0, j->step0, j->n_steps, j->max_impacts, j->q, j->p, j->v,
+            j->Q, j->P, j->E, j->impacts, j->impact_cap, &j->steps_done, &j->impacts_done, j->err, j->sus,
+            j->A, j->F, j->FC);
+        j->liftoffs_done = j->sus->n_liftoffs;
+    }
 }
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */

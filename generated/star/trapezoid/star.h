@@ -139,4 +139,26 @@ int star_run(const double *par, const star_tol_t *tol, double h, double t0, long
     double *impacts, long impact_cap, long *steps_done, long *impacts_done, star_error_t *err,
     star_sustain_t *sus, unsigned char *A, double *F, double *FC);
 
+/* One run of run_many: the arguments of run (fields of the same names), the lift-off buffer its sustain
+ * state is pointed at for this call, and what came of it. All fields are 8 bytes wide. */
+typedef struct {
+    const double *par;
+    double *q, *p, *v;         /* in/out: the state, as in run */
+    double *Q, *P, *E;         /* rows of grid steps step0 .. (as in run) */
+    unsigned char *A;          /* active contacts of grid points step0 + 1 .. */
+    double *F, *FC;
+    double *impacts;
+    double *liftoffs;          /* (liftoff_cap, 2) for this call: sus->liftoffs is set to it */
+    star_sustain_t *sus;
+    star_error_t *err;
+    unsigned char *A0;         /* a fresh run's active contacts at the start (row 0 of A) */
+    long fresh;                /* 1: a fresh run: start(q, v) first, writing A0 */
+    long step0, n_steps, max_impacts, impact_cap, liftoff_cap;
+    long steps_done, impacts_done, liftoffs_done, rc; /* out */
+} star_job_t;
+
+/* run (after start, for a fresh job) for each of jobs[0 .. n_jobs - 1] in turn; each its own rc. */
+void star_run_many(const star_tol_t *tol, double h, double t0, long n_jobs,
+    star_job_t *const *jobs);
+
 #endif

@@ -340,7 +340,6 @@ static double impact_oscillator_norm_inf(int n, const double *r)
     }
     return big;
 }
-
 /* Newton on f(x) = 0 from x (in/out), as the CasADi backend's rootfinder: stop when |f|_inf <=
  * 1e-13 or |dx|_inf <= 1e-15 (step not taken), at most 40
  * steps. A step longer than 1e-08 (1 + |x|) is halved (up to 10
@@ -355,17 +354,18 @@ static void impact_oscillator_newton(impact_oscillator_fun f, const double *cons
     int piv[IMPACT_OSCILLATOR_NX_MAX];
     int i, iter, halving;
     double fn, ft, lam;
+
     f(x, arg, out);
     fn = impact_oscillator_norm_inf(n, r);
     for (iter = 0; iter < 40; ++iter) {
         if (fn <= 1e-13) {
             break;
         }
-        if (!impact_oscillator_lu(n, jac, piv)) {
-            break;
-        }
         for (i = 0; i < n; ++i) {
             dx[i] = r[i];
+        }
+        if (!impact_oscillator_lu(n, jac, piv)) {
+            break;
         }
         impact_oscillator_lu_solve(n, jac, piv, dx);
         if (impact_oscillator_norm_inf(n, dx) <= 1e-15) {
@@ -1149,7 +1149,9 @@ static int impact_oscillator_sub_end(const impact_oscillator_ctx_t *c, const dou
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
- * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
+ * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
+ * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int impact_oscillator_illinois(const impact_oscillator_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -2046,8 +2048,9 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
             return 0;
         }
     }
-    return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_JUMP, 0.0, "more than %d impacts in one step (chattering toward "
-        "rest?); reduce h", c->tol->max_impacts_per_step);
+    return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_JUMP, 0.0, "more than %d impacts in one step "
+        "(Tolerances.max_impacts_per_step); raise it if the impacts are real, or reduce h",
+        c->tol->max_impacts_per_step);
 }
 
 /* Stepper.step: one grid step from (q_k, p_k), in place; v is the guess in and the velocity out;
@@ -2069,6 +2072,7 @@ static int impact_oscillator_step(const impact_oscillator_ctx_t *c, double *q, d
     c->sus->events = 0;
     if (impact_oscillator_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
+
         int rc = impact_oscillator_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
         if (!impact_oscillator_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
             impact_oscillator_contacts(q, c->par, phi, grad);
@@ -2158,6 +2162,7 @@ int impact_oscillator_run(const double *par, const impact_oscillator_tol_t *tol,
     double phi[IMPACT_OSCILLATOR_M_DIM], grad[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N];
     long k, n_rec = 0;
     int i;
+
     double par_t[IMPACT_OSCILLATOR_NPAR]; /* the parameters, friction and time slots (Stepper._at) */
     for (i = 0; i < IMPACT_OSCILLATOR_NPAR; ++i) {
         par_t[i] = par[i];
@@ -2213,7 +2218,44 @@ void impact_oscillator_start(const double *par, const impact_oscillator_tol_t *t
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+
     impact_oscillator_start_sustained(&c, q, v);
+}
+
+/* A fresh run's contacts held at the start: row 0 of A (as record writes the rows after it). */
+static void impact_oscillator_record_start(const impact_oscillator_sustain_t *sus, unsigned char *A0)
+{
+    int j;
+    int r;
+    for (j = 0; j < IMPACT_OSCILLATOR_M; ++j) {
+        A0[j] = 0;
+    }
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        if (sus->act[r] && impact_oscillator_row_contact[r] >= 0) {
+            A0[impact_oscillator_row_contact[r]] = 1;
+        }
+    }
+}
+
+void impact_oscillator_run_many(const impact_oscillator_tol_t *tol, double h, double t0, long n_jobs,
+    impact_oscillator_job_t *const *jobs)
+{
+    long i;
+    for (i = 0; i < n_jobs; ++i) {
+        impact_oscillator_job_t *j = jobs[i];
+        if (j->fresh) {
+            impact_oscillator_start(j->par, tol, h, j->q, j->v, j->sus);
+            impact_oscillator_record_start(j->sus, j->A0);
+            j->fresh = 0;
+        }
+        j->sus->liftoffs = j->liftoffs;
+        j->sus->liftoff_cap = j->liftoff_cap;
+        j->sus->n_liftoffs = 0;
+        j->rc = impact_oscillator_run(j->par, tol, h, t0, j->step0, j->n_steps, j->max_impacts, j->q, j->p, j->v,
+            j->Q, j->P, j->E, j->impacts, j->impact_cap, &j->steps_done, &j->impacts_done, j->err, j->sus,
+            j->A, j->F, j->FC);
+        j->liftoffs_done = j->sus->n_liftoffs;
+    }
 }
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */

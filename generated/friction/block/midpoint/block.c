@@ -478,7 +478,6 @@ static double block_norm_inf(int n, const double *r)
     }
     return big;
 }
-
 /* Newton on f(x) = 0 from x (in/out), as the CasADi backend's rootfinder: stop when |f|_inf <=
  * 1e-13 or |dx|_inf <= 1e-15 (step not taken), at most 40
  * steps. A step longer than 1e-08 (1 + |x|) is halved (up to 10
@@ -493,17 +492,18 @@ static void block_newton(block_fun f, const double *const *arg, int n, double *x
     int piv[BLOCK_NX_MAX];
     int i, iter, halving;
     double fn, ft, lam;
+
     f(x, arg, out);
     fn = block_norm_inf(n, r);
     for (iter = 0; iter < 40; ++iter) {
         if (fn <= 1e-13) {
             break;
         }
-        if (!block_lu(n, jac, piv)) {
-            break;
-        }
         for (i = 0; i < n; ++i) {
             dx[i] = r[i];
+        }
+        if (!block_lu(n, jac, piv)) {
+            break;
         }
         block_lu_solve(n, jac, piv, dx);
         if (block_norm_inf(n, dx) <= 1e-15) {
@@ -1405,8 +1405,9 @@ static void block_stick(const block_ctx_t *c, int f, const double *q, const doub
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it. */
-static void block_friction_modes(const block_ctx_t *c, const double *q, const double *u)
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
+static void block_friction_modes(const block_ctx_t *c, const double *q, const double *u, double tau)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], sliding, mf;
     unsigned long mask;
@@ -1438,6 +1439,7 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
             }
         }
     }
+    (void)tau;
     block_set_friction(c);
 }
 
@@ -1468,7 +1470,9 @@ static void block_friction_switch(const block_ctx_t *c, int kind, int sr, const 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
- * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
+ * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
+ * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int block_illinois(const block_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1904,7 +1908,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             return 0;
         }
         block_velocity(c, q, v, p, vel);
-        block_friction_modes(c, q, vel);
+        block_friction_modes(c, q, vel, tau);
         any = 0;
         for (r = 0; r < BLOCK_R; ++r) {
             any = any || c->sus->act[r];
@@ -2104,7 +2108,7 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
             c->sus->act[r] = 1;
         }
     }
-    block_friction_modes(c, q, v);
+    block_friction_modes(c, q, v, -1.0);
 }
 
 
@@ -2542,8 +2546,9 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
             return 0;
         }
     }
-    return block_fail(c, BLOCK_PHASE_JUMP, 0.0, "more than %d impacts in one step (chattering toward "
-        "rest?); reduce h", c->tol->max_impacts_per_step);
+    return block_fail(c, BLOCK_PHASE_JUMP, 0.0, "more than %d impacts in one step "
+        "(Tolerances.max_impacts_per_step); raise it if the impacts are real, or reduce h",
+        c->tol->max_impacts_per_step);
 }
 
 /* Stepper.step: one grid step from (q_k, p_k), in place; v is the guess in and the velocity out;
@@ -2565,6 +2570,7 @@ static int block_step(const block_ctx_t *c, double *q, double *p, double *v, dou
     c->sus->events = 0;
     if (block_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
+
         int rc = block_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
         if (!block_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
             block_contacts(q, c->par, phi, grad);
@@ -2873,8 +2879,45 @@ void block_start(const double *par, const block_tol_t *tol, double h, const doub
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+
     block_init_friction(&c);
     block_start_sustained(&c, q, v);
+}
+
+/* A fresh run's contacts held at the start: row 0 of A (as record writes the rows after it). */
+static void block_record_start(const block_sustain_t *sus, unsigned char *A0)
+{
+    int j;
+    int r;
+    for (j = 0; j < BLOCK_M; ++j) {
+        A0[j] = 0;
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        if (sus->act[r] && block_row_contact[r] >= 0) {
+            A0[block_row_contact[r]] = 1;
+        }
+    }
+}
+
+void block_run_many(const block_tol_t *tol, double h, double t0, long n_jobs,
+    block_job_t *const *jobs)
+{
+    long i;
+    for (i = 0; i < n_jobs; ++i) {
+        block_job_t *j = jobs[i];
+        if (j->fresh) {
+            block_start(j->par, tol, h, j->q, j->v, j->sus);
+            block_record_start(j->sus, j->A0);
+            j->fresh = 0;
+        }
+        j->sus->liftoffs = j->liftoffs;
+        j->sus->liftoff_cap = j->liftoff_cap;
+        j->sus->n_liftoffs = 0;
+        j->rc = block_run(j->par, tol, h, t0, j->step0, j->n_steps, j->max_impacts, j->q, j->p, j->v,
+            j->Q, j->P, j->E, j->impacts, j->impact_cap, &j->steps_done, &j->impacts_done, j->err, j->sus,
+            j->A, j->F, j->FC);
+        j->liftoffs_done = j->sus->n_liftoffs;
+    }
 }
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */

@@ -555,7 +555,6 @@ static double rough_disk_norm_inf(int n, const double *r)
     }
     return big;
 }
-
 /* Newton on f(x) = 0 from x (in/out), as the CasADi backend's rootfinder: stop when |f|_inf <=
  * 1e-13 or |dx|_inf <= 1e-15 (step not taken), at most 40
  * steps. A step longer than 1e-08 (1 + |x|) is halved (up to 10
@@ -570,17 +569,18 @@ static void rough_disk_newton(rough_disk_fun f, const double *const *arg, int n,
     int piv[ROUGH_DISK_NX_MAX];
     int i, iter, halving;
     double fn, ft, lam;
+
     f(x, arg, out);
     fn = rough_disk_norm_inf(n, r);
     for (iter = 0; iter < 40; ++iter) {
         if (fn <= 1e-13) {
             break;
         }
-        if (!rough_disk_lu(n, jac, piv)) {
-            break;
-        }
         for (i = 0; i < n; ++i) {
             dx[i] = r[i];
+        }
+        if (!rough_disk_lu(n, jac, piv)) {
+            break;
         }
         rough_disk_lu_solve(n, jac, piv, dx);
         if (rough_disk_norm_inf(n, dx) <= 1e-15) {
@@ -1482,8 +1482,9 @@ static void rough_disk_stick(const rough_disk_ctx_t *c, int f, const double *q, 
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it. */
-static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q, const double *u)
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
+static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q, const double *u, double tau)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], sliding, mf;
     unsigned long mask;
@@ -1515,6 +1516,7 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
             }
         }
     }
+    (void)tau;
     rough_disk_set_friction(c);
 }
 
@@ -1545,7 +1547,9 @@ static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int 
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
- * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
+ * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
+ * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int rough_disk_illinois(const rough_disk_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -1981,7 +1985,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             return 0;
         }
         rough_disk_velocity(c, q, v, p, vel);
-        rough_disk_friction_modes(c, q, vel);
+        rough_disk_friction_modes(c, q, vel, tau);
         any = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {
             any = any || c->sus->act[r];
@@ -2181,7 +2185,7 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
             c->sus->act[r] = 1;
         }
     }
-    rough_disk_friction_modes(c, q, v);
+    rough_disk_friction_modes(c, q, v, -1.0);
 }
 
 
@@ -2619,8 +2623,9 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
             return 0;
         }
     }
-    return rough_disk_fail(c, ROUGH_DISK_PHASE_JUMP, 0.0, "more than %d impacts in one step (chattering toward "
-        "rest?); reduce h", c->tol->max_impacts_per_step);
+    return rough_disk_fail(c, ROUGH_DISK_PHASE_JUMP, 0.0, "more than %d impacts in one step "
+        "(Tolerances.max_impacts_per_step); raise it if the impacts are real, or reduce h",
+        c->tol->max_impacts_per_step);
 }
 
 /* Stepper.step: one grid step from (q_k, p_k), in place; v is the guess in and the velocity out;
@@ -2642,6 +2647,7 @@ static int rough_disk_step(const rough_disk_ctx_t *c, double *q, double *p, doub
     c->sus->events = 0;
     if (rough_disk_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
+
         int rc = rough_disk_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
         if (!rough_disk_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
             rough_disk_contacts(q, c->par, phi, grad);
@@ -2950,8 +2956,45 @@ void rough_disk_start(const double *par, const rough_disk_tol_t *tol, double h, 
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+
     rough_disk_init_friction(&c);
     rough_disk_start_sustained(&c, q, v);
+}
+
+/* A fresh run's contacts held at the start: row 0 of A (as record writes the rows after it). */
+static void rough_disk_record_start(const rough_disk_sustain_t *sus, unsigned char *A0)
+{
+    int j;
+    int r;
+    for (j = 0; j < ROUGH_DISK_M; ++j) {
+        A0[j] = 0;
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        if (sus->act[r] && rough_disk_row_contact[r] >= 0) {
+            A0[rough_disk_row_contact[r]] = 1;
+        }
+    }
+}
+
+void rough_disk_run_many(const rough_disk_tol_t *tol, double h, double t0, long n_jobs,
+    rough_disk_job_t *const *jobs)
+{
+    long i;
+    for (i = 0; i < n_jobs; ++i) {
+        rough_disk_job_t *j = jobs[i];
+        if (j->fresh) {
+            rough_disk_start(j->par, tol, h, j->q, j->v, j->sus);
+            rough_disk_record_start(j->sus, j->A0);
+            j->fresh = 0;
+        }
+        j->sus->liftoffs = j->liftoffs;
+        j->sus->liftoff_cap = j->liftoff_cap;
+        j->sus->n_liftoffs = 0;
+        j->rc = rough_disk_run(j->par, tol, h, t0, j->step0, j->n_steps, j->max_impacts, j->q, j->p, j->v,
+            j->Q, j->P, j->E, j->impacts, j->impact_cap, &j->steps_done, &j->impacts_done, j->err, j->sus,
+            j->A, j->F, j->FC);
+        j->liftoffs_done = j->sus->n_liftoffs;
+    }
 }
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */

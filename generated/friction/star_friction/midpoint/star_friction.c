@@ -807,7 +807,6 @@ static double star_friction_norm_inf(int n, const double *r)
     }
     return big;
 }
-
 /* Newton on f(x) = 0 from x (in/out), as the CasADi backend's rootfinder: stop when |f|_inf <=
  * 1e-13 or |dx|_inf <= 1e-15 (step not taken), at most 40
  * steps. A step longer than 1e-08 (1 + |x|) is halved (up to 10
@@ -822,17 +821,18 @@ static void star_friction_newton(star_friction_fun f, const double *const *arg, 
     int piv[STAR_FRICTION_NX_MAX];
     int i, iter, halving;
     double fn, ft, lam;
+
     f(x, arg, out);
     fn = star_friction_norm_inf(n, r);
     for (iter = 0; iter < 40; ++iter) {
         if (fn <= 1e-13) {
             break;
         }
-        if (!star_friction_lu(n, jac, piv)) {
-            break;
-        }
         for (i = 0; i < n; ++i) {
             dx[i] = r[i];
+        }
+        if (!star_friction_lu(n, jac, piv)) {
+            break;
         }
         star_friction_lu_solve(n, jac, piv, dx);
         if (star_friction_norm_inf(n, dx) <= 1e-15) {
@@ -1743,8 +1743,9 @@ static void star_friction_stick(const star_friction_ctx_t *c, int f, const doubl
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it. */
-static void star_friction_friction_modes(const star_friction_ctx_t *c, const double *q, const double *u)
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
+static void star_friction_friction_modes(const star_friction_ctx_t *c, const double *q, const double *u, double tau)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], sliding, mf;
     unsigned long mask;
@@ -1776,6 +1777,7 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
             }
         }
     }
+    (void)tau;
     star_friction_set_friction(c);
 }
 
@@ -1806,7 +1808,9 @@ static void star_friction_friction_switch(const star_friction_ctx_t *c, int kind
 /* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
  * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
- * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events). *s_out: the first s with |value| <= tiny, or else, once the bracket is
+ * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
+ * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
+ * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int star_friction_illinois(const star_friction_ctx_t *c, int r, int height, const double *q, const double *p,
     double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
@@ -2242,7 +2246,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             return 0;
         }
         star_friction_velocity(c, q, v, p, vel);
-        star_friction_friction_modes(c, q, vel);
+        star_friction_friction_modes(c, q, vel, tau);
         any = 0;
         for (r = 0; r < STAR_FRICTION_R; ++r) {
             any = any || c->sus->act[r];
@@ -2442,7 +2446,7 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
             c->sus->act[r] = 1;
         }
     }
-    star_friction_friction_modes(c, q, v);
+    star_friction_friction_modes(c, q, v, -1.0);
 }
 
 
@@ -2880,8 +2884,9 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
             return 0;
         }
     }
-    return star_friction_fail(c, STAR_FRICTION_PHASE_JUMP, 0.0, "more than %d impacts in one step (chattering toward "
-        "rest?); reduce h", c->tol->max_impacts_per_step);
+    return star_friction_fail(c, STAR_FRICTION_PHASE_JUMP, 0.0, "more than %d impacts in one step "
+        "(Tolerances.max_impacts_per_step); raise it if the impacts are real, or reduce h",
+        c->tol->max_impacts_per_step);
 }
 
 /* Stepper.step: one grid step from (q_k, p_k), in place; v is the guess in and the velocity out;
@@ -2903,6 +2908,7 @@ static int star_friction_step(const star_friction_ctx_t *c, double *q, double *p
     c->sus->events = 0;
     if (star_friction_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
+
         int rc = star_friction_chain(c, q, p, c->t_k, c->h, v, &e_step, rec, n_rec);
         if (!star_friction_held(c->sus)) { /* phi and grad phi at q_k+1 for the next, free, step */
             star_friction_contacts(q, c->par, phi, grad);
@@ -3211,8 +3217,45 @@ void star_friction_start(const double *par, const star_friction_tol_t *tol, doub
     c.step = 0;
     c.t_k = 0.0;
     c.h = h;
+
     star_friction_init_friction(&c);
     star_friction_start_sustained(&c, q, v);
+}
+
+/* A fresh run's contacts held at the start: row 0 of A (as record writes the rows after it). */
+static void star_friction_record_start(const star_friction_sustain_t *sus, unsigned char *A0)
+{
+    int j;
+    int r;
+    for (j = 0; j < STAR_FRICTION_M; ++j) {
+        A0[j] = 0;
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        if (sus->act[r] && star_friction_row_contact[r] >= 0) {
+            A0[star_friction_row_contact[r]] = 1;
+        }
+    }
+}
+
+void star_friction_run_many(const star_friction_tol_t *tol, double h, double t0, long n_jobs,
+    star_friction_job_t *const *jobs)
+{
+    long i;
+    for (i = 0; i < n_jobs; ++i) {
+        star_friction_job_t *j = jobs[i];
+        if (j->fresh) {
+            star_friction_start(j->par, tol, h, j->q, j->v, j->sus);
+            star_friction_record_start(j->sus, j->A0);
+            j->fresh = 0;
+        }
+        j->sus->liftoffs = j->liftoffs;
+        j->sus->liftoff_cap = j->liftoff_cap;
+        j->sus->n_liftoffs = 0;
+        j->rc = star_friction_run(j->par, tol, h, t0, j->step0, j->n_steps, j->max_impacts, j->q, j->p, j->v,
+            j->Q, j->P, j->E, j->impacts, j->impact_cap, &j->steps_done, &j->impacts_done, j->err, j->sus,
+            j->A, j->F, j->FC);
+        j->liftoffs_done = j->sus->n_liftoffs;
+    }
 }
 
 /* ---- the kernels interface (vcigen.stepper.Kernels), for the Python wrapper ---- */
