@@ -153,11 +153,38 @@ class DiscreteSystem:
         return 0 if self.rows is None else self.rows.size
 
 
-def _residual_routine(name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str) -> Routine:
-    jac = res.jacobian(sp.Matrix(unknown.symbols))
-    if jac.has(sp.DiracDelta):  # sign() in a row (a stick row's tangent): its Dirac mass is no force
-        jac = jac.applyfunc(lambda e: e.replace(lambda x: isinstance(x, sp.DiracDelta), lambda x: sp.S.Zero))
-    return Routine(name, (unknown, *args), (Output("res", res), Output("jac", jac)), doc)
+def jacobian(res: sp.Matrix, xs: tuple[sp.Symbol, ...]) -> sp.Matrix:
+    """``d res / d xs``, differentiating each entry only in the unknowns it holds (the rest are 0).
+
+    Per-contact residuals touch a few unknowns each; skipping the others keeps the derivation
+    linear in their number. A ``sign()`` in a row (a stick row's tangent) leaves a Dirac mass,
+    which is no force: it is dropped.
+    """
+    out = sp.zeros(res.rows, len(xs))
+    for i, e in enumerate(res):
+        held = e.free_symbols
+        for k, x in enumerate(xs):
+            if x in held:
+                out[i, k] = e.diff(x)
+    if out.has(sp.DiracDelta):
+        out = out.applyfunc(lambda e: e.replace(lambda x: isinstance(x, sp.DiracDelta), lambda x: sp.S.Zero))
+    return out
+
+
+def hessian(f: sp.Expr, xs: tuple[sp.Symbol, ...]) -> sp.Matrix:
+    """``sp.hessian(f, xs)``, differentiating only in the symbols each derivative holds."""
+    return jacobian(jacobian(sp.Matrix([f]), xs).T, xs)
+
+
+def _residual_routine(
+    name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str, head: Routine | None = None
+) -> Routine:
+    """Residual and Jacobian; with ``head``, a routine of the leading rows, only the rest is differentiated."""
+    if head is None:
+        return Routine(name, (unknown, *args), (Output("res", res), Output("jac", jacobian(res, unknown.symbols))), doc)
+    top, top_jac = head.output("res").expr, head.output("jac").expr
+    jac = top_jac.col_join(jacobian(res, unknown.symbols))
+    return Routine(name, (unknown, *args), (Output("res", top.col_join(res)), Output("jac", jac)), doc, head)
 
 
 def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
@@ -247,14 +274,18 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     alpha = sp.Dummy("alpha", real=True)
     pm_a, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), alpha * tau)
     qt = sp.Matrix(q0) + alpha * tau * sp.Matrix(v)
+    base_x = Arg("x", (*v, alpha))
+    shared = _residual_routine(
+        "shared_contact_time", base_x, base, pm_a - sp.Matrix(p0), "Momentum rows of (47), (74), shared by the contacts."
+    )
     for j, c in enumerate(names):
-        res = (pm_a - sp.Matrix(p0)).col_join(sp.Matrix([phis[j].xreplace(dict(zip(q, qt)))]))
         routines[f"contact_time_{c}"] = _residual_routine(
             f"contact_time_{c}",
-            Arg("x", (*v, alpha)),
+            base_x,
             base,
-            res,
+            sp.Matrix([phis[j].xreplace(dict(zip(q, qt)))]),
             f"Contact time and point (47), (74) on contact '{c}': unknowns (v, alpha).",
+            shared,
         )
 
     # Jump (48), (75), (76): unknowns (w, mu); mu >= 0 pushes into C along nrm.
@@ -276,14 +307,18 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     )
     # Several impacts in one step (78): the post-impact segment ends on contact j'.
     qend = sp.Matrix(qc) + beta * tau * sp.Matrix(w)
+    jump_x = Arg("x", (*w, mu, beta))
+    shared = _residual_routine(
+        "shared_jump_contact", jump_x, jargs, jump_res(beta * tau), "Rows of (78) shared by the contacts."
+    )
     for j, c in enumerate(names):
-        res = jump_res(beta * tau).col_join(sp.Matrix([phis[j].xreplace(dict(zip(q, qend)))]))
         routines[f"jump_contact_{c}"] = _residual_routine(
             f"jump_contact_{c}",
-            Arg("x", (*w, mu, beta)),
+            jump_x,
             jargs,
-            res,
+            sp.Matrix([phis[j].xreplace(dict(zip(q, qend)))]),
             f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
+            shared,
         )
     if rows.size:
         routines.update(sustained_routines(model, seg, rows, par, phis, q))
@@ -329,7 +364,7 @@ def sustained_routines(
 
     def curvature(f: sp.Expr) -> sp.Expr:
         """``u . Hess f . u``: the part of ``d2 f/dt2`` the velocity alone gives."""
-        return (umat.T * sp.hessian(f, q).applyfunc(_no_dirac) * umat)[0]
+        return (umat.T * hessian(f, q).applyfunc(_no_dirac) * umat)[0]
 
     curv = sp.Matrix([curvature(ps) for ps in psi])
     out = {

@@ -249,15 +249,18 @@ def path_routines(system: DiscreteSystem) -> list[Routine]:
     v = sp.Matrix([-res[i].xreplace(zero).xreplace(at_s) / jac[i, i].xreplace(at_s) for i in range(system.n)])
     q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
     qsub = dict(zip(contacts.input("q").symbols, q_end))
+    inputs = (Arg("x", (s,)), q0, p0, tau, par)
+    shared = Routine("shared_contact_path", inputs, (Output("v", v),), "v(s) of the explicit segment map (47).")
     out = []
     for j, name in enumerate(system.contact_names):
         g = contacts.output("phi").expr[j].xreplace(qsub)
         out.append(
             Routine(
                 f"contact_path_{name}",
-                (Arg("x", (s,)), q0, p0, tau, par),
+                inputs,
                 (Output("g", sp.Matrix([g])), Output("dg", sp.Matrix([g.diff(s)])), Output("v", v)),
                 f"Contact '{name}' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47).",
+                shared,
             )
         )
     return out
