@@ -15,7 +15,8 @@ bodies drifting at 1e-4 so that nothing is hit) and per impact (a dense run at s
 the quiet per-step cost of its steps subtracted), each the best of ``--repeats`` runs, as seen by a
 user calling ``simulate`` (so a step includes storing its row of the result). Every time is CPU time
 (this process's, and the compiler's for compile): the machine these figures come from is shared, and
-wall times there are several times the CPU times. Every run is checked admissible (phi_j(q_k) >= -1e-9 at every grid point).
+wall times there are several times the CPU times. Every run is checked admissible (phi_j(q_k) >= -1e-9
+at every grid point).
 Prints a table and the fitted exponents (slope of log cost against log N, and against log m, the
 number of contacts) and writes ``scaling.csv`` and ``scaling.png`` into ``--out``. ``--fast`` takes
 small N only (the test in ``tests/test_scaling_bench.py`` runs it).
@@ -52,8 +53,22 @@ RADIUS = 0.2
 ADMISSIBLE = 1e-9
 FULL = {"chain": (4, 8, 16, 32, 64), "box": (2, 4, 8, 12, 16)}
 FAST = {"chain": (2, 4, 8), "box": (2, 3, 4)}
-COLUMNS = ("scene", "N", "n", "m", "derive_s", "generate_s", "compile_s", "build_s", "build_wall_s", "kbytes",
-           "us_per_step", "us_per_impact", "impacts", "min_phi")
+COLUMNS = (
+    "scene",
+    "N",
+    "n",
+    "m",
+    "derive_s",
+    "generate_s",
+    "compile_s",
+    "build_s",
+    "build_wall_s",
+    "kbytes",
+    "us_per_step",
+    "us_per_impact",
+    "impacts",
+    "min_phi",
+)
 
 
 def chain(n: int) -> vcigen.Model:
@@ -64,8 +79,12 @@ def chain(n: int) -> vcigen.Model:
     contacts |= {f"gap{i}": xs[i + 1] - xs[i] for i in range(n - 1)}
     contacts["wall_right"] = n + 1 - xs[-1]
     return vcigen.Model(
-        name=f"chain{n}", q=list(xs), qdot=list(vs), lagrangian=sum(m / 2 * v**2 for v in vs),
-        contacts=contacts, params={m: 1.0},
+        name=f"chain{n}",
+        q=list(xs),
+        qdot=list(vs),
+        lagrangian=sum(m / 2 * v**2 for v in vs),
+        contacts=contacts,
+        params={m: 1.0},
     )
 
 
@@ -81,15 +100,24 @@ def box(n: int) -> vcigen.Model:
     w = _side(n) + 1
     contacts = {}
     for i in range(n):
-        contacts |= {f"l{i}": xs[i] - RADIUS, f"r{i}": w - RADIUS - xs[i],
-                     f"b{i}": ys[i] - RADIUS, f"t{i}": w - RADIUS - ys[i]}
+        contacts |= {
+            f"l{i}": xs[i] - RADIUS,
+            f"r{i}": w - RADIUS - xs[i],
+            f"b{i}": ys[i] - RADIUS,
+            f"t{i}": w - RADIUS - ys[i],
+        }
     for i in range(n):
         for k in range(i + 1, n):
             contacts[f"d{i}_{k}"] = sp.sqrt((xs[i] - xs[k]) ** 2 + (ys[i] - ys[k]) ** 2) - 2 * RADIUS
     q = [c for i in range(n) for c in (xs[i], ys[i])]
     qd = [c for i in range(n) for c in (xd[i], yd[i])]
     return vcigen.Model(
-        name=f"box{n}", q=q, qdot=qd, lagrangian=sum(m / 2 * v**2 for v in qd), contacts=contacts, params={m: 1.0}
+        name=f"box{n}",
+        q=q,
+        qdot=qd,
+        lagrangian=sum(m / 2 * v**2 for v in qd),
+        contacts=contacts,
+        params={m: 1.0},
     )
 
 
@@ -131,8 +159,14 @@ def timed_build(model: vcigen.Model) -> tuple[vcigen.Simulator, dict[str, float]
         wall = time.perf_counter() - wall
         sim = CSimulator(system, CKernels(system, lib, ctx), tol)  # the library stays loaded
     size = sum(len(v) for v in files.values()) / 1e3
-    return sim, {"derive_s": t1 - t0, "generate_s": t2 - t1, "compile_s": compile_s,
-                 "build_s": t2 - t0 + compile_s, "build_wall_s": wall, "kbytes": size}
+    return sim, {
+        "derive_s": t1 - t0,
+        "generate_s": t2 - t1,
+        "compile_s": compile_s,
+        "build_s": t2 - t0 + compile_s,
+        "build_wall_s": wall,
+        "kbytes": size,
+    }
 
 
 def min_phi(model: vcigen.Model, q: np.ndarray) -> float:
@@ -175,8 +209,12 @@ def run_costs(sim: vcigen.Simulator, scene: str, n: int, steps: int, t_dense: fl
     _, wall_same = quiet(len(dense.t) - 1)
     per_impact = max(wall - wall_same, 0.0) / max(dense.n_impacts, 1)
     low = min(min_phi(sim.model, long.q), min_phi(sim.model, dense.q))
-    return {"us_per_step": per_step * 1e6, "us_per_impact": per_impact * 1e6, "impacts": dense.n_impacts,
-            "min_phi": low}
+    return {
+        "us_per_step": per_step * 1e6,
+        "us_per_impact": per_impact * 1e6,
+        "impacts": dense.n_impacts,
+        "min_phi": low,
+    }
 
 
 def measure(scene: str, n: int, fast: bool, repeats: int) -> dict:
@@ -236,7 +274,9 @@ def plot(rows: list[dict], exps: dict, path: Path) -> None:
             label = f"{scene} {key[:-2]} (N^{exps.get(scene, {}).get(key, float('nan')):.2f})"
             axes[0].loglog(ns, [max(r[key], 1e-4) for r in sel], ls, marker=mk, label=label)
         for key, mk in (("us_per_step", "o"), ("us_per_impact", "s")):
-            label = f"{scene} {key[3:].replace('_', ' ')} (N^{exps.get(scene, {}).get(key, float('nan')):.2f})"
+            label = (
+                f"{scene} {key[3:].replace('_', ' ')} (N^{exps.get(scene, {}).get(key, float('nan')):.2f})"
+            )
             axes[1].loglog(ns, [max(r[key], 1e-4) for r in sel], ls, marker=mk, label=label)
     axes[0].set(xlabel="N bodies", ylabel="build time [s] (cold cache)", title="build")
     axes[1].set(xlabel="N bodies", ylabel="cost [us]", title="run (C backend, from Python)")
@@ -251,14 +291,17 @@ def plot(rows: list[dict], exps: dict, path: Path) -> None:
 def table(rows: list[dict], exps: dict) -> str:
     """The markdown table and the exponents, as the README shows them."""
     lines = [
-        "| scene | N | n | m | derive s | generate s | compile s | build s | (wall s) | C kB | us/step | us/impact"
+        "| scene | N | n | m | derive s | generate s | compile s | build s | (wall s) | C kB | us/step "
+        "| us/impact"
         " | impacts |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['scene']} | {r['N']} | {r['n']} | {r['m']} | {r['derive_s']:.2f} | {r['generate_s']:.2f} | "
-            f"{r['compile_s']:.2f} | {r['build_s']:.2f} | {r['build_wall_s']:.1f} | {r['kbytes']:.0f} | {r['us_per_step']:.3f} | "
+            f"| {r['scene']} | {r['N']} | {r['n']} | {r['m']} | {r['derive_s']:.2f} | "
+            f"{r['generate_s']:.2f} | "
+            f"{r['compile_s']:.2f} | {r['build_s']:.2f} | {r['build_wall_s']:.1f} | {r['kbytes']:.0f} | "
+            f"{r['us_per_step']:.3f} | "
             f"{r['us_per_impact']:.2f} | {r['impacts']} |"
         )
     lines.append("")
@@ -284,9 +327,13 @@ def main(argv: list[str] | None = None) -> dict:
         for n in [int(s) for s in args.sizes.split(",")] if args.sizes else sizes[scene]:
             row = measure(scene, n, args.fast, args.repeats)
             rows.append(row)
-            print(f"{scene} N={n}: build {row['build_s']:.2f} s (derive {row['derive_s']:.2f}, generate "
-                  f"{row['generate_s']:.2f}, compile {row['compile_s']:.2f}), {row['us_per_step']:.3f} us/step, "
-                  f"{row['us_per_impact']:.2f} us/impact ({row['impacts']} impacts)", flush=True)
+            print(
+                f"{scene} N={n}: build {row['build_s']:.2f} s (derive {row['derive_s']:.2f}, generate "
+                f"{row['generate_s']:.2f}, compile {row['compile_s']:.2f}), "
+                f"{row['us_per_step']:.3f} us/step, "
+                f"{row['us_per_impact']:.2f} us/impact ({row['impacts']} impacts)",
+                flush=True,
+            )
             if row["min_phi"] < -ADMISSIBLE:
                 raise RuntimeError(f"{scene} N={n}: inadmissible run, min phi = {row['min_phi']:.3e}")
     exps = fits(rows)

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
+from .calculus import hessian, jacobian
 from .model import Model
 from .routines import Arg, Output, Routine
 from .rows import Rows, contact_rows
@@ -153,35 +154,14 @@ class DiscreteSystem:
         return 0 if self.rows is None else self.rows.size
 
 
-def jacobian(res: sp.Matrix, xs: tuple[sp.Symbol, ...]) -> sp.Matrix:
-    """``d res / d xs``, differentiating each entry only in the unknowns it holds (the rest are 0).
-
-    Per-contact residuals touch a few unknowns each; skipping the others keeps the derivation
-    linear in their number. A ``sign()`` in a row (a stick row's tangent) leaves a Dirac mass,
-    which is no force: it is dropped.
-    """
-    out = sp.zeros(res.rows, len(xs))
-    for i, e in enumerate(res):
-        held = e.free_symbols
-        for k, x in enumerate(xs):
-            if x in held:
-                out[i, k] = e.diff(x)
-    if out.has(sp.DiracDelta):
-        out = out.applyfunc(lambda e: e.replace(lambda x: isinstance(x, sp.DiracDelta), lambda x: sp.S.Zero))
-    return out
-
-
-def hessian(f: sp.Expr, xs: tuple[sp.Symbol, ...]) -> sp.Matrix:
-    """``sp.hessian(f, xs)``, differentiating only in the symbols each derivative holds."""
-    return jacobian(jacobian(sp.Matrix([f]), xs).T, xs)
-
-
 def _residual_routine(
     name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str, head: Routine | None = None
 ) -> Routine:
-    """Residual and Jacobian; with ``head``, a routine of the leading rows, only the rest is differentiated."""
+    """Residual and Jacobian; with ``head`` (the leading rows) only the rest is differentiated."""
     if head is None:
-        return Routine(name, (unknown, *args), (Output("res", res), Output("jac", jacobian(res, unknown.symbols))), doc)
+        return Routine(
+            name, (unknown, *args), (Output("res", res), Output("jac", jacobian(res, unknown.symbols))), doc
+        )
     top, top_jac = head.output("res").expr, head.output("jac").expr
     jac = top_jac.col_join(jacobian(res, unknown.symbols))
     return Routine(name, (unknown, *args), (Output("res", top.col_join(res)), Output("jac", jac)), doc, head)
@@ -224,7 +204,11 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     qrep = dict(zip(qs, q))
     phis = [model.phi[c].xreplace(qrep) for c in names]
     phi_vec = sp.Matrix(phis) if phis else sp.zeros(0, 1)
-    grad = sp.Matrix([[_cone_centre(ph.diff(s)) for s in q] for ph in phis]) if phis else sp.zeros(0, n)
+    grad = (
+        sp.Matrix([[_cone_centre(d) for d in jacobian(sp.Matrix([ph]), q, drop_dirac=False)] for ph in phis])
+        if phis
+        else sp.zeros(0, n)
+    )
     contacts = Routine(
         "contacts",
         (Arg("q", q), par),
@@ -276,7 +260,11 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     qt = sp.Matrix(q0) + alpha * tau * sp.Matrix(v)
     base_x = Arg("x", (*v, alpha))
     shared = _residual_routine(
-        "shared_contact_time", base_x, base, pm_a - sp.Matrix(p0), "Momentum rows of (47), (74), shared by the contacts."
+        "shared_contact_time",
+        base_x,
+        base,
+        pm_a - sp.Matrix(p0),
+        "Momentum rows of (47), (74), shared by the contacts.",
     )
     for j, c in enumerate(names):
         routines[f"contact_time_{c}"] = _residual_routine(
@@ -351,7 +339,7 @@ def sustained_routines(
     u = _vec("u", n)
     rep = qrep | dict(zip(vs, u))
     psi = [e.xreplace(qrep) for e in rows.exprs]
-    grad = sp.Matrix([[_no_dirac(ps.diff(s)) for s in q] for ps in psi])
+    grad = sp.Matrix([[_no_dirac(d) for d in jacobian(sp.Matrix([ps]), q)] for ps in psi])
     # The force direction of each row: grad psi_r, plus slip_f grad tangent_f on the rows of a slipping
     # frictional contact f (Coulomb: -mu_f s lambda along the tangent; MATH.md *Friction*).
     dirs = grad.copy()
@@ -376,7 +364,7 @@ def sustained_routines(
         )
     }
     lq = sp.Matrix([model.L.diff(s) for s in qs]).xreplace(rep)
-    mixed = sp.Matrix([[model.L.diff(vi).diff(qk) for qk in qs] for vi in vs]).xreplace(rep)
+    mixed = jacobian(sp.Matrix([model.L.diff(vi) for vi in vs]), qs, drop_dirac=False).xreplace(rep)
     rhs = lq - mixed * umat
     if model.force:  # Lagrange-d'Alembert: M qddot = dL/dq - (d2L/dqdot dq) qdot + F(q, qdot, t)
         rhs = rhs + force_at(model, sp.Matrix(q), umat, time_slot(model))

@@ -26,6 +26,7 @@ from functools import lru_cache
 
 import sympy as sp
 
+from .calculus import hessian, jacobian
 from .derive import DiscreteSystem
 from .routines import Arg, Output, Routine
 
@@ -215,11 +216,11 @@ def jump_quadratic(system: DiscreteSystem) -> Routine | None:
     rep[seg.input("tau").symbols[0]] = tau.symbols[0]
     p_minus = seg.output("p_minus").expr.xreplace(rep)
     energy = _shorter(seg.output("energy").expr[0]).xreplace(rep)
-    hess = expanded(sp.hessian(energy, list(w)))
+    hess = expanded(hessian(energy, list(w)))
     if hess.free_symbols & set(w):
         return None
     zero = dict.fromkeys(w, sp.S.Zero)
-    jac = expanded(p_minus.jacobian(w))
+    jac = expanded(jacobian(p_minus, list(w), drop_dirac=False))
     w0 = sp.Matrix([(p_in.symbols[i] - p_minus[i].xreplace(zero)) / jac[i, i] for i in range(n)])
     dw = sp.Matrix([nrm.symbols[i] / jac[i, i] for i in range(n)])
     at_w0 = dict(zip(w, w0))
@@ -250,7 +251,9 @@ def path_routines(system: DiscreteSystem) -> list[Routine]:
     q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
     qsub = dict(zip(contacts.input("q").symbols, q_end))
     inputs = (Arg("x", (s,)), q0, p0, tau, par)
-    shared = Routine("shared_contact_path", inputs, (Output("v", v),), "v(s) of the explicit segment map (47).")
+    shared = Routine(
+        "shared_contact_path", inputs, (Output("v", v),), "v(s) of the explicit segment map (47)."
+    )
     out = []
     for j, name in enumerate(system.contact_names):
         g = contacts.output("phi").expr[j].xreplace(qsub)

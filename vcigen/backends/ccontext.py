@@ -71,14 +71,16 @@ def model_hash(system: DiscreteSystem) -> str:
 def routine_context(r: Routine) -> dict[str, Any]:
     """One routine as printable pieces: signature, temporaries, assignments (after its head's call)."""
     temps, outs, fills = print_routine_body(r)
-    used = set().union(*(e.free_symbols for o in r.outputs for e in o.expr)) if r.outputs else set()
     return {
         "name": r.name,
         "doc": r.doc,
         "inputs": [{"name": a.name, "size": a.size} for a in r.inputs],
         "head": None
         if r.head is None
-        else {"name": r.head.name, "args": [a.name for a in r.head.inputs] + [o.name for o in r.head.outputs]},
+        else {
+            "name": r.head.name,
+            "args": [a.name for a in r.head.inputs] + [o.name for o in r.head.outputs],
+        },
         "outputs": [
             {
                 "name": o.name,
@@ -90,13 +92,19 @@ def routine_context(r: Routine) -> dict[str, Any]:
             }
             for o, entries, fill in zip(r.outputs, outs, fills)
         ],
-        "unused": [] if r.head is not None else [a.name for a in r.inputs if not set(a.symbols) & used],
+        "unused": [] if r.head is not None else _unused(r),
         "temps": [{"name": n, "expr": e} for n, e in temps],
     }
 
 
+def _unused(r: Routine) -> list[str]:
+    """The inputs none of whose symbols an output holds (``(void)`` in C)."""
+    used = set().union(*(e.free_symbols for o in r.outputs for e in o.expr.flat())) if r.outputs else set()
+    return [a.name for a in r.inputs if not set(a.symbols) & used]
+
+
 def with_heads(routines: list[Routine]) -> list[Routine]:
-    """``routines`` with each shared head (:attr:`~vcigen.routines.Routine.head`) once, before its first user."""
+    """``routines`` with each shared :attr:`~vcigen.routines.Routine.head` once, before its first user."""
     out, seen = [], set()
     for r in routines:
         if r.head is not None and r.head.name not in seen:

@@ -60,7 +60,7 @@ def input_names(routine: Routine) -> dict[sp.Symbol, str]:
     return {s: f"{a.name}[{i}]" for a in routine.inputs for i, s in enumerate(a.symbols)}
 
 
-# An output with more zero entries than this is zero-filled by a loop, and only its nonzero entries are printed.
+# An output with more zero entries than this is zero-filled by a loop; only its nonzero entries are printed.
 ZERO_FILL = 16
 
 
@@ -78,7 +78,7 @@ def print_routine_body(
     names = input_names(routine)
     listed, fills = [], []
     for o, first in zip(routine.outputs, routine.head_sizes()):
-        own = [(k, e) for k, e in enumerate(o.expr) if k >= first]
+        own = list(enumerate(o.expr.flat()))[first:]
         sparse = sum(1 for _, e in own if e == 0) > ZERO_FILL
         fills.append((first, o.size) if sparse else None)
         listed.append([(k, e) for k, e in own if not (sparse and e == 0)])
