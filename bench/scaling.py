@@ -323,6 +323,7 @@ def main(argv: list[str] | None = None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     sizes = FAST if args.fast else FULL
     rows = []
+    name = "scaling_fast" if args.fast else "scaling"
     for scene in args.scenes.split(","):
         for n in [int(s) for s in args.sizes.split(",")] if args.sizes else sizes[scene]:
             row = measure(scene, n, args.fast, args.repeats)
@@ -336,9 +337,8 @@ def main(argv: list[str] | None = None) -> dict:
             )
             if row["min_phi"] < -ADMISSIBLE:
                 raise RuntimeError(f"{scene} N={n}: inadmissible run, min phi = {row['min_phi']:.3e}")
+            write_csv(rows, out / f"{name}.csv")  # as it goes: a long run keeps what it measured
     exps = fits(rows)
-    name = "scaling_fast" if args.fast else "scaling"
-    write_csv(rows, out / f"{name}.csv")
     plot(rows, exps, out / f"{name}.png")
     print(table(rows, exps))
     return {"rows": rows, "exponents": exps, "csv": out / f"{name}.csv", "png": out / f"{name}.png"}
