@@ -249,6 +249,12 @@ def fits(rows: list[dict]) -> dict[str, dict[str, float]]:
     return out
 
 
+def read_row(r: dict[str, str]) -> dict:
+    """A row of a written CSV with its numbers back."""
+    ints = ("N", "n", "m", "impacts")
+    return {k: (v if k == "scene" else int(v) if k in ints else float(v)) for k, v in r.items()}
+
+
 def write_csv(rows: list[dict], path: Path) -> None:
     with path.open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
@@ -307,7 +313,8 @@ def table(rows: list[dict], exps: dict) -> str:
     lines.append("")
     for scene, e in exps.items():
         parts = ", ".join(f"{k[:-2] if k.endswith('_s') else k[3:]} N^{e[k]:.2f}" for k in FITTED)
-        lines.append(f"- {scene}: {parts}")
+        per_m = ", ".join(f"{k[:-2] if k.endswith('_s') else k[3:]} m^{e[k + '/m']:.2f}" for k in FITTED)
+        lines.append(f"- {scene}: {parts}; against the number of contacts m: {per_m}")
     return "\n".join(lines)
 
 
@@ -318,13 +325,14 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--out", default=str(HERE / "results"))
     ap.add_argument("--scenes", default="chain,box")
     ap.add_argument("--sizes", default="", help="comma-separated N, overriding the defaults")
+    ap.add_argument("--from-csv", nargs="*", default=[], help="no runs: table, fits and plot of these CSVs")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     sizes = FAST if args.fast else FULL
-    rows = []
+    rows = [read_row(r) for path in args.from_csv for r in csv.DictReader(Path(path).open())]
     name = "scaling_fast" if args.fast else "scaling"
-    for scene in args.scenes.split(","):
+    for scene in args.scenes.split(",") if not args.from_csv else ():
         for n in [int(s) for s in args.sizes.split(",")] if args.sizes else sizes[scene]:
             row = measure(scene, n, args.fast, args.repeats)
             rows.append(row)
@@ -339,6 +347,7 @@ def main(argv: list[str] | None = None) -> dict:
                 raise RuntimeError(f"{scene} N={n}: inadmissible run, min phi = {row['min_phi']:.3e}")
             write_csv(rows, out / f"{name}.csv")  # as it goes: a long run keeps what it measured
     exps = fits(rows)
+    write_csv(rows, out / f"{name}.csv")
     plot(rows, exps, out / f"{name}.png")
     print(table(rows, exps))
     return {"rows": rows, "exponents": exps, "csv": out / f"{name}.csv", "png": out / f"{name}.png"}
