@@ -286,7 +286,12 @@ def plot(rows: list[dict], exps: dict, path: Path) -> None:
             axes[1].loglog(ns, [max(r[key], 1e-4) for r in sel], ls, marker=mk, label=label)
     axes[0].set(xlabel="N bodies", ylabel="build time [s] (cold cache)", title="build")
     axes[1].set(xlabel="N bodies", ylabel="cost [us]", title="run (C backend, from Python)")
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
     for ax in axes:
+        ax.set_xticks(sorted({r["N"] for r in rows}))
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.legend(fontsize=7)
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
