@@ -55,12 +55,13 @@ def _source_kbytes(n: int) -> float:
 def test_generated_source_grows_linearly_with_the_chain() -> None:
     """Per-contact routines print only their own row: each added body adds the same amount of C.
 
-    With the shared rows printed per contact (before issue 13) the source grew like m n: the step
-    from 8 to 16 bodies added ~4x what the step from 4 to 8 did.
+    Doubling the bodies doubles the increment when the source is linear in them (ratio 2; 2.4 when
+    written, 124, 142, 186 kB). With the shared rows printed per contact (before issue 13) the
+    source grew like m n^2: 130, 187, 454 kB, ratio 4.7.
     """
     k4, k8, k16 = (_source_kbytes(n) for n in (4, 8, 16))
     assert k4 < k8 < k16
-    assert (k16 - k8) / (k8 - k4) < 2.6, (k4, k8, k16)
+    assert (k16 - k8) / (k8 - k4) < 3.0, (k4, k8, k16)
 
 
 def test_per_contact_routines_equal_the_full_residual_and_jacobian() -> None:
