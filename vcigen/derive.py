@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
+from .calculus import hessian, jacobian
 from .model import Model
 from .routines import Arg, Output, Routine
 from .rows import Rows, contact_rows
@@ -155,11 +156,17 @@ class DiscreteSystem:
         return 0 if self.rows is None else self.rows.size
 
 
-def _residual_routine(name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str) -> Routine:
-    jac = res.jacobian(sp.Matrix(unknown.symbols))
-    if jac.has(sp.DiracDelta):  # sign() in a row (a stick row's tangent): its Dirac mass is no force
-        jac = jac.applyfunc(lambda e: e.replace(lambda x: isinstance(x, sp.DiracDelta), lambda x: sp.S.Zero))
-    return Routine(name, (unknown, *args), (Output("res", res), Output("jac", jac)), doc)
+def _residual_routine(
+    name: str, unknown: Arg, args: list[Arg], res: sp.Matrix, doc: str, head: Routine | None = None
+) -> Routine:
+    """Residual and Jacobian; with ``head`` (the leading rows) only the rest is differentiated."""
+    if head is None:
+        return Routine(
+            name, (unknown, *args), (Output("res", res), Output("jac", jacobian(res, unknown.symbols))), doc
+        )
+    top, top_jac = head.output("res").expr, head.output("jac").expr
+    jac = top_jac.col_join(jacobian(res, unknown.symbols))
+    return Routine(name, (unknown, *args), (Output("res", top.col_join(res)), Output("jac", jac)), doc, head)
 
 
 def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
@@ -199,7 +206,11 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     qrep = dict(zip(qs, q))
     phis = [model.phi[c].xreplace(qrep) for c in names]
     phi_vec = sp.Matrix(phis) if phis else sp.zeros(0, 1)
-    grad = sp.Matrix([[_cone_centre(ph.diff(s)) for s in q] for ph in phis]) if phis else sp.zeros(0, n)
+    grad = (
+        sp.Matrix([[_cone_centre(d) for d in jacobian(sp.Matrix([ph]), q, drop_dirac=False)] for ph in phis])
+        if phis
+        else sp.zeros(0, n)
+    )
     contacts = Routine(
         "contacts",
         (Arg("q", q), par),
@@ -269,14 +280,22 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     alpha = sp.Dummy("alpha", real=True)
     pm_a, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), alpha * tau)
     qt = sp.Matrix(q0) + alpha * tau * sp.Matrix(v)
+    base_x = Arg("x", (*v, alpha))
+    shared = _residual_routine(
+        "shared_contact_time",
+        base_x,
+        base,
+        pm_a - sp.Matrix(p0),
+        "Momentum rows of (47), (74), shared by the contacts.",
+    )
     for j, c in enumerate(names):
-        res = (pm_a - sp.Matrix(p0)).col_join(sp.Matrix([phis[j].xreplace(dict(zip(q, qt)))]))
         routines[f"contact_time_{c}"] = _residual_routine(
             f"contact_time_{c}",
-            Arg("x", (*v, alpha)),
+            base_x,
             base,
-            res,
+            sp.Matrix([phis[j].xreplace(dict(zip(q, qt)))]),
             f"Contact time and point (47), (74) on contact '{c}': unknowns (v, alpha).",
+            shared,
         )
 
     # Jump (48), (75), (76): unknowns (w, mu); mu >= 0 pushes into C along nrm.
@@ -298,14 +317,18 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     )
     # Several impacts in one step (78): the post-impact segment ends on contact j'.
     qend = sp.Matrix(qc) + beta * tau * sp.Matrix(w)
+    jump_x = Arg("x", (*w, mu, beta))
+    shared = _residual_routine(
+        "shared_jump_contact", jump_x, jargs, jump_res(beta * tau), "Rows of (78) shared by the contacts."
+    )
     for j, c in enumerate(names):
-        res = jump_res(beta * tau).col_join(sp.Matrix([phis[j].xreplace(dict(zip(q, qend)))]))
         routines[f"jump_contact_{c}"] = _residual_routine(
             f"jump_contact_{c}",
-            Arg("x", (*w, mu, beta)),
+            jump_x,
             jargs,
-            res,
+            sp.Matrix([phis[j].xreplace(dict(zip(q, qend)))]),
             f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
+            shared,
         )
     if rows.size:
         routines.update(sustained_routines(model, seg, rows, par, phis, q))
@@ -338,7 +361,7 @@ def sustained_routines(
     u = _vec("u", n)
     rep = qrep | dict(zip(vs, u))
     psi = [e.xreplace(qrep) for e in rows.exprs]
-    grad = sp.Matrix([[_no_dirac(ps.diff(s)) for s in q] for ps in psi])
+    grad = sp.Matrix([[_no_dirac(d) for d in jacobian(sp.Matrix([ps]), q)] for ps in psi])
     # The force direction of each row: grad psi_r, plus slip_f grad tangent_f on the rows of a slipping
     # frictional contact f (Coulomb: -mu_f s lambda along the tangent; MATH.md *Friction*).
     dirs = grad.copy()
@@ -351,7 +374,7 @@ def sustained_routines(
 
     def curvature(f: sp.Expr) -> sp.Expr:
         """``u . Hess f . u``: the part of ``d2 f/dt2`` the velocity alone gives."""
-        return (umat.T * sp.hessian(f, q).applyfunc(_no_dirac) * umat)[0]
+        return (umat.T * hessian(f, q).applyfunc(_no_dirac) * umat)[0]
 
     curv = sp.Matrix([curvature(ps) for ps in psi])
     out = {
@@ -363,7 +386,7 @@ def sustained_routines(
         )
     }
     lq = sp.Matrix([model.L.diff(s) for s in qs]).xreplace(rep)
-    mixed = sp.Matrix([[model.L.diff(vi).diff(qk) for qk in qs] for vi in vs]).xreplace(rep)
+    mixed = jacobian(sp.Matrix([model.L.diff(vi) for vi in vs]), qs, drop_dirac=False).xreplace(rep)
     rhs = lq - mixed * umat
     if model.force:  # Lagrange-d'Alembert: M qddot = dL/dq - (d2L/dqdot dq) qdot + F(q, qdot, t)
         rhs = rhs + force_at(model, sp.Matrix(q), umat, time_slot(model))

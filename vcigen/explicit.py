@@ -26,6 +26,7 @@ from functools import lru_cache
 
 import sympy as sp
 
+from .calculus import hessian, jacobian
 from .derive import DiscreteSystem
 from .routines import Arg, Output, Routine
 
@@ -215,11 +216,11 @@ def jump_quadratic(system: DiscreteSystem) -> Routine | None:
     rep[seg.input("tau").symbols[0]] = tau.symbols[0]
     p_minus = seg.output("p_minus").expr.xreplace(rep)
     energy = shorter(seg.output("energy").expr[0]).xreplace(rep)
-    hess = expanded(sp.hessian(energy, list(w)))
+    hess = expanded(hessian(energy, list(w)))
     if hess.free_symbols & set(w):
         return None
     zero = dict.fromkeys(w, sp.S.Zero)
-    jac = expanded(p_minus.jacobian(w))
+    jac = expanded(jacobian(p_minus, list(w), drop_dirac=False))
     w0 = sp.Matrix([(p_in.symbols[i] - p_minus[i].xreplace(zero)) / jac[i, i] for i in range(n)])
     dw = sp.Matrix([nrm.symbols[i] / jac[i, i] for i in range(n)])
     at_w0 = dict(zip(w, w0))
@@ -249,15 +250,20 @@ def path_routines(system: DiscreteSystem) -> list[Routine]:
     v = sp.Matrix([-res[i].xreplace(zero).xreplace(at_s) / jac[i, i].xreplace(at_s) for i in range(system.n)])
     q_end = sp.Matrix(q0.symbols) + s * tau.symbols[0] * v
     qsub = dict(zip(contacts.input("q").symbols, q_end))
+    inputs = (Arg("x", (s,)), q0, p0, tau, par)
+    shared = Routine(
+        "shared_contact_path", inputs, (Output("v", v),), "v(s) of the explicit segment map (47)."
+    )
     out = []
     for j, name in enumerate(system.contact_names):
         g = contacts.output("phi").expr[j].xreplace(qsub)
         out.append(
             Routine(
                 f"contact_path_{name}",
-                (Arg("x", (s,)), q0, p0, tau, par),
+                inputs,
                 (Output("g", sp.Matrix([g])), Output("dg", sp.Matrix([g.diff(s)])), Output("v", v)),
                 f"Contact '{name}' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47).",
+                shared,
             )
         )
     return out

@@ -408,8 +408,9 @@ class Model:
     @property
     def mass_matrix(self) -> sp.Matrix:
         """``d2L/dqdot2``, the matrix that must be nonsingular."""
-        v = sp.Matrix(self.velocities)
-        return sp.hessian(self.L, v)
+        from .calculus import hessian
+
+        return hessian(self.L, self.velocities)
 
     @property
     def coordinate_names(self) -> list[str]:

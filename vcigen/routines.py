@@ -47,12 +47,23 @@ class Routine:
     inputs: tuple[Arg, ...]
     outputs: tuple[Output, ...]
     doc: str = ""
+    # A routine with the same inputs whose outputs are the leading entries of some of these (same names):
+    # the per-contact routines share it (the momentum rows of (47), (78) and their Jacobian), so a
+    # backend may evaluate it once in code and print only the rows of this routine's own.
+    head: Routine | None = None
 
     def input(self, name: str) -> Arg:
         return next(a for a in self.inputs if a.name == name)
 
     def output(self, name: str) -> Output:
         return next(o for o in self.outputs if o.name == name)
+
+    def head_sizes(self) -> list[int]:
+        """Per output, how many leading entries (row-major) :attr:`head` computes (0 without one)."""
+        if self.head is None:
+            return [0] * len(self.outputs)
+        sizes = {o.name: o.size for o in self.head.outputs}
+        return [sizes.get(o.name, 0) for o in self.outputs]
 
     def flat_outputs(self) -> list[sp.Expr]:
         """All output entries, output after output, row-major."""

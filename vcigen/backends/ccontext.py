@@ -71,26 +71,49 @@ def model_hash(system: DiscreteSystem) -> str:
 
 
 def routine_context(r: Routine) -> dict[str, Any]:
-    """One routine as printable pieces: signature, temporaries, assignments."""
-    temps, outs = print_routine_body(r)
-    used = set().union(*(e.free_symbols for o in r.outputs for e in o.expr)) if r.outputs else set()
+    """One routine as printable pieces: signature, temporaries, assignments (after its head's call)."""
+    temps, outs, fills = print_routine_body(r)
     return {
         "name": r.name,
         "doc": r.doc,
         "inputs": [{"name": a.name, "size": a.size} for a in r.inputs],
+        "head": None
+        if r.head is None
+        else {
+            "name": r.head.name,
+            "args": [a.name for a in r.head.inputs] + [o.name for o in r.head.outputs],
+        },
         "outputs": [
             {
                 "name": o.name,
                 "size": o.size,
                 "rows": o.shape[0],
                 "cols": o.shape[1],
+                "fill": None if fill is None else {"first": fill[0], "end": fill[1]},
                 "entries": [{"index": k, "expr": e} for k, e in entries],
             }
-            for o, entries in zip(r.outputs, outs)
+            for o, entries, fill in zip(r.outputs, outs, fills)
         ],
-        "unused": [a.name for a in r.inputs if not set(a.symbols) & used],
+        "unused": [] if r.head is not None else _unused(r),
         "temps": [{"name": n, "expr": e} for n, e in temps],
     }
+
+
+def _unused(r: Routine) -> list[str]:
+    """The inputs none of whose symbols an output holds (``(void)`` in C)."""
+    used = set().union(*(e.free_symbols for o in r.outputs for e in o.expr.flat())) if r.outputs else set()
+    return [a.name for a in r.inputs if not set(a.symbols) & used]
+
+
+def with_heads(routines: list[Routine]) -> list[Routine]:
+    """``routines`` with each shared :attr:`~vcigen.routines.Routine.head` once, before its first user."""
+    out, seen = [], set()
+    for r in routines:
+        if r.head is not None and r.head.name not in seen:
+            seen.add(r.head.name)
+            out.append(r.head)
+        out.append(r)
+    return out
 
 
 def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
@@ -215,7 +238,7 @@ def render_context(
             if implicit
             else []
         ),
-        "routines": [routine_context(r) for r in routines],
+        "routines": [routine_context(r) for r in with_heads(routines)],
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines

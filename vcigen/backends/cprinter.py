@@ -60,20 +60,36 @@ def input_names(routine: Routine) -> dict[sp.Symbol, str]:
     return {s: f"{a.name}[{i}]" for a in routine.inputs for i, s in enumerate(a.symbols)}
 
 
-def print_routine_body(routine: Routine) -> tuple[list[tuple[str, str]], list[list[tuple[int, str]]]]:
-    """CSE'd body of ``routine``: ``(temporaries, outputs)``.
+# An output with more zero entries than this is zero-filled by a loop; only its nonzero entries are printed.
+ZERO_FILL = 16
 
-    ``temporaries`` are ``(name, C expression)`` in evaluation order; each output
-    is a list of ``(flat index, C expression)`` for its nonzero entries (zeros are
-    written by the caller-visible body too, so every entry is listed).
+
+def print_routine_body(
+    routine: Routine,
+) -> tuple[list[tuple[str, str]], list[list[tuple[int, str]]], list[tuple[int, int] | None]]:
+    """CSE'd body of ``routine``: ``(temporaries, outputs, fills)``.
+
+    ``temporaries`` are ``(name, C expression)`` in evaluation order; each output is a list of
+    ``(flat index, C expression)`` of the entries this routine writes itself: those past the ones
+    its :attr:`~vcigen.routines.Routine.head` computes, all of them (zeros too), unless the output
+    has more than ``ZERO_FILL`` zeros: then ``fills`` gives ``(first, end)`` to zero-fill and only
+    the nonzero entries are listed (a sparse Jacobian in O(nonzeros) lines).
     """
-    repl, reduced = routine.cse()
     names = input_names(routine)
-    temps = []
+    listed, fills = [], []
+    for o, first in zip(routine.outputs, routine.head_sizes()):
+        own = list(enumerate(o.expr.flat()))[first:]
+        sparse = sum(1 for _, e in own if e == 0) > ZERO_FILL
+        fills.append((first, o.size) if sparse else None)
+        listed.append([(k, e) for k, e in own if not (sparse and e == 0)])
+    flat = [e for entries in listed for _, e in entries]
+    repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t", real=True), optimizations="basic")
     for sym, _ in repl:
         names[sym] = sym.name
     printer = ArrayC99Printer(names)
-    for sym, expr in repl:
-        temps.append((sym.name, printer.doprint(expr)))
-    outs = [[(k, printer.doprint(e)) for k, e in enumerate(entries)] for entries in reduced]
-    return temps, outs
+    temps = [(sym.name, printer.doprint(expr)) for sym, expr in repl]
+    outs, i = [], 0
+    for entries in listed:
+        outs.append([(k, printer.doprint(e)) for (k, _), e in zip(entries, reduced[i : i + len(entries)])])
+        i += len(entries)
+    return temps, outs, fills
