@@ -151,21 +151,15 @@ static inline void star_smooth(const double *x, const double *q0, const double *
     jac[8] = (29.0/192.0)*par[0]*t0;
 }
 
-/* Contact time and point (47), (74) on contact 'floor': unknowns (v, alpha). */
-static inline void star_contact_time_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void star_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
-    const double t0 = x[3]*tau[0];
-    const double t1 = (1.0/2.0)*par[1]*par[0];
-    const double t2 = ((par[2])*(par[2]));
-    const double t3 = q0[2] + x[2]*t0;
-    const double t4 = sin(t3);
-    const double t5 = cos(t3);
-    const double t6 = (1.0/2.0)*par[2];
-    const double t7 = t6*(t4*(double)((t5 > 0) - (t5 < 0)) - t5*(double)((t4 > 0) - (t4 < 0)));
+    (void)q0;
+    const double t0 = (1.0/2.0)*tau[0]*par[1]*par[0];
+    const double t1 = ((par[2])*(par[2]));
     res[0] = -p0[0] + x[0]*par[0];
-    res[1] = -p0[1] + x[1]*par[0] + t0*t1;
-    res[2] = -p0[2] + (29.0/192.0)*x[2]*par[0]*t2;
-    res[3] = q0[1] + x[1]*t0 - t6*(fabs(t4) + fabs(t5));
+    res[1] = x[3]*t0 - p0[1] + x[1]*par[0];
+    res[2] = -p0[2] + (29.0/192.0)*x[2]*par[0]*t1;
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = 0;
@@ -173,15 +167,28 @@ static inline void star_contact_time_floor(const double *x, const double *q0, co
     jac[4] = 0;
     jac[5] = par[0];
     jac[6] = 0;
-    jac[7] = tau[0]*t1;
+    jac[7] = t0;
     jac[8] = 0;
     jac[9] = 0;
-    jac[10] = (29.0/192.0)*par[0]*t2;
+    jac[10] = (29.0/192.0)*par[0]*t1;
     jac[11] = 0;
+}
+
+/* Contact time and point (47), (74) on contact 'floor': unknowns (v, alpha). */
+static inline void star_contact_time_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    star_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    const double t1 = q0[2] + x[2]*t0;
+    const double t2 = sin(t1);
+    const double t3 = cos(t1);
+    const double t4 = (1.0/2.0)*par[2];
+    const double t5 = t4*(t2*(double)((t3 > 0) - (t3 < 0)) - t3*(double)((t2 > 0) - (t2 < 0)));
+    res[3] = q0[1] + x[1]*t0 - t4*(fabs(t2) + fabs(t3));
     jac[12] = 0;
     jac[13] = t0;
-    jac[14] = t0*t7;
-    jac[15] = tau[0]*(x[1] + x[2]*t7);
+    jac[14] = t0*t5;
+    jac[15] = tau[0]*(x[1] + x[2]*t5);
 }
 
 /* Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu). */
@@ -218,8 +225,8 @@ static inline void star_jump(const double *x, const double *qc, const double *nr
     jac[15] = 0;
 }
 
-/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
-static inline void star_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void star_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[1]*par[0];
     const double t1 = (1.0/2.0)*par[0];
@@ -230,18 +237,11 @@ static inline void star_jump_contact_floor(const double *x, const double *qc, co
     const double t6 = par[1]*t1;
     const double t7 = (1.0/2.0)*t0;
     const double t8 = par[0]*t4;
-    const double t9 = qc[1] + x[1]*t2;
-    const double t10 = qc[2] + x[2]*t2;
-    const double t11 = sin(t10);
-    const double t12 = cos(t10);
-    const double t13 = (1.0/2.0)*par[2];
-    const double t14 = (29.0/192.0)*t8;
-    const double t15 = t13*(t11*(double)((t12 > 0) - (t12 < 0)) - t12*(double)((t11 > 0) - (t11 < 0)));
+    const double t9 = (29.0/192.0)*t8;
     res[0] = -x[3]*nrm[0] - p_in[0] + x[0]*par[0];
     res[1] = -x[3]*nrm[1] - p_in[1] + t0 + t1*t3;
     res[2] = -x[3]*nrm[2] - p_in[2] + (29.0/192.0)*x[2]*par[0]*t4;
-    res[3] = -e_in[0] + qc[1]*t6 + (29.0/384.0)*((x[2])*(x[2]))*t8 + par[0]*t5 - t1*(((x[1])*(x[1])) + t5) + t3*t7 + t6*t9 - t7*(-2*x[1] + t3);
-    res[4] = -t13*(fabs(t11) + fabs(t12)) + t9;
+    res[3] = -e_in[0] + qc[1]*t6 + (29.0/384.0)*((x[2])*(x[2]))*t8 + par[0]*t5 - t1*(((x[1])*(x[1])) + t5) + t3*t7 + t6*(qc[1] + x[1]*t2) - t7*(-2*x[1] + t3);
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = 0;
@@ -254,19 +254,32 @@ static inline void star_jump_contact_floor(const double *x, const double *qc, co
     jac[9] = tau[0]*t6;
     jac[10] = 0;
     jac[11] = 0;
-    jac[12] = t14;
+    jac[12] = t9;
     jac[13] = -nrm[2];
     jac[14] = 0;
     jac[15] = x[0]*par[0];
     jac[16] = par[0]*(x[1] + (1.0/2.0)*t3);
-    jac[17] = x[2]*t14;
+    jac[17] = x[2]*t9;
     jac[18] = 0;
     jac[19] = tau[0]*par[1]*t7;
+}
+
+/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
+static inline void star_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    star_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[4]*tau[0];
+    const double t1 = qc[2] + x[2]*t0;
+    const double t2 = sin(t1);
+    const double t3 = cos(t1);
+    const double t4 = (1.0/2.0)*par[2];
+    const double t5 = t4*(t2*(double)((t3 > 0) - (t3 < 0)) - t3*(double)((t2 > 0) - (t2 < 0)));
+    res[4] = qc[1] + x[1]*t0 - t4*(fabs(t2) + fabs(t3));
     jac[20] = 0;
-    jac[21] = t2;
-    jac[22] = t15*t2;
+    jac[21] = t0;
+    jac[22] = t0*t5;
     jac[23] = 0;
-    jac[24] = tau[0]*(x[1] + x[2]*t15);
+    jac[24] = tau[0]*(x[1] + x[2]*t5);
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */
@@ -334,6 +347,9 @@ static inline void star_dynamics(const double *q, const double *u, const double 
 /* Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda. */
 static inline void star_rattle(const double *x, const double *q0, const double *p0, const double *tau, const double *act, const double *par, double *res, double *jac)
 {
+    for (int fill_k = 0; fill_k < 49; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = x[3]*act[0];
     const double t1 = x[5]*act[2];
     const double t2 = ((par[2])*(par[2]));
@@ -367,59 +383,36 @@ static inline void star_rattle(const double *x, const double *q0, const double *
     res[5] = -x[5]*t17 + (1.0/2.0)*act[2]*(t14 + t16);
     res[6] = -x[6]*t18 + (1.0/2.0)*act[3]*(t13 + t14);
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 0;
-    jac[6] = 0;
-    jac[7] = 0;
     jac[8] = par[0];
-    jac[9] = 0;
     jac[10] = -act[0];
     jac[11] = -act[1];
     jac[12] = -act[2];
     jac[13] = -act[3];
-    jac[14] = 0;
-    jac[15] = 0;
     jac[16] = (29.0/192.0)*par[0]*t2;
     jac[17] = -1.0/2.0*act[0]*t8;
     jac[18] = (1.0/2.0)*act[1]*t6;
     jac[19] = -1.0/2.0*act[2]*t6;
     jac[20] = (1.0/2.0)*act[3]*t8;
-    jac[21] = 0;
     jac[22] = t19;
     jac[23] = t19*t20;
     jac[24] = -t9;
-    jac[25] = 0;
-    jac[26] = 0;
-    jac[27] = 0;
-    jac[28] = 0;
     jac[29] = t21;
     jac[30] = -t21*t22;
-    jac[31] = 0;
     jac[32] = -t15;
-    jac[33] = 0;
-    jac[34] = 0;
-    jac[35] = 0;
     jac[36] = t23;
     jac[37] = t22*t23;
-    jac[38] = 0;
-    jac[39] = 0;
     jac[40] = -t17;
-    jac[41] = 0;
-    jac[42] = 0;
     jac[43] = t24;
     jac[44] = -t20*t24;
-    jac[45] = 0;
-    jac[46] = 0;
-    jac[47] = 0;
     jac[48] = -t18;
 }
 
 /* End momentum of a constrained step, velocity tangent to the active rows: unknowns (u, Lam'). */
 static inline void star_rattle_project(const double *x, const double *q1, const double *p1, const double *act, const double *par, double *res, double *jac)
 {
+    for (int fill_k = 0; fill_k < 49; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = x[3]*act[0];
     const double t1 = x[5]*act[2];
     const double t2 = ((par[2])*(par[2]));
@@ -449,53 +442,27 @@ static inline void star_rattle_project(const double *x, const double *q1, const 
     res[5] = -x[5]*t15 + (1.0/2.0)*act[2]*(t10 + t14);
     res[6] = -x[6]*t16 + (1.0/2.0)*act[3]*(t10 - t12);
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 0;
-    jac[6] = 0;
-    jac[7] = 0;
     jac[8] = par[0];
-    jac[9] = 0;
     jac[10] = -act[0];
     jac[11] = -act[1];
     jac[12] = -act[2];
     jac[13] = -act[3];
-    jac[14] = 0;
-    jac[15] = 0;
     jac[16] = (29.0/192.0)*par[0]*t2;
     jac[17] = -t17;
     jac[18] = t18;
     jac[19] = -t19;
     jac[20] = t20;
-    jac[21] = 0;
     jac[22] = act[0];
     jac[23] = t17;
     jac[24] = -t9;
-    jac[25] = 0;
-    jac[26] = 0;
-    jac[27] = 0;
-    jac[28] = 0;
     jac[29] = act[1];
     jac[30] = -t18;
-    jac[31] = 0;
     jac[32] = -t13;
-    jac[33] = 0;
-    jac[34] = 0;
-    jac[35] = 0;
     jac[36] = act[2];
     jac[37] = t19;
-    jac[38] = 0;
-    jac[39] = 0;
     jac[40] = -t15;
-    jac[41] = 0;
-    jac[42] = 0;
     jac[43] = act[3];
     jac[44] = -t20;
-    jac[45] = 0;
-    jac[46] = 0;
-    jac[47] = 0;
     jac[48] = -t16;
 }
 
@@ -505,24 +472,30 @@ static inline void star_phi(const double *q, const double *par, double *phi)
     phi[0] = q[1] - 1.0/2.0*par[2]*(fabs(sin(q[2])) + fabs(cos(q[2])));
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void star_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    const double t0 = 1.0/par[0];
+    v[0] = p0[0]*t0;
+    v[1] = t0*(p0[1] - 1.0/2.0*x[0]*tau[0]*par[1]*par[0]);
+    v[2] = (192.0/29.0)*p0[2]*t0/((par[2])*(par[2]));
+}
+
 /* Contact 'floor' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void star_contact_path_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    star_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = 1.0/par[0];
     const double t1 = x[0]*tau[0];
     const double t2 = par[1]*t1;
-    const double t3 = par[0]*t2;
-    const double t4 = t0*(2*p0[1] - t3);
-    const double t5 = p0[2]*t0;
-    const double t6 = (192.0/29.0)*t5/((par[2])*(par[2]));
-    const double t7 = q0[2] + t1*t6;
-    const double t8 = sin(t7);
-    const double t9 = cos(t7);
-    g[0] = q0[1] - 1.0/2.0*par[2]*(fabs(t8) + fabs(t9)) + (1.0/2.0)*t1*t4;
-    dg[0] = (1.0/58.0)*tau[0]*(-29*t2 + 29*t4 + 192*t5*(t8*(double)((t9 > 0) - (t9 < 0)) - t9*(double)((t8 > 0) - (t8 < 0)))/par[2]);
-    v[0] = p0[0]*t0;
-    v[1] = t0*(p0[1] - 1.0/2.0*t3);
-    v[2] = t6;
+    const double t3 = t0*(2*p0[1] - par[0]*t2);
+    const double t4 = p0[2]*t0;
+    const double t5 = q0[2] + (192.0/29.0)*t1*t4/((par[2])*(par[2]));
+    const double t6 = sin(t5);
+    const double t7 = cos(t5);
+    g[0] = q0[1] - 1.0/2.0*par[2]*(fabs(t6) + fabs(t7)) + (1.0/2.0)*t1*t3;
+    dg[0] = (1.0/58.0)*tau[0]*(-29*t2 + 29*t3 + 192*t4*(t6*(double)((t7 > 0) - (t7 < 0)) - t7*(double)((t6 > 0) - (t6 < 0)))/par[2]);
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

@@ -113,20 +113,27 @@ static inline void pendulum_wall_smooth(const double *x, const double *q0, const
     jac[3] = par[0];
 }
 
-/* Contact time and point (47), (74) on contact 'wall': unknowns (v, alpha). */
-static inline void pendulum_wall_contact_time_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void pendulum_wall_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
-    const double t0 = x[2]*tau[0];
-    const double t1 = (1.0/2.0)*par[1]*par[0];
+    (void)q0;
+    const double t0 = (1.0/2.0)*tau[0]*par[1]*par[0];
     res[0] = -p0[0] + x[0]*par[0];
-    res[1] = -p0[1] + x[1]*par[0] + t0*t1;
-    res[2] = q0[0] + x[0]*t0 + par[3];
+    res[1] = x[2]*t0 - p0[1] + x[1]*par[0];
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = 0;
     jac[3] = 0;
     jac[4] = par[0];
-    jac[5] = tau[0]*t1;
+    jac[5] = t0;
+}
+
+/* Contact time and point (47), (74) on contact 'wall': unknowns (v, alpha). */
+static inline void pendulum_wall_contact_time_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    pendulum_wall_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    res[2] = q0[0] + x[0]*t0 + par[3];
     jac[6] = t0;
     jac[7] = 0;
     jac[8] = tau[0]*x[0];
@@ -155,8 +162,8 @@ static inline void pendulum_wall_jump(const double *x, const double *qc, const d
     jac[8] = 0;
 }
 
-/* Jump ending on contact 'wall' (78): unknowns (w, mu, beta). */
-static inline void pendulum_wall_jump_contact_wall(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void pendulum_wall_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[1]*par[0];
     const double t1 = (1.0/2.0)*par[0];
@@ -168,7 +175,6 @@ static inline void pendulum_wall_jump_contact_wall(const double *x, const double
     res[0] = -x[2]*nrm[0] - p_in[0] + x[0]*par[0];
     res[1] = -x[2]*nrm[1] - p_in[1] + t0 + t1*t3;
     res[2] = -e_in[0] + qc[1]*t5 + par[0]*t4 - t1*(((x[1])*(x[1])) + t4) + t3*t6 + t5*(qc[1] + x[1]*t2) - t6*(-2*x[1] + t3);
-    res[3] = qc[0] + x[0]*t2 + par[3];
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = -nrm[0];
@@ -181,7 +187,15 @@ static inline void pendulum_wall_jump_contact_wall(const double *x, const double
     jac[9] = par[0]*(x[1] + (1.0/2.0)*t3);
     jac[10] = 0;
     jac[11] = tau[0]*par[1]*t6;
-    jac[12] = t2;
+}
+
+/* Jump ending on contact 'wall' (78): unknowns (w, mu, beta). */
+static inline void pendulum_wall_jump_contact_wall(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    pendulum_wall_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    res[3] = qc[0] + x[0]*t0 + par[3];
+    jac[12] = t0;
     jac[13] = 0;
     jac[14] = 0;
     jac[15] = tau[0]*x[0];
@@ -279,16 +293,22 @@ static inline void pendulum_wall_phi(const double *q, const double *par, double 
     phi[0] = q[0] + par[3];
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void pendulum_wall_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    const double t0 = 1.0/par[0];
+    v[0] = p0[0]*t0;
+    v[1] = t0*(p0[1] - 1.0/2.0*x[0]*tau[0]*par[1]*par[0]);
+}
+
 /* Contact 'wall' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void pendulum_wall_contact_path_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
-    const double t0 = 1.0/par[0];
-    const double t1 = p0[0]*t0;
-    const double t2 = tau[0]*t1;
-    g[0] = q0[0] + x[0]*t2 + par[3];
-    dg[0] = t2;
-    v[0] = t1;
-    v[1] = t0*(p0[1] - 1.0/2.0*x[0]*tau[0]*par[1]*par[0]);
+    pendulum_wall_shared_contact_path(x, q0, p0, tau, par, v);
+    const double t0 = p0[0]*tau[0]/par[0];
+    g[0] = q0[0] + x[0]*t0 + par[3];
+    dg[0] = t0;
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

@@ -113,28 +113,35 @@ static inline void slide_off_dome_smooth(const double *x, const double *q0, cons
     jac[3] = par[0];
 }
 
-/* Contact time and point (47), (74) on contact 'dome': unknowns (v, alpha). */
-static inline void slide_off_dome_contact_time_dome(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void slide_off_dome_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
-    const double t0 = x[2]*tau[0];
-    const double t1 = (1.0/2.0)*par[1]*par[0];
-    const double t2 = q0[0] + x[0]*t0;
-    const double t3 = q0[1] + x[1]*t0;
-    const double t4 = sqrt(((t2)*(t2)) + ((t3)*(t3)));
-    const double t5 = 1.0/t4;
-    const double t6 = t0*t5;
+    (void)q0;
+    const double t0 = (1.0/2.0)*tau[0]*par[1]*par[0];
     res[0] = -p0[0] + x[0]*par[0];
-    res[1] = -p0[1] + x[1]*par[0] + t0*t1;
-    res[2] = -par[2] + t4;
+    res[1] = x[2]*t0 - p0[1] + x[1]*par[0];
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = 0;
     jac[3] = 0;
     jac[4] = par[0];
-    jac[5] = tau[0]*t1;
-    jac[6] = t2*t6;
-    jac[7] = t3*t6;
-    jac[8] = tau[0]*t5*(x[0]*t2 + x[1]*t3);
+    jac[5] = t0;
+}
+
+/* Contact time and point (47), (74) on contact 'dome': unknowns (v, alpha). */
+static inline void slide_off_dome_contact_time_dome(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    slide_off_dome_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    const double t1 = q0[0] + x[0]*t0;
+    const double t2 = q0[1] + x[1]*t0;
+    const double t3 = sqrt(((t1)*(t1)) + ((t2)*(t2)));
+    const double t4 = 1.0/t3;
+    const double t5 = t0*t4;
+    res[2] = -par[2] + t3;
+    jac[6] = t1*t5;
+    jac[7] = t2*t5;
+    jac[8] = tau[0]*t4*(x[0]*t1 + x[1]*t2);
 }
 
 /* Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu). */
@@ -160,8 +167,8 @@ static inline void slide_off_dome_jump(const double *x, const double *qc, const 
     jac[8] = 0;
 }
 
-/* Jump ending on contact 'dome' (78): unknowns (w, mu, beta). */
-static inline void slide_off_dome_jump_contact_dome(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void slide_off_dome_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[1]*par[0];
     const double t1 = (1.0/2.0)*par[0];
@@ -170,15 +177,9 @@ static inline void slide_off_dome_jump_contact_dome(const double *x, const doubl
     const double t4 = ((x[0])*(x[0]));
     const double t5 = par[1]*t1;
     const double t6 = (1.0/2.0)*t0;
-    const double t7 = qc[1] + x[1]*t2;
-    const double t8 = qc[0] + x[0]*t2;
-    const double t9 = sqrt(((t7)*(t7)) + ((t8)*(t8)));
-    const double t10 = 1.0/t9;
-    const double t11 = t10*t2;
     res[0] = -x[2]*nrm[0] - p_in[0] + x[0]*par[0];
     res[1] = -x[2]*nrm[1] - p_in[1] + t0 + t1*t3;
-    res[2] = -e_in[0] + qc[1]*t5 + par[0]*t4 - t1*(((x[1])*(x[1])) + t4) + t3*t6 + t5*t7 - t6*(-2*x[1] + t3);
-    res[3] = -par[2] + t9;
+    res[2] = -e_in[0] + qc[1]*t5 + par[0]*t4 - t1*(((x[1])*(x[1])) + t4) + t3*t6 + t5*(qc[1] + x[1]*t2) - t6*(-2*x[1] + t3);
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = -nrm[0];
@@ -191,10 +192,23 @@ static inline void slide_off_dome_jump_contact_dome(const double *x, const doubl
     jac[9] = par[0]*(x[1] + (1.0/2.0)*t3);
     jac[10] = 0;
     jac[11] = tau[0]*par[1]*t6;
-    jac[12] = t11*t8;
-    jac[13] = t11*t7;
+}
+
+/* Jump ending on contact 'dome' (78): unknowns (w, mu, beta). */
+static inline void slide_off_dome_jump_contact_dome(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    slide_off_dome_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    const double t1 = qc[0] + x[0]*t0;
+    const double t2 = qc[1] + x[1]*t0;
+    const double t3 = sqrt(((t1)*(t1)) + ((t2)*(t2)));
+    const double t4 = 1.0/t3;
+    const double t5 = t0*t4;
+    res[3] = -par[2] + t3;
+    jac[12] = t1*t5;
+    jac[13] = t2*t5;
     jac[14] = 0;
-    jac[15] = tau[0]*t10*(x[0]*t8 + x[1]*t7);
+    jac[15] = tau[0]*t4*(x[0]*t1 + x[1]*t2);
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */
@@ -279,22 +293,29 @@ static inline void slide_off_dome_phi(const double *q, const double *par, double
     phi[0] = -par[2] + sqrt(((q[0])*(q[0])) + ((q[1])*(q[1])));
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void slide_off_dome_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    const double t0 = 1.0/par[0];
+    v[0] = p0[0]*t0;
+    v[1] = t0*(p0[1] - 1.0/2.0*x[0]*tau[0]*par[1]*par[0]);
+}
+
 /* Contact 'dome' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void slide_off_dome_contact_path_dome(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
-    const double t0 = 1.0/par[0];
-    const double t1 = p0[0]*t0;
-    const double t2 = x[0]*tau[0];
-    const double t3 = q0[0] + t1*t2;
-    const double t4 = par[1]*t2;
-    const double t5 = par[0]*t4;
-    const double t6 = t0*(2*p0[1] - t5);
-    const double t7 = 2*q0[1] + t2*t6;
-    const double t8 = sqrt(((t3)*(t3)) + (1.0/4.0)*((t7)*(t7)));
-    g[0] = -par[2] + t8;
-    dg[0] = tau[0]*(t1*t3 - 1.0/4.0*t7*(t4 - t6))/t8;
-    v[0] = t1;
-    v[1] = t0*(p0[1] - 1.0/2.0*t5);
+    slide_off_dome_shared_contact_path(x, q0, p0, tau, par, v);
+    const double t0 = x[0]*tau[0];
+    const double t1 = 1.0/par[0];
+    const double t2 = p0[0]*t1;
+    const double t3 = q0[0] + t0*t2;
+    const double t4 = par[1]*t0;
+    const double t5 = t1*(2*p0[1] - par[0]*t4);
+    const double t6 = 2*q0[1] + t0*t5;
+    const double t7 = sqrt(((t3)*(t3)) + (1.0/4.0)*((t6)*(t6)));
+    g[0] = -par[2] + t7;
+    dg[0] = tau[0]*(t2*t3 - 1.0/4.0*t6*(t4 - t5))/t7;
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

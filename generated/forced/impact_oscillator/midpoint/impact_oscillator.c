@@ -106,8 +106,8 @@ static inline void impact_oscillator_smooth(const double *x, const double *q0, c
     jac[0] = ((tau[0])*(tau[0]))*t0 + par[0]*t1 + 1;
 }
 
-/* Contact time and point (47), (74) on contact 'stop': unknowns (v, alpha). */
-static inline void impact_oscillator_contact_time_stop(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void impact_oscillator_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[1]*tau[0];
     const double t1 = x[0]*t0;
@@ -117,9 +117,16 @@ static inline void impact_oscillator_contact_time_stop(const double *x, const do
     const double t5 = par[3]*(par[6] + t4);
     const double t6 = par[2]*cos(t5);
     res[0] = -p0[0] + x[0] + (1.0/4.0)*t0*t2 + t4*(t3 - t6);
-    res[1] = -q0[0] + par[4] - t1;
     jac[0] = (1.0/4.0)*((x[1])*(x[1]))*((tau[0])*(tau[0]))*par[1] + par[0]*t4 + 1;
     jac[1] = (1.0/4.0)*tau[0]*(par[2]*par[3]*t0*sin(t5) + par[1]*t1 + t2 + 2*t3 - 2*t6);
+}
+
+/* Contact time and point (47), (74) on contact 'stop': unknowns (v, alpha). */
+static inline void impact_oscillator_contact_time_stop(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    impact_oscillator_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[1]*tau[0];
+    res[1] = -q0[0] - x[0]*t0 + par[4];
     jac[2] = -t0;
     jac[3] = -tau[0]*x[0];
 }
@@ -142,8 +149,8 @@ static inline void impact_oscillator_jump(const double *x, const double *qc, con
     jac[3] = 0;
 }
 
-/* Jump ending on contact 'stop' (78): unknowns (w, mu, beta). */
-static inline void impact_oscillator_jump_contact_stop(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void impact_oscillator_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[2]*tau[0];
     const double t1 = x[0]*t0;
@@ -155,23 +162,29 @@ static inline void impact_oscillator_jump_contact_stop(const double *x, const do
     const double t7 = par[3]*(par[6] + t6);
     const double t8 = par[2]*cos(t7);
     const double t9 = t5 - t8;
-    const double t10 = qc[0] + t1;
+    const double t10 = (1.0/4.0)*x[0];
     const double t11 = ((x[2])*(x[2]))*((tau[0])*(tau[0]))*par[1];
     const double t12 = 2*t5;
     const double t13 = par[2]*par[3]*t0*sin(t7) + par[1]*t1 + t12 - 2*t8;
-    const double t14 = tau[0]*x[0];
     res[0] = -x[1]*nrm[0] - p_in[0] + x[0] + (1.0/4.0)*t4 + t6*t9;
-    res[1] = -e_in[0] + (1.0/4.0)*x[2]*tau[0]*x[0]*par[1]*t2 + (1.0/2.0)*x[2]*tau[0]*x[0]*t9 - 1.0/2.0*((x[0])*(x[0])) - 1.0/4.0*x[0]*(-4*x[0] + t4) + (1.0/8.0)*par[1]*((t2)*(t2));
-    res[2] = par[4] - t10;
+    res[1] = -e_in[0] + (1.0/4.0)*x[2]*tau[0]*x[0]*par[1]*t2 + (1.0/2.0)*x[2]*tau[0]*x[0]*t9 - 1.0/2.0*((x[0])*(x[0])) + (1.0/8.0)*par[1]*((t2)*(t2)) - t10*(-4*x[0] + t4);
     jac[0] = par[0]*t6 + (1.0/4.0)*t11 + 1;
     jac[1] = -nrm[0];
     jac[2] = (1.0/4.0)*tau[0]*(t13 + t3);
     jac[3] = (1.0/4.0)*x[0]*t11 - 1.0/4.0*x[0]*(t11 - 4) + (1.0/4.0)*t0*t12 + (1.0/2.0)*t0*t9 + (1.0/4.0)*t4;
     jac[4] = 0;
-    jac[5] = (1.0/4.0)*t14*(-2*par[1]*t10 + t13 + 2*t3);
+    jac[5] = tau[0]*t10*(-2*par[1]*(qc[0] + t1) + t13 + 2*t3);
+}
+
+/* Jump ending on contact 'stop' (78): unknowns (w, mu, beta). */
+static inline void impact_oscillator_jump_contact_stop(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    impact_oscillator_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    res[2] = -qc[0] - x[0]*t0 + par[4];
     jac[6] = -t0;
     jac[7] = 0;
-    jac[8] = -t14;
+    jac[8] = -tau[0]*x[0];
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */

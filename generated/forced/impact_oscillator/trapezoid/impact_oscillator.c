@@ -110,20 +110,26 @@ static inline void impact_oscillator_smooth(const double *x, const double *q0, c
     jac[0] = par[0]*t1 + 1;
 }
 
-/* Contact time and point (47), (74) on contact 'stop': unknowns (v, alpha). */
-static inline void impact_oscillator_contact_time_stop(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void impact_oscillator_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[1]*tau[0];
     const double t1 = x[0]*t0;
-    const double t2 = q0[0] + t1;
-    const double t3 = par[1]*t2;
-    const double t4 = (1.0/2.0)*t0;
-    const double t5 = par[1]*(2*q0[0] + t1);
-    const double t6 = x[0]*par[0] - par[2]*cos(par[3]*par[6]);
-    res[0] = -p0[0] + x[0] - t3*t4 + t4*t5 + t4*t6;
-    res[1] = par[4] - t2;
-    jac[0] = par[0]*t4 + 1;
-    jac[1] = (1.0/2.0)*tau[0]*(-t3 + t5 + t6);
+    const double t2 = par[1]*(q0[0] + t1);
+    const double t3 = (1.0/2.0)*t0;
+    const double t4 = par[1]*(2*q0[0] + t1);
+    const double t5 = x[0]*par[0] - par[2]*cos(par[3]*par[6]);
+    res[0] = -p0[0] + x[0] - t2*t3 + t3*t4 + t3*t5;
+    jac[0] = par[0]*t3 + 1;
+    jac[1] = (1.0/2.0)*tau[0]*(-t2 + t4 + t5);
+}
+
+/* Contact time and point (47), (74) on contact 'stop': unknowns (v, alpha). */
+static inline void impact_oscillator_contact_time_stop(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    impact_oscillator_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[1]*tau[0];
+    res[1] = -q0[0] - x[0]*t0 + par[4];
     jac[2] = -t0;
     jac[3] = -tau[0]*x[0];
 }
@@ -147,8 +153,8 @@ static inline void impact_oscillator_jump(const double *x, const double *qc, con
     jac[3] = 0;
 }
 
-/* Jump ending on contact 'stop' (78): unknowns (w, mu, beta). */
-static inline void impact_oscillator_jump_contact_stop(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void impact_oscillator_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[2]*tau[0];
     const double t1 = x[0]*t0;
@@ -166,19 +172,25 @@ static inline void impact_oscillator_jump_contact_stop(const double *x, const do
     const double t13 = 2*x[0];
     const double t14 = ((x[2])*(x[2]))*((tau[0])*(tau[0]))*par[1];
     const double t15 = (1.0/2.0)*par[1];
-    const double t16 = tau[0]*x[0];
     res[0] = -x[1]*nrm[0] - p_in[0] + x[0] + (1.0/2.0)*t10 - 1.0/2.0*t4 + t5*t6;
     res[1] = -e_in[0] + ((qc[0])*(qc[0]))*t11 - 1.0/2.0*((x[0])*(x[0])) - 1.0/2.0*x[0]*(-t13 + t4) + t11*((t2)*(t2)) + t12*t3 + t12*t9;
-    res[2] = par[4] - t2;
     jac[0] = par[0]*t6 + 1;
     jac[1] = -nrm[0];
     jac[2] = (1.0/2.0)*tau[0]*(-t3 + t5 + t9);
     jac[3] = (1.0/2.0)*x[0]*t14 - 1.0/2.0*x[0]*(t14 - 2) + (1.0/2.0)*t0*t7 + (1.0/2.0)*t10 + (1.0/2.0)*t4;
     jac[4] = 0;
-    jac[5] = t16*(t1*t15 - t15*(qc[0] + t0*t13) + t3 + (1.0/2.0)*t7 - 1.0/2.0*t8);
+    jac[5] = tau[0]*x[0]*(t1*t15 - t15*(qc[0] + t0*t13) + t3 + (1.0/2.0)*t7 - 1.0/2.0*t8);
+}
+
+/* Jump ending on contact 'stop' (78): unknowns (w, mu, beta). */
+static inline void impact_oscillator_jump_contact_stop(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    impact_oscillator_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    res[2] = -qc[0] - x[0]*t0 + par[4];
     jac[6] = -t0;
     jac[7] = 0;
-    jac[8] = -t16;
+    jac[8] = -tau[0]*x[0];
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */

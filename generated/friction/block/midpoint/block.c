@@ -127,26 +127,31 @@ static inline void block_smooth(const double *x, const double *q0, const double 
     jac[3] = 1;
 }
 
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void block_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    (void)q0;
+    const double t0 = (1.0/2.0)*tau[0]*par[0];
+    const double t1 = t0*sin(par[2]);
+    const double t2 = t0*cos(par[2]);
+    res[0] = x[2]*t1 - p0[0] + x[0];
+    res[1] = x[2]*t2 - p0[1] + x[1];
+    jac[0] = 1;
+    jac[1] = 0;
+    jac[2] = t1;
+    jac[3] = 0;
+    jac[4] = 1;
+    jac[5] = t2;
+}
+
 /* Contact time and point (47), (74) on contact 'floor': unknowns (v, alpha). */
 static inline void block_contact_time_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
-    const double t0 = sin(par[2]);
-    const double t1 = x[2]*tau[0];
-    const double t2 = (1.0/2.0)*par[0];
-    const double t3 = t1*t2;
-    const double t4 = cos(par[2]);
-    const double t5 = tau[0]*t2;
-    res[0] = -p0[0] + x[0] + t0*t3;
-    res[1] = -p0[1] + x[1] + t3*t4;
-    res[2] = q0[1] + x[1]*t1;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = t0*t5;
-    jac[3] = 0;
-    jac[4] = 1;
-    jac[5] = t4*t5;
+    block_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    res[2] = q0[1] + x[1]*t0;
     jac[6] = 0;
-    jac[7] = t1;
+    jac[7] = t0;
     jac[8] = tau[0]*x[1];
 }
 
@@ -171,8 +176,8 @@ static inline void block_jump(const double *x, const double *qc, const double *n
     jac[8] = 0;
 }
 
-/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
-static inline void block_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void block_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = sin(par[2]);
     const double t1 = x[3]*tau[0];
@@ -183,26 +188,32 @@ static inline void block_jump_contact_floor(const double *x, const double *qc, c
     const double t6 = x[1] + t3*t5;
     const double t7 = par[0]*t1;
     const double t8 = x[0]*t0 + x[1]*t5;
-    const double t9 = x[1]*t1;
-    const double t10 = tau[0]*t2;
+    const double t9 = tau[0]*t2;
     res[0] = -x[2]*nrm[0] - p_in[0] + t4;
     res[1] = -x[2]*nrm[1] - p_in[1] + t6;
-    res[2] = -e_in[0] + (1.0/2.0)*x[3]*tau[0]*par[0]*t8 - 1.0/2.0*((x[0])*(x[0])) - 1.0/2.0*x[0]*(-2*x[0] + t0*t7) - 1.0/2.0*((x[1])*(x[1])) - 1.0/2.0*x[1]*(-2*x[1] + t5*t7) + (1.0/2.0)*par[0]*(t0*(2*qc[0] + x[0]*t1) + t5*(2*qc[1] + t9));
-    res[3] = qc[1] + t9;
+    res[2] = -e_in[0] + (1.0/2.0)*x[3]*tau[0]*par[0]*t8 - 1.0/2.0*((x[0])*(x[0])) - 1.0/2.0*x[0]*(-2*x[0] + t0*t7) - 1.0/2.0*((x[1])*(x[1])) - 1.0/2.0*x[1]*(-2*x[1] + t5*t7) + (1.0/2.0)*par[0]*(t0*(2*qc[0] + x[0]*t1) + t5*(2*qc[1] + x[1]*t1));
     jac[0] = 1;
     jac[1] = 0;
     jac[2] = -nrm[0];
-    jac[3] = t0*t10;
+    jac[3] = t0*t9;
     jac[4] = 0;
     jac[5] = 1;
     jac[6] = -nrm[1];
-    jac[7] = t10*t5;
+    jac[7] = t5*t9;
     jac[8] = t4;
     jac[9] = t6;
     jac[10] = 0;
-    jac[11] = t10*t8;
+    jac[11] = t8*t9;
+}
+
+/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
+static inline void block_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    block_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    res[3] = qc[1] + x[1]*t0;
     jac[12] = 0;
-    jac[13] = t1;
+    jac[13] = t0;
     jac[14] = 0;
     jac[15] = tau[0]*x[1];
 }
@@ -295,17 +306,23 @@ static inline void block_phi(const double *q, const double *par, double *phi)
     phi[0] = q[1];
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void block_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    const double t0 = (1.0/2.0)*x[0]*tau[0]*par[0];
+    v[0] = p0[0] - t0*sin(par[2]);
+    v[1] = p0[1] - t0*cos(par[2]);
+}
+
 /* Contact 'floor' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void block_contact_path_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    block_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = x[0]*tau[0];
-    const double t1 = par[0]*t0;
-    const double t2 = t1*cos(par[2]);
-    const double t3 = -t2;
-    g[0] = q0[1] + (1.0/2.0)*t0*(2*p0[1] + t3);
-    dg[0] = tau[0]*(p0[1] + t3);
-    v[0] = p0[0] - 1.0/2.0*t1*sin(par[2]);
-    v[1] = p0[1] - 1.0/2.0*t2;
+    const double t1 = -par[0]*t0*cos(par[2]);
+    g[0] = q0[1] + (1.0/2.0)*t0*(2*p0[1] + t1);
+    dg[0] = tau[0]*(p0[1] + t1);
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

@@ -147,15 +147,14 @@ static inline void rough_disk_smooth(const double *x, const double *q0, const do
     jac[8] = par[1];
 }
 
-/* Contact time and point (47), (74) on contact 'floor': unknowns (v, alpha). */
-static inline void rough_disk_contact_time_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void rough_disk_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
-    const double t0 = x[3]*tau[0];
-    const double t1 = (1.0/2.0)*par[3]*par[0];
+    (void)q0;
+    const double t0 = (1.0/2.0)*tau[0]*par[3]*par[0];
     res[0] = -p0[0] + x[0]*par[0];
-    res[1] = -p0[1] + x[1]*par[0] + t0*t1;
+    res[1] = x[3]*t0 - p0[1] + x[1]*par[0];
     res[2] = -p0[2] + x[2]*par[1];
-    res[3] = q0[1] + x[1]*t0 - par[2];
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = 0;
@@ -163,11 +162,19 @@ static inline void rough_disk_contact_time_floor(const double *x, const double *
     jac[4] = 0;
     jac[5] = par[0];
     jac[6] = 0;
-    jac[7] = tau[0]*t1;
+    jac[7] = t0;
     jac[8] = 0;
     jac[9] = 0;
     jac[10] = par[1];
     jac[11] = 0;
+}
+
+/* Contact time and point (47), (74) on contact 'floor': unknowns (v, alpha). */
+static inline void rough_disk_contact_time_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    rough_disk_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    res[3] = q0[1] + x[1]*t0 - par[2];
     jac[12] = 0;
     jac[13] = t0;
     jac[14] = 0;
@@ -205,8 +212,8 @@ static inline void rough_disk_jump(const double *x, const double *qc, const doub
     jac[15] = 0;
 }
 
-/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
-static inline void rough_disk_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void rough_disk_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[1]*par[0];
     const double t1 = (1.0/2.0)*par[0];
@@ -215,12 +222,10 @@ static inline void rough_disk_jump_contact_floor(const double *x, const double *
     const double t4 = ((x[0])*(x[0]));
     const double t5 = par[3]*t1;
     const double t6 = (1.0/2.0)*t0;
-    const double t7 = qc[1] + x[1]*t2;
     res[0] = -x[3]*nrm[0] - p_in[0] + x[0]*par[0];
     res[1] = -x[3]*nrm[1] - p_in[1] + t0 + t1*t3;
     res[2] = -x[3]*nrm[2] - p_in[2] + x[2]*par[1];
-    res[3] = -e_in[0] + qc[1]*t5 + (1.0/2.0)*((x[2])*(x[2]))*par[1] + par[0]*t4 - t1*(((x[1])*(x[1])) + t4) + t3*t6 + t5*t7 - t6*(-2*x[1] + t3);
-    res[4] = -par[2] + t7;
+    res[3] = -e_in[0] + qc[1]*t5 + (1.0/2.0)*((x[2])*(x[2]))*par[1] + par[0]*t4 - t1*(((x[1])*(x[1])) + t4) + t3*t6 + t5*(qc[1] + x[1]*t2) - t6*(-2*x[1] + t3);
     jac[0] = par[0];
     jac[1] = 0;
     jac[2] = 0;
@@ -241,8 +246,16 @@ static inline void rough_disk_jump_contact_floor(const double *x, const double *
     jac[17] = x[2]*par[1];
     jac[18] = 0;
     jac[19] = tau[0]*par[3]*t6;
+}
+
+/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
+static inline void rough_disk_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    rough_disk_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[4]*tau[0];
+    res[4] = qc[1] + x[1]*t0 - par[2];
     jac[20] = 0;
-    jac[21] = t2;
+    jac[21] = t0;
     jac[22] = 0;
     jac[23] = 0;
     jac[24] = tau[0]*x[1];
@@ -367,19 +380,26 @@ static inline void rough_disk_phi(const double *q, const double *par, double *ph
     phi[0] = q[1] - par[2];
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void rough_disk_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    const double t0 = 1.0/par[0];
+    v[0] = p0[0]*t0;
+    v[1] = t0*(p0[1] - 1.0/2.0*x[0]*tau[0]*par[3]*par[0]);
+    v[2] = p0[2]/par[1];
+}
+
 /* Contact 'floor' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void rough_disk_contact_path_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    rough_disk_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = 1.0/par[0];
     const double t1 = x[0]*tau[0];
     const double t2 = par[3]*t1;
-    const double t3 = par[0]*t2;
-    const double t4 = 2*p0[1] - t3;
-    g[0] = q0[1] - par[2] + (1.0/2.0)*t0*t1*t4;
-    dg[0] = (1.0/2.0)*tau[0]*(t0*t4 - t2);
-    v[0] = p0[0]*t0;
-    v[1] = t0*(p0[1] - 1.0/2.0*t3);
-    v[2] = p0[2]/par[1];
+    const double t3 = 2*p0[1] - par[0]*t2;
+    g[0] = q0[1] - par[2] + (1.0/2.0)*t0*t1*t3;
+    dg[0] = (1.0/2.0)*tau[0]*(t0*t3 - t2);
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

@@ -71,35 +71,18 @@ void spun_ball_default_tol(spun_ball_tol_t *tol)
 static inline void spun_ball_legendre(const double *q, const double *v, const double *par, double *momentum, double *mass)
 {
     (void)q;
+    for (int fill_k = 0; fill_k < 25; ++fill_k) {
+        mass[fill_k] = 0.0;
+    }
     momentum[0] = v[0]*par[0];
     momentum[1] = v[1]*par[0];
     momentum[2] = v[2]*par[0];
     momentum[3] = v[3]*par[1];
     momentum[4] = v[4]*par[1];
     mass[0] = par[0];
-    mass[1] = 0;
-    mass[2] = 0;
-    mass[3] = 0;
-    mass[4] = 0;
-    mass[5] = 0;
     mass[6] = par[0];
-    mass[7] = 0;
-    mass[8] = 0;
-    mass[9] = 0;
-    mass[10] = 0;
-    mass[11] = 0;
     mass[12] = par[0];
-    mass[13] = 0;
-    mass[14] = 0;
-    mass[15] = 0;
-    mass[16] = 0;
-    mass[17] = 0;
     mass[18] = par[1];
-    mass[19] = 0;
-    mass[20] = 0;
-    mass[21] = 0;
-    mass[22] = 0;
-    mass[23] = 0;
     mass[24] = par[1];
 }
 
@@ -177,79 +160,48 @@ static inline void spun_ball_friction_cone(const double *q, const double *par, d
 static inline void spun_ball_smooth(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
     (void)q0;
+    for (int fill_k = 0; fill_k < 25; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     res[0] = -p0[0] + x[0]*par[0];
     res[1] = -p0[1] + x[1]*par[0];
     res[2] = -p0[2] + (1.0/2.0)*tau[0]*par[3]*par[0] + x[2]*par[0];
     res[3] = -p0[3] + x[3]*par[1];
     res[4] = -p0[4] + x[4]*par[1];
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 0;
     jac[6] = par[0];
-    jac[7] = 0;
-    jac[8] = 0;
-    jac[9] = 0;
-    jac[10] = 0;
-    jac[11] = 0;
     jac[12] = par[0];
-    jac[13] = 0;
-    jac[14] = 0;
-    jac[15] = 0;
-    jac[16] = 0;
-    jac[17] = 0;
     jac[18] = par[1];
-    jac[19] = 0;
-    jac[20] = 0;
-    jac[21] = 0;
-    jac[22] = 0;
-    jac[23] = 0;
     jac[24] = par[1];
+}
+
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void spun_ball_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    (void)q0;
+    for (int fill_k = 0; fill_k < 30; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
+    const double t0 = (1.0/2.0)*tau[0]*par[3]*par[0];
+    res[0] = -p0[0] + x[0]*par[0];
+    res[1] = -p0[1] + x[1]*par[0];
+    res[2] = x[5]*t0 - p0[2] + x[2]*par[0];
+    res[3] = -p0[3] + x[3]*par[1];
+    res[4] = -p0[4] + x[4]*par[1];
+    jac[0] = par[0];
+    jac[7] = par[0];
+    jac[14] = par[0];
+    jac[17] = t0;
+    jac[21] = par[1];
+    jac[28] = par[1];
 }
 
 /* Contact time and point (47), (74) on contact 'floor': unknowns (v, alpha). */
 static inline void spun_ball_contact_time_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
+    spun_ball_shared_contact_time(x, q0, p0, tau, par, res, jac);
     const double t0 = x[5]*tau[0];
-    const double t1 = (1.0/2.0)*par[3]*par[0];
-    res[0] = -p0[0] + x[0]*par[0];
-    res[1] = -p0[1] + x[1]*par[0];
-    res[2] = -p0[2] + x[2]*par[0] + t0*t1;
-    res[3] = -p0[3] + x[3]*par[1];
-    res[4] = -p0[4] + x[4]*par[1];
     res[5] = q0[2] + x[2]*t0 - par[2];
-    jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 0;
-    jac[6] = 0;
-    jac[7] = par[0];
-    jac[8] = 0;
-    jac[9] = 0;
-    jac[10] = 0;
-    jac[11] = 0;
-    jac[12] = 0;
-    jac[13] = 0;
-    jac[14] = par[0];
-    jac[15] = 0;
-    jac[16] = 0;
-    jac[17] = tau[0]*t1;
-    jac[18] = 0;
-    jac[19] = 0;
-    jac[20] = 0;
-    jac[21] = par[1];
-    jac[22] = 0;
-    jac[23] = 0;
-    jac[24] = 0;
-    jac[25] = 0;
-    jac[26] = 0;
-    jac[27] = 0;
-    jac[28] = par[1];
-    jac[29] = 0;
     jac[30] = 0;
     jac[31] = 0;
     jac[32] = t0;
@@ -261,6 +213,9 @@ static inline void spun_ball_contact_time_floor(const double *x, const double *q
 /* Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu). */
 static inline void spun_ball_jump(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
+    for (int fill_k = 0; fill_k < 36; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = ((x[0])*(x[0]));
     const double t1 = ((x[1])*(x[1]));
     const double t2 = ((x[3])*(x[3]));
@@ -276,33 +231,13 @@ static inline void spun_ball_jump(const double *x, const double *qc, const doubl
     res[4] = -x[5]*nrm[4] - p_in[4] + x[4]*par[1];
     res[5] = -e_in[0] + par[1]*t2 + par[1]*t3 - 1.0/2.0*par[1]*(t2 + t3) + par[3]*t7*(2*qc[2] + tau[0]*x[2]) + par[0]*t0 + par[0]*t1 + t4*t6 - 1.0/2.0*t4*(-2*x[2] + t5) - t7*(((x[2])*(x[2])) + t0 + t1);
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
     jac[5] = -nrm[0];
-    jac[6] = 0;
     jac[7] = par[0];
-    jac[8] = 0;
-    jac[9] = 0;
-    jac[10] = 0;
     jac[11] = -nrm[1];
-    jac[12] = 0;
-    jac[13] = 0;
     jac[14] = par[0];
-    jac[15] = 0;
-    jac[16] = 0;
     jac[17] = -nrm[2];
-    jac[18] = 0;
-    jac[19] = 0;
-    jac[20] = 0;
     jac[21] = par[1];
-    jac[22] = 0;
     jac[23] = -nrm[3];
-    jac[24] = 0;
-    jac[25] = 0;
-    jac[26] = 0;
-    jac[27] = 0;
     jac[28] = par[1];
     jac[29] = -nrm[4];
     jac[30] = x[0]*par[0];
@@ -310,12 +245,14 @@ static inline void spun_ball_jump(const double *x, const double *qc, const doubl
     jac[32] = par[0]*(x[2] + t6);
     jac[33] = x[3]*par[1];
     jac[34] = x[4]*par[1];
-    jac[35] = 0;
 }
 
-/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
-static inline void spun_ball_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void spun_ball_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
+    for (int fill_k = 0; fill_k < 42; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = x[2]*par[0];
     const double t1 = (1.0/2.0)*par[0];
     const double t2 = x[6]*tau[0];
@@ -325,60 +262,41 @@ static inline void spun_ball_jump_contact_floor(const double *x, const double *q
     const double t6 = ((x[3])*(x[3]));
     const double t7 = ((x[4])*(x[4]));
     const double t8 = (1.0/2.0)*t0;
-    const double t9 = x[2]*t2;
-    const double t10 = par[3]*t1;
+    const double t9 = par[3]*t1;
     res[0] = -x[5]*nrm[0] - p_in[0] + x[0]*par[0];
     res[1] = -x[5]*nrm[1] - p_in[1] + x[1]*par[0];
     res[2] = -x[5]*nrm[2] - p_in[2] + t0 + t1*t3;
     res[3] = -x[5]*nrm[3] - p_in[3] + x[3]*par[1];
     res[4] = -x[5]*nrm[4] - p_in[4] + x[4]*par[1];
-    res[5] = -e_in[0] + par[1]*t6 + par[1]*t7 - 1.0/2.0*par[1]*(t6 + t7) + par[0]*t4 + par[0]*t5 - t1*(((x[2])*(x[2])) + t4 + t5) + t10*(2*qc[2] + t9) + t3*t8 - t8*(-2*x[2] + t3);
-    res[6] = qc[2] - par[2] + t9;
+    res[5] = -e_in[0] + par[1]*t6 + par[1]*t7 - 1.0/2.0*par[1]*(t6 + t7) + par[0]*t4 + par[0]*t5 - t1*(((x[2])*(x[2])) + t4 + t5) + t3*t8 - t8*(-2*x[2] + t3) + t9*(2*qc[2] + x[2]*t2);
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
     jac[5] = -nrm[0];
-    jac[6] = 0;
-    jac[7] = 0;
     jac[8] = par[0];
-    jac[9] = 0;
-    jac[10] = 0;
-    jac[11] = 0;
     jac[12] = -nrm[1];
-    jac[13] = 0;
-    jac[14] = 0;
-    jac[15] = 0;
     jac[16] = par[0];
-    jac[17] = 0;
-    jac[18] = 0;
     jac[19] = -nrm[2];
-    jac[20] = tau[0]*t10;
-    jac[21] = 0;
-    jac[22] = 0;
-    jac[23] = 0;
+    jac[20] = tau[0]*t9;
     jac[24] = par[1];
-    jac[25] = 0;
     jac[26] = -nrm[3];
-    jac[27] = 0;
-    jac[28] = 0;
-    jac[29] = 0;
-    jac[30] = 0;
-    jac[31] = 0;
     jac[32] = par[1];
     jac[33] = -nrm[4];
-    jac[34] = 0;
     jac[35] = x[0]*par[0];
     jac[36] = x[1]*par[0];
     jac[37] = par[0]*(x[2] + (1.0/2.0)*t3);
     jac[38] = x[3]*par[1];
     jac[39] = x[4]*par[1];
-    jac[40] = 0;
     jac[41] = tau[0]*par[3]*t8;
+}
+
+/* Jump ending on contact 'floor' (78): unknowns (w, mu, beta). */
+static inline void spun_ball_jump_contact_floor(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    spun_ball_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[6]*tau[0];
+    res[6] = qc[2] + x[2]*t0 - par[2];
     jac[42] = 0;
     jac[43] = 0;
-    jac[44] = t2;
+    jac[44] = t0;
     jac[45] = 0;
     jac[46] = 0;
     jac[47] = 0;
@@ -429,6 +347,9 @@ static inline void spun_ball_dynamics(const double *q, const double *u, const do
 /* Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda. */
 static inline void spun_ball_rattle(const double *x, const double *q0, const double *p0, const double *tau, const double *act, const double *par, double *res, double *jac)
 {
+    for (int fill_k = 0; fill_k < 64; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = x[6]*act[1];
     const double t1 = x[5]*act[0];
     const double t2 = par[6]*t1;
@@ -450,68 +371,26 @@ static inline void spun_ball_rattle(const double *x, const double *q0, const dou
     res[6] = -x[6]*t6 + act[1]*(q0[0] + tau[0]*x[0] - par[2]*(q0[4] + tau[0]*x[4]) - par[8]);
     res[7] = -x[7]*t7 + act[2]*(q0[1] + tau[0]*x[1] + par[2]*(q0[3] + tau[0]*x[3]) - par[9]);
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
     jac[5] = -t8;
     jac[6] = -act[1];
-    jac[7] = 0;
-    jac[8] = 0;
     jac[9] = par[0];
-    jac[10] = 0;
-    jac[11] = 0;
-    jac[12] = 0;
     jac[13] = -t9;
-    jac[14] = 0;
     jac[15] = -act[2];
-    jac[16] = 0;
-    jac[17] = 0;
     jac[18] = par[0];
-    jac[19] = 0;
-    jac[20] = 0;
     jac[21] = -act[0];
-    jac[22] = 0;
-    jac[23] = 0;
-    jac[24] = 0;
-    jac[25] = 0;
-    jac[26] = 0;
     jac[27] = par[1];
-    jac[28] = 0;
     jac[29] = -par[2]*t9;
-    jac[30] = 0;
     jac[31] = -t10;
-    jac[32] = 0;
-    jac[33] = 0;
-    jac[34] = 0;
-    jac[35] = 0;
     jac[36] = par[1];
     jac[37] = par[2]*t8;
     jac[38] = t11;
-    jac[39] = 0;
-    jac[40] = 0;
-    jac[41] = 0;
     jac[42] = act[0]*tau[0];
-    jac[43] = 0;
-    jac[44] = 0;
     jac[45] = -t5;
-    jac[46] = 0;
-    jac[47] = 0;
     jac[48] = act[1]*tau[0];
-    jac[49] = 0;
-    jac[50] = 0;
-    jac[51] = 0;
     jac[52] = -tau[0]*t11;
-    jac[53] = 0;
     jac[54] = -t6;
-    jac[55] = 0;
-    jac[56] = 0;
     jac[57] = act[2]*tau[0];
-    jac[58] = 0;
     jac[59] = tau[0]*t10;
-    jac[60] = 0;
-    jac[61] = 0;
-    jac[62] = 0;
     jac[63] = -t7;
 }
 
@@ -519,6 +398,9 @@ static inline void spun_ball_rattle(const double *x, const double *q0, const dou
 static inline void spun_ball_rattle_project(const double *x, const double *q1, const double *p1, const double *act, const double *par, double *res, double *jac)
 {
     (void)q1;
+    for (int fill_k = 0; fill_k < 64; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = x[6]*act[1];
     const double t1 = x[5]*act[0];
     const double t2 = par[6]*t1;
@@ -540,68 +422,26 @@ static inline void spun_ball_rattle_project(const double *x, const double *q1, c
     res[6] = -x[6]*t6 + act[1]*(x[0] - x[4]*par[2]);
     res[7] = -x[7]*t7 + act[2]*(x[1] + x[3]*par[2]);
     jac[0] = par[0];
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 0;
     jac[5] = -t8;
     jac[6] = -act[1];
-    jac[7] = 0;
-    jac[8] = 0;
     jac[9] = par[0];
-    jac[10] = 0;
-    jac[11] = 0;
-    jac[12] = 0;
     jac[13] = -t9;
-    jac[14] = 0;
     jac[15] = -act[2];
-    jac[16] = 0;
-    jac[17] = 0;
     jac[18] = par[0];
-    jac[19] = 0;
-    jac[20] = 0;
     jac[21] = -act[0];
-    jac[22] = 0;
-    jac[23] = 0;
-    jac[24] = 0;
-    jac[25] = 0;
-    jac[26] = 0;
     jac[27] = par[1];
-    jac[28] = 0;
     jac[29] = -par[2]*t9;
-    jac[30] = 0;
     jac[31] = -t10;
-    jac[32] = 0;
-    jac[33] = 0;
-    jac[34] = 0;
-    jac[35] = 0;
     jac[36] = par[1];
     jac[37] = par[2]*t8;
     jac[38] = t11;
-    jac[39] = 0;
-    jac[40] = 0;
-    jac[41] = 0;
     jac[42] = act[0];
-    jac[43] = 0;
-    jac[44] = 0;
     jac[45] = -t5;
-    jac[46] = 0;
-    jac[47] = 0;
     jac[48] = act[1];
-    jac[49] = 0;
-    jac[50] = 0;
-    jac[51] = 0;
     jac[52] = -t11;
-    jac[53] = 0;
     jac[54] = -t6;
-    jac[55] = 0;
-    jac[56] = 0;
     jac[57] = act[2];
-    jac[58] = 0;
     jac[59] = t10;
-    jac[60] = 0;
-    jac[61] = 0;
-    jac[62] = 0;
     jac[63] = -t7;
 }
 
@@ -611,22 +451,29 @@ static inline void spun_ball_phi(const double *q, const double *par, double *phi
     phi[0] = q[2] - par[2];
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void spun_ball_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    const double t0 = 1.0/par[0];
+    const double t1 = 1.0/par[1];
+    v[0] = p0[0]*t0;
+    v[1] = p0[1]*t0;
+    v[2] = t0*(p0[2] - 1.0/2.0*x[0]*tau[0]*par[3]*par[0]);
+    v[3] = p0[3]*t1;
+    v[4] = p0[4]*t1;
+}
+
 /* Contact 'floor' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void spun_ball_contact_path_floor(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    spun_ball_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = 1.0/par[0];
     const double t1 = x[0]*tau[0];
     const double t2 = par[3]*t1;
-    const double t3 = par[0]*t2;
-    const double t4 = 2*p0[2] - t3;
-    const double t5 = 1.0/par[1];
-    g[0] = q0[2] - par[2] + (1.0/2.0)*t0*t1*t4;
-    dg[0] = (1.0/2.0)*tau[0]*(t0*t4 - t2);
-    v[0] = p0[0]*t0;
-    v[1] = p0[1]*t0;
-    v[2] = t0*(p0[2] - 1.0/2.0*t3);
-    v[3] = p0[3]*t5;
-    v[4] = p0[4]*t5;
+    const double t3 = 2*p0[2] - par[0]*t2;
+    g[0] = q0[2] - par[2] + (1.0/2.0)*t0*t1*t3;
+    dg[0] = (1.0/2.0)*tau[0]*(t0*t3 - t2);
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

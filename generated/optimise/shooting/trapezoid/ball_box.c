@@ -123,20 +123,27 @@ static inline void ball_box_smooth(const double *x, const double *q0, const doub
     jac[3] = 1;
 }
 
-/* Contact time and point (47), (74) on contact 'left': unknowns (v, alpha). */
-static inline void ball_box_contact_time_left(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void ball_box_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
-    const double t0 = x[2]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
+    (void)q0;
+    const double t0 = (1.0/2.0)*tau[0]*par[0];
     res[0] = -p0[0] + x[0];
-    res[1] = -p0[1] + x[1] + t0*t1;
-    res[2] = q0[0] + x[0]*t0;
+    res[1] = x[2]*t0 - p0[1] + x[1];
     jac[0] = 1;
     jac[1] = 0;
     jac[2] = 0;
     jac[3] = 0;
     jac[4] = 1;
-    jac[5] = tau[0]*t1;
+    jac[5] = t0;
+}
+
+/* Contact time and point (47), (74) on contact 'left': unknowns (v, alpha). */
+static inline void ball_box_contact_time_left(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    ball_box_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    res[2] = q0[0] + x[0]*t0;
     jac[6] = t0;
     jac[7] = 0;
     jac[8] = tau[0]*x[0];
@@ -145,17 +152,9 @@ static inline void ball_box_contact_time_left(const double *x, const double *q0,
 /* Contact time and point (47), (74) on contact 'right': unknowns (v, alpha). */
 static inline void ball_box_contact_time_right(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
+    ball_box_shared_contact_time(x, q0, p0, tau, par, res, jac);
     const double t0 = x[2]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
-    res[0] = -p0[0] + x[0];
-    res[1] = -p0[1] + x[1] + t0*t1;
     res[2] = -q0[0] - x[0]*t0 + 1;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 1;
-    jac[5] = tau[0]*t1;
     jac[6] = -t0;
     jac[7] = 0;
     jac[8] = -tau[0]*x[0];
@@ -164,17 +163,9 @@ static inline void ball_box_contact_time_right(const double *x, const double *q0
 /* Contact time and point (47), (74) on contact 'bottom': unknowns (v, alpha). */
 static inline void ball_box_contact_time_bottom(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
+    ball_box_shared_contact_time(x, q0, p0, tau, par, res, jac);
     const double t0 = x[2]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
-    res[0] = -p0[0] + x[0];
-    res[1] = -p0[1] + x[1] + t0*t1;
     res[2] = q0[1] + x[1]*t0;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 1;
-    jac[5] = tau[0]*t1;
     jac[6] = 0;
     jac[7] = t0;
     jac[8] = tau[0]*x[1];
@@ -183,17 +174,9 @@ static inline void ball_box_contact_time_bottom(const double *x, const double *q
 /* Contact time and point (47), (74) on contact 'top': unknowns (v, alpha). */
 static inline void ball_box_contact_time_top(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
+    ball_box_shared_contact_time(x, q0, p0, tau, par, res, jac);
     const double t0 = x[2]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
-    res[0] = -p0[0] + x[0];
-    res[1] = -p0[1] + x[1] + t0*t1;
     res[2] = -q0[1] - x[1]*t0 + 1;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = 0;
-    jac[3] = 0;
-    jac[4] = 1;
-    jac[5] = tau[0]*t1;
     jac[6] = 0;
     jac[7] = -t0;
     jac[8] = -tau[0]*x[1];
@@ -219,8 +202,8 @@ static inline void ball_box_jump(const double *x, const double *qc, const double
     jac[8] = 0;
 }
 
-/* Jump ending on contact 'left' (78): unknowns (w, mu, beta). */
-static inline void ball_box_jump_contact_left(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void ball_box_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = x[3]*tau[0];
     const double t1 = (1.0/2.0)*par[0];
@@ -230,7 +213,6 @@ static inline void ball_box_jump_contact_left(const double *x, const double *qc,
     res[0] = -x[2]*nrm[0] - p_in[0] + x[0];
     res[1] = -x[2]*nrm[1] - p_in[1] + t2;
     res[2] = -e_in[0] + qc[1]*t1 + (1.0/2.0)*((x[0])*(x[0])) - 1.0/2.0*((x[1])*(x[1])) - 1.0/2.0*x[1]*(-2*x[1] + par[0]*t0) + t1*t3 + t1*(qc[1] + t3);
-    res[3] = qc[0] + x[0]*t0;
     jac[0] = 1;
     jac[1] = 0;
     jac[2] = -nrm[0];
@@ -243,6 +225,14 @@ static inline void ball_box_jump_contact_left(const double *x, const double *qc,
     jac[9] = t2;
     jac[10] = 0;
     jac[11] = x[1]*t4;
+}
+
+/* Jump ending on contact 'left' (78): unknowns (w, mu, beta). */
+static inline void ball_box_jump_contact_left(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    ball_box_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    res[3] = qc[0] + x[0]*t0;
     jac[12] = t0;
     jac[13] = 0;
     jac[14] = 0;
@@ -252,27 +242,9 @@ static inline void ball_box_jump_contact_left(const double *x, const double *qc,
 /* Jump ending on contact 'right' (78): unknowns (w, mu, beta). */
 static inline void ball_box_jump_contact_right(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
+    ball_box_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
     const double t0 = x[3]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
-    const double t2 = x[1] + t0*t1;
-    const double t3 = x[1]*t0;
-    const double t4 = tau[0]*t1;
-    res[0] = -x[2]*nrm[0] - p_in[0] + x[0];
-    res[1] = -x[2]*nrm[1] - p_in[1] + t2;
-    res[2] = -e_in[0] + qc[1]*t1 + (1.0/2.0)*((x[0])*(x[0])) - 1.0/2.0*((x[1])*(x[1])) - 1.0/2.0*x[1]*(-2*x[1] + par[0]*t0) + t1*t3 + t1*(qc[1] + t3);
     res[3] = -qc[0] - x[0]*t0 + 1;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = -nrm[0];
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 1;
-    jac[6] = -nrm[1];
-    jac[7] = t4;
-    jac[8] = x[0];
-    jac[9] = t2;
-    jac[10] = 0;
-    jac[11] = x[1]*t4;
     jac[12] = -t0;
     jac[13] = 0;
     jac[14] = 0;
@@ -282,63 +254,25 @@ static inline void ball_box_jump_contact_right(const double *x, const double *qc
 /* Jump ending on contact 'bottom' (78): unknowns (w, mu, beta). */
 static inline void ball_box_jump_contact_bottom(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
+    ball_box_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
     const double t0 = x[3]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
-    const double t2 = x[1] + t0*t1;
-    const double t3 = x[1]*t0;
-    const double t4 = qc[1] + t3;
-    const double t5 = tau[0]*x[1];
-    res[0] = -x[2]*nrm[0] - p_in[0] + x[0];
-    res[1] = -x[2]*nrm[1] - p_in[1] + t2;
-    res[2] = -e_in[0] + qc[1]*t1 + (1.0/2.0)*((x[0])*(x[0])) - 1.0/2.0*((x[1])*(x[1])) - 1.0/2.0*x[1]*(-2*x[1] + par[0]*t0) + t1*t3 + t1*t4;
-    res[3] = t4;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = -nrm[0];
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 1;
-    jac[6] = -nrm[1];
-    jac[7] = tau[0]*t1;
-    jac[8] = x[0];
-    jac[9] = t2;
-    jac[10] = 0;
-    jac[11] = t1*t5;
+    res[3] = qc[1] + x[1]*t0;
     jac[12] = 0;
     jac[13] = t0;
     jac[14] = 0;
-    jac[15] = t5;
+    jac[15] = tau[0]*x[1];
 }
 
 /* Jump ending on contact 'top' (78): unknowns (w, mu, beta). */
 static inline void ball_box_jump_contact_top(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
+    ball_box_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
     const double t0 = x[3]*tau[0];
-    const double t1 = (1.0/2.0)*par[0];
-    const double t2 = x[1] + t0*t1;
-    const double t3 = x[1]*t0;
-    const double t4 = qc[1] + t3;
-    const double t5 = tau[0]*x[1];
-    res[0] = -x[2]*nrm[0] - p_in[0] + x[0];
-    res[1] = -x[2]*nrm[1] - p_in[1] + t2;
-    res[2] = -e_in[0] + qc[1]*t1 + (1.0/2.0)*((x[0])*(x[0])) - 1.0/2.0*((x[1])*(x[1])) - 1.0/2.0*x[1]*(-2*x[1] + par[0]*t0) + t1*t3 + t1*t4;
-    res[3] = 1 - t4;
-    jac[0] = 1;
-    jac[1] = 0;
-    jac[2] = -nrm[0];
-    jac[3] = 0;
-    jac[4] = 0;
-    jac[5] = 1;
-    jac[6] = -nrm[1];
-    jac[7] = tau[0]*t1;
-    jac[8] = x[0];
-    jac[9] = t2;
-    jac[10] = 0;
-    jac[11] = t1*t5;
+    res[3] = -qc[1] - x[1]*t0 + 1;
     jac[12] = 0;
     jac[13] = -t0;
     jac[14] = 0;
-    jac[15] = -t5;
+    jac[15] = -tau[0]*x[1];
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */
@@ -380,6 +314,9 @@ static inline void ball_box_dynamics(const double *q, const double *u, const dou
 /* Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda. */
 static inline void ball_box_rattle(const double *x, const double *q0, const double *p0, const double *tau, const double *act, const double *par, double *res, double *jac)
 {
+    for (int fill_k = 0; fill_k < 36; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = act[0] - 1;
     const double t1 = q0[0] + tau[0]*x[0];
     const double t2 = act[1] - 1;
@@ -393,40 +330,18 @@ static inline void ball_box_rattle(const double *x, const double *q0, const doub
     res[4] = -x[4]*t3 + act[2]*t4;
     res[5] = -x[5]*t5 - act[3]*(t4 - 1);
     jac[0] = 1;
-    jac[1] = 0;
     jac[2] = -act[0];
     jac[3] = act[1];
-    jac[4] = 0;
-    jac[5] = 0;
-    jac[6] = 0;
     jac[7] = 1;
-    jac[8] = 0;
-    jac[9] = 0;
     jac[10] = -act[2];
     jac[11] = act[3];
     jac[12] = act[0]*tau[0];
-    jac[13] = 0;
     jac[14] = -t0;
-    jac[15] = 0;
-    jac[16] = 0;
-    jac[17] = 0;
     jac[18] = -act[1]*tau[0];
-    jac[19] = 0;
-    jac[20] = 0;
     jac[21] = -t2;
-    jac[22] = 0;
-    jac[23] = 0;
-    jac[24] = 0;
     jac[25] = act[2]*tau[0];
-    jac[26] = 0;
-    jac[27] = 0;
     jac[28] = -t3;
-    jac[29] = 0;
-    jac[30] = 0;
     jac[31] = -act[3]*tau[0];
-    jac[32] = 0;
-    jac[33] = 0;
-    jac[34] = 0;
     jac[35] = -t5;
 }
 
@@ -435,6 +350,9 @@ static inline void ball_box_rattle_project(const double *x, const double *q1, co
 {
     (void)q1;
     (void)par;
+    for (int fill_k = 0; fill_k < 36; ++fill_k) {
+        jac[fill_k] = 0.0;
+    }
     const double t0 = act[0] - 1;
     const double t1 = act[1] - 1;
     const double t2 = act[2] - 1;
@@ -446,40 +364,18 @@ static inline void ball_box_rattle_project(const double *x, const double *q1, co
     res[4] = -x[4]*t2 + act[2]*x[1];
     res[5] = -x[5]*t3 - act[3]*x[1];
     jac[0] = 1;
-    jac[1] = 0;
     jac[2] = -act[0];
     jac[3] = act[1];
-    jac[4] = 0;
-    jac[5] = 0;
-    jac[6] = 0;
     jac[7] = 1;
-    jac[8] = 0;
-    jac[9] = 0;
     jac[10] = -act[2];
     jac[11] = act[3];
     jac[12] = act[0];
-    jac[13] = 0;
     jac[14] = -t0;
-    jac[15] = 0;
-    jac[16] = 0;
-    jac[17] = 0;
     jac[18] = -act[1];
-    jac[19] = 0;
-    jac[20] = 0;
     jac[21] = -t1;
-    jac[22] = 0;
-    jac[23] = 0;
-    jac[24] = 0;
     jac[25] = act[2];
-    jac[26] = 0;
-    jac[27] = 0;
     jac[28] = -t2;
-    jac[29] = 0;
-    jac[30] = 0;
     jac[31] = -act[3];
-    jac[32] = 0;
-    jac[33] = 0;
-    jac[34] = 0;
     jac[35] = -t3;
 }
 
@@ -493,48 +389,50 @@ static inline void ball_box_phi(const double *q, const double *par, double *phi)
     phi[3] = 1 - q[1];
 }
 
+/* v(s) of the explicit segment map (47). */
+static inline void ball_box_shared_contact_path(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *v)
+{
+    (void)q0;
+    v[0] = p0[0];
+    v[1] = p0[1] - 1.0/2.0*x[0]*tau[0]*par[0];
+}
+
 /* Contact 'left' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void ball_box_contact_path_left(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    ball_box_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = p0[0]*tau[0];
     g[0] = q0[0] + x[0]*t0;
     dg[0] = t0;
-    v[0] = p0[0];
-    v[1] = p0[1] - 1.0/2.0*x[0]*tau[0]*par[0];
 }
 
 /* Contact 'right' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void ball_box_contact_path_right(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    ball_box_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = p0[0]*tau[0];
     g[0] = -q0[0] - x[0]*t0 + 1;
     dg[0] = -t0;
-    v[0] = p0[0];
-    v[1] = p0[1] - 1.0/2.0*x[0]*tau[0]*par[0];
 }
 
 /* Contact 'bottom' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void ball_box_contact_path_bottom(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    ball_box_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = x[0]*tau[0];
-    const double t1 = par[0]*t0;
-    const double t2 = -t1;
-    g[0] = q0[1] + (1.0/2.0)*t0*(2*p0[1] + t2);
-    dg[0] = tau[0]*(p0[1] + t2);
-    v[0] = p0[0];
-    v[1] = p0[1] - 1.0/2.0*t1;
+    const double t1 = -par[0]*t0;
+    g[0] = q0[1] + (1.0/2.0)*t0*(2*p0[1] + t1);
+    dg[0] = tau[0]*(p0[1] + t1);
 }
 
 /* Contact 'top' along the explicit segment map: g(s) = phi(q(s tau)), g'(s), v(s) (47). */
 static inline void ball_box_contact_path_top(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *g, double *dg, double *v)
 {
+    ball_box_shared_contact_path(x, q0, p0, tau, par, v);
     const double t0 = x[0]*tau[0];
-    const double t1 = par[0]*t0;
-    const double t2 = -t1;
-    g[0] = -q0[1] - 1.0/2.0*t0*(2*p0[1] + t2) + 1;
-    dg[0] = tau[0]*(-p0[1] - t2);
-    v[0] = p0[0];
-    v[1] = p0[1] - 1.0/2.0*t1;
+    const double t1 = -par[0]*t0;
+    g[0] = -q0[1] - 1.0/2.0*t0*(2*p0[1] + t1) + 1;
+    dg[0] = tau[0]*(-p0[1] - t1);
 }
 
 /* Run constants of the explicit grid step: its subexpressions of (h, par) alone. */

@@ -169,65 +169,75 @@ static inline void double_pendulum_smooth(const double *x, const double *q0, con
     jac[3] = t16*(par[3] + t1*(tau[0]*t28 - t17*t21 + t25*t29*t7) + t13*t29 - t18*t24 - t20*t28);
 }
 
-/* Contact time and point (47), (74) on contact 'wall': unknowns (v, alpha). */
-static inline void double_pendulum_contact_time_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void double_pendulum_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = par[0] + par[1];
     const double t1 = x[2]*tau[0];
-    const double t2 = x[0]*t1;
-    const double t3 = (1.0/2.0)*t2;
+    const double t2 = (1.0/2.0)*t1;
+    const double t3 = x[0]*t2;
     const double t4 = q0[0] + t3;
     const double t5 = sin(t4);
-    const double t6 = (1.0/2.0)*t1;
-    const double t7 = x[1]*t1;
-    const double t8 = (1.0/2.0)*t7;
-    const double t9 = -q0[1] + t4 - t8;
-    const double t10 = cos(t9);
-    const double t11 = sin(t9);
-    const double t12 = x[1]*par[1];
-    const double t13 = par[3]*t12;
-    const double t14 = t11*t13;
-    const double t15 = par[2]*t14*t3;
-    const double t16 = par[4]*t0;
-    const double t17 = q0[1] + t8;
-    const double t18 = par[4]*sin(t17);
-    const double t19 = par[3]*par[1];
-    const double t20 = x[0]*par[2];
-    const double t21 = t10*t20;
-    const double t22 = x[1]*t20;
-    const double t23 = q0[0] + t2;
-    const double t24 = q0[1] + t7;
-    const double t25 = cos(t4);
-    const double t26 = t16*t25;
-    const double t27 = (1.0/4.0)*((x[2])*(x[2]))*((tau[0])*(tau[0]));
-    const double t28 = t10*t13;
-    const double t29 = 2*t11;
-    const double t30 = t13*t29;
-    const double t31 = t10*t2;
-    const double t32 = t13*t31;
-    const double t33 = t10*t27;
-    const double t34 = x[0]*x[1]*t33 + t10 - t11*t3 + t11*t8;
-    const double t35 = par[2]*t19;
-    const double t36 = x[0] - x[1];
-    const double t37 = (1.0/4.0)*tau[0];
-    const double t38 = cos(t17);
-    const double t39 = par[4]*t38;
-    const double t40 = t20*t29;
-    const double t41 = x[1]*par[2]*t31;
-    const double t42 = cos(t23);
-    const double t43 = par[3]*cos(t24);
-    res[0] = x[2]*tau[0]*par[2]*(x[0]*t14 + t16*t5) - p0[0] + x[0]*((par[2])*(par[2]))*t0 + x[1]*par[2]*par[3]*par[1]*t10 - par[4]*par[2]*t0*t5*t6 - t15;
-    res[1] = -p0[1] + ((par[3])*(par[3]))*t12 - t1*t19*(t11*t22 - t18) + t15 - t18*t19*t6 + t19*t21;
-    res[2] = -par[2]*sin(t23) - par[3]*sin(t24) + par[5];
-    jac[0] = par[2]*((1.0/2.0)*x[2]*tau[0]*(t1*t26 + t30 + t32) - x[0]*t27*t28 + par[2]*t0 - t1*t14 - t26*t27);
-    jac[1] = t35*(-t3*(t10*t7 - t29) + t34);
-    jac[2] = par[2]*t37*(2*x[2]*tau[0]*x[0]*(t26 + t28*t36) + 2*x[0]*x[1]*par[3]*par[1]*t11 - x[0]*par[4]*t0*t1*t25 + 2*par[4]*t0*t5 - t30*t36 - t32*t36);
-    jac[3] = t35*(t34 - t8*(t29 + t31));
-    jac[4] = t19*(par[2]*t11*t2 + par[3] - t22*t33 - t27*t39 + t6*(t1*t39 - t40 + t41));
-    jac[5] = t19*t37*(2*t18 - t22*t29 - t36*t40 + t36*t41 - t39*t7 + 2*t7*(par[4]*t38 - t21*t36));
-    jac[6] = -par[2]*t1*t42;
-    jac[7] = -t1*t43;
-    jac[8] = -tau[0]*(x[1]*t43 + t20*t42);
+    const double t6 = x[1]*t2;
+    const double t7 = -q0[1] + t4 - t6;
+    const double t8 = cos(t7);
+    const double t9 = x[1]*par[1];
+    const double t10 = par[3]*t9;
+    const double t11 = sin(t7);
+    const double t12 = t11*t3;
+    const double t13 = par[2]*t10*t12;
+    const double t14 = par[4]*t0;
+    const double t15 = x[0]*t11;
+    const double t16 = q0[1] + t6;
+    const double t17 = par[4]*sin(t16);
+    const double t18 = par[3]*par[1];
+    const double t19 = x[0]*par[2];
+    const double t20 = t19*t8;
+    const double t21 = x[1]*t19;
+    const double t22 = cos(t4);
+    const double t23 = t14*t22;
+    const double t24 = (1.0/4.0)*((x[2])*(x[2]))*((tau[0])*(tau[0]));
+    const double t25 = t10*t8;
+    const double t26 = 2*t11;
+    const double t27 = t10*t26;
+    const double t28 = t1*t8;
+    const double t29 = x[0]*t28;
+    const double t30 = t10*t29;
+    const double t31 = t24*t8;
+    const double t32 = x[0]*x[1];
+    const double t33 = t11*t6 - t12 + t31*t32 + t8;
+    const double t34 = par[2]*t18;
+    const double t35 = x[0] - x[1];
+    const double t36 = (1.0/4.0)*tau[0];
+    const double t37 = cos(t16);
+    const double t38 = par[4]*t37;
+    const double t39 = par[2]*t1;
+    const double t40 = t1*t38;
+    const double t41 = t19*t26;
+    const double t42 = t32*t39*t8;
+    res[0] = x[2]*tau[0]*par[2]*(t10*t15 + t14*t5) - p0[0] + x[0]*((par[2])*(par[2]))*t0 + x[1]*par[2]*par[3]*par[1]*t8 - par[4]*par[2]*t0*t2*t5 - t13;
+    res[1] = -p0[1] + ((par[3])*(par[3]))*t9 - t1*t18*(t11*t21 - t17) + t13 - t17*t18*t2 + t18*t20;
+    jac[0] = par[2]*((1.0/2.0)*x[2]*tau[0]*(t1*t23 + t27 + t30) - x[0]*t24*t25 + par[2]*t0 - t1*t10*t11 - t23*t24);
+    jac[1] = t34*(-t3*(x[1]*t28 - t26) + t33);
+    jac[2] = par[2]*t36*(2*x[2]*tau[0]*x[0]*(t23 + t25*t35) + 2*x[0]*x[1]*par[3]*par[1]*t11 - x[0]*par[4]*t0*t1*t22 + 2*par[4]*t0*t5 - t27*t35 - t30*t35);
+    jac[3] = t34*(t33 - t6*(t26 + t29));
+    jac[4] = t18*(par[3] + t15*t39 + t2*(t40 - t41 + t42) - t21*t31 - t24*t38);
+    jac[5] = t18*t36*(2*x[1]*t1*(par[4]*t37 - t20*t35) - x[1]*t40 + 2*t17 - t21*t26 - t35*t41 + t35*t42);
+}
+
+/* Contact time and point (47), (74) on contact 'wall': unknowns (v, alpha). */
+static inline void double_pendulum_contact_time_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    double_pendulum_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    const double t1 = q0[0] + x[0]*t0;
+    const double t2 = q0[1] + x[1]*t0;
+    const double t3 = par[2]*cos(t1);
+    const double t4 = par[3]*cos(t2);
+    res[2] = -par[2]*sin(t1) - par[3]*sin(t2) + par[5];
+    jac[6] = -t0*t3;
+    jac[7] = -t0*t4;
+    jac[8] = -tau[0]*(x[0]*t3 + x[1]*t4);
 }
 
 /* Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu). */
@@ -303,102 +313,113 @@ static inline void double_pendulum_jump(const double *x, const double *qc, const
     jac[8] = 0;
 }
 
-/* Jump ending on contact 'wall' (78): unknowns (w, mu, beta). */
-static inline void double_pendulum_jump_contact_wall(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void double_pendulum_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = ((par[2])*(par[2]));
     const double t1 = par[0] + par[1];
     const double t2 = x[3]*tau[0];
-    const double t3 = x[0]*t2;
-    const double t4 = (1.0/2.0)*t3;
+    const double t3 = (1.0/2.0)*t2;
+    const double t4 = x[0]*t3;
     const double t5 = qc[0] + t4;
     const double t6 = sin(t5);
-    const double t7 = (1.0/2.0)*t2;
-    const double t8 = par[2]*t1;
-    const double t9 = par[4]*t8;
-    const double t10 = x[1]*t2;
-    const double t11 = (1.0/2.0)*t10;
-    const double t12 = -qc[1] - t11 + t5;
-    const double t13 = cos(t12);
-    const double t14 = sin(t12);
+    const double t7 = par[2]*t1;
+    const double t8 = par[4]*t7;
+    const double t9 = x[1]*t3;
+    const double t10 = -qc[1] + t5 - t9;
+    const double t11 = cos(t10);
+    const double t12 = sin(t10);
+    const double t13 = x[0]*par[2];
+    const double t14 = t12*t13;
     const double t15 = x[1]*par[3];
     const double t16 = par[1]*t15;
-    const double t17 = t14*t16;
-    const double t18 = par[2]*t17*t4;
-    const double t19 = par[4]*t1;
-    const double t20 = t19*t6;
-    const double t21 = ((par[3])*(par[3]));
-    const double t22 = qc[1] + t11;
-    const double t23 = par[4]*sin(t22);
-    const double t24 = par[3]*par[1];
-    const double t25 = x[0]*par[2];
-    const double t26 = x[1]*t25;
-    const double t27 = t14*t26;
-    const double t28 = ((x[1])*(x[1]));
-    const double t29 = ((x[0])*(x[0]));
-    const double t30 = cos(t22);
-    const double t31 = par[4]*t30;
-    const double t32 = t24*t31;
-    const double t33 = cos(t5);
-    const double t34 = t33*t9;
-    const double t35 = t13*t25;
-    const double t36 = t16*t35;
-    const double t37 = par[4]*t6;
-    const double t38 = x[0] - x[1];
-    const double t39 = par[2]*t14*t3;
-    const double t40 = qc[0] + t3;
-    const double t41 = qc[1] + t10;
-    const double t42 = t19*t33;
-    const double t43 = ((x[3])*(x[3]))*((tau[0])*(tau[0]));
-    const double t44 = t42*t43;
-    const double t45 = t13*t16;
-    const double t46 = x[0]*t43*t45;
-    const double t47 = 2*t14;
-    const double t48 = t16*t47;
-    const double t49 = t13*t3;
-    const double t50 = t16*t49;
-    const double t51 = t13*t43;
-    const double t52 = x[0]*x[1]*t51;
-    const double t53 = t11*t14 + t13 - t14*t4 + (1.0/4.0)*t52;
-    const double t54 = par[2]*t24;
-    const double t55 = t3*t42 + t38*t48 + t38*t50;
-    const double t56 = (1.0/4.0)*par[2];
-    const double t57 = t31*t43;
-    const double t58 = t25*t47;
-    const double t59 = x[1]*par[2]*t49;
-    const double t60 = t38*t58;
-    const double t61 = t10*t31;
-    const double t62 = t38*t59;
-    const double t63 = 2*t23 - t26*t47;
-    const double t64 = (1.0/4.0)*tau[0];
-    const double t65 = 4*t8;
-    const double t66 = 4*par[3];
-    const double t67 = par[1]*t66;
-    const double t68 = t10*t47 + 4*t13 - t3*t47 + t52;
-    const double t69 = x[0]*t48 + 2*t20 + t55;
-    const double t70 = t60 + t61 - t62 + t63;
-    const double t71 = cos(t40);
-    const double t72 = cos(t41);
-    res[0] = x[3]*tau[0]*par[2]*(x[0]*t17 + t20) - x[2]*nrm[0] - p_in[0] + x[0]*t0*t1 + x[1]*par[2]*par[3]*par[1]*t13 - t18 - t6*t7*t9;
-    res[1] = -x[2]*nrm[1] - p_in[1] + x[0]*par[2]*par[3]*par[1]*t13 + x[1]*par[1]*t21 + t18 - t2*t24*(-t23 + t27) - t23*t24*t7;
-    res[2] = -e_in[0] + (1.0/2.0)*x[3]*tau[0]*(x[0]*t37*t8 + t16*t23 + t17*t25*t38) + (1.0/2.0)*x[0]*par[2]*(2*x[0]*par[2]*t1 + 2*x[1]*par[3]*par[1]*t13 - t17*t3 - t2*t20) + (1.0/2.0)*x[1]*par[3]*par[1]*(x[1]*t39 + 2*t15 - t2*t23 + 2*t35) - 1.0/2.0*par[1]*t21*t28 - 1.0/2.0*t0*t1*t29 - t32 - t34 - t36;
-    res[3] = -par[2]*sin(t40) - par[3]*sin(t41) + par[5];
-    jac[0] = par[2]*((1.0/2.0)*x[3]*tau[0]*(t2*t42 + t48 + t50) + par[2]*t1 - t17*t2 - 1.0/4.0*t44 - 1.0/4.0*t46);
-    jac[1] = t54*(-t4*(t10*t13 - t47) + t53);
+    const double t17 = t14*t16*t3;
+    const double t18 = par[4]*t1;
+    const double t19 = t18*t6;
+    const double t20 = t12*t16;
+    const double t21 = x[0]*t20;
+    const double t22 = ((par[3])*(par[3]));
+    const double t23 = qc[1] + t9;
+    const double t24 = par[4]*sin(t23);
+    const double t25 = par[3]*par[1];
+    const double t26 = x[1]*t14;
+    const double t27 = ((x[1])*(x[1]));
+    const double t28 = ((x[0])*(x[0]));
+    const double t29 = cos(t23);
+    const double t30 = par[4]*t29;
+    const double t31 = t25*t30;
+    const double t32 = cos(t5);
+    const double t33 = t32*t8;
+    const double t34 = t11*t13;
+    const double t35 = t16*t34;
+    const double t36 = par[4]*t6;
+    const double t37 = x[0] - x[1];
+    const double t38 = t16*t37;
+    const double t39 = t18*t32;
+    const double t40 = ((x[3])*(x[3]))*((tau[0])*(tau[0]));
+    const double t41 = t39*t40;
+    const double t42 = t11*t16;
+    const double t43 = x[0]*t40*t42;
+    const double t44 = t2*t39;
+    const double t45 = 2*t12;
+    const double t46 = t16*t45;
+    const double t47 = t11*t2;
+    const double t48 = x[0]*t47;
+    const double t49 = x[1]*t40;
+    const double t50 = x[0]*t11*t49;
+    const double t51 = t11 - t12*t4 + t12*t9 + (1.0/4.0)*t50;
+    const double t52 = par[2]*t25;
+    const double t53 = x[0]*t44 + t37*t46 + t38*t48;
+    const double t54 = (1.0/4.0)*par[2];
+    const double t55 = t30*t40;
+    const double t56 = t14*t2;
+    const double t57 = t2*t30;
+    const double t58 = t13*t45;
+    const double t59 = x[1]*t2;
+    const double t60 = t37*t58;
+    const double t61 = t34*t37;
+    const double t62 = x[1]*t57;
+    const double t63 = t59*t61;
+    const double t64 = -x[1]*t58 + 2*t24;
+    const double t65 = (1.0/4.0)*tau[0];
+    const double t66 = 4*t7;
+    const double t67 = 4*par[3];
+    const double t68 = par[1]*t67;
+    const double t69 = t2*t45;
+    const double t70 = -x[0]*t69 + x[1]*t69 + 4*t11 + t50;
+    const double t71 = x[0]*t46 + 2*t19 + t53;
+    const double t72 = t60 + t62 - t63 + t64;
+    res[0] = x[3]*tau[0]*par[2]*(t19 + t21) - x[2]*nrm[0] - p_in[0] + x[0]*t0*t1 + x[1]*par[2]*par[3]*par[1]*t11 - t17 - t3*t6*t8;
+    res[1] = -x[2]*nrm[1] - p_in[1] + x[0]*par[2]*par[3]*par[1]*t11 + x[1]*par[1]*t22 + t17 - t2*t25*(-t24 + t26) - t24*t25*t3;
+    res[2] = -e_in[0] + (1.0/2.0)*x[3]*tau[0]*(x[0]*t36*t7 + t14*t38 + t16*t24) + (1.0/2.0)*x[0]*par[2]*(2*x[0]*par[2]*t1 + 2*x[1]*par[3]*par[1]*t11 - t19*t2 - t2*t21) + (1.0/2.0)*x[1]*par[3]*par[1]*(2*t15 - t2*t24 + t2*t26 + 2*t34) - 1.0/2.0*par[1]*t22*t27 - 1.0/2.0*t0*t1*t28 - t31 - t33 - t35;
+    jac[0] = par[2]*((1.0/2.0)*x[3]*tau[0]*(t16*t48 + t44 + t46) + par[2]*t1 - t2*t20 - 1.0/4.0*t41 - 1.0/4.0*t43);
+    jac[1] = t52*(-t4*(x[1]*t47 - t45) + t51);
     jac[2] = -nrm[0];
-    jac[3] = tau[0]*t56*(2*x[3]*tau[0]*x[0]*(t38*t45 + t42) + 2*x[0]*x[1]*par[3]*par[1]*t14 + 2*par[4]*t1*t6 - t55);
-    jac[4] = t54*(-t11*(t47 + t49) + t53);
-    jac[5] = t24*(par[3] + t39 - t52*t56 - 1.0/4.0*t57 + t7*(t2*t31 - t58 + t59));
+    jac[3] = tau[0]*t54*(2*x[3]*tau[0]*x[0]*(t37*t42 + t39) + 2*x[0]*x[1]*par[3]*par[1]*t12 + 2*par[4]*t1*t6 - t53);
+    jac[4] = t52*(t51 - t9*(t45 + t48));
+    jac[5] = t25*(par[3] + t3*(t34*t59 + t57 - t58) - t50*t54 - 1.0/4.0*t55 + t56);
     jac[6] = -nrm[1];
-    jac[7] = t24*t64*(2*t10*(par[4]*t30 - t35*t38) - t60 - t61 + t62 + t63);
-    jac[8] = t56*(-x[0]*(t10*t14*t67 + t44 + t46 - t65) + t16*t68 + t2*t69);
-    jac[9] = (1.0/4.0)*t24*(-x[1]*(t26*t51 - 4*t39 + t57 - t66) + t2*t70 + t25*t68);
+    jac[7] = t25*t65*(2*x[1]*t2*(par[4]*t29 - t61) - t60 - t62 + t63 + t64);
+    jac[8] = t54*(-x[0]*(t12*t59*t68 + t41 + t43 - t66) + t16*t70 + t2*t71);
+    jac[9] = (1.0/4.0)*t25*(-x[1]*(t34*t49 + t55 - 4*t56 - t67) + t13*t70 + t2*t72);
     jac[10] = 0;
-    jac[11] = t64*(x[0]*t37*t65 + x[1]*t23*t67 - t16*t70 + t2*(t28*t32 + t29*t34 + t36*((t38)*(t38))) - t25*t69 + t27*t38*t67);
-    jac[12] = -par[2]*t2*t71;
-    jac[13] = -par[3]*t2*t72;
+    jac[11] = t65*(x[0]*t36*t66 + x[1]*t24*t68 - t13*t71 - t16*t72 + t2*(t27*t31 + t28*t33 + t35*((t37)*(t37))) + t26*t37*t68);
+}
+
+/* Jump ending on contact 'wall' (78): unknowns (w, mu, beta). */
+static inline void double_pendulum_jump_contact_wall(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    double_pendulum_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    const double t1 = qc[0] + x[0]*t0;
+    const double t2 = qc[1] + x[1]*t0;
+    const double t3 = par[2]*cos(t1);
+    const double t4 = par[3]*cos(t2);
+    res[3] = -par[2]*sin(t1) - par[3]*sin(t2) + par[5];
+    jac[12] = -t0*t3;
+    jac[13] = -t0*t4;
     jac[14] = 0;
-    jac[15] = -tau[0]*(t15*t72 + t25*t71);
+    jac[15] = -tau[0]*(x[0]*t3 + x[1]*t4);
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */

@@ -191,8 +191,8 @@ static inline void double_pendulum_smooth(const double *x, const double *q0, con
     jac[3] = t25*(par[3] + t11*(tau[0]*t41 + x[1]*par[2]*t36 - t30 - t31) + t17 - t28*t38 - t34*t41);
 }
 
-/* Contact time and point (47), (74) on contact 'wall': unknowns (v, alpha). */
-static inline void double_pendulum_contact_time_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+/* Momentum rows of (47), (74), shared by the contacts. */
+static inline void double_pendulum_shared_contact_time(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = par[0] + par[1];
     const double t1 = x[0]*t0;
@@ -207,61 +207,68 @@ static inline void double_pendulum_contact_time_wall(const double *x, const doub
     const double t10 = x[0]*t9;
     const double t11 = q0[0] + t10;
     const double t12 = sin(t11);
-    const double t13 = par[2]*t12;
-    const double t14 = par[4]*t0;
-    const double t15 = (1.0/2.0)*t9;
-    const double t16 = x[1]*t9;
-    const double t17 = t11 - t16 + t2;
-    const double t18 = cos(t17);
-    const double t19 = sin(t17);
-    const double t20 = t19*t6;
-    const double t21 = t10*t20*t7;
-    const double t22 = sin(q0[0]);
-    const double t23 = sin(t3);
-    const double t24 = t23*t6;
-    const double t25 = x[0]*par[2];
-    const double t26 = par[3]*par[1];
-    const double t27 = (1.0/2.0)*t26;
-    const double t28 = t25*t27;
-    const double t29 = q0[1] + t16;
-    const double t30 = sin(t29);
-    const double t31 = par[4]*t30;
-    const double t32 = t15*t26;
-    const double t33 = par[4]*sin(q0[1]);
-    const double t34 = t23*t25;
-    const double t35 = x[1]*t34;
-    const double t36 = t19*t25;
-    const double t37 = cos(t11);
-    const double t38 = t14*t37;
-    const double t39 = ((x[2])*(x[2]))*((tau[0])*(tau[0]));
-    const double t40 = (1.0/2.0)*t39;
-    const double t41 = t16*t19;
-    const double t42 = t10*t18;
-    const double t43 = t42*t6;
-    const double t44 = t19 + t23;
-    const double t45 = t10*t19;
-    const double t46 = x[1]*t18*t39;
-    const double t47 = x[0]*t46 + t18 + t4 + t41 - t45;
-    const double t48 = t26*t7;
-    const double t49 = t37*t9;
-    const double t50 = x[0] - x[1];
-    const double t51 = t18*t50;
-    const double t52 = cos(t29);
-    const double t53 = par[4]*t52;
-    const double t54 = x[1]*par[2]*t42;
-    const double t55 = par[3]*t52;
-    res[0] = -p0[0] + ((par[2])*(par[2]))*t1 + par[2]*t15*(x[0]*t20 + x[0]*t24 + t12*t14 + t14*t22) - t13*t14*t15 + t18*t8 - t21 + t4*t8;
-    res[1] = -p0[1] + ((par[3])*(par[3]))*t5 + t18*t28 + t21 + t28*t4 - t31*t32 - t32*(x[1]*t36 - t31 - t33 + t35);
-    res[2] = -par[3]*t30 - t13 + par[5];
-    jac[0] = par[2]*((1.0/2.0)*x[2]*tau[0]*(t20 + t24 + t38*t9 + t43) - x[0]*t18*t40*t6 + par[2]*t0 - t26*t41 - t38*t40);
-    jac[1] = t48*(t10*(-t16*t18 + t44) + t47);
-    jac[2] = tau[0]*t7*(x[2]*tau[0]*x[0]*(t38 + t51*t6) + x[0]*x[1]*par[3]*par[1]*t23 + par[4]*t0*t22 - par[4]*t1*t49 - t20*t50 - t43*t50);
-    jac[3] = t48*(-t16*(t42 + t44) + t47);
-    jac[4] = t26*(par[2]*t45 + par[3] + t15*(-t34 - t36 + t53*t9 + t54) - 1.0/2.0*t25*t46 - t40*t53);
-    jac[5] = tau[0]*t27*(-t16*t53 + t16*(par[4]*t52 - t25*t51) + t33 - t35 - t36*t50 + t50*t54);
-    jac[6] = -par[2]*t49;
-    jac[7] = -t55*t9;
-    jac[8] = -tau[0]*(x[1]*t55 + t25*t37);
+    const double t13 = (1.0/2.0)*t9;
+    const double t14 = x[1]*t9;
+    const double t15 = t11 - t14 + t2;
+    const double t16 = cos(t15);
+    const double t17 = sin(t15);
+    const double t18 = t17*t6;
+    const double t19 = t10*t18*t7;
+    const double t20 = sin(q0[0]);
+    const double t21 = par[4]*t0;
+    const double t22 = sin(t3);
+    const double t23 = t22*t6;
+    const double t24 = x[0]*par[2];
+    const double t25 = par[3]*par[1];
+    const double t26 = (1.0/2.0)*t25;
+    const double t27 = t24*t26;
+    const double t28 = q0[1] + t14;
+    const double t29 = par[4]*sin(t28);
+    const double t30 = t13*t25;
+    const double t31 = par[4]*sin(q0[1]);
+    const double t32 = t22*t24;
+    const double t33 = x[1]*t32;
+    const double t34 = t17*t24;
+    const double t35 = cos(t11);
+    const double t36 = t21*t35;
+    const double t37 = ((x[2])*(x[2]))*((tau[0])*(tau[0]));
+    const double t38 = (1.0/2.0)*t37;
+    const double t39 = t14*t17;
+    const double t40 = t10*t16;
+    const double t41 = t40*t6;
+    const double t42 = t17 + t22;
+    const double t43 = t10*t17;
+    const double t44 = x[1]*t16*t37;
+    const double t45 = x[0]*t44 + t16 + t39 + t4 - t43;
+    const double t46 = t25*t7;
+    const double t47 = x[0] - x[1];
+    const double t48 = t16*t47;
+    const double t49 = cos(t28);
+    const double t50 = par[4]*t49;
+    const double t51 = x[1]*par[2]*t40;
+    res[0] = -p0[0] - par[4]*par[2]*t0*t12*t13 + ((par[2])*(par[2]))*t1 + par[2]*t13*(x[0]*t18 + x[0]*t23 + t12*t21 + t20*t21) + t16*t8 - t19 + t4*t8;
+    res[1] = -p0[1] + ((par[3])*(par[3]))*t5 + t16*t27 + t19 + t27*t4 - t29*t30 - t30*(x[1]*t34 - t29 - t31 + t33);
+    jac[0] = par[2]*((1.0/2.0)*x[2]*tau[0]*(t18 + t23 + t36*t9 + t41) - x[0]*t16*t38*t6 + par[2]*t0 - t25*t39 - t36*t38);
+    jac[1] = t46*(t10*(-t14*t16 + t42) + t45);
+    jac[2] = tau[0]*t7*(x[2]*tau[0]*x[0]*(t36 + t48*t6) + x[0]*x[1]*par[3]*par[1]*t22 + par[4]*t0*t20 - par[4]*t1*t35*t9 - t18*t47 - t41*t47);
+    jac[3] = t46*(-t14*(t40 + t42) + t45);
+    jac[4] = t25*(par[2]*t43 + par[3] + t13*(-t32 - t34 + t50*t9 + t51) - 1.0/2.0*t24*t44 - t38*t50);
+    jac[5] = tau[0]*t26*(-t14*t50 + t14*(par[4]*t49 - t24*t48) + t31 - t33 - t34*t47 + t47*t51);
+}
+
+/* Contact time and point (47), (74) on contact 'wall': unknowns (v, alpha). */
+static inline void double_pendulum_contact_time_wall(const double *x, const double *q0, const double *p0, const double *tau, const double *par, double *res, double *jac)
+{
+    double_pendulum_shared_contact_time(x, q0, p0, tau, par, res, jac);
+    const double t0 = x[2]*tau[0];
+    const double t1 = q0[0] + x[0]*t0;
+    const double t2 = q0[1] + x[1]*t0;
+    const double t3 = par[2]*cos(t1);
+    const double t4 = par[3]*cos(t2);
+    res[2] = -par[2]*sin(t1) - par[3]*sin(t2) + par[5];
+    jac[6] = -t0*t3;
+    jac[7] = -t0*t4;
+    jac[8] = -tau[0]*(x[0]*t3 + x[1]*t4);
 }
 
 /* Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu). */
@@ -344,8 +351,8 @@ static inline void double_pendulum_jump(const double *x, const double *qc, const
     jac[8] = 0;
 }
 
-/* Jump ending on contact 'wall' (78): unknowns (w, mu, beta). */
-static inline void double_pendulum_jump_contact_wall(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+/* Rows of (78) shared by the contacts. */
+static inline void double_pendulum_shared_jump_contact(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
 {
     const double t0 = ((par[2])*(par[2]));
     const double t1 = par[0] + par[1];
@@ -357,9 +364,9 @@ static inline void double_pendulum_jump_contact_wall(const double *x, const doub
     const double t7 = x[0]*t5;
     const double t8 = qc[0] + t7;
     const double t9 = sin(t8);
-    const double t10 = par[2]*t9;
-    const double t11 = par[4]*t1;
-    const double t12 = t10*t11;
+    const double t10 = par[2]*t1;
+    const double t11 = par[4]*t10;
+    const double t12 = t11*t9;
     const double t13 = x[1]*t5;
     const double t14 = -t13 + t2 + t8;
     const double t15 = cos(t14);
@@ -371,83 +378,92 @@ static inline void double_pendulum_jump_contact_wall(const double *x, const doub
     const double t21 = t20*t7;
     const double t22 = t16*t21;
     const double t23 = sin(qc[0]);
-    const double t24 = sin(t3);
-    const double t25 = t19*t24;
-    const double t26 = t11*t9;
-    const double t27 = x[0]*t20 + t26;
-    const double t28 = ((par[3])*(par[3]));
-    const double t29 = x[0]*par[2];
-    const double t30 = t29*t4;
-    const double t31 = par[3]*par[1];
-    const double t32 = (1.0/2.0)*t31;
-    const double t33 = qc[1] + t13;
-    const double t34 = sin(t33);
-    const double t35 = par[4]*t34;
-    const double t36 = t31*t6;
-    const double t37 = t15*t29;
+    const double t24 = par[4]*t1;
+    const double t25 = sin(t3);
+    const double t26 = t19*t25;
+    const double t27 = t24*t9;
+    const double t28 = x[0]*t20 + t27;
+    const double t29 = ((par[3])*(par[3]));
+    const double t30 = x[0]*par[2];
+    const double t31 = t30*t4;
+    const double t32 = par[3]*par[1];
+    const double t33 = (1.0/2.0)*t32;
+    const double t34 = qc[1] + t13;
+    const double t35 = par[4]*sin(t34);
+    const double t36 = t32*t6;
+    const double t37 = t15*t30;
     const double t38 = par[4]*sin(qc[1]);
-    const double t39 = t24*t29;
+    const double t39 = t25*t30;
     const double t40 = x[1]*t39;
-    const double t41 = t17*t29;
+    const double t41 = t17*t30;
     const double t42 = x[1]*t41;
     const double t43 = ((x[1])*(x[1]));
-    const double t44 = par[2]*t1;
-    const double t45 = (1.0/2.0)*par[4]*t44;
-    const double t46 = ((x[0])*(x[0]));
-    const double t47 = cos(t33);
-    const double t48 = par[4]*t47;
-    const double t49 = (1.0/2.0)*t19;
-    const double t50 = cos(t8);
-    const double t51 = x[0]*t12;
-    const double t52 = x[0] - x[1];
-    const double t53 = t41*t52;
-    const double t54 = 2*par[3];
-    const double t55 = t17*t7;
-    const double t56 = par[2]*t55;
-    const double t57 = 2*t44;
-    const double t58 = t15*t19;
-    const double t59 = t11*t50;
-    const double t60 = ((x[3])*(x[3]))*((tau[0])*(tau[0]));
-    const double t61 = t59*t60;
-    const double t62 = t13*t17;
-    const double t63 = x[0]*t58*t60;
-    const double t64 = t17 + t24;
-    const double t65 = x[1]*t60;
-    const double t66 = x[0]*t15*t65 + t15 + t4 - t55 + t62;
-    const double t67 = t16*t31;
-    const double t68 = t52*t58;
-    const double t69 = t20*t52 + t59*t7 + t68*t7;
-    const double t70 = t15*t7;
-    const double t71 = t48*t60;
-    const double t72 = t37*t65;
-    const double t73 = x[1]*par[2]*t70;
-    const double t74 = t13*t48;
-    const double t75 = t52*t73;
-    const double t76 = (1.0/2.0)*tau[0];
-    const double t77 = t27 + t69;
-    const double t78 = t35 - t42 + t53 + t74 - t75;
-    const double t79 = t18*t54;
-    const double t80 = par[3]*t47;
-    res[0] = (1.0/2.0)*x[3]*tau[0]*par[2]*(x[0]*t25 + t11*t23 + t27) - x[2]*nrm[0] - p_in[0] + x[0]*t0*t1 + (1.0/2.0)*x[1]*par[2]*par[3]*par[1]*t15 + (1.0/2.0)*x[1]*par[2]*par[3]*par[1]*t4 - t12*t6 - t22;
-    res[1] = -x[2]*nrm[1] - p_in[1] + t18*t28 + t22 + t30*t32 + t32*t37 - t35*t36 - t36*(-t35 - t38 + t40 + t42);
-    res[2] = -e_in[0] + (1.0/2.0)*x[3]*tau[0]*(t19*t35 + t19*t53 + t51) + (1.0/2.0)*x[0]*par[2]*(x[0]*t57 + t19*t4 - t21 - t26*t5 + t58) + (1.0/2.0)*x[1]*par[3]*par[1]*(x[1]*t54 + x[1]*t56 + t30 - t35*t5 + t37) - par[4]*t32*cos(qc[1]) - 1.0/2.0*par[1]*t28*t43 - 1.0/2.0*t0*t1*t46 - t30*t49 - t32*t48 - t37*t49 - t45*t50 - t45*cos(qc[0]);
-    res[3] = -par[3]*t34 - t10 + par[5];
-    jac[0] = par[2]*((1.0/2.0)*x[3]*tau[0]*(t20 + t25 + t5*t59 + t58*t7) + par[2]*t1 - t31*t62 - 1.0/2.0*t61 - 1.0/2.0*t63);
-    jac[1] = t67*(t66 + t7*(-t13*t15 + t64));
+    const double t44 = (1.0/2.0)*t11;
+    const double t45 = ((x[0])*(x[0]));
+    const double t46 = cos(t34);
+    const double t47 = par[4]*t46;
+    const double t48 = (1.0/2.0)*t19;
+    const double t49 = cos(t8);
+    const double t50 = x[0] - x[1];
+    const double t51 = t41*t50;
+    const double t52 = 2*par[3];
+    const double t53 = t17*t7;
+    const double t54 = par[2]*t53;
+    const double t55 = 2*t10;
+    const double t56 = x[0]*t55;
+    const double t57 = t15*t19;
+    const double t58 = t24*t49;
+    const double t59 = ((x[3])*(x[3]))*((tau[0])*(tau[0]));
+    const double t60 = t58*t59;
+    const double t61 = t13*t17;
+    const double t62 = x[0]*t57*t59;
+    const double t63 = t17 + t25;
+    const double t64 = x[1]*t59;
+    const double t65 = x[0]*t15*t64 + t15 + t4 - t53 + t61;
+    const double t66 = t16*t32;
+    const double t67 = t50*t57;
+    const double t68 = t20*t50 + t58*t7 + t67*t7;
+    const double t69 = t15*t7;
+    const double t70 = t47*t59;
+    const double t71 = t37*t64;
+    const double t72 = x[1]*par[2]*t69;
+    const double t73 = t13*t47;
+    const double t74 = t50*t72;
+    const double t75 = (1.0/2.0)*tau[0];
+    const double t76 = t28 + t68;
+    const double t77 = t35 - t42 + t51 + t73 - t74;
+    const double t78 = t18*t52;
+    res[0] = (1.0/2.0)*x[3]*tau[0]*par[2]*(x[0]*t26 + t23*t24 + t28) - x[2]*nrm[0] - p_in[0] + x[0]*t0*t1 + (1.0/2.0)*x[1]*par[2]*par[3]*par[1]*t15 + (1.0/2.0)*x[1]*par[2]*par[3]*par[1]*t4 - t12*t6 - t22;
+    res[1] = -x[2]*nrm[1] - p_in[1] + t18*t29 + t22 + t31*t33 + t33*t37 - t35*t36 - t36*(-t35 - t38 + t40 + t42);
+    res[2] = -e_in[0] + (1.0/2.0)*x[3]*tau[0]*(x[0]*t12 + t19*t35 + t19*t51) + (1.0/2.0)*x[0]*par[2]*(t19*t4 - t21 - t27*t5 + t56 + t57) + (1.0/2.0)*x[1]*par[3]*par[1]*(x[1]*t52 + x[1]*t54 + t31 - t35*t5 + t37) - par[4]*t33*cos(qc[1]) - 1.0/2.0*par[1]*t29*t43 - 1.0/2.0*t0*t1*t45 - t31*t48 - t33*t47 - t37*t48 - t44*t49 - t44*cos(qc[0]);
+    jac[0] = par[2]*((1.0/2.0)*x[3]*tau[0]*(t20 + t26 + t5*t58 + t57*t7) + par[2]*t1 - t32*t61 - 1.0/2.0*t60 - 1.0/2.0*t62);
+    jac[1] = t66*(t65 + t7*(-t13*t15 + t63));
     jac[2] = -nrm[0];
-    jac[3] = tau[0]*t16*(x[3]*tau[0]*x[0]*(t59 + t68) + x[0]*x[1]*par[3]*par[1]*t24 + par[4]*t1*t23 - t69);
-    jac[4] = t67*(-t13*(t64 + t70) + t66);
-    jac[5] = t31*(par[3] + t56 + t6*(-t39 - t41 + t48*t5 + t73) - 1.0/2.0*t71 - 1.0/2.0*t72);
+    jac[3] = tau[0]*t16*(x[3]*tau[0]*x[0]*(t58 + t67) + x[0]*x[1]*par[3]*par[1]*t25 + par[4]*t1*t23 - t68);
+    jac[4] = t66*(-t13*(t63 + t69) + t65);
+    jac[5] = t32*(par[3] + t54 + t6*(-t39 - t41 + t47*t5 + t72) - 1.0/2.0*t70 - 1.0/2.0*t71);
     jac[6] = -nrm[1];
-    jac[7] = t31*t76*(t13*(par[4]*t47 - t37*t52) + t38 - t40 - t53 - t74 + t75);
-    jac[8] = t16*(-x[0]*(par[1]*t54*t62 - t57 + t61 + t63) + t19*t66 + t5*t77);
-    jac[9] = t32*(-x[1]*(-t54 - 2*t56 + t71 + t72) + t29*t66 + t5*t78);
+    jac[7] = t32*t75*(t13*(par[4]*t46 - t37*t50) + t38 - t40 - t51 - t73 + t74);
+    jac[8] = t16*(-x[0]*(par[1]*t52*t61 - t55 + t60 + t62) + t19*t65 + t5*t76);
+    jac[9] = t33*(-x[1]*(-t52 - 2*t54 + t70 + t71) + t30*t65 + t5*t77);
     jac[10] = 0;
-    jac[11] = t76*(-t19*t78 - t29*t77 + t35*t79 + t5*(par[4]*t44*t46*t50 + t19*t37*((t52)*(t52)) + t31*t43*t48) + 2*t51 + t53*t79);
-    jac[12] = -par[2]*t5*t50;
-    jac[13] = -t5*t80;
+    jac[11] = t75*(par[4]*t56*t9 - t19*t77 - t30*t76 + t35*t78 + t5*(t11*t45*t49 + t19*t37*((t50)*(t50)) + t32*t43*t47) + t51*t78);
+}
+
+/* Jump ending on contact 'wall' (78): unknowns (w, mu, beta). */
+static inline void double_pendulum_jump_contact_wall(const double *x, const double *qc, const double *nrm, const double *p_in, const double *e_in, const double *tau, const double *par, double *res, double *jac)
+{
+    double_pendulum_shared_jump_contact(x, qc, nrm, p_in, e_in, tau, par, res, jac);
+    const double t0 = x[3]*tau[0];
+    const double t1 = qc[0] + x[0]*t0;
+    const double t2 = qc[1] + x[1]*t0;
+    const double t3 = par[2]*cos(t1);
+    const double t4 = par[3]*cos(t2);
+    res[3] = -par[2]*sin(t1) - par[3]*sin(t2) + par[5];
+    jac[12] = -t0*t3;
+    jac[13] = -t0*t4;
     jac[14] = 0;
-    jac[15] = -tau[0]*(x[1]*t80 + t29*t50);
+    jac[15] = -tau[0]*(x[0]*t3 + x[1]*t4);
 }
 
 /* Rows of sustained contact psi_r(q), their gradients and curvatures u . Hess psi_r . u. */
