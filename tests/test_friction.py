@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import sympy as sp
 from hard_scenes import BACKENDS, G
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import vcigen
@@ -128,6 +128,7 @@ def test_c_equals_casadi_with_friction():
     mu=st.floats(0.0, 1.5),
     g=st.sampled_from([0.0, G]),
 )
+@example(x=0.83984375, y=0.5, angle=6.0, e=0.0, mu=0.25, g=G)  # grazes the wall after a lossy hit
 def test_friction_never_adds_energy(backend, x, y, angle, e, mu, g):
     """Random rough boxes, with and without gravity (then they come to rest, slide and stick on the floor):
     no impact raises the energy, E_d never rises by more than the jump's resolution, friction's work <= 0."""
@@ -138,8 +139,12 @@ def test_friction_never_adds_energy(backend, x, y, angle, e, mu, g):
         t_end=3.0,
         params={"e": e, "mu": mu, "g": g},
     )
+    # MATH.md: energy never rises at an impact by more than the jump's resolution. A grazing touch (the
+    # continuous law, no root of (48a)) restarts E_d on a segment of another length: its O(h^2) bias shows,
+    # within (g h)^2 / 8 (as in tests/test_property.py); every other impact never raises it.
     for im in res.impacts:
-        assert im.energy_after <= im.energy_before + 1e-12
+        allowed = 1e-12 + ((g * 0.01) ** 2 / 8 if im.kind == "grazing" else 0.0)
+        assert im.energy_after <= im.energy_before + allowed, (im.kind, im.energy_after - im.energy_before)
     assert np.all(res.work <= 0.0)
     # E_d's own jumps at a plastic entry or a landing are within the jump's resolution (g h)^2 / 8 (MATH.md)
     assert np.all(np.diff(res.energy) <= (g * 0.01) ** 2 / 8 + 1e-9 * (1 + abs(res.energy[0])))
