@@ -29,16 +29,16 @@ FAILED_ON_MAIN = (1, 2, 3, 4, 5, 6, 8, 10)  # seeds of drop() that stopped with 
 
 def rod() -> vcigen.Model:
     x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
-    m, l, g, mu, e = sp.symbols("m l g mu e")
+    m, ln, g, mu, e = sp.symbols("m l g mu e")
     return vcigen.Model(
         name="rough_rod",
         q=[x, y, th],
         qdot=[xd, yd, thd],
-        lagrangian=m / 2 * (xd**2 + yd**2) + m * l**2 / 24 * thd**2 - m * g * y,
-        contacts={"left": y - l / 2 * sp.sin(th), "right": y + l / 2 * sp.sin(th)},
-        params={m: MASS, l: LENGTH, g: G, mu: MU, e: 0.5},
+        lagrangian=m / 2 * (xd**2 + yd**2) + m * ln**2 / 24 * thd**2 - m * g * y,
+        contacts={"left": y - ln / 2 * sp.sin(th), "right": y + ln / 2 * sp.sin(th)},
+        params={m: MASS, ln: LENGTH, g: G, mu: MU, e: 0.5},
         restitution={"left": e, "right": e},
-        friction={"left": (mu, x - l / 2 * sp.cos(th)), "right": (mu, x + l / 2 * sp.cos(th))},
+        friction={"left": (mu, x - ln / 2 * sp.cos(th)), "right": (mu, x + ln / 2 * sp.cos(th))},
     )
 
 
@@ -76,8 +76,8 @@ def drop(seed: int, height: tuple[float, float] = (0.8, 1.5)):
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("seed", FAILED_ON_MAIN)
 def test_dropped_rod_comes_to_rest_on_both_ends(backend, seed):
-    """The drops that failed run to rest lying on both ends: momenta 0, y = 0, theta a multiple of pi, each end
-    carrying m g / 2, friction's work <= 0, and E_d = 0 (all the energy taken by impacts and friction)."""
+    """The drops that failed run to rest lying on both ends: momenta 0, y = 0, theta a multiple of pi, each
+    end carrying m g / 2, friction's work <= 0, and E_d = 0 (all the energy taken by impacts and friction)."""
     q0, v0, params = drop(seed)
     res = sim("rod", backend).simulate(q0=q0, v0=v0, h=0.005, t_end=4.0, params=params)
     assert np.max(np.abs(res.p[-50:])) < 1e-12
@@ -99,7 +99,9 @@ def test_rod_at_rest_on_both_ends_stays_with_m_g_over_2_at_each(backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("name, q0", [("rod", [0.0, 0.0, 0.0]), ("rod", [0.0, 0.0, math.pi]), ("box", [0.0, 0.5, 0.0])])
+@pytest.mark.parametrize(
+    "name, q0", [("rod", [0.0, 0.0, 0.0]), ("rod", [0.0, 0.0, math.pi]), ("box", [0.0, 0.5, 0.0])]
+)
 def test_slides_on_two_contacts_to_a_stop_after_v2_over_2_mu_g(backend, name, q0):
     """Set down sliding at v on both ends (the box: on a face, two vertices): the total friction is mu m g, so
     it stops at t = v / (mu g) after v^2 / (2 mu g), then sticks; friction's work is -m v^2 / 2."""

@@ -40,7 +40,7 @@ LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
-DEP_EPS = 1e-9  # a stick row whose gradient is this close (relative) to the span of the active rows' is dependent
+DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 
 
 def _illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int, guess) -> float:
@@ -125,8 +125,8 @@ class SustainedSteps:
         self._branch = np.zeros(sum(counts))  # the signs each sticking tangent is frozen at
         self._branch_of = [list(range(sum(counts[:f]), sum(counts[: f + 1]))) for f in range(nf)]
         self._held_rows = [0] * nf  # the active rows (a bitmask) each frictional contact's mode was set on
-        # the sticking frictional contact whose stick row holds contact f's tangent too (a dependent stick, no row of
-        # its own: statically indeterminate), f itself if the other active rows hold it, -1 if none
+        # the sticking frictional contact whose stick row holds contact f's tangent too (a dependent stick, no
+        # row of its own: statically indeterminate), f itself if the other active rows hold it, -1 if none
         self._ride = [-1] * nf
         self._partner = list(getattr(k, "partner", ())) or [-1] * nf  # the other tangent of a cone contact
         if nf:
@@ -229,7 +229,7 @@ class SustainedSteps:
             sr = self._stick_rows[f]
             mask = sum(1 << r for r in range(k.r) if self.act[r] and k.row_contact[r] == j)
             if not mask or self._mu_f[f] <= 0.0 or mask != self._held_rows[f]:
-                self.act[sr], self._slip[f], self._ride[f] = False, 0.0, -1  # off, or another vertex or face: anew
+                self.act[sr], self._slip[f], self._ride[f] = False, 0.0, -1  # off, or another vertex or face
             self._held_rows[f] = mask
         grad = k.rows(q, u)[1]
         for f in range(len(self._stick_rows)):
@@ -249,7 +249,7 @@ class SustainedSteps:
         self._cone_modes(q, u, tau)
         self._set_friction()
 
-    # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) ---------------
+    # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) -----------
     def _dependent(self, grad, sr: int, skip: int = -1) -> bool:
         """Is stick row ``sr``'s gradient in the span of the other active rows' (but row ``skip``)?
 
@@ -402,10 +402,12 @@ class SustainedSteps:
         k = self.k
         j = k.frictional[f]
         normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
-        for g, owner in enumerate(self._ride):  # the dependent sticks it carries: their cones are its room too
+        for g, owner in enumerate(self._ride):  # the dependent sticks it carries: their cones are room too
             if owner == f and g != f:
-                normal += self._mu_f[g] / self._mu_f[f] * sum(
-                    forces[r] for r in range(k.r) if k.row_contact[r] == k.frictional[g]
+                normal += (
+                    self._mu_f[g]
+                    / self._mu_f[f]
+                    * sum(forces[r] for r in range(k.r) if k.row_contact[r] == k.frictional[g])
                 )
         if self._partner[f] >= 0:  # a cone: the length of the tangential force
             tangential = math.hypot(forces[self._stick_rows[f]], forces[self._stick_rows[self._partner[f]]])
