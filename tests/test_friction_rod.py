@@ -118,7 +118,7 @@ def test_slides_on_two_contacts_to_a_stop_after_v2_over_2_mu_g(backend, name, q0
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(8))
 def test_dropped_box_comes_to_rest_on_a_face(backend, seed):
     """A box with four frictional vertices dropped at random: at rest on a face (two vertices on the floor,
     sharing m g), no SolverError."""
