@@ -28,17 +28,20 @@ FAILED_ON_MAIN = (1, 2, 3, 4, 5, 6, 8, 10)  # seeds of drop() that stopped with 
 
 
 def rod() -> vcigen.Model:
-    x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
-    m, ln, g, mu, e = sp.symbols("m l g mu e")
+    """The rod, pushed along x at its centre by ``F t`` (0 by default)."""
+    x, y, th, xd, yd, thd, t = sp.symbols("x y th xd yd thd t")
+    m, ln, g, mu, e, push = sp.symbols("m l g mu e F")
     return vcigen.Model(
         name="rough_rod",
         q=[x, y, th],
         qdot=[xd, yd, thd],
         lagrangian=m / 2 * (xd**2 + yd**2) + m * ln**2 / 24 * thd**2 - m * g * y,
         contacts={"left": y - ln / 2 * sp.sin(th), "right": y + ln / 2 * sp.sin(th)},
-        params={m: MASS, ln: LENGTH, g: G, mu: MU, e: 0.5},
+        params={m: MASS, ln: LENGTH, g: G, mu: MU, e: 0.5, push: 0.0},
         restitution={"left": e, "right": e},
         friction={"left": (mu, x - ln / 2 * sp.cos(th)), "right": (mu, x + ln / 2 * sp.cos(th))},
+        forces=[push * t, 0, 0],
+        time=t,
     )
 
 
@@ -96,6 +99,27 @@ def test_rod_at_rest_on_both_ends_stays_with_m_g_over_2_at_each(backend):
     assert np.all(res.active)
     np.testing.assert_allclose(res.contact_force, MASS * G / 2, rtol=0, atol=1e-12)
     assert np.all(res.friction_work <= 0.0) and np.all(res.friction_work > -1e-30)  # sticks: 0 to round-off
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_rising_push_breaks_both_sticks_when_it_reaches_mu_m_g(backend):
+    """Lying on both ends and pushed by F t at its centre: the stick holds until F t = mu m g, the two ends'
+    cones pooled (one end's cone alone, mu m g / 2, would let go at half that), then both ends slide with
+    m x'' = F t - mu m g: x = F (t - t*)^3 / (6 m), the switch located inside the step."""
+    push = 3.0
+    t_star = MU * MASS * G / push
+    errs = []
+    for h in (0.02, 0.01):
+        res = sim("rod", backend).simulate(
+            q0=[0.0, 0.0, 0.0], v0=[0.0, 0.0, 0.0], h=h, t_end=2.0, params={"F": push}
+        )
+        t = res.t
+        exact = push * np.clip(t - t_star, 0.0, None) ** 3 / (6 * MASS)
+        errs.append(float(np.max(np.abs(res.q[:, 0] - exact))))
+        assert np.max(np.abs(res.q[t <= t_star, 0])) < 1e-15
+        assert np.max(np.abs(res.q[:, 1:])) < 1e-12 and np.all(res.active)
+        np.testing.assert_allclose(res.contact_force, MASS * G / 2, rtol=0, atol=1e-9)
+    assert errs[1] < 1e-4 and errs[1] < errs[0] / 3, errs
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
