@@ -13,6 +13,9 @@ The scenes and closed forms are those of ``tests/test_friction_rod.py``, on both
 * the box with four frictional vertices dropped at random (seeds 0-7, t = 10): |p| at the end, the forces'
   sum against m g, the time by which every drop is at rest;
 * C against CasADi on a rod drop, the rod slide and a box drop.
+
+``--sweep``: 30 random drops of the rod and of the box at h = 0.01, 0.005, 0.002 on both backends (t = 10):
+how many fail (any exception) and which are not at rest at the end.
 """
 
 from __future__ import annotations
@@ -82,5 +85,22 @@ def main() -> None:
         print(f"{key:45s} {value:.3g}")
 
 
+def sweep() -> None:
+    for name, height in (("rod", (0.8, 1.5)), ("box", (1.2, 2.0))):
+        for b in ("casadi", "c"):
+            for h in (0.01, 0.005, 0.002):
+                fails, moving = [], []
+                for seed in range(30):
+                    q0, v0, params = drop(seed, height)
+                    try:
+                        r = sim(name, b).simulate(q0=q0, v0=v0, h=h, t_end=10.0, params=params)
+                    except Exception as err:  # noqa: BLE001 -- counted, whatever it is
+                        fails.append((seed, type(err).__name__))
+                        continue
+                    if np.abs(r.p[-1]).max() > 1e-12:
+                        moving.append((seed, round(params["e"], 2)))
+                print(f"{name} {b} h={h}: {len(fails)} failed {fails}; not at rest (seed, e): {moving}")
+
+
 if __name__ == "__main__":
-    main()
+    sweep() if "--sweep" in sys.argv else main()
