@@ -40,6 +40,7 @@ LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
+DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 
 
 def _illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int, guess) -> float:
@@ -124,6 +125,9 @@ class SustainedSteps:
         self._branch = np.zeros(sum(counts))  # the signs each sticking tangent is frozen at
         self._branch_of = [list(range(sum(counts[:f]), sum(counts[: f + 1]))) for f in range(nf)]
         self._held_rows = [0] * nf  # the active rows (a bitmask) each frictional contact's mode was set on
+        # the sticking frictional contact whose stick row holds contact f's tangent too (a dependent stick, no
+        # row of its own: statically indeterminate), f itself if the other active rows hold it, -1 if none
+        self._ride = [-1] * nf
         self._partner = list(getattr(k, "partner", ())) or [-1] * nf  # the other tangent of a cone contact
         if nf:
             k.set_friction(self._slip, self._ref, self._branch)
@@ -215,21 +219,27 @@ class SustainedSteps:
     def _friction_modes(self, q, u, tau: float | None = None) -> None:
         """Stick or slip for each frictional contact at ``(q, u)``: off when it is not held; on entering
         sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
-        Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a segment of ``tau``."""
+        A dependent stick (:meth:`_stick`) is checked anew: released if its contact's rows changed or its
+        stick row is independent now. Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a
+        segment of ``tau``."""
         k = self.k
         if not self._stick_rows:
             return
         for f, j in enumerate(k.frictional):
             sr = self._stick_rows[f]
             mask = sum(1 << r for r in range(k.r) if self.act[r] and k.row_contact[r] == j)
-            if not mask or self._mu_f[f] <= 0.0:
-                self.act[sr], self._slip[f] = False, 0.0
-            elif mask != self._held_rows[f]:  # another vertex or face in contact: its own branch, mode anew
-                self.act[sr], self._slip[f] = False, 0.0
+            if not mask or self._mu_f[f] <= 0.0 or mask != self._held_rows[f]:
+                self.act[sr], self._slip[f], self._ride[f] = False, 0.0, -1  # off, or another vertex or face
             self._held_rows[f] = mask
-            if self._partner[f] >= 0:
-                continue  # a cone: both tangents at once, below
-            if mask and self._mu_f[f] > 0.0 and not self.act[sr] and self._slip[f] == 0.0:
+        grad = k.rows(q, u)[1]
+        for f in range(len(self._stick_rows)):
+            if self._ride[f] >= 0:
+                self._ride[f] = self._owner(f, grad)
+        for f in range(len(self._stick_rows)):
+            sr = self._stick_rows[f]
+            if self._partner[f] >= 0 or self._ride[f] >= 0:
+                continue  # a cone: both tangents at once, below; a dependent stick: held by another's row
+            if self._held_rows[f] and self._mu_f[f] > 0.0 and not self.act[sr] and self._slip[f] == 0.0:
                 self._freeze_branch(f, q)
                 sliding = float(k.rows(q, u)[1][sr] @ u)
                 if abs(sliding) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
@@ -238,6 +248,39 @@ class SustainedSteps:
                     self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
         self._cone_modes(q, u, tau)
         self._set_friction()
+
+    # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) -----------
+    def _dependent(self, grad, sr: int, skip: int = -1) -> bool:
+        """Is stick row ``sr``'s gradient in the span of the other active rows' (but row ``skip``)?
+
+        Modified Gram-Schmidt over the active rows in index order (a row within ``DEP_EPS`` of the span so far
+        adds nothing), then ``sr``'s residual against that basis, relative to its length."""
+        basis = []
+        for r in np.flatnonzero(self.act):
+            if r in (sr, skip):
+                continue
+            w = grad[r].copy()
+            for b in basis:
+                w -= float(b @ w) * b
+            nw = float(np.linalg.norm(w))
+            if nw > DEP_EPS * float(np.linalg.norm(grad[r])):
+                basis.append(w / nw)
+        w = grad[sr].copy()
+        for b in basis:
+            w -= float(b @ w) * b
+        return float(np.linalg.norm(w)) <= DEP_EPS * float(np.linalg.norm(grad[sr]))
+
+    def _owner(self, f: int, grad) -> int:
+        """Whose stick holds one-tangent contact ``f``'s tangent: ``-1`` if its stick row is independent of
+        the active rows; else the first sticking contact ``g`` without whose stick row it is independent
+        (``f`` itself if the other rows hold it alone)."""
+        sr = self._stick_rows[f]
+        if self._partner[f] >= 0 or not self._dependent(grad, sr):
+            return -1
+        for g, sg in enumerate(self._stick_rows):
+            if g != f and self.act[sg] and not self._dependent(grad, sr, sg):
+                return g
+        return f
 
     # -- isotropic cones: a contact with two tangents, frictional contacts f and its partner ----------------
     def _cones(self):
@@ -330,17 +373,42 @@ class SustainedSteps:
             self._set_friction()
 
     def _stick(self, f: int, q, u) -> None:
-        """Frictional contact ``f`` sticks where its tangent is now (on the branch its mode was set on)."""
+        """Frictional contact ``f`` sticks where its tangent is now (on the branch its mode was set on).
+
+        If its stick row depends on the active rows (:meth:`_owner`: a rod lying on both ends, the second
+        end to stick) it sticks with no row of its own: the rows already held keep its tangent, and its
+        tangential force, not unique, is carried by its owner's stick row, whose cone has room for both
+        (:meth:`_cone_margin`). Then any other one-tangent contact still slipping at a sliding velocity of 0
+        (to round-off) whose stick row is now dependent sticks with it."""
         k = self.k
         sr = self._stick_rows[f]
-        self._ref[f] += float(k.rows(q, u)[0][sr])
-        self.act[sr], self._slip[f] = True, 0.0
+        psi, grad, _ = k.rows(q, u)
+        self._ref[f] += float(psi[sr])
+        self._slip[f] = 0.0
+        self._ride[f] = self._owner(f, grad)
+        self.act[sr] = self._ride[f] < 0
+        if self._ride[f] >= 0:
+            return
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
+        for g, sg in enumerate(self._stick_rows):
+            if self._slip[g] and self._partner[g] < 0 and abs(float(grad[sg] @ u)) <= tiny:
+                owner = self._owner(g, grad)
+                if owner >= 0:
+                    self._ref[g] += float(psi[sg])
+                    self._slip[g], self._ride[g] = 0.0, owner
 
     def _cone_margin(self, f: int, forces) -> float:
         """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone."""
         k = self.k
         j = k.frictional[f]
         normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
+        for g, owner in enumerate(self._ride):  # the dependent sticks it carries: their cones are room too
+            if owner == f and g != f:
+                normal += (
+                    self._mu_f[g]
+                    / self._mu_f[f]
+                    * sum(forces[r] for r in range(k.r) if k.row_contact[r] == k.frictional[g])
+                )
         if self._partner[f] >= 0:  # a cone: the length of the tangential force
             tangential = math.hypot(forces[self._stick_rows[f]], forces[self._stick_rows[self._partner[f]]])
             return float(self._mu_f[f] * normal - tangential)
@@ -397,6 +465,12 @@ class SustainedSteps:
             lam = self._contact_forces(q, u)[sr]
             self.act[sr] = False
             self._slip[f] = -self._mu_f[f] * math.copysign(1.0, -lam)  # it slides the way the force pushes
+            grad = self.k.rows(q, u)[1]
+            for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
+                if owner == f and g != f:
+                    along = float(grad[self._stick_rows[g]] @ grad[sr])
+                    self._slip[g] = -self._mu_f[g] * math.copysign(1.0, -lam * along)
+                    self._ride[g] = -1
         self._set_friction()
 
     def _contact_accel(self, q, u, nrm, group, weights) -> float:

@@ -81,6 +81,7 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("ref", ctypes.c_double * max(nf, 1)),
             ("branch", ctypes.c_double * max(nb, 1)),
             ("held_rows", ctypes.c_ulong * max(nf, 1)),
+            ("ride", ctypes.c_int * max(nf, 1)),
         ]
 
     return _Sustain
