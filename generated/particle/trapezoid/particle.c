@@ -1895,6 +1895,7 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
     }
     for (i = 0; i < PARTICLE_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

@@ -2171,6 +2171,7 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
     }
     for (i = 0; i < STAR_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

@@ -1896,6 +1896,7 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
     }
     for (i = 0; i < BALL_TO_REST_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

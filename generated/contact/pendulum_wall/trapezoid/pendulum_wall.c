@@ -1930,6 +1930,7 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
     }
     for (i = 0; i < PENDULUM_WALL_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

@@ -1934,6 +1934,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
     }
     for (i = 0; i < SLIDE_OFF_DOME_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

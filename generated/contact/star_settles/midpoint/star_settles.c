@@ -2172,6 +2172,7 @@ static void star_settles_start_sustained(const star_settles_ctx_t *c, const doub
     }
     for (i = 0; i < STAR_SETTLES_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

@@ -71,6 +71,7 @@ typedef struct {
     double ref[IMPACT_OSCILLATOR_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
     double branch[IMPACT_OSCILLATOR_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[IMPACT_OSCILLATOR_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
+    int ride[IMPACT_OSCILLATOR_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
 } impact_oscillator_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

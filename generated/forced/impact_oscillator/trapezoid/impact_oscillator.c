@@ -1708,6 +1708,7 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
     }
     for (i = 0; i < IMPACT_OSCILLATOR_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

@@ -1082,6 +1082,7 @@ static const int block_row_constraint[BLOCK_R_DIM] = { -1, -1, };
 static const int block_row_stick[BLOCK_R_DIM] = { -1, 0, };
 static const int block_row_free[BLOCK_R_DIM] = { 0, 1, };
 #define BLOCK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
+#define BLOCK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int block_fric_contact[BLOCK_NF] = { 0, };
 static const int block_stick_row[BLOCK_NF] = { 1, };
@@ -1400,25 +1401,116 @@ static int block_sub_end(const block_ctx_t *c, const double *q, const double *p,
  * negative when the stick force leaves Coulomb's cone. */
 static double block_cone_margin(const block_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0;
-    int r;
+    double normal = 0.0, other;
+    int r, g;
     for (r = 0; r < BLOCK_R; ++r) {
         if (block_row_contact[r] == block_fric_contact[f]) {
             normal += forces[r];
         }
     }
+    for (g = 0; g < BLOCK_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
+        if (c->sus->ride[g] == f && g != f) {
+            for (r = 0, other = 0.0; r < BLOCK_R; ++r) {
+                if (block_row_contact[r] == block_fric_contact[g]) {
+                    other += forces[r];
+                }
+            }
+            normal += c->mu_f[g] / c->mu_f[f] * other;
+        }
+    }
     return c->mu_f[f] * normal - fabs(forces[block_stick_row[f]]);
 }
 
-/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
+/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
+ * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
+static int block_dependent(const block_ctx_t *c, const double *grad, int sr, int skip)
+{
+    double basis[BLOCK_R_DIM * BLOCK_N], w[BLOCK_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= BLOCK_R; ++row) {
+        r = row < BLOCK_R ? row : sr; /* the active rows, then sr itself */
+        if (row < BLOCK_R && (!c->sus->act[r] || r == sr || r == skip)) {
+            continue;
+        }
+        for (i = 0; i < BLOCK_N; ++i) {
+            w[i] = grad[r * BLOCK_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < BLOCK_N; ++i) {
+                d += basis[b * BLOCK_N + i] * w[i];
+            }
+            for (i = 0; i < BLOCK_N; ++i) {
+                w[i] -= d * basis[b * BLOCK_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < BLOCK_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * BLOCK_N + i] * grad[r * BLOCK_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == BLOCK_R) {
+            return nw <= BLOCK_DEP_EPS * ng;
+        }
+        if (nw > BLOCK_DEP_EPS * ng) {
+            for (i = 0; i < BLOCK_N; ++i) {
+                basis[nb * BLOCK_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+ * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
+ * other rows hold it alone). */
+static int block_owner(const block_ctx_t *c, int f, const double *grad)
+{
+    const int sr = block_stick_row[f];
+    int g;
+    if (0 || !block_dependent(c, grad, sr, -1)) {
+        return -1;
+    }
+    for (g = 0; g < BLOCK_NF; ++g) {
+        if (g != f && c->sus->act[block_stick_row[g]] && !block_dependent(c, grad, sr, block_stick_row[g])) {
+            return g;
+        }
+    }
+    return f;
+}
+
+/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
+ * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
+ * its owner's stick row). Then any other one-tangent contact still slipping at a sliding velocity of 0 (to
+ * round-off) whose stick row is now dependent sticks with it. */
 static void block_stick(const block_ctx_t *c, int f, const double *q, const double *u)
 {
     const int sr = block_stick_row[f];
-    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], tiny, sliding;
+    int g, i, owner;
     block_rows(q, u, c->par, psi, grad, curv);
     c->sus->ref[f] += psi[sr];
-    c->sus->act[sr] = 1;
     c->sus->slip[f] = 0.0;
+    c->sus->ride[f] = block_owner(c, f, grad);
+    c->sus->act[sr] = c->sus->ride[f] < 0;
+    if (c->sus->ride[f] >= 0) {
+        return;
+    }
+    tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, u));
+    for (g = 0; g < BLOCK_NF; ++g) {
+        for (i = 0, sliding = 0.0; i < BLOCK_N; ++i) {
+            sliding += grad[block_stick_row[g] * BLOCK_N + i] * u[i];
+        }
+        if (c->sus->slip[g] != 0.0 && !(0) && fabs(sliding) <= tiny) {
+            owner = block_owner(c, g, grad);
+            if (owner >= 0) {
+                c->sus->ref[g] += psi[block_stick_row[g]];
+                c->sus->slip[g] = 0.0;
+                c->sus->ride[g] = owner;
+            }
+        }
+    }
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -1437,13 +1529,26 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
                 mask |= 1UL << r;
             }
         }
-        mf = c->mu_f[f];
-        if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
+        if (!mask || !(c->mu_f[f] > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
+            c->sus->ride[f] = -1;
         }
         c->sus->held_rows[f] = mask;
-        if (mask && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
+    }
+    block_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < BLOCK_NF; ++f) {
+        if (c->sus->ride[f] >= 0) {
+            c->sus->ride[f] = block_owner(c, f, grad);
+        }
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        sr = block_stick_row[f];
+        mf = c->mu_f[f];
+        if (0 || c->sus->ride[f] >= 0) {
+            continue; /* a cone: both tangents at once, below; a dependent stick: held by another's row */
+        }
+        if (c->sus->held_rows[f] && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
             block_freeze_branch(c, f, q);
             block_rows(q, u, c->par, psi, grad, curv);
             for (i = 0, sliding = 0.0; i < BLOCK_N; ++i) {
@@ -1465,9 +1570,9 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
 static void block_friction_switch(const block_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[BLOCK_R_DIM], psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N];
-    double curv[BLOCK_R_DIM], sliding = 0.0;
+    double curv[BLOCK_R_DIM], sliding = 0.0, along;
     const int f = block_row_stick[sr];
-    int i;
+    int i, g;
     block_rows(q, u, c->par, psi, grad, curv);
     for (i = 0; i < BLOCK_N; ++i) {
         sliding += grad[sr * BLOCK_N + i] * u[i];
@@ -1480,6 +1585,15 @@ static void block_friction_switch(const block_ctx_t *c, int kind, int sr, const 
         block_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
         c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        for (g = 0; g < BLOCK_NF; ++g) { /* its dependent sticks slide with it, the same way */
+            if (c->sus->ride[g] == f && g != f) {
+                for (i = 0, along = 0.0; i < BLOCK_N; ++i) {
+                    along += grad[block_stick_row[g] * BLOCK_N + i] * grad[sr * BLOCK_N + i];
+                }
+                c->sus->slip[g] = -c->mu_f[g] * (-fr[sr] * along >= 0.0 ? 1.0 : -1.0);
+                c->sus->ride[g] = -1;
+            }
+        }
     }
     block_set_friction(c);
 }
@@ -2104,6 +2218,7 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
     }
     for (i = 0; i < BLOCK_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
     block_set_friction(c);
 

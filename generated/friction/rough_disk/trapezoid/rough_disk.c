@@ -1162,6 +1162,7 @@ static const int rough_disk_row_constraint[ROUGH_DISK_R_DIM] = { -1, -1, };
 static const int rough_disk_row_stick[ROUGH_DISK_R_DIM] = { -1, 0, };
 static const int rough_disk_row_free[ROUGH_DISK_R_DIM] = { 0, 1, };
 #define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
+#define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int rough_disk_fric_contact[ROUGH_DISK_NF] = { 0, };
 static const int rough_disk_stick_row[ROUGH_DISK_NF] = { 1, };
@@ -1480,25 +1481,116 @@ static int rough_disk_sub_end(const rough_disk_ctx_t *c, const double *q, const 
  * negative when the stick force leaves Coulomb's cone. */
 static double rough_disk_cone_margin(const rough_disk_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0;
-    int r;
+    double normal = 0.0, other;
+    int r, g;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         if (rough_disk_row_contact[r] == rough_disk_fric_contact[f]) {
             normal += forces[r];
         }
     }
+    for (g = 0; g < ROUGH_DISK_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
+        if (c->sus->ride[g] == f && g != f) {
+            for (r = 0, other = 0.0; r < ROUGH_DISK_R; ++r) {
+                if (rough_disk_row_contact[r] == rough_disk_fric_contact[g]) {
+                    other += forces[r];
+                }
+            }
+            normal += c->mu_f[g] / c->mu_f[f] * other;
+        }
+    }
     return c->mu_f[f] * normal - fabs(forces[rough_disk_stick_row[f]]);
 }
 
-/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
+/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
+ * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
+static int rough_disk_dependent(const rough_disk_ctx_t *c, const double *grad, int sr, int skip)
+{
+    double basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N], w[ROUGH_DISK_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= ROUGH_DISK_R; ++row) {
+        r = row < ROUGH_DISK_R ? row : sr; /* the active rows, then sr itself */
+        if (row < ROUGH_DISK_R && (!c->sus->act[r] || r == sr || r == skip)) {
+            continue;
+        }
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            w[i] = grad[r * ROUGH_DISK_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < ROUGH_DISK_N; ++i) {
+                d += basis[b * ROUGH_DISK_N + i] * w[i];
+            }
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                w[i] -= d * basis[b * ROUGH_DISK_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < ROUGH_DISK_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * ROUGH_DISK_N + i] * grad[r * ROUGH_DISK_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == ROUGH_DISK_R) {
+            return nw <= ROUGH_DISK_DEP_EPS * ng;
+        }
+        if (nw > ROUGH_DISK_DEP_EPS * ng) {
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                basis[nb * ROUGH_DISK_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+ * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
+ * other rows hold it alone). */
+static int rough_disk_owner(const rough_disk_ctx_t *c, int f, const double *grad)
+{
+    const int sr = rough_disk_stick_row[f];
+    int g;
+    if (0 || !rough_disk_dependent(c, grad, sr, -1)) {
+        return -1;
+    }
+    for (g = 0; g < ROUGH_DISK_NF; ++g) {
+        if (g != f && c->sus->act[rough_disk_stick_row[g]] && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g])) {
+            return g;
+        }
+    }
+    return f;
+}
+
+/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
+ * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
+ * its owner's stick row). Then any other one-tangent contact still slipping at a sliding velocity of 0 (to
+ * round-off) whose stick row is now dependent sticks with it. */
 static void rough_disk_stick(const rough_disk_ctx_t *c, int f, const double *q, const double *u)
 {
     const int sr = rough_disk_stick_row[f];
-    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], tiny, sliding;
+    int g, i, owner;
     rough_disk_rows(q, u, c->par, psi, grad, curv);
     c->sus->ref[f] += psi[sr];
-    c->sus->act[sr] = 1;
     c->sus->slip[f] = 0.0;
+    c->sus->ride[f] = rough_disk_owner(c, f, grad);
+    c->sus->act[sr] = c->sus->ride[f] < 0;
+    if (c->sus->ride[f] >= 0) {
+        return;
+    }
+    tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u));
+    for (g = 0; g < ROUGH_DISK_NF; ++g) {
+        for (i = 0, sliding = 0.0; i < ROUGH_DISK_N; ++i) {
+            sliding += grad[rough_disk_stick_row[g] * ROUGH_DISK_N + i] * u[i];
+        }
+        if (c->sus->slip[g] != 0.0 && !(0) && fabs(sliding) <= tiny) {
+            owner = rough_disk_owner(c, g, grad);
+            if (owner >= 0) {
+                c->sus->ref[g] += psi[rough_disk_stick_row[g]];
+                c->sus->slip[g] = 0.0;
+                c->sus->ride[g] = owner;
+            }
+        }
+    }
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -1517,13 +1609,26 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
                 mask |= 1UL << r;
             }
         }
-        mf = c->mu_f[f];
-        if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
+        if (!mask || !(c->mu_f[f] > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
+            c->sus->ride[f] = -1;
         }
         c->sus->held_rows[f] = mask;
-        if (mask && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
+    }
+    rough_disk_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        if (c->sus->ride[f] >= 0) {
+            c->sus->ride[f] = rough_disk_owner(c, f, grad);
+        }
+    }
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        sr = rough_disk_stick_row[f];
+        mf = c->mu_f[f];
+        if (0 || c->sus->ride[f] >= 0) {
+            continue; /* a cone: both tangents at once, below; a dependent stick: held by another's row */
+        }
+        if (c->sus->held_rows[f] && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
             rough_disk_freeze_branch(c, f, q);
             rough_disk_rows(q, u, c->par, psi, grad, curv);
             for (i = 0, sliding = 0.0; i < ROUGH_DISK_N; ++i) {
@@ -1545,9 +1650,9 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
 static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
-    double curv[ROUGH_DISK_R_DIM], sliding = 0.0;
+    double curv[ROUGH_DISK_R_DIM], sliding = 0.0, along;
     const int f = rough_disk_row_stick[sr];
-    int i;
+    int i, g;
     rough_disk_rows(q, u, c->par, psi, grad, curv);
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         sliding += grad[sr * ROUGH_DISK_N + i] * u[i];
@@ -1560,6 +1665,15 @@ static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int 
         rough_disk_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
         c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        for (g = 0; g < ROUGH_DISK_NF; ++g) { /* its dependent sticks slide with it, the same way */
+            if (c->sus->ride[g] == f && g != f) {
+                for (i = 0, along = 0.0; i < ROUGH_DISK_N; ++i) {
+                    along += grad[rough_disk_stick_row[g] * ROUGH_DISK_N + i] * grad[sr * ROUGH_DISK_N + i];
+                }
+                c->sus->slip[g] = -c->mu_f[g] * (-fr[sr] * along >= 0.0 ? 1.0 : -1.0);
+                c->sus->ride[g] = -1;
+            }
+        }
     }
     rough_disk_set_friction(c);
 }
@@ -2184,6 +2298,7 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
     }
     for (i = 0; i < ROUGH_DISK_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
     rough_disk_set_friction(c);
 

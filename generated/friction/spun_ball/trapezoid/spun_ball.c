@@ -1249,6 +1249,7 @@ static const int spun_ball_row_constraint[SPUN_BALL_R_DIM] = { -1, -1, -1, };
 static const int spun_ball_row_stick[SPUN_BALL_R_DIM] = { -1, 0, 1, };
 static const int spun_ball_row_free[SPUN_BALL_R_DIM] = { 0, 1, 1, };
 #define SPUN_BALL_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
+#define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int spun_ball_fric_contact[SPUN_BALL_NF] = { 0, 0, };
 static const int spun_ball_stick_row[SPUN_BALL_NF] = { 1, 2, };
@@ -1569,11 +1570,21 @@ static int spun_ball_sub_end(const spun_ball_ctx_t *c, const double *q, const do
  * negative when the stick force leaves Coulomb's cone. */
 static double spun_ball_cone_margin(const spun_ball_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0;
-    int r;
+    double normal = 0.0, other;
+    int r, g;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         if (spun_ball_row_contact[r] == spun_ball_fric_contact[f]) {
             normal += forces[r];
+        }
+    }
+    for (g = 0; g < SPUN_BALL_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
+        if (c->sus->ride[g] == f && g != f) {
+            for (r = 0, other = 0.0; r < SPUN_BALL_R; ++r) {
+                if (spun_ball_row_contact[r] == spun_ball_fric_contact[g]) {
+                    other += forces[r];
+                }
+            }
+            normal += c->mu_f[g] / c->mu_f[f] * other;
         }
     }
     if (spun_ball_partner[f] >= 0) { /* a cone: the length of the tangential force */
@@ -1583,15 +1594,96 @@ static double spun_ball_cone_margin(const spun_ball_ctx_t *c, int f, const doubl
     return c->mu_f[f] * normal - fabs(forces[spun_ball_stick_row[f]]);
 }
 
-/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
+/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
+ * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
+static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int sr, int skip)
+{
+    double basis[SPUN_BALL_R_DIM * SPUN_BALL_N], w[SPUN_BALL_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= SPUN_BALL_R; ++row) {
+        r = row < SPUN_BALL_R ? row : sr; /* the active rows, then sr itself */
+        if (row < SPUN_BALL_R && (!c->sus->act[r] || r == sr || r == skip)) {
+            continue;
+        }
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            w[i] = grad[r * SPUN_BALL_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < SPUN_BALL_N; ++i) {
+                d += basis[b * SPUN_BALL_N + i] * w[i];
+            }
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                w[i] -= d * basis[b * SPUN_BALL_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < SPUN_BALL_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * SPUN_BALL_N + i] * grad[r * SPUN_BALL_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == SPUN_BALL_R) {
+            return nw <= SPUN_BALL_DEP_EPS * ng;
+        }
+        if (nw > SPUN_BALL_DEP_EPS * ng) {
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                basis[nb * SPUN_BALL_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+ * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
+ * other rows hold it alone). */
+static int spun_ball_owner(const spun_ball_ctx_t *c, int f, const double *grad)
+{
+    const int sr = spun_ball_stick_row[f];
+    int g;
+    if (spun_ball_partner[f] >= 0 || !spun_ball_dependent(c, grad, sr, -1)) {
+        return -1;
+    }
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        if (g != f && c->sus->act[spun_ball_stick_row[g]] && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
+            return g;
+        }
+    }
+    return f;
+}
+
+/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
+ * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
+ * its owner's stick row). Then any other one-tangent contact still slipping at a sliding velocity of 0 (to
+ * round-off) whose stick row is now dependent sticks with it. */
 static void spun_ball_stick(const spun_ball_ctx_t *c, int f, const double *q, const double *u)
 {
     const int sr = spun_ball_stick_row[f];
-    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], tiny, sliding;
+    int g, i, owner;
     spun_ball_rows(q, u, c->par, psi, grad, curv);
     c->sus->ref[f] += psi[sr];
-    c->sus->act[sr] = 1;
     c->sus->slip[f] = 0.0;
+    c->sus->ride[f] = spun_ball_owner(c, f, grad);
+    c->sus->act[sr] = c->sus->ride[f] < 0;
+    if (c->sus->ride[f] >= 0) {
+        return;
+    }
+    tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u));
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        for (i = 0, sliding = 0.0; i < SPUN_BALL_N; ++i) {
+            sliding += grad[spun_ball_stick_row[g] * SPUN_BALL_N + i] * u[i];
+        }
+        if (c->sus->slip[g] != 0.0 && !(spun_ball_partner[g] >= 0) && fabs(sliding) <= tiny) {
+            owner = spun_ball_owner(c, g, grad);
+            if (owner >= 0) {
+                c->sus->ref[g] += psi[spun_ball_stick_row[g]];
+                c->sus->slip[g] = 0.0;
+                c->sus->ride[g] = owner;
+            }
+        }
+    }
 }
 
 static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau);
@@ -1612,16 +1704,26 @@ static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, 
                 mask |= 1UL << r;
             }
         }
-        mf = c->mu_f[f];
-        if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
+        if (!mask || !(c->mu_f[f] > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
+            c->sus->ride[f] = -1;
         }
         c->sus->held_rows[f] = mask;
-        if (spun_ball_partner[f] >= 0) {
-            continue; /* a cone: both tangents at once, below */
+    }
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (c->sus->ride[f] >= 0) {
+            c->sus->ride[f] = spun_ball_owner(c, f, grad);
         }
-        if (mask && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        sr = spun_ball_stick_row[f];
+        mf = c->mu_f[f];
+        if (spun_ball_partner[f] >= 0 || c->sus->ride[f] >= 0) {
+            continue; /* a cone: both tangents at once, below; a dependent stick: held by another's row */
+        }
+        if (c->sus->held_rows[f] && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
             spun_ball_freeze_branch(c, f, q);
             spun_ball_rows(q, u, c->par, psi, grad, curv);
             for (i = 0, sliding = 0.0; i < SPUN_BALL_N; ++i) {
@@ -1743,9 +1845,9 @@ static void spun_ball_cone_switch(const spun_ball_ctx_t *c, int kind, int f, int
 static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
-    double curv[SPUN_BALL_R_DIM], sliding = 0.0;
+    double curv[SPUN_BALL_R_DIM], sliding = 0.0, along;
     const int f = spun_ball_row_stick[sr];
-    int i;
+    int i, g;
     if (spun_ball_partner[f] >= 0) {
         spun_ball_cone_switch(c, kind, f, spun_ball_partner[f], q, u);
         return;
@@ -1762,6 +1864,15 @@ static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr
         spun_ball_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
         c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        for (g = 0; g < SPUN_BALL_NF; ++g) { /* its dependent sticks slide with it, the same way */
+            if (c->sus->ride[g] == f && g != f) {
+                for (i = 0, along = 0.0; i < SPUN_BALL_N; ++i) {
+                    along += grad[spun_ball_stick_row[g] * SPUN_BALL_N + i] * grad[sr * SPUN_BALL_N + i];
+                }
+                c->sus->slip[g] = -c->mu_f[g] * (-fr[sr] * along >= 0.0 ? 1.0 : -1.0);
+                c->sus->ride[g] = -1;
+            }
+        }
     }
     spun_ball_set_friction(c);
 }
@@ -2427,6 +2538,7 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
     }
     for (i = 0; i < SPUN_BALL_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
     spun_ball_set_friction(c);
 

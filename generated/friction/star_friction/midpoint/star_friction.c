@@ -1355,6 +1355,7 @@ static const int star_friction_row_constraint[STAR_FRICTION_R_DIM] = { -1, -1, -
 static const int star_friction_row_stick[STAR_FRICTION_R_DIM] = { -1, -1, -1, -1, 0, };
 static const int star_friction_row_free[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, 1, };
 #define STAR_FRICTION_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
+#define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int star_friction_fric_contact[STAR_FRICTION_NF] = { 0, };
 static const int star_friction_stick_row[STAR_FRICTION_NF] = { 4, };
@@ -1682,25 +1683,116 @@ static int star_friction_sub_end(const star_friction_ctx_t *c, const double *q, 
  * negative when the stick force leaves Coulomb's cone. */
 static double star_friction_cone_margin(const star_friction_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0;
-    int r;
+    double normal = 0.0, other;
+    int r, g;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         if (star_friction_row_contact[r] == star_friction_fric_contact[f]) {
             normal += forces[r];
         }
     }
+    for (g = 0; g < STAR_FRICTION_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
+        if (c->sus->ride[g] == f && g != f) {
+            for (r = 0, other = 0.0; r < STAR_FRICTION_R; ++r) {
+                if (star_friction_row_contact[r] == star_friction_fric_contact[g]) {
+                    other += forces[r];
+                }
+            }
+            normal += c->mu_f[g] / c->mu_f[f] * other;
+        }
+    }
     return c->mu_f[f] * normal - fabs(forces[star_friction_stick_row[f]]);
 }
 
-/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on). */
+/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
+ * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
+static int star_friction_dependent(const star_friction_ctx_t *c, const double *grad, int sr, int skip)
+{
+    double basis[STAR_FRICTION_R_DIM * STAR_FRICTION_N], w[STAR_FRICTION_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= STAR_FRICTION_R; ++row) {
+        r = row < STAR_FRICTION_R ? row : sr; /* the active rows, then sr itself */
+        if (row < STAR_FRICTION_R && (!c->sus->act[r] || r == sr || r == skip)) {
+            continue;
+        }
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            w[i] = grad[r * STAR_FRICTION_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < STAR_FRICTION_N; ++i) {
+                d += basis[b * STAR_FRICTION_N + i] * w[i];
+            }
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                w[i] -= d * basis[b * STAR_FRICTION_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < STAR_FRICTION_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * STAR_FRICTION_N + i] * grad[r * STAR_FRICTION_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == STAR_FRICTION_R) {
+            return nw <= STAR_FRICTION_DEP_EPS * ng;
+        }
+        if (nw > STAR_FRICTION_DEP_EPS * ng) {
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                basis[nb * STAR_FRICTION_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+ * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
+ * other rows hold it alone). */
+static int star_friction_owner(const star_friction_ctx_t *c, int f, const double *grad)
+{
+    const int sr = star_friction_stick_row[f];
+    int g;
+    if (0 || !star_friction_dependent(c, grad, sr, -1)) {
+        return -1;
+    }
+    for (g = 0; g < STAR_FRICTION_NF; ++g) {
+        if (g != f && c->sus->act[star_friction_stick_row[g]] && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g])) {
+            return g;
+        }
+    }
+    return f;
+}
+
+/* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
+ * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
+ * its owner's stick row). Then any other one-tangent contact still slipping at a sliding velocity of 0 (to
+ * round-off) whose stick row is now dependent sticks with it. */
 static void star_friction_stick(const star_friction_ctx_t *c, int f, const double *q, const double *u)
 {
     const int sr = star_friction_stick_row[f];
-    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], tiny, sliding;
+    int g, i, owner;
     star_friction_rows(q, u, c->par, psi, grad, curv);
     c->sus->ref[f] += psi[sr];
-    c->sus->act[sr] = 1;
     c->sus->slip[f] = 0.0;
+    c->sus->ride[f] = star_friction_owner(c, f, grad);
+    c->sus->act[sr] = c->sus->ride[f] < 0;
+    if (c->sus->ride[f] >= 0) {
+        return;
+    }
+    tiny = STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, u));
+    for (g = 0; g < STAR_FRICTION_NF; ++g) {
+        for (i = 0, sliding = 0.0; i < STAR_FRICTION_N; ++i) {
+            sliding += grad[star_friction_stick_row[g] * STAR_FRICTION_N + i] * u[i];
+        }
+        if (c->sus->slip[g] != 0.0 && !(0) && fabs(sliding) <= tiny) {
+            owner = star_friction_owner(c, g, grad);
+            if (owner >= 0) {
+                c->sus->ref[g] += psi[star_friction_stick_row[g]];
+                c->sus->slip[g] = 0.0;
+                c->sus->ride[g] = owner;
+            }
+        }
+    }
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -1719,13 +1811,26 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
                 mask |= 1UL << r;
             }
         }
-        mf = c->mu_f[f];
-        if (!mask || !(mf > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
+        if (!mask || !(c->mu_f[f] > 0.0) || mask != c->sus->held_rows[f]) { /* off, or another vertex or face: anew */
             c->sus->act[sr] = 0;
             c->sus->slip[f] = 0.0;
+            c->sus->ride[f] = -1;
         }
         c->sus->held_rows[f] = mask;
-        if (mask && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
+    }
+    star_friction_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        if (c->sus->ride[f] >= 0) {
+            c->sus->ride[f] = star_friction_owner(c, f, grad);
+        }
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        sr = star_friction_stick_row[f];
+        mf = c->mu_f[f];
+        if (0 || c->sus->ride[f] >= 0) {
+            continue; /* a cone: both tangents at once, below; a dependent stick: held by another's row */
+        }
+        if (c->sus->held_rows[f] && mf > 0.0 && !c->sus->act[sr] && c->sus->slip[f] == 0.0) {
             star_friction_freeze_branch(c, f, q);
             star_friction_rows(q, u, c->par, psi, grad, curv);
             for (i = 0, sliding = 0.0; i < STAR_FRICTION_N; ++i) {
@@ -1747,9 +1852,9 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
 static void star_friction_friction_switch(const star_friction_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
-    double curv[STAR_FRICTION_R_DIM], sliding = 0.0;
+    double curv[STAR_FRICTION_R_DIM], sliding = 0.0, along;
     const int f = star_friction_row_stick[sr];
-    int i;
+    int i, g;
     star_friction_rows(q, u, c->par, psi, grad, curv);
     for (i = 0; i < STAR_FRICTION_N; ++i) {
         sliding += grad[sr * STAR_FRICTION_N + i] * u[i];
@@ -1762,6 +1867,15 @@ static void star_friction_friction_switch(const star_friction_ctx_t *c, int kind
         star_friction_contact_forces(c, q, u, fr);
         c->sus->act[sr] = 0;
         c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
+        for (g = 0; g < STAR_FRICTION_NF; ++g) { /* its dependent sticks slide with it, the same way */
+            if (c->sus->ride[g] == f && g != f) {
+                for (i = 0, along = 0.0; i < STAR_FRICTION_N; ++i) {
+                    along += grad[star_friction_stick_row[g] * STAR_FRICTION_N + i] * grad[sr * STAR_FRICTION_N + i];
+                }
+                c->sus->slip[g] = -c->mu_f[g] * (-fr[sr] * along >= 0.0 ? 1.0 : -1.0);
+                c->sus->ride[g] = -1;
+            }
+        }
     }
     star_friction_set_friction(c);
 }
@@ -2386,6 +2500,7 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
     }
     for (i = 0; i < STAR_FRICTION_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
     star_friction_set_friction(c);
 

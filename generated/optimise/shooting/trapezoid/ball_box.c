@@ -2106,6 +2106,7 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
     }
     for (i = 0; i < BALL_BOX_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {

@@ -2308,6 +2308,7 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
     }
     for (i = 0; i < DOUBLE_PENDULUM_NF_DIM; ++i) {
         c->sus->held_rows[i] = 0;
+        c->sus->ride[i] = -1;
     }
 
     if (!c->tol->grazing_contact) {
