@@ -185,9 +185,9 @@ def check(scene: str, kind: str, res: vcigen.Result, steps: int) -> str:
 
 
 def cpu_clock(sim: vcigen.Simulator) -> list[float]:
-    """Count the CPU time of the C loop (``<model>_run_many``, which ``simulate`` calls, and ``<model>_run``) of
-    ``sim``'s runs: a loaded machine's wall time holds the time the process waits for a core; its CPU time
-    does not."""
+    """Count the CPU time of the C loop (``<model>_run_many``, which ``simulate`` calls, and ``<model>_run``)
+    of ``sim``'s runs: a loaded machine's wall time holds the time the process waits for a core; its CPU
+    time does not."""
     spent = [0.0]
 
     def timed(loop):

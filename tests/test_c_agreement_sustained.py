@@ -183,7 +183,8 @@ def _box8() -> vcigen.Model:
     and a point beside it, the sides' midpoints): 8 rows, more than ``ccontext.HELD_SETS_MAX``, so its C glide
     runs the held loop for one and two rows without the per-active-set loops."""
     x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
-    points = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5), (0.0, 0.5), (0.5, 0.5), (1.0, 0.0), (-1.0, 0.0)]
+    points = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+    points += [(0.0, 0.5), (0.5, 0.5), (1.0, 0.0), (-1.0, 0.0)]
     return vcigen.Model(
         name="ag_box8",
         q=[x, y, th],
