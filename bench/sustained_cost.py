@@ -31,7 +31,7 @@ each run (best of ``--repeats``, all runs of a backend interleaved round-robin),
 and for the explicit scenes also sustained / free of the ``_general`` variant. Times are the
 simulator's own loop time (``res.stats["wall_time"]``: the C loop, or the CasADi stepper's loop),
 not the Python set-up of ``simulate``; for C also the CPU time of that loop (``time.thread_time``
-around ``<model>_run``), which a loaded machine does not inflate. Writes
+around ``<model>_run_many``), which a loaded machine does not inflate. Writes
 ``bench/results/sustained_cost.csv``.
 """
 
@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import ctypes
 import math
 import time
 import warnings
@@ -184,19 +185,36 @@ def check(scene: str, kind: str, res: vcigen.Result, steps: int) -> str:
 
 
 def cpu_clock(sim: vcigen.Simulator) -> list[float]:
-    """Count the CPU time of the C loop (``<model>_run``) of ``sim``'s runs: a loaded machine's wall time
-    holds the time the process waits for a core; its CPU time does not."""
+    """Count the CPU time of the C loop (``<model>_run_many``, which ``simulate`` calls, and ``<model>_run``)
+    of ``sim``'s runs: a loaded machine's wall time holds the time the process waits for a core; its CPU
+    time does not."""
     spent = [0.0]
-    loop = sim.kernels.run
 
-    def timed(*args):
-        t = time.thread_time()
-        rc = loop(*args)
-        spent[0] += time.thread_time() - t
-        return rc
+    def timed(loop):
+        def call(*args):
+            t = time.thread_time()
+            rc = loop(*args)
+            spent[0] += time.thread_time() - t
+            return rc
 
-    sim.kernels.run = timed
+        return call
+
+    for name in ("run", "run_many"):
+        setattr(sim.kernels, name, timed(getattr(sim.kernels, name)))
     return spent
+
+
+def keep_heap() -> None:
+    """Keep freed result buffers in the heap (glibc ``mallopt``): a run's fresh ``Q``, ``P``, ``E``, ``F`` are
+    then pages touched before, not first-touch page faults inside the timed C loop (on this VM ~1 us per
+    4 kB page, ~10x the particle's free step per step; and the held loop writes more logs per step than the
+    free glide, so the faults would bias the ratio too). Best of the repeats is a run on warm pages."""
+    try:
+        libc = ctypes.CDLL(None)
+        libc.mallopt(-3, 1 << 25)  # M_MMAP_THRESHOLD: buffers up to 32 MB from the heap, not mmap
+        libc.mallopt(-1, 1 << 30)  # M_TRIM_THRESHOLD: freed heap memory kept
+    except (OSError, AttributeError):
+        pass
 
 
 def measure(scenes: list[Scene], backend: str, steps: int, repeats: int) -> list[dict]:
@@ -245,6 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--csv", type=Path, default=HERE / "results" / "sustained_cost.csv")
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore", RuntimeWarning)
+    keep_heap()
     rows = []
     for backend in a.backend:
         steps = a.steps if backend == "c" else a.casadi_steps

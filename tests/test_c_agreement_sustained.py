@@ -178,9 +178,26 @@ def _box() -> vcigen.Model:
     )
 
 
+def _box8() -> vcigen.Model:
+    """The box of :func:`_box` with four more contacts that never touch on its long face (the top's midpoint
+    and a point beside it, the sides' midpoints): 8 rows, more than ``ccontext.HELD_SETS_MAX``, so its C glide
+    runs the held loop for one and two rows without the per-active-set loops."""
+    x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
+    points = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+    points += [(0.0, 0.5), (0.5, 0.5), (1.0, 0.0), (-1.0, 0.0)]
+    return vcigen.Model(
+        name="ag_box8",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=(xd**2 + yd**2) / 2 + sp.Rational(5, 24) * thd**2 - G * y,
+        contacts={f"v{i}": y + a * sp.sin(th) + b * sp.cos(th) for i, (a, b) in enumerate(points)},
+    )
+
+
 HELD = {  # name: (model, q0, v0, h, t_end); each starts held and stays held for most of its steps
     "slide": (_ball, [0.0, 0.0], [1.0, 0.0], 0.001, 1.0),  # one linear row: one exact Newton step
     "box": (_box, [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 1.0),  # slides on a face: two nonlinear rows
+    "box8": (_box8, [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 1.0),  # 8 rows: no per-set loops in C
     "star": (
         _star,
         [0.0, 0.5, 0.0],
@@ -271,6 +288,7 @@ def test_held_scenes_exercise_what_they_are_for() -> None:
     assert runs["star"].active.all() and abs(runs["star"].contact_force.mean() - G) < 1e-9
     assert len(runs["dome"].liftoffs) == 1
     assert runs["box"].active[:, :2].all() and not runs["box"].active[:, 2:].any()
+    assert runs["box8"].active[:, :2].all() and not runs["box8"].active[:, 2:].any()
     assert np.all(np.abs(runs["pendulum"].constraint_force) > 0)
 
 

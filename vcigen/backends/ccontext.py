@@ -43,6 +43,34 @@ NEWTON = {"abstol": 1e-13, "abstol_step": 1e-15, "max_iter": 40}
 DAMPING = {"min_step": 1e-8, "max_halvings": 10}
 
 
+HELD_SETS_MAX = 6  # rows at most for a held loop per active set (R + R (R - 1) / 2 loops: 21 at 6)
+
+
+def held_sets(r: int) -> list[dict[str, Any]]:
+    """The active sets of one or two rows of a scene with ``r`` rows, each with its switch key in
+    ``<model>_held_glide`` (``i`` for ``{i}``, ``r + i r + j`` for ``{i, j}``, ``i < j``), its rows and its
+    per-row flags: the held loop specialised to each (constant row indices), none above
+    :data:`HELD_SETS_MAX` rows."""
+    if r > HELD_SETS_MAX:
+        return []
+    sets = [[i] for i in range(r)] + [[i, j] for i in range(r) for j in range(i + 1, r)]
+    return [
+        {
+            "key": s[0] if len(s) == 1 else r + s[0] * r + s[1],
+            "rows": s,
+            "act": [int(k in s) for k in range(r)],
+        }
+        for s in sets
+    ]
+
+
+def held_columns(system: DiscreteSystem) -> list[int]:
+    """The coordinates ``i`` where some row's gradient ``d psi_r / d q_i`` is not identically 0."""
+    grad = system.routines["rows"].output("grad").expr
+    n = system.n
+    return [i for i in range(n) if any(sp.simplify(grad[k]) != 0 for k in range(i, len(grad), n))]
+
+
 def _tol_context(tol: Tolerances) -> dict[str, str]:
     """The tolerances as C literals (``grazing`` as the flag ``grazing_reflect``)."""
     out = {k: c_number(v) for k, v in asdict(tol).items() if k not in ("grazing", "jump_restarts")}
@@ -204,6 +232,11 @@ def render_context(
         if held
         else [],
         "nh_dim": max(len(hess_pattern(system)), 1) if held else 1,
+        "held_sets_max": HELD_SETS_MAX,
+        "held_sets": held_sets(system.r) if held else [],
+        # the coordinates some row's gradient has: the held step's products with gradients skip the others
+        # (terms 0 * x: the same sums for finite x, and a non-finite x still fails the step's checks)
+        "held_gcols": held_columns(system) if held else [],
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
