@@ -1925,7 +1925,15 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
 #if defined(__GNUC__)
 #define PARTICLE_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
 #define PARTICLE_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
+#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#define PARTICLE_HELD_UNROLL _Pragma("unroll")
+#elif __GNUC__ >= 8
+#define PARTICLE_HELD_UNROLL _Pragma("GCC unroll 16")
 #else
+#define PARTICLE_HELD_UNROLL
+#endif
+#else
+#define PARTICLE_HELD_UNROLL
 #define PARTICLE_HELD_HOT
 #define PARTICLE_HELD_INLINE static inline
 #endif
@@ -1987,14 +1995,15 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
     double l1[PARTICLE_R_DIM], f[PARTICLE_R_DIM], res = NAN, f_eps, curv;
     int piv[PARTICLE_R_DIM], i, a, b, r, it, finite;
     particle_held_free(q, p, kh, v0, jinv);
-    for (a = 0; a < na; ++a) {
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
         x[a] = lam[rows[a]];
     }
     for (it = 0;; ++it) { /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam */
         gl[0] = 0.0;
         gl[1] = 0.0;
-        for (a = 0; a < na; ++a) { /* loops over the coordinates unrolled at generation */
-            gl[0] += g0[a * PARTICLE_N + 0] * x[a];
+        PARTICLE_HELD_UNROLL
+        for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) { /* loops over the coordinates unrolled at generation */
             gl[1] += g0[a * PARTICLE_N + 1] * x[a];
         }
         v[0] = v0[0] + jinv[0] * gl[0];
@@ -2002,19 +2011,20 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
         v[1] = v0[1] + jinv[1] * gl[1];
         q1[1] = q[1] + h * v[1];
         particle_held_rows(q1, kh, psi, grad, hess);
-        for (a = 0; a < na; ++a) {
+        PARTICLE_HELD_UNROLL
+        for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
             d[a] = psi[rows[a]];
-            g1[a * PARTICLE_N + 0] = grad[rows[a] * PARTICLE_N + 0];
             g1[a * PARTICLE_N + 1] = grad[rows[a] * PARTICLE_N + 1];
         }
         res = particle_norm_inf(na, d);
         if (res <= 1e-13 || it == PARTICLE_HELD_ITER || res != res) {
             break;
         }
-        for (a = 0; a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
-            for (b = 0; b < na; ++b) {
+        PARTICLE_HELD_UNROLL
+        for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
+            PARTICLE_HELD_UNROLL
+            for (b = 0; b < PARTICLE_R_DIM && b < na; ++b) {
                 jac[a * na + b] = 0.0;
-                jac[a * na + b] += g1[a * PARTICLE_N + 0] * (h * jinv[0] * g0[b * PARTICLE_N + 0]);
                 jac[a * na + b] += g1[a * PARTICLE_N + 1] * (h * jinv[1] * g0[b * PARTICLE_N + 1]);
 
             }
@@ -2026,7 +2036,8 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
         if (particle_norm_inf(na, d) <= 1e-15) {
             break;
         }
-        for (a = 0; a < na; ++a) {
+        PARTICLE_HELD_UNROLL
+        for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
             x[a] -= d[a];
         }
     }
@@ -2035,17 +2046,16 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
     }
     particle_held_segment(q, v, kh, pp, e);
     particle_held_end(q1, kh, acc, minv);
-    for (a = 0; a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
         l1[a] = 0.0;
         f[a] = 0.0;
-        l1[a] += g1[a * PARTICLE_N + 0] * (minv[0] * pp[0]);
-        f[a] += g1[a * PARTICLE_N + 0] * acc[0];
         l1[a] += g1[a * PARTICLE_N + 1] * (minv[1] * pp[1]);
         f[a] += g1[a * PARTICLE_N + 1] * acc[1];
         l1[a] = -l1[a];
-        for (b = 0; b < na; ++b) {
+        PARTICLE_HELD_UNROLL
+        for (b = 0; b < PARTICLE_R_DIM && b < na; ++b) {
             w[a * na + b] = 0.0;
-            w[a * na + b] += g1[a * PARTICLE_N + 0] * (minv[0] * g1[b * PARTICLE_N + 0]);
             w[a * na + b] += g1[a * PARTICLE_N + 1] * (minv[1] * g1[b * PARTICLE_N + 1]);
         }
     }
@@ -2055,8 +2065,8 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
     particle_held_apply(na, w, piv, l1); /* rattle_project: W Lam' = -G1 M^-1 p+ */
     gl[0] = 0.0;
     gl[1] = 0.0;
-    for (a = 0; a < na; ++a) {
-        gl[0] += g1[a * PARTICLE_N + 0] * l1[a];
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
         gl[1] += g1[a * PARTICLE_N + 1] * l1[a];
     }
     u1[0] = minv[0] * pp[0] + minv[0] * gl[0];
@@ -2065,7 +2075,8 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
     p1[1] = pp[1] + gl[1];
     (void)u1;
 
-    for (a = 0; a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
         curv = 0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
 
         f[a] = -(f[a] + curv);
@@ -2073,62 +2084,81 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
     particle_held_apply(na, w, piv, f);
     f_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(na, f));
     finite = isfinite(*e) && isfinite(f_eps);
-    for (a = 0; a < na; ++a) {
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
         finite = finite && (particle_row_free[rows[a]] || !(f[a] < -f_eps)); /* a lift-off inside the step */
     }
+    PARTICLE_HELD_UNROLL
     for (r = 0; r < PARTICLE_R; ++r) {
         finite = finite && (act[r] || particle_row_stick[r] >= 0 || !(psi[r] < -phi_tol)); /* a row crossed */
     }
+    PARTICLE_HELD_UNROLL
     for (i = 0; i < PARTICLE_N; ++i) {
         finite = finite && isfinite(q1[i]) && isfinite(p1[i]);
     }
     if (!finite) {
         return 1;
     }
+    PARTICLE_HELD_UNROLL
     for (r = 0; r < PARTICLE_R; ++r) {
         lam[r] = 0.0;
         lam1[r] = 0.0;
     }
-    for (a = 0; a < na; ++a) {
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
         lam[rows[a]] = x[a];
         lam1[rows[a]] = l1[a];
     }
     return 0;
 }
 
-/* The loop of <model>_held_glide over na active rows (inlined for na = 1 and 2, so that its loops are unrolled):
- * held steps from (q, p, v, lam, g0), in/out, while each clears its tests; returns the number taken. */
+/* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
+ * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
+ * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
+ * constant gradients, which the compiler then folds into every step. */
 PARTICLE_HELD_INLINE long particle_held_loop(const particle_ctx_t *c, const double *kh, long n, const int *act,
-    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *g0,
-    double *Q, double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
+    double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
 {
     double q1[PARTICLE_N], p1[PARTICLE_N], lam1[PARTICLE_R_DIM], g1[PARTICLE_R_DIM * PARTICLE_N] = {0.0};
+    double g0[PARTICLE_R_DIM * PARTICLE_N] = {0.0}, grad[PARTICLE_R_DIM * PARTICLE_N], psi[PARTICLE_R_DIM];
+    double hess[PARTICLE_R_DIM * PARTICLE_NH_DIM];
     double e, sum = 0.0, imp;
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
-    int i, j, r;
+    int i, j, r, a;
     long s;
+    particle_held_rows(q, kh, psi, grad, hess);
+    PARTICLE_HELD_UNROLL
+    for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) { /* the active rows' gradients at q */
+        g0[a * PARTICLE_N + 1] = grad[rows[a] * PARTICLE_N + 1];
+    }
     for (s = 0; s < n; ++s) {
         if (particle_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, &e, g1)) {
             break;
         }
+        PARTICLE_HELD_UNROLL
         for (i = 0; i < PARTICLE_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];
             Q[s * PARTICLE_N + i] = q1[i];
             P[s * PARTICLE_N + i] = p1[i];
         }
-        for (i = 0; i < na * PARTICLE_N; ++i) {
-            g0[i] = g1[i];
+        PARTICLE_HELD_UNROLL
+        for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
+            g0[a * PARTICLE_N + 1] = g1[a * PARTICLE_N + 1];
         }
         E[s] = e;
         sum += e;
+        PARTICLE_HELD_UNROLL
         for (j = 0; j < PARTICLE_M; ++j) { /* SustainedSteps._book, then <model>_record */
             F[s * PARTICLE_M + j] = 0.0;
             A[s * PARTICLE_M + j] = held[j];
         }
+        PARTICLE_HELD_UNROLL
         for (j = 0; j < PARTICLE_NC; ++j) {
             FC[s * PARTICLE_NC + j] = 0.0;
         }
+        PARTICLE_HELD_UNROLL
         for (r = 0; r < PARTICLE_R; ++r) {
             imp = lam[r] + lam1[r];
             if (imp == 0.0) {
@@ -2154,9 +2184,7 @@ PARTICLE_HELD_HOT static long particle_held_glide(const particle_ctx_t *c, const
     double *sum_e)
 {
     double q[PARTICLE_N], p[PARTICLE_N], v[PARTICLE_N], lam[PARTICLE_R_DIM];
-    double g0[PARTICLE_R_DIM * PARTICLE_N], grad[PARTICLE_R_DIM * PARTICLE_N], psi[PARTICLE_R_DIM];
-    double hess[PARTICLE_R_DIM * PARTICLE_NH_DIM];
-    int act[PARTICLE_R_DIM], rows[PARTICLE_R_DIM], na = 0, i, j, r;
+    int act[PARTICLE_R_DIM], rows[PARTICLE_R_DIM] = {0}, na = 0, i, j, r;
     unsigned char held[PARTICLE_M_DIM];
     long s;
     for (j = 0; j < PARTICLE_M; ++j) {
@@ -2177,17 +2205,19 @@ PARTICLE_HELD_HOT static long particle_held_glide(const particle_ctx_t *c, const
         p[i] = p_io[i];
         v[i] = v_io[i];
     }
-    particle_held_rows(q, kh, psi, grad, hess);
-    for (r = 0; r < na; ++r) { /* the active rows' gradients at q */
-        for (i = 0; i < PARTICLE_N; ++i) {
-            g0[r * PARTICLE_N + i] = grad[rows[r] * PARTICLE_N + i];
-        }
+    /* one loop per active set of one or two rows (its rows and act constants: the loops over rows unrolled,
+     * every row index constant, the inactive rows' gradients and Hessians never stored) */
+    switch (na == 1 ? rows[0] : na == 2 ? PARTICLE_R + rows[0] * PARTICLE_R + rows[1] : -1) {
+    case 0: {
+        static const int rs[1] = { 0 };
+        static const int ac[PARTICLE_R_DIM] = { 1 };
+        s = particle_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
     }
-    if (na == 1) {
-        s = particle_held_loop(c, kh, n, act, rows, 1, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
-    } else {
-        s = particle_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
+    default:
+        s = particle_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
     }
+
     for (i = 0; i < PARTICLE_N; ++i) {
         q_io[i] = q[i];
         p_io[i] = p[i];
@@ -2214,10 +2244,10 @@ PARTICLE_HELD_HOT static long particle_held_glide(const particle_ctx_t *c, const
 int particle_eval_held_step(const double *par, double h, double residual, double phi_tol, const double *q,
     const double *p, const double *act_d, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
 {
-    double kh[PARTICLE_NKH], psi[PARTICLE_R_DIM], g0[PARTICLE_R_DIM * PARTICLE_N];
+    double kh[PARTICLE_NKH], psi[PARTICLE_R_DIM], g0[PARTICLE_R_DIM * PARTICLE_N] = {0.0};
     double g1[PARTICLE_R_DIM * PARTICLE_N] = {0.0}, hess[PARTICLE_R_DIM * PARTICLE_NH_DIM];
     double grad[PARTICLE_R_DIM * PARTICLE_N];
-    int act[PARTICLE_R_DIM], rows[PARTICLE_R_DIM], na = 0, r, i, a;
+    int act[PARTICLE_R_DIM], rows[PARTICLE_R_DIM] = {0}, na = 0, r, i, a;
     for (r = 0; r < PARTICLE_R; ++r) {
         act[r] = act_d[r] != 0.0;
         if (act[r]) {

@@ -1964,7 +1964,15 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 #if defined(__GNUC__)
 #define SLIDE_OFF_DOME_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
 #define SLIDE_OFF_DOME_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
+#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#define SLIDE_OFF_DOME_HELD_UNROLL _Pragma("unroll")
+#elif __GNUC__ >= 8
+#define SLIDE_OFF_DOME_HELD_UNROLL _Pragma("GCC unroll 16")
 #else
+#define SLIDE_OFF_DOME_HELD_UNROLL
+#endif
+#else
+#define SLIDE_OFF_DOME_HELD_UNROLL
 #define SLIDE_OFF_DOME_HELD_HOT
 #define SLIDE_OFF_DOME_HELD_INLINE static inline
 #endif
@@ -2026,13 +2034,15 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     double l1[SLIDE_OFF_DOME_R_DIM], f[SLIDE_OFF_DOME_R_DIM], res = NAN, f_eps, curv;
     int piv[SLIDE_OFF_DOME_R_DIM], i, a, b, r, it, finite;
     slide_off_dome_held_free(q, p, kh, v0, jinv);
-    for (a = 0; a < na; ++a) {
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
         x[a] = lam[rows[a]];
     }
     for (it = 0;; ++it) { /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam */
         gl[0] = 0.0;
         gl[1] = 0.0;
-        for (a = 0; a < na; ++a) { /* loops over the coordinates unrolled at generation */
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* loops over the coordinates unrolled at generation */
             gl[0] += g0[a * SLIDE_OFF_DOME_N + 0] * x[a];
             gl[1] += g0[a * SLIDE_OFF_DOME_N + 1] * x[a];
         }
@@ -2041,7 +2051,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         v[1] = v0[1] + jinv[1] * gl[1];
         q1[1] = q[1] + h * v[1];
         slide_off_dome_held_rows(q1, kh, psi, grad, hess);
-        for (a = 0; a < na; ++a) {
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
             d[a] = psi[rows[a]];
             g1[a * SLIDE_OFF_DOME_N + 0] = grad[rows[a] * SLIDE_OFF_DOME_N + 0];
             g1[a * SLIDE_OFF_DOME_N + 1] = grad[rows[a] * SLIDE_OFF_DOME_N + 1];
@@ -2050,8 +2061,10 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         if (res <= 1e-13 || it == SLIDE_OFF_DOME_HELD_ITER || res != res) {
             break;
         }
-        for (a = 0; a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
-            for (b = 0; b < na; ++b) {
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
+            SLIDE_OFF_DOME_HELD_UNROLL
+            for (b = 0; b < SLIDE_OFF_DOME_R_DIM && b < na; ++b) {
                 jac[a * na + b] = 0.0;
                 jac[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 0] * (h * jinv[0] * g0[b * SLIDE_OFF_DOME_N + 0]);
                 jac[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 1] * (h * jinv[1] * g0[b * SLIDE_OFF_DOME_N + 1]);
@@ -2065,7 +2078,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         if (slide_off_dome_norm_inf(na, d) <= 1e-15) {
             break;
         }
-        for (a = 0; a < na; ++a) {
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
             x[a] -= d[a];
         }
     }
@@ -2074,7 +2088,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     }
     slide_off_dome_held_segment(q, v, kh, pp, e);
     slide_off_dome_held_end(q1, kh, acc, minv);
-    for (a = 0; a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
         l1[a] = 0.0;
         f[a] = 0.0;
         l1[a] += g1[a * SLIDE_OFF_DOME_N + 0] * (minv[0] * pp[0]);
@@ -2082,7 +2097,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         l1[a] += g1[a * SLIDE_OFF_DOME_N + 1] * (minv[1] * pp[1]);
         f[a] += g1[a * SLIDE_OFF_DOME_N + 1] * acc[1];
         l1[a] = -l1[a];
-        for (b = 0; b < na; ++b) {
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (b = 0; b < SLIDE_OFF_DOME_R_DIM && b < na; ++b) {
             w[a * na + b] = 0.0;
             w[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 0] * (minv[0] * g1[b * SLIDE_OFF_DOME_N + 0]);
             w[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 1] * (minv[1] * g1[b * SLIDE_OFF_DOME_N + 1]);
@@ -2094,7 +2110,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     slide_off_dome_held_apply(na, w, piv, l1); /* rattle_project: W Lam' = -G1 M^-1 p+ */
     gl[0] = 0.0;
     gl[1] = 0.0;
-    for (a = 0; a < na; ++a) {
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
         gl[0] += g1[a * SLIDE_OFF_DOME_N + 0] * l1[a];
         gl[1] += g1[a * SLIDE_OFF_DOME_N + 1] * l1[a];
     }
@@ -2104,7 +2121,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     p1[1] = pp[1] + gl[1];
     (void)u1;
 
-    for (a = 0; a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
         curv = 0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
         curv += 1.0 * u1[0] * hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 0] * u1[0];
         curv += 2.0 * u1[0] * hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 1] * u1[1];
@@ -2115,62 +2133,83 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     slide_off_dome_held_apply(na, w, piv, f);
     f_eps = SLIDE_OFF_DOME_EPS_LAM * (1.0 + slide_off_dome_norm_inf(na, f));
     finite = isfinite(*e) && isfinite(f_eps);
-    for (a = 0; a < na; ++a) {
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
         finite = finite && (slide_off_dome_row_free[rows[a]] || !(f[a] < -f_eps)); /* a lift-off inside the step */
     }
+    SLIDE_OFF_DOME_HELD_UNROLL
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         finite = finite && (act[r] || slide_off_dome_row_stick[r] >= 0 || !(psi[r] < -phi_tol)); /* a row crossed */
     }
+    SLIDE_OFF_DOME_HELD_UNROLL
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         finite = finite && isfinite(q1[i]) && isfinite(p1[i]);
     }
     if (!finite) {
         return 1;
     }
+    SLIDE_OFF_DOME_HELD_UNROLL
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         lam[r] = 0.0;
         lam1[r] = 0.0;
     }
-    for (a = 0; a < na; ++a) {
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
         lam[rows[a]] = x[a];
         lam1[rows[a]] = l1[a];
     }
     return 0;
 }
 
-/* The loop of <model>_held_glide over na active rows (inlined for na = 1 and 2, so that its loops are unrolled):
- * held steps from (q, p, v, lam, g0), in/out, while each clears its tests; returns the number taken. */
+/* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
+ * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
+ * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
+ * constant gradients, which the compiler then folds into every step. */
 SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_loop(const slide_off_dome_ctx_t *c, const double *kh, long n, const int *act,
-    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *g0,
-    double *Q, double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
+    double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
 {
     double q1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], lam1[SLIDE_OFF_DOME_R_DIM], g1[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0};
+    double g0[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0}, grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM];
+    double hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM];
     double e, sum = 0.0, imp;
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
-    int i, j, r;
+    int i, j, r, a;
     long s;
+    slide_off_dome_held_rows(q, kh, psi, grad, hess);
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the active rows' gradients at q */
+        g0[a * SLIDE_OFF_DOME_N + 0] = grad[rows[a] * SLIDE_OFF_DOME_N + 0];
+        g0[a * SLIDE_OFF_DOME_N + 1] = grad[rows[a] * SLIDE_OFF_DOME_N + 1];
+    }
     for (s = 0; s < n; ++s) {
         if (slide_off_dome_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, &e, g1)) {
             break;
         }
+        SLIDE_OFF_DOME_HELD_UNROLL
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];
             Q[s * SLIDE_OFF_DOME_N + i] = q1[i];
             P[s * SLIDE_OFF_DOME_N + i] = p1[i];
         }
-        for (i = 0; i < na * SLIDE_OFF_DOME_N; ++i) {
-            g0[i] = g1[i];
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+            g0[a * SLIDE_OFF_DOME_N + 0] = g1[a * SLIDE_OFF_DOME_N + 0];
+            g0[a * SLIDE_OFF_DOME_N + 1] = g1[a * SLIDE_OFF_DOME_N + 1];
         }
         E[s] = e;
         sum += e;
+        SLIDE_OFF_DOME_HELD_UNROLL
         for (j = 0; j < SLIDE_OFF_DOME_M; ++j) { /* SustainedSteps._book, then <model>_record */
             F[s * SLIDE_OFF_DOME_M + j] = 0.0;
             A[s * SLIDE_OFF_DOME_M + j] = held[j];
         }
+        SLIDE_OFF_DOME_HELD_UNROLL
         for (j = 0; j < SLIDE_OFF_DOME_NC; ++j) {
             FC[s * SLIDE_OFF_DOME_NC + j] = 0.0;
         }
+        SLIDE_OFF_DOME_HELD_UNROLL
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
             imp = lam[r] + lam1[r];
             if (imp == 0.0) {
@@ -2196,9 +2235,7 @@ SLIDE_OFF_DOME_HELD_HOT static long slide_off_dome_held_glide(const slide_off_do
     double *sum_e)
 {
     double q[SLIDE_OFF_DOME_N], p[SLIDE_OFF_DOME_N], v[SLIDE_OFF_DOME_N], lam[SLIDE_OFF_DOME_R_DIM];
-    double g0[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM];
-    double hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM];
-    int act[SLIDE_OFF_DOME_R_DIM], rows[SLIDE_OFF_DOME_R_DIM], na = 0, i, j, r;
+    int act[SLIDE_OFF_DOME_R_DIM], rows[SLIDE_OFF_DOME_R_DIM] = {0}, na = 0, i, j, r;
     unsigned char held[SLIDE_OFF_DOME_M_DIM];
     long s;
     for (j = 0; j < SLIDE_OFF_DOME_M; ++j) {
@@ -2219,17 +2256,19 @@ SLIDE_OFF_DOME_HELD_HOT static long slide_off_dome_held_glide(const slide_off_do
         p[i] = p_io[i];
         v[i] = v_io[i];
     }
-    slide_off_dome_held_rows(q, kh, psi, grad, hess);
-    for (r = 0; r < na; ++r) { /* the active rows' gradients at q */
-        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            g0[r * SLIDE_OFF_DOME_N + i] = grad[rows[r] * SLIDE_OFF_DOME_N + i];
-        }
+    /* one loop per active set of one or two rows (its rows and act constants: the loops over rows unrolled,
+     * every row index constant, the inactive rows' gradients and Hessians never stored) */
+    switch (na == 1 ? rows[0] : na == 2 ? SLIDE_OFF_DOME_R + rows[0] * SLIDE_OFF_DOME_R + rows[1] : -1) {
+    case 0: {
+        static const int rs[1] = { 0 };
+        static const int ac[SLIDE_OFF_DOME_R_DIM] = { 1 };
+        s = slide_off_dome_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
     }
-    if (na == 1) {
-        s = slide_off_dome_held_loop(c, kh, n, act, rows, 1, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
-    } else {
-        s = slide_off_dome_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
+    default:
+        s = slide_off_dome_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
     }
+
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         q_io[i] = q[i];
         p_io[i] = p[i];
@@ -2256,10 +2295,10 @@ SLIDE_OFF_DOME_HELD_HOT static long slide_off_dome_held_glide(const slide_off_do
 int slide_off_dome_eval_held_step(const double *par, double h, double residual, double phi_tol, const double *q,
     const double *p, const double *act_d, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
 {
-    double kh[SLIDE_OFF_DOME_NKH], psi[SLIDE_OFF_DOME_R_DIM], g0[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    double kh[SLIDE_OFF_DOME_NKH], psi[SLIDE_OFF_DOME_R_DIM], g0[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0};
     double g1[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0}, hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM];
     double grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
-    int act[SLIDE_OFF_DOME_R_DIM], rows[SLIDE_OFF_DOME_R_DIM], na = 0, r, i, a;
+    int act[SLIDE_OFF_DOME_R_DIM], rows[SLIDE_OFF_DOME_R_DIM] = {0}, na = 0, r, i, a;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         act[r] = act_d[r] != 0.0;
         if (act[r]) {

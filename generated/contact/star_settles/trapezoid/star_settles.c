@@ -2204,7 +2204,15 @@ static void star_settles_start_sustained(const star_settles_ctx_t *c, const doub
 #if defined(__GNUC__)
 #define STAR_SETTLES_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
 #define STAR_SETTLES_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
+#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#define STAR_SETTLES_HELD_UNROLL _Pragma("unroll")
+#elif __GNUC__ >= 8
+#define STAR_SETTLES_HELD_UNROLL _Pragma("GCC unroll 16")
 #else
+#define STAR_SETTLES_HELD_UNROLL
+#endif
+#else
+#define STAR_SETTLES_HELD_UNROLL
 #define STAR_SETTLES_HELD_HOT
 #define STAR_SETTLES_HELD_INLINE static inline
 #endif
@@ -2266,15 +2274,16 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
     double l1[STAR_SETTLES_R_DIM], f[STAR_SETTLES_R_DIM], res = NAN, f_eps, curv;
     int piv[STAR_SETTLES_R_DIM], i, a, b, r, it, finite;
     star_settles_held_free(q, p, kh, v0, jinv);
-    for (a = 0; a < na; ++a) {
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
         x[a] = lam[rows[a]];
     }
     for (it = 0;; ++it) { /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam */
         gl[0] = 0.0;
         gl[1] = 0.0;
         gl[2] = 0.0;
-        for (a = 0; a < na; ++a) { /* loops over the coordinates unrolled at generation */
-            gl[0] += g0[a * STAR_SETTLES_N + 0] * x[a];
+        STAR_SETTLES_HELD_UNROLL
+        for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) { /* loops over the coordinates unrolled at generation */
             gl[1] += g0[a * STAR_SETTLES_N + 1] * x[a];
             gl[2] += g0[a * STAR_SETTLES_N + 2] * x[a];
         }
@@ -2285,9 +2294,9 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
         v[2] = v0[2] + jinv[2] * gl[2];
         q1[2] = q[2] + h * v[2];
         star_settles_held_rows(q1, kh, psi, grad, hess);
-        for (a = 0; a < na; ++a) {
+        STAR_SETTLES_HELD_UNROLL
+        for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
             d[a] = psi[rows[a]];
-            g1[a * STAR_SETTLES_N + 0] = grad[rows[a] * STAR_SETTLES_N + 0];
             g1[a * STAR_SETTLES_N + 1] = grad[rows[a] * STAR_SETTLES_N + 1];
             g1[a * STAR_SETTLES_N + 2] = grad[rows[a] * STAR_SETTLES_N + 2];
         }
@@ -2295,10 +2304,11 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
         if (res <= 1e-13 || it == STAR_SETTLES_HELD_ITER || res != res) {
             break;
         }
-        for (a = 0; a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
-            for (b = 0; b < na; ++b) {
+        STAR_SETTLES_HELD_UNROLL
+        for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
+            STAR_SETTLES_HELD_UNROLL
+            for (b = 0; b < STAR_SETTLES_R_DIM && b < na; ++b) {
                 jac[a * na + b] = 0.0;
-                jac[a * na + b] += g1[a * STAR_SETTLES_N + 0] * (h * jinv[0] * g0[b * STAR_SETTLES_N + 0]);
                 jac[a * na + b] += g1[a * STAR_SETTLES_N + 1] * (h * jinv[1] * g0[b * STAR_SETTLES_N + 1]);
                 jac[a * na + b] += g1[a * STAR_SETTLES_N + 2] * (h * jinv[2] * g0[b * STAR_SETTLES_N + 2]);
 
@@ -2311,7 +2321,8 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
         if (star_settles_norm_inf(na, d) <= 1e-15) {
             break;
         }
-        for (a = 0; a < na; ++a) {
+        STAR_SETTLES_HELD_UNROLL
+        for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
             x[a] -= d[a];
         }
     }
@@ -2320,19 +2331,18 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
     }
     star_settles_held_segment(q, v, kh, pp, e);
     star_settles_held_end(q1, kh, acc, minv);
-    for (a = 0; a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
         l1[a] = 0.0;
         f[a] = 0.0;
-        l1[a] += g1[a * STAR_SETTLES_N + 0] * (minv[0] * pp[0]);
-        f[a] += g1[a * STAR_SETTLES_N + 0] * acc[0];
         l1[a] += g1[a * STAR_SETTLES_N + 1] * (minv[1] * pp[1]);
         f[a] += g1[a * STAR_SETTLES_N + 1] * acc[1];
         l1[a] += g1[a * STAR_SETTLES_N + 2] * (minv[2] * pp[2]);
         f[a] += g1[a * STAR_SETTLES_N + 2] * acc[2];
         l1[a] = -l1[a];
-        for (b = 0; b < na; ++b) {
+        STAR_SETTLES_HELD_UNROLL
+        for (b = 0; b < STAR_SETTLES_R_DIM && b < na; ++b) {
             w[a * na + b] = 0.0;
-            w[a * na + b] += g1[a * STAR_SETTLES_N + 0] * (minv[0] * g1[b * STAR_SETTLES_N + 0]);
             w[a * na + b] += g1[a * STAR_SETTLES_N + 1] * (minv[1] * g1[b * STAR_SETTLES_N + 1]);
             w[a * na + b] += g1[a * STAR_SETTLES_N + 2] * (minv[2] * g1[b * STAR_SETTLES_N + 2]);
         }
@@ -2344,8 +2354,8 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
     gl[0] = 0.0;
     gl[1] = 0.0;
     gl[2] = 0.0;
-    for (a = 0; a < na; ++a) {
-        gl[0] += g1[a * STAR_SETTLES_N + 0] * l1[a];
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
         gl[1] += g1[a * STAR_SETTLES_N + 1] * l1[a];
         gl[2] += g1[a * STAR_SETTLES_N + 2] * l1[a];
     }
@@ -2357,7 +2367,8 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
     p1[2] = pp[2] + gl[2];
     (void)u1;
 
-    for (a = 0; a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
         curv = 0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
         curv += 1.0 * u1[2] * hess[rows[a] * STAR_SETTLES_NH_DIM + 0] * u1[2];
 
@@ -2366,62 +2377,83 @@ STAR_SETTLES_HELD_INLINE int star_settles_held_step(const double *kh, double h, 
     star_settles_held_apply(na, w, piv, f);
     f_eps = STAR_SETTLES_EPS_LAM * (1.0 + star_settles_norm_inf(na, f));
     finite = isfinite(*e) && isfinite(f_eps);
-    for (a = 0; a < na; ++a) {
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
         finite = finite && (star_settles_row_free[rows[a]] || !(f[a] < -f_eps)); /* a lift-off inside the step */
     }
+    STAR_SETTLES_HELD_UNROLL
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         finite = finite && (act[r] || star_settles_row_stick[r] >= 0 || !(psi[r] < -phi_tol)); /* a row crossed */
     }
+    STAR_SETTLES_HELD_UNROLL
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         finite = finite && isfinite(q1[i]) && isfinite(p1[i]);
     }
     if (!finite) {
         return 1;
     }
+    STAR_SETTLES_HELD_UNROLL
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         lam[r] = 0.0;
         lam1[r] = 0.0;
     }
-    for (a = 0; a < na; ++a) {
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
         lam[rows[a]] = x[a];
         lam1[rows[a]] = l1[a];
     }
     return 0;
 }
 
-/* The loop of <model>_held_glide over na active rows (inlined for na = 1 and 2, so that its loops are unrolled):
- * held steps from (q, p, v, lam, g0), in/out, while each clears its tests; returns the number taken. */
+/* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
+ * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
+ * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
+ * constant gradients, which the compiler then folds into every step. */
 STAR_SETTLES_HELD_INLINE long star_settles_held_loop(const star_settles_ctx_t *c, const double *kh, long n, const int *act,
-    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *g0,
-    double *Q, double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
+    double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
 {
     double q1[STAR_SETTLES_N], p1[STAR_SETTLES_N], lam1[STAR_SETTLES_R_DIM], g1[STAR_SETTLES_R_DIM * STAR_SETTLES_N] = {0.0};
+    double g0[STAR_SETTLES_R_DIM * STAR_SETTLES_N] = {0.0}, grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], psi[STAR_SETTLES_R_DIM];
+    double hess[STAR_SETTLES_R_DIM * STAR_SETTLES_NH_DIM];
     double e, sum = 0.0, imp;
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
-    int i, j, r;
+    int i, j, r, a;
     long s;
+    star_settles_held_rows(q, kh, psi, grad, hess);
+    STAR_SETTLES_HELD_UNROLL
+    for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) { /* the active rows' gradients at q */
+        g0[a * STAR_SETTLES_N + 1] = grad[rows[a] * STAR_SETTLES_N + 1];
+        g0[a * STAR_SETTLES_N + 2] = grad[rows[a] * STAR_SETTLES_N + 2];
+    }
     for (s = 0; s < n; ++s) {
         if (star_settles_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, &e, g1)) {
             break;
         }
+        STAR_SETTLES_HELD_UNROLL
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];
             Q[s * STAR_SETTLES_N + i] = q1[i];
             P[s * STAR_SETTLES_N + i] = p1[i];
         }
-        for (i = 0; i < na * STAR_SETTLES_N; ++i) {
-            g0[i] = g1[i];
+        STAR_SETTLES_HELD_UNROLL
+        for (a = 0; a < STAR_SETTLES_R_DIM && a < na; ++a) {
+            g0[a * STAR_SETTLES_N + 1] = g1[a * STAR_SETTLES_N + 1];
+            g0[a * STAR_SETTLES_N + 2] = g1[a * STAR_SETTLES_N + 2];
         }
         E[s] = e;
         sum += e;
+        STAR_SETTLES_HELD_UNROLL
         for (j = 0; j < STAR_SETTLES_M; ++j) { /* SustainedSteps._book, then <model>_record */
             F[s * STAR_SETTLES_M + j] = 0.0;
             A[s * STAR_SETTLES_M + j] = held[j];
         }
+        STAR_SETTLES_HELD_UNROLL
         for (j = 0; j < STAR_SETTLES_NC; ++j) {
             FC[s * STAR_SETTLES_NC + j] = 0.0;
         }
+        STAR_SETTLES_HELD_UNROLL
         for (r = 0; r < STAR_SETTLES_R; ++r) {
             imp = lam[r] + lam1[r];
             if (imp == 0.0) {
@@ -2447,9 +2479,7 @@ STAR_SETTLES_HELD_HOT static long star_settles_held_glide(const star_settles_ctx
     double *sum_e)
 {
     double q[STAR_SETTLES_N], p[STAR_SETTLES_N], v[STAR_SETTLES_N], lam[STAR_SETTLES_R_DIM];
-    double g0[STAR_SETTLES_R_DIM * STAR_SETTLES_N], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], psi[STAR_SETTLES_R_DIM];
-    double hess[STAR_SETTLES_R_DIM * STAR_SETTLES_NH_DIM];
-    int act[STAR_SETTLES_R_DIM], rows[STAR_SETTLES_R_DIM], na = 0, i, j, r;
+    int act[STAR_SETTLES_R_DIM], rows[STAR_SETTLES_R_DIM] = {0}, na = 0, i, j, r;
     unsigned char held[STAR_SETTLES_M_DIM];
     long s;
     for (j = 0; j < STAR_SETTLES_M; ++j) {
@@ -2470,19 +2500,73 @@ STAR_SETTLES_HELD_HOT static long star_settles_held_glide(const star_settles_ctx
         p[i] = p_io[i];
         v[i] = v_io[i];
     }
-    star_settles_held_rows(q, kh, psi, grad, hess);
-    for (r = 0; r < na; ++r) { /* the active rows' gradients at q */
-        for (i = 0; i < STAR_SETTLES_N; ++i) {
-            g0[r * STAR_SETTLES_N + i] = grad[rows[r] * STAR_SETTLES_N + i];
-        }
+    /* one loop per active set of one or two rows (its rows and act constants: the loops over rows unrolled,
+     * every row index constant, the inactive rows' gradients and Hessians never stored) */
+    switch (na == 1 ? rows[0] : na == 2 ? STAR_SETTLES_R + rows[0] * STAR_SETTLES_R + rows[1] : -1) {
+    case 0: {
+        static const int rs[1] = { 0 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 1, 0, 0, 0 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
     }
-    if (na == 1) {
-        s = star_settles_held_loop(c, kh, n, act, rows, 1, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
-    } else if (na == 2) {
-        s = star_settles_held_loop(c, kh, n, act, rows, 2, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
-    } else {
-        s = star_settles_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
+    case 1: {
+        static const int rs[1] = { 1 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 0, 1, 0, 0 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
     }
+    case 2: {
+        static const int rs[1] = { 2 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 0, 0, 1, 0 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 3: {
+        static const int rs[1] = { 3 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 0, 0, 0, 1 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 5: {
+        static const int rs[2] = { 0, 1 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 1, 1, 0, 0 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 6: {
+        static const int rs[2] = { 0, 2 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 1, 0, 1, 0 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 7: {
+        static const int rs[2] = { 0, 3 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 1, 0, 0, 1 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 10: {
+        static const int rs[2] = { 1, 2 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 0, 1, 1, 0 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 11: {
+        static const int rs[2] = { 1, 3 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 0, 1, 0, 1 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 15: {
+        static const int rs[2] = { 2, 3 };
+        static const int ac[STAR_SETTLES_R_DIM] = { 0, 0, 1, 1 };
+        s = star_settles_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    default:
+        s = star_settles_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+    }
+
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         q_io[i] = q[i];
         p_io[i] = p[i];
@@ -2509,10 +2593,10 @@ STAR_SETTLES_HELD_HOT static long star_settles_held_glide(const star_settles_ctx
 int star_settles_eval_held_step(const double *par, double h, double residual, double phi_tol, const double *q,
     const double *p, const double *act_d, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
 {
-    double kh[STAR_SETTLES_NKH], psi[STAR_SETTLES_R_DIM], g0[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
+    double kh[STAR_SETTLES_NKH], psi[STAR_SETTLES_R_DIM], g0[STAR_SETTLES_R_DIM * STAR_SETTLES_N] = {0.0};
     double g1[STAR_SETTLES_R_DIM * STAR_SETTLES_N] = {0.0}, hess[STAR_SETTLES_R_DIM * STAR_SETTLES_NH_DIM];
     double grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
-    int act[STAR_SETTLES_R_DIM], rows[STAR_SETTLES_R_DIM], na = 0, r, i, a;
+    int act[STAR_SETTLES_R_DIM], rows[STAR_SETTLES_R_DIM] = {0}, na = 0, r, i, a;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         act[r] = act_d[r] != 0.0;
         if (act[r]) {

@@ -2133,7 +2133,15 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
 #if defined(__GNUC__)
 #define BALL_BOX_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
 #define BALL_BOX_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
+#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#define BALL_BOX_HELD_UNROLL _Pragma("unroll")
+#elif __GNUC__ >= 8
+#define BALL_BOX_HELD_UNROLL _Pragma("GCC unroll 16")
 #else
+#define BALL_BOX_HELD_UNROLL
+#endif
+#else
+#define BALL_BOX_HELD_UNROLL
 #define BALL_BOX_HELD_HOT
 #define BALL_BOX_HELD_INLINE static inline
 #endif
@@ -2195,13 +2203,15 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     double l1[BALL_BOX_R_DIM], f[BALL_BOX_R_DIM], res = NAN, f_eps, curv;
     int piv[BALL_BOX_R_DIM], i, a, b, r, it, finite;
     ball_box_held_free(q, p, kh, v0, jinv);
-    for (a = 0; a < na; ++a) {
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
         x[a] = lam[rows[a]];
     }
     for (it = 0;; ++it) { /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam */
         gl[0] = 0.0;
         gl[1] = 0.0;
-        for (a = 0; a < na; ++a) { /* loops over the coordinates unrolled at generation */
+        BALL_BOX_HELD_UNROLL
+        for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) { /* loops over the coordinates unrolled at generation */
             gl[0] += g0[a * BALL_BOX_N + 0] * x[a];
             gl[1] += g0[a * BALL_BOX_N + 1] * x[a];
         }
@@ -2210,7 +2220,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
         v[1] = v0[1] + jinv[1] * gl[1];
         q1[1] = q[1] + h * v[1];
         ball_box_held_rows(q1, kh, psi, grad, hess);
-        for (a = 0; a < na; ++a) {
+        BALL_BOX_HELD_UNROLL
+        for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
             d[a] = psi[rows[a]];
             g1[a * BALL_BOX_N + 0] = grad[rows[a] * BALL_BOX_N + 0];
             g1[a * BALL_BOX_N + 1] = grad[rows[a] * BALL_BOX_N + 1];
@@ -2219,8 +2230,10 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
         if (res <= 1e-13 || it == BALL_BOX_HELD_ITER || res != res) {
             break;
         }
-        for (a = 0; a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
-            for (b = 0; b < na; ++b) {
+        BALL_BOX_HELD_UNROLL
+        for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
+            BALL_BOX_HELD_UNROLL
+            for (b = 0; b < BALL_BOX_R_DIM && b < na; ++b) {
                 jac[a * na + b] = 0.0;
                 jac[a * na + b] += g1[a * BALL_BOX_N + 0] * (h * jinv[0] * g0[b * BALL_BOX_N + 0]);
                 jac[a * na + b] += g1[a * BALL_BOX_N + 1] * (h * jinv[1] * g0[b * BALL_BOX_N + 1]);
@@ -2234,7 +2247,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
         if (ball_box_norm_inf(na, d) <= 1e-15) {
             break;
         }
-        for (a = 0; a < na; ++a) {
+        BALL_BOX_HELD_UNROLL
+        for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
             x[a] -= d[a];
         }
     }
@@ -2243,7 +2257,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     }
     ball_box_held_segment(q, v, kh, pp, e);
     ball_box_held_end(q1, kh, acc, minv);
-    for (a = 0; a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
         l1[a] = 0.0;
         f[a] = 0.0;
         l1[a] += g1[a * BALL_BOX_N + 0] * (minv[0] * pp[0]);
@@ -2251,7 +2266,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
         l1[a] += g1[a * BALL_BOX_N + 1] * (minv[1] * pp[1]);
         f[a] += g1[a * BALL_BOX_N + 1] * acc[1];
         l1[a] = -l1[a];
-        for (b = 0; b < na; ++b) {
+        BALL_BOX_HELD_UNROLL
+        for (b = 0; b < BALL_BOX_R_DIM && b < na; ++b) {
             w[a * na + b] = 0.0;
             w[a * na + b] += g1[a * BALL_BOX_N + 0] * (minv[0] * g1[b * BALL_BOX_N + 0]);
             w[a * na + b] += g1[a * BALL_BOX_N + 1] * (minv[1] * g1[b * BALL_BOX_N + 1]);
@@ -2263,7 +2279,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     ball_box_held_apply(na, w, piv, l1); /* rattle_project: W Lam' = -G1 M^-1 p+ */
     gl[0] = 0.0;
     gl[1] = 0.0;
-    for (a = 0; a < na; ++a) {
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
         gl[0] += g1[a * BALL_BOX_N + 0] * l1[a];
         gl[1] += g1[a * BALL_BOX_N + 1] * l1[a];
     }
@@ -2273,7 +2290,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     p1[1] = pp[1] + gl[1];
     (void)u1;
 
-    for (a = 0; a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
         curv = 0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
 
         f[a] = -(f[a] + curv);
@@ -2281,62 +2299,83 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     ball_box_held_apply(na, w, piv, f);
     f_eps = BALL_BOX_EPS_LAM * (1.0 + ball_box_norm_inf(na, f));
     finite = isfinite(*e) && isfinite(f_eps);
-    for (a = 0; a < na; ++a) {
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
         finite = finite && (ball_box_row_free[rows[a]] || !(f[a] < -f_eps)); /* a lift-off inside the step */
     }
+    BALL_BOX_HELD_UNROLL
     for (r = 0; r < BALL_BOX_R; ++r) {
         finite = finite && (act[r] || ball_box_row_stick[r] >= 0 || !(psi[r] < -phi_tol)); /* a row crossed */
     }
+    BALL_BOX_HELD_UNROLL
     for (i = 0; i < BALL_BOX_N; ++i) {
         finite = finite && isfinite(q1[i]) && isfinite(p1[i]);
     }
     if (!finite) {
         return 1;
     }
+    BALL_BOX_HELD_UNROLL
     for (r = 0; r < BALL_BOX_R; ++r) {
         lam[r] = 0.0;
         lam1[r] = 0.0;
     }
-    for (a = 0; a < na; ++a) {
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
         lam[rows[a]] = x[a];
         lam1[rows[a]] = l1[a];
     }
     return 0;
 }
 
-/* The loop of <model>_held_glide over na active rows (inlined for na = 1 and 2, so that its loops are unrolled):
- * held steps from (q, p, v, lam, g0), in/out, while each clears its tests; returns the number taken. */
+/* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
+ * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
+ * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
+ * constant gradients, which the compiler then folds into every step. */
 BALL_BOX_HELD_INLINE long ball_box_held_loop(const ball_box_ctx_t *c, const double *kh, long n, const int *act,
-    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *g0,
-    double *Q, double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+    const int *rows, int na, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
+    double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
 {
     double q1[BALL_BOX_N], p1[BALL_BOX_N], lam1[BALL_BOX_R_DIM], g1[BALL_BOX_R_DIM * BALL_BOX_N] = {0.0};
+    double g0[BALL_BOX_R_DIM * BALL_BOX_N] = {0.0}, grad[BALL_BOX_R_DIM * BALL_BOX_N], psi[BALL_BOX_R_DIM];
+    double hess[BALL_BOX_R_DIM * BALL_BOX_NH_DIM];
     double e, sum = 0.0, imp;
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
-    int i, j, r;
+    int i, j, r, a;
     long s;
+    ball_box_held_rows(q, kh, psi, grad, hess);
+    BALL_BOX_HELD_UNROLL
+    for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) { /* the active rows' gradients at q */
+        g0[a * BALL_BOX_N + 0] = grad[rows[a] * BALL_BOX_N + 0];
+        g0[a * BALL_BOX_N + 1] = grad[rows[a] * BALL_BOX_N + 1];
+    }
     for (s = 0; s < n; ++s) {
         if (ball_box_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, &e, g1)) {
             break;
         }
+        BALL_BOX_HELD_UNROLL
         for (i = 0; i < BALL_BOX_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];
             Q[s * BALL_BOX_N + i] = q1[i];
             P[s * BALL_BOX_N + i] = p1[i];
         }
-        for (i = 0; i < na * BALL_BOX_N; ++i) {
-            g0[i] = g1[i];
+        BALL_BOX_HELD_UNROLL
+        for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
+            g0[a * BALL_BOX_N + 0] = g1[a * BALL_BOX_N + 0];
+            g0[a * BALL_BOX_N + 1] = g1[a * BALL_BOX_N + 1];
         }
         E[s] = e;
         sum += e;
+        BALL_BOX_HELD_UNROLL
         for (j = 0; j < BALL_BOX_M; ++j) { /* SustainedSteps._book, then <model>_record */
             F[s * BALL_BOX_M + j] = 0.0;
             A[s * BALL_BOX_M + j] = held[j];
         }
+        BALL_BOX_HELD_UNROLL
         for (j = 0; j < BALL_BOX_NC; ++j) {
             FC[s * BALL_BOX_NC + j] = 0.0;
         }
+        BALL_BOX_HELD_UNROLL
         for (r = 0; r < BALL_BOX_R; ++r) {
             imp = lam[r] + lam1[r];
             if (imp == 0.0) {
@@ -2362,9 +2401,7 @@ BALL_BOX_HELD_HOT static long ball_box_held_glide(const ball_box_ctx_t *c, const
     double *sum_e)
 {
     double q[BALL_BOX_N], p[BALL_BOX_N], v[BALL_BOX_N], lam[BALL_BOX_R_DIM];
-    double g0[BALL_BOX_R_DIM * BALL_BOX_N], grad[BALL_BOX_R_DIM * BALL_BOX_N], psi[BALL_BOX_R_DIM];
-    double hess[BALL_BOX_R_DIM * BALL_BOX_NH_DIM];
-    int act[BALL_BOX_R_DIM], rows[BALL_BOX_R_DIM], na = 0, i, j, r;
+    int act[BALL_BOX_R_DIM], rows[BALL_BOX_R_DIM] = {0}, na = 0, i, j, r;
     unsigned char held[BALL_BOX_M_DIM];
     long s;
     for (j = 0; j < BALL_BOX_M; ++j) {
@@ -2385,19 +2422,73 @@ BALL_BOX_HELD_HOT static long ball_box_held_glide(const ball_box_ctx_t *c, const
         p[i] = p_io[i];
         v[i] = v_io[i];
     }
-    ball_box_held_rows(q, kh, psi, grad, hess);
-    for (r = 0; r < na; ++r) { /* the active rows' gradients at q */
-        for (i = 0; i < BALL_BOX_N; ++i) {
-            g0[r * BALL_BOX_N + i] = grad[rows[r] * BALL_BOX_N + i];
-        }
+    /* one loop per active set of one or two rows (its rows and act constants: the loops over rows unrolled,
+     * every row index constant, the inactive rows' gradients and Hessians never stored) */
+    switch (na == 1 ? rows[0] : na == 2 ? BALL_BOX_R + rows[0] * BALL_BOX_R + rows[1] : -1) {
+    case 0: {
+        static const int rs[1] = { 0 };
+        static const int ac[BALL_BOX_R_DIM] = { 1, 0, 0, 0 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
     }
-    if (na == 1) {
-        s = ball_box_held_loop(c, kh, n, act, rows, 1, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
-    } else if (na == 2) {
-        s = ball_box_held_loop(c, kh, n, act, rows, 2, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
-    } else {
-        s = ball_box_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, g0, Q, P, E, A, F, FC, sum_e);
+    case 1: {
+        static const int rs[1] = { 1 };
+        static const int ac[BALL_BOX_R_DIM] = { 0, 1, 0, 0 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
     }
+    case 2: {
+        static const int rs[1] = { 2 };
+        static const int ac[BALL_BOX_R_DIM] = { 0, 0, 1, 0 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 3: {
+        static const int rs[1] = { 3 };
+        static const int ac[BALL_BOX_R_DIM] = { 0, 0, 0, 1 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 1, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 5: {
+        static const int rs[2] = { 0, 1 };
+        static const int ac[BALL_BOX_R_DIM] = { 1, 1, 0, 0 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 6: {
+        static const int rs[2] = { 0, 2 };
+        static const int ac[BALL_BOX_R_DIM] = { 1, 0, 1, 0 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 7: {
+        static const int rs[2] = { 0, 3 };
+        static const int ac[BALL_BOX_R_DIM] = { 1, 0, 0, 1 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 10: {
+        static const int rs[2] = { 1, 2 };
+        static const int ac[BALL_BOX_R_DIM] = { 0, 1, 1, 0 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 11: {
+        static const int rs[2] = { 1, 3 };
+        static const int ac[BALL_BOX_R_DIM] = { 0, 1, 0, 1 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    case 15: {
+        static const int rs[2] = { 2, 3 };
+        static const int ac[BALL_BOX_R_DIM] = { 0, 0, 1, 1 };
+        s = ball_box_held_loop(c, kh, n, ac, rs, 2, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+        break;
+    }
+    default:
+        s = ball_box_held_loop(c, kh, n, act, rows, na, held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+    }
+
     for (i = 0; i < BALL_BOX_N; ++i) {
         q_io[i] = q[i];
         p_io[i] = p[i];
@@ -2424,10 +2515,10 @@ BALL_BOX_HELD_HOT static long ball_box_held_glide(const ball_box_ctx_t *c, const
 int ball_box_eval_held_step(const double *par, double h, double residual, double phi_tol, const double *q,
     const double *p, const double *act_d, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
 {
-    double kh[BALL_BOX_NKH], psi[BALL_BOX_R_DIM], g0[BALL_BOX_R_DIM * BALL_BOX_N];
+    double kh[BALL_BOX_NKH], psi[BALL_BOX_R_DIM], g0[BALL_BOX_R_DIM * BALL_BOX_N] = {0.0};
     double g1[BALL_BOX_R_DIM * BALL_BOX_N] = {0.0}, hess[BALL_BOX_R_DIM * BALL_BOX_NH_DIM];
     double grad[BALL_BOX_R_DIM * BALL_BOX_N];
-    int act[BALL_BOX_R_DIM], rows[BALL_BOX_R_DIM], na = 0, r, i, a;
+    int act[BALL_BOX_R_DIM], rows[BALL_BOX_R_DIM] = {0}, na = 0, r, i, a;
     for (r = 0; r < BALL_BOX_R; ++r) {
         act[r] = act_d[r] != 0.0;
         if (act[r]) {
