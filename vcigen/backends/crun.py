@@ -11,6 +11,7 @@ C records and becomes a :class:`~vcigen.impacts.ImpactTable` at the end: no obje
 from __future__ import annotations
 
 import ctypes
+import weakref
 from typing import Any
 
 import numpy as np
@@ -23,8 +24,12 @@ from ..stepper import done_fraction
 MAX_STEPS = 50_000_000
 # A run of unknown length (n_impacts) reserves this many bytes per grid buffer: address space, not
 # memory (pages are touched only as the run writes them; the result's arrays are views of the rows
-# written), so such a run costs what the run of known length does; past it, buffers double.
+# written); past it, buffers double.
 RESERVE_BYTES = 1 << 22
+# The grid buffers of a simulate call needing at least this many bytes come from a Block of the
+# simulator's pool (reused once its last result is gone; see Block), at most POOL_BLOCKS kept idle.
+BLOCK_MIN_BYTES = 1 << 18
+POOL_BLOCKS = 2
 FIRST_CAP_MANY = 1024  # grid rows each run of simulate_many starts with (doubled as needed)
 FIRST_RECORDS_MANY = 16  # impact records and lift-offs of each run of simulate_many beyond one step's room
 FIRST_RECORDS = 256  # impact records and lift-offs beyond the room one step needs, doubled as needed
@@ -66,6 +71,96 @@ def _resize(a: np.ndarray, rows: int) -> np.ndarray:
     return a
 
 
+class _Lease:
+    """The owner, as NumPy sees it, of the arrays a :class:`Block` lends one run: when the last of them
+    (the result's ``q``, ``p``, ...) is gone, its finalizer puts the block back into the pool."""
+
+    __slots__ = ("__array_interface__", "__weakref__", "raw")
+
+
+class Block:
+    """One allocation for the six grid buffers of a run (``Q, P, A``: ``cap + 1`` rows; ``E, F, FC``:
+    ``cap``), kept in a simulator's pool and lent to one run at a time.
+
+    Why: fresh buffers of a few MB fault their pages in on every call (~1 000 minor faults, ~2 us per
+    impact on the particle's 1000-impact run), unless the C library's allocator happens to recycle
+    them (it did for exactly sized buffers of ``t_end`` runs, not for a run of unknown length's
+    reservation). A block's pages are touched once; it returns to the pool only when every array of
+    the result it was lent to is gone (:class:`_Lease`), so no result's arrays alias a later run's.
+    ``A, F, FC`` must read 0 where the C loop writes nothing (the glide): the rows a run may have
+    written (``high``) are zeroed before the block is lent again.
+    """
+
+    def __init__(self, kern: Any, cap: int) -> None:
+        self.cap, self.high = cap, 0
+        self.layout, size = _layout(kern, cap)
+        self.raw = np.zeros(size, dtype=np.uint8)
+        self._own = self._carve(self.raw)  # views of raw itself: for clean()
+
+    @staticmethod
+    def nbytes(kern: Any, cap: int) -> int:
+        return _layout(kern, cap)[1]
+
+    def _carve(self, raw: np.ndarray) -> list[np.ndarray]:
+        return [raw[at : at + size].view(dtype).reshape(shape) for at, size, dtype, shape in self.layout]
+
+    def lend(self, pool: list[Block]) -> list[np.ndarray]:
+        """``Q, P, E, A, F, FC``, whose owner returns this block to ``pool`` when they are all gone."""
+        lease = _Lease()
+        lease.raw = self.raw
+        lease.__array_interface__ = {
+            "shape": self.raw.shape, "typestr": "|u1", "data": (self.raw.ctypes.data, False), "version": 3,
+        }  # fmt: skip
+        weakref.finalize(lease, _give_back, pool, self)
+        return self._carve(np.asarray(lease))
+
+    def clean(self) -> None:
+        """Zero the rows of ``A, F, FC`` the last run may have written."""
+        high = self.high
+        _, _, _, a, f, fc = self._own
+        a[: high + 1] = False
+        f[:high] = 0.0
+        fc[:high] = 0.0
+        self.high = 0
+
+
+def _layout(kern: Any, cap: int) -> tuple[list[tuple[int, int, Any, tuple[int, ...]]], int]:
+    """``(offset, bytes, dtype, shape)`` of ``Q, P, E, A, F, FC`` in a block of ``cap`` rows, and its size."""
+    n, m, nc = kern.n, kern.m, kern.nc
+    out, at = [], 0
+    for dtype, shape in (
+        (np.float64, (cap + 1, n)),
+        (np.float64, (cap + 1, n)),
+        (np.float64, (cap,)),
+        (np.bool_, (cap + 1, m)),
+        (np.float64, (cap, m)),
+        (np.float64, (cap, nc)),
+    ):
+        size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        out.append((at, size, dtype, shape))
+        at += -(-size // 64) * 64  # each buffer 64-byte aligned
+    return out, max(at, 64)
+
+
+def _give_back(pool: list[Block], block: Block) -> None:
+    if len(pool) < POOL_BLOCKS:
+        pool.append(block)
+
+
+def _take(pool: list[Block], kern: Any, cap: int) -> Block:
+    """A block of at least ``cap`` rows from ``pool`` (at most 4x that, not to pin much more than the run
+    needs), cleaned; or a new one."""
+    for i, b in enumerate(pool):
+        if cap <= b.cap <= 4 * cap:
+            try:
+                block = pool.pop(i)
+            except IndexError:  # another thread took it meanwhile
+                break
+            block.clean()
+            return block
+    return Block(kern, cap)
+
+
 class CRun:
     """One run of ``<model>_run``: its state, buffers and counts, and its :class:`Job`."""
 
@@ -81,9 +176,11 @@ class CRun:
         rooms: tuple[int, int],
         par_at: int = 0,
         first_cap: int | None = None,
+        pool: list[Block] | None = None,
     ) -> None:
         """``par_at``: the address of ``par`` when the caller has it (runs sharing one parameter vector);
-        ``first_cap``: the grid rows a run of unknown length starts with (default: ``RESERVE_BYTES``)."""
+        ``first_cap``: the grid rows a run of unknown length starts with (default: ``RESERVE_BYTES``);
+        ``pool``: the simulator's :class:`Block` pool, for buffers of ``BLOCK_MIN_BYTES`` or more."""
         n, m = kern.n, kern.m
         self.kern, self.steps, self.n_impacts = kern, steps, n_impacts
         self.rec_room, self.lift_room = rooms  # the records one step may write (run stops short of it)
@@ -94,10 +191,15 @@ class CRun:
             first_cap = RESERVE_BYTES // (8 * max(n, m, kern.nc, 1))
         cap = steps if n_impacts is None else min(steps, first_cap)
         self.cap = cap
-        self.Q, self.P, self.E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(cap)
+        self.block = None
+        if pool is not None and Block.nbytes(kern, cap) >= BLOCK_MIN_BYTES:
+            self.block = _take(pool, kern, cap)
+            self.Q, self.P, self.E, self.A, self.F, self.FC = self.block.lend(pool)
+        else:
+            self.Q, self.P, self.E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(cap)
+            self.A = np.zeros((cap + 1, m), dtype=np.bool_)  # rows the glide skips stay 0: nothing held
+            self.F, self.FC = np.zeros((cap, m)), np.zeros((cap, kern.nc))
         self.Q[0], self.P[0] = q0, p0
-        self.A = np.zeros((cap + 1, m), dtype=np.bool_)  # rows the glide skips stay 0: nothing held
-        self.F, self.FC = np.zeros((cap, m)), np.zeros((cap, kern.nc))
         self.rec = self.lift = None  # given by lend() or made by arm(), when the run first needs them
         self.sus, self.err = kern.Sustain(), kern.Error()
         self.done = self.n_rec = self.n_lift = self.reflected = 0
@@ -129,7 +231,8 @@ class CRun:
                 ("F", cap),
                 ("FC", cap),
             ):
-                _resize(getattr(self, name), rows)
+                setattr(self, name, _grown(getattr(self, name), rows))
+            self.block = None  # a block's arrays were copied: it goes back to the pool
             self._rows()
         if self.rec is None:
             self.lend(np.empty((self.rec_room + FIRST_RECORDS, RECORD_HEAD + 1 + n)),
@@ -145,6 +248,9 @@ class CRun:
         job.impact_cap = self.rec.shape[0] - self.n_rec
         job.liftoffs, job.liftoff_cap = _addr(self.lift) + 16 * self.n_lift, self.lift.shape[0] - self.n_lift
         job.step0, job.n_steps = d, min(chunk, self.cap - d, self.steps - d)
+        if self.block is not None:  # the rows of A, F, FC the call may write (collect() narrows it)
+            self._high = self.block.high
+            self.block.high = max(self._high, d + job.n_steps)
         job.max_impacts = -1 if self.n_impacts is None else self.n_impacts - self.n_rec
         return job
 
@@ -162,6 +268,8 @@ class CRun:
         self.n_lift += job.liftoffs_done
         self.reflected += self.err.reflected
         self.rc = job.rc
+        if self.block is not None and not job.rc:  # a run that went well wrote no row past its steps
+            self.block.high = max(self._high, self.done)
         full = self.n_impacts is not None and self.n_rec >= self.n_impacts
         stuck = job.steps_done == 0 and job.n_steps > 0 and not fresh  # no room was lacking: nothing to do
         self.finished = bool(self.rc) or self.done >= self.steps or full or stuck
@@ -217,6 +325,16 @@ class CRun:
         error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
         error.result = self.result(t0, h, wall)
         return error
+
+
+def _grown(a: np.ndarray, rows: int) -> np.ndarray:
+    """A grid buffer with ``rows`` rows: resized in place if it owns its data, else (a :class:`Block`'s)
+    a copy (new rows 0)."""
+    if a.base is None:
+        return _resize(a, rows)
+    out = np.zeros((rows, *a.shape[1:]), dtype=a.dtype)
+    out[: a.shape[0]] = a
+    return out
 
 
 def _doubled(a: np.ndarray) -> np.ndarray:

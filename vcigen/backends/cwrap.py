@@ -28,7 +28,7 @@ from ..result import Result
 from ..simulator import Simulator, Start
 from ..stepper import Tolerances, _n_steps, warn_reflected
 from ..sustained import rattle_segment
-from .crun import FIRST_CAP_MANY, MAX_STEPS, CRun, chunk_steps, lend_records, run_jobs
+from .crun import FIRST_CAP_MANY, MAX_STEPS, Block, CRun, chunk_steps, lend_records, run_jobs
 from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -337,6 +337,7 @@ class CSimulator(Simulator):
     def __init__(self, system: DiscreteSystem, kernels: CKernels, tol: Tolerances | None = None) -> None:
         super().__init__(system, kernels, tol)
         self._tol: tuple[Tolerances, _Tol] | None = None
+        self._pool: list[Block] = []  # grid buffers of simulate's longer runs, reused (crun.Block)
 
     def _tol_struct(self) -> _Tol:
         """The C tolerances of ``self.tol``, made once (again if ``tol`` is replaced)."""
@@ -351,7 +352,7 @@ class CSimulator(Simulator):
 
     def _run(self, kern: CKernels, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
-        run = CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, self._rooms(kern))
+        run = CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, self._rooms(kern), pool=self._pool)
         tol = self._tol_struct()
         wall = time.perf_counter()
         rate = None
