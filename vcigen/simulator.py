@@ -119,8 +119,15 @@ class Simulator:
         if int(threads) != threads or threads < 1:
             raise ValueError(f"threads = {threads!r} must be a whole number >= 1")
         h = self._validate(h, t_end, n_impacts, t0)
-        starts, resolved = [], {}  # params resolved once per mapping object (one for all runs, or each)
-        for i, (q0, v0, par_i) in enumerate(self._many_starts(q0s, v0s, params)):
+        starts = self._starts(*self._many_starts(q0s, v0s, params), t0)
+        out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
+        return _many_outcome(out, errors)
+
+    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> list[Start]:
+        """Each run of ``simulate_many`` checked as ``simulate`` checks its start; the first bad run is a
+        ``ValueError`` starting ``run i:``. ``params`` resolved once per mapping object."""
+        starts, resolved = [], {}
+        for i, (q0, v0, par_i) in enumerate(zip(q, v, per_run)):
             try:
                 if id(par_i) not in resolved:
                     resolved[id(par_i)] = self._parameters(par_i, t0)
@@ -132,8 +139,7 @@ class Simulator:
             except ValueError as exc:
                 raise ValueError(f"run {i}: {exc}") from None
             starts.append(Start(q0, v0, p0, par_i, par, mu_f))
-        out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
-        return _many_outcome(out, errors)
+        return starts
 
     def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
         """One ``simulate`` per run, after one another (the Python stepper)."""
@@ -157,6 +163,26 @@ class Simulator:
         res.coordinate_names = list(self._coordinate_names)
         res.contact_names = self.system.contact_names
         res.velocity_of = partial(self._velocity, par=par)
+
+    def _finish_many(self, results: list[Result], starts: list[Start]) -> None:
+        """:meth:`_finish` of each run of ``simulate_many``; without forces or friction (work 0) the zero
+        work arrays of runs of one length are rows of one block."""
+        if self._work is not None or self._friction is not None:
+            for res, st in zip(results, starts):
+                self._finish(res, st.mu_f, st.par)
+            return
+        lengths = [res.energy.size for res in results]
+        zeros = {s: np.zeros((2, lengths.count(s), s)) for s in set(lengths)}
+        used = dict.fromkeys(zeros, 0)
+        coords, contacts, at_end = self._coordinate_names, self.system.contact_names, bool(self.model.force)
+        for res, st, s in zip(results, starts, lengths):
+            k = used[s]
+            used[s] = k + 1
+            res.friction_work, res.work = zeros[s][0, k], zeros[s][1, k]
+            res.energy_at_end = at_end
+            res.coordinate_names = list(coords)
+            res.contact_names = contacts
+            res.velocity_of = partial(self._velocity, par=st.par)
 
     def _velocity(self, q: np.ndarray, p: np.ndarray, par: list[float]) -> np.ndarray:
         if self._inverse is None:
@@ -205,8 +231,8 @@ class Simulator:
             raise ValueError(f"n_impacts = {n_impacts!r} must be a whole number >= 0")
         return h
 
-    def _many_starts(self, q0s, v0s, params) -> list[tuple[np.ndarray, np.ndarray, Mapping | None]]:
-        """``(q0, v0, params)`` of each run of ``simulate_many`` (shapes checked; the rest per run)."""
+    def _many_starts(self, q0s, v0s, params) -> tuple[np.ndarray, np.ndarray, list[Mapping | None]]:
+        """``q0s, v0s`` as ``(K, n)`` arrays and each run's ``params`` (shapes checked; the rest per run)."""
         n = self.model.n
         q = _matrix("q0s", q0s, n)
         v = _matrix("v0s", v0s, n)
@@ -218,7 +244,7 @@ class Simulator:
             per_run = list(params)
             if len(per_run) != q.shape[0]:
                 raise ValueError(f"params has {len(per_run)} entries but there are {q.shape[0]} runs")
-        return list(zip(q, v, per_run))
+        return q, v, per_run
 
     def _check_start(self, kern, q0, v0) -> np.ndarray:
         """A ``ValueError`` if ``(q0, v0)`` is no admissible start; else ``p0 = dL/dqdot(q0, v0)``."""
@@ -282,6 +308,30 @@ def _condition(mass: np.ndarray) -> float:
         return math.inf
     lam = np.abs(np.linalg.eigvalsh(0.5 * (mass + mass.T)))
     return float(lam.max() / lam.min()) if lam.min() > 0 else math.inf
+
+
+def conditions(mass: np.ndarray) -> np.ndarray:
+    """:func:`_condition` of each of ``K`` matrices ``(K, n, n)``, vectorised (the same formulas; the
+    scalar function has the last word where this one is near the bound: ``simulate_many``'s starts)."""
+    k, n = mass.shape[0], mass.shape[1]
+    out = np.full(k, np.inf)
+    with np.errstate(all="ignore"):
+        if n == 1:
+            a = np.abs(mass[:, 0, 0])
+            out[(a > 0.0) & (a < np.inf)] = 1.0
+        elif n == 2:
+            a, b, d = mass[:, 0, 0], 0.5 * (mass[:, 0, 1] + mass[:, 1, 0]), mass[:, 1, 1]
+            mid, rad = 0.5 * (a + d), np.hypot(0.5 * (a - d), b)
+            lo = np.minimum(np.abs(mid - rad), np.abs(mid + rad))
+            hi = np.maximum(np.abs(mid - rad), np.abs(mid + rad))
+            ok = (lo > 0.0) & np.isfinite(hi)
+            out[ok] = hi[ok] / lo[ok]
+        else:
+            fin = np.isfinite(mass).all(axis=(1, 2))
+            lam = np.abs(np.linalg.eigvalsh(0.5 * (mass[fin] + mass[fin].transpose(0, 2, 1))))
+            lo, hi = lam.min(axis=1), lam.max(axis=1)
+            out[np.flatnonzero(fin)[lo > 0]] = (hi / lo)[lo > 0]
+    return out
 
 
 def _matrix(name: str, x, n: int) -> np.ndarray:

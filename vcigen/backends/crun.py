@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 import weakref
+from dataclasses import MISSING, fields
 from typing import Any
 
 import numpy as np
@@ -303,7 +304,7 @@ class CRun:
             Impacts(records=rec, names=names),
             kern.coordinate_names,
             h,
-            {"wall_time": wall, "steps": s, "seconds_per_step": wall / max(s, 1)},
+            {},
             active=_cut(self.A, s + 1),
             contact_force=_cut(self.F, s),
             constraint_force=_cut(self.FC, s),
@@ -311,13 +312,17 @@ class CRun:
         )
         # the result owns the grid buffers; the records are copied: let them all go with this run
         self.Q = self.P = self.E = self.A = self.F = self.FC = self.rec = self.lift = None  # type: ignore[assignment]
-        stats = res.stats
-        stats["grazing_reflected"] = self.reflected
-        for kind, count in zip(KINDS, self.sus.kinds):
-            stats[f"impacts_{kind}"] = count
-        stats["liftoffs"] = len(res.liftoffs)
-        stats["jump_fallbacks"] = self.sus.fallbacks
+        res.stats = self.stats(s, wall, len(res.liftoffs))
         return res
+
+    def stats(self, s: int, wall: float, liftoffs: int) -> dict[str, float]:
+        """``Result.stats`` of the run (``s`` steps done)."""
+        stats = {"wall_time": wall, "steps": s, "seconds_per_step": wall / max(s, 1)}
+        stats["grazing_reflected"] = self.reflected
+        stats.update(zip(_KIND_KEYS, self.sus.kinds))
+        stats["liftoffs"] = liftoffs
+        stats["jump_fallbacks"] = self.sus.fallbacks
+        return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:
         """The :class:`SolverError` of a failed run, with the run up to its last completed step."""
@@ -325,6 +330,47 @@ class CRun:
         error = SolverError(err.step, err.time, PHASES[err.phase], err.residual, err.reason.decode())
         error.result = self.result(t0, h, wall)
         return error
+
+
+_KIND_KEYS = tuple(f"impacts_{kind}" for kind in KINDS)
+# Result's fields with a plain default (the others are given by batch_results)
+_RESULT_DEFAULTS = {f.name: f.default for f in fields(Result) if f.default is not MISSING}
+
+
+def batch_results(runs: list[CRun], t0: float, h: float, wall: float) -> list[Result]:
+    """The :class:`Result` of each finished run of a batch (none failed), as :meth:`CRun.result` makes
+    it, cheaper: runs of the same length share one block of times (each ``t`` a row of it), and each
+    result is filled without the dataclass ``__init__``."""
+    kern = runs[0].kern
+    names, coords = kern.contact_names, kern.coordinate_names
+    empty_rec = np.empty((0, RECORD_HEAD + 1 + kern.n))
+    lengths = [r.done for r in runs]
+    times: dict[int, np.ndarray] = {}
+    for s in set(lengths):
+        t = np.arange(s + 1, dtype=float)
+        t *= h
+        t += t0  # t0 + h k, as the Python stepper's grid
+        times[s] = np.empty((lengths.count(s), s + 1))
+        times[s][:] = t
+    used = dict.fromkeys(times, 0)
+    out = []
+    for r, s in zip(runs, lengths):
+        k = used[s]
+        used[s] = k + 1
+        rec = r.rec[: r.n_rec].copy() if r.n_rec else empty_rec
+        lifts = r.lift[: r.n_lift].tolist() if r.n_lift else ()
+        liftoffs = [(float(tl), names[int(j)]) for tl, j in lifts]
+        res = object.__new__(Result)
+        res.__dict__.update(_RESULT_DEFAULTS)
+        res.__dict__.update(
+            t=times[s][k], q=_cut(r.Q, s + 1), p=_cut(r.P, s + 1), energy=_cut(r.E, s),
+            impacts=Impacts(records=rec, names=names), coordinate_names=coords, h=h,
+            stats=r.stats(s, wall, len(liftoffs)), active=_cut(r.A, s + 1), contact_force=_cut(r.F, s),
+            constraint_force=_cut(r.FC, s), liftoffs=liftoffs,
+        )  # fmt: skip
+        r.Q = r.P = r.E = r.A = r.F = r.FC = r.rec = r.lift = None  # type: ignore[assignment]
+        out.append(res)
+    return out
 
 
 def _grown(a: np.ndarray, rows: int) -> np.ndarray:
@@ -350,6 +396,51 @@ def _cut(a: np.ndarray, rows: int) -> np.ndarray:
     """The first ``rows`` rows of a buffer: a view, not a copy (a buffer grown by doubling wastes at most
     half its rows; shrinking it in place would copy whenever the allocator cannot shrink in place)."""
     return a if a.shape[0] == rows else a[:rows]
+
+
+def batch_runs(
+    kern: Any,
+    state: np.ndarray,
+    pars: list[tuple[np.ndarray, int]],
+    steps: int,
+    n_impacts: int | None,
+    rooms: tuple[int, int],
+    first_cap: int,
+) -> list[CRun]:
+    """The runs of ``simulate_many``'s batch, from ``state`` ``(B, 3n)`` (rows ``q0, p0, v0``) and each
+    run's parameter vector and its address: each buffer one allocation for the whole batch (run ``i``'s
+    rows a view of it), the ``Job``, ``Sustain`` and ``Error`` structs one ctypes array each, and the
+    addresses counted, not asked for; what :class:`CRun` does per run, at a fraction of the cost."""
+    size, n, m, nc = state.shape[0], kern.n, kern.m, kern.nc
+    cap = steps if n_impacts is None else min(steps, first_cap)
+    Q, P = np.empty((size, cap + 1, n)), np.empty((size, cap + 1, n))
+    Q[:, 0], P[:, 0] = state[:, :n], state[:, n : 2 * n]
+    E = np.empty((size, cap))
+    A = np.zeros((size, cap + 1, m), dtype=np.bool_)  # rows the glide skips stay 0: nothing held
+    F, FC = np.zeros((size, cap, m)), np.zeros((size, cap, nc))
+    sus, err, jobs = (kern.Sustain * size)(), (kern.Error * size)(), (Job * size)()
+    bases = [_addr(a) for a in (state, Q, P, E, A, F, FC)]
+    strides = [a.strides[0] for a in (state, Q, P, E, A, F, FC)]
+    at_sus, at_err = ctypes.addressof(sus), ctypes.addressof(err)
+    size_sus, size_err = ctypes.sizeof(kern.Sustain), ctypes.sizeof(kern.Error)
+    finished = steps == 0 or n_impacts == 0
+    new, runs = object.__new__, []
+    for i in range(size):
+        r = new(CRun)
+        at, aQ, aP, aE, aA, aF, aFC = (b + i * s for b, s in zip(bases, strides))
+        r.__dict__.update(
+            kern=kern, steps=steps, n_impacts=n_impacts, rec_room=rooms[0], lift_room=rooms[1],
+            par=pars[i][0], state=state, cap=cap, block=None, Q=Q[i], P=P[i], E=E[i], A=A[i], F=F[i], FC=FC[i],
+            rec=None, lift=None, sus=sus[i], err=err[i], done=0, n_rec=0, n_lift=0, reflected=0, rc=0,
+            started=False, finished=finished, job=jobs[i],
+            _aQ=aQ, _aP=aP, _aE=aE, _aA=aA, _aF=aF, _aFC=aFC,
+        )  # fmt: skip
+        job = r.job
+        job.par, job.q, job.p, job.v = pars[i][1], at, at + 8 * n, at + 16 * n
+        job.sus, job.err = at_sus + i * size_sus, at_err + i * size_err
+        job.A0, job.fresh = aA, 1
+        runs.append(r)
+    return runs
 
 
 def lend_records(runs: list[CRun], width: int) -> None:
