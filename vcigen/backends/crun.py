@@ -430,7 +430,8 @@ def batch_runs(
         at, aQ, aP, aE, aA, aF, aFC = (b + i * s for b, s in zip(bases, strides))
         r.__dict__.update(
             kern=kern, steps=steps, n_impacts=n_impacts, rec_room=rooms[0], lift_room=rooms[1],
-            par=pars[i][0], state=state, cap=cap, block=None, Q=Q[i], P=P[i], E=E[i], A=A[i], F=F[i], FC=FC[i],
+            par=pars[i][0], state=state, cap=cap, block=None,
+            Q=Q[i], P=P[i], E=E[i], A=A[i], F=F[i], FC=FC[i],
             rec=None, lift=None, sus=sus[i], err=err[i], done=0, n_rec=0, n_lift=0, reflected=0, rc=0,
             started=False, finished=finished, job=jobs[i],
             _aQ=aQ, _aP=aP, _aE=aE, _aA=aA, _aF=aF, _aFC=aFC,

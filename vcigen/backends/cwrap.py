@@ -383,7 +383,8 @@ class CSimulator(Simulator):
         for i, (_, _, at) in enumerate(runs):
             contacts(aq + 8 * n * i, at, aphi + 8 * mm * i, agrad + 8 * mm * n * i)
             legendre(aq + 8 * n * i, av + 8 * n * i, at, ap + 8 * n * i, am + 8 * n * n * i)
-        ok = (phi[:, : kern.m] >= -self.tol.admissible).all(axis=1) & (conditions(mass) <= 0.5 * MAX_CONDITION)
+        ok = (phi[:, : kern.m] >= -self.tol.admissible).all(axis=1)
+        ok &= conditions(mass) <= 0.5 * MAX_CONDITION
         for i in np.flatnonzero(~ok).tolist():  # the scalar check decides, and names the problem
             kern.bind(runs[i][0])
             try:
@@ -470,7 +471,7 @@ class CSimulator(Simulator):
                 made = iter(batch_results(good, t0, h, took / len(batch)) if good else ())
                 done = [next(made) if r is None else r for r in results]
                 self._finish_many([r.result if isinstance(r, SolverError) else r for r in done], part)
-                for run, res in zip(batch, done):
+                for run in batch:
                     if not run.rc:
                         _warn_short(run, t_end, n_impacts, stacklevel=5)
                         reflected += run.reflected
