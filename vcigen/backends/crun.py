@@ -213,6 +213,7 @@ class CRun:
         job.sus, job.err = ctypes.addressof(self.sus), ctypes.addressof(self.err)
         self._rows()
         job.A0, job.fresh = self._aA, 1
+        self.armed = False
 
     def _rows(self) -> None:
         """The addresses of the grid buffers (after they are (re)allocated)."""
@@ -221,6 +222,12 @@ class CRun:
 
     def arm(self, chunk: int) -> Job:
         """Point the job at the next ``chunk`` steps (at most), growing any buffer that lacks room."""
+        if self.armed:  # batch_runs armed it for its first call (with chunk MAX_STEPS)
+            self.armed = False
+            if chunk == MAX_STEPS:
+                return self.job
+        if self._aQ is None:
+            self._rows()
         n, m, nc = self.kern.n, self.kern.m, self.kern.nc
         if self.done >= self.cap:
             self.cap = cap = min(2 * self.cap, self.steps)
@@ -408,9 +415,10 @@ def batch_runs(
     first_cap: int,
 ) -> list[CRun]:
     """The runs of ``simulate_many``'s batch, from ``state`` ``(B, 3n)`` (rows ``q0, p0, v0``) and each
-    run's parameter vector and its address: each buffer one allocation for the whole batch (run ``i``'s
-    rows a view of it), the ``Job``, ``Sustain`` and ``Error`` structs one ctypes array each, and the
-    addresses counted, not asked for; what :class:`CRun` does per run, at a fraction of the cost."""
+    run's parameter vector and its address, as :class:`CRun` makes them one by one, cheaper: each buffer
+    (grid rows, impact records, lift-offs) one allocation for the batch (run ``i``'s rows a view of it),
+    the ``Job``, ``Sustain`` and ``Error`` structs one ctypes array each, and the jobs filled and armed
+    for their first call (``arm(MAX_STEPS)``) as columns of an integer view of the ``Job`` array."""
     size, n, m, nc = state.shape[0], kern.n, kern.m, kern.nc
     cap = steps if n_impacts is None else min(steps, first_cap)
     Q, P = np.empty((size, cap + 1, n)), np.empty((size, cap + 1, n))
@@ -419,41 +427,49 @@ def batch_runs(
     A = np.zeros((size, cap + 1, m), dtype=np.bool_)  # rows the glide skips stay 0: nothing held
     F, FC = np.zeros((size, cap, m)), np.zeros((size, cap, nc))
     sus, err, jobs = (kern.Sustain * size)(), (kern.Error * size)(), (Job * size)()
-    bases = [_addr(a) for a in (state, Q, P, E, A, F, FC)]
-    strides = [a.strides[0] for a in (state, Q, P, E, A, F, FC)]
-    at_sus, at_err = ctypes.addressof(sus), ctypes.addressof(err)
-    size_sus, size_err = ctypes.sizeof(kern.Sustain), ctypes.sizeof(kern.Error)
     finished = steps == 0 or n_impacts == 0
+    width = RECORD_HEAD + 1 + n
+    rec_rows, lift_rows = rooms[0] + FIRST_RECORDS_MANY, rooms[1] + FIRST_RECORDS_MANY
+    rec = np.empty((size, rec_rows if not finished else 0, width))
+    lift = np.empty((size, lift_rows if not finished else 0, 2))
+    col = {name: k for k, (name, _) in enumerate(Job._fields_)}
+    J = np.frombuffer(jobs, dtype=np.int64).reshape(size, len(Job._fields_))
+    idx = np.arange(size, dtype=np.int64)
+
+    def at(a: np.ndarray, extra: int = 0) -> np.ndarray:  # run i's address in a, plus extra bytes
+        return _addr(a) + extra + a.strides[0] * idx if a.nbytes else np.zeros(size, dtype=np.int64)
+
+    J[:, col["par"]] = [p[1] for p in pars]
+    J[:, col["q"]] = at(state)
+    J[:, col["p"]] = at(state, 8 * n)
+    J[:, col["v"]] = at(state, 16 * n)
+    J[:, col["sus"]] = ctypes.addressof(sus) + ctypes.sizeof(kern.Sustain) * idx
+    J[:, col["err"]] = ctypes.addressof(err) + ctypes.sizeof(kern.Error) * idx
+    J[:, col["A0"]] = at(A)
+    J[:, col["fresh"]] = 1
+    if not finished:  # arm(MAX_STEPS) of a run that has done nothing
+        J[:, col["Q"]], J[:, col["P"]], J[:, col["E"]] = at(Q, 8 * n), at(P, 8 * n), at(E)
+        J[:, col["A"]], J[:, col["F"]], J[:, col["FC"]] = at(A, m), at(F), at(FC)
+        J[:, col["impacts"]], J[:, col["impact_cap"]] = at(rec), rec_rows
+        J[:, col["liftoffs"]], J[:, col["liftoff_cap"]] = at(lift), lift_rows
+        J[:, col["step0"]], J[:, col["n_steps"]] = 0, min(MAX_STEPS, cap, steps)
+        J[:, col["max_impacts"]] = -1 if n_impacts is None else n_impacts
     new, runs = object.__new__, []
+    base = {
+        "kern": kern, "steps": steps, "n_impacts": n_impacts, "rec_room": rooms[0], "lift_room": rooms[1],
+        "state": state, "cap": cap, "block": None, "done": 0, "n_rec": 0, "n_lift": 0, "reflected": 0,
+        "rc": 0, "started": False, "finished": finished, "armed": not finished, "_aQ": None,
+    }  # fmt: skip
     for i in range(size):
         r = new(CRun)
-        at, aQ, aP, aE, aA, aF, aFC = (b + i * s for b, s in zip(bases, strides))
-        r.__dict__.update(
-            kern=kern, steps=steps, n_impacts=n_impacts, rec_room=rooms[0], lift_room=rooms[1],
-            par=pars[i][0], state=state, cap=cap, block=None,
-            Q=Q[i], P=P[i], E=E[i], A=A[i], F=F[i], FC=FC[i],
-            rec=None, lift=None, sus=sus[i], err=err[i], done=0, n_rec=0, n_lift=0, reflected=0, rc=0,
-            started=False, finished=finished, job=jobs[i],
-            _aQ=aQ, _aP=aP, _aE=aE, _aA=aA, _aF=aF, _aFC=aFC,
+        d = r.__dict__
+        d.update(base)
+        d.update(
+            par=pars[i][0], Q=Q[i], P=P[i], E=E[i], A=A[i], F=F[i], FC=FC[i], rec=rec[i], lift=lift[i],
+            sus=sus[i], err=err[i], job=jobs[i],
         )  # fmt: skip
-        job = r.job
-        job.par, job.q, job.p, job.v = pars[i][1], at, at + 8 * n, at + 16 * n
-        job.sus, job.err = at_sus + i * size_sus, at_err + i * size_err
-        job.A0, job.fresh = aA, 1
         runs.append(r)
     return runs
-
-
-def lend_records(runs: list[CRun], width: int) -> None:
-    """One block of impact-record and lift-off buffers for ``runs`` (each its rows), instead of two
-    allocations per run; a run that needs more gets its own, doubled."""
-    if not runs:
-        return
-    rec_rows, lift_rows = runs[0].rec_room + FIRST_RECORDS_MANY, runs[0].lift_room + FIRST_RECORDS_MANY
-    rec = np.empty((len(runs), rec_rows, width))
-    lift = np.empty((len(runs), lift_rows, 2))
-    for i, r in enumerate(runs):
-        r.lend(rec[i], lift[i])
 
 
 def run_jobs(kern: Any, tol: Any, h: float, t0: float, runs: list[CRun], chunk: int) -> None:

@@ -22,7 +22,6 @@ import numpy as np
 from ..derive import DiscreteSystem, set_rows
 from ..errors import SolverError
 from ..held import Held
-from ..impacts import RECORD_HEAD
 from ..progress import Progress
 from ..result import Result
 from ..simulator import MAX_CONDITION, Simulator, Start, conditions
@@ -36,7 +35,6 @@ from .crun import (
     batch_results,
     batch_runs,
     chunk_steps,
-    lend_records,
     run_jobs,
 )
 from .slots import ParameterSlots
@@ -459,7 +457,6 @@ class CSimulator(Simulator):
             while first < len(starts):
                 start = time.perf_counter()
                 batch = make(starts[first : first + size])  # buffers made batch by batch
-                lend_records([r for r in batch if not r.finished], RECORD_HEAD + 1 + kern.n)
                 _run_batch(kern, tol, h, t0, batch, threads)
                 took = time.perf_counter() - start
                 part = starts[first : first + size]
