@@ -39,6 +39,23 @@ class Start(NamedTuple):
     mu_f: list[float]  # each contact's friction coefficient
 
 
+class ManyStarts:
+    """The runs of ``simulate_many``, checked: ``q``, ``v``, ``p0`` as ``(K, n)`` arrays and each run's
+    ``params``, parameter vector ``par`` and ``mu_f`` in lists; ``starts[i]``: run ``i``'s :class:`Start`."""
+
+    def __init__(self, q, v, p0, params: list, par: list[list[float]], mu_f: list[list[float]]) -> None:
+        self.q, self.v, self.p0, self.params, self.par, self.mu_f = q, v, p0, params, par, mu_f
+
+    def __len__(self) -> int:
+        return len(self.par)
+
+    def __getitem__(self, i: int) -> Start:
+        return Start(self.q[i], self.v[i], self.p0[i], self.params[i], self.par[i], self.mu_f[i])
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+
 class Simulator:
     """A model compiled for one backend and rule; call :meth:`simulate` or :meth:`simulate_many`."""
 
@@ -123,7 +140,7 @@ class Simulator:
         out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
         return _many_outcome(out, errors)
 
-    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> list[Start]:
+    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> ManyStarts:
         """Each run of ``simulate_many`` checked as ``simulate`` checks its start; the first bad run is a
         ``ValueError`` starting ``run i:``. ``params`` resolved once per mapping object."""
         starts, resolved = [], {}
@@ -139,7 +156,10 @@ class Simulator:
             except ValueError as exc:
                 raise ValueError(f"run {i}: {exc}") from None
             starts.append(Start(q0, v0, p0, par_i, par, mu_f))
-        return starts
+        cols = list(zip(*starts)) if starts else [[]] * 6
+        n = self.model.n
+        p0 = np.array(cols[2]).reshape(-1, n)
+        return ManyStarts(q.reshape(-1, n), v.reshape(-1, n), p0, *map(list, cols[3:]))
 
     def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
         """One ``simulate`` per run, after one another (the Python stepper)."""
@@ -164,25 +184,25 @@ class Simulator:
         res.contact_names = self.system.contact_names
         res.velocity_of = partial(self._velocity, par=par)
 
-    def _finish_many(self, results: list[Result], starts: list[Start]) -> None:
+    def _finish_many(self, results: list[Result], pars: list[list[float]], mu_fs: list[list[float]]) -> None:
         """:meth:`_finish` of each run of ``simulate_many``; without forces or friction (work 0) the zero
         work arrays of runs of one length are rows of one block."""
         if self._work is not None or self._friction is not None:
-            for res, st in zip(results, starts):
-                self._finish(res, st.mu_f, st.par)
+            for res, par, mu_f in zip(results, pars, mu_fs):
+                self._finish(res, mu_f, par)
             return
         lengths = [res.energy.size for res in results]
         zeros = {s: np.zeros((2, lengths.count(s), s)) for s in set(lengths)}
         used = dict.fromkeys(zeros, 0)
         coords, contacts, at_end = self._coordinate_names, self.system.contact_names, bool(self.model.force)
-        for res, st, s in zip(results, starts, lengths):
+        velocity = self._velocity
+        for res, par, s in zip(results, pars, lengths):
             k = used[s]
             used[s] = k + 1
-            res.friction_work, res.work = zeros[s][0, k], zeros[s][1, k]
-            res.energy_at_end = at_end
-            res.coordinate_names = list(coords)
-            res.contact_names = contacts
-            res.velocity_of = partial(self._velocity, par=st.par)
+            d = res.__dict__
+            d["friction_work"], d["work"] = zeros[s][0, k], zeros[s][1, k]
+            d["energy_at_end"], d["coordinate_names"], d["contact_names"] = at_end, list(coords), contacts
+            d["velocity_of"] = partial(velocity, par=par)
 
     def _velocity(self, q: np.ndarray, p: np.ndarray, par: list[float]) -> np.ndarray:
         if self._inverse is None:

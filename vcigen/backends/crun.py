@@ -360,20 +360,21 @@ def batch_results(runs: list[CRun], t0: float, h: float, wall: float) -> list[Re
         times[s] = np.empty((lengths.count(s), s + 1))
         times[s][:] = t
     used = dict.fromkeys(times, 0)
-    out = []
+    out, new = [], object.__new__
     for r, s in zip(runs, lengths):
         k = used[s]
         used[s] = k + 1
         rec = r.rec[: r.n_rec].copy() if r.n_rec else empty_rec
-        lifts = r.lift[: r.n_lift].tolist() if r.n_lift else ()
-        liftoffs = [(float(tl), names[int(j)]) for tl, j in lifts]
-        res = object.__new__(Result)
-        res.__dict__.update(_RESULT_DEFAULTS)
-        res.__dict__.update(
-            t=times[s][k], q=_cut(r.Q, s + 1), p=_cut(r.P, s + 1), energy=_cut(r.E, s),
+        liftoffs = [(float(tl), names[int(j)]) for tl, j in r.lift[: r.n_lift].tolist()] if r.n_lift else []
+        grid = (r.Q, r.P, r.E, r.A, r.F, r.FC)
+        if r.cap != s:  # a run that stopped short of its rows (n_impacts): views of the rows written
+            grid = (r.Q[: s + 1], r.P[: s + 1], r.E[:s], r.A[: s + 1], r.F[:s], r.FC[:s])
+        res = new(Result)
+        res.__dict__ = dict(
+            _RESULT_DEFAULTS, t=times[s][k], q=grid[0], p=grid[1], energy=grid[2],
             impacts=Impacts(records=rec, names=names), coordinate_names=coords, h=h,
-            stats=r.stats(s, wall, len(liftoffs)), active=_cut(r.A, s + 1), contact_force=_cut(r.F, s),
-            constraint_force=_cut(r.FC, s), liftoffs=liftoffs,
+            stats=r.stats(s, wall, len(liftoffs)), active=grid[3], contact_force=grid[4],
+            constraint_force=grid[5], liftoffs=liftoffs,
         )  # fmt: skip
         r.Q = r.P = r.E = r.A = r.F = r.FC = r.rec = r.lift = None  # type: ignore[assignment]
         out.append(res)

@@ -24,7 +24,7 @@ from ..errors import SolverError
 from ..held import Held
 from ..progress import Progress
 from ..result import Result
-from ..simulator import MAX_CONDITION, Simulator, Start, conditions
+from ..simulator import MAX_CONDITION, ManyStarts, Simulator, conditions
 from ..stepper import Tolerances, _n_steps, warn_reflected
 from ..sustained import rattle_segment
 from .crun import (
@@ -353,7 +353,7 @@ class CSimulator(Simulator):
             self._tol = (self.tol, _tol_struct(self.tol))
         return self._tol[1]
 
-    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> list[Start]:
+    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> ManyStarts:
         """``Simulator._starts`` with the kernels called for all runs in one loop into preallocated rows
         and the checks made on the arrays (``p0`` the same bits); a run that fails or nears a bound is
         checked again by ``Simulator._check_start``, whose ``ValueError`` names it. Models with bilateral
@@ -391,7 +391,7 @@ class CSimulator(Simulator):
                 raise ValueError(f"run {i}: {exc}") from None
         if bad_par is not None:
             raise bad_par
-        return [Start(q[i], v[i], p0[i], per_run[i], par, mu_f) for i, (par, mu_f, _) in enumerate(runs)]
+        return ManyStarts(q, v, p0, per_run[:k], [r[0] for r in runs], [r[1] for r in runs])
 
     def _rooms(self, kern: CKernels) -> tuple[int, int]:
         """The impact records and lift-offs one grid step may write (``<model>_run`` keeps that room)."""
@@ -425,17 +425,17 @@ class CSimulator(Simulator):
         pars: dict[int, tuple[np.ndarray, int]] = {}  # one C parameter vector per distinct params
         n = kern.n
 
-        def make(part: list[Start]) -> list[CRun]:
-            for st in part:
-                if id(st.par) not in pars:
-                    arr = _par_array(st.par)
-                    pars[id(st.par)] = (arr, arr.ctypes.data)
-            state = np.empty((len(part), 3 * n))
-            state[:, :n] = [st.q0 for st in part]
-            state[:, n : 2 * n] = [st.p0 for st in part]
-            state[:, 2 * n :] = [st.v0 for st in part]
-            return batch_runs(kern, state, [pars[id(st.par)] for st in part], steps, n_impacts, rooms,
-                              FIRST_CAP_MANY)  # fmt: skip
+        def make(first: int, last: int) -> list[CRun]:
+            for par in starts.par[first:last]:
+                if id(par) not in pars:
+                    arr = _par_array(par)
+                    pars[id(par)] = (arr, arr.ctypes.data)
+            state = np.empty((last - first, 3 * n))
+            state[:, :n] = starts.q[first:last]
+            state[:, n : 2 * n] = starts.p0[first:last]
+            state[:, 2 * n :] = starts.v[first:last]
+            return batch_runs(kern, state, [pars[id(p)] for p in starts.par[first:last]], steps, n_impacts,
+                              rooms, FIRST_CAP_MANY)  # fmt: skip
 
         gc_was_on = gc.isenabled()
         gc.disable()  # thousands of new objects and no cycle among them: no collection passes meanwhile
@@ -456,10 +456,10 @@ class CSimulator(Simulator):
             first = 0
             while first < len(starts):
                 start = time.perf_counter()
-                batch = make(starts[first : first + size])  # buffers made batch by batch
+                batch = make(first, min(first + size, len(starts)))  # buffers made batch by batch
                 _run_batch(kern, tol, h, t0, batch, threads)
                 took = time.perf_counter() - start
-                part = starts[first : first + size]
+                last = first + len(batch)
                 if any(run.rc for run in batch):
                     results = [run.error(t0, h, took / len(batch)) if run.rc else None for run in batch]
                     good = [run for run in batch if not run.rc]
@@ -467,7 +467,11 @@ class CSimulator(Simulator):
                     results, good = [None] * len(batch), batch
                 made = iter(batch_results(good, t0, h, took / len(batch)) if good else ())
                 done = [next(made) if r is None else r for r in results]
-                self._finish_many([r.result if isinstance(r, SolverError) else r for r in done], part)
+                self._finish_many(
+                    [r.result if isinstance(r, SolverError) else r for r in done],
+                    starts.par[first:last],
+                    starts.mu_f[first:last],
+                )
                 for run in batch:
                     if not run.rc:
                         _warn_short(run, t_end, n_impacts, stacklevel=5)
