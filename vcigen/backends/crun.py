@@ -100,7 +100,9 @@ class Block:
 
     @staticmethod
     def nbytes(kern: Any, cap: int) -> int:
-        return _layout(kern, cap)[1]
+        """About the bytes of a block of ``cap`` rows (without the alignment; cheap: every call asks)."""
+        n, m = kern.n, kern.m
+        return 8 * (2 * (cap + 1) * n + cap * (1 + m + kern.nc)) + (cap + 1) * m
 
     def _carve(self, raw: np.ndarray) -> list[np.ndarray]:
         return [raw[at : at + size].view(dtype).reshape(shape) for at, size, dtype, shape in self.layout]
@@ -112,7 +114,7 @@ class Block:
         lease.__array_interface__ = {
             "shape": self.raw.shape, "typestr": "|u1", "data": (self.raw.ctypes.data, False), "version": 3,
         }  # fmt: skip
-        weakref.finalize(lease, _give_back, pool, self)
+        weakref.finalize(lease, _give_back, pool, self).atexit = False
         return self._carve(np.asarray(lease))
 
     def clean(self) -> None:
