@@ -6,6 +6,10 @@ stops because one might overflow (a run of unknown length, ``n_impacts``, or man
 buffer doubles and the run resumes from ``(q, p, v)`` and its sustain state, which gives the same
 trajectory as one call (the loop keeps no other state between steps). The impact log stays in the
 C records and becomes a :class:`~vcigen.impacts.ImpactTable` at the end: no object per impact.
+
+``simulate``'s grid buffers of 256 KB or more come from a :class:`Block` of the simulator's pool, lent
+until the result's arrays are gone (no page faults per call); ``simulate_many`` makes a batch of runs
+at once (:func:`batch_runs`, :func:`batch_results`): one allocation per buffer for the batch.
 """
 
 from __future__ import annotations
