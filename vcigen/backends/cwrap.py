@@ -491,7 +491,8 @@ def _run_batch(kern: CKernels, tol: _Tol, h: float, t0: float, runs: list[CRun],
     pending = [r for r in runs if not r.finished]
     while pending:
         if threads > 1 and len(pending) > 1:
-            parts = [pending[i::threads] for i in range(threads)]
+            step = -(-len(pending) // threads)  # contiguous parts: no two threads write one cache line
+            parts = [pending[i : i + step] for i in range(0, len(pending), step)]
             with ThreadPoolExecutor(threads) as pool:
                 list(pool.map(lambda part: run_jobs(kern, tol, h, t0, part, MAX_STEPS), parts))
         else:
