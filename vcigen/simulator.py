@@ -195,14 +195,16 @@ class Simulator:
         zeros = {s: np.zeros((2, lengths.count(s), s)) for s in set(lengths)}
         used = dict.fromkeys(zeros, 0)
         coords, contacts, at_end = self._coordinate_names, self.system.contact_names, bool(self.model.force)
-        velocity = self._velocity
+        velocity, inverses = self._velocity, {}  # one Legendre inverse per parameter vector
         for res, par, s in zip(results, pars, lengths):
             k = used[s]
             used[s] = k + 1
             d = res.__dict__
             d["friction_work"], d["work"] = zeros[s][0, k], zeros[s][1, k]
             d["energy_at_end"], d["coordinate_names"], d["contact_names"] = at_end, list(coords), contacts
-            d["velocity_of"] = partial(velocity, par=par)
+            if id(par) not in inverses:
+                inverses[id(par)] = partial(velocity, par=par)
+            d["velocity_of"] = inverses[id(par)]
 
     def _velocity(self, q: np.ndarray, p: np.ndarray, par: list[float]) -> np.ndarray:
         if self._inverse is None:
