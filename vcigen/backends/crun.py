@@ -157,12 +157,12 @@ def _give_back(pool: list[Block], block: Block) -> None:
 def _take(pool: list[Block], kern: Any, cap: int) -> Block:
     """A block of at least ``cap`` rows from ``pool`` (at most 4x that, not to pin much more than the run
     needs), cleaned; or a new one."""
-    for i, b in enumerate(pool):
-        if cap <= b.cap <= 4 * cap:
+    for block in list(pool):
+        if cap <= block.cap <= 4 * cap:
             try:
-                block = pool.pop(i)
-            except IndexError:  # another thread took it meanwhile
-                break
+                pool.remove(block)
+            except ValueError:  # another thread took it meanwhile
+                continue
             block.clean()
             return block
     return Block(kern, cap)
