@@ -87,3 +87,21 @@ def test_a_run_that_outgrows_its_block_equals_fresh_buffers(monkeypatch: pytest.
     assert res.t.size > 4 * 64
     assert_same(res, fresh(sim, [0.0, 1.0], [0.3, 0.0], 0.01, n_impacts=12, params={"e": 1.0}))
     assert len(sim._pool) == 1 and not np.shares_memory(res.q, sim._pool[0].raw)
+
+
+def test_threads_calling_simulate_on_one_simulator(blocks) -> None:
+    """Two threads sharing one simulator's pool: every result equals its run on fresh buffers and no
+    two results share memory."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    sim = simulator("ball", "c")
+    starts = [([0.05 * k, 0.3 + 0.1 * k], [0.2, 0.0]) for k in range(8)]
+
+    def run(start):
+        return sim.simulate(*start, 0.01, n_impacts=4, params={"e": 0.9})
+
+    with ThreadPoolExecutor(2) as pool:
+        results = list(pool.map(run, starts))
+    for (q0, v0), res in zip(starts, results):
+        assert_same(res, fresh(sim, q0, v0, 0.01, n_impacts=4, params={"e": 0.9}))
+    assert not any(np.shares_memory(a.q, b.q) for i, a in enumerate(results) for b in results[i + 1 :])
