@@ -15,8 +15,10 @@ Then (``user_main``, alone with ``--user-only``) what a user sees from Python, t
 as a user calls it (``simulate`` / ``simulate_many`` with default options): the particle's 1000
 impacts by ``n_impacts=`` and by ``t_end=``, against the same steps without impacts (us per impact
 seen from Python); the fixed cost of a ``simulate`` call (double pendulum, 0 and 33 steps); and
-``simulate_many`` against a loop of ``simulate`` (per run), with 1 and 2 threads. Writes
-``bench/results/c_speed_user.csv``.
+``simulate_many`` against a loop of ``simulate`` (per run), with 1 and 2 threads, and its CPU time per
+run beyond the generated C loop (``<model>_run_many``'s own time subtracted). Writes
+``bench/results/c_speed_user.csv``. From a worktree other than the installed one, run it with
+``PYTHONPATH=.`` (the script's folder, not the cwd, is first on ``sys.path``).
 
 Every variant stores the same output (q, p, energy per step) into preallocated
 buffers; the best of ``--repeats`` runs counts. Prints a table with ratios and
@@ -36,6 +38,7 @@ from __future__ import annotations
 import argparse
 import csv
 import ctypes
+import math
 import subprocess
 import sys
 import tempfile
@@ -472,6 +475,30 @@ def best_cpu(repeats: int, fn) -> float:
     return min(times)
 
 
+def cpu_beyond_c(repeats: int, fn, kern) -> tuple[float, float]:
+    """``(total, total - C)`` of the call of ``fn`` with the smallest CPU time among ``repeats``, where C
+    is the CPU time spent inside ``kern.run_many`` (the generated C loop: the steps themselves)."""
+    raw, inside = kern.run_many, [0.0]
+
+    def timed(*args):
+        t = time.process_time()
+        raw(*args)
+        inside[0] += time.process_time() - t
+
+    kern.run_many = timed
+    try:
+        best = (math.inf, math.inf)
+        for _ in range(repeats):
+            inside[0] = 0.0
+            t = time.process_time()
+            fn()
+            total = time.process_time() - t
+            best = min(best, (total, total - inside[0]))
+    finally:
+        kern.run_many = raw
+    return best
+
+
 def user_rows(repeats: int) -> list[dict[str, float | str]]:
     """CPU times of ``simulate`` / ``simulate_many`` calls (C backend, default options), best of
     ``repeats`` (wall time for the threads rows): the particle's 1000 impacts (``n_impacts=`` and the
@@ -521,6 +548,13 @@ def user_rows(repeats: int) -> list[dict[str, float | str]]:
             {"what": f"double pendulum, {label}: loop of simulate, per run", "us": loop / N_MANY * 1e6}
         )
         rows.append({"what": f"double pendulum, {label}: simulate_many, per run", "us": many / N_MANY * 1e6})
+    _, beyond = cpu_beyond_c(repeats, lambda: dp.simulate_many(q0s, v0s, 0.01, t_end=0.33), dp.kernels)
+    rows.append(
+        {
+            "what": "double pendulum, 33 steps: simulate_many, per run beyond the C loop (run_many)",
+            "us": beyond / N_MANY * 1e6,
+        }
+    )
     for threads in (1, 2):
         many = best_of(repeats, lambda th=threads: dp.simulate_many(q0s, v0s, 0.01, t_end=3.3, threads=th))
         rows.append(

@@ -39,6 +39,23 @@ class Start(NamedTuple):
     mu_f: list[float]  # each contact's friction coefficient
 
 
+class ManyStarts:
+    """The runs of ``simulate_many``, checked: ``q``, ``v``, ``p0`` as ``(K, n)`` arrays and each run's
+    ``params``, parameter vector ``par`` and ``mu_f`` in lists; ``starts[i]``: run ``i``'s :class:`Start`."""
+
+    def __init__(self, q, v, p0, params: list, par: list[list[float]], mu_f: list[list[float]]) -> None:
+        self.q, self.v, self.p0, self.params, self.par, self.mu_f = q, v, p0, params, par, mu_f
+
+    def __len__(self) -> int:
+        return len(self.par)
+
+    def __getitem__(self, i: int) -> Start:
+        return Start(self.q[i], self.v[i], self.p0[i], self.params[i], self.par[i], self.mu_f[i])
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+
 class Simulator:
     """A model compiled for one backend and rule; call :meth:`simulate` or :meth:`simulate_many`."""
 
@@ -119,8 +136,15 @@ class Simulator:
         if int(threads) != threads or threads < 1:
             raise ValueError(f"threads = {threads!r} must be a whole number >= 1")
         h = self._validate(h, t_end, n_impacts, t0)
-        starts, resolved = [], {}  # params resolved once per mapping object (one for all runs, or each)
-        for i, (q0, v0, par_i) in enumerate(self._many_starts(q0s, v0s, params)):
+        starts = self._starts(*self._many_starts(q0s, v0s, params), t0)
+        out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
+        return _many_outcome(out, errors)
+
+    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> ManyStarts:
+        """Each run of ``simulate_many`` checked as ``simulate`` checks its start; the first bad run is a
+        ``ValueError`` starting ``run i:``. ``params`` resolved once per mapping object."""
+        starts, resolved = [], {}
+        for i, (q0, v0, par_i) in enumerate(zip(q, v, per_run)):
             try:
                 if id(par_i) not in resolved:
                     resolved[id(par_i)] = self._parameters(par_i, t0)
@@ -132,8 +156,10 @@ class Simulator:
             except ValueError as exc:
                 raise ValueError(f"run {i}: {exc}") from None
             starts.append(Start(q0, v0, p0, par_i, par, mu_f))
-        out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
-        return _many_outcome(out, errors)
+        cols = list(zip(*starts)) if starts else [[]] * 6
+        n = self.model.n
+        p0 = np.array(cols[2]).reshape(-1, n)
+        return ManyStarts(q.reshape(-1, n), v.reshape(-1, n), p0, *map(list, cols[3:]))
 
     def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
         """One ``simulate`` per run, after one another (the Python stepper)."""
@@ -157,6 +183,28 @@ class Simulator:
         res.coordinate_names = list(self._coordinate_names)
         res.contact_names = self.system.contact_names
         res.velocity_of = partial(self._velocity, par=par)
+
+    def _finish_many(self, results: list[Result], pars: list[list[float]], mu_fs: list[list[float]]) -> None:
+        """:meth:`_finish` of each run of ``simulate_many``; without forces or friction (work 0) the zero
+        work arrays of runs of one length are rows of one block."""
+        if self._work is not None or self._friction is not None:
+            for res, par, mu_f in zip(results, pars, mu_fs):
+                self._finish(res, mu_f, par)
+            return
+        lengths = [res.energy.size for res in results]
+        zeros = {s: np.zeros((2, lengths.count(s), s)) for s in set(lengths)}
+        used = dict.fromkeys(zeros, 0)
+        coords, contacts, at_end = self._coordinate_names, self.system.contact_names, bool(self.model.force)
+        velocity, inverses = self._velocity, {}  # one Legendre inverse per parameter vector
+        for res, par, s in zip(results, pars, lengths):
+            k = used[s]
+            used[s] = k + 1
+            d = res.__dict__
+            d["friction_work"], d["work"] = zeros[s][0, k], zeros[s][1, k]
+            d["energy_at_end"], d["coordinate_names"], d["contact_names"] = at_end, list(coords), contacts
+            if id(par) not in inverses:
+                inverses[id(par)] = partial(velocity, par=par)
+            d["velocity_of"] = inverses[id(par)]
 
     def _velocity(self, q: np.ndarray, p: np.ndarray, par: list[float]) -> np.ndarray:
         if self._inverse is None:
@@ -205,8 +253,8 @@ class Simulator:
             raise ValueError(f"n_impacts = {n_impacts!r} must be a whole number >= 0")
         return h
 
-    def _many_starts(self, q0s, v0s, params) -> list[tuple[np.ndarray, np.ndarray, Mapping | None]]:
-        """``(q0, v0, params)`` of each run of ``simulate_many`` (shapes checked; the rest per run)."""
+    def _many_starts(self, q0s, v0s, params) -> tuple[np.ndarray, np.ndarray, list[Mapping | None]]:
+        """``q0s, v0s`` as ``(K, n)`` arrays and each run's ``params`` (shapes checked; the rest per run)."""
         n = self.model.n
         q = _matrix("q0s", q0s, n)
         v = _matrix("v0s", v0s, n)
@@ -218,7 +266,7 @@ class Simulator:
             per_run = list(params)
             if len(per_run) != q.shape[0]:
                 raise ValueError(f"params has {len(per_run)} entries but there are {q.shape[0]} runs")
-        return list(zip(q, v, per_run))
+        return q, v, per_run
 
     def _check_start(self, kern, q0, v0) -> np.ndarray:
         """A ``ValueError`` if ``(q0, v0)`` is no admissible start; else ``p0 = dL/dqdot(q0, v0)``."""
@@ -282,6 +330,30 @@ def _condition(mass: np.ndarray) -> float:
         return math.inf
     lam = np.abs(np.linalg.eigvalsh(0.5 * (mass + mass.T)))
     return float(lam.max() / lam.min()) if lam.min() > 0 else math.inf
+
+
+def conditions(mass: np.ndarray) -> np.ndarray:
+    """:func:`_condition` of each of ``K`` matrices ``(K, n, n)``, vectorised (the same formulas; the
+    scalar function has the last word where this one is near the bound: ``simulate_many``'s starts)."""
+    k, n = mass.shape[0], mass.shape[1]
+    out = np.full(k, np.inf)
+    with np.errstate(all="ignore"):
+        if n == 1:
+            a = np.abs(mass[:, 0, 0])
+            out[(a > 0.0) & (a < np.inf)] = 1.0
+        elif n == 2:
+            a, b, d = mass[:, 0, 0], 0.5 * (mass[:, 0, 1] + mass[:, 1, 0]), mass[:, 1, 1]
+            mid, rad = 0.5 * (a + d), np.hypot(0.5 * (a - d), b)
+            lo = np.minimum(np.abs(mid - rad), np.abs(mid + rad))
+            hi = np.maximum(np.abs(mid - rad), np.abs(mid + rad))
+            ok = (lo > 0.0) & np.isfinite(hi)
+            out[ok] = hi[ok] / lo[ok]
+        else:
+            fin = np.isfinite(mass).all(axis=(1, 2))
+            lam = np.abs(np.linalg.eigvalsh(0.5 * (mass[fin] + mass[fin].transpose(0, 2, 1))))
+            lo, hi = lam.min(axis=1), lam.max(axis=1)
+            out[np.flatnonzero(fin)[lo > 0]] = (hi / lo)[lo > 0]
+    return out
 
 
 def _matrix(name: str, x, n: int) -> np.ndarray:

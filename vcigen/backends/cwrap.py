@@ -22,13 +22,21 @@ import numpy as np
 from ..derive import DiscreteSystem, set_rows
 from ..errors import SolverError
 from ..held import Held
-from ..impacts import RECORD_HEAD
 from ..progress import Progress
 from ..result import Result
-from ..simulator import Simulator, Start
+from ..simulator import MAX_CONDITION, ManyStarts, Simulator, conditions
 from ..stepper import Tolerances, _n_steps, warn_reflected
 from ..sustained import rattle_segment
-from .crun import FIRST_CAP_MANY, MAX_STEPS, CRun, chunk_steps, lend_records, run_jobs
+from .crun import (
+    FIRST_CAP_MANY,
+    MAX_STEPS,
+    Block,
+    CRun,
+    batch_results,
+    batch_runs,
+    chunk_steps,
+    run_jobs,
+)
 from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -338,12 +346,53 @@ class CSimulator(Simulator):
     def __init__(self, system: DiscreteSystem, kernels: CKernels, tol: Tolerances | None = None) -> None:
         super().__init__(system, kernels, tol)
         self._tol: tuple[Tolerances, _Tol] | None = None
+        self._pool: list[Block] = []  # grid buffers of simulate's longer runs, reused (crun.Block)
 
     def _tol_struct(self) -> _Tol:
         """The C tolerances of ``self.tol``, made once (again if ``tol`` is replaced)."""
         if self._tol is None or self._tol[0] is not self.tol:
             self._tol = (self.tol, _tol_struct(self.tol))
         return self._tol[1]
+
+    def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> ManyStarts:
+        """``Simulator._starts`` with the kernels called for all runs in one loop into preallocated rows
+        and the checks made on the arrays (``p0`` the same bits); a run that fails or nears a bound is
+        checked again by ``Simulator._check_start``, whose ``ValueError`` names it. Models with bilateral
+        constraints take the per-run path."""
+        kern = self.kernels
+        if kern.r and self._constraint_names:
+            return super()._starts(q, v, per_run, t0)
+        resolved: dict[int, tuple[list[float], list[float], int]] = {}
+        arrays, runs, bad_par = [], [], None
+        for i, par_i in enumerate(per_run):  # the parameters of each run, up to the first bad ones
+            if id(par_i) not in resolved:
+                try:
+                    par, mu_f = self._parameters(par_i, t0)
+                except ValueError as exc:
+                    bad_par = ValueError(f"run {i}: {exc}")
+                    break
+                arrays.append(_par_array(par))
+                resolved[id(par_i)] = (par, mu_f, arrays[-1].ctypes.data)
+            runs.append(resolved[id(par_i)])
+        k, n, mm = len(runs), kern.n, max(kern.m, 1)
+        q, v = np.ascontiguousarray(q[:k]), np.ascontiguousarray(v[:k])
+        p0, mass, phi, grad = np.empty((k, n)), np.empty((k, n, n)), np.empty((k, mm)), np.empty((k, mm * n))
+        aq, av, ap, am, aphi, agrad = (a.ctypes.data for a in (q, v, p0, mass, phi, grad))
+        contacts, legendre = kern._contacts, kern._legendre
+        for i, (_, _, at) in enumerate(runs):
+            contacts(aq + 8 * n * i, at, aphi + 8 * mm * i, agrad + 8 * mm * n * i)
+            legendre(aq + 8 * n * i, av + 8 * n * i, at, ap + 8 * n * i, am + 8 * n * n * i)
+        ok = (phi[:, : kern.m] >= -self.tol.admissible).all(axis=1)
+        ok &= conditions(mass) <= 0.5 * MAX_CONDITION
+        for i in np.flatnonzero(~ok).tolist():  # the scalar check decides, and names the problem
+            kern.bind(runs[i][0])
+            try:
+                self._check_start(kern, q[i], v[i])
+            except ValueError as exc:
+                raise ValueError(f"run {i}: {exc}") from None
+        if bad_par is not None:
+            raise bad_par
+        return ManyStarts(q, v, p0, per_run[:k], [r[0] for r in runs], [r[1] for r in runs])
 
     def _rooms(self, kern: CKernels) -> tuple[int, int]:
         """The impact records and lift-offs one grid step may write (``<model>_run`` keeps that room)."""
@@ -352,7 +401,7 @@ class CSimulator(Simulator):
 
     def _run(self, kern: CKernels, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
-        run = CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, self._rooms(kern))
+        run = CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, self._rooms(kern), pool=self._pool)
         tol = self._tol_struct()
         wall = time.perf_counter()
         rate = None
@@ -375,13 +424,19 @@ class CSimulator(Simulator):
         kern, tol, rooms = self.kernels, self._tol_struct(), self._rooms(self.kernels)
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
         pars: dict[int, tuple[np.ndarray, int]] = {}  # one C parameter vector per distinct params
+        n = kern.n
 
-        def make(st: Start) -> CRun:
-            if id(st.par) not in pars:
-                arr = _par_array(st.par)
-                pars[id(st.par)] = (arr, arr.ctypes.data)
-            arr, at = pars[id(st.par)]
-            return CRun(kern, arr, st.q0, st.v0, st.p0, steps, n_impacts, rooms, at, FIRST_CAP_MANY)
+        def make(first: int, last: int) -> list[CRun]:
+            for par in starts.par[first:last]:
+                if id(par) not in pars:
+                    arr = _par_array(par)
+                    pars[id(par)] = (arr, arr.ctypes.data)
+            state = np.empty((last - first, 3 * n))
+            state[:, :n] = starts.q[first:last]
+            state[:, n : 2 * n] = starts.p0[first:last]
+            state[:, 2 * n :] = starts.v[first:last]
+            return batch_runs(kern, state, [pars[id(p)] for p in starts.par[first:last]], steps, n_impacts,
+                              rooms, FIRST_CAP_MANY)  # fmt: skip
 
         gc_was_on = gc.isenabled()
         gc.disable()  # thousands of new objects and no cycle among them: no collection passes meanwhile
@@ -402,22 +457,27 @@ class CSimulator(Simulator):
             first = 0
             while first < len(starts):
                 start = time.perf_counter()
-                batch = [make(st) for st in starts[first : first + size]]  # buffers made batch by batch
-                lend_records([r for r in batch if not r.finished], RECORD_HEAD + 1 + kern.n)
+                batch = make(first, min(first + size, len(starts)))  # buffers made batch by batch
                 _run_batch(kern, tol, h, t0, batch, threads)
                 took = time.perf_counter() - start
-                for run, st in zip(batch, starts[first : first + size]):
-                    mu_f, par = st.mu_f, st.par
-                    if run.rc:
-                        err = run.error(t0, h, took / len(batch))
-                        self._finish(err.result, mu_f, par)
-                        out.append(err)
-                    else:
+                last = first + len(batch)
+                if any(run.rc for run in batch):
+                    results = [run.error(t0, h, took / len(batch)) if run.rc else None for run in batch]
+                    good = [run for run in batch if not run.rc]
+                else:
+                    results, good = [None] * len(batch), batch
+                made = iter(batch_results(good, t0, h, took / len(batch)) if good else ())
+                done = [next(made) if r is None else r for r in results]
+                self._finish_many(
+                    [r.result if isinstance(r, SolverError) else r for r in done],
+                    starts.par[first:last],
+                    starts.mu_f[first:last],
+                )
+                for run in batch:
+                    if not run.rc:
                         _warn_short(run, t_end, n_impacts, stacklevel=5)
-                        res = run.result(t0, h, took / len(batch))
-                        self._finish(res, mu_f, par)
-                        reflected += res.stats["grazing_reflected"]
-                        out.append(res)
+                        reflected += run.reflected
+                out += done
                 first += len(batch)
                 bar.update(first)
                 if progress:  # about a quarter second per batch, growing at most 8-fold
@@ -432,7 +492,8 @@ def _run_batch(kern: CKernels, tol: _Tol, h: float, t0: float, runs: list[CRun],
     pending = [r for r in runs if not r.finished]
     while pending:
         if threads > 1 and len(pending) > 1:
-            parts = [pending[i::threads] for i in range(threads)]
+            step = -(-len(pending) // threads)  # contiguous parts: no two threads write one cache line
+            parts = [pending[i : i + step] for i in range(0, len(pending), step)]
             with ThreadPoolExecutor(threads) as pool:
                 list(pool.map(lambda part: run_jobs(kern, tol, h, t0, part, MAX_STEPS), parts))
         else:
