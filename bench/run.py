@@ -100,7 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             log(f"[bench] SKIP vcigen C (both rules): {reason}")
             skips["vcigen C"] = reason
     n_runs = sum(len(setups[s].hs) if METHODS[m].kind == "h" else len(rtols) for s in scenes for m in methods)
-    counter = [0, n_runs]
+    counter = [0, n_runs, time.perf_counter()]  # runs done, runs in all, start: the ETA of each line
     all_rows: dict[str, list[Row]] = {}
     for s in scenes:
         scene = bench_scenes.get(s)

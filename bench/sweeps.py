@@ -19,6 +19,7 @@ import numpy as np
 from bench import reference
 from bench.methods import METHODS, VcigenSims, log, run_method
 from bench.scenes import Scene
+from vcigen.progress import format_seconds
 
 Array = np.ndarray
 GOLDEN = 0.6180339887498949
@@ -234,6 +235,13 @@ def scene_reference(scene: Scene, setup: Setup, n_phases: int) -> dict:
     }
 
 
+def eta(counter) -> str:
+    """``"1m20s left"``: the time left at the pace so far (``counter``: runs done, in all, start time)."""
+    done, total, start = counter
+    elapsed = time.perf_counter() - start
+    return f"{format_seconds(elapsed * (total - done) / done) if done else '?'} left"
+
+
 def sweep_scene(
     sims: VcigenSims, scene: Scene, setup: Setup, methods: Sequence[str], rtols, n_phases: int, counter
 ) -> list[Row]:
@@ -250,7 +258,8 @@ def sweep_scene(
             row = evaluate(scene, setup, method, x, runs, ref)
             rows.append(row)
             log(
-                f"[bench {counter[0]:3d}/{counter[1]}] {scene.name:15s} {method:24s} {x:<9.3g} "
+                f"[bench {counter[0]:3d}/{counter[1]} {eta(counter)}] {scene.name:15s} {method:24s} "
+                f"{x:<9.3g} "
                 f"err1 {row.err_first:9.2e} err3 {row.err_few:9.2e} wall {row.wall:9.2e}s "
                 f"dE {row.energy_dev:8.1e} miss {row.missed:g} viol {row.max_violation:7.1e} "
                 f"({time.perf_counter() - t0:.1f}s) {row.note[:90]}"
