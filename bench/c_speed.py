@@ -59,6 +59,16 @@ N_SMOOTH_C, N_SMOOTH_CASADI = 1_000_000, 5_000
 N_IMPACTS_C, N_IMPACTS_CASADI = 20_000, 100
 
 
+def write_rows(out: Path, rows: list[dict]) -> None:
+    """``rows`` (dicts with the same keys) as a CSV at ``out``."""
+    out.parent.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"written {out}")
+
+
 def best_of(repeats: int, fn) -> float:
     """Smallest wall time of ``repeats`` calls of ``fn``."""
     times = []
@@ -448,13 +458,7 @@ def print_chain(rows, impacts) -> None:
             f"generated C, {r['model']}, {r['rule']}: {r['us_per_impact']:.2f} us per impact "
             f"(median of {r['impacts']} impact steps less the median smooth step, one step per call)"
         )
-    out = HERE / "results" / "c_speed_chain.csv"
-    out.parent.mkdir(exist_ok=True)
-    with out.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print(f"written {out}")
+    write_rows(HERE / "results" / "c_speed_chain.csv", rows)
 
 
 # ---- what a user sees from Python (issue 13): simulate and simulate_many as a user calls them ----------
@@ -572,13 +576,7 @@ def user_main(repeats: int) -> None:
     print(f"\n{'simulate as a user calls it (C backend; CPU time, threads rows wall time)':78s} {'us':>10s}")
     for r in rows:
         print(f"{r['what']:78s} {r['us']:10.2f}")
-    out = HERE / "results" / "c_speed_user.csv"
-    out.parent.mkdir(exist_ok=True)
-    with out.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=["what", "us"])
-        w.writeheader()
-        w.writerows(rows)
-    print(f"written {out}")
+    write_rows(HERE / "results" / "c_speed_user.csv", rows)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -646,13 +644,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['step_vs_handwritten']:10.2f} "
             f"{r['impact_vs_handwritten']:12.1f} {r['casadi_over_this_step']:12.0f}"
         )
-    out = HERE / "results" / "c_speed.csv"
-    out.parent.mkdir(exist_ok=True)
-    with out.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print(f"written {out}")
+    write_rows(HERE / "results" / "c_speed.csv", rows)
     gen = [r for r in rows if str(r["variant"]).startswith("generated")]
     ok = all(r["step_vs_handwritten"] <= 1.5 for r in gen) and all(
         r["casadi_over_this_step"] >= 100 for r in gen

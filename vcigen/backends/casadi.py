@@ -187,16 +187,20 @@ class CasadiKernels(ParameterSlots):
         return ca.Function(f"{f.name()}_flat", [ca.vertcat(*ins)], [ca.vertcat(*[ca.vec(o.T) for o in outs])])
 
     # -- the kernels interface --------------------------------------------------
-    def _call(self, f: ca.Function, *parts: np.ndarray | float) -> np.ndarray:
-        """Evaluate ``f`` on the concatenated parts (and the parameters) via a CasADi buffer."""
+    def _buffer(self, f: ca.Function) -> tuple[np.ndarray, np.ndarray, object]:
+        """``(arg, res, trigger)``: ``f``'s CasADi buffer over two numpy arrays, made once per Function."""
         b = self._buffers.get(f.name())
         if b is None:
             arg, res = np.zeros(f.size1_in(0)), np.zeros(f.size1_out(0))
             buf, trigger = f.buffer()
             buf.set_arg(0, memoryview(arg))
             buf.set_res(0, memoryview(res))
-            b = self._buffers[f.name()] = (arg, res, trigger, buf)
-        arg, res, trigger, _ = b
+            b = self._buffers[f.name()] = (arg, res, trigger, buf)  # buf kept alive beside its arrays
+        return b[0], b[1], b[2]
+
+    def _call(self, f: ca.Function, *parts: np.ndarray | float) -> np.ndarray:
+        """Evaluate ``f`` on the concatenated parts (and the parameters) via a CasADi buffer."""
+        arg, res, trigger = self._buffer(f)
         i = 0
         for part in (*parts, self.par):
             if np.ndim(part) == 0:
@@ -295,14 +299,7 @@ class CasadiKernels(ParameterSlots):
     def _held_call(self, name: str, sizes: tuple[int, ...], *args) -> list[np.ndarray]:
         """Routine ``name`` of :func:`vcigen.held.held_routines` (its inputs end with ``k``, not ``par``)."""
         f = self._held[name]
-        b = self._buffers.get(f.name())
-        if b is None:  # a CasADi buffer, as in _call (these routines read k, not par)
-            arg, res = np.zeros(f.size1_in(0)), np.zeros(f.size1_out(0))
-            buf, trigger = f.buffer()
-            buf.set_arg(0, memoryview(arg))
-            buf.set_res(0, memoryview(res))
-            b = self._buffers[f.name()] = (arg, res, trigger, buf)
-        arg, res, trigger, _ = b
+        arg, res, trigger = self._buffer(f)  # as in _call (these routines read k, not par)
         arg[:] = np.concatenate(args)
         trigger()
         o = res.copy()
