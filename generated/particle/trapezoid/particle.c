@@ -2225,7 +2225,7 @@ PARTICLE_HELD_HOT static long particle_held_glide(const particle_ctx_t *c, const
     }
     if (s > 0) { /* the state a general step after the glide reads: multipliers, forces */
         for (r = 0; r < PARTICLE_R; ++r) {
-            c->sus->lam[r] = act[r] ? lam[r] * (c->h / c->h) : 0.0;
+            c->sus->lam[r] = act[r] ? lam[r] : 0.0; /* a held step spans the grid step: no rescaling */
         }
         for (j = 0; j < PARTICLE_M; ++j) {
             c->sus->force[j] = F[(s - 1) * PARTICLE_M + j];

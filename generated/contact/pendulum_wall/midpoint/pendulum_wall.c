@@ -2278,7 +2278,7 @@ PENDULUM_WALL_HELD_HOT static long pendulum_wall_held_glide(const pendulum_wall_
     }
     if (s > 0) { /* the state a general step after the glide reads: multipliers, forces */
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
-            c->sus->lam[r] = act[r] ? lam[r] * (c->h / c->h) : 0.0;
+            c->sus->lam[r] = act[r] ? lam[r] : 0.0; /* a held step spans the grid step: no rescaling */
         }
         for (j = 0; j < PENDULUM_WALL_M; ++j) {
             c->sus->force[j] = F[(s - 1) * PENDULUM_WALL_M + j];

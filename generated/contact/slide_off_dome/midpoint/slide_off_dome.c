@@ -2276,7 +2276,7 @@ SLIDE_OFF_DOME_HELD_HOT static long slide_off_dome_held_glide(const slide_off_do
     }
     if (s > 0) { /* the state a general step after the glide reads: multipliers, forces */
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            c->sus->lam[r] = act[r] ? lam[r] * (c->h / c->h) : 0.0;
+            c->sus->lam[r] = act[r] ? lam[r] : 0.0; /* a held step spans the grid step: no rescaling */
         }
         for (j = 0; j < SLIDE_OFF_DOME_M; ++j) {
             c->sus->force[j] = F[(s - 1) * SLIDE_OFF_DOME_M + j];

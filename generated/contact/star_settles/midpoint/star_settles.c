@@ -2572,7 +2572,7 @@ STAR_SETTLES_HELD_HOT static long star_settles_held_glide(const star_settles_ctx
     }
     if (s > 0) { /* the state a general step after the glide reads: multipliers, forces */
         for (r = 0; r < STAR_SETTLES_R; ++r) {
-            c->sus->lam[r] = act[r] ? lam[r] * (c->h / c->h) : 0.0;
+            c->sus->lam[r] = act[r] ? lam[r] : 0.0; /* a held step spans the grid step: no rescaling */
         }
         for (j = 0; j < STAR_SETTLES_M; ++j) {
             c->sus->force[j] = F[(s - 1) * STAR_SETTLES_M + j];

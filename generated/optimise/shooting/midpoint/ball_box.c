@@ -2496,7 +2496,7 @@ BALL_BOX_HELD_HOT static long ball_box_held_glide(const ball_box_ctx_t *c, const
     }
     if (s > 0) { /* the state a general step after the glide reads: multipliers, forces */
         for (r = 0; r < BALL_BOX_R; ++r) {
-            c->sus->lam[r] = act[r] ? lam[r] * (c->h / c->h) : 0.0;
+            c->sus->lam[r] = act[r] ? lam[r] : 0.0; /* a held step spans the grid step: no rescaling */
         }
         for (j = 0; j < BALL_BOX_M; ++j) {
             c->sus->force[j] = F[(s - 1) * BALL_BOX_M + j];
