@@ -33,8 +33,8 @@ generate: venv        ## regenerate generated/ from the examples (one command)
 	$(VENV)/bin/vcigen generate --all
 
 bench: venv           ## speed against error, side by side; forced and frictional scenes with the engines that install
+	for e in mujoco pymunk pybullet; do $(VENV)/bin/pip install -q $$e || echo "$$e does not install here: the benches skip it"; done
 	$(PY) bench/run.py
-	-$(VENV)/bin/pip install -q mujoco pymunk pybullet || echo "an engine does not install here: the benches skip it"
 	$(PY) bench/forced.py
 	$(PY) bench/friction.py
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from bench.cvode import run_cvode_events
 from bench.scenes import Scene
 
 Array = np.ndarray
@@ -266,4 +267,5 @@ METHODS: dict[str, Callable[..., dict]] = {
     "dop853_events": partial(run_scipy_events, method="DOP853"),
     "dop853_events_ms": partial(run_scipy_events, method="DOP853", max_step=0.01),
     "siconos_mj": run_siconos,
+    "cvode_events": run_cvode_events,
 }

@@ -1,8 +1,9 @@
 """The methods of the speed-against-error bench (bench/run.py) and how each one runs a scene.
 
 ``METHODS`` names every method (vcigen on both backends and rules, the ``solve_ivp`` event-driven
-baselines, naive Verlet, Siconos Moreau-Jean); :func:`run_method` runs one of them from several
-start states and returns one plain result dict per start.
+baselines, SUNDIALS CVODE with root-finding (compiled, :mod:`bench.cvode`), naive Verlet, Siconos
+Moreau-Jean); :func:`run_method` runs one of them from several start states and returns one plain
+result dict per start.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ METHODS: dict[str, Method] = {
         Method("dop853_events", "rtol", "DOP853 + events", "^-"),
         Method("dop853_events_ms", "rtol", "DOP853 + events, max_step 0.01", "<-"),
         Method("rk45_events", "rtol", "RK45 + events", "v-"),
+        Method("cvode_events", "rtol", "CVODE Adams + roots (SUNDIALS)", ">-"),
         Method("verlet_full_flip", "h", "naive Verlet, full-step flip", "x-"),
         Method("verlet_half_flip", "h", "naive Verlet, half-step flip", "+-"),
         Method("siconos_mj", "h", "Siconos Moreau-Jean", "*-"),

@@ -97,3 +97,16 @@ def test_scene_gradients_match_finite_differences(name: str) -> None:
     for c in sc.contacts:
         fd = [(c.phi(q + eps * e) - c.phi(q - eps * e)) / (2 * eps) for e in eye]
         np.testing.assert_allclose(c.grad_phi(q), fd, rtol=1e-6, atol=1e-6)
+
+
+def test_cvode_baseline_hits_the_particle_closed_form() -> None:
+    """SUNDIALS CVODE with root-finding: impact times and positions of the exact bouncing particle."""
+    pytest.importorskip("sksundae", reason="scikit-sundae (CVODE) does not install here; the bench skips it")
+    sc = bench_scenes.particle()
+    res = baselines.METHODS["cvode_events"](sc, 1e-10, t_end=1.5, grid_h=0.01)
+    ref = reference.particle_closed_form(res["t"], q0=tuple(sc.q0), v0=tuple(sc.v0))
+    np.testing.assert_allclose(res["q"], ref.q, atol=1e-8)
+    u = np.sqrt(sc.v0[1] ** 2 + 2 * 9.81 * sc.q0[1])
+    t1 = (sc.v0[1] + u) / 9.81
+    np.testing.assert_allclose(res["impacts"], t1 + 2 * u / 9.81 * np.arange(len(res["impacts"])), atol=1e-9)
+    assert len(res["impacts"]) == 2 and res["nfev"] > 0
