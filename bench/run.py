@@ -17,7 +17,7 @@ every method here, so ``particle`` and ``star`` measure only impact handling;
 ``star_nonlinear`` and ``pendulum_wall`` measure accuracy.
 
 Usage: ``python bench/run.py [--scenes a,b] [--methods m,n] [--hs 0.01,0.005]
-[--rtols 1e-6,1e-10] [--phases 8] [--no-long] [--out DIR]``.
+[--rtols 1e-6,1e-10] [--targets 1e-4,1e-8] [--phases 8] [--no-long] [--out DIR]``.
 
 This file is the entry point; one module per concern beside it: ``scenes.py`` (the scenes),
 ``methods.py`` (the methods and how each runs a scene), ``sweeps.py`` (start phases, references,
@@ -66,7 +66,9 @@ def parse(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--hs", default=None, help="override the h sweep of every scene, comma list")
     ap.add_argument("--rtols", default=",".join(f"{r:g}" for r in RTOLS))
     ap.add_argument("--phases", type=int, default=8, help="start phases per (method, h)")
-    ap.add_argument("--target", type=float, default=1e-4, help="accuracy for 'wall time to reach'")
+    ap.add_argument(
+        "--targets", default="1e-4,1e-8", help="accuracies for 'wall time to reach', comma list"
+    )
     ap.add_argument("--long-steps", type=int, default=100_000, help="steps of the energy long runs")
     ap.add_argument("--drift-steps", type=int, default=1_000_000, help="steps of the C drift runs")
     ap.add_argument("--no-long", action="store_true", help="skip the long runs")
@@ -86,10 +88,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if m not in METHODS:
             raise SystemExit(f"unknown method {m!r}; known: {', '.join(METHODS)}")
     rtols = tuple(float(r) for r in args.rtols.split(","))
+    targets = tuple(float(t) for t in args.targets.split(","))
     setups = dict(SETUPS)
     if args.hs:
         hs = tuple(float(h) for h in args.hs.split(","))
-        setups = {k: dataclasses.replace(v, hs=hs) for k, v in setups.items()}
+        setups = {k: dataclasses.replace(v, hs=hs, fine_hs=()) for k, v in setups.items()}
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     sims = VcigenSims()
@@ -99,7 +102,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if reason and any(m.startswith(f"vcigen_{backend}_") for m in methods):
             log(f"[bench] SKIP vcigen C (both rules): {reason}")
             skips["vcigen C"] = reason
-    n_runs = sum(len(setups[s].hs) if METHODS[m].kind == "h" else len(rtols) for s in scenes for m in methods)
+    n_runs = sum(
+        len(setups[s].hs_for(m)) if METHODS[m].kind == "h" else len(rtols) for s in scenes for m in methods
+    )
     counter = [0, n_runs, time.perf_counter()]  # runs done, runs in all, start: the ETA of each line
     all_rows: dict[str, list[Row]] = {}
     for s in scenes:
@@ -119,7 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.no_long:
         longs, drift_runs = long_runs(sims, scenes, methods, args, out, skips)
     total = time.perf_counter() - total0
-    write_summary(out / "summary.md", all_rows, longs, drift_runs, args.target, skips, total, args)
+    write_summary(out / "summary.md", all_rows, longs, drift_runs, targets, skips, total, args)
     if out.resolve() == DEFAULT_OUT.resolve():
         update_readme(out / "summary.md", ROOT / "README.md")
     log(f"[bench] done in {total:.0f}s; results in {out}")

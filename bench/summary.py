@@ -86,7 +86,7 @@ def write_summary(
     all_rows: dict[str, list[Row]],
     longs: Sequence[LongRun],
     drift_runs: Sequence[LongRun],
-    target: float,
+    targets: Sequence[float],
     skips: dict[str, str],
     total: float,
     args: argparse.Namespace,
@@ -112,41 +112,42 @@ def write_summary(
     ]
     for scene, rows in all_rows.items():
         setup = SETUPS[scene]
+        walls = " | ".join(f"wall @ {t:g}" for t in targets)
         lines += [
             f"## {scene}",
             "",
             f"Errors at t = {setup.t_first} (after the first collision) and t = {setup.t_few} "
-            f"(after a few impacts). `wall @ {target:g}`: wall time per run to reach error "
-            f"{target:g} at t = {setup.t_first} (interpolated; `~` extrapolated from the two most "
+            f"(after a few impacts). `wall @ e`: wall time per run to reach error "
+            f"e at t = {setup.t_first} (interpolated; `~` extrapolated from the two most "
             "accurate points; `<=` the cheapest run already does better). Impacts missed / "
             f"spurious: reference impacts in (tau, tau + {setup.t_few}] with no impact of the method "
             f"within {MATCH_TOL} s, and the reverse; at coarse h the trajectory error alone can move "
             "an impact after the first few out of that window.",
             "",
-            f"| method | wall @ {target:g} | best error (t={setup.t_first}) | its wall [s] | order in h "
+            f"| method | {walls} | best error (t={setup.t_first}) | its wall [s] | order in h "
             "| max dE/E0 | impacts missed / spurious (worst run) | max violation |",
-            "|---|---|---|---|---|---|---|---|",
+            "|---|" + "---|" * len(targets) + "---|---|---|---|---|---|",
         ]
         for name, m in METHODS.items():
             mr = [r for r in rows if r.method == name]
             if not mr:
                 continue
             if all(r.note.startswith("skip") for r in mr):
-                lines.append(f"| {m.label} | skipped: {mr[0].note[6:]} | | | | | | |")
+                lines.append(f"| {m.label} | skipped: {mr[0].note[6:]} |" + " |" * (len(targets) + 5))
                 continue
-            w, flag = wall_at(mr, target)
+            cells = " | ".join(_wall_cell(*wall_at(mr, t)) for t in targets)
             good = [r for r in mr if np.isfinite(r.err_first)]
             best = min(good, key=lambda r: r.err_first) if good else None
             order = _fmt(order_of(mr), ".2f") if m.kind == "h" else "(rtol sweep)"
             miss = max((r.missed for r in mr if np.isfinite(r.missed)), default=float("nan"))
             spur = max((r.spurious for r in mr if np.isfinite(r.spurious)), default=float("nan"))
             if best is None:
-                lines.append(f"| {m.label} | {_wall_cell(w, flag)} | — | — | {order} | — | — | — |")
+                lines.append(f"| {m.label} | {cells} | — | — | {order} | — | — | — |")
                 continue
             dev = max((r.energy_dev for r in mr if np.isfinite(r.energy_dev)), default=np.nan)
             viol = max((r.max_violation for r in mr if np.isfinite(r.max_violation)), default=np.nan)
             lines.append(
-                f"| {m.label} | {_wall_cell(w, flag)} | {_fmt(best.err_first)} "
+                f"| {m.label} | {cells} | {_fmt(best.err_first)} "
                 f"({'h' if m.kind == 'h' else 'rtol'}={best.x:g}) | {_fmt(best.wall)} | {order} | "
                 f"{_fmt(dev)} | {_fmt(miss, 'g')} / {_fmt(spur, 'g')} | {_fmt(viol)} |"
             )
@@ -155,14 +156,15 @@ def write_summary(
         )
         if notes:
             lines += ["", "Notes:", *(f"- {n}" for n in notes)]
-        ratios = _ratios(rows, target)
-        if ratios:
-            others = ", ".join(f"{lab} x{r:.3g}" for lab, r in ratios[1:]) or "no other method reaches it"
-            lines += [
-                "",
-                f"Wall time at matched accuracy ({target:g} at t = {setup.t_first}), relative to "
-                f"{ratios[0][0]}: {others}.",
-            ]
+        for tgt in targets:
+            ratios = _ratios(rows, tgt)
+            if ratios:
+                others = ", ".join(f"{lab} x{r:.3g}" for lab, r in ratios[1:]) or "no other method reaches it"
+                lines += [
+                    "",
+                    f"Wall time at matched accuracy ({tgt:g} at t = {setup.t_first}), relative to "
+                    f"{ratios[0][0]}: {others}.",
+                ]
         lines += ["", f"![work-precision {scene}](wp_{scene}.png)", ""]
     if longs:
         lines += [
