@@ -79,3 +79,16 @@ def test_update_readme_copies_the_headline_between_markers(tmp_path):
     assert "Machine: test box" in text and "e.png" not in text
     readme.write_text("no markers")
     assert not update_readme(summary, readme)
+
+
+def test_fine_steps_only_for_compiled_vcigen_and_two_accuracies_in_the_summary(tmp_path: Path) -> None:
+    setup = run.SETUPS["star_nonlinear"]
+    assert setup.hs_for("vcigen_casadi_trapezoid") == setup.hs == setup.hs_for("verlet_full_flip")
+    fine = setup.hs_for("vcigen_c_trapezoid")
+    assert fine[: len(setup.hs)] == setup.hs and min(fine) < min(setup.hs) / 100
+    argv = ["--scenes", "particle", "--methods", "vcigen_casadi_trapezoid", "--hs", "0.01,0.005"]
+    argv += ["--phases", "1", "--no-long", "--targets", "1e-3,1e-9", "--out", str(tmp_path)]
+    assert run.main(argv) == 0
+    summary = (tmp_path / "summary.md").read_text()
+    assert "| wall @ 0.001 | wall @ 1e-09 |" in summary
+    assert "matched accuracy (0.001 at" in summary and "matched accuracy (1e-09 at" in summary
