@@ -40,9 +40,9 @@ class _Flat:
 
     def __init__(self, fns: list[ca.Function], sizes: list[tuple[int, int]]) -> None:
         first = fns[0]
-        ins = [ca.SX.sym(first.name_in(i), first.size1_in(i)) for i in range(first.n_in())]
+        ins = [ca.SX.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
         outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
-        self.f = ca.Function("flat", [ca.vertcat(*ins)], [ca.vertcat(*outs)])
+        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.vertcat(*outs)])
         self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
         self._buf, self._trigger = self.f.buffer()
         self._buf.set_arg(0, memoryview(self.arg))
@@ -53,7 +53,7 @@ class _Flat:
     def __call__(self, *parts) -> list[np.ndarray]:
         i = 0
         for part in parts:
-            part = np.atleast_1d(part)
+            part = np.ravel(part, order="F")  # a matrix input column-major, as ca.vec
             self.arg[i : i + part.size] = part
             i += part.size
         self._trigger()
@@ -97,6 +97,26 @@ class Tangents:
                 )
                 f = _Flat([both], [r.output("jac").shape, d.output("dres").shape])
             self._fns[name] = f
+        return f
+
+    def smooth_map(self) -> _Flat:
+        """``(v, q, p, h, par, S_k, dpar/dz) -> S_k+1`` of a smooth step (46) in one call: the implicit
+        function ``dv = -F_v^-1 F_d (dq, dp, 0, dpar)`` and ``dp+`` chained (``S``, ``dpar`` column-major)."""
+        f = self._fns.get("smooth_map")
+        if f is None:
+            n, K, npar = self.n, self.K, self.npar
+            r, d = self.system.routines["smooth"], self._routines["d_smooth"]
+            seg = self._routines["d_segment"]
+            v, q, p, h, par = (ca.SX.sym(a.name, a.size) for a in r.inputs)
+            s, dpar = ca.SX.sym("S", 2 * n, K), ca.SX.sym("dpar", npar, K)
+            dq, dp = s[:n, :], s[n:, :]
+            jac = routine_to_function(r)(v, q, p, h, par)[1]
+            dres = routine_to_function(d)(v, q, p, h, par)
+            dv = -ca.solve(jac, ca.mtimes(dres, ca.vertcat(dq, dp, ca.SX.zeros(1, K), dpar)))
+            dpp = routine_to_function(seg)(q, v, h, par)[1]
+            dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, ca.SX.zeros(1, K), dpar))
+            fn = ca.Function("smooth_map", [v, q, p, h, par, s, dpar], [ca.vertcat(dq + h * dv, dp1)])
+            f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
         return f
 
 
@@ -196,12 +216,7 @@ class Tracker:
         """Smooth step (46): ``v`` from ``p_k = p-(q_k, q_k + h v, h)``; ``S_k+1``."""
         if not self.active:
             return
-        n, s = self.n, self.cur
-        dq, dp = s[:n], s[n:]
-        zero = np.zeros((1, self.K))
-        dv = self._ift("smooth", v, (q, p, h), np.vstack([dq, dp, zero, self.dpar(zero[0])]), self.t)
-        _, dp1, _ = self._segment(q, v, h, self.t, dq, dv, zero, zero[0])
-        self.next = np.vstack([dq + h * dv, dp1])
+        self.next = self.tg.smooth_map()(v, q, p, h, self.par(self.t), self.cur, self._par0)[0]
 
     def first_segment(self) -> None:
         """The first segment of an impact step starts at the grid point (data ``q_k, p_k, h, t_k``)."""
