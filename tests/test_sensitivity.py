@@ -223,3 +223,29 @@ def test_c_equals_casadi(scene: str) -> None:
         for backend in ("casadi", "c")
     )
     assert relative_error(a.sensitivity, b.sensitivity) <= 1e-9
+
+
+def test_long_runs_and_failed_runs_keep_their_tangent() -> None:
+    """An ``n_impacts`` run grows its buffers (past 1024 steps) like a ``t_end`` run; a run that stops with
+    a ``SolverError`` carries the tangent up to its last completed step."""
+    sim = simulator("box", "casadi")
+    kw = {"params": {"g": 9.81}, "sensitivities": True, "progress": False}
+    a = sim.simulate([0.3, 0.6], [2.3, -1.1], 0.001, n_impacts=8, **kw)
+    b = sim.simulate([0.3, 0.6], [2.3, -1.1], 0.001, t_end=a.t[-1] + 1e-12, **kw)
+    assert a.t.size > 1025 and np.array_equal(a.sensitivity, b.sensitivity)
+    assert np.isfinite(a.sensitivity).all()
+    ball = vcigen.build(hard_scenes.ball(), tol=vcigen.Tolerances(grazing="error"))
+    with pytest.raises(vcigen.SolverError) as info:  # the paper's jump alone: a grazing impact has no root
+        ball.simulate([0.0, 1.0], [0.3, 0.0], 0.01, t_end=2.8, sensitivities=True, progress=False)
+    res = info.value.result
+    assert res.sensitivity.shape == (res.t.size, 4, 5) and np.isfinite(res.sensitivity).all()
+    assert res.n_impacts >= 2
+
+
+def test_grazing_impact_is_reported() -> None:
+    """A grazing impact taking the continuous law (``Tolerances(grazing="reflect")``) is no smooth map."""
+    ball = vcigen.build(hard_scenes.ball(), tol=vcigen.Tolerances(grazing="reflect"))
+    with pytest.warns(RuntimeWarning, match="grazing"):
+        res = ball.simulate([0.0, 1.0], [0.3, 0.0], 0.01, t_end=1.335, sensitivities=True, progress=False)
+    grazing = [im.step for im in res.impacts if im.kind == "grazing"]
+    assert grazing and assert_lost(res, "grazing") == grazing[0]
