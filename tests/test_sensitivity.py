@@ -13,11 +13,30 @@ from functools import cache
 import hard_scenes
 import numpy as np
 import pytest
+import sympy as sp
 from forced_scenes import driven_oscillator
 from scenes import load_example
 
 import vcigen
 from vcigen.analysis import jacobian_symplectic_defect
+
+
+def chain(count: int = 4) -> vcigen.Model:
+    """``count`` unit particles joined by springs ``k``, each above its own floor (n = 8: more coordinates
+    than ``vcigen.sensitivity.SYMBOLIC_SOLVE``, the smooth step's tangent solves at run time)."""
+    xs, ys = sp.symbols(f"x0:{count}"), sp.symbols(f"y0:{count}")
+    us, ws = sp.symbols(f"u0:{count}"), sp.symbols(f"w0:{count}")
+    k = sp.Symbol("k")
+    springs = sum((xs[i + 1] - xs[i]) ** 2 + (ys[i + 1] - ys[i]) ** 2 for i in range(count - 1))
+    return vcigen.Model(
+        name="chain",
+        q=[s for pair in zip(xs, ys) for s in pair],
+        qdot=[s for pair in zip(us, ws) for s in pair],
+        lagrangian=sum((u**2 + w**2) / 2 for u, w in zip(us, ws)) - k / 2 * springs,
+        contacts={f"floor{i}": ys[i] for i in range(count)},
+        params={k: 3.0},
+    )
+
 
 BACKENDS = ["casadi", hard_scenes.backend_param("c")]
 
@@ -50,6 +69,15 @@ SCENES = {
         0.1,
         0.5,
         {"e": 0.7, "g": 0.0},
+    ),
+    # many coordinates: four floors struck in turn
+    "chain": (
+        chain,
+        [0.0, 0.2, 0.3, 0.3, 0.6, 0.4, 0.9, 0.5],
+        [0.1, -1.0, 0.1, -1.3, 0.1, -1.6, 0.1, -1.9],
+        0.01,
+        0.5,
+        None,
     ),
     # forces of velocity and of time (Lagrange-d'Alembert), restitution: the time slot
     "driven": (driven_oscillator, [0.0], [3.0], 0.01, 4.0, None),
@@ -96,8 +124,16 @@ def relative_error(exact: np.ndarray, fd: np.ndarray) -> float:
     return float(np.abs(exact - fd).max() / np.abs(exact).max())
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("scene", sorted(SCENES))
+def scene_backends():
+    """Every scene on every backend (the chain, whose C build takes a minute, on CasADi only)."""
+    for scene in sorted(SCENES):
+        for b in BACKENDS:
+            backend, marks = (b, ()) if isinstance(b, str) else (b.values[0], b.marks)
+            if scene != "chain" or backend == "casadi":
+                yield pytest.param(scene, backend, marks=marks, id=f"{scene}-{backend}")
+
+
+@pytest.mark.parametrize("scene, backend", list(scene_backends()))
 def test_sensitivity_matches_finite_differences(scene: str, backend: str) -> None:
     sim = simulator(scene, backend)
     res, fd = finite_differences(sim, scene)

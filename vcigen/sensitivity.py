@@ -34,13 +34,16 @@ from .backends.casadi import routine_to_function
 from .derive import DiscreteSystem
 from .tangents import tangent_routines
 
+SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many coordinates
+
 
 class _Flat:
     """A routine's outputs, row-major and concatenated, from its inputs concatenated (a CasADi buffer)."""
 
     def __init__(self, fns: list[ca.Function], sizes: list[tuple[int, int]]) -> None:
         first = fns[0]
-        ins = [ca.SX.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
+        sym = ca.MX if first.is_a("MXFunction") else ca.SX
+        ins = [sym.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
         outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
         self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.vertcat(*outs)])
         self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
@@ -107,14 +110,15 @@ class Tangents:
             n, K, npar = self.n, self.K, self.npar
             r, d = self.system.routines["smooth"], self._routines["d_smooth"]
             seg = self._routines["d_segment"]
-            v, q, p, h, par = (ca.SX.sym(a.name, a.size) for a in r.inputs)
-            s, dpar = ca.SX.sym("S", 2 * n, K), ca.SX.sym("dpar", npar, K)
+            sym = ca.SX if n <= SYMBOLIC_SOLVE else ca.MX  # larger: a linear solver at run time, not QR in SX
+            v, q, p, h, par = (sym.sym(a.name, a.size) for a in r.inputs)
+            s, dpar = sym.sym("S", 2 * n, K), sym.sym("dpar", npar, K)
             dq, dp = s[:n, :], s[n:, :]
             jac = routine_to_function(r)(v, q, p, h, par)[1]
             dres = routine_to_function(d)(v, q, p, h, par)
-            dv = -ca.solve(jac, ca.mtimes(dres, ca.vertcat(dq, dp, ca.SX.zeros(1, K), dpar)))
+            dv = -ca.solve(jac, ca.mtimes(dres, ca.vertcat(dq, dp, sym.zeros(1, K), dpar)))
             dpp = routine_to_function(seg)(q, v, h, par)[1]
-            dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, ca.SX.zeros(1, K), dpar))
+            dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, sym.zeros(1, K), dpar))
             fn = ca.Function("smooth_map", [v, q, p, h, par, s, dpar], [ca.vertcat(dq + h * dv, dp1)])
             f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
         return f
