@@ -285,3 +285,28 @@ def test_grazing_impact_is_reported() -> None:
         res = ball.simulate([0.0, 1.0], [0.3, 0.0], 0.01, t_end=1.335, sensitivities=True, progress=False)
     grazing = [im.step for im in res.impacts if im.kind == "grazing"]
     assert grazing and assert_lost(res, "grazing") == grazing[0]
+
+
+def test_a_non_finite_or_singular_tangent_is_reported(monkeypatch) -> None:
+    """The safety nets: a NaN tangent, or a singular matrix in a hook, is a break, never a silent NaN or a
+    failed run."""
+    from vcigen import sensitivity
+
+    sim = simulator("box", "casadi")
+    _, q0, v0, h, t_end, params = SCENES["box"]
+    kw = {"params": params, "sensitivities": True, "progress": False}
+
+    def nan_step(self, q, p, h, v):
+        self.next = np.full((2 * self.n, self.K), np.nan)
+
+    with monkeypatch.context() as m:
+        m.setattr(sensitivity.Tracker, "smooth", nan_step)
+        assert assert_lost(sim.simulate(q0, v0, h, t_end=t_end, **kw), "non-finite") == 0
+
+    def singular(*args):
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    with monkeypatch.context() as m:
+        m.setattr(sensitivity.Tracker, "_ift", singular)  # the implicit function of (47), (48), (78)
+        res = sim.simulate(q0, v0, h, t_end=t_end, **kw)
+        assert assert_lost(res, "singular") == res.impacts[0].step

@@ -25,6 +25,7 @@ on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"
 
 from __future__ import annotations
 
+import functools
 import math
 
 import casadi as ca
@@ -124,6 +125,19 @@ class Tangents:
         return f
 
 
+def _guarded(hook):
+    """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run."""
+
+    @functools.wraps(hook)
+    def run(self, *args) -> None:
+        try:
+            hook(self, *args)
+        except np.linalg.LinAlgError:
+            self.lose(f"a singular Jacobian in the tangent of {hook.__name__}")
+
+    return run
+
+
 class Tracker:
     """The tangent of one run, updated by the stepper's hooks after each phase (``Stepper(..., tangent=)``).
 
@@ -187,6 +201,8 @@ class Tracker:
         """Store ``S_step+1``; a step no hook resolved loses the tangent (never silently wrong)."""
         if self.lost is None and self.next is None:
             self.lose("a phase without a tangent")
+        elif self.lost is None and not np.isfinite(self.next).all():
+            self.lose("a non-finite tangent (singular Jacobian)")
         if self.lost is None:
             self.cur = self.next
             self.S[step + 1] = self.next
@@ -216,6 +232,7 @@ class Tracker:
         d = np.vstack([dq, dv, dtau, self.dpar(dt)])
         return dpm @ d, dpp @ d, de @ d
 
+    @_guarded
     def smooth(self, q, p, h: float, v) -> None:
         """Smooth step (46): ``v`` from ``p_k = p-(q_k, q_k + h v, h)``; ``S_k+1``."""
         if not self.active:
@@ -240,6 +257,7 @@ class Tracker:
         data = (seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
         return data, np.vstack([self.dq, self.dnrm, self.dp, self.de, self.dtau, dpar])
 
+    @_guarded
     def contact(self, seg, j: int, x, s: float, group) -> None:
         """Contact time (47) or the end of a segment on contact ``j`` (78): the next segment's data."""
         if not self.active:
@@ -266,6 +284,7 @@ class Tracker:
         self.dq, self.dp, self.dt, self.dtau = dq_c, dp_in, dt_c, self.dtau - dtau_c
         self.dvin = dv
 
+    @_guarded
     def jump(self, seg, v_in, rest: float, kind: str) -> None:
         """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39)."""
         if not self.active:
@@ -300,6 +319,7 @@ class Tracker:
         )
         self.de = self.de - dloss
 
+    @_guarded
     def jump_end(self, seg) -> None:
         """The last segment after an impact ends at the grid time (48), (49): ``S_k+1``."""
         if not self.active:
