@@ -247,6 +247,8 @@ def render_context(
         # (terms 0 * x: the same sums for finite x, and a non-finite x still fails the step's checks)
         "held_gcols": held_columns(system) if held else [],
         "held_gconst": held_constant_gradients(system) if held else [],
+        # of those, the coordinates the free acceleration M^-1 rhs has (G1 acc skips the terms g * 0.0)
+        "held_acols": [i for i in held_columns(system) if held[4].output("acc").expr[i] != 0] if held else [],
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
