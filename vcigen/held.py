@@ -39,6 +39,10 @@ from .sustained import EPS_LAM
 
 HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
 ABSTOL, ABSTOL_STEP = 1e-13, 1e-15  # the general Newton's (backends.ccontext.NEWTON)
+# Routines whose half-integer powers C prints with sqrt (cprinter.print_routine_body): a curved row's Hessian
+# holds |q|^-3 as pow(b, 3/2), libm's pow was ~40% of a held step on it (bench bowl). Only the lift-off
+# test reads the Hessian, so the step's end (q, p, E_d, multipliers) does not depend on pow's last bit.
+SQRT_POWERS = frozenset({"held_rows"})
 
 
 def has_held_path(system: DiscreteSystem) -> bool:

@@ -19,7 +19,7 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..held import has_held_path, held_routines, hess_pattern
+from ..held import SQRT_POWERS, has_held_path, held_routines, hess_pattern
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
@@ -109,7 +109,7 @@ def model_hash(system: DiscreteSystem) -> str:
 
 def routine_context(r: Routine) -> dict[str, Any]:
     """One routine as printable pieces: signature, temporaries, assignments (after its head's call)."""
-    temps, outs, fills = print_routine_body(r)
+    temps, outs, fills = print_routine_body(r, sqrt_powers=r.name in SQRT_POWERS)
     return {
         "name": r.name,
         "doc": r.doc,
