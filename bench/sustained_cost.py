@@ -17,11 +17,15 @@ through ``res.active``; "free" never touches it, checked through ``res.active`` 
   stays above ``y = -5``), the same start.
 * ``box``: a 2 x 1 rectangle with a contact at each vertex, sliding on its long face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``: two vertex rows held) against free high up.
+* ``bowl``: a particle inside a circular bowl, contact ``r - |q|``: sustained ``r = 1``, released at rest at
+  ``q0 = (0.6, -0.8)`` on the wall, it slides to and fro along it (a curved row that moves: the held step's
+  Newton iterates, about 1.5 evaluations of the rows a step); free: ``r = 1e9``, ``q0 = 0``, ``v0 = (1, 0)``
+  (falls 2e5 m in 200 s, far from the wall).
 * ``star``: the star of ``examples/star.py`` resting on a face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``, slides) against free high up (``q0 = (0, 1e6, 0)``, same ``v0``).
 
-The particle's, the box's and the star's free step is the C backend's explicit straight-line grid step
-(constant diagonal mass), and their sustained step the held grid step (``vcigen.held``: straight-line
+The particle's, the bowl's, the box's and the star's free step is the C backend's explicit straight-line grid
+step (constant diagonal mass), and their sustained step the held grid step (``vcigen.held``: straight-line
 code in the held rows' multipliers). Their ``*_general`` variants multiply the kinetic energy by
 ``(1 + eps x)`` with the parameter ``eps = 0``: the same dynamics (checked: same end state), but
 the mass is configuration-dependent to the code generator, so every free step takes the general
@@ -100,6 +104,21 @@ def spring_polar() -> vcigen.Model:
     )
 
 
+def bowl() -> vcigen.Model:
+    """A particle inside a circular bowl of radius ``r`` about the origin (contact ``r - |q|``): a curved row
+    that moves, so that the held step's Newton iterates (the previous multipliers do not solve it)."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    r = sp.Symbol("r", positive=True)
+    return vcigen.Model(
+        name="sc_bowl",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - G * y,
+        contacts={"bowl": r - sp.sqrt(x**2 + y**2)},
+        params={r: 1.0},
+    )
+
+
 def star(general: bool = False) -> vcigen.Model:
     if not general:
         return load_example(HERE.parent / "examples" / "star.py").model()
@@ -151,6 +170,12 @@ SCENES = [
         dict(q0=[0.0, 0.5, 0.0], v0=[1.0, 0.0, 0.0]),
         dict(q0=[0.0, 1e6, 0.0], v0=[1.0, 0.0, 0.0]),
         reference="box",
+    ),
+    Scene(
+        "bowl",
+        bowl,
+        dict(q0=[0.6, -0.8], v0=[0.0, 0.0], params={"r": 1.0}),
+        dict(q0=[0.0, 0.0], v0=[1.0, 0.0], params={"r": 1e9}),
     ),
     Scene(
         "star",

@@ -162,6 +162,18 @@ def test_python_stepper_on_c_kernels_is_the_c_loop(name: str) -> None:
 
 
 # -- the held grid step (vcigen.held): straight-line steps in sustained contact ----------------------
+def _bowl() -> vcigen.Model:
+    """A particle inside a circle of radius 1 (contact ``1 - |q|``), released on its wall: it slides to and
+    fro, a curved row that moves, so that the held Newton iterates every step (C: ``<model>_held_newton``)."""
+    return vcigen.Model(
+        name="ag_bowl",
+        q=[X, Y],
+        qdot=[XD, YD],
+        lagrangian=(XD**2 + YD**2) / 2 - G * Y,
+        contacts={"bowl": 1 - sp.sqrt(X**2 + Y**2)},
+    )
+
+
 def _box() -> vcigen.Model:
     """A 2 x 1 rectangle with a contact at each vertex, resting on its long face: two nonlinear rows held."""
     x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
@@ -196,6 +208,7 @@ def _box8() -> vcigen.Model:
 
 HELD = {  # name: (model, q0, v0, h, t_end); each starts held and stays held for most of its steps
     "slide": (_ball, [0.0, 0.0], [1.0, 0.0], 0.001, 1.0),  # one linear row: one exact Newton step
+    "bowl": (_bowl, [0.6, -0.8], [0.0, 0.0], 0.001, 1.5),  # a curved row that moves: Newton iterates
     "box": (_box, [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 1.0),  # slides on a face: two nonlinear rows
     "box8": (_box8, [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 1.0),  # 8 rows: no per-set loops in C
     "star": (
@@ -285,6 +298,7 @@ def test_held_scenes_exercise_what_they_are_for() -> None:
     """The held scenes hold rows throughout or lift off, so that the agreement above is not vacuous."""
     runs = {name: _stepper_run(name, "c", True)[0] for name in HELD}
     assert runs["slide"].active.all() and not runs["slide"].impacts
+    assert runs["bowl"].active.all() and np.ptp(runs["bowl"].q[:, 0]) > 1.0  # held while it swings across
     assert runs["star"].active.all() and abs(runs["star"].contact_force.mean() - G) < 1e-9
     assert len(runs["dome"].liftoffs) == 1
     assert runs["box"].active[:, :2].all() and not runs["box"].active[:, 2:].any()

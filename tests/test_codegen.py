@@ -117,6 +117,40 @@ def test_newton_matches_the_casadi_options() -> None:
     }
 
 
+def test_half_integer_powers_print_with_sqrt_only_where_asked() -> None:
+    """``sqrt_powers`` (the held rows, ``vcigen.held.SQRT_POWERS``) prints ``b^(k/2)`` as a product with
+    ``sqrt(b)``, never libm's ``pow``; without it, and for other exponents, the printing is unchanged."""
+    from vcigen.backends.ccontext import SQRT_POWERS
+    from vcigen.backends.cprinter import ArrayC99Printer
+    from vcigen.derive import derive
+
+    X, Y, XD, YD = sp.symbols("x y xd yd")
+    names = {X: "q[0]"}
+    fast, plain = ArrayC99Printer(names, sqrt_powers=True), ArrayC99Printer(names)
+    b = X**2 + 1
+    assert fast.doprint(b ** sp.Rational(3, 2)) == "((((q[0])*(q[0])) + 1)*sqrt(((q[0])*(q[0])) + 1))"
+    assert fast.doprint(X ** sp.Rational(-5, 2)) == "(1.0/((q[0])*(q[0])*sqrt(q[0])))"
+    assert fast.doprint(X ** sp.Rational(1, 2)) == plain.doprint(X ** sp.Rational(1, 2)) == "sqrt(q[0])"
+    assert fast.doprint(X ** sp.Rational(1, 3)) == plain.doprint(X ** sp.Rational(1, 3))
+    assert "pow" in plain.doprint(b ** sp.Rational(3, 2))
+    dome = vcigen.Model(
+        name="cg_dome",
+        q=[X, Y],
+        qdot=[XD, YD],
+        lagrangian=(XD**2 + YD**2) / 2 - 9.81 * Y,
+        contacts={"dome": sp.sqrt(X**2 + Y**2) - 1},
+    )
+    system = derive(dome)
+    ctx = {r["name"]: r for r in render_context(system)["routines"]}
+
+    def text(r: dict) -> str:
+        entries = [e["expr"] for o in r["outputs"] for e in o["entries"]]
+        return " ".join([t["expr"] for t in r["temps"]] + entries)
+
+    assert SQRT_POWERS == {"held_rows"} and "pow(" not in text(ctx["held_rows"])  # the Hessian has |q|^-3
+    assert any("pow(" in text(r) for name, r in ctx.items() if name != "held_rows")  # elsewhere as before
+
+
 def test_templates_are_strict() -> None:
     ctx = render_context(vcigen.derive(vcigen.cli.load_example(ROOT / "examples" / "particle.py").model()))
     del ctx["hash"]

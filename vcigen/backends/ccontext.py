@@ -19,7 +19,7 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..held import has_held_path, held_routines, hess_pattern
+from ..held import SQRT_POWERS, has_held_path, held_routines, hess_pattern
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
@@ -71,6 +71,15 @@ def held_columns(system: DiscreteSystem) -> list[int]:
     return [i for i in range(n) if any(sp.simplify(grad[k]) != 0 for k in range(i, len(grad), n))]
 
 
+def held_constant_gradients(system: DiscreteSystem) -> list[int]:
+    """Per row and coordinate (row-major, ``r * n + i``), 1 where ``d psi_r / d q_i`` does not depend on ``q``
+    (the same value at every point of a run): the held step's Newton then keeps the value of its first
+    evaluation, which the compiler folds where it is a number (a floor's or a wall's gradient)."""
+    rows = system.routines["rows"]
+    grad, q = rows.output("grad").expr, set(rows.input("q").symbols)
+    return [int(not (sp.sympify(g).free_symbols & q)) for g in grad]
+
+
 def _tol_context(tol: Tolerances) -> dict[str, str]:
     """The tolerances as C literals (``grazing`` as the flag ``grazing_reflect``)."""
     out = {k: c_number(v) for k, v in asdict(tol).items() if k not in ("grazing", "jump_restarts")}
@@ -100,7 +109,7 @@ def model_hash(system: DiscreteSystem) -> str:
 
 def routine_context(r: Routine) -> dict[str, Any]:
     """One routine as printable pieces: signature, temporaries, assignments (after its head's call)."""
-    temps, outs, fills = print_routine_body(r)
+    temps, outs, fills = print_routine_body(r, sqrt_powers=r.name in SQRT_POWERS)
     return {
         "name": r.name,
         "doc": r.doc,
@@ -237,6 +246,9 @@ def render_context(
         # the coordinates some row's gradient has: the held step's products with gradients skip the others
         # (terms 0 * x: the same sums for finite x, and a non-finite x still fails the step's checks)
         "held_gcols": held_columns(system) if held else [],
+        "held_gconst": held_constant_gradients(system) if held else [],
+        # of those, the coordinates the free acceleration M^-1 rhs has (G1 acc skips the terms g * 0.0)
+        "held_acols": [i for i in held_columns(system) if held[4].output("acc").expr[i] != 0] if held else [],
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
