@@ -45,11 +45,23 @@ TINY = 1e-14  # a sub-segment shorter than TINY * h is no segment (simultaneous 
 
 
 @dataclass(frozen=True)
+class Potential:
+    """``grad V`` and ``grad^2 V`` of ``L = 1/2 qdot^T M qdot + b . qdot - V(q)`` (``M``, ``b`` constant), for
+    the impact steps' node mismatches (:func:`impact_work`)."""
+
+    grad: Callable[..., np.ndarray]  # (q (K, n), par) -> (K, n)
+    hess: Callable[..., np.ndarray]  # (q (K, n), par) -> (K, n, n)
+    rule: str  # "trapezoid" or "midpoint"
+
+
+@dataclass(frozen=True)
 class Booking:
-    """What books the work: the segments' discrete forces and, where ``L`` allows, the kick's h^2 term."""
+    """What books the work: the segments' discrete forces and, where ``L`` allows, the kick's h^2 term and
+    the impact steps' unequal segment lengths."""
 
     forces: ForceFn  # (q0 (K, n), v (K, n), tau (K,), t0 (K,), par) -> (f_d- (K, n), f_d+ (K, n))
     curvature: CurvatureFn | None  # (q (K, n), par) -> (K, n, n): M^-1 grad^2 V, or None (module docstring)
+    potential: Potential | None = None  # None: M of q, or a rule without a closed form (impact_work)
 
 
 def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
@@ -73,32 +85,54 @@ def work_function(system: DiscreteSystem) -> Booking | None:
             np.stack([np.broadcast_to(np.asarray(f, float), tau.shape) for f in fs], -1) for fs in (fm, fp)
         )
 
-    return Booking(forces, _curvature(system))
+    return Booking(forces, _curvature(system), _potential(system))
 
 
-def _curvature(system: DiscreteSystem) -> CurvatureFn | None:
-    """``M^-1 grad^2 V (q)`` when ``L = 1/2 qdot^T M qdot + b . qdot - V(q)`` with ``M``, ``b`` constant (no
-    ``d2L/dq dqdot``); ``None`` otherwise."""
+def _separable(system: DiscreteSystem) -> bool:
+    """Whether ``L = 1/2 qdot^T M qdot + b . qdot - V(q)``, ``M`` and ``b`` constant (no ``d2L/dq dqdot``)."""
     model = system.model
     qs, vs = model.coordinates, model.velocities
-    mass = model.mass_matrix
-    if mass.free_symbols & set(qs + vs) or any(model.L.diff(a).diff(b) != 0 for a in qs for b in vs):
-        return None
-    hess = -sp.hessian(model.L, sp.Matrix(qs))
-    if not hess.free_symbols & set(qs):  # V quadratic: the kick at vbar is exact, the h^2 term only bounded
-        return None
-    curv = mass.inv() * hess
-    n = model.n
-    fn = _lambdify(system, list(qs), [list(curv.row(i)) for i in range(n)])
+    if model.mass_matrix.free_symbols & set(qs + vs):
+        return False
+    return all(model.L.diff(a).diff(b) == 0 for a in qs for b in vs)
 
-    def curvature(q: np.ndarray, values) -> np.ndarray:
+
+def _matrix_function(system: DiscreteSystem, mat: sp.Matrix) -> Callable[..., np.ndarray]:
+    """``q (K, n), par -> (K, rows, cols)``: ``mat``, an expression of ``q`` and the parameters."""
+    fn = _lambdify(system, list(system.model.coordinates), mat.tolist())
+
+    def value(q: np.ndarray, values) -> np.ndarray:
         out = fn(*q.T, *values)  # L holds no time: the time slot's value does not matter
         return np.stack(
             [np.stack([np.broadcast_to(np.asarray(c, float), q.shape[:1]) for c in row], -1) for row in out],
             1,
         )
 
-    return curvature
+    return value
+
+
+def _curvature(system: DiscreteSystem) -> CurvatureFn | None:
+    """``M^-1 grad^2 V (q)`` when ``L`` is :func:`_separable` and ``V`` not quadratic; ``None`` otherwise."""
+    if not _separable(system):
+        return None
+    model = system.model
+    hess = -sp.hessian(model.L, sp.Matrix(model.coordinates))
+    if not hess.free_symbols & set(model.coordinates):  # V quadratic: the kick at vbar is exact
+        return None
+    return _matrix_function(system, model.mass_matrix.inv() * hess)
+
+
+def _potential(system: DiscreteSystem) -> Potential | None:
+    """``grad V``, ``grad^2 V`` when ``L`` is :func:`_separable` and the rule is the trapezoid or the midpoint
+    rule; ``None`` otherwise."""
+    if system.rule.name not in ("trapezoid", "midpoint") or not _separable(system):
+        return None
+    model = system.model
+    qs = sp.Matrix(model.coordinates)
+    grad = -sp.Matrix([model.L.diff(a) for a in model.coordinates])  # no dL/dq dqdot: of q alone
+    grad_fn = _matrix_function(system, grad.T)
+    hess_fn = _matrix_function(system, -sp.hessian(model.L, qs))
+    return Potential(lambda q, values: grad_fn(q, values)[:, 0], hess_fn, system.rule.name)
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -108,7 +142,7 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     """``(N-1,)``: the discrete work over each grid step: its segments' ``(f_d- + f_d+) . v`` (split at its
     impacts) plus, at the grid node it starts at, ``(f_d+ - f_d-) . (v+ - v-) / 2`` and, with a curvature,
-    ``(h^2/6) J . M^-1 grad^2 V vbar`` (module docstring).
+    ``(h^2/6) J . M^-1 grad^2 V vbar``, and on the steps of an impact :func:`impact_work` (module docstring).
     Exactly 0 without forces."""
     steps = res.energy.size
     if booking is None or steps == 0:
@@ -118,8 +152,10 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     v = (q[1:] - q[:-1]) / h
     fm, fp = forces(q[:-1], v, np.full(steps, h), t[:-1], par)
     out = _dot(fm + fp, v)
-    # the segments either side of each grid node: the last of step k-1 (v_end, f_end) and the first of step k
+    # the segments either side of each grid node: the last of step k-1 (v_end, f_end, tau_end) and the first
+    # of step k (v_start, f_start, tau_start)
     v_start, f_start, v_end, f_end = v.copy(), fm.copy(), v.copy(), fp.copy()
+    tau_start, tau_end = np.full(steps, h), np.full(steps, h)
     on_node = np.zeros(steps + 1, dtype=bool)  # an impact sits on grid node k
     ims = [im for im in res.impacts if im.step < steps]
     if ims:  # the impact steps, split at their impacts: all their sub-segments in one call
@@ -149,11 +185,87 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
         tail = seg.size - 1 - tail  # and the last
         k = owner[seg][head]
         v_start[k], f_start[k], v_end[k], f_end[k] = vs[head], gm[head], vs[tail], gp[tail]
+        tau_start[k], tau_end[k] = tau[seg][head], tau[seg][tail]
     node = _dot(f_end[:-1] - f_start[1:], v_start[1:] - v_end[:-1]) / 2  # grid nodes 1 .. steps-1
     if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
         kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
         node += h * h / 6 * np.einsum("kn,knm,km->k", kick, booking.curvature(q[1:steps], par), vbar)
     out[1:] += np.where(on_node[1:steps], 0.0, node)
+    bilateral = res.constraint_force is not None and res.constraint_force.size > 0
+    if ims and booking.potential is not None and not bilateral:
+        free = _free_steps(res, ims, steps)
+        sub = (owner[seg], qs[seg], vs, tau[seg])
+        ends = (v_start, tau_start, v_end, tau_end)
+        out += impact_work(booking.potential, q, h, ks, sub, ends, free & ~on_node[:-1], on_node, par)
+    return out
+
+
+def _free_steps(res: Result, ims, steps: int) -> np.ndarray:
+    """``(N-1,)``: the steps made of free segments: not held in sustained contact, no plastic impact."""
+    free = np.ones(steps, dtype=bool)
+    if res.contact_force is not None:
+        free &= ~np.any(res.contact_force != 0.0, axis=1)
+    free[[im.step for im in ims if im.kind == "plastic"]] = False
+    return free
+
+
+def impact_work(
+    potential: Potential,
+    q: np.ndarray,
+    h: float,
+    ks: np.ndarray,
+    sub: tuple[np.ndarray, ...],
+    ends: tuple[np.ndarray, ...],
+    free: np.ndarray,
+    on_node: np.ndarray,
+    par,
+) -> np.ndarray:
+    """``(N-1,)``: what the grid nodes' bookings miss on the steps of an impact, whose sub-segments are not
+    ``h`` long (README, *Forces*; MATH.md (46), (48a)).
+
+    The work booked at a node makes the forces cancel from the balance; what is left there is the
+    conservative mismatch of ``E_d``. For segments of lengths ``t1``, ``t2`` and velocities ``v1``, ``v2``
+    meeting at a node ``q`` it is, with ``g = grad V``, ``H = grad^2 V`` (exact for quadratic ``V``),
+
+        trapezoid: 1/4 (t2^2 v2.H v2 - t1^2 v1.H v1) + 1/4 (t2 - t1) g(q) . (v2 - v1)
+        midpoint:  1/4 (t2 - t1) (g(q - t1 v1/2) . v2 - g(q + t2 v2/2) . v1)
+
+    With ``t1 = t2 = h`` the first telescopes over a run into ``1/4 h^2 v.H v`` of the last segment (bounded)
+    and the rest vanishes. On an impact step the lengths differ, and across an impact (48a) keeps ``E_d``,
+    not ``E_d - 1/4 t^2 v.H v``: per impact the balance keeps
+
+        b = 1/4 (tA^2 vA.H vA - tB^2 vB.H vB)
+            + 1/4 (tA - h) g(q_k) . (vA - v-) + 1/4 (h - tB) g(q_k+1) . (v+ - vB),
+
+    O(h^2), of mean ``(h^2/12) [qdot.H qdot - g . M^-1 F]`` taken before less after the impact (trapezoid;
+    over the impact's fraction ``alpha``), a drift proportional to the impacts' count wherever restitution
+    or a force of the velocity changes that. ``b`` is booked: the nodes' terms on the step each node starts,
+    the impacts' (trapezoid) on their step. Steps held in sustained contact, plastic impacts and impacts on
+    a grid node take none."""
+    steps = free.size
+    out = np.zeros(steps)
+    owner, qs, vs, tau = sub
+    v_start, tau_start, v_end, tau_end = ends
+    if potential.rule == "trapezoid":  # across each impact inside a step: 1/4 (tA^2 vA.H vA - tB^2 vB.H vB)
+        pair = np.flatnonzero(owner[1:] == owner[:-1])
+        if pair.size:
+            hess = potential.hess(qs[pair + 1], par)
+            a, b = vs[pair] * tau[pair, None], vs[pair + 1] * tau[pair + 1, None]
+            jump = (np.einsum("kn,knm,km->k", a, hess, a) - np.einsum("kn,knm,km->k", b, hess, b)) / 4
+            np.add.at(out, owner[pair + 1], np.where(free[owner[pair + 1]], jump, 0.0))
+    nodes = np.unique(np.concatenate([ks, ks + 1]))
+    nodes = nodes[(nodes >= 1) & (nodes < steps)]
+    nodes = nodes[free[nodes] & free[nodes - 1] & ~on_node[nodes]]
+    if nodes.size:
+        t1, t2 = tau_end[nodes - 1], tau_start[nodes]
+        v1, v2, qn = v_end[nodes - 1], v_start[nodes], q[nodes]
+        if potential.rule == "trapezoid":
+            mis = _dot(potential.grad(qn, par), v2 - v1)
+        else:
+            g1 = potential.grad(qn - v1 * (t1[:, None] / 2), par)
+            g2 = potential.grad(qn + v2 * (t2[:, None] / 2), par)
+            mis = _dot(g1, v2) - _dot(g2, v1)
+        out[nodes] += (t2 - t1) / 4 * mis
     return out
 
 
