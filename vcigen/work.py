@@ -46,11 +46,12 @@ TINY = 1e-14  # a sub-segment shorter than TINY * h is no segment (simultaneous 
 
 @dataclass(frozen=True)
 class Potential:
-    """``grad V`` and ``grad^2 V`` of ``L = 1/2 qdot^T M qdot + b . qdot - V(q)`` (``M``, ``b`` constant), for
-    the impact steps' node mismatches (:func:`impact_work`)."""
+    """``grad V``, ``grad^2 V`` and ``M^-1`` of ``L = 1/2 qdot^T M qdot + b . qdot - V(q)`` (``M``, ``b``
+    constant), for the impact steps' node mismatches (:func:`impact_work`)."""
 
     grad: Callable[..., np.ndarray]  # (q (K, n), par) -> (K, n)
     hess: Callable[..., np.ndarray]  # (q (K, n), par) -> (K, n, n)
+    minv: Callable[..., np.ndarray]  # (q (K, n), par) -> (K, n, n): M^-1, the same at every q
     rule: str  # "trapezoid" or "midpoint"
 
 
@@ -132,7 +133,8 @@ def _potential(system: DiscreteSystem) -> Potential | None:
     grad = -sp.Matrix([model.L.diff(a) for a in model.coordinates])  # no dL/dq dqdot: of q alone
     grad_fn = _matrix_function(system, grad.T)
     hess_fn = _matrix_function(system, -sp.hessian(model.L, qs))
-    return Potential(lambda q, values: grad_fn(q, values)[:, 0], hess_fn, system.rule.name)
+    minv_fn = _matrix_function(system, model.mass_matrix.inv())
+    return Potential(lambda q, values: grad_fn(q, values)[:, 0], hess_fn, minv_fn, system.rule.name)
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -195,8 +197,8 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     if ims and booking.potential is not None and not bilateral:
         free = _free_steps(res, ims, steps)
         sub = (owner[seg], qs[seg], vs, tau[seg])
-        ends = (v_start, tau_start, v_end, tau_end)
-        out += impact_work(booking.potential, q, h, ks, sub, ends, free & ~on_node[:-1], on_node, par)
+        ends = (v_start, tau_start, v_end, tau_end, f_end[:-1] + f_start[1:])
+        out += impact_work(booking.potential, q, ks, sub, ends, free, on_node, par)
     return out
 
 
@@ -212,7 +214,6 @@ def _free_steps(res: Result, ims, steps: int) -> np.ndarray:
 def impact_work(
     potential: Potential,
     q: np.ndarray,
-    h: float,
     ks: np.ndarray,
     sub: tuple[np.ndarray, ...],
     ends: tuple[np.ndarray, ...],
@@ -240,12 +241,14 @@ def impact_work(
     O(h^2), of mean ``(h^2/12) [qdot.H qdot - g . M^-1 F]`` taken before less after the impact (trapezoid;
     over the impact's fraction ``alpha``), a drift proportional to the impacts' count wherever restitution
     or a force of the velocity changes that. ``b`` is booked: the nodes' terms on the step each node starts,
-    the impacts' (trapezoid) on their step. Steps held in sustained contact, plastic impacts and impacts on
-    a grid node take none."""
+    the impacts' (trapezoid) on their step. ``v2 - v1`` is taken from the DEL at the node,
+    ``M (v2 - v1) = J - (t1 g(q) + t2 g(q))/2`` (trapezoid; midpoint ``J - (t1 g1 + t2 g2)/2``) with the kick
+    ``J``, not from the positions: a sub-segment ``alpha h`` of round-off length would magnify their
+    round-off. Steps held in sustained contact, plastic impacts and impacts on a grid node take none."""
     steps = free.size
     out = np.zeros(steps)
     owner, qs, vs, tau = sub
-    v_start, tau_start, v_end, tau_end = ends
+    v_start, tau_start, v_end, tau_end, kick = ends
     if potential.rule == "trapezoid":  # across each impact inside a step: 1/4 (tA^2 vA.H vA - tB^2 vB.H vB)
         pair = np.flatnonzero(owner[1:] == owner[:-1])
         if pair.size:
@@ -257,15 +260,18 @@ def impact_work(
     nodes = nodes[(nodes >= 1) & (nodes < steps)]
     nodes = nodes[free[nodes] & free[nodes - 1] & ~on_node[nodes]]
     if nodes.size:
-        t1, t2 = tau_end[nodes - 1], tau_start[nodes]
-        v1, v2, qn = v_end[nodes - 1], v_start[nodes], q[nodes]
+        t1, t2 = tau_end[nodes - 1, None], tau_start[nodes, None]
+        v1, v2, qn, J = v_end[nodes - 1], v_start[nodes], q[nodes], kick[nodes - 1]
+        minv = potential.minv(qn, par)
         if potential.rule == "trapezoid":
-            mis = _dot(potential.grad(qn, par), v2 - v1)
-        else:
-            g1 = potential.grad(qn - v1 * (t1[:, None] / 2), par)
-            g2 = potential.grad(qn + v2 * (t2[:, None] / 2), par)
-            mis = _dot(g1, v2) - _dot(g2, v1)
-        out[nodes] += (t2 - t1) / 4 * mis
+            g = potential.grad(qn, par)
+            mis = _dot(g, np.einsum("knm,km->kn", minv, J - (t1 + t2) / 2 * g))
+        else:  # g1 . v2 - g2 . v1 = g1 . (v2 - v1) + (g1 - g2) . v1 = g2 . (v2 - v1) + (g1 - g2) . v2
+            g1, g2 = potential.grad(qn - v1 * t1 / 2, par), potential.grad(qn + v2 * t2 / 2, par)
+            dv = np.einsum("knm,km->kn", minv, J - (t1 * g1 + t2 * g2) / 2)
+            longer = t1 >= t2  # the velocity of the longer segment: the better conditioned
+            mis = np.where(longer[:, 0], _dot(g1, dv) + _dot(g1 - g2, v1), _dot(g2, dv) + _dot(g1 - g2, v2))
+        out[nodes] += (t2 - t1)[:, 0] / 4 * mis
     return out
 
 
