@@ -37,6 +37,24 @@ def driven_oscillator(time_symbol: bool = True) -> vcigen.Model:
     )
 
 
+def pendulum_wall() -> vcigen.Model:
+    """A damped, driven pendulum ``L = thd^2/2 + 4 cos th`` (V not quadratic) against a wall at ``th = d``
+    (restitution ``e``): the balance's terms that are exact only for quadratic V (``vcigen.work``)."""
+    th, thd, t = sp.symbols("th thd t")
+    c, A, W, e, d = sp.symbols("c A W e d")
+    return vcigen.Model(
+        name="pendulum_wall",
+        q=[th],
+        qdot=[thd],
+        lagrangian=thd**2 / 2 + 4 * sp.cos(th),
+        contacts={"wall": d - th},
+        restitution={"wall": e},
+        params={c: 0.3, A: 2.5, W: 1.7, e: 0.8, d: 0.6},
+        forces=[-c * thd + A * sp.cos(W * t)],
+        time=t,
+    )
+
+
 class LinearFlow:
     """Exact flow of ``x'' + c x' + k x = A cos(W t)`` (underdamped) from ``(t0, x0, v0)``."""
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from functools import cache
 
+import forced_scenes
 import numpy as np
 import pytest
 import sympy as sp
@@ -205,21 +206,7 @@ def test_impact_term_has_the_mean_of_its_expansion():
 
 @cache
 def pendulum_wall(rule: str) -> vcigen.Simulator:
-    """The damped, driven pendulum (V = -4 cos th, not quadratic) against a wall at th = 0.6, e = 0.8."""
-    th, thd, t = sp.symbols("th thd t")
-    c, A, W, e, d = sp.symbols("c A W e d")
-    model = vcigen.Model(
-        name="pendulum_wall",
-        q=[th],
-        qdot=[thd],
-        lagrangian=thd**2 / 2 + 4 * sp.cos(th),
-        contacts={"wall": d - th},
-        restitution={"wall": e},
-        params={c: 0.3, A: 2.5, W: 1.7, e: 0.8, d: 0.6},
-        forces=[-c * thd + A * sp.cos(W * t)],
-        time=t,
-    )
-    return vcigen.build(model, backend="c", rule=rule)
+    return vcigen.build(forced_scenes.pendulum_wall(), backend="c", rule=rule)
 
 
 @pytest.mark.parametrize("rule", ["trapezoid", "midpoint"])
