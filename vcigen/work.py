@@ -24,8 +24,10 @@ with ``M``, ``b`` constant and V not quadratic, the kick is booked at
 term is built: an O(h^2) drift is left.
 
 Step ``k``'s work is its segments' work plus the correction of the node it starts at (step 0 has none); a
-node that is also an impact (a sub-segment of zero length there) takes none. Impacts leave an O(h^2) bias
-each: (48a) equates the energies of two sub-segments of different lengths (README, *Forces*).
+node that is also an impact (a sub-segment of zero length there) takes none. On the steps of an impact the
+conservative mismatch no longer telescopes: the nodes join segments of different lengths and (48a) keeps
+``E_d`` across the impact; :func:`impact_work` books what is left, ``b = O(h^2)`` an impact (README,
+*Forces*), without which the balance drifts in proportion to the number of impacts.
 """
 
 from __future__ import annotations
