@@ -65,6 +65,7 @@ class Booking:
     forces: ForceFn  # (q0 (K, n), v (K, n), tau (K,), t0 (K,), par) -> (f_d- (K, n), f_d+ (K, n))
     curvature: CurvatureFn | None  # (q (K, n), par) -> (K, n, n): M^-1 grad^2 V, or None (module docstring)
     potential: Potential | None = None  # None: M of q, or a rule without a closed form (impact_work)
+    start: Callable[..., np.ndarray] | None = None  # (q0, v, tau, t0, par) -> (K,): E_d - f_d- . v
 
 
 def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
@@ -80,6 +81,7 @@ def work_function(system: DiscreteSystem) -> Booking | None:
     if not system.model.force or seg is None:
         return None
     fn = _lambdify(system, [*seg.q0, *seg.v, seg.tau], [list(seg.f_minus), list(seg.f_plus)])
+    start_fn = _lambdify(system, [*seg.q0, *seg.v, seg.tau], [[seg.energy_start]])
 
     def forces(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values):
         args = list(values) if not system.timed else [*list(values)[:-1], t0]
@@ -88,7 +90,11 @@ def work_function(system: DiscreteSystem) -> Booking | None:
             np.stack([np.broadcast_to(np.asarray(f, float), tau.shape) for f in fs], -1) for fs in (fm, fp)
         )
 
-    return Booking(forces, _curvature(system), _potential(system))
+    def start(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values) -> np.ndarray:
+        args = list(values) if not system.timed else [*list(values)[:-1], t0]
+        return np.broadcast_to(np.asarray(start_fn(*q0.T, *v.T, tau, *args)[0][0], float), tau.shape)
+
+    return Booking(forces, _curvature(system), _potential(system), start)
 
 
 def _separable(system: DiscreteSystem) -> bool:
@@ -197,21 +203,25 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     out[1:] += np.where(on_node[1:steps], 0.0, node)
     bilateral = res.constraint_force is not None and res.constraint_force.size > 0
     if ims and booking.potential is not None and not bilateral:
-        free = _free_steps(res, ims, steps)
+        held = np.zeros(steps, dtype=bool)  # the steps with a part in sustained contact
+        if res.contact_force is not None and res.contact_force.size:
+            held = np.any(res.contact_force != 0.0, axis=1)
         sub = (owner[seg], qs[seg], vs, tau[seg])
         ends = (v_start, tau_start, v_end, tau_end, f_end[:-1] + f_start[1:])
         curved = booking.curvature is not None
-        out += impact_work(booking.potential, curved, q, h, ks, sub, ends, free, on_node, par)
+        out += impact_work(booking.potential, curved, q, h, ks, sub, ends, held, on_node, par)
+        # a plastic impact's logged energy after it is E_d less its loss, not the energy at the start of the
+        # constrained segment that follows: the difference is the step's too
+        plastic = np.array([im.kind == "plastic" for im in ims])[order[place[order] == 1] - ks.size]
+        after = np.array([im.energy_after for im in ims])[order[place[order] == 1] - ks.size]
+        rows = np.flatnonzero(place[order] == 1)[plastic]  # the plastic impacts' points
+        i = np.searchsorted(seg, rows)
+        found = (i < seg.size) & (seg[np.minimum(i, seg.size - 1)] == rows)  # a segment starts there
+        if found.any():
+            j = i[found]
+            e0 = booking.start(qs[seg[j]], vs[j], tau[seg[j]], ts[seg[j]], par)
+            np.add.at(out, owner[seg[j]], e0 - after[plastic][found])
     return out
-
-
-def _free_steps(res: Result, ims, steps: int) -> np.ndarray:
-    """``(N-1,)``: the steps made of free segments: not held in sustained contact, no plastic impact."""
-    free = np.ones(steps, dtype=bool)
-    if res.contact_force is not None:
-        free &= ~np.any(res.contact_force != 0.0, axis=1)
-    free[[im.step for im in ims if im.kind == "plastic"]] = False
-    return free
 
 
 def impact_work(
@@ -222,7 +232,7 @@ def impact_work(
     ks: np.ndarray,
     sub: tuple[np.ndarray, ...],
     ends: tuple[np.ndarray, ...],
-    free: np.ndarray,
+    held: np.ndarray,
     on_node: np.ndarray,
     par,
 ) -> np.ndarray:
@@ -246,10 +256,11 @@ def impact_work(
     O(h^2), of mean ``(h^2/12) [qdot.H qdot - g . M^-1 F]`` taken before less after the impact (trapezoid;
     over the impact's fraction ``alpha``), a drift proportional to the impacts' count wherever restitution
     or a force of the velocity changes that. ``b`` is booked: the nodes' terms on the step each node starts,
-    the impacts' (trapezoid) on their step. ``v2 - v1`` is taken from the DEL at the node,
-    ``M (v2 - v1) = J - (t1 g(q) + t2 g(q))/2`` (trapezoid; midpoint ``J - (t1 g1 + t2 g2)/2``) with the kick
-    ``J``, not from the positions: a sub-segment ``alpha h`` of round-off length would magnify their
-    round-off.
+    the impacts' (trapezoid) on their step. Between free segments ``v2 - v1`` is taken from the DEL at the
+    node, ``M (v2 - v1) = J - (t1 g(q) + t2 g(q))/2`` (trapezoid; midpoint ``J - (t1 g1 + t2 g2)/2``) with the
+    kick ``J``, not from the positions: a sub-segment ``alpha h`` of round-off length would magnify their
+    round-off. Next to a step ``held`` in sustained contact the node's DEL holds the contact's impulse too:
+    there ``v2 - v1`` is taken from the positions.
 
     ``curved`` (the kick booked at ``vbar + (h^2/6) M^-1 grad^2 V vbar``, V not quadratic): that h^2 term
     equals the conservative remainder ``-(h^3/12) D3V[v, v, v]`` a step only up to the difference of
@@ -258,8 +269,8 @@ def impact_work(
     impact also books ``(h^2/12) (vB.H vB - vA.H vA)``, with the velocity of a neighbouring segment for a
     sub-segment shorter than ``1e-3 h``.
 
-    Steps held in sustained contact, plastic impacts and impacts on a grid node take none."""
-    steps = free.size
+    Impacts on a grid node take none."""
+    steps = held.size
     out = np.zeros(steps)
     owner, qs, vs, tau = sub
     v_start, tau_start, v_end, tau_end, kick = ends
@@ -273,20 +284,22 @@ def impact_work(
         if curved:  # the jump of the h^2 term's boundary value -(h^2/12) qdot.H qdot (both rules)
             va, vb = _impact_velocities(pair, owner, vs, tau, v_start, v_end, h)
             jump += h * h / 12 * (_quad(vb, hess) - _quad(va, hess))
-        np.add.at(out, owner[pair + 1], np.where(free[owner[pair + 1]], jump, 0.0))
+        np.add.at(out, owner[pair + 1], jump)
     nodes = np.unique(np.concatenate([ks, ks + 1]))
     nodes = nodes[(nodes >= 1) & (nodes < steps)]
-    nodes = nodes[free[nodes] & free[nodes - 1] & ~on_node[nodes]]
+    nodes = nodes[~on_node[nodes]]
     if nodes.size:
         t1, t2 = tau_end[nodes - 1, None], tau_start[nodes, None]
         v1, v2, qn, J = v_end[nodes - 1], v_start[nodes], q[nodes], kick[nodes - 1]
         minv = potential.minv(qn, par)
+        contact = (held[nodes - 1] | held[nodes])[:, None]  # the DEL holds a contact impulse: positions
         if potential.rule == "trapezoid":
             g = potential.grad(qn, par)
-            mis = _dot(g, np.einsum("knm,km->kn", minv, J - (t1 + t2) / 2 * g))
+            dv = np.where(contact, v2 - v1, np.einsum("knm,km->kn", minv, J - (t1 + t2) / 2 * g))
+            mis = _dot(g, dv)
         else:  # g1 . v2 - g2 . v1 = g1 . (v2 - v1) + (g1 - g2) . v1 = g2 . (v2 - v1) + (g1 - g2) . v2
             g1, g2 = potential.grad(qn - v1 * t1 / 2, par), potential.grad(qn + v2 * t2 / 2, par)
-            dv = np.einsum("knm,km->kn", minv, J - (t1 * g1 + t2 * g2) / 2)
+            dv = np.where(contact, v2 - v1, np.einsum("knm,km->kn", minv, J - (t1 * g1 + t2 * g2) / 2))
             longer = t1 >= t2  # the velocity of the longer segment: the better conditioned
             mis = np.where(longer[:, 0], _dot(g1, dv) + _dot(g1 - g2, v1), _dot(g2, dv) + _dot(g1 - g2, v2))
         out[nodes] += (t2 - t1)[:, 0] / 4 * mis
