@@ -66,6 +66,7 @@ class Booking:
     curvature: CurvatureFn | None  # (q (K, n), par) -> (K, n, n): M^-1 grad^2 V, or None (module docstring)
     potential: Potential | None = None  # None: M of q, or a rule without a closed form (impact_work)
     start: Callable[..., np.ndarray] | None = None  # (q0, v, tau, t0, par) -> (K,): E_d - f_d- . v
+    modified: Callable[..., np.ndarray] | None = None  # (q, p, h, par) -> (K,): H~ (midpoint, M of q)
 
 
 def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
@@ -94,7 +95,7 @@ def work_function(system: DiscreteSystem) -> Booking | None:
         args = list(values) if not system.timed else [*list(values)[:-1], t0]
         return np.broadcast_to(np.asarray(start_fn(*q0.T, *v.T, tau, *args)[0][0], float), tau.shape)
 
-    return Booking(forces, _curvature(system), _potential(system), start)
+    return Booking(forces, _curvature(system), _potential(system), start, _modified_hamiltonian(system))
 
 
 def _separable(system: DiscreteSystem) -> bool:
@@ -129,6 +130,39 @@ def _curvature(system: DiscreteSystem) -> CurvatureFn | None:
     if not hess.free_symbols & set(model.coordinates):  # V quadratic: the kick at vbar is exact
         return None
     return _matrix_function(system, model.mass_matrix.inv() * hess)
+
+
+def _modified_hamiltonian(system: DiscreteSystem) -> Callable[..., np.ndarray] | None:
+    """``(q, p, h, par) -> H~ = H - (h^2/24) H''(J grad H, J grad H)`` (K,): the modified Hamiltonian of the
+    implicit midpoint rule, which the midpoint rule's DEL is in ``(q, p)`` (``p_mid = (p0 + p1)/2``
+    ``= M(q_mid) v``); built for the midpoint rule when the mass matrix depends on ``q`` (else the kick's
+    h^2 term of :func:`_curvature`), ``L`` quadratic in ``qdot`` and ``n <= 4``; ``None`` otherwise."""
+    model = system.model
+    qs, vs, n = list(model.coordinates), list(model.velocities), model.n
+    mass = model.mass_matrix
+    if system.rule.name != "midpoint" or n > 4 or mass.free_symbols & set(vs):
+        return None
+    if not mass.free_symbols & set(qs):
+        return None
+    zero = dict.fromkeys(vs, 0)
+    b = sp.Matrix([model.L.diff(x) for x in vs]).xreplace(zero)  # L = 1/2 v.M v + b.v - V
+    pot = -model.L.xreplace(zero)
+    v = sp.Matrix(vs)
+    if sp.expand(model.L - ((v.T * mass * v)[0] / 2 + (b.T * v)[0] - pot)) != 0:
+        return None
+    p = sp.Matrix([sp.Dummy(f"p{i}") for i in range(n)])
+    h = sp.Dummy("h")
+    ham = ((p - b).T * mass.inv() * (p - b))[0] / 2 + pot
+    z = sp.Matrix([*qs, *p])
+    grad = sp.Matrix([ham.diff(x) for x in z])
+    flow = sp.Matrix([*grad[n:], *(-g for g in grad[:n])])  # J grad H
+    modified = ham - h**2 / 24 * (flow.T * sp.hessian(ham, z) * flow)[0]
+    fn = _lambdify(system, [*qs, *p, h], [[modified]])
+
+    def value(q: np.ndarray, mom: np.ndarray, step: float, values) -> np.ndarray:
+        return np.broadcast_to(np.asarray(fn(*q.T, *mom.T, step, *values)[0][0], float), q.shape[:1])
+
+    return value
 
 
 def _potential(system: DiscreteSystem) -> Potential | None:
@@ -200,6 +234,11 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
         kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
         node += h * h / 6 * np.einsum("kn,knm,km->k", kick, booking.curvature(q[1:steps], par), vbar)
+    if booking.modified is not None and steps > 1:  # the kick's change of H~, in place of J . vbar
+        mom = res.p[1:steps]
+        lo, hi = mom - f_end[:-1], mom + f_start[1:]  # p before and after the kick f_d+ + f_d-
+        gain = booking.modified(q[1:steps], hi, h, par) - booking.modified(q[1:steps], lo, h, par)
+        node = gain - _dot(f_end[:-1], v_end[:-1]) - _dot(f_start[1:], v_start[1:])
     out[1:] += np.where(on_node[1:steps], 0.0, node)
     bilateral = res.constraint_force is not None and res.constraint_force.size > 0
     if ims and booking.potential is not None and not bilateral:
