@@ -55,6 +55,22 @@ def pendulum_wall() -> vcigen.Model:
     )
 
 
+def polar_particle() -> vcigen.Model:
+    """A particle in polar coordinates (mass matrix ``diag(1, r^2)``) on a spring ``2 (r - 1)^2`` in a
+    field ``0.3 x``, damped (c = 0.3), driven radially by ``cos 1.7 t`` and turned by ``sin(0.3 t)/2``."""
+    r, th, rd, thd, t = sp.symbols("r th rd thd t")
+    c, A, W = sp.symbols("c A W")
+    return vcigen.Model(
+        name="polar_forced",
+        q=[r, th],
+        qdot=[rd, thd],
+        lagrangian=(rd**2 + r**2 * thd**2) / 2 - 2 * (r - 1) ** 2 - sp.Rational(3, 10) * r * sp.cos(th),
+        params={c: 0.3, A: 1.0, W: 1.7},
+        forces=[-c * rd + A * sp.cos(W * t), -c * r**2 * thd + sp.sin(sp.Rational(3, 10) * t) / 2],
+        time=t,
+    )
+
+
 class LinearFlow:
     """Exact flow of ``x'' + c x' + k x = A cos(W t)`` (underdamped) from ``(t0, x0, v0)``."""
 
