@@ -133,14 +133,20 @@ def _curvature(system: DiscreteSystem) -> CurvatureFn | None:
 
 
 def _modified_hamiltonian(system: DiscreteSystem) -> Callable[..., np.ndarray] | None:
-    """``(q, p, h, par) -> H~ = H - (h^2/24) H''(J grad H, J grad H)`` (K,): the modified Hamiltonian of the
-    implicit midpoint rule, which the midpoint rule's DEL is in ``(q, p)`` (``p_mid = (p0 + p1)/2``
-    ``= M(q_mid) v``); built for the midpoint rule when the mass matrix depends on ``q`` (else the kick's
-    h^2 term of :func:`_curvature`), ``L`` quadratic in ``qdot`` and ``n <= 4``; ``None`` otherwise."""
+    """``(q, p, h, par) -> H~`` (K,): the modified Hamiltonian that the rule's conservative map keeps to
+    O(h^4) a step, for a mass matrix of ``q`` (with ``M`` constant the kick's h^2 term of :func:`_curvature`
+    does it), ``L = 1/2 qdot.M(q) qdot + b(q).qdot - V(q)`` and ``n <= 4``; ``None`` otherwise.
+
+    midpoint:  ``H~ = H - (h^2/24) H''(J grad H, J grad H)``, the implicit midpoint rule's, which the
+               midpoint DEL is in ``(q, p)`` (``p_mid = (p0 + p1)/2 = M(q_mid) v``);
+    trapezoid: ``H~ - (h^2/8) L_qq(qdot, qdot)`` at ``qdot = H_p``: along a curve ``L_d^trap - L_d^mid``
+               ``= (h^3/8) L_qq(qdot, qdot) + O(h^5)``, a term ``(h^2/8) L_qq`` of the modified Lagrangian,
+               ``-(h^2/8) L_qq`` of the modified Hamiltonian (with ``M`` constant and ``b = 0``: velocity
+               Verlet's ``H + h^2 [p.V''p/12 - |V'|^2/24]``)."""
     model = system.model
     qs, vs, n = list(model.coordinates), list(model.velocities), model.n
     mass = model.mass_matrix
-    if system.rule.name != "midpoint" or n > 4 or mass.free_symbols & set(vs):
+    if system.rule.name not in ("trapezoid", "midpoint") or n > 4 or mass.free_symbols & set(vs):
         return None
     if not mass.free_symbols & set(qs):
         return None
@@ -152,11 +158,15 @@ def _modified_hamiltonian(system: DiscreteSystem) -> Callable[..., np.ndarray] |
         return None
     p = sp.Matrix([sp.Dummy(f"p{i}") for i in range(n)])
     h = sp.Dummy("h")
-    ham = ((p - b).T * mass.inv() * (p - b))[0] / 2 + pot
+    minv = mass.inv()
+    ham = ((p - b).T * minv * (p - b))[0] / 2 + pot
     z = sp.Matrix([*qs, *p])
     grad = sp.Matrix([ham.diff(x) for x in z])
     flow = sp.Matrix([*grad[n:], *(-g for g in grad[:n])])  # J grad H
     modified = ham - h**2 / 24 * (flow.T * sp.hessian(ham, z) * flow)[0]
+    if system.rule.name == "trapezoid":
+        lqq = (v.T * sp.hessian(model.L, sp.Matrix(qs)) * v)[0]
+        modified -= h**2 / 8 * lqq.xreplace(dict(zip(vs, minv * (p - b))))
     fn = _lambdify(system, [*qs, *p, h], [[modified]])
 
     def value(q: np.ndarray, mom: np.ndarray, step: float, values) -> np.ndarray:
