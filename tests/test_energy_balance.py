@@ -6,6 +6,10 @@ the mean velocity ``(v- + v+)/2`` makes the forces' part of the balance telescop
 O(h^2) drift proportional to the dissipated energy: 0.17 after 2e5 steps of the scene below, where the
 method's own bounded error is 1.3e-3. The drift is the least-squares slope of the balance times the run
 length. C runs are long (2e5 steps), CasADi runs short.
+
+With impacts: the impact steps' node mismatch ``b`` (``vcigen.work.impact_work``), plastic impacts and
+grazing impacts under forces; with a mass matrix of q: the kick's change of the modified Hamiltonian.
+Each test says what the balance was without its part.
 """
 
 from __future__ import annotations

@@ -20,14 +20,16 @@ quadratic V it telescopes (trapezoid) or vanishes (midpoint). With a third deriv
 remainder ``-(h^3/12) D3V[v, v, v]`` a step sums, on a forced trajectory, to
 ``(h^2/6) int grad^2 V(qdot, M^-1 F) dt`` (both rules): where ``L = 1/2 qdot^T M qdot + b . qdot - V(q)``
 with ``M``, ``b`` constant and V not quadratic, the kick is booked at
-``vbar + (h^2/6) M^-1 grad^2 V(q_k) vbar`` instead, which removes it. For a mass matrix of ``q`` no such
-term is built: an O(h^2) drift is left.
+``vbar + (h^2/6) M^-1 grad^2 V(q_k) vbar`` instead, which removes it. For a mass matrix of ``q`` the kick
+is booked as its change of the modified Hamiltonian ``H~`` that the rule's conservative map keeps to
+O(h^4) (:func:`_modified_hamiltonian`).
 
 Step ``k``'s work is its segments' work plus the correction of the node it starts at (step 0 has none); a
 node that is also an impact (a sub-segment of zero length there) takes none. On the steps of an impact the
 conservative mismatch no longer telescopes: the nodes join segments of different lengths and (48a) keeps
 ``E_d`` across the impact; :func:`impact_work` books what is left, ``b = O(h^2)`` an impact (README,
-*Forces*), without which the balance drifts in proportion to the number of impacts.
+*Forces*), without which the balance drifts in proportion to the number of impacts; a plastic impact also
+books the difference of its logged energy after it to the energy at the start of the held segment after.
 """
 
 from __future__ import annotations
@@ -196,8 +198,9 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     """``(N-1,)``: the discrete work over each grid step: its segments' ``(f_d- + f_d+) . v`` (split at its
     impacts) plus, at the grid node it starts at, ``(f_d+ - f_d-) . (v+ - v-) / 2`` and, with a curvature,
-    ``(h^2/6) J . M^-1 grad^2 V vbar``, and on the steps of an impact :func:`impact_work` (module docstring).
-    Exactly 0 without forces."""
+    ``(h^2/6) J . M^-1 grad^2 V vbar`` (with a mass matrix of ``q``: the kick's change of ``H~`` less the
+    segments' ``f_d . v`` instead), and on the steps of an impact :func:`impact_work` and the plastic
+    impacts' energy difference (module docstring). Exactly 0 without forces."""
     steps = res.energy.size
     if booking is None or steps == 0:
         return np.zeros(steps)
