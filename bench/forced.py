@@ -17,8 +17,10 @@ energy behaviour, and the wall time of one run (best of 3).
 
 Then ``--long`` steps of vcigen (C, h = 0.01, and over the same time at h/2) on the driven oscillator
 without damping, the stop out of reach (the drive does work both ways), with damping and the stop out of
-reach, and with damping and the stop: the balance's max, its drift (least-squares slope times the run's
-length) and Σ|W|. ``--long-only`` runs only these. Writes ``bench/results/forced.csv``
+reach, and with damping and the stop, on the damped, driven pendulum against a wall (V not quadratic)
+and on a damped, driven particle in polar coordinates (a mass matrix of q), each with the trapezoid and
+the midpoint rule: the balance's max, its drift (least-squares slope times the run's length) and Σ|W|.
+``--long-only`` runs only these. Writes ``bench/results/forced.csv``
 (``forced_long.csv`` with ``--long-only``).
 """
 
@@ -35,6 +37,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE))  # timing, also under python -m bench.forced
 
 import forced_scenes as fs  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
@@ -272,16 +275,23 @@ def _drift(bal: np.ndarray, t: np.ndarray) -> float:
 
 
 def long_rows(steps: int) -> list[dict]:
-    sim = vcigen.build(fs.driven_oscillator(), backend="c")
+    oscillator = vcigen.build(fs.driven_oscillator(), backend="c")
+    pendulum = {r: vcigen.build(fs.pendulum_wall(), backend="c", rule=r) for r in ("trapezoid", "midpoint")}
+    polar = {r: vcigen.build(fs.polar_particle(), backend="c", rule=r) for r in ("trapezoid", "midpoint")}
     rows = []
-    for label, params in (
-        ("undamped drive, stop out of reach", {"c": 0.0, "d": 100.0}),
-        ("damped drive, stop out of reach", {"d": 100.0}),
-        ("damped drive, stop e = 0.8", {}),
+    for label, sim, params in (
+        ("undamped drive, stop out of reach", oscillator, {"c": 0.0, "d": 100.0}),
+        ("damped drive, stop out of reach", oscillator, {"d": 100.0}),
+        ("damped drive, stop e = 0.8", oscillator, {}),
+        ("pendulum, wall e = 0.8, trapezoid", pendulum["trapezoid"], {}),
+        ("pendulum, wall e = 0.8, midpoint", pendulum["midpoint"], {}),
+        ("polar particle M(q), trapezoid", polar["trapezoid"], {}),
+        ("polar particle M(q), midpoint", polar["midpoint"], {}),
     ):
         for h in (0.01, 0.005):  # the same span of time: steps at h, twice as many at h/2
             start = time.perf_counter()
-            res = sim.simulate(q0=[0.0], v0=[0.0], h=h, t_end=steps * 0.01, params=params)
+            start0 = ([1.0, 0.0], [0.2, 0.9]) if sim.model.n == 2 else ([0.0], [0.0])
+            res = sim.simulate(q0=start0[0], v0=start0[1], h=h, t_end=steps * 0.01, params=params)
             wall = time.perf_counter() - start
             bal = res.energy_balance()
             rows.append(

@@ -37,6 +37,40 @@ def driven_oscillator(time_symbol: bool = True) -> vcigen.Model:
     )
 
 
+def pendulum_wall() -> vcigen.Model:
+    """A damped, driven pendulum ``L = thd^2/2 + 4 cos th`` (V not quadratic) against a wall at ``th = d``
+    (restitution ``e``): the balance's terms that are exact only for quadratic V (``vcigen.work``)."""
+    th, thd, t = sp.symbols("th thd t")
+    c, A, W, e, d = sp.symbols("c A W e d")
+    return vcigen.Model(
+        name="pendulum_wall",
+        q=[th],
+        qdot=[thd],
+        lagrangian=thd**2 / 2 + 4 * sp.cos(th),
+        contacts={"wall": d - th},
+        restitution={"wall": e},
+        params={c: 0.3, A: 2.5, W: 1.7, e: 0.8, d: 0.6},
+        forces=[-c * thd + A * sp.cos(W * t)],
+        time=t,
+    )
+
+
+def polar_particle() -> vcigen.Model:
+    """A particle in polar coordinates (mass matrix ``diag(1, r^2)``) on a spring ``2 (r - 1)^2`` in a
+    field ``0.3 x``, damped (c = 0.3), driven radially by ``cos 1.7 t`` and turned by ``sin(0.3 t)/2``."""
+    r, th, rd, thd, t = sp.symbols("r th rd thd t")
+    c, A, W = sp.symbols("c A W")
+    return vcigen.Model(
+        name="polar_forced",
+        q=[r, th],
+        qdot=[rd, thd],
+        lagrangian=(rd**2 + r**2 * thd**2) / 2 - 2 * (r - 1) ** 2 - sp.Rational(3, 10) * r * sp.cos(th),
+        params={c: 0.3, A: 1.0, W: 1.7},
+        forces=[-c * rd + A * sp.cos(W * t), -c * r**2 * thd + sp.sin(sp.Rational(3, 10) * t) / 2],
+        time=t,
+    )
+
+
 class LinearFlow:
     """Exact flow of ``x'' + c x' + k x = A cos(W t)`` (underdamped) from ``(t0, x0, v0)``."""
 

@@ -136,16 +136,16 @@ def test_energy_balance_has_no_drift_under_a_periodic_drive():
     assert abs(np.mean(bal[-n // 10 :]) - np.mean(bal[: n // 10])) < 1e-4
 
 
-def test_energy_balance_with_damping_and_impacts_is_second_order_in_the_work_done():
-    """With dissipation and impacts the balance accumulates an O(h^2) bias of each impact (README, *Forces*:
-    (48a) equates the energies of two sub-segments of different lengths), never O(h): |balance| / sum |W|
-    after 2e5 steps."""
-    rel = []
+def test_energy_balance_with_damping_and_impacts_is_second_order_and_bounded():
+    """With dissipation and 541 impacts the balance stays at the method's own O(h^2) error: after 2e5 steps
+    its largest value is below 1e-3 and quarters with h, far below sum |W| ~ 1.7e3 (the impact steps' node
+    mismatch is booked, ``vcigen.work.impact_work``; without it the balance grew to 2.7e-2 here)."""
+    worst = []
     for h in (0.02, 0.01):
         res = driven("c").simulate(q0=[0.0], v0=[0.0], h=h, t_end=2000.0)
-        assert len(res.impacts) > 100
-        rel.append(abs(res.energy_balance()[-1]) / np.sum(np.abs(res.work)))
-    assert rel[1] < 5e-5 and 3.0 < rel[0] / rel[1] < 5.5, rel
+        assert len(res.impacts) > 500 and np.sum(np.abs(res.work)) > 1500.0
+        worst.append(float(np.max(np.abs(res.energy_balance()))))
+    assert worst[1] < 1e-3 and 3.5 < worst[0] / worst[1] < 4.5, worst
 
 
 def test_work_is_zero_without_forces_and_matches_damping():

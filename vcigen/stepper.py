@@ -39,6 +39,7 @@ class Kernels(Protocol):
     def smooth_step(self, q0, p0, tau, guess): ...
     def solve(self, name: str, guess, *args): ...
     def segment(self, q0, v, tau): ...
+    def start_energy(self, q0, v, tau) -> float: ...  # E_d - f_d- . v: the energy at the segment's start
     def contacts(self, q): ...
     def legendre(self, q, v): ...
     def jump_quadratic(self, qc, nrm, p_in, e_in, tau): ...  # ((a, b, c), w0, dw) or None
@@ -540,7 +541,9 @@ class Stepper(SustainedSteps, HeldSteps):
             w, res = k.solve("smooth", vel + mu0 * minv_n, seg.q, seg.p_in + mu0 * seg.nrm, seg.tau)
             if res <= self._scale(seg.p_in, seg.e_in):
                 self.reflected += reflect
-                seg.e_in = k.segment(seg.q, w, seg.tau)[2]
+                # forces: the energy at the segment's start, as after (48a) (segment gives its end's)
+                e_in = k.start_energy(seg.q, w, seg.tau) if self._forced else k.segment(seg.q, w, seg.tau)[2]
+                seg.e_in = e_in
                 return np.append(w, mu0), "grazing"
         vn = nv / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"

@@ -251,6 +251,13 @@ class CasadiKernels(ParameterSlots):
         o = self._call(self._flat["segment"], q0, v, tau)
         return o[:n], o[n : 2 * n], float(o[2 * n])
 
+    def start_energy(self, q0, v, tau) -> float:
+        """The energy at the start of the segment ``(q0, v, tau)`` (``E_d - f_d- . v`` with forces): the
+        energy row of the jump's residual (48a) at ``e_in = 0``."""
+        n, zero = self.n, np.zeros(self.n)
+        res = self.functions["jump"](np.append(v, 0.0), q0, zero, zero, 0.0, tau, self.par)[0]
+        return float(res[n])
+
     def contacts(self, q):
         m, n = self.m, self.n
         o = self._call(self._flat["contacts"], q)
