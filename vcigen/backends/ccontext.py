@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Mapping
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 import sympy as sp
@@ -25,6 +25,7 @@ from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
+from .csens import SENS_REASONS, SENS_ROUTINES, is_tangent
 from .cspecialise import Structure, detect, phi_routine
 
 
@@ -144,11 +145,17 @@ def with_heads(routines: list[Routine]) -> list[Routine]:
     return out
 
 
+def is_residual(r: Routine) -> bool:
+    """A residual routine (unknown ``x`` first, outputs ``res`` and ``jac``): solved by Newton, with an adapter.
+    The tangents ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated."""
+    return r.inputs[0].name == "x" and r.outputs[0].name == "res"
+
+
 def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
     """Residual routines in a fixed order with an integer id (the ctypes ``solve`` switch)."""
     out = []
     for name, r in system.routines.items():
-        if r.inputs[0].name != "x":
+        if not is_residual(r):
             continue
         offsets, k = [], 0
         for a in r.inputs[1:-1]:  # everything between the unknown and par, flattened
@@ -159,12 +166,30 @@ def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
 
 
 def render_context(
-    system: DiscreteSystem, setup: Mapping[str, Any] | None = None, tol: Tolerances | None = None
+    system: DiscreteSystem,
+    setup: Mapping[str, Any] | None = None,
+    tol: Tolerances | None = None,
+    sensitivities: bool = False,
 ) -> dict[str, Any]:
-    """Everything the templates need, as plain data."""
+    """Everything the templates need, as plain data.
+
+    ``sensitivities``: the library variant that propagates the tangent ``d(q_k, p_k)/d(q0, v0, params)``
+    inside its loop (MATH.md, *Exact sensitivities*; ``templates/sens.c.j2``). ``system`` must hold the
+    ``d_*`` routines (``derive(..., sensitivities=True)``). Every grid step then takes the general step
+    (no explicit glide, no held glide: neither carries a tangent); without it the ``d_*`` routines are
+    left out, so the plain library is the same whatever the system holds.
+    """
     model = system.model
     structure: Structure = detect(system)
-    routines = list(system.routines.values()) + [phi_routine(system)]
+    if sensitivities:
+        missing = [r for r in SENS_ROUTINES if r not in system.routines]
+        if missing:
+            raise ValueError(
+                f"the sensitivity variant needs the routines {missing}: derive(model, rule, sensitivities=True)"
+            )
+        structure = replace(structure, explicit_grid=False)
+    routines = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
+    routines += [phi_routine(system)]
     if structure.explicit_path:
         routines += path_routines(system)
     grid = grid_routines(system) if structure.explicit_grid else []
@@ -173,7 +198,7 @@ def render_context(
     # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants
     implicit = implicit_routines(system) if not structure.smooth_linear else []
     routines += implicit
-    held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
+    held = held_routines(system) if has_held_path(system) and not sensitivities else []  # vcigen.held
     routines += held
     prefix = model.name
     setup = dict(setup or {})
@@ -275,9 +300,16 @@ def render_context(
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            if r.inputs[0].name == "x" and r.name not in {s.name for s in implicit}  # called directly
+            if is_residual(r) and r.name not in {s.name for s in implicit}  # called directly
         ],
         "residuals": _residual_ids(system),
+        # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
+        "sens": bool(sensitivities),
+        "np": len(model.defaults),
+        "sens_reasons": [
+            {"index": k, "name": why, "macro": why.upper().replace(" ", "_").replace("-", "_")}
+            for k, why in enumerate(SENS_REASONS)
+        ],
         "setup": {
             "q0": [repr(float(x)) for x in setup.get("q0", [0.0] * n)],
             "v0": [repr(float(x)) for x in setup.get("v0", [0.0] * n)],
