@@ -27,6 +27,7 @@ from .model import Model
 from .routines import Arg, Output, Routine
 from .rows import Rows, contact_rows
 from .rules import Rule, get_rule
+from .tangents import tangent_routines
 
 KINK = 1e-12  # |u| below which sign(u), Heaviside(u) in a contact normal count as a kink
 
@@ -169,8 +170,12 @@ def _residual_routine(
     return Routine(name, (unknown, *args), (Output("res", top.col_join(res)), Output("jac", jac)), doc, head)
 
 
-def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
-    """Derive every routine of MATH.md for ``model`` under ``rule``."""
+def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = False) -> DiscreteSystem:
+    """Derive every routine of MATH.md for ``model`` under ``rule``.
+
+    ``sensitivities``: also the ``d_*`` routines of :mod:`vcigen.tangents` (the partials of every phase in
+    its data, for exact sensitivities); a scene that does not ask does not pay for them.
+    """
     rule = get_rule(rule)
     n = model.n
     names = tuple(model.phi)
@@ -332,6 +337,8 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
         )
     if rows.size:
         routines.update(sustained_routines(model, seg, rows, par, phis, q))
+    if sensitivities:
+        routines.update(tangent_routines(routines))
     return DiscreteSystem(model, rule, names, par.symbols, routines, rows, seg)
 
 

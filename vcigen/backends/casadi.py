@@ -21,6 +21,7 @@ from ..routines import Routine
 from ..simulator import Simulator
 from ..stepper import Tolerances
 from ..sustained import End
+from ..tangents import is_tangent
 from .slots import ParameterSlots
 from .sym2casadi import to_casadi
 
@@ -73,10 +74,13 @@ class CasadiKernels(ParameterSlots):
         self.par = np.zeros(len(system.params))
         self.timed, self.t = system.timed, 0.0
         self._buffers: dict[str, tuple] = {}
-        self.functions = {name: routine_to_function(r) for name, r in system.routines.items()}
+        # the tangents (vcigen.tangents) are converted on first use (vcigen.sensitivity), never solved
+        self.functions = {
+            name: routine_to_function(r) for name, r in system.routines.items() if not is_tangent(name)
+        }
         self._solvers = {
             name: self._solver(name)
-            for name in system.routines
+            for name in self.functions
             if "x" in [a.name for a in system.routines[name].inputs]
         }
         self._step = self._smooth_step()

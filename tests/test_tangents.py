@@ -1,0 +1,55 @@
+"""``vcigen.tangents``: the ``d_*`` routines equal CasADi's automatic derivatives of their routines."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from forced_scenes import driven_oscillator
+from hard_scenes import box, double_pendulum, star
+
+from vcigen.backends.casadi import routine_to_function
+from vcigen.derive import derive
+
+SCENES = {"box_lossy": lambda: box(lossy=True), "star": star, "double_pendulum": double_pendulum}
+SCENES["driven"] = driven_oscillator
+
+
+def _reference(system, name: str, ins: list) -> list:
+    """CasADi's AD of the routine ``d_<name>`` differentiates, at the same symbols."""
+    base = system.routines[name]
+    g = routine_to_function(base)
+    if name == "legendre":
+        q, v, a, par = ins
+        mom, mass = g(q, v, par)
+        z = ca.vertcat(q, v, par)
+        return [ca.jacobian(mom, z), ca.jacobian(ca.mtimes(mass, a), z)]
+    if base.inputs[0].name == "x":
+        return [ca.jacobian(g(*ins)[0], ca.vertcat(*ins[1:]))]
+    if name == "contacts":
+        return [ca.jacobian(ca.vec(g(*ins)[1].T), ca.vertcat(*ins))]
+    outs = g(*ins)
+    outs = outs if isinstance(outs, (list, tuple)) else [outs]
+    return [ca.jacobian(o, ca.vertcat(*ins)) for o in outs]
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_tangents_match_automatic_differentiation(scene: str) -> None:
+    plain, system = derive(SCENES[scene]()), derive(SCENES[scene](), sensitivities=True)
+    assert not [r for r in plain.routines if r.startswith("d_")]  # a scene that does not ask does not pay
+    names = [r for r in system.routines if r.startswith("d_")]
+    expected = {"d_smooth", "d_jump", "d_segment", "d_contacts", "d_legendre", "d_restitution"}
+    expected |= {f"d_{p}_{c}" for p in ("contact_time", "jump_contact") for c in system.contact_names}
+    assert set(names) == expected
+    rng = np.random.default_rng(1)
+    for name in names:
+        r = system.routines[name]
+        ins = [ca.SX.sym(a.name, a.size) for a in r.inputs]
+        outs = routine_to_function(r)(*ins)
+        outs = list(outs) if isinstance(outs, (list, tuple)) else [outs]
+        ref = _reference(system, name[2:], ins)
+        f = ca.Function("f", ins, outs + ref)
+        vals = f(*[rng.uniform(0.2, 0.9, a.size) for a in r.inputs])
+        for mine, theirs in zip(vals[: len(outs)], vals[len(outs) :]):
+            assert np.array(mine).shape == np.array(theirs).shape
+            np.testing.assert_allclose(np.array(mine), np.array(theirs), rtol=1e-12, atol=1e-13, err_msg=name)

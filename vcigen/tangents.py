@@ -1,0 +1,118 @@
+"""Partial derivatives of every phase with respect to its data (MATH.md, *Exact sensitivities*).
+
+Pure SymPy, like :mod:`vcigen.derive`. Every phase of a step solves ``F(x; d) = 0`` for its unknowns
+``x`` given data ``d``; the residual routines already carry ``dF/dx`` (``jac``). The implicit-function
+theorem ``dx/dz = -(dF/dx)^-1 (dF/dd . dd/dz)`` needs ``dF/dd`` as well, and the chain through a step
+needs the partials of the explicit maps (momenta and energy of a segment (50), (51), (55), the Legendre
+transform, the contact gradients, the restitution). :func:`tangent_routines` derives them as routines
+named ``d_<routine>`` (SENS_DESIGN.md):
+
+* ``d_smooth``, ``d_contact_time_<c>``, ``d_jump``, ``d_jump_contact_<c>``: the residual routine's own
+  inputs (``x`` first), output ``dres = d res / d(every input after x, concatenated in input order)``;
+  (46), (47), (48), (78);
+* ``d_segment(q0, v, tau, par)``: ``dp_minus``, ``dp_plus``, ``denergy``, each ``d/d(q0, v, tau, par)``;
+* ``d_contacts(q, par)``: ``dgrad``, ``(m n) x (n + npar)``, row ``j n + i`` is ``d grad_j[i] / d(q, par)``;
+* ``d_legendre(q, v, a, par)``: ``dmom = d mom / d(q, v, par)`` and ``dmass_a = d (M(q, v) a) / d(q, v, par)``
+  (the tangent of one Newton step of the inverse Legendre transform, and of ``M^-1 n``);
+* ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39)).
+
+They are added to :attr:`DiscreteSystem.routines` only by ``derive(model, rule, sensitivities=True)``;
+a simulator asked for sensitivities derives them lazily from the system it has (:func:`tangent_routines`).
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from .calculus import jacobian
+from .routines import Arg, Output, Routine
+
+TANGENT_PREFIX = "d_"
+# the residual routines a tangent is derived for: the phases covered (SENS_DESIGN.md)
+RESIDUAL_PREFIXES = ("smooth", "contact_time_", "jump", "jump_contact_")
+
+
+def is_tangent(name: str) -> bool:
+    """Whether routine ``name`` is one of :func:`tangent_routines` (never solved, never on a hot path)."""
+    return name.startswith(TANGENT_PREFIX)
+
+
+def _covered(name: str) -> bool:
+    return name in ("smooth", "jump") or name.startswith(("contact_time_", "jump_contact_"))
+
+
+def _data_symbols(args: tuple[Arg, ...]) -> list[sp.Symbol]:
+    return [s for a in args for s in a.symbols]
+
+
+def residual_tangent(r: Routine) -> Routine:
+    """``d_<name>``: ``d res / d(data)`` of residual routine ``r`` (its inputs after ``x``)."""
+    res = r.output("res").expr
+    dres = jacobian(res, _data_symbols(r.inputs[1:]))
+    return Routine(
+        TANGENT_PREFIX + r.name,
+        r.inputs,
+        (Output("dres", dres),),
+        f"d res / d(data) of {r.name}: the data's columns of the implicit-function theorem.",
+    )
+
+
+def segment_tangent(r: Routine) -> Routine:
+    """``d_segment``: partials of ``p-``, ``p+`` (50)-(51) and ``E_d`` (55) in ``(q0, v, tau, par)``."""
+    xs = _data_symbols(r.inputs)
+    return Routine(
+        "d_segment",
+        r.inputs,
+        tuple(Output("d" + o, jacobian(r.output(o).expr, xs)) for o in ("p_minus", "p_plus", "energy")),
+        "Partials of the discrete momenta (50)-(51) and energy (55) in (q0, v, tau, par).",
+    )
+
+
+def contacts_tangent(r: Routine) -> Routine:
+    """``d_contacts``: partials of the contact gradients (row-major) in ``(q, par)``."""
+    grad = r.output("grad").expr
+    flat = sp.Matrix(grad.rows * grad.cols, 1, list(grad))
+    return Routine(
+        "d_contacts",
+        r.inputs,
+        (Output("dgrad", jacobian(flat, _data_symbols(r.inputs))),),
+        "Partials of grad phi_j[i] (row j n + i) in (q, par): the tangent of the impulse direction.",
+    )
+
+
+def legendre_tangent(r: Routine) -> Routine:
+    """``d_legendre(q, v, a, par)``: partials of ``dL/dqdot`` and of ``M(q, v) a`` in ``(q, v, par)``."""
+    q, v, par = r.inputs
+    a = tuple(sp.Dummy(f"a{i}", real=True) for i in range(q.size))
+    xs = [*q.symbols, *v.symbols, *par.symbols]
+    mass_a = r.output("mass").expr * sp.Matrix(a)
+    return Routine(
+        "d_legendre",
+        (q, v, Arg("a", a), par),
+        (Output("dmom", jacobian(r.output("momentum").expr, xs)), Output("dmass_a", jacobian(mass_a, xs))),
+        "Partials of p = dL/dqdot and of M(q, v) a in (q, v, par).",
+    )
+
+
+def restitution_tangent(r: Routine) -> Routine:
+    """``d_restitution(par)``: partials of each contact's coefficient of restitution (39)."""
+    return Routine(
+        "d_restitution",
+        r.inputs,
+        (Output("de", jacobian(r.output("e").expr, _data_symbols(r.inputs))),),
+        "Partials of each contact's coefficient of restitution in par.",
+    )
+
+
+def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
+    """The ``d_*`` routines of the derived ``routines`` (a :class:`DiscreteSystem`'s), by name."""
+    out = {
+        "d_segment": segment_tangent(routines["segment"]),
+        "d_contacts": contacts_tangent(routines["contacts"]),
+        "d_legendre": legendre_tangent(routines["legendre"]),
+        "d_restitution": restitution_tangent(routines["restitution"]),
+    }
+    for name, r in routines.items():
+        if _covered(name):
+            out[TANGENT_PREFIX + name] = residual_tangent(r)
+    return out
