@@ -25,7 +25,7 @@ from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
-from .csens import SENS_REASONS, SENS_ROUTINES, is_tangent
+from .csens import SENS_REASONS, is_tangent, sens_routines
 from .cspecialise import Structure, detect, phi_routine
 
 
@@ -146,9 +146,9 @@ def with_heads(routines: list[Routine]) -> list[Routine]:
 
 
 def is_residual(r: Routine) -> bool:
-    """A residual routine (unknown ``x`` first, outputs ``res`` and ``jac``): solved by Newton, with an adapter.
-    The tangents ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated."""
-    return r.inputs[0].name == "x" and r.outputs[0].name == "res"
+    """A routine of an unknown ``x`` (first input) that the solvers call through an adapter. The tangents
+    ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated, directly."""
+    return r.inputs[0].name == "x" and not is_tangent(r.name)
 
 
 def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
@@ -182,7 +182,7 @@ def render_context(
     model = system.model
     structure: Structure = detect(system)
     if sensitivities:
-        missing = [r for r in SENS_ROUTINES if r not in system.routines]
+        missing = [r for r in sens_routines(system.contact_names) if r not in system.routines]
         if missing:
             raise ValueError(
                 f"the sensitivity variant needs the routines {missing}: derive(model, rule, sensitivities=True)"
@@ -306,10 +306,7 @@ def render_context(
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
         "sens": bool(sensitivities),
         "np": len(model.defaults),
-        "sens_reasons": [
-            {"index": k, "name": why, "macro": why.upper().replace(" ", "_").replace("-", "_")}
-            for k, why in enumerate(SENS_REASONS)
-        ],
+        "sens_reasons": [{"index": k, "name": why, "macro": macro} for k, (macro, why) in enumerate(SENS_REASONS)],
         "setup": {
             "q0": [repr(float(x)) for x in setup.get("q0", [0.0] * n)],
             "v0": [repr(float(x)) for x in setup.get("v0", [0.0] * n)],

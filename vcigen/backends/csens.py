@@ -1,0 +1,99 @@
+"""Exact sensitivities in C: the library variant whose loop carries the tangent, and its runs.
+
+``simulate(..., sensitivities=True)`` on the C backend builds (once, lazily, cached like the plain one) a
+second library of the model from ``derive(..., sensitivities=True)`` rendered with
+``render_context(..., sensitivities=True)``: ``templates/sens.c.j2`` propagates
+``S_k = d(q_k, p_k)/d(q0, v0, params)`` inside ``<model>_run`` through every phase, as
+:mod:`vcigen.sensitivity` does for the Python stepper (same phases, same order, same breaks). A scene
+that never asks never builds it.
+
+:class:`SensRun` is a :class:`~vcigen.backends.crun.CRun` with the tangent's buffers: ``s`` (the current
+``2n x K`` tangent, in/out of every call like ``q, p``), ``S`` (its rows, grown with ``Q``), ``W`` (one
+byte per grid step: the bits of :data:`SENS_REASONS` of why it is not covered) and ``lost``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any
+
+import numpy as np
+
+from ..result import Result
+from ..tangents import is_tangent
+from .crun import CRun, Job, _addr, _cut, _grown
+
+__all__ = ["SENS_REASONS", "SensJob", "SensRun", "is_tangent", "sens_routines"]
+
+# Why a grid step has no tangent: (C macro <MODEL>_WHY_<macro>, Result.sensitivity_breaks reason), in the order
+# of the bits of W. The reasons are vcigen.sensitivity's (Tracker.lose); the last is C's own (an LU that fails).
+SENS_REASONS: tuple[tuple[str, str], ...] = (
+    ("HELD_STEP", "held step (sustained contact)"),
+    ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
+    ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
+    ("PLASTIC_IMPACT", "plastic impact"),
+    ("GRAZING_IMPACT", "grazing impact"),
+    ("RESTART", "restart (continuous law where (78) has no root)"),
+    ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
+    ("SINGULAR_JACOBIAN", "singular Jacobian"),
+)
+BASE_ROUTINES = ("d_segment", "d_contacts", "d_legendre", "d_restitution", "d_smooth", "d_jump")
+
+
+def sens_routines(contact_names: tuple[str, ...]) -> list[str]:
+    """The ``d_*`` routines the variant calls (vcigen.tangents)."""
+    per = [f"d_{kind}_{c}" for c in contact_names for kind in ("contact_time", "jump_contact")]
+    return [*BASE_ROUTINES, *per]
+
+
+class SensJob(Job):
+    """``<model>_job_t`` of the variant: the fields of :class:`Job`, then the tangent's (model.h.j2)."""
+
+    _fields_ = [("s", ctypes.c_void_p), ("S", ctypes.c_void_p), ("W", ctypes.c_void_p), ("lost", ctypes.c_long)]
+
+
+def column_names(model: Any) -> list[str]:
+    """The ``K`` columns ``q0[<coord>]..., v0[<coord>]..., <param>...`` (``Result.sensitivity_names``)."""
+    coords = model.coordinate_names
+    return [f"q0[{c}]" for c in coords] + [f"v0[{c}]" for c in coords] + [str(s) for s in model.defaults]
+
+
+class SensRun(CRun):
+    """A run of the variant's ``<model>_run``: a :class:`CRun` that also carries the tangent from ``s0``."""
+
+    JOB = SensJob
+
+    def __init__(self, kern: Any, par: np.ndarray, q0, v0, p0, steps: int, n_impacts, rooms, s0, names) -> None:
+        super().__init__(kern, par, q0, v0, p0, steps, n_impacts, rooms)  # no pool: its own buffers
+        self.s = np.ascontiguousarray(s0, dtype=float).copy()
+        self.S = np.empty((self.cap + 1, *self.s.shape))
+        self.S[0] = self.s
+        self.W = np.zeros(max(self.cap, 1), dtype=np.uint8)
+        self.names = names
+        self.job.s, self.job.lost = _addr(self.s), -1
+
+    def arm(self, chunk: int) -> SensJob:
+        job = super().arm(chunk)
+        if self.S.shape[0] < self.cap + 1:  # Q grew: so does S
+            self.S = _grown(self.S, self.cap + 1)
+            self.W = _grown(self.W, self.cap)
+        job.S = _addr(self.S) + self.S.strides[0] * (self.done + 1)
+        job.W = _addr(self.W) + self.done
+        return job
+
+    def result(self, t0: float, h: float, wall: float) -> Result:
+        """:meth:`CRun.result` with ``sensitivity`` (``(N, 2n, K)``), its names and breaks."""
+        s, S, W = self.done, self.S, self.W
+        res = super().result(t0, h, wall)
+        res.sensitivity = _cut(S, s + 1)
+        res.sensitivity_names = list(self.names)
+        rows = W[: s + 1 if self.rc else s]  # a failed step's breaks so far, as the Python stepper
+        res.sensitivity_breaks = [
+            (int(k), why) for k in np.flatnonzero(rows).tolist() for b, (_, why) in enumerate(SENS_REASONS)
+            if rows[k] >> b & 1
+        ]  # fmt: skip
+        lost = int(self.job.lost)
+        if lost >= 0:
+            res.stats["sensitivity_lost"] = lost
+        self.S = self.W = None  # type: ignore[assignment]
+        return res
