@@ -34,6 +34,11 @@ class Result:
     friction_work: np.ndarray | None = None  # (N-1,): the part of work done by friction in sustained contact
     energy_at_end: bool = False  # energy[k] is the energy at the end of step k (forces), else E_d entering it
     contact_names: tuple[str, ...] = ()  # the model's contacts (ImpactTable.contact indexes them)
+    # simulate(..., sensitivities=True) (vcigen.sensitivity): (N, 2n, 2n + P) d(q_k, p_k)/d(q0, v0, params),
+    # the names of its columns, and (step, reason) of each step no tangent goes through (NaN from the first)
+    sensitivity: np.ndarray | None = field(default=None, repr=False, compare=False)
+    sensitivity_names: list[str] = field(default_factory=list, repr=False, compare=False)
+    sensitivity_breaks: list[tuple[int, str]] = field(default_factory=list, repr=False, compare=False)
     # (q (N, n), p (N, n)) -> (N, n): the continuous Legendre transform inverted (Result.v); set by simulate
     velocity_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = field(
         default=None, repr=False, compare=False

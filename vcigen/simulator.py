@@ -67,6 +67,7 @@ class Simulator:
         self._work = work_function(system)
         self._friction = tangent_function(system)
         self._inverse: LegendreInverse | None = None  # built when a Result's v is first read
+        self._tangents = None  # vcigen.sensitivity.Tangents, built on the first simulate(sensitivities=True)
         self._defaults: tuple[list[float], list[float]] | None = None  # _parameters(None)
         self._coordinate_names = tuple(self.model.coordinate_names)
         self._constraint_names = tuple(self.model.constraint)  # (a property that builds a dict)
@@ -85,11 +86,16 @@ class Simulator:
         params: Mapping[object, float] | None = None,
         t0: float = 0.0,
         progress: bool = True,
+        sensitivities: bool = False,
     ) -> Result:
         """Integrate from ``(q0, v0)`` with step ``h`` until ``t_end`` or ``n_impacts``.
 
         ``progress``: a progress bar on stderr (``vcigen.progress``) for a run projected to take more than
         2 s; nothing for shorter runs, nothing at all with ``progress=False``.
+
+        ``sensitivities``: also ``res.sensitivity`` ``(N, 2n, 2n + P)``, the exact ``d(q_k, p_k)/d(q0, v0,
+        params)`` (:mod:`vcigen.sensitivity`), its column names ``res.sensitivity_names``, and the steps no
+        tangent goes through, ``res.sensitivity_breaks`` (NaN after the first, ``stats["sensitivity_lost"]``).
         """
         q0a, v0a = self._start_vectors(q0, v0)
         h = self._validate(h, t_end, n_impacts, t0)
@@ -98,7 +104,8 @@ class Simulator:
         p0 = self._check_start(kern, q0a, v0a)
         with Progress(1.0, f"simulate {self.model.name}", enabled=progress) as bar:
             try:
-                res = self._run(kern, q0a, v0a, p0, h, t_end, n_impacts, t0, bar)
+                run = self._run_sensitive if sensitivities else self._run
+                res = run(kern, q0a, v0a, p0, h, t_end, n_impacts, t0, bar)
             except SolverError as err:
                 if err.result is not None:
                     self._finish(err.result, mu_f, par)
@@ -119,6 +126,7 @@ class Simulator:
         progress: bool = True,
         errors: ErrorMode = "raise",
         threads: int = 1,
+        sensitivities: bool = False,
     ) -> list[Result | SolverError]:
         """``K`` runs from ``q0s[i], v0s[i]`` (shape ``(K, n)``), each equal to ``simulate`` with the same
         arguments; ``params`` is one mapping for all runs or a sequence of ``K`` (``None``: the defaults).
@@ -131,6 +139,8 @@ class Simulator:
         C backend splits the runs over that many threads (results identical); the CasADi backend runs
         them one after another.
         """
+        if sensitivities:
+            raise ValueError("simulate_many(..., sensitivities=True) is not supported; call simulate per run")
         if errors not in ERROR_MODES:
             raise ValueError(f"errors = {errors!r}; use one of {list(ERROR_MODES)}")
         if int(threads) != threads or threads < 1:
@@ -231,6 +241,19 @@ class Simulator:
 
     def _run(self, kern, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
         return Stepper(kern, self.tol).simulate(
+            q0, v0, h, t_end=t_end, n_impacts=n_impacts, t0=t0, progress=progress
+        )
+
+    def _run_sensitive(self, kern, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
+        """:meth:`_run` with the tangent (:mod:`vcigen.sensitivity`): the Python stepper on these kernels
+        (a backend with its own tangent propagation overrides this)."""
+        if self._tangents is None:
+            from .sensitivity import Tangents  # CasADi Functions of the d_* routines, made on first use
+
+            self._tangents = Tangents(self.system)
+        from .sensitivity import Tracker
+
+        return Stepper(kern, self.tol, tangent=Tracker(self._tangents, kern)).simulate(
             q0, v0, h, t_end=t_end, n_impacts=n_impacts, t0=t0, progress=progress
         )
 

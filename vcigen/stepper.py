@@ -101,8 +101,9 @@ class _Seg:
 class Stepper(SustainedSteps, HeldSteps):
     """Runs the method of MATH.md on a set of kernels."""
 
-    def __init__(self, kernels: Kernels, tol: Tolerances | None = None) -> None:
+    def __init__(self, kernels: Kernels, tol: Tolerances | None = None, tangent=None) -> None:
         self.k = kernels
+        self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -131,6 +132,9 @@ class Stepper(SustainedSteps, HeldSteps):
         cap = steps if t_end is not None else 1024
         Q, P, E = np.empty((cap + 1, n)), np.empty((cap + 1, n)), np.empty(cap)
         Q[0], P[0] = q, p
+        tan = self._tan
+        if tan is not None:
+            tan.start(q, v0, t0, cap)
         impacts: list[Impact] = []
         v = np.asarray(v0, dtype=float).copy()
         self._h = h
@@ -148,14 +152,22 @@ class Stepper(SustainedSteps, HeldSteps):
                 cap *= 2
                 Q, P, E = _grow(Q, cap + 1), _grow(P, cap + 1), _grow(E, cap)
                 sus.grow(cap)
+                if tan is not None:
+                    tan.grow(cap)
             t = t0 + step * h
+            if tan is not None:
+                tan.begin(step, t)
             try:
                 q, p, e, v = self.step(step, t, h, q, p, v, impacts)
             except SolverError as err:  # keep what was computed: the run up to the last completed step
                 kept = [im for im in impacts if im.step < step]
                 err.result = _result(t0, h, step, Q, P, E, kept, n, time.perf_counter() - wall)
                 sus.attach(err.result, step, [lo for lo in self.liftoffs if lo[0] < t])
+                if tan is not None:
+                    tan.attach(err.result, step)
                 raise
+            if tan is not None:
+                tan.end(step)
             step += 1
             Q[step], P[step], E[step - 1] = q, p, e
             if self._chained or self._booked:  # the log is zero where nothing is held
@@ -175,6 +187,8 @@ class Stepper(SustainedSteps, HeldSteps):
         res.stats.update({f"impacts_{kind}": count for kind, count in self.kinds.items()})
         res.stats["liftoffs"] = len(self.liftoffs)
         res.stats["jump_fallbacks"] = self.fallbacks
+        if tan is not None:
+            tan.attach(res, step)
         return res
 
     def contact_activity(self) -> np.ndarray:
@@ -202,6 +216,8 @@ class Stepper(SustainedSteps, HeldSteps):
         self._chained = False
         self._at(t)
         if self._held:  # sustained contact or constraints: the held step (vcigen.held), else the chain
+            if self._tan is not None:
+                self._tan.lose("held step (sustained contact)")
             out = self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
             self._held = bool(self.act.any())
             return out
@@ -210,11 +226,17 @@ class Stepper(SustainedSteps, HeldSteps):
             raise SolverError(step, t, "smooth", float(e), NONFINITE)
         self._check(res, p, step, t, "smooth")
         if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
+            if self._tan is not None:
+                self._tan.smooth(q, p, h, v)
             return q + h * v, p1, e, v
         seg = _Seg(q=q, t=t, tau=h, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
         crossings = self._crossings(seg, phi0, phi1, d0, d1)
         if not crossings:
+            if self._tan is not None:
+                self._tan.smooth(q, p, h, v)
             return q + h * v, p1, e, v
+        if self._tan is not None:
+            self._tan.first_segment()
         out = self._impact_step(step, t, h, seg, crossings, impacts)
         self._held = bool(self.act.any())  # a plastic impact may have started sustained contact
         return out
@@ -296,6 +318,8 @@ class Stepper(SustainedSteps, HeldSteps):
                     raise
                 # (78) unsolvable (a lossy impact into a corner): the impact at the segment start takes
                 # the continuous law instead, and the rest of the step starts afresh from it (47).
+                if self._tan is not None:
+                    self._tan.lose("restart (continuous law where (78) has no root)")
                 seg, crossings, e_after, mu = self._restart(seg)
                 impacts.extend(replace(im, impulse=mu * wgt, energy_after=e_after) for im, wgt in pending)
                 pending = []
@@ -308,6 +332,8 @@ class Stepper(SustainedSteps, HeldSteps):
             j = min(roots, key=lambda i: (roots[i][1], i))
             x, s = roots[j]
             group = [i for i in sorted(roots) if roots[i][1] - s <= tol.simultaneous]
+            if self._tan is not None:
+                self._tan.contact(seg, j, x, s, group)
             # The impulse at the previous impact, re-solved with beta (78).
             impacts.extend(replace(im, impulse=float(x[n]) * wgt) for im, wgt in pending)
             tau_c = s * seg.tau
@@ -326,6 +352,8 @@ class Stepper(SustainedSteps, HeldSteps):
             e_rest = 1.0 if elastic else float(sum(wgt * restitution[i] for i, wgt in zip(group, weights)))
             seg.rest = e_rest
             x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
+            if self._tan is not None:
+                self._tan.jump(seg, v_c, e_rest, kind)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
                 self._count_event(step, t_k)
                 p_plus, lam, loss, rows = self._plastic_entry(step, t_k, h, q_c, p_minus_c, v_c, t_c, group)
@@ -360,6 +388,8 @@ class Stepper(SustainedSteps, HeldSteps):
                 self.kinds[im.kind] += 1
             q_end, crossings = self._segment_end(seg, w)
             if not crossings:
+                if self._tan is not None:
+                    self._tan.jump_end(seg)
                 impacts.extend(im for im, _ in pending)
                 return q_end, p_end, (e_after if self._forced else e_step), w
         raise SolverError(
@@ -475,6 +505,8 @@ class Stepper(SustainedSteps, HeldSteps):
         if pressed and self._settles(nv, accel, restitution, self._h):
             return None, "plastic"
         law = self._frictional_law(seg, vel, group, restitution) if nv < 0.0 else None
+        if law is not None and self._tan is not None:
+            self._tan.lose("friction at an impact")
         if law is not None:  # Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK
             mu0, minv_n, dk = law
             seg.e_in += dk

@@ -1,0 +1,207 @@
+"""``simulate(..., sensitivities=True)`` (MATH.md, *Exact sensitivities*; ``vcigen.sensitivity``).
+
+The exact tangent ``d(q_k, p_k)/d(q0, v0, params)`` against central finite differences of whole ``simulate``
+runs (the perturbed runs must have the same mode sequence: the same impacts in the same steps), the
+symplecticity of impact steps from the tangent itself, the steps no tangent goes through, and runs with
+sensitivities off unchanged bit for bit.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import hard_scenes
+import numpy as np
+import pytest
+from forced_scenes import driven_oscillator
+from scenes import load_example
+
+import vcigen
+from vcigen.analysis import jacobian_symplectic_defect
+
+BACKENDS = ["casadi", hard_scenes.backend_param("c")]
+
+# scene -> (model maker, q0, v0, h, t_end, params): each a run through impacts away from mode changes
+SCENES = {
+    # the particle in a box under gravity: several impacts on all four walls
+    "box": (hard_scenes.box, [0.3, 0.6], [2.3, -1.1], 0.01, 1.6, {"g": 9.81}),
+    # the paper's star (Abs in phi, eq. 81), two impacts
+    "star": (lambda: load_example("star").model(), [0.0, 1.2, 0.0], [-2.0, 0.0, 5.0], 0.005, 1.2, None),
+    # configuration-dependent mass matrix, nonlinear contact
+    "double_pendulum": (hard_scenes.double_pendulum, [0.3, 0.6], [1.5, 2.0], 0.01, 0.6, None),
+    # restitution e < 1 on every wall: the loss of (39) and its parameter e
+    "box_lossy": (
+        lambda: hard_scenes.box(lossy=True),
+        [0.5, 0.5],
+        [1.3, -0.7],
+        0.01,
+        1.1,
+        {"e": 0.6, "g": 9.81},
+    ),
+    # several impacts in one step (78): two walls 0.01 apart, h = 0.02
+    "walls": (hard_scenes.walls, [0.004, 0.0], [0.9, 0.3], 0.02, 0.2, None),
+    # a corner hit in one step: the left wall, then the floor, inside one step
+    "corner": (hard_scenes.corner, [0.03, 0.05], [-1.0, -1.2], 0.1, 0.3, {"g": 9.81}),
+    # forces of velocity and of time (Lagrange-d'Alembert), restitution: the time slot
+    "driven": (driven_oscillator, [0.0], [3.0], 0.01, 4.0, None),
+}
+
+
+@cache
+def simulator(scene: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(SCENES[scene][0](), backend=backend)
+
+
+def mode(res: vcigen.Result) -> list[tuple[int, str, str]]:
+    """The mode sequence of a run: each impact's grid step, contact and kind."""
+    return [(im.step, im.contact, im.kind) for im in res.impacts]
+
+
+def finite_differences(sim: vcigen.Simulator, scene: str, eps: float = 1e-6):
+    """``(run, exact, fd, per-step impacts)``: the tangent and central differences of ``simulate``."""
+    _, q0, v0, h, t_end, params = SCENES[scene]
+    res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    n = len(q0)
+    z0 = np.concatenate([q0, v0]).astype(float)
+    names = [str(s) for s in sim.model.defaults]
+    values = dict(zip(names, sim.model.resolve_params(params)))
+    fd = np.empty_like(res.sensitivity)
+    for c in range(res.sensitivity.shape[2]):
+        ends = []
+        for sign in (1.0, -1.0):
+            z, par = z0.copy(), dict(values)
+            if c < 2 * n:
+                z[c] += sign * eps
+            else:
+                par[names[c - 2 * n]] += sign * eps * max(1.0, abs(values[names[c - 2 * n]]))
+            r = sim.simulate(z[:n], z[n:], h, t_end=t_end, params=par, progress=False)
+            assert mode(r) == mode(res), f"column {res.sensitivity_names[c]}: the mode sequence changed"
+            ends.append(np.hstack([r.q, r.p]))
+        scale = eps * (1.0 if c < 2 * n else max(1.0, abs(values[names[c - 2 * n]])))
+        fd[:, :, c] = (ends[0] - ends[1]) / (2 * scale)
+    return res, fd
+
+
+def relative_error(exact: np.ndarray, fd: np.ndarray) -> float:
+    """``max |exact - fd| / max |exact|`` over every grid point, row and column."""
+    return float(np.abs(exact - fd).max() / np.abs(exact).max())
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_sensitivity_matches_finite_differences(scene: str, backend: str) -> None:
+    sim = simulator(scene, backend)
+    res, fd = finite_differences(sim, scene)
+    n = sim.model.n
+    assert res.sensitivity.shape == (res.t.size, 2 * n, 2 * n + len(sim.model.defaults))
+    assert res.sensitivity_breaks == [] and "sensitivity_lost" not in res.stats
+    rel = relative_error(res.sensitivity, fd)
+    print(f"{scene} [{backend}]: {res.n_impacts} impacts, relative FD agreement {rel:.1e}")
+    assert res.n_impacts >= 1 and rel <= 1e-6, (res.n_impacts, rel)
+
+
+def step_jacobians(res: vcigen.Result, steps) -> list[np.ndarray]:
+    """``d(q_k+1, p_k+1)/d(q_k, p_k) = S_k+1 S_k^-1`` (the ``(q0, v0)`` columns) of grid steps ``steps``."""
+    d = res.q.shape[1] * 2
+    return [res.sensitivity[k + 1][:, :d] @ np.linalg.inv(res.sensitivity[k][:, :d]) for k in steps]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scene", ["box", "star", "double_pendulum", "walls", "corner"])
+def test_impact_steps_are_symplectic(scene: str, backend: str) -> None:
+    """Elastic impact steps (and smooth ones) from the exact tangent: ``|J^T Omega J - Omega| <= 1e-12``."""
+    sim = simulator(scene, backend)
+    _, q0, v0, h, t_end, params = SCENES[scene]
+    res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    impact_steps = sorted({im.step for im in res.impacts})
+    defects = [jacobian_symplectic_defect(j) for j in step_jacobians(res, impact_steps)]
+    free = [k for k in range(res.t.size - 1) if k not in impact_steps]
+    smooth = max((jacobian_symplectic_defect(j) for j in step_jacobians(res, free)), default=0.0)
+    print(f"{scene} [{backend}]: {len(defects)} impact steps, defect {max(defects):.1e}, smooth {smooth:.1e}")
+    assert max(defects) <= 1e-12 and smooth <= 1e-12, (defects, smooth)
+
+
+def test_restitution_is_not_symplectic() -> None:
+    """The measure sees dissipation: the impact steps of the lossy box (e = 0.6) have a large defect."""
+    sim = simulator("box_lossy", "casadi")
+    _, q0, v0, h, t_end, params = SCENES["box_lossy"]
+    res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    steps = sorted({im.step for im in res.impacts})
+    assert min(jacobian_symplectic_defect(j) for j in step_jacobians(res, steps)) > 0.1
+
+
+def assert_lost(res: vcigen.Result, reason: str) -> int:
+    """The tangent is finite up to the first break, NaN after it, and the break is reported."""
+    lost = res.stats["sensitivity_lost"]
+    assert res.sensitivity_breaks and res.sensitivity_breaks[0][0] == lost
+    assert reason in res.sensitivity_breaks[0][1], res.sensitivity_breaks
+    assert np.isfinite(res.sensitivity[: lost + 1]).all()
+    assert np.isnan(res.sensitivity[lost + 1 :]).all() and res.sensitivity.shape[0] > lost + 1
+    return lost
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_simultaneous_impact_is_reported_not_differentiated(backend: str) -> None:
+    """A corner hit exactly (both walls at once: the normal-cone weights switch) is no smooth map."""
+    sim = simulator("corner", backend)
+    res = sim.simulate([0.05, 0.05], [-1.0, -1.0], 0.1, t_end=0.3, sensitivities=True, progress=False)
+    assert assert_lost(res, "simultaneous") == res.impacts[0].step
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_plastic_and_held_steps_are_reported(backend: str) -> None:
+    """A lossy ball bouncing to rest: its impacts are covered until the first plastic impact (Zeno)."""
+    sim = vcigen.build(hard_scenes.ball(), backend=backend)
+    res = sim.simulate([0.0, 1.0], [0.3, 0.0], 0.01, t_end=2.8, sensitivities=True, progress=False)
+    lost = assert_lost(res, "plastic")
+    assert any(im.kind == "restitution" and im.step < lost for im in res.impacts)
+    assert any("held" in why for _, why in res.sensitivity_breaks)
+
+
+def test_friction_at_an_impact_is_reported() -> None:
+    import test_friction
+
+    sim = test_friction.sim("disk", "casadi")
+    res = sim.simulate([0.0, 2.0, 0.0], [2.0, 0.0, 5.0], 0.01, t_end=0.9, sensitivities=True, progress=False)
+    assert assert_lost(res, "friction") == res.impacts[0].step
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scene", ["box_lossy", "driven", "walls"])
+def test_sensitivities_leave_the_run_unchanged(scene: str, backend: str) -> None:
+    """Asking for sensitivities changes nothing else, bit for bit; not asking leaves them out."""
+    sim = simulator(scene, backend)
+    _, q0, v0, h, t_end, params = SCENES[scene]
+    off = sim.simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
+    on = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    assert off.sensitivity is None and off.sensitivity_names == [] and off.sensitivity_breaks == []
+    for name in ("t", "q", "p", "energy", "work"):
+        assert np.array_equal(getattr(off, name), getattr(on, name)), name
+    assert off.impacts == on.impacts and on.n_impacts >= 1
+    n = sim.model.n
+    coords = sim.model.coordinate_names
+    expect = (
+        [f"q0[{c}]" for c in coords] + [f"v0[{c}]" for c in coords] + [str(s) for s in sim.model.defaults]
+    )
+    assert on.sensitivity_names == expect and on.sensitivity.shape == (on.t.size, 2 * n, len(expect))
+
+
+def test_simulate_many_refuses_sensitivities() -> None:
+    sim = simulator("box", "casadi")
+    with pytest.raises(ValueError, match="not supported"):
+        sim.simulate_many([[0.5, 0.5]], [[1.0, 0.0]], 0.01, t_end=0.1, sensitivities=True)
+
+
+@pytest.mark.parametrize("scene", ["box_lossy", "star", "walls", "driven"])
+def test_c_equals_casadi(scene: str) -> None:
+    """The two backends' tangents agree to 1e-9 (relative)."""
+    if hard_scenes.c_backend_problem():
+        pytest.skip(hard_scenes.c_backend_problem())
+    _, q0, v0, h, t_end, params = SCENES[scene]
+    a, b = (
+        simulator(scene, backend).simulate(
+            q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False
+        )
+        for backend in ("casadi", "c")
+    )
+    assert relative_error(a.sensitivity, b.sensitivity) <= 1e-9

@@ -1,0 +1,304 @@
+"""Exact sensitivities of a run: tangents chained through every phase of the stepper (MATH.md).
+
+The columns are ``z = (q0, v0, params)`` (``K = 2n + P``, ``P = len(model.defaults)``); the tangent of
+the grid state is ``S_k = d(q_k, p_k)/dz``. Every phase solves ``F(x; d) = 0`` for its unknowns ``x``
+given data ``d``; with ``F_x`` (the residual routine's ``jac``) and ``F_d`` (its ``d_*`` routine,
+:mod:`vcigen.tangents`) at the solution, ``dx/dz = -F_x^-1 (F_d dd/dz)`` (implicit-function theorem).
+The outputs of a phase (segment end, momenta, energy, impact point, the next phase's data) are explicit
+in ``(x, d)``, their partials chained. Phases:
+
+* smooth step (46): unknown ``v``; ``q_k+1 = q_k + h v``, ``p_k+1 = p+(q_k, v, h)``;
+* contact time (47): unknowns ``(v, alpha)``; ``q~ = q + alpha tau v``, ``p~- = p+(q, v, alpha tau)``,
+  ``E- = E_d(q, v, alpha tau)``, ``t~ = t + alpha tau``, the rest of the step ``(1 - alpha) tau``;
+* jump (48): unknowns ``(w, mu)``, data ``(q~, nrm, p~-, E-, tau)``, ``nrm = grad phi_j(q~)``; the loss of
+  restitution (39) ``(1 - e^2)/2 (n.qdot)^2 / (n.M^-1 n)`` with ``qdot`` one Newton step of the inverse
+  Legendre transform from the incoming segment velocity (as the stepper computes it);
+* several impacts in one step (78): unknowns ``(w, mu, beta)``, as (47) with ``beta`` for ``alpha``;
+* forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
+
+Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
+group of contacts at once), a grazing impact taking the continuous law, a plastic impact, any held
+(sustained-contact) step, lift-off, friction, the ``_restart`` fallback. From the first such step ``k``
+on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
+``Result.sensitivity_breaks`` lists ``(step, reason)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from .backends.casadi import routine_to_function
+from .derive import DiscreteSystem
+from .tangents import tangent_routines
+
+
+class _Flat:
+    """A routine's outputs, row-major and concatenated, from its inputs concatenated (a CasADi buffer)."""
+
+    def __init__(self, fns: list[ca.Function], sizes: list[tuple[int, int]]) -> None:
+        first = fns[0]
+        ins = [ca.SX.sym(first.name_in(i), first.size1_in(i)) for i in range(first.n_in())]
+        outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
+        self.f = ca.Function("flat", [ca.vertcat(*ins)], [ca.vertcat(*outs)])
+        self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
+        self._buf, self._trigger = self.f.buffer()
+        self._buf.set_arg(0, memoryview(self.arg))
+        self._buf.set_res(0, memoryview(self.res))
+        self.cuts = np.cumsum([0] + [r * c for r, c in sizes]).tolist()
+        self.sizes = sizes
+
+    def __call__(self, *parts) -> list[np.ndarray]:
+        i = 0
+        for part in parts:
+            part = np.atleast_1d(part)
+            self.arg[i : i + part.size] = part
+            i += part.size
+        self._trigger()
+        out = self.res.copy()  # the next call reuses the buffer
+        return [out[a:b].reshape(s) for a, b, s in zip(self.cuts, self.cuts[1:], self.sizes)]
+
+
+class Tangents:
+    """The ``d_*`` routines of a system as numeric functions, converted on first use (one per simulator)."""
+
+    def __init__(self, system: DiscreteSystem) -> None:
+        self.system = system
+        self.n, self.m = system.n, system.m
+        self.npar, self.P = len(system.params), len(system.model.defaults)
+        self.K = 2 * self.n + self.P
+        have = {k: r for k, r in system.routines.items() if k.startswith("d_")}
+        self._routines = have or tangent_routines(system.routines)
+        self._fns: dict[str, _Flat] = {}
+
+    def names(self) -> list[str]:
+        """The ``K`` column names ``q0[<coord>]..., v0[<coord>]..., <param>...``."""
+        coords = self.system.model.coordinate_names
+        return (
+            [f"q0[{c}]" for c in coords]
+            + [f"v0[{c}]" for c in coords]
+            + [str(s) for s in self.system.model.defaults]
+        )
+
+    def get(self, name: str) -> _Flat:
+        """``name`` (``"d_segment"``, ...) or, for a residual routine, ``(jac, dres)`` in one call."""
+        f = self._fns.get(name)
+        if f is None:
+            r = self._routines.get(name) or self.system.routines[name]
+            if r.inputs[0].name != "x" or name in self._routines:  # its outputs, as they are
+                f = _Flat([routine_to_function(r)], [o.shape for o in r.outputs])
+            else:  # a residual routine: its jac and its d_ routine's dres, in one call
+                d = self._routines["d_" + name]
+                ins = [ca.SX.sym(a.name, a.size) for a in r.inputs]
+                both = ca.Function(
+                    name, ins, [routine_to_function(r).call(ins)[1], routine_to_function(d).call(ins)[0]]
+                )
+                f = _Flat([both], [r.output("jac").shape, d.output("dres").shape])
+            self._fns[name] = f
+        return f
+
+
+class Tracker:
+    """The tangent of one run, updated by the stepper's hooks after each phase (``Stepper(..., tangent=)``).
+
+    Holds the tangent of the grid state and, inside an impact step, of the current segment's data:
+    start ``q``, start time ``t``, remaining duration ``tau``, incoming momentum ``p``, kept energy ``e``,
+    impulse direction ``nrm`` and the incoming segment velocity ``vin`` (for the loss of (39)).
+    """
+
+    def __init__(self, tangents: Tangents, kernels) -> None:
+        self.tg, self.k = tangents, kernels
+        self.n, self.K = tangents.n, tangents.K
+        self.S = np.empty((0, 2 * self.n, self.K))
+        self.breaks: list[tuple[int, str]] = []
+        self.lost: int | None = None
+        self.timed = tangents.system.timed
+        base = np.zeros((tangents.npar, self.K))
+        base[: tangents.P, 2 * self.n :] = np.eye(tangents.P)
+        self._par0 = base
+        self.step = -1
+        self.cur: np.ndarray | None = None  # S_k
+        self.next: np.ndarray | None = None  # S_k+1, once a hook has it
+
+    # -- bookkeeping ---------------------------------------------------------------
+    def par(self, t: float) -> np.ndarray:
+        """The parameter vector segments starting at ``t`` see (the kernels' own, time slot at ``t``)."""
+        par = np.array(self.k.par, dtype=float)
+        if self.timed:
+            par[-1] = t
+        return par
+
+    def dpar(self, dt: np.ndarray | None) -> np.ndarray:
+        """``d par / dz``: ``I_P`` on the model's parameters, 0 on the friction slots, ``dt`` on time."""
+        if not self.timed or dt is None:
+            return self._par0
+        out = self._par0.copy()
+        out[-1] = dt
+        return out
+
+    def start(self, q0, v0, t0: float, cap: int) -> None:
+        """``S_0``: ``dq0/dz = [I 0 0]``, ``dp0/dz = [dmom/dq, M, dmom/dpar]`` (``d_legendre``)."""
+        n = self.n
+        dmom, _ = self.tg.get("d_legendre")(q0, v0, np.zeros(n), self.par(t0))
+        s = np.zeros((2 * n, self.K))
+        s[:n, :n] = np.eye(n)
+        s[n:, : 2 * n] = dmom[:, : 2 * n]
+        s[n:] += dmom[:, 2 * n :] @ self._par0
+        self.S = np.empty((cap + 1, 2 * n, self.K))
+        self.S[0] = s
+        self.cur = s
+
+    def grow(self, cap: int) -> None:
+        out = np.empty((cap + 1, *self.S.shape[1:]))
+        out[: self.S.shape[0]] = self.S
+        self.S = out
+
+    def begin(self, step: int, t: float) -> None:
+        """Grid step ``step`` from ``t``: its tangent is ``S_step``."""
+        self.step, self.t, self.next = step, t, None
+
+    def end(self, step: int) -> None:
+        """Store ``S_step+1``; a step no hook resolved loses the tangent (never silently wrong)."""
+        if self.lost is None and self.next is None:
+            self.lose("a phase without a tangent")
+        if self.lost is None:
+            self.cur = self.next
+            self.S[step + 1] = self.next
+        else:
+            self.S[step + 1] = math.nan
+
+    def lose(self, reason: str) -> None:
+        """The step in progress is not covered: NaN from here on (``sensitivity_lost``, ``_breaks``)."""
+        if not self.breaks or self.breaks[-1] != (self.step, reason):
+            self.breaks.append((self.step, reason))
+        if self.lost is None:
+            self.lost = self.step
+
+    @property
+    def active(self) -> bool:
+        return self.lost is None
+
+    # -- phases ----------------------------------------------------------------------
+    def _ift(self, name: str, x, data: tuple, ddata: np.ndarray, t: float) -> np.ndarray:
+        """``dx/dz = -F_x^-1 F_d dd/dz`` of residual routine ``name`` at its solution ``x``."""
+        jac, dres = self.tg.get(name)(x, *data, self.par(t))
+        return -np.linalg.solve(jac, dres @ ddata)
+
+    def _segment(self, q, v, tau: float, t: float, dq, dv, dtau, dt):
+        """Tangents of ``p-``, ``p+``, ``E_d`` of the segment ``(q, v, tau)`` starting at ``t``."""
+        dpm, dpp, de = self.tg.get("d_segment")(q, v, tau, self.par(t))
+        d = np.vstack([dq, dv, dtau, self.dpar(dt)])
+        return dpm @ d, dpp @ d, de @ d
+
+    def smooth(self, q, p, h: float, v) -> None:
+        """Smooth step (46): ``v`` from ``p_k = p-(q_k, q_k + h v, h)``; ``S_k+1``."""
+        if not self.active:
+            return
+        n, s = self.n, self.cur
+        dq, dp = s[:n], s[n:]
+        zero = np.zeros((1, self.K))
+        dv = self._ift("smooth", v, (q, p, h), np.vstack([dq, dp, zero, self.dpar(zero[0])]), self.t)
+        _, dp1, _ = self._segment(q, v, h, self.t, dq, dv, zero, zero[0])
+        self.next = np.vstack([dq + h * dv, dp1])
+
+    def first_segment(self) -> None:
+        """The first segment of an impact step starts at the grid point (data ``q_k, p_k, h, t_k``)."""
+        if not self.active:
+            return
+        n, s = self.n, self.cur
+        self.dq, self.dp = s[:n].copy(), s[n:].copy()
+        self.dtau, self.dt = np.zeros((1, self.K)), np.zeros(self.K)
+        self.de = np.zeros((1, self.K))
+        self.dnrm = None
+
+    def _data(self, seg) -> tuple[tuple, np.ndarray]:
+        """The data of the residuals of segment ``seg`` (after ``x``) and their tangent."""
+        dpar = self.dpar(self.dt)
+        if seg.contact < 0:
+            return (seg.q, seg.p_in, seg.tau), np.vstack([self.dq, self.dp, self.dtau, dpar])
+        data = (seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
+        return data, np.vstack([self.dq, self.dnrm, self.dp, self.de, self.dtau, dpar])
+
+    def contact(self, seg, j: int, x, s: float, group) -> None:
+        """Contact time (47) or the end of a segment on contact ``j`` (78): the next segment's data."""
+        if not self.active:
+            return
+        if len(group) > 1:
+            self.lose("simultaneous impact")
+            return
+        n, k = self.n, self.k
+        name = ("contact_time_" if seg.contact < 0 else "jump_contact_") + k.contact_names[j]
+        data, dd = self._data(seg)
+        dx = self._ift(name, x, data, dd, seg.t)
+        dv, ds = dx[:n], dx[-1:]
+        v = x[:n]
+        tau_c = s * seg.tau
+        dtau_c = seg.tau * ds + s * self.dtau
+        dq_c = self.dq + np.outer(v, dtau_c) + tau_c * dv
+        _, dp_in, de_c = self._segment(seg.q, v, tau_c, seg.t, self.dq, dv, dtau_c, self.dt)
+        dt_c = self.dt + dtau_c[0]
+        q_c, t_c = seg.q + tau_c * v, seg.t + tau_c
+        dgrad = self.tg.get("d_contacts")(q_c, self.par(t_c))[0]
+        self.dnrm = dgrad[j * n : (j + 1) * n] @ np.vstack([dq_c, self.dpar(dt_c)])
+        if seg.contact < 0:
+            self.de = de_c
+        self.dq, self.dp, self.dt, self.dtau = dq_c, dp_in, dt_c, self.dtau - dtau_c
+        self.dvin = dv
+
+    def jump(self, seg, v_in, rest: float, kind: str) -> None:
+        """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39)."""
+        if not self.active:
+            return
+        if kind != "jump":
+            self.lose(f"{kind} impact")
+            return
+        if rest >= 1.0:
+            return
+        par = self.par(seg.t)
+        leg, dleg = self.tg.get("legendre"), self.tg.get("d_legendre")
+        mom0, mass0 = leg(seg.q, v_in, par)
+        a = np.linalg.solve(mass0, seg.p_in - mom0[:, 0])
+        vel = v_in + a
+        mass1 = leg(seg.q, vel, par)[1]
+        minv_n = np.linalg.solve(mass1, seg.nrm)
+        nv, nmn = float(seg.nrm @ vel), float(seg.nrm @ minv_n)
+        if not nv < 0.0:
+            return
+        dpar = self.dpar(self.dt)
+        dmom0, dma0 = dleg(seg.q, v_in, a, par)
+        d0 = np.vstack([self.dq, self.dvin, dpar])
+        dvel = self.dvin + np.linalg.solve(mass0, self.dp - dmom0 @ d0 - dma0 @ d0)
+        _, dma1 = dleg(seg.q, vel, minv_n, par)
+        dminv = np.linalg.solve(mass1, self.dnrm - dma1 @ np.vstack([self.dq, dvel, dpar]))
+        dnv = vel @ self.dnrm + seg.nrm @ dvel
+        dnmn = minv_n @ self.dnrm + seg.nrm @ dminv
+        j = seg.contact
+        de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
+        dloss = -rest * de_rest * nv * nv / nmn + (1.0 - rest * rest) * (
+            nv * dnv / nmn - 0.5 * nv * nv * dnmn / (nmn * nmn)
+        )
+        self.de = self.de - dloss
+
+    def jump_end(self, seg) -> None:
+        """The last segment after an impact ends at the grid time (48), (49): ``S_k+1``."""
+        if not self.active:
+            return
+        n = self.n
+        data, dd = self._data(seg)
+        x = seg.x
+        dw = self._ift("jump", x[: n + 1], data, dd, seg.t)[:n]
+        w = x[:n]
+        dq_end = self.dq + np.outer(w, self.dtau) + seg.tau * dw
+        _, dp_end, _ = self._segment(seg.q, w, seg.tau, seg.t, self.dq, dw, self.dtau, self.dt)
+        self.next = np.vstack([dq_end, dp_end])
+
+    # -- the result ----------------------------------------------------------------
+    def attach(self, res, steps: int) -> None:
+        """``res.sensitivity`` ``(N, 2n, K)``, its column names and breaks, ``stats["sensitivity_lost"]``."""
+        res.sensitivity = self.S[: steps + 1].copy()
+        res.sensitivity_names = self.tg.names()
+        res.sensitivity_breaks = list(self.breaks)
+        if self.lost is not None:
+            res.stats["sensitivity_lost"] = self.lost
