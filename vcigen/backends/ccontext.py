@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, replace
+from dataclasses import asdict
 from typing import Any
 
 import sympy as sp
@@ -175,9 +175,9 @@ def render_context(
 
     ``sensitivities``: the library variant that propagates the tangent ``d(q_k, p_k)/d(q0, v0, params)``
     inside its loop (MATH.md, *Exact sensitivities*; ``templates/sens.c.j2``). ``system`` must hold the
-    ``d_*`` routines (``derive(..., sensitivities=True)``). Every grid step then takes the general step
-    (no explicit glide, no held glide: neither carries a tangent); without it the ``d_*`` routines are
-    left out, so the plain library is the same whatever the system holds.
+    ``d_*`` routines (``derive(..., sensitivities=True)``). The variant is the plain library plus the
+    tangent's code (its trajectory the same, bit for bit); without the flag the ``d_*`` routines are left
+    out, so the plain library is the same whatever the system holds.
     """
     model = system.model
     structure: Structure = detect(system)
@@ -187,7 +187,6 @@ def render_context(
             raise ValueError(
                 f"the sensitivity variant needs the routines {missing}: derive(model, rule, sensitivities=True)"
             )
-        structure = replace(structure, explicit_grid=False)
     routines = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
     routines += [phi_routine(system)]
     if structure.explicit_path:
@@ -198,7 +197,7 @@ def render_context(
     # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants
     implicit = implicit_routines(system) if not structure.smooth_linear else []
     routines += implicit
-    held = held_routines(system) if has_held_path(system) and not sensitivities else []  # vcigen.held
+    held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
     routines += held
     prefix = model.name
     setup = dict(setup or {})
