@@ -185,7 +185,8 @@ def render_context(
         missing = [r for r in sens_routines(system.contact_names) if r not in system.routines]
         if missing:
             raise ValueError(
-                f"the sensitivity variant needs the routines {missing}: derive(model, rule, sensitivities=True)"
+                f"the sensitivity variant needs the routines {missing}: "
+                "derive(model, rule, sensitivities=True)"
             )
     routines = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
     routines += [phi_routine(system)]
@@ -305,7 +306,9 @@ def render_context(
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
         "sens": bool(sensitivities),
         "np": len(model.defaults),
-        "sens_reasons": [{"index": k, "name": why, "macro": macro} for k, (macro, why) in enumerate(SENS_REASONS)],
+        "sens_reasons": [
+            {"index": k, "name": why, "macro": macro} for k, (macro, why) in enumerate(SENS_REASONS)
+        ],
         "setup": {
             "q0": [repr(float(x)) for x in setup.get("q0", [0.0] * n)],
             "v0": [repr(float(x)) for x in setup.get("v0", [0.0] * n)],

@@ -21,12 +21,12 @@ import numpy as np
 
 from ..result import Result
 from ..tangents import is_tangent
-from .crun import CRun, Job, _addr, _cut, _grown
+from .crun import RESERVE_BYTES, CRun, Job, _addr, _cut, _grown
 
 __all__ = ["SENS_REASONS", "SensJob", "SensRun", "is_tangent", "sens_routines"]
 
-# Why a grid step has no tangent: (C macro <MODEL>_WHY_<macro>, Result.sensitivity_breaks reason), in the order
-# of the bits of W. The reasons are vcigen.sensitivity's (Tracker.lose); the last is C's own (an LU that fails).
+# Why a grid step has no tangent: (C macro <MODEL>_WHY_<macro>, Result.sensitivity_breaks reason), in the
+# order of the bits of W: vcigen.sensitivity's reasons (Tracker.lose); the last is C's own (a failed LU).
 SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
@@ -49,7 +49,12 @@ def sens_routines(contact_names: tuple[str, ...]) -> list[str]:
 class SensJob(Job):
     """``<model>_job_t`` of the variant: the fields of :class:`Job`, then the tangent's (model.h.j2)."""
 
-    _fields_ = [("s", ctypes.c_void_p), ("S", ctypes.c_void_p), ("W", ctypes.c_void_p), ("lost", ctypes.c_long)]
+    _fields_ = [
+        ("s", ctypes.c_void_p),
+        ("S", ctypes.c_void_p),
+        ("W", ctypes.c_void_p),
+        ("lost", ctypes.c_long),
+    ]
 
 
 def column_names(model: Any) -> list[str]:
@@ -63,8 +68,11 @@ class SensRun(CRun):
 
     JOB = SensJob
 
-    def __init__(self, kern: Any, par: np.ndarray, q0, v0, p0, steps: int, n_impacts, rooms, s0, names) -> None:
-        super().__init__(kern, par, q0, v0, p0, steps, n_impacts, rooms)  # no pool: its own buffers
+    def __init__(
+        self, kern: Any, par: np.ndarray, q0, v0, p0, steps: int, n_impacts, rooms, s0, names
+    ) -> None:
+        rows = max(RESERVE_BYTES // (8 * max(np.size(s0), 1)), 16)  # a run of unknown length: S reserves as Q
+        super().__init__(kern, par, q0, v0, p0, steps, n_impacts, rooms, first_cap=rows)  # its own buffers
         self.s = np.ascontiguousarray(s0, dtype=float).copy()
         self.S = np.empty((self.cap + 1, *self.s.shape))
         self.S[0] = self.s
