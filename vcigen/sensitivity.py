@@ -25,6 +25,7 @@ on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"
 
 from __future__ import annotations
 
+import functools
 import math
 
 import casadi as ca
@@ -34,15 +35,18 @@ from .backends.casadi import routine_to_function
 from .derive import DiscreteSystem
 from .tangents import tangent_routines
 
+SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many coordinates
+
 
 class _Flat:
     """A routine's outputs, row-major and concatenated, from its inputs concatenated (a CasADi buffer)."""
 
     def __init__(self, fns: list[ca.Function], sizes: list[tuple[int, int]]) -> None:
         first = fns[0]
-        ins = [ca.SX.sym(first.name_in(i), first.size1_in(i)) for i in range(first.n_in())]
+        sym = ca.MX if first.is_a("MXFunction") else ca.SX
+        ins = [sym.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
         outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
-        self.f = ca.Function("flat", [ca.vertcat(*ins)], [ca.vertcat(*outs)])
+        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.vertcat(*outs)])
         self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
         self._buf, self._trigger = self.f.buffer()
         self._buf.set_arg(0, memoryview(self.arg))
@@ -53,7 +57,7 @@ class _Flat:
     def __call__(self, *parts) -> list[np.ndarray]:
         i = 0
         for part in parts:
-            part = np.atleast_1d(part)
+            part = np.ravel(part, order="F")  # a matrix input column-major, as ca.vec
             self.arg[i : i + part.size] = part
             i += part.size
         self._trigger()
@@ -98,6 +102,40 @@ class Tangents:
                 f = _Flat([both], [r.output("jac").shape, d.output("dres").shape])
             self._fns[name] = f
         return f
+
+    def smooth_map(self) -> _Flat:
+        """``(v, q, p, h, par, S_k, dpar/dz) -> S_k+1`` of a smooth step (46) in one call: the implicit
+        function ``dv = -F_v^-1 F_d (dq, dp, 0, dpar)`` and ``dp+`` chained (``S``, ``dpar`` column-major)."""
+        f = self._fns.get("smooth_map")
+        if f is None:
+            n, K, npar = self.n, self.K, self.npar
+            r, d = self.system.routines["smooth"], self._routines["d_smooth"]
+            seg = self._routines["d_segment"]
+            sym = ca.SX if n <= SYMBOLIC_SOLVE else ca.MX  # larger: a linear solver at run time, not QR in SX
+            v, q, p, h, par = (sym.sym(a.name, a.size) for a in r.inputs)
+            s, dpar = sym.sym("S", 2 * n, K), sym.sym("dpar", npar, K)
+            dq, dp = s[:n, :], s[n:, :]
+            jac = routine_to_function(r)(v, q, p, h, par)[1]
+            dres = routine_to_function(d)(v, q, p, h, par)
+            dv = -ca.solve(jac, ca.mtimes(dres, ca.vertcat(dq, dp, sym.zeros(1, K), dpar)))
+            dpp = routine_to_function(seg)(q, v, h, par)[1]
+            dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, sym.zeros(1, K), dpar))
+            fn = ca.Function("smooth_map", [v, q, p, h, par, s, dpar], [ca.vertcat(dq + h * dv, dp1)])
+            f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
+        return f
+
+
+def _guarded(hook):
+    """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run."""
+
+    @functools.wraps(hook)
+    def run(self, *args) -> None:
+        try:
+            hook(self, *args)
+        except np.linalg.LinAlgError:
+            self.lose(f"a singular Jacobian in the tangent of {hook.__name__}")
+
+    return run
 
 
 class Tracker:
@@ -163,6 +201,8 @@ class Tracker:
         """Store ``S_step+1``; a step no hook resolved loses the tangent (never silently wrong)."""
         if self.lost is None and self.next is None:
             self.lose("a phase without a tangent")
+        elif self.lost is None and not np.isfinite(self.next).all():
+            self.lose("a non-finite tangent (singular Jacobian)")
         if self.lost is None:
             self.cur = self.next
             self.S[step + 1] = self.next
@@ -192,16 +232,12 @@ class Tracker:
         d = np.vstack([dq, dv, dtau, self.dpar(dt)])
         return dpm @ d, dpp @ d, de @ d
 
+    @_guarded
     def smooth(self, q, p, h: float, v) -> None:
         """Smooth step (46): ``v`` from ``p_k = p-(q_k, q_k + h v, h)``; ``S_k+1``."""
         if not self.active:
             return
-        n, s = self.n, self.cur
-        dq, dp = s[:n], s[n:]
-        zero = np.zeros((1, self.K))
-        dv = self._ift("smooth", v, (q, p, h), np.vstack([dq, dp, zero, self.dpar(zero[0])]), self.t)
-        _, dp1, _ = self._segment(q, v, h, self.t, dq, dv, zero, zero[0])
-        self.next = np.vstack([dq + h * dv, dp1])
+        self.next = self.tg.smooth_map()(v, q, p, h, self.par(self.t), self.cur, self._par0)[0]
 
     def first_segment(self) -> None:
         """The first segment of an impact step starts at the grid point (data ``q_k, p_k, h, t_k``)."""
@@ -221,6 +257,7 @@ class Tracker:
         data = (seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
         return data, np.vstack([self.dq, self.dnrm, self.dp, self.de, self.dtau, dpar])
 
+    @_guarded
     def contact(self, seg, j: int, x, s: float, group) -> None:
         """Contact time (47) or the end of a segment on contact ``j`` (78): the next segment's data."""
         if not self.active:
@@ -247,6 +284,7 @@ class Tracker:
         self.dq, self.dp, self.dt, self.dtau = dq_c, dp_in, dt_c, self.dtau - dtau_c
         self.dvin = dv
 
+    @_guarded
     def jump(self, seg, v_in, rest: float, kind: str) -> None:
         """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39)."""
         if not self.active:
@@ -281,6 +319,7 @@ class Tracker:
         )
         self.de = self.de - dloss
 
+    @_guarded
     def jump_end(self, seg) -> None:
         """The last segment after an impact ends at the grid time (48), (49): ``S_k+1``."""
         if not self.active:
