@@ -9,7 +9,7 @@ that never asks never builds it.
 
 :class:`SensRun` is a :class:`~vcigen.backends.crun.CRun` with the tangent's buffers: ``s`` (the current
 ``2n x K`` tangent, in/out of every call like ``q, p``), ``S`` (its rows, grown with ``Q``), ``W`` (one
-byte per grid step: the bits of :data:`SENS_REASONS` of why it is not covered) and ``lost``.
+uint16 per grid step: the bits of :data:`SENS_REASONS` of why it is not covered) and ``lost``.
 """
 
 from __future__ import annotations
@@ -26,16 +26,19 @@ from .crun import RESERVE_BYTES, CRun, Job, _addr, _cut, _grown
 __all__ = ["SENS_REASONS", "SensJob", "SensRun", "is_tangent", "sens_routines"]
 
 # Why a grid step has no tangent: (C macro <MODEL>_WHY_<macro>, Result.sensitivity_breaks reason), in the
-# order of the bits of W: vcigen.sensitivity's reasons (Tracker.lose); the last is C's own (a failed LU).
+# order of the bits of W (within a step, the order the stepper meets them): vcigen.sensitivity's reasons.
 SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
+    ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
     ("PLASTIC_IMPACT", "plastic impact"),
     ("GRAZING_IMPACT", "grazing impact"),
+    ("SINGULAR_JUMP", "a singular Jacobian in the tangent of jump"),
     ("RESTART", "restart (continuous law where (78) has no root)"),
+    ("SINGULAR_JUMP_END", "a singular Jacobian in the tangent of jump_end"),
     ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
-    ("SINGULAR_JACOBIAN", "singular Jacobian"),
+    ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
 )
 BASE_ROUTINES = ("d_segment", "d_contacts", "d_legendre", "d_restitution", "d_smooth", "d_jump")
 
@@ -76,7 +79,7 @@ class SensRun(CRun):
         self.s = np.ascontiguousarray(s0, dtype=float).copy()
         self.S = np.empty((self.cap + 1, *self.s.shape))
         self.S[0] = self.s
-        self.W = np.zeros(max(self.cap, 1), dtype=np.uint8)
+        self.W = np.zeros(max(self.cap, 1), dtype=np.uint16)
         self.names = names
         self.job.s, self.job.lost = _addr(self.s), -1
 
@@ -86,7 +89,7 @@ class SensRun(CRun):
             self.S = _grown(self.S, self.cap + 1)
             self.W = _grown(self.W, self.cap)
         job.S = _addr(self.S) + self.S.strides[0] * (self.done + 1)
-        job.W = _addr(self.W) + self.done
+        job.W = _addr(self.W) + self.W.strides[0] * self.done
         return job
 
     def result(self, t0: float, h: float, wall: float) -> Result:
