@@ -25,7 +25,7 @@ from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
-from .csens import SENS_REASONS, is_tangent, sens_routines
+from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
 from .cspecialise import Structure, detect, phi_routine
 
 
@@ -190,6 +190,8 @@ def render_context(
             )
     routines = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
     routines += [phi_routine(system)]
+    sens_map = smooth_map_routine(system) if sensitivities else None  # the smooth step's tangent, fused
+    routines += [sens_map] if sens_map else []
     if structure.explicit_path:
         routines += path_routines(system)
     grid = grid_routines(system) if structure.explicit_grid else []
@@ -305,6 +307,7 @@ def render_context(
         "residuals": _residual_ids(system),
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
         "sens": bool(sensitivities),
+        "sens_map": sens_map is not None,
         "np": len(model.defaults),
         "sens_reasons": [
             {"index": k, "name": why, "macro": macro} for k, (macro, why) in enumerate(SENS_REASONS)

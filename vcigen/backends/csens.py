@@ -18,12 +18,17 @@ import ctypes
 from typing import Any
 
 import numpy as np
+import sympy as sp
 
+from ..derive import DiscreteSystem
+from ..explicit import expanded
 from ..result import Result
+from ..routines import Arg, Output, Routine
 from ..tangents import is_tangent
 from .crun import RESERVE_BYTES, CRun, Job, _addr, _cut, _grown
 
-__all__ = ["SENS_REASONS", "SensJob", "SensRun", "is_tangent", "sens_routines"]
+__all__ = ["SENS_REASONS", "SensJob", "SensRun", "is_tangent", "sens_routines", "smooth_map_routine"]
+SYMBOLIC_MAP = 3  # coordinates at most for the smooth step's tangent as one straight-line routine
 
 # Why a grid step has no tangent: (C macro <MODEL>_WHY_<macro>, Result.sensitivity_breaks reason), in the
 # order of the bits of W (within a step, the order the stepper meets them): vcigen.sensitivity's reasons.
@@ -47,6 +52,49 @@ def sens_routines(contact_names: tuple[str, ...]) -> list[str]:
     """The ``d_*`` routines the variant calls (vcigen.tangents)."""
     per = [f"d_{kind}_{c}" for c in contact_names for kind in ("contact_time", "jump_contact")]
     return [*BASE_ROUTINES, *per]
+
+
+def smooth_map_routine(system: DiscreteSystem) -> Routine | None:
+    """``sens_smooth_map(q0, v, tau, par, s) -> s1``: the tangent of a smooth grid step (46) as one CSE'd
+    straight-line routine, ``S_k -> S_k+1`` (``s``, ``s1``: ``2n x K`` row-major), or ``None`` past
+    :data:`SYMBOLIC_MAP` coordinates (then ``templates/sens.c.j2`` solves it numerically).
+
+    The smooth residual is ``p-(q0, v, tau) - p0``, so with ``d_segment``'s partials
+    ``dv = -J^-1 (dp-/dq0 dq - dp + dp-/dpar dpar)``, ``J = dp-/dv`` (its entries expanded, so that a
+    constant diagonal mass is seen as one: then a division per row, else the adjugate over the
+    determinant), ``dq1 = dq + tau dv``, ``dp1 = dp+/dq0 dq + dp+/dv dv + dp+/dpar dpar``; ``dpar/dz`` is
+    ``I_P`` on the model's parameters (the time slot of a grid step is ``t_k``, fixed). The same algebra as
+    the numeric path and ``vcigen.sensitivity.Tangents.smooth_map``, the solve done once symbolically.
+    """
+    n = system.n
+    if n > SYMBOLIC_MAP:
+        return None
+    d = system.routines["d_segment"]
+    q0, v, tau, par = d.inputs
+    npar, big_p = par.size, len(system.model.defaults)
+    k = 2 * n + big_p
+    s = Arg("s", tuple(sp.Dummy(f"s{i}", real=True) for i in range(2 * n * k)))
+    smat = sp.Matrix(2 * n, k, list(s.symbols))
+    dq, dp = smat[:n, :], smat[n:, :]
+    dpar = sp.zeros(npar, k)
+    for i in range(big_p):
+        dpar[i, 2 * n + i] = 1
+    dpm, dpp = d.output("dp_minus").expr, d.output("dp_plus").expr
+    jac = expanded(dpm[:, n : 2 * n])
+    rhs = dpm[:, :n] * dq - dp + dpm[:, 2 * n + 1 :] * dpar
+    if jac.is_diagonal():
+        dv = sp.Matrix(n, k, lambda i, j: -rhs[i, j] * sp.Pow(jac[i, i], -1))
+    else:
+        inv_det = sp.Pow(jac.det(method="berkowitz"), -1)
+        dv = -(jac.adjugate(method="berkowitz") * rhs) * inv_det
+    h = tau.symbols[0]
+    s1 = (dq + h * dv).col_join(dpp[:, :n] * dq + dpp[:, n : 2 * n] * dv + dpp[:, 2 * n + 1 :] * dpar)
+    return Routine(
+        "sens_smooth_map",
+        (q0, v, tau, par, s),
+        (Output("s1", s1),),
+        "The tangent of a smooth grid step (46), S_k -> S_k+1 (vcigen.backends.csens.smooth_map_routine).",
+    )
 
 
 class SensJob(Job):
