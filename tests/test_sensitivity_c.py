@@ -8,6 +8,8 @@ is ``test_sensitivity``'s own (parametrized over both backends).
 
 from __future__ import annotations
 
+from functools import cache
+
 import hard_scenes
 import numpy as np
 import pytest
@@ -51,6 +53,20 @@ def test_c_equals_casadi_on_every_scene(scene: str) -> None:
     rel = assert_same_tangent(a, b)
     print(f"{scene}: {b.n_impacts} impacts, C against CasADi {rel:.1e}")
     assert b.n_impacts >= 1 and b.sensitivity_breaks == [] and np.isfinite(b.sensitivity).all()
+
+
+@cache
+def midpoint(scene: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(ts.SCENES[scene][0](), backend=backend, rule="midpoint")
+
+
+@pytest.mark.parametrize("scene", ["star", "corner_lossy", "driven", "double_pendulum"])
+def test_c_equals_casadi_under_the_midpoint_rule(scene: str) -> None:
+    _, q0, v0, h, t_end, params = ts.SCENES[scene]
+    a, b = both(lambda backend: midpoint(scene, backend), q0, v0, h, t_end=t_end, params=params)
+    rel = assert_same_tangent(a, b)
+    print(f"{scene} (midpoint): {b.n_impacts} impacts, C against CasADi {rel:.1e}")
+    assert b.n_impacts >= 1 and np.isfinite(b.sensitivity).all()
 
 
 @pytest.mark.parametrize("example", ["particle", "star"])
@@ -150,3 +166,14 @@ def test_parameters_are_columns_and_override_at_run_time() -> None:
     # y(t) = 1 - g t^2 / 2 before the first impact (t = 0.8165 at g = 3): dy/dg = -t^2 / 2 up to O(h^2)
     k = 50
     assert abs(b.sensitivity[k, 1, -1] + b.t[k] ** 2 / 2) <= 1e-12
+
+
+def test_friction_at_an_impact_breaks_the_same() -> None:
+    """A spinning disk with Coulomb friction hits the floor: the impact is reported, as in Python."""
+    import test_friction
+
+    a, b = both(
+        lambda backend: test_friction.sim("disk", backend), [0.0, 2.0, 0.0], [2.0, 0.0, 5.0], 0.01, t_end=0.9
+    )
+    assert_same_tangent(a, b)
+    assert b.sensitivity_breaks[0] == (b.impacts[0].step, "friction at an impact")
