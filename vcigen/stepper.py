@@ -16,7 +16,7 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from .held import HeldSteps
 from .progress import Progress
 from .result import Impact, Result
 from .sustained import SustainedSteps, SustainLog, held_contacts
+
+if TYPE_CHECKING:
+    from .sensitivity import Tracker
 
 
 class Kernels(Protocol):
@@ -101,7 +104,9 @@ class _Seg:
 class Stepper(SustainedSteps, HeldSteps):
     """Runs the method of MATH.md on a set of kernels."""
 
-    def __init__(self, kernels: Kernels, tol: Tolerances | None = None, tangent=None) -> None:
+    def __init__(
+        self, kernels: Kernels, tol: Tolerances | None = None, tangent: Tracker | None = None
+    ) -> None:
         self.k = kernels
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self.tol = tol or Tolerances()
