@@ -1,11 +1,12 @@
 """Exact sensitivities in C: the library variant whose loop carries the tangent, and its runs.
 
 ``simulate(..., sensitivities=True)`` on the C backend builds (once, lazily, cached like the plain one) a
-second library of the model from ``derive(..., sensitivities=True)`` rendered with
-``render_context(..., sensitivities=True)``: ``templates/sens.c.j2`` propagates
-``S_k = d(q_k, p_k)/d(q0, v0, params)`` inside ``<model>_run`` through every phase, as
-:mod:`vcigen.sensitivity` does for the Python stepper (same phases, same order, same breaks). A scene
-that never asks never builds it.
+second library of the model: its system with the ``d_*`` routines (:func:`vcigen.tangents.tangent_routines`)
+rendered with ``render_context(..., sensitivities=True)`` (``CSimulator.sens_kernels``). The variant is
+the plain library plus the tangent's code, so the trajectory is the same bit for bit;
+``templates/sens.c.j2`` propagates ``S_k = d(q_k, p_k)/d(q0, v0, params)`` inside ``<model>_run`` through
+every phase, as :mod:`vcigen.sensitivity` does for the Python stepper (same phases, same order, same
+breaks). A scene that never asks never builds it.
 
 :class:`SensRun` is a :class:`~vcigen.backends.crun.CRun` with the tangent's buffers: ``s`` (the current
 ``2n x K`` tangent, in/out of every call like ``q, p``), ``S`` (its rows, grown with ``Q``), ``W`` (one
