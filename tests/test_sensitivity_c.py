@@ -177,3 +177,18 @@ def test_friction_at_an_impact_breaks_the_same() -> None:
     )
     assert_same_tangent(a, b)
     assert b.sensitivity_breaks[0] == (b.impacts[0].step, "friction at an impact")
+
+
+def test_grazing_impact_breaks_the_same() -> None:
+    """Apex 1e-8 above a ceiling with ``grazing="reflect"``: the continuous law is no jump (48) to
+    differentiate; the impact's step is reported, as in Python."""
+    g, vy = 9.81, 9.81 * 0.5
+    q0, v0 = [0.0, 1.0 + 1e-8 - vy**2 / (2 * g)], [1.0, vy]
+    tol = vcigen.Tolerances(grazing="reflect")
+    with pytest.warns(RuntimeWarning, match="grazing"):
+        a, b = both(
+            lambda backend: hard_scenes.simulator("ceiling", backend, tol=tol), q0, v0, 0.01, t_end=1.0
+        )
+    assert_same_tangent(a, b)
+    assert [im.kind for im in b.impacts] == ["grazing"]
+    assert b.sensitivity_breaks == [(b.impacts[0].step, "grazing impact")]
