@@ -137,4 +137,4 @@ def build_c(
     ctx = render_context(system, None, tol)
     files = render(ctx, LIBRARY_TEMPLATES)
     lib = build_library(files, ctx["model"], cc=cc, cache=cache)
-    return CSimulator(system, CKernels(system, lib, ctx), tol)
+    return CSimulator(system, CKernels(system, lib, ctx), tol, build={"cc": cc, "cache": cache})

@@ -25,6 +25,7 @@ from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances
 from .cprinter import print_routine_body
+from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
 from .cspecialise import Structure, detect, phi_routine
 
 
@@ -153,11 +154,17 @@ def with_heads(routines: list[Routine]) -> list[Routine]:
     return out
 
 
+def is_residual(r: Routine) -> bool:
+    """A routine of an unknown ``x`` (first input) that the solvers call through an adapter. The tangents
+    ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated, directly."""
+    return r.inputs[0].name == "x" and not is_tangent(r.name)
+
+
 def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
     """Residual routines in a fixed order with an integer id (the ctypes ``solve`` switch)."""
     out = []
     for name, r in system.routines.items():
-        if r.inputs[0].name != "x":
+        if not is_residual(r):
             continue
         offsets, k = [], 0
         for a in r.inputs[1:-1]:  # everything between the unknown and par, flattened
@@ -168,12 +175,32 @@ def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
 
 
 def render_context(
-    system: DiscreteSystem, setup: Mapping[str, Any] | None = None, tol: Tolerances | None = None
+    system: DiscreteSystem,
+    setup: Mapping[str, Any] | None = None,
+    tol: Tolerances | None = None,
+    sensitivities: bool = False,
 ) -> dict[str, Any]:
-    """Everything the templates need, as plain data."""
+    """Everything the templates need, as plain data.
+
+    ``sensitivities``: the library variant that propagates the tangent ``d(q_k, p_k)/d(q0, v0, params)``
+    inside its loop (MATH.md, *Exact sensitivities*; ``templates/sens.c.j2``). ``system`` must hold the
+    ``d_*`` routines (``derive(..., sensitivities=True)``). The variant is the plain library plus the
+    tangent's code (its trajectory the same, bit for bit); without the flag the ``d_*`` routines are left
+    out, so the plain library is the same whatever the system holds.
+    """
     model = system.model
     structure: Structure = detect(system)
-    routines = list(system.routines.values()) + [phi_routine(system)]
+    if sensitivities:
+        missing = [r for r in sens_routines(system.contact_names) if r not in system.routines]
+        if missing:
+            raise ValueError(
+                f"the sensitivity variant needs the routines {missing}: "
+                "derive(model, rule, sensitivities=True)"
+            )
+    routines = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
+    routines += [phi_routine(system)]
+    sens_map = smooth_map_routine(system) if sensitivities else None  # the smooth step's tangent, fused
+    routines += [sens_map] if sens_map else []
     if structure.explicit_path:
         routines += path_routines(system)
     grid = grid_routines(system) if structure.explicit_grid else []
@@ -287,9 +314,16 @@ def render_context(
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            if r.inputs[0].name == "x" and r.name not in {s.name for s in implicit}  # called directly
+            if is_residual(r) and r.name not in {s.name for s in implicit}  # called directly
         ],
         "residuals": _residual_ids(system),
+        # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
+        "sens": bool(sensitivities),
+        "sens_map": sens_map is not None,
+        "np": len(model.defaults),
+        "sens_reasons": [
+            {"index": k, "name": why, "macro": macro} for k, (macro, why) in enumerate(SENS_REASONS)
+        ],
         "setup": {
             "q0": [repr(float(x)) for x in setup.get("q0", [0.0] * n)],
             "v0": [repr(float(x)) for x in setup.get("v0", [0.0] * n)],

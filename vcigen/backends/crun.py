@@ -171,6 +171,8 @@ def _take(pool: list[Block], kern: Any, cap: int) -> Block:
 class CRun:
     """One run of ``<model>_run``: its state, buffers and counts, and its :class:`Job`."""
 
+    JOB: type[Job] = Job  # the job struct of the library (the sensitivity variant's has more fields: csens)
+
     def __init__(
         self,
         kern: Any,
@@ -213,7 +215,7 @@ class CRun:
         self.rc = 0
         self.started = False
         self.finished = steps == 0 or n_impacts == 0
-        job = self.job = Job()
+        job = self.job = self.JOB()
         at = _addr(state)
         job.par, job.q, job.p, job.v = par_at or _addr(par), at, at + 8 * n, at + 16 * n
         job.sus, job.err = ctypes.addressof(self.sus), ctypes.addressof(self.err)

@@ -14,6 +14,7 @@ import gc
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,7 @@ from ..result import Result
 from ..simulator import MAX_CONDITION, ManyStarts, Simulator, conditions
 from ..stepper import Tolerances, _n_steps, warn_reflected
 from ..sustained import rattle_segment
+from ..tangents import is_tangent, tangent_routines
 from .crun import (
     FIRST_CAP_MANY,
     MAX_STEPS,
@@ -37,6 +39,7 @@ from .crun import (
     chunk_steps,
     run_jobs,
 )
+from .csens import SensRun, column_names
 from .slots import ParameterSlots
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -181,6 +184,12 @@ class CKernels(ParameterSlots):
             _D,
             _D,
         ]
+        self.sens = bool(ctx.get("sens"))  # the sensitivity variant (vcigen.backends.csens)
+        if self.sens:  # run's tangent: s, S, W, lost; and S_0
+            self.run.argtypes += [_D, _D, ctypes.c_void_p, ctypes.POINTER(ctypes.c_long)]
+            self.sens_start = getattr(self.lib, f"{pre}_eval_sens_start")
+            self.sens_start.argtypes = [_D, _D, _D, _D]
+            self.K = 2 * self.n + len(system.model.defaults)
         self.run.restype = ctypes.c_int
         self.run_many = getattr(self.lib, f"{pre}_run_many")
         self.run_many.argtypes = [
@@ -350,10 +359,19 @@ def _tol_struct(tol: Tolerances) -> _Tol:
 class CSimulator(Simulator):
     """A :class:`~vcigen.simulator.Simulator` whose time loop is ``<model>_run_many`` in C (``crun``)."""
 
-    def __init__(self, system: DiscreteSystem, kernels: CKernels, tol: Tolerances | None = None) -> None:
+    def __init__(
+        self,
+        system: DiscreteSystem,
+        kernels: CKernels,
+        tol: Tolerances | None = None,
+        build: dict[str, Any] | None = None,
+    ) -> None:
+        """``build``: ``build_library``'s options (``cc``, ``cache``), for the sensitivity variant."""
         super().__init__(system, kernels, tol)
         self._tol: tuple[Tolerances, _Tol] | None = None
         self._pool: list[Block] = []  # grid buffers of simulate's longer runs, reused (crun.Block)
+        self._build = dict(build or {})
+        self._sens: CKernels | None = None  # the sensitivity variant, built on first use (csens)
 
     def _tol_struct(self) -> _Tol:
         """The C tolerances of ``self.tol``, made once (again if ``tol`` is replaced)."""
@@ -409,6 +427,11 @@ class CSimulator(Simulator):
     def _run(self, kern: CKernels, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
         run = CRun(kern, kern.par, q0, v0, p0, steps, n_impacts, self._rooms(kern), pool=self._pool)
+        return self._drive(kern, run, h, t_end, n_impacts, t0, progress)
+
+    def _drive(self, kern: CKernels, run: CRun, h, t_end, n_impacts, t0, progress) -> Result:
+        """Calls of ``<model>_run_many`` until ``run`` is done (in chunks sized for the progress bar)."""
+        steps = run.steps
         tol = self._tol_struct()
         wall = time.perf_counter()
         rate = None
@@ -422,8 +445,35 @@ class CSimulator(Simulator):
         wall = time.perf_counter() - wall
         if run.rc:
             raise run.error(t0, h, wall)
-        _warn_short(run, t_end, n_impacts, stacklevel=4)
+        _warn_short(run, t_end, n_impacts, stacklevel=5)
         return run.result(t0, h, wall)
+
+    def sens_kernels(self) -> CKernels:
+        """The kernels of the sensitivity variant (:mod:`vcigen.backends.csens`): the model with its ``d_*``
+        routines (:func:`vcigen.tangents.tangent_routines`) rendered with the tangent in the loop, compiled
+        (cached by source hash like the plain library) on the first call, kept for the next."""
+        if self._sens is None:
+            from .c import LIBRARY_TEMPLATES, build_library, render
+            from .ccontext import render_context
+
+            system = self.system
+            if not any(is_tangent(name) for name in system.routines):
+                system = replace(system, routines={**system.routines, **tangent_routines(system.routines)})
+            ctx = render_context(system, None, self.tol, sensitivities=True)
+            lib = build_library(render(ctx, LIBRARY_TEMPLATES), ctx["model"], **self._build)
+            self._sens = CKernels(system, lib, ctx)
+        return self._sens
+
+    def _run_sensitive(self, kern, q0, v0, p0, h, t_end, n_impacts, t0, progress) -> Result:
+        """:meth:`_run` on the sensitivity variant: the tangent carried inside the C loop (``SensRun``)."""
+        sk = self.sens_kernels()
+        sk.par = kern.par  # the bound parameters (and slots) of this call
+        n = sk.n
+        s0 = np.empty((2 * n, sk.K))
+        sk.sens_start(_ptr(sk.par), _ptr(_vec(q0, n)), _ptr(_vec(v0, n)), _ptr(s0))
+        steps = _n_steps(h, t0, t_end, MAX_STEPS)
+        run = SensRun(sk, sk.par, q0, v0, p0, steps, n_impacts, self._rooms(sk), s0, column_names(self.model))
+        return self._drive(sk, run, h, t_end, n_impacts, t0, progress)
 
     def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
         """All runs through ``<model>_run_many``: in batches (of runs) sized for the progress bar, each

@@ -1,0 +1,107 @@
+"""Cost of a C run with exact sensitivities over the same C run without (issue 11 item 6, C column).
+
+    .venv/bin/python -m bench.sensitivity_cost_c [--repeats 5] [--scale 1]
+
+Target (the issue): at most 3x + O(n^2) per step in C. The tangent is carried inside the generated loop
+(``templates/sens.c.j2``, the library variant ``vcigen.backends.csens``): per smooth step one ``d_segment``
+evaluation, an n x n LU and the products of the chain with the K = 2n + P columns; per impact the implicit
+function theorem of (47)/(78) and (48). The runs are long enough (thousands of steps) to time the C loop
+itself: ``res.stats["wall_time"]`` is the loop's time, without the Python set-up of ``simulate``; the CPU
+time of the whole ``simulate`` call (``time.thread_time``) is given too, which a loaded machine inflates
+less. Off and on are interleaved round-robin after a warm-up pair (the variant is compiled on first use),
+best of ``--repeats``. ``bench/sensitivity_cost.py`` (sens-py) times short runs of both backends.
+
+Scenes:
+
+* ``particle``: ``examples/particle.py`` (n = 2, P = 2, explicit grid step: the glide), h = 0.01, t_end = 200;
+* ``star``: ``examples/star.py`` (n = 3, P = 3, ``Abs`` in phi), ``q0 = (0, 1.2, 0)``, ``v0 = (-2, 0, 5)``,
+  h = 0.005, t_end = 20;
+* ``double_pendulum``: ``tests/hard_scenes.py`` against the wall x = 1.2 (n = 2, P = 6, configuration-
+  dependent mass: the implicit grid step, Newton), ``q0 = (0.3, 0.6)``, ``v0 = (1.5, 2)``, h = 0.01,
+  t_end = 20.
+
+Writes ``bench/results/sensitivity_cost_c.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE.parent / "tests")]
+
+import hard_scenes  # noqa: E402
+from scenes import load_example  # noqa: E402
+
+import vcigen  # noqa: E402
+
+# scene -> (model maker, q0, v0, h, t_end)
+SCENES = {
+    "particle": (lambda: load_example("particle").model(), [0.0, 1.0], [-2.0, 0.0], 0.01, 200.0),
+    "star": (lambda: load_example("star").model(), [0.0, 1.2, 0.0], [-2.0, 0.0, 5.0], 0.005, 20.0),
+    "double_pendulum": (hard_scenes.double_pendulum, [0.3, 0.6], [1.5, 2.0], 0.01, 20.0),
+}
+
+
+def timed(sim: vcigen.Simulator, scene: str, scale: float, on: bool) -> tuple[float, float, vcigen.Result]:
+    """``(loop seconds, CPU seconds of simulate, result)`` of one run."""
+    _, q0, v0, h, t_end = SCENES[scene]
+    cpu = time.thread_time()
+    res = sim.simulate(q0, v0, h, t_end=t_end * scale, progress=False, sensitivities=on)
+    return res.stats["wall_time"], time.thread_time() - cpu, res
+
+
+def measure(scene: str, repeats: int, scale: float) -> dict[str, float | int | str]:
+    sim = vcigen.build(SCENES[scene][0](), backend="c")
+    best = {False: [float("inf")] * 2, True: [float("inf")] * 2}
+    for i in range(repeats + 1):
+        for on in (False, True):
+            wall, cpu, res = timed(sim, scene, scale, on)
+            if i:  # the first pair warms up (the variant is built and loaded on first use)
+                best[on] = [min(best[on][0], wall), min(best[on][1], cpu)]
+            if on:
+                lost = res.stats.get("sensitivity_lost")
+                assert lost is None, (scene, res.sensitivity_breaks[:3])
+    steps, n, k = res.t.size - 1, res.q.shape[1], res.sensitivity.shape[2]
+    ns = {on: [1e9 * x / steps for x in best[on]] for on in best}
+    return {
+        "scene": scene, "n": n, "K": k, "steps": steps, "impacts": res.n_impacts,
+        "ns_per_step_off": ns[False][0], "ns_per_step_on": ns[True][0], "ratio": ns[True][0] / ns[False][0],
+        "extra_ns_per_step": ns[True][0] - ns[False][0],
+        "cpu_ns_per_step_off": ns[False][1], "cpu_ns_per_step_on": ns[True][1],
+        "cpu_ratio": ns[True][1] / ns[False][1],
+    }  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply every t_end")
+    ap.add_argument("--only", nargs="*", default=list(SCENES), help="scenes to time")
+    args = ap.parse_args(argv)
+    rows = []
+    for scene in args.only:
+        row = measure(scene, args.repeats, args.scale)
+        rows.append(row)
+        print(
+            f"{scene:16s} n={row['n']} K={row['K']:2d} {row['steps']:6d} steps {row['impacts']:4d} impacts: "
+            f"{row['ns_per_step_off']:8.0f} ns/step off, {row['ns_per_step_on']:8.0f} on, ratio "
+            f"{row['ratio']:5.2f} (+{row['extra_ns_per_step']:.0f} ns); "
+            f"CPU of simulate: ratio {row['cpu_ratio']:5.2f}",
+            flush=True,
+        )
+    out = HERE / "results" / "sensitivity_cost_c.csv"
+    out.parent.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

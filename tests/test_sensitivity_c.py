@@ -1,0 +1,194 @@
+"""Sensitivities in C (``vcigen.backends.csens``, ``templates/sens.c.j2``): the tangent carried inside the
+generated loop equals the Python stepper's (``vcigen.sensitivity``, CasADi backend) on every scene of
+``test_sensitivity``, the steps no tangent goes through are the same, the variant's trajectory is the plain
+library's bit for bit (explicit glide, held glide, general step), and a run resumed across calls (buffers
+grown) or cut by a ``SolverError`` keeps its tangent. The agreement with finite differences on the C backend
+is ``test_sensitivity``'s own (parametrized over both backends).
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import hard_scenes
+import numpy as np
+import pytest
+import test_sensitivity as ts
+from scenes import load_example
+
+import vcigen
+from vcigen.backends import csens
+
+pytestmark = pytest.mark.skipif(
+    hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem())
+)
+TOL = 1e-9  # C against CasADi, relative to the largest entry (test_sensitivity.relative_error)
+
+
+def both(sim_of, *args, **kw) -> tuple[vcigen.Result, vcigen.Result]:
+    """The same run with sensitivities on the CasADi and the C backend."""
+    kw.update(sensitivities=True, progress=False)
+    return sim_of("casadi").simulate(*args, **kw), sim_of("c").simulate(*args, **kw)
+
+
+def assert_same_tangent(a: vcigen.Result, b: vcigen.Result, tol: float = TOL) -> float:
+    """Same grid, same breaks, NaN in the same places and the finite entries within ``tol`` (relative)."""
+    assert a.sensitivity.shape == b.sensitivity.shape and a.sensitivity_names == b.sensitivity_names
+    assert a.sensitivity_breaks == b.sensitivity_breaks
+    assert a.stats.get("sensitivity_lost") == b.stats.get("sensitivity_lost")
+    nan = np.isnan(a.sensitivity)
+    assert np.array_equal(nan, np.isnan(b.sensitivity))
+    fin = ~nan
+    if not fin.any():
+        return 0.0
+    rel = float(np.abs(a.sensitivity[fin] - b.sensitivity[fin]).max() / np.abs(a.sensitivity[fin]).max())
+    assert rel <= tol, rel
+    return rel
+
+
+@pytest.mark.parametrize("scene", sorted(ts.SCENES))
+def test_c_equals_casadi_on_every_scene(scene: str) -> None:
+    _, q0, v0, h, t_end, params = ts.SCENES[scene]
+    a, b = both(lambda backend: ts.simulator(scene, backend), q0, v0, h, t_end=t_end, params=params)
+    rel = assert_same_tangent(a, b)
+    print(f"{scene}: {b.n_impacts} impacts, C against CasADi {rel:.1e}")
+    assert b.n_impacts >= 1 and b.sensitivity_breaks == [] and np.isfinite(b.sensitivity).all()
+
+
+@cache
+def midpoint(scene: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(ts.SCENES[scene][0](), backend=backend, rule="midpoint")
+
+
+@pytest.mark.parametrize("scene", ["star", "corner_lossy", "driven", "double_pendulum"])
+def test_c_equals_casadi_under_the_midpoint_rule(scene: str) -> None:
+    _, q0, v0, h, t_end, params = ts.SCENES[scene]
+    a, b = both(lambda backend: midpoint(scene, backend), q0, v0, h, t_end=t_end, params=params)
+    rel = assert_same_tangent(a, b)
+    print(f"{scene} (midpoint): {b.n_impacts} impacts, C against CasADi {rel:.1e}")
+    assert b.n_impacts >= 1 and np.isfinite(b.sensitivity).all()
+
+
+@pytest.mark.parametrize("example", ["particle", "star"])
+def test_c_equals_casadi_on_the_examples(example: str) -> None:
+    """The explicit glide's steps (the straight-line grid step) carry the tangent as the general step does."""
+    setup = load_example(example).SETUP
+    model = load_example(example).model()
+    sims = {backend: vcigen.build(model, backend=backend) for backend in ("casadi", "c")}
+    a, b = both(sims.__getitem__, setup["q0"], setup["v0"], setup["h"], n_impacts=4)
+    rel = assert_same_tangent(a, b)
+    print(f"{example}: {b.n_impacts} impacts over {b.t.size - 1} steps, C against CasADi {rel:.1e}")
+
+
+def test_breaks_are_the_python_steppers() -> None:
+    """A lossy ball to rest: restitution impacts covered, then a plastic impact, then held steps (the held
+    glide in C): the same breaks, the same first lost step, NaN from there, on both backends."""
+    sims = {backend: vcigen.build(hard_scenes.ball(), backend=backend) for backend in ("casadi", "c")}
+    a, b = both(sims.__getitem__, [0.0, 1.0], [0.3, 0.0], 0.01, t_end=2.8)
+    assert_same_tangent(a, b)
+    reasons = {why for _, why in b.sensitivity_breaks}
+    assert {"plastic impact", "held step (sustained contact)"} <= reasons, reasons
+    lost = b.stats["sensitivity_lost"]
+    assert np.isfinite(b.sensitivity[: lost + 1]).all() and np.isnan(b.sensitivity[lost + 1 :]).all()
+    held = [k for k, why in b.sensitivity_breaks if why.startswith("held")]
+    assert len(held) > 10  # every held step is listed, as the Python stepper lists them
+
+
+def test_simultaneous_impact_breaks_the_same() -> None:
+    a, b = both(lambda backend: ts.simulator("corner", backend), [0.05, 0.05], [-1.0, -1.0], 0.1, t_end=0.3)
+    assert_same_tangent(a, b)
+    assert b.sensitivity_breaks[0][1] == "simultaneous impact"
+
+
+@pytest.mark.parametrize("scene", ["star", "ball", "double_pendulum", "box_lossy"])
+def test_the_variant_leaves_the_trajectory_unchanged(scene: str) -> None:
+    """The variant library takes the same steps as the plain one (its glides included), bit for bit."""
+    if scene == "star":
+        sim = vcigen.build(load_example("star").model(), backend="c")
+        args, kw = ([0.0, 1.2, 0.0], [-2.0, 0.0, 5.0], 0.005), {"t_end": 2.0}
+    elif scene == "ball":
+        sim = vcigen.build(hard_scenes.ball(), backend="c")
+        args, kw = ([0.0, 1.0], [0.3, 0.0], 0.01), {"t_end": 2.8}
+    else:
+        _, q0, v0, h, t_end, params = ts.SCENES[scene]
+        sim, args, kw = ts.simulator(scene, "c"), (q0, v0, h), {"t_end": t_end, "params": params}
+    off = sim.simulate(*args, **kw, progress=False)
+    on = sim.simulate(*args, **kw, progress=False, sensitivities=True)
+    for name in ("t", "q", "p", "energy", "active", "contact_force"):
+        assert np.array_equal(getattr(off, name), getattr(on, name)), name
+    assert off.impacts == on.impacts
+    assert off.sensitivity is None and on.sensitivity.shape[0] == on.t.size
+
+
+def test_a_run_resumed_across_calls_keeps_its_tangent(monkeypatch) -> None:
+    """A run of unknown length (``n_impacts``) with buffers of 16 rows: the C loop stops each time S must
+    grow and resumes from the tangent it left in ``s``; the same as one call of a ``t_end`` run."""
+    sim = ts.simulator("box_lossy", "c")
+    _, q0, v0, h, t_end, params = ts.SCENES["box_lossy"]
+    full = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    monkeypatch.setattr(csens, "RESERVE_BYTES", 1)
+    calls = []
+    real = csens.SensRun.arm
+    monkeypatch.setattr(csens.SensRun, "arm", lambda self, chunk: calls.append(self.cap) or real(self, chunk))
+    parts = sim.simulate(
+        q0, v0, h, n_impacts=full.n_impacts, params=params, sensitivities=True, progress=False
+    )
+    assert calls[:4] == [16, 16, 32, 64]  # 110 steps: calls of 16, 16, 32 and 64 rows (grown between)
+    k = parts.t.size
+    assert parts.t[-1] <= full.t[-1] and np.array_equal(parts.sensitivity, full.sensitivity[:k])
+
+
+def test_a_failed_run_keeps_the_tangent_so_far() -> None:
+    """No room for an impact in a step: the SolverError's result has the tangent up to the last step."""
+    model = load_example("particle").model()
+    tol = vcigen.Tolerances(max_impacts_per_step=0)
+    setup = load_example("particle").SETUP
+    out = []
+    for backend in ("casadi", "c"):
+        sim = vcigen.build(model, backend=backend, tol=tol)
+        with pytest.raises(vcigen.SolverError) as info:
+            sim.simulate(setup["q0"], setup["v0"], setup["h"], t_end=1.0, sensitivities=True, progress=False)
+        out.append(info.value.result)
+    a, b = out
+    assert b.sensitivity.shape == (46, 4, 6) and np.isfinite(b.sensitivity).all()
+    assert_same_tangent(a, b)
+
+
+def test_parameters_are_columns_and_override_at_run_time() -> None:
+    """``g`` is a column; a run at another ``g`` (the same library) has its own tangent, as CasADi's."""
+    sims = {
+        backend: vcigen.build(load_example("particle").model(), backend=backend)
+        for backend in ("casadi", "c")
+    }
+    a, b = both(sims.__getitem__, [0.0, 1.0], [-2.0, 0.0], 0.01, t_end=0.8, params={"g": 3.0})
+    assert_same_tangent(a, b)
+    assert b.sensitivity_names[-2:] == ["m", "g"]
+    # y(t) = 1 - g t^2 / 2 before the first impact (t = 0.8165 at g = 3): dy/dg = -t^2 / 2 up to O(h^2)
+    k = 50
+    assert abs(b.sensitivity[k, 1, -1] + b.t[k] ** 2 / 2) <= 1e-12
+
+
+def test_friction_at_an_impact_breaks_the_same() -> None:
+    """A spinning disk with Coulomb friction hits the floor: the impact is reported, as in Python."""
+    import test_friction
+
+    a, b = both(
+        lambda backend: test_friction.sim("disk", backend), [0.0, 2.0, 0.0], [2.0, 0.0, 5.0], 0.01, t_end=0.9
+    )
+    assert_same_tangent(a, b)
+    assert b.sensitivity_breaks[0] == (b.impacts[0].step, "friction at an impact")
+
+
+def test_grazing_impact_breaks_the_same() -> None:
+    """Apex 1e-8 above a ceiling with ``grazing="reflect"``: the continuous law is no jump (48) to
+    differentiate; the impact's step is reported, as in Python."""
+    g, vy = 9.81, 9.81 * 0.5
+    q0, v0 = [0.0, 1.0 + 1e-8 - vy**2 / (2 * g)], [1.0, vy]
+    tol = vcigen.Tolerances(grazing="reflect")
+    with pytest.warns(RuntimeWarning, match="grazing"):
+        a, b = both(
+            lambda backend: hard_scenes.simulator("ceiling", backend, tol=tol), q0, v0, 0.01, t_end=1.0
+        )
+    assert_same_tangent(a, b)
+    assert [im.kind for im in b.impacts] == ["grazing"]
+    assert b.sensitivity_breaks == [(b.impacts[0].step, "grazing impact")]
