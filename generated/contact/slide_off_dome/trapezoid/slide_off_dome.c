@@ -408,7 +408,7 @@ static inline void slide_off_dome_held_rows(const double *q, const double *k, do
     grad[0] = q[0]*t4;
     grad[1] = q[1]*t4;
     hess[0] = t4*(-t0*t5 + 1);
-    hess[1] = -q[0]*q[1]/pow(t2, 3.0/2.0);
+    hess[1] = -q[0]*q[1]/((t2)*sqrt(t2));
     hess[2] = t4*(-t1*t5 + 1);
 }
 
@@ -605,6 +605,20 @@ static void slide_off_dome_newton(slide_off_dome_fun f, const double *const *arg
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double slide_off_dome_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[SLIDE_OFF_DOME_N + 1], zero[SLIDE_OFF_DOME_N], e0 = 0.0, res[SLIDE_OFF_DOME_N + 1];
+    double jac[(SLIDE_OFF_DOME_N + 1) * (SLIDE_OFF_DOME_N + 1)];
+    for (int i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[SLIDE_OFF_DOME_N] = 0.0;
+    slide_off_dome_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[SLIDE_OFF_DOME_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define SLIDE_OFF_DOME_N1 (SLIDE_OFF_DOME_N + 1)
@@ -1968,6 +1982,8 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 #define SLIDE_OFF_DOME_NH_DIM 3 /* Hessian entries a row may need (held.hess_pattern) */
 #if defined(__GNUC__)
 #define SLIDE_OFF_DOME_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
+#define SLIDE_OFF_DOME_HELD_COLD __attribute__((noinline, cold))
+#define SLIDE_OFF_DOME_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define SLIDE_OFF_DOME_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
 #if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define SLIDE_OFF_DOME_HELD_UNROLL _Pragma("unroll")
@@ -1979,8 +1995,13 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 #else
 #define SLIDE_OFF_DOME_HELD_UNROLL
 #define SLIDE_OFF_DOME_HELD_HOT
+#define SLIDE_OFF_DOME_HELD_COLD
+#define SLIDE_OFF_DOME_HELD_UNLIKELY(x) (x)
 #define SLIDE_OFF_DOME_HELD_INLINE static inline
 #endif
+
+/* held_constant_gradients: 1 where d psi_r / d q_i (at r * N + i) does not depend on q */
+static const unsigned char slide_off_dome_held_gconst[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = { 0, 0 };
 
 /* held.factor_small, held.apply_small: the small systems a x = b of the held step, a factored once for one or
  * two right-hand sides: 1 and 2 unknowns in closed form (a becomes its inverse), LU above; 0 if singular. */
@@ -2022,89 +2043,175 @@ SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_apply(int na, const double *
     }
 }
 
+/* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
+SLIDE_OFF_DOME_HELD_INLINE double slide_off_dome_held_norm(int na, const double *d)
+{
+    double big = fabs(d[0]), t;
+    int a;
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 1; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+        t = fabs(d[a]);
+        big = ((t > big) | (t != t)) ? t : big;
+    }
+    return big;
+}
+
+/* One evaluation of the Newton of held.held_step (its loop body up to the convergence test): v = v0 + J^-1 G0^T x,
+ * q1 = q + h v, the rows at q1 (psi, hess: every row's; g1: the active rows' gradients, na x N in the order of
+ * rows) and d = psi_A; returns |d|_inf. */
+SLIDE_OFF_DOME_HELD_INLINE double slide_off_dome_held_eval(const double *kh, double h, const int *rows, int na,
+    const double *q, const double *v0, const double *jinv, const double *g0, const double *x, double *v, double *q1,
+    double *psi, double *hess, double *d, double *g1)
+{
+    double gl[SLIDE_OFF_DOME_N], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    int a;
+    gl[0] = -0.0; /* -0.0 + y is y: the compiler drops the add */
+    gl[1] = -0.0; /* -0.0 + y is y: the compiler drops the add */
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* loops over the coordinates unrolled at generation */
+        gl[0] += g0[a * SLIDE_OFF_DOME_N + 0] * x[a];
+        gl[1] += g0[a * SLIDE_OFF_DOME_N + 1] * x[a];
+    }
+    v[0] = v0[0] + jinv[0] * gl[0];
+    q1[0] = q[0] + h * v[0];
+    v[1] = v0[1] + jinv[1] * gl[1];
+    q1[1] = q[1] + h * v[1];
+    slide_off_dome_held_rows(q1, kh, psi, grad, hess);
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+        d[a] = psi[rows[a]];
+        g1[a * SLIDE_OFF_DOME_N + 0] = grad[rows[a] * SLIDE_OFF_DOME_N + 0];
+        g1[a * SLIDE_OFF_DOME_N + 1] = grad[rows[a] * SLIDE_OFF_DOME_N + 1];
+    }
+    return slide_off_dome_held_norm(na, d);
+}
+
+/* The Newton iterate of held.held_step and what its last evaluation gave. */
+typedef struct {
+    double x[SLIDE_OFF_DOME_R_DIM], v[SLIDE_OFF_DOME_N], q1[SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM];
+    double hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM], d[SLIDE_OFF_DOME_R_DIM], g1[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], res;
+    double q[SLIDE_OFF_DOME_N], p[SLIDE_OFF_DOME_N], g0[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N]; /* in: the step's start (copies: the
+                                                 caller's arrays stay in registers) */
+} slide_off_dome_held_newton_t;
+
+/* The Newton of held.held_step past its first evaluation (in st), to its end: out of line, so that the held
+ * step, which mostly converges at its first evaluation, is straight-line code with few values live. */
+SLIDE_OFF_DOME_HELD_COLD static void slide_off_dome_held_newton(const double *kh, double h, const int *rows, int na,
+    slide_off_dome_held_newton_t *st)
+{
+    const double *q = st->q, *p = st->p, *g0 = st->g0;
+    double v0[SLIDE_OFF_DOME_N], jinv[SLIDE_OFF_DOME_N], jac[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
+    int piv[SLIDE_OFF_DOME_R_DIM], a, b, it;
+    slide_off_dome_held_free(q, p, kh, v0, jinv);
+    for (it = 1;; ++it) {
+        for (a = 0; a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
+            for (b = 0; b < na; ++b) {
+                jac[a * na + b] = -0.0;
+                jac[a * na + b] += st->g1[a * SLIDE_OFF_DOME_N + 0] * (h * jinv[0] * g0[b * SLIDE_OFF_DOME_N + 0]);
+                jac[a * na + b] += st->g1[a * SLIDE_OFF_DOME_N + 1] * (h * jinv[1] * g0[b * SLIDE_OFF_DOME_N + 1]);
+            }
+        }
+        if (!slide_off_dome_held_factor(na, jac, piv)) {
+            return;
+        }
+        slide_off_dome_held_apply(na, jac, piv, st->d);
+        if (slide_off_dome_norm_inf(na, st->d) <= 1e-15) {
+            return;
+        }
+        for (a = 0; a < na; ++a) {
+            st->x[a] -= st->d[a];
+        }
+        st->res = slide_off_dome_held_eval(kh, h, rows, na, q, v0, jinv, g0, st->x, st->v, st->q1, st->psi, st->hess,
+            st->d, st->g1);
+        if (st->res <= 1e-13 || it == SLIDE_OFF_DOME_HELD_ITER || st->res != st->res) {
+            return;
+        }
+    }
+}
+
 /* held.held_step: one held grid step from (q, p) over h with the active rows rows[0 .. na) (act: per row);
  * g0 holds the active rows' gradients at q (na x N, in the order of rows), lam the previous step's multipliers
  * per row (the Newton start). Returns 0 if the step cleared its tests: then (q1, p1, v, *e) its end, lam and
- * lam1 its Lam and Lam' per row, g1 the active rows' gradients at q1. Returns 1 (nothing written to lam) if it
- * did not: the general chain takes it. The active rows' data are gathered into small arrays of na rows, so
- * that with na fixed (<model>_held_glide) every loop has fixed bounds. */
+ * lam1 its Lam and Lam' on the active rows, g1 the active rows' gradients at q1. Returns 1 (nothing written to
+ * lam) if it did not: the general chain takes it. The active rows' data are gathered into small arrays of na
+ * rows, so that with na fixed (<model>_held_glide) every loop has fixed bounds. */
 SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double h, double residual, double phi_tol,
     const int *act, const int *rows, int na, const double *q, const double *p, const double *g0, double *lam,
     double *lam1, double *q1, double *p1, double *v, double *e, double *g1)
 {
     double v0[SLIDE_OFF_DOME_N], jinv[SLIDE_OFF_DOME_N], gl[SLIDE_OFF_DOME_N], pp[SLIDE_OFF_DOME_N], acc[SLIDE_OFF_DOME_N];
-    double minv[SLIDE_OFF_DOME_N], u1[SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
-    double hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM], x[SLIDE_OFF_DOME_R_DIM] = {0.0}, d[SLIDE_OFF_DOME_R_DIM];
-    double jac[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM], w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
-    double l1[SLIDE_OFF_DOME_R_DIM], f[SLIDE_OFF_DOME_R_DIM], res = NAN, f_eps, curv;
-    int piv[SLIDE_OFF_DOME_R_DIM], i, a, b, r, it, finite;
+    double minv[SLIDE_OFF_DOME_N], u1[SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM];
+    double hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM], x[SLIDE_OFF_DOME_R_DIM] = {0.0}, d[SLIDE_OFF_DOME_R_DIM] = {0.0};
+    double w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
+    double l1[SLIDE_OFF_DOME_R_DIM], f[SLIDE_OFF_DOME_R_DIM], res, f_eps, curv, sum;
+    int piv[SLIDE_OFF_DOME_R_DIM], a, b, r, clear, pull;
     slide_off_dome_held_free(q, p, kh, v0, jinv);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
         x[a] = lam[rows[a]];
     }
-    for (it = 0;; ++it) { /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam */
-        gl[0] = 0.0;
-        gl[1] = 0.0;
-        SLIDE_OFF_DOME_HELD_UNROLL
-        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* loops over the coordinates unrolled at generation */
-            gl[0] += g0[a * SLIDE_OFF_DOME_N + 0] * x[a];
-            gl[1] += g0[a * SLIDE_OFF_DOME_N + 1] * x[a];
-        }
-        v[0] = v0[0] + jinv[0] * gl[0];
-        q1[0] = q[0] + h * v[0];
-        v[1] = v0[1] + jinv[1] * gl[1];
-        q1[1] = q[1] + h * v[1];
-        slide_off_dome_held_rows(q1, kh, psi, grad, hess);
+    /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
+     * needed: the previous multipliers mostly solve it) in <model>_held_newton */
+    res = slide_off_dome_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    if (SLIDE_OFF_DOME_HELD_UNLIKELY(!(res <= 1e-13) && res == res && SLIDE_OFF_DOME_HELD_ITER > 0)) {
+        slide_off_dome_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         SLIDE_OFF_DOME_HELD_UNROLL
         for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
-            d[a] = psi[rows[a]];
-            g1[a * SLIDE_OFF_DOME_N + 0] = grad[rows[a] * SLIDE_OFF_DOME_N + 0];
-            g1[a * SLIDE_OFF_DOME_N + 1] = grad[rows[a] * SLIDE_OFF_DOME_N + 1];
+            st.x[a] = x[a];
+            st.d[a] = d[a];
+            st.g1[a * SLIDE_OFF_DOME_N + 0] = g1[a * SLIDE_OFF_DOME_N + 0];
+            st.g0[a * SLIDE_OFF_DOME_N + 0] = g0[a * SLIDE_OFF_DOME_N + 0];
+            st.g1[a * SLIDE_OFF_DOME_N + 1] = g1[a * SLIDE_OFF_DOME_N + 1];
+            st.g0[a * SLIDE_OFF_DOME_N + 1] = g0[a * SLIDE_OFF_DOME_N + 1];
         }
-        res = slide_off_dome_norm_inf(na, d);
-        if (res <= 1e-13 || it == SLIDE_OFF_DOME_HELD_ITER || res != res) {
-            break;
-        }
+        st.q[0] = q[0];
+        st.p[0] = p[0];
+        st.q[1] = q[1];
+        st.p[1] = p[1];
+        st.res = res;
+        slide_off_dome_held_newton(kh, h, rows, na, &st);
+        res = st.res;
         SLIDE_OFF_DOME_HELD_UNROLL
-        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the Jacobian h G1 J^-1 G0^T */
-            SLIDE_OFF_DOME_HELD_UNROLL
-            for (b = 0; b < SLIDE_OFF_DOME_R_DIM && b < na; ++b) {
-                jac[a * na + b] = 0.0;
-                jac[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 0] * (h * jinv[0] * g0[b * SLIDE_OFF_DOME_N + 0]);
-                jac[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 1] * (h * jinv[1] * g0[b * SLIDE_OFF_DOME_N + 1]);
-
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+            x[a] = st.x[a];
+            if (!slide_off_dome_held_gconst[rows[a] * SLIDE_OFF_DOME_N + 0]) { /* else the value of the first evaluation */
+                g1[a * SLIDE_OFF_DOME_N + 0] = st.g1[a * SLIDE_OFF_DOME_N + 0];
+            }
+            if (!slide_off_dome_held_gconst[rows[a] * SLIDE_OFF_DOME_N + 1]) { /* else the value of the first evaluation */
+                g1[a * SLIDE_OFF_DOME_N + 1] = st.g1[a * SLIDE_OFF_DOME_N + 1];
             }
         }
-        if (!slide_off_dome_held_factor(na, jac, piv)) {
-            break;
-        }
-        slide_off_dome_held_apply(na, jac, piv, d);
-        if (slide_off_dome_norm_inf(na, d) <= 1e-15) {
-            break;
+        v[0] = st.v[0];
+        q1[0] = st.q1[0];
+        v[1] = st.v[1];
+        q1[1] = st.q1[1];
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+            psi[r] = st.psi[r];
         }
         SLIDE_OFF_DOME_HELD_UNROLL
-        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
-            x[a] -= d[a];
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the active rows' Hessians: the others' are not read */
+            hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 0] = st.hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 0];
+            hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 1] = st.hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 1];
+            hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 2] = st.hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 2];
         }
     }
-    if (!(res <= residual * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_N, p)))) {
+    if (!(res <= residual) && !(res <= residual * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_N, p)))) {
         return 1;
     }
     slide_off_dome_held_segment(q, v, kh, pp, e);
     slide_off_dome_held_end(q1, kh, acc, minv);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the Delassus matrix W = G1 M^-1 G1^T, the projection's and the forces' */
-        l1[a] = 0.0;
-        f[a] = 0.0;
+        l1[a] = -0.0;
+        f[a] = -0.0;
         l1[a] += g1[a * SLIDE_OFF_DOME_N + 0] * (minv[0] * pp[0]);
-        f[a] += g1[a * SLIDE_OFF_DOME_N + 0] * acc[0];
         l1[a] += g1[a * SLIDE_OFF_DOME_N + 1] * (minv[1] * pp[1]);
         f[a] += g1[a * SLIDE_OFF_DOME_N + 1] * acc[1];
         l1[a] = -l1[a];
         SLIDE_OFF_DOME_HELD_UNROLL
         for (b = 0; b < SLIDE_OFF_DOME_R_DIM && b < na; ++b) {
-            w[a * na + b] = 0.0;
+            w[a * na + b] = -0.0;
             w[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 0] * (minv[0] * g1[b * SLIDE_OFF_DOME_N + 0]);
             w[a * na + b] += g1[a * SLIDE_OFF_DOME_N + 1] * (minv[1] * g1[b * SLIDE_OFF_DOME_N + 1]);
         }
@@ -2113,8 +2220,8 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         return 1;
     }
     slide_off_dome_held_apply(na, w, piv, l1); /* rattle_project: W Lam' = -G1 M^-1 p+ */
-    gl[0] = 0.0;
-    gl[1] = 0.0;
+    gl[0] = -0.0;
+    gl[1] = -0.0;
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
         gl[0] += g1[a * SLIDE_OFF_DOME_N + 0] * l1[a];
@@ -2128,7 +2235,7 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
 
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* SustainedSteps._forces: W lambda = -(G1 M^-1 rhs + u1 . Hess psi . u1) */
-        curv = 0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
+        curv = -0.0; /* on the entries of held.hess_pattern, in its order (none: rows linear in q) */
         curv += 1.0 * u1[0] * hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 0] * u1[0];
         curv += 2.0 * u1[0] * hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 1] * u1[1];
         curv += 1.0 * u1[1] * hess[rows[a] * SLIDE_OFF_DOME_NH_DIM + 2] * u1[1];
@@ -2136,30 +2243,43 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         f[a] = -(f[a] + curv);
     }
     slide_off_dome_held_apply(na, w, piv, f);
-    f_eps = SLIDE_OFF_DOME_EPS_LAM * (1.0 + slide_off_dome_norm_inf(na, f));
-    finite = isfinite(*e) && isfinite(f_eps);
+    /* held.all_finite: E_d, the forces, q1 and p1 finite, by one test of their sum (a sum of finite values is not
+     * finite only past 1e307: then the general chain takes the step); an inactive row crossed; then a force
+     * pulling (below 0), which a held contact rarely has, before the lift-off test against f_eps (its norm
+     * then stays off the step's critical path) */
+    sum = *e;
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
-        finite = finite && (slide_off_dome_row_free[rows[a]] || !(f[a] < -f_eps)); /* a lift-off inside the step */
+        sum += f[a];
     }
+    sum += q1[0];
+    sum += p1[0];
+    sum += q1[1];
+    sum += p1[1];
+    clear = isfinite(sum);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        finite = finite && (act[r] || slide_off_dome_row_stick[r] >= 0 || !(psi[r] < -phi_tol)); /* a row crossed */
+        clear &= act[r] | (slide_off_dome_row_stick[r] >= 0) | !(psi[r] < -phi_tol); /* a row crossed */
     }
+    pull = 0;
     SLIDE_OFF_DOME_HELD_UNROLL
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        finite = finite && isfinite(q1[i]) && isfinite(p1[i]);
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+        pull |= !slide_off_dome_row_free[rows[a]] & (f[a] < 0.0);
     }
-    if (!finite) {
+    if (!clear) {
         return 1;
     }
-    SLIDE_OFF_DOME_HELD_UNROLL
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        lam[r] = 0.0;
-        lam1[r] = 0.0;
+    if (SLIDE_OFF_DOME_HELD_UNLIKELY(pull)) {
+        f_eps = SLIDE_OFF_DOME_EPS_LAM * (1.0 + slide_off_dome_held_norm(na, f));
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+            if (!slide_off_dome_row_free[rows[a]] && f[a] < -f_eps) {
+                return 1; /* a lift-off inside the step */
+            }
+        }
     }
     SLIDE_OFF_DOME_HELD_UNROLL
-    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
+    for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the active rows' only: the others' are not read */
         lam[rows[a]] = x[a];
         lam1[rows[a]] = l1[a];
     }
@@ -2177,7 +2297,7 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_loop(const slide_off_dome_ct
     double q1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], lam1[SLIDE_OFF_DOME_R_DIM], g1[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0};
     double g0[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0}, grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM];
     double hess[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_NH_DIM];
-    double e, sum = 0.0, imp;
+    double e, sum = 0.0, imp, fm[SLIDE_OFF_DOME_M_DIM], fk[SLIDE_OFF_DOME_NC_DIM];
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
     int i, j, r, a;
     long s;
@@ -2207,24 +2327,30 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_loop(const slide_off_dome_ct
         sum += e;
         SLIDE_OFF_DOME_HELD_UNROLL
         for (j = 0; j < SLIDE_OFF_DOME_M; ++j) { /* SustainedSteps._book, then <model>_record */
-            F[s * SLIDE_OFF_DOME_M + j] = 0.0;
+            fm[j] = 0.0;
+        }
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (j = 0; j < SLIDE_OFF_DOME_NC; ++j) {
+            fk[j] = 0.0;
+        }
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the active rows': the others' impulses are 0 */
+            r = rows[a];
+            imp = lam[r] + lam1[r]; /* a zero impulse adds +-0 to a sum from +0.0: the same as none */
+            if (slide_off_dome_row_contact[r] >= 0) {
+                fm[slide_off_dome_row_contact[r]] += imp / h;
+            } else {
+                fk[slide_off_dome_row_constraint[r]] += imp / h;
+            }
+        }
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (j = 0; j < SLIDE_OFF_DOME_M; ++j) {
+            F[s * SLIDE_OFF_DOME_M + j] = fm[j];
             A[s * SLIDE_OFF_DOME_M + j] = held[j];
         }
         SLIDE_OFF_DOME_HELD_UNROLL
         for (j = 0; j < SLIDE_OFF_DOME_NC; ++j) {
-            FC[s * SLIDE_OFF_DOME_NC + j] = 0.0;
-        }
-        SLIDE_OFF_DOME_HELD_UNROLL
-        for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            imp = lam[r] + lam1[r];
-            if (imp == 0.0) {
-                continue;
-            }
-            if (slide_off_dome_row_contact[r] >= 0) {
-                F[s * SLIDE_OFF_DOME_M + slide_off_dome_row_contact[r]] += imp / h;
-            } else {
-                FC[s * SLIDE_OFF_DOME_NC + slide_off_dome_row_constraint[r]] += imp / h;
-            }
+            FC[s * SLIDE_OFF_DOME_NC + j] = fk[j];
         }
     }
     *sum_e += sum;
@@ -2317,7 +2443,14 @@ int slide_off_dome_eval_held_step(const double *par, double h, double residual, 
             g0[a * SLIDE_OFF_DOME_N + i] = grad[rows[a] * SLIDE_OFF_DOME_N + i];
         }
     }
-    return !slide_off_dome_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, e, g1);
+    if (slide_off_dome_held_step(kh, h, residual, phi_tol, act, rows, na, q, p, g0, lam, lam1, q1, p1, v, e, g1)) {
+        return 0;
+    }
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* Lam, Lam' per row: 0 off the active rows */
+        lam[r] = act[r] ? lam[r] : 0.0;
+        lam1[r] = act[r] ? lam1[r] : 0.0;
+    }
+    return 1;
 }
 
 
@@ -2461,6 +2594,7 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = SLIDE_OFF_DOME_KIND_GRAZING;
             slide_off_dome_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -3076,6 +3210,12 @@ void slide_off_dome_eval_segment(const double *q0, const double *v, double tau, 
     double *p_minus, double *p_plus, double *energy)
 {
     slide_off_dome_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void slide_off_dome_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = slide_off_dome_start_energy(q0, v, tau, par);
 }
 
 void slide_off_dome_eval_contacts(const double *q, const double *par, double *phi, double *grad)

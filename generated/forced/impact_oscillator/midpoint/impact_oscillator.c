@@ -408,6 +408,20 @@ static void impact_oscillator_newton(impact_oscillator_fun f, const double *cons
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double impact_oscillator_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[IMPACT_OSCILLATOR_N + 1], zero[IMPACT_OSCILLATOR_N], e0 = 0.0, res[IMPACT_OSCILLATOR_N + 1];
+    double jac[(IMPACT_OSCILLATOR_N + 1) * (IMPACT_OSCILLATOR_N + 1)];
+    for (int i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[IMPACT_OSCILLATOR_N] = 0.0;
+    impact_oscillator_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[IMPACT_OSCILLATOR_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define IMPACT_OSCILLATOR_N1 (IMPACT_OSCILLATOR_N + 1)
@@ -1808,7 +1822,7 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
         return 2;
     }
     if ((c->tol->grazing_reflect && mu0 > 0.0) || sustain) { /* the continuous law, energy reset */
-        double p_t[IMPACT_OSCILLATOR_N], pm[IMPACT_OSCILLATOR_N], pp[IMPACT_OSCILLATOR_N];
+        double p_t[IMPACT_OSCILLATOR_N];
         const double *sarg[4];
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             x[i] = vel[i] + mu0 * minv_n[i];
@@ -1822,7 +1836,8 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
         if (res <= impact_oscillator_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = IMPACT_OSCILLATOR_KIND_GRAZING;
-            impact_oscillator_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+            seg->e_in = impact_oscillator_start_energy(seg->q, x, seg->tau, c->par); /* the energy at its start */
+
             for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -2276,6 +2291,12 @@ void impact_oscillator_eval_segment(const double *q0, const double *v, double ta
     double *p_minus, double *p_plus, double *energy)
 {
     impact_oscillator_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void impact_oscillator_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = impact_oscillator_start_energy(q0, v, tau, par);
 }
 
 void impact_oscillator_eval_contacts(const double *q, const double *par, double *phi, double *grad)

@@ -558,6 +558,20 @@ static void block_newton(block_fun f, const double *const *arg, int n, double *x
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double block_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[BLOCK_N + 1], zero[BLOCK_N], e0 = 0.0, res[BLOCK_N + 1];
+    double jac[(BLOCK_N + 1) * (BLOCK_N + 1)];
+    for (int i = 0; i < BLOCK_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[BLOCK_N] = 0.0;
+    block_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[BLOCK_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define BLOCK_N1 (BLOCK_N + 1)
@@ -1401,21 +1415,11 @@ static int block_sub_end(const block_ctx_t *c, const double *q, const double *p,
  * negative when the stick force leaves Coulomb's cone. */
 static double block_cone_margin(const block_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0, other;
-    int r, g;
+    double normal = 0.0;
+    int r;
     for (r = 0; r < BLOCK_R; ++r) {
         if (block_row_contact[r] == block_fric_contact[f]) {
             normal += forces[r];
-        }
-    }
-    for (g = 0; g < BLOCK_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
-        if (c->sus->ride[g] == f && g != f) {
-            for (r = 0, other = 0.0; r < BLOCK_R; ++r) {
-                if (block_row_contact[r] == block_fric_contact[g]) {
-                    other += forces[r];
-                }
-            }
-            normal += c->mu_f[g] / c->mu_f[f] * other;
         }
     }
     return c->mu_f[f] * normal - fabs(forces[block_stick_row[f]]);
@@ -2447,6 +2451,7 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = BLOCK_KIND_GRAZING;
             block_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+
             for (i = 0; i < BLOCK_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -3064,6 +3069,12 @@ void block_eval_segment(const double *q0, const double *v, double tau, const dou
     double *p_minus, double *p_plus, double *energy)
 {
     block_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void block_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = block_start_energy(q0, v, tau, par);
 }
 
 void block_eval_contacts(const double *q, const double *par, double *phi, double *grad)

@@ -638,6 +638,20 @@ static void rough_disk_newton(rough_disk_fun f, const double *const *arg, int n,
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double rough_disk_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[ROUGH_DISK_N + 1], zero[ROUGH_DISK_N], e0 = 0.0, res[ROUGH_DISK_N + 1];
+    double jac[(ROUGH_DISK_N + 1) * (ROUGH_DISK_N + 1)];
+    for (int i = 0; i < ROUGH_DISK_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[ROUGH_DISK_N] = 0.0;
+    rough_disk_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[ROUGH_DISK_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define ROUGH_DISK_N1 (ROUGH_DISK_N + 1)
@@ -1481,21 +1495,11 @@ static int rough_disk_sub_end(const rough_disk_ctx_t *c, const double *q, const 
  * negative when the stick force leaves Coulomb's cone. */
 static double rough_disk_cone_margin(const rough_disk_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0, other;
-    int r, g;
+    double normal = 0.0;
+    int r;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         if (rough_disk_row_contact[r] == rough_disk_fric_contact[f]) {
             normal += forces[r];
-        }
-    }
-    for (g = 0; g < ROUGH_DISK_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
-        if (c->sus->ride[g] == f && g != f) {
-            for (r = 0, other = 0.0; r < ROUGH_DISK_R; ++r) {
-                if (rough_disk_row_contact[r] == rough_disk_fric_contact[g]) {
-                    other += forces[r];
-                }
-            }
-            normal += c->mu_f[g] / c->mu_f[f] * other;
         }
     }
     return c->mu_f[f] * normal - fabs(forces[rough_disk_stick_row[f]]);
@@ -2527,6 +2531,7 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = ROUGH_DISK_KIND_GRAZING;
             rough_disk_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -3144,6 +3149,12 @@ void rough_disk_eval_segment(const double *q0, const double *v, double tau, cons
     double *p_minus, double *p_plus, double *energy)
 {
     rough_disk_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void rough_disk_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = rough_disk_start_energy(q0, v, tau, par);
 }
 
 void rough_disk_eval_contacts(const double *q, const double *par, double *phi, double *grad)

@@ -724,6 +724,20 @@ static void spun_ball_newton(spun_ball_fun f, const double *const *arg, int n, d
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double spun_ball_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[SPUN_BALL_N + 1], zero[SPUN_BALL_N], e0 = 0.0, res[SPUN_BALL_N + 1];
+    double jac[(SPUN_BALL_N + 1) * (SPUN_BALL_N + 1)];
+    for (int i = 0; i < SPUN_BALL_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[SPUN_BALL_N] = 0.0;
+    spun_ball_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[SPUN_BALL_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define SPUN_BALL_N1 (SPUN_BALL_N + 1)
@@ -2962,6 +2976,7 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = SPUN_BALL_KIND_GRAZING;
             spun_ball_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -3579,6 +3594,12 @@ void spun_ball_eval_segment(const double *q0, const double *v, double tau, const
     double *p_minus, double *p_plus, double *energy)
 {
     spun_ball_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void spun_ball_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = spun_ball_start_energy(q0, v, tau, par);
 }
 
 void spun_ball_eval_contacts(const double *q, const double *par, double *phi, double *grad)

@@ -831,6 +831,20 @@ static void star_friction_newton(star_friction_fun f, const double *const *arg, 
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double star_friction_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[STAR_FRICTION_N + 1], zero[STAR_FRICTION_N], e0 = 0.0, res[STAR_FRICTION_N + 1];
+    double jac[(STAR_FRICTION_N + 1) * (STAR_FRICTION_N + 1)];
+    for (int i = 0; i < STAR_FRICTION_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[STAR_FRICTION_N] = 0.0;
+    star_friction_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[STAR_FRICTION_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define STAR_FRICTION_N1 (STAR_FRICTION_N + 1)
@@ -1683,21 +1697,11 @@ static int star_friction_sub_end(const star_friction_ctx_t *c, const double *q, 
  * negative when the stick force leaves Coulomb's cone. */
 static double star_friction_cone_margin(const star_friction_ctx_t *c, int f, const double *forces)
 {
-    double normal = 0.0, other;
-    int r, g;
+    double normal = 0.0;
+    int r;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         if (star_friction_row_contact[r] == star_friction_fric_contact[f]) {
             normal += forces[r];
-        }
-    }
-    for (g = 0; g < STAR_FRICTION_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
-        if (c->sus->ride[g] == f && g != f) {
-            for (r = 0, other = 0.0; r < STAR_FRICTION_R; ++r) {
-                if (star_friction_row_contact[r] == star_friction_fric_contact[g]) {
-                    other += forces[r];
-                }
-            }
-            normal += c->mu_f[g] / c->mu_f[f] * other;
         }
     }
     return c->mu_f[f] * normal - fabs(forces[star_friction_stick_row[f]]);
@@ -2729,6 +2733,7 @@ static int star_friction_solve_jump(const star_friction_ctx_t *c, star_friction_
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = STAR_FRICTION_KIND_GRAZING;
             star_friction_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -3346,6 +3351,12 @@ void star_friction_eval_segment(const double *q0, const double *v, double tau, c
     double *p_minus, double *p_plus, double *energy)
 {
     star_friction_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void star_friction_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = star_friction_start_energy(q0, v, tau, par);
 }
 
 void star_friction_eval_contacts(const double *q, const double *par, double *phi, double *grad)

@@ -982,6 +982,20 @@ static inline void double_pendulum_newton_smooth(const double *p0, const double 
     *resnorm = fn;
 }
 
+/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
+ * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
+static double double_pendulum_start_energy(const double *q0, const double *v, double tau, const double *par)
+{
+    double x[DOUBLE_PENDULUM_N + 1], zero[DOUBLE_PENDULUM_N], e0 = 0.0, res[DOUBLE_PENDULUM_N + 1];
+    double jac[(DOUBLE_PENDULUM_N + 1) * (DOUBLE_PENDULUM_N + 1)];
+    for (int i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        x[i] = v[i];
+        zero[i] = 0.0;
+    }
+    x[DOUBLE_PENDULUM_N] = 0.0;
+    double_pendulum_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
+    return res[DOUBLE_PENDULUM_N];
+}
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define DOUBLE_PENDULUM_N1 (DOUBLE_PENDULUM_N + 1)
@@ -2430,6 +2444,7 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = DOUBLE_PENDULUM_KIND_GRAZING;
             double_pendulum_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
+
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
                 seg->x[i] = x[i];
             }
@@ -2903,6 +2918,12 @@ void double_pendulum_eval_segment(const double *q0, const double *v, double tau,
     double *p_minus, double *p_plus, double *energy)
 {
     double_pendulum_segment(q0, v, &tau, par, p_minus, p_plus, energy);
+}
+
+void double_pendulum_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
+    double *energy)
+{
+    *energy = double_pendulum_start_energy(q0, v, tau, par);
 }
 
 void double_pendulum_eval_contacts(const double *q, const double *par, double *phi, double *grad)
