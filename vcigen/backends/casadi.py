@@ -74,6 +74,7 @@ class CasadiKernels(ParameterSlots):
         self.timed, self.t = system.timed, 0.0
         self._buffers: dict[str, tuple] = {}
         self.functions = {name: routine_to_function(r) for name, r in system.routines.items()}
+        self.stages = system.stages  # internal unknowns of a segment: solved here, never seen by the stepper
         self._solvers = {
             name: self._solver(name)
             for name in system.routines
@@ -85,10 +86,11 @@ class CasadiKernels(ParameterSlots):
         self._paths = [self._flat_function(routine_to_function(r)) for r in paths]
         quad = jump_quadratic(system)
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
-        flat = ("legendre", "segment", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
+        flat = ("legendre", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
         flat += ("friction",) if "friction" in system.routines else ()
         flat += ("friction_cone",) if "friction_cone" in system.routines else ()
         self._flat = {name: self._flatten(name) for name in flat}
+        self._flat["segment"] = self._flat_function(self._segment_function())
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
         self.held = has_held_path(system)  # the held grid step (vcigen.held)
@@ -124,6 +126,18 @@ class CasadiKernels(ParameterSlots):
         res = ca.norm_inf(g(sol, prm))
         return ca.Function(f"{name}_solve", [ca.vertcat(guess, prm)], [ca.vertcat(sol, res)])
 
+    def _segment_function(self) -> ca.Function:
+        """``segment(q0, v, tau, par)``; with internal points it solves their stationarity first (routine
+        ``stage``, Newton from ``u = 0``: ``u`` is O(tau)) and evaluates at the stationary point."""
+        f = self.functions["segment"]
+        if not self.stages:
+            return f
+        q0, v, tau, par = (ca.MX.sym(a.name, a.size) for a in self.system.routines["stage"].inputs[1:])
+        u = self._solvers["stage"](ca.vertcat(ca.MX.zeros(self.stages), q0, v, tau, par))[: self.stages]
+        return ca.Function(
+            "segment", [q0, v, tau, par], f(q0, v, tau, u, par), ["q0", "v", "tau", "par"], f.name_out()
+        )
+
     def _smooth_step(self) -> ca.Function:
         """Smooth step (46) and everything the stepper needs after it, in one call."""
         n = self.n
@@ -142,9 +156,11 @@ class CasadiKernels(ParameterSlots):
             p_minus, _, _ = self.functions["segment"](q0, v, tau, par)
             res = ca.norm_inf(p_minus - p0)
         else:
-            out = self._solvers["smooth"](ca.vertcat(guess, q0, p0, tau, par))
-            v, res = out[:n], out[n]
-            _, p1, e = self.functions["segment"](q0, v, tau, par)
+            ns = self.stages  # internal points: their unknowns follow v, from 0 (O(tau))
+            out = self._solvers["smooth"](ca.vertcat(guess, ca.MX.zeros(ns), q0, p0, tau, par))
+            v, res = out[:n], out[n + ns]
+            inner = (out[n : n + ns],) if ns else ()
+            _, p1, e = self.functions["segment"](q0, v, tau, *inner, par)
         phi1, grad1 = self.functions["contacts"](q0 + tau * v, par)
         # Slopes of phi along the segment map at s = 0 and s = 1: tau grad phi . qdot, with the
         # continuous velocities of p0 and p1 (one Newton step of the Legendre transform from v).
@@ -233,9 +249,15 @@ class CasadiKernels(ParameterSlots):
         )
 
     def solve(self, name: str, guess, *args):
-        """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``."""
-        o = self._call(self._solvers[name], guess, *args)
-        return o[:-1], _residual(o)
+        """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``.
+
+        With internal points (``DiscreteSystem.stages``) the routine's unknowns end with them: Newton
+        starts them from 0 (they are O(tau)) and ``x`` comes back without them."""
+        if not self.stages:
+            o = self._call(self._solvers[name], guess, *args)
+            return o[:-1], _residual(o)
+        o = self._call(self._solvers[name], np.append(guess, np.zeros(self.stages)), *args)
+        return o[: -1 - self.stages], _residual(o)
 
     def legendre(self, q, v):
         n = self.n

@@ -162,6 +162,10 @@ def render_context(
     system: DiscreteSystem, setup: Mapping[str, Any] | None = None, tol: Tolerances | None = None
 ) -> dict[str, Any]:
     """Everything the templates need, as plain data."""
+    if system.stages:
+        raise ValueError(
+            f"the C backend has no rule {system.rule.name!r} (internal points) yet; use backend='casadi'"
+        )
     model = system.model
     structure: Structure = detect(system)
     routines = list(system.routines.values()) + [phi_routine(system)]
