@@ -368,8 +368,15 @@ class Stepper(SustainedSteps, HeldSteps):
             "jump",
             0.0,
             f"more than {tol.max_impacts_per_step} impacts in one step (Tolerances.max_impacts_per_step); "
-            "raise it if the impacts are real, or reduce h",
+            "raise it if the impacts are real, or reduce h" + self._unheld(),
         )
+
+    def _unheld(self) -> str:
+        """The note an error adds under a rule with internal points, which holds no contact."""
+        system = getattr(self.k, "system", None)
+        if system is None or not system.stages:
+            return ""
+        return f"; rule {system.rule.name!r} has no sustained contact yet (trapezoid and midpoint have it)"
 
     def _continuous_law(self, q, v_in, p_in, nrm, e: float):
         """The continuous impulse law at an impact: ``(qdot-, M^-1 n, n.qdot-, n.M^-1 n, mu0)``.
@@ -507,6 +514,7 @@ class Stepper(SustainedSteps, HeldSteps):
                 return np.append(w, mu0), "grazing"
         vn = nv / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"
+
         raise SolverError(
             step,
             t_k,
@@ -514,7 +522,7 @@ class Stepper(SustainedSteps, HeldSteps):
             float("nan") if not roots else 0.0,
             f"no root with mu > 0 of the jump (48) on '{k.contact_names[seg.contact]}' at "
             f"t = {seg.t:.12g} (roots found: mu = {found}); normal speed {vn:.3e} is too small for "
-            "the discrete energy balance (48a) at this h (grazing impact): reduce h",
+            "the discrete energy balance (48a) at this h (grazing impact): reduce h" + self._unheld(),
         )
 
     def _args(self, seg: _Seg) -> tuple:
