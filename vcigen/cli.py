@@ -184,7 +184,7 @@ def parser() -> argparse.ArgumentParser:
     gen.add_argument(
         "--out", help="output directory (one subdirectory per rule); default generated/ with --all"
     )
-    gen.add_argument("--rule", choices=sorted(C_RULES), help="only this rule (default: every rule)")
+    gen.add_argument("--rule", choices=sorted(RULES), help="only this rule (default: trapezoid, midpoint)")
     gen.add_argument("--all", action="store_true", help="every example under --examples into generated/")
     gen.add_argument("--examples", default="examples", help="examples folder for --all (default: examples)")
     gen.set_defaults(func=_generate)

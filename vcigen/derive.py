@@ -167,8 +167,9 @@ class DiscreteSystem:
         """Number of internal unknowns of a segment (``n`` per internal point of the rule; 0 for most rules).
 
         They are the last ``stages`` unknowns of every residual routine, after the phase's own
-        (``x = (v, u)``, ``(v, alpha, u)``, ``(w, mu, u)``, ``(w, mu, beta, u)``), with the stationarity
-        rows; routine ``stage`` solves them alone for a given segment (``segment`` then takes them)."""
+        (``x = (v, u)``, ``(v, alpha, u)``, ``(w, mu, u)``, ``(w, mu, beta, u)``), and its first
+        ``stages`` rows are their stationarity; routine ``stage`` solves them alone for a given
+        segment (``segment`` then takes them)."""
         return self.n * self.rule.stages
 
     @property
@@ -312,10 +313,12 @@ def derive(model: Model, rule: str | Rule = "trapezoid") -> DiscreteSystem:
     um = sp.Matrix(us)
 
     def staged(rows: sp.Matrix, start: tuple, vel: tuple, duration: sp.Expr) -> sp.Matrix:
-        """``rows`` and, with internal points, their stationarity on the segment (start, vel, duration)."""
+        """With internal points, their stationarity on the segment (start, vel, duration), then ``rows``.
+
+        The stationarity rows come first in every phase: the solvers settle ``u`` on them alone first."""
         if not us:
             return rows
-        return rows.col_join(seg.stationary(sp.Matrix(start), sp.Matrix(vel), duration, um))
+        return seg.stationary(sp.Matrix(start), sp.Matrix(vel), duration, um).col_join(rows)
 
     pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau, um)
     base = [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), par]

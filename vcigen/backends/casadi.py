@@ -21,6 +21,7 @@ from ..routines import Routine
 from ..simulator import Simulator
 from ..stepper import Tolerances
 from ..sustained import End
+from .ccontext import newton_options
 from .slots import ParameterSlots
 from .sym2casadi import to_casadi
 
@@ -120,9 +121,19 @@ class CasadiKernels(ParameterSlots):
             [x, prm],
             [f(x, *ca.vertsplit(prm, np.cumsum([0] + [a.size for a in r.inputs[1:]]).tolist()))[0]],
         )
-        rf = ca.rootfinder(f"{name}_newton", "newton", g, NEWTON_OPTIONS)
+        options = NEWTON_OPTIONS | {"abstol": newton_options(self.system)["abstol"]}
+        rf = ca.rootfinder(f"{name}_newton", "newton", g, options)
         guess = ca.MX.sym("guess", x.shape[0])
-        sol = rf(guess, prm)
+        ns = self.system.stages if name != "stage" else 0
+        if ns:  # internal points: settle u on their stationarity (the first ns rows) at the guess first
+            nx = x.shape[0] - ns
+            u, xp = ca.MX.sym("u", ns), ca.MX.sym("xp", nx)
+            g_u = ca.Function("g_u", [u, ca.vertcat(xp, prm)], [g(ca.vertcat(xp, u), prm)[:ns]])
+            rf_u = ca.rootfinder(f"{name}_stage_newton", "newton", g_u, options)
+            guess_full = ca.vertcat(guess[:nx], rf_u(guess[nx:], ca.vertcat(guess[:nx], prm)))
+        else:
+            guess_full = guess
+        sol = rf(guess_full, prm)
         res = ca.norm_inf(g(sol, prm))
         return ca.Function(f"{name}_solve", [ca.vertcat(guess, prm)], [ca.vertcat(sol, res)])
 
