@@ -21,6 +21,7 @@ SETS = {
     "pendulum_wall": (0.5, [np.array([d, 0.0]) for d in (0.0, 0.005, 0.01, 0.015)]),
 }
 HS = [0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125]
+LONG = {"star_nonlinear": 200.0, "pendulum_wall": 50.0}  # long runs for the cost per step
 
 
 def best_time(sim, kw, repeats: int = 5) -> float:
@@ -47,13 +48,27 @@ def sweep(name: str, rule: str, refs, t_end: float):
     return rows
 
 
-def at_error(rows, target: float) -> float:
-    """Wall time at error ``target`` (log-log interpolation between the bracketing runs; nan outside)."""
+def at_error(rows, target: float) -> tuple[float, str]:
+    """Wall time at error ``target``: log-log interpolation between the bracketing runs, or below the
+    smallest error an extrapolation along the last two runs' error order at the last run's cost per step
+    (marked)."""
     for (_, e0, w0, _), (_, e1, w1, _) in zip(rows, rows[1:]):
         if e1 <= target <= e0 and e1 < e0:
             f = np.log(target / e0) / np.log(e1 / e0)
-            return float(np.exp(np.log(w0) + f * (np.log(w1) - np.log(w0))))
-    return float("nan")
+            return float(np.exp(np.log(w0) + f * (np.log(w1) - np.log(w0)))), ""
+    (h0, e0, _, _), (h1, e1, w1, _) = rows[-2], rows[-1]
+    if target < e1:
+        order = np.log(e0 / e1) / np.log(h0 / h1)
+        h = h1 * (target / e1) ** (1 / order)
+        return float(w1 * h1 / h), f" (extrapolated, order {order:.2f})"
+    return float("nan"), ""
+
+
+def per_step(name: str, rule: str, h: float, t_end: float) -> float:
+    """Wall time per step of one long run (best of five): the cost without the per-call overhead."""
+    scene = bench_scenes.get(name)
+    sim = vcigen.build(scene.model_factory(), backend="c", rule=rule)
+    return best_time(sim, {"q0": scene.q0, "v0": scene.v0, "h": h, "t_end": t_end}) / round(t_end / h)
 
 
 def main() -> None:
@@ -69,12 +84,18 @@ def main() -> None:
         for rule, rows in out.items():
             for h, e, w, ps in rows:
                 print(f"{rule:10s} {h:<8g} {e:11.3e} {w:10.3e} {ps:10.3e}")
-        ratio = [lb[3] / tr[3] for tr, lb in zip(out["trapezoid"], out["lobatto3"])]
-        spread = f"{min(ratio):.2f}-{max(ratio):.2f}"
-        print(f"cost per step lobatto3 / trapezoid: {np.median(ratio):.2f} (median over h; {spread})")
+        costs = {rule: per_step(name, rule, 0.005, LONG[name]) for rule in out}
+        ct, cl = costs["trapezoid"], costs["lobatto3"]
+        steps = round(LONG[name] / 0.005)
+        print(
+            f"per step (h 0.005, {steps} steps): trapezoid {ct:.3e} s, lobatto3 {cl:.3e}, ratio {cl / ct:.2f}"
+        )
         for target in (1e-4, 1e-6, 1e-8):
-            wt, wl = at_error(out["trapezoid"], target), at_error(out["lobatto3"], target)
-            print(f"wall at error {target:g}: trapezoid {wt:.3e} s, lobatto3 {wl:.3e} s, ratio {wt / wl:.3g}")
+            (wt, nt), (wl, nl) = at_error(out["trapezoid"], target), at_error(out["lobatto3"], target)
+            ratio = wt / wl
+            print(
+                f"at error {target:g}: trapezoid {wt:.3e} s{nt}, lobatto3 {wl:.3e} s{nl}, ratio {ratio:.3g}"
+            )
 
 
 if __name__ == "__main__":

@@ -202,11 +202,12 @@ def _params(sim: vcigen.Simulator, **values: float) -> list[float]:
     return sim.model.resolve_params(values)
 
 
-def test_discrete_noether_momenta():
+@both
+def test_discrete_noether_momenta(backend):
     """p_x on a floor (star) and angular momentum in a circular billiard, to round-off."""
-    res = simulator("star", RULE).simulate(**RUNS["star"], n_impacts=30)
+    res = simulator("star", RULE, backend).simulate(**RUNS["star"], n_impacts=30)
     assert np.max(np.abs(res.p[:, 0] - res.p[0, 0])) < 1e-12 * abs(res.p[0, 0])
-    res = simulator("billiard", RULE).simulate(q0=[0.2, 0.0], v0=[0.3, 1.5], h=0.01, n_impacts=40)
+    res = simulator("billiard", RULE, backend).simulate(q0=[0.2, 0.0], v0=[0.3, 1.5], h=0.01, n_impacts=40)
     ang = res.q[:, 0] * res.p[:, 1] - res.q[:, 1] * res.p[:, 0]
     assert res.n_impacts == 40 and min(im.impulse for im in res.impacts) > 0.1
     assert np.max(np.abs(ang - ang[0])) < 1e-12 * abs(ang[0])
