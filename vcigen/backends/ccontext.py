@@ -49,6 +49,8 @@ HIGH_ORDER_ABSTOL = 1e-15
 def newton_options(system: DiscreteSystem) -> dict[str, float]:
     """The Newton's stopping rule for ``system`` (both backends)."""
     return NEWTON | ({"abstol": HIGH_ORDER_ABSTOL} if system.stages else {})
+
+
 # Damped (backtracking) steps only far from the root: |dx| > DAMP_MIN_STEP (1 + |x|).
 DAMPING = {"min_step": 1e-8, "max_halvings": 10}
 
