@@ -19,7 +19,7 @@ import vcigen
 from vcigen.backends import c as cbackend
 from vcigen.backends.ccontext import NEWTON, render_context
 from vcigen.cli import find_examples, generate_example, main
-from vcigen.rules import RULES
+from vcigen.rules import C_RULES
 
 ROOT = Path(__file__).resolve().parents[1]
 GENERATED = ROOT / "generated"
@@ -239,4 +239,4 @@ def test_failing_compiler_is_a_compile_error_with_its_message(tmp_path: Path) ->
 
 def test_every_rule_is_generated() -> None:
     for example in EXAMPLES:
-        assert sorted(p.name for p in _target(example).iterdir()) == sorted(RULES)
+        assert sorted(p.name for p in _target(example).iterdir()) == sorted(C_RULES)

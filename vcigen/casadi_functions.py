@@ -195,6 +195,8 @@ def functions_of(
     system: DiscreteSystem, newton_options: Mapping[str, object] | None = None
 ) -> dict[str, ca.Function]:
     """:func:`casadi_functions` of an already derived system."""
+    if system.stages:
+        raise ValueError(f"casadi_functions has no rule {system.rule.name!r} (internal points) yet")
     ph = _Phases(system, FUNCTION_NEWTON_OPTIONS if newton_options is None else newton_options)
     out = {"step": ph.step()}
     frictional = system.model.friction_of

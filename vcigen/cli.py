@@ -27,7 +27,7 @@ from types import ModuleType
 
 from .derive import derive
 from .errors import CompileError, SolverError
-from .rules import RULES
+from .rules import C_RULES, RULES
 
 
 def load_example(path: str | Path) -> ModuleType:
@@ -53,7 +53,7 @@ def load_example(path: str | Path) -> ModuleType:
     return module
 
 
-def generate_example(path: str | Path, out: str | Path, rules: Sequence[str] = tuple(RULES)) -> list[Path]:
+def generate_example(path: str | Path, out: str | Path, rules: Sequence[str] = C_RULES) -> list[Path]:
     """Write ``<out>/<rule>/`` (model, driver, Makefile) for the example at ``path``."""
     from .backends.c import generate
 
@@ -76,7 +76,7 @@ def find_examples(root: str | Path) -> list[Path]:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    rules = [args.rule] if args.rule else list(RULES)
+    rules = [args.rule] if args.rule else list(C_RULES)
     if args.all:
         root = Path(args.examples)
         jobs = [
@@ -184,7 +184,7 @@ def parser() -> argparse.ArgumentParser:
     gen.add_argument(
         "--out", help="output directory (one subdirectory per rule); default generated/ with --all"
     )
-    gen.add_argument("--rule", choices=sorted(RULES), help="only this rule (default: every rule)")
+    gen.add_argument("--rule", choices=sorted(RULES), help="only this rule (default: trapezoid, midpoint)")
     gen.add_argument("--all", action="store_true", help="every example under --examples into generated/")
     gen.add_argument("--examples", default="examples", help="examples folder for --all (default: examples)")
     gen.set_defaults(func=_generate)

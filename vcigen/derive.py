@@ -65,16 +65,30 @@ class Segment:
     energy_start: sp.Expr  # E_d - f_d- . v: the energy at its start (E_d without forces)
     f_minus: sp.Matrix  # f_d-, the discrete force at the segment's start (0 without forces)
     f_plus: sp.Matrix  # f_d+, at its end; (f_d- + f_d+) . v = energy - energy_start (vcigen.work)
+    # A rule with internal points (Rule.stages): their O(1) unknowns u and the stationarity dl/du = 0.
+    # p-, p+ and E_d above are the partial derivatives at fixed u, equal to -D1, D2, -D3 of the
+    # extremal L_d where the stationarity holds (the envelope theorem).
+    internal: sp.Matrix = field(default_factory=lambda: sp.zeros(0, 1))
+    stationarity: sp.Matrix = field(default_factory=lambda: sp.zeros(0, 1))
 
-    def at(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr) -> tuple[sp.Matrix, sp.Matrix, sp.Expr]:
-        """``(p-, p+, E_d)`` with the segment's symbols replaced."""
+    def _rep(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr, u: sp.Matrix | None) -> dict:
         rep = dict(zip(self.q0, q0)) | dict(zip(self.v, v)) | {self.tau: tau}
+        return rep | dict(zip(self.internal, u)) if u is not None else rep
+
+    def at(
+        self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr, u: sp.Matrix | None = None
+    ) -> tuple[sp.Matrix, sp.Matrix, sp.Expr]:
+        """``(p-, p+, E_d)`` with the segment's symbols (and internal unknowns ``u``) replaced."""
+        rep = self._rep(q0, v, tau, u)
         return (self.p_minus.xreplace(rep), self.p_plus.xreplace(rep), self.energy.xreplace(rep))
 
-    def start_energy(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr) -> sp.Expr:
+    def start_energy(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr, u: sp.Matrix | None = None) -> sp.Expr:
         """The energy at the segment's start, with its symbols replaced: what (48a) keeps across an impact."""
-        rep = dict(zip(self.q0, q0)) | dict(zip(self.v, v)) | {self.tau: tau}
-        return self.energy_start.xreplace(rep)
+        return self.energy_start.xreplace(self._rep(q0, v, tau, u))
+
+    def stationary(self, q0: sp.Matrix, v: sp.Matrix, tau: sp.Expr, u: sp.Matrix | None = None) -> sp.Matrix:
+        """The internal points' stationarity ``dl/du`` with the symbols replaced (no rows without stages)."""
+        return self.stationarity.xreplace(self._rep(q0, v, tau, u))
 
 
 def discrete_segment(model: Model, rule: Rule) -> Segment:
@@ -86,7 +100,10 @@ def discrete_segment(model: Model, rule: Rule) -> Segment:
     def lagrangian(qq: sp.Matrix, vv: sp.Matrix) -> sp.Expr:
         return model.L.xreplace(dict(zip(qs, qq)) | dict(zip(vs, vv)))
 
-    ell = rule.mean_lagrangian(lagrangian, q0, v, tau)
+    u = sp.Matrix(_vec("u", n * rule.stages)) if rule.stages else sp.zeros(0, 1)
+    inside = (u,) if rule.stages else ()  # the internal points' unknowns, for a rule that has them
+    ell = rule.mean_lagrangian(lagrangian, q0, v, tau, *inside)
+    inner = {"internal": u, "stationarity": sp.Matrix([ell.diff(s) for s in u]) if inside else sp.zeros(0, 1)}
     ell_v = sp.Matrix([ell.diff(s) for s in v])
     ell_q = sp.Matrix([ell.diff(s) for s in q0])
     p_plus = ell_v
@@ -94,11 +111,11 @@ def discrete_segment(model: Model, rule: Rule) -> Segment:
     energy = (v.T * ell_v)[0] - ell - tau * ell.diff(tau)
     if not model.force:
         zero = sp.zeros(n, 1)
-        return Segment(q0, v, tau, p_minus, p_plus, energy, energy, zero, zero)
+        return Segment(q0, v, tau, p_minus, p_plus, energy, energy, zero, zero, **inner)
     f_minus, f_plus = discrete_forces(model, rule, q0, v, tau)
     e_in, e_out = (v.T * f_minus)[0], (v.T * f_plus)[0]
     pm, pp = p_minus - f_minus, p_plus + f_plus
-    return Segment(q0, v, tau, pm, pp, energy + e_out, energy - e_in, f_minus, f_plus)
+    return Segment(q0, v, tau, pm, pp, energy + e_out, energy - e_in, f_minus, f_plus, **inner)
 
 
 def time_slot(model: Model) -> sp.Symbol:
@@ -147,6 +164,16 @@ class DiscreteSystem:
         return len(self.contact_names)
 
     @property
+    def stages(self) -> int:
+        """Number of internal unknowns of a segment (``n`` per internal point of the rule; 0 for most rules).
+
+        They are the last ``stages`` unknowns of every residual routine, after the phase's own
+        (``x = (v, u)``, ``(v, alpha, u)``, ``(w, mu, u)``, ``(w, mu, beta, u)``), and its first
+        ``stages`` rows are their stationarity; routine ``stage`` solves them alone for a given
+        segment (``segment`` then takes them)."""
+        return self.n * self.rule.stages
+
+    @property
     def timed(self) -> bool:
         """Whether the forces depend on time: then ``par`` ends with the time a segment starts at."""
         return self.model.time_symbol is not None
@@ -178,6 +205,8 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
     """
     rule = get_rule(rule)
     n = model.n
+    if rule.stages:
+        unsupported(model, rule)
     names = tuple(model.phi)
     rows = contact_rows(model)
     # friction in sustained contact, set by the stepper (vcigen.sustained): slips, refs, branches
@@ -197,9 +226,10 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
         (Output("momentum", mom), Output("mass", model.mass_matrix.xreplace(rep))),
         "p = dL/dqdot and M = d2L/dqdot2 (start, reflected initial guess).",
     )
+    seg_in = (Arg("q0", tuple(seg.q0)), Arg("v", tuple(seg.v)), Arg("tau", (seg.tau,)))
     segment = Routine(
         "segment",
-        (Arg("q0", tuple(seg.q0)), Arg("v", tuple(seg.v)), Arg("tau", (seg.tau,)), par),
+        (*seg_in, *((Arg("u", tuple(seg.internal)),) if rule.stages else ()), par),
         (
             Output("p_minus", seg.p_minus),
             Output("p_plus", seg.p_plus),
@@ -230,6 +260,14 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
         "Coefficient of restitution of each contact (1: elastic); the jump loses (1 - e^2)/2 of (39).",
     )
     routines = {r.name: r for r in (legendre, segment, contacts, restitution)}
+    if rule.stages:
+        routines["stage"] = _residual_routine(
+            "stage",
+            Arg("x", tuple(seg.internal)),
+            [*seg_in, par],
+            seg.stationarity,
+            "Stationarity dl/du = 0 of the internal points of the segment (q0, v, tau): unknowns u.",
+        )
     if model.friction_of:
         fr, tans = model.friction_of, model.tangents_of
         mus = sp.Matrix([fr[c][0] if c in fr else sp.S.Zero for c in names])
@@ -273,24 +311,40 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
             )
 
     # Smooth step (46): p_k = p-(q_k, q_k + h v, h).
+    # With internal points (Rule.stages) every phase's unknowns end with their O(1) unknowns u and its
+    # rows with their stationarity (DiscreteSystem.stages).
     q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
-    v = _vec("v", n)
-    pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau)
+    v, us = _vec("v", n), _vec("u", n * rule.stages)
+    um = sp.Matrix(us)
+
+    def staged(rows: sp.Matrix, start: tuple, vel: tuple, duration: sp.Expr) -> sp.Matrix:
+        """With internal points, their stationarity on the segment (start, vel, duration), then ``rows``.
+
+        The stationarity rows come first in every phase: the solvers settle ``u`` on them alone first."""
+        if not us:
+            return rows
+        return seg.stationary(sp.Matrix(start), sp.Matrix(vel), duration, um).col_join(rows)
+
+    pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau, um)
     base = [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), par]
     routines["smooth"] = _residual_routine(
-        "smooth", Arg("x", v), base, pm - sp.Matrix(p0), "Smooth step (46), (73): unknown v."
+        "smooth",
+        Arg("x", (*v, *us)),
+        base,
+        staged(pm - sp.Matrix(p0), q0, v, tau),
+        "Smooth step (46), (73): unknown v" + (" and the internal points u." if us else "."),
     )
 
     # Contact time and point (47), (74): unknowns (v, alpha), q~ = q_k + alpha tau v.
     alpha = sp.Dummy("alpha", real=True)
-    pm_a, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), alpha * tau)
+    pm_a, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), alpha * tau, um)
     qt = sp.Matrix(q0) + alpha * tau * sp.Matrix(v)
-    base_x = Arg("x", (*v, alpha))
+    base_x = Arg("x", (*v, alpha, *us))
     shared = _residual_routine(
         "shared_contact_time",
         base_x,
         base,
-        pm_a - sp.Matrix(p0),
+        staged(pm_a - sp.Matrix(p0), q0, v, alpha * tau),
         "Momentum rows of (47), (74), shared by the contacts.",
     )
     for j, c in enumerate(names):
@@ -309,20 +363,21 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
     jargs = [Arg("qc", qc), Arg("nrm", nrm), Arg("p_in", p_in), Arg("e_in", (e_in,)), Arg("tau", (tau,)), par]
 
     def jump_res(duration: sp.Expr) -> sp.Matrix:
-        pm_j, _, _ = seg.at(sp.Matrix(qc), sp.Matrix(w), duration)
-        en_j = seg.start_energy(sp.Matrix(qc), sp.Matrix(w), duration)
-        return (pm_j - sp.Matrix(p_in) - mu * sp.Matrix(nrm)).col_join(sp.Matrix([en_j - e_in]))
+        pm_j, _, _ = seg.at(sp.Matrix(qc), sp.Matrix(w), duration, um)
+        en_j = seg.start_energy(sp.Matrix(qc), sp.Matrix(w), duration, um)
+        rows = (pm_j - sp.Matrix(p_in) - mu * sp.Matrix(nrm)).col_join(sp.Matrix([en_j - e_in]))
+        return staged(rows, qc, w, duration)
 
     routines["jump"] = _residual_routine(
         "jump",
-        Arg("x", (*w, mu)),
+        Arg("x", (*w, mu, *us)),
         jargs,
         jump_res(tau),
         "Jump (48), (75)-(76): tangential momentum and energy kept; unknowns (w, mu).",
     )
     # Several impacts in one step (78): the post-impact segment ends on contact j'.
     qend = sp.Matrix(qc) + beta * tau * sp.Matrix(w)
-    jump_x = Arg("x", (*w, mu, beta))
+    jump_x = Arg("x", (*w, mu, beta, *us))
     shared = _residual_routine(
         "shared_jump_contact", jump_x, jargs, jump_res(beta * tau), "Rows of (78) shared by the contacts."
     )
@@ -335,11 +390,31 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
             f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
             shared,
         )
-    if rows.size:
+    if rule.stages:  # no sustained contact with internal points yet: the paper's impacts only (r = 0)
+        rows = None
+    elif rows.size:
         routines.update(sustained_routines(model, seg, rows, par, phis, q))
     if sensitivities:
         routines.update(tangent_routines(routines))
     return DiscreteSystem(model, rule, names, par.symbols, routines, rows, seg)
+
+
+def unsupported(model: Model, rule: Rule) -> None:
+    """A rule with internal points has the impact phases only: a ``ValueError`` naming what it lacks."""
+    lacks = [
+        what
+        for what, there in (
+            ("forces (Lagrange-d'Alembert)", bool(model.force)),
+            ("friction", bool(model.friction_of)),
+            ("bilateral constraints", bool(model.constraint)),
+        )
+        if there
+    ]
+    if lacks:
+        raise ValueError(
+            f"rule {rule.name!r} (internal points) does not support {', '.join(lacks)} yet; "
+            "use rule 'trapezoid' or 'midpoint' for this model"
+        )
 
 
 def _no_dirac(e: sp.Expr) -> sp.Expr:

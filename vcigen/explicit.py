@@ -75,7 +75,7 @@ def has_explicit_path(system: DiscreteSystem) -> bool:
 
     Not with forces: the map's closed form assumes the momentum of a segment does not depend on time.
     """
-    return system.m > 0 and not system.model.force and smooth_diagonal(system)
+    return system.m > 0 and not system.model.force and not system.stages and smooth_diagonal(system)
 
 
 def is_explicit(system: DiscreteSystem) -> bool:
@@ -83,7 +83,7 @@ def is_explicit(system: DiscreteSystem) -> bool:
 
     Not with forces: the explicit grid step hoists what depends on ``(h, par)`` out of the loop.
     """
-    if system.model.force:
+    if system.model.force or system.stages:  # internal points: (46) couples v with them
         return False
     smooth = system.routines["smooth"]
     state = set(smooth.inputs[0].symbols) | set(smooth.input("q0").symbols)

@@ -5,6 +5,12 @@ A rule gives the *mean Lagrangian* ``l(q0, v, h)`` over one step, with
 velocity ``v`` keeps every derived quantity polynomial in ``h`` (no division
 by the step, so sub-steps ``alpha h -> 0`` are harmless; MATH.md,
 *Conditioning*). Adding a rule is adding one entry to :data:`RULES`.
+
+A rule may carry *internal points* (``stages > 0``): then ``L_d`` is an extremum
+over them (a Galerkin discrete Lagrangian, Marsden & West 2001 §2.6) and the mean
+Lagrangian takes one more argument, the internal points written in O(1) unknowns
+``u`` (``n`` per stage) so that nothing divides by the step; their stationarity
+``dl/du = 0`` is one more residual in every phase (vcigen.derive).
 """
 
 from __future__ import annotations
@@ -32,6 +38,8 @@ class Rule:
     # (F, q0, v, tau, t0) -> (f_d-, f_d+): the discrete forces at the segment's two ends (MATH.md, Forcing),
     # the rule's own quadrature of int F . dq over the segment.
     discrete_forces: Callable[..., tuple[sp.Matrix, sp.Matrix]] | None = None
+    # internal points (each in R^n): mean_lagrangian(L, q0, v, h, u) with u the n * stages O(1) unknowns
+    stages: int = 0
 
 
 def _trapezoid(L: LagrangianFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol) -> sp.Expr:
@@ -75,7 +83,29 @@ TRAPEZOID = Rule(
 )
 MIDPOINT = midpoint_rule()
 
-RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT)}
+
+def _lobatto3(L: LagrangianFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol, u: sp.Matrix) -> sp.Expr:
+    """``L_d = h/6 [L(q0, qdot_0) + 4 L(q_m, qdot_1/2) + L(q1, qdot_1)]`` on the quadratic through
+    ``q0, q_m, q1`` (MATH.md *Higher order*; Lobatto IIIA-IIIB, order 4).
+
+    The internal point is ``q_m = q0 + h (v/2 + u)``: ``u = (q_m - (q0 + q1)/2)/h`` stays O(h), and the
+    quadratic ``q(s) = q0 + s h v + 4 s (1 - s) h u`` has ``q'(s)/h = v + 4 (1 - 2 s) u``: the velocities
+    ``v + 4u``, ``v``, ``v - 4u`` at ``s = 0, 1/2, 1``. The stationarity ``dl/du`` is
+    ``(2/3) [L_v(q0, v + 4u) - L_v(q1, v - 4u) + h L_q(q_m, v)]``, with an O(1) Jacobian ``~ (4/3) 2 M`` in
+    ``u`` even at ``h = 0`` (no division by a sub-step, none of a singular Jacobian either).
+    """
+    qm = q0 + h * (v / 2 + u)
+    return (L(q0, v + 4 * u) + 4 * L(qm, v) + L(q0 + h * v, v - 4 * u)) / 6
+
+
+LOBATTO3 = Rule(
+    "lobatto3", order=4, symmetric=True, mean_lagrangian=_lobatto3, paper="(Marsden-West 2001, 2.6)", stages=1
+)
+
+RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT, LOBATTO3)}
+# The rules `vcigen generate --all` writes into generated/ (every example has every feature under them);
+# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): it has no forces, friction or constraints yet.
+C_RULES: tuple[str, ...] = ("trapezoid", "midpoint")
 
 
 def get_rule(rule: str | Rule) -> Rule:

@@ -404,8 +404,13 @@ class Stepper(SustainedSteps, HeldSteps):
             "jump",
             0.0,
             f"more than {tol.max_impacts_per_step} impacts in one step (Tolerances.max_impacts_per_step); "
-            "raise it if the impacts are real, or reduce h",
+            "raise it if the impacts are real, or reduce h" + self._unheld(),
         )
+
+    def _unheld(self) -> str:
+        """The note an error adds under a rule with internal points, which holds no contact."""
+        system = getattr(self.k, "system", None)
+        return "" if system is None else unheld_note(system)
 
     def _continuous_law(self, q, v_in, p_in, nrm, e: float):
         """The continuous impulse law at an impact: ``(qdot-, M^-1 n, n.qdot-, n.M^-1 n, mu0)``.
@@ -493,8 +498,11 @@ class Stepper(SustainedSteps, HeldSteps):
         root on its side of the vertex, the one Newton converges to, if that root is within
         ``mu0`` of the elastic impulse ``mu0``, and Newton only checks it; a root further
         away (grazing: the energy bias of (48a) dominates) is left to Newton from the
-        start, as without the closed form. Near grazing (48a) can have no root with
-        ``mu > 0`` at all: that is a located ``SolverError``, or with
+        start, as without the closed form. Under a rule with internal points a start's ``w``
+        is the smooth step (46) from ``p_in + mu n``, (48b) alone: the reflected velocity is the
+        continuous one, O(tau) from a segment's, and from it Newton can slide to the root
+        ``mu = 0`` of a shallow crossing, which an exact ``E_d`` makes exact.
+        Near grazing (48a) can have no root with ``mu > 0`` at all: that is a located ``SolverError``, or with
         ``Tolerances(grazing="reflect")`` the continuous law ``mu = mu0`` with (48b) alone.
 
         Mode ``"contact"`` (default, :mod:`vcigen.sustained`): ``(None, "plastic")`` where forces press
@@ -521,9 +529,13 @@ class Stepper(SustainedSteps, HeldSteps):
         mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
         roots = []
         quad = k.jump_quadratic(seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
+        staged = bool(getattr(getattr(k, "system", None), "stages", 0))
         for factor in self.tol.jump_restarts:
             mu_try = mu_scale * factor
             x0 = np.append(vel + mu_try * minv_n, mu_try)
+            if staged:  # (48b) alone at mu_try: the segment map's own w (internal points: no quadratic)
+                w_try = k.solve("smooth", x0[:n], seg.q, seg.p_in + mu_try * seg.nrm, seg.tau)[0]
+                x0[:n] = w_try if np.isfinite(w_try).all() else x0[:n]
             if quad is not None:  # the root Newton from mu_try converges to, in closed form
                 (a, b, c), w0, dw = quad
                 mu_q = quadratic_root(a, b, c, mu_try)
@@ -547,6 +559,7 @@ class Stepper(SustainedSteps, HeldSteps):
                 return np.append(w, mu0), "grazing"
         vn = nv / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"
+
         raise SolverError(
             step,
             t_k,
@@ -554,7 +567,7 @@ class Stepper(SustainedSteps, HeldSteps):
             float("nan") if not roots else 0.0,
             f"no root with mu > 0 of the jump (48) on '{k.contact_names[seg.contact]}' at "
             f"t = {seg.t:.12g} (roots found: mu = {found}); normal speed {vn:.3e} is too small for "
-            "the discrete energy balance (48a) at this h (grazing impact): reduce h",
+            "the discrete energy balance (48a) at this h (grazing impact): reduce h" + self._unheld(),
         )
 
     def _args(self, seg: _Seg) -> tuple:
@@ -697,6 +710,13 @@ class Stepper(SustainedSteps, HeldSteps):
                 "Newton did not converge; reduce h or check "
                 "that the Lagrangian is regular along the trajectory",
             )
+
+
+def unheld_note(system) -> str:
+    """What a jump error adds under a rule with internal points (no sustained contact yet); else ``""``."""
+    if not system.stages:
+        return ""
+    return f"; rule {system.rule.name!r} has no sustained contact yet (trapezoid and midpoint have it)"
 
 
 def warn_reflected(count: int, stacklevel: int = 2) -> None:

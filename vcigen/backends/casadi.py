@@ -22,6 +22,7 @@ from ..simulator import Simulator
 from ..stepper import Tolerances
 from ..sustained import End
 from ..tangents import is_tangent
+from .ccontext import newton_options
 from .slots import ParameterSlots
 from .sym2casadi import to_casadi
 
@@ -78,6 +79,7 @@ class CasadiKernels(ParameterSlots):
         self.functions = {
             name: routine_to_function(r) for name, r in system.routines.items() if not is_tangent(name)
         }
+        self.stages = system.stages  # internal unknowns of a segment: solved here, never seen by the stepper
         self._solvers = {
             name: self._solver(name)
             for name in self.functions
@@ -89,10 +91,11 @@ class CasadiKernels(ParameterSlots):
         self._paths = [self._flat_function(routine_to_function(r)) for r in paths]
         quad = jump_quadratic(system)
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
-        flat = ("legendre", "segment", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
+        flat = ("legendre", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
         flat += ("friction",) if "friction" in system.routines else ()
         flat += ("friction_cone",) if "friction_cone" in system.routines else ()
         self._flat = {name: self._flatten(name) for name in flat}
+        self._flat["segment"] = self._flat_function(self._segment_function())
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
         self.held = has_held_path(system)  # the held grid step (vcigen.held)
@@ -122,11 +125,33 @@ class CasadiKernels(ParameterSlots):
             [x, prm],
             [f(x, *ca.vertsplit(prm, np.cumsum([0] + [a.size for a in r.inputs[1:]]).tolist()))[0]],
         )
-        rf = ca.rootfinder(f"{name}_newton", "newton", g, NEWTON_OPTIONS)
+        options = NEWTON_OPTIONS | {"abstol": newton_options(self.system)["abstol"]}
+        rf = ca.rootfinder(f"{name}_newton", "newton", g, options)
         guess = ca.MX.sym("guess", x.shape[0])
-        sol = rf(guess, prm)
+        ns = self.system.stages if name != "stage" else 0
+        if ns:  # internal points: settle u on their stationarity (the first ns rows) at the guess first
+            nx = x.shape[0] - ns
+            u, xp = ca.MX.sym("u", ns), ca.MX.sym("xp", nx)
+            g_u = ca.Function("g_u", [u, ca.vertcat(xp, prm)], [g(ca.vertcat(xp, u), prm)[:ns]])
+            rf_u = ca.rootfinder(f"{name}_stage_newton", "newton", g_u, options)
+            guess_full = ca.vertcat(guess[:nx], rf_u(guess[nx:], ca.vertcat(guess[:nx], prm)))
+        else:
+            guess_full = guess
+        sol = rf(guess_full, prm)
         res = ca.norm_inf(g(sol, prm))
         return ca.Function(f"{name}_solve", [ca.vertcat(guess, prm)], [ca.vertcat(sol, res)])
+
+    def _segment_function(self) -> ca.Function:
+        """``segment(q0, v, tau, par)``; with internal points it solves their stationarity first (routine
+        ``stage``, Newton from ``u = 0``: ``u`` is O(tau)) and evaluates at the stationary point."""
+        f = self.functions["segment"]
+        if not self.stages:
+            return f
+        q0, v, tau, par = (ca.MX.sym(a.name, a.size) for a in self.system.routines["stage"].inputs[1:])
+        u = self._solvers["stage"](ca.vertcat(ca.MX.zeros(self.stages), q0, v, tau, par))[: self.stages]
+        return ca.Function(
+            "segment", [q0, v, tau, par], f(q0, v, tau, u, par), ["q0", "v", "tau", "par"], f.name_out()
+        )
 
     def _smooth_step(self) -> ca.Function:
         """Smooth step (46) and everything the stepper needs after it, in one call."""
@@ -146,9 +171,11 @@ class CasadiKernels(ParameterSlots):
             p_minus, _, _ = self.functions["segment"](q0, v, tau, par)
             res = ca.norm_inf(p_minus - p0)
         else:
-            out = self._solvers["smooth"](ca.vertcat(guess, q0, p0, tau, par))
-            v, res = out[:n], out[n]
-            _, p1, e = self.functions["segment"](q0, v, tau, par)
+            ns = self.stages  # internal points: their unknowns follow v, from 0 (O(tau))
+            out = self._solvers["smooth"](ca.vertcat(guess, ca.MX.zeros(ns), q0, p0, tau, par))
+            v, res = out[:n], out[n + ns]
+            inner = (out[n : n + ns],) if ns else ()
+            _, p1, e = self.functions["segment"](q0, v, tau, *inner, par)
         phi1, grad1 = self.functions["contacts"](q0 + tau * v, par)
         # Slopes of phi along the segment map at s = 0 and s = 1: tau grad phi . qdot, with the
         # continuous velocities of p0 and p1 (one Newton step of the Legendre transform from v).
@@ -237,9 +264,15 @@ class CasadiKernels(ParameterSlots):
         )
 
     def solve(self, name: str, guess, *args):
-        """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``."""
-        o = self._call(self._solvers[name], guess, *args)
-        return o[:-1], _residual(o)
+        """Newton on routine ``name`` from ``guess``; returns ``(x, |res|_inf)``.
+
+        With internal points (``DiscreteSystem.stages``) the routine's unknowns end with them: Newton
+        starts them from 0 (they are O(tau)) and ``x`` comes back without them."""
+        if not self.stages:
+            o = self._call(self._solvers[name], guess, *args)
+            return o[:-1], _residual(o)
+        o = self._call(self._solvers[name], np.append(guess, np.zeros(self.stages)), *args)
+        return o[: -1 - self.stages], _residual(o)
 
     def legendre(self, q, v):
         n = self.n

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import asdict
 from typing import Any
@@ -23,7 +24,7 @@ from ..held import SQRT_POWERS, has_held_path, held_routines, hess_pattern
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
-from ..stepper import Tolerances
+from ..stepper import Tolerances, unheld_note
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
 from .cspecialise import Structure, detect, phi_routine
@@ -40,6 +41,17 @@ def c_number(v: object) -> str:
 
 
 NEWTON = {"abstol": 1e-13, "abstol_step": 1e-15, "max_iter": 40}
+# A fourth-order rule (internal points) runs Newton to round-off: at abstol 1e-13 the momentum each step
+# leaves behind adds up over the steps to more than the h^4 error (5.7e-11 against 2.1e-11 at h = 0.0025
+# on star_nonlinear, tests/test_lobatto3.py); the step test |dx| <= abstol_step still ends it.
+HIGH_ORDER_ABSTOL = 1e-15
+
+
+def newton_options(system: DiscreteSystem) -> dict[str, float]:
+    """The Newton's stopping rule for ``system`` (both backends)."""
+    return NEWTON | ({"abstol": HIGH_ORDER_ABSTOL} if system.stages else {})
+
+
 # Damped (backtracking) steps only far from the root: |dx| > DAMP_MIN_STEP (1 + |x|).
 DAMPING = {"min_step": 1e-8, "max_halvings": 10}
 
@@ -132,15 +144,24 @@ def routine_context(r: Routine) -> dict[str, Any]:
             }
             for o, entries, fill in zip(r.outputs, outs, fills)
         ],
-        "unused": [] if r.head is not None else _unused(r),
+        "unused": []
+        if r.head is not None
+        else _unused(r, [e for _, e in temps] + [e for o in outs for _, e in o]),
         "temps": [{"name": n, "expr": e} for n, e in temps],
     }
 
 
-def _unused(r: Routine) -> list[str]:
-    """The inputs none of whose symbols an output holds (``(void)`` in C)."""
+def _unused(r: Routine, printed: list[str]) -> list[str]:
+    """The inputs none of whose symbols an output holds, or that the printed C never reads (``(void)`` in C).
+
+    The second catches terms that cancel only in the CSE (``8 (v + 4 u) - 8 (v - 4 u)`` of a stationarity)."""
     used = set().union(*(e.free_symbols for o in r.outputs for e in o.expr.flat())) if r.outputs else set()
-    return [a.name for a in r.inputs if not set(a.symbols) & used]
+    text = "\n".join(printed)
+    return [
+        a.name
+        for a in r.inputs
+        if not set(a.symbols) & used or not re.search(rf"\b{re.escape(a.name)}\[", text)
+    ]
 
 
 def with_heads(routines: list[Routine]) -> list[Routine]:
@@ -156,12 +177,24 @@ def with_heads(routines: list[Routine]) -> list[Routine]:
 
 def is_residual(r: Routine) -> bool:
     """A routine of an unknown ``x`` (first input) that the solvers call through an adapter. The tangents
-    ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated, directly."""
-    return r.inputs[0].name == "x" and not is_tangent(r.name)
+    ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated, directly; the stage of a
+    rule with internal points is solved inside ``<model>_segment``."""
+    return r.inputs[0].name == "x" and not is_tangent(r.name) and r.name != "stage"
+
+
+def _c_routine(system: DiscreteSystem, r: Routine) -> Routine:
+    """``r`` as emitted: with internal points the derived ``segment`` (it takes ``u``) is ``segment_at``, and
+    ``<model>_segment`` (newton.c.j2) solves the stage ``u`` first, as ``CasadiKernels.segment`` does."""
+    if r.name != "segment" or not system.stages:
+        return r
+    return Routine("segment_at", r.inputs, r.outputs, r.doc + " At the internal unknowns u.")
 
 
 def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
-    """Residual routines in a fixed order with an integer id (the ctypes ``solve`` switch)."""
+    """Residual routines in a fixed order with an integer id (the ctypes ``solve`` switch).
+
+    ``nx`` is the phase's own unknowns: with internal points the Newton appends and drops them
+    (``<model>_newton`` in newton.c.j2); the stage alone is solved inside ``<model>_segment``."""
     out = []
     for name, r in system.routines.items():
         if not is_residual(r):
@@ -170,7 +203,8 @@ def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
         for a in r.inputs[1:-1]:  # everything between the unknown and par, flattened
             offsets.append(k)
             k += a.size
-        out.append({"id": len(out), "name": name, "nx": r.inputs[0].size, "offsets": offsets, "nargs": k})
+        nx = r.inputs[0].size - system.stages
+        out.append({"id": len(out), "name": name, "nx": nx, "offsets": offsets, "nargs": k})
     return out
 
 
@@ -197,7 +231,8 @@ def render_context(
                 f"the sensitivity variant needs the routines {missing}: "
                 "derive(model, rule, sensitivities=True)"
             )
-    routines = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
+    kept = [r for r in system.routines.values() if sensitivities or not is_tangent(r.name)]
+    routines = [_c_routine(system, r) for r in kept]
     routines += [phi_routine(system)]
     sens_map = smooth_map_routine(system) if sensitivities else None  # the smooth step's tangent, fused
     routines += [sens_map] if sens_map else []
@@ -207,7 +242,7 @@ def render_context(
     quad = jump_quadratic(system)
     routines += grid + ([quad] if quad else [])
     # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants
-    implicit = implicit_routines(system) if not structure.smooth_linear else []
+    implicit = implicit_routines(system) if not (structure.smooth_linear or system.stages) else []
     routines += implicit
     held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
     routines += held
@@ -223,6 +258,8 @@ def render_context(
         "hash": model_hash(system),
         "version": __version__,
         "n": n,
+        "ns": system.stages,  # internal unknowns of a segment (internal points): the Newton hides them
+        "unheld": unheld_note(system),  # what a jump error adds under such a rule (Stepper._unheld)
         "m": system.m,
         "r": system.r,
         "nc": len(model.constraint),
@@ -288,7 +325,7 @@ def render_context(
         "nonfinite": NONFINITE,
         "tol": _tol_context(tol or Tolerances()),
         "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],
-        "newton": {k: repr(v) for k, v in NEWTON.items()},
+        "newton": {k: repr(v) for k, v in newton_options(system).items()},
         "damping": {k: repr(v) for k, v in DAMPING.items()},
         "structure": {
             "smooth_linear": structure.smooth_linear,

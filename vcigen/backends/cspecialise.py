@@ -83,7 +83,11 @@ class Structure:
 
 
 def detect(system: DiscreteSystem) -> Structure:
-    """Inspect the smooth residual's Jacobian (46) for linearity and diagonality."""
+    """Inspect the smooth residual's Jacobian (46) for linearity and diagonality.
+
+    A rule with internal points takes the general path: Newton on ``(v, u)`` in every phase."""
+    if system.stages:
+        return Structure(False, False, False, mass_diagonal=mass_diagonal(system))
     smooth = system.routines["smooth"]
     x = set(smooth.inputs[0].symbols)
     jac = smooth_jacobian(system)  # expanded: terms that cancel only then do
