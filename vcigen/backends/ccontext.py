@@ -177,9 +177,8 @@ def with_heads(routines: list[Routine]) -> list[Routine]:
 
 def is_residual(r: Routine) -> bool:
     """A routine of an unknown ``x`` (first input) that the solvers call through an adapter. The tangents
-    ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated, directly; the stage of a
-    rule with internal points is solved inside ``<model>_segment``."""
-    return r.inputs[0].name == "x" and not is_tangent(r.name) and r.name != "stage"
+    ``d_<residual>`` (vcigen.tangents) take the same inputs but are only evaluated, directly."""
+    return r.inputs[0].name == "x" and not is_tangent(r.name)
 
 
 def _c_routine(system: DiscreteSystem, r: Routine) -> Routine:
@@ -197,7 +196,7 @@ def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
     (``<model>_newton`` in newton.c.j2); the stage alone is solved inside ``<model>_segment``."""
     out = []
     for name, r in system.routines.items():
-        if not is_residual(r):
+        if not is_residual(r) or name == "stage":  # the stage is solved inside <model>_segment
             continue
         offsets, k = [], 0
         for a in r.inputs[1:-1]:  # everything between the unknown and par, flattened

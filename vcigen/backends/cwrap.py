@@ -130,8 +130,9 @@ class CKernels(ParameterSlots):
         self._legendre.argtypes = [ctypes.c_void_p] * 5
         self._segment = getattr(self.lib, f"{pre}_eval_segment")
         self._segment.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D]
-        self._start_energy = getattr(self.lib, f"{pre}_eval_start_energy")
-        self._start_energy.argtypes = [_D, _D, ctypes.c_double, _D, _D]
+        self._start_energy = getattr(self.lib, f"{pre}_eval_start_energy", None)  # only with forces
+        if self._start_energy is not None:
+            self._start_energy.argtypes = [_D, _D, ctypes.c_double, _D, _D]
         self._contacts = getattr(self.lib, f"{pre}_eval_contacts")
         self._contacts.argtypes = [ctypes.c_void_p] * 4
         # scratch for legendre and contacts (the start of every run): q, v, p, M, phi, grad phi
@@ -228,6 +229,9 @@ class CKernels(ParameterSlots):
         return pm, pp, float(e[0])
 
     def start_energy(self, q0, v, tau) -> float:
+        """The energy at the segment's start (``E_d - f_d- . v``); without forces ``E_d`` itself."""
+        if self._start_energy is None:
+            return self.segment(q0, v, tau)[2]
         n, e = self.n, np.empty(1)
         self._start_energy(_ptr(_vec(q0, n)), _ptr(_vec(v, n)), float(tau), _ptr(self.par), _ptr(e))
         return float(e[0])
