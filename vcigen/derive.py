@@ -146,7 +146,7 @@ def discrete_forces(model: Model, rule: Rule, q0: sp.Matrix, v: sp.Matrix, tau: 
     ``E_d - f_d- . v`` of the segment after an impact equal to ``E_d + f_d+ . v`` of the one before.
     """
     if rule.discrete_forces is None:
-        raise ValueError(f"rule {rule.name!r} has no discrete forces; forces need trapezoid or midpoint")
+        raise ValueError(f"rule {rule.name!r} has no discrete forces (trapezoid, midpoint, lobatto3 have)")
     return rule.discrete_forces(lambda q, vv, t: force_at(model, q, vv, t), q0, v, tau, time_slot(model))
 
 
@@ -414,7 +414,8 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
 
 
 def unsupported(model: Model, rule: Rule) -> None:
-    """A rule with internal points has the impact phases only: a ``ValueError`` naming what it lacks."""
+    """A rule with internal points has the impact phases and forces only: a ``ValueError`` naming what it
+    lacks (friction, bilateral constraints; sustained contact is a located ``SolverError`` in the run)."""
     lacks = [
         what
         for what, there in (

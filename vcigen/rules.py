@@ -160,7 +160,7 @@ LOBATTO3 = Rule(
 
 RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT, LOBATTO3)}
 # The rules `vcigen generate --all` writes into generated/ (every example has every feature under them);
-# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): it has no forces, friction or constraints yet.
+# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): forces, but no friction or constraints yet.
 C_RULES: tuple[str, ...] = ("trapezoid", "midpoint")
 
 

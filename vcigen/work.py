@@ -109,9 +109,9 @@ def _none(*_args):
 
 
 def _staged_work(system: DiscreteSystem) -> Callable[..., np.ndarray]:
-    """``(q0, v, tau, t0, par) -> (K,)``: ``E_end - E_start`` of each segment under a rule with internal points,
-    the rule's own quadrature of ``int F . qdot dt`` (``vcigen.rules.StagedForces``: ``start + end``), at the
-    internal points' stationarity ``dl/du + f_stage = 0`` solved here by Newton from ``u = 0`` (vectorised)."""
+    """``(q0, v, tau, t0, par) -> (K,)``: ``E_end - E_start`` of each segment under a rule with internal
+    points, the rule's own quadrature of ``int F . qdot dt`` (``vcigen.rules.StagedForces``: ``start + end``),
+    at the internal points' stationarity ``dl/du + f_stage = 0``, solved here by Newton from ``u = 0``."""
     seg = system.segment
     u = list(seg.internal)
     args = [*seg.q0, *seg.v, seg.tau, *u]
@@ -127,8 +127,9 @@ def _staged_work(system: DiscreteSystem) -> Callable[..., np.ndarray]:
         pars = list(values) if not system.timed else [*list(values)[:-1], t0]
         uu = np.zeros((tau.size, ns))
         for _ in range(20):
-            r = np.stack([col(x, tau.shape) for x in stat(*q0.T, *v.T, tau, *uu.T, *pars)[0]], -1)
-            j = np.stack([np.stack([col(x, tau.shape) for x in row], -1) for row in jac(*q0.T, *v.T, tau, *uu.T, *pars)], 1)
+            at = (*q0.T, *v.T, tau, *uu.T, *pars)
+            r = np.stack([col(x, tau.shape) for x in stat(*at)[0]], -1)
+            j = np.stack([np.stack([col(x, tau.shape) for x in row], -1) for row in jac(*at)], 1)
             du = np.linalg.solve(j, r[..., None])[..., 0]
             uu = uu - du
             if np.max(np.abs(du), initial=0.0) < 1e-15:
