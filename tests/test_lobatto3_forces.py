@@ -202,15 +202,16 @@ def test_energy_balance_is_fourth_order(backend):
     assert worst[1] < 5e-8 and worst[0] / worst[1] > 12.0, worst
 
 
-def test_energy_balance_stays_small_over_many_impacts():
-    """135 impacts of the driven oscillator in 500 s: the balance stays below 1e-6 at h = 0.01 (sum |W| ~ 420)
-    and keeps shrinking by at least 10 when h halves (no O(1) share from the impact steps)."""
+def test_energy_balance_stays_fourth_order_over_many_impacts():
+    """541 impacts of the driven oscillator in 2000 s (2e5 steps at h = 0.01; sum |W| ~ 1.7e3): the balance
+    stays below 5e-7 and shrinks by more than 12 when h halves (measured 4.4e-6, 2.7e-7; trapezoid's bound
+    in tests/test_forces.py is 1e-3): the impact steps leave no O(1) share."""
     worst = []
     for h in (0.02, 0.01):
-        res = driven("c").simulate(q0=[0.0], v0=[0.0], h=h, t_end=500.0)
-        assert len(res.impacts) > 100 and np.sum(np.abs(res.work)) > 400.0
+        res = driven("c").simulate(q0=[0.0], v0=[0.0], h=h, t_end=2000.0)
+        assert len(res.impacts) > 500 and np.sum(np.abs(res.work)) > 1500.0
         worst.append(float(np.max(np.abs(res.energy_balance()))))
-    assert worst[1] < 1e-6 and worst[0] / worst[1] > 10.0, worst
+    assert worst[1] < 5e-7 and worst[0] / worst[1] > 12.0, worst
 
 
 def test_work_of_damping_is_dissipative():
