@@ -30,6 +30,10 @@ conservative mismatch no longer telescopes: the nodes join segments of different
 ``E_d`` across the impact; :func:`impact_work` books what is left, ``b = O(h^2)`` an impact (README,
 *Forces*), without which the balance drifts in proportion to the number of impacts; a plastic impact also
 books the difference of its logged energy after it to the energy at the start of the held segment after.
+
+A rule with internal points (lobatto3) books only its segments' own quadrature of the work, ``E_end -
+E_start`` (``vcigen.rules.StagedForces``), with no node term: the corrections above are O(h^2) ones and its
+balance is O(h^4) without them, impact steps included (README *Fourth order*, measured there).
 """
 
 from __future__ import annotations
