@@ -126,14 +126,16 @@ def test_energy_balance_is_second_order(backend):
     assert 3.0 < worst[0] / worst[1] < 5.5, worst
 
 
-def test_energy_balance_has_no_drift_under_a_periodic_drive():
-    """2e5 steps of the undamped driven oscillator (C, wall out of reach): the balance is bounded, no drift"""
-    res = driven("c").simulate(q0=[0.0], v0=[0.0], h=0.01, t_end=2000.0, params={"c": 0.0, "d": 100.0})
+@pytest.mark.parametrize("rule,bound,drift", [("trapezoid", 6e-3, 1e-4), ("lobatto3", 1e-7, 1e-9)])
+def test_energy_balance_has_no_drift_under_a_periodic_drive(rule, bound, drift):
+    """2e5 steps of the undamped driven oscillator (C, wall out of reach): the balance is bounded, no drift
+    (lobatto3 books its own work quadrature: measured max 3.1e-8, last tenth less first tenth 5.9e-11)."""
+    res = driven("c", rule).simulate(q0=[0.0], v0=[0.0], h=0.01, t_end=2000.0, params={"c": 0.0, "d": 100.0})
     bal = res.energy_balance()
     n = bal.size
     assert np.sum(np.abs(res.work)) > 1000.0  # the drive does work, both ways
-    assert np.max(np.abs(bal)) < 6e-3
-    assert abs(np.mean(bal[-n // 10 :]) - np.mean(bal[: n // 10])) < 1e-4
+    assert np.max(np.abs(bal)) < bound
+    assert abs(np.mean(bal[-n // 10 :]) - np.mean(bal[: n // 10])) < drift
 
 
 def test_energy_balance_with_damping_and_impacts_is_second_order_and_bounded():

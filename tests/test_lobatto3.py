@@ -366,12 +366,13 @@ def test_restitution_loses_the_normal_energy(backend):
 
 
 def test_unsupported_features_are_refused_by_name():
-    from forced_scenes import driven_oscillator
+    """Forces are supported (tests/test_lobatto3_forces.py); bilateral constraints and friction not yet."""
+    from test_sustained_closed_forms import pendulum
 
-    with pytest.raises(ValueError, match="lobatto3.*forces"):
-        vcigen.derive(driven_oscillator(), RULE)
-    with pytest.raises(ValueError, match="lobatto3.*forces"):
-        vcigen.build(driven_oscillator(), backend="c", rule=RULE)
+    with pytest.raises(ValueError, match="lobatto3.*bilateral constraints"):
+        vcigen.derive(pendulum(), RULE)
+    with pytest.raises(ValueError, match="lobatto3.*bilateral constraints"):
+        vcigen.build(pendulum(), backend="c", rule=RULE)
     with pytest.raises(ValueError, match="lobatto3"):
         vcigen.casadi_functions(billiard(), rule=RULE)
 

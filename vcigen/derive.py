@@ -64,7 +64,8 @@ class Segment:
     energy: sp.Expr  # E_d + f_d+ . v: the energy at the segment's end (E_d without forces)
     energy_start: sp.Expr  # E_d - f_d- . v: the energy at its start (E_d without forces)
     f_minus: sp.Matrix  # f_d-, the discrete force at the segment's start (0 without forces)
-    f_plus: sp.Matrix  # f_d+, at its end; (f_d- + f_d+) . v = energy - energy_start (vcigen.work)
+    f_plus: sp.Matrix  # f_d+, at its end; (f_d- + f_d+) . v = energy - energy_start (vcigen.work; not
+    # under internal points: there f_d-, f_d+ depend on u and that difference is the rule's own quadrature)
     # A rule with internal points (Rule.stages): their O(1) unknowns u and the stationarity dl/du = 0.
     # p-, p+ and E_d above are the partial derivatives at fixed u, equal to -D1, D2, -D3 of the
     # extremal L_d where the stationarity holds (the envelope theorem).
@@ -112,6 +113,12 @@ def discrete_segment(model: Model, rule: Rule) -> Segment:
     if not model.force:
         zero = sp.zeros(n, 1)
         return Segment(q0, v, tau, p_minus, p_plus, energy, energy, zero, zero, **inner)
+    if rule.stages:  # internal points: the rule's quadrature also forces them, and (37) sees their velocities
+        sf = staged_forces(model, rule, q0, v, tau, u)
+        inner["stationarity"] = inner["stationarity"] + sf.stage
+        e_d = energy + sf.energy
+        pm, pp = p_minus - sf.minus, p_plus + sf.plus
+        return Segment(q0, v, tau, pm, pp, e_d + sf.end, e_d - sf.start, sf.minus, sf.plus, **inner)
     f_minus, f_plus = discrete_forces(model, rule, q0, v, tau)
     e_in, e_out = (v.T * f_minus)[0], (v.T * f_plus)[0]
     pm, pp = p_minus - f_minus, p_plus + f_plus
@@ -139,8 +146,15 @@ def discrete_forces(model: Model, rule: Rule, q0: sp.Matrix, v: sp.Matrix, tau: 
     ``E_d - f_d- . v`` of the segment after an impact equal to ``E_d + f_d+ . v`` of the one before.
     """
     if rule.discrete_forces is None:
-        raise ValueError(f"rule {rule.name!r} has no discrete forces; forces need trapezoid or midpoint")
+        raise ValueError(f"rule {rule.name!r} has no discrete forces (trapezoid, midpoint, lobatto3 have)")
     return rule.discrete_forces(lambda q, vv, t: force_at(model, q, vv, t), q0, v, tau, time_slot(model))
+
+
+def staged_forces(model: Model, rule: Rule, q0: sp.Matrix, v: sp.Matrix, tau: sp.Symbol, u: sp.Matrix):
+    """:class:`~vcigen.rules.StagedForces` of a rule with internal points ``u`` (MATH.md, Forcing)."""
+    if rule.staged_forces is None:
+        raise ValueError(f"rule {rule.name!r} has no discrete forces for its internal points")
+    return rule.staged_forces(lambda q, vv, t: force_at(model, q, vv, t), q0, v, tau, time_slot(model), u)
 
 
 @dataclass(frozen=True)
@@ -400,11 +414,11 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
 
 
 def unsupported(model: Model, rule: Rule) -> None:
-    """A rule with internal points has the impact phases only: a ``ValueError`` naming what it lacks."""
+    """A rule with internal points has the impact phases and forces only: a ``ValueError`` naming what it
+    lacks (friction, bilateral constraints; sustained contact is a located ``SolverError`` in the run)."""
     lacks = [
         what
         for what, there in (
-            ("forces (Lagrange-d'Alembert)", bool(model.force)),
             ("friction", bool(model.friction_of)),
             ("bilateral constraints", bool(model.constraint)),
         )

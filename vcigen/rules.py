@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import sympy as sp
 
@@ -40,6 +41,32 @@ class Rule:
     discrete_forces: Callable[..., tuple[sp.Matrix, sp.Matrix]] | None = None
     # internal points (each in R^n): mean_lagrangian(L, q0, v, h, u) with u the n * stages O(1) unknowns
     stages: int = 0
+    # A rule with internal points: (F, q0, v, tau, t0, u) -> StagedForces (discrete_forces stays None).
+    staged_forces: Callable[..., StagedForces] | None = None
+
+
+@dataclass(frozen=True)
+class StagedForces:
+    """Discrete Lagrange-d'Alembert forces of a rule with internal points (MATH.md *Forcing*), in the
+    segment's unknowns ``(q0, v, u)``.
+
+    ``stage`` is the force on the internal points: their stationarity reads ``dl/du + stage = 0``.
+    ``minus``, ``plus`` are ``f_d-``, ``f_d+`` at the ends *with the internal points' share* (the chain rule
+    from the nodes ``(q0, q_m, q1)`` to ``(q0, v, u)`` with the stationarity substituted), so that
+    ``p- = l_v - tau l_q0 - minus`` and ``p+ = l_v + plus``. ``energy`` corrects ``E_d = v . l_v - l - tau
+    l_tau`` to ``-D3 L_d`` at fixed nodes (the term ``u . l_u`` with ``l_u = -stage``). ``start`` and
+    ``end`` are the quadratures of the time component ``F_t = -F . qdot`` (37) against the variation of the
+    start and end times (``delta t(s) = (1 - s) delta t0``, ``s delta t1`` at fixed nodes), with the sign
+    that makes the energy at the segment's start ``E_d - start`` and at its end ``E_d + end``; ``end +
+    start`` is the rule's quadrature of the work ``int F . qdot dt`` over the segment.
+    """
+
+    minus: Any
+    plus: Any
+    stage: Any
+    energy: Any
+    start: Any
+    end: Any
 
 
 def _trapezoid(L: LagrangianFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol) -> sp.Expr:
@@ -98,13 +125,42 @@ def _lobatto3(L: LagrangianFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol, u: sp.
     return (L(q0, v + 4 * u) + 4 * L(qm, v) + L(q0 + h * v, v - 4 * u)) / 6
 
 
+def _lobatto3_forces(F: ForceFn, q0: sp.Matrix, v: sp.Matrix, h: sp.Symbol, t0: sp.Expr, u: sp.Matrix):
+    """Lobatto quadrature of the virtual work ``int F . delta q dt`` over the quadratic ``q(s)`` of
+    :func:`_lobatto3`: node forces ``h/6 F_0``, ``4h/6 F_m``, ``h/6 F_1`` on ``q0, q_m, q1`` (the Lagrange
+    basis is 1 at its own node, 0 at the others), each ``F`` at its node's position, velocity
+    (``v + 4u``, ``v``, ``v - 4u``) and time (``t0``, ``t0 + h/2``, ``t0 + h``).
+
+    With ``u = (q_m - (q0 + q1)/2)/h``: ``dl/du = dL_d/dq_m``, so the stationarity gains ``f_m = 4h/6 F_m``;
+    ``-D1 L_d = l_v - h l_q0 + l_u/2`` and ``D2 L_d = l_v - l_u/2`` at fixed ``q_m``, so with ``l_u = -f_m``
+    each end takes half of ``f_m``; ``-D3 L_d = v . l_v + u . l_u - l - h l_h`` at fixed nodes.
+    """
+    f0 = F(q0, v + 4 * u, t0)
+    fm = F(q0 + h * (v / 2 + u), v, t0 + h / 2)
+    f1 = F(q0 + h * v, v - 4 * u, t0 + h)
+    stage = sp.Rational(2, 3) * h * fm
+    minus = h / 6 * f0 + stage / 2
+    plus = h / 6 * f1 + stage / 2
+    # time component F_t = -F . qdot at each node, weights h/6 (4h/6, h/6) times delta t(s) = 1 - s (s)
+    wm = (fm.T * v)[0]
+    start = h / 6 * ((f0.T * (v + 4 * u))[0] + 2 * wm)
+    end = h / 6 * (2 * wm + (f1.T * (v - 4 * u))[0])
+    return StagedForces(minus, plus, stage, -(u.T * stage)[0], start, end)
+
+
 LOBATTO3 = Rule(
-    "lobatto3", order=4, symmetric=True, mean_lagrangian=_lobatto3, paper="(Marsden-West 2001, 2.6)", stages=1
+    "lobatto3",
+    order=4,
+    symmetric=True,
+    mean_lagrangian=_lobatto3,
+    paper="(Marsden-West 2001, 2.6)",
+    stages=1,
+    staged_forces=_lobatto3_forces,
 )
 
 RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT, LOBATTO3)}
 # The rules `vcigen generate --all` writes into generated/ (every example has every feature under them);
-# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): it has no forces, friction or constraints yet.
+# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): forces, but no friction or constraints yet.
 C_RULES: tuple[str, ...] = ("trapezoid", "midpoint")
 
 

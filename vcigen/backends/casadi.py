@@ -287,9 +287,13 @@ class CasadiKernels(ParameterSlots):
     def start_energy(self, q0, v, tau) -> float:
         """The energy at the start of the segment ``(q0, v, tau)`` (``E_d - f_d- . v`` with forces): the
         energy row of the jump's residual (48a) at ``e_in = 0``."""
-        n, zero = self.n, np.zeros(self.n)
-        res = self.functions["jump"](np.append(v, 0.0), q0, zero, zero, 0.0, tau, self.par)[0]
-        return float(res[n])
+        n, zero, ns = self.n, np.zeros(self.n), self.stages
+        x = np.append(v, 0.0)
+        if ns:  # at the stationary internal points of the segment (rows: the stationarity first)
+            u = self._call(self._solvers["stage"], np.zeros(ns), q0, v, tau)[:ns]
+            x = np.append(x, u)
+        res = self.functions["jump"](x, q0, zero, zero, 0.0, tau, self.par)[0]
+        return float(res[ns + n])
 
     def contacts(self, q):
         m, n = self.m, self.n

@@ -350,7 +350,8 @@ def render_context(
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            if is_residual(r) and r.name not in {s.name for s in implicit}  # called directly
+            # called directly; the stage's adapter is <model>_segment's (newton.c.j2)
+            if (is_residual(r) or r.name == "stage") and r.name not in {s.name for s in implicit}
         ],
         "residuals": _residual_ids(system),
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
