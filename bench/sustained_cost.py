@@ -1,6 +1,7 @@
 """Cost of a grid step in sustained contact against a free step of the same model (C and CasADi).
 
     .venv/bin/python -m bench.sustained_cost [--steps 200000] [--casadi-steps 1000] [--repeats 5]
+        [--scenes bowl ...]
 
 Target (the issue): a sustained-contact step in C costs at most 3x a free step.
 
@@ -286,17 +287,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--backend", nargs="+", default=["c", "casadi"], choices=["c", "casadi"])
     ap.add_argument("--csv", type=Path, default=HERE / "results" / "sustained_cost.csv")
+    names = [s.name for s in SCENES]
+    ap.add_argument("--scenes", nargs="+", choices=names, help="these scenes only (and the ones they mirror)")
     a = ap.parse_args(argv)
+    scenes = [s for s in SCENES if not a.scenes or s.name in a.scenes]
+    scenes += [s for s in SCENES if s.name in {x.reference for x in scenes} and s not in scenes]
     warnings.simplefilter("ignore", RuntimeWarning)
     keep_heap()
     rows = []
     for backend in a.backend:
         steps = a.steps if backend == "c" else a.casadi_steps
-        for scene in SCENES:
+        for scene in scenes:
             scene.sims[backend] = vcigen.build(scene.model(), backend=backend)
-        got = measure(SCENES, backend, steps, a.repeats)
+        got = measure(scenes, backend, steps, a.repeats)
         by_name = {r["scene"]: r for r in got}
-        for scene, row in zip(SCENES, got):
+        for scene, row in zip(scenes, got):
             if scene.reference:  # the same dynamics: the variant must end where its explicit scene does
                 ref = by_name[scene.reference]
                 for kind in ("sustained", "free"):
