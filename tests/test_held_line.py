@@ -1,8 +1,9 @@
-"""The held step's closed-form start on a row whose zero set is a quadratic's (vcigen.held.line_form).
+"""The held step's line start on a row whose zero set is a quadratic's (vcigen.held.line_form).
 
-One active row ``psi`` with ``psi = 0`` equivalent to ``F(q) = 0``, ``F`` a polynomial of degree 2 (a circle's,
-a sphere's, an ellipse's, a rod's row): along the held step's line ``q1 = a + Lam b`` the row vanishes where the
-quadratic ``held_line`` gives ``A Lam^2 + B Lam + C = 0``, so the held Newton starts at that root and ends at its
+One active row ``psi`` with ``psi = 0`` equivalent to ``F(q) = 0``, ``F`` a polynomial of degree 2 (a
+circle's, a sphere's, an ellipse's, a rod's row): along the held step's line ``q1 = a + Lam b`` the row
+vanishes where the quadratic ``held_line`` gives ``A Lam^2 + B Lam + C = 0``, so the held Newton starts one
+Newton step on that quadratic past the previous multipliers (no evaluation of the rows) and mostly ends at its
 first evaluation. The trajectories it gives are checked against the general chain and across the backends in
 ``tests/test_c_agreement_sustained.py`` (the bowl, the dome, the pendulum's rod).
 """
@@ -111,8 +112,8 @@ def test_held_line_is_the_row_along_the_line() -> None:
 
 
 def _evaluations(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
-    """Held steps taken and the row evaluations (``held_rows``) they made, on CasADi's kernels (held.held_step),
-    with the closed-form start or (``lines`` False) without."""
+    """Held steps taken and the row evaluations (``held_rows``) they made, on CasADi's kernels
+    (held.held_step), with the line start or (``lines`` False) without."""
     s = vcigen.build(model(), backend="casadi")
     k = s.kernels.bind(s.model.resolve_params(None))
     kept = k.held_lines
@@ -154,9 +155,10 @@ def _evaluations(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
     [(_bowl, [0.6, -0.8]), (_rod, [float(np.sin(1.0)), -float(np.cos(1.0))])],
 )
 def test_one_evaluation_per_held_step_on_a_curved_row(model, q0) -> None:
-    """With the closed-form start every held step on the moving curved row converges at its first evaluation
-    (two evaluations of the rows a step: at q for G0, at q1); from the previous multipliers it iterates."""
+    """With the line start the held steps on the moving curved row converge at their first evaluation (two
+    evaluations of the rows a step: at q for G0, at q1; a few steps in 300 take a third); from the previous
+    multipliers every step iterates."""
     taken, calls = _evaluations(model, q0, [0.0, 0.0], 1e-3, 300, lines=True)
-    assert taken >= 290 and calls == 2 * taken
+    assert taken >= 290 and calls <= 2.02 * taken
     taken, calls = _evaluations(model, q0, [0.0, 0.0], 1e-3, 300, lines=False)
     assert taken >= 290 and calls >= 2.5 * taken

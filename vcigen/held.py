@@ -12,9 +12,9 @@ both reduce to the ``R_A`` multipliers of the active rows ``A``:
   Newton in ``Lam`` with the Jacobian ``h G1 J^-1 G0^T`` (``G1`` at ``q1``), from the previous
   step's multipliers. Rows linear in ``q`` (floors, walls) converge in one step. One active row whose zero set
   is that of a polynomial ``F`` of degree 2 in ``q`` (:func:`line_form`: a circle's, a sphere's, an
-  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): its Newton starts from the
-  root the Newton from the previous multipliers converges to, in closed form (``stepper.quadratic_root``),
-  and then mostly ends at that first evaluation.
+  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): its Newton starts one
+  Newton step on that quadratic past the previous multipliers (``line_start``: no evaluation of the rows) and
+  then mostly ends at its first evaluation.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
@@ -268,13 +268,14 @@ class Held(NamedTuple):
 def line_start(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The held Newton's start for one row with a :func:`line_form` (the C ``<model>_held_line_start``).
 
-    The root of ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` that the Newton from the previous multipliers ``x``
-    converges to (``stepper.quadratic_root``), where it is a finite number; else ``x``.
+    One Newton step from the previous multipliers ``x`` on the row's quadratic along the line,
+    ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` (exact in ``Lam``: no evaluation of the rows), where it is a
+    finite number; else ``x``. Its error is ``coef[0] / (2 coef[0] Lam + coef[1])`` times the square of the
+    previous one (``O(h)`` times it): the step's first evaluation of the rows then mostly converges.
     """
-    from .stepper import quadratic_root  # (stepper imports this module)
-
-    root = quadratic_root(float(coef[0]), float(coef[1]), float(coef[2]), float(x[0]))
-    return np.array([root]) if root is not None and math.isfinite(root) else x
+    x0 = float(x[0])
+    root = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1])
+    return np.array([root]) if math.isfinite(root) else x
 
 
 def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
