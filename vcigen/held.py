@@ -12,9 +12,9 @@ both reduce to the ``R_A`` multipliers of the active rows ``A``:
   Newton in ``Lam`` with the Jacobian ``h G1 J^-1 G0^T`` (``G1`` at ``q1``), from the previous
   step's multipliers. Rows linear in ``q`` (floors, walls) converge in one step. One active row whose zero set
   is that of a polynomial ``F`` of degree 2 in ``q`` (:func:`line_form`: a circle's, a sphere's, an
-  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): its Newton starts one
-  Newton step on that quadratic past the previous multipliers (``line_start``: no evaluation of the rows) and
-  then mostly ends at its first evaluation.
+  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): when the previous
+  multipliers do not solve it, its second evaluation is at two Newton steps on that quadratic past them
+  (``line_start``: no evaluation of the rows, so that in C it runs beside the first), where it mostly ends.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
@@ -266,15 +266,16 @@ class Held(NamedTuple):
 
 
 def line_start(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The held Newton's start for one row with a :func:`line_form` (the C ``<model>_held_line_start``).
+    """The held Newton's second start on one row with a :func:`line_form` (C: ``<model>_held_line_start``).
 
-    One Newton step from the previous multipliers ``x`` on the row's quadratic along the line,
-    ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` (exact in ``Lam``: no evaluation of the rows), where it is a
-    finite number; else ``x``. Its error is ``coef[0] / (2 coef[0] Lam + coef[1])`` times the square of the
-    previous one (``O(h)`` times it): the step's first evaluation of the rows then mostly converges.
+    Two Newton steps from the previous multipliers ``x`` on the row's quadratic along the line,
+    ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` (exact in ``Lam``: no evaluation of the rows, no square root),
+    where they give a finite number; else ``x``. Each squares the error times ``coef[0] / (2 coef[0] Lam +
+    coef[1])`` (``O(h)``): the evaluation at their end then converges (bench bowl, h = 1e-3 and 1e-2).
     """
     x0 = float(x[0])
-    root = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1])
+    x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1])
+    root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1])
     return np.array([root]) if math.isfinite(root) else x
 
 
@@ -291,15 +292,21 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     v0, jinv = k.held_free(q, p, kc)
     g0 = k.held_rows(q, kc)[1][rows]
     x = np.array([lam_in[r] for r in rows])
-    if len(rows) == 1 and k.held_lines[rows[0]]:  # F(q + h v0 + Lam h J^-1 g0) = 0: a quadratic in Lam
-        x = line_start(k.held_line(q + h * v0, h * jinv * g0[0], kc)[rows[0]], x)
-    res = np.nan
-    for it in range(HELD_ITER + 1):
+
+    def evaluate(x):
         v = v0 + jinv * (g0.T @ x)
         q1 = q + h * v
         psi, grad, hess = k.held_rows(q1, kc)
         res = float(np.max(np.abs(psi[rows]))) if np.isfinite(psi[rows]).all() else np.nan
-        if res <= ABSTOL or it == HELD_ITER or not res == res:
+        return v, q1, psi, grad, hess, res
+
+    v, q1, psi, grad, hess, res = evaluate(x)
+    if len(rows) == 1 and k.held_lines[rows[0]] and not res <= ABSTOL and res == res:
+        # the previous multipliers do not solve it: F(q + h v0 + Lam h J^-1 g0) = 0 is a quadratic in Lam
+        x = line_start(k.held_line(q + h * v0, h * jinv * g0[0], kc)[rows[0]], x)
+        v, q1, psi, grad, hess, res = evaluate(x)
+    for _ in range(HELD_ITER):
+        if res <= ABSTOL or not res == res:
             break
         jac = factor_small(grad[rows] @ ((h * jinv)[:, None] * g0.T))
         if jac is None:
@@ -308,6 +315,7 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
         if np.max(np.abs(d)) <= ABSTOL_STEP:
             break
         x = x - d
+        v, q1, psi, grad, hess, res = evaluate(x)
     if not res <= residual * (1.0 + float(np.max(np.abs(p)))):
         return None
     p_plus, energy = k.held_segment(q, v, kc)
