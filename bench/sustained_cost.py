@@ -19,8 +19,9 @@ through ``res.active``; "free" never touches it, checked through ``res.active`` 
 * ``box``: a 2 x 1 rectangle with a contact at each vertex, sliding on its long face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``: two vertex rows held) against free high up.
 * ``bowl``: a particle inside a circular bowl, contact ``r - |q|``: sustained ``r = 1``, released at rest at
-  ``q0 = (0.6, -0.8)`` on the wall, it slides to and fro along it (a curved row that moves: the held step's
-  Newton iterates, about 1.5 evaluations of the rows a step); free: ``r = 1e9``, ``q0 = 0``, ``v0 = (1, 0)``
+  ``q0 = (0.6, -0.8)`` on the wall, it slides to and fro along it (a curved row that moves: the previous
+  multipliers never solve the held step, whose second evaluation is at the line start of ``vcigen.held``);
+  free: ``r = 1e9``, ``q0 = 0``, ``v0 = (1, 0)``
   (falls 2e5 m in 200 s, far from the wall).
 * ``star``: the star of ``examples/star.py`` resting on a face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``, slides) against free high up (``q0 = (0, 1e6, 0)``, same ``v0``).
