@@ -1,6 +1,7 @@
 """Cost of a grid step in sustained contact against a free step of the same model (C and CasADi).
 
     .venv/bin/python -m bench.sustained_cost [--steps 200000] [--casadi-steps 1000] [--repeats 5]
+        [--scenes bowl ...]
 
 Target (the issue): a sustained-contact step in C costs at most 3x a free step.
 
@@ -18,8 +19,9 @@ through ``res.active``; "free" never touches it, checked through ``res.active`` 
 * ``box``: a 2 x 1 rectangle with a contact at each vertex, sliding on its long face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``: two vertex rows held) against free high up.
 * ``bowl``: a particle inside a circular bowl, contact ``r - |q|``: sustained ``r = 1``, released at rest at
-  ``q0 = (0.6, -0.8)`` on the wall, it slides to and fro along it (a curved row that moves: the held step's
-  Newton iterates, about 1.5 evaluations of the rows a step); free: ``r = 1e9``, ``q0 = 0``, ``v0 = (1, 0)``
+  ``q0 = (0.6, -0.8)`` on the wall, it slides to and fro along it (a curved row that moves: the previous
+  multipliers never solve the held step, whose second evaluation is at the line start of ``vcigen.held``);
+  free: ``r = 1e9``, ``q0 = 0``, ``v0 = (1, 0)``
   (falls 2e5 m in 200 s, far from the wall).
 * ``star``: the star of ``examples/star.py`` resting on a face (``q0 = (0, 0.5, 0)``,
   ``v0 = (1, 0, 0)``, slides) against free high up (``q0 = (0, 1e6, 0)``, same ``v0``).
@@ -286,17 +288,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--backend", nargs="+", default=["c", "casadi"], choices=["c", "casadi"])
     ap.add_argument("--csv", type=Path, default=HERE / "results" / "sustained_cost.csv")
+    names = [s.name for s in SCENES]
+    ap.add_argument("--scenes", nargs="+", choices=names, help="these scenes only (and the ones they mirror)")
     a = ap.parse_args(argv)
+    scenes = [s for s in SCENES if not a.scenes or s.name in a.scenes]
+    scenes += [s for s in SCENES if s.name in {x.reference for x in scenes} and s not in scenes]
     warnings.simplefilter("ignore", RuntimeWarning)
     keep_heap()
     rows = []
     for backend in a.backend:
         steps = a.steps if backend == "c" else a.casadi_steps
-        for scene in SCENES:
+        for scene in scenes:
             scene.sims[backend] = vcigen.build(scene.model(), backend=backend)
-        got = measure(SCENES, backend, steps, a.repeats)
+        got = measure(scenes, backend, steps, a.repeats)
         by_name = {r["scene"]: r for r in got}
-        for scene, row in zip(SCENES, got):
+        for scene, row in zip(scenes, got):
             if scene.reference:  # the same dynamics: the variant must end where its explicit scene does
                 ref = by_name[scene.reference]
                 for kind in ("sustained", "free"):

@@ -10,7 +10,11 @@ both reduce to the ``R_A`` multipliers of the active rows ``A``:
   ``v = v0 + J^-1 G0^T Lam`` (``v0`` the free grid step of :mod:`vcigen.explicit`, ``G0`` the
   active rows' gradients at ``q0``); left are the ``R_A`` equations ``psi_A(q0 + h v(Lam)) = 0``,
   Newton in ``Lam`` with the Jacobian ``h G1 J^-1 G0^T`` (``G1`` at ``q1``), from the previous
-  step's multipliers. Rows linear in ``q`` (floors, walls) converge in one step.
+  step's multipliers. Rows linear in ``q`` (floors, walls) converge in one step. One active row whose zero set
+  is that of a polynomial ``F`` of degree 2 in ``q`` (:func:`line_form`: a circle's, a sphere's, an
+  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): when the previous
+  multipliers do not solve it, its second evaluation is at two Newton steps on that quadratic past them
+  (``line_start``: no evaluation of the rows, so that in C it runs beside the first), where it mostly ends.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
@@ -27,6 +31,7 @@ in ``templates/sustained.c.j2``) and :func:`held_step` are one algorithm.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -79,6 +84,45 @@ def hess_pattern(system: DiscreteSystem) -> list[tuple[int, int, int]]:
     ]
 
 
+def line_form(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
+    """A polynomial ``F`` of degree 2 in ``q`` whose zero set holds ``psi``'s, or ``None``.
+
+    ``psi`` itself if it is one (an ellipse's row, a rod ``x^2 + y^2 - l^2``); ``beta^2 P - alpha^2`` if
+    ``psi = alpha + beta sqrt(P)`` with ``alpha``, ``beta`` free of ``q`` and ``P`` a polynomial of degree 2
+    in ``q`` (a circle's or a sphere's row ``r - |q - c|``). ``None`` for rows linear in ``q`` (their Newton
+    is exact from the previous multipliers) and any other form.
+    """
+    qs = set(q)
+
+    def quadratic(e: sp.Expr) -> bool:
+        try:
+            poly = sp.Poly(sp.expand(e), *q)
+        except sp.PolynomialError:
+            return False
+        return poly.total_degree() == 2 and not any(c.free_symbols & qs for c in poly.coeffs())
+
+    if quadratic(psi):
+        return psi
+    roots = {a for a in psi.atoms(sp.Pow) if a.exp == sp.S.Half and a.base.free_symbols & qs}
+    if len(roots) != 1:
+        return None
+    (root,) = roots
+    s = sp.Dummy("s")
+    e = sp.expand(psi.xreplace({root: s}))
+    if e.free_symbols & qs or e.diff(s, 2) != 0:
+        return None
+    alpha, beta = e.xreplace({s: sp.S.Zero}), e.diff(s)
+    f = beta**2 * root.base - alpha**2  # unexpanded: a circle about c keeps |a - c|^2 (no cancellation)
+    return f if beta != 0 and quadratic(f) else None
+
+
+def line_forms(system: DiscreteSystem) -> list[sp.Expr | None]:
+    """:func:`line_form` of every row."""
+    rows = system.routines["rows"]
+    q = tuple(rows.input("q").symbols)
+    return [line_form(sp.sympify(e), q) for e in rows.output("psi").expr]
+
+
 def held_routines(system: DiscreteSystem) -> list[Routine]:
     """``held_consts(tau, par) -> k`` and the four pieces of the held step, all reading ``k``:
 
@@ -86,7 +130,10 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     * ``held_rows(q, k) -> psi, grad, hess``: every row's value, gradient and the entries of its Hessian
       on :func:`hess_pattern` (the curvature ``u . Hess psi . u`` needs no others);
     * ``held_segment(q0, v, k) -> p_plus, energy``: ``p+`` (51) and ``E_d`` (55) of the segment;
-    * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``.
+    * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``;
+    * if some row has a :func:`line_form` ``F``, ``held_line(a, b, k) -> coef``: per row ``(A, B, C)`` with
+      ``F(a + Lam b) = A Lam^2 + B Lam + C`` (exact: ``A = b . Hess F . b / 2``, ``B = grad F(a) . b``,
+      ``C = F(a)``; zeros for the other rows).
     """
     r = system.routines
     smooth = r["smooth"]
@@ -129,8 +176,27 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
         ),
         ("held_end", (q,), [("acc", acc), ("minv", minv)], "M^-1 rhs(q) and 1/M_ii."),
     ]
+    forms = line_forms(system)
+    if any(f is not None for f in forms):
+        a_arg = Arg("a", tuple(sp.Dummy(f"a{i}", real=True) for i in range(n)))
+        b_arg = Arg("b", tuple(sp.Dummy(f"b{i}", real=True) for i in range(n)))
+        at_a = dict(zip(q.symbols, a_arg.symbols))
+        coef = sp.zeros(system.r, 3)
+        for row, f in enumerate(forms):
+            if f is None:
+                continue
+            b = sp.Matrix(b_arg.symbols)
+            hf = sp.hessian(f, q.symbols)
+            coef[row, 0] = sp.expand((b.T * hf * b)[0] / 2)
+            slope = (f.diff(qi).xreplace(at_a) * b[i] for i, qi in enumerate(q.symbols))
+            coef[row, 1] = sum(slope, sp.S.Zero)
+            coef[row, 2] = f.xreplace(at_a)
+        pieces.append(
+            ("held_line", (a_arg, b_arg), [("coef", coef)], "Each row's F(a + Lam b) = A Lam^2 + B Lam + C.")
+        )
     flat = [e for _, _, outs, _ in pieces for _, o in outs for e in o]
     varying = {*q0.symbols, *p0.symbols, *q.symbols, *v.symbols}
+    varying |= {x for _, ins, _, _ in pieces for arg in ins for x in arg.symbols}
     consts, reduced = hoist(flat, varying)
     ks = Arg("k", tuple(k for k, _ in consts))
     out = [
@@ -199,6 +265,20 @@ class Held(NamedTuple):
     energy: float
 
 
+def line_start(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The held Newton's second start on one row with a :func:`line_form` (C: ``<model>_held_line_start``).
+
+    Two Newton steps from the previous multipliers ``x`` on the row's quadratic along the line,
+    ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` (exact in ``Lam``: no evaluation of the rows, no square root),
+    where they give a finite number; else ``x``. Each squares the error times ``coef[0] / (2 coef[0] Lam +
+    coef[1])`` (``O(h)``): the evaluation at their end then converges (bench bowl, h = 1e-3 and 1e-2).
+    """
+    x0 = float(x[0])
+    x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1])
+    root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1])
+    return np.array([root]) if math.isfinite(root) else x
+
+
 def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
     """One held grid step from ``(q, p)`` (the C ``<model>_held_step``), or ``None`` if it does not clear.
 
@@ -212,13 +292,21 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     v0, jinv = k.held_free(q, p, kc)
     g0 = k.held_rows(q, kc)[1][rows]
     x = np.array([lam_in[r] for r in rows])
-    res = np.nan
-    for it in range(HELD_ITER + 1):
+
+    def evaluate(x):
         v = v0 + jinv * (g0.T @ x)
         q1 = q + h * v
         psi, grad, hess = k.held_rows(q1, kc)
         res = float(np.max(np.abs(psi[rows]))) if np.isfinite(psi[rows]).all() else np.nan
-        if res <= ABSTOL or it == HELD_ITER or not res == res:
+        return v, q1, psi, grad, hess, res
+
+    v, q1, psi, grad, hess, res = evaluate(x)
+    if len(rows) == 1 and k.held_lines[rows[0]] and not res <= ABSTOL and res == res:
+        # the previous multipliers do not solve it: F(q + h v0 + Lam h J^-1 g0) = 0 is a quadratic in Lam
+        x = line_start(k.held_line(q + h * v0, h * jinv * g0[0], kc)[rows[0]], x)
+        v, q1, psi, grad, hess, res = evaluate(x)
+    for _ in range(HELD_ITER):
+        if res <= ABSTOL or not res == res:
             break
         jac = factor_small(grad[rows] @ ((h * jinv)[:, None] * g0.T))
         if jac is None:
@@ -227,6 +315,7 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
         if np.max(np.abs(d)) <= ABSTOL_STEP:
             break
         x = x - d
+        v, q1, psi, grad, hess, res = evaluate(x)
     if not res <= residual * (1.0 + float(np.max(np.abs(p)))):
         return None
     p_plus, energy = k.held_segment(q, v, kc)

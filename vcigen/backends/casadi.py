@@ -16,7 +16,7 @@ import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
 from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
-from ..held import has_held_path, held_routines, held_step, hess_pattern
+from ..held import has_held_path, held_routines, held_step, hess_pattern, line_forms
 from ..routines import Routine
 from ..simulator import Simulator
 from ..stepper import Tolerances
@@ -106,6 +106,7 @@ class CasadiKernels(ParameterSlots):
         )
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
         self.held_pattern = hess_pattern(system) if self.held else []
+        self.held_lines = [f is not None for f in line_forms(system)] if self.held else []  # held_line's rows
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -373,6 +374,10 @@ class CasadiKernels(ParameterSlots):
     def held_end(self, q, kc):
         """``(M^-1 rhs(q), 1/M_ii)``."""
         return self._held_call("held_end", (self.n, self.n), q, kc)
+
+    def held_line(self, a, b, kc):
+        """Per row ``(A, B, C)`` of its ``held.line_form``: ``F(a + Lam b) = A Lam^2 + B Lam + C``."""
+        return self._held_call("held_line", (3 * self.r,), a, b, kc)[0].reshape(self.r, 3)
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

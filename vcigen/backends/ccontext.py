@@ -20,7 +20,7 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..held import SQRT_POWERS, has_held_path, held_routines, hess_pattern
+from ..held import SQRT_POWERS, has_held_path, held_routines, hess_pattern, line_forms
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
@@ -304,6 +304,11 @@ def render_context(
         if held
         else [],
         "nh_dim": max(len(hess_pattern(system)), 1) if held else 1,
+        # per row, 1 where held.line_form has its zero set as a quadratic's: one such row held starts its
+        # Newton at the root of held_line (<model>_held_line_start); empty when no row has one
+        "held_lines": [int(f is not None) for f in line_forms(system)]
+        if any(r.name == "held_line" for r in held)
+        else [],
         "held_sets_max": HELD_SETS_MAX,
         "held_sets": held_sets(system.r) if held else [],
         # the coordinates some row's gradient has: the held step's products with gradients skip the others
