@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .cone_split import null_combination, split
 from .derive import KINK
 from .errors import SolverError
 from .result import KINDS, Impact
@@ -271,11 +272,11 @@ class SustainedSteps:
         return float(np.linalg.norm(w)) <= DEP_EPS * float(np.linalg.norm(grad[sr]))
 
     def _owner(self, f: int, grad) -> int:
-        """Whose stick holds one-tangent contact ``f``'s tangent: ``-1`` if its stick row is independent of
+        """Whose stick holds frictional contact ``f``'s tangent: ``-1`` if its stick row is independent of
         the active rows; else the first sticking contact ``g`` without whose stick row it is independent
-        (``f`` itself if the other rows hold it alone)."""
+        (``f`` itself if the other rows hold it alone). A cone's row too (:meth:`_cone_split`)."""
         sr = self._stick_rows[f]
-        if self._partner[f] >= 0 or not self._dependent(grad, sr):
+        if not self._dependent(grad, sr):
             return -1
         for g, sg in enumerate(self._stick_rows):
             if g != f and self.act[sg] and not self._dependent(grad, sr, sg):
@@ -298,7 +299,12 @@ class SustainedSteps:
         the start of every segment (:meth:`_cone_aim`) and frozen over it."""
         k = self.k
         for f, p in self._cones():
-            if not self._held_rows[f] or self._mu_f[f] <= 0.0 or self.act[self._stick_rows[f]]:
+            if not self._held_rows[f] or self._mu_f[f] <= 0.0:
+                continue
+            held = [bool(self.act[self._stick_rows[x]]) or self._ride[x] >= 0 for x in (f, p)]
+            if any(held):  # sticking; a row that no longer depends on the others' is held by its own again
+                for x in [x for x, on in zip((f, p), held) if not on]:
+                    self._stick(x, q, u)
                 continue
             if self._slip[f] == 0.0 and self._slip[p] == 0.0:
                 self._freeze_branch(f, q)
@@ -356,12 +362,67 @@ class SustainedSteps:
         if kind == "stop":
             self._stick(f, q, u)
             self._stick(p, q, u)
+            grad = self.k.rows(q, u)[1]
+            tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
+            for c, pc in self._cones():  # another cone of the body stopped at the same instant sticks with it
+                if (self._slip[c] or self._slip[pc]) and math.hypot(*self._sliding(c, pc, grad, u)) <= tiny:
+                    self._stick(c, q, u)
+                    self._stick(pc, q, u)
+        elif (joint := self._cone_split(f, self._contact_forces(q, u), self.k.rows(q, u)[1])) is not None:
+            self._split_slide(joint, q, u)
         else:
             forces = self._contact_forces(q, u)
             lam = np.array([forces[self._stick_rows[f]], forces[self._stick_rows[p]]])
             self.act[self._stick_rows[f]] = self.act[self._stick_rows[p]] = False
             self._slip[[f, p]] = self._mu_f[f] * lam / max(math.hypot(*lam), 1e-300)
         self._set_friction()
+
+    def _cone_split(self, f: int, forces, grad):
+        """The cones coupled with cone ``f`` by a dependent stick row (a cone row riding, :meth:`_stick`) and
+        their best split (:func:`vcigen.cone_split.split`): ``(margin, alpha, values, cones, stick forces,
+        null combinations)``, the least margin over the riders whose null combination involves ``f``; None
+        if none does."""
+        f = min(f, self._partner[f])
+        rows = self._stick_rows
+        best = None
+        for g in range(len(rows)):
+            if self._partner[g] < 0 or self._ride[g] < 0:
+                continue
+            n = null_combination(grad, self.act, rows[g])
+            cones = [
+                (c, pc) for c, pc in self._cones() if max(abs(n[rows[c]]), abs(n[rows[pc]])) > DEP_EPS
+            ]
+            if (f, self._partner[f]) not in cones:
+                continue
+            caps, lams, dirs = [], [], []
+            for c, pc in cones:
+                j = self.k.frictional[c]
+                caps.append(self._mu_f[c] * sum(forces[r] for r in range(self.k.r) if self.k.row_contact[r] == j))
+                lams.append((float(forces[rows[c]]), float(forces[rows[pc]])))
+                dirs.append((float(n[rows[c]]), float(n[rows[pc]])))
+            margin, alpha, values = split(caps, lams, dirs)
+            if best is None or margin < best[0]:
+                best = (margin, alpha, values, cones, lams, dirs)
+        return best
+
+    def _split_slide(self, joint, q, u) -> None:
+        """The coupled cones' stick breaks: those at the edge of their cone in the best split (within
+        ``DEP_EPS`` of the least margin) slip along their split force, ``s = -lambda_c / |lambda_c|``; the
+        others stick on, a row of theirs that no longer depends on the rest held by its own again."""
+        margin, alpha, values, cones, lams, dirs = joint
+        for (c, pc), value, lam, d in zip(cones, values, lams, dirs):
+            if value <= margin + DEP_EPS * (1.0 + abs(value)):
+                x, y = lam[0] + alpha * d[0], lam[1] + alpha * d[1]
+                norm = max(math.hypot(x, y), 1e-300)
+                for r, comp in ((c, x), (pc, y)):
+                    self.act[self._stick_rows[r]] = False
+                    self._ride[r] = -1
+                    self._slip[r] = self._mu_f[c] * comp / norm
+        grad = self.k.rows(q, u)[1]
+        for g in range(len(self._stick_rows)):
+            if self._partner[g] >= 0 and self._ride[g] >= 0:
+                self._ride[g] = self._owner(g, grad)
+                self.act[self._stick_rows[g]] = self._ride[g] < 0
 
     def _freeze_branch(self, f: int, q) -> None:
         """The signs of frictional contact ``f``'s tangent at ``q`` (0 at a kink: the face's centre) into its
@@ -397,13 +458,18 @@ class SustainedSteps:
                     self._ref[g] += float(psi[sg])
                     self._slip[g], self._ride[g] = 0.0, owner
 
-    def _cone_margin(self, f: int, forces) -> float:
-        """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone."""
+    def _cone_margin(self, f: int, forces, grad) -> float:
+        """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone. A
+        cone coupled to others by a dependent stick row: the margin of their best split (:meth:`_cone_split`)."""
         k = self.k
         j = k.frictional[f]
+        if self._partner[f] >= 0:
+            joint = self._cone_split(f, forces, grad)
+            if joint is not None:
+                return joint[0]
         normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
         for g, owner in enumerate(self._ride):  # the dependent sticks it carries: their cones are room too
-            if owner == f and g != f:
+            if owner == f and g != f and self._partner[g] < 0:
                 normal += (
                     self._mu_f[g]
                     / self._mu_f[f]
@@ -437,14 +503,14 @@ class SustainedSteps:
 
                     frac = 0.0 if g0 <= 0.0 else _illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, v)
                     events[sr] = ("stop", frac)
-            elif self.act[sr]:
-                g1 = self._cone_margin(f, f1)
+            elif self.act[sr] or (self._partner[f] >= 0 and self.act[self._stick_rows[self._partner[f]]]):
+                g1 = self._cone_margin(f, f1, end.grad)
                 if g1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))):
-                    g0 = self._cone_margin(f, self._contact_forces(q, vel0))
+                    g0 = self._cone_margin(f, self._contact_forces(q, vel0), k.rows(q, vel0)[1])
 
                     def margin(c, w, f=f):
                         w, end_c, _ = self._sub_end(step, t_k, q, p, tau, c, w)
-                        return self._cone_margin(f, self._forces(end_c)), w
+                        return self._cone_margin(f, self._forces(end_c), end_c.grad), w
 
                     tiny = EPS_LAM * (1.0 + abs(g0) + abs(g1))
                     frac = 0.0 if g0 < 0.0 else _illinois(margin, g0, g1, tiny, 1e-12, LIFT_ITER, v)
@@ -467,7 +533,7 @@ class SustainedSteps:
             self._slip[f] = -self._mu_f[f] * math.copysign(1.0, -lam)  # it slides the way the force pushes
             grad = self.k.rows(q, u)[1]
             for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
-                if owner == f and g != f:
+                if owner == f and g != f and self._partner[g] < 0:
                     along = float(grad[self._stick_rows[g]] @ grad[sr])
                     self._slip[g] = -self._mu_f[g] * math.copysign(1.0, -lam * along)
                     self._ride[g] = -1
