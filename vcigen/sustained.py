@@ -335,7 +335,8 @@ class SustainedSteps:
         sf, sp_ = self._stick_rows[f], self._stick_rows[p]
         mid = w + 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
         norm = math.hypot(*mid)
-        if norm > 0.0 and float(mid @ self._slip[[f, p]]) < 0.0:  # along -slip: the way it slides
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))  # not a round-off direction (at rest, on the edge)
+        if norm > tiny and float(mid @ self._slip[[f, p]]) < 0.0:  # along -slip: the way it slides
             self._slip[[f, p]] = -self._mu_f[f] * mid / norm
             self._set_friction()
 
