@@ -79,8 +79,8 @@ def spin(backend: str, h: float, w0: float = 3.0):
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_rod_slides_on_two_cones_to_a_stop_after_v2_over_2_mu_g(backend):
-    """Translation: the path of the module's closed form (exact: the slip direction does not turn), the stop at
-    |v|/(mu g), friction's work -m|v|^2/2, then at rest on both ends with m g / 2 each (the dependent row)."""
+    """Translation: the path of the module's closed form (exact: the slip direction does not turn), the stop
+    at |v|/(mu g), friction's work -m|v|^2/2, then at rest on both ends with m g / 2 each (one row rides)."""
     for h in (0.01, 0.003):
         v, res = slide(backend, h)
         speed, t = math.hypot(*v), res.t
@@ -119,7 +119,8 @@ def test_rod_spinning_on_two_cones_decays_at_6_mu_g_over_l(backend):
 def test_rod_at_rest_on_two_cones_stays(backend):
     """Set down at rest: it stays put (no singular step), each end m g / 2, friction idle."""
     res = sim(backend).simulate(q0=[0.2, -0.1, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=1.0)
-    assert np.max(np.abs(res.p)) < 1e-14 and np.max(np.abs(res.q - [0.2, -0.1, 0, PHI0, 0])) < 1e-13  # round-off
+    assert np.max(np.abs(res.p)) < 1e-14  # round-off
+    assert np.max(np.abs(res.q - [0.2, -0.1, 0, PHI0, 0])) < 1e-13
     np.testing.assert_allclose(res.contact_force, MASS * G / 2, rtol=0, atol=1e-12)
     assert np.all(res.friction_work <= 0.0) and np.all(res.friction_work > -1e-14)  # sticks: 0 to round-off
 

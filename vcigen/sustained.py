@@ -335,7 +335,7 @@ class SustainedSteps:
         sf, sp_ = self._stick_rows[f], self._stick_rows[p]
         mid = w + 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
         norm = math.hypot(*mid)
-        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))  # not a round-off direction (at rest, on the edge)
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))  # not a round-off direction (breaking from rest)
         if norm > tiny and float(mid @ self._slip[[f, p]]) < 0.0:  # along -slip: the way it slides
             self._slip[[f, p]] = -self._mu_f[f] * mid / norm
             self._set_friction()
@@ -390,15 +390,14 @@ class SustainedSteps:
             if self._partner[g] < 0 or self._ride[g] < 0:
                 continue
             n = null_combination(grad, self.act, rows[g])
-            cones = [
-                (c, pc) for c, pc in self._cones() if max(abs(n[rows[c]]), abs(n[rows[pc]])) > DEP_EPS
-            ]
+            cones = [(c, pc) for c, pc in self._cones() if max(abs(n[rows[c]]), abs(n[rows[pc]])) > DEP_EPS]
             if (f, self._partner[f]) not in cones:
                 continue
             caps, lams, dirs = [], [], []
             for c, pc in cones:
                 j = self.k.frictional[c]
-                caps.append(self._mu_f[c] * sum(forces[r] for r in range(self.k.r) if self.k.row_contact[r] == j))
+                normal = sum(forces[r] for r in range(self.k.r) if self.k.row_contact[r] == j)
+                caps.append(self._mu_f[c] * normal)
                 lams.append((float(forces[rows[c]]), float(forces[rows[pc]])))
                 dirs.append((float(n[rows[c]]), float(n[rows[pc]])))
             margin, alpha, values = split(caps, lams, dirs)
@@ -461,7 +460,8 @@ class SustainedSteps:
 
     def _cone_margin(self, f: int, forces, grad) -> float:
         """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone. A
-        cone coupled to others by a dependent stick row: the margin of their best split (:meth:`_cone_split`)."""
+        cone coupled to others by a dependent stick row: the margin of their best split
+        (:meth:`_cone_split`)."""
         k = self.k
         j = k.frictional[f]
         if self._partner[f] >= 0:
