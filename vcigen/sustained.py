@@ -41,6 +41,7 @@ LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
+BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly (_cone_brake)
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 
 
@@ -295,9 +296,10 @@ class SustainedSteps:
     def _cone_modes(self, q, u, tau: float | None) -> None:
         """Stick or slip of each cone contact at ``(q, u)``, as :meth:`_friction_modes` for one tangent: on
         entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips with the
-        force ``-mu_f lambda s`` along the sliding direction ``s``. A slipping cone's ``s`` is aimed anew at
-        the start of every segment (:meth:`_cone_aim`) and frozen over it."""
+        force ``-mu_f lambda s`` along the sliding direction ``s``. The slipping cones' ``s`` are aimed anew at
+        the start of every segment, all at once (:meth:`_cone_aim`), and frozen over it."""
         k = self.k
+        aimed = []
         for f, p in self._cones():
             if not self._held_rows[f] or self._mu_f[f] <= 0.0:
                 continue
@@ -315,30 +317,93 @@ class SustainedSteps:
                     self._stick(p, q, u)
                     continue
                 self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
-            if tau is not None:
-                self._cone_aim(f, p, q, u, tau)
+            aimed.append((f, p))
+        if tau is not None and aimed:
+            self._cone_aim(aimed, q, u, tau)
 
-    def _cone_aim(self, f: int, p: int, q, u, tau: float) -> None:
-        """The slip direction of cone ``(f, p)`` over a segment of ``tau`` from ``(q, u)``: the sliding
-        velocity predicted at the segment's midpoint, ``w + tau/2 dw/dt`` (``dw/dt = grad tangent . qddot +
-        u . Hess tangent . u`` with the contact forces at the start and the start's direction), normalised.
-        Explicit and second order (the direction of the chord of RATTLE's step to O(tau^2); exact while the
-        sliding keeps its direction); the start's direction if the prediction turns back (a stop in the
-        segment, located by :meth:`_friction_events`)."""
+    def _cone_aim(self, cones, q, u, tau: float) -> None:
+        """The slip direction of each slipping cone ``(f, p)`` in ``cones`` over a segment of ``tau`` from
+        ``(q, u)``: the sliding velocity predicted at the segment's midpoint, ``w + tau/2 dw/dt`` (``dw/dt =
+        grad tangent . qddot + u . Hess tangent . u`` with the contact forces at the start and the start's
+        directions), normalised. Explicit and second order (the direction of the chord of RATTLE's step to
+        O(tau^2); exact while the sliding keeps its direction); the start's direction if the prediction turns
+        back (a stop in the segment, located by :meth:`_friction_events`) or if ``tau/2 |dw/dt| > |w|`` (near
+        rest, breaking away: there the prediction is made by the slip direction itself). Every cone is aimed
+        from the same state (the start's directions of all, one evaluation of the contact forces), so that the
+        aim of two cones of one body does not depend on their order. When two or more cones slide slower than
+        ``BRAKE tau`` times the rate friction alone changes their sliding (``mu_f N`` times the mean of
+        ``grad t M^-1 grad t^T``) they are aimed implicitly together (:meth:`_cone_brake`): there the
+        explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable."""
         k = self.k
         _, grad, curv = k.rows(q, u)
-        w = self._sliding(f, p, grad, u)
-        if math.hypot(*w) > SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
-            self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
-            self._set_friction()
-        acc = self._accel(q, u, self._contact_forces(q, u))
-        sf, sp_ = self._stick_rows[f], self._stick_rows[p]
-        mid = w + 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
-        norm = math.hypot(*mid)
-        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))  # not a round-off direction (breaking from rest)
-        if norm > tiny and float(mid @ self._slip[[f, p]]) < 0.0:  # along -slip: the way it slides
-            self._slip[[f, p]] = -self._mu_f[f] * mid / norm
-            self._set_friction()
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
+        for f, p in cones:
+            w = self._sliding(f, p, grad, u)
+            if math.hypot(*w) > tiny:
+                self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
+        self._set_friction()
+        forces = self._contact_forces(q, u)
+        acc = self._accel(q, u, forces)
+        mass = k.legendre(q, u)[1]
+        aims, slow = [], []
+        for f, p in cones:
+            w = self._sliding(f, p, grad, u)
+            sf, sp_ = self._stick_rows[f], self._stick_rows[p]
+            turn = 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
+            mid = w + turn
+            norm = math.hypot(*mid)
+            # the rate friction alone changes w by: mu_f N times the cone's mean inverse mass
+            g2 = grad[[sf, sp_]]
+            normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == k.frictional[f])
+            brake = self._mu_f[f] * normal * 0.5 * float(np.trace(g2 @ np.linalg.solve(mass, g2.T)))
+            aim = norm > tiny and float(mid @ self._slip[[f, p]]) < 0.0  # along -slip: the way it slides
+            if aim and math.hypot(*turn) <= math.hypot(*w):  # a correction of w, not made by the friction
+                aims.append((f, p, -self._mu_f[f] * mid / norm))
+            if math.hypot(*w) <= BRAKE * tau * brake:
+                slow.append((f, p))
+        if len(slow) >= 2:  # several cones near rest: implicit in the direction
+            aims = [a for a in aims if (a[0], a[1]) not in slow] + self._cone_brake(slow, q, u, tau)
+        for f, p, slip in aims:
+            self._slip[[f, p]] = slip
+        self._set_friction()
+
+    def _cone_brake(self, cones, q, u, tau: float):
+        """Slip directions of ``cones`` near rest (``tau/2 |dw/dt| > |w|``): along the tangential forces that
+        would bring their sliding to rest at the segment's midpoint, their stick rows held together with the
+        active rows (a row dependent on them rides, the split of the forces the best one,
+        :meth:`_cone_split`) at the velocity target ``d(grad tangent . u)/dt = -2 w / tau``. For a point (an
+        isotropic mass) that is the direction of ``w + tau/2 dw/dt`` with Coulomb's force along it, solved
+        for: implicit in the direction, where the explicit aim made the relative modes of two cones of one
+        body (the rod's yaw) unstable. ``[(f, p, slip)]``, none for a cone with no force."""
+        k = self.k
+        act, slip, ride = self.act.copy(), self._slip.copy(), list(self._ride)
+        _, grad, curv = k.rows(q, u)
+        for f, p in cones:
+            self._slip[[f, p]] = 0.0
+        self._set_friction()
+        target = curv.copy()
+        for f, p in cones:
+            for x in (f, p):
+                sr = self._stick_rows[x]
+                target[sr] += 2.0 * float(grad[sr] @ u) / tau
+                if self._dependent(grad, sr):
+                    self._ride[x] = x
+                else:
+                    self.act[sr] = True
+        forces = self._forces(End(None, grad, target, k.dynamics(q, u)[0], k.legendre(q, u)[1]))
+        out = []
+        for f, p in cones:
+            lam = np.array([forces[self._stick_rows[f]], forces[self._stick_rows[p]]])
+            joint = self._cone_split(f, forces, grad)
+            if joint is not None:
+                _, alpha, _, coupled, lams, dirs = joint
+                i = coupled.index((f, p))
+                lam = np.array(lams[i]) + alpha * np.array(dirs[i])
+            if math.hypot(*lam) > 0.0:
+                out.append((f, p, self._mu_f[f] * lam / math.hypot(*lam)))
+        self.act, self._slip, self._ride = act, slip, ride
+        self._set_friction()
+        return out
 
     def _cone_stop(self, f: int, p: int, step, t_k, q, p0, tau, v, u1, end, vel0, events) -> None:
         """A slipping cone that stops inside the segment: its sliding velocity along the frozen slip direction
