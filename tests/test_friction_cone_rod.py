@@ -20,7 +20,10 @@ on it, so no pitching moment):
 * **breakaway**: pushed at its centre by ``F t`` (oblique to the rod) the stick holds until ``F t = mu m g``
   (the axial part of the force split between the ends so that both cones have room: one end's cone alone
   would let go at half); turned by a torque ``T t`` until ``T t = mu m g l / 2`` (the across-rod forces
-  ``T t / l`` at each end, at the edge of each cone).
+  ``T t / l`` at each end, at the edge of each cone);
+* **after the breakaway** both ends slip against the motion: pushed, ``m x'' = F t - mu m g`` along the push,
+  ``x = F (t - t*)^3 / (6 m)`` and no turning; turned, ``I phi'' = T t - mu m g l / 2``,
+  ``phi = phi0 + T (t - t*)^3 / (6 I)`` with the centre at rest.
 """
 
 from __future__ import annotations
@@ -130,6 +133,7 @@ def test_rod_at_rest_on_two_cones_stays(backend):
     "params, t_star",
     [
         ({"Fx": 3.0 * math.cos(PHI0), "Fy": 3.0 * math.sin(PHI0)}, MU * MASS * G / 3.0),  # along the rod
+        ({"Fx": 1.8, "Fy": 2.4}, MU * MASS * G / 3.0),  # oblique
         ({"T": 3.0}, MU * MASS * G * LENGTH / 2 / 3.0),  # a torque
     ],
 )
@@ -144,12 +148,48 @@ def test_stick_on_two_cones_breaks_where_the_best_split_leaves_the_cones(backend
     assert np.all(res.friction_work <= 0.0)
 
 
+PUSHES = {
+    "axial": ({"Fx": 3.0 * math.cos(PHI0), "Fy": 3.0 * math.sin(PHI0)}, MU * MASS * G / 3.0),
+    "oblique": ({"Fx": 1.8, "Fy": 2.4}, MU * MASS * G / 3.0),
+    "torque": ({"T": 3.0}, MU * MASS * G * LENGTH / 2 / 3.0),
+}
+
+
+def push_error(backend: str, name: str, h: float, t_end: float = 2.0) -> tuple[float, float]:
+    """The run pushed from rest against the module's closed form after the breakaway: (largest error of the
+    moving coordinate(s), largest drift of the others)."""
+    params, t_star = PUSHES[name]
+    res = sim(backend).simulate(q0=[0, 0, 0, PHI0, 0], v0=[0] * 5, h=h, t_end=t_end, params=params)
+    late = np.clip(res.t - t_star, 0.0, None) ** 3 / 6
+    if name == "torque":
+        phi = PHI0 + 3.0 * late / INERTIA
+        return float(np.max(np.abs(res.q[:, 3] - phi))), float(np.max(np.abs(res.q[:, :3])))
+    along = np.array([params["Fx"], params["Fy"]]) / 3.0
+    moving = np.max(np.abs(res.q[:, :2] - np.outer(3.0 * late / MASS, along)))
+    return float(moving), float(np.max(np.abs(res.q[:, 2:] - [0, PHI0, 0])))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name", list(PUSHES))
+def test_rod_pushed_from_rest_follows_the_closed_form_at_order_2(backend, name):
+    """After the breakaway the rod slides (or turns) on the module's closed form, second order in h; a push
+    through the centre does not turn it (the two cones near rest are aimed implicitly together: the explicit
+    aim let the yaw run away, 1e-3, or stopped with a SolverError); turned, its centre stays to O(h^2)."""
+    (e1, d1), (e2, d2) = (push_error(backend, name, h) for h in (0.02, 0.01))
+    assert e2 < e1 / 3.5 and e2 < (2e-2 if name == "torque" else 5e-5), (e1, e2)
+    if name == "torque":  # the centre drifts by a local error of the turning slip directions, O(h^2) or less
+        assert d2 < 2e-5 and d2 < d1 / 3.5, (d1, d2)
+    else:  # by symmetry it does not turn
+        assert max(d1, d2) < 1e-12, (d1, d2)
+
+
 def test_c_equals_casadi_on_two_cones():
-    """The slide, the spin and the torque: the same trajectories on both backends."""
+    """The slide, the spin, the torque and the oblique push: the same trajectories on both backends."""
     runs = [
         dict(q0=[0, 0, 0, PHI0, 0], v0=[1.2, -0.9, 0, 0, 0], h=0.01, t_end=1.0),
         dict(q0=[0, 0, 0, PHI0, 0], v0=[0, 0, 0, 3.0, 0], h=0.01, t_end=1.0),
         dict(q0=[0, 0, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=1.6, params={"T": 3.0}),
+        dict(q0=[0, 0, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=2.0, params={"Fx": 1.8, "Fy": 2.4}),
     ]
     for run in runs:
         a, b = (sim(bk).simulate(**run) for bk in ("casadi", "c"))

@@ -41,7 +41,7 @@ LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
-BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly (_cone_brake)
+BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 
 
@@ -296,8 +296,8 @@ class SustainedSteps:
     def _cone_modes(self, q, u, tau: float | None) -> None:
         """Stick or slip of each cone contact at ``(q, u)``, as :meth:`_friction_modes` for one tangent: on
         entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips with the
-        force ``-mu_f lambda s`` along the sliding direction ``s``. The slipping cones' ``s`` are aimed anew at
-        the start of every segment, all at once (:meth:`_cone_aim`), and frozen over it."""
+        force ``-mu_f lambda s`` along the sliding direction ``s``. The slipping cones' ``s`` are aimed anew
+        at the start of every segment, all at once (:meth:`_cone_aim`), and frozen over it."""
         k = self.k
         aimed = []
         for f, p in self._cones():
