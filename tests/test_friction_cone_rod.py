@@ -183,13 +183,40 @@ def test_rod_pushed_from_rest_follows_the_closed_form_at_order_2(backend, name):
         assert max(d1, d2) < 1e-12, (d1, d2)
 
 
+DROPPED_ON_MAIN = (0, 1, 2, 3, 5, 6, 7, 8, 9)  # drop() seeds that stopped with a SolverError before
+
+
+def drop(seed: int):
+    """A random drop (the rod tilted and turning): ``(q0, v0, params)``."""
+    rng = np.random.default_rng(seed)
+    q0 = [0.0, 0.0, rng.uniform(0.8, 1.5), rng.uniform(-math.pi, math.pi), rng.uniform(-1.2, 1.2)]
+    v0 = [rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-5, 5), rng.uniform(-5, 5)]
+    return q0, v0, {"e": rng.uniform(0, 1), "mu": rng.uniform(0.3, 0.5)}
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("seed", DROPPED_ON_MAIN)
+def test_dropped_rod_comes_to_rest_on_two_cones(backend, seed):
+    """Dropped at random it bounces, slides and comes to rest lying on both ends (each m g / 2, momenta and
+    E_d 0), friction's work <= 0 at every step: no singular step when both cones stick."""
+    q0, v0, params = drop(seed)
+    res = sim(backend).simulate(q0=q0, v0=v0, h=0.005, t_end=4.0, params=params)
+    assert np.max(np.abs(res.p[-50:])) < 1e-12
+    assert abs(res.q[-1, 2]) < 1e-12 and abs(math.remainder(res.q[-1, 4], math.pi)) < 1e-12
+    assert np.all(res.active[-50:])
+    np.testing.assert_allclose(res.contact_force[-50:], MASS * G / 2, rtol=0, atol=1e-9)
+    assert np.all(res.friction_work <= 1e-15) and res.friction_work.sum() < 0.0
+    assert abs(res.energy[-1]) < 1e-9
+
+
 def test_c_equals_casadi_on_two_cones():
-    """The slide, the spin, the torque and the oblique push: the same trajectories on both backends."""
+    """The slide, the spin, the torque, the oblique push and a drop: the same runs on both backends."""
     runs = [
         dict(q0=[0, 0, 0, PHI0, 0], v0=[1.2, -0.9, 0, 0, 0], h=0.01, t_end=1.0),
         dict(q0=[0, 0, 0, PHI0, 0], v0=[0, 0, 0, 3.0, 0], h=0.01, t_end=1.0),
         dict(q0=[0, 0, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=1.6, params={"T": 3.0}),
         dict(q0=[0, 0, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=2.0, params={"Fx": 1.8, "Fy": 2.4}),
+        dict(zip(("q0", "v0", "params"), drop(0)), h=0.005, t_end=4.0),
     ]
     for run in runs:
         a, b = (sim(bk).simulate(**run) for bk in ("casadi", "c"))
