@@ -21,6 +21,10 @@ on it, so no pitching moment):
   (the axial part of the force split between the ends so that both cones have room: one end's cone alone
   would let go at half); turned by a torque ``T t`` until ``T t = mu m g l / 2`` (the across-rod forces
   ``T t / l`` at each end, at the edge of each cone);
+* **sliding and spinning** (no closed form): against scipy's Coulomb ODE of the rod on two points, ``m v' =
+  F_a + F_b``, ``I w' = sum (r_e x F_e)_z``, ``F_e = -mu (m g / 2) u_e / |u_e|`` at each end's
+  sliding velocity ``u_e = v + w e_z x r_e`` (DOP853, rtol = atol = 1e-13, an end's sliding speed
+  reaching 0 an event);
 * **after the breakaway** both ends slip against the motion: pushed, ``m x'' = F t - mu m g`` along the push,
   ``x = F (t - t*)^3 / (6 m)`` and no turning; turned, ``I phi'' = T t - mu m g l / 2``,
   ``phi = phi0 + T (t - t*)^3 / (6 I)`` with the centre at rest.
@@ -35,6 +39,7 @@ import numpy as np
 import pytest
 import sympy as sp
 from hard_scenes import BACKENDS, G
+from scipy.integrate import solve_ivp
 
 import vcigen
 
@@ -116,6 +121,52 @@ def test_rod_spinning_on_two_cones_decays_at_6_mu_g_over_l(backend):
         assert np.max(np.abs(res.p[t > ts + 0.03])) < 1e-15
         np.testing.assert_allclose(res.contact_force, MASS * G / 2, rtol=0, atol=1e-12)
     assert errs[0] < 2e-5 and errs[1] < errs[0] / 3.5, errs
+
+
+def coulomb_rod(v0, w0):
+    """scipy's Coulomb ODE of the rod sliding on its two ends (module docstring) from (0, 0, PHI0) to the
+    first instant an end stops: ``(solution, t_stop)``."""
+    normal = MASS * G / 2
+
+    def ends(s):
+        e = np.array([-math.sin(s[2]), math.cos(s[2])])
+        return [s[3:5] + sgn * LENGTH / 2 * s[5] * e for sgn in (-1, 1)]
+
+    def rhs(t, s):
+        c, sn = math.cos(s[2]), math.sin(s[2])
+        force = [-MU * normal * u / np.linalg.norm(u) for u in ends(s)]
+        torque = sum(sgn * LENGTH / 2 * (c * f[1] - sn * f[0]) for sgn, f in zip((-1, 1), force))
+        return [s[3], s[4], s[5], *(force[0] + force[1]) / MASS, torque / INERTIA]
+
+    events = []
+    for i in (0, 1):
+
+        def stop(t, s, i=i):
+            return np.linalg.norm(ends(s)[i]) - 1e-9
+
+        stop.terminal, stop.direction = True, -1
+        events.append(stop)
+    sol = solve_ivp(
+        rhs, (0, 2), [0, 0, PHI0, *v0, w0], "DOP853", rtol=1e-13, atol=1e-13, events=events, dense_output=True
+    )
+    return sol, float(sol.t[-1])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_rod_sliding_and_spinning_on_two_cones_against_scipy(backend):
+    """Sliding at (1, 0.3) and spinning at 2: both ends stop together (scipy: at t = 0.2881, each end's speed
+    1e-9 there); the path against scipy's ODE at second order, then at rest on both ends."""
+    v0, w0 = (1.0, 0.3), 2.0
+    sol, t_stop = coulomb_rod(v0, w0)
+    errs = []
+    for h in (0.01, 0.005):
+        res = sim(backend).simulate(q0=[0, 0, 0, PHI0, 0], v0=[*v0, 0, w0, 0], h=h, t_end=t_stop + 0.2)
+        before = res.t <= t_stop
+        errs.append(float(np.max(np.abs(res.q[before][:, [0, 1, 3]] - sol.sol(res.t[before])[:3].T))))
+        assert np.max(np.abs(res.p[res.t > t_stop + 0.05])) < 1e-12
+        assert np.max(np.abs(res.q[-1, [0, 1, 3]] - sol.y[:3, -1])) < 4 * errs[-1]
+        assert np.all(res.friction_work <= 0.0)
+    assert errs[0] < 4e-4 and errs[1] < errs[0] / 3.5, errs
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
