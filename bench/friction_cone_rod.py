@@ -8,6 +8,7 @@ a 3-D floor), on both backends (worst over both):
 * sliding at v = (1.2, -0.9): the path against the stop after |v|^2/(2 mu g) at |v|/(mu g), friction's
   work against -m |v|^2 / 2 (h = 0.01, 0.003);
 * spinning at w0 = 3: yaw against phi'' = -6 mu g / l to the stop, the centre's drift (h = 0.01, 0.005);
+* sliding at (1, 0.3) and spinning at 2: against scipy's Coulomb ODE (``coulomb_rod``) to the stop;
 * pushed from rest through its centre (along the rod, oblique) and turned by a torque: the breakaway instant
   (motion before it) and the path after it against the closed form (h = 0.02, 0.01), the yaw of a push;
 * the drops of ``DROPPED_ON_MAIN`` (h = 0.005, t = 4): |p| over the last 50 steps, each end's force against
@@ -33,6 +34,7 @@ from test_friction_cone_rod import (  # noqa: E402
     PHI0,
     PUSHES,
     G,
+    coulomb_rod,
     drop,
     push_error,
     sim,
@@ -62,6 +64,12 @@ def main() -> None:
             note(f"spin h={h}: yaw error", np.abs(r.q[:, 3] - exact).max())
             note(f"spin h={h}: centre drift", np.abs(r.q[:, :2]).max())
             note(f"spin h={h}: friction work error", abs(r.friction_work.sum() + INERTIA * 9.0 / 2))
+        sol, t_stop = coulomb_rod((1.0, 0.3), 2.0)
+        for h in (0.01, 0.005, 0.0025):
+            r = sim(b).simulate(q0=[0, 0, 0, PHI0, 0], v0=[1.0, 0.3, 0, 2.0, 0], h=h, t_end=t_stop)
+            m = r.t <= t_stop
+            err = np.abs(r.q[m][:, [0, 1, 3]] - sol.sol(r.t[m])[:3].T).max()
+            note(f"slide and spin h={h}: against scipy", err)
         for name, (params, t_star) in PUSHES.items():
             r = sim(b).simulate(q0=[0, 0, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=t_star + 0.3, params=params)
             dq = np.abs(r.q - [0, 0, 0, PHI0, 0]).max(axis=1)
