@@ -74,13 +74,14 @@ def fmt(errs: list[float]) -> str:
     return ", ".join(f"{e:.2e}" for e in errs) + "  (orders " + ", ".join(f"{o:.2f}" for o in orders) + ")"
 
 
-def frozen_aim(self, f, p, q, u, tau):
+def frozen_aim(self, cones, q, u, tau):
     """``_cone_aim`` without the midpoint prediction: the direction of the sliding at the segment's start."""
     _, grad, _ = self.k.rows(q, u)
-    w = self._sliding(f, p, grad, u)
-    if math.hypot(*w) > sustained.SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
-        self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
-        self._set_friction()
+    for f, p in cones:
+        w = self._sliding(f, p, grad, u)
+        if math.hypot(*w) > sustained.SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+            self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
+    self._set_friction()
 
 
 def ball(backend: str) -> str:

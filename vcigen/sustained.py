@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .cone_split import null_combination, split
 from .derive import KINK
 from .errors import SolverError
 from .result import KINDS, Impact
@@ -40,6 +41,7 @@ LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
+BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 
 
@@ -271,11 +273,11 @@ class SustainedSteps:
         return float(np.linalg.norm(w)) <= DEP_EPS * float(np.linalg.norm(grad[sr]))
 
     def _owner(self, f: int, grad) -> int:
-        """Whose stick holds one-tangent contact ``f``'s tangent: ``-1`` if its stick row is independent of
+        """Whose stick holds frictional contact ``f``'s tangent: ``-1`` if its stick row is independent of
         the active rows; else the first sticking contact ``g`` without whose stick row it is independent
-        (``f`` itself if the other rows hold it alone)."""
+        (``f`` itself if the other rows hold it alone). A cone's row too (:meth:`_cone_split`)."""
         sr = self._stick_rows[f]
-        if self._partner[f] >= 0 or not self._dependent(grad, sr):
+        if not self._dependent(grad, sr):
             return -1
         for g, sg in enumerate(self._stick_rows):
             if g != f and self.act[sg] and not self._dependent(grad, sr, sg):
@@ -294,11 +296,17 @@ class SustainedSteps:
     def _cone_modes(self, q, u, tau: float | None) -> None:
         """Stick or slip of each cone contact at ``(q, u)``, as :meth:`_friction_modes` for one tangent: on
         entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips with the
-        force ``-mu_f lambda s`` along the sliding direction ``s``. A slipping cone's ``s`` is aimed anew at
-        the start of every segment (:meth:`_cone_aim`) and frozen over it."""
+        force ``-mu_f lambda s`` along the sliding direction ``s``. The slipping cones' ``s`` are aimed anew
+        at the start of every segment, all at once (:meth:`_cone_aim`), and frozen over it."""
         k = self.k
+        aimed = []
         for f, p in self._cones():
-            if not self._held_rows[f] or self._mu_f[f] <= 0.0 or self.act[self._stick_rows[f]]:
+            if not self._held_rows[f] or self._mu_f[f] <= 0.0:
+                continue
+            held = [bool(self.act[self._stick_rows[x]]) or self._ride[x] >= 0 for x in (f, p)]
+            if any(held):  # sticking; a row that no longer depends on the others' is held by its own again
+                for x in [x for x, on in zip((f, p), held) if not on]:
+                    self._stick(x, q, u)
                 continue
             if self._slip[f] == 0.0 and self._slip[p] == 0.0:
                 self._freeze_branch(f, q)
@@ -309,29 +317,93 @@ class SustainedSteps:
                     self._stick(p, q, u)
                     continue
                 self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
-            if tau is not None:
-                self._cone_aim(f, p, q, u, tau)
+            aimed.append((f, p))
+        if tau is not None and aimed:
+            self._cone_aim(aimed, q, u, tau)
 
-    def _cone_aim(self, f: int, p: int, q, u, tau: float) -> None:
-        """The slip direction of cone ``(f, p)`` over a segment of ``tau`` from ``(q, u)``: the sliding
-        velocity predicted at the segment's midpoint, ``w + tau/2 dw/dt`` (``dw/dt = grad tangent . qddot +
-        u . Hess tangent . u`` with the contact forces at the start and the start's direction), normalised.
-        Explicit and second order (the direction of the chord of RATTLE's step to O(tau^2); exact while the
-        sliding keeps its direction); the start's direction if the prediction turns back (a stop in the
-        segment, located by :meth:`_friction_events`)."""
+    def _cone_aim(self, cones, q, u, tau: float) -> None:
+        """The slip direction of each slipping cone ``(f, p)`` in ``cones`` over a segment of ``tau`` from
+        ``(q, u)``: the sliding velocity predicted at the segment's midpoint, ``w + tau/2 dw/dt`` (``dw/dt =
+        grad tangent . qddot + u . Hess tangent . u`` with the contact forces at the start and the start's
+        directions), normalised. Explicit and second order (the direction of the chord of RATTLE's step to
+        O(tau^2); exact while the sliding keeps its direction); the start's direction if the prediction turns
+        back (a stop in the segment, located by :meth:`_friction_events`) or if ``tau/2 |dw/dt| > |w|`` (near
+        rest, breaking away: there the prediction is made by the slip direction itself). Every cone is aimed
+        from the same state (the start's directions of all, one evaluation of the contact forces), so that the
+        aim of two cones of one body does not depend on their order. When two or more cones slide slower than
+        ``BRAKE tau`` times the rate friction alone changes their sliding (``mu_f N`` times the mean of
+        ``grad t M^-1 grad t^T``) they are aimed implicitly together (:meth:`_cone_brake`): there the
+        explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable."""
         k = self.k
         _, grad, curv = k.rows(q, u)
-        w = self._sliding(f, p, grad, u)
-        if math.hypot(*w) > SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
-            self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
-            self._set_friction()
-        acc = self._accel(q, u, self._contact_forces(q, u))
-        sf, sp_ = self._stick_rows[f], self._stick_rows[p]
-        mid = w + 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
-        norm = math.hypot(*mid)
-        if norm > 0.0 and float(mid @ self._slip[[f, p]]) < 0.0:  # along -slip: the way it slides
-            self._slip[[f, p]] = -self._mu_f[f] * mid / norm
-            self._set_friction()
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
+        for f, p in cones:
+            w = self._sliding(f, p, grad, u)
+            if math.hypot(*w) > tiny:
+                self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
+        self._set_friction()
+        forces = self._contact_forces(q, u)
+        acc = self._accel(q, u, forces)
+        mass = k.legendre(q, u)[1]
+        aims, slow = [], []
+        for f, p in cones:
+            w = self._sliding(f, p, grad, u)
+            sf, sp_ = self._stick_rows[f], self._stick_rows[p]
+            turn = 0.5 * tau * np.array([grad[sf] @ acc + curv[sf], grad[sp_] @ acc + curv[sp_]])
+            mid = w + turn
+            norm = math.hypot(*mid)
+            # the rate friction alone changes w by: mu_f N times the cone's mean inverse mass
+            g2 = grad[[sf, sp_]]
+            normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == k.frictional[f])
+            brake = self._mu_f[f] * normal * 0.5 * float(np.trace(g2 @ np.linalg.solve(mass, g2.T)))
+            aim = norm > tiny and float(mid @ self._slip[[f, p]]) < 0.0  # along -slip: the way it slides
+            if aim and math.hypot(*turn) <= math.hypot(*w):  # a correction of w, not made by the friction
+                aims.append((f, p, -self._mu_f[f] * mid / norm))
+            if math.hypot(*w) <= BRAKE * tau * brake:
+                slow.append((f, p))
+        if len(slow) >= 2:  # several cones near rest: implicit in the direction
+            aims = [a for a in aims if (a[0], a[1]) not in slow] + self._cone_brake(slow, q, u, tau)
+        for f, p, slip in aims:
+            self._slip[[f, p]] = slip
+        self._set_friction()
+
+    def _cone_brake(self, cones, q, u, tau: float):
+        """Slip directions of ``cones`` near rest (``tau/2 |dw/dt| > |w|``): along the tangential forces that
+        would bring their sliding to rest at the segment's midpoint, their stick rows held together with the
+        active rows (a row dependent on them rides, the split of the forces the best one,
+        :meth:`_cone_split`) at the velocity target ``d(grad tangent . u)/dt = -2 w / tau``. For a point (an
+        isotropic mass) that is the direction of ``w + tau/2 dw/dt`` with Coulomb's force along it, solved
+        for: implicit in the direction, where the explicit aim made the relative modes of two cones of one
+        body (the rod's yaw) unstable. ``[(f, p, slip)]``, none for a cone with no force."""
+        k = self.k
+        act, slip, ride = self.act.copy(), self._slip.copy(), list(self._ride)
+        _, grad, curv = k.rows(q, u)
+        for f, p in cones:
+            self._slip[[f, p]] = 0.0
+        self._set_friction()
+        target = curv.copy()
+        for f, p in cones:
+            for x in (f, p):
+                sr = self._stick_rows[x]
+                target[sr] += 2.0 * float(grad[sr] @ u) / tau
+                if self._dependent(grad, sr):
+                    self._ride[x] = x
+                else:
+                    self.act[sr] = True
+        forces = self._forces(End(None, grad, target, k.dynamics(q, u)[0], k.legendre(q, u)[1]))
+        out = []
+        for f, p in cones:
+            lam = np.array([forces[self._stick_rows[f]], forces[self._stick_rows[p]]])
+            joint = self._cone_split(f, forces, grad)
+            if joint is not None:
+                _, alpha, _, coupled, lams, dirs = joint
+                i = coupled.index((f, p))
+                lam = np.array(lams[i]) + alpha * np.array(dirs[i])
+            if math.hypot(*lam) > 0.0:
+                out.append((f, p, self._mu_f[f] * lam / math.hypot(*lam)))
+        self.act, self._slip, self._ride = act, slip, ride
+        self._set_friction()
+        return out
 
     def _cone_stop(self, f: int, p: int, step, t_k, q, p0, tau, v, u1, end, vel0, events) -> None:
         """A slipping cone that stops inside the segment: its sliding velocity along the frozen slip direction
@@ -356,12 +428,66 @@ class SustainedSteps:
         if kind == "stop":
             self._stick(f, q, u)
             self._stick(p, q, u)
+            grad = self.k.rows(q, u)[1]
+            tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
+            for c, pc in self._cones():  # another cone of the body stopped at the same instant sticks with it
+                if (self._slip[c] or self._slip[pc]) and math.hypot(*self._sliding(c, pc, grad, u)) <= tiny:
+                    self._stick(c, q, u)
+                    self._stick(pc, q, u)
+        elif (joint := self._cone_split(f, self._contact_forces(q, u), self.k.rows(q, u)[1])) is not None:
+            self._split_slide(joint, q, u)
         else:
             forces = self._contact_forces(q, u)
             lam = np.array([forces[self._stick_rows[f]], forces[self._stick_rows[p]]])
             self.act[self._stick_rows[f]] = self.act[self._stick_rows[p]] = False
             self._slip[[f, p]] = self._mu_f[f] * lam / max(math.hypot(*lam), 1e-300)
         self._set_friction()
+
+    def _cone_split(self, f: int, forces, grad):
+        """The cones coupled with cone ``f`` by a dependent stick row (a cone row riding, :meth:`_stick`) and
+        their best split (:func:`vcigen.cone_split.split`): ``(margin, alpha, values, cones, stick forces,
+        null combinations)``, the least margin over the riders whose null combination involves ``f``; None
+        if none does."""
+        f = min(f, self._partner[f])
+        rows = self._stick_rows
+        best = None
+        for g in range(len(rows)):
+            if self._partner[g] < 0 or self._ride[g] < 0:
+                continue
+            n = null_combination(grad, self.act, rows[g])
+            cones = [(c, pc) for c, pc in self._cones() if max(abs(n[rows[c]]), abs(n[rows[pc]])) > DEP_EPS]
+            if (f, self._partner[f]) not in cones:
+                continue
+            caps, lams, dirs = [], [], []
+            for c, pc in cones:
+                j = self.k.frictional[c]
+                normal = sum(forces[r] for r in range(self.k.r) if self.k.row_contact[r] == j)
+                caps.append(self._mu_f[c] * normal)
+                lams.append((float(forces[rows[c]]), float(forces[rows[pc]])))
+                dirs.append((float(n[rows[c]]), float(n[rows[pc]])))
+            margin, alpha, values = split(caps, lams, dirs)
+            if best is None or margin < best[0]:
+                best = (margin, alpha, values, cones, lams, dirs)
+        return best
+
+    def _split_slide(self, joint, q, u) -> None:
+        """The coupled cones' stick breaks: those at the edge of their cone in the best split (within
+        ``DEP_EPS`` of the least margin) slip along their split force, ``s = -lambda_c / |lambda_c|``; the
+        others stick on, a row of theirs that no longer depends on the rest held by its own again."""
+        margin, alpha, values, cones, lams, dirs = joint
+        for (c, pc), value, lam, d in zip(cones, values, lams, dirs):
+            if value <= margin + DEP_EPS * (1.0 + abs(value)):
+                x, y = lam[0] + alpha * d[0], lam[1] + alpha * d[1]
+                norm = max(math.hypot(x, y), 1e-300)
+                for r, comp in ((c, x), (pc, y)):
+                    self.act[self._stick_rows[r]] = False
+                    self._ride[r] = -1
+                    self._slip[r] = self._mu_f[c] * comp / norm
+        grad = self.k.rows(q, u)[1]
+        for g in range(len(self._stick_rows)):
+            if self._partner[g] >= 0 and self._ride[g] >= 0:
+                self._ride[g] = self._owner(g, grad)
+                self.act[self._stick_rows[g]] = self._ride[g] < 0
 
     def _freeze_branch(self, f: int, q) -> None:
         """The signs of frictional contact ``f``'s tangent at ``q`` (0 at a kink: the face's centre) into its
@@ -397,13 +523,19 @@ class SustainedSteps:
                     self._ref[g] += float(psi[sg])
                     self._slip[g], self._ride[g] = 0.0, owner
 
-    def _cone_margin(self, f: int, forces) -> float:
-        """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone."""
+    def _cone_margin(self, f: int, forces, grad) -> float:
+        """``mu_f sum lambda_rows - |lambda_stick|``: negative when the stick force leaves Coulomb's cone. A
+        cone coupled to others by a dependent stick row: the margin of their best split
+        (:meth:`_cone_split`)."""
         k = self.k
         j = k.frictional[f]
+        if self._partner[f] >= 0:
+            joint = self._cone_split(f, forces, grad)
+            if joint is not None:
+                return joint[0]
         normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
         for g, owner in enumerate(self._ride):  # the dependent sticks it carries: their cones are room too
-            if owner == f and g != f:
+            if owner == f and g != f and self._partner[g] < 0:
                 normal += (
                     self._mu_f[g]
                     / self._mu_f[f]
@@ -437,14 +569,14 @@ class SustainedSteps:
 
                     frac = 0.0 if g0 <= 0.0 else _illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, v)
                     events[sr] = ("stop", frac)
-            elif self.act[sr]:
-                g1 = self._cone_margin(f, f1)
+            elif self.act[sr] or (self._partner[f] >= 0 and self.act[self._stick_rows[self._partner[f]]]):
+                g1 = self._cone_margin(f, f1, end.grad)
                 if g1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))):
-                    g0 = self._cone_margin(f, self._contact_forces(q, vel0))
+                    g0 = self._cone_margin(f, self._contact_forces(q, vel0), k.rows(q, vel0)[1])
 
                     def margin(c, w, f=f):
                         w, end_c, _ = self._sub_end(step, t_k, q, p, tau, c, w)
-                        return self._cone_margin(f, self._forces(end_c)), w
+                        return self._cone_margin(f, self._forces(end_c), end_c.grad), w
 
                     tiny = EPS_LAM * (1.0 + abs(g0) + abs(g1))
                     frac = 0.0 if g0 < 0.0 else _illinois(margin, g0, g1, tiny, 1e-12, LIFT_ITER, v)
@@ -467,7 +599,7 @@ class SustainedSteps:
             self._slip[f] = -self._mu_f[f] * math.copysign(1.0, -lam)  # it slides the way the force pushes
             grad = self.k.rows(q, u)[1]
             for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
-                if owner == f and g != f:
+                if owner == f and g != f and self._partner[g] < 0:
                     along = float(grad[self._stick_rows[g]] @ grad[sr])
                     self._slip[g] = -self._mu_f[g] * math.copysign(1.0, -lam * along)
                     self._ride[g] = -1
