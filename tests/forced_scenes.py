@@ -55,19 +55,26 @@ def pendulum_wall() -> vcigen.Model:
     )
 
 
-def polar_particle() -> vcigen.Model:
+def polar_particle(rim: float | None = None) -> vcigen.Model:
     """A particle in polar coordinates (mass matrix ``diag(1, r^2)``) on a spring ``2 (r - 1)^2`` in a
-    field ``0.3 x``, damped (c = 0.3), driven radially by ``cos 1.7 t`` and turned by ``sin(0.3 t)/2``."""
+    field ``0.3 x``, damped (c = 0.3), driven radially by ``cos 1.7 t`` and turned by ``sin(0.3 t)/2``;
+    with ``rim``, inside a rim ``r <= rim`` (restitution 0.8)."""
     r, th, rd, thd, t = sp.symbols("r th rd thd t")
-    c, A, W = sp.symbols("c A W")
+    c, A, W, R, e = sp.symbols("c A W R e")
+    params = {c: 0.3, A: 1.0, W: 1.7}
+    walls = {}
+    if rim is not None:
+        params |= {R: rim, e: 0.8}
+        walls = {"contacts": {"rim": R - r}, "restitution": {"rim": e}}
     return vcigen.Model(
-        name="polar_forced",
+        name="polar_forced" if rim is None else "polar_rim",
         q=[r, th],
         qdot=[rd, thd],
         lagrangian=(rd**2 + r**2 * thd**2) / 2 - 2 * (r - 1) ** 2 - sp.Rational(3, 10) * r * sp.cos(th),
-        params={c: 0.3, A: 1.0, W: 1.7},
+        params=params,
         forces=[-c * rd + A * sp.cos(W * t), -c * r**2 * thd + sp.sin(sp.Rational(3, 10) * t) / 2],
         time=t,
+        **walls,
     )
 
 

@@ -69,6 +69,7 @@ class Booking:
     potential: Potential | None = None  # None: M of q, or a rule without a closed form (impact_work)
     start: Callable[..., np.ndarray] | None = None  # (q0, v, tau, t0, par) -> (K,): E_d - f_d- . v
     modified: Callable[..., np.ndarray] | None = None  # (q, p, h, par) -> (K,): H~ (midpoint, M of q)
+    velocity: Callable[..., np.ndarray] | None = None  # (q, p, v, tau, t0, end, par) -> (K, n): with H~
 
 
 def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
@@ -97,7 +98,39 @@ def work_function(system: DiscreteSystem) -> Booking | None:
         args = list(values) if not system.timed else [*list(values)[:-1], t0]
         return np.broadcast_to(np.asarray(start_fn(*q0.T, *v.T, tau, *args)[0][0], float), tau.shape)
 
-    return Booking(forces, _curvature(system), _potential(system), start, _modified_hamiltonian(system))
+    modified = _modified_hamiltonian(system)
+    velocity = _segment_velocity(system) if modified is not None else None
+    return Booking(forces, _curvature(system), _potential(system), start, modified, velocity)
+
+
+def _segment_velocity(system: DiscreteSystem) -> Callable[..., np.ndarray]:
+    """``(q, p, v, tau, t0, end, par) -> v (K, n)``: the velocity of the segment of length ``tau`` that starts
+    (``end`` False) or ends (True) at ``q`` with the DEL momentum ``p`` there (``p- = -D1 L_d - f_d-``,
+    ``p+ = D2 L_d + f_d+``), by Newton from ``v``. A sub-segment's velocity from its end points carries their
+    round-off over its length; ``dp/dv = M + O(tau)`` keeps this one at round-off."""
+    seg = system.segment
+    n = system.model.n
+    q1 = sp.Matrix([sp.Dummy(f"q1_{i}") for i in range(n)])
+    p_end = seg.p_plus.xreplace(dict(zip(seg.q0, q1 - seg.tau * seg.v)))  # the segment ending at q1
+    rows = [
+        [*seg.p_minus, *seg.p_minus.jacobian(seg.v)],
+        [*p_end, *p_end.jacobian(seg.v)],
+    ]
+    fns = [_lambdify(system, [*q, *seg.v, seg.tau], [row]) for q, row in zip((seg.q0, q1), rows)]
+
+    def velocity(
+        q: np.ndarray, p: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, end: bool, values
+    ):
+        args = list(values) if not system.timed else [*list(values)[:-1], t0]
+        v = v.copy()
+        for _ in range(3):
+            out = fns[end](*q.T, *v.T, tau, *args)[0]
+            cols = np.stack([np.broadcast_to(np.asarray(c, float), tau.shape) for c in out], -1)
+            res, jac = cols[:, :n] - p, cols[:, n:].reshape(-1, n, n)
+            v -= np.linalg.solve(jac, res[..., None])[..., 0]
+        return v
+
+    return velocity
 
 
 def _separable(system: DiscreteSystem) -> bool:
@@ -273,6 +306,60 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
             j = i[found]
             e0 = booking.start(qs[seg[j]], vs[j], tau[seg[j]], ts[seg[j]], par)
             np.add.at(out, owner[seg[j]], e0 - after[plastic][found])
+    elif ims and booking.modified is not None and steps > 1 and not bilateral:
+        first, last = (v_start, tau_start, t[:-1]), (v_end, tau_end, t[1:] - tau_end)
+        out += modified_impact_work(booking, res, h, ks, first, last, on_node, par)
+    return out
+
+
+def modified_impact_work(
+    booking: Booking,
+    res: Result,
+    h: float,
+    ks: np.ndarray,
+    first: tuple[np.ndarray, ...],
+    last: tuple[np.ndarray, ...],
+    on_node: np.ndarray,
+    par,
+) -> np.ndarray:
+    """``(N-1,)``: the impacts' ``b`` for a mass matrix of ``q`` (README, *Forces*), where a node's kick is
+    booked as its change of the modified Hamiltonian ``H~`` (:func:`_modified_hamiltonian`).
+
+    With the node booking ``H~(q, p + f_d-) - H~(q, p - f_d+) - f_d+ . v- - f_d- . v+``, a grid node leaves
+    in ``E_k - E_0 - sum W`` exactly ``D(s+) - D'(s-)``, with ``D(s) = E_d(s) - H~_h(q0, p0)`` at the start
+    of segment ``s`` and ``D'(s) = E_d(s) - H~_h(q1, p1)`` at its end (``p0 = -D1 L_d``, ``p1 = D2 L_d``:
+    the momenta of its conservative map). Over a segment of length ``h`` the map keeps ``H~_h`` to O(h^5),
+    so ``D(s) - D'(s)`` is that defect and the nodes telescope; an impact (48a) keeps ``E_d``, not ``D``, and
+    its sub-segments' maps keep ``H~`` of their own lengths. Per step with an impact the nodes leave
+
+        b = D(first segment) [node k a grid node] - D'(last segment) [node k+1 a grid node],
+
+    O(h^2), booked on the step (a segment between two impacts leaves nothing). An impact on a grid node makes
+    the steps either side impact steps for this count. Steps in sustained contact (the node's DEL holds the
+    contact impulse) book none."""
+    steps = res.energy.size
+    out = np.zeros(steps)
+    touched = np.zeros(steps, dtype=bool)
+    touched[ks] = True
+    touched[:-1] |= on_node[1:steps]  # the step ending on an impact node
+    touched |= on_node[:steps]  # and the one starting there
+    if res.contact_force is not None and res.contact_force.size:
+        touched &= ~np.any(res.contact_force != 0.0, axis=1)
+    grid = np.zeros(steps + 1, dtype=bool)
+    grid[1:steps] = ~on_node[1:steps]  # the grid nodes (not an impact, not the run's ends)
+    head = np.flatnonzero(touched & grid[:-1])  # steps whose first segment starts at a grid node
+    tail = np.flatnonzero(touched & grid[1:])  # steps whose last segment ends at one
+    mom = res.p
+    for rows, (v, tau, t0), at, sign in ((head, first, 0, 1.0), (tail, last, 1, -1.0)):
+        if not rows.size:
+            continue
+        node, seg_tau, seg_t0 = rows + at, tau[rows], t0[rows]
+        vel = booking.velocity(res.q[node], mom[node], v[rows], seg_tau, seg_t0, bool(at), par)
+        start = res.q[node] - seg_tau[:, None] * vel if at else res.q[node]
+        fm, fp = booking.forces(start, vel, seg_tau, seg_t0, par)
+        energy = booking.start(start, vel, seg_tau, seg_t0, par) + _dot(fm, vel)
+        p = mom[node] + fm if at == 0 else mom[node] - fp  # the conservative map's momentum
+        np.add.at(out, rows, sign * (energy - booking.modified(res.q[node], p, h, par)))
     return out
 
 
