@@ -18,8 +18,9 @@ energy behaviour, and the wall time of one run (best of 3).
 Then ``--long`` steps of vcigen (C, h = 0.01, and over the same time at h/2) on the driven oscillator
 without damping, the stop out of reach (the drive does work both ways), with damping and the stop out of
 reach, and with damping and the stop, on the damped, driven pendulum against a wall (V not quadratic)
-and on a damped, driven particle in polar coordinates (a mass matrix of q), each with the trapezoid and
-the midpoint rule: the balance's max, its drift (least-squares slope times the run's length) and Σ|W|.
+and on a damped, driven particle in polar coordinates (a mass matrix of q), free and inside a rim r <= 1.2
+(e = 0.8), each with the trapezoid and the midpoint rule: the balance's max, its drift (least-squares
+slope times the run's length) and Σ|W|.
 ``--long-only`` runs only these. Writes ``bench/results/forced.csv``
 (``forced_long.csv`` with ``--long-only``).
 """
@@ -278,6 +279,8 @@ def long_rows(steps: int) -> list[dict]:
     oscillator = vcigen.build(fs.driven_oscillator(), backend="c")
     pendulum = {r: vcigen.build(fs.pendulum_wall(), backend="c", rule=r) for r in ("trapezoid", "midpoint")}
     polar = {r: vcigen.build(fs.polar_particle(), backend="c", rule=r) for r in ("trapezoid", "midpoint")}
+    rules = ("trapezoid", "midpoint")
+    rim = {r: vcigen.build(fs.polar_particle(rim=1.2), backend="c", rule=r) for r in rules}
     rows = []
     for label, sim, params in (
         ("undamped drive, stop out of reach", oscillator, {"c": 0.0, "d": 100.0}),
@@ -287,6 +290,8 @@ def long_rows(steps: int) -> list[dict]:
         ("pendulum, wall e = 0.8, midpoint", pendulum["midpoint"], {}),
         ("polar particle M(q), trapezoid", polar["trapezoid"], {}),
         ("polar particle M(q), midpoint", polar["midpoint"], {}),
+        ("polar M(q), rim e = 0.8, trapezoid", rim["trapezoid"], {}),
+        ("polar M(q), rim e = 0.8, midpoint", rim["midpoint"], {}),
     ):
         for h in (0.01, 0.005):  # the same span of time: steps at h, twice as many at h/2
             start = time.perf_counter()
