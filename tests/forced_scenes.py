@@ -78,6 +78,31 @@ def polar_particle(rim: float | None = None) -> vcigen.Model:
     )
 
 
+def rod_pendulum(wall: float | None = None, potential: sp.Expr | None = None) -> vcigen.Model:
+    """A particle on a rod ``x^2 + y^2 = 1`` (a bilateral constraint) under gravity ``4 y``, damped (c = 0.3)
+    and driven along x by ``2.5 cos 1.7 t``; with ``wall``, against a wall ``x <= wall`` (e = 0.8);
+    ``potential`` (of ``x``, ``y``) in place of ``4 y``."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    c, A, W, e, d = sp.symbols("c A W e d")
+    params = {c: 0.3, A: 2.5, W: 1.7}
+    walls = {}
+    if wall is not None:
+        params |= {e: 0.8, d: wall}
+        walls = {"contacts": {"wall": d - x}, "restitution": {"wall": e}}
+    pot = 4 * y if potential is None else potential.xreplace({sp.Symbol("x"): x, sp.Symbol("y"): y})
+    return vcigen.Model(
+        name="rod_forced" + ("" if wall is None else "_wall") + ("" if potential is None else "_v"),
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - pot,
+        constraints={"rod": x**2 + y**2 - 1},
+        params=params,
+        forces=[-c * xd + A * sp.cos(W * t), -c * yd],
+        time=t,
+        **walls,
+    )
+
+
 class LinearFlow:
     """Exact flow of ``x'' + c x' + k x = A cos(W t)`` (underdamped) from ``(t0, x0, v0)``."""
 

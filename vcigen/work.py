@@ -290,29 +290,33 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
         v_start[k], f_start[k], v_end[k], f_end[k] = vs[head], gm[head], vs[tail], gp[tail]
         tau_start[k], tau_end[k] = tau[seg][head], tau[seg][tail]
     node = _dot(f_end[:-1] - f_start[1:], v_start[1:] - v_end[:-1]) / 2  # grid nodes 1 .. steps-1
+    bilateral = res.constraint_force is not None and res.constraint_force.size > 0
+    impulse = np.zeros((max(steps - 1, 0), q.shape[1]))  # the bilateral constraints' impulse at each node
+    if bilateral and booking.momenta is not None and steps > 1:
+        impulse = constraint_impulse(booking, res, (v_start, tau_start, v_end, tau_end), par)
+        node += _dot(impulse, (v_start[1:] + v_end[:-1]) / 2)
     if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
-        kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
+        kick, vbar = f_end[:-1] + f_start[1:] + impulse, (v_start[1:] + v_end[:-1]) / 2
         node += h * h / 6 * np.einsum("kn,knm,km->k", kick, booking.curvature(q[1:steps], par), vbar)
     if booking.modified is not None and steps > 1:  # the kick's change of H~, in place of J . vbar
         mom = res.p[1:steps]
         lo, hi = mom - f_end[:-1], mom + f_start[1:]  # p before and after the kick f_d+ + f_d-
         gain = booking.modified(q[1:steps], hi, h, par) - booking.modified(q[1:steps], lo, h, par)
         node = gain - _dot(f_end[:-1], v_end[:-1]) - _dot(f_start[1:], v_start[1:])
-    bilateral = res.constraint_force is not None and res.constraint_force.size > 0
-    if bilateral and booking.momenta is not None and steps > 1:  # the constraint impulse's work at a node
-        node += constraint_work(booking, res, h, (v_start, tau_start, v_end, tau_end), par)
     out[1:] += np.where(on_node[1:steps], 0.0, node)
-    if ims and booking.potential is not None and not bilateral:
-        held = np.zeros(steps, dtype=bool)  # the steps with a part in sustained contact
+    if ims and booking.potential is not None:
+        held = np.full(steps, bilateral)  # the steps with a row held: their DEL holds its impulse
         if res.contact_force is not None and res.contact_force.size:
-            held = np.any(res.contact_force != 0.0, axis=1)
+            held |= np.any(res.contact_force != 0.0, axis=1)
         sub = (owner[seg], qs[seg], vs, tau[seg])
         ends = (v_start, tau_start, v_end, tau_end, f_end[:-1] + f_start[1:])
         curved = booking.curvature is not None
         out += impact_work(booking.potential, curved, q, h, ks, sub, ends, held, on_node, par)
         # a plastic impact's logged energy after it is E_d less its loss, not the energy at the start of the
         # constrained segment that follows: the difference is the step's too
-        plastic = np.array([im.kind == "plastic" for im in ims])[order[place[order] == 1] - ks.size]
+        plastic = np.array([im.kind == "plastic" or held[im.step] for im in ims])[
+            order[place[order] == 1] - ks.size
+        ]
         after = np.array([im.energy_after for im in ims])[order[place[order] == 1] - ks.size]
         rows = np.flatnonzero(place[order] == 1)[plastic]  # the plastic impacts' points
         i = np.searchsorted(seg, rows)
@@ -327,20 +331,21 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
     return out
 
 
-def constraint_work(booking: Booking, res: Result, h: float, ends: tuple[np.ndarray, ...], par) -> np.ndarray:
-    """``(N-2,)``: at grid nodes 1 .. N-2 the work of the bilateral constraints' impulse ``K``, the mismatch
-    of the DEL there, ``K = p-(seg+) - p+(seg-)`` (RATTLE: ``(Lam' + Lam) grad psi``): a kick changes
-    ``1/2 p.M^-1 p`` by ``K . (v- + v+)/2`` (M constant; README, *Forces*). It is not 0: the discrete path
-    leaves ``q_k`` off the tangent, ``grad psi . v+- = -+(tau/2) v.Hess psi v``, so a node books
+def constraint_impulse(booking: Booking, res: Result, ends: tuple[np.ndarray, ...], par) -> np.ndarray:
+    """``(N-2, n)``: at grid nodes 1 .. N-2 the bilateral constraints' impulse ``K``, the mismatch of the DEL
+    there, ``K = p-(seg+) - p+(seg-)`` (RATTLE: ``(Lam' + Lam) grad psi``). As a kick it changes
+    ``1/2 p.M^-1 p`` by ``K . (v- + v+)/2`` (M constant; README, *Forces*), not 0: the discrete path leaves
+    ``q_k`` off the tangent, ``grad psi . v+- = -+(tau/2) v.Hess psi v``, so a node books
     ``(h^2/4) lambda (v-.Hess psi v- - v+.Hess psi v+)``, O(h^3); without forces it sums to a bounded
     O(h^2) (the tension a function of the state), with damping to a drift, O(h^2) times the dissipated
-    energy (the balance of a damped, driven rod pendulum before: -3.1e-2 over 2e4 steps)."""
+    energy. It is also part of the kick of the h^2 term with V not quadratic (``q'' = M^-1 (F - g + G^T
+    lambda)`` in the integration by parts)."""
     v_start, tau_start, v_end, tau_end = ends
     steps = res.energy.size
     q, t = res.q[1:steps], res.t[1:steps]
     p_next, _ = booking.momenta(q, v_start[1:], tau_start[1:], t, False, par)
     p_prev, _ = booking.momenta(q, v_end[:-1], tau_end[:-1], t - tau_end[:-1], True, par)
-    return _dot(p_next - p_prev, (v_start[1:] + v_end[:-1]) / 2)
+    return p_next - p_prev
 
 
 def modified_impact_work(
