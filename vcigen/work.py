@@ -71,6 +71,7 @@ class Booking:
     modified: Callable[..., np.ndarray] | None = None  # (q, p, h, par) -> (K,): H~ (midpoint, M of q)
     velocity: Callable[..., np.ndarray] | None = None  # (q, p, v, tau, t0, end, par) -> (K, n): with H~
     momenta: Callable[..., tuple[np.ndarray, np.ndarray]] | None = None  # (q, v, tau, t0, end, par) -> p, p_v
+    legendre: Callable[..., np.ndarray] | None = None  # (q, p, par) -> qdot: L quadratic in qdot
 
 
 def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
@@ -102,7 +103,31 @@ def work_function(system: DiscreteSystem) -> Booking | None:
     modified = _modified_hamiltonian(system)
     momenta = _segment_momenta(system) if modified is not None or system.model.constraint else None
     velocity = _segment_velocity(system.model.n, momenta) if modified is not None else None
-    return Booking(forces, _curvature(system), _potential(system), start, modified, velocity, momenta)
+    legendre = _legendre(system)
+    return Booking(
+        forces, _curvature(system), _potential(system), start, modified, velocity, momenta, legendre
+    )
+
+
+def _legendre(system: DiscreteSystem) -> Callable[..., np.ndarray] | None:
+    """``(q (K, n), p (K, n), par) -> qdot``: ``M(q)^-1 (p - b(q))`` for ``L = 1/2 qdot.M qdot + b.qdot - V``,
+    the velocity of a segment of length 0 with momentum ``p`` (``p- = dL/dqdot`` at ``tau = 0``); ``None``
+    for another ``L``."""
+    model = system.model
+    vs, mass = list(model.velocities), model.mass_matrix
+    if mass.free_symbols & set(vs):
+        return None
+    v = sp.Matrix(vs)
+    zero = dict.fromkeys(vs, 0)
+    b = sp.Matrix([model.L.diff(x) for x in vs]).xreplace(zero)
+    if sp.expand(model.L - (v.T * mass * v)[0] / 2 - (b.T * v)[0] - model.L.xreplace(zero)) != 0:
+        return None
+    mass_fn, b_fn = _matrix_function(system, mass), _matrix_function(system, b)
+
+    def legendre(q: np.ndarray, p: np.ndarray, values) -> np.ndarray:
+        return np.linalg.solve(mass_fn(q, values), (p - b_fn(q, values)[:, :, 0])[..., None])[..., 0]
+
+    return legendre
 
 
 def _segment_momenta(system: DiscreteSystem) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
@@ -276,10 +301,19 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
         inside = owner[1:] == owner[:-1]  # consecutive points of one step bound a segment
         keep = inside & (tau > TINY * h)
         first, last = np.flatnonzero(place[order][:-1] == 0), np.flatnonzero(place[order][1:] == 2)
+        zero = np.zeros(tau.size, dtype=bool)  # an impact on a grid node: a segment of length 0 there
+        if booking.legendre is not None:
+            zero[first], zero[last] = ~keep[first], ~keep[last]
+            keep |= zero
         on_node[ks] |= ~keep[first]
         on_node[ks + 1] |= ~keep[last]
         seg = np.flatnonzero(keep)
-        vs = (qs[seg + 1] - qs[seg]) / tau[seg, None]
+        vs = (qs[seg + 1] - qs[seg]) / np.maximum(tau[seg, None], TINY * h)
+        if zero.any():  # its velocity from its momentum, the node's: before the impact at a step's start,
+            z = np.flatnonzero(zero[seg])  # after it at its end
+            node = np.where(place[order][seg[z]] == 0, owner[seg[z]], owner[seg[z]] + 1)
+            vs[z] = booking.legendre(q[node], res.p[node], par)
+            tau[seg[z]] = 0.0
         gm, gp = forces(qs[seg], vs, tau[seg], ts[seg], par)
         out[ks] = 0.0
         np.add.at(out, owner[seg], _dot(gm + gp, vs))
