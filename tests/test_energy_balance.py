@@ -527,7 +527,7 @@ def test_bilateral_constraint_with_impacts_balance_is_exact(backend):
     round-off through the impacts, 1e5 steps on C (about 270 impacts), 1e4 on CasADi: the constraint
     impulse's work at the nodes, b of the impact steps from the positions (their DEL holds the impulse), and
     the logged energy after an impact (the jump of a constrained system) to the energy at the start of the
-    segment after it. Before: max 4.4e-3 over 2e4 steps (drift -3.1e-3), 1.1e-3 at h/2."""
+    segment after it. Before: max 2.2e-3 over 2e4 steps (drift -1.9e-3), 5.6e-4 at h/2."""
     steps = 100_000 if backend == "c" else 10_000
     res = rod(backend, "trapezoid", wall=0.6).simulate(
         q0=[0.0, -1.0], v0=[0.5, 0.0], h=0.01, t_end=steps * 0.01

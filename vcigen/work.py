@@ -28,8 +28,11 @@ Step ``k``'s work is its segments' work plus the correction of the node it start
 node that is also an impact (a sub-segment of zero length there) takes none. On the steps of an impact the
 conservative mismatch no longer telescopes: the nodes join segments of different lengths and (48a) keeps
 ``E_d`` across the impact; :func:`impact_work` books what is left, ``b = O(h^2)`` an impact (README,
-*Forces*), without which the balance drifts in proportion to the number of impacts; a plastic impact also
-books the difference of its logged energy after it to the energy at the start of the held segment after.
+*Forces*), without which the balance drifts in proportion to the number of impacts (with a mass matrix of
+``q``: :func:`modified_impact_work`); a plastic impact, or one in a step with a row held, also books the
+difference of its logged energy after it to the energy at the start of the segment after. An impact exactly
+on a grid node is a segment of length 0 with the node momentum's velocity. Bilateral constraints: the
+impulse of the DEL at a node does work (:func:`constraint_impulse`).
 """
 
 from __future__ import annotations
