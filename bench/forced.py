@@ -18,8 +18,10 @@ energy behaviour, and the wall time of one run (best of 3).
 Then ``--long`` steps of vcigen (C, h = 0.01, and over the same time at h/2) on the driven oscillator
 without damping, the stop out of reach (the drive does work both ways), with damping and the stop out of
 reach, and with damping and the stop, on the damped, driven pendulum against a wall (V not quadratic)
-and on a damped, driven particle in polar coordinates (a mass matrix of q), each with the trapezoid and
-the midpoint rule: the balance's max, its drift (least-squares slope times the run's length) and Σ|W|.
+and on a damped, driven particle in polar coordinates (a mass matrix of q), free and inside a rim r <= 1.2
+(e = 0.8), each with the trapezoid and the midpoint rule, and a particle on a rod (a bilateral constraint)
+with V not quadratic, and with V linear against a wall: the balance's max, its drift (least-squares
+slope times the run's length) and Σ|W|.
 ``--long-only`` runs only these. Writes ``bench/results/forced.csv``
 (``forced_long.csv`` with ``--long-only``).
 """
@@ -34,6 +36,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
@@ -278,6 +281,11 @@ def long_rows(steps: int) -> list[dict]:
     oscillator = vcigen.build(fs.driven_oscillator(), backend="c")
     pendulum = {r: vcigen.build(fs.pendulum_wall(), backend="c", rule=r) for r in ("trapezoid", "midpoint")}
     polar = {r: vcigen.build(fs.polar_particle(), backend="c", rule=r) for r in ("trapezoid", "midpoint")}
+    rules = ("trapezoid", "midpoint")
+    rim = {r: vcigen.build(fs.polar_particle(rim=1.2), backend="c", rule=r) for r in rules}
+    x, y = sp.symbols("x y")
+    rod = vcigen.build(fs.rod_pendulum(potential=4 * y + 2 * x**2 * y + x**3), backend="c")
+    rod_wall = vcigen.build(fs.rod_pendulum(wall=0.6), backend="c")
     rows = []
     for label, sim, params in (
         ("undamped drive, stop out of reach", oscillator, {"c": 0.0, "d": 100.0}),
@@ -287,10 +295,16 @@ def long_rows(steps: int) -> list[dict]:
         ("pendulum, wall e = 0.8, midpoint", pendulum["midpoint"], {}),
         ("polar particle M(q), trapezoid", polar["trapezoid"], {}),
         ("polar particle M(q), midpoint", polar["midpoint"], {}),
+        ("polar M(q), rim e = 0.8, trapezoid", rim["trapezoid"], {}),
+        ("polar M(q), rim e = 0.8, midpoint", rim["midpoint"], {}),
+        ("rod (bilateral), V = 4y + 2x^2y + x^3", rod, {}),
+        ("rod (bilateral), wall e = 0.8", rod_wall, {}),
     ):
         for h in (0.01, 0.005):  # the same span of time: steps at h, twice as many at h/2
             start = time.perf_counter()
             start0 = ([1.0, 0.0], [0.2, 0.9]) if sim.model.n == 2 else ([0.0], [0.0])
+            if sim.model.constraint:
+                start0 = ([0.0, -1.0], [0.5, 0.0])
             res = sim.simulate(q0=start0[0], v0=start0[1], h=h, t_end=steps * 0.01, params=params)
             wall = time.perf_counter() - start
             bal = res.energy_balance()

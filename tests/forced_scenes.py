@@ -55,19 +55,51 @@ def pendulum_wall() -> vcigen.Model:
     )
 
 
-def polar_particle() -> vcigen.Model:
+def polar_particle(rim: float | None = None) -> vcigen.Model:
     """A particle in polar coordinates (mass matrix ``diag(1, r^2)``) on a spring ``2 (r - 1)^2`` in a
-    field ``0.3 x``, damped (c = 0.3), driven radially by ``cos 1.7 t`` and turned by ``sin(0.3 t)/2``."""
+    field ``0.3 x``, damped (c = 0.3), driven radially by ``cos 1.7 t`` and turned by ``sin(0.3 t)/2``;
+    with ``rim``, inside a rim ``r <= rim`` (restitution 0.8)."""
     r, th, rd, thd, t = sp.symbols("r th rd thd t")
-    c, A, W = sp.symbols("c A W")
+    c, A, W, R, e = sp.symbols("c A W R e")
+    params = {c: 0.3, A: 1.0, W: 1.7}
+    walls = {}
+    if rim is not None:
+        params |= {R: rim, e: 0.8}
+        walls = {"contacts": {"rim": R - r}, "restitution": {"rim": e}}
     return vcigen.Model(
-        name="polar_forced",
+        name="polar_forced" if rim is None else "polar_rim",
         q=[r, th],
         qdot=[rd, thd],
         lagrangian=(rd**2 + r**2 * thd**2) / 2 - 2 * (r - 1) ** 2 - sp.Rational(3, 10) * r * sp.cos(th),
-        params={c: 0.3, A: 1.0, W: 1.7},
+        params=params,
         forces=[-c * rd + A * sp.cos(W * t), -c * r**2 * thd + sp.sin(sp.Rational(3, 10) * t) / 2],
         time=t,
+        **walls,
+    )
+
+
+def rod_pendulum(wall: float | None = None, potential: sp.Expr | None = None) -> vcigen.Model:
+    """A particle on a rod ``x^2 + y^2 = 1`` (a bilateral constraint) under gravity ``4 y``, damped (c = 0.3)
+    and driven along x by ``2.5 cos 1.7 t``; with ``wall``, against a wall ``x <= wall`` (e = 0.8);
+    ``potential`` (of ``x``, ``y``) in place of ``4 y``."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    c, A, W, e, d = sp.symbols("c A W e d")
+    params = {c: 0.3, A: 2.5, W: 1.7}
+    walls = {}
+    if wall is not None:
+        params |= {e: 0.8, d: wall}
+        walls = {"contacts": {"wall": d - x}, "restitution": {"wall": e}}
+    pot = 4 * y if potential is None else potential.xreplace({sp.Symbol("x"): x, sp.Symbol("y"): y})
+    return vcigen.Model(
+        name="rod_forced" + ("" if wall is None else "_wall") + ("" if potential is None else "_v"),
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - pot,
+        constraints={"rod": x**2 + y**2 - 1},
+        params=params,
+        forces=[-c * xd + A * sp.cos(W * t), -c * yd],
+        time=t,
+        **walls,
     )
 
 

@@ -28,8 +28,11 @@ Step ``k``'s work is its segments' work plus the correction of the node it start
 node that is also an impact (a sub-segment of zero length there) takes none. On the steps of an impact the
 conservative mismatch no longer telescopes: the nodes join segments of different lengths and (48a) keeps
 ``E_d`` across the impact; :func:`impact_work` books what is left, ``b = O(h^2)`` an impact (README,
-*Forces*), without which the balance drifts in proportion to the number of impacts; a plastic impact also
-books the difference of its logged energy after it to the energy at the start of the held segment after.
+*Forces*), without which the balance drifts in proportion to the number of impacts (with a mass matrix of
+``q``: :func:`modified_impact_work`); a plastic impact, or one in a step with a row held, also books the
+difference of its logged energy after it to the energy at the start of the segment after. An impact exactly
+on a grid node is a segment of length 0 with the node momentum's velocity. Bilateral constraints: the
+impulse of the DEL at a node does work (:func:`constraint_impulse`).
 
 A rule with internal points (lobatto3) books only its segments' own quadrature of the work, ``E_end -
 E_start`` (``vcigen.rules.StagedForces``), with no node term: the corrections above are O(h^2) ones and its
@@ -73,6 +76,9 @@ class Booking:
     potential: Potential | None = None  # None: M of q, or a rule without a closed form (impact_work)
     start: Callable[..., np.ndarray] | None = None  # (q0, v, tau, t0, par) -> (K,): E_d - f_d- . v
     modified: Callable[..., np.ndarray] | None = None  # (q, p, h, par) -> (K,): H~ (midpoint, M of q)
+    velocity: Callable[..., np.ndarray] | None = None  # (q, p, v, tau, t0, end, par) -> (K, n): with H~
+    momenta: Callable[..., tuple[np.ndarray, np.ndarray]] | None = None  # (q, v, tau, t0, end, par) -> p, p_v
+    legendre: Callable[..., np.ndarray] | None = None  # (q, p, par) -> qdot: L quadratic in qdot
     # a rule with internal points: (q0, v, tau, t0, par) -> (K,), each segment's own quadrature of the work
     staged: Callable[..., np.ndarray] | None = None
 
@@ -105,7 +111,75 @@ def work_function(system: DiscreteSystem) -> Booking | None:
         args = list(values) if not system.timed else [*list(values)[:-1], t0]
         return np.broadcast_to(np.asarray(start_fn(*q0.T, *v.T, tau, *args)[0][0], float), tau.shape)
 
-    return Booking(forces, _curvature(system), _potential(system), start, _modified_hamiltonian(system))
+    modified = _modified_hamiltonian(system)
+    momenta = _segment_momenta(system) if modified is not None or system.model.constraint else None
+    velocity = _segment_velocity(system.model.n, momenta) if modified is not None else None
+    legendre = _legendre(system)
+    return Booking(
+        forces, _curvature(system), _potential(system), start, modified, velocity, momenta, legendre
+    )
+
+
+def _legendre(system: DiscreteSystem) -> Callable[..., np.ndarray] | None:
+    """``(q (K, n), p (K, n), par) -> qdot``: ``M(q)^-1 (p - b(q))`` for ``L = 1/2 qdot.M qdot + b.qdot - V``,
+    the velocity of a segment of length 0 with momentum ``p`` (``p- = dL/dqdot`` at ``tau = 0``); ``None``
+    for another ``L``."""
+    model = system.model
+    vs, mass = list(model.velocities), model.mass_matrix
+    if mass.free_symbols & set(vs):
+        return None
+    v = sp.Matrix(vs)
+    zero = dict.fromkeys(vs, 0)
+    b = sp.Matrix([model.L.diff(x) for x in vs]).xreplace(zero)
+    if sp.expand(model.L - (v.T * mass * v)[0] / 2 - (b.T * v)[0] - model.L.xreplace(zero)) != 0:
+        return None
+    mass_fn, b_fn = _matrix_function(system, mass), _matrix_function(system, b)
+
+    def legendre(q: np.ndarray, p: np.ndarray, values) -> np.ndarray:
+        return np.linalg.solve(mass_fn(q, values), (p - b_fn(q, values)[:, :, 0])[..., None])[..., 0]
+
+    return legendre
+
+
+def _segment_momenta(system: DiscreteSystem) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+    """``(q, v, tau, t0, end, par) -> (p (K, n), dp/dv (K, n, n))``: the DEL momentum of the segment of
+    length ``tau`` and velocity ``v`` that starts (``end`` False: ``p- = -D1 L_d - f_d-``) or ends (True:
+    ``p+ = D2 L_d + f_d+``) at ``q``."""
+    seg = system.segment
+    n = system.model.n
+    q1 = sp.Matrix([sp.Dummy(f"q1_{i}") for i in range(n)])
+    p_end = seg.p_plus.xreplace(dict(zip(seg.q0, q1 - seg.tau * seg.v)))  # the segment ending at q1
+    rows = [
+        [*seg.p_minus, *seg.p_minus.jacobian(seg.v)],
+        [*p_end, *p_end.jacobian(seg.v)],
+    ]
+    fns = [_lambdify(system, [*q, *seg.v, seg.tau], [row]) for q, row in zip((seg.q0, q1), rows)]
+
+    def momenta(q: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, end: bool, values):
+        args = list(values) if not system.timed else [*list(values)[:-1], t0]
+        out = fns[end](*q.T, *v.T, tau, *args)[0]
+        cols = np.stack([np.broadcast_to(np.asarray(c, float), tau.shape) for c in out], -1)
+        return cols[:, :n], cols[:, n:].reshape(-1, n, n)
+
+    return momenta
+
+
+def _segment_velocity(n: int, momenta) -> Callable[..., np.ndarray]:
+    """``(q, p, v, tau, t0, end, par) -> v (K, n)``: the velocity of the segment of length ``tau`` that starts
+    (``end`` False) or ends (True) at ``q`` with the DEL momentum ``p`` there (:func:`_segment_momenta`), by
+    Newton from ``v``. A sub-segment's velocity from its end points carries their round-off over its
+    length; ``dp/dv = M + O(tau)`` keeps this one at round-off."""
+
+    def velocity(
+        q: np.ndarray, p: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, end: bool, values
+    ):
+        v = v.copy()
+        for _ in range(3):
+            mom, jac = momenta(q, v, tau, t0, end, values)
+            v -= np.linalg.solve(jac, (mom - p)[..., None])[..., 0]
+        return v
+
+    return velocity
 
 
 def _none(*_args):
@@ -293,10 +367,19 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
         inside = owner[1:] == owner[:-1]  # consecutive points of one step bound a segment
         keep = inside & (tau > TINY * h)
         first, last = np.flatnonzero(place[order][:-1] == 0), np.flatnonzero(place[order][1:] == 2)
+        zero = np.zeros(tau.size, dtype=bool)  # an impact on a grid node: a segment of length 0 there
+        if booking.legendre is not None:
+            zero[first], zero[last] = ~keep[first], ~keep[last]
+            keep |= zero
         on_node[ks] |= ~keep[first]
         on_node[ks + 1] |= ~keep[last]
         seg = np.flatnonzero(keep)
-        vs = (qs[seg + 1] - qs[seg]) / tau[seg, None]
+        vs = (qs[seg + 1] - qs[seg]) / np.maximum(tau[seg, None], TINY * h)
+        if zero.any():  # its velocity from its momentum, the node's: before the impact at a step's start,
+            z = np.flatnonzero(zero[seg])  # after it at its end
+            node = np.where(place[order][seg[z]] == 0, owner[seg[z]], owner[seg[z]] + 1)
+            vs[z] = booking.legendre(q[node], res.p[node], par)
+            tau[seg[z]] = 0.0
         gm, gp = forces(qs[seg], vs, tau[seg], ts[seg], par)
         out[ks] = 0.0
         np.add.at(out, owner[seg], _dot(gm + gp, vs))
@@ -307,8 +390,13 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
         v_start[k], f_start[k], v_end[k], f_end[k] = vs[head], gm[head], vs[tail], gp[tail]
         tau_start[k], tau_end[k] = tau[seg][head], tau[seg][tail]
     node = _dot(f_end[:-1] - f_start[1:], v_start[1:] - v_end[:-1]) / 2  # grid nodes 1 .. steps-1
+    bilateral = res.constraint_force is not None and res.constraint_force.size > 0
+    impulse = np.zeros((max(steps - 1, 0), q.shape[1]))  # the bilateral constraints' impulse at each node
+    if bilateral and booking.momenta is not None and steps > 1:
+        impulse = constraint_impulse(booking, res, (v_start, tau_start, v_end, tau_end), par)
+        node += _dot(impulse, (v_start[1:] + v_end[:-1]) / 2)
     if booking.curvature is not None and steps > 1:  # the kick at vbar + h^2/6 M^-1 grad^2 V vbar
-        kick, vbar = f_end[:-1] + f_start[1:], (v_start[1:] + v_end[:-1]) / 2
+        kick, vbar = f_end[:-1] + f_start[1:] + impulse, (v_start[1:] + v_end[:-1]) / 2
         node += h * h / 6 * np.einsum("kn,knm,km->k", kick, booking.curvature(q[1:steps], par), vbar)
     if booking.modified is not None and steps > 1:  # the kick's change of H~, in place of J . vbar
         mom = res.p[1:steps]
@@ -316,18 +404,19 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
         gain = booking.modified(q[1:steps], hi, h, par) - booking.modified(q[1:steps], lo, h, par)
         node = gain - _dot(f_end[:-1], v_end[:-1]) - _dot(f_start[1:], v_start[1:])
     out[1:] += np.where(on_node[1:steps], 0.0, node)
-    bilateral = res.constraint_force is not None and res.constraint_force.size > 0
-    if ims and booking.potential is not None and not bilateral:
-        held = np.zeros(steps, dtype=bool)  # the steps with a part in sustained contact
+    if ims and booking.potential is not None:
+        held = np.full(steps, bilateral)  # the steps with a row held: their DEL holds its impulse
         if res.contact_force is not None and res.contact_force.size:
-            held = np.any(res.contact_force != 0.0, axis=1)
+            held |= np.any(res.contact_force != 0.0, axis=1)
         sub = (owner[seg], qs[seg], vs, tau[seg])
         ends = (v_start, tau_start, v_end, tau_end, f_end[:-1] + f_start[1:])
         curved = booking.curvature is not None
         out += impact_work(booking.potential, curved, q, h, ks, sub, ends, held, on_node, par)
         # a plastic impact's logged energy after it is E_d less its loss, not the energy at the start of the
         # constrained segment that follows: the difference is the step's too
-        plastic = np.array([im.kind == "plastic" for im in ims])[order[place[order] == 1] - ks.size]
+        plastic = np.array([im.kind == "plastic" or held[im.step] for im in ims])[
+            order[place[order] == 1] - ks.size
+        ]
         after = np.array([im.energy_after for im in ims])[order[place[order] == 1] - ks.size]
         rows = np.flatnonzero(place[order] == 1)[plastic]  # the plastic impacts' points
         i = np.searchsorted(seg, rows)
@@ -336,6 +425,77 @@ def step_work(res: Result, booking: Booking | None, par) -> np.ndarray:
             j = i[found]
             e0 = booking.start(qs[seg[j]], vs[j], tau[seg[j]], ts[seg[j]], par)
             np.add.at(out, owner[seg[j]], e0 - after[plastic][found])
+    elif ims and booking.modified is not None and steps > 1 and not bilateral:
+        first, last = (v_start, tau_start, t[:-1]), (v_end, tau_end, t[1:] - tau_end)
+        out += modified_impact_work(booking, res, h, ks, first, last, on_node, par)
+    return out
+
+
+def constraint_impulse(booking: Booking, res: Result, ends: tuple[np.ndarray, ...], par) -> np.ndarray:
+    """``(N-2, n)``: at grid nodes 1 .. N-2 the bilateral constraints' impulse ``K``, the mismatch of the DEL
+    there, ``K = p-(seg+) - p+(seg-)`` (RATTLE: ``(Lam' + Lam) grad psi``). As a kick it changes
+    ``1/2 p.M^-1 p`` by ``K . (v- + v+)/2`` (M constant; README, *Forces*), not 0: the discrete path leaves
+    ``q_k`` off the tangent, ``grad psi . v+- = -+(tau/2) v.Hess psi v``, so a node books
+    ``(h^2/4) lambda (v-.Hess psi v- - v+.Hess psi v+)``, O(h^3); without forces it sums to a bounded
+    O(h^2) (the tension a function of the state), with damping to a drift, O(h^2) times the dissipated
+    energy. It is also part of the kick of the h^2 term with V not quadratic (``q'' = M^-1 (F - g + G^T
+    lambda)`` in the integration by parts)."""
+    v_start, tau_start, v_end, tau_end = ends
+    steps = res.energy.size
+    q, t = res.q[1:steps], res.t[1:steps]
+    p_next, _ = booking.momenta(q, v_start[1:], tau_start[1:], t, False, par)
+    p_prev, _ = booking.momenta(q, v_end[:-1], tau_end[:-1], t - tau_end[:-1], True, par)
+    return p_next - p_prev
+
+
+def modified_impact_work(
+    booking: Booking,
+    res: Result,
+    h: float,
+    ks: np.ndarray,
+    first: tuple[np.ndarray, ...],
+    last: tuple[np.ndarray, ...],
+    on_node: np.ndarray,
+    par,
+) -> np.ndarray:
+    """``(N-1,)``: the impacts' ``b`` for a mass matrix of ``q`` (README, *Forces*), where a node's kick is
+    booked as its change of the modified Hamiltonian ``H~`` (:func:`_modified_hamiltonian`).
+
+    With the node booking ``H~(q, p + f_d-) - H~(q, p - f_d+) - f_d+ . v- - f_d- . v+``, a grid node leaves
+    in ``E_k - E_0 - sum W`` exactly ``D(s+) - D'(s-)``, with ``D(s) = E_d(s) - H~_h(q0, p0)`` at the start
+    of segment ``s`` and ``D'(s) = E_d(s) - H~_h(q1, p1)`` at its end (``p0 = -D1 L_d``, ``p1 = D2 L_d``:
+    the momenta of its conservative map). Over a segment of length ``h`` the map keeps ``H~_h`` to O(h^5),
+    so ``D(s) - D'(s)`` is that defect and the nodes telescope; an impact (48a) keeps ``E_d``, not ``D``, and
+    its sub-segments' maps keep ``H~`` of their own lengths. Per step with an impact the nodes leave
+
+        b = D(first segment) [node k a grid node] - D'(last segment) [node k+1 a grid node],
+
+    O(h^2), booked on the step (a segment between two impacts leaves nothing). An impact on a grid node makes
+    the steps either side impact steps for this count. Steps in sustained contact (the node's DEL holds the
+    contact impulse) book none."""
+    steps = res.energy.size
+    out = np.zeros(steps)
+    touched = np.zeros(steps, dtype=bool)
+    touched[ks] = True
+    touched[:-1] |= on_node[1:steps]  # the step ending on an impact node
+    touched |= on_node[:steps]  # and the one starting there
+    if res.contact_force is not None and res.contact_force.size:
+        touched &= ~np.any(res.contact_force != 0.0, axis=1)
+    grid = np.zeros(steps + 1, dtype=bool)
+    grid[1:steps] = ~on_node[1:steps]  # the grid nodes (not an impact, not the run's ends)
+    head = np.flatnonzero(touched & grid[:-1])  # steps whose first segment starts at a grid node
+    tail = np.flatnonzero(touched & grid[1:])  # steps whose last segment ends at one
+    mom = res.p
+    for rows, (v, tau, t0), at, sign in ((head, first, 0, 1.0), (tail, last, 1, -1.0)):
+        if not rows.size:
+            continue
+        node, seg_tau, seg_t0 = rows + at, tau[rows], t0[rows]
+        vel = booking.velocity(res.q[node], mom[node], v[rows], seg_tau, seg_t0, bool(at), par)
+        start = res.q[node] - seg_tau[:, None] * vel if at else res.q[node]
+        fm, fp = booking.forces(start, vel, seg_tau, seg_t0, par)
+        energy = booking.start(start, vel, seg_tau, seg_t0, par) + _dot(fm, vel)
+        p = mom[node] + fm if at == 0 else mom[node] - fp  # the conservative map's momentum
+        np.add.at(out, rows, sign * (energy - booking.modified(res.q[node], p, h, par)))
     return out
 
 
