@@ -561,20 +561,7 @@ static void particle_newton(particle_fun f, const double *const *arg, int n, dou
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double particle_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[PARTICLE_N + 1], zero[PARTICLE_N], e0 = 0.0, res[PARTICLE_N + 1];
-    double jac[(PARTICLE_N + 1) * (PARTICLE_N + 1)];
-    for (int i = 0; i < PARTICLE_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[PARTICLE_N] = 0.0;
-    particle_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[PARTICLE_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define PARTICLE_N1 (PARTICLE_N + 1)
@@ -1168,7 +1155,17 @@ static void particle_row_accel(const particle_ctx_t *c, const double *q, const d
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void particle_forces_to(const particle_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void particle_contact_forces(const particle_ctx_t *c, const double *q, const double *u, double *out)
+{
+    particle_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void particle_forces_to(const particle_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[PARTICLE_N], ccurv[PARTICLE_M_DIM], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N];
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
@@ -1200,7 +1197,7 @@ static void particle_contact_forces(const particle_ctx_t *c, const double *q, co
         particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < PARTICLE_N; ++i) {
             b[k] -= grad[rows[k] * PARTICLE_N + i] * rhs[i];
         }
@@ -3151,11 +3148,7 @@ void particle_eval_segment(const double *q0, const double *v, double tau, const 
     particle_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void particle_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = particle_start_energy(q0, v, tau, par);
-}
+
 
 void particle_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

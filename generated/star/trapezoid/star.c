@@ -839,20 +839,7 @@ static void star_newton(star_fun f, const double *const *arg, int n, double *x, 
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double star_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[STAR_N + 1], zero[STAR_N], e0 = 0.0, res[STAR_N + 1];
-    double jac[(STAR_N + 1) * (STAR_N + 1)];
-    for (int i = 0; i < STAR_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[STAR_N] = 0.0;
-    star_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[STAR_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define STAR_N1 (STAR_N + 1)
@@ -1446,7 +1433,17 @@ static void star_row_accel(const star_ctx_t *c, const double *q, const double *u
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void star_forces_to(const star_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void star_contact_forces(const star_ctx_t *c, const double *q, const double *u, double *out)
+{
+    star_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void star_forces_to(const star_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[STAR_N], ccurv[STAR_M_DIM], mom[STAR_N], mass[STAR_N * STAR_N];
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
@@ -1478,7 +1475,7 @@ static void star_contact_forces(const star_ctx_t *c, const double *q, const doub
         star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < STAR_N; ++i) {
             b[k] -= grad[rows[k] * STAR_N + i] * rhs[i];
         }
@@ -3510,11 +3507,7 @@ void star_eval_segment(const double *q0, const double *v, double tau, const doub
     star_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void star_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = star_start_energy(q0, v, tau, par);
-}
+
 
 void star_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

@@ -557,20 +557,7 @@ static void ball_to_rest_newton(ball_to_rest_fun f, const double *const *arg, in
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double ball_to_rest_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[BALL_TO_REST_N + 1], zero[BALL_TO_REST_N], e0 = 0.0, res[BALL_TO_REST_N + 1];
-    double jac[(BALL_TO_REST_N + 1) * (BALL_TO_REST_N + 1)];
-    for (int i = 0; i < BALL_TO_REST_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[BALL_TO_REST_N] = 0.0;
-    ball_to_rest_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[BALL_TO_REST_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define BALL_TO_REST_N1 (BALL_TO_REST_N + 1)
@@ -1164,7 +1151,17 @@ static void ball_to_rest_row_accel(const ball_to_rest_ctx_t *c, const double *q,
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void ball_to_rest_forces_to(const ball_to_rest_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void ball_to_rest_contact_forces(const ball_to_rest_ctx_t *c, const double *q, const double *u, double *out)
+{
+    ball_to_rest_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void ball_to_rest_forces_to(const ball_to_rest_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[BALL_TO_REST_N], ccurv[BALL_TO_REST_M_DIM], mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N];
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
@@ -1196,7 +1193,7 @@ static void ball_to_rest_contact_forces(const ball_to_rest_ctx_t *c, const doubl
         ball_to_rest_lu_solve(BALL_TO_REST_N, mass, piv, minv_g + k * BALL_TO_REST_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < BALL_TO_REST_N; ++i) {
             b[k] -= grad[rows[k] * BALL_TO_REST_N + i] * rhs[i];
         }
@@ -3147,11 +3144,7 @@ void ball_to_rest_eval_segment(const double *q0, const double *v, double tau, co
     ball_to_rest_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void ball_to_rest_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = ball_to_rest_start_energy(q0, v, tau, par);
-}
+
 
 void ball_to_rest_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

@@ -421,6 +421,17 @@ static inline void pendulum_wall_held_end(const double *q, const double *k, doub
     minv[1] = k[0];
 }
 
+/* Each row's F(a + Lam b) = A Lam^2 + B Lam + C. */
+static inline void pendulum_wall_held_line(const double *a, const double *b, const double *k, double *coef)
+{
+    coef[0] = 0;
+    coef[1] = 0;
+    coef[2] = 0;
+    coef[3] = ((b[0])*(b[0])) + ((b[1])*(b[1]));
+    coef[4] = 2*(a[0]*b[0] + a[1]*b[1]);
+    coef[5] = ((a[0])*(a[0])) + ((a[1])*(a[1])) + k[3];
+}
+
 /* Adapters: the routines with an unknown x, as pendulum_wall_fun for the solvers. */
 typedef void (*pendulum_wall_fun)(const double *x, const double *const *arg, double *const *out);
 
@@ -596,20 +607,7 @@ static void pendulum_wall_newton(pendulum_wall_fun f, const double *const *arg, 
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double pendulum_wall_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[PENDULUM_WALL_N + 1], zero[PENDULUM_WALL_N], e0 = 0.0, res[PENDULUM_WALL_N + 1];
-    double jac[(PENDULUM_WALL_N + 1) * (PENDULUM_WALL_N + 1)];
-    for (int i = 0; i < PENDULUM_WALL_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[PENDULUM_WALL_N] = 0.0;
-    pendulum_wall_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[PENDULUM_WALL_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define PENDULUM_WALL_N1 (PENDULUM_WALL_N + 1)
@@ -1203,7 +1201,17 @@ static void pendulum_wall_row_accel(const pendulum_wall_ctx_t *c, const double *
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void pendulum_wall_forces_to(const pendulum_wall_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void pendulum_wall_contact_forces(const pendulum_wall_ctx_t *c, const double *q, const double *u, double *out)
+{
+    pendulum_wall_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void pendulum_wall_forces_to(const pendulum_wall_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[PENDULUM_WALL_N], ccurv[PENDULUM_WALL_M_DIM], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N];
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
@@ -1235,7 +1243,7 @@ static void pendulum_wall_contact_forces(const pendulum_wall_ctx_t *c, const dou
         pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_g + k * PENDULUM_WALL_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             b[k] -= grad[rows[k] * PENDULUM_WALL_N + i] * rhs[i];
         }
@@ -2034,6 +2042,21 @@ PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_apply(int na, const double *a,
     }
 }
 
+/* held.line_forms: 1 for a row whose zero set is a quadratic's F (its line form in held_line) */
+static const unsigned char pendulum_wall_held_lines[PENDULUM_WALL_R_DIM] = { 0, 1 };
+
+/* held.line_start: two Newton steps from *x on the line's quadratic coef[0] L^2 + coef[1] L + coef[2] (exact in L:
+ * no evaluation of the rows, no sqrt), written to *x where they give a finite number. */
+PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_line_start(const double *coef, double *x)
+{
+    const double x0 = *x;
+    const double x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1]);
+    const double root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1]);
+    if (isfinite(root)) {
+        *x = root;
+    }
+}
+
 /* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
 PENDULUM_WALL_HELD_INLINE double pendulum_wall_held_norm(int na, const double *d)
 {
@@ -2144,6 +2167,19 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_step(const double *kh, double h
     /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
      * needed: the previous multipliers mostly solve it) in <model>_held_newton */
     res = pendulum_wall_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    if (na == 1 && pendulum_wall_held_lines[rows[0]] && !(res <= 1e-13) && res == res) {
+        /* the previous multipliers do not solve it: F(q + h v0 + L h J^-1 g0) = 0 is a quadratic in L, whose
+         * Newton step (held.line_start, no evaluation of the rows: its inputs are there at the step's start, so
+         * that it runs beside the first evaluation) starts a second evaluation */
+        double la[PENDULUM_WALL_N], lb[PENDULUM_WALL_N], coef[PENDULUM_WALL_R_DIM * 3];
+        la[0] = q[0] + h * v0[0];
+        lb[0] = h * jinv[0] * g0[0];
+        la[1] = q[1] + h * v0[1];
+        lb[1] = h * jinv[1] * g0[1];
+        pendulum_wall_held_line(la, lb, kh, coef);
+        pendulum_wall_held_line_start(coef + 3 * rows[0], x);
+        res = pendulum_wall_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    }
     if (PENDULUM_WALL_HELD_UNLIKELY(!(res <= 1e-13) && res == res && PENDULUM_WALL_HELD_ITER > 0)) {
         pendulum_wall_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         PENDULUM_WALL_HELD_UNROLL
@@ -3213,11 +3249,7 @@ void pendulum_wall_eval_segment(const double *q0, const double *v, double tau, c
     pendulum_wall_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void pendulum_wall_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = pendulum_wall_start_energy(q0, v, tau, par);
-}
+
 
 void pendulum_wall_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

@@ -383,6 +383,7 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[5] = par[1]*par[0];
     k[6] = t1;
     k[7] = -par[1];
+    k[8] = -((par[2])*(par[2]));
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -428,6 +429,14 @@ static inline void slide_off_dome_held_end(const double *q, const double *k, dou
     acc[1] = k[7];
     minv[0] = k[0];
     minv[1] = k[0];
+}
+
+/* Each row's F(a + Lam b) = A Lam^2 + B Lam + C. */
+static inline void slide_off_dome_held_line(const double *a, const double *b, const double *k, double *coef)
+{
+    coef[0] = ((b[0])*(b[0])) + ((b[1])*(b[1]));
+    coef[1] = 2*(a[0]*b[0] + a[1]*b[1]);
+    coef[2] = ((a[0])*(a[0])) + ((a[1])*(a[1])) + k[8];
 }
 
 /* Adapters: the routines with an unknown x, as slide_off_dome_fun for the solvers. */
@@ -605,20 +614,7 @@ static void slide_off_dome_newton(slide_off_dome_fun f, const double *const *arg
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double slide_off_dome_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[SLIDE_OFF_DOME_N + 1], zero[SLIDE_OFF_DOME_N], e0 = 0.0, res[SLIDE_OFF_DOME_N + 1];
-    double jac[(SLIDE_OFF_DOME_N + 1) * (SLIDE_OFF_DOME_N + 1)];
-    for (int i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[SLIDE_OFF_DOME_N] = 0.0;
-    slide_off_dome_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[SLIDE_OFF_DOME_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define SLIDE_OFF_DOME_N1 (SLIDE_OFF_DOME_N + 1)
@@ -1212,7 +1208,17 @@ static void slide_off_dome_row_accel(const slide_off_dome_ctx_t *c, const double
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void slide_off_dome_forces_to(const slide_off_dome_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void slide_off_dome_contact_forces(const slide_off_dome_ctx_t *c, const double *q, const double *u, double *out)
+{
+    slide_off_dome_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void slide_off_dome_forces_to(const slide_off_dome_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[SLIDE_OFF_DOME_N], ccurv[SLIDE_OFF_DOME_M_DIM], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N];
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
@@ -1244,7 +1250,7 @@ static void slide_off_dome_contact_forces(const slide_off_dome_ctx_t *c, const d
         slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_g + k * SLIDE_OFF_DOME_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             b[k] -= grad[rows[k] * SLIDE_OFF_DOME_N + i] * rhs[i];
         }
@@ -1978,7 +1984,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 
 /* ---- the held grid step (vcigen/held.py): a grid step in sustained contact as straight-line code ---- */
 #define SLIDE_OFF_DOME_HELD_ITER 8 /* held.HELD_ITER: Newton iterations at most, then the general chain */
-#define SLIDE_OFF_DOME_NKH 8
+#define SLIDE_OFF_DOME_NKH 9
 #define SLIDE_OFF_DOME_NH_DIM 3 /* Hessian entries a row may need (held.hess_pattern) */
 #if defined(__GNUC__)
 #define SLIDE_OFF_DOME_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
@@ -2040,6 +2046,21 @@ SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_apply(int na, const double *
         b[1] = a[2] * b0 + a[3] * b[1];
     } else {
         slide_off_dome_lu_solve(na, a, piv, b);
+    }
+}
+
+/* held.line_forms: 1 for a row whose zero set is a quadratic's F (its line form in held_line) */
+static const unsigned char slide_off_dome_held_lines[SLIDE_OFF_DOME_R_DIM] = { 1 };
+
+/* held.line_start: two Newton steps from *x on the line's quadratic coef[0] L^2 + coef[1] L + coef[2] (exact in L:
+ * no evaluation of the rows, no sqrt), written to *x where they give a finite number. */
+SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_line_start(const double *coef, double *x)
+{
+    const double x0 = *x;
+    const double x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1]);
+    const double root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1]);
+    if (isfinite(root)) {
+        *x = root;
     }
 }
 
@@ -2153,6 +2174,19 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
      * needed: the previous multipliers mostly solve it) in <model>_held_newton */
     res = slide_off_dome_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    if (na == 1 && slide_off_dome_held_lines[rows[0]] && !(res <= 1e-13) && res == res) {
+        /* the previous multipliers do not solve it: F(q + h v0 + L h J^-1 g0) = 0 is a quadratic in L, whose
+         * Newton step (held.line_start, no evaluation of the rows: its inputs are there at the step's start, so
+         * that it runs beside the first evaluation) starts a second evaluation */
+        double la[SLIDE_OFF_DOME_N], lb[SLIDE_OFF_DOME_N], coef[SLIDE_OFF_DOME_R_DIM * 3];
+        la[0] = q[0] + h * v0[0];
+        lb[0] = h * jinv[0] * g0[0];
+        la[1] = q[1] + h * v0[1];
+        lb[1] = h * jinv[1] * g0[1];
+        slide_off_dome_held_line(la, lb, kh, coef);
+        slide_off_dome_held_line_start(coef + 3 * rows[0], x);
+        res = slide_off_dome_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    }
     if (SLIDE_OFF_DOME_HELD_UNLIKELY(!(res <= 1e-13) && res == res && SLIDE_OFF_DOME_HELD_ITER > 0)) {
         slide_off_dome_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         SLIDE_OFF_DOME_HELD_UNROLL
@@ -3212,11 +3246,7 @@ void slide_off_dome_eval_segment(const double *q0, const double *v, double tau, 
     slide_off_dome_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void slide_off_dome_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = slide_off_dome_start_energy(q0, v, tau, par);
-}
+
 
 void slide_off_dome_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

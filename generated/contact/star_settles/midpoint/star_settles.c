@@ -838,20 +838,7 @@ static void star_settles_newton(star_settles_fun f, const double *const *arg, in
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double star_settles_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[STAR_SETTLES_N + 1], zero[STAR_SETTLES_N], e0 = 0.0, res[STAR_SETTLES_N + 1];
-    double jac[(STAR_SETTLES_N + 1) * (STAR_SETTLES_N + 1)];
-    for (int i = 0; i < STAR_SETTLES_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[STAR_SETTLES_N] = 0.0;
-    star_settles_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[STAR_SETTLES_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define STAR_SETTLES_N1 (STAR_SETTLES_N + 1)
@@ -1445,7 +1432,17 @@ static void star_settles_row_accel(const star_settles_ctx_t *c, const double *q,
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void star_settles_forces_to(const star_settles_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void star_settles_contact_forces(const star_settles_ctx_t *c, const double *q, const double *u, double *out)
+{
+    star_settles_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void star_settles_forces_to(const star_settles_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[STAR_SETTLES_N], ccurv[STAR_SETTLES_M_DIM], mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N];
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
@@ -1477,7 +1474,7 @@ static void star_settles_contact_forces(const star_settles_ctx_t *c, const doubl
         star_settles_lu_solve(STAR_SETTLES_N, mass, piv, minv_g + k * STAR_SETTLES_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             b[k] -= grad[rows[k] * STAR_SETTLES_N + i] * rhs[i];
         }
@@ -3509,11 +3506,7 @@ void star_settles_eval_segment(const double *q0, const double *v, double tau, co
     star_settles_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void star_settles_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = star_settles_start_energy(q0, v, tau, par);
-}
+
 
 void star_settles_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

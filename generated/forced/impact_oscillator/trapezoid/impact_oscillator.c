@@ -415,6 +415,7 @@ static void impact_oscillator_newton(impact_oscillator_fun f, const double *cons
     *resnorm = fn;
 }
 
+
 /* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
  * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
 static double impact_oscillator_start_energy(const double *q0, const double *v, double tau, const double *par)
@@ -429,6 +430,7 @@ static double impact_oscillator_start_energy(const double *q0, const double *v, 
     impact_oscillator_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
     return res[IMPACT_OSCILLATOR_N];
 }
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define IMPACT_OSCILLATOR_N1 (IMPACT_OSCILLATOR_N + 1)
@@ -977,7 +979,17 @@ static void impact_oscillator_row_accel(const impact_oscillator_ctx_t *c, const 
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void impact_oscillator_forces_to(const impact_oscillator_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void impact_oscillator_contact_forces(const impact_oscillator_ctx_t *c, const double *q, const double *u, double *out)
+{
+    impact_oscillator_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void impact_oscillator_forces_to(const impact_oscillator_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[IMPACT_OSCILLATOR_N], ccurv[IMPACT_OSCILLATOR_M_DIM], mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N];
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
@@ -1009,7 +1021,7 @@ static void impact_oscillator_contact_forces(const impact_oscillator_ctx_t *c, c
         impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, mass, piv, minv_g + k * IMPACT_OSCILLATOR_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             b[k] -= grad[rows[k] * IMPACT_OSCILLATOR_N + i] * rhs[i];
         }
@@ -2300,11 +2312,13 @@ void impact_oscillator_eval_segment(const double *q0, const double *v, double ta
     impact_oscillator_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
+
 void impact_oscillator_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
     double *energy)
 {
     *energy = impact_oscillator_start_energy(q0, v, tau, par);
 }
+
 
 void impact_oscillator_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

@@ -558,20 +558,7 @@ static void block_newton(block_fun f, const double *const *arg, int n, double *x
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double block_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[BLOCK_N + 1], zero[BLOCK_N], e0 = 0.0, res[BLOCK_N + 1];
-    double jac[(BLOCK_N + 1) * (BLOCK_N + 1)];
-    for (int i = 0; i < BLOCK_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[BLOCK_N] = 0.0;
-    block_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[BLOCK_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define BLOCK_N1 (BLOCK_N + 1)
@@ -1097,6 +1084,8 @@ static const int block_row_stick[BLOCK_R_DIM] = { -1, 0, };
 static const int block_row_free[BLOCK_R_DIM] = { 0, 1, };
 #define BLOCK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define BLOCK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
+#define BLOCK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
+#define BLOCK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int block_fric_contact[BLOCK_NF] = { 0, };
 static const int block_stick_row[BLOCK_NF] = { 1, };
@@ -1218,7 +1207,17 @@ static void block_row_accel(const block_ctx_t *c, const double *q, const double 
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void block_forces_to(const block_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void block_contact_forces(const block_ctx_t *c, const double *q, const double *u, double *out)
+{
+    block_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void block_forces_to(const block_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[BLOCK_N], ccurv[BLOCK_M_DIM], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N];
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
@@ -1250,7 +1249,7 @@ static void block_contact_forces(const block_ctx_t *c, const double *q, const do
         block_lu_solve(BLOCK_N, mass, piv, minv_g + k * BLOCK_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < BLOCK_N; ++i) {
             b[k] -= grad[rows[k] * BLOCK_N + i] * rhs[i];
         }
@@ -1412,11 +1411,13 @@ static int block_sub_end(const block_ctx_t *c, const double *q, const double *p,
 }
 
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
- * negative when the stick force leaves Coulomb's cone. */
-static double block_cone_margin(const block_ctx_t *c, int f, const double *forces)
+ * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
+ * margin of their best split (cone_split). */
+static double block_cone_margin(const block_ctx_t *c, int f, const double *forces, const double *grad)
 {
     double normal = 0.0;
     int r;
+    (void)grad;
     for (r = 0; r < BLOCK_R; ++r) {
         if (block_row_contact[r] == block_fric_contact[f]) {
             normal += forces[r];
@@ -1466,14 +1467,14 @@ static int block_dependent(const block_ctx_t *c, const double *grad, int sr, int
     return 0;
 }
 
-/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+/* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
- * other rows hold it alone). */
+ * other rows hold it alone). A cone's row too (cone_split). */
 static int block_owner(const block_ctx_t *c, int f, const double *grad)
 {
     const int sr = block_stick_row[f];
     int g;
-    if (0 || !block_dependent(c, grad, sr, -1)) {
+    if (!block_dependent(c, grad, sr, -1)) {
         return -1;
     }
     for (g = 0; g < BLOCK_NF; ++g) {
@@ -1643,7 +1644,9 @@ static int block_illinois(const block_ctx_t *c, int r, int height, const double 
             }
             gc *= sgn;
         } else if (height == 3) {
-            gc = block_cone_margin(c, block_row_stick[r], f);
+            double psi3[BLOCK_R_DIM];
+            block_rows(q1, u1, c->par, psi3, grad, curv);
+            gc = block_cone_margin(c, block_row_stick[r], f, grad);
         }
 
         if (gc < 0) {
@@ -2106,11 +2109,15 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) { /* sticking: does its force leave the cone inside the segment? */
-                g1 = block_cone_margin(c, i, f1);
+            } else if (c->sus->act[sr]) {
+                /* sticking: does its force leave the cone inside the segment? */
+                double psi0[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N], curv0[BLOCK_R_DIM];
+                block_rows(q1, u1, c->par, psi0, grad0, curv0);
+                g1 = block_cone_margin(c, i, f1, grad0);
                 if (g1 < -f_eps) {
                     block_contact_forces(c, q, vel0, f0);
-                    g0 = block_cone_margin(c, i, f0);
+                    block_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    g0 = block_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && block_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
                             BLOCK_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, BLOCK_LIFT_ITER, &s_ev[sr])) {
@@ -3071,11 +3078,7 @@ void block_eval_segment(const double *q0, const double *v, double tau, const dou
     block_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void block_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = block_start_energy(q0, v, tau, par);
-}
+
 
 void block_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

@@ -101,9 +101,7 @@ void block_eval_legendre(const double *q, const double *v, const double *par, do
 /* p-, p+ (50)-(51) and E_d (55) of the segment (q0, v, tau). */
 void block_eval_segment(const double *q0, const double *v, double tau, const double *par,
     double *p_minus, double *p_plus, double *energy);
-/* The energy at the start of the segment (q0, v, tau): E_d less f_d- . v with forces. */
-void block_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy);
+
 /* phi_j(q) and their gradients (rows). */
 void block_eval_contacts(const double *q, const double *par, double *phi, double *grad);
 /* Smooth step (46): v, |res|_inf, p+ and E_d of the step, phi at both ends and the slopes

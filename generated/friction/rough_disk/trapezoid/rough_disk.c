@@ -638,20 +638,7 @@ static void rough_disk_newton(rough_disk_fun f, const double *const *arg, int n,
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double rough_disk_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[ROUGH_DISK_N + 1], zero[ROUGH_DISK_N], e0 = 0.0, res[ROUGH_DISK_N + 1];
-    double jac[(ROUGH_DISK_N + 1) * (ROUGH_DISK_N + 1)];
-    for (int i = 0; i < ROUGH_DISK_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[ROUGH_DISK_N] = 0.0;
-    rough_disk_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[ROUGH_DISK_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define ROUGH_DISK_N1 (ROUGH_DISK_N + 1)
@@ -1177,6 +1164,8 @@ static const int rough_disk_row_stick[ROUGH_DISK_R_DIM] = { -1, 0, };
 static const int rough_disk_row_free[ROUGH_DISK_R_DIM] = { 0, 1, };
 #define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
+#define ROUGH_DISK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
+#define ROUGH_DISK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int rough_disk_fric_contact[ROUGH_DISK_NF] = { 0, };
 static const int rough_disk_stick_row[ROUGH_DISK_NF] = { 1, };
@@ -1298,7 +1287,17 @@ static void rough_disk_row_accel(const rough_disk_ctx_t *c, const double *q, con
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void rough_disk_forces_to(const rough_disk_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void rough_disk_contact_forces(const rough_disk_ctx_t *c, const double *q, const double *u, double *out)
+{
+    rough_disk_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void rough_disk_forces_to(const rough_disk_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[ROUGH_DISK_N], ccurv[ROUGH_DISK_M_DIM], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N];
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
@@ -1330,7 +1329,7 @@ static void rough_disk_contact_forces(const rough_disk_ctx_t *c, const double *q
         rough_disk_lu_solve(ROUGH_DISK_N, mass, piv, minv_g + k * ROUGH_DISK_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             b[k] -= grad[rows[k] * ROUGH_DISK_N + i] * rhs[i];
         }
@@ -1492,11 +1491,13 @@ static int rough_disk_sub_end(const rough_disk_ctx_t *c, const double *q, const 
 }
 
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
- * negative when the stick force leaves Coulomb's cone. */
-static double rough_disk_cone_margin(const rough_disk_ctx_t *c, int f, const double *forces)
+ * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
+ * margin of their best split (cone_split). */
+static double rough_disk_cone_margin(const rough_disk_ctx_t *c, int f, const double *forces, const double *grad)
 {
     double normal = 0.0;
     int r;
+    (void)grad;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         if (rough_disk_row_contact[r] == rough_disk_fric_contact[f]) {
             normal += forces[r];
@@ -1546,14 +1547,14 @@ static int rough_disk_dependent(const rough_disk_ctx_t *c, const double *grad, i
     return 0;
 }
 
-/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+/* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
- * other rows hold it alone). */
+ * other rows hold it alone). A cone's row too (cone_split). */
 static int rough_disk_owner(const rough_disk_ctx_t *c, int f, const double *grad)
 {
     const int sr = rough_disk_stick_row[f];
     int g;
-    if (0 || !rough_disk_dependent(c, grad, sr, -1)) {
+    if (!rough_disk_dependent(c, grad, sr, -1)) {
         return -1;
     }
     for (g = 0; g < ROUGH_DISK_NF; ++g) {
@@ -1723,7 +1724,9 @@ static int rough_disk_illinois(const rough_disk_ctx_t *c, int r, int height, con
             }
             gc *= sgn;
         } else if (height == 3) {
-            gc = rough_disk_cone_margin(c, rough_disk_row_stick[r], f);
+            double psi3[ROUGH_DISK_R_DIM];
+            rough_disk_rows(q1, u1, c->par, psi3, grad, curv);
+            gc = rough_disk_cone_margin(c, rough_disk_row_stick[r], f, grad);
         }
 
         if (gc < 0) {
@@ -2186,11 +2189,15 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) { /* sticking: does its force leave the cone inside the segment? */
-                g1 = rough_disk_cone_margin(c, i, f1);
+            } else if (c->sus->act[sr]) {
+                /* sticking: does its force leave the cone inside the segment? */
+                double psi0[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv0[ROUGH_DISK_R_DIM];
+                rough_disk_rows(q1, u1, c->par, psi0, grad0, curv0);
+                g1 = rough_disk_cone_margin(c, i, f1, grad0);
                 if (g1 < -f_eps) {
                     rough_disk_contact_forces(c, q, vel0, f0);
-                    g0 = rough_disk_cone_margin(c, i, f0);
+                    rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    g0 = rough_disk_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && rough_disk_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
                             ROUGH_DISK_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
@@ -3151,11 +3158,7 @@ void rough_disk_eval_segment(const double *q0, const double *v, double tau, cons
     rough_disk_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void rough_disk_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = rough_disk_start_energy(q0, v, tau, par);
-}
+
 
 void rough_disk_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

@@ -724,20 +724,7 @@ static void spun_ball_newton(spun_ball_fun f, const double *const *arg, int n, d
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double spun_ball_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[SPUN_BALL_N + 1], zero[SPUN_BALL_N], e0 = 0.0, res[SPUN_BALL_N + 1];
-    double jac[(SPUN_BALL_N + 1) * (SPUN_BALL_N + 1)];
-    for (int i = 0; i < SPUN_BALL_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[SPUN_BALL_N] = 0.0;
-    spun_ball_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[SPUN_BALL_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define SPUN_BALL_N1 (SPUN_BALL_N + 1)
@@ -1263,6 +1250,8 @@ static const int spun_ball_row_stick[SPUN_BALL_R_DIM] = { -1, 0, 1, };
 static const int spun_ball_row_free[SPUN_BALL_R_DIM] = { 0, 1, 1, };
 #define SPUN_BALL_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
+#define SPUN_BALL_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
+#define SPUN_BALL_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int spun_ball_fric_contact[SPUN_BALL_NF] = { 0, 0, };
 static const int spun_ball_stick_row[SPUN_BALL_NF] = { 1, 2, };
@@ -1386,7 +1375,17 @@ static void spun_ball_row_accel(const spun_ball_ctx_t *c, const double *q, const
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void spun_ball_forces_to(const spun_ball_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void spun_ball_contact_forces(const spun_ball_ctx_t *c, const double *q, const double *u, double *out)
+{
+    spun_ball_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void spun_ball_forces_to(const spun_ball_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[SPUN_BALL_N], ccurv[SPUN_BALL_M_DIM], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N];
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
@@ -1418,7 +1417,7 @@ static void spun_ball_contact_forces(const spun_ball_ctx_t *c, const double *q, 
         spun_ball_lu_solve(SPUN_BALL_N, mass, piv, minv_g + k * SPUN_BALL_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < SPUN_BALL_N; ++i) {
             b[k] -= grad[rows[k] * SPUN_BALL_N + i] * rhs[i];
         }
@@ -1579,19 +1578,28 @@ static int spun_ball_sub_end(const spun_ball_ctx_t *c, const double *q, const do
     return spun_ball_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
+static int spun_ball_cone_split(const spun_ball_ctx_t *c, int f, const double *forces, const double *grad,
+    double *margin, double *alpha, double *values, int *cones, double *lams, double *dirs);
+
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
- * negative when the stick force leaves Coulomb's cone. */
-static double spun_ball_cone_margin(const spun_ball_ctx_t *c, int f, const double *forces)
+ * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
+ * margin of their best split (cone_split). */
+static double spun_ball_cone_margin(const spun_ball_ctx_t *c, int f, const double *forces, const double *grad)
 {
     double normal = 0.0, other;
     int r, g;
+    double margin, alpha, values[SPUN_BALL_NF], lams[2 * SPUN_BALL_NF], dirs[2 * SPUN_BALL_NF];
+    int cones[SPUN_BALL_NF];
+    if (spun_ball_partner[f] >= 0 && spun_ball_cone_split(c, f, forces, grad, &margin, &alpha, values, cones, lams, dirs)) {
+        return margin;
+    }
     for (r = 0; r < SPUN_BALL_R; ++r) {
         if (spun_ball_row_contact[r] == spun_ball_fric_contact[f]) {
             normal += forces[r];
         }
     }
     for (g = 0; g < SPUN_BALL_NF; ++g) { /* the dependent sticks it carries: their cones are its room too */
-        if (c->sus->ride[g] == f && g != f) {
+        if (c->sus->ride[g] == f && g != f && spun_ball_partner[g] < 0) {
             for (r = 0, other = 0.0; r < SPUN_BALL_R; ++r) {
                 if (spun_ball_row_contact[r] == spun_ball_fric_contact[g]) {
                     other += forces[r];
@@ -1648,14 +1656,14 @@ static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int
     return 0;
 }
 
-/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+/* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
- * other rows hold it alone). */
+ * other rows hold it alone). A cone's row too (cone_split). */
 static int spun_ball_owner(const spun_ball_ctx_t *c, int f, const double *grad)
 {
     const int sr = spun_ball_stick_row[f];
     int g;
-    if (spun_ball_partner[f] >= 0 || !spun_ball_dependent(c, grad, sr, -1)) {
+    if (!spun_ball_dependent(c, grad, sr, -1)) {
         return -1;
     }
     for (g = 0; g < SPUN_BALL_NF; ++g) {
@@ -1764,38 +1772,174 @@ static void spun_ball_sliding(int f, int p, const double *grad, const double *u,
     }
 }
 
-/* SustainedSteps._cone_aim: the slip direction of cone (f, p) over a segment of tau from (q, u): the sliding
- * velocity predicted at the segment's midpoint, w + tau/2 dw/dt (with the contact forces at the start and the
- * start's direction), normalised; the start's direction if the prediction turns back (a stop in the segment). */
-static void spun_ball_cone_aim(const spun_ball_ctx_t *c, int f, int p, const double *q, const double *u, double tau)
+/* SustainedSteps._cone_brake: slip directions of the cones near rest (slow[f]): along the tangential forces that
+ * would bring their sliding to rest at the segment's midpoint, their stick rows held with the active rows (a row
+ * dependent on them rides, the split the best one, cone_split) at the velocity target d(grad t . u)/dt = -2 w/tau.
+ * Implicit in the direction. Out: set[f] and aims[f], aims[p] for each cone with a force. */
+static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, const double *q, const double *u,
+    double tau, int *set, double *aims)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
-    double fr[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], w[2], mid[2], nw, da = 0.0, db = 0.0;
-    const int sf = spun_ball_stick_row[f], sp = spun_ball_stick_row[p];
-    const double mf = c->mu_f[f];
-    int i;
-    spun_ball_rows(q, u, c->par, psi, grad, curv);
-    spun_ball_sliding(f, p, grad, u, w);
-    nw = hypot(w[0], w[1]);
-    if (nw > SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u))) {
-        c->sus->slip[f] = -mf * w[0] / nw;
-        c->sus->slip[p] = -mf * w[1] / nw;
-        spun_ball_set_friction(c);
+    double extra[SPUN_BALL_R_DIM], fr[SPUN_BALL_R_DIM], slip0[SPUN_BALL_NF], lam[2], nl, d;
+    double margin, alpha, values[SPUN_BALL_NF], lams[2 * SPUN_BALL_NF], dirs[2 * SPUN_BALL_NF];
+    int act0[SPUN_BALL_R_DIM], ride0[SPUN_BALL_NF], cones[SPUN_BALL_NF], f, p, x, k, i, r, sr;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        act0[r] = c->sus->act[r];
+        extra[r] = 0.0;
     }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        slip0[f] = c->sus->slip[f];
+        ride0[f] = c->sus->ride[f];
+    }
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (slow[f]) {
+            c->sus->slip[f] = c->sus->slip[spun_ball_partner[f]] = 0.0;
+        }
+    }
+    spun_ball_set_friction(c);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (!slow[f]) {
+            continue;
+        }
+        for (k = 0; k < 2; ++k) {
+            x = k == 0 ? f : spun_ball_partner[f];
+            sr = spun_ball_stick_row[x];
+            for (i = 0, d = 0.0; i < SPUN_BALL_N; ++i) {
+                d += grad[sr * SPUN_BALL_N + i] * u[i];
+            }
+            extra[sr] = 2.0 * d / tau;
+            if (spun_ball_dependent(c, grad, sr, -1)) {
+                c->sus->ride[x] = x;
+            } else {
+                c->sus->act[sr] = 1;
+            }
+        }
+    }
+    spun_ball_forces_to(c, q, u, extra, fr);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (!slow[f]) {
+            continue;
+        }
+        p = spun_ball_partner[f];
+        lam[0] = fr[spun_ball_stick_row[f]];
+        lam[1] = fr[spun_ball_stick_row[p]];
+        if (spun_ball_cone_split(c, f, fr, grad, &margin, &alpha, values, cones, lams, dirs)) {
+            for (i = 0; i < SPUN_BALL_NF && cones[i] >= 0; ++i) {
+                if (cones[i] == f) {
+                    lam[0] = lams[2 * i] + alpha * dirs[2 * i];
+                    lam[1] = lams[2 * i + 1] + alpha * dirs[2 * i + 1];
+                }
+            }
+        }
+        nl = hypot(lam[0], lam[1]);
+        if (nl > 0.0) {
+            set[f] = 1;
+            aims[f] = c->mu_f[f] * lam[0] / nl;
+            aims[p] = c->mu_f[f] * lam[1] / nl;
+        }
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        c->sus->act[r] = act0[r];
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        c->sus->slip[f] = slip0[f];
+        c->sus->ride[f] = ride0[f];
+    }
+    spun_ball_set_friction(c);
+}
+
+/* SustainedSteps._cone_aim: the slip direction of each slipping cone (f, p) (aimed[f]) over a segment of tau from
+ * (q, u): the sliding velocity predicted at the segment's midpoint, w + tau/2 dw/dt (with the contact forces at
+ * the start and the start's directions), normalised; the start's direction if the prediction turns back (a stop
+ * in the segment) or if tau/2 |dw/dt| > |w| (near rest, breaking away). Every cone aimed from the same state; two
+ * or more cones sliding slower than BRAKE tau times friction's own rate on them aimed implicitly (cone_brake). */
+static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const double *q, const double *u, double tau)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double fr[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], w[2], mid[2], turn[2], nw, da, db, aims[SPUN_BALL_NF];
+    double mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], col[SPUN_BALL_N], normal, brake;
+    const double tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u));
+    int i, k, r, f, p, sf, sp, aim, set[SPUN_BALL_NF], slow[SPUN_BALL_NF], n_slow = 0, piv[SPUN_BALL_N];
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        set[f] = slow[f] = 0;
+        if (!aimed[f]) {
+            continue;
+        }
+        p = spun_ball_partner[f];
+        spun_ball_sliding(f, p, grad, u, w);
+        nw = hypot(w[0], w[1]);
+        if (nw > tiny) {
+            c->sus->slip[f] = -c->mu_f[f] * w[0] / nw;
+            c->sus->slip[p] = -c->mu_f[f] * w[1] / nw;
+        }
+    }
+    spun_ball_set_friction(c);
     spun_ball_contact_forces(c, q, u, fr);
     spun_ball_accel(c, q, u, fr, acc);
-    for (i = 0; i < SPUN_BALL_N; ++i) {
-        da += grad[sf * SPUN_BALL_N + i] * acc[i];
-        db += grad[sp * SPUN_BALL_N + i] * acc[i];
+    spun_ball_legendre(q, u, c->par, mom, mass);
+    if (!spun_ball_lu(SPUN_BALL_N, mass, piv)) {
+        return;
     }
-    mid[0] = w[0] + 0.5 * tau * (da + curv[sf]);
-    mid[1] = w[1] + 0.5 * tau * (db + curv[sp]);
-    nw = hypot(mid[0], mid[1]);
-    if (nw > 0.0 && mid[0] * c->sus->slip[f] + mid[1] * c->sus->slip[p] < 0.0) { /* the way it slides */
-        c->sus->slip[f] = -mf * mid[0] / nw;
-        c->sus->slip[p] = -mf * mid[1] / nw;
-        spun_ball_set_friction(c);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (!aimed[f]) {
+            continue;
+        }
+        p = spun_ball_partner[f];
+        sf = spun_ball_stick_row[f];
+        sp = spun_ball_stick_row[p];
+        spun_ball_sliding(f, p, grad, u, w);
+        for (i = 0, da = 0.0, db = 0.0; i < SPUN_BALL_N; ++i) {
+            da += grad[sf * SPUN_BALL_N + i] * acc[i];
+            db += grad[sp * SPUN_BALL_N + i] * acc[i];
+        }
+        turn[0] = 0.5 * tau * (da + curv[sf]);
+        turn[1] = 0.5 * tau * (db + curv[sp]);
+        mid[0] = w[0] + turn[0];
+        mid[1] = w[1] + turn[1];
+        nw = hypot(mid[0], mid[1]);
+        /* the rate friction alone changes w by: mu_f N times the cone's mean inverse mass */
+        for (r = 0, normal = 0.0; r < SPUN_BALL_R; ++r) {
+            if (spun_ball_row_contact[r] == spun_ball_fric_contact[f]) {
+                normal += fr[r];
+            }
+        }
+        for (k = 0, brake = 0.0; k < 2; ++k) {
+            const int row = k == 0 ? sf : sp;
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                col[i] = grad[row * SPUN_BALL_N + i];
+            }
+            spun_ball_lu_solve(SPUN_BALL_N, mass, piv, col);
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                brake += grad[row * SPUN_BALL_N + i] * col[i];
+            }
+        }
+        brake *= c->mu_f[f] * normal * 0.5;
+        aim = nw > tiny && mid[0] * c->sus->slip[f] + mid[1] * c->sus->slip[p] < 0.0; /* the way it slides */
+        if (aim && hypot(turn[0], turn[1]) <= hypot(w[0], w[1])) { /* a correction of w, not made by the friction */
+            set[f] = 1;
+            aims[f] = -c->mu_f[f] * mid[0] / nw;
+            aims[p] = -c->mu_f[f] * mid[1] / nw;
+        }
+        if (hypot(w[0], w[1]) <= SPUN_BALL_BRAKE * tau * brake) {
+            slow[f] = 1;
+            ++n_slow;
+        }
     }
+    if (n_slow >= 2) { /* several cones near rest: implicit in the direction */
+        for (f = 0; f < SPUN_BALL_NF; ++f) {
+            set[f] = slow[f] ? 0 : set[f];
+        }
+        spun_ball_cone_brake(c, slow, q, u, tau, set, aims);
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (set[f]) {
+            c->sus->slip[f] = aims[f];
+            c->sus->slip[spun_ball_partner[f]] = aims[spun_ball_partner[f]];
+        }
+    }
+    spun_ball_set_friction(c);
 }
 
 /* SustainedSteps._cone_modes: stick or slip of each cone contact at (q, u), as friction_modes for one tangent:
@@ -1804,10 +1948,22 @@ static void spun_ball_cone_aim(const spun_ball_ctx_t *c, int f, int p, const dou
 static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], w[2], nw;
-    int f, p;
+    int f, p, held_f, held_p, aimed[SPUN_BALL_NF], any = 0;
     for (f = 0; f < SPUN_BALL_NF; ++f) {
+        aimed[f] = 0;
         p = spun_ball_partner[f];
-        if (p <= f || !c->sus->held_rows[f] || !(c->mu_f[f] > 0.0) || c->sus->act[spun_ball_stick_row[f]]) {
+        if (p <= f || !c->sus->held_rows[f] || !(c->mu_f[f] > 0.0)) {
+            continue;
+        }
+        held_f = c->sus->act[spun_ball_stick_row[f]] || c->sus->ride[f] >= 0;
+        held_p = c->sus->act[spun_ball_stick_row[p]] || c->sus->ride[p] >= 0;
+        if (held_f || held_p) { /* sticking; a row that no longer depends on the others' is held by its own again */
+            if (!held_f) {
+                spun_ball_stick(c, f, q, u);
+            }
+            if (!held_p) {
+                spun_ball_stick(c, p, q, u);
+            }
             continue;
         }
         if (c->sus->slip[f] == 0.0 && c->sus->slip[p] == 0.0) {
@@ -1824,8 +1980,190 @@ static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, cons
             c->sus->slip[f] = -c->mu_f[f] * w[0] / nw;
             c->sus->slip[p] = -c->mu_f[f] * w[1] / nw;
         }
-        if (tau >= 0.0) {
-            spun_ball_cone_aim(c, f, p, q, u, tau);
+        aimed[f] = any = 1;
+    }
+    if (tau >= 0.0 && any) {
+        spun_ball_cone_aim(c, aimed, q, u, tau);
+    }
+}
+
+/* cone_split.null_combination: n over every row with sum_r n_r grad_r = 0: -1 on row (a dependent stick row), on
+ * the active rows the coefficients of grad[row] in their gradients (normal equations), 0 elsewhere. 0 if singular. */
+static int spun_ball_null_combination(const spun_ball_ctx_t *c, const double *grad, int row, double *n)
+{
+    double a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM];
+    int rows[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], nr = 0, i, j, l;
+    for (i = 0; i < SPUN_BALL_R; ++i) {
+        n[i] = 0.0;
+        if (c->sus->act[i]) {
+            rows[nr++] = i;
+        }
+    }
+    for (i = 0; i < nr; ++i) {
+        for (j = 0; j < nr; ++j) {
+            for (l = 0, a[i * nr + j] = 0.0; l < SPUN_BALL_N; ++l) {
+                a[i * nr + j] += grad[rows[i] * SPUN_BALL_N + l] * grad[rows[j] * SPUN_BALL_N + l];
+            }
+        }
+        for (l = 0, b[i] = 0.0; l < SPUN_BALL_N; ++l) {
+            b[i] += grad[rows[i] * SPUN_BALL_N + l] * grad[row * SPUN_BALL_N + l];
+        }
+    }
+    if (nr > 0 && !spun_ball_lu(nr, a, piv)) {
+        return 0;
+    }
+    if (nr > 0) {
+        spun_ball_lu_solve(nr, a, piv, b);
+    }
+    for (i = 0; i < nr; ++i) {
+        n[rows[i]] = b[i];
+    }
+    n[row] = -1.0;
+    return 1;
+}
+
+/* cone_split._term: cap - |F + alpha d| and its slope in alpha (0 where F + alpha d = 0). */
+static double spun_ball_split_term(double cap, const double *force, const double *d, double alpha, double *slope)
+{
+    const double x = force[0] + alpha * d[0], y = force[1] + alpha * d[1], norm = hypot(x, y);
+    *slope = norm > 0.0 ? -(d[0] * x + d[1] * y) / norm : 0.0;
+    return cap - norm;
+}
+
+/* cone_split.split: max over alpha of min_c (caps_c - |forces_c + alpha dirs_c|) over nc cones: the margin, alpha
+ * and each term at alpha; bisection on [min, max] of the terms' maximisers (the least term's slope says on which
+ * side the maximiser of the concave minimum lies). */
+static double spun_ball_split(int nc, const double *caps, const double *forces, const double *dirs, double *alpha,
+    double *values)
+{
+    double lo = HUGE_VAL, hi = -HUGE_VAL, mid, least, slope, s, v, dd, a;
+    int i, it;
+    for (i = 0; i < nc; ++i) {
+        dd = dirs[2 * i] * dirs[2 * i] + dirs[2 * i + 1] * dirs[2 * i + 1];
+        if (dd > 0.0) {
+            a = -(forces[2 * i] * dirs[2 * i] + forces[2 * i + 1] * dirs[2 * i + 1]) / dd;
+            lo = a < lo ? a : lo;
+            hi = a > hi ? a : hi;
+        }
+    }
+    if (lo > hi) {
+        lo = hi = 0.0;
+    }
+    for (it = 0; it < SPUN_BALL_SPLIT_ITER; ++it) {
+        mid = 0.5 * (lo + hi);
+        least = HUGE_VAL;
+        slope = 0.0;
+        for (i = 0; i < nc; ++i) {
+            v = spun_ball_split_term(caps[i], forces + 2 * i, dirs + 2 * i, mid, &s);
+            if (v < least) {
+                least = v;
+                slope = s;
+            }
+        }
+        if (slope > 0.0) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    *alpha = 0.5 * (lo + hi);
+    least = HUGE_VAL;
+    for (i = 0; i < nc; ++i) {
+        values[i] = spun_ball_split_term(caps[i], forces + 2 * i, dirs + 2 * i, *alpha, &s);
+        least = values[i] < least ? values[i] : least;
+    }
+    return least;
+}
+
+/* SustainedSteps._cone_split: the cones coupled with cone f by a dependent stick row (a cone row riding) and their
+ * best split (split): the least margin over the riders whose null combination involves f, with its alpha, each
+ * cone's term (values), the cones' first tangents (cones, -1 after the last), their stick forces and null
+ * combinations (lams, dirs: two per cone). 0 if none involves f. */
+static int spun_ball_cone_split(const spun_ball_ctx_t *c, int f, const double *forces, const double *grad,
+    double *margin, double *alpha, double *values, int *cones, double *lams, double *dirs)
+{
+    double n[SPUN_BALL_R_DIM], caps[SPUN_BALL_NF], fl[2 * SPUN_BALL_NF], dl[2 * SPUN_BALL_NF];
+    double vl[SPUN_BALL_NF], m, a, normal;
+    int g, cc, pc, r, nc, mine, i, found = 0, cl[SPUN_BALL_NF];
+    f = spun_ball_partner[f] < f ? spun_ball_partner[f] : f;
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        if (spun_ball_partner[g] < 0 || c->sus->ride[g] < 0) {
+            continue;
+        }
+        if (!spun_ball_null_combination(c, grad, spun_ball_stick_row[g], n)) {
+            continue;
+        }
+        for (cc = 0, nc = 0, mine = 0; cc < SPUN_BALL_NF; ++cc) {
+            pc = spun_ball_partner[cc];
+            if (pc <= cc || !(fabs(n[spun_ball_stick_row[cc]]) > SPUN_BALL_DEP_EPS
+                    || fabs(n[spun_ball_stick_row[pc]]) > SPUN_BALL_DEP_EPS)) {
+                continue;
+            }
+            mine |= cc == f;
+            for (r = 0, normal = 0.0; r < SPUN_BALL_R; ++r) {
+                if (spun_ball_row_contact[r] == spun_ball_fric_contact[cc]) {
+                    normal += forces[r];
+                }
+            }
+            caps[nc] = c->mu_f[cc] * normal;
+            fl[2 * nc] = forces[spun_ball_stick_row[cc]];
+            fl[2 * nc + 1] = forces[spun_ball_stick_row[pc]];
+            dl[2 * nc] = n[spun_ball_stick_row[cc]];
+            dl[2 * nc + 1] = n[spun_ball_stick_row[pc]];
+            cl[nc++] = cc;
+        }
+        if (!mine) {
+            continue;
+        }
+        m = spun_ball_split(nc, caps, fl, dl, &a, vl);
+        if (!found || m < *margin) {
+            found = 1;
+            *margin = m;
+            *alpha = a;
+            for (i = 0; i < SPUN_BALL_NF; ++i) {
+                cones[i] = i < nc ? cl[i] : -1;
+                if (i < nc) {
+                    values[i] = vl[i];
+                    lams[2 * i] = fl[2 * i];
+                    lams[2 * i + 1] = fl[2 * i + 1];
+                    dirs[2 * i] = dl[2 * i];
+                    dirs[2 * i + 1] = dl[2 * i + 1];
+                }
+            }
+        }
+    }
+    return found;
+}
+
+/* SustainedSteps._split_slide: the coupled cones' stick breaks: those at the edge of their cone in the best split
+ * (within DEP_EPS of the least margin) slip along their split force, s = -lambda_c / |lambda_c|; the others stick
+ * on, a row of theirs that no longer depends on the rest held by its own again. */
+static void spun_ball_split_slide(const spun_ball_ctx_t *c, double margin, double alpha, const double *values,
+    const int *cones, const double *lams, const double *dirs, const double *q, const double *u)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], x, y, nl;
+    int i, cc, pc, g;
+    for (i = 0; i < SPUN_BALL_NF && cones[i] >= 0; ++i) {
+        if (values[i] <= margin + SPUN_BALL_DEP_EPS * (1.0 + fabs(values[i]))) {
+            cc = cones[i];
+            pc = spun_ball_partner[cc];
+            x = lams[2 * i] + alpha * dirs[2 * i];
+            y = lams[2 * i + 1] + alpha * dirs[2 * i + 1];
+            nl = hypot(x, y);
+            nl = nl > 1e-300 ? nl : 1e-300;
+            c->sus->act[spun_ball_stick_row[cc]] = 0;
+            c->sus->ride[cc] = -1;
+            c->sus->slip[cc] = c->mu_f[cc] * x / nl;
+            c->sus->act[spun_ball_stick_row[pc]] = 0;
+            c->sus->ride[pc] = -1;
+            c->sus->slip[pc] = c->mu_f[cc] * y / nl;
+        }
+    }
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        if (spun_ball_partner[g] >= 0 && c->sus->ride[g] >= 0) {
+            c->sus->ride[g] = spun_ball_owner(c, g, grad);
+            c->sus->act[spun_ball_stick_row[g]] = c->sus->ride[g] < 0;
         }
     }
 }
@@ -1835,10 +2173,33 @@ static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, cons
 static void spun_ball_cone_switch(const spun_ball_ctx_t *c, int kind, int f, int p, const double *q,
     const double *u)
 {
-    double fr[SPUN_BALL_R_DIM], l0, l1, nl;
+    double fr[SPUN_BALL_R_DIM], l0, l1, nl, psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    double curv[SPUN_BALL_R_DIM], w[2], tiny, margin, alpha, values[SPUN_BALL_NF], lams[2 * SPUN_BALL_NF];
+    double dirs[2 * SPUN_BALL_NF];
+    int g, pg, cones[SPUN_BALL_NF];
     if (kind == 3) {
         spun_ball_stick(c, f, q, u);
         spun_ball_stick(c, p, q, u);
+        spun_ball_rows(q, u, c->par, psi, grad, curv);
+        tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u));
+        for (g = 0; g < SPUN_BALL_NF; ++g) { /* another cone of the body stopped at the same instant sticks with it */
+            pg = spun_ball_partner[g];
+            if (pg <= g || (c->sus->slip[g] == 0.0 && c->sus->slip[pg] == 0.0)) {
+                continue;
+            }
+            spun_ball_sliding(g, pg, grad, u, w);
+            if (hypot(w[0], w[1]) <= tiny) {
+                spun_ball_stick(c, g, q, u);
+                spun_ball_stick(c, pg, q, u);
+            }
+        }
+        spun_ball_set_friction(c);
+        return;
+    }
+    spun_ball_contact_forces(c, q, u, fr);
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    if (spun_ball_cone_split(c, f, fr, grad, &margin, &alpha, values, cones, lams, dirs)) {
+        spun_ball_split_slide(c, margin, alpha, values, cones, lams, dirs, q, u);
     } else {
         spun_ball_contact_forces(c, q, u, fr);
         l0 = fr[spun_ball_stick_row[f]];
@@ -1878,7 +2239,7 @@ static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr
         c->sus->act[sr] = 0;
         c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
         for (g = 0; g < SPUN_BALL_NF; ++g) { /* its dependent sticks slide with it, the same way */
-            if (c->sus->ride[g] == f && g != f) {
+            if (c->sus->ride[g] == f && g != f && spun_ball_partner[g] < 0) {
                 for (i = 0, along = 0.0; i < SPUN_BALL_N; ++i) {
                     along += grad[spun_ball_stick_row[g] * SPUN_BALL_N + i] * grad[sr * SPUN_BALL_N + i];
                 }
@@ -1931,7 +2292,9 @@ static int spun_ball_illinois(const spun_ball_ctx_t *c, int r, int height, const
             }
             gc *= sgn;
         } else if (height == 3) {
-            gc = spun_ball_cone_margin(c, spun_ball_row_stick[r], f);
+            double psi3[SPUN_BALL_R_DIM];
+            spun_ball_rows(q1, u1, c->par, psi3, grad, curv);
+            gc = spun_ball_cone_margin(c, spun_ball_row_stick[r], f, grad);
         }
         if (height == 5) { /* a cone's sliding velocity along its frozen slip direction */
             const int fc = spun_ball_row_stick[r], pc = spun_ball_partner[fc];
@@ -2435,11 +2798,15 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) { /* sticking: does its force leave the cone inside the segment? */
-                g1 = spun_ball_cone_margin(c, i, f1);
+            } else if (c->sus->act[sr] || (spun_ball_partner[i] >= 0 && c->sus->act[spun_ball_stick_row[spun_ball_partner[i]]])) {
+                /* sticking: does its force leave the cone inside the segment? */
+                double psi0[SPUN_BALL_R_DIM], grad0[SPUN_BALL_R_DIM * SPUN_BALL_N], curv0[SPUN_BALL_R_DIM];
+                spun_ball_rows(q1, u1, c->par, psi0, grad0, curv0);
+                g1 = spun_ball_cone_margin(c, i, f1, grad0);
                 if (g1 < -f_eps) {
                     spun_ball_contact_forces(c, q, vel0, f0);
-                    g0 = spun_ball_cone_margin(c, i, f0);
+                    spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    g0 = spun_ball_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && spun_ball_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
                             SPUN_BALL_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, SPUN_BALL_LIFT_ITER, &s_ev[sr])) {
@@ -3596,11 +3963,7 @@ void spun_ball_eval_segment(const double *q0, const double *v, double tau, const
     spun_ball_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void spun_ball_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = spun_ball_start_energy(q0, v, tau, par);
-}
+
 
 void spun_ball_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

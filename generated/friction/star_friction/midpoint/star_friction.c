@@ -831,20 +831,7 @@ static void star_friction_newton(star_friction_fun f, const double *const *arg, 
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double star_friction_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[STAR_FRICTION_N + 1], zero[STAR_FRICTION_N], e0 = 0.0, res[STAR_FRICTION_N + 1];
-    double jac[(STAR_FRICTION_N + 1) * (STAR_FRICTION_N + 1)];
-    for (int i = 0; i < STAR_FRICTION_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[STAR_FRICTION_N] = 0.0;
-    star_friction_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[STAR_FRICTION_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define STAR_FRICTION_N1 (STAR_FRICTION_N + 1)
@@ -1370,6 +1357,8 @@ static const int star_friction_row_stick[STAR_FRICTION_R_DIM] = { -1, -1, -1, -1
 static const int star_friction_row_free[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, 1, };
 #define STAR_FRICTION_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
+#define STAR_FRICTION_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
+#define STAR_FRICTION_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int star_friction_fric_contact[STAR_FRICTION_NF] = { 0, };
 static const int star_friction_stick_row[STAR_FRICTION_NF] = { 4, };
@@ -1500,7 +1489,17 @@ static void star_friction_row_accel(const star_friction_ctx_t *c, const double *
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void star_friction_forces_to(const star_friction_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void star_friction_contact_forces(const star_friction_ctx_t *c, const double *q, const double *u, double *out)
+{
+    star_friction_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void star_friction_forces_to(const star_friction_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[STAR_FRICTION_N], ccurv[STAR_FRICTION_M_DIM], mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N];
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
@@ -1532,7 +1531,7 @@ static void star_friction_contact_forces(const star_friction_ctx_t *c, const dou
         star_friction_lu_solve(STAR_FRICTION_N, mass, piv, minv_g + k * STAR_FRICTION_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             b[k] -= grad[rows[k] * STAR_FRICTION_N + i] * rhs[i];
         }
@@ -1694,11 +1693,13 @@ static int star_friction_sub_end(const star_friction_ctx_t *c, const double *q, 
 }
 
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
- * negative when the stick force leaves Coulomb's cone. */
-static double star_friction_cone_margin(const star_friction_ctx_t *c, int f, const double *forces)
+ * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
+ * margin of their best split (cone_split). */
+static double star_friction_cone_margin(const star_friction_ctx_t *c, int f, const double *forces, const double *grad)
 {
     double normal = 0.0;
     int r;
+    (void)grad;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         if (star_friction_row_contact[r] == star_friction_fric_contact[f]) {
             normal += forces[r];
@@ -1748,14 +1749,14 @@ static int star_friction_dependent(const star_friction_ctx_t *c, const double *g
     return 0;
 }
 
-/* SustainedSteps._owner: whose stick holds one-tangent contact f's tangent: -1 if its stick row is independent of
+/* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
- * other rows hold it alone). */
+ * other rows hold it alone). A cone's row too (cone_split). */
 static int star_friction_owner(const star_friction_ctx_t *c, int f, const double *grad)
 {
     const int sr = star_friction_stick_row[f];
     int g;
-    if (0 || !star_friction_dependent(c, grad, sr, -1)) {
+    if (!star_friction_dependent(c, grad, sr, -1)) {
         return -1;
     }
     for (g = 0; g < STAR_FRICTION_NF; ++g) {
@@ -1925,7 +1926,9 @@ static int star_friction_illinois(const star_friction_ctx_t *c, int r, int heigh
             }
             gc *= sgn;
         } else if (height == 3) {
-            gc = star_friction_cone_margin(c, star_friction_row_stick[r], f);
+            double psi3[STAR_FRICTION_R_DIM];
+            star_friction_rows(q1, u1, c->par, psi3, grad, curv);
+            gc = star_friction_cone_margin(c, star_friction_row_stick[r], f, grad);
         }
 
         if (gc < 0) {
@@ -2388,11 +2391,15 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) { /* sticking: does its force leave the cone inside the segment? */
-                g1 = star_friction_cone_margin(c, i, f1);
+            } else if (c->sus->act[sr]) {
+                /* sticking: does its force leave the cone inside the segment? */
+                double psi0[STAR_FRICTION_R_DIM], grad0[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv0[STAR_FRICTION_R_DIM];
+                star_friction_rows(q1, u1, c->par, psi0, grad0, curv0);
+                g1 = star_friction_cone_margin(c, i, f1, grad0);
                 if (g1 < -f_eps) {
                     star_friction_contact_forces(c, q, vel0, f0);
-                    g0 = star_friction_cone_margin(c, i, f0);
+                    star_friction_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    g0 = star_friction_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && star_friction_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
                             STAR_FRICTION_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, STAR_FRICTION_LIFT_ITER, &s_ev[sr])) {
@@ -3353,11 +3360,7 @@ void star_friction_eval_segment(const double *q0, const double *v, double tau, c
     star_friction_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void star_friction_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = star_friction_start_energy(q0, v, tau, par);
-}
+
 
 void star_friction_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

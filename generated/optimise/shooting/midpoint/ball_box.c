@@ -760,20 +760,7 @@ static void ball_box_newton(ball_box_fun f, const double *const *arg, int n, dou
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double ball_box_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[BALL_BOX_N + 1], zero[BALL_BOX_N], e0 = 0.0, res[BALL_BOX_N + 1];
-    double jac[(BALL_BOX_N + 1) * (BALL_BOX_N + 1)];
-    for (int i = 0; i < BALL_BOX_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[BALL_BOX_N] = 0.0;
-    ball_box_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[BALL_BOX_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define BALL_BOX_N1 (BALL_BOX_N + 1)
@@ -1376,7 +1363,17 @@ static void ball_box_row_accel(const ball_box_ctx_t *c, const double *q, const d
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void ball_box_forces_to(const ball_box_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void ball_box_contact_forces(const ball_box_ctx_t *c, const double *q, const double *u, double *out)
+{
+    ball_box_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void ball_box_forces_to(const ball_box_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[BALL_BOX_N], ccurv[BALL_BOX_M_DIM], mom[BALL_BOX_N], mass[BALL_BOX_N * BALL_BOX_N];
     double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
@@ -1408,7 +1405,7 @@ static void ball_box_contact_forces(const ball_box_ctx_t *c, const double *q, co
         ball_box_lu_solve(BALL_BOX_N, mass, piv, minv_g + k * BALL_BOX_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < BALL_BOX_N; ++i) {
             b[k] -= grad[rows[k] * BALL_BOX_N + i] * rhs[i];
         }
@@ -3424,11 +3421,7 @@ void ball_box_eval_segment(const double *q0, const double *v, double tau, const 
     ball_box_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void ball_box_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = ball_box_start_energy(q0, v, tau, par);
-}
+
 
 void ball_box_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {

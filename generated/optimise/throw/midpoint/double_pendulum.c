@@ -925,20 +925,7 @@ static inline void double_pendulum_newton_smooth(const double *p0, const double 
     *resnorm = fn;
 }
 
-/* The energy at the start of the segment (q0, v, tau), E_d - f_d- . v with forces (README, Forces): the
- * energy row of the jump's residual (48a) at e_in = 0. A grazing impact under forces keeps it. */
-static double double_pendulum_start_energy(const double *q0, const double *v, double tau, const double *par)
-{
-    double x[DOUBLE_PENDULUM_N + 1], zero[DOUBLE_PENDULUM_N], e0 = 0.0, res[DOUBLE_PENDULUM_N + 1];
-    double jac[(DOUBLE_PENDULUM_N + 1) * (DOUBLE_PENDULUM_N + 1)];
-    for (int i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-        x[i] = v[i];
-        zero[i] = 0.0;
-    }
-    x[DOUBLE_PENDULUM_N] = 0.0;
-    double_pendulum_jump(x, q0, zero, zero, &e0, &tau, par, res, jac);
-    return res[DOUBLE_PENDULUM_N];
-}
+
 /* ---- the stepper: the algorithm of MATH.md, the same phases and names as vcigen/stepper.py ---- */
 
 #define DOUBLE_PENDULUM_N1 (DOUBLE_PENDULUM_N + 1)
@@ -1523,7 +1510,17 @@ static void double_pendulum_row_accel(const double_pendulum_ctx_t *c, const doub
 
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
+static void double_pendulum_forces_to(const double_pendulum_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out);
+
 static void double_pendulum_contact_forces(const double_pendulum_ctx_t *c, const double *q, const double *u, double *out)
+{
+    double_pendulum_forces_to(c, q, u, NULL, out);
+}
+
+/* contact_forces with d2 psi_r/dt2 = -extra_r (extra NULL: 0; SustainedSteps._forces with curv + extra). */
+static void double_pendulum_forces_to(const double_pendulum_ctx_t *c, const double *q, const double *u, const double *extra,
+    double *out)
 {
     double rhs[DOUBLE_PENDULUM_N], ccurv[DOUBLE_PENDULUM_M_DIM], mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N];
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
@@ -1555,7 +1552,7 @@ static void double_pendulum_contact_forces(const double_pendulum_ctx_t *c, const
         double_pendulum_lu_solve(DOUBLE_PENDULUM_N, mass, piv, minv_g + k * DOUBLE_PENDULUM_N);
     }
     for (k = 0; k < nr; ++k) {
-        b[k] = -curv[rows[k]];
+        b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             b[k] -= grad[rows[k] * DOUBLE_PENDULUM_N + i] * rhs[i];
         }
@@ -2863,11 +2860,7 @@ void double_pendulum_eval_segment(const double *q0, const double *v, double tau,
     double_pendulum_segment(q0, v, &tau, par, p_minus, p_plus, energy);
 }
 
-void double_pendulum_eval_start_energy(const double *q0, const double *v, double tau, const double *par,
-    double *energy)
-{
-    *energy = double_pendulum_start_energy(q0, v, tau, par);
-}
+
 
 void double_pendulum_eval_contacts(const double *q, const double *par, double *phi, double *grad)
 {
