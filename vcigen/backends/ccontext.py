@@ -358,7 +358,7 @@ def render_context(
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            # called directly: the implicit grid step's; the stage has no solve id but <model>_segment solves it
+            # the implicit grid step is called directly; the stage has no solve id (<model>_segment solves it)
             if (is_residual(r) or r.name == "stage") and r.name not in {s.name for s in implicit}
         ],
         "residuals": _residual_ids(system),
