@@ -63,7 +63,7 @@ class Setup:
     # A fourth-order rule's own sweep (vcigen.RULES[...].order == 4): coarser steps, since its error meets
     # round-off (~1e-12) near h = 1e-3 already, where the second-order rules are at 1e-6; each divides the
     # evaluation times of every scene
-    high_order_hs: tuple[float, ...] = (0.05, *_halvings(0.05, 6))
+    high_order_hs: tuple[float, ...] = (0.1, *_halvings(0.1, 7))
 
     def hs_for(self, method: str) -> tuple[float, ...]:
         """The step sizes a method of kind ``"h"`` runs: the finer ones too for vcigen's C backend, the

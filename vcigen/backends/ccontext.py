@@ -126,9 +126,14 @@ def model_hash(system: DiscreteSystem) -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
-def routine_context(r: Routine) -> dict[str, Any]:
-    """One routine as printable pieces: signature, temporaries, assignments (after its head's call)."""
-    temps, outs, fills = print_routine_body(r, sqrt_powers=r.name in SQRT_POWERS)
+def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
+    """One routine as printable pieces: signature, temporaries, assignments (after its head's call).
+
+    ``inverse_powers``: ``b^-k`` as ``1/(b ... b)``, not libm's ``pow`` (the routines of a rule with internal
+    points: its quadrature nodes put the potential's negative powers in every residual)."""
+    temps, outs, fills = print_routine_body(
+        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers
+    )
     return {
         "name": r.name,
         "doc": r.doc,
@@ -354,7 +359,7 @@ def render_context(
             if implicit
             else []
         ),
-        "routines": [routine_context(r) for r in with_heads(routines)],
+        "routines": [routine_context(r, inverse_powers=bool(system.stages)) for r in with_heads(routines)],
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
