@@ -35,6 +35,7 @@ METHODS: dict[str, Method] = {
     for m in (
         Method("vcigen_c_trapezoid", "h", "vcigen C, trapezoid", "o-"),
         Method("vcigen_c_midpoint", "h", "vcigen C, midpoint", "s-"),
+        Method("vcigen_c_lobatto3", "h", "vcigen C, lobatto3 (order 4)", "p-"),
         Method("vcigen_casadi_trapezoid", "h", "vcigen CasADi, trapezoid", "D--"),
         Method("dop853_events", "rtol", "DOP853 + events", "^-"),
         Method("dop853_events_ms", "rtol", "DOP853 + events, max_step 0.01", "<-"),

@@ -92,7 +92,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     setups = dict(SETUPS)
     if args.hs:
         hs = tuple(float(h) for h in args.hs.split(","))
-        setups = {k: dataclasses.replace(v, hs=hs, fine_hs=()) for k, v in setups.items()}
+        setups = {k: dataclasses.replace(v, hs=hs, fine_hs=(), high_order_hs=hs) for k, v in setups.items()}
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     sims = VcigenSims()

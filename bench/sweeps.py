@@ -44,6 +44,11 @@ CSV_COLUMNS = [
 ]
 
 
+def _halvings(h: float, k: int) -> tuple[float, ...]:
+    """``h/2, h/4, ..., h/2^k``."""
+    return tuple(h / 2**i for i in range(1, k + 1))
+
+
 @dataclass(frozen=True)
 class Setup:
     """Per scene: evaluation times after the first collision and after a few impacts."""
@@ -55,15 +60,17 @@ class Setup:
     # Finer steps for the compiled vcigen methods only (cheap in C), so that their curves reach errors
     # of 1e-10 and overlap the event-driven ones where the two are compared (wall time at 1e-8).
     fine_hs: tuple[float, ...] = ()
+    # A fourth-order rule's own sweep (vcigen.RULES[...].order == 4): coarser steps, since its error meets
+    # round-off (~1e-12) near h = 1e-3 already, where the second-order rules are at 1e-6; each divides the
+    # evaluation times of every scene
+    high_order_hs: tuple[float, ...] = (0.1, *_halvings(0.1, 7))
 
     def hs_for(self, method: str) -> tuple[float, ...]:
-        """The step sizes a method of kind ``"h"`` runs: the finer ones too for vcigen's C backend."""
+        """The step sizes a method of kind ``"h"`` runs: the finer ones too for vcigen's C backend, the
+        fourth-order sweep for ``lobatto3``."""
+        if method.endswith("_lobatto3"):
+            return self.high_order_hs
         return self.hs + self.fine_hs if method.startswith("vcigen_c_") else self.hs
-
-
-def _halvings(h: float, k: int) -> tuple[float, ...]:
-    """``h/2, h/4, ..., h/2^k``."""
-    return tuple(h / 2**i for i in range(1, k + 1))
 
 
 SETUPS: dict[str, Setup] = {

@@ -25,6 +25,8 @@ from vcigen.routines import Routine
 from vcigen.stepper import Stepper
 
 RULES = ["trapezoid", "midpoint"]
+# lobatto3 (internal points): its grid step is Newton on (v, u), u carried from the step before
+ALL_RULES = [*RULES, "lobatto3"]
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 
 
@@ -40,7 +42,7 @@ def _numeric(r: Routine):
     return call
 
 
-@pytest.mark.parametrize("rule", RULES)
+@pytest.mark.parametrize("rule", ALL_RULES)
 @pytest.mark.parametrize("make", [double_pendulum, star_nonlinear])
 def test_hoisted_routines_are_the_smooth_steps_own(make, rule: str) -> None:
     system = vcigen.derive(make(), rule)
@@ -51,17 +53,20 @@ def test_hoisted_routines_are_the_smooth_steps_own(make, rule: str) -> None:
     rng = np.random.default_rng(3)
     n = system.n
     for _ in range(5):
-        q0, p0, x = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n)
+        # x = (v, u): with internal points p+ and E_d are the segment's at the unknowns' own u
+        q0, p0, x = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n + system.stages)
         q0[1] = abs(q0[1]) + 0.5  # the star's nonlinear gravity R^2/(R + y): away from y = -R
         h = 0.01 * (1 + rng.random())
-        q1 = q0 + h * x
+        x[n:] *= 0.01  # u is O(h)
+        v, inside = x[:n], ({"u": x[n:]} if system.stages else {})
+        q1 = q0 + h * v
         (k,) = consts(q0=q0, tau=h, par=par)
         res, jac = it(x=x, p0=p0, k=k)
         p1, energy, phi, grad, mom, mass, k_next = end(x=x, k=k)
         want_res, want_jac = smooth(x=x, q0=q0, p0=p0, tau=h, par=par)
-        _, want_p1, want_e = seg(q0=q0, v=x, tau=h, par=par)
+        _, want_p1, want_e = seg(q0=q0, v=v, tau=h, par=par, **inside)
         want_phi, want_grad = con(q=q1, par=par)
-        want_mom, want_mass = leg(q=q1, v=x, par=par)
+        want_mom, want_mass = leg(q=q1, v=v, par=par)
         got = [res, jac, p1, energy, phi, grad, mom, mass, k_next]
         want = [want_res, want_jac, want_p1, want_e, want_phi, want_grad, want_mom, want_mass]
         want.append(consts(q0=q1, tau=h, par=par)[0])  # the next step's invariants: those at q_k+1
@@ -77,10 +82,12 @@ def test_only_a_nonlinear_smooth_step_gets_the_implicit_grid_step() -> None:
     assert pendulum["structure"]["implicit_grid"] and pendulum["structure"]["carry"]
     assert {"smooth_consts", "smooth_iter", "smooth_end"} <= {r["name"] for r in pendulum["routines"]}
     assert not star["structure"]["implicit_grid"]
+    staged = render_context(vcigen.derive(star_nonlinear(), "lobatto3"))  # Newton on (v, u) at any mass
+    assert staged["structure"]["implicit_grid"] and staged["structure"]["carry"]
 
 
 @needs_cc
-@pytest.mark.parametrize("rule", RULES)
+@pytest.mark.parametrize("rule", ALL_RULES)
 def test_c_loop_with_the_carry_matches_the_python_stepper_on_c_kernels(rule: str) -> None:
     """The C loop hands each smooth step's invariants to the next; the Python stepper on the same C
     kernels computes them afresh every step (Kernels.smooth_step): the same trajectory to round-off,
@@ -99,7 +106,7 @@ def test_c_loop_with_the_carry_matches_the_python_stepper_on_c_kernels(rule: str
 
 
 @needs_cc
-@pytest.mark.parametrize("rule", RULES)
+@pytest.mark.parametrize("rule", ALL_RULES)
 def test_implicit_grid_step_agrees_with_casadi_on_the_double_pendulum(rule: str) -> None:
     """C (implicit grid step) and CasADi (rootfinder on the unhoisted residual): the same impacts and
     trajectory over three impacts against the wall (the pendulum is chaotic: the horizon is short)."""

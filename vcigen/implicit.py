@@ -69,11 +69,14 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
     r = system.routines
     smooth = r["smooth"]
     xs, q0, p0, tau, par = smooth.inputs
-    x, h = sp.Matrix(xs.symbols), tau.symbols[0]
+    n = system.n
+    # with internal points (Rule.stages) the unknowns are (v, u): the stage's u is solved with v and
+    # p+, E_d are the segment's at that u (no second solve of the stage)
+    x, u, h = sp.Matrix(xs.symbols[:n]), sp.Matrix(xs.symbols[n:]), tau.symbols[0]
     q1 = sp.Matrix(q0.symbols) + h * x
     pars = sp.Matrix(par.symbols)
     seg, con, leg = r["segment"], r["contacts"], r["legendre"]
-    at_seg = _bind(seg, {"q0": sp.Matrix(q0.symbols), "v": x, "tau": sp.Matrix([h]), "par": pars})
+    at_seg = _bind(seg, {"q0": sp.Matrix(q0.symbols), "v": x, "tau": sp.Matrix([h]), "u": u, "par": pars})
     at_con = _bind(con, {"q": q1, "par": pars})
     at_leg = _bind(leg, {"q": q1, "v": x, "par": pars})
     outputs = [

@@ -52,6 +52,12 @@ def newton_options(system: DiscreteSystem) -> dict[str, float]:
     return NEWTON | ({"abstol": HIGH_ORDER_ABSTOL} if system.stages else {})
 
 
+# The implicit grid step of a rule with internal points also stops after a full Newton step shorter than
+# SETTLED (1 + |x|): with the exact Jacobian the next step would be ~|dx|^2, below round-off, while
+# |f| <= HIGH_ORDER_ABSTOL may be out of reach of the residual's round-off (momenta of a few units).
+SETTLED = 1e-9
+
+
 # Damped (backtracking) steps only far from the root: |dx| > DAMP_MIN_STEP (1 + |x|).
 DAMPING = {"min_step": 1e-8, "max_halvings": 10}
 
@@ -120,9 +126,14 @@ def model_hash(system: DiscreteSystem) -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
-def routine_context(r: Routine) -> dict[str, Any]:
-    """One routine as printable pieces: signature, temporaries, assignments (after its head's call)."""
-    temps, outs, fills = print_routine_body(r, sqrt_powers=r.name in SQRT_POWERS)
+def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
+    """One routine as printable pieces: signature, temporaries, assignments (after its head's call).
+
+    ``inverse_powers``: ``b^-k`` as ``1/(b ... b)``, not libm's ``pow`` (the routines of a rule with internal
+    points: its quadrature nodes put the potential's negative powers in every residual)."""
+    temps, outs, fills = print_routine_body(
+        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers
+    )
     return {
         "name": r.name,
         "doc": r.doc,
@@ -240,8 +251,9 @@ def render_context(
     grid = grid_routines(system) if structure.explicit_grid else []
     quad = jump_quadratic(system)
     routines += grid + ([quad] if quad else [])
-    # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants
-    implicit = implicit_routines(system) if not (structure.smooth_linear or system.stages) else []
+    # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants; with
+    # internal points on (v, u), u carried from the step before
+    implicit = implicit_routines(system) if not structure.smooth_linear else []
     routines += implicit
     held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
     routines += held
@@ -329,7 +341,7 @@ def render_context(
         "nonfinite": NONFINITE,
         "tol": _tol_context(tol or Tolerances()),
         "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],
-        "newton": {k: repr(v) for k, v in newton_options(system).items()},
+        "newton": {k: repr(v) for k, v in newton_options(system).items()} | {"settled": repr(SETTLED)},
         "damping": {k: repr(v) for k, v in DAMPING.items()},
         "structure": {
             "smooth_linear": structure.smooth_linear,
@@ -351,7 +363,7 @@ def render_context(
             if implicit
             else []
         ),
-        "routines": [routine_context(r) for r in with_heads(routines)],
+        "routines": [routine_context(r, inverse_powers=bool(system.stages)) for r in with_heads(routines)],
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines

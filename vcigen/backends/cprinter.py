@@ -22,10 +22,13 @@ _MAX_PRODUCT_POWER = 4
 class ArrayC99Printer(C99CodePrinter):
     """A C99 printer with symbols mapped to C lvalues (array entries or locals)."""
 
-    def __init__(self, names: Mapping[sp.Symbol, str], sqrt_powers: bool = False) -> None:
+    def __init__(
+        self, names: Mapping[sp.Symbol, str], sqrt_powers: bool = False, inverse_powers: bool = False
+    ) -> None:
         super().__init__({"strict": False})
         self._names = dict(names)
         self._sqrt_powers = sqrt_powers
+        self._inverse_powers = inverse_powers
 
     def _print_Symbol(self, expr: sp.Symbol) -> str:
         try:
@@ -40,6 +43,9 @@ class ArrayC99Printer(C99CodePrinter):
         if exp.is_Integer and 2 <= int(exp) <= _MAX_PRODUCT_POWER:
             b = self.parenthesize(base, 1000)  # always wrap non-atoms
             return "(" + "*".join([b] * int(exp)) + ")"
+        if self._inverse_powers and exp.is_Integer and -_MAX_PRODUCT_POWER <= int(exp) <= -2:
+            b = self.parenthesize(base, 1000)  # b^-k = 1/(b ... b): no pow (not bit for bit pow's)
+            return "(1.0/(" + "*".join([b] * -int(exp)) + "))"
         half = exp.is_Rational and exp.q == 2 and 3 <= abs(exp.p) <= 2 * _MAX_PRODUCT_POWER + 1
         if self._sqrt_powers and half:
             b = self.parenthesize(base, 1000)  # b^(k/2) = b^((k-1)/2) sqrt(b): no pow (not bit for bit pow's)
@@ -71,10 +77,11 @@ ZERO_FILL = 16
 
 
 def print_routine_body(
-    routine: Routine, sqrt_powers: bool = False
+    routine: Routine, sqrt_powers: bool = False, inverse_powers: bool = False
 ) -> tuple[list[tuple[str, str]], list[list[tuple[int, str]]], list[tuple[int, int] | None]]:
     """CSE'd body of ``routine``: ``(temporaries, outputs, fills)``; with ``sqrt_powers``, half-integer powers
-    ``b^(k/2)`` (``3 <= |k| <= 9``) are printed as ``b^((k-1)/2) sqrt(b)``, without libm's ``pow``.
+    ``b^(k/2)`` (``3 <= |k| <= 9``) are printed as ``b^((k-1)/2) sqrt(b)``, without libm's ``pow``; with
+    ``inverse_powers``, ``b^-k`` (``2 <= k <= 4``) as ``1/(b ... b)``.
 
     ``temporaries`` are ``(name, C expression)`` in evaluation order; each output is a list of
     ``(flat index, C expression)`` of the entries this routine writes itself: those past the ones
@@ -93,7 +100,7 @@ def print_routine_body(
     repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t", real=True), optimizations="basic")
     for sym, _ in repl:
         names[sym] = sym.name
-    printer = ArrayC99Printer(names, sqrt_powers)
+    printer = ArrayC99Printer(names, sqrt_powers, inverse_powers)
     temps = [(sym.name, printer.doprint(expr)) for sym, expr in repl]
     outs, i = [], 0
     for entries in listed:
