@@ -14,11 +14,15 @@ in ``(x, d)``, their partials chained. Phases:
   restitution (39) ``(1 - e^2)/2 (n.qdot)^2 / (n.M^-1 n)`` with ``qdot`` one Newton step of the inverse
   Legendre transform from the incoming segment velocity (as the stepper computes it);
 * several impacts in one step (78): unknowns ``(w, mu, beta)``, as (47) with ``beta`` for ``alpha``;
+* a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
+  ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
+  found them (``vcigen.held`` or ``SustainedSteps._chain``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once), a grazing impact taking the continuous law, a plastic impact, any held
-(sustained-contact) step, lift-off, friction, the ``_restart`` fallback. From the first such step ``k``
+group of contacts at once), a grazing impact taking the continuous law, a plastic impact, a held
+step with an event inside (lift-off, an impact or a row crossed while held, a friction switch) or with
+friction, friction at an impact, the ``_restart`` fallback. From the first such step ``k``
 on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
 ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
@@ -332,6 +336,36 @@ class Tracker:
         dq_end = self.dq + np.outer(w, self.dtau) + seg.tau * dw
         _, dp_end, _ = self._segment(seg.q, w, seg.tau, seg.t, self.dq, dw, self.dtau, self.dt)
         self.next = np.vstack([dq_end, dp_end])
+
+    @_guarded
+    def held(self, q, p, tau: float, v, lam, lam1, u1, act) -> None:
+        """A held grid step with a fixed active set (MATH.md *Sustained contact*): ``S_k+1``.
+
+        ``rattle``, unknowns ``x = (v, Lam)`` given ``(q_k, p_k, tau, act, par)``, then ``rattle_project``,
+        unknowns ``y = (u1, Lam')`` given ``(q_k+1, p+, act, par)``, ``q_k+1 = q_k + tau v``,
+        ``p+ = p+(q_k, v, tau)``; ``p_k+1 = dL/dqdot(q_k+1, u1)`` (``= p+ + G1^T Lam'``). The active set and
+        the multipliers off it are held fixed (their columns 0): the derivative of the step for its mode.
+        """
+        if not self.active:
+            return
+        n, K = self.n, self.K
+        nr = len(act)
+        s = self.cur
+        dq, dp = s[:n], s[n:]
+        actf = np.asarray(act, dtype=float)
+        par, dpar = self.par(self.t), self.dpar(None)
+        zr, z1 = np.zeros((nr, K)), np.zeros((1, K))
+        x = np.concatenate([v, lam])
+        dx = self._ift("rattle", x, (q, p, [tau], actf), np.vstack([dq, dp, z1, zr, dpar]), self.t)
+        dv = dx[:n]
+        q1 = q + tau * v
+        dq1 = dq + tau * dv
+        p_plus = self.k.segment(q, v, tau)[1]
+        _, dpp, _ = self._segment(q, v, tau, self.t, dq, dv, z1, None)
+        y = np.concatenate([u1, lam1])
+        dy = self._ift("rattle_project", y, (q1, p_plus, actf), np.vstack([dq1, dpp, zr, dpar]), self.t)
+        dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), par)
+        self.next = np.vstack([dq1, dmom @ np.vstack([dq1, dy[:n], dpar])])
 
     # -- the result ----------------------------------------------------------------
     def attach(self, res, steps: int) -> None:

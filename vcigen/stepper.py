@@ -222,9 +222,13 @@ class Stepper(SustainedSteps, HeldSteps):
         self._chained = False
         self._at(t)
         if self._held:  # sustained contact or constraints: the held step (vcigen.held), else the chain
-            if self._tan is not None:
-                self._tan.lose("held step (sustained contact)")
+            self._held_seg = None  # set by a held step with its active set unchanged (one segment, no event)
             out = self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+            if self._tan is not None:
+                if self._held_seg is None:
+                    self._tan.lose("held step (sustained contact)")
+                else:
+                    self._tan.held(q, p, h, *self._held_seg)
             self._held = bool(self.act.any())
             return out
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)

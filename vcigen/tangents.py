@@ -7,9 +7,11 @@ needs the partials of the explicit maps (momenta and energy of a segment (50), (
 transform, the contact gradients, the restitution). :func:`tangent_routines` derives them as routines
 named ``d_<routine>`` (SENS_DESIGN.md):
 
-* ``d_smooth``, ``d_contact_time_<c>``, ``d_jump``, ``d_jump_contact_<c>``: the residual routine's own
-  inputs (``x`` first), output ``dres = d res / d(every input after x, concatenated in input order)``;
-  (46), (47), (48), (78);
+* ``d_smooth``, ``d_contact_time_<c>``, ``d_jump``, ``d_jump_contact_<c>``, ``d_rattle``,
+  ``d_rattle_project``: the residual routine's own inputs (``x`` first), output ``dres = d res / d(every
+  input after x, concatenated in input order)``; (46), (47), (48), (78), and the constrained step of
+  sustained contact with its end projection (MATH.md *Sustained contact*; their ``act`` columns are
+  those of a fixed active set, never used);
 * ``d_segment(q0, v, tau, par)``: ``dp_minus``, ``dp_plus``, ``denergy``, each ``d/d(q0, v, tau, par)``;
 * ``d_contacts(q, par)``: ``dgrad``, ``(m n) x (n + npar)``, row ``j n + i`` is ``d grad_j[i] / d(q, par)``;
 * ``d_legendre(q, v, a, par)``: ``dmom = d mom / d(q, v, par)`` and ``dmass_a = d (M(q, v) a) / d(q, v, par)``
@@ -30,6 +32,8 @@ from .routines import Arg, Output, Routine
 TANGENT_PREFIX = "d_"
 # the residual routines a tangent is derived for: the phases covered (SENS_DESIGN.md)
 RESIDUAL_PREFIXES = ("smooth", "contact_time_", "jump", "jump_contact_")
+# the constrained step of sustained contact and its end projection (MATH.md, Sustained contact)
+HELD_RESIDUALS = ("rattle", "rattle_project")
 
 
 def is_tangent(name: str) -> bool:
@@ -38,7 +42,7 @@ def is_tangent(name: str) -> bool:
 
 
 def _covered(name: str) -> bool:
-    return name in ("smooth", "jump") or name.startswith(("contact_time_", "jump_contact_"))
+    return name in ("smooth", "jump", *HELD_RESIDUALS) or name.startswith(("contact_time_", "jump_contact_"))
 
 
 def _data_symbols(args: tuple[Arg, ...]) -> list[sp.Symbol]:
