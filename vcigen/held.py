@@ -275,7 +275,7 @@ class HeldSteps:
         if out is None:
             return None
         self._chained = True
-        if self._tan is not None:  # the tangent (vcigen.sensitivity.Tracker.held): u1 of M u1 = p1
+        if self._record_held:  # the tangent (vcigen.sensitivity.Tracker.held): u1 of M u1 = p1
             self._held_seg = (out.v, out.lam, out.lam1, self._velocity(out.q1, out.v, out.p1), self.act.copy())
         self._book(out.lam + out.lam1)
         self._lam = np.where(self.act, out.lam * (self._h / h), 0.0)

@@ -110,6 +110,7 @@ class Stepper(SustainedSteps, HeldSteps):
     ) -> None:
         self.k = kernels
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
+        self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -222,13 +223,19 @@ class Stepper(SustainedSteps, HeldSteps):
         self._chained = False
         self._at(t)
         if self._held:  # sustained contact or constraints: the held step (vcigen.held), else the chain
-            self._held_seg = None  # set by a held step with its active set unchanged (one segment, no event)
-            out = self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
-            if self._tan is not None:
+            # The held step's phases have no hooks; a step with its active set unchanged (one constrained
+            # segment, no event, no friction) leaves its solution in _held_seg, the tangent's (Tracker.held).
+            tan, self._tan = self._tan, None
+            self._held_seg, self._record_held = None, tan is not None
+            try:
+                out = self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+            finally:
+                self._tan, self._record_held = tan, False
+            if tan is not None:
                 if self._held_seg is None:
-                    self._tan.lose("held step (sustained contact)")
+                    tan.lose("held step (sustained contact)")
                 else:
-                    self._tan.held(q, p, h, *self._held_seg)
+                    tan.held(q, p, h, *self._held_seg)
             self._held = bool(self.act.any())
             return out
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)

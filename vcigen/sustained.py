@@ -538,7 +538,7 @@ class SustainedSteps:
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
             if not events and not cross.any():
-                if plain and self._tan is not None:  # the tangent of the step (Stepper.step, Tracker.held)
+                if plain and self._record_held:  # the tangent of the step (Stepper.step, Tracker.held)
                     self._held_seg = (v, lam, lam1, u1, self.act.copy())
                 self._book(lam + lam1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)

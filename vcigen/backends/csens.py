@@ -35,6 +35,7 @@ SYMBOLIC_MAP = 3  # coordinates at most for the smooth step's tangent as one str
 # order of the bits of W (within a step, the order the stepper meets them): vcigen.sensitivity's reasons.
 SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
+    ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
     ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
