@@ -329,6 +329,22 @@ def _rotated(q, angle: float) -> list[float]:
     return [c * q[0] - s * q[1], s * q[0] + c * q[1]]
 
 
+def _dragged() -> vcigen.Model:
+    """A unit particle on the floor ``y = 0`` under gravity, viscous drag ``c`` and a push ``A cos(W t)``."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    c, A, W = sp.symbols("c A W")
+    return vcigen.Model(
+        name="dragged",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - 9.81 * y,
+        contacts={"floor": y},
+        params={c: 0.4, A: 2.0, W: 1.7},
+        forces=[-c * xd + A * sp.cos(W * t), 0],
+        time=t,
+    )
+
+
 def _held_scenes() -> dict:
     """scene -> (model maker, q0, v0, h, t_end, params, paths): runs held from the start (sustained contact,
     the active set never changing); each path ``eps -> (q0, v0, params)`` moves the start without changing
@@ -416,6 +432,20 @@ def _held_scenes() -> dict:
             {
                 "q0 along": lambda e: (_rotated([0.6, -0.8], e), [0.0, 0.0], {}),
                 "v0 along": lambda e: ([0.6, -0.8], [0.8 * e, 0.6 * e], {}),
+            },
+        ),
+        # forces (drag c, a push A cos(W t)): no held grid step, the chain's constrained segment takes each step
+        "drag": (
+            _dragged,
+            [0.0, 0.0],
+            [1.0, 0.0],
+            0.01,
+            1.0,
+            None,
+            {
+                "v0[x]": lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}),
+                "c": lambda e: ([0.0, 0.0], [1.0, 0.0], {"c": 0.4 + e}),
+                "W": lambda e: ([0.0, 0.0], [1.0, 0.0], {"W": 1.7 + e}),
             },
         ),
         # a bilateral rod (Cartesian pendulum): always held, its length l a parameter
