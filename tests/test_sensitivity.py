@@ -434,7 +434,7 @@ def _held_scenes() -> dict:
                 "v0 along": lambda e: ([0.6, -0.8], [0.8 * e, 0.6 * e], {}),
             },
         ),
-        # forces (drag c, a push A cos(W t)): no held grid step, the chain's constrained segment takes each step
+        # forces (drag c, a push A cos(W t)): no held grid step, the chain's constrained segment takes each
         "drag": (
             _dragged,
             [0.0, 0.0],

@@ -127,7 +127,7 @@ def test_the_variant_leaves_the_trajectory_unchanged(scene: str) -> None:
     elif scene == "ball":
         sim = vcigen.build(hard_scenes.ball(), backend="c")
         args, kw = ([0.0, 1.0], [0.3, 0.0], 0.01), {"t_end": 2.8}
-    elif scene in ts.HELD_SCENES:  # held throughout: the glide one step at a time while the tangent is carried
+    elif scene in ts.HELD_SCENES:  # held throughout: the glide one step at a time, with the tangent
         _, q0, v0, h, t_end, params, _ = ts.HELD_SCENES[scene]
         sim, args, kw = ts.held_simulator(scene, "c"), (q0, v0, h), {"t_end": t_end, "params": params}
     else:
