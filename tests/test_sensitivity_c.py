@@ -81,16 +81,15 @@ def test_c_equals_casadi_on_the_examples(example: str) -> None:
 
 
 def test_breaks_are_the_python_steppers() -> None:
-    """A lossy ball to rest: restitution impacts covered, then a plastic impact, then held steps (the held
-    glide in C, covered: no breaks): the same breaks, the same first lost step, NaN from there, on both
-    backends. Sliding off a dome: held steps covered (the glide, one step at a time), then the lift-off step
-    (the chain with an event) is the first break, listed once."""
+    """A lossy ball to rest: restitution impacts, a plastic impact (sens_plastic, then the constrained rest of
+    its step), then held steps (the held glide in C): covered on both backends, the same tangent. Sliding off a
+    dome: held steps covered (the glide, one step at a time), then the lift-off step (the chain with an event)
+    is the first break, listed once."""
     sims = {backend: vcigen.build(hard_scenes.ball(), backend=backend) for backend in ("casadi", "c")}
     a, b = both(sims.__getitem__, [0.0, 1.0], [0.3, 0.0], 0.01, t_end=2.8)
-    assert_same_tangent(a, b)
-    lost = b.stats["sensitivity_lost"]
-    assert b.sensitivity_breaks == [(lost, "plastic impact")] and b.active[-1].all()
-    assert np.isfinite(b.sensitivity[: lost + 1]).all() and np.isnan(b.sensitivity[lost + 1 :]).all()
+    rel = assert_same_tangent(a, b)
+    print(f"ball to rest: C against CasADi {rel:.1e}")
+    assert b.sensitivity_breaks == [] and b.active[-1].all() and b.stats["impacts_plastic"] == 1
     from test_c_agreement_sustained import _dome
 
     dome = _dome()

@@ -16,7 +16,9 @@ named ``d_<routine>`` (SENS_DESIGN.md):
 * ``d_contacts(q, par)``: ``dgrad``, ``(m n) x (n + npar)``, row ``j n + i`` is ``d grad_j[i] / d(q, par)``;
 * ``d_legendre(q, v, a, par)``: ``dmom = d mom / d(q, v, par)`` and ``dmass_a = d (M(q, v) a) / d(q, v, par)``
   (the tangent of one Newton step of the inverse Legendre transform, and of ``M^-1 n``);
-* ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39)).
+* ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39));
+* ``d_rows(q, u, par)``: ``dgrad``, ``(R n) x (n + npar)``: the rows' gradients (a plastic impact's
+  impulse law).
 
 They are added to :attr:`DiscreteSystem.routines` only by ``derive(model, rule, sensitivities=True)``;
 a simulator asked for sensitivities derives them lazily from the system it has (:func:`tangent_routines`).
@@ -98,6 +100,19 @@ def legendre_tangent(r: Routine) -> Routine:
     )
 
 
+def rows_tangent(r: Routine) -> Routine:
+    """``d_rows``: partials of the rows' gradients (row-major) in ``(q, par)``, an impulse law's."""
+    grad = r.output("grad").expr
+    flat = sp.Matrix(grad.rows * grad.cols, 1, list(grad))
+    q, _, par = r.inputs
+    return Routine(
+        "d_rows",
+        r.inputs,
+        (Output("dgrad", jacobian(flat, [*q.symbols, *par.symbols])),),
+        "Partials of grad psi_r[i] (row r n + i) in (q, par): the tangent of a plastic impact's directions.",
+    )
+
+
 def restitution_tangent(r: Routine) -> Routine:
     """``d_restitution(par)``: partials of each contact's coefficient of restitution (39)."""
     return Routine(
@@ -116,6 +131,8 @@ def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
         "d_legendre": legendre_tangent(routines["legendre"]),
         "d_restitution": restitution_tangent(routines["restitution"]),
     }
+    if "rows" in routines:
+        out["d_rows"] = rows_tangent(routines["rows"])
     for name, r in routines.items():
         if _covered(name):
             out[TANGENT_PREFIX + name] = residual_tangent(r)

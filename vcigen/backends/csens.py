@@ -40,6 +40,7 @@ SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
     ("PLASTIC_IMPACT", "plastic impact"),
+    ("SINGULAR_PLASTIC", "a singular Jacobian in the tangent of plastic"),
     ("GRAZING_IMPACT", "grazing impact"),
     ("SINGULAR_JUMP", "a singular Jacobian in the tangent of jump"),
     ("RESTART", "restart (continuous law where (78) has no root)"),
