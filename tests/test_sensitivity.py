@@ -204,10 +204,10 @@ def test_simultaneous_impact_is_reported_not_differentiated(backend: str) -> Non
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_ball_coming_to_rest_matches_finite_differences(backend: str) -> None:
-    """A lossy ball bouncing to rest (Zeno): restitution impacts, then the plastic impact that starts sustained
-    contact (the contact time (47), the impulse law onto the row, the constrained rest of its step), then held
-    steps sliding on: covered throughout, against central differences of every column (the perturbed runs have
-    the same impacts, kinds and active sets)."""
+    """A lossy ball bouncing to rest (Zeno): restitution impacts, then the plastic impact that starts
+    sustained contact (the contact time (47), the impulse law onto the row, the constrained rest of its
+    step), then held steps sliding on: covered throughout, against central differences of every column
+    (the perturbed runs have the same impacts, kinds and active sets)."""
     sim = vcigen.build(hard_scenes.ball(), backend=backend)
     q0, v0, h, t_end = [0.0, 1.0], [0.3, 0.0], 0.01, 2.0
     res = sim.simulate(q0, v0, h, t_end=t_end, sensitivities=True, progress=False)
