@@ -18,7 +18,12 @@ Scenes:
   h = 0.005, t_end = 20;
 * ``double_pendulum``: ``tests/hard_scenes.py`` against the wall x = 1.2 (n = 2, P = 6, configuration-
   dependent mass: the implicit grid step, Newton), ``q0 = (0.3, 0.6)``, ``v0 = (1.5, 2)``, h = 0.01,
-  t_end = 20.
+  t_end = 20;
+* held throughout (sustained contact; the tangent through ``rattle``/``rattle_project`` every step):
+  ``slide`` (a ball sliding on a floor, the held glide, h = 0.001, t_end = 20), ``box_face`` (a box sliding
+  on its long face: two nonlinear rows, h = 0.002, t_end = 20), ``bowl`` (inside a circle: the held Newton
+  iterates, h = 0.001, t_end = 20), ``drag`` (drag and a push: no held grid step, the chain, h = 0.001,
+  t_end = 5; ``tests/test_sensitivity.py``).
 
 Writes ``bench/results/sensitivity_cost_c.csv``.
 """
@@ -44,7 +49,20 @@ SCENES = {
     "particle": (lambda: load_example("particle").model(), [0.0, 1.0], [-2.0, 0.0], 0.01, 200.0),
     "star": (lambda: load_example("star").model(), [0.0, 1.2, 0.0], [-2.0, 0.0, 5.0], 0.005, 20.0),
     "double_pendulum": (hard_scenes.double_pendulum, [0.3, 0.6], [1.5, 2.0], 0.01, 20.0),
+    "slide": (hard_scenes.ball, [0.0, 0.0], [1.0, 0.0], 0.001, 20.0),
+    "box_face": (lambda: _held("_box"), [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 20.0),
+    "bowl": (lambda: _held("_bowl"), [0.6, -0.8], [0.0, 0.0], 0.001, 20.0),
+    "drag": (lambda: _held("_dragged"), [0.0, 0.0], [1.0, 0.0], 0.001, 5.0),
 }
+
+
+def _held(name: str) -> vcigen.Model:
+    """A held scene's model from the tests (``test_c_agreement_sustained``, ``test_sensitivity``)."""
+    import test_c_agreement_sustained
+    import test_sensitivity
+
+    maker = getattr(test_c_agreement_sustained, name, None) or getattr(test_sensitivity, name)
+    return maker()
 
 
 def timed(sim: vcigen.Simulator, scene: str, scale: float, on: bool) -> tuple[float, float, vcigen.Result]:

@@ -203,13 +203,31 @@ def test_simultaneous_impact_is_reported_not_differentiated(backend: str) -> Non
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_plastic_and_held_steps_are_reported(backend: str) -> None:
-    """A lossy ball bouncing to rest: its impacts are covered until the first plastic impact (Zeno)."""
+def test_a_ball_coming_to_rest_matches_finite_differences(backend: str) -> None:
+    """A lossy ball bouncing to rest (Zeno): restitution impacts, then the plastic impact that starts
+    sustained contact (the contact time (47), the impulse law onto the row, the constrained rest of its
+    step), then held steps sliding on: covered throughout, against central differences of every column
+    (the perturbed runs have the same impacts, kinds and active sets)."""
     sim = vcigen.build(hard_scenes.ball(), backend=backend)
-    res = sim.simulate([0.0, 1.0], [0.3, 0.0], 0.01, t_end=2.8, sensitivities=True, progress=False)
-    lost = assert_lost(res, "plastic")
-    assert any(im.kind == "restitution" and im.step < lost for im in res.impacts)
-    assert any("held" in why for _, why in res.sensitivity_breaks)
+    q0, v0, h, t_end = [0.0, 1.0], [0.3, 0.0], 0.01, 2.0
+    res = sim.simulate(q0, v0, h, t_end=t_end, sensitivities=True, progress=False)
+    kinds = [im.kind for im in res.impacts]
+    assert kinds[-1] == "plastic" and kinds.count("restitution") >= 4 and res.active[-1].all()
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    fd = np.empty_like(res.sensitivity)
+    z0 = np.array(q0 + v0 + [0.5])
+    for c in range(5):
+        ends = []
+        for sign in (1.0, -1.0):
+            z = z0.copy()
+            z[c] += sign * 1e-6
+            r = sim.simulate(z[:2], z[2:4], h, t_end=t_end, params={"e": z[4]}, progress=False)
+            assert held_mode(r) == held_mode(res), res.sensitivity_names[c]
+            ends.append(np.hstack([r.q, r.p]))
+        fd[:, :, c] = (ends[0] - ends[1]) / 2e-6
+    err = relative_error(res.sensitivity, fd)
+    print(f"ball to rest ({backend}): {len(kinds)} impacts, FD {err:.1e}")
+    assert err <= 1e-6
 
 
 def test_friction_at_an_impact_is_reported() -> None:
@@ -318,3 +336,221 @@ def test_a_non_finite_or_singular_tangent_is_reported(monkeypatch) -> None:
         m.setattr(sensitivity.Tracker, "_ift", singular)  # the implicit function of (47), (48), (78)
         res = sim.simulate(q0, v0, h, t_end=t_end, **kw)
         assert assert_lost(res, "singular") == res.impacts[0].step
+
+
+# ------------------------------------------------------------------ held steps (sustained contact)
+
+
+def _rotated(q, angle: float) -> list[float]:
+    c, s = np.cos(angle), np.sin(angle)
+    return [c * q[0] - s * q[1], s * q[0] + c * q[1]]
+
+
+def _dragged() -> vcigen.Model:
+    """A unit particle on the floor ``y = 0`` under gravity, viscous drag ``c`` and a push ``A cos(W t)``."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    c, A, W = sp.symbols("c A W")
+    return vcigen.Model(
+        name="dragged",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - 9.81 * y,
+        contacts={"floor": y},
+        params={c: 0.4, A: 2.0, W: 1.7},
+        forces=[-c * xd + A * sp.cos(W * t), 0],
+        time=t,
+    )
+
+
+def _held_scenes() -> dict:
+    """scene -> (model maker, q0, v0, h, t_end, params, paths): runs held from the start (sustained contact,
+    the active set never changing); each path ``eps -> (q0, v0, params)`` moves the start without changing
+    the mode (along the contact, normal speeds below the jump's resolution, parameters that keep q0 on it)."""
+    from test_c_agreement_sustained import _bowl, _box, _star
+    from test_sustained_closed_forms import incline, pendulum
+
+    a = 0.3
+    along = np.array([np.cos(a), np.sin(a)])
+    rod = [float(np.sin(1.0)), -float(np.cos(1.0))]
+    return {
+        # a particle sliding on a floor (one linear row; the held grid step of vcigen.held)
+        "slide": (
+            hard_scenes.ball,
+            [0.0, 0.0],
+            [1.0, 0.0],
+            0.01,
+            1.0,
+            None,
+            {
+                "q0[x]": lambda e: ([e, 0.0], [1.0, 0.0], {}),
+                "v0[x]": lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}),
+                "v0[y]": lambda e: ([0.0, 0.0], [1.0, e], {}),
+            },
+        ),
+        # resting on the floor
+        "rest": (
+            hard_scenes.ball,
+            [0.0, 0.0],
+            [0.0, 0.0],
+            0.01,
+            1.0,
+            None,
+            {"v0[x]": lambda e: ([0.0, 0.0], [e, 0.0], {}), "v0[y]": lambda e: ([0.0, 0.0], [0.0, e], {})},
+        ),
+        # sliding down a frictionless incline; its angle a a parameter (q0 = 0 stays on the line)
+        "incline": (
+            incline,
+            [0.0, 0.0],
+            list(0.5 * along),
+            0.01,
+            1.0,
+            None,
+            {
+                "q0 along": lambda e: (list(e * along), list(0.5 * along), {}),
+                "v0 along": lambda e: ([0.0, 0.0], list((0.5 + e) * along), {}),
+                "a": lambda e: ([0.0, 0.0], list(0.5 * along), {"a": a + e}),
+            },
+        ),
+        # the box on its long face: two vertices held, two nonlinear rows
+        "box_face": (
+            _box,
+            [0.0, 0.5, 0.0],
+            [1.0, 0.0, 0.0],
+            0.002,
+            0.4,
+            None,
+            {
+                "q0[x]": lambda e: ([e, 0.5, 0.0], [1.0, 0.0, 0.0], {}),
+                "v0[x]": lambda e: ([0.0, 0.5, 0.0], [1.0 + e, 0.0, 0.0], {}),
+                "v0[theta]": lambda e: ([0.0, 0.5, 0.0], [1.0, 0.0, e], {}),
+            },
+        ),
+        # the paper's star on a face: the two branch rows of its Abs contact, its mass m a parameter
+        "star_face": (
+            _star,
+            [0.0, 0.5, 0.0],
+            [1.0, 0.0, 0.0],
+            0.001,
+            0.4,
+            None,
+            {
+                "v0[x]": lambda e: ([0.0, 0.5, 0.0], [1.0 + e, 0.0, 0.0], {}),
+                "m": lambda e: ([0.0, 0.5, 0.0], [1.0, 0.0, 0.0], {"m": 1.0 + e}),
+            },
+        ),
+        # inside a circle: a curved row that moves (the held Newton iterates every step)
+        "bowl": (
+            _bowl,
+            [0.6, -0.8],
+            [0.0, 0.0],
+            0.001,
+            0.5,
+            None,
+            {
+                "q0 along": lambda e: (_rotated([0.6, -0.8], e), [0.0, 0.0], {}),
+                "v0 along": lambda e: ([0.6, -0.8], [0.8 * e, 0.6 * e], {}),
+            },
+        ),
+        # forces (drag c, a push A cos(W t)): no held grid step, the chain's constrained segment takes each
+        "drag": (
+            _dragged,
+            [0.0, 0.0],
+            [1.0, 0.0],
+            0.01,
+            1.0,
+            None,
+            {
+                "v0[x]": lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}),
+                "c": lambda e: ([0.0, 0.0], [1.0, 0.0], {"c": 0.4 + e}),
+                "W": lambda e: ([0.0, 0.0], [1.0, 0.0], {"W": 1.7 + e}),
+            },
+        ),
+        # a bilateral rod (Cartesian pendulum): always held, its length l a parameter
+        "rod": (
+            pendulum,
+            rod,
+            [0.0, 0.0],
+            0.01,
+            1.0,
+            None,
+            {
+                "q0 along": lambda e: (_rotated(rod, e), [0.0, 0.0], {}),
+                "l": lambda e: ([(1.0 + e) * c for c in rod], [0.0, 0.0], {"l": 1.0 + e}),
+            },
+        ),
+    }
+
+
+HELD_SCENES = _held_scenes()
+
+
+@cache
+def held_simulator(scene: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(HELD_SCENES[scene][0](), backend=backend)
+
+
+def held_mode(res: vcigen.Result) -> tuple:
+    """The mode of a held run: its impacts, active sets and lift-offs."""
+    return mode(res), res.active.tobytes(), len(res.liftoffs)
+
+
+def held_finite_differences(sim: vcigen.Simulator, scene: str, eps: float = 1e-6) -> tuple:
+    """``(run, {path: (S dz, central difference)})`` along each path of the scene (``dz`` its direction in
+    ``(q0, v0, params)``, by a central difference of the path itself: exact for straight paths)."""
+    _, q0, v0, h, t_end, params, paths = HELD_SCENES[scene]
+    res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    names = [str(s) for s in sim.model.defaults]
+
+    def z_of(point) -> np.ndarray:
+        q, v, par = point
+        values = dict(zip(names, sim.model.resolve_params(params)))
+        values.update(par)
+        return np.concatenate([q, v, [values[k] for k in names]])
+
+    out = {}
+    for label, path in paths.items():
+        dz = (z_of(path(1e-4)) - z_of(path(-1e-4))) / 2e-4
+        ends = []
+        for sign in (1.0, -1.0):
+            q, v, par = path(sign * eps)
+            r = sim.simulate(q, v, h, t_end=t_end, params={**(params or {}), **par}, progress=False)
+            assert held_mode(r) == held_mode(res), f"{label}: the mode changed"
+            ends.append(np.hstack([r.q, r.p]))
+        out[label] = (res.sensitivity @ dz, (ends[0] - ends[1]) / (2 * eps))
+    return res, out
+
+
+def held_backends():
+    for scene in sorted(HELD_SCENES):
+        for b in BACKENDS:
+            backend, marks = (b, ()) if isinstance(b, str) else (b.values[0], b.marks)
+            yield pytest.param(scene, backend, marks=marks, id=f"{scene}-{backend}")
+
+
+@pytest.mark.parametrize("scene, backend", list(held_backends()))
+def test_held_steps_match_finite_differences(scene: str, backend: str) -> None:
+    """Sustained contact with a fixed active set: the tangent through ``rattle`` and ``rattle_project``
+    (whichever path took the step: the held grid step of ``vcigen.held``, its C glide, or the chain) against
+    central differences of whole runs along paths that keep the mode; every step is covered."""
+    sim = held_simulator(scene, backend)
+    res, per = held_finite_differences(sim, scene)
+    assert res.active[1:].any(axis=1).all() or sim.model.constraint  # held throughout (a rod: always)
+    assert res.sensitivity_breaks == []
+    assert np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(f"{scene} ({backend}): " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    assert max(errs.values()) <= 1e-6, errs
+    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_held_steps_with_an_event_are_reported(backend: str) -> None:
+    """Sliding off a dome: the held steps are covered up to the one the contact lifts off in (a lift-off
+    located inside a step: not covered), which is the first break."""
+    from test_c_agreement_sustained import _dome
+
+    sim = vcigen.build(_dome(), backend=backend)
+    res = sim.simulate([0.0, 1.0], [0.1, 0.0], 0.005, t_end=1.6, sensitivities=True, progress=False)
+    lost = assert_lost(res, "held step (sustained contact)")
+    assert len(res.liftoffs) == 1 and lost == int(res.liftoffs[0][0] / 0.005)
+    assert res.active[: lost + 1, 0].all() and lost > 100

@@ -14,11 +14,15 @@ in ``(x, d)``, their partials chained. Phases:
   restitution (39) ``(1 - e^2)/2 (n.qdot)^2 / (n.M^-1 n)`` with ``qdot`` one Newton step of the inverse
   Legendre transform from the incoming segment velocity (as the stepper computes it);
 * several impacts in one step (78): unknowns ``(w, mu, beta)``, as (47) with ``beta`` for ``alpha``;
+* a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
+  ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
+  found them (``vcigen.held`` or ``SustainedSteps._chain``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once), a grazing impact taking the continuous law, a plastic impact, any held
-(sustained-contact) step, lift-off, friction, the ``_restart`` fallback. From the first such step ``k``
+group of contacts at once), a grazing impact taking the continuous law, a plastic impact, a held
+step with an event inside (lift-off, an impact or a row crossed while held, a friction switch) or with
+friction, friction at an impact, the ``_restart`` fallback. From the first such step ``k``
 on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
 ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
@@ -282,12 +286,14 @@ class Tracker:
         if seg.contact < 0:
             self.de = de_c
         self.dq, self.dp, self.dt, self.dtau = dq_c, dp_in, dt_c, self.dtau - dtau_c
-        self.dvin = dv
+        self.dvin, self.t_seg = dv, t_c
 
     @_guarded
     def jump(self, seg, v_in, rest: float, kind: str) -> None:
         """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39)."""
         if not self.active:
+            return
+        if kind == "plastic":  # the impulse law and the constrained rest of the step follow (plastic, held)
             return
         if kind != "jump":
             self.lose(f"{kind} impact")
@@ -305,9 +311,7 @@ class Tracker:
         if not nv < 0.0:
             return
         dpar = self.dpar(self.dt)
-        dmom0, dma0 = dleg(seg.q, v_in, a, par)
-        d0 = np.vstack([self.dq, self.dvin, dpar])
-        dvel = self.dvin + np.linalg.solve(mass0, self.dp - dmom0 @ d0 - dma0 @ d0)
+        dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
         _, dma1 = dleg(seg.q, vel, minv_n, par)
         dminv = np.linalg.solve(mass1, self.dnrm - dma1 @ np.vstack([self.dq, dvel, dpar]))
         dnv = vel @ self.dnrm + seg.nrm @ dvel
@@ -318,6 +322,50 @@ class Tracker:
             nv * dnv / nmn - 0.5 * nv * nv * dnmn / (nmn * nmn)
         )
         self.de = self.de - dloss
+
+    def _dvel(self, q, v_in, a, mass0, par, dpar) -> np.ndarray:
+        """Tangent of ``vel = v_in + a``, ``a = M(q, v_in)^-1 (p - mom(q, v_in))`` (``Stepper._velocity``, one
+        Newton step of the inverse Legendre transform), ``dq``, ``dp``, ``dvin`` the segment's tangents."""
+        dmom0, dma0 = self.tg.get("d_legendre")(q, v_in, a, par)
+        d0 = np.vstack([self.dq, self.dvin, dpar])
+        return self.dvin + np.linalg.solve(mass0, self.dp - dmom0 @ d0 - dma0 @ d0)
+
+    @_guarded
+    def plastic(self, seg, v_in, tight) -> None:
+        """A plastic impact (``SustainedSteps._plastic_entry``) on the rows ``tight`` (those with an impulse):
+        ``p+ = p~- + G^T Lam``, ``G M^-1 G^T Lam = -G vel`` (the frictionless impulse law, target normal
+        velocity 0), ``vel`` one Newton step of the inverse Legendre transform from ``v_in``, ``G`` and ``M``
+        at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the step starts there)."""
+        if not self.active:
+            return
+        k, n = self.k, self.n
+        par, dpar = self.par(seg.t), self.dpar(self.dt)
+        mom0, mass0 = k.legendre(seg.q, v_in)
+        a = np.linalg.solve(mass0, seg.p_in - mom0)
+        vel = v_in + a
+        dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
+        mass1 = k.legendre(seg.q, vel)[1]
+        grad = k.rows(seg.q, vel)[1][tight]  # (na, n)
+        dgrad = self.tg.get("d_rows")(seg.q, vel, par)[0]
+        dq_par = np.vstack([self.dq, dpar])
+        dg = [dgrad[r * n : (r + 1) * n] @ dq_par for r in tight]  # each (n, K)
+        y = np.linalg.solve(mass1, grad.T)  # M^-1 G^T, (n, na)
+        dleg = self.tg.get("d_legendre")
+        dy = []
+        for c in range(len(tight)):
+            dma = dleg(seg.q, vel, y[:, c], par)[1]
+            dy.append(np.linalg.solve(mass1, dg[c] - dma @ np.vstack([self.dq, dvel, dpar])))
+        w = grad @ y
+        lam = np.linalg.solve(w, -(grad @ vel))
+        db = np.array([-(vel @ dg[c] + grad[c] @ dvel) for c in range(len(tight))])
+        dw_lam = np.array(
+            [
+                sum((y[:, e] @ dg[c] + grad[c] @ dy[e]) * lam[e] for e in range(len(tight)))
+                for c in range(len(tight))
+            ]
+        )
+        dlam = np.linalg.solve(w, db - dw_lam)
+        self.dp = self.dp + sum(dg[c] * lam[c] + np.outer(grad[c], dlam[c]) for c in range(len(tight)))
 
     @_guarded
     def jump_end(self, seg) -> None:
@@ -332,6 +380,40 @@ class Tracker:
         dq_end = self.dq + np.outer(w, self.dtau) + seg.tau * dw
         _, dp_end, _ = self._segment(seg.q, w, seg.tau, seg.t, self.dq, dw, self.dtau, self.dt)
         self.next = np.vstack([dq_end, dp_end])
+
+    @_guarded
+    def held(self, q, p, tau: float, v, lam, lam1, u1, act, entry: bool = False) -> None:
+        """A held grid step with a fixed active set (MATH.md *Sustained contact*): ``S_k+1``.
+
+        ``rattle``, unknowns ``x = (v, Lam)`` given ``(q_k, p_k, tau, act, par)``, then ``rattle_project``,
+        unknowns ``y = (u1, Lam')`` given ``(q_k+1, p+, act, par)``, ``q_k+1 = q_k + tau v``,
+        ``p+ = p+(q_k, v, tau)``; ``p_k+1 = dL/dqdot(q_k+1, u1)`` (``= p+ + G1^T Lam'``). The active set and
+        the multipliers off it are held fixed (their columns 0): the derivative of the step for its mode.
+        ``entry``: the rest of a step after a plastic impact (:meth:`plastic`), from the impact point ``q~``,
+        ``p+``, its time and the rest of the step (the segment's tangents ``dq, dp, dt, dtau``).
+        """
+        if not self.active:
+            return
+        n, K = self.n, self.K
+        nr = len(act)
+        if entry:
+            dq, dp, dtau, dt, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
+        else:
+            dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
+        actf = np.asarray(act, dtype=float)
+        par, dpar = self.par(t), self.dpar(dt)
+        zr = np.zeros((nr, K))
+        x = np.concatenate([v, lam])
+        dx = self._ift("rattle", x, (q, p, [tau], actf), np.vstack([dq, dp, dtau, zr, dpar]), t)
+        dv = dx[:n]
+        q1 = q + tau * v
+        dq1 = dq + np.outer(v, dtau) + tau * dv
+        p_plus = self.k.segment(q, v, tau)[1]
+        _, dpp, _ = self._segment(q, v, tau, t, dq, dv, dtau, dt)
+        y = np.concatenate([u1, lam1])
+        dy = self._ift("rattle_project", y, (q1, p_plus, actf), np.vstack([dq1, dpp, zr, dpar]), t)
+        dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), par)
+        self.next = np.vstack([dq1, dmom @ np.vstack([dq1, dy[:n], dpar])])
 
     # -- the result ----------------------------------------------------------------
     def attach(self, res, steps: int) -> None:

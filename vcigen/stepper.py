@@ -110,6 +110,7 @@ class Stepper(SustainedSteps, HeldSteps):
     ) -> None:
         self.k = kernels
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
+        self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -222,9 +223,7 @@ class Stepper(SustainedSteps, HeldSteps):
         self._chained = False
         self._at(t)
         if self._held:  # sustained contact or constraints: the held step (vcigen.held), else the chain
-            if self._tan is not None:
-                self._tan.lose("held step (sustained contact)")
-            out = self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+            out = self._tangent_held(q, p, h, False, self._held_or_chain, step, t, h, q, p, guess, impacts)
             self._held = bool(self.act.any())
             return out
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, h, guess)
@@ -245,6 +244,28 @@ class Stepper(SustainedSteps, HeldSteps):
             self._tan.first_segment()
         out = self._impact_step(step, t, h, seg, crossings, impacts)
         self._held = bool(self.act.any())  # a plastic impact may have started sustained contact
+        return out
+
+    def _held_or_chain(self, step, t, h, q, p, guess, impacts):
+        """A held grid step: the held step of :mod:`vcigen.held`, else the chain (:mod:`vcigen.sustained`)."""
+        return self._held_step(h, q, p) or self._chain(step, t, h, q, p, t, h, guess, impacts, None)
+
+    def _tangent_held(self, q, p, tau: float, entry: bool, run, *args):
+        """``run()``, a held step (or the rest of a step after a plastic impact, ``entry``), with the
+        tangent's hooks set aside: its phases have none. One with its active set unchanged (one segment, no
+        event, no friction) leaves its solution in ``_held_seg``: then ``Tracker.held``, else a break."""
+        tan, self._tan = self._tan, None
+        self._held_seg, self._record_held = None, tan is not None
+        try:
+            out = run(*args)
+        finally:
+            self._tan, self._record_held = tan, False
+        if tan is not None and self._held_seg is not None:
+            tan.held(q, p, tau, *self._held_seg, entry)
+        elif tan is not None and not entry:
+            tan.lose("held step (sustained contact)")
+        elif tan is not None and tan.active:
+            tan.lose("plastic impact")
         return out
 
     def _at(self, t: float) -> None:
@@ -366,7 +387,25 @@ class Stepper(SustainedSteps, HeldSteps):
                 for i in group:
                     own = sum(lam[r] for r in rows if k.row_contact[r] == i)
                     self._log(impacts, t_c, i, q_c, (t_c - t_k) / h, own, step, e_in, e_in - loss, "plastic")
-                return self._chain(step, t_k, h, q_c, p_plus, t_c, seg.tau, v_c, impacts, e_step)
+                if self._tan is not None:
+                    self._tan.plastic(seg, v_c, [r for r in rows if lam[r] != 0.0])
+                return self._tangent_held(
+                    q_c,
+                    p_plus,
+                    seg.tau,
+                    True,
+                    self._chain,
+                    step,
+                    t_k,
+                    h,
+                    q_c,
+                    p_plus,
+                    t_c,
+                    seg.tau,
+                    v_c,
+                    impacts,
+                    e_step,
+                )
             seg.x = x_jump
             w = seg.x[:n]
             self._at(seg.t)

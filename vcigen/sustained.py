@@ -634,6 +634,7 @@ class SustainedSteps:
         """The rest of a grid step from ``(q, p)`` at ``t`` (``tau`` left) with the active rows held."""
         k, tol = self.k, self.tol
         self._chained = True
+        plain = not self._stick_rows  # no event, no friction so far: a held step the tangent goes through
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
@@ -658,6 +659,7 @@ class SustainedSteps:
                         self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
                     )
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
+                plain = False
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
@@ -668,6 +670,8 @@ class SustainedSteps:
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
             if not events and not cross.any():
+                if plain and self._record_held:  # the tangent of the step (Stepper.step, Tracker.held)
+                    self._held_seg = (v, lam, lam1, u1, self.act.copy())
                 self._book(lam + lam1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                 return q1, p1, e_step, v
@@ -675,6 +679,7 @@ class SustainedSteps:
                 events[int(r)] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, int(r), psi1[r]))
             r0 = min(events, key=lambda r: (events[r][1], r))
             s = events[r0][1]
+            plain = False
             self._count_event(step, t_k)
             v, lam, q, _, e_sub, lam1, p, _, _ = self._constrained(step, t_k, q, p, s * tau, v)
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's

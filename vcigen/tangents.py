@@ -7,14 +7,18 @@ needs the partials of the explicit maps (momenta and energy of a segment (50), (
 transform, the contact gradients, the restitution). :func:`tangent_routines` derives them as routines
 named ``d_<routine>`` (SENS_DESIGN.md):
 
-* ``d_smooth``, ``d_contact_time_<c>``, ``d_jump``, ``d_jump_contact_<c>``: the residual routine's own
-  inputs (``x`` first), output ``dres = d res / d(every input after x, concatenated in input order)``;
-  (46), (47), (48), (78);
+* ``d_smooth``, ``d_contact_time_<c>``, ``d_jump``, ``d_jump_contact_<c>``, ``d_rattle``,
+  ``d_rattle_project``: the residual routine's own inputs (``x`` first), output ``dres = d res / d(every
+  input after x, concatenated in input order)``; (46), (47), (48), (78), and the constrained step of
+  sustained contact with its end projection (MATH.md *Sustained contact*; their ``act`` columns are
+  those of a fixed active set, never used);
 * ``d_segment(q0, v, tau, par)``: ``dp_minus``, ``dp_plus``, ``denergy``, each ``d/d(q0, v, tau, par)``;
 * ``d_contacts(q, par)``: ``dgrad``, ``(m n) x (n + npar)``, row ``j n + i`` is ``d grad_j[i] / d(q, par)``;
 * ``d_legendre(q, v, a, par)``: ``dmom = d mom / d(q, v, par)`` and ``dmass_a = d (M(q, v) a) / d(q, v, par)``
   (the tangent of one Newton step of the inverse Legendre transform, and of ``M^-1 n``);
-* ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39)).
+* ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39));
+* ``d_rows(q, u, par)``: ``dgrad``, ``(R n) x (n + npar)``: the rows' gradients (a plastic impact's
+  impulse law).
 
 They are added to :attr:`DiscreteSystem.routines` only by ``derive(model, rule, sensitivities=True)``;
 a simulator asked for sensitivities derives them lazily from the system it has (:func:`tangent_routines`).
@@ -30,6 +34,8 @@ from .routines import Arg, Output, Routine
 TANGENT_PREFIX = "d_"
 # the residual routines a tangent is derived for: the phases covered (SENS_DESIGN.md)
 RESIDUAL_PREFIXES = ("smooth", "contact_time_", "jump", "jump_contact_")
+# the constrained step of sustained contact and its end projection (MATH.md, Sustained contact)
+HELD_RESIDUALS = ("rattle", "rattle_project")
 
 
 def is_tangent(name: str) -> bool:
@@ -38,7 +44,7 @@ def is_tangent(name: str) -> bool:
 
 
 def _covered(name: str) -> bool:
-    return name in ("smooth", "jump") or name.startswith(("contact_time_", "jump_contact_"))
+    return name in ("smooth", "jump", *HELD_RESIDUALS) or name.startswith(("contact_time_", "jump_contact_"))
 
 
 def _data_symbols(args: tuple[Arg, ...]) -> list[sp.Symbol]:
@@ -94,6 +100,19 @@ def legendre_tangent(r: Routine) -> Routine:
     )
 
 
+def rows_tangent(r: Routine) -> Routine:
+    """``d_rows``: partials of the rows' gradients (row-major) in ``(q, par)``, an impulse law's."""
+    grad = r.output("grad").expr
+    flat = sp.Matrix(grad.rows * grad.cols, 1, list(grad))
+    q, _, par = r.inputs
+    return Routine(
+        "d_rows",
+        r.inputs,
+        (Output("dgrad", jacobian(flat, [*q.symbols, *par.symbols])),),
+        "Partials of grad psi_r[i] (row r n + i) in (q, par): the tangent of a plastic impact's directions.",
+    )
+
+
 def restitution_tangent(r: Routine) -> Routine:
     """``d_restitution(par)``: partials of each contact's coefficient of restitution (39)."""
     return Routine(
@@ -112,6 +131,8 @@ def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
         "d_legendre": legendre_tangent(routines["legendre"]),
         "d_restitution": restitution_tangent(routines["restitution"]),
     }
+    if "rows" in routines:
+        out["d_rows"] = rows_tangent(routines["rows"])
     for name, r in routines.items():
         if _covered(name):
             out[TANGENT_PREFIX + name] = residual_tangent(r)

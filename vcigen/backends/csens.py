@@ -35,10 +35,12 @@ SYMBOLIC_MAP = 3  # coordinates at most for the smooth step's tangent as one str
 # order of the bits of W (within a step, the order the stepper meets them): vcigen.sensitivity's reasons.
 SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
+    ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
     ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
     ("PLASTIC_IMPACT", "plastic impact"),
+    ("SINGULAR_PLASTIC", "a singular Jacobian in the tangent of plastic"),
     ("GRAZING_IMPACT", "grazing impact"),
     ("SINGULAR_JUMP", "a singular Jacobian in the tangent of jump"),
     ("RESTART", "restart (continuous law where (78) has no root)"),
