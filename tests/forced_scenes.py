@@ -182,3 +182,17 @@ def driven_exact_grid(
         _, vb = flow(t, x, v, tb)
         t, x, v = tb, wall, -e * float(vb)
     return out
+
+
+def driven_wall_errors(sim, hs: list[float]) -> tuple[list[float], list[float]]:
+    """Per ``h``: the driven oscillator's max grid error against :func:`driven_exact_grid` from rest over
+    ``t = 10`` and the largest impact-time error (its two restitution impacts, checked)."""
+    errs, hit_errs = [], []
+    for h in hs:
+        res = sim.simulate(q0=[0.0], v0=[0.0], h=h, t_end=10.0)
+        errs.append(float(np.max(np.abs(res.q[:, 0] - driven_exact_grid(0.0, 0.0, res.t)))))
+        _, _, hits = driven_exact(0.0, 0.0, float(res.t[-1]))
+        assert len(res.impacts) == len(hits) == 2
+        assert all(im.kind == "restitution" for im in res.impacts)
+        hit_errs.append(max(abs(im.t - th) for im, th in zip(res.impacts, hits)))
+    return errs, hit_errs

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from hard_scenes import G, backend_param, impact_energy_jumps, min_phi, unfold, walls_oscillator_exact
 from scenes import billiard, simulator, star_nonlinear
-from test_order import oscillator_exact
+from test_order import oscillator_wall_errors
 from test_symplectic import step_map
 
 import vcigen
@@ -53,16 +53,7 @@ def test_order_four_oscillator_against_a_wall_closed_form(backend):
     """x'' = -4 x from phases of (cos 2t0, ...) against x = -0.5: one impact; error at t = 2."""
     sim = simulator("oscillator", RULE, backend)
     hs = [0.08, 0.04, 0.02, 0.01]
-    mean_err, worst = [], 0.0
-    for h in hs:
-        steps = round(2.0 / h)
-        errs = []
-        for t0 in np.linspace(0.0, h, 8, endpoint=False):
-            res = sim.simulate(q0=[np.cos(2 * t0)], v0=[-2 * np.sin(2 * t0)], h=h, t_end=steps * h)
-            assert res.n_impacts == 1
-            errs.append(abs(res.q[-1, 0] - oscillator_exact(t0 + steps * h, 1.0, 2.0, 0.5)))
-        mean_err.append(np.mean(errs))
-        worst = max(worst, max(errs) / h**4)
+    mean_err, worst = oscillator_wall_errors(sim, hs, 4)
     order = fit_order(hs, mean_err)
     print(f"oscillator-wall [{backend}]: order {order:.2f}, errors {mean_err}")
     assert 3.7 < order < 4.3, (order, mean_err)

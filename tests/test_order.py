@@ -17,6 +17,23 @@ def oscillator_exact(t: float, amplitude: float, w: float, a: float) -> float:
     return amplitude * np.cos(w * s)
 
 
+def oscillator_wall_errors(sim, hs: list[float], order: int) -> tuple[list[float], float]:
+    """``x'' = -4 x`` from the phases ``t0 = k h / 8`` of ``(cos 2t0, -2 sin 2t0)`` against the wall
+    ``x = -0.5`` (one impact), error at ``t = 2``: the mean over the phases per ``h``, and the worst
+    ``error / h^order`` over every run."""
+    mean_err, worst = [], 0.0
+    for h in hs:
+        steps = round(2.0 / h)
+        errs = []
+        for t0 in np.linspace(0.0, h, 8, endpoint=False):
+            res = sim.simulate(q0=[np.cos(2 * t0)], v0=[-2 * np.sin(2 * t0)], h=h, t_end=steps * h)
+            assert res.n_impacts == 1
+            errs.append(abs(res.q[-1, 0] - oscillator_exact(t0 + steps * h, 1.0, 2.0, 0.5)))
+        mean_err.append(float(np.mean(errs)))
+        worst = max(worst, max(errs) / h**order)
+    return mean_err, worst
+
+
 @pytest.mark.parametrize("rule", RULES)
 def test_order_two_against_closed_form_after_one_impact(rule):
     """Error at a fixed time after the impact, averaged over 8 start phases of the grid.
@@ -26,16 +43,7 @@ def test_order_two_against_closed_form_after_one_impact(rule):
     """
     sim = simulator("oscillator", rule)
     hs = [0.04, 0.02, 0.01, 0.005]
-    mean_err, worst = [], 0.0
-    for h in hs:
-        steps = round(2.0 / h)
-        errs = []
-        for t0 in np.linspace(0.0, h, 8, endpoint=False):
-            res = sim.simulate(q0=[np.cos(2 * t0)], v0=[-2 * np.sin(2 * t0)], h=h, t_end=steps * h)
-            assert res.n_impacts == 1
-            errs.append(abs(res.q[-1, 0] - oscillator_exact(t0 + steps * h, 1.0, 2.0, 0.5)))
-        mean_err.append(np.mean(errs))
-        worst = max(worst, max(errs) / h**2)
+    mean_err, worst = oscillator_wall_errors(sim, hs, 2)
     order = fit_order(hs, mean_err)
     assert 1.85 < order < 2.15, (order, mean_err)
     assert worst < 2.0  # error <= C h^2 at every phase, C independent of h
