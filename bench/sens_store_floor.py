@@ -1,4 +1,4 @@
-"""The memory floor of a C run's tangent output: the cost per grid step of only storing a row of ``m`` doubles.
+"""The memory floor of a C run's tangent output: the cost per grid step of only storing its row of doubles.
 
     .venv/bin/python -m bench.sens_store_floor [--steps 20000] [--repeats 7]
 
@@ -89,7 +89,8 @@ def main(argv: list[str] | None = None) -> None:
                 for check in (0, 1):
                     out.append(ns_per_step(lib, m, args.steps, args.repeats, check, fresh))
         print(
-            f"{scene:16s} S row {2 * n * k:2d} doubles: store {out[0]:5.1f} ns/step, store+check {out[1]:5.1f} "
+            f"{scene:16s} S row {2 * n * k:2d} doubles: store {out[0]:5.1f} ns/step, "
+            f"store+check {out[1]:5.1f} "
             f"(fresh buffer), {out[2]:5.1f} / {out[3]:5.1f} (touched); plain row {2 * n + 1} doubles: "
             f"store {out[4]:5.1f} (fresh), {out[6]:5.1f} (touched)",
             flush=True,
