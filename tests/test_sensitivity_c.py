@@ -84,8 +84,9 @@ def test_breaks_are_the_python_steppers() -> None:
     """A lossy ball to rest: restitution impacts, a plastic impact (sens_plastic, then the constrained
     rest of its step), then held steps (the held glide in C): covered on both backends, the same tangent.
     Sliding off a dome: held steps covered (the glide, one step at a time), the lift-off step too (on C by
-    the Python stepper's Tracker.liftoff, CSimulator._liftoff_tangent), no break. The paper's star with e = 0.8 settling: rocking
-    on a vertex, an impact while held (not covered) is the first break; the same breaks on both backends."""
+    the Python stepper's Tracker.liftoff, CSimulator._liftoff_tangent), no break. The paper's star with
+    e = 0.8 settling: rocking on a vertex, an impact while held (not covered) is the first break; the same
+    breaks on both backends."""
     sims = {backend: vcigen.build(hard_scenes.ball(), backend=backend) for backend in ("casadi", "c")}
     a, b = both(sims.__getitem__, [0.0, 1.0], [0.3, 0.0], 0.01, t_end=2.8)
     rel = assert_same_tangent(a, b)

@@ -128,14 +128,14 @@ class Tangents:
             f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
         return f
 
-
     def force_jac(self) -> _Flat:
         """``(q, u, act, par) -> d lambda / d(q, u, par)`` (``r x (2n + npar)``): the contact forces of
         ``SustainedSteps._forces`` (frictionless rows ``act`` held: ``G M^-1 (rhs + G^T lambda) + curv = 0``)
         differentiated by CasADi; rows off ``act`` are 0."""
         f = self._fns.get("force_jac")
         if f is None:
-            rows, dyn, leg = (routine_to_function(self.system.routines[k]) for k in ("rows", "dynamics", "legendre"))
+            names = ("rows", "dynamics", "legendre")
+            rows, dyn, leg = (routine_to_function(self.system.routines[k]) for k in names)
             n, npar, nr = self.n, self.npar, rows.size1_out(0)
             q, u, par, act = ca.SX.sym("q", n), ca.SX.sym("u", n), ca.SX.sym("par", npar), ca.SX.sym("a", nr)
             _, grad, curv = rows(q, u, par)
@@ -454,13 +454,12 @@ class Tracker:
         """A held grid step whose row ``r`` lifts off at fraction ``s`` (MATH.md *Sustained contact*), then a
         free rest (46) to the grid time: ``S_k+1`` for this mode sequence.
 
-        ``sub = (q, p, v, lam, lam1, u1, act)``: the constrained sub-step over ``tau_s = s tau`` from the grid
-        point (``tau = h``), ``act`` its active rows (``r`` among them). The lift-off fraction is the root of
-        ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the implicit-function
-        theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's tangent (one extra
-        column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step over ``tau - tau_s`` from the
-        lift-off point (the lift-off time its start, chained as a first segment with start time and
-        duration).
+        ``sub = (q, p, v, lam, lam1, u1, act)``: the constrained sub-step over ``tau_s = s tau`` from the
+        grid point (``tau = h``), ``act`` its active rows (``r`` among them). The lift-off fraction is the
+        root of ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the
+        implicit-function theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's
+        tangent (one extra column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step (46) over
+        ``tau - tau_s`` from the lift-off point, its start time and duration chained.
         """
         if not self.active:
             return

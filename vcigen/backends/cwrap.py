@@ -481,8 +481,8 @@ class CSimulator(Simulator):
         return self._liftoff_tangent(res, kern, q0, v0, p0, h, t_end, n_impacts, t0)
 
     def _liftoff_tangent(self, res: Result, kern, q0, v0, p0, h, t_end, n_impacts, t0) -> Result:
-        """The C loop has no tangent of a lift-off step yet (``Tracker.liftoff``): a run whose tangent broke at
-        a held step with a lift-off in it gets it from the Python stepper on these kernels, if that run
+        """The C loop has no tangent of a lift-off step yet (``Tracker.liftoff``): a run whose tangent broke
+        at a held step with a lift-off in it gets it from the Python stepper on these kernels, if that run
         takes the same mode (impacts, active sets, lift-offs); the trajectory stays the C loop's."""
         if not res.sensitivity_breaks or res.sensitivity_breaks[0][1] != "held step (sustained contact)":
             return res
