@@ -17,13 +17,15 @@ in ``(x, d)``, their partials chained. Phases:
 * a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
   ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
   found them (``vcigen.held`` or ``SustainedSteps._chain``);
+* a lift-off at a located time in a held grid step, then a free rest (46): the constrained sub-step to the
+  root of the released row's force, that root's time by the implicit-function theorem (``Tracker.liftoff``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once), a grazing impact taking the continuous law, a plastic impact, a held
-step with an event inside (lift-off, an impact or a row crossed while held, a friction switch) or with
-friction, friction at an impact, the ``_restart`` fallback. From the first such step ``k``
-on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
+group of contacts at once), a grazing impact taking the continuous law, a held step with any other
+event inside (a lift-off at its start or after another event, an impact or a row crossed while held, a
+friction switch) or with friction, friction at an impact, the ``_restart`` fallback. From the first such
+step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
 ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
 
