@@ -142,7 +142,8 @@ class CKernels(ParameterSlots):
         self._smooth = getattr(self.lib, f"{pre}_eval_smooth_step")
         self._smooth.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D, _D, _D, _D, _D]
         self._rest = getattr(self.lib, f"{pre}_eval_restitution")
-        self.explicit_path = bool(ctx["structure"]["explicit_path"])
+        self.structure = system.structure  # the object the render context read (vcigen.structure)
+        self.explicit_path = self.structure.explicit_path
         if self.explicit_path:
             self._path = getattr(self.lib, f"{pre}_eval_contact_path")
             self._path.argtypes = [ctypes.c_int, ctypes.c_double, _D, _D, ctypes.c_double, _D, _D, _D, _D]
@@ -153,7 +154,7 @@ class CKernels(ParameterSlots):
         if self.r:
             self._rows = getattr(self.lib, f"{pre}_eval_rows")
             self._dynamics = getattr(self.lib, f"{pre}_eval_dynamics")
-        self.held = bool(ctx.get("held"))  # the held grid step (vcigen.held)
+        self.held = self.structure.held  # the held grid step (vcigen.held)
         if self.held:
             self._held = getattr(self.lib, f"{pre}_eval_held_step")
             self._held.argtypes = [_D, ctypes.c_double, ctypes.c_double, ctypes.c_double] + [_D] * 9
