@@ -238,6 +238,7 @@ def render_context(
     # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants; with
     # internal points on (v, u), u carried from the step before
     implicit = implicit_routines(system) if structure.implicit_grid else []
+    direct = {r.name for r in implicit}  # called directly by the implicit grid step, no adapter
     routines += implicit
     held = held_routines(system) if structure.held else []  # the held grid step (vcigen.held)
     routines += held
@@ -340,8 +341,8 @@ def render_context(
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            # called directly; the stage's adapter is <model>_segment's (newton.c.j2)
-            if (is_residual(r) or r.name == "stage") and r.name not in {s.name for s in implicit}
+            # the implicit grid step's routines are called directly; the stage's adapter is <model>_segment's
+            if is_residual(r) and r.name not in direct
         ],
         "residuals": _residual_ids(system),
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
