@@ -43,6 +43,9 @@ class Rule:
     stages: int = 0
     # A rule with internal points: (F, q0, v, tau, t0, u) -> StagedForces (discrete_forces stays None).
     staged_forces: Callable[..., StagedForces] | None = None
+    # A rule with one internal point written q_m = q0 + tau (offset v + u): the offset, so that the internal
+    # point's mean velocity is z = offset v + u (vcigen.stage eliminates the stage through it; None: never).
+    stage_offset: sp.Expr | None = None
 
 
 @dataclass(frozen=True)
@@ -156,6 +159,7 @@ LOBATTO3 = Rule(
     paper="(Marsden-West 2001, 2.6)",
     stages=1,
     staged_forces=_lobatto3_forces,
+    stage_offset=sp.Rational(1, 2),
 )
 
 RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT, LOBATTO3)}

@@ -334,7 +334,12 @@ def render_context(
             "implicit_grid": structure.implicit_grid,
             # its invariants carried from step to step (not when par changes between steps: time, friction)
             "carry": structure.carry,
+            # the stage eliminated in closed form (vcigen.stage): the implicit grid step's Newton on the
+            # internal point's mean velocity z = offset v + u alone; linear: one solve
+            "stage_reduced": structure.stage_reduced,
+            "stage_linear": structure.stage_linear,
         },
+        "stage_offset": c_number(float(system.rule.stage_offset)) if structure.stage_reduced else "0.0",
         "structure_lines": structure.lines(),  # each flag and why, for the header's comment block
         "notes": structure.notes(system),
         "routines": [routine_context(r, inverse_powers=bool(system.stages)) for r in with_heads(routines)],

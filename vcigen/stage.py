@@ -1,0 +1,106 @@
+"""The internal stage of a rule with internal points, eliminated in closed form where the model allows.
+
+Every phase of a rule with an internal point (``lobatto3``) is a Newton on its own unknowns and the
+stage's ``u`` (``2n`` for the smooth step (46)). lobatto3 writes the internal point as
+``q_m = q0 + tau (v/2 + u)`` (:func:`vcigen.rules._lobatto3`); in the internal point's own mean velocity
+``z = (q_m - q0)/tau = v/2 + u`` (:attr:`vcigen.rules.Rule.stage_offset`), the momentum rows of a
+phase, ``p-(q0, v, tau, u) - p0``, are for ``L = 1/2 qdot.M qdot - V(q)`` with a constant ``M``
+
+    p- - p0 = M v + (tau/3) grad V(q0 + tau z) + (tau/6) grad V(q0) - p0,
+
+linear in ``v`` with the constant Jacobian ``M``. Solved for ``v`` in closed form,
+``v(z) = M^-1 (p0 - (tau/6) grad V(q0) - (tau/3) grad V(q0 + tau z))``, and put in the stage's
+stationarity rows, they leave ``n`` rows in ``z``: (46) becomes ``n`` unknowns instead of ``2n``, with
+the ``n x n`` Jacobian ``(16/3) M + (2 tau^2/9) Hess V(q_m)`` (O(1): nothing divides by a sub-step).
+
+The reduction is generic (:func:`reduce_rows`): substitute ``u = z - offset v``, require the momentum
+rows' Jacobian in ``v`` to be free of every unknown (checked), solve them for ``v``
+symbolically and drop them. What detects it is the Jacobian itself, so a velocity-linear force (damping)
+keeps it and a configuration-dependent mass (the double pendulum) does not. When the remaining rows are
+linear in ``z`` too (a quadratic ``V``: the oscillator), one Newton step is exact: the step is explicit.
+
+The reduced rows are the stage's stationarity rows at ``v(z)``; the momentum rows hold by construction
+(to round-off), so the reduced Newton's residual norm is the full phase's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import TYPE_CHECKING
+
+import sympy as sp
+
+from .calculus import jacobian
+
+if TYPE_CHECKING:
+    from .derive import DiscreteSystem
+
+
+@dataclass(frozen=True)
+class Reduced:
+    """A phase's rows with the momentum rows solved for the velocity (:func:`reduce_rows`).
+
+    ``unknowns``: ``(z, extras)``; ``res``: the stationarity rows then the phase's other rows, in them;
+    ``x``: the phase's full unknowns ``(v, extras, u)`` in them (the closed-form back substitution).
+    """
+
+    unknowns: tuple[sp.Symbol, ...]
+    res: sp.Matrix
+    x: sp.Matrix
+
+    def jac(self) -> sp.Matrix:
+        return jacobian(self.res, self.unknowns)
+
+
+def _mixed(rows: sp.Matrix, v, us, offset, zs) -> sp.Matrix:
+    """``rows`` with ``u = z - offset v`` (the internal point's argument ``v/2 + u`` collapses to ``z``)."""
+    sub = {u: z - offset * vi for u, z, vi in zip(us, zs, v)}
+    return rows.xreplace(sub)
+
+
+def reduce_rows(
+    rows: sp.Matrix,
+    v: tuple[sp.Symbol, ...],
+    extras: tuple[sp.Symbol, ...],
+    us: tuple[sp.Symbol, ...],
+    offset: sp.Expr,
+) -> Reduced | None:
+    """``rows`` (stationarity ``ns``, momentum ``n``, then the phase's own) in ``x = (v, extras, u)`` ->
+    :class:`Reduced` in ``(z, extras)``, or ``None`` if the momentum rows are not linear in ``v`` at a fixed
+    internal point with a Jacobian free of the unknowns (see the module)."""
+    n, ns = len(v), len(us)
+    zs = tuple(sp.Dummy(f"z{i}", real=True) for i in range(ns))
+    mixed = _mixed(rows, v, us, offset, zs)
+    mom = mixed[ns : ns + n, :]
+    jac = jacobian(mom, v).applyfunc(sp.expand)  # expanded: terms of v that cancel only then do
+    if jac.free_symbols & (set(v) | set(extras) | set(zs)):  # not linear in v with a constant Jacobian
+        return None
+    zero = dict.fromkeys(v, sp.S.Zero)
+    rhs = -mom.xreplace(zero)
+    if all(jac[i, k] == 0 for i in range(n) for k in range(n) if i != k):
+        vz = sp.Matrix([rhs[i] / jac[i, i] for i in range(n)])
+    else:
+        vz = jac.LUsolve(rhs)
+    rep = dict(zip(v, vz))
+    rest = mixed[:ns, :].col_join(mixed[ns + n :, :]).xreplace(rep)
+    u = sp.Matrix([z - offset * vi for z, vi in zip(zs, vz)])
+    x = vz.col_join(sp.Matrix(list(extras))).col_join(u) if extras else vz.col_join(u)
+    return Reduced(zs + tuple(extras), rest, x)
+
+
+@lru_cache(maxsize=64)
+def _reduced(rows: sp.ImmutableMatrix, v: tuple, extras: tuple, us: tuple, offset: sp.Expr) -> Reduced | None:
+    return reduce_rows(sp.Matrix(rows), v, extras, us, offset)
+
+
+def reduced_smooth(system: DiscreteSystem) -> Reduced | None:
+    """The smooth step (46) of ``system`` reduced to its internal point (:func:`reduce_rows`), or ``None``
+    (no internal point, no closed form for it, or momentum rows not linear in ``v`` at a fixed one)."""
+    offset = system.rule.stage_offset
+    if not system.stages or offset is None or system.rule.stages != 1:
+        return None
+    smooth = system.routines["smooth"]
+    xs = smooth.inputs[0].symbols
+    n = system.n
+    return _reduced(sp.ImmutableMatrix(smooth.output("res").expr), xs[:n], (), xs[n:], offset)
