@@ -307,9 +307,8 @@ def test_held_scenes_exercise_what_they_are_for() -> None:
 
 
 def test_no_held_step_without_the_structure() -> None:
-    """A configuration-dependent mass, or friction, keeps the general chain (vcigen.held.has_held_path)."""
+    """A configuration-dependent mass, or friction, keeps the general chain (vcigen.structure)."""
     from vcigen.derive import derive
-    from vcigen.held import has_held_path
 
     r, th, rd, thd = sp.symbols("r theta rd thetad")
     polar = vcigen.Model(
@@ -319,8 +318,8 @@ def test_no_held_step_without_the_structure() -> None:
         lagrangian=(rd**2 + r**2 * thd**2) / 2 - G * r * sp.sin(th),
         contacts={"floor": r * sp.sin(th) + 1},
     )
-    assert not has_held_path(derive(polar))
-    assert has_held_path(derive(_ball())) and has_held_path(derive(_star()))
+    assert not derive(polar).structure.held
+    assert derive(_ball()).structure.held and derive(_star()).structure.held
 
 
 def test_held_step_keeps_the_solver_error_contract() -> None:

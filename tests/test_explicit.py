@@ -19,7 +19,7 @@ from scenes import billiard, load_example, star_nonlinear
 
 import vcigen
 from vcigen.errors import NONFINITE
-from vcigen.explicit import grid_routines, hoist, is_explicit, jump_quadratic
+from vcigen.explicit import grid_routines, hoist, jump_quadratic
 from vcigen.stepper import quadratic_root
 
 RULES = ["trapezoid", "midpoint"]
@@ -52,7 +52,7 @@ def _model(name: str) -> vcigen.Model:
     ],
 )
 def test_explicit_detection(name: str, rule: str, expected: bool) -> None:
-    assert is_explicit(vcigen.derive(_model(name), rule)) is expected
+    assert vcigen.derive(_model(name), rule).structure.explicit_grid is expected
 
 
 def test_hoist_groups_invariants_and_keeps_the_value() -> None:
@@ -231,7 +231,8 @@ def test_jump_quadratic_roots_solve_the_jump(name: str, rule: str) -> None:
 def test_jump_quadratic_needs_a_quadratic_energy() -> None:
     """Nonlinear gravity under the trapezoidal rule: explicit smooth step, but E_d is not quadratic in w."""
     system = vcigen.derive(_model("star_nonlinear"), "trapezoid")
-    assert is_explicit(system) and jump_quadratic(system) is None
+    assert system.structure.explicit_grid and not system.structure.jump_quadratic
+    assert jump_quadratic(system) is None
 
 
 def test_quadratic_root_is_where_newton_goes() -> None:

@@ -238,8 +238,7 @@ def test_bad_forces_are_refused():
 def test_forced_scene_is_never_explicit():
     """The explicit straight-line step hoists (h, par); with forces (and their time slot) it must not."""
     from vcigen.derive import derive
-    from vcigen.explicit import has_explicit_path, is_explicit
 
     system = derive(driven_oscillator())
-    assert system.timed and not is_explicit(system) and not has_explicit_path(system)
+    assert system.timed and not system.structure.explicit_grid and not system.structure.explicit_path
     assert system.routines["smooth"].inputs[-1].symbols[-1].name == "t"

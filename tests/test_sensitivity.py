@@ -8,6 +8,7 @@ sensitivities off unchanged bit for bit.
 
 from __future__ import annotations
 
+import math
 from functools import cache
 
 import hard_scenes
@@ -494,10 +495,10 @@ def held_mode(res: vcigen.Result) -> tuple:
     return mode(res), res.active.tobytes(), len(res.liftoffs)
 
 
-def held_finite_differences(sim: vcigen.Simulator, scene: str, eps: float = 1e-6) -> tuple:
+def held_finite_differences(sim: vcigen.Simulator, scene: str, eps: float = 1e-6, scenes=None) -> tuple:
     """``(run, {path: (S dz, central difference)})`` along each path of the scene (``dz`` its direction in
     ``(q0, v0, params)``, by a central difference of the path itself: exact for straight paths)."""
-    _, q0, v0, h, t_end, params, paths = HELD_SCENES[scene]
+    _, q0, v0, h, t_end, params, paths = (scenes or HELD_SCENES)[scene]
     res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
     names = [str(s) for s in sim.model.defaults]
 
@@ -543,14 +544,94 @@ def test_held_steps_match_finite_differences(scene: str, backend: str) -> None:
     assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_held_steps_with_an_event_are_reported(backend: str) -> None:
-    """Sliding off a dome: the held steps are covered up to the one the contact lifts off in (a lift-off
-    located inside a step: not covered), which is the first break."""
-    from test_c_agreement_sustained import _dome
+def _lift_dome() -> vcigen.Model:
+    """A particle on the dome ``sqrt(x^2 + y^2) >= R`` (gravity ``g``): it slides, then lifts off."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    g, r = sp.symbols("g R", positive=True)
+    return vcigen.Model(
+        name="lift_dome",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={"dome": sp.sqrt(x**2 + y**2) - r},
+        params={g: 9.81, r: 1.0},
+    )
 
-    sim = vcigen.build(_dome(), backend=backend)
-    res = sim.simulate([0.0, 1.0], [0.1, 0.0], 0.005, t_end=1.6, sensitivities=True, progress=False)
-    lost = assert_lost(res, "held step (sustained contact)")
-    assert len(res.liftoffs) == 1 and lost == int(res.liftoffs[0][0] / 0.005)
-    assert res.active[: lost + 1, 0].all() and lost > 100
+
+def _lift_hump() -> vcigen.Model:
+    """A particle launched up the hump ``y >= exp(-x^2)`` from its concave foot: held, then it lifts off
+    short of the top (where ``v^2 kappa`` exceeds ``g cos``) and flies."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    g = sp.Symbol("g", positive=True)
+    return vcigen.Model(
+        name="lift_hump",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={"hump": y - sp.exp(-(x**2))},
+        params={g: 9.81},
+    )
+
+
+def _on_hump(x0: float, speed: float) -> tuple[list[float], list[float], dict]:
+    """A start on the hump at ``x0``, its velocity along the surface."""
+    slope = -2.0 * x0 * math.exp(-(x0**2))
+    norm = math.hypot(1.0, slope)
+    return [x0, math.exp(-(x0**2))], [speed / norm, speed * slope / norm], {}
+
+
+# (model, q0, v0, h, t_end, params, paths): a held run with a lift-off located inside a step, then free
+LIFT_SCENES = {
+    "dome": (
+        _lift_dome,
+        [0.0, 1.0],
+        [0.1, 0.0],
+        0.005,
+        1.6,
+        None,
+        {
+            "q0 along": lambda e: (_rotated([0.0, 1.0], e), _rotated([0.1, 0.0], e), {}),
+            "v0[x]": lambda e: ([0.0, 1.0], [0.1 + e, 0.0], {}),
+            "g": lambda e: ([0.0, 1.0], [0.1, 0.0], {"g": 9.81 + e}),
+            "R": lambda e: ([0.0, 1.0 + e], [0.1, 0.0], {"R": 1.0 + e}),
+        },
+    ),
+    "hump": (
+        _lift_hump,
+        *_on_hump(-1.5, 5.0)[:2],
+        0.005,
+        0.6,
+        None,
+        {
+            "q0 along": lambda e: _on_hump(-1.5 + e, 5.0),
+            "speed": lambda e: _on_hump(-1.5, 5.0 + e),
+            "g": lambda e: (*_on_hump(-1.5, 5.0)[:2], {"g": 9.81 + e}),
+        },
+    ),
+}
+
+
+@cache
+def lift_simulator(scene: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(LIFT_SCENES[scene][0](), backend=backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scene", sorted(LIFT_SCENES))
+def test_liftoff_matches_finite_differences(scene: str, backend: str) -> None:
+    """A lift-off at a located time (``Tracker.liftoff``): the held sub-step to the root of the contact
+    force, its time by the implicit-function theorem, then the free rest of the step, against central
+    differences of whole runs across the lift-off along paths that keep the mode (the same lift-off step);
+    covered to the end."""
+    sim = lift_simulator(scene, backend)
+    res, per = held_finite_differences(sim, scene, scenes=LIFT_SCENES)
+    assert len(res.liftoffs) == 1 and res.n_impacts == 0
+    lift = int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0]))
+    assert res.active[: lift + 1, 0].all() and not res.active[lift + 1 :].any() and lift > 50
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(f"{scene} ({backend}): " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    assert max(errs.values()) <= 1e-6, errs
+    for exact, fd in per.values():  # the step across the lift-off on its own
+        jump = exact[lift + 1] - exact[lift]
+        assert np.abs(jump - (fd[lift + 1] - fd[lift])).max() <= 1e-6 * max(1.0, np.abs(exact).max())

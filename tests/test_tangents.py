@@ -28,6 +28,9 @@ def _reference(system, name: str, ins: list) -> list:
         return [ca.jacobian(g(*ins)[0], ca.vertcat(*ins[1:]))]
     if name == "contacts":
         return [ca.jacobian(ca.vec(g(*ins)[1].T), ca.vertcat(*ins))]
+    if name == "rows":  # the rows' gradients, row-major, in (q, par); u does not enter them
+        q, _, par = ins
+        return [ca.jacobian(ca.vec(g(*ins)[1].T), ca.vertcat(q, par))]
     outs = g(*ins)
     outs = outs if isinstance(outs, (list, tuple)) else [outs]
     return [ca.jacobian(o, ca.vertcat(*ins)) for o in outs]
@@ -40,6 +43,8 @@ def test_tangents_match_automatic_differentiation(scene: str) -> None:
     names = [r for r in system.routines if r.startswith("d_")]
     expected = {"d_smooth", "d_jump", "d_segment", "d_contacts", "d_legendre", "d_restitution"}
     expected |= {f"d_{p}_{c}" for p in ("contact_time", "jump_contact") for c in system.contact_names}
+    if "rows" in system.routines:  # sustained contact: the held step's residuals and the rows' directions
+        expected |= {"d_rattle", "d_rattle_project", "d_rows"}
     assert set(names) == expected
     rng = np.random.default_rng(1)
     for name in names:

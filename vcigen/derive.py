@@ -19,6 +19,8 @@ all polynomial in ``tau``, so sub-steps of vanishing length (impacts at
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import sympy as sp
 
@@ -28,6 +30,9 @@ from .routines import Arg, Output, Routine
 from .rows import Rows, contact_rows
 from .rules import Rule, get_rule
 from .tangents import tangent_routines
+
+if TYPE_CHECKING:
+    from .structure import Structure
 
 KINK = 1e-12  # |u| below which sign(u), Heaviside(u) in a contact normal count as a kink
 
@@ -186,6 +191,14 @@ class DiscreteSystem:
         ``stages`` rows are their stationarity; routine ``stage`` solves them alone for a given
         segment (``segment`` then takes them)."""
         return self.n * self.rule.stages
+
+    @cached_property
+    def structure(self) -> Structure:
+        """What the scene allows (:class:`vcigen.structure.Structure`): detected once, on first use, and
+        read by both backends (and printed in the generated C header)."""
+        from . import structure  # the detectors read this system's routines (vcigen.structure imports derive)
+
+        return structure.detect(self)
 
     @property
     def timed(self) -> bool:

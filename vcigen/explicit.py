@@ -18,6 +18,9 @@ Both backends take ``v``, ``p_k+1`` and ``E_d`` of the smooth grid step from
 contact time (47) along the explicit segment map (``contact_path_<c>``, when (46)
 has a diagonal, ``v``-free Jacobian) and the jump (48) from its quadratic in
 ``mu`` (``jump_quadratic``, when ``E_d`` is quadratic in the velocity).
+
+Whether a scene allows each of them is decided once, in :mod:`vcigen.structure`
+(``system.structure.explicit_grid``, ``.explicit_path``, ``.jump_quadratic``).
 """
 
 from __future__ import annotations
@@ -49,45 +52,6 @@ def expanded(a: sp.Matrix) -> sp.Matrix:
 def smooth_jacobian(system: DiscreteSystem) -> sp.Matrix:
     """The Jacobian of the smooth residual (46) in ``v``, expanded."""
     return expanded(system.routines["smooth"].output("jac").expr)
-
-
-def _diagonal_free_of(a: sp.Matrix, symbols: set[sp.Symbol]) -> bool:
-    """Whether ``a`` is diagonal and free of ``symbols``."""
-    off = (a[i, k] for i in range(a.rows) for k in range(a.cols) if i != k)
-    return not (a.free_symbols & symbols) and all(e == 0 for e in off)
-
-
-def smooth_diagonal(system: DiscreteSystem) -> bool:
-    """Whether (46) is linear in ``v`` with a diagonal Jacobian (free of ``v``; it may hold ``q0``)."""
-    return _diagonal_free_of(smooth_jacobian(system), set(system.routines["smooth"].inputs[0].symbols))
-
-
-def mass_diagonal(system: DiscreteSystem) -> bool:
-    """Whether the mass matrix ``d2L/dqdot2`` is constant and diagonal."""
-    leg = system.routines["legendre"]
-    return _diagonal_free_of(
-        expanded(leg.output("mass").expr), set(leg.input("q").symbols) | set(leg.input("v").symbols)
-    )
-
-
-def has_explicit_path(system: DiscreteSystem) -> bool:
-    """Whether the contact time (47) reduces to a scalar root along the explicit segment map.
-
-    Not with forces: the map's closed form assumes the momentum of a segment does not depend on time.
-    """
-    return system.m > 0 and not system.model.force and not system.stages and smooth_diagonal(system)
-
-
-def is_explicit(system: DiscreteSystem) -> bool:
-    """Whether (46) has a constant diagonal Jacobian and the mass matrix is constant and diagonal.
-
-    Not with forces: the explicit grid step hoists what depends on ``(h, par)`` out of the loop.
-    """
-    if system.model.force or system.stages:  # internal points: (46) couples v with them
-        return False
-    smooth = system.routines["smooth"]
-    state = set(smooth.inputs[0].symbols) | set(smooth.input("q0").symbols)
-    return _diagonal_free_of(smooth_jacobian(system), state) and mass_diagonal(system)
 
 
 Constants = list[tuple[sp.Symbol, sp.Expr]]
@@ -196,18 +160,8 @@ def grid_routines(system: DiscreteSystem) -> list[Routine]:
     ]
 
 
-def jump_quadratic(system: DiscreteSystem) -> Routine | None:
-    """The jump (48) as a quadratic in ``mu``, when the scene is explicit and ``E_d`` quadratic in ``w``.
-
-    (48b) ``p-(w) = p_in + mu n`` is linear in ``w`` with the constant diagonal
-    Jacobian of (46): ``w = w0 + mu dw``, ``w0 = (p_in - p-(0)) / J``, ``dw = n / J``.
-    Then (48a) ``E_d(w) = E_in`` is ``a mu^2 + b mu + c = 0`` with ``a = dw.H dw / 2``,
-    ``b = grad E_d(w0) . dw``, ``c = E_d(w0) - E_in`` (exact: ``H``, the Hessian of
-    ``E_d`` in ``w``, is constant). Routine ``jump_quadratic(qc, nrm, p_in, e_in, tau, par)
-    -> coef (a, b, c), w0, dw``; ``None`` when the structure is not there.
-    """
-    if not is_explicit(system):
-        return None
+def _jump_energy(system: DiscreteSystem):
+    """``(w, p-(w), E_d(w), Hess_w E_d)`` of the jump's segment (48), in the jump routine's symbols."""
     n, r = system.n, system.routines
     x, qc, nrm, p_in, e_in, tau, par = r["jump"].inputs
     w = sp.Matrix(x.symbols[:n])
@@ -216,9 +170,33 @@ def jump_quadratic(system: DiscreteSystem) -> Routine | None:
     rep[seg.input("tau").symbols[0]] = tau.symbols[0]
     p_minus = seg.output("p_minus").expr.xreplace(rep)
     energy = shorter(seg.output("energy").expr[0]).xreplace(rep)
-    hess = expanded(hessian(energy, list(w)))
-    if hess.free_symbols & set(w):
+    return w, p_minus, energy, expanded(hessian(energy, list(w)))
+
+
+def quadratic_energy(system: DiscreteSystem) -> bool:
+    """Whether ``E_d`` of a segment is quadratic in its velocity (its Hessian in ``w`` is constant).
+
+    A detector of :func:`vcigen.structure.detect` (``Structure.jump_quadratic``, with the explicit grid step).
+    """
+    w, _, _, hess = _jump_energy(system)
+    return not (hess.free_symbols & set(w))
+
+
+def jump_quadratic(system: DiscreteSystem) -> Routine | None:
+    """The jump (48) as a quadratic in ``mu``, when the scene allows it (``system.structure.jump_quadratic``).
+
+    (48b) ``p-(w) = p_in + mu n`` is linear in ``w`` with the constant diagonal
+    Jacobian of (46): ``w = w0 + mu dw``, ``w0 = (p_in - p-(0)) / J``, ``dw = n / J``.
+    Then (48a) ``E_d(w) = E_in`` is ``a mu^2 + b mu + c = 0`` with ``a = dw.H dw / 2``,
+    ``b = grad E_d(w0) . dw``, ``c = E_d(w0) - E_in`` (exact: ``H``, the Hessian of
+    ``E_d`` in ``w``, is constant). Routine ``jump_quadratic(qc, nrm, p_in, e_in, tau, par)
+    -> coef (a, b, c), w0, dw``; ``None`` when the structure is not there.
+    """
+    if not system.structure.jump_quadratic:
         return None
+    n = system.n
+    x, qc, nrm, p_in, e_in, tau, par = system.routines["jump"].inputs
+    w, p_minus, energy, hess = _jump_energy(system)
     zero = dict.fromkeys(w, sp.S.Zero)
     jac = expanded(jacobian(p_minus, list(w), drop_dirac=False))
     w0 = sp.Matrix([(p_in.symbols[i] - p_minus[i].xreplace(zero)) / jac[i, i] for i in range(n)])

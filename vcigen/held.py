@@ -2,9 +2,10 @@
 
 The constrained step of MATH.md *Sustained contact* (RATTLE, routines ``rattle`` and
 ``rattle_project``) is two Newton solves on ``n + R`` unknowns. When the scene is explicit
-(:func:`vcigen.explicit.is_explicit`: (46) has a constant diagonal Jacobian ``J``, the mass
-``M`` is constant and diagonal, no forces), the momentum is ``M qdot`` and no friction acts,
-both reduce to the ``R_A`` multipliers of the active rows ``A``:
+(``system.structure.explicit_grid``: (46) has a constant diagonal Jacobian ``J``, the mass
+``M`` is constant and diagonal, no forces), the momentum is ``M qdot`` and no friction acts
+(``system.structure.held``, decided in :mod:`vcigen.structure`), both reduce to the ``R_A``
+multipliers of the active rows ``A``:
 
 * ``rattle``: ``p-(q0, v, h) = p0 + G0^T Lam`` is linear in ``v`` with the Jacobian ``J``, so
   ``v = v0 + J^-1 G0^T Lam`` (``v0`` the free grid step of :mod:`vcigen.explicit`, ``G0`` the
@@ -38,7 +39,7 @@ import numpy as np
 import sympy as sp
 
 from .derive import DiscreteSystem, _no_dirac
-from .explicit import expanded, hoist, is_explicit, shorter, smooth_jacobian
+from .explicit import expanded, hoist, shorter, smooth_jacobian
 from .routines import Arg, Output, Routine
 from .sustained import EPS_LAM
 
@@ -50,38 +51,10 @@ ABSTOL, ABSTOL_STEP = 1e-13, 1e-15  # the general Newton's (backends.ccontext.NE
 SQRT_POWERS = frozenset({"held_rows"})
 
 
-def has_held_path(system: DiscreteSystem) -> bool:
-    """Whether the held step applies: rows, an explicit scene, momentum ``M qdot``, no friction."""
-    if not system.r or system.rows.frictional or not is_explicit(system):
-        return False
-    leg = system.routines["legendre"]
-    q, v = leg.input("q").symbols, leg.input("v").symbols
-    mom = expanded(leg.output("momentum").expr - leg.output("mass").expr * sp.Matrix(v))
-    rhs = system.routines["dynamics"].output("rhs").expr
-    return (
-        all(e == 0 for e in mom)
-        and not (rhs.free_symbols & set(system.routines["dynamics"].input("u").symbols))
-        and bool(q)
-    )
-
-
-def _row_hessian(system: DiscreteSystem, r: int) -> sp.Matrix:
+def row_hessian(system: DiscreteSystem, r: int) -> sp.Matrix:
+    """The Hessian of row ``r``'s ``psi`` in ``q``."""
     rows = system.routines["rows"]
     return sp.hessian(rows.output("psi").expr[r], rows.input("q").symbols).applyfunc(_no_dirac)
-
-
-def hess_pattern(system: DiscreteSystem) -> list[tuple[int, int, int]]:
-    """``(i, j, weight)``, ``i <= j``, where some row's Hessian is not identically 0 (weight 2 off the
-    diagonal): ``u . Hess psi_r . u = sum weight u_i H_ij u_j`` over them. Empty for rows linear in ``q``
-    (floors, walls)."""
-    hs = [_row_hessian(system, r) for r in range(system.r)]
-    n = system.n
-    return [
-        (i, j, 1 if i == j else 2)
-        for i in range(n)
-        for j in range(i, n)
-        if any(sp.simplify(hm[i, j]) != 0 for hm in hs)
-    ]
 
 
 def line_form(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
@@ -128,7 +101,7 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
 
     * ``held_free(q0, p0, k) -> v0, jinv``: the free velocity of (46) over ``h`` and ``1/J_ii``;
     * ``held_rows(q, k) -> psi, grad, hess``: every row's value, gradient and the entries of its Hessian
-      on :func:`hess_pattern` (the curvature ``u . Hess psi . u`` needs no others);
+      on ``system.structure.held_pattern`` (the curvature ``u . Hess psi . u`` needs no others);
     * ``held_segment(q0, v, k) -> p_plus, energy``: ``p+`` (51) and ``E_d`` (55) of the segment;
     * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``;
     * if some row has a :func:`line_form` ``F``, ``held_line(a, b, k) -> coef``: per row ``(A, B, C)`` with
@@ -148,11 +121,11 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     q = Arg("q", tuple(rows.input("q").symbols))
     psi = rows.output("psi").expr
     grad = rows.output("grad").expr
-    pattern = hess_pattern(system)
+    pattern = system.structure.held_pattern
     hess = sp.Matrix(
         system.r,
         len(pattern),
-        [_row_hessian(system, r)[i, j] for r in range(system.r) for i, j, _ in pattern],
+        [row_hessian(system, r)[i, j] for r in range(system.r) for i, j, _ in pattern],
     )
     seg = r["segment"]
     v = Arg("v", tuple(seg.input("v").symbols))

@@ -17,13 +17,15 @@ in ``(x, d)``, their partials chained. Phases:
 * a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
   ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
   found them (``vcigen.held`` or ``SustainedSteps._chain``);
+* a lift-off at a located time in a held grid step, then a free rest (46): the constrained sub-step to the
+  root of the released row's force, that root's time by the implicit-function theorem (``Tracker.liftoff``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once), a grazing impact taking the continuous law, a plastic impact, a held
-step with an event inside (lift-off, an impact or a row crossed while held, a friction switch) or with
-friction, friction at an impact, the ``_restart`` fallback. From the first such step ``k``
-on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
+group of contacts at once), a grazing impact taking the continuous law, a held step with any other
+event inside (a lift-off at its start or after another event, an impact or a row crossed while held, a
+friction switch) or with friction, friction at an impact, the ``_restart`` fallback. From the first such
+step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
 ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
 
@@ -128,6 +130,27 @@ class Tangents:
             f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
         return f
 
+    def force_jac(self) -> _Flat:
+        """``(q, u, act, par) -> d lambda / d(q, u, par)`` (``r x (2n + npar)``): the contact forces of
+        ``SustainedSteps._forces`` (frictionless rows ``act`` held: ``G M^-1 (rhs + G^T lambda) + curv = 0``)
+        differentiated by CasADi; rows off ``act`` are 0."""
+        f = self._fns.get("force_jac")
+        if f is None:
+            names = ("rows", "dynamics", "legendre")
+            rows, dyn, leg = (routine_to_function(self.system.routines[k]) for k in names)
+            n, npar, nr = self.n, self.npar, rows.size1_out(0)
+            q, u, par, act = ca.SX.sym("q", n), ca.SX.sym("u", n), ca.SX.sym("par", npar), ca.SX.sym("a", nr)
+            _, grad, curv = rows(q, u, par)
+            rhs = dyn(q, u, par)[0]
+            mass = leg(q, u, par)[1]
+            ga = ca.mtimes(ca.diag(act), grad)
+            w = ca.mtimes(ga, ca.solve(mass, ga.T)) + ca.diag(1 - act)
+            lam = ca.solve(w, -(ca.mtimes(ga, ca.solve(mass, rhs)) + act * curv))
+            jac = ca.jacobian(lam, ca.vertcat(q, u, par))
+            fn = ca.Function("force_jac", [q, u, act, par], [jac])  # par last, as the kernels' may be longer
+            f = self._fns["force_jac"] = _Flat([fn], [(nr, 2 * n + npar)])
+        return f
+
 
 def _guarded(hook):
     """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run."""
@@ -167,7 +190,7 @@ class Tracker:
     # -- bookkeeping ---------------------------------------------------------------
     def par(self, t: float) -> np.ndarray:
         """The parameter vector segments starting at ``t`` see (the kernels' own, time slot at ``t``)."""
-        par = np.array(self.k.par, dtype=float)
+        par = np.array(self.k.par, dtype=float)[: self.tg.npar]  # C kernels: one unused entry if none
         if self.timed:
             par[-1] = t
         return par
@@ -232,9 +255,7 @@ class Tracker:
 
     def _segment(self, q, v, tau: float, t: float, dq, dv, dtau, dt):
         """Tangents of ``p-``, ``p+``, ``E_d`` of the segment ``(q, v, tau)`` starting at ``t``."""
-        dpm, dpp, de = self.tg.get("d_segment")(q, v, tau, self.par(t))
-        d = np.vstack([dq, dv, dtau, self.dpar(dt)])
-        return dpm @ d, dpp @ d, de @ d
+        return self._segment_cols(q, v, tau, t, dq, dv, dtau, self.dpar(dt))
 
     @_guarded
     def smooth(self, q, p, h: float, v) -> None:
@@ -395,25 +416,88 @@ class Tracker:
         if not self.active:
             return
         n, K = self.n, self.K
-        nr = len(act)
         if entry:
             dq, dp, dtau, dt, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
         else:
             dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
+        dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, u1, act, dq, dp, dtau, dt, t)
+        dmom, _ = self.tg.get("d_legendre")(q + tau * v, u1, np.zeros(n), self.par(t))
+        self.next = np.vstack([dq1, dmom @ np.vstack([dq1, du1, dpar])])
+
+    def _held_sub(self, q, p, tau: float, v, lam, lam1, u1, act, dq, dp, dtau, dt, t):
+        """Tangents ``(dq1, du1, dpar)`` of a constrained segment ``(q, p, tau)`` from ``t`` (``rattle`` then
+        ``rattle_project``, the active set ``act`` fixed); the columns are those of ``dq`` (any number)."""
+        n, cols = self.n, dq.shape[1]
+        nr = len(act)
         actf = np.asarray(act, dtype=float)
-        par, dpar = self.par(t), self.dpar(dt)
-        zr = np.zeros((nr, K))
+        dpar = self.dpar(dt)
+        if dpar.shape[1] != cols:
+            dpar = np.hstack([dpar, np.zeros((dpar.shape[0], cols - dpar.shape[1]))])
+        zr = np.zeros((nr, cols))
         x = np.concatenate([v, lam])
         dx = self._ift("rattle", x, (q, p, [tau], actf), np.vstack([dq, dp, dtau, zr, dpar]), t)
         dv = dx[:n]
         q1 = q + tau * v
         dq1 = dq + np.outer(v, dtau) + tau * dv
         p_plus = self.k.segment(q, v, tau)[1]
-        _, dpp, _ = self._segment(q, v, tau, t, dq, dv, dtau, dt)
+        _, dpp, _ = self._segment_cols(q, v, tau, t, dq, dv, dtau, dpar)
         y = np.concatenate([u1, lam1])
         dy = self._ift("rattle_project", y, (q1, p_plus, actf), np.vstack([dq1, dpp, zr, dpar]), t)
-        dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), par)
-        self.next = np.vstack([dq1, dmom @ np.vstack([dq1, dy[:n], dpar])])
+        return dq1, dy[:n], dpar
+
+    def _segment_cols(self, q, v, tau: float, t: float, dq, dv, dtau, dpar):
+        """:meth:`_segment` with ``dpar`` given (any number of columns)."""
+        dpm, dpp, de = self.tg.get("d_segment")(q, v, tau, self.par(t))
+        d = np.vstack([dq, dv, dtau, dpar])
+        return dpm @ d, dpp @ d, de @ d
+
+    @_guarded
+    def liftoff(self, sub, r: int, s: float, tau: float, free) -> None:
+        """A held grid step whose row ``r`` lifts off at fraction ``s`` (MATH.md *Sustained contact*), then a
+        free rest (46) to the grid time: ``S_k+1`` for this mode sequence.
+
+        ``sub = (q, p, v, lam, lam1, u1, act)``: the constrained sub-step over ``tau_s = s tau`` from the
+        grid point (``tau = h``), ``act`` its active rows (``r`` among them). The lift-off fraction is the
+        root of ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the
+        implicit-function theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's
+        tangent (one extra column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step (46) over
+        ``tau - tau_s`` from the lift-off point, its start time and duration chained.
+        """
+        if not self.active:
+            return
+        n, K = self.n, self.K
+        q, p, v, lam, lam1, u1, act = sub
+        t = self.t
+        tau_s = s * tau
+        dq = np.hstack([self.cur[:n], np.zeros((n, 1))])
+        dp = np.hstack([self.cur[n:], np.zeros((n, 1))])
+        dtau = np.zeros((1, K + 1))
+        dtau[0, K] = 1.0  # the extra column: d/d tau_s
+        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, None, t)
+        q1 = q + tau_s * v
+        t_l = t + tau_s
+        dpar_end = dpar.copy()
+        if self.timed:
+            dpar_end[-1] = dpar[-1] + dtau[0]
+        fj = self.tg.force_jac()(q1, u1, np.asarray(act, dtype=float), self.par(t_l))[0][r]
+        dg = fj @ np.vstack([dq1, du1, dpar_end])  # (K + 1,)
+        if dg[K] == 0.0:
+            self.lose("a singular Jacobian in the tangent of liftoff")
+            return
+        dtau_s = (-dg[:K] / dg[K])[None, :]
+        dq_l = dq1[:, :K] + np.outer(dq1[:, K], dtau_s)
+        du_l = du1[:, :K] + np.outer(du1[:, K], dtau_s)
+        dpar_l = self.dpar(None)
+        dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), self.par(t))
+        dp_l = dmom @ np.vstack([dq_l, du_l, dpar_l])
+        ql, pl, w = free
+        tau_r = tau - tau_s
+        dt_l = dtau_s[0]
+        dtau_r = -dtau_s
+        dw = self._ift("smooth", w, (ql, pl, [tau_r]), np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)]), t_l)
+        dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
+        _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l)
+        self.next = np.vstack([dq_end, dp_end])
 
     # -- the result ----------------------------------------------------------------
     def attach(self, res, steps: int) -> None:

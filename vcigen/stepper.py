@@ -111,6 +111,7 @@ class Stepper(SustainedSteps, HeldSteps):
         self.k = kernels
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
+        self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -256,12 +257,16 @@ class Stepper(SustainedSteps, HeldSteps):
         event, no friction) leaves its solution in ``_held_seg``: then ``Tracker.held``, else a break."""
         tan, self._tan = self._tan, None
         self._held_seg, self._record_held = None, tan is not None
+        self._lift_seg = self._free_seg = None
         try:
             out = run(*args)
         finally:
             self._tan, self._record_held = tan, False
         if tan is not None and self._held_seg is not None:
             tan.held(q, p, tau, *self._held_seg, entry)
+        elif tan is not None and not entry and self._lift_seg is not None and self._free_seg is not None:
+            sub, r, s, tau_s = self._lift_seg
+            tan.liftoff(sub, r, s, tau_s, self._free_seg)
         elif tan is not None and not entry:
             tan.lose("held step (sustained contact)")
         elif tan is not None and tan.active:

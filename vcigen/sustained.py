@@ -643,6 +643,8 @@ class SustainedSteps:
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
+            if not plain:  # a constrained segment after an event: no lift-off then a free rest
+                self._lift_seg = None
             v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)
             e_step = e_seg if (e_step is None or self._forced) else e_step
             unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool) & (np.asarray(k.row_stick) < 0)
@@ -679,9 +681,13 @@ class SustainedSteps:
                 events[int(r)] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, int(r), psi1[r]))
             r0 = min(events, key=lambda r: (events[r][1], r))
             s = events[r0][1]
-            plain = False
             self._count_event(step, t_k)
-            v, lam, q, _, e_sub, lam1, p, _, _ = self._constrained(step, t_k, q, p, s * tau, v)
+            act0 = self.act.copy()
+            q_s, p_s, tau_s = q, p, tau
+            v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
+            if plain and self._record_held and events[r0][0] == "lift":  # the tangent: Tracker.liftoff
+                self._lift_seg = ((q_s, p_s, v, lam, lam1, u1, act0), r0, s, tau_s)
+            plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
@@ -704,10 +710,12 @@ class SustainedSteps:
         self._check(res, p, step, t_k, "smooth")
         e_step = e if (e_step is None or self._forced) else e_step
         if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
+            self._free_seg = (q, p, v) if self._record_held else None  # the tangent: Tracker.liftoff
             return q + tau * v, p1, e_step, v
         seg = _Seg(q=q, t=t, tau=tau, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
         crossings = self._crossings(seg, phi0, phi1, d0, d1)
         if not crossings:
+            self._free_seg = (q, p, v) if self._record_held else None
             return q + tau * v, p1, e_step, v
         q1, p1, e_end, w = self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
         return q1, p1, (e_end if self._forced else e_step), w

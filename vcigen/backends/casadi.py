@@ -15,8 +15,8 @@ import casadi as ca
 import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
-from ..explicit import grid_routines, has_explicit_path, is_explicit, jump_quadratic, path_routines
-from ..held import has_held_path, held_routines, held_step, hess_pattern, line_forms
+from ..explicit import grid_routines, jump_quadratic, path_routines
+from ..held import held_routines, held_step
 from ..routines import Routine
 from ..simulator import Simulator
 from ..stepper import Tolerances
@@ -70,6 +70,7 @@ class CasadiKernels(ParameterSlots):
 
     def __init__(self, system: DiscreteSystem) -> None:
         self.system = system
+        self.structure = system.structure  # detected once per system (vcigen.structure), as the C reads it
         self.n, self.m = system.n, system.m
         self.contact_names = system.contact_names
         self.par = np.zeros(len(system.params))
@@ -86,10 +87,10 @@ class CasadiKernels(ParameterSlots):
             if "x" in [a.name for a in system.routines[name].inputs]
         }
         self._step = self._smooth_step()
-        self.explicit_path = has_explicit_path(system)
+        self.explicit_path = self.structure.explicit_path
         paths = path_routines(system) if self.explicit_path else []
         self._paths = [self._flat_function(routine_to_function(r)) for r in paths]
-        quad = jump_quadratic(system)
+        quad = jump_quadratic(system) if self.structure.jump_quadratic else None
         self._quad = None if quad is None else self._flat_function(routine_to_function(quad))
         flat = ("legendre", "contacts", "restitution") + (("rows", "dynamics") if system.r else ())
         flat += ("friction",) if "friction" in system.routines else ()
@@ -98,15 +99,15 @@ class CasadiKernels(ParameterSlots):
         self._flat["segment"] = self._flat_function(self._segment_function())
         set_rows(self, system)
         self._rattle = self._rattle_segment() if system.r else None
-        self.held = has_held_path(system)  # the held grid step (vcigen.held)
+        self.held = self.structure.held  # the held grid step (vcigen.held)
         self._held = (
             {r.name: self._flat_function(routine_to_function(r)) for r in held_routines(system)}
             if self.held
             else {}
         )
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
-        self.held_pattern = hess_pattern(system) if self.held else []
-        self.held_lines = [f is not None for f in line_forms(system)] if self.held else []  # held_line's rows
+        self.held_pattern = list(self.structure.held_pattern)
+        self.held_lines = list(self.structure.held_lines)  # held_line's rows
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -166,7 +167,7 @@ class CasadiKernels(ParameterSlots):
             vec[3 * n + 1 :],
         )
         phi0, grad0 = self.functions["contacts"](q0, par)
-        if is_explicit(self.system):  # the C backend's straight-line step, the same round-off
+        if self.structure.explicit_grid:  # the C backend's straight-line step, the same round-off
             consts, step, _ = (routine_to_function(r) for r in grid_routines(self.system))
             v, p1, e = step(q0, p0, consts(tau, par))
             p_minus, _, _ = self.functions["segment"](q0, v, tau, par)
@@ -360,7 +361,7 @@ class CasadiKernels(ParameterSlots):
         return self._held_call("held_free", (self.n, self.n), q0, p0, kc)
 
     def held_rows(self, q, kc):
-        """``(psi, grad, hess)`` of every row at ``q`` (``hess``: its Hessian on ``held.hess_pattern``)."""
+        """``(psi, grad, hess)`` of every row at ``q`` (``hess``: Hessian on ``Structure.held_pattern``)."""
         n, r = self.n, self.r
         nh = len(self.held_pattern)
         psi, grad, hess = self._held_call("held_rows", (r, r * n, r * nh), q, kc)

@@ -20,14 +20,14 @@ from .. import __version__
 from ..derive import KINK, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..held import SQRT_POWERS, has_held_path, held_routines, hess_pattern, line_forms
+from ..held import SQRT_POWERS, held_routines
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances, unheld_note
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
-from .cspecialise import Structure, detect, phi_routine
+from .cspecialise import phi_routine
 
 
 # The Newton of the CasADi backend (casadi.rootfinder 'newton'); the C solver uses the same.
@@ -81,22 +81,6 @@ def held_sets(r: int) -> list[dict[str, Any]]:
         }
         for s in sets
     ]
-
-
-def held_columns(system: DiscreteSystem) -> list[int]:
-    """The coordinates ``i`` where some row's gradient ``d psi_r / d q_i`` is not identically 0."""
-    grad = system.routines["rows"].output("grad").expr
-    n = system.n
-    return [i for i in range(n) if any(sp.simplify(grad[k]) != 0 for k in range(i, len(grad), n))]
-
-
-def held_constant_gradients(system: DiscreteSystem) -> list[int]:
-    """Per row and coordinate (row-major, ``r * n + i``), 1 where ``d psi_r / d q_i`` does not depend on ``q``
-    (the same value at every point of a run): the held step's Newton then keeps the value of its first
-    evaluation, which the compiler folds where it is a number (a floor's or a wall's gradient)."""
-    rows = system.routines["rows"]
-    grad, q = rows.output("grad").expr, set(rows.input("q").symbols)
-    return [int(not (sp.sympify(g).free_symbols & q)) for g in grad]
 
 
 def _tol_context(tol: Tolerances) -> dict[str, str]:
@@ -233,7 +217,7 @@ def render_context(
     out, so the plain library is the same whatever the system holds.
     """
     model = system.model
-    structure: Structure = detect(system)
+    structure = system.structure  # detected once per system (vcigen.structure), read by both backends
     if sensitivities:
         missing = [r for r in sens_routines(system.contact_names) if r not in system.routines]
         if missing:
@@ -249,13 +233,14 @@ def render_context(
     if structure.explicit_path:
         routines += path_routines(system)
     grid = grid_routines(system) if structure.explicit_grid else []
-    quad = jump_quadratic(system)
+    quad = jump_quadratic(system) if structure.jump_quadratic else None
     routines += grid + ([quad] if quad else [])
     # the implicit grid step (vcigen.implicit): Newton on (46) from the step's hoisted invariants; with
     # internal points on (v, u), u carried from the step before
-    implicit = implicit_routines(system) if not structure.smooth_linear else []
+    implicit = implicit_routines(system) if structure.implicit_grid else []
+    direct = {r.name for r in implicit}  # called directly by the implicit grid step, no adapter
     routines += implicit
-    held = held_routines(system) if has_held_path(system) else []  # the held grid step (vcigen.held)
+    held = held_routines(system) if structure.held else []  # the held grid step (vcigen.held)
     routines += held
     prefix = model.name
     setup = dict(setup or {})
@@ -312,23 +297,19 @@ def render_context(
         "nks_dim": max(1, implicit[0].outputs[0].size) if implicit else 1,
         "held": bool(held),
         "nkh": held[0].outputs[0].size if held else 0,
-        "held_hess": [{"i": i, "j": j, "w": c_number(float(w))} for i, j, w in hess_pattern(system)]
-        if held
-        else [],
-        "nh_dim": max(len(hess_pattern(system)), 1) if held else 1,
+        "held_hess": [{"i": i, "j": j, "w": c_number(float(w))} for i, j, w in structure.held_pattern],
+        "nh_dim": max(len(structure.held_pattern), 1) if held else 1,
         # per row, 1 where held.line_form has its zero set as a quadratic's: one such row held starts its
         # Newton at the root of held_line (<model>_held_line_start); empty when no row has one
-        "held_lines": [int(f is not None) for f in line_forms(system)]
-        if any(r.name == "held_line" for r in held)
-        else [],
+        "held_lines": [int(f) for f in structure.held_lines] if any(structure.held_lines) else [],
         "held_sets_max": HELD_SETS_MAX,
         "held_sets": held_sets(system.r) if held else [],
         # the coordinates some row's gradient has: the held step's products with gradients skip the others
         # (terms 0 * x: the same sums for finite x, and a non-finite x still fails the step's checks)
-        "held_gcols": held_columns(system) if held else [],
-        "held_gconst": held_constant_gradients(system) if held else [],
+        "held_gcols": list(structure.held_columns),
+        "held_gconst": list(structure.held_constant),
         # of those, the coordinates the free acceleration M^-1 rhs has (G1 acc skips the terms g * 0.0)
-        "held_acols": [i for i in held_columns(system) if held[4].output("acc").expr[i] != 0] if held else [],
+        "held_acols": [i for i in structure.held_columns if held[4].output("acc").expr[i] != 0],
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
         "params": [
@@ -349,26 +330,19 @@ def render_context(
             "mass_diagonal": structure.mass_diagonal,
             "explicit_path": structure.explicit_path,
             "explicit_grid": structure.explicit_grid,
-            "jump_quadratic": quad is not None,
-            "implicit_grid": bool(implicit),
+            "jump_quadratic": structure.jump_quadratic,
+            "implicit_grid": structure.implicit_grid,
             # its invariants carried from step to step (not when par changes between steps: time, friction)
-            "carry": bool(implicit) and not (system.timed or bool(system.rows and system.rows.frictional)),
+            "carry": structure.carry,
         },
-        "notes": structure.notes(system)
-        + (
-            [
-                "grid step: Newton on the step's invariants (hoisted, carried from the step before), a "
-                "fixed-size solve; p+, E_d, phi, the end slope and the next invariants from one CSE'd routine"
-            ]
-            if implicit
-            else []
-        ),
+        "structure_lines": structure.lines(),  # each flag and why, for the header's comment block
+        "notes": structure.notes(system),
         "routines": [routine_context(r, inverse_powers=bool(system.stages)) for r in with_heads(routines)],
         "adapters": [
             {"name": r.name, "args": list(range(len(r.inputs) - 1)), "outs": list(range(len(r.outputs)))}
             for r in routines
-            # called directly; the stage's adapter is <model>_segment's (newton.c.j2)
-            if (is_residual(r) or r.name == "stage") and r.name not in {s.name for s in implicit}
+            # the implicit grid step's routines are called directly; the stage's adapter is <model>_segment's
+            if is_residual(r) and r.name not in direct
         ],
         "residuals": _residual_ids(system),
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
