@@ -32,6 +32,8 @@ from typing import TYPE_CHECKING
 import sympy as sp
 
 from .calculus import jacobian
+from .routines import Arg, Output, Routine
+from .tangents import is_tangent
 
 if TYPE_CHECKING:
     from .derive import DiscreteSystem
@@ -104,3 +106,44 @@ def reduced_smooth(system: DiscreteSystem) -> Reduced | None:
     xs = smooth.inputs[0].symbols
     n = system.n
     return _reduced(sp.ImmutableMatrix(smooth.output("res").expr), xs[:n], (), xs[n:], offset)
+
+
+def reduced_phases(system: DiscreteSystem) -> list[tuple[str, Routine, Routine]]:
+    """Per phase solved by Newton (the smooth step (46), the contact times (47), the jump (48), (78)):
+    ``(name, <name>_z, <name>_zback)``, the phase reduced to ``(z, its own unknowns but the velocity)``
+    (residual and Jacobian, :func:`reduce_rows`) and the closed form of its full unknowns ``(v, ..., u)``
+    from them; empty unless ``system.structure.stage_reduced``. The C Newton of a phase runs on the
+    first and returns through the second (templates/newton.c.j2)."""
+    if not system.structure.stage_reduced:
+        return []
+    n, ns, offset = system.n, system.stages, system.rule.stage_offset
+    out = []
+    for name, r in system.routines.items():
+        if r.inputs[0].name != "x" or name == "stage" or is_tangent(name):
+            continue
+        xs = r.inputs[0].symbols
+        nx = len(xs) - ns
+        res = sp.ImmutableMatrix(r.output("res").expr)
+        red = _reduced(res, xs[:n], xs[n:nx], xs[nx:], offset)
+        if red is None:  # cannot happen when the smooth step reduces (the same momentum rows), but be safe
+            return []
+        args = r.inputs[1:]
+        out.append(
+            (
+                name,
+                Routine(
+                    f"{name}_z",
+                    (Arg("x", red.unknowns), *args),
+                    (Output("res", red.res), Output("jac", red.jac())),
+                    f"{name} with the stage eliminated (vcigen.stage): unknowns (z, the phase's own but the "
+                    "velocity), rows the stationarity and the phase's own but the momentum rows.",
+                ),
+                Routine(
+                    f"{name}_zback",
+                    (Arg("x", red.unknowns), *args),
+                    (Output("full", red.x),),
+                    f"The unknowns (v, ..., u) of {name} from those of {name}_z, in closed form (vcigen.stage).",
+                ),
+            )
+        )
+    return out

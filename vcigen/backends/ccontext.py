@@ -22,6 +22,7 @@ from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import SQRT_POWERS, held_routines
 from ..implicit import implicit_routines
+from ..stage import reduced_phases
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances, unheld_note
@@ -242,6 +243,9 @@ def render_context(
     routines += implicit
     held = held_routines(system) if structure.held else []  # the held grid step (vcigen.held)
     routines += held
+    # the stage eliminated (vcigen.stage): each Newton phase on (z, its own unknowns but v), and back
+    reduced = reduced_phases(system)
+    routines += [r for _, rz, back in reduced for r in (rz, back)]
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -340,6 +344,14 @@ def render_context(
             "stage_linear": structure.stage_linear,
         },
         "stage_offset": c_number(float(system.rule.stage_offset)) if structure.stage_reduced else "0.0",
+        "reduced": [name for name, _, _ in reduced],
+        # the sizes <model>_solve_sized unrolls: the stage, (v, u) and the phases with u; their reductions
+        "sized": sorted(
+            {system.stages, n + system.stages, n + system.stages + 1, n + system.stages + 2}
+            | ({n + 1, n + 2} if reduced else set())
+        )
+        if system.stages
+        else [],
         "structure_lines": structure.lines(),  # each flag and why, for the header's comment block
         "notes": structure.notes(system),
         "routines": [routine_context(r, inverse_powers=bool(system.stages)) for r in with_heads(routines)],
