@@ -70,8 +70,10 @@ def test_hoisted_routines_are_the_smooth_steps_own(make, rule: str) -> None:
             v, inside, q1 = x[:n], {"u": x[n:]}, q0 + h * x[:n]
             res, jac = it(z=z, p0=p0, k=k)
             step = 1e-6
-            fd = [(it(z=z + step * e, p0=p0, k=k)[0] - it(z=z - step * e, p0=p0, k=k)[0]) / (2 * step)
-                  for e in np.eye(n)]
+            fd = [
+                (it(z=z + step * e, p0=p0, k=k)[0] - it(z=z - step * e, p0=p0, k=k)[0]) / (2 * step)
+                for e in np.eye(n)
+            ]
             np.testing.assert_allclose(jac.reshape(n, n), np.array(fd).T, rtol=1e-6, atol=1e-8)
             full, _ = smooth(x=x, q0=q0, p0=p0, tau=h, par=par)
             np.testing.assert_allclose(full[system.stages :], 0.0, atol=1e-12)  # (46) holds at v(z)

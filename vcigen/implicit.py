@@ -87,10 +87,14 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
     # from it in closed form (smooth_back)
     red = reduced_smooth(system) if system.structure.stage_reduced else None
     zs = red.unknowns if red is not None else ()
-    iterate = [("res", red.res), ("jac", red.jac())] if red is not None else [
-        ("res", smooth.output("res").expr),
-        ("jac", smooth.output("jac").expr),
-    ]
+    iterate = (
+        [("res", red.res), ("jac", red.jac())]
+        if red is not None
+        else [
+            ("res", smooth.output("res").expr),
+            ("jac", smooth.output("jac").expr),
+        ]
+    )
     outputs = [
         *iterate,
         ("p1", seg.output("p_plus").expr.xreplace(at_seg)),
@@ -139,8 +143,8 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
             tuple(outs[:2]),
             "Smooth step (46), (73) and its Jacobian in v, from the step's invariants k."
             if red is None
-            else "Smooth step (46): the stage's stationarity at v(z) (the momentum rows solved for v) and its "
-            "Jacobian in z, the internal point's mean velocity, from the step's invariants k (vcigen.stage).",
+            else "Smooth step (46): the stage's stationarity at v(z) (the momentum rows solved for v) and "
+            "its Jacobian in z, the internal point's mean velocity, from the invariants k (vcigen.stage).",
         ),
         Routine(
             "smooth_end",

@@ -14,7 +14,7 @@ stationarity rows, they leave ``n`` rows in ``z``: (46) becomes ``n`` unknowns i
 the ``n x n`` Jacobian ``(16/3) M + (2 tau^2/9) Hess V(q_m)`` (O(1): nothing divides by a sub-step).
 
 The reduction is generic (:func:`reduce_rows`): substitute ``u = z - offset v``, require the momentum
-rows' Jacobian in ``v`` to be free of every unknown (checked), solve them for ``v``
+rows' Jacobian in ``v`` to be free of ``v`` and ``z`` (checked), solve them for ``v``
 symbolically and drop them. What detects it is the Jacobian itself, so a velocity-linear force (damping)
 keeps it and a configuration-dependent mass (the double pendulum) does not. When the remaining rows are
 linear in ``z`` too (a quadratic ``V``: the oscillator), one Newton step is exact: the step is explicit.
@@ -70,13 +70,15 @@ def reduce_rows(
 ) -> Reduced | None:
     """``rows`` (stationarity ``ns``, momentum ``n``, then the phase's own) in ``x = (v, extras, u)`` ->
     :class:`Reduced` in ``(z, extras)``, or ``None`` if the momentum rows are not linear in ``v`` at a fixed
-    internal point with a Jacobian free of the unknowns (see the module)."""
+    internal point (see the module)."""
     n, ns = len(v), len(us)
     zs = tuple(sp.Dummy(f"z{i}", real=True) for i in range(ns))
     mixed = _mixed(rows, v, us, offset, zs)
     mom = mixed[ns : ns + n, :]
     jac = jacobian(mom, v).applyfunc(sp.expand)  # expanded: terms of v that cancel only then do
-    if jac.free_symbols & (set(v) | set(extras) | set(zs)):  # not linear in v with a constant Jacobian
+    # linear in v at a fixed internal point: its Jacobian free of v and z (a force's share may hold a
+    # sub-step alpha, an unknown of (47): v is then a rational function of it, still in closed form)
+    if jac.free_symbols & (set(v) | set(zs)):
         return None
     zero = dict.fromkeys(v, sp.S.Zero)
     rhs = -mom.xreplace(zero)
@@ -142,7 +144,7 @@ def reduced_phases(system: DiscreteSystem) -> list[tuple[str, Routine, Routine]]
                     f"{name}_zback",
                     (Arg("x", red.unknowns), *args),
                     (Output("full", red.x),),
-                    f"The unknowns (v, ..., u) of {name} from those of {name}_z, in closed form (vcigen.stage).",
+                    f"(v, ..., u) of {name} from the unknowns of {name}_z in closed form (vcigen.stage).",
                 ),
             )
         )

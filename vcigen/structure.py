@@ -66,7 +66,7 @@ class Structure:
     """What a scene allows, and why (:func:`detect`; ``why[flag]``: the reason for each of :data:`FLAGS`)."""
 
     stages: int  # internal unknowns of a segment (DiscreteSystem.stages): 0 for most rules
-    stage_reduced: bool  # (46)'s momentum rows solved for v in closed form: Newton on n unknowns (vcigen.stage)
+    stage_reduced: bool  # momentum rows solved for v in closed form: Newton on n unknowns (vcigen.stage)
     stage_linear: bool  # ... and the rows left are linear in the internal point: the grid step is explicit
     smooth_linear: bool  # (46) linear in v: one Newton step is exact (C: one linear solve)
     smooth_diagonal: bool  # ... with a diagonal Jacobian: a division
@@ -106,8 +106,8 @@ class Structure:
         ]
         if self.stage_linear:
             lines.append(
-                "smooth step (46): momentum rows solved for v in closed form, the stage linear in the internal "
-                "point -> one n x n solve, no Newton (vcigen.stage)"
+                "smooth step (46): momentum rows solved for v in closed form, the stage linear in the "
+                "internal point -> one n x n solve, no Newton (vcigen.stage)"
             )
         elif self.stage_reduced:
             lines.append(
@@ -236,8 +236,9 @@ def _stage(system: DiscreteSystem, why: dict[str, str]) -> tuple[bool, bool]:
         why["stage_linear"] = "no closed-form elimination of the stage"
         return False, False
     why["stage_reduced"] = (
-        "the momentum rows of (46) are linear in v at a fixed internal point with a constant Jacobian (T - V, "
-        "constant mass): v in closed form, the grid step a Newton on the internal point alone (n unknowns)"
+        "the momentum rows of (46) are linear in v at a fixed internal point (T - V with a constant mass, "
+        "forces linear in the velocity): v in closed form, every Newton on the internal point and the "
+        "phase's other unknowns (n, not 2n, for the grid step)"
     )
     linear = not (red.jac().free_symbols & set(red.unknowns))
     why["stage_linear"] = (

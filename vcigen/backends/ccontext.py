@@ -22,9 +22,9 @@ from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import SQRT_POWERS, held_routines
 from ..implicit import implicit_routines
-from ..stage import reduced_phases
 from ..result import KINDS
 from ..routines import Routine
+from ..stage import reduced_phases
 from ..stepper import Tolerances, unheld_note
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
