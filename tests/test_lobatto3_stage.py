@@ -135,3 +135,42 @@ def test_reduced_and_general_paths_agree_through_impacts(make, setup) -> None:
     np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-10)
     np.testing.assert_allclose(a.p, b.p, rtol=0, atol=1e-9)
     np.testing.assert_allclose(a.energy, b.energy, rtol=0, atol=1e-9 * (1 + abs(b.energy[0])))
+
+
+def test_the_grid_steps_guess_is_off_by_order_h_squared() -> None:
+    """``smooth_guess`` (vcigen.stage.predictor, one Newton step from ``z = 0`` with the Jacobian at
+    ``tau = 0``) is ``M^-1 (p0/2 - (tau/8) grad V(q0))`` and misses the root by O(tau^2): halving the step
+    quarters the miss (star_nonlinear, its nonlinear gravity; the root by Newton on ``smooth_iter``)."""
+    from vcigen.implicit import implicit_routines
+
+    system = vcigen.derive(star_nonlinear(), RULE)
+    funs = {}
+    for r in implicit_routines(system):
+        syms = [s for a in r.inputs for s in a.symbols]
+        funs[r.name] = (r, [sp.lambdify(syms, list(o.expr)) for o in r.outputs])
+
+    def call(name, **inputs):
+        r, fs = funs[name]
+        args = [float(x) for a in r.inputs for x in np.ravel(inputs[a.name])]
+        return [np.array(f(*args), dtype=float) for f in fs]
+
+    m, g, ell, big_r = (float(x) for x in system.model.resolve_params(None))
+    inertia = 29 / 192 * m * ell**2
+    par = [m, g, ell, big_r]
+    q0, p0 = np.array([0.3, 2.0, 0.4]), np.array([-1.0, -3.0, 2.0])
+    misses = []
+    for h in (0.04, 0.02, 0.01):
+        (k,) = call("smooth_consts", q0=q0, tau=h, par=par)
+        (guess,) = call("smooth_guess", p0=p0, k=k)
+        grad_v = np.array([0.0, m * g * big_r**2 / (big_r + q0[1]) ** 2, 0.0])
+        want = (p0 / 2 - h / 8 * grad_v) / np.array([m, m, inertia])
+        np.testing.assert_allclose(guess, want, rtol=1e-13, atol=1e-13)
+        z = guess.copy()
+        for _ in range(20):
+            res, jac = call("smooth_iter", z=z, p0=p0, k=k)
+            z -= np.linalg.solve(jac.reshape(3, 3), res)
+        assert np.abs(call("smooth_iter", z=z, p0=p0, k=k)[0]).max() < 1e-13
+        misses.append(np.abs(guess - z).max())
+    assert misses[-1] > 0
+    ratios = [a / b for a, b in zip(misses, misses[1:])]
+    assert all(3.5 < r < 4.5 for r in ratios), (misses, ratios)

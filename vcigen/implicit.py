@@ -35,7 +35,7 @@ import sympy as sp
 from .derive import DiscreteSystem
 from .explicit import hoist, shorter
 from .routines import Arg, Output, Routine
-from .stage import reduced_smooth
+from .stage import predictor, reduced_smooth
 
 
 def _bind(routine: Routine, values: dict[str, sp.Matrix]) -> dict[sp.Symbol, sp.Expr]:
@@ -105,6 +105,8 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
         ("mass", leg.output("mass").expr.xreplace(at_leg)),
         *([("x", red.x)] if red is not None else []),
     ]
+    guess = predictor(red, h) if red is not None else None
+    outputs += [("guess", guess)] if guess is not None else []
     flat = [shorter(e) for _, o in outputs for e in o]  # expanded, terms that cancel in (q0, v) cancel
     # p0 stays an input of the iteration: the invariants are of (q0, tau, par) alone, and those of the
     # next step are the same expressions at q0 + tau v (computed with p1, from the same trig of q1)
@@ -118,17 +120,27 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
         i += len(o)
     k_next = Output("k_next", sp.Matrix(nxt) if nxt else sp.zeros(0, 1))
     back = []
+    if guess is not None:
+        back.append(
+            Routine(
+                "smooth_guess",
+                (p0, ks),
+                (outs.pop(),),
+                "A guess of z for the smooth step (46) with the stage eliminated: one Newton step from z = 0 "
+                "with the Jacobian at tau = 0 (vcigen.stage.predictor).",
+            )
+        )
     if red is not None:
-        back = [
+        back.insert(
+            0,
             Routine(
                 "smooth_back",
                 (Arg("z", zs), p0, ks),
-                (outs[-1],),
+                (outs.pop(),),
                 "(v, u) of the smooth step (46) at the internal point's mean velocity z, in closed form: "
                 "its momentum rows solved for v (vcigen.stage).",
-            )
-        ]
-        outs = outs[:-1]
+            ),
+        )
     it_in = Arg("z", zs) if red is not None else xs
     return [
         Routine(

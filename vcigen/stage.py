@@ -149,3 +149,18 @@ def reduced_phases(system: DiscreteSystem) -> list[tuple[str, Routine, Routine]]
             )
         )
     return out
+
+
+def predictor(red: Reduced, tau: sp.Symbol) -> sp.Matrix | None:
+    """A guess of the reduced smooth step's ``z``: one Newton step from ``z = 0`` with the Jacobian at
+    ``tau = 0`` (``(16/3) M``), i.e. ``z = M^-1 (p0/2 - (tau/8) grad V(q0))`` for ``T - V``; its error is
+    ``O(tau^2 Hess V z)`` (the O(h) of the step before's ``z`` as a guess), so the Newton needs one step
+    fewer. ``None`` if that Jacobian depends on ``z``."""
+    j0 = red.jac().xreplace({tau: 0}).applyfunc(sp.expand)
+    if j0.free_symbols & set(red.unknowns):
+        return None
+    g0 = -red.res.xreplace(dict.fromkeys(red.unknowns, sp.S.Zero))
+    n = j0.rows
+    if all(j0[i, k] == 0 for i in range(n) for k in range(n) if i != k):
+        return sp.Matrix([g0[i] / j0[i, i] for i in range(n)])
+    return j0.LUsolve(g0)

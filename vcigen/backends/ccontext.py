@@ -345,6 +345,7 @@ def render_context(
         },
         "stage_offset": c_number(float(system.rule.stage_offset)) if structure.stage_reduced else "0.0",
         "reduced": [name for name, _, _ in reduced],
+        "stage_guess": any(r.name == "smooth_guess" for r in implicit),  # vcigen.stage.predictor
         # the sizes <model>_solve_sized unrolls: the stage, (v, u) and the phases with u; their reductions
         "sized": sorted(
             {system.stages, n + system.stages, n + system.stages + 1, n + system.stages + 2}
