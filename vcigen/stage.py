@@ -33,7 +33,6 @@ import sympy as sp
 
 from .calculus import jacobian
 from .routines import Arg, Output, Routine
-from .tangents import is_tangent
 
 if TYPE_CHECKING:
     from .derive import DiscreteSystem
@@ -119,16 +118,24 @@ def reduced_phases(system: DiscreteSystem) -> list[tuple[str, Routine, Routine]]
     if not system.structure.stage_reduced:
         return []
     n, ns, offset = system.n, system.stages, system.rule.stage_offset
+    # the phases whose rows are (stationarity, the momentum rows p- - ..., their own) over unknowns
+    # (v, their own, u) (vcigen.derive); others (rows of sustained contact, if a rule with internal points
+    # gets them) keep the general Newton
+    known = {"smooth", "jump"} | {
+        f"{p}_{c}" for p in ("contact_time", "jump_contact") for c in system.contact_names
+    }
     out = []
     for name, r in system.routines.items():
-        if r.inputs[0].name != "x" or name == "stage" or is_tangent(name):
+        if name not in known:
             continue
         xs = r.inputs[0].symbols
         nx = len(xs) - ns
         res = sp.ImmutableMatrix(r.output("res").expr)
         red = _reduced(res, xs[:n], xs[n:nx], xs[nx:], offset)
-        if red is None:  # cannot happen when the smooth step reduces (the same momentum rows), but be safe
-            return []
+        if (
+            red is None
+        ):  # a force's share nonlinear in v where (46) is not: this phase keeps the general Newton
+            continue
         args = r.inputs[1:]
         out.append(
             (
