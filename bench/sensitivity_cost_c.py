@@ -23,7 +23,10 @@ Scenes:
   ``slide`` (a ball sliding on a floor, the held glide, h = 0.001, t_end = 20), ``box_face`` (a box sliding
   on its long face: two nonlinear rows, h = 0.002, t_end = 20), ``bowl`` (inside a circle: the held Newton
   iterates, h = 0.001, t_end = 20), ``drag`` (drag and a push: no held grid step, the chain, h = 0.001,
-  t_end = 5; ``tests/test_sensitivity.py``).
+  t_end = 5; ``tests/test_sensitivity.py``);
+* ``dome``: sliding off the dome ``sqrt(x^2 + y^2) >= 1`` from the top, v0 = (0.1, 0), h = 0.005, t_end = 1.6
+  (``tests/test_sensitivity.py``'s lift-off scene): held steps, the step with the lift-off (its tangent
+  ``sens_liftoff``), then free flight.
 
 Writes ``bench/results/sensitivity_cost_c.csv``.
 """
@@ -53,6 +56,7 @@ SCENES = {
     "box_face": (lambda: _held("_box"), [0.0, 0.5, 0.0], [1.0, 0.0, 0.0], 0.002, 20.0),
     "bowl": (lambda: _held("_bowl"), [0.6, -0.8], [0.0, 0.0], 0.001, 20.0),
     "drag": (lambda: _held("_dragged"), [0.0, 0.0], [1.0, 0.0], 0.001, 5.0),
+    "dome": (lambda: _held("_lift_dome"), [0.0, 1.0], [0.1, 0.0], 0.005, 1.6),
 }
 
 

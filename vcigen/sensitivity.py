@@ -130,27 +130,6 @@ class Tangents:
             f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
         return f
 
-    def force_jac(self) -> _Flat:
-        """``(q, u, act, par) -> d lambda / d(q, u, par)`` (``r x (2n + npar)``): the contact forces of
-        ``SustainedSteps._forces`` (frictionless rows ``act`` held: ``G M^-1 (rhs + G^T lambda) + curv = 0``)
-        differentiated by CasADi; rows off ``act`` are 0."""
-        f = self._fns.get("force_jac")
-        if f is None:
-            names = ("rows", "dynamics", "legendre")
-            rows, dyn, leg = (routine_to_function(self.system.routines[k]) for k in names)
-            n, npar, nr = self.n, self.npar, rows.size1_out(0)
-            q, u, par, act = ca.SX.sym("q", n), ca.SX.sym("u", n), ca.SX.sym("par", npar), ca.SX.sym("a", nr)
-            _, grad, curv = rows(q, u, par)
-            rhs = dyn(q, u, par)[0]
-            mass = leg(q, u, par)[1]
-            ga = ca.mtimes(ca.diag(act), grad)
-            w = ca.mtimes(ga, ca.solve(mass, ga.T)) + ca.diag(1 - act)
-            lam = ca.solve(w, -(ca.mtimes(ga, ca.solve(mass, rhs)) + act * curv))
-            jac = ca.jacobian(lam, ca.vertcat(q, u, par))
-            fn = ca.Function("force_jac", [q, u, act, par], [jac])  # par last, as the kernels' may be longer
-            f = self._fns["force_jac"] = _Flat([fn], [(nr, 2 * n + npar)])
-        return f
-
 
 def _guarded(hook):
     """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run."""
@@ -479,8 +458,7 @@ class Tracker:
         dpar_end = dpar.copy()
         if self.timed:
             dpar_end[-1] = dpar[-1] + dtau[0]
-        fj = self.tg.force_jac()(q1, u1, np.asarray(act, dtype=float), self.par(t_l))[0][r]
-        dg = fj @ np.vstack([dq1, du1, dpar_end])  # (K + 1,)
+        dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
         if dg[K] == 0.0:
             self.lose("a singular Jacobian in the tangent of liftoff")
             return
@@ -498,6 +476,25 @@ class Tracker:
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l)
         self.next = np.vstack([dq_end, dp_end])
+
+    def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:
+        """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the
+        frictionless rows ``act`` held), ``dd`` the tangent of ``(q1, u1, par)`` (any number of columns): the
+        force law ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -G^T], [G, 0]]`` on the active rows, by the
+        implicit-function theorem with its derived partials ``d_forces`` (C: ``sens_liftoff``)."""
+        n, tg = self.n, self.tg
+        rows = np.flatnonzero(act)
+        _, grad, curv = tg.get("rows")(q1, u1, par)
+        rhs = tg.get("dynamics")(q1, u1, par)[0][:, 0]
+        mass = tg.get("legendre")(q1, u1, par)[1]
+        g = grad[rows]
+        jac = np.block([[mass, -g.T], [g, np.zeros((rows.size, rows.size))]])
+        sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[rows, 0]]))
+        lam = np.zeros(grad.shape[0])
+        lam[rows] = sol[n:]
+        dres = tg.get("d_forces")(q1, u1, sol[:n], lam, par)[0]
+        dx = -np.linalg.solve(jac, dres[np.r_[np.arange(n), n + rows]] @ dd)
+        return dx[n + int(np.flatnonzero(rows == r)[0])]
 
     # -- the result ----------------------------------------------------------------
     def attach(self, res, steps: int) -> None:
