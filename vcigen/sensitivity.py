@@ -52,7 +52,8 @@ class _Flat:
         sym = ca.MX if first.is_a("MXFunction") else ca.SX
         ins = [sym.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
         outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
-        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.vertcat(*outs)])
+        # dense: the buffer receives the nonzeros only, so a structural zero would shift every entry after it
+        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.densify(ca.vertcat(*outs))])
         self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
         self._buf, self._trigger = self.f.buffer()
         self._buf.set_arg(0, memoryview(self.arg))
