@@ -432,7 +432,7 @@ class Tracker:
         return dpm @ d, dpp @ d, de @ d
 
     @_guarded
-    def liftoff(self, sub, r: int, s: float, tau: float, free) -> None:
+    def liftoff(self, sub, r: int, s: float, tau: float, free, entry: bool = False) -> None:
         """A held grid step whose row ``r`` lifts off at fraction ``s`` (MATH.md *Sustained contact*), then a
         free rest (46) to the grid time: ``S_k+1`` for this mode sequence.
 
@@ -441,19 +441,24 @@ class Tracker:
         root of ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the
         implicit-function theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's
         tangent (one extra column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step (46) over
-        ``tau - tau_s`` from the lift-off point, its start time and duration chained.
+        ``tau - tau_s`` from the lift-off point, its start time and duration chained. ``entry``: the rest of a
+        step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the step
+        (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
         """
         if not self.active:
             return
         n, K = self.n, self.K
         q, p, v, lam, lam1, u1, act = sub
-        t = self.t
+        if entry:
+            dq0, dp0, dtau0, dt0, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
+        else:
+            dq0, dp0, dtau0, dt0, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
         tau_s = s * tau
-        dq = np.hstack([self.cur[:n], np.zeros((n, 1))])
-        dp = np.hstack([self.cur[n:], np.zeros((n, 1))])
+        dq = np.hstack([dq0, np.zeros((n, 1))])
+        dp = np.hstack([dp0, np.zeros((n, 1))])
         dtau = np.zeros((1, K + 1))
         dtau[0, K] = 1.0  # the extra column: d/d tau_s
-        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, None, t)
+        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, dt0, t)
         q1 = q + tau_s * v
         t_l = t + tau_s
         dpar_end = dpar.copy()
@@ -466,13 +471,12 @@ class Tracker:
         dtau_s = (-dg[:K] / dg[K])[None, :]
         dq_l = dq1[:, :K] + np.outer(dq1[:, K], dtau_s)
         du_l = du1[:, :K] + np.outer(du1[:, K], dtau_s)
-        dpar_l = self.dpar(None)
         dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), self.par(t))
-        dp_l = dmom @ np.vstack([dq_l, du_l, dpar_l])
+        dp_l = dmom @ np.vstack([dq_l, du_l, dpar[:, :K]])
         ql, pl, w = free
         tau_r = tau - tau_s
-        dt_l = dtau_s[0]
-        dtau_r = -dtau_s
+        dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
+        dtau_r = dtau0 - dtau_s
         dw = self._ift("smooth", w, (ql, pl, [tau_r]), np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)]), t_l)
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l)
