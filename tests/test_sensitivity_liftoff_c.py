@@ -88,13 +88,14 @@ def test_liftoff_under_a_force_of_time(backend: str) -> None:
     form ``d/dA`` and ``d/dg`` of ``A (T - t_l)^3 / 6``, ``t_l = g / A`` (to the method's O(h^2))."""
     sim = vcigen.build(_lifted(), backend=backend)
     res, per = ts.held_finite_differences(sim, "lifted", scenes=LIFTED)
-    (t_l, _), = res.liftoffs
+    ((t_l, _),) = res.liftoffs
     assert abs(t_l - G / A) <= 1e-12 and res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
     errs = {label: ts.relative_error(exact, fd) for label, (exact, fd) in per.items()}
-    print(f"lifted ({backend}): lift-off at {t_l:.12f}; " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    per_path = ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
+    print(f"lifted ({backend}): lift-off at {t_l:.12f}; {per_path}")
     assert max(errs.values()) <= 1e-6, errs
     tail = T_END - G / A
-    exact = {"g": -tail**2 / 2, "A": tail**3 / 6 + G * tail**2 / (2 * A)}  # dy(T)/dg, dy(T)/dA
+    exact = {"g": -(tail**2) / 2, "A": tail**3 / 6 + G * tail**2 / (2 * A)}  # dy(T)/dg, dy(T)/dA
     names = res.sensitivity_names
     for p, want in exact.items():
         got = res.sensitivity[-1, 1, names.index(p)]
@@ -130,11 +131,12 @@ DROP = {
 @pytest.mark.parametrize("backend", ["casadi", C])
 def test_liftoff_in_the_step_of_a_plastic_impact(backend: str) -> None:
     """The plastic impact (``Tracker.plastic``), then the constrained rest of its step from the impact point
-    cut by the lift-off (``Tracker.liftoff`` with ``entry``: the sub-step's data have the tangents of the impact
-    point, its time and the rest of the step), then the free rest: covered, against central differences."""
+    cut by the lift-off (``Tracker.liftoff`` with ``entry``: the sub-step's data have the tangents of the
+    impact point, its time and the rest of the step), then the free rest: covered, against central
+    differences."""
     sim = vcigen.build(_lifted(plastic=True), backend=backend)
     res, per = ts.held_finite_differences(sim, "drop", scenes=DROP)
-    (t_l, _), = res.liftoffs
+    ((t_l, _),) = res.liftoffs
     (hit,) = res.impacts
     assert hit.kind == "plastic" and hit.step == int((t_l - res.t[0]) / (res.t[1] - res.t[0]))
     assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()

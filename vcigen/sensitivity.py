@@ -441,9 +441,9 @@ class Tracker:
         root of ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the
         implicit-function theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's
         tangent (one extra column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step (46) over
-        ``tau - tau_s`` from the lift-off point, its start time and duration chained. ``entry``: the rest of a
-        step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the step
-        (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
+        ``tau - tau_s`` from the lift-off point, its start time and duration chained. ``entry``: the rest of
+        a step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the
+        step (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
         """
         if not self.active:
             return
