@@ -17,8 +17,9 @@ in ``(x, d)``, their partials chained. Phases:
 * a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
   ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
   found them (``vcigen.held`` or ``SustainedSteps._chain``);
-* a lift-off at a located time in a held grid step, then a free rest (46): the constrained sub-step to the
-  root of the released row's force, that root's time by the implicit-function theorem (``Tracker.liftoff``);
+* a lift-off at a located time in a held grid step (or in the rest of a plastic impact's step), then a free
+  rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
+  ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
