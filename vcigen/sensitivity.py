@@ -17,8 +17,9 @@ in ``(x, d)``, their partials chained. Phases:
 * a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
   ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
   found them (``vcigen.held`` or ``SustainedSteps._chain``);
-* a lift-off at a located time in a held grid step, then a free rest (46): the constrained sub-step to the
-  root of the released row's force, that root's time by the implicit-function theorem (``Tracker.liftoff``);
+* a lift-off at a located time in a held grid step (or in the rest of a plastic impact's step), then a free
+  rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
+  ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
@@ -52,7 +53,8 @@ class _Flat:
         sym = ca.MX if first.is_a("MXFunction") else ca.SX
         ins = [sym.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
         outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
-        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.vertcat(*outs)])
+        # dense: the buffer receives the nonzeros only, so a structural zero would shift every entry after it
+        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.densify(ca.vertcat(*outs))])
         self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
         self._buf, self._trigger = self.f.buffer()
         self._buf.set_arg(0, memoryview(self.arg))
@@ -128,27 +130,6 @@ class Tangents:
             dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, sym.zeros(1, K), dpar))
             fn = ca.Function("smooth_map", [v, q, p, h, par, s, dpar], [ca.vertcat(dq + h * dv, dp1)])
             f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
-        return f
-
-    def force_jac(self) -> _Flat:
-        """``(q, u, act, par) -> d lambda / d(q, u, par)`` (``r x (2n + npar)``): the contact forces of
-        ``SustainedSteps._forces`` (frictionless rows ``act`` held: ``G M^-1 (rhs + G^T lambda) + curv = 0``)
-        differentiated by CasADi; rows off ``act`` are 0."""
-        f = self._fns.get("force_jac")
-        if f is None:
-            names = ("rows", "dynamics", "legendre")
-            rows, dyn, leg = (routine_to_function(self.system.routines[k]) for k in names)
-            n, npar, nr = self.n, self.npar, rows.size1_out(0)
-            q, u, par, act = ca.SX.sym("q", n), ca.SX.sym("u", n), ca.SX.sym("par", npar), ca.SX.sym("a", nr)
-            _, grad, curv = rows(q, u, par)
-            rhs = dyn(q, u, par)[0]
-            mass = leg(q, u, par)[1]
-            ga = ca.mtimes(ca.diag(act), grad)
-            w = ca.mtimes(ga, ca.solve(mass, ga.T)) + ca.diag(1 - act)
-            lam = ca.solve(w, -(ca.mtimes(ga, ca.solve(mass, rhs)) + act * curv))
-            jac = ca.jacobian(lam, ca.vertcat(q, u, par))
-            fn = ca.Function("force_jac", [q, u, act, par], [jac])  # par last, as the kernels' may be longer
-            f = self._fns["force_jac"] = _Flat([fn], [(nr, 2 * n + npar)])
         return f
 
 
@@ -452,7 +433,7 @@ class Tracker:
         return dpm @ d, dpp @ d, de @ d
 
     @_guarded
-    def liftoff(self, sub, r: int, s: float, tau: float, free) -> None:
+    def liftoff(self, sub, r: int, s: float, tau: float, free, entry: bool = False) -> None:
         """A held grid step whose row ``r`` lifts off at fraction ``s`` (MATH.md *Sustained contact*), then a
         free rest (46) to the grid time: ``S_k+1`` for this mode sequence.
 
@@ -461,43 +442,65 @@ class Tracker:
         root of ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the
         implicit-function theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's
         tangent (one extra column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step (46) over
-        ``tau - tau_s`` from the lift-off point, its start time and duration chained.
+        ``tau - tau_s`` from the lift-off point, its start time and duration chained. ``entry``: the rest of
+        a step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the
+        step (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
         """
         if not self.active:
             return
         n, K = self.n, self.K
         q, p, v, lam, lam1, u1, act = sub
-        t = self.t
+        if entry:
+            dq0, dp0, dtau0, dt0, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
+        else:
+            dq0, dp0, dtau0, dt0, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
         tau_s = s * tau
-        dq = np.hstack([self.cur[:n], np.zeros((n, 1))])
-        dp = np.hstack([self.cur[n:], np.zeros((n, 1))])
+        dq = np.hstack([dq0, np.zeros((n, 1))])
+        dp = np.hstack([dp0, np.zeros((n, 1))])
         dtau = np.zeros((1, K + 1))
         dtau[0, K] = 1.0  # the extra column: d/d tau_s
-        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, None, t)
+        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, dt0, t)
         q1 = q + tau_s * v
         t_l = t + tau_s
         dpar_end = dpar.copy()
         if self.timed:
             dpar_end[-1] = dpar[-1] + dtau[0]
-        fj = self.tg.force_jac()(q1, u1, np.asarray(act, dtype=float), self.par(t_l))[0][r]
-        dg = fj @ np.vstack([dq1, du1, dpar_end])  # (K + 1,)
+        dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
         if dg[K] == 0.0:
             self.lose("a singular Jacobian in the tangent of liftoff")
             return
         dtau_s = (-dg[:K] / dg[K])[None, :]
         dq_l = dq1[:, :K] + np.outer(dq1[:, K], dtau_s)
         du_l = du1[:, :K] + np.outer(du1[:, K], dtau_s)
-        dpar_l = self.dpar(None)
         dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), self.par(t))
-        dp_l = dmom @ np.vstack([dq_l, du_l, dpar_l])
+        dp_l = dmom @ np.vstack([dq_l, du_l, dpar[:, :K]])
         ql, pl, w = free
         tau_r = tau - tau_s
-        dt_l = dtau_s[0]
-        dtau_r = -dtau_s
+        dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
+        dtau_r = dtau0 - dtau_s
         dw = self._ift("smooth", w, (ql, pl, [tau_r]), np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)]), t_l)
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l)
         self.next = np.vstack([dq_end, dp_end])
+
+    def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:
+        """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the
+        frictionless rows ``act`` held), ``dd`` the tangent of ``(q1, u1, par)`` (any number of columns): the
+        force law ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -G^T], [G, 0]]`` on the active rows, by the
+        implicit-function theorem with its derived partials ``d_forces`` (C: ``sens_liftoff``)."""
+        n, tg = self.n, self.tg
+        rows = np.flatnonzero(act)
+        _, grad, curv = tg.get("rows")(q1, u1, par)
+        rhs = tg.get("dynamics")(q1, u1, par)[0][:, 0]
+        mass = tg.get("legendre")(q1, u1, par)[1]
+        g = grad[rows]
+        jac = np.block([[mass, -g.T], [g, np.zeros((rows.size, rows.size))]])
+        sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[rows, 0]]))
+        lam = np.zeros(grad.shape[0])
+        lam[rows] = sol[n:]
+        dres = tg.get("d_forces")(q1, u1, sol[:n], lam, par)[0]
+        dx = -np.linalg.solve(jac, dres[np.r_[np.arange(n), n + rows]] @ dd)
+        return dx[n + int(np.flatnonzero(rows == r)[0])]
 
     # -- the result ----------------------------------------------------------------
     def attach(self, res, steps: int) -> None:

@@ -264,9 +264,9 @@ class Stepper(SustainedSteps, HeldSteps):
             self._tan, self._record_held = tan, False
         if tan is not None and self._held_seg is not None:
             tan.held(q, p, tau, *self._held_seg, entry)
-        elif tan is not None and not entry and self._lift_seg is not None and self._free_seg is not None:
+        elif tan is not None and self._lift_seg is not None and self._free_seg is not None:
             sub, r, s, tau_s = self._lift_seg
-            tan.liftoff(sub, r, s, tau_s, self._free_seg)
+            tan.liftoff(sub, r, s, tau_s, self._free_seg, entry)
         elif tan is not None and not entry:
             tan.lose("held step (sustained contact)")
         elif tan is not None and tan.active:

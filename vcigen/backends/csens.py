@@ -36,6 +36,7 @@ SYMBOLIC_MAP = 3  # coordinates at most for the smooth step's tangent as one str
 SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
     ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
+    ("SINGULAR_LIFTOFF", "a singular Jacobian in the tangent of liftoff"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
     ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
