@@ -294,6 +294,38 @@ def test_held_step_c_loop_casadi_and_python(name: str) -> None:
     np.testing.assert_allclose([lo[0] for lo in ca.liftoffs], [lo[0] for lo in c.liftoffs], rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize("name", ["bowl", "dome", "pendulum"])
+def test_closed_held_step_in_c_is_the_held_newton(name: str) -> None:
+    """A row held alone with a closed form (vcigen.held.closed_forms: the bowl's and the dome's circles, the
+    rod): the C loop takes the closed step (one square root, no Newton), CasADi's stepper with the closed form
+    off the held Newton. The same trajectory to the Newton's tolerance, the same events, forces and lift-off
+    times."""
+    sim_c, sim_ca = held_sim(name, "c"), held_sim(name, "casadi")
+    assert any(sim_c.system.structure.held_closed)
+    _, q0, v0, h, t_end = HELD[name]
+    c = sim_c.simulate(q0, v0, h, t_end=t_end)
+    kern = sim_ca.kernels.bind(sim_ca.model.resolve_params(None))
+    kept = kern.held_closed
+    kern.held_closed = [False] * len(kept)
+    try:
+        newton = Stepper(kern, sim_ca.tol).simulate(q0, v0, h, t_end=t_end)
+    finally:
+        kern.held_closed = kept
+    np.testing.assert_allclose(c.q, newton.q, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(c.p, newton.p, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(c.energy, newton.energy, rtol=0, atol=1e-10)
+    np.testing.assert_array_equal(c.active, newton.active)
+    np.testing.assert_allclose(c.contact_force, newton.contact_force, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(c.constraint_force, newton.constraint_force, rtol=0, atol=1e-8)
+    assert [(i.contact, i.kind, i.step) for i in c.impacts] == [
+        (i.contact, i.kind, i.step) for i in newton.impacts
+    ]
+    assert [lo[1] for lo in c.liftoffs] == [lo[1] for lo in newton.liftoffs]
+    np.testing.assert_allclose(
+        [lo[0] for lo in c.liftoffs], [lo[0] for lo in newton.liftoffs], rtol=0, atol=1e-9
+    )
+
+
 def test_held_scenes_exercise_what_they_are_for() -> None:
     """The held scenes hold rows throughout or lift off, so that the agreement above is not vacuous."""
     runs = {name: _stepper_run(name, "c", True)[0] for name in HELD}

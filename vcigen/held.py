@@ -174,9 +174,12 @@ def closed_routines(
 
     * ``held_root(q0, p0, k) -> v, q1, lam, slope, disc``: ``D = B^2 - 4 a0 C``; on the state's chain the
       small root ``Lam = (sqrt(D) - B) / (2 a0)`` (a product: ``1/(2 a0)`` is a run constant), giving
-      ``q1 = a + Lam b`` and ``v = v0 + Lam J^-1 grad F(q0)``; the multiplier booked is the same root without
-      the cancellation, ``lam = gain (-2C / (B + sqrt(D)))`` (off the chain); ``slope = B`` (> 0 for the small
-      root) and ``disc = D`` (>= 0) say whether it holds;
+      ``q1 = a + Lam b`` and ``v = v0 + Lam J^-1 grad F(q0)``, and ``lam = gain Lam`` (the multiplier of
+      ``psi``: ``grad F = gain grad psi``); ``slope = B`` (> 0 for the small root) and ``disc = D`` (>= 0) say
+      whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the rounding of ``q1`` (``eps |q1| / h`` in
+      ``v``, as for the Newton); the form's cancellation stays within that, and the projection's ``Lam'``
+      takes it back, so the impulse ``Lam + Lam'`` the step books is exact to round-off only if ``lam`` is the
+      root that moved ``v`` (not ``-2C / (B + sqrt(D))``, which differs by that rounding);
     * ``held_root_end(q1, p_plus, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)`` dividing by
       ``w0``, ``lam1 = gain Lam'``; the force of ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 .
       Hess F . u1) / w0`` (equal there: ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) /
@@ -205,7 +208,7 @@ def closed_routines(
         for i in range(n):
             v[r, i] = v0[i] + lam_c * jinv[i] * g0[i]
             q1[r, i] = a[i] + lam_c * b[i]
-        lam[r] = gain * (-2 * big_c / (big_b + root))
+        lam[r] = gain * lam_c
         slope[r], disc[r] = big_b, d
         l1 = -sum((grad[i] * minv[i] * pp.symbols[i] for i in range(n)), sp.S.Zero) / w0
         for i in range(n):
