@@ -16,6 +16,11 @@ multipliers of the active rows ``A``:
   ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): when the previous
   multipliers do not solve it, its second evaluation is at two Newton steps on that quadratic past them
   (``line_start``: no evaluation of the rows, so that in C it runs beside the first), where it mostly ends.
+  Where, besides, that quadratic's leading coefficient and the projection's ``W`` are constants on the row
+  (:func:`closed_forms`: a circle's or a sphere's row with an isotropic mass, a rod's), the step held on it
+  alone is closed-form (:func:`closed_step`, ``held_root``, ``held_root_end``): the quadratic's small root
+  by one square root, the projection onto ``grad F(q1)`` dividing by a run constant; no Newton, no
+  evaluation of the row's square root on the state's chain.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
@@ -172,14 +177,15 @@ def closed_routines(
 ) -> list[tuple]:
     """The pieces of the closed held step (:func:`closed_forms`), per row (zeros for rows without one):
 
-    * ``held_root(q0, p0, k) -> v, q1, lam, slope, disc``: ``D = B^2 - 4 a0 C``; on the state's chain the
-      small root ``Lam = (sqrt(D) - B) / (2 a0)`` (a product: ``1/(2 a0)`` is a run constant), giving
+    * ``held_root(q0, p0, k) -> v, q1, lam, slope, disc``: in ``nu = a0 Lam``, ``nu^2 + B nu + a0 C = 0``;
+      ``D = (B/2)^2 - a0 C``, the small root ``nu = sqrt(D) - B/2`` (``1/a0`` is a run constant), giving
       ``q1 = a + Lam b`` and ``v = v0 + Lam J^-1 grad F(q0)``, and ``lam = gain Lam`` (the multiplier of
-      ``psi``: ``grad F = gain grad psi``); ``slope = B`` (> 0 for the small root) and ``disc = D`` (>= 0) say
-      whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the rounding of ``q1`` (``eps |q1| / h`` in
-      ``v``, as for the Newton); the form's cancellation stays within that, and the projection's ``Lam'``
-      takes it back, so the impulse ``Lam + Lam'`` the step books is exact to round-off only if ``lam`` is the
-      root that moved ``v`` (not ``-2C / (B + sqrt(D))``, which differs by that rounding);
+      ``psi``: ``grad F = gain grad psi``); ``slope = B/2`` (> 0 for the small root) and ``disc = D``
+      (>= 0) say whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the rounding of ``q1``
+      (``eps |q1| / h`` in ``v``, as for the Newton); the form's cancellation stays within that, and the
+      projection's ``Lam'`` takes it back, so the impulse ``Lam + Lam'`` the step books is exact to
+      round-off only if ``lam`` is the root that moved ``v`` (not ``-2C / (B + sqrt(D))``, which differs
+      by that rounding);
     * ``held_root_end(q1, p_plus, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)`` dividing by
       ``w0``, ``lam1 = gain Lam'``; the force of ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 .
       Hess F . u1) / w0`` (equal there: ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) /
@@ -200,16 +206,15 @@ def closed_routines(
         a = [q0.symbols[i] + h * v0[i] for i in range(n)]
         b = [h * jinv[i] * g0[i] for i in range(n)]
         at_a = dict(zip(q.symbols, a))
-        big_b = sum((g.xreplace(at_a) * b[i] for i, g in enumerate(grad)), sp.S.Zero)
-        big_c = f.xreplace(at_a)
-        d = big_b**2 - 4 * a0 * big_c
-        root = sp.sqrt(d)
-        lam_c = (root - big_b) / (2 * a0)
+        # in nu = a0 Lam: nu^2 + 2 beta nu + a0 C = 0, beta = B / 2; its small root nu = sqrt(D) - beta
+        beta = sum((g.xreplace(at_a) * (b[i] / 2) for i, g in enumerate(grad)), sp.S.Zero)
+        d = beta**2 - a0 * f.xreplace(at_a)
+        nu = sp.sqrt(d) - beta
         for i in range(n):
-            v[r, i] = v0[i] + lam_c * jinv[i] * g0[i]
-            q1[r, i] = a[i] + lam_c * b[i]
-        lam[r] = gain * lam_c
-        slope[r], disc[r] = big_b, d
+            v[r, i] = v0[i] + nu * (jinv[i] * g0[i] / a0)
+            q1[r, i] = a[i] + nu * (b[i] / a0)
+        lam[r] = gain / a0 * nu
+        slope[r], disc[r] = beta, d
         l1 = -sum((grad[i] * minv[i] * pp.symbols[i] for i in range(n)), sp.S.Zero) / w0
         for i in range(n):
             p1[r, i] = pp.symbols[i] + grad[i] * l1
@@ -245,7 +250,9 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``;
     * if some row has a :func:`line_form` ``F``, ``held_line(a, b, k) -> coef``: per row ``(A, B, C)`` with
       ``F(a + Lam b) = A Lam^2 + B Lam + C`` (exact: ``A = b . Hess F . b / 2``, ``B = grad F(a) . b``,
-      ``C = F(a)``; zeros for the other rows).
+      ``C = F(a)``; zeros for the other rows);
+    * if some row has a :func:`closed_forms` form, ``held_root`` and ``held_root_end``
+      (:func:`closed_routines`).
     """
     r = system.routines
     smooth = r["smooth"]
