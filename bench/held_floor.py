@@ -32,6 +32,7 @@ SRC = r"""
 #include <math.h>
 #define G 9.81
 static double Q[2 * %(steps)d], P[2 * %(steps)d], E[%(steps)d], F[%(steps)d];
+#define STORE Q[2 * s] = x; Q[2 * s + 1] = y; P[2 * s] = px; P[2 * s + 1] = py; E[s] = e; sum += e;
 
 long vc_free(double h, long n)
 {
@@ -48,12 +49,7 @@ long vc_free(double h, long n)
         y = ny;
         py = npy;
         d = d1;
-        Q[2 * s] = x;
-        Q[2 * s + 1] = y;
-        P[2 * s] = px;
-        P[2 * s + 1] = py;
-        E[s] = e;
-        sum += e;
+        STORE
     }
     return s + (sum != sum);
 }
@@ -109,13 +105,8 @@ long vc_step(double h, long n)
         y = ny;
         px = npx;
         py = npy;
-        Q[2 * s] = x;
-        Q[2 * s + 1] = y;
-        P[2 * s] = px;
-        P[2 * s + 1] = py;
-        E[s] = e;
+        STORE
         F[s] = (-2.0 * nu / a0 - 2.0 * l1) / h;
-        sum += e;
     }
     return s + (sum != sum);
 }
