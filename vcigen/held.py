@@ -175,65 +175,92 @@ def closed_routines(
     minv: sp.Matrix,
     h: sp.Symbol,
 ) -> list[tuple]:
-    """The pieces of the closed held step (:func:`closed_forms`), per row (zeros for rows without one):
+    """The pieces of the closed held step (:func:`closed_forms`), per row (zeros for rows without one), with
+    ``b = h J^-1 grad F(q0)``, ``a = q0 + h v0`` and ``F(a + Lam b) = a0 Lam^2 + B Lam + C``:
 
-    * ``held_root(q0, p0, k) -> v, q1, lam, slope, disc``: in ``nu = a0 Lam``, ``nu^2 + B nu + a0 C = 0``;
-      ``D = (B/2)^2 - a0 C``, the small root ``nu = sqrt(D) - B/2`` (``1/a0`` is a run constant), giving
-      ``q1 = a + Lam b`` and ``v = v0 + Lam J^-1 grad F(q0)``, and ``lam = gain Lam`` (the multiplier of
-      ``psi``: ``grad F = gain grad psi``); ``slope = B/2`` (> 0 for the small root) and ``disc = D``
-      (>= 0) say whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the rounding of ``q1``
-      (``eps |q1| / h`` in ``v``, as for the Newton); the form's cancellation stays within that, and the
-      projection's ``Lam'`` takes it back, so the impulse ``Lam + Lam'`` the step books is exact to
-      round-off only if ``lam`` is the root that moved ``v`` (not ``-2C / (B + sqrt(D))``, which differs
-      by that rounding);
-    * ``held_root_end(q1, p_plus, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)`` dividing by
-      ``w0``, ``lam1 = gain Lam'``; the force of ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 .
-      Hess F . u1) / w0`` (equal there: ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) /
-      gain`` (``psi(q1)`` to first order).
+    * ``held_root_dir(q, k) -> m, e, f, s, y, w``: what the step needs of ``grad F`` at ``q`` (at the step's
+      start: ``m = Hess F b``, ``s = grad F(0) . b``, so that ``B = m . a + s``; ``e = b / (2 a0)``,
+      ``f = J^-1 grad F / (2 a0)``; at its end: ``y = M^-1 grad F``, ``w = -grad F / w0``). Its own routine,
+      so that these per-coordinate factors are products off the state's chain and the chain multiplies
+      each by one value (one routine would share a common factor and add a product to the chain);
+    * ``held_root(q0, p0, m, e, f, s, k) -> v, q1, lam, slope, disc``: in ``nu = 2 a0 Lam``,
+      ``nu^2 + 2 B nu + 4 a0 C = 0``; ``D = B^2 - 4 a0 C``, the small root ``nu = sqrt(D) - B`` (one
+      ``sqrt``, no division: ``a0`` is a run constant), ``q1 = a + nu e``, ``v = v0 + nu f``, ``lam = gain
+      nu / (2 a0)`` (the multiplier of ``psi``: ``grad F = gain grad psi``); ``slope = B`` (> 0 for the
+      small root) and ``disc = D`` (>= 0) say whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the
+      rounding of ``q1`` (``eps |q1| / h`` in ``v``, as for the Newton); the form's cancellation stays
+      within that, and the projection's ``Lam'`` takes it back, so the impulse ``Lam + Lam'`` the step
+      books is exact to round-off only if ``lam`` is the root that moved ``v`` (not ``-2C / (B +
+      sqrt(D))``, which differs by that rounding);
+    * ``held_root_end(q1, p_plus, y, w, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)``,
+      ``p1 = p+ + w (y . p+)`` (dividing by ``w0``), ``lam1 = gain Lam'``; the force of
+      ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 . Hess F . u1) / w0`` (equal there:
+      ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) / gain`` (``psi(q1)`` to first
+      order).
     """
     n, nr = system.n, system.r
     forms = closed_forms(system)
-    pp = Arg("p_plus", tuple(sp.Dummy(f"pp{i}", real=True) for i in range(n)))
+
+    def arg(name: str, size: int) -> Arg:
+        return Arg(name, tuple(sp.Dummy(f"{name}{i}", real=True) for i in range(size)))
+
+    pp = arg("p_plus", n)
+    m_, e_, f_, s_ = arg("m", nr * n), arg("e", nr * n), arg("f", nr * n), arg("s", nr)
+    y_, w_ = arg("y", nr * n), arg("w", nr * n)
+    dirs = {name: sp.zeros(nr, n) for name in ("m", "e", "f", "y", "w")}
+    dirs["s"] = sp.zeros(nr, 1)
     v, q1, p1 = sp.zeros(nr, n), sp.zeros(nr, n), sp.zeros(nr, n)
     lam, slope, disc, lam1, force, res = (sp.zeros(nr, 1) for _ in range(6))
-    at_q0 = dict(zip(q.symbols, q0.symbols))
+    zero = dict.fromkeys(q.symbols, sp.S.Zero)
     for r, cf in enumerate(forms):
         if cf is None:
             continue
         f, gain, a0, w0 = cf
         grad = [f.diff(x) for x in q.symbols]
-        g0 = [g.xreplace(at_q0) for g in grad]
-        a = [q0.symbols[i] + h * v0[i] for i in range(n)]
-        b = [h * jinv[i] * g0[i] for i in range(n)]
-        at_a = dict(zip(q.symbols, a))
-        # in nu = a0 Lam: nu^2 + 2 beta nu + a0 C = 0, beta = B / 2; its small root nu = sqrt(D) - beta
-        beta = sum((g.xreplace(at_a) * (b[i] / 2) for i, g in enumerate(grad)), sp.S.Zero)
-        d = beta**2 - a0 * f.xreplace(at_a)
-        nu = sp.sqrt(d) - beta
-        for i in range(n):
-            v[r, i] = v0[i] + nu * (jinv[i] * g0[i] / a0)
-            q1[r, i] = a[i] + nu * (b[i] / a0)
-        lam[r] = gain / a0 * nu
-        slope[r], disc[r] = beta, d
-        l1 = -sum((grad[i] * minv[i] * pp.symbols[i] for i in range(n)), sp.S.Zero) / w0
-        for i in range(n):
-            p1[r, i] = pp.symbols[i] + grad[i] * l1
-        u1 = [minv[i] * p1[r, i] for i in range(n)]
         hf = sp.hessian(f, q.symbols)
+        b = [h * jinv[i] * grad[i] for i in range(n)]  # at the direction routine's q (q0 of the step)
+        for i in range(n):
+            dirs["m"][r, i] = sum((hf[i, j] * b[j] for j in range(n)), sp.S.Zero)  # grad F(a) . b = m . a + s
+            dirs["e"][r, i] = b[i] / (2 * a0)
+            dirs["f"][r, i] = jinv[i] * grad[i] / (2 * a0)
+            dirs["y"][r, i] = grad[i] * minv[i]  # at q1 of the step: the projection's
+            dirs["w"][r, i] = -grad[i] / w0
+        dirs["s"][r] = sum((g.xreplace(zero) * b[i] for i, g in enumerate(grad)), sp.S.Zero)
+        at = r * n
+        a = [q0.symbols[i] + h * v0[i] for i in range(n)]
+        big_b = sum((m_.symbols[at + i] * a[i] for i in range(n)), s_.symbols[r])
+        # in nu = 2 a0 Lam: nu^2 + 2 B nu + 4 a0 C = 0; its small root nu = sqrt(D) - B, D = B^2 - 4 a0 C
+        d = big_b**2 - 4 * a0 * f.xreplace(dict(zip(q.symbols, a)))
+        nu = sp.sqrt(d) - big_b
+        for i in range(n):
+            v[r, i] = v0[i] + nu * f_.symbols[at + i]
+            q1[r, i] = a[i] + nu * e_.symbols[at + i]
+        lam[r] = gain / (2 * a0) * nu
+        slope[r], disc[r] = big_b, d
+        dot = sum((y_.symbols[at + i] * pp.symbols[i] for i in range(n)), sp.S.Zero)
+        for i in range(n):
+            p1[r, i] = pp.symbols[i] + w_.symbols[at + i] * dot
+        u1 = [minv[i] * p1[r, i] for i in range(n)]
         curv = sum((u1[i] * hf[i, j] * u1[j] for i in range(n) for j in range(n) if hf[i, j] != 0), sp.S.Zero)
         force[r] = -gain * (sum((grad[i] * acc[i] for i in range(n)), sp.S.Zero) + curv) / w0
-        lam1[r] = gain * l1
+        lam1[r] = -gain / w0 * dot
         res[r] = f / gain
     return [
         (
+            "held_root_dir",
+            (q,),
+            [(name, dirs[name]) for name in ("m", "e", "f", "s", "y", "w")],
+            "Per closed row, what its held step needs of grad F at q (held.closed_routines).",
+        ),
+        (
             "held_root",
-            (q0, p0),
+            (q0, p0, m_, e_, f_, s_),
             [("v", v), ("q1", q1), ("lam", lam), ("slope", slope), ("disc", disc)],
             "The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D.",
         ),
         (
             "held_root_end",
-            (q, pp),
+            (q, pp, y_, w_),
             [("p1", p1), ("lam1", lam1), ("force", force), ("res", res)],
             "Its projection (p1, Lam'), force and residual F(q1)/gain.",
         ),
@@ -251,7 +278,7 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     * if some row has a :func:`line_form` ``F``, ``held_line(a, b, k) -> coef``: per row ``(A, B, C)`` with
       ``F(a + Lam b) = A Lam^2 + B Lam + C`` (exact: ``A = b . Hess F . b / 2``, ``B = grad F(a) . b``,
       ``C = F(a)``; zeros for the other rows);
-    * if some row has a :func:`closed_forms` form, ``held_root`` and ``held_root_end``
+    * if some row has a :func:`closed_forms` form, ``held_root_dir``, ``held_root`` and ``held_root_end``
       (:func:`closed_routines`).
     """
     r = system.routines
@@ -406,12 +433,14 @@ def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: floa
     segment, the projection, the force and the residual (``held_root_end``) and the tests of ``held_step``
     in the same order; ``None`` where the root does not hold (``B <= 0`` or ``D < 0``) or a test fails."""
     kc = k.held_consts(h)
-    v, q1, lam_r, slope, disc = k.held_root(q, p, kc)
+    m, e, f, s, _, _ = k.held_root_dir(q, kc)
+    v, q1, lam_r, slope, disc = k.held_root(q, p, m, e, f, s, kc)
     if not (slope[row] > 0.0 and disc[row] >= 0.0):
         return None
     v, q1 = v[row], q1[row]
     p_plus, energy = k.held_segment(q, v, kc)
-    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, kc)
+    _, _, _, _, y, w = k.held_root_dir(q1, kc)
+    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, kc)
     p1 = p1[row]
     if not abs(float(res[row])) <= residual * (1.0 + float(np.max(np.abs(p)))):
         return None
