@@ -258,6 +258,11 @@ def test_held_step_is_the_general_chain_to_solver_tolerance(name: str) -> None:
     slow, none = _stepper_run(name, "c", False)
     steps = len(fast.t) - 1
     assert none == 0 and taken >= steps // 2, (taken, steps)  # it is what takes the held steps
+    _same_to_newton_tolerance(fast, slow)
+
+
+def _same_to_newton_tolerance(fast: vcigen.Result, slow: vcigen.Result) -> None:
+    """The same trajectory to the Newton tolerance, the same events, lift-offs and forces."""
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(fast.p, slow.p, rtol=0, atol=1e-10)
     np.testing.assert_allclose(fast.energy, slow.energy, rtol=0, atol=1e-10)
@@ -292,6 +297,26 @@ def test_held_step_c_loop_casadi_and_python(name: str) -> None:
         (i.contact, i.kind, i.step) for i in c.impacts
     ]
     np.testing.assert_allclose([lo[0] for lo in ca.liftoffs], [lo[0] for lo in c.liftoffs], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["bowl", "dome", "pendulum"])
+def test_closed_held_step_in_c_is_the_held_newton(name: str) -> None:
+    """A row held alone with a closed form (vcigen.held.closed_forms: the bowl's and the dome's circles, the
+    rod): the C loop takes the closed step (one square root, no Newton), CasADi's stepper with the closed form
+    off the held Newton. The same trajectory to the Newton's tolerance, the same events, forces and lift-off
+    times."""
+    sim_c, sim_ca = held_sim(name, "c"), held_sim(name, "casadi")
+    assert any(sim_c.system.structure.held_closed)
+    _, q0, v0, h, t_end = HELD[name]
+    c = sim_c.simulate(q0, v0, h, t_end=t_end)
+    kern = sim_ca.kernels.bind(sim_ca.model.resolve_params(None))
+    kept = kern.held_closed
+    kern.held_closed = [False] * len(kept)
+    try:
+        newton = Stepper(kern, sim_ca.tol).simulate(q0, v0, h, t_end=t_end)
+    finally:
+        kern.held_closed = kept
+    _same_to_newton_tolerance(c, newton)
 
 
 def test_held_scenes_exercise_what_they_are_for() -> None:

@@ -108,6 +108,7 @@ class CasadiKernels(ParameterSlots):
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
         self.held_pattern = list(self.structure.held_pattern)
         self.held_lines = list(self.structure.held_lines)  # held_line's rows
+        self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held.closed_step)
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -379,6 +380,25 @@ class CasadiKernels(ParameterSlots):
     def held_line(self, a, b, kc):
         """Per row ``(A, B, C)`` of its ``held.line_form``: ``F(a + Lam b) = A Lam^2 + B Lam + C``."""
         return self._held_call("held_line", (3 * self.r,), a, b, kc)[0].reshape(self.r, 3)
+
+    def held_root_dir(self, q, kc):
+        """Per row ``(m, e, f, s, y, w)`` at ``q`` for its closed held step (``vcigen.held.closed_routines``),
+        flat (row-major, as ``held_root`` and ``held_root_end`` read them)."""
+        n, r = self.n, self.r
+        return self._held_call("held_root_dir", (r * n, r * n, r * n, r, r * n, r * n), q, kc)
+
+    def held_root(self, q0, p0, m, e, f, s, kc):
+        """Per row ``(v, q1, Lam, B, D)`` of its closed held step."""
+        n, r = self.n, self.r
+        sizes = (r * n, r * n, r, r, r)
+        v, q1, lam, slope, disc = self._held_call("held_root", sizes, q0, p0, m, e, f, s, kc)
+        return v.reshape(r, n), q1.reshape(r, n), lam, slope, disc
+
+    def held_root_end(self, q1, p_plus, y, w, kc):
+        """Per row ``(p1, Lam', force, res)`` of its closed held step's end."""
+        n, r = self.n, self.r
+        p1, lam1, force, res = self._held_call("held_root_end", (r * n, r, r, r), q1, p_plus, y, w, kc)
+        return p1.reshape(r, n), lam1, force, res
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

@@ -302,6 +302,9 @@ def render_context(
         # per row, 1 where held.line_form has its zero set as a quadratic's: one such row held starts its
         # Newton at the root of held_line (<model>_held_line_start); empty when no row has one
         "held_lines": [int(f) for f in structure.held_lines] if any(structure.held_lines) else [],
+        # per row, 1 where held alone its step is closed-form (held.closed_forms: <model>_held_closed_step);
+        # empty when no row has one
+        "held_closed": [int(f) for f in structure.held_closed] if any(structure.held_closed) else [],
         "held_sets_max": HELD_SETS_MAX,
         "held_sets": held_sets(system.r) if held else [],
         # the coordinates some row's gradient has: the held step's products with gradients skip the others
