@@ -16,7 +16,7 @@ import hard_scenes
 import numpy as np
 import pytest
 import sympy as sp
-from test_sensitivity import SCENES, finite_differences, mode, relative_error, step_jacobians
+from test_sensitivity import SCENES, finite_differences, relative_error, step_jacobians
 
 import vcigen
 from vcigen.analysis import jacobian_symplectic_defect
@@ -24,15 +24,21 @@ from vcigen.analysis import jacobian_symplectic_defect
 RULE = "lobatto3"
 
 
+# The scenes of tests/test_sensitivity.py, but the two walls from x = 0.003: from 0.004 lobatto3 puts one
+# impact within 1e-4 of a grid node, where the finite differences' perturbation moves it to the next step
+# (a mode change, not differentiable).
+SETUPS = SCENES | {"walls": (hard_scenes.walls, [0.003, 0.0], [0.9, 0.3], 0.02, 0.2, None)}
+
+
 @cache
 def simulator(scene: str) -> vcigen.Simulator:
-    return vcigen.build(SCENES[scene][0](), backend="casadi", rule=RULE)
+    return vcigen.build(SETUPS[scene][0](), backend="casadi", rule=RULE)
 
 
 @pytest.mark.parametrize("scene", ["box", "star", "double_pendulum", "box_lossy", "walls", "driven"])
 def test_sensitivity_matches_finite_differences(scene: str) -> None:
     sim = simulator(scene)
-    res, fd = finite_differences(sim, scene)
+    res, fd = finite_differences(sim, scene, setup=SETUPS[scene])
     n = sim.model.n
     assert res.sensitivity.shape == (res.t.size, 2 * n, 2 * n + len(sim.model.defaults))
     assert res.sensitivity_breaks == [] and "sensitivity_lost" not in res.stats
@@ -45,7 +51,7 @@ def test_sensitivity_matches_finite_differences(scene: str) -> None:
 def test_impact_steps_are_symplectic(scene: str) -> None:
     """Elastic impact steps (and smooth ones) from the exact tangent: ``|J^T Omega J - Omega| <= 1e-12``."""
     sim = simulator(scene)
-    _, q0, v0, h, t_end, params = SCENES[scene]
+    _, q0, v0, h, t_end, params = SETUPS[scene]
     res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
     impact_steps = sorted({im.step for im in res.impacts})
     defects = [jacobian_symplectic_defect(j) for j in step_jacobians(res, impact_steps)]
@@ -53,3 +59,31 @@ def test_impact_steps_are_symplectic(scene: str) -> None:
     smooth = max((jacobian_symplectic_defect(j) for j in step_jacobians(res, free)), default=0.0)
     print(f"{scene} [lobatto3]: {len(defects)} impact steps, defect {max(defects):.1e}, smooth {smooth:.1e}")
     assert defects and max(defects) <= 1e-12 and smooth <= 1e-12, (defects, smooth)
+
+
+@pytest.mark.parametrize("scene", ["box_lossy", "driven", "walls"])
+def test_sensitivities_leave_the_run_unchanged(scene: str) -> None:
+    """Asking for sensitivities changes nothing else, bit for bit (the internal points are recovered for the
+    tangent, never written back)."""
+    sim = simulator(scene)
+    _, q0, v0, h, t_end, params = SETUPS[scene]
+    off = sim.simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
+    on = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    for name in ("t", "q", "p", "energy", "work"):
+        assert np.array_equal(getattr(off, name), getattr(on, name)), name
+    assert off.impacts == on.impacts and on.n_impacts >= 1 and np.isfinite(on.sensitivity).all()
+
+
+def test_closed_form_under_lobatto3() -> None:
+    """A ball dropped on a floor (V = g y, e = 1): before the bounce y(t) = y0 + v0 t - g t^2/2 exactly (the
+    rule is exact on quadratics), so dy/dg = -t^2/2 and dy/dv0 = t on the grid, to round-off."""
+    y, yd, g = sp.symbols("y yd g")
+    model = vcigen.Model(
+        name="drop", q=[y], qdot=[yd], lagrangian=yd**2 / 2 - g * y, contacts={"floor": y}, params={g: 9.81}
+    )
+    sim = vcigen.build(model, backend="casadi", rule=RULE)
+    res = sim.simulate([1.0], [0.5], 0.01, t_end=0.4, sensitivities=True, progress=False)
+    assert res.n_impacts == 0
+    t = res.t
+    assert np.abs(res.sensitivity[:, 0, 2] + t**2 / 2).max() <= 1e-12
+    assert np.abs(res.sensitivity[:, 0, 1] - t).max() <= 1e-12

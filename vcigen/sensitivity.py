@@ -42,7 +42,7 @@ from .derive import DiscreteSystem
 from .tangents import tangent_routines
 
 SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many unknowns
-STAGE_ITERATIONS = 30  # Newton iterations recovering the internal points u of a solved phase (Tangents.internal)
+STAGE_ITERATIONS = 30  # Newton iterations recovering the internal points of a phase (Tangents.internal)
 
 
 class _Flat:
