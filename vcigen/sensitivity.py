@@ -19,7 +19,11 @@ in ``(x, d)``, their partials chained. Phases:
   found them (``vcigen.held`` or ``SustainedSteps._chain``);
 * a lift-off at a located time in a held grid step, then a free rest (46): the constrained sub-step to the
   root of the released row's force, that root's time by the implicit-function theorem (``Tracker.liftoff``);
-* forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
+* forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
+* rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
+  unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
+  at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
+  ``p±``, ``E_d`` through ``d_segment``'s ``u`` columns. No held phase under them (no sustained contact).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once), a grazing impact taking the continuous law, a held step with any other
