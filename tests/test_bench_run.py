@@ -60,6 +60,12 @@ def test_impact_matching_and_wall_interpolation() -> None:
     w, flag = run.wall_at(rows, 1e-5)
     assert flag == "~" and abs(w - 8.0) < 1e-9
     assert abs(run.order_of(rows) - run.order_of(rows[:2])) < 1e-9
+    # a flat curve (naive Verlet on a loaded machine: error 1.24e-1 -> 1.239e-1 for twice the time) is not
+    # reached, not an OverflowError
+    pts = ((0.01, 1.0, 0.124), (0.005, 2.0, 0.1239))
+    flat = [run.Row("s", "m", h, 1, wall=w, err_first=e) for h, w, e in pts]
+    w, flag = run.wall_at(flat, 1e-4)
+    assert flag == "not reached" and w != w
 
 
 def test_update_readme_copies_the_headline_between_markers(tmp_path):

@@ -266,17 +266,6 @@ def test_simulate_many_refuses_sensitivities() -> None:
         sim.simulate_many([[0.5, 0.5]], [[1.0, 0.0]], 0.01, t_end=0.1, sensitivities=True)
 
 
-@pytest.mark.parametrize("backend", [hard_scenes.backend_param("c")])
-def test_rules_with_internal_points_refuse_sensitivities_in_c(backend: str) -> None:
-    """The C loop's tangent has no internal points yet (the Python stepper's has:
-    tests/test_sensitivity_lobatto3.py): a ValueError naming the rule and the backend that has them."""
-    x, xd = sp.symbols("x xd")
-    model = vcigen.Model(name="fall", q=[x], qdot=[xd], lagrangian=xd**2 / 2 - x, contacts={"floor": x})
-    sim = vcigen.build(model, backend=backend, rule="lobatto3")
-    with pytest.raises(ValueError, match="lobatto3.*backend='casadi'"):
-        sim.simulate([1.0], [0.0], 0.01, t_end=0.1, sensitivities=True)
-
-
 @pytest.mark.parametrize("scene", ["box_lossy", "star", "walls", "driven"])
 def test_c_equals_casadi(scene: str) -> None:
     """The two backends' tangents agree to 1e-9 (relative)."""

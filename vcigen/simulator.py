@@ -59,10 +59,6 @@ class ManyStarts:
 class Simulator:
     """A model compiled for one backend and rule; call :meth:`simulate` or :meth:`simulate_many`."""
 
-    # whether simulate(sensitivities=True) covers rules with internal points (the Python stepper's tangent
-    # does, vcigen.sensitivity; the C loop's, vcigen.backends.csens, not yet)
-    staged_sensitivities = True
-
     def __init__(self, system: DiscreteSystem, kernels, tol: Tolerances | None = None) -> None:
         self.system = system
         self.model: Model = system.model
@@ -103,11 +99,6 @@ class Simulator:
         """
         q0a, v0a = self._start_vectors(q0, v0)
         h = self._validate(h, t_end, n_impacts, t0)
-        if sensitivities and self.system.stages and not self.staged_sensitivities:
-            raise ValueError(
-                f"sensitivities=True under rule {self.system.rule.name!r} (internal points) is not in the "
-                f"{self.backend!r} backend yet; use backend='casadi', or the rule trapezoid or midpoint"
-            )
         par, mu_f = self._parameters(params, t0)
         kern = self.kernels.bind(par)
         p0 = self._check_start(kern, q0a, v0a)

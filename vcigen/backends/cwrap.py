@@ -364,8 +364,6 @@ def _tol_struct(tol: Tolerances) -> _Tol:
 class CSimulator(Simulator):
     """A :class:`~vcigen.simulator.Simulator` whose time loop is ``<model>_run_many`` in C (``crun``)."""
 
-    staged_sensitivities = False  # the C loop's tangent (csens) has no internal points yet: a ValueError
-
     def __init__(
         self,
         system: DiscreteSystem,
