@@ -71,7 +71,7 @@ def smooth_map_routine(system: DiscreteSystem) -> Routine | None:
     the numeric path and ``vcigen.sensitivity.Tangents.smooth_map``, the solve done once symbolically.
     """
     n = system.n
-    if n > SYMBOLIC_MAP:
+    if n > SYMBOLIC_MAP or system.stages:  # internal points: the numeric path with (v, u) (sens.c.j2)
         return None
     d = system.routines["d_segment"]
     q0, v, tau, par = d.inputs
