@@ -136,6 +136,12 @@ class SustainedSteps:
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
         self._lam = np.zeros(k.r)
+        # a rule with internal points holds them too (derive.held_internal_points): their multipliers start at
+        # (1 - 2 w)/(w stages) times the start's Lam ~ w tau lambda (w = Rule.end_weight; lobatto3: 4)
+        rule = k.system.rule
+        self._stages = rule.stages
+        self._inner_ratio = float((1 - 2 * rule.end_weight) / (rule.end_weight * max(rule.stages, 1)))
+        self._lam_rate = float(1 / rule.end_weight)  # Lam -> the force: 2/h (trapezoid), 6/h (lobatto3)
         self._force = np.zeros(k.m)  # mean multipliers of the step being taken, per contact
         self._cforce = np.zeros(len(k.system.model.constraint) if k.r else 0)  # and per constraint
         self._booked = False  # whether a constraint acted in it
@@ -619,15 +625,18 @@ class SustainedSteps:
         (``Kernels.rattle_segment``: one call of the kernels for all of it).
         """
         k = self.k
-        n = k.n
+        n, r = k.n, k.r
         act = self.act.astype(float)
-        x0 = np.concatenate([guess, np.where(self.act, self._lam * (tau / self._h), 0.0)])
+        lam0 = np.where(self.act, self._lam * (tau / self._h), 0.0)
+        x0 = np.concatenate([guess, lam0, np.tile(lam0 * self._inner_ratio, self._stages)])
         x, res, p_plus, e_seg, y, res1, end = k.rattle_segment(q, p, tau, x0, act)
         self._check(res, p, step, t_k, "sustained")
         self._check(res1, p_plus, step, t_k, "sustained")
         v = x[:n]
-        lam, lam1 = np.where(self.act, x[n:], 0.0), np.where(self.act, y[n:], 0.0)  # 0 off the active rows
+        lam, lam1 = np.where(self.act, x[n : n + r], 0.0), np.where(self.act, y[n:], 0.0)  # 0 off the active rows
         p1 = p_plus + self._dirs(end.grad).T @ lam1
+        for s in range(self._stages):  # the internal points' impulses: booked with Lam' (after the start)
+            lam1 = lam1 + np.where(self.act, x[n + r * (s + 1) : n + r * (s + 2)], 0.0)
         return v, lam, q + tau * v, p_plus, e_seg, lam1, p1, y[:n], end
 
     def _chain(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
@@ -848,7 +857,7 @@ class SustainedSteps:
         self._at(t)
         rest = k.restitution()
         vel = self._velocity(q, v, p)
-        lam_now = np.where(self.act, self._lam, 0.0) * 2.0 / self._h
+        lam_now = np.where(self.act, self._lam, 0.0) * self._lam_rate / self._h
         acc = self._row_accel(q, vel, self._accel(q, vel, lam_now))
         grad = k.rows(q, vel)[1]
         targets, plastic = {}, []
