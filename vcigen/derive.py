@@ -587,7 +587,7 @@ class HeldPoints:
     """The internal points of a constrained segment held on the active rows (:func:`held_internal_points`)."""
 
     lam: tuple[sp.Symbol, ...]  # Lam_m: r per internal point, stage after stage
-    stationarity: sp.Matrix  # what dl/du equals: sum_r act_r Lam_m,r grad psi_r(q_m) per internal point
+    stationarity: sp.Matrix  # what dl/du equals: -sum_r act_r Lam_m,r grad psi_r(q_m) per internal point
     rows: sp.Matrix  # act_r psi_r(q_m) + (1 - act_r) Lam_m,r per internal point
     minus: sp.Matrix  # what -D1 L_d adds to p- at fixed u
     plus: sp.Matrix  # what D2 L_d takes from p+ at fixed u
@@ -609,11 +609,13 @@ def held_internal_points(
     """The internal points ``q_m,k = q0 + tau (c_k v + u_k)`` (``c_k = rule.nodes[k]``) on the active rows.
 
     The constrained Galerkin step (a Lobatto IIIA-IIIB SPARK step for lobatto3; MATH.md *Sustained contact*,
-    *Higher order*): ``D_m L_d = sum_r Lam_m,r grad psi_r(q_m)``, ``psi_r(q_m) = 0`` on the active rows.
+    *Higher order*): ``D_m L_d + sum_r Lam_m,r grad psi_r(q_m) = 0``, ``psi_r(q_m) = 0`` on the active rows
+    (``Lam_m`` pushes along ``+grad psi`` as ``Lam`` does at ``q0``: ``-D1 L_d = p0 + G0^T Lam``, so that the
+    step's impulse is ``Lam + Lam_m + Lam'``, ~ ``h lambda``).
     ``L_d(q0, q_m, q1) = tau l(q0, v, u)`` with ``v = (q1 - q0)/tau`` and ``u_k = (q_m,k - (1 - c_k) q0 -
     c_k q1)/tau``, so by the chain rule ``D_m L_d = l_u`` (no division by ``tau``), ``-D1 L_d = l_v - tau l_q0
     + sum_k (1 - c_k) l_u_k``, ``D2 L_d = l_v - sum_k c_k l_u_k`` and ``-D3 L_d = v . l_v + u . l_u - l - tau
-    l_tau``: with ``l_u_k = G_m,k^T Lam_m,k`` on the held step those are the segment's ``p-``, ``p+``, ``E_d``
+    l_tau``: with ``l_u_k = -G_m,k^T Lam_m,k`` on the held step those are the segment's ``p-``, ``p+``, ``E_d``
     (partials at fixed ``u``, where ``l_u = 0``) plus the shares below. Where no row is active every
     ``Lam_m = 0``: the free segment's stationarity.
     """
@@ -626,7 +628,7 @@ def held_internal_points(
         qm = q0 + tau * (c * v + uk)
         at = dict(zip(q, qm))
         alm = sp.Matrix([a * lm for a, lm in zip(act, lam[k * nr : (k + 1) * nr])])
-        force = dirs.xreplace(at).T * alm  # l_u_k on the held step
+        force = -(dirs.xreplace(at).T * alm)  # l_u_k on the held step
         stationarity.append(force)
         rows += [a * ps.xreplace(at) + (1 - a) * lm for a, ps, lm in zip(act, psi, lam[k * nr : (k + 1) * nr])]
         minus += (1 - c) * force
