@@ -372,24 +372,10 @@ def test_restitution_loses_the_normal_energy(backend):
 
 
 def test_unsupported_features_are_refused_by_name():
-    """Forces are supported (tests/test_lobatto3_forces.py); bilateral constraints and friction not yet."""
-    from test_sustained_closed_forms import pendulum
-
-    with pytest.raises(ValueError, match="lobatto3.*bilateral constraints"):
-        vcigen.derive(pendulum(), RULE)
-    with pytest.raises(ValueError, match="lobatto3.*bilateral constraints"):
-        vcigen.build(pendulum(), backend="c", rule=RULE)
+    """Forces, bilateral constraints and sustained contact are supported (tests/test_lobatto3_forces.py,
+    tests/test_lobatto3_sustained.py); friction (refused there) and casadi_functions not."""
     with pytest.raises(ValueError, match="lobatto3"):
         vcigen.casadi_functions(billiard(), rule=RULE)
-
-
-@both
-def test_a_resting_contact_is_a_located_error_naming_the_rule(backend):
-    """No sustained contact with lobatto3: a Zeno sequence stops with a SolverError that says so."""
-    sim = sim_of("ball", backend)
-    with pytest.raises(vcigen.SolverError, match="lobatto3") as err:
-        sim.simulate([0.0, 1.0], [0.3, 0.0], 0.001, t_end=3.0, params={"e": 0.5})
-    assert err.value.result.n_impacts >= 5
 
 
 # ------------------------------------------------------------------ C = CasADi

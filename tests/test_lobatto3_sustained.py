@@ -64,13 +64,15 @@ def pendulum_reference(t_end: float):
 
 
 def _pendulum_run(backend: str, h: float, t_end: float = 2.0) -> vcigen.Result:
-    return sim("pendulum", backend).simulate([math.sin(THETA0), -math.cos(THETA0)], [0.0, 0.0], h, t_end=t_end)
+    return sim("pendulum", backend).simulate(
+        [math.sin(THETA0), -math.cos(THETA0)], [0.0, 0.0], h, t_end=t_end
+    )
 
 
 def _internal_points(backend: str, res: vcigen.Result) -> np.ndarray:
-    """Each step's internal point ``q_m = q_k + h (v/2 + u)``, from the kernels' own constrained step (routine
-    ``rattle``, unknowns ``(v, Lam, Lam_m, u)``) solved again from the recorded ``(q_k, p_k)``; its ``q_k + h v``
-    must be the recorded ``q_k+1``."""
+    """Each step's internal point ``q_m = q_k + h (v/2 + u)``, from the kernels' own constrained step
+    (routine ``rattle``, unknowns ``(v, Lam, Lam_m, u)``) solved again from the recorded ``(q_k, p_k)``; its
+    ``q_k + h v`` must be the recorded ``q_k+1``."""
     s = sim("pendulum", backend)
     k = s.kernels.bind(s.model.resolve_params(None))
     n, h, act = 2, res.h, np.ones(1)
@@ -101,7 +103,9 @@ def test_cartesian_pendulum_is_fourth_order_with_the_rod_held_at_every_node(back
         errs.append(np.abs(res.q - np.c_[np.sin(th), -np.cos(th)]).max())
         assert np.abs(res.q[:, 0] ** 2 + res.q[:, 1] ** 2 - 1).max() <= 1e-14
         assert np.abs(res.q[:, 0] * res.p[:, 0] + res.q[:, 1] * res.p[:, 1]).max() <= 1e-13
-        tension = [G * (3 * np.cos(theta(t + (x + 1) * h / 2)) - 2 * math.cos(THETA0)) @ w / 2 for t in res.t[:-1]]
+        tension = [
+            G * (3 * np.cos(theta(t + (x + 1) * h / 2)) - 2 * math.cos(THETA0)) @ w / 2 for t in res.t[:-1]
+        ]
         forces.append(np.abs(-2 * res.constraint_force[:, 0] - np.array(tension)).max())
         energies.append(np.abs(res.energy - res.energy[0]).max())
     assert 3.7 <= fit_order(hs, errs) <= 4.3, errs
@@ -184,14 +188,17 @@ def test_plastic_landing_on_an_incline_then_slides_exactly(backend):
     u_t = v_c @ tangent
     s = u_t * dt - G * math.sin(a) * dt**2 / 2
     np.testing.assert_allclose(res.q[after], q_c + np.outer(s, tangent), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(res.p[after], np.outer(u_t - G * math.sin(a) * dt, tangent), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        res.p[after], np.outer(u_t - G * math.sin(a) * dt, tangent), rtol=0, atol=1e-12
+    )
     full = res.t[:-1] > t_c
     np.testing.assert_allclose(res.contact_force[full, 0], G * math.cos(a), rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_resting_and_sliding_on_a_floor_the_force_is_m_g(backend):
-    """Started on the floor at rest and sliding at 1: held all along, y = 0, x = t, lambda = m g to round-off."""
+    """Started on the floor at rest and sliding at 1: held all along, y = 0, x = t, lambda = m g to
+    round-off."""
     for v0 in ([0.0, 0.0], [1.0, 0.0]):
         res = sim("ball", backend).simulate([0.0, 0.0], v0, 0.01, t_end=1.0)
         assert res.active.all() and res.n_impacts == 0
@@ -202,7 +209,8 @@ def test_resting_and_sliding_on_a_floor_the_force_is_m_g(backend):
 
 @cache
 def dome_lift_off_time() -> float:
-    """The closed form: cos(theta*) = (2 g + v0^2)/(3 g), t* = int_0^theta* dtheta / sqrt(v0^2 + 2 g (1 - cos))."""
+    """The closed form: cos(theta*) = (2 g + v0^2)/(3 g), t* = int_0^theta* dtheta / sqrt(v0^2 + 2 g (1 -
+    cos theta))."""
     theta = math.acos((2 * G + DOME_V0**2) / (3 * G))
     return quad(lambda th: 1 / math.sqrt(DOME_V0**2 + 2 * G * (1 - math.cos(th))), 0, theta, epsabs=1e-15)[0]
 
@@ -282,10 +290,16 @@ def test_c_and_casadi_agree_through_sustained_contact(name):
     np.testing.assert_array_equal(c.active, ca.active)
     np.testing.assert_allclose(c.contact_force, ca.contact_force, rtol=0, atol=1e-6)
     np.testing.assert_allclose(c.constraint_force, ca.constraint_force, rtol=0, atol=1e-6)
-    assert [(i.contact, i.kind, i.step) for i in c.impacts] == [(i.contact, i.kind, i.step) for i in ca.impacts]
+    assert [(i.contact, i.kind, i.step) for i in c.impacts] == [
+        (i.contact, i.kind, i.step) for i in ca.impacts
+    ]
     assert [lo[1] for lo in c.liftoffs] == [lo[1] for lo in ca.liftoffs]
-    np.testing.assert_allclose([lo[0] for lo in c.liftoffs], [lo[0] for lo in ca.liftoffs], rtol=0, atol=1e-10)
-    counts = [{k: v for k, v in r.stats.items() if k.startswith("impacts_") or k == "liftoffs"} for r in (c, ca)]
+    np.testing.assert_allclose(
+        [lo[0] for lo in c.liftoffs], [lo[0] for lo in ca.liftoffs], rtol=0, atol=1e-10
+    )
+    counts = [
+        {k: v for k, v in r.stats.items() if k.startswith("impacts_") or k == "liftoffs"} for r in (c, ca)
+    ]
     assert counts[0] == counts[1]
 
 
@@ -316,3 +330,14 @@ def test_friction_is_refused_by_name():
     for build in (lambda: vcigen.derive(model, RULE), lambda: vcigen.build(model, backend="c", rule=RULE)):
         with pytest.raises(ValueError, match="lobatto3.*friction"):
             build()
+
+
+@pytest.mark.parametrize("name", ["dome", "pendulum"])
+def test_python_stepper_on_c_kernels_is_the_c_loop(name):
+    """vcigen.sustained's chain on the C kernels' single calls (rattle, rattle_end, rattle_project) is the
+    C loop's: the same grid to 1e-12, the same events."""
+    pytest.importorskip("vcigen.backends.c")
+    from test_c_agreement_sustained import assert_python_stepper_is_the_c_loop
+
+    s = vcigen.build(AGREE[name][0](), backend="c", rule=RULE)
+    assert_python_stepper_is_the_c_loop(s, AGREE[name], agreement_run(name, "c"))

@@ -428,7 +428,9 @@ def unsupported(model: Model, rule: Rule) -> None:
     """A rule with internal points has every phase but friction: a ``ValueError`` naming what it lacks."""
     lacks = [what for what, there in (("friction", bool(model.friction_of)),) if there]
     if len(rule.nodes) != rule.stages:
-        lacks.append("sustained contact and bilateral constraints (Rule.nodes does not place its internal points)")
+        lacks.append(
+            "sustained contact and bilateral constraints (Rule.nodes does not place its internal points)"
+        )
     if lacks:
         raise ValueError(
             f"rule {rule.name!r} (internal points) does not support {', '.join(lacks)} yet; "
@@ -530,8 +532,8 @@ def sustained_routines(
             Arg("x", (*v, *lam, *held.lam, *um)),
             args,
             res,
-            "Constrained step (RATTLE, MATH.md Sustained contact) with the internal points held on the active "
-            "rows: unknowns (v, Lam, Lam_m, u), Lam ~ end_weight tau lambda.",
+            "Constrained step (RATTLE, MATH.md Sustained contact) with the internal points held on the "
+            "active rows: unknowns (v, Lam, Lam_m, u), Lam ~ end_weight tau lambda.",
         )
         _, p_plus, energy = seg.at(sp.Matrix(q0), sp.Matrix(v), tau, um)
         out["rattle_end"] = Routine(
@@ -613,10 +615,10 @@ def held_internal_points(
     (``Lam_m`` pushes along ``+grad psi`` as ``Lam`` does at ``q0``: ``-D1 L_d = p0 + G0^T Lam``, so that the
     step's impulse is ``Lam + Lam_m + Lam'``, ~ ``h lambda``).
     ``L_d(q0, q_m, q1) = tau l(q0, v, u)`` with ``v = (q1 - q0)/tau`` and ``u_k = (q_m,k - (1 - c_k) q0 -
-    c_k q1)/tau``, so by the chain rule ``D_m L_d = l_u`` (no division by ``tau``), ``-D1 L_d = l_v - tau l_q0
-    + sum_k (1 - c_k) l_u_k``, ``D2 L_d = l_v - sum_k c_k l_u_k`` and ``-D3 L_d = v . l_v + u . l_u - l - tau
-    l_tau``: with ``l_u_k = -G_m,k^T Lam_m,k`` on the held step those are the segment's ``p-``, ``p+``, ``E_d``
-    (partials at fixed ``u``, where ``l_u = 0``) plus the shares below. Where no row is active every
+    c_k q1)/tau``, so by the chain rule ``D_m L_d = l_u`` (no division by ``tau``), ``-D1 L_d = l_v - tau
+    l_q0 + sum_k (1 - c_k) l_u_k``, ``D2 L_d = l_v - sum_k c_k l_u_k`` and ``-D3 L_d = v . l_v + u . l_u - l -
+    tau l_tau``: with ``l_u_k = -G_m,k^T Lam_m,k`` on the held step those are the segment's ``p-``, ``p+``,
+    ``E_d`` (partials at fixed ``u``, where ``l_u = 0``) plus the shares below. Where no row is active every
     ``Lam_m = 0``: the free segment's stationarity.
     """
     n, nr = len(q), len(psi)
@@ -630,7 +632,9 @@ def held_internal_points(
         alm = sp.Matrix([a * lm for a, lm in zip(act, lam[k * nr : (k + 1) * nr])])
         force = -(dirs.xreplace(at).T * alm)  # l_u_k on the held step
         stationarity.append(force)
-        rows += [a * ps.xreplace(at) + (1 - a) * lm for a, ps, lm in zip(act, psi, lam[k * nr : (k + 1) * nr])]
+        rows += [
+            a * ps.xreplace(at) + (1 - a) * lm for a, ps, lm in zip(act, psi, lam[k * nr : (k + 1) * nr])
+        ]
         minus += (1 - c) * force
         plus += c * force
         energy += (uk.T * force)[0]

@@ -50,6 +50,17 @@ class Rule:
     # Lam ~ end_weight h lambda (trapezoid: h/2; lobatto3: h/6), read back as a force at an impact.
     end_weight: sp.Rational = sp.S.Half
 
+    @property
+    def lam_rate(self) -> float:
+        """``1/end_weight``: the constrained step's start impulse ``Lam`` times ``lam_rate/h`` is a force."""
+        return float(1 / self.end_weight)
+
+    @property
+    def inner_ratio(self) -> float:
+        """Each internal point's multipliers ``Lam_m`` per start impulse ``Lam`` (the Newton's start):
+        ``(1 - 2 w)/(w stages)``, ``w = end_weight`` (lobatto3: 4; no internal points: 0)."""
+        return float((1 - 2 * self.end_weight) / (self.end_weight * max(self.stages, 1)))
+
 
 @dataclass(frozen=True)
 class StagedForces:
@@ -168,7 +179,8 @@ LOBATTO3 = Rule(
 
 RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT, LOBATTO3)}
 # The rules `vcigen generate --all` writes into generated/ (every example has every feature under them);
-# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): forces, constraints, sustained contact; no friction.
+# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): forces, constraints, sustained contact; no
+# friction.
 C_RULES: tuple[str, ...] = ("trapezoid", "midpoint")
 
 

@@ -291,6 +291,11 @@ class CasadiKernels(ParameterSlots):
         o = self._call(self._flat["segment"], q0, v, tau)
         return o[:n], o[n : 2 * n], float(o[2 * n])
 
+    def rattle_end(self, q0, v, tau, u, lm, act):
+        """``(p+, E_d)`` of a constrained segment with its internal points held (routine ``rattle_end``)."""
+        p_plus, e = self.functions["rattle_end"](q0, v, tau, u, lm, act, self.par)
+        return np.asarray(p_plus, dtype=float).ravel(), float(e)
+
     def start_energy(self, q0, v, tau) -> float:
         """The energy at the start of the segment ``(q0, v, tau)`` (``E_d - f_d- . v`` with forces): the
         energy row of the jump's residual (48a) at ``e_in = 0``."""

@@ -256,10 +256,9 @@ def render_context(
         "version": __version__,
         "n": n,
         "ns": system.stages,  # internal unknowns of a segment (internal points): the Newton hides them
-        "stages": system.rule.stages,  # internal points (each held with its own multipliers in sustained contact)
-        # Lam_m's Newton start per Lam and Lam's force rate (SustainedSteps._inner_ratio, _lam_rate)
-        "inner_ratio": repr(float((1 - 2 * system.rule.end_weight) / (system.rule.end_weight * max(system.rule.stages, 1)))),
-        "lam_rate": repr(float(1 / system.rule.end_weight)),
+        "stages": system.rule.stages,  # internal points (held with their own multipliers when sustained)
+        "inner_ratio": repr(system.rule.inner_ratio),  # Lam_m's Newton start per Lam (SustainedSteps)
+        "lam_rate": repr(system.rule.lam_rate),  # Lam's force rate times h (SustainedSteps._chain_impact)
         "unheld": unheld_note(system),  # what a jump error adds under such a rule (Stepper._unheld)
         "m": system.m,
         "r": system.r,
