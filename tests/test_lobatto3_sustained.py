@@ -108,6 +108,9 @@ def test_cartesian_pendulum_is_fourth_order_with_the_rod_held_at_every_node(back
         ]
         forces.append(np.abs(-2 * res.constraint_force[:, 0] - np.array(tension)).max())
         energies.append(np.abs(res.energy - res.energy[0]).max())
+    print(f"\npendulum {backend}: h {hs}\n  q error {errs} order {fit_order(hs, errs):.2f}")
+    print(f"  tension error {forces} order {fit_order(hs, forces):.2f}")
+    print(f"  E_d deviation {energies} order {fit_order(hs, energies):.2f}")
     assert 3.7 <= fit_order(hs, errs) <= 4.3, errs
     assert errs[2] <= 2e-8, errs
     assert 3.7 <= fit_order(hs, forces) <= 4.3, forces
@@ -237,6 +240,7 @@ def test_lift_off_from_a_dome_is_located_to_order_four(backend):
         th = sol.sol(res.t[on])[0]
         slides.append(np.abs(res.q[on] - np.c_[np.sin(th), np.cos(th)]).max())
         assert errs[-1] <= 4 * h**4, (h, errs[-1] / h**4)
+    print(f"\ndome {backend}: h {hs}\n  lift-off error {errs}\n  slide error {slides}")
     assert 3.7 <= math.log2(errs[0] / errs[1]) <= 4.3, errs
     assert 3.7 <= fit_order(hs[:2], slides[:2]) <= 4.3 and slides[1] <= 2e-10, slides
 
@@ -285,6 +289,11 @@ def test_c_and_casadi_agree_through_sustained_contact(name):
     pytest.importorskip("vcigen.backends.c")
     c, ca = agreement_run(name, "c"), agreement_run(name, "casadi")
     assert c.q.shape == ca.q.shape
+    diffs = [
+        np.abs(a - b).max(initial=0.0)
+        for a, b in ((c.q, ca.q), (c.p, ca.p), (c.contact_force, ca.contact_force))
+    ]
+    print(f"\n{name}: C - CasADi max |q| {diffs[0]:.1e} |p| {diffs[1]:.1e} |force| {diffs[2]:.1e}")
     np.testing.assert_allclose(c.q, ca.q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(c.p, ca.p, rtol=0, atol=1e-8)
     np.testing.assert_array_equal(c.active, ca.active)
