@@ -1,4 +1,4 @@
-"""lobatto3 against trapezoid in sustained contact and on a bilateral constraint, generated C (issue 12 item 2).
+"""lobatto3 against trapezoid in sustained contact and on a bilateral constraint, in generated C (issue 12).
 
 The Cartesian pendulum (a unit particle on the rod x^2 + y^2 = 1, released at rest 1 rad from the
 vertical, t = 2) and a ball sliding on a floor (held all along, t = 2): the error of q at t = 2 against
