@@ -216,6 +216,7 @@ def _staged_work(system: DiscreteSystem) -> Callable[..., np.ndarray]:
     stat = _lambdify(system, args, [list(seg.stationarity)])
     jac = _lambdify(system, args, seg.stationarity.jacobian(seg.internal).tolist())
     work = _lambdify(system, args, [[seg.energy - seg.energy_start]])
+    begin = _lambdify(system, args, [[seg.energy_start]])
     ns = len(u)
     held = _held_stationarity(system) if system.r else None
 
@@ -233,10 +234,19 @@ def _staged_work(system: DiscreteSystem) -> Callable[..., np.ndarray]:
                 break
         return x
 
-    def value(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values, act=None) -> np.ndarray:
+    def value(
+        q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values, act=None, start: bool = False
+    ) -> np.ndarray:
         pars = list(values) if not system.timed else [*list(values)[:-1], t0]
         if held is None or act is None or not act.any():
             uu = newton(stat, jac, np.zeros((tau.size, ns)), (*q0.T, *v.T, tau), pars)
+            if start:  # the energy at the segment's start
+                return col(begin(*q0.T, *v.T, tau, *uu.T, *pars)[0][0], tau.shape)
+        elif start:  # ... with the internal points held: E_d = -D3 L_d gains u . l_u (held_internal_points)
+            x = newton(
+                held[0], held[1], np.zeros((tau.size, ns + act.shape[1])), (*q0.T, *v.T, tau, *act.T), pars
+            )
+            return col(held[2](*q0.T, *v.T, tau, *act.T, *x.T, *pars)[0][0], tau.shape)
         else:
             x = newton(
                 held[0], held[1], np.zeros((tau.size, ns + act.shape[1])), (*q0.T, *v.T, tau, *act.T), pars
@@ -248,9 +258,9 @@ def _staged_work(system: DiscreteSystem) -> Callable[..., np.ndarray]:
 
 
 def _held_stationarity(system: DiscreteSystem):
-    """``(residual, Jacobian)`` in ``(u, Lam_m)`` of the internal points held on the rows ``act``, as numpy
-    functions of ``(q0, v, tau, act, u, Lam_m, par)`` (the constrained step's rows of ``u``,
-    ``derive.held_internal_points``)."""
+    """``(residual, Jacobian, start energy)``, the first two in ``(u, Lam_m)``, of the internal points held
+    on the rows ``act``, as numpy functions of ``(q0, v, tau, act, u, Lam_m, par)`` (the constrained step's
+    rows of ``u`` and its ``E_d`` share, ``derive.held_internal_points``)."""
     from .derive import held_internal_points
 
     seg, rule = system.segment, system.rule
@@ -263,7 +273,11 @@ def _held_stationarity(system: DiscreteSystem):
     res = (seg.stationarity - pts.stationarity).col_join(pts.rows)
     unknowns = [*seg.internal, *pts.lam]
     args = [*seg.q0, *seg.v, seg.tau, *act, *unknowns]
-    return _lambdify(system, args, [list(res)]), _lambdify(system, args, res.jacobian(unknowns).tolist())
+    return (
+        _lambdify(system, args, [list(res)]),
+        _lambdify(system, args, res.jacobian(unknowns).tolist()),
+        _lambdify(system, args, [[seg.energy_start + pts.energy]]),
+    )
 
 
 def _staged_step_work(res: Result, booking: Booking, par) -> np.ndarray:
@@ -282,25 +296,40 @@ def _staged_step_work(res: Result, booking: Booking, par) -> np.ndarray:
         keep = tau > TINY * h
         vs = (qs[1:] - qs[:-1])[keep] / tau[keep, None]
         ends = qs[:-1][keep], qs[1:][keep]
-        act = _held_rows(res, booking, par, *ends, np.full(int(keep.sum()), k))
+        act = _held_rows(res, booking, par, *ends, np.full(int(keep.sum()), k), either=True)
         out[k] = float(np.sum(booking.staged(ends[0], vs, tau[keep], ts[:-1][keep], par, act)))
+        # an impact with a row held after it (a plastic entry, an impact while held) logs E_d less its loss,
+        # not the energy at the start of the constrained segment that follows: the difference is the step's
+        for m, im in enumerate(here, start=1):  # segment m starts at impact m
+            j = int(np.sum(keep[:m]))  # its index among the kept segments
+            if keep[m] and act is not None and act[j].any():
+                at = (ends[0][j : j + 1], vs[j : j + 1], tau[keep][j : j + 1], ts[:-1][keep][j : j + 1])
+                out[k] += float(booking.staged(*at, par, act[j : j + 1], start=True)[0]) - im.energy_after
     return out
 
 
 HELD_PSI = 1e-10  # a row this close to 0 at both ends of a segment of a step its contact is held over is held
 
 
-def _held_rows(res: Result, booking: Booking, par, q0: np.ndarray, q1: np.ndarray, step: np.ndarray):
+def _held_rows(
+    res: Result, booking: Booking, par, q0: np.ndarray, q1: np.ndarray, step: np.ndarray, either: bool = False
+):
     """``(K, r)``: the rows segments ``(q0, q1)`` of grid steps ``step`` held their internal points on (the
     constrained step's): the constraints, and a contact's rows at ``|psi| <= HELD_PSI`` at both ends where the
-    contact is active at both grid points of the step (``res.active``); ``None`` without rows."""
+    contact is active at both grid points of the step (``res.active``; ``either``: at one of them, for the
+    segments of a step split at its impacts, a plastic entry or a lift-off among them); ``None`` without
+    rows."""
     if booking.rows is None:
         return None
     psi_fn, contact = booking.rows
     near = (np.abs(psi_fn(q0, par)) <= HELD_PSI) & (np.abs(psi_fn(q1, par)) <= HELD_PSI)
     act = np.zeros(near.shape)
     for r, j in enumerate(contact):
-        act[:, r] = 1.0 if j < 0 else near[:, r] & res.active[step, j] & res.active[step + 1, j]
+        if j < 0:  # a constraint: always held
+            act[:, r] = 1.0
+            continue
+        now, nxt = res.active[step, j], res.active[step + 1, j]
+        act[:, r] = near[:, r] & ((now | nxt) if either else (now & nxt))
     return act
 
 
