@@ -521,47 +521,36 @@ def sustained_routines(
     q1 = sp.Matrix(q0) + tau * sp.Matrix(v)
     psi1 = [ps.xreplace(dict(zip(q, q1))) for ps in psi]
     args = [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), Arg("act", act), par]
+    held_rows = sp.Matrix([a * ps + (1 - a) * lm for a, ps, lm in zip(act, psi1, lam)])
     if staged:
         held = held_internal_points(seg, rule, dirs, psi, q, sp.Matrix(q0), sp.Matrix(v), tau, um, act)
         res = seg.stationary(sp.Matrix(q0), sp.Matrix(v), tau, um) - held.stationarity
-        res = res.col_join(pm + held.minus - sp.Matrix(p0) - g0.T * alam)
-        res = res.col_join(sp.Matrix([a * ps + (1 - a) * lm for a, ps, lm in zip(act, psi1, lam)]))
-        res = res.col_join(held.rows)
-        out["rattle"] = _residual_routine(
-            "rattle",
-            Arg("x", (*v, *lam, *held.lam, *um)),
-            args,
-            res,
-            "Constrained step (RATTLE, MATH.md Sustained contact) with the internal points held on the "
-            "active rows: unknowns (v, Lam, Lam_m, u), Lam ~ end_weight tau lambda.",
+        res = (
+            res.col_join(pm + held.minus - sp.Matrix(p0) - g0.T * alam)
+            .col_join(held_rows)
+            .col_join(held.rows)
         )
+        unknowns = (*v, *lam, *held.lam, *um)
+        doc = "its internal points held on the active rows, unknowns (v, Lam, Lam_m, u), Lam ~ w tau lambda"
         _, p_plus, energy = seg.at(sp.Matrix(q0), sp.Matrix(v), tau, um)
+        ends = (Arg("q0", q0), Arg("v", v), Arg("tau", (tau,)), Arg("u", tuple(um)), Arg("lm", held.lam))
         out["rattle_end"] = Routine(
             "rattle_end",
-            (
-                Arg("q0", q0),
-                Arg("v", v),
-                Arg("tau", (tau,)),
-                Arg("u", tuple(um)),
-                Arg("lm", held.lam),
-                Arg("act", act),
-                par,
-            ),
+            (*ends, Arg("act", act), par),
             (Output("p_plus", p_plus - held.plus), Output("energy", sp.Matrix([energy + held.energy]))),
             "p+ = D2 L_d (51) and E_d = -D3 L_d (55) of a constrained segment whose internal points are held "
             "(the multipliers Lam_m's share).",
         )
     else:
-        res = (pm - sp.Matrix(p0) - g0.T * alam).col_join(
-            sp.Matrix([a * ps + (1 - a) * lm for a, ps, lm in zip(act, psi1, lam)])
-        )
-        out["rattle"] = _residual_routine(
-            "rattle",
-            Arg("x", (*v, *lam)),
-            args,
-            res,
-            "Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda.",
-        )
+        res = (pm - sp.Matrix(p0) - g0.T * alam).col_join(held_rows)
+        unknowns, doc = (*v, *lam), "unknowns (v, Lam), Lam = tau/2 lambda"
+    out["rattle"] = _residual_routine(
+        "rattle",
+        Arg("x", unknowns),
+        args,
+        res,
+        f"Constrained step (RATTLE, MATH.md Sustained contact): {doc}.",
+    )
     p1 = _vec("p", n)
     mom = sp.Matrix([model.L.diff(s) for s in vs]).xreplace(rep)
     gu = grad * umat
