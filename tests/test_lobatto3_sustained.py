@@ -281,10 +281,16 @@ def agreement_run(name: str, backend: str) -> vcigen.Result:
     return vcigen.build(make(), backend=backend, rule=RULE).simulate(q0, v0, h, t_end=t_end)
 
 
-@pytest.mark.parametrize("name", ["ball", "dome", "pendulum", "floor_wall"])
+# The star (e = 0.8, settling on a face: two rows of one contact held at its Abs kink) is chaotic: round-off
+# between CasADi's SX and the printed C grows at its 38 impacts to 3.2e-6 in q; the events are the same.
+AGREE_TOL = {"star": 1e-5}
+
+
+@pytest.mark.parametrize("name", ["ball", "dome", "pendulum", "floor_wall", "star"])
 def test_c_and_casadi_agree_through_sustained_contact(name):
     """tests/test_c_agreement_sustained.py's scenes under lobatto3 (a Zeno ball to rest, a dome lift-off, a
-    pendulum rod striking a wall, a body held on a floor striking a wall): grid states, active sets, forces,
+    pendulum rod striking a wall, a body held on a floor striking a wall, the star settling on a face): grid
+    states, active sets, forces,
     impact logs and lift-offs the same to round-off (q to 1e-12)."""
     pytest.importorskip("vcigen.backends.c")
     c, ca = agreement_run(name, "c"), agreement_run(name, "casadi")
@@ -294,17 +300,18 @@ def test_c_and_casadi_agree_through_sustained_contact(name):
         for a, b in ((c.q, ca.q), (c.p, ca.p), (c.contact_force, ca.contact_force))
     ]
     print(f"\n{name}: C - CasADi max |q| {diffs[0]:.1e} |p| {diffs[1]:.1e} |force| {diffs[2]:.1e}")
-    np.testing.assert_allclose(c.q, ca.q, rtol=0, atol=1e-12)  # measured <= 7.4e-15
-    np.testing.assert_allclose(c.p, ca.p, rtol=0, atol=1e-11)  # <= 2.3e-14
+    tol = AGREE_TOL.get(name, 1e-12)
+    np.testing.assert_allclose(c.q, ca.q, rtol=0, atol=tol)  # measured <= 7.4e-15 (star 3.2e-6)
+    np.testing.assert_allclose(c.p, ca.p, rtol=0, atol=10 * tol)  # <= 2.3e-14
     np.testing.assert_array_equal(c.active, ca.active)
-    np.testing.assert_allclose(c.contact_force, ca.contact_force, rtol=0, atol=1e-9)  # <= 2.8e-12
-    np.testing.assert_allclose(c.constraint_force, ca.constraint_force, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(c.contact_force, ca.contact_force, rtol=0, atol=1e3 * tol)  # <= 2.8e-12
+    np.testing.assert_allclose(c.constraint_force, ca.constraint_force, rtol=0, atol=1e3 * tol)
     assert [(i.contact, i.kind, i.step) for i in c.impacts] == [
         (i.contact, i.kind, i.step) for i in ca.impacts
     ]
     assert [lo[1] for lo in c.liftoffs] == [lo[1] for lo in ca.liftoffs]
     np.testing.assert_allclose(
-        [lo[0] for lo in c.liftoffs], [lo[0] for lo in ca.liftoffs], rtol=0, atol=1e-10
+        [lo[0] for lo in c.liftoffs], [lo[0] for lo in ca.liftoffs], rtol=0, atol=max(1e-10, 100 * tol)
     )
     counts = [
         {k: v for k, v in r.stats.items() if k.startswith("impacts_") or k == "liftoffs"} for r in (c, ca)
@@ -321,6 +328,9 @@ def test_the_agreement_scenes_exercise_what_they_are_for():
     assert np.all(np.abs(pend.constraint_force) > 0) and pend.n_impacts >= 2
     fw = agreement_run("floor_wall", "c")
     assert fw.active[:, 0].all() and any(i.contact == "wall" for i in fw.impacts)
+    star = agreement_run("star", "c")
+    assert star.stats["impacts_plastic"] >= 1 and star.active[-1, 0]
+    assert star.q[-1, 1] == pytest.approx(0.5, abs=1e-12)  # resting on a face, L/2 above the floor
 
 
 # ------------------------------------------------------------------ what lobatto3 still refuses
