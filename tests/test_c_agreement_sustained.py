@@ -147,11 +147,15 @@ def test_each_scene_exercises_what_it_is_for() -> None:
 
 @pytest.mark.parametrize("name", ["star", "dome", "pendulum"])
 def test_python_stepper_on_c_kernels_is_the_c_loop(name: str) -> None:
-    s = sim(name, "c")
-    _, q0, v0, h, t_end = SCENES[name]
+    assert_python_stepper_is_the_c_loop(sim(name, "c"), SCENES[name], run(name, "c"))
+
+
+def assert_python_stepper_is_the_c_loop(s: vcigen.Simulator, scene, c: vcigen.Result) -> None:
+    """The Python stepper on ``s``'s C kernels over ``scene`` ``(model, q0, v0, h, t_end)`` is the C loop's
+    run ``c``: the same grid to 1e-12, the same events and lift-offs."""
+    _, q0, v0, h, t_end = scene
     kern = s.kernels.bind(s.model.resolve_params(None))
     py = Stepper(kern, s.tol).simulate(q0, v0, h, t_end=t_end)
-    c = run(name, "c")
     np.testing.assert_allclose(py.q, c.q, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(py.active, c.active)
     assert [(i.kind, i.step) for i in py.impacts] == [(i.kind, i.step) for i in c.impacts]

@@ -31,7 +31,7 @@ forces depend on time, the time the step starts at. :func:`casadi_parameters` bu
 
 Not covered (each is a mode of its own, not a smooth map): several impacts in one step (78), simultaneous
 impacts (a corner, two vertices at once), friction at an impact (no ``impact_<c>`` for a frictional
-contact), plastic or grazing impacts and sustained contact (where (48a) has no root ``mu > 0`` the
+contact), plastic or grazing impacts, sustained contact and bilateral constraints (a ``ValueError``; where (48a) has no root ``mu > 0`` the
 rootfinder fails). The Functions do not check that the mode holds (no crossing in ``"step"``, the earliest
 crossing on ``c`` in ``"impact_<c>"``): the caller fixes the mode sequence, for instance from a run of
 ``simulate``, and checks ``0 <= alpha <= 1`` and ``mu > 0`` (out of its mode an impact Function returns the
@@ -75,6 +75,12 @@ def casadi_functions(
     """
     if not isinstance(model, Model):
         raise ValueError(f"casadi_functions() needs a vcigen.Model, got {type(model).__name__}")
+    if model.constraints:
+        # an unconstrained "step" of a constrained model would leave the constraint silently
+        raise ValueError(
+            f"casadi_functions() has no step for bilateral constraints (model {model.name!r} has "
+            f"{sorted(model.constraints)}): the held step (RATTLE) is not among its Functions; use simulate()"
+        )
     return functions_of(derive(model, rule), newton_options)
 
 

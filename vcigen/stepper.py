@@ -774,8 +774,9 @@ class Stepper(SustainedSteps, HeldSteps):
 
 
 def unheld_note(system) -> str:
-    """What a jump error adds under a rule with internal points (no sustained contact yet); else ``""``."""
-    if not system.stages:
+    """What a jump error adds under a rule with internal points and no sustained contact; else ``""``
+    (every rule has sustained contact now: this stays for a rule that cannot place its internal points)."""
+    if not system.stages or system.r:
         return ""
     return f"; rule {system.rule.name!r} has no sustained contact yet (trapezoid and midpoint have it)"
 

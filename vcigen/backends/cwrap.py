@@ -130,6 +130,11 @@ class CKernels(ParameterSlots):
         self._legendre.argtypes = [ctypes.c_void_p] * 5
         self._segment = getattr(self.lib, f"{pre}_eval_segment")
         self._segment.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D]
+        self._rattle_end = getattr(
+            self.lib, f"{pre}_eval_rattle_end", None
+        )  # only with internal points, rows
+        if self._rattle_end is not None:
+            self._rattle_end.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D]
         self._start_energy = getattr(self.lib, f"{pre}_eval_start_energy", None)  # only with forces
         if self._start_energy is not None:
             self._start_energy.argtypes = [_D, _D, ctypes.c_double, _D, _D]
@@ -228,6 +233,16 @@ class CKernels(ParameterSlots):
             _ptr(_vec(q0, n)), _ptr(_vec(v, n)), float(tau), _ptr(self.par), _ptr(pm), _ptr(pp), _ptr(e)
         )
         return pm, pp, float(e[0])
+
+    def rattle_end(self, q0, v, tau, u, lm, act):
+        """``(p+, E_d)`` of a constrained segment with its internal points held (routine ``rattle_end``)."""
+        n, pp, e = self.n, np.empty(self.n), np.empty(1)
+        ns, nl = self.system.stages, self.r * self.system.rule.stages
+        self._rattle_end(
+            _ptr(_vec(q0, n)), _ptr(_vec(v, n)), float(tau), _ptr(_vec(u, ns)), _ptr(_vec(lm, nl)),
+            _ptr(_vec(np.asarray(act, dtype=float), self.r)), _ptr(self.par), _ptr(pp), _ptr(e),
+        )  # fmt: skip
+        return pp, float(e[0])
 
     def start_energy(self, q0, v, tau) -> float:
         """The energy at the segment's start (``E_d - f_d- . v``); without forces ``E_d`` itself."""
