@@ -114,3 +114,27 @@ def test_c_equals_casadi(scene: str, backend: str) -> None:
     rel = relative_error(c.sensitivity, py.sensitivity)
     print(f"{scene} [lobatto3]: C against CasADi {rel:.1e}")
     assert rel <= 1e-9, rel
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_held_phases_say_they_have_no_tangent(backend: str) -> None:
+    """A ball coming to rest under lobatto3 (tests/test_lobatto3_sustained.py): the restitution impacts are
+    differentiated, the plastic entry is reported as a break with its reason (never a wrong tangent), the run
+    itself is the one without sensitivities, and the C loop breaks where the Python stepper does."""
+    sim = hard_scenes.simulator("ball", backend, RULE, None)
+    run = {"q0": [0.0, 1.0], "v0": [0.3, 0.0], "h": 0.005, "t_end": 3.0, "params": {"e": 0.5}}
+    run["progress"] = False
+    res = sim.simulate(**run, sensitivities=True)
+    plain = sim.simulate(**run)
+    np.testing.assert_array_equal(res.q, plain.q)
+    kinds = [im.kind for im in res.impacts]
+    assert "plastic" in kinds and kinds.index("plastic") >= 3
+    k = res.stats["sensitivity_lost"]
+    assert res.sensitivity_breaks[0] == (k, "held phases under a rule with internal points")
+    entry = res.impacts[kinds.index("plastic")].t
+    assert res.t[k] < entry <= res.t[k + 1]  # lost at the plastic impact's step, not before
+    assert np.isfinite(res.sensitivity[: k + 1]).all() and np.isnan(res.sensitivity[k + 1 :]).all()
+    if backend != "casadi":
+        ref = hard_scenes.simulator("ball", "casadi", RULE, None).simulate(**run, sensitivities=True)
+        assert ref.sensitivity_breaks == res.sensitivity_breaks
+        assert np.max(np.abs(res.sensitivity[: k + 1] - ref.sensitivity[: k + 1])) <= 1e-9

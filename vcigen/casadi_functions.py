@@ -31,11 +31,12 @@ forces depend on time, the time the step starts at. :func:`casadi_parameters` bu
 
 Not covered (each is a mode of its own, not a smooth map): several impacts in one step (78), simultaneous
 impacts (a corner, two vertices at once), friction at an impact (no ``impact_<c>`` for a frictional
-contact), plastic or grazing impacts, sustained contact and bilateral constraints (a ``ValueError``; where (48a) has no root ``mu > 0`` the
-rootfinder fails). The Functions do not check that the mode holds (no crossing in ``"step"``, the earliest
-crossing on ``c`` in ``"impact_<c>"``): the caller fixes the mode sequence, for instance from a run of
-``simulate``, and checks ``0 <= alpha <= 1`` and ``mu > 0`` (out of its mode an impact Function returns the
-root of the same equations with ``alpha`` outside ``[0, 1]``, or fails to converge and raises).
+contact), plastic or grazing impacts and sustained contact (where (48a) has no root ``mu > 0`` the
+rootfinder fails), bilateral constraints (a ``ValueError``). The Functions do not check that the mode holds
+(no crossing in ``"step"``, the earliest crossing on ``c`` in ``"impact_<c>"``): the caller fixes the mode
+sequence, for instance from a run of ``simulate``, and checks ``0 <= alpha <= 1`` and ``mu > 0`` (out of its
+mode an impact Function returns the root of the same equations with ``alpha`` outside ``[0, 1]``, or fails
+to converge and raises).
 """
 
 from __future__ import annotations

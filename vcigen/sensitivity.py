@@ -47,6 +47,7 @@ from .derive import DiscreteSystem
 from .tangents import tangent_routines
 
 SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many unknowns
+STAGED_HELD = "held phases under a rule with internal points"  # no tangent there yet (both steppers)
 STAGE_ITERATIONS = 30  # Newton iterations recovering the internal points of a phase (Tangents.internal)
 
 
@@ -284,11 +285,12 @@ class Tracker:
         internal points ``u`` and their tangent ``du`` under a rule that has them)."""
         return self._segment_cols(q, v, tau, t, dq, dv, dtau, self.dpar(dt), u, du)
 
-    def _staged_refused(self, what: str) -> bool:
-        """Under a rule with internal points the held phases have no tangent (there is no sustained contact
-        with them): loses the tangent and says so."""
+    def _staged_refused(self) -> bool:
+        """Under a rule with internal points the held phases (plastic entry, held step, lift-off) have no
+        tangent yet (their internal points are held on the rows, ``derive.held_internal_points``): loses the
+        tangent and says so (the C loop: ``WHY_STAGED_HELD``, the same reason)."""
         if self.tg.ns:
-            self.lose(f"{what} under a rule with internal points")
+            self.lose(STAGED_HELD)
             return True
         return False
 
@@ -394,7 +396,7 @@ class Tracker:
         ``p+ = p~- + G^T Lam``, ``G M^-1 G^T Lam = -G vel`` (the frictionless impulse law, target normal
         velocity 0), ``vel`` one Newton step of the inverse Legendre transform from ``v_in``, ``G`` and ``M``
         at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the step starts there)."""
-        if not self.active or self._staged_refused("a plastic impact"):
+        if not self.active or self._staged_refused():
             return
         k, n = self.k, self.n
         par, dpar = self.par(seg.t), self.dpar(self.dt)
@@ -450,7 +452,7 @@ class Tracker:
         ``entry``: the rest of a step after a plastic impact (:meth:`plastic`), from the impact point ``q~``,
         ``p+``, its time and the rest of the step (the segment's tangents ``dq, dp, dt, dtau``).
         """
-        if not self.active or self._staged_refused("a held step"):
+        if not self.active or self._staged_refused():
             return
         n, K = self.n, self.K
         if entry:
@@ -506,7 +508,7 @@ class Tracker:
         a step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the
         step (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
         """
-        if not self.active or self._staged_refused("a lift-off"):
+        if not self.active or self._staged_refused():
             return
         n, K = self.n, self.K
         q, p, v, lam, lam1, u1, act = sub
