@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import sympy as sp
 from hard_scenes import G, backend_param, impact_energy_jumps, min_phi, unfold, walls_oscillator_exact
-from scenes import billiard, simulator, star_nonlinear
+from scenes import simulator, star_nonlinear
 from test_order import oscillator_wall_errors
 from test_symplectic import step_map
 
@@ -372,24 +372,15 @@ def test_restitution_loses_the_normal_energy(backend):
 
 
 def test_unsupported_features_are_refused_by_name():
-    """Forces are supported (tests/test_lobatto3_forces.py); bilateral constraints and friction not yet."""
+    """Forces, bilateral constraints, sustained contact, casadi_functions and sensitivities are supported
+    (tests/test_lobatto3_forces.py, test_lobatto3_sustained.py, test_casadi_functions.py,
+    test_sensitivity_lobatto3.py); casadi_functions has no held step, so a constrained model is refused
+    (under every rule) rather than given a step that leaves its constraint."""
     from test_sustained_closed_forms import pendulum
 
-    with pytest.raises(ValueError, match="lobatto3.*bilateral constraints"):
-        vcigen.derive(pendulum(), RULE)
-    with pytest.raises(ValueError, match="lobatto3.*bilateral constraints"):
-        vcigen.build(pendulum(), backend="c", rule=RULE)
-    with pytest.raises(ValueError, match="lobatto3"):
-        vcigen.casadi_functions(billiard(), rule=RULE)
-
-
-@both
-def test_a_resting_contact_is_a_located_error_naming_the_rule(backend):
-    """No sustained contact with lobatto3: a Zeno sequence stops with a SolverError that says so."""
-    sim = sim_of("ball", backend)
-    with pytest.raises(vcigen.SolverError, match="lobatto3") as err:
-        sim.simulate([0.0, 1.0], [0.3, 0.0], 0.001, t_end=3.0, params={"e": 0.5})
-    assert err.value.result.n_impacts >= 5
+    for rule in (RULE, "trapezoid"):
+        with pytest.raises(ValueError, match="bilateral constraints.*'rod'"):
+            vcigen.casadi_functions(pendulum(), rule=rule)
 
 
 # ------------------------------------------------------------------ C = CasADi

@@ -3,7 +3,7 @@
 Every phase of a rule with an internal point (``lobatto3``) is a Newton on its own unknowns and the
 stage's ``u`` (``2n`` for the smooth step (46)). lobatto3 writes the internal point as
 ``q_m = q0 + tau (v/2 + u)`` (:func:`vcigen.rules._lobatto3`); in the internal point's own mean velocity
-``z = (q_m - q0)/tau = v/2 + u`` (:attr:`vcigen.rules.Rule.stage_offset`), the momentum rows of a
+``z = (q_m - q0)/tau = v/2 + u`` (:attr:`vcigen.rules.Rule.nodes`), the momentum rows of a
 phase, ``p-(q0, v, tau, u) - p0``, are for ``L = 1/2 qdot.M qdot - V(q)`` with a constant ``M``
 
     p- - p0 = M v + (tau/3) grad V(q0 + tau z) + (tau/6) grad V(q0) - p0,
@@ -100,9 +100,9 @@ def _reduced(rows: sp.ImmutableMatrix, v: tuple, extras: tuple, us: tuple, offse
 def reduced_smooth(system: DiscreteSystem) -> Reduced | None:
     """The smooth step (46) of ``system`` reduced to its internal point (:func:`reduce_rows`), or ``None``
     (no internal point, no closed form for it, or momentum rows not linear in ``v`` at a fixed one)."""
-    offset = system.rule.stage_offset
-    if not system.stages or offset is None or system.rule.stages != 1:
+    if not system.stages or len(system.rule.nodes) != 1:  # one internal point, at a known place
         return None
+    offset = system.rule.nodes[0]
     smooth = system.routines["smooth"]
     xs = smooth.inputs[0].symbols
     n = system.n
@@ -117,7 +117,7 @@ def reduced_phases(system: DiscreteSystem) -> list[tuple[str, Routine, Routine]]
     first and returns through the second (templates/newton.c.j2)."""
     if not system.structure.stage_reduced:
         return []
-    n, ns, offset = system.n, system.stages, system.rule.stage_offset
+    n, ns, offset = system.n, system.stages, system.rule.nodes[0]
     # the phases whose rows are (stationarity, the momentum rows p- - ..., their own) over unknowns
     # (v, their own, u) (vcigen.derive); others (rows of sustained contact, if a rule with internal points
     # gets them) keep the general Newton

@@ -264,9 +264,9 @@ class Stepper(SustainedSteps, HeldSteps):
             self._tan, self._record_held = tan, False
         if tan is not None and self._held_seg is not None:
             tan.held(q, p, tau, *self._held_seg, entry)
-        elif tan is not None and not entry and self._lift_seg is not None and self._free_seg is not None:
+        elif tan is not None and self._lift_seg is not None and self._free_seg is not None:
             sub, r, s, tau_s = self._lift_seg
-            tan.liftoff(sub, r, s, tau_s, self._free_seg)
+            tan.liftoff(sub, r, s, tau_s, self._free_seg, entry)
         elif tan is not None and not entry:
             tan.lose("held step (sustained contact)")
         elif tan is not None and tan.active:
@@ -774,8 +774,9 @@ class Stepper(SustainedSteps, HeldSteps):
 
 
 def unheld_note(system) -> str:
-    """What a jump error adds under a rule with internal points (no sustained contact yet); else ``""``."""
-    if not system.stages:
+    """What a jump error adds under a rule with internal points and no sustained contact; else ``""``
+    (every rule has sustained contact now: this stays for a rule that cannot place its internal points)."""
+    if not system.stages or system.r:
         return ""
     return f"; rule {system.rule.name!r} has no sustained contact yet (trapezoid and midpoint have it)"
 

@@ -29,7 +29,8 @@ own modules (:mod:`vcigen.explicit`, :mod:`vcigen.implicit`, :mod:`vcigen.held`)
 * **Held grid step** (``held``, :mod:`vcigen.held`): rows of sustained contact in an explicit scene
   with momentum ``M qdot`` and no friction: a grid step in sustained contact is straight-line code;
   ``held_lines``, ``held_pattern``, ``held_columns`` and ``held_constant`` say what of its rows it
-  specialises further.
+  specialises further; ``held_closed`` the rows whose held step, held alone, is closed-form (one square root,
+  no Newton: :func:`vcigen.held.closed_forms`).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ import sympy as sp
 
 from .derive import DiscreteSystem
 from .explicit import expanded, quadratic_energy, smooth_jacobian
-from .held import line_forms, row_hessian
+from .held import closed_forms, line_forms, row_hessian
 from .stage import reduced_smooth
 
 # The flags in the order the generated header lists them (Structure.lines).
@@ -81,6 +82,7 @@ class Structure:
     held_pattern: tuple[tuple[int, int, int], ...] = ()  # (i, j, weight) where a row's Hessian is not 0
     held_columns: tuple[int, ...] = ()  # coordinates where some row's gradient is not identically 0
     held_constant: tuple[int, ...] = ()  # per row, coordinate (r * n + i): 1 where d psi_r/d q_i is constant
+    held_closed: tuple[bool, ...] = ()  # per row, whether held alone its step is closed-form (closed_forms)
     why: dict[str, str] = field(default_factory=dict, compare=False)
 
     def lines(self, width: int = 96) -> list[str]:
@@ -95,6 +97,12 @@ class Structure:
                 f"held_pattern = {[list(p) for p in self.held_pattern]}: (i, j, weight) where some row's "
                 "Hessian is not identically 0 (the curvature u . Hess psi . u needs no other entries)"
             )
+            if any(self.held_closed):
+                out.append(
+                    f"held_closed = {[int(x) for x in self.held_closed]}: per row, 1 where, held alone, its "
+                    "step is closed-form: F(a + Lam b) = 0 a quadratic in Lam, its root by one sqrt, the "
+                    "projection dividing by a constant (held.closed_forms); no Newton"
+                )
         return [w for line in out for w in textwrap.wrap(line, width, subsequent_indent="    ")]
 
     def notes(self, system: DiscreteSystem) -> list[str]:
@@ -228,8 +236,9 @@ def _stage(system: DiscreteSystem, why: dict[str, str]) -> tuple[bool, bool]:
     red = reduced_smooth(system)
     if red is None:
         why["stage_reduced"] = (
-            f"rule {system.rule.name!r} writes its internal point in no closed form"
-            if system.rule.stage_offset is None
+            f"rule {system.rule.name!r} declares {len(system.rule.nodes)} internal-point nodes (the closed form "
+            "takes one)"
+            if len(system.rule.nodes) != 1
             else "the momentum rows of (46) are not linear in v at a fixed internal point (a mass matrix "
             "that depends on q, or a force nonlinear in the velocity): Newton on (v, u)"
         )
@@ -359,5 +368,6 @@ def detect(system: DiscreteSystem) -> Structure:
         held_pattern=tuple(hess_pattern(system)) if held else (),
         held_columns=tuple(gradient_columns(system)) if held else (),
         held_constant=tuple(constant_gradients(system)) if held else (),
+        held_closed=tuple(c is not None for c in closed_forms(system)) if held else (),
         why=why,
     )
