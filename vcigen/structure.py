@@ -236,7 +236,7 @@ def _stage(system: DiscreteSystem, why: dict[str, str]) -> tuple[bool, bool]:
     red = reduced_smooth(system)
     if red is None:
         why["stage_reduced"] = (
-            f"rule {system.rule.name!r} declares {len(system.rule.nodes)} internal-point nodes (the closed form "
+            f"rule {system.rule.name!r} declares {len(system.rule.nodes)} internal nodes (the closed form "
             "takes one)"
             if len(system.rule.nodes) != 1
             else "the momentum rows of (46) are not linear in v at a fixed internal point (a mass matrix "
