@@ -1,5 +1,6 @@
 """lobatto3 against trapezoid in generated C: cost per step and wall time at matched error (issue 12).
 
+Per step also lobatto3 with the stage's closed-form elimination switched off (vcigen.stage), same run.
 Error after the first collision (the scenes' t_end) against DOP853 with event location
 (``bench.reference.event_driven``, rtol 1e-13), averaged over four start phases; wall time of a run
 best of five. Run: ``python -m bench.lobatto3_cost`` (prints a table; nothing is written).
@@ -7,6 +8,7 @@ best of five. Run: ``python -m bench.lobatto3_cost`` (prints a table; nothing is
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -14,6 +16,7 @@ import numpy as np
 import vcigen
 from bench import scenes as bench_scenes
 from bench.reference import event_driven
+from vcigen.backends import registry
 
 SETS = {
     # scene: (t_end, start shifts of q0, step sizes)
@@ -64,10 +67,17 @@ def at_error(rows, target: float) -> tuple[float, str]:
     return float("nan"), ""
 
 
-def per_step(name: str, rule: str, h: float, t_end: float) -> float:
-    """Wall time per step of one long run (best of five): the cost without the per-call overhead."""
+def per_step(name: str, rule: str, h: float, t_end: float, general: bool = False) -> float:
+    """Wall time per step of one long run (best of five): the cost without the per-call overhead.
+
+    ``general``: with the stage's closed-form elimination switched off (``Structure.stage_reduced``,
+    vcigen.stage), the general ``(x, u)`` Newton of every phase, for the before/after in one run."""
     scene = bench_scenes.get(name)
-    sim = vcigen.build(scene.model_factory(), backend="c", rule=rule)
+    system = vcigen.derive(scene.model_factory(), rule)
+    if general:
+        off = dataclasses.replace(system.structure, stage_reduced=False, stage_linear=False)
+        system.__dict__["structure"] = off  # DiscreteSystem.structure is a cached_property
+    sim = registry.factory("c")(system, tol=vcigen.Tolerances())
     return best_time(sim, {"q0": scene.q0, "v0": scene.v0, "h": h, "t_end": t_end}) / round(t_end / h)
 
 
@@ -86,9 +96,11 @@ def main() -> None:
                 print(f"{rule:10s} {h:<8g} {e:11.3e} {w:10.3e} {ps:10.3e}")
         costs = {rule: per_step(name, rule, 0.005, LONG[name]) for rule in out}
         ct, cl = costs["trapezoid"], costs["lobatto3"]
+        cg = per_step(name, "lobatto3", 0.005, LONG[name], general=True)
         steps = round(LONG[name] / 0.005)
         print(
-            f"per step (h 0.005, {steps} steps): trapezoid {ct:.3e} s, lobatto3 {cl:.3e}, ratio {cl / ct:.2f}"
+            f"per step (h 0.005, {steps} steps): trapezoid {ct:.3e} s, lobatto3 {cl:.3e}, ratio "
+            f"{cl / ct:.2f}; lobatto3 without the stage's elimination {cg:.3e}, ratio {cg / ct:.2f}"
         )
         for target in (1e-4, 1e-6, 1e-8):
             (wt, nt), (wl, nl) = at_error(out["trapezoid"], target), at_error(out["lobatto3"], target)

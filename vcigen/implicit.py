@@ -11,6 +11,9 @@ iteration of the step. Three routines, written in ``v`` with ``q_k+1 = q_k + h v
 * ``smooth_consts(q0, tau, par) -> k``: the step's invariants (of ``q_k``, ``h``
   and ``par`` alone), for the first step of a run and after an impact;
 * ``smooth_iter(x, p0, k) -> res, jac``: (46) and its Jacobian, per Newton iteration;
+  with the stage eliminated (``structure.stage_reduced``, :mod:`vcigen.stage`) the unknown is the
+  internal point's mean velocity ``z`` (``n`` of them, not ``(v, u)``), the rows the stage's
+  stationarity at ``v(z)``, and ``smooth_back(z, p0, k) -> x`` gives ``(v, u)`` in closed form;
 * ``smooth_end(x, k) -> p1, energy, phi, grad, mom, mass, k_next``: ``p+`` (51),
   ``E_d`` (55), ``phi`` and ``grad phi`` at ``q_k+1``, the Legendre transform there
   (``dL/dqdot (q_k+1, v)`` and ``M(q_k+1)``, for the slope of ``phi`` at the end)
@@ -32,6 +35,7 @@ import sympy as sp
 from .derive import DiscreteSystem
 from .explicit import hoist, shorter
 from .routines import Arg, Output, Routine
+from .stage import predictor, reduced_smooth
 
 
 def _bind(routine: Routine, values: dict[str, sp.Matrix]) -> dict[sp.Symbol, sp.Expr]:
@@ -79,21 +83,35 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
     at_seg = _bind(seg, {"q0": sp.Matrix(q0.symbols), "v": x, "tau": sp.Matrix([h]), "u": u, "par": pars})
     at_con = _bind(con, {"q": q1, "par": pars})
     at_leg = _bind(leg, {"q": q1, "v": x, "par": pars})
+    # with the stage eliminated (vcigen.stage): Newton on z, the internal point's mean velocity, and (v, u)
+    # from it in closed form (smooth_back)
+    red = reduced_smooth(system) if system.structure.stage_reduced else None
+    zs = red.unknowns if red is not None else ()
+    iterate = (
+        [("res", red.res), ("jac", red.jac())]
+        if red is not None
+        else [
+            ("res", smooth.output("res").expr),
+            ("jac", smooth.output("jac").expr),
+        ]
+    )
     outputs = [
-        ("res", smooth.output("res").expr),
-        ("jac", smooth.output("jac").expr),
+        *iterate,
         ("p1", seg.output("p_plus").expr.xreplace(at_seg)),
         ("energy", seg.output("energy").expr.xreplace(at_seg)),
         ("phi", con.output("phi").expr.xreplace(at_con)),
         ("grad", con.output("grad").expr.xreplace(at_con)),
         ("mom", leg.output("momentum").expr.xreplace(at_leg)),
         ("mass", leg.output("mass").expr.xreplace(at_leg)),
+        *([("x", red.x)] if red is not None else []),
     ]
+    guess = predictor(red, h) if red is not None else None
+    outputs += [("guess", guess)] if guess is not None else []
     flat = [shorter(e) for _, o in outputs for e in o]  # expanded, terms that cancel in (q0, v) cancel
     # p0 stays an input of the iteration: the invariants are of (q0, tau, par) alone, and those of the
     # next step are the same expressions at q0 + tau v (computed with p1, from the same trig of q1)
     consts, reduced, nxt = _hoist_with_next(
-        flat, set(xs.symbols) | set(p0.symbols), dict(zip(q0.symbols, q1))
+        flat, set(xs.symbols) | set(zs) | set(p0.symbols), dict(zip(q0.symbols, q1))
     )
     ks = Arg("k", tuple(k for k, _ in consts))
     outs, i = [], 0
@@ -101,6 +119,29 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
         outs.append(Output(name, sp.Matrix(o.rows, o.cols, reduced[i : i + len(o)])))
         i += len(o)
     k_next = Output("k_next", sp.Matrix(nxt) if nxt else sp.zeros(0, 1))
+    back = []
+    if guess is not None:
+        back.append(
+            Routine(
+                "smooth_guess",
+                (p0, ks),
+                (outs.pop(),),
+                "A guess of z for the smooth step (46) with the stage eliminated: one Newton step from z = 0 "
+                "with the Jacobian at tau = 0 (vcigen.stage.predictor).",
+            )
+        )
+    if red is not None:
+        back.insert(
+            0,
+            Routine(
+                "smooth_back",
+                (Arg("z", zs), p0, ks),
+                (outs.pop(),),
+                "(v, u) of the smooth step (46) at the internal point's mean velocity z, in closed form: "
+                "its momentum rows solved for v (vcigen.stage).",
+            ),
+        )
+    it_in = Arg("z", zs) if red is not None else xs
     return [
         Routine(
             "smooth_consts",
@@ -110,9 +151,12 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
         ),
         Routine(
             "smooth_iter",
-            (xs, p0, ks),
+            (it_in, p0, ks),
             tuple(outs[:2]),
-            "Smooth step (46), (73) and its Jacobian in v, from the step's invariants k.",
+            "Smooth step (46), (73) and its Jacobian in v, from the step's invariants k."
+            if red is None
+            else "Smooth step (46): the stage's stationarity at v(z) (the momentum rows solved for v) and "
+            "its Jacobian in z, the internal point's mean velocity, from the invariants k (vcigen.stage).",
         ),
         Routine(
             "smooth_end",
@@ -121,4 +165,5 @@ def implicit_routines(system: DiscreteSystem) -> list[Routine]:
             "End of the implicit grid step: p+ (51), E_d (55), phi and grad phi at q_k+1 = q_k + h v,"
             " dL/dqdot (q_k+1, v) and M(q_k+1) for the slope there, and the invariants of the next step.",
         ),
+        *back,
     ]

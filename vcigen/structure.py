@@ -9,7 +9,11 @@ own modules (:mod:`vcigen.explicit`, :mod:`vcigen.implicit`, :mod:`vcigen.held`)
 
 * **Internal points** (``stages``): a rule whose ``L_d`` is an extremum over internal points
   (``lobatto3``) appends their unknowns ``u`` to every phase's; then every phase is a Newton on
-  ``(x, u)`` and none of the specialisations below applies.
+  ``(x, u)`` and none of the specialisations below applies, except:
+* **Stage eliminated** (``stage_reduced``, ``stage_linear``; :mod:`vcigen.stage`): for ``T - V`` with a
+  constant mass the momentum rows of (46) are linear in ``v`` at a fixed internal point: solved for ``v``
+  in closed form, the implicit grid step is a Newton on the internal point alone (``n`` unknowns, not
+  ``2n``); when the rows left are linear in it too (a quadratic ``V``) one linear solve is exact.
 * **Linear smooth step** (``smooth_linear``, ``smooth_diagonal``): the smooth residual (46) is
   ``p-(q0, v, tau) - p0``; when its Jacobian is free of ``v`` (a constant mass matrix) one Newton
   step from any guess is exact, and a diagonal Jacobian makes it a division. Otherwise the grid
@@ -39,10 +43,13 @@ import sympy as sp
 from .derive import DiscreteSystem
 from .explicit import expanded, quadratic_energy, smooth_jacobian
 from .held import closed_forms, line_forms, row_hessian
+from .stage import reduced_smooth
 
 # The flags in the order the generated header lists them (Structure.lines).
 FLAGS = (
     "stages",
+    "stage_reduced",
+    "stage_linear",
     "smooth_linear",
     "smooth_diagonal",
     "implicit_grid",
@@ -60,6 +67,8 @@ class Structure:
     """What a scene allows, and why (:func:`detect`; ``why[flag]``: the reason for each of :data:`FLAGS`)."""
 
     stages: int  # internal unknowns of a segment (DiscreteSystem.stages): 0 for most rules
+    stage_reduced: bool  # momentum rows solved for v in closed form: Newton on n unknowns (vcigen.stage)
+    stage_linear: bool  # ... and the rows left are linear in the internal point: the grid step is explicit
     smooth_linear: bool  # (46) linear in v: one Newton step is exact (C: one linear solve)
     smooth_diagonal: bool  # ... with a diagonal Jacobian: a division
     implicit_grid: bool  # the grid step is Newton on (46) from hoisted invariants (vcigen.implicit)
@@ -103,7 +112,17 @@ class Structure:
             f"contacts: {system.m} ({names}); only these are generated",
             f"sizes fixed: n = {system.n}, m = {system.m}; {len(system.params)} parameters as runtime inputs",
         ]
-        if self.smooth_diagonal:
+        if self.stage_linear:
+            lines.append(
+                "smooth step (46): momentum rows solved for v in closed form, the stage linear in the "
+                "internal point -> one n x n solve, no Newton (vcigen.stage)"
+            )
+        elif self.stage_reduced:
+            lines.append(
+                "smooth step (46): momentum rows solved for v in closed form -> Newton on the internal point "
+                "alone, n unknowns instead of 2n (vcigen.stage)"
+            )
+        elif self.smooth_diagonal:
             lines.append(
                 "smooth step (46): residual linear in v with a diagonal Jacobian -> one division, no Newton"
             )
@@ -209,6 +228,36 @@ def _held(system: DiscreteSystem, explicit_grid: bool) -> tuple[bool, str]:
     )
 
 
+def _stage(system: DiscreteSystem, why: dict[str, str]) -> tuple[bool, bool]:
+    """``stage_reduced``, ``stage_linear`` (:mod:`vcigen.stage`), their reasons into ``why``."""
+    if not system.stages:
+        why["stage_reduced"] = why["stage_linear"] = "no internal points"
+        return False, False
+    red = reduced_smooth(system)
+    if red is None:
+        why["stage_reduced"] = (
+            f"rule {system.rule.name!r} declares {len(system.rule.nodes)} internal nodes (the closed form "
+            "takes one)"
+            if len(system.rule.nodes) != 1
+            else "the momentum rows of (46) are not linear in v at a fixed internal point (a mass matrix "
+            "that depends on q, or a force nonlinear in the velocity): Newton on (v, u)"
+        )
+        why["stage_linear"] = "no closed-form elimination of the stage"
+        return False, False
+    why["stage_reduced"] = (
+        "the momentum rows of (46) are linear in v at a fixed internal point (T - V with a constant mass, "
+        "forces linear in the velocity): v in closed form, every Newton on the internal point and the "
+        "phase's other unknowns (n, not 2n, for the grid step)"
+    )
+    linear = not (red.jac().free_symbols & set(red.unknowns))
+    why["stage_linear"] = (
+        "the stationarity at v(z) is linear in the internal point (a quadratic V): one n x n solve is exact"
+        if linear
+        else "the stationarity at v(z) is nonlinear in the internal point: Newton on it"
+    )
+    return True, linear
+
+
 def detect(system: DiscreteSystem) -> Structure:
     """Detect what ``system`` allows (see the module); run once per system by ``DiscreteSystem.structure``."""
     why: dict[str, str] = {}
@@ -283,6 +332,7 @@ def detect(system: DiscreteSystem) -> Structure:
             if explicit_grid
             else "no explicit grid step: Newton on (w, mu)"
         )
+    stage_reduced, stage_linear = _stage(system, why)
     implicit_grid = not smooth_linear
     why["implicit_grid"] = (
         "internal points: Newton on (v, u) from the step's invariants, hoisted (vcigen.implicit)"
@@ -303,6 +353,8 @@ def detect(system: DiscreteSystem) -> Structure:
     held, why["held"] = _held(system, explicit_grid)
     return Structure(
         stages=stages,
+        stage_reduced=stage_reduced,
+        stage_linear=stage_linear,
         smooth_linear=smooth_linear,
         smooth_diagonal=smooth_diagonal,
         implicit_grid=implicit_grid,

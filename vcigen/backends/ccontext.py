@@ -24,6 +24,7 @@ from ..held import SQRT_POWERS, held_routines
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
+from ..stage import reduced_phases
 from ..stepper import Tolerances, unheld_note
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
@@ -243,6 +244,9 @@ def render_context(
     routines += implicit
     held = held_routines(system) if structure.held else []  # the held grid step (vcigen.held)
     routines += held
+    # the stage eliminated (vcigen.stage): each Newton phase on (z, its own unknowns but v), and back
+    reduced = reduced_phases(system)
+    routines += [r for _, rz, back in reduced for r in (rz, back)]
     prefix = model.name
     setup = dict(setup or {})
     n = system.n
@@ -341,7 +345,22 @@ def render_context(
             "implicit_grid": structure.implicit_grid,
             # its invariants carried from step to step (not when par changes between steps: time, friction)
             "carry": structure.carry,
+            # the stage eliminated in closed form (vcigen.stage): the implicit grid step's Newton on the
+            # internal point's mean velocity z = offset v + u alone; linear: one solve
+            "stage_reduced": structure.stage_reduced,
+            "stage_linear": structure.stage_linear,
         },
+        # the internal point's place: z = node v + u (vcigen.stage)
+        "stage_offset": c_number(float(system.rule.nodes[0])) if structure.stage_reduced else "0.0",
+        "reduced": [name for name, _, _ in reduced],
+        "stage_guess": any(r.name == "smooth_guess" for r in implicit),  # vcigen.stage.predictor
+        # the sizes <model>_solve_sized unrolls: the stage, (v, u) and the phases with u; their reductions
+        "sized": sorted(
+            {system.stages, n + system.stages, n + system.stages + 1, n + system.stages + 2}
+            | ({n + 1, n + 2} if reduced else set())
+        )
+        if system.stages
+        else [],
         "structure_lines": structure.lines(),  # each flag and why, for the header's comment block
         "notes": structure.notes(system),
         "routines": [routine_context(r, inverse_powers=bool(system.stages)) for r in with_heads(routines)],
