@@ -6,6 +6,8 @@
  * What this scene allows (vcigen.structure.Structure, detected once per derived system
  * and read by both backends), each flag and why:
  *   stages = 0: rule 'trapezoid' has no internal points
+ *   stage_reduced = 0: no internal points
+ *   stage_linear = 0: no internal points
  *   smooth_linear = 1: the Jacobian of (46) in v is free of v (constant mass matrix): one Newton
  *       step is exact
  *   smooth_diagonal = 1: the Jacobian of (46) is free of v and diagonal: the solve is one division

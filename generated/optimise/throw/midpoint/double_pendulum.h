@@ -6,6 +6,8 @@
  * What this scene allows (vcigen.structure.Structure, detected once per derived system
  * and read by both backends), each flag and why:
  *   stages = 0: rule 'midpoint' has no internal points
+ *   stage_reduced = 0: no internal points
+ *   stage_linear = 0: no internal points
  *   smooth_linear = 0: the Jacobian of (46) in v depends on v
  *   smooth_diagonal = 0: (46) is nonlinear in v
  *   implicit_grid = 1: (46) is not linear in v: Newton on it from the step's invariants, hoisted
