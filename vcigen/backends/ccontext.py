@@ -25,7 +25,7 @@ from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
 from ..stepper import Tolerances, unheld_note
-from .cheld_map import held_maps
+from .cheld_map import held_maps, is_held_map
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
 from .cspecialise import phi_routine
@@ -117,7 +117,7 @@ def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
     ``inverse_powers``: ``b^-k`` as ``1/(b ... b)``, not libm's ``pow`` (the routines of a rule with internal
     points: its quadrature nodes put the potential's negative powers in every residual)."""
     temps, outs, fills = print_routine_body(
-        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers
+        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers, plain_cse=is_held_map(r.name)
     )
     return {
         "name": r.name,

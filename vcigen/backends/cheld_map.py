@@ -41,6 +41,11 @@ HELD_MAP_N = 3  # coordinates at most for a held step's tangent as straight-line
 HELD_MAP_ARGS = ("q", "p", "tau", "v", "lam", "lam1", "u1", "par", "s")
 
 
+def is_held_map(name: str) -> bool:
+    """Whether routine ``name`` is one of a :class:`HeldMap`'s (printed with plain CSE: ``cprinter``)."""
+    return name.startswith("sens_held_")
+
+
 def _inverse(a: sp.Matrix) -> sp.Matrix:
     """``a^-1`` of a small symbolic matrix: per entry when diagonal, else adjugate over determinant."""
     a = expanded(a)
@@ -236,6 +241,6 @@ def _settled(m: sp.Matrix, symbols: list[sp.Symbol]) -> sp.Matrix:
             vals = [e.xreplace(pt) for pt in points]
             if all(val.is_Rational and val == c for val in vals):
                 return sp.Integer(c)
-        return sp.together(e)
+        return e
 
     return m.applyfunc(one)
