@@ -12,15 +12,24 @@ implicit-function theorems and a chain:
 
 The numeric path evaluates the ``d_*`` routines, LU-factors ``F_x`` and ``F_y`` (``n + R`` square) and chains
 ``K``-column products at run time. For a given active set every piece is a known SymPy expression, so here the
-whole map is built once symbolically -- each ``F`` solved by its block structure: the momentum block
-``F_11`` (``n x n``, the mass-like ``dp-/dv`` or ``M``: a division per row when it is diagonal, else its
-adjugate over its determinant) and the Schur complement ``F_22 - F_21 F_11^-1 F_12`` on the active rows
-(``R_A x R_A``, adjugate over determinant) -- and printed as one CSE'd routine
-``sens_held_map_<key>(q, p, tau, v, lam, lam1, u1, par, s) -> s1`` (``s``, ``s1``: ``2n x K`` row-major),
-like the smooth step's ``sens_smooth_map`` (:func:`vcigen.backends.csens.smooth_map_routine`). Zero and unit
-partials (a flat row's constant gradient, a constant mass) vanish at generation, so the run-time cost is that
-of the map's nonzero structure. The inactive rows' multipliers never enter. A singular ``F`` shows as a
-non-finite ``s1``: the caller then runs the numeric path, which decides (and names) the break.
+map is built once symbolically, in three straight-line routines (``templates/sens_held_map.c.j2`` calls them):
+
+* ``sens_held_atoms_<key>(q, p, tau, v, lam, lam1, u1, par) -> a``: the entries of the partials (``jac`` and
+  ``d_*`` of ``rattle`` and ``rattle_project``, ``d_segment``'s ``dp+``, ``d_legendre``'s ``dmom``) that
+  depend on the state, each distinct one a symbol (:class:`_Atoms`); entries of ``(tau, par)`` alone stay
+  expressions, numbers stay numbers (a constant mass, a flat row's gradient);
+* ``sens_held_phi_<key>(a, tau, par) -> f``: ``Phi = d(q1, p1)/d(q, p, params)`` (``2n x (2n + P)``), each
+  ``F`` solved by its blocks -- the momentum block ``F_11`` (``n x n``, ``dp-/dv`` or ``M``: a division per
+  row when diagonal, else adjugate over determinant) and the Schur complement ``F_22 - F_21 F_11^-1 F_12`` on
+  the active rows (``R_A x R_A``, adjugate over determinant); the entries that are identically 0 or 1 found at
+  generation (:func:`_settled`), the others that read ``a`` in ``f``;
+* ``sens_held_map_<key>(f, tau, par, s) -> s1``: ``S_k+1 = Phi (S_k; 0 I_P)`` with Phi's zeros and ones left
+  out (``s``, ``s1``: ``2n x K`` row-major).
+
+So the run-time cost is that of the map's nonzero structure: the slide on a floor (one flat row, unit mass) is
+``dq1 = dq + tau dp`` on ``x``, ``0`` on ``y``, ``dp1 = dp`` on ``x``, ``0`` on ``y``. The inactive rows'
+multipliers never enter. A singular ``F`` shows as a non-finite ``s1``: the caller then runs the numeric path,
+which decides (and names) the break.
 
 Built for active sets of one or two rows (``ccontext.held_sets``: the keys of the held glide's per-set loops),
 at most :data:`HELD_MAP_N` coordinates, no friction (a frictional held step is not covered).
@@ -226,10 +235,13 @@ def held_maps(system: DiscreteSystem, sets: list[dict]) -> list[HeldMap]:
 
 
 def _settled(m: sp.Matrix, symbols: list[sp.Symbol]) -> sp.Matrix:
-    """``m`` (rational in ``symbols``) with its entries that are identically 0 or 1 as such, the others over
-    one denominator (``together``). An entry is tested at two random rational points, exactly (Schwartz-
-    Zippel), then confirmed by ``cancel``: the atoms as independent symbols, so a zero that needs their
-    relations stays an expression (correct, only slower)."""
+    """``m`` (rational in ``symbols``) with its entries that are identically 0 or 1 as such, the others as
+    they are. An entry is evaluated exactly at three random rational points (Schwartz-Zippel: a nonzero
+    rational function of degree ``d`` vanishes at such a point with probability below ``d / 10^11``);
+    ``cancel`` would decide it too, but takes minutes on the two-row sets of the star. The partials are
+    independent symbols here, so a zero that needs their relations stays an expression (correct, only
+    slower); a point where an entry is not a rational number (a parameter under ``sqrt``, a zero
+    denominator) leaves it as it is."""
     rng = random.Random(20261202)
     big = 10**6
     points = [{s: sp.Rational(rng.randint(1, big), rng.randint(1, big)) for s in symbols} for _ in range(3)]
@@ -237,8 +249,8 @@ def _settled(m: sp.Matrix, symbols: list[sp.Symbol]) -> sp.Matrix:
     def one(e: sp.Expr) -> sp.Expr:
         if not e.free_symbols:
             return e
+        vals = [e.xreplace(pt) for pt in points]
         for c in (0, 1):
-            vals = [e.xreplace(pt) for pt in points]
             if all(val.is_Rational and val == c for val in vals):
                 return sp.Integer(c)
         return e
