@@ -32,7 +32,7 @@ multipliers never enter. A singular ``F`` shows as a non-finite ``s1``: the call
 which decides (and names) the break.
 
 Built for active sets of one or two rows (``ccontext.held_sets``: the keys of the held glide's per-set loops),
-at most :data:`HELD_MAP_N` coordinates, no friction (a frictional held step is not covered).
+at most :data:`HELD_MAP_N` coordinates, on scenes with the held glide (:func:`held_maps`).
 """
 
 from __future__ import annotations
@@ -226,10 +226,13 @@ class HeldMap(NamedTuple):
 
 def held_maps(system: DiscreteSystem, sets: list[dict]) -> list[HeldMap]:
     """The fused tangents of a system's held steps, one per active set of ``sets`` (``ccontext.held_sets``:
-    one or two rows, none past ``HELD_SETS_MAX`` rows), or none: more than :data:`HELD_MAP_N` coordinates, or
-    friction (a frictional held step breaks the tangent anyway)."""
+    one or two rows, none past ``HELD_SETS_MAX`` rows), or none: more than :data:`HELD_MAP_N` coordinates, or a
+    scene without the held glide (``structure.held``: constant diagonal mass, no forces, no friction). There the
+    held step is straight-line code of a few ns, and the numeric tangent was 7-50x it; on the general chain
+    (Newton on ``rattle``) the numeric tangent is ~2x the step, and a map would cost its build (5-40 s of SymPy
+    for a configuration-dependent mass such as the double pendulum's)."""
     rows = system.rows
-    if not rows or system.n > HELD_MAP_N or rows.frictional or "d_rattle" not in system.routines:
+    if not rows or system.n > HELD_MAP_N or "d_rattle" not in system.routines or not system.structure.held:
         return []
     return [held_map(system, tuple(s["rows"]), s["key"]) for s in sets]
 
