@@ -225,12 +225,13 @@ class HeldMap(NamedTuple):
 
 
 def held_maps(system: DiscreteSystem, sets: list[dict]) -> list[HeldMap]:
-    """The fused tangents of a system's held steps, one per active set of ``sets`` (``ccontext.held_sets``:
-    one or two rows, none past ``HELD_SETS_MAX`` rows), or none: more than :data:`HELD_MAP_N` coordinates, or a
-    scene without the held glide (``structure.held``: constant diagonal mass, no forces, no friction). There the
-    held step is straight-line code of a few ns, and the numeric tangent was 7-50x it; on the general chain
-    (Newton on ``rattle``) the numeric tangent is ~2x the step, and a map would cost its build (5-40 s of SymPy
-    for a configuration-dependent mass such as the double pendulum's)."""
+    """The fused tangents of a system's held steps, one per active set of ``sets``
+    (``ccontext.held_sets``: one or two rows, none past ``HELD_SETS_MAX`` rows), or none: more than
+    :data:`HELD_MAP_N` coordinates, or a scene without the held glide (``structure.held``: constant
+    diagonal mass, no forces, no friction). There the held step is straight-line code of a few ns, and the
+    numeric tangent was 7-50x it; on the general chain (Newton on ``rattle``) the numeric tangent is ~2x
+    the step, and a map would cost its build (5-40 s of SymPy for a configuration-dependent mass such as
+    the double pendulum's)."""
     rows = system.rows
     if not rows or system.n > HELD_MAP_N or "d_rattle" not in system.routines or not system.structure.held:
         return []
