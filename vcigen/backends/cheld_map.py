@@ -235,6 +235,8 @@ def held_maps(system: DiscreteSystem, sets: list[dict]) -> list[HeldMap]:
     rows = system.rows
     if not rows or system.n > HELD_MAP_N or "d_rattle" not in system.routines or not system.structure.held:
         return []
+    if system.stages:  # internal points: rattle's unknowns are not (v, Lam) alone (and no held glide there)
+        return []
     return [held_map(system, tuple(s["rows"]), s["key"]) for s in sets]
 
 
