@@ -85,6 +85,10 @@ def long_run(sims: VcigenSims, scene: Scene, method: str, h: float, steps: int) 
     return lr
 
 
+# the C methods of the drift runs (1e6 steps): both second-order rules and the fourth-order lobatto3
+DRIFT_METHODS = ("vcigen_c_trapezoid", "vcigen_c_midpoint", "vcigen_c_lobatto3")
+
+
 def long_csv_row(r: LongRun) -> list[object]:
     vals = (r.wall, r.impacts, r.energy_dev, r.drift, r.min_phi)
     return [r.scene, r.method, f"{r.h:g}", r.steps, *(f"{v:.6g}" for v in vals), r.note]
@@ -99,8 +103,8 @@ def long_runs(sims, scenes, methods, args, out: Path, skips) -> tuple[list[LongR
         if setup.long_h is None:
             continue
         scene = bench_scenes.get(s)
-        cand = ["vcigen_c_trapezoid", "vcigen_casadi_trapezoid", "verlet_half_flip", "verlet_full_flip"]
-        cand += ["dop853_events", "dop853_events_ms"]
+        cand = ["vcigen_c_trapezoid", "vcigen_c_lobatto3", "vcigen_casadi_trapezoid"]
+        cand += ["verlet_half_flip", "verlet_full_flip", "dop853_events", "dop853_events_ms"]
         mine = [m for m in cand if m in methods and (have_c or not m.startswith("vcigen_c_"))]
         here = []
         for m in mine:
@@ -118,7 +122,7 @@ def long_runs(sims, scenes, methods, args, out: Path, skips) -> tuple[list[LongR
         except ImportError as exc:
             log(f"[bench] no plots: {exc}")
         if have_c:
-            for m in ("vcigen_c_trapezoid", "vcigen_c_midpoint"):
+            for m in DRIFT_METHODS:
                 if m in methods:
                     lr = long_run(sims, scene, m, setup.long_h, args.drift_steps)
                     lr.t = lr.rel_e = np.empty(0)

@@ -1,6 +1,7 @@
 """Cost of a run with exact sensitivities over the same run without (issue 11), per backend.
 
     .venv/bin/python -m bench.sensitivity_cost [--repeats 5] [--c-repeats 50] [--scale 1] [--c-fallback]
+        [--rule trapezoid]
 
 Each scene is run with ``simulate(..., sensitivities=False)`` and ``True`` (same start, same ``h``, same
 ``t_end``), both variants interleaved round-robin, best of ``--repeats``; the time is the stepper's own loop
@@ -20,7 +21,10 @@ Scenes (``tests/test_sensitivity.py`` has their FD checks):
 * ``double_pendulum``: against the wall ``x = 1.2``, ``q0 = (0.3, 0.6)``, ``v0 = (1.5, 2)``, h = 0.01;
 * ``driven``: the damped, driven oscillator with restitution (forces of time), ``q0 = 0``, ``v0 = 3``.
 
-Writes ``bench/results/sensitivity_cost.csv``.
+``--rule lobatto3``: the same under the fourth-order rule (its internal points one more unknown of each
+phase's tangent, on both backends).
+
+Writes ``bench/results/sensitivity_cost.csv`` (``sensitivity_cost_<rule>.csv`` for another rule).
 """
 
 from __future__ import annotations
@@ -77,6 +81,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every t_end")
     ap.add_argument("--c-repeats", type=int, default=50, help="repeats on C (its runs take microseconds)")
     ap.add_argument("--c-fallback", action="store_true", help="time C's fallback (Python stepper) too")
+    ap.add_argument("--rule", default="trapezoid", help="the rule of every build (default trapezoid)")
     args = ap.parse_args(argv)
     rows = []
     problem = hard_scenes.c_backend_problem()
@@ -86,7 +91,7 @@ def main(argv: list[str] | None = None) -> None:
             if backend == "c" and problem:
                 print(f"{scene}: C skipped ({problem})")
                 continue
-            sim = vcigen.build(SCENES[scene][0](), backend=backend)
+            sim = vcigen.build(SCENES[scene][0](), backend=backend, rule=args.rule)
             if backend == "c" and not (has_own_tangent(sim) or args.c_fallback):
                 print(
                     f"{scene}: C skipped: the C backend has no tangent propagation of its own in this tree "
@@ -111,7 +116,8 @@ def main(argv: list[str] | None = None) -> None:
                 f"{1e9 * off / steps:9.0f} ns/step off, {1e9 * on / steps:9.0f} on, ratio {on / off:6.2f}"
             )
         rows.append(row)
-    out = HERE / "results" / "sensitivity_cost.csv"
+    suffix = "" if args.rule == "trapezoid" else f"_{args.rule}"
+    out = HERE / "results" / f"sensitivity_cost{suffix}.csv"
     out.parent.mkdir(exist_ok=True)
     keys = list(dict.fromkeys(k for r in rows for k in r))
     with out.open("w", newline="") as fh:

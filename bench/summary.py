@@ -63,7 +63,9 @@ def wall_at(rows: Sequence[Row], target: float, attr: str = "err_first") -> tupl
         (w0, e0), (w1, e1) = pts[-2], pts[-1]
         if e1 < e0 and w1 > w0:
             slope = math.log(w1 / w0) / math.log(e0 / e1)
-            return w1 * (e1 / target) ** slope, "~"
+            log_w = math.log(w1) + slope * math.log(e1 / target)
+            if log_w < math.log(1e300):  # a flat curve (error barely falls, time grows) extrapolates past it
+                return math.exp(log_w), "~"
     return float("nan"), "not reached"
 
 

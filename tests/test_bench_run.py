@@ -60,6 +60,12 @@ def test_impact_matching_and_wall_interpolation() -> None:
     w, flag = run.wall_at(rows, 1e-5)
     assert flag == "~" and abs(w - 8.0) < 1e-9
     assert abs(run.order_of(rows) - run.order_of(rows[:2])) < 1e-9
+    # a flat curve (naive Verlet on a loaded machine: error 1.24e-1 -> 1.239e-1 for twice the time) is not
+    # reached, not an OverflowError
+    pts = ((0.01, 1.0, 0.124), (0.005, 2.0, 0.1239))
+    flat = [run.Row("s", "m", h, 1, wall=w, err_first=e) for h, w, e in pts]
+    w, flag = run.wall_at(flat, 1e-4)
+    assert flag == "not reached" and w != w
 
 
 def test_update_readme_copies_the_headline_between_markers(tmp_path):
@@ -92,3 +98,31 @@ def test_fine_steps_only_for_compiled_vcigen_and_two_accuracies_in_the_summary(t
     summary = (tmp_path / "summary.md").read_text()
     assert "| wall @ 0.001 | wall @ 1e-09 |" in summary
     assert "matched accuracy (0.001 at" in summary and "matched accuracy (1e-09 at" in summary
+
+
+def test_lobatto3_in_the_sweep_to_1e10_and_in_the_long_and_drift_runs(tmp_path: Path) -> None:
+    """Issue 12 item 5: lobatto3 runs in the long runs (energy and drift) beside trapezoid, and its own h
+    sweep goes fine enough on every scene for errors of 1e-10 (order 4 from its coarsest step)."""
+    import vcigen
+    from bench.long_runs import DRIFT_METHODS
+
+    assert "vcigen_c_lobatto3" in DRIFT_METHODS
+    for name, setup in run.SETUPS.items():
+        hs = setup.hs_for("vcigen_c_lobatto3")
+        assert hs == setup.high_order_hs, name
+        assert vcigen.RULES["lobatto3"].order == 4
+        # measured (bench/run.py --methods vcigen_c_lobatto3): 4.8e-12 on star_nonlinear at 0.1/128, 6.1e-10
+        # on pendulum_wall at 0.1/128, hence one halving more there
+        assert min(hs) <= (0.1 / 256 if name == "pendulum_wall" else 0.1 / 128), name
+    argv = ["--scenes", "particle", "--methods", "vcigen_c_trapezoid,vcigen_c_lobatto3", "--hs", "0.01"]
+    argv += ["--phases", "1", "--long-steps", "3000", "--drift-steps", "4000", "--out", str(tmp_path)]
+    assert run.main(argv) == 0
+    with (tmp_path / "longrun.csv").open() as fh:
+        rows = [r for r in csv.DictReader(fh) if r["method"] == "vcigen_c_lobatto3"]
+    assert [int(r["steps"]) for r in rows] == [2999, 3999]  # the energy run, then the drift run
+    for r in rows:
+        assert int(r["impacts"]) > 0 and r["note"] == ""
+        # linear gravity: lobatto3's E_d is kept to round-off, through every impact
+        assert float(r["energy_dev"]) < 1e-12
+    summary = (tmp_path / "summary.md").read_text()
+    assert "| particle | vcigen C, lobatto3 (order 4) | 0.01 | 2999 |" in summary

@@ -147,11 +147,15 @@ def test_each_scene_exercises_what_it_is_for() -> None:
 
 @pytest.mark.parametrize("name", ["star", "dome", "pendulum"])
 def test_python_stepper_on_c_kernels_is_the_c_loop(name: str) -> None:
-    s = sim(name, "c")
-    _, q0, v0, h, t_end = SCENES[name]
+    assert_python_stepper_is_the_c_loop(sim(name, "c"), SCENES[name], run(name, "c"))
+
+
+def assert_python_stepper_is_the_c_loop(s: vcigen.Simulator, scene, c: vcigen.Result) -> None:
+    """The Python stepper on ``s``'s C kernels over ``scene`` ``(model, q0, v0, h, t_end)`` is the C loop's
+    run ``c``: the same grid to 1e-12, the same events and lift-offs."""
+    _, q0, v0, h, t_end = scene
     kern = s.kernels.bind(s.model.resolve_params(None))
     py = Stepper(kern, s.tol).simulate(q0, v0, h, t_end=t_end)
-    c = run(name, "c")
     np.testing.assert_allclose(py.q, c.q, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(py.active, c.active)
     assert [(i.kind, i.step) for i in py.impacts] == [(i.kind, i.step) for i in c.impacts]
@@ -258,6 +262,11 @@ def test_held_step_is_the_general_chain_to_solver_tolerance(name: str) -> None:
     slow, none = _stepper_run(name, "c", False)
     steps = len(fast.t) - 1
     assert none == 0 and taken >= steps // 2, (taken, steps)  # it is what takes the held steps
+    _same_to_newton_tolerance(fast, slow)
+
+
+def _same_to_newton_tolerance(fast: vcigen.Result, slow: vcigen.Result) -> None:
+    """The same trajectory to the Newton tolerance, the same events, lift-offs and forces."""
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(fast.p, slow.p, rtol=0, atol=1e-10)
     np.testing.assert_allclose(fast.energy, slow.energy, rtol=0, atol=1e-10)
@@ -292,6 +301,26 @@ def test_held_step_c_loop_casadi_and_python(name: str) -> None:
         (i.contact, i.kind, i.step) for i in c.impacts
     ]
     np.testing.assert_allclose([lo[0] for lo in ca.liftoffs], [lo[0] for lo in c.liftoffs], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["bowl", "dome", "pendulum"])
+def test_closed_held_step_in_c_is_the_held_newton(name: str) -> None:
+    """A row held alone with a closed form (vcigen.held.closed_forms: the bowl's and the dome's circles, the
+    rod): the C loop takes the closed step (one square root, no Newton), CasADi's stepper with the closed form
+    off the held Newton. The same trajectory to the Newton's tolerance, the same events, forces and lift-off
+    times."""
+    sim_c, sim_ca = held_sim(name, "c"), held_sim(name, "casadi")
+    assert any(sim_c.system.structure.held_closed)
+    _, q0, v0, h, t_end = HELD[name]
+    c = sim_c.simulate(q0, v0, h, t_end=t_end)
+    kern = sim_ca.kernels.bind(sim_ca.model.resolve_params(None))
+    kept = kern.held_closed
+    kern.held_closed = [False] * len(kept)
+    try:
+        newton = Stepper(kern, sim_ca.tol).simulate(q0, v0, h, t_end=t_end)
+    finally:
+        kern.held_closed = kept
+    _same_to_newton_tolerance(c, newton)
 
 
 def test_held_scenes_exercise_what_they_are_for() -> None:

@@ -114,9 +114,12 @@ def test_held_line_is_the_row_along_the_line() -> None:
 def _newton_steps(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
     """Held steps taken and the held Newton steps they made past the first evaluation and the line start
     (``held.factor_small`` calls less the one of each step's projection), on CasADi's kernels
-    (held.held_step), with the line start or (``lines`` False) without."""
+    (held.held_step), with the line start or (``lines`` False) without. The closed-form step of a circle
+    (``held.closed_step``, tests/test_held_closed.py) would take these rows past both: it is off here."""
     s = vcigen.build(model(), backend="casadi")
     k = s.kernels.bind(s.model.resolve_params(None))
+    assert any(k.held_closed)  # the bowl and the rod are closed rows: switched off below
+    k.held_closed = [False] * len(k.held_closed)
     kept, factor = k.held_lines, held.factor_small
     k.held_lines = kept if lines else [False] * len(kept)
     calls, taken = [0], [0]
@@ -161,4 +164,4 @@ def test_no_newton_past_the_line_start_on_a_curved_row(model, q0, h: float) -> N
     taken, newton = _newton_steps(model, q0, [0.0, 0.0], h, 300, lines=False)
     assert taken >= 290 and newton >= taken
     taken, newton = _newton_steps(model, q0, [0.0, 0.0], h, 300, lines=True)
-    assert taken >= 290 and newton <= 0.05 * taken, (taken, newton)
+    assert taken >= 290 and 0 <= newton <= 0.05 * taken, (taken, newton)

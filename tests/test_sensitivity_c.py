@@ -84,7 +84,7 @@ def test_breaks_are_the_python_steppers() -> None:
     """A lossy ball to rest: restitution impacts, a plastic impact (sens_plastic, then the constrained
     rest of its step), then held steps (the held glide in C): covered on both backends, the same tangent.
     Sliding off a dome: held steps covered (the glide, one step at a time), the lift-off step too (on C by
-    the Python stepper's Tracker.liftoff, CSimulator._liftoff_tangent), no break. The paper's star with
+    the generated sens_liftoff, as the Python stepper's Tracker.liftoff), no break. The paper's star with
     e = 0.8 settling: rocking on a vertex, an impact while held (not covered) is the first break; the same
     breaks on both backends."""
     sims = {backend: vcigen.build(hard_scenes.ball(), backend=backend) for backend in ("casadi", "c")}
@@ -124,7 +124,7 @@ def test_c_equals_casadi_on_held_steps(scene: str) -> None:
 
 @pytest.mark.parametrize("scene", sorted(ts.LIFT_SCENES))
 def test_c_equals_casadi_across_a_liftoff(scene: str) -> None:
-    """A lift-off at a located time: the C run's tangent (its lift-off step by CSimulator._liftoff_tangent)
+    """A lift-off at a located time: the C run's tangent (its lift-off step by the generated sens_liftoff)
     against the CasADi run's, and the C trajectory unchanged by asking for the tangent."""
     _, q0, v0, h, t_end, params, _ = ts.LIFT_SCENES[scene]
     a, b = both(lambda backend: ts.lift_simulator(scene, backend), q0, v0, h, t_end=t_end, params=params)

@@ -17,6 +17,13 @@ SCENES["driven"] = driven_oscillator
 
 def _reference(system, name: str, ins: list) -> list:
     """CasADi's AD of the routine ``d_<name>`` differentiates, at the same symbols."""
+    if name == "forces":  # the force law [M a - rhs - G^T lam; G a + curv] of rows, dynamics, legendre
+        q, u, a, lam, par = ins
+        _, grad, curv = routine_to_function(system.routines["rows"])(q, u, par)
+        rhs = routine_to_function(system.routines["dynamics"])(q, u, par)[0]
+        mass = routine_to_function(system.routines["legendre"])(q, u, par)[1]
+        res = ca.vertcat(ca.mtimes(mass, a) - rhs - ca.mtimes(grad.T, lam), ca.mtimes(grad, a) + curv)
+        return [ca.jacobian(res, ca.vertcat(q, u, par))]
     base = system.routines[name]
     g = routine_to_function(base)
     if name == "legendre":
@@ -44,7 +51,7 @@ def test_tangents_match_automatic_differentiation(scene: str) -> None:
     expected = {"d_smooth", "d_jump", "d_segment", "d_contacts", "d_legendre", "d_restitution"}
     expected |= {f"d_{p}_{c}" for p in ("contact_time", "jump_contact") for c in system.contact_names}
     if "rows" in system.routines:  # sustained contact: the held step's residuals and the rows' directions
-        expected |= {"d_rattle", "d_rattle_project", "d_rows"}
+        expected |= {"d_rattle", "d_rattle_project", "d_rows", "d_forces"}
     assert set(names) == expected
     rng = np.random.default_rng(1)
     for name in names:

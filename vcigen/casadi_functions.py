@@ -20,6 +20,11 @@ of the step map (``alpha`` and ``mu`` included; the discrete saltation matrix), 
 corrected by one Newton step; the interpolated crossing of ``phi``; the reflected velocity), which carry no
 derivative (a rootfinder's answer does not depend on its start).
 
+Rules with internal points (``lobatto3``): their unknowns ``u`` (MATH.md, *Higher order: lobatto3*) are
+unknowns of the same rootfinders, appended to each phase's and hidden from the signatures (the same as
+the trapezoid rule's); they start at their stationary value for the phase's start (Newton on their own
+rows, as the CasADi backend does) and the Jacobians differentiate through them.
+
 ``par`` is the parameter vector of :func:`vcigen.derive`'s ``params``: the model's parameters in the order
 of ``model.defaults``, then per frictional contact the friction slots (unused here: 0), then, when the
 forces depend on time, the time the step starts at. :func:`casadi_parameters` builds it.
@@ -27,10 +32,11 @@ forces depend on time, the time the step starts at. :func:`casadi_parameters` bu
 Not covered (each is a mode of its own, not a smooth map): several impacts in one step (78), simultaneous
 impacts (a corner, two vertices at once), friction at an impact (no ``impact_<c>`` for a frictional
 contact), plastic or grazing impacts and sustained contact (where (48a) has no root ``mu > 0`` the
-rootfinder fails). The Functions do not check that the mode holds (no crossing in ``"step"``, the earliest
-crossing on ``c`` in ``"impact_<c>"``): the caller fixes the mode sequence, for instance from a run of
-``simulate``, and checks ``0 <= alpha <= 1`` and ``mu > 0`` (out of its mode an impact Function returns the
-root of the same equations with ``alpha`` outside ``[0, 1]``, or fails to converge and raises).
+rootfinder fails), bilateral constraints (a ``ValueError``). The Functions do not check that the mode holds
+(no crossing in ``"step"``, the earliest crossing on ``c`` in ``"impact_<c>"``): the caller fixes the mode
+sequence, for instance from a run of ``simulate``, and checks ``0 <= alpha <= 1`` and ``mu > 0`` (out of its
+mode an impact Function returns the root of the same equations with ``alpha`` outside ``[0, 1]``, or fails
+to converge and raises).
 """
 
 from __future__ import annotations
@@ -70,6 +76,12 @@ def casadi_functions(
     """
     if not isinstance(model, Model):
         raise ValueError(f"casadi_functions() needs a vcigen.Model, got {type(model).__name__}")
+    if model.constraints:
+        # an unconstrained "step" of a constrained model would leave the constraint silently
+        raise ValueError(
+            f"casadi_functions() has no step for bilateral constraints (model {model.name!r} has "
+            f"{sorted(model.constraints)}): the held step (RATTLE) is not among its Functions; use simulate()"
+        )
     return functions_of(derive(model, rule), newton_options)
 
 
@@ -102,18 +114,47 @@ class _Phases:
         g = ca.Function("g", [x, ca.vertcat(*rest)], [self.f[name](x, *rest)[0]])
         return ca.rootfinder(f"{name}_newton", "newton", g, self.options)
 
+    def stage_rootfinder(self, name: str) -> ca.Function:
+        """``(u0, (x, data)) -> u``: the internal points alone on routine ``name``'s first rows, their
+        stationarity, at the phase's unknowns ``x`` (the start of the full solve, as the CasADi backend's)."""
+        r, ns = self.system.routines[name], self.system.stages
+        nx = r.inputs[0].size - ns
+        u, xp = ca.SX.sym("u", ns), ca.SX.sym("xp", nx)
+        rest = [ca.SX.sym(a.name, a.size) for a in r.inputs[1:]]
+        g = ca.Function("g_u", [u, ca.vertcat(xp, *rest)], [self.f[name](ca.vertcat(xp, u), *rest)[0][:ns]])
+        return ca.rootfinder(f"{name}_stage_newton", "newton", g, self.options)
+
+    def solve(self, name: str, guess, data) -> tuple:
+        """Routine ``name`` solved from ``guess`` (its unknowns without the internal points): ``(x, u)``.
+
+        With internal points (``DiscreteSystem.stages``; lobatto3) they are unknowns of the same
+        rootfinder, hidden from the signature: started at their stationary value for ``guess`` (Newton from
+        0 on their own rows), solved with the rest, returned apart (``u`` empty without them)."""
+        ns = self.system.stages
+        if not ns:
+            return self.rootfinder(name)(guess, data), ca.MX.zeros(0)
+        u0 = self.stage_rootfinder(name)(ca.MX.zeros(ns), ca.vertcat(guess, data))
+        x = self.rootfinder(name)(ca.vertcat(guess, u0), data)
+        nx = x.shape[0] - ns
+        return x[:nx], x[nx:]
+
+    def segment(self, q0, v, tau, u, par):
+        """``segment``'s ``(p-, p+, E_d)`` (with the internal points ``u`` under a rule that has them)."""
+        return self.f["segment"](q0, v, tau, *((u,) if self.system.stages else ()), par)
+
     def velocity(self, q, v, p, par):
         """The velocity of momentum ``p`` at ``q``: one Newton step of ``dL/dqdot = p`` from ``v``."""
         mom, mass = self.f["legendre"](q, v, par)
         return v + ca.solve(mass, p - mom)
 
     def smooth(self, q, p, h, par):
-        """Smooth step (46): the segment velocity ``v`` of ``p = p-(q, q + h v, h)``."""
+        """Smooth step (46): ``v`` of ``p = p-(q, q + h v, h)``, and the internal points (:meth:`solve`)."""
         n = self.n
         start = self.velocity(q, ca.MX.zeros(n), p, par)
-        res, jac = self.f["smooth"](start, q, p, h, par)
-        start = start - ca.solve(jac, res)  # one Newton step: the explicit predictor
-        return self.rootfinder("smooth")(start, ca.vertcat(q, p, h, par))
+        if not self.system.stages:
+            res, jac = self.f["smooth"](start, q, p, h, par)
+            start = start - ca.solve(jac, res)  # one Newton step: the explicit predictor
+        return self.solve("smooth", start, ca.vertcat(q, p, h, par))
 
     def timed(self, par, dt):
         """``par`` of a segment starting ``dt`` later (forces of time: the last slot is the start time)."""
@@ -121,8 +162,8 @@ class _Phases:
 
     def step(self) -> ca.Function:
         q, p, h, par = self.inputs()
-        v = self.smooth(q, p, h, par)
-        _, p1, _ = self.f["segment"](q, v, h, par)
+        v, u = self.smooth(q, p, h, par)
+        _, p1, _ = self.segment(q, v, h, u, par)
         return ca.Function(
             "step",
             [q, p, h, par],
@@ -140,13 +181,13 @@ class _Phases:
         """Contact time and point (47) on contact ``j``: ``(v, alpha, q~, p~-, E-)``, from the smooth step's
         ``v`` and the interpolated crossing of ``phi_j`` (the stepper's start)."""
         n = self.n
-        v = self.smooth(q, p, h, par)
+        v, _ = self.smooth(q, p, h, par)
         phi0 = self.f["contacts"](q, par)[0][j]
         phi1 = self.f["contacts"](q + h * v, par)[0][j]
         s0 = ca.fmin(ca.fmax(phi0 / (phi0 - phi1), 0.0), 1.0)
-        x = self.rootfinder(f"contact_time_{contact}")(ca.vertcat(v, s0), ca.vertcat(q, p, h, par))
+        x, u = self.solve(f"contact_time_{contact}", ca.vertcat(v, s0), ca.vertcat(q, p, h, par))
         v_c, alpha = x[:n], x[n]
-        _, p_in, e_c = self.f["segment"](q, v_c, alpha * h, par)
+        _, p_in, e_c = self.segment(q, v_c, alpha * h, u, par)
         return v_c, alpha, q + alpha * h * v_c, p_in, e_c
 
     def contact(self, j: int, contact: str) -> ca.Function:
@@ -177,11 +218,11 @@ class _Phases:
         e_in = e_c - (1.0 - e * e) * nv * nv / (2.0 * nmn)
         mu0 = -(1.0 + e) * nv / nmn
         tau_r = h - tau_c
-        y = self.rootfinder("jump")(
-            ca.vertcat(vel + mu0 * minv_n, mu0), ca.vertcat(q_c, nrm, p_in, e_in, tau_r, par_c)
+        y, u = self.solve(
+            "jump", ca.vertcat(vel + mu0 * minv_n, mu0), ca.vertcat(q_c, nrm, p_in, e_in, tau_r, par_c)
         )
         w, mu = y[:n], y[n]
-        _, p1, _ = self.f["segment"](q_c, w, tau_r, par_c)
+        _, p1, _ = self.segment(q_c, w, tau_r, u, par_c)
         return ca.Function(
             f"impact_{contact}",
             [q, p, h, par],
@@ -195,8 +236,6 @@ def functions_of(
     system: DiscreteSystem, newton_options: Mapping[str, object] | None = None
 ) -> dict[str, ca.Function]:
     """:func:`casadi_functions` of an already derived system."""
-    if system.stages:
-        raise ValueError(f"casadi_functions has no rule {system.rule.name!r} (internal points) yet")
     ph = _Phases(system, FUNCTION_NEWTON_OPTIONS if newton_options is None else newton_options)
     out = {"step": ph.step()}
     frictional = system.model.friction_of

@@ -417,26 +417,20 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
             f"Jump ending on contact '{c}' (78): unknowns (w, mu, beta).",
             shared,
         )
-    if rule.stages:  # no sustained contact with internal points yet: the paper's impacts only (r = 0)
-        rows = None
-    elif rows.size:
-        routines.update(sustained_routines(model, seg, rows, par, phis, q))
+    if rows.size:
+        routines.update(sustained_routines(model, seg, rows, par, phis, q, rule))
     if sensitivities:
         routines.update(tangent_routines(routines))
     return DiscreteSystem(model, rule, names, par.symbols, routines, rows, seg)
 
 
 def unsupported(model: Model, rule: Rule) -> None:
-    """A rule with internal points has the impact phases and forces only: a ``ValueError`` naming what it
-    lacks (friction, bilateral constraints; sustained contact is a located ``SolverError`` in the run)."""
-    lacks = [
-        what
-        for what, there in (
-            ("friction", bool(model.friction_of)),
-            ("bilateral constraints", bool(model.constraint)),
+    """A rule with internal points has every phase but friction: a ``ValueError`` naming what it lacks."""
+    lacks = [what for what, there in (("friction", bool(model.friction_of)),) if there]
+    if len(rule.nodes) != rule.stages:
+        lacks.append(
+            "sustained contact and bilateral constraints (Rule.nodes does not place its internal points)"
         )
-        if there
-    ]
     if lacks:
         raise ValueError(
             f"rule {rule.name!r} (internal points) does not support {', '.join(lacks)} yet; "
@@ -450,7 +444,13 @@ def _no_dirac(e: sp.Expr) -> sp.Expr:
 
 
 def sustained_routines(
-    model: Model, seg: Segment, rows: Rows, par: Arg, phis: list[sp.Expr], q: tuple[sp.Symbol, ...]
+    model: Model,
+    seg: Segment,
+    rows: Rows,
+    par: Arg,
+    phis: list[sp.Expr],
+    q: tuple[sp.Symbol, ...],
+    rule: Rule | None = None,
 ) -> dict[str, Routine]:
     """Routines of sustained contact (MATH.md): rows, free dynamics, the constrained step, the projection.
 
@@ -463,6 +463,11 @@ def sustained_routines(
     * ``rattle_project``: the end momentum ``p1 = p+ + sum act_r Lam'_r grad psi_r(q1)`` whose velocity
       ``u`` is tangent to every active row: unknowns ``(u, Lam')``, ``dL/dqdot(q1, u) = p1``,
       ``grad psi_r . u = 0``.
+
+    A rule with internal points (``rule.stages``) holds them on the active rows too, each with its own
+    multipliers ``Lam_m`` (:func:`held_internal_points`): ``rattle``'s unknowns are ``(v, Lam, Lam_m, u)``
+    (``u`` explicit, no stage appended by the solvers: :data:`WHOLE`) and ``rattle_end`` gives ``p+`` and
+    ``E_d`` of the segment with the internal multipliers' share.
     """
     n, nr = model.n, rows.size
     qs, vs = model.coordinates, model.velocities
@@ -508,20 +513,43 @@ def sustained_routines(
     )
     q0, p0, tau = _vec("q", n), _vec("p", n), sp.Dummy("tau", real=True)
     v, lam, act = _vec("v", n), _vec("L", nr), _vec("a", nr)
-    pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau)
+    staged = rule is not None and rule.stages > 0
+    um = sp.Matrix(_vec("u", n * rule.stages)) if staged else None
+    pm, _, _ = seg.at(sp.Matrix(q0), sp.Matrix(v), tau, um)
     g0 = dirs.xreplace(dict(zip(q, q0)))
     alam = sp.Matrix([a * lm for a, lm in zip(act, lam)])
     q1 = sp.Matrix(q0) + tau * sp.Matrix(v)
     psi1 = [ps.xreplace(dict(zip(q, q1))) for ps in psi]
-    res = (pm - sp.Matrix(p0) - g0.T * alam).col_join(
-        sp.Matrix([a * ps + (1 - a) * lm for a, ps, lm in zip(act, psi1, lam)])
-    )
+    args = [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), Arg("act", act), par]
+    held_rows = sp.Matrix([a * ps + (1 - a) * lm for a, ps, lm in zip(act, psi1, lam)])
+    if staged:
+        held = held_internal_points(seg, rule, dirs, psi, q, sp.Matrix(q0), sp.Matrix(v), tau, um, act)
+        res = seg.stationary(sp.Matrix(q0), sp.Matrix(v), tau, um) - held.stationarity
+        res = (
+            res.col_join(pm + held.minus - sp.Matrix(p0) - g0.T * alam)
+            .col_join(held_rows)
+            .col_join(held.rows)
+        )
+        unknowns = (*v, *lam, *held.lam, *um)
+        doc = "its internal points held on the active rows, unknowns (v, Lam, Lam_m, u), Lam ~ w tau lambda"
+        _, p_plus, energy = seg.at(sp.Matrix(q0), sp.Matrix(v), tau, um)
+        ends = (Arg("q0", q0), Arg("v", v), Arg("tau", (tau,)), Arg("u", tuple(um)), Arg("lm", held.lam))
+        out["rattle_end"] = Routine(
+            "rattle_end",
+            (*ends, Arg("act", act), par),
+            (Output("p_plus", p_plus - held.plus), Output("energy", sp.Matrix([energy + held.energy]))),
+            "p+ = D2 L_d (51) and E_d = -D3 L_d (55) of a constrained segment whose internal points are held "
+            "(the multipliers Lam_m's share).",
+        )
+    else:
+        res = (pm - sp.Matrix(p0) - g0.T * alam).col_join(held_rows)
+        unknowns, doc = (*v, *lam), "unknowns (v, Lam), Lam = tau/2 lambda"
     out["rattle"] = _residual_routine(
         "rattle",
-        Arg("x", (*v, *lam)),
-        [Arg("q0", q0), Arg("p0", p0), Arg("tau", (tau,)), Arg("act", act), par],
+        Arg("x", unknowns),
+        args,
         res,
-        "Constrained step (RATTLE, MATH.md Sustained contact): unknowns (v, Lam), Lam = tau/2 lambda.",
+        f"Constrained step (RATTLE, MATH.md Sustained contact): {doc}.",
     )
     p1 = _vec("p", n)
     mom = sp.Matrix([model.L.diff(s) for s in vs]).xreplace(rep)
@@ -537,6 +565,69 @@ def sustained_routines(
         "End momentum of a constrained step, velocity tangent to the active rows: unknowns (u, Lam').",
     )
     return out
+
+
+# Residual routines whose unknowns get no internal unknowns appended by the solvers (CasadiKernels, the C
+# <model>_newton): the stage itself, the constrained step (it holds its internal points in its own unknowns,
+# (v, Lam, Lam_m, u)) and the projection (no segment).
+WHOLE = frozenset({"stage", "rattle", "rattle_project"})
+
+
+@dataclass(frozen=True)
+class HeldPoints:
+    """The internal points of a constrained segment held on the active rows (:func:`held_internal_points`)."""
+
+    lam: tuple[sp.Symbol, ...]  # Lam_m: r per internal point, stage after stage
+    stationarity: sp.Matrix  # what dl/du equals: -sum_r act_r Lam_m,r grad psi_r(q_m) per internal point
+    rows: sp.Matrix  # act_r psi_r(q_m) + (1 - act_r) Lam_m,r per internal point
+    minus: sp.Matrix  # what -D1 L_d adds to p- at fixed u
+    plus: sp.Matrix  # what D2 L_d takes from p+ at fixed u
+    energy: sp.Expr  # what -D3 L_d adds to E_d at fixed u
+
+
+def held_internal_points(
+    seg: Segment,
+    rule: Rule,
+    dirs: sp.Matrix,
+    psi: list[sp.Expr],
+    q: tuple[sp.Symbol, ...],
+    q0: sp.Matrix,
+    v: sp.Matrix,
+    tau: sp.Symbol,
+    um: sp.Matrix,
+    act: tuple[sp.Symbol, ...],
+) -> HeldPoints:
+    """The internal points ``q_m,k = q0 + tau (c_k v + u_k)`` (``c_k = rule.nodes[k]``) on the active rows.
+
+    The constrained Galerkin step (a Lobatto IIIA-IIIB SPARK step for lobatto3; MATH.md *Sustained contact*,
+    *Higher order*): ``D_m L_d + sum_r Lam_m,r grad psi_r(q_m) = 0``, ``psi_r(q_m) = 0`` on the active rows
+    (``Lam_m`` pushes along ``+grad psi`` as ``Lam`` does at ``q0``: ``-D1 L_d = p0 + G0^T Lam``, so that the
+    step's impulse is ``Lam + Lam_m + Lam'``, ~ ``h lambda``).
+    ``L_d(q0, q_m, q1) = tau l(q0, v, u)`` with ``v = (q1 - q0)/tau`` and ``u_k = (q_m,k - (1 - c_k) q0 -
+    c_k q1)/tau``, so by the chain rule ``D_m L_d = l_u`` (no division by ``tau``), ``-D1 L_d = l_v - tau
+    l_q0 + sum_k (1 - c_k) l_u_k``, ``D2 L_d = l_v - sum_k c_k l_u_k`` and ``-D3 L_d = v . l_v + u . l_u - l -
+    tau l_tau``: with ``l_u_k = -G_m,k^T Lam_m,k`` on the held step those are the segment's ``p-``, ``p+``,
+    ``E_d`` (partials at fixed ``u``, where ``l_u = 0``) plus the shares below. Where no row is active every
+    ``Lam_m = 0``: the free segment's stationarity.
+    """
+    n, nr = len(q), len(psi)
+    lam = _vec("M", nr * rule.stages)
+    stationarity, rows = [], []
+    minus, plus, energy = sp.zeros(n, 1), sp.zeros(n, 1), sp.S.Zero
+    for k, c in enumerate(rule.nodes):
+        uk = um[k * n : (k + 1) * n, 0]
+        qm = q0 + tau * (c * v + uk)
+        at = dict(zip(q, qm))
+        alm = sp.Matrix([a * lm for a, lm in zip(act, lam[k * nr : (k + 1) * nr])])
+        force = -(dirs.xreplace(at).T * alm)  # l_u_k on the held step
+        stationarity.append(force)
+        rows += [
+            a * ps.xreplace(at) + (1 - a) * lm for a, ps, lm in zip(act, psi, lam[k * nr : (k + 1) * nr])
+        ]
+        minus += (1 - c) * force
+        plus += c * force
+        energy += (uk.T * force)[0]
+    return HeldPoints(lam, sp.Matrix.vstack(*stationarity), sp.Matrix(rows), minus, plus, energy)
 
 
 def set_rows(kernels, system: DiscreteSystem) -> None:

@@ -16,6 +16,11 @@ multipliers of the active rows ``A``:
   ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): when the previous
   multipliers do not solve it, its second evaluation is at two Newton steps on that quadratic past them
   (``line_start``: no evaluation of the rows, so that in C it runs beside the first), where it mostly ends.
+  Where, besides, that quadratic's leading coefficient and the projection's ``W`` are constants on the row
+  (:func:`closed_forms`: a circle's or a sphere's row with an isotropic mass, a rod's), the step held on it
+  alone is closed-form (:func:`closed_step`, ``held_root``, ``held_root_end``): the quadratic's small root
+  by one square root, the projection onto ``grad F(q1)`` dividing by a run constant; no Newton, no
+  evaluation of the row's square root on the state's chain.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
@@ -65,6 +70,15 @@ def line_form(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
     in ``q`` (a circle's or a sphere's row ``r - |q - c|``). ``None`` for rows linear in ``q`` (their Newton
     is exact from the previous multipliers) and any other form.
     """
+    parts = line_parts(psi, q)
+    return None if parts is None else parts[0]
+
+
+def line_parts(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> tuple[sp.Expr, sp.Expr] | None:
+    """``(F, gain)``: :func:`line_form`'s ``F`` and ``gain = dF/dpsi`` where ``psi = 0`` (free of ``q``):
+    1 when ``F`` is ``psi``; ``-2 alpha`` for ``F = beta^2 P - alpha^2`` (``psi = alpha + beta s``,
+    ``s = sqrt(P)``: ``dF/dpsi = 2 beta s = 2 (psi - alpha)``). There ``grad F = gain grad psi``.
+    ``None`` as ``line_form``."""
     qs = set(q)
 
     def quadratic(e: sp.Expr) -> bool:
@@ -75,7 +89,7 @@ def line_form(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
         return poly.total_degree() == 2 and not any(c.free_symbols & qs for c in poly.coeffs())
 
     if quadratic(psi):
-        return psi
+        return psi, sp.S.One
     roots = {a for a in psi.atoms(sp.Pow) if a.exp == sp.S.Half and a.base.free_symbols & qs}
     if len(roots) != 1:
         return None
@@ -86,7 +100,7 @@ def line_form(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
         return None
     alpha, beta = e.xreplace({s: sp.S.Zero}), e.diff(s)
     f = beta**2 * root.base - alpha**2  # unexpanded: a circle about c keeps |a - c|^2 (no cancellation)
-    return f if beta != 0 and quadratic(f) else None
+    return (f, -2 * alpha) if beta != 0 and quadratic(f) else None
 
 
 def line_forms(system: DiscreteSystem) -> list[sp.Expr | None]:
@@ -94,6 +108,163 @@ def line_forms(system: DiscreteSystem) -> list[sp.Expr | None]:
     rows = system.routines["rows"]
     q = tuple(rows.input("q").symbols)
     return [line_form(sp.sympify(e), q) for e in rows.output("psi").expr]
+
+
+class Closed(NamedTuple):
+    """A row whose held step has a closed form (:func:`closed_forms`)."""
+
+    form: sp.Expr  # F (line_form), in the rows' q
+    gain: sp.Expr  # dF/dpsi on psi = 0 (line_parts): grad F = gain grad psi there
+    a0: sp.Expr  # A = |h J^-1 grad F(q0)|^2_{Hess F} / 2 on F = 0 (free of q)
+    w0: sp.Expr  # W = grad F(q1) . M^-1 grad F(q1) on F = 0 (free of q)
+
+
+def on_surface(e: sp.Expr, f: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
+    """The value of ``e`` (a polynomial in ``q``) on ``f = 0`` where it is one constant there: ``e - c f`` for
+    the ``c`` that removes ``f``'s leading monomial, if that is free of ``q``; else ``None``."""
+    try:
+        pe, pf = sp.Poly(sp.expand(e), *q), sp.Poly(sp.expand(f), *q)
+    except sp.PolynomialError:
+        return None
+    lead = pf.monoms()[0]
+    rest = sp.expand(e - pe.coeff_monomial(lead) / pf.coeff_monomial(lead) * f)
+    return None if rest.free_symbols & set(q) else rest
+
+
+def closed_forms(system: DiscreteSystem) -> list[Closed | None]:
+    """Per row, its :class:`Closed` form or ``None``: the rows whose held step, held alone, is closed-form.
+
+    For one active row with a :func:`line_parts` ``(F, gain)``, RATTLE's position step ``q1 = a + Lam b``
+    (``a = q0 + h v0``, ``b = h J^-1 grad F(q0)``, a multiple of ``grad psi(q0)``) with ``psi(q1) = 0`` is
+    ``F(a + Lam b) = A Lam^2 + B Lam + C = 0``: one square root, no Newton. Closed when, besides, ``A``
+    and the projection's ``W = grad F . M^-1 grad F`` are constants on ``F = 0`` (``a0``, ``w0``: a
+    sphere's row with an isotropic mass, a rod's): the step then divides by no value of the state on its
+    chain from ``(q0, p0)`` to ``(q1, p1)``. Needs a constant diagonal ``J`` and ``M`` (``Structure.held``).
+    """
+    rows = system.routines["rows"]
+    q = tuple(rows.input("q").symbols)
+    h = system.routines["smooth"].input("tau").symbols[0]
+    jac = smooth_jacobian(system)
+    mass = expanded(system.routines["legendre"].output("mass").expr)
+    out: list[Closed | None] = []
+    for psi in rows.output("psi").expr:
+        parts = line_parts(sp.sympify(psi), q)
+        if parts is None or parts[1] == 0:
+            out.append(None)
+            continue
+        f, gain = parts
+        grad = [f.diff(x) for x in q]
+        b = [h * g / jac[i, i] for i, g in enumerate(grad)]
+        hf = sp.hessian(f, q)
+        a_form = sum((b[i] * hf[i, j] * b[j] for i in range(len(q)) for j in range(len(q))), sp.S.Zero) / 2
+        w_form = sum((g * g / mass[i, i] for i, g in enumerate(grad)), sp.S.Zero)
+        a0, w0 = on_surface(a_form, f, q), on_surface(w_form, f, q)
+        ok = a0 is not None and w0 is not None and a0 != 0 and w0 != 0
+        out.append(Closed(f, gain, sp.simplify(a0), sp.simplify(w0)) if ok else None)
+    return out
+
+
+def closed_routines(
+    system: DiscreteSystem,
+    q0: Arg,
+    p0: Arg,
+    q: Arg,
+    v0: sp.Matrix,
+    jinv: sp.Matrix,
+    acc: sp.Matrix,
+    minv: sp.Matrix,
+    h: sp.Symbol,
+) -> list[tuple]:
+    """The pieces of the closed held step (:func:`closed_forms`), per row (zeros for rows without one), with
+    ``b = h J^-1 grad F(q0)``, ``a = q0 + h v0`` and ``F(a + Lam b) = a0 Lam^2 + B Lam + C``:
+
+    * ``held_root_dir(q, k) -> m, e, f, s, y, w``: what the step needs of ``grad F`` at ``q`` (at the step's
+      start: ``m = Hess F b``, ``s = grad F(0) . b``, so that ``B = m . a + s``; ``e = b / (2 a0)``,
+      ``f = J^-1 grad F / (2 a0)``; at its end: ``y = M^-1 grad F``, ``w = -grad F / w0``). Its own routine,
+      so that these per-coordinate factors are products off the state's chain and the chain multiplies
+      each by one value (one routine would share a common factor and add a product to the chain);
+    * ``held_root(q0, p0, m, e, f, s, k) -> v, q1, lam, slope, disc``: in ``nu = 2 a0 Lam``,
+      ``nu^2 + 2 B nu + 4 a0 C = 0``; ``D = B^2 - 4 a0 C``, the small root ``nu = sqrt(D) - B`` (one
+      ``sqrt``, no division: ``a0`` is a run constant), ``q1 = a + nu e``, ``v = v0 + nu f``, ``lam = gain
+      nu / (2 a0)`` (the multiplier of ``psi``: ``grad F = gain grad psi``); ``slope = B`` (> 0 for the
+      small root) and ``disc = D`` (>= 0) say whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the
+      rounding of ``q1`` (``eps |q1| / h`` in ``v``, as for the Newton); the form's cancellation stays
+      within that, and the projection's ``Lam'`` takes it back, so the impulse ``Lam + Lam'`` the step
+      books is exact to round-off only if ``lam`` is the root that moved ``v`` (not ``-2C / (B +
+      sqrt(D))``, which differs by that rounding);
+    * ``held_root_end(q1, p_plus, y, w, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)``,
+      ``p1 = p+ + w (y . p+)`` (dividing by ``w0``), ``lam1 = gain Lam'``; the force of
+      ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 . Hess F . u1) / w0`` (equal there:
+      ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) / gain`` (``psi(q1)`` to first
+      order).
+    """
+    n, nr = system.n, system.r
+    forms = closed_forms(system)
+
+    def arg(name: str, size: int) -> Arg:
+        return Arg(name, tuple(sp.Dummy(f"{name}{i}", real=True) for i in range(size)))
+
+    pp = arg("p_plus", n)
+    m_, e_, f_, s_ = arg("m", nr * n), arg("e", nr * n), arg("f", nr * n), arg("s", nr)
+    y_, w_ = arg("y", nr * n), arg("w", nr * n)
+    dirs = {name: sp.zeros(nr, n) for name in ("m", "e", "f", "y", "w")}
+    dirs["s"] = sp.zeros(nr, 1)
+    v, q1, p1 = sp.zeros(nr, n), sp.zeros(nr, n), sp.zeros(nr, n)
+    lam, slope, disc, lam1, force, res = (sp.zeros(nr, 1) for _ in range(6))
+    zero = dict.fromkeys(q.symbols, sp.S.Zero)
+    for r, cf in enumerate(forms):
+        if cf is None:
+            continue
+        f, gain, a0, w0 = cf
+        grad = [f.diff(x) for x in q.symbols]
+        hf = sp.hessian(f, q.symbols)
+        b = [h * jinv[i] * grad[i] for i in range(n)]  # at the direction routine's q (q0 of the step)
+        for i in range(n):
+            dirs["m"][r, i] = sum((hf[i, j] * b[j] for j in range(n)), sp.S.Zero)  # grad F(a) . b = m . a + s
+            dirs["e"][r, i] = b[i] / (2 * a0)
+            dirs["f"][r, i] = jinv[i] * grad[i] / (2 * a0)
+            dirs["y"][r, i] = grad[i] * minv[i]  # at q1 of the step: the projection's
+            dirs["w"][r, i] = -grad[i] / w0
+        dirs["s"][r] = sum((g.xreplace(zero) * b[i] for i, g in enumerate(grad)), sp.S.Zero)
+        at = r * n
+        a = [q0.symbols[i] + h * v0[i] for i in range(n)]
+        big_b = sum((m_.symbols[at + i] * a[i] for i in range(n)), s_.symbols[r])
+        # in nu = 2 a0 Lam: nu^2 + 2 B nu + 4 a0 C = 0; its small root nu = sqrt(D) - B, D = B^2 - 4 a0 C
+        d = big_b**2 - 4 * a0 * f.xreplace(dict(zip(q.symbols, a)))
+        nu = sp.sqrt(d) - big_b
+        for i in range(n):
+            v[r, i] = v0[i] + nu * f_.symbols[at + i]
+            q1[r, i] = a[i] + nu * e_.symbols[at + i]
+        lam[r] = gain / (2 * a0) * nu
+        slope[r], disc[r] = big_b, d
+        dot = sum((y_.symbols[at + i] * pp.symbols[i] for i in range(n)), sp.S.Zero)
+        for i in range(n):
+            p1[r, i] = pp.symbols[i] + w_.symbols[at + i] * dot
+        u1 = [minv[i] * p1[r, i] for i in range(n)]
+        curv = sum((u1[i] * hf[i, j] * u1[j] for i in range(n) for j in range(n) if hf[i, j] != 0), sp.S.Zero)
+        force[r] = -gain * (sum((grad[i] * acc[i] for i in range(n)), sp.S.Zero) + curv) / w0
+        lam1[r] = -gain / w0 * dot
+        res[r] = f / gain
+    return [
+        (
+            "held_root_dir",
+            (q,),
+            [(name, dirs[name]) for name in ("m", "e", "f", "s", "y", "w")],
+            "Per closed row, what its held step needs of grad F at q (held.closed_routines).",
+        ),
+        (
+            "held_root",
+            (q0, p0, m_, e_, f_, s_),
+            [("v", v), ("q1", q1), ("lam", lam), ("slope", slope), ("disc", disc)],
+            "The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D.",
+        ),
+        (
+            "held_root_end",
+            (q, pp, y_, w_),
+            [("p1", p1), ("lam1", lam1), ("force", force), ("res", res)],
+            "Its projection (p1, Lam'), force and residual F(q1)/gain.",
+        ),
+    ]
 
 
 def held_routines(system: DiscreteSystem) -> list[Routine]:
@@ -106,7 +277,9 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``;
     * if some row has a :func:`line_form` ``F``, ``held_line(a, b, k) -> coef``: per row ``(A, B, C)`` with
       ``F(a + Lam b) = A Lam^2 + B Lam + C`` (exact: ``A = b . Hess F . b / 2``, ``B = grad F(a) . b``,
-      ``C = F(a)``; zeros for the other rows).
+      ``C = F(a)``; zeros for the other rows);
+    * if some row has a :func:`closed_forms` form, ``held_root_dir``, ``held_root`` and ``held_root_end``
+      (:func:`closed_routines`).
     """
     r = system.routines
     smooth = r["smooth"]
@@ -167,6 +340,8 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
         pieces.append(
             ("held_line", (a_arg, b_arg), [("coef", coef)], "Each row's F(a + Lam b) = A Lam^2 + B Lam + C.")
         )
+    if any(system.structure.held_closed):
+        pieces += closed_routines(system, q0, p0, q, v0, jinv, acc, minv, h)
     flat = [e for _, _, outs, _ in pieces for _, o in outs for e in o]
     varying = {*q0.symbols, *p0.symbols, *q.symbols, *v.symbols}
     varying |= {x for _, ins, _, _ in pieces for arg in ins for x in arg.symbols}
@@ -252,6 +427,37 @@ def line_start(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.array([root]) if math.isfinite(root) else x
 
 
+def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: float) -> Held | None:
+    """:func:`held_step` on one active row with a closed form (:func:`closed_forms`; C:
+    ``<model>_held_closed_step``): the root of the row's quadratic along the line (``held_closed``), then the
+    segment, the projection, the force and the residual (``held_root_end``) and the tests of ``held_step``
+    in the same order; ``None`` where the root does not hold (``B <= 0`` or ``D < 0``) or a test fails."""
+    kc = k.held_consts(h)
+    m, e, f, s, _, _ = k.held_root_dir(q, kc)
+    v, q1, lam_r, slope, disc = k.held_root(q, p, m, e, f, s, kc)
+    if not (slope[row] > 0.0 and disc[row] >= 0.0):
+        return None
+    v, q1 = v[row], q1[row]
+    p_plus, energy = k.held_segment(q, v, kc)
+    _, _, _, _, y, w = k.held_root_dir(q1, kc)
+    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, kc)
+    p1 = p1[row]
+    if not abs(float(res[row])) <= residual * (1.0 + float(np.max(np.abs(p)))):
+        return None
+    f = float(force[row])
+    if not k.row_bilateral[row] and f < -EPS_LAM * (1.0 + abs(f)):
+        return None  # a lift-off inside the step
+    if k.r > 1:
+        psi = k.held_rows(q1, kc)[0]
+        if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
+            return None  # an inactive row crossed
+    if not all_finite(float(energy), [f], q1, p1):
+        return None
+    lam, lam1 = np.zeros(k.r), np.zeros(k.r)
+    lam[row], lam1[row] = lam_r[row], lam1_r[row]
+    return Held(q1, p1, v, lam, lam1, float(energy))
+
+
 def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
     """One held grid step from ``(q, p)`` (the C ``<model>_held_step``), or ``None`` if it does not clear.
 
@@ -260,8 +466,10 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     ``residual``: ``Tolerances.residual`` (the accepted residual, relative to ``1 + |p|``), ``phi_tol``:
     ``Tolerances.phi`` (an inactive row below ``-phi_tol`` is crossed).
     """
-    kc = k.held_consts(h)
     rows = [int(r) for r in np.flatnonzero(act)]
+    if len(rows) == 1 and k.held_lines[rows[0]] and k.held_closed[rows[0]]:  # a closed row is a line row
+        return closed_step(k, q, p, rows[0], act, h, residual, phi_tol)
+    kc = k.held_consts(h)
     v0, jinv = k.held_free(q, p, kc)
     g0 = k.held_rows(q, kc)[1][rows]
     x = np.array([lam_in[r] for r in rows])

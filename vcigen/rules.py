@@ -43,6 +43,23 @@ class Rule:
     stages: int = 0
     # A rule with internal points: (F, q0, v, tau, t0, u) -> StagedForces (discrete_forces stays None).
     staged_forces: Callable[..., StagedForces] | None = None
+    # The internal points' places: q_m,k = q0 + h (nodes[k] v + u_k), one fraction per stage (the constrained
+    # step holds them on the active rows; vcigen.derive.sustained_routines).
+    nodes: tuple[sp.Rational, ...] = ()
+    # The weight of the segment's start node in its quadrature: the constrained step's start impulse is
+    # Lam ~ end_weight h lambda (trapezoid: h/2; lobatto3: h/6), read back as a force at an impact.
+    end_weight: sp.Rational = sp.S.Half
+
+    @property
+    def lam_rate(self) -> float:
+        """``1/end_weight``: the constrained step's start impulse ``Lam`` times ``lam_rate/h`` is a force."""
+        return float(1 / self.end_weight)
+
+    @property
+    def inner_ratio(self) -> float:
+        """Each internal point's multipliers ``Lam_m`` per start impulse ``Lam`` (the Newton's start):
+        ``(1 - 2 w)/(w stages)``, ``w = end_weight`` (lobatto3: 4; no internal points: 0)."""
+        return float((1 - 2 * self.end_weight) / (self.end_weight * max(self.stages, 1)))
 
 
 @dataclass(frozen=True)
@@ -156,11 +173,14 @@ LOBATTO3 = Rule(
     paper="(Marsden-West 2001, 2.6)",
     stages=1,
     staged_forces=_lobatto3_forces,
+    nodes=(sp.S.Half,),
+    end_weight=sp.Rational(1, 6),
 )
 
 RULES: dict[str, Rule] = {r.name: r for r in (TRAPEZOID, MIDPOINT, LOBATTO3)}
 # The rules `vcigen generate --all` writes into generated/ (every example has every feature under them);
-# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): forces, but no friction or constraints yet.
+# lobatto3 on demand (`--rule lobatto3`, build(backend="c")): forces, constraints, sustained contact; no
+# friction.
 C_RULES: tuple[str, ...] = ("trapezoid", "midpoint")
 
 

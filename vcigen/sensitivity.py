@@ -17,9 +17,14 @@ in ``(x, d)``, their partials chained. Phases:
 * a held grid step (sustained contact, its active set unchanged: one constrained segment, no event):
   ``rattle`` (unknowns ``(v, Lam)``) then ``rattle_project`` (unknowns ``(u1, Lam')``), whichever path
   found them (``vcigen.held`` or ``SustainedSteps._chain``);
-* a lift-off at a located time in a held grid step, then a free rest (46): the constrained sub-step to the
-  root of the released row's force, that root's time by the implicit-function theorem (``Tracker.liftoff``);
-* forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``.
+* a lift-off at a located time in a held grid step (or in the rest of a plastic impact's step), then a free
+  rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
+  ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
+* forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
+* rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
+  unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
+  at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
+  ``p±``, ``E_d`` through ``d_segment``'s ``u`` columns. No held phase under them (no sustained contact).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once), a grazing impact taking the continuous law, a held step with any other
@@ -41,7 +46,9 @@ from .backends.casadi import routine_to_function
 from .derive import DiscreteSystem
 from .tangents import tangent_routines
 
-SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many coordinates
+SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many unknowns
+STAGED_HELD = "held phases under a rule with internal points"  # no tangent there yet (both steppers)
+STAGE_ITERATIONS = 30  # Newton iterations recovering the internal points of a phase (Tangents.internal)
 
 
 class _Flat:
@@ -52,7 +59,8 @@ class _Flat:
         sym = ca.MX if first.is_a("MXFunction") else ca.SX
         ins = [sym.sym(first.name_in(i), first.sparsity_in(i)) for i in range(first.n_in())]
         outs = [ca.vec(o.T) for f in fns for o in f.call(ins)]
-        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.vertcat(*outs)])
+        # dense: the buffer receives the nonzeros only, so a structural zero would shift every entry after it
+        self.f = ca.Function("flat", [ca.vertcat(*[ca.vec(i) for i in ins])], [ca.densify(ca.vertcat(*outs))])
         self.arg, self.res = np.zeros(self.f.size1_in(0)), np.zeros(self.f.size1_out(0))
         self._buf, self._trigger = self.f.buffer()
         self._buf.set_arg(0, memoryview(self.arg))
@@ -79,6 +87,7 @@ class Tangents:
         self.n, self.m = system.n, system.m
         self.npar, self.P = len(system.params), len(system.model.defaults)
         self.K = 2 * self.n + self.P
+        self.ns = system.stages  # internal unknowns of a segment (lobatto3: n), the last ones of every phase
         have = {k: r for k, r in system.routines.items() if k.startswith("d_")}
         self._routines = have or tangent_routines(system.routines)
         self._fns: dict[str, _Flat] = {}
@@ -109,46 +118,54 @@ class Tangents:
             self._fns[name] = f
         return f
 
+    def internal(self, name: str, x, data: tuple, par) -> np.ndarray:
+        """The internal points ``u`` of residual routine ``name`` at its solution ``x`` (without them: the
+        stepper never sees them): Newton on the routine's first ``ns`` rows, their stationarity, from 0.
+
+        ``u`` is a function of the phase's segment alone (its start, velocity and duration), so this is
+        the stepper's ``u`` to the solve's tolerance; an empty array for a rule without internal points."""
+        ns = self.ns
+        if not ns:
+            return np.zeros(0)
+        f = self._fns.get("res_" + name)
+        if f is None:
+            r = self.system.routines[name]
+            f = self._fns["res_" + name] = _Flat([routine_to_function(r)], [o.shape for o in r.outputs])
+        u = np.zeros(ns)
+        for _ in range(STAGE_ITERATIONS):
+            res, jac = f(np.concatenate([x, u]), *data, par)
+            du = np.linalg.solve(jac[:ns, -ns:], res[:ns, 0])
+            u -= du
+            if np.max(np.abs(du)) <= 1e-15 * (1.0 + np.max(np.abs(u))):
+                break
+        return u
+
     def smooth_map(self) -> _Flat:
-        """``(v, q, p, h, par, S_k, dpar/dz) -> S_k+1`` of a smooth step (46) in one call: the implicit
-        function ``dv = -F_v^-1 F_d (dq, dp, 0, dpar)`` and ``dp+`` chained (``S``, ``dpar`` column-major)."""
+        """``(x, q, p, h, par, S_k, dpar/dz) -> S_k+1`` of a smooth step (46) in one call: the implicit
+        function ``dx = -F_x^-1 F_d (dq, dp, 0, dpar)`` and ``dp+`` chained (``S``, ``dpar`` column-major).
+
+        ``x = v``, or ``(v, u)`` with internal points: ``u`` is one more unknown of the implicit function
+        (its stationarity rows are in the residual), and ``p+`` depends on it (``d_segment``'s ``u``
+        columns), so ``du`` is chained too."""
         f = self._fns.get("smooth_map")
         if f is None:
-            n, K, npar = self.n, self.K, self.npar
+            n, K, npar, ns = self.n, self.K, self.npar, self.ns
             r, d = self.system.routines["smooth"], self._routines["d_smooth"]
             seg = self._routines["d_segment"]
-            sym = ca.SX if n <= SYMBOLIC_SOLVE else ca.MX  # larger: a linear solver at run time, not QR in SX
-            v, q, p, h, par = (sym.sym(a.name, a.size) for a in r.inputs)
+            # larger: a linear solver at run time, not QR in SX
+            sym = ca.SX if n + ns <= SYMBOLIC_SOLVE else ca.MX
+            x, q, p, h, par = (sym.sym(a.name, a.size) for a in r.inputs)
             s, dpar = sym.sym("S", 2 * n, K), sym.sym("dpar", npar, K)
             dq, dp = s[:n, :], s[n:, :]
-            jac = routine_to_function(r)(v, q, p, h, par)[1]
-            dres = routine_to_function(d)(v, q, p, h, par)
-            dv = -ca.solve(jac, ca.mtimes(dres, ca.vertcat(dq, dp, sym.zeros(1, K), dpar)))
-            dpp = routine_to_function(seg)(q, v, h, par)[1]
-            dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, sym.zeros(1, K), dpar))
-            fn = ca.Function("smooth_map", [v, q, p, h, par, s, dpar], [ca.vertcat(dq + h * dv, dp1)])
+            jac = routine_to_function(r)(x, q, p, h, par)[1]
+            dres = routine_to_function(d)(x, q, p, h, par)
+            dx = -ca.solve(jac, ca.mtimes(dres, ca.vertcat(dq, dp, sym.zeros(1, K), dpar)))
+            v, dv = x[:n], dx[:n, :]
+            inner = (x[n:],) if ns else ()  # d_segment(q0, v, tau, [u,] par)
+            dpp = routine_to_function(seg)(q, v, h, *inner, par)[1]
+            dp1 = ca.mtimes(dpp, ca.vertcat(dq, dv, sym.zeros(1, K), *(dx[n:, :],) * bool(ns), dpar))
+            fn = ca.Function("smooth_map", [x, q, p, h, par, s, dpar], [ca.vertcat(dq + h * dv, dp1)])
             f = self._fns["smooth_map"] = _Flat([fn], [(2 * n, K)])
-        return f
-
-    def force_jac(self) -> _Flat:
-        """``(q, u, act, par) -> d lambda / d(q, u, par)`` (``r x (2n + npar)``): the contact forces of
-        ``SustainedSteps._forces`` (frictionless rows ``act`` held: ``G M^-1 (rhs + G^T lambda) + curv = 0``)
-        differentiated by CasADi; rows off ``act`` are 0."""
-        f = self._fns.get("force_jac")
-        if f is None:
-            names = ("rows", "dynamics", "legendre")
-            rows, dyn, leg = (routine_to_function(self.system.routines[k]) for k in names)
-            n, npar, nr = self.n, self.npar, rows.size1_out(0)
-            q, u, par, act = ca.SX.sym("q", n), ca.SX.sym("u", n), ca.SX.sym("par", npar), ca.SX.sym("a", nr)
-            _, grad, curv = rows(q, u, par)
-            rhs = dyn(q, u, par)[0]
-            mass = leg(q, u, par)[1]
-            ga = ca.mtimes(ca.diag(act), grad)
-            w = ca.mtimes(ga, ca.solve(mass, ga.T)) + ca.diag(1 - act)
-            lam = ca.solve(w, -(ca.mtimes(ga, ca.solve(mass, rhs)) + act * curv))
-            jac = ca.jacobian(lam, ca.vertcat(q, u, par))
-            fn = ca.Function("force_jac", [q, u, act, par], [jac])  # par last, as the kernels' may be longer
-            f = self._fns["force_jac"] = _Flat([fn], [(nr, 2 * n + npar)])
         return f
 
 
@@ -253,16 +270,38 @@ class Tracker:
         jac, dres = self.tg.get(name)(x, *data, self.par(t))
         return -np.linalg.solve(jac, dres @ ddata)
 
-    def _segment(self, q, v, tau: float, t: float, dq, dv, dtau, dt):
-        """Tangents of ``p-``, ``p+``, ``E_d`` of the segment ``(q, v, tau)`` starting at ``t``."""
-        return self._segment_cols(q, v, tau, t, dq, dv, dtau, self.dpar(dt))
+    def _ift_staged(self, name: str, x, data: tuple, ddata: np.ndarray, t: float):
+        """:meth:`_ift` with the internal points: ``(dx, u, du)``, ``x`` as the stepper has it (without
+        ``u``), ``u`` recovered (:meth:`Tangents.internal`) and one more unknown of the implicit function
+        (its stationarity rows are the residual's first); ``u``, ``du`` empty without internal points."""
+        par = self.par(t)
+        u = self.tg.internal(name, x, data, par)
+        dx = self._ift(name, np.concatenate([x, u]), data, ddata, t)
+        nx = len(x)
+        return dx[:nx], u, dx[nx:]
+
+    def _segment(self, q, v, tau: float, t: float, dq, dv, dtau, dt, u=None, du=None):
+        """Tangents of ``p-``, ``p+``, ``E_d`` of the segment ``(q, v, tau)`` starting at ``t`` (with its
+        internal points ``u`` and their tangent ``du`` under a rule that has them)."""
+        return self._segment_cols(q, v, tau, t, dq, dv, dtau, self.dpar(dt), u, du)
+
+    def _staged_refused(self) -> bool:
+        """Under a rule with internal points the held phases (plastic entry, held step, lift-off) have no
+        tangent yet (their internal points are held on the rows, ``derive.held_internal_points``): loses the
+        tangent and says so (the C loop: ``WHY_STAGED_HELD``, the same reason)."""
+        if self.tg.ns:
+            self.lose(STAGED_HELD)
+            return True
+        return False
 
     @_guarded
     def smooth(self, q, p, h: float, v) -> None:
         """Smooth step (46): ``v`` from ``p_k = p-(q_k, q_k + h v, h)``; ``S_k+1``."""
         if not self.active:
             return
-        self.next = self.tg.smooth_map()(v, q, p, h, self.par(self.t), self.cur, self._par0)[0]
+        par = self.par(self.t)
+        x = np.concatenate([v, self.tg.internal("smooth", v, (q, p, h), par)])
+        self.next = self.tg.smooth_map()(x, q, p, h, par, self.cur, self._par0)[0]
 
     def first_segment(self) -> None:
         """The first segment of an impact step starts at the grid point (data ``q_k, p_k, h, t_k``)."""
@@ -293,13 +332,13 @@ class Tracker:
         n, k = self.n, self.k
         name = ("contact_time_" if seg.contact < 0 else "jump_contact_") + k.contact_names[j]
         data, dd = self._data(seg)
-        dx = self._ift(name, x, data, dd, seg.t)
+        dx, u, du = self._ift_staged(name, x, data, dd, seg.t)
         dv, ds = dx[:n], dx[-1:]
         v = x[:n]
         tau_c = s * seg.tau
         dtau_c = seg.tau * ds + s * self.dtau
         dq_c = self.dq + np.outer(v, dtau_c) + tau_c * dv
-        _, dp_in, de_c = self._segment(seg.q, v, tau_c, seg.t, self.dq, dv, dtau_c, self.dt)
+        _, dp_in, de_c = self._segment(seg.q, v, tau_c, seg.t, self.dq, dv, dtau_c, self.dt, u, du)
         dt_c = self.dt + dtau_c[0]
         q_c, t_c = seg.q + tau_c * v, seg.t + tau_c
         dgrad = self.tg.get("d_contacts")(q_c, self.par(t_c))[0]
@@ -357,7 +396,7 @@ class Tracker:
         ``p+ = p~- + G^T Lam``, ``G M^-1 G^T Lam = -G vel`` (the frictionless impulse law, target normal
         velocity 0), ``vel`` one Newton step of the inverse Legendre transform from ``v_in``, ``G`` and ``M``
         at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the step starts there)."""
-        if not self.active:
+        if not self.active or self._staged_refused():
             return
         k, n = self.k, self.n
         par, dpar = self.par(seg.t), self.dpar(self.dt)
@@ -396,10 +435,10 @@ class Tracker:
         n = self.n
         data, dd = self._data(seg)
         x = seg.x
-        dw = self._ift("jump", x[: n + 1], data, dd, seg.t)[:n]
-        w = x[:n]
+        dx, u, du = self._ift_staged("jump", x[: n + 1], data, dd, seg.t)
+        dw, w = dx[:n], x[:n]
         dq_end = self.dq + np.outer(w, self.dtau) + seg.tau * dw
-        _, dp_end, _ = self._segment(seg.q, w, seg.tau, seg.t, self.dq, dw, self.dtau, self.dt)
+        _, dp_end, _ = self._segment(seg.q, w, seg.tau, seg.t, self.dq, dw, self.dtau, self.dt, u, du)
         self.next = np.vstack([dq_end, dp_end])
 
     @_guarded
@@ -413,7 +452,7 @@ class Tracker:
         ``entry``: the rest of a step after a plastic impact (:meth:`plastic`), from the impact point ``q~``,
         ``p+``, its time and the rest of the step (the segment's tangents ``dq, dp, dt, dtau``).
         """
-        if not self.active:
+        if not self.active or self._staged_refused():
             return
         n, K = self.n, self.K
         if entry:
@@ -445,14 +484,18 @@ class Tracker:
         dy = self._ift("rattle_project", y, (q1, p_plus, actf), np.vstack([dq1, dpp, zr, dpar]), t)
         return dq1, dy[:n], dpar
 
-    def _segment_cols(self, q, v, tau: float, t: float, dq, dv, dtau, dpar):
+    def _segment_cols(self, q, v, tau: float, t: float, dq, dv, dtau, dpar, u=None, du=None):
         """:meth:`_segment` with ``dpar`` given (any number of columns)."""
+        if self.tg.ns:  # d_segment(q0, v, tau, u, par): its u columns chained with du
+            dpm, dpp, de = self.tg.get("d_segment")(q, v, tau, u, self.par(t))
+            d = np.vstack([dq, dv, dtau, du, dpar])
+            return dpm @ d, dpp @ d, de @ d
         dpm, dpp, de = self.tg.get("d_segment")(q, v, tau, self.par(t))
         d = np.vstack([dq, dv, dtau, dpar])
         return dpm @ d, dpp @ d, de @ d
 
     @_guarded
-    def liftoff(self, sub, r: int, s: float, tau: float, free) -> None:
+    def liftoff(self, sub, r: int, s: float, tau: float, free, entry: bool = False) -> None:
         """A held grid step whose row ``r`` lifts off at fraction ``s`` (MATH.md *Sustained contact*), then a
         free rest (46) to the grid time: ``S_k+1`` for this mode sequence.
 
@@ -461,43 +504,65 @@ class Tracker:
         root of ``g(s) = lambda_r(q1(s), u1(s), par)`` (``SustainedSteps._liftoff_fraction``): by the
         implicit-function theorem ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``, both through the sub-step's
         tangent (one extra column: ``d/d tau_s``). ``free = (q_l, p_l, w)``: the smooth step (46) over
-        ``tau - tau_s`` from the lift-off point, its start time and duration chained.
+        ``tau - tau_s`` from the lift-off point, its start time and duration chained. ``entry``: the rest of
+        a step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the
+        step (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
         """
-        if not self.active:
+        if not self.active or self._staged_refused():
             return
         n, K = self.n, self.K
         q, p, v, lam, lam1, u1, act = sub
-        t = self.t
+        if entry:
+            dq0, dp0, dtau0, dt0, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
+        else:
+            dq0, dp0, dtau0, dt0, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
         tau_s = s * tau
-        dq = np.hstack([self.cur[:n], np.zeros((n, 1))])
-        dp = np.hstack([self.cur[n:], np.zeros((n, 1))])
+        dq = np.hstack([dq0, np.zeros((n, 1))])
+        dp = np.hstack([dp0, np.zeros((n, 1))])
         dtau = np.zeros((1, K + 1))
         dtau[0, K] = 1.0  # the extra column: d/d tau_s
-        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, None, t)
+        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, dt0, t)
         q1 = q + tau_s * v
         t_l = t + tau_s
         dpar_end = dpar.copy()
         if self.timed:
             dpar_end[-1] = dpar[-1] + dtau[0]
-        fj = self.tg.force_jac()(q1, u1, np.asarray(act, dtype=float), self.par(t_l))[0][r]
-        dg = fj @ np.vstack([dq1, du1, dpar_end])  # (K + 1,)
+        dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
         if dg[K] == 0.0:
             self.lose("a singular Jacobian in the tangent of liftoff")
             return
         dtau_s = (-dg[:K] / dg[K])[None, :]
         dq_l = dq1[:, :K] + np.outer(dq1[:, K], dtau_s)
         du_l = du1[:, :K] + np.outer(du1[:, K], dtau_s)
-        dpar_l = self.dpar(None)
         dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), self.par(t))
-        dp_l = dmom @ np.vstack([dq_l, du_l, dpar_l])
+        dp_l = dmom @ np.vstack([dq_l, du_l, dpar[:, :K]])
         ql, pl, w = free
         tau_r = tau - tau_s
-        dt_l = dtau_s[0]
-        dtau_r = -dtau_s
+        dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
+        dtau_r = dtau0 - dtau_s
         dw = self._ift("smooth", w, (ql, pl, [tau_r]), np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)]), t_l)
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l)
         self.next = np.vstack([dq_end, dp_end])
+
+    def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:
+        """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the
+        frictionless rows ``act`` held), ``dd`` the tangent of ``(q1, u1, par)`` (any number of columns): the
+        force law ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -G^T], [G, 0]]`` on the active rows, by the
+        implicit-function theorem with its derived partials ``d_forces`` (C: ``sens_liftoff``)."""
+        n, tg = self.n, self.tg
+        rows = np.flatnonzero(act)
+        _, grad, curv = tg.get("rows")(q1, u1, par)
+        rhs = tg.get("dynamics")(q1, u1, par)[0][:, 0]
+        mass = tg.get("legendre")(q1, u1, par)[1]
+        g = grad[rows]
+        jac = np.block([[mass, -g.T], [g, np.zeros((rows.size, rows.size))]])
+        sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[rows, 0]]))
+        lam = np.zeros(grad.shape[0])
+        lam[rows] = sol[n:]
+        dres = tg.get("d_forces")(q1, u1, sol[:n], lam, par)[0]
+        dx = -np.linalg.solve(jac, dres[np.r_[np.arange(n), n + rows]] @ dd)
+        return dx[n + int(np.flatnonzero(rows == r)[0])]
 
     # -- the result ----------------------------------------------------------------
     def attach(self, res, steps: int) -> None:

@@ -99,11 +99,6 @@ class Simulator:
         """
         q0a, v0a = self._start_vectors(q0, v0)
         h = self._validate(h, t_end, n_impacts, t0)
-        if sensitivities and self.system.stages:
-            raise ValueError(
-                f"sensitivities=True does not support rule {self.system.rule.name!r} (internal points) yet; "
-                "use trapezoid or midpoint"
-            )
         par, mu_f = self._parameters(params, t0)
         kern = self.kernels.bind(par)
         p0 = self._check_start(kern, q0a, v0a)

@@ -264,9 +264,9 @@ class Stepper(SustainedSteps, HeldSteps):
             self._tan, self._record_held = tan, False
         if tan is not None and self._held_seg is not None:
             tan.held(q, p, tau, *self._held_seg, entry)
-        elif tan is not None and not entry and self._lift_seg is not None and self._free_seg is not None:
+        elif tan is not None and self._lift_seg is not None and self._free_seg is not None:
             sub, r, s, tau_s = self._lift_seg
-            tan.liftoff(sub, r, s, tau_s, self._free_seg)
+            tan.liftoff(sub, r, s, tau_s, self._free_seg, entry)
         elif tan is not None and not entry:
             tan.lose("held step (sustained contact)")
         elif tan is not None and tan.active:
@@ -638,14 +638,31 @@ class Stepper(SustainedSteps, HeldSteps):
             x, res = k.solve(name, self._path_root(seg, j, s0, hi), *self._args(seg))
         else:
             x, res = k.solve(name, np.append(seg.x, s0), *self._args(seg))
-        s = float(x[-1])
-        ok = res <= self._scale(seg.p_in, seg.e_in) and lo - 1e-12 <= s <= hi + 1e-12
-        if ok and not first:
-            ok = x[k.n] > 0 and (s > lo or lo == 0)
+        s, ok = self._root_ok(x, res, seg, first, lo, hi)
+        if not ok and lo > 0.0 and getattr(getattr(k, "system", None), "stages", 0):
+            s0 = self._leave_guess(lo, phi_lo, hi, g_hi)
+            x, res = k.solve(name, np.append(seg.x, s0), *self._args(seg))
+            s, ok = self._root_ok(x, res, seg, first, lo, hi)
         if not ok:
             x, s, res = self._bracketed_root(step, t_k, seg, j, name, phase, lo, phi_lo, hi, g_hi)
         self._check(res, seg.p_in, step, t_k, phase, seg.e_in)
         return x, min(max(s, 0.0), 1.0)
+
+    def _root_ok(self, x, res: float, seg: _Seg, first: bool, lo: float, hi: float) -> tuple[float, bool]:
+        """``(s, ok)``: the contact root ``x`` converged, in the bracket, past ``lo`` with ``mu > 0``."""
+        s = float(x[-1])
+        ok = res <= self._scale(seg.p_in, seg.e_in) and lo - 1e-12 <= s <= hi + 1e-12
+        if ok and not first:
+            ok = x[self.k.n] > 0 and (s > lo or lo == 0)
+        return s, ok
+
+    @staticmethod
+    def _leave_guess(lo: float, phi_lo: float, hi: float, g_hi: float) -> float:
+        """The root of the quadratic ``A s + B s**2`` through ``phi_j = 0`` at ``s = 0`` (the contact just
+        hit), ``phi_lo`` at ``lo`` and ``g_hi < 0`` at ``hi``: always in ``(lo, hi)``. Rules with internal
+        points retry the (78) Newton from there when the one from the chord fails: with ``phi_lo`` tiny the
+        chord lands next to ``lo``, Newton slides back to ``s = 0`` and a dozen bracketing solves follow."""
+        return float(np.clip((phi_lo * hi * hi - g_hi * lo * lo) / (phi_lo * hi - g_hi * lo), lo, hi))
 
     def _path_root(self, seg: _Seg, j: int, s0: float, hi: float) -> np.ndarray:
         """Newton on ``g(s) = phi_j(q(s tau))`` along the explicit segment map, kept in its bracket.
@@ -757,8 +774,9 @@ class Stepper(SustainedSteps, HeldSteps):
 
 
 def unheld_note(system) -> str:
-    """What a jump error adds under a rule with internal points (no sustained contact yet); else ``""``."""
-    if not system.stages:
+    """What a jump error adds under a rule with internal points and no sustained contact; else ``""``
+    (every rule has sustained contact now: this stays for a rule that cannot place its internal points)."""
+    if not system.stages or system.r:
         return ""
     return f"; rule {system.rule.name!r} has no sustained contact yet (trapezoid and midpoint have it)"
 

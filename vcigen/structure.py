@@ -25,7 +25,8 @@ own modules (:mod:`vcigen.explicit`, :mod:`vcigen.implicit`, :mod:`vcigen.held`)
 * **Held grid step** (``held``, :mod:`vcigen.held`): rows of sustained contact in an explicit scene
   with momentum ``M qdot`` and no friction: a grid step in sustained contact is straight-line code;
   ``held_lines``, ``held_pattern``, ``held_columns`` and ``held_constant`` say what of its rows it
-  specialises further.
+  specialises further; ``held_closed`` the rows whose held step, held alone, is closed-form (one square root,
+  no Newton: :func:`vcigen.held.closed_forms`).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ import sympy as sp
 
 from .derive import DiscreteSystem
 from .explicit import expanded, quadratic_energy, smooth_jacobian
-from .held import line_forms, row_hessian
+from .held import closed_forms, line_forms, row_hessian
 
 # The flags in the order the generated header lists them (Structure.lines).
 FLAGS = (
@@ -72,6 +73,7 @@ class Structure:
     held_pattern: tuple[tuple[int, int, int], ...] = ()  # (i, j, weight) where a row's Hessian is not 0
     held_columns: tuple[int, ...] = ()  # coordinates where some row's gradient is not identically 0
     held_constant: tuple[int, ...] = ()  # per row, coordinate (r * n + i): 1 where d psi_r/d q_i is constant
+    held_closed: tuple[bool, ...] = ()  # per row, whether held alone its step is closed-form (closed_forms)
     why: dict[str, str] = field(default_factory=dict, compare=False)
 
     def lines(self, width: int = 96) -> list[str]:
@@ -86,6 +88,12 @@ class Structure:
                 f"held_pattern = {[list(p) for p in self.held_pattern]}: (i, j, weight) where some row's "
                 "Hessian is not identically 0 (the curvature u . Hess psi . u needs no other entries)"
             )
+            if any(self.held_closed):
+                out.append(
+                    f"held_closed = {[int(x) for x in self.held_closed]}: per row, 1 where, held alone, its "
+                    "step is closed-form: F(a + Lam b) = 0 a quadratic in Lam, its root by one sqrt, the "
+                    "projection dividing by a constant (held.closed_forms); no Newton"
+                )
         return [w for line in out for w in textwrap.wrap(line, width, subsequent_indent="    ")]
 
     def notes(self, system: DiscreteSystem) -> list[str]:
@@ -308,5 +316,6 @@ def detect(system: DiscreteSystem) -> Structure:
         held_pattern=tuple(hess_pattern(system)) if held else (),
         held_columns=tuple(gradient_columns(system)) if held else (),
         held_constant=tuple(constant_gradients(system)) if held else (),
+        held_closed=tuple(c is not None for c in closed_forms(system)) if held else (),
         why=why,
     )

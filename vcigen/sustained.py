@@ -89,13 +89,19 @@ def rattle_segment(k, q, p, tau, x0, act):
 
     The constrained step ``rattle`` from ``x0``, ``p+`` and ``E_d`` of its segment, the projection
     ``rattle_project`` from ``(v, 0)``, and the evaluations at the end:
-    ``(x, |res|, p+, E_d, y, |res'|, end)``.
+    ``(x, |res|, p+, E_d, y, |res'|, end)``. With internal points ``x0`` and ``x`` are ``(v, Lam, Lam_m)``:
+    the Newton runs on ``(v, Lam, Lam_m, u)`` from ``u = 0`` and ``rattle_end`` gives ``p+``, ``E_d``.
     """
-    n = k.n
-    x, res = k.solve("rattle", x0, q, p, tau, act)
+    n, ns = k.n, k.system.stages
+    x, res = k.solve("rattle", np.append(x0, np.zeros(ns)), q, p, tau, act)
     v = x[:n]
     q1 = q + tau * v
-    _, p_plus, e_seg = k.segment(q, v, tau)
+    if ns:
+        nx = x.size - ns
+        p_plus, e_seg = k.rattle_end(q, v, tau, x[nx:], x[n + k.r : nx], act)
+        x = x[:nx]
+    else:
+        _, p_plus, e_seg = k.segment(q, v, tau)
     y, res1 = k.solve("rattle_project", np.concatenate([v, np.zeros(k.r)]), q1, p_plus, act)
     u1 = y[:n]
     psi, grad, curv = k.rows(q1, u1)
@@ -136,6 +142,9 @@ class SustainedSteps:
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
         self._lam = np.zeros(k.r)
+        # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
+        rule = k.system.rule
+        self._stages, self._inner_ratio, self._lam_rate = rule.stages, rule.inner_ratio, rule.lam_rate
         self._force = np.zeros(k.m)  # mean multipliers of the step being taken, per contact
         self._cforce = np.zeros(len(k.system.model.constraint) if k.r else 0)  # and per constraint
         self._booked = False  # whether a constraint acted in it
@@ -619,15 +628,21 @@ class SustainedSteps:
         (``Kernels.rattle_segment``: one call of the kernels for all of it).
         """
         k = self.k
-        n = k.n
+        n, r = k.n, k.r
         act = self.act.astype(float)
-        x0 = np.concatenate([guess, np.where(self.act, self._lam * (tau / self._h), 0.0)])
+        lam0 = np.where(self.act, self._lam * (tau / self._h), 0.0)
+        x0 = np.concatenate([guess, lam0, np.tile(lam0 * self._inner_ratio, self._stages)])
         x, res, p_plus, e_seg, y, res1, end = k.rattle_segment(q, p, tau, x0, act)
         self._check(res, p, step, t_k, "sustained")
         self._check(res1, p_plus, step, t_k, "sustained")
         v = x[:n]
-        lam, lam1 = np.where(self.act, x[n:], 0.0), np.where(self.act, y[n:], 0.0)  # 0 off the active rows
+        lam, lam1 = (
+            np.where(self.act, x[n : n + r], 0.0),
+            np.where(self.act, y[n:], 0.0),
+        )  # 0 off the active rows
         p1 = p_plus + self._dirs(end.grad).T @ lam1
+        for s in range(self._stages):  # the internal points' impulses: booked with Lam' (after the start)
+            lam1 = lam1 + np.where(self.act, x[n + r * (s + 1) : n + r * (s + 2)], 0.0)
         return v, lam, q + tau * v, p_plus, e_seg, lam1, p1, y[:n], end
 
     def _chain(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
@@ -848,7 +863,7 @@ class SustainedSteps:
         self._at(t)
         rest = k.restitution()
         vel = self._velocity(q, v, p)
-        lam_now = np.where(self.act, self._lam, 0.0) * 2.0 / self._h
+        lam_now = np.where(self.act, self._lam, 0.0) * self._lam_rate / self._h
         acc = self._row_accel(q, vel, self._accel(q, vel, lam_now))
         grad = k.rows(q, vel)[1]
         targets, plastic = {}, []

@@ -18,7 +18,11 @@ named ``d_<routine>`` (SENS_DESIGN.md):
   (the tangent of one Newton step of the inverse Legendre transform, and of ``M^-1 n``);
 * ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39));
 * ``d_rows(q, u, par)``: ``dgrad``, ``(R n) x (n + npar)``: the rows' gradients (a plastic impact's
-  impulse law).
+  impulse law);
+* ``d_forces(q, u, a, lam, par)``: ``dres``, ``(n + R) x (2n + npar)``: ``d/d(q, u, par)`` of the contact
+  force law ``M(q, u) a - rhs(q, u) - G(q)^T lam = 0``, ``G(q) a + curv(q, u) = 0`` (unknowns the
+  acceleration ``a`` and the forces ``lam``; the second block on the active rows only): the tangent of the
+  force whose root locates a lift-off (``SustainedSteps._forces``, ``Tracker.liftoff``).
 
 They are added to :attr:`DiscreteSystem.routines` only by ``derive(model, rule, sensitivities=True)``;
 a simulator asked for sensitivities derives them lazily from the system it has (:func:`tangent_routines`).
@@ -113,6 +117,30 @@ def rows_tangent(r: Routine) -> Routine:
     )
 
 
+def forces_tangent(routines: dict[str, Routine]) -> Routine:
+    """``d_forces(q, u, a, lam, par)``: partials in ``(q, u, par)`` of the force law of sustained contact
+    (``rows``, ``dynamics``, ``legendre``): ``[M(q, u) a - rhs - G^T lam; G a + curv]`` (MATH.md *Sustained
+    contact*: ``G M^-1 (rhs + G^T lam) + curv = 0`` on the active rows, with ``a = M^-1 (rhs + G^T lam)``)."""
+    rows, dyn, leg = routines["rows"], routines["dynamics"], routines["legendre"]
+    q, u, par = rows.inputs
+    same = [*q.symbols, *u.symbols, *par.symbols]
+    rep = {**dict(zip(_data_symbols(dyn.inputs), same)), **dict(zip(_data_symbols(leg.inputs), same))}
+    n, nr = q.size, rows.output("psi").expr.rows
+    a = Arg("a", tuple(sp.Dummy(f"a{i}", real=True) for i in range(n)))
+    lam = Arg("lam", tuple(sp.Dummy(f"lam{r}", real=True) for r in range(nr)))
+    grad, curv = rows.output("grad").expr, rows.output("curv").expr
+    mass = leg.output("mass").expr.xreplace(rep)
+    rhs = dyn.output("rhs").expr.xreplace(rep)
+    amat, lmat = sp.Matrix(a.symbols), sp.Matrix(lam.symbols)
+    res = (mass * amat - rhs - grad.T * lmat).col_join(grad * amat + curv)
+    return Routine(
+        "d_forces",
+        (q, u, a, lam, par),
+        (Output("dres", jacobian(res, same)),),
+        "Partials in (q, u, par) of the force law [M a - rhs - G^T lam; G a + curv] (the lift-off's root).",
+    )
+
+
 def restitution_tangent(r: Routine) -> Routine:
     """``d_restitution(par)``: partials of each contact's coefficient of restitution (39)."""
     return Routine(
@@ -133,6 +161,7 @@ def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     }
     if "rows" in routines:
         out["d_rows"] = rows_tangent(routines["rows"])
+        out["d_forces"] = forces_tangent(routines)
     for name, r in routines.items():
         if _covered(name):
             out[TANGENT_PREFIX + name] = residual_tangent(r)

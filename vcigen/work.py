@@ -79,8 +79,11 @@ class Booking:
     velocity: Callable[..., np.ndarray] | None = None  # (q, p, v, tau, t0, end, par) -> (K, n): with H~
     momenta: Callable[..., tuple[np.ndarray, np.ndarray]] | None = None  # (q, v, tau, t0, end, par) -> p, p_v
     legendre: Callable[..., np.ndarray] | None = None  # (q, p, par) -> qdot: L quadratic in qdot
-    # a rule with internal points: (q0, v, tau, t0, par) -> (K,), each segment's own quadrature of the work
+    # a rule with internal points: (q0, v, tau, t0, par, act=None) -> (K,), each segment's own quadrature of
+    # the work, with act (K, r) the rows each segment holds its internal points on (None: none)
     staged: Callable[..., np.ndarray] | None = None
+    # with rows: (q (K, n), par) -> psi (K, r), per row its contact (-1: a constraint): which rows a step held
+    rows: tuple[Callable[..., np.ndarray], tuple[int, ...]] | None = None
 
 
 def _lambdify(system: DiscreteSystem, args: list, rows: list[list[sp.Expr]]):
@@ -96,7 +99,8 @@ def work_function(system: DiscreteSystem) -> Booking | None:
     if not system.model.force or seg is None:
         return None
     if system.stages:
-        return Booking(_none, None, staged=_staged_work(system))
+        rows = (_row_values(system), tuple(system.rows.contact)) if system.r else None
+        return Booking(_none, None, staged=_staged_work(system), rows=rows)
     fn = _lambdify(system, [*seg.q0, *seg.v, seg.tau], [list(seg.f_minus), list(seg.f_plus)])
     start_fn = _lambdify(system, [*seg.q0, *seg.v, seg.tau], [[seg.energy_start]])
 
@@ -186,35 +190,94 @@ def _none(*_args):
     raise NotImplementedError("a rule with internal points books its segments' work through Booking.staged")
 
 
+def _row_values(system: DiscreteSystem) -> Callable[..., np.ndarray]:
+    """``(q (K, n), par) -> (K, r)``: every row's ``psi`` (vcigen.rows)."""
+    rows = system.routines["rows"]
+    fn = _lambdify(system, list(rows.input("q").symbols), [list(rows.output("psi").expr)])
+
+    def value(q: np.ndarray, values) -> np.ndarray:
+        return np.stack(
+            [np.broadcast_to(np.asarray(x, float), q.shape[:1]) for x in fn(*q.T, *values)[0]], -1
+        )
+
+    return value
+
+
 def _staged_work(system: DiscreteSystem) -> Callable[..., np.ndarray]:
-    """``(q0, v, tau, t0, par) -> (K,)``: ``E_end - E_start`` of each segment under a rule with internal
-    points, the rule's own quadrature of ``int F . qdot dt`` (``vcigen.rules.StagedForces``: ``start + end``),
-    at the internal points' stationarity ``dl/du + f_stage = 0``, solved here by Newton from ``u = 0``."""
+    """``(q0, v, tau, t0, par, act=None) -> (K,)``: ``E_end - E_start`` of each segment under a rule with
+    internal points, the rule's own quadrature of ``int F . qdot dt`` (``vcigen.rules.StagedForces``: ``start
+    + end``), at the internal points' stationarity ``dl/du + f_stage = 0``, solved here by Newton from ``u =
+    0``; where ``act`` (K, r) holds rows, the internal points held on them as in the constrained step
+    (``derive.held_internal_points``: ``dl/du + f_stage + G_m^T Lam_m = 0``, ``psi(q_m) = 0``), Newton on
+    ``(u, Lam_m)``."""
     seg = system.segment
     u = list(seg.internal)
     args = [*seg.q0, *seg.v, seg.tau, *u]
     stat = _lambdify(system, args, [list(seg.stationarity)])
     jac = _lambdify(system, args, seg.stationarity.jacobian(seg.internal).tolist())
     work = _lambdify(system, args, [[seg.energy - seg.energy_start]])
+    begin = _lambdify(system, args, [[seg.energy_start]])
     ns = len(u)
+    held = _held_stationarity(system) if system.r else None
 
     def col(x, shape) -> np.ndarray:
         return np.broadcast_to(np.asarray(x, float), shape)
 
-    def value(q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values) -> np.ndarray:
-        pars = list(values) if not system.timed else [*list(values)[:-1], t0]
-        uu = np.zeros((tau.size, ns))
+    def newton(res_fn, jac_fn, x: np.ndarray, head: tuple, pars: list) -> np.ndarray:
         for _ in range(20):
-            at = (*q0.T, *v.T, tau, *uu.T, *pars)
-            r = np.stack([col(x, tau.shape) for x in stat(*at)[0]], -1)
-            j = np.stack([np.stack([col(x, tau.shape) for x in row], -1) for row in jac(*at)], 1)
-            du = np.linalg.solve(j, r[..., None])[..., 0]
-            uu = uu - du
-            if np.max(np.abs(du), initial=0.0) < 1e-15:
+            at = (*head, *x.T, *pars)
+            r = np.stack([col(y, x.shape[:1]) for y in res_fn(*at)[0]], -1)
+            j = np.stack([np.stack([col(y, x.shape[:1]) for y in row], -1) for row in jac_fn(*at)], 1)
+            dx = np.linalg.solve(j, r[..., None])[..., 0]
+            x = x - dx
+            if np.max(np.abs(dx), initial=0.0) < 1e-15:
                 break
+        return x
+
+    def value(
+        q0: np.ndarray, v: np.ndarray, tau: np.ndarray, t0: np.ndarray, values, act=None, start: bool = False
+    ) -> np.ndarray:
+        pars = list(values) if not system.timed else [*list(values)[:-1], t0]
+        if held is None or act is None or not act.any():
+            uu = newton(stat, jac, np.zeros((tau.size, ns)), (*q0.T, *v.T, tau), pars)
+            if start:  # the energy at the segment's start
+                return col(begin(*q0.T, *v.T, tau, *uu.T, *pars)[0][0], tau.shape)
+        elif start:  # ... with the internal points held: E_d = -D3 L_d gains u . l_u (held_internal_points)
+            x = newton(
+                held[0], held[1], np.zeros((tau.size, ns + act.shape[1])), (*q0.T, *v.T, tau, *act.T), pars
+            )
+            return col(held[2](*q0.T, *v.T, tau, *act.T, *x.T, *pars)[0][0], tau.shape)
+        else:
+            x = newton(
+                held[0], held[1], np.zeros((tau.size, ns + act.shape[1])), (*q0.T, *v.T, tau, *act.T), pars
+            )
+            uu = x[:, :ns]
         return col(work(*q0.T, *v.T, tau, *uu.T, *pars)[0][0], tau.shape)
 
     return value
+
+
+def _held_stationarity(system: DiscreteSystem):
+    """``(residual, Jacobian, start energy)``, the first two in ``(u, Lam_m)``, of the internal points held
+    on the rows ``act``, as numpy functions of ``(q0, v, tau, act, u, Lam_m, par)`` (the constrained step's
+    rows of ``u`` and its ``E_d`` share, ``derive.held_internal_points``)."""
+    from .derive import held_internal_points
+
+    seg, rule = system.segment, system.rule
+    rows = system.routines["rows"]
+    q = tuple(rows.input("q").symbols)
+    psi = list(rows.output("psi").expr)
+    act = tuple(sp.Dummy(f"a{r}") for r in range(system.r))
+    um = sp.Matrix(seg.internal)
+    pts = held_internal_points(seg, rule, rows.output("grad").expr, psi, q, seg.q0, seg.v, seg.tau, um, act)
+    res = (seg.stationarity - pts.stationarity).col_join(pts.rows)
+    unknowns = [*seg.internal, *pts.lam]
+    args = [*seg.q0, *seg.v, seg.tau, *act, *unknowns]
+    return (
+        _lambdify(system, args, [list(res)]),
+        _lambdify(system, args, res.jacobian(unknowns).tolist()),
+        _lambdify(system, args, [[seg.energy_start + pts.energy]]),
+    )
 
 
 def _staged_step_work(res: Result, booking: Booking, par) -> np.ndarray:
@@ -222,7 +285,8 @@ def _staged_step_work(res: Result, booking: Booking, par) -> np.ndarray:
     points; no node term (README *Forces*, lobatto3: what that leaves in the balance is measured there)."""
     steps = res.energy.size
     q, t, h = res.q, res.t, res.h
-    out = booking.staged(q[:-1], (q[1:] - q[:-1]) / h, np.full(steps, h), t[:-1], par).copy()
+    held = _held_rows(res, booking, par, q[:-1], q[1:], np.arange(steps))
+    out = booking.staged(q[:-1], (q[1:] - q[:-1]) / h, np.full(steps, h), t[:-1], par, held).copy()
     ims = [im for im in res.impacts if im.step < steps]
     for k in sorted({im.step for im in ims}):
         here = sorted((im for im in ims if im.step == k), key=lambda im: im.t)
@@ -231,8 +295,42 @@ def _staged_step_work(res: Result, booking: Booking, par) -> np.ndarray:
         tau = np.diff(ts)
         keep = tau > TINY * h
         vs = (qs[1:] - qs[:-1])[keep] / tau[keep, None]
-        out[k] = float(np.sum(booking.staged(qs[:-1][keep], vs, tau[keep], ts[:-1][keep], par)))
+        ends = qs[:-1][keep], qs[1:][keep]
+        act = _held_rows(res, booking, par, *ends, np.full(int(keep.sum()), k), either=True)
+        out[k] = float(np.sum(booking.staged(ends[0], vs, tau[keep], ts[:-1][keep], par, act)))
+        # an impact with a row held after it (a plastic entry, an impact while held) logs E_d less its loss,
+        # not the energy at the start of the constrained segment that follows: the difference is the step's
+        for m, im in enumerate(here, start=1):  # segment m starts at impact m
+            j = int(np.sum(keep[:m]))  # its index among the kept segments
+            if keep[m] and act is not None and act[j].any():
+                at = (ends[0][j : j + 1], vs[j : j + 1], tau[keep][j : j + 1], ts[:-1][keep][j : j + 1])
+                out[k] += float(booking.staged(*at, par, act[j : j + 1], start=True)[0]) - im.energy_after
     return out
+
+
+HELD_PSI = 1e-10  # a row this close to 0 at both ends of a segment of a step its contact is held over is held
+
+
+def _held_rows(
+    res: Result, booking: Booking, par, q0: np.ndarray, q1: np.ndarray, step: np.ndarray, either: bool = False
+):
+    """``(K, r)``: the rows segments ``(q0, q1)`` of grid steps ``step`` held their internal points on (the
+    constrained step's): the constraints, and a contact's rows at ``|psi| <= HELD_PSI`` at both ends where the
+    contact is active at both grid points of the step (``res.active``; ``either``: at one of them, for the
+    segments of a step split at its impacts, a plastic entry or a lift-off among them); ``None`` without
+    rows."""
+    if booking.rows is None:
+        return None
+    psi_fn, contact = booking.rows
+    near = (np.abs(psi_fn(q0, par)) <= HELD_PSI) & (np.abs(psi_fn(q1, par)) <= HELD_PSI)
+    act = np.zeros(near.shape)
+    for r, j in enumerate(contact):
+        if j < 0:  # a constraint: always held
+            act[:, r] = 1.0
+            continue
+        now, nxt = res.active[step, j], res.active[step + 1, j]
+        act[:, r] = near[:, r] & ((now | nxt) if either else (now & nxt))
+    return act
 
 
 def _separable(system: DiscreteSystem) -> bool:

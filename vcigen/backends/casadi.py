@@ -14,7 +14,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from ..derive import DiscreteSystem, set_rows
+from ..derive import WHOLE, DiscreteSystem, set_rows
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import held_routines, held_step
 from ..routines import Routine
@@ -108,6 +108,7 @@ class CasadiKernels(ParameterSlots):
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
         self.held_pattern = list(self.structure.held_pattern)
         self.held_lines = list(self.structure.held_lines)  # held_line's rows
+        self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held.closed_step)
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -130,7 +131,7 @@ class CasadiKernels(ParameterSlots):
         options = NEWTON_OPTIONS | {"abstol": newton_options(self.system)["abstol"]}
         rf = ca.rootfinder(f"{name}_newton", "newton", g, options)
         guess = ca.MX.sym("guess", x.shape[0])
-        ns = self.system.stages if name != "stage" else 0
+        ns = self.system.stages if name not in WHOLE else 0
         if ns:  # internal points: settle u on their stationarity (the first ns rows) at the guess first
             nx = x.shape[0] - ns
             u, xp = ca.MX.sym("u", ns), ca.MX.sym("xp", nx)
@@ -190,15 +191,20 @@ class CasadiKernels(ParameterSlots):
 
     def _rattle_segment(self) -> ca.Function:
         """``vcigen.sustained.rattle_segment`` in one call: both solves and the evaluations at the end."""
-        n, r, npar = self.n, self.r, len(self.par)
-        vec = ca.MX.sym("in", 2 * n + 1 + (n + r) + r + npar)
-        parts = np.cumsum([0, n, n, 1, n + r, r, npar]).tolist()
+        n, r, npar, ns = self.n, self.r, len(self.par), self.stages
+        nx = n + r + r * self.system.rule.stages  # (v, Lam), and Lam_m of the held internal points
+        vec = ca.MX.sym("in", 2 * n + 1 + nx + r + npar)
+        parts = np.cumsum([0, n, n, 1, nx, r, npar]).tolist()
         q, p, tau, x0, act, par = (vec[parts[i] : parts[i + 1]] for i in range(6))
-        out = self._solvers["rattle"](ca.vertcat(x0, q, p, tau, act, par))
-        x, res = out[: n + r], out[n + r]
+        # internal points: u (O(tau)) from 0 with the rest, one Newton on (v, Lam, Lam_m, u) (derive.WHOLE)
+        out = self._solvers["rattle"](ca.vertcat(x0, ca.MX.zeros(ns), q, p, tau, act, par))
+        x, res = out[:nx], out[nx + ns]
         v = x[:n]
         q1 = q + tau * v
-        _, p_plus, e_seg = self.functions["segment"](q, v, tau, par)
+        if ns:  # p+ and E_d with the internal multipliers' share (derive.held_internal_points)
+            p_plus, e_seg = self.functions["rattle_end"](q, v, tau, out[nx : nx + ns], x[n + r :], act, par)
+        else:
+            _, p_plus, e_seg = self.functions["segment"](q, v, tau, par)
         out = self._solvers["rattle_project"](ca.vertcat(v, ca.MX.zeros(r), q1, p_plus, act, par))
         y, res1 = out[: n + r], out[n + r]
         u1 = y[:n]
@@ -270,7 +276,7 @@ class CasadiKernels(ParameterSlots):
 
         With internal points (``DiscreteSystem.stages``) the routine's unknowns end with them: Newton
         starts them from 0 (they are O(tau)) and ``x`` comes back without them."""
-        if not self.stages:
+        if not self.stages or name in WHOLE:
             o = self._call(self._solvers[name], guess, *args)
             return o[:-1], _residual(o)
         o = self._call(self._solvers[name], np.append(guess, np.zeros(self.stages)), *args)
@@ -285,6 +291,11 @@ class CasadiKernels(ParameterSlots):
         n = self.n
         o = self._call(self._flat["segment"], q0, v, tau)
         return o[:n], o[n : 2 * n], float(o[2 * n])
+
+    def rattle_end(self, q0, v, tau, u, lm, act):
+        """``(p+, E_d)`` of a constrained segment with its internal points held (routine ``rattle_end``)."""
+        p_plus, e = self.functions["rattle_end"](q0, v, tau, u, lm, act, self.par)
+        return np.asarray(p_plus, dtype=float).ravel(), float(e)
 
     def start_energy(self, q0, v, tau) -> float:
         """The energy at the start of the segment ``(q0, v, tau)`` (``E_d - f_d- . v`` with forces): the
@@ -330,7 +341,8 @@ class CasadiKernels(ParameterSlots):
         """A constrained segment and the evaluations at its end (``vcigen.sustained.rattle_segment``)."""
         n, r = self.n, self.r
         o = self._call(self._rattle, q, p, tau, x0, act)
-        cuts = np.cumsum([0, n + r, 1, n, 1, n + r, 1, r, r * n, r, n, n * n]).tolist()
+        nx = n + r + r * self.system.rule.stages
+        cuts = np.cumsum([0, nx, 1, n, 1, n + r, 1, r, r * n, r, n, n * n]).tolist()
         x, res, p_plus, e, y, res1, psi, grad, curv, rhs, mass = (o[a:b] for a, b in zip(cuts, cuts[1:]))
         end = End(psi, grad.reshape(r, n), curv, rhs, mass.reshape(n, n))
         return x, _residual(np.append(x, res)), p_plus, float(e[0]), y, _residual(np.append(y, res1)), end
@@ -379,6 +391,25 @@ class CasadiKernels(ParameterSlots):
     def held_line(self, a, b, kc):
         """Per row ``(A, B, C)`` of its ``held.line_form``: ``F(a + Lam b) = A Lam^2 + B Lam + C``."""
         return self._held_call("held_line", (3 * self.r,), a, b, kc)[0].reshape(self.r, 3)
+
+    def held_root_dir(self, q, kc):
+        """Per row ``(m, e, f, s, y, w)`` at ``q`` for its closed held step (``vcigen.held.closed_routines``),
+        flat (row-major, as ``held_root`` and ``held_root_end`` read them)."""
+        n, r = self.n, self.r
+        return self._held_call("held_root_dir", (r * n, r * n, r * n, r, r * n, r * n), q, kc)
+
+    def held_root(self, q0, p0, m, e, f, s, kc):
+        """Per row ``(v, q1, Lam, B, D)`` of its closed held step."""
+        n, r = self.n, self.r
+        sizes = (r * n, r * n, r, r, r)
+        v, q1, lam, slope, disc = self._held_call("held_root", sizes, q0, p0, m, e, f, s, kc)
+        return v.reshape(r, n), q1.reshape(r, n), lam, slope, disc
+
+    def held_root_end(self, q1, p_plus, y, w, kc):
+        """Per row ``(p1, Lam', force, res)`` of its closed held step's end."""
+        n, r = self.n, self.r
+        p1, lam1, force, res = self._held_call("held_root_end", (r * n, r, r, r), q1, p_plus, y, w, kc)
+        return p1.reshape(r, n), lam1, force, res
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

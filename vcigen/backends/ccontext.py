@@ -17,7 +17,7 @@ from typing import Any
 import sympy as sp
 
 from .. import __version__
-from ..derive import KINK, DiscreteSystem
+from ..derive import KINK, WHOLE, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import SQRT_POWERS, held_routines
@@ -198,8 +198,9 @@ def _residual_ids(system: DiscreteSystem) -> list[dict[str, Any]]:
         for a in r.inputs[1:-1]:  # everything between the unknown and par, flattened
             offsets.append(k)
             k += a.size
-        nx = r.inputs[0].size - system.stages
-        out.append({"id": len(out), "name": name, "nx": nx, "offsets": offsets, "nargs": k})
+        whole = name in WHOLE  # its unknowns are all its own (the constrained step): no stage appended
+        nx = r.inputs[0].size - (0 if whole else system.stages)
+        out.append({"id": len(out), "name": name, "nx": nx, "offsets": offsets, "nargs": k, "whole": whole})
     return out
 
 
@@ -259,6 +260,9 @@ def render_context(
         "version": __version__,
         "n": n,
         "ns": system.stages,  # internal unknowns of a segment (internal points): the Newton hides them
+        "stages": system.rule.stages,  # internal points (held with their own multipliers when sustained)
+        "inner_ratio": repr(system.rule.inner_ratio),  # Lam_m's Newton start per Lam (SustainedSteps)
+        "lam_rate": repr(system.rule.lam_rate),  # Lam's force rate times h (SustainedSteps._chain_impact)
         "unheld": unheld_note(system),  # what a jump error adds under such a rule (Stepper._unheld)
         "m": system.m,
         "r": system.r,
@@ -306,6 +310,9 @@ def render_context(
         # per row, 1 where held.line_form has its zero set as a quadratic's: one such row held starts its
         # Newton at the root of held_line (<model>_held_line_start); empty when no row has one
         "held_lines": [int(f) for f in structure.held_lines] if any(structure.held_lines) else [],
+        # per row, 1 where held alone its step is closed-form (held.closed_forms: <model>_held_closed_step);
+        # empty when no row has one
+        "held_closed": [int(f) for f in structure.held_closed] if any(structure.held_closed) else [],
         "held_sets_max": HELD_SETS_MAX,
         "held_sets": held_sets(system.r) if held else [],
         # the coordinates some row's gradient has: the held step's products with gradients skip the others

@@ -36,6 +36,7 @@ SYMBOLIC_MAP = 3  # coordinates at most for the smooth step's tangent as one str
 SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
     ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
+    ("SINGULAR_LIFTOFF", "a singular Jacobian in the tangent of liftoff"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
     ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
@@ -47,6 +48,7 @@ SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("SINGULAR_JUMP_END", "a singular Jacobian in the tangent of jump_end"),
     ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
     ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
+    ("STAGED_HELD", "held phases under a rule with internal points"),
 )
 BASE_ROUTINES = ("d_segment", "d_contacts", "d_legendre", "d_restitution", "d_smooth", "d_jump")
 
@@ -70,7 +72,7 @@ def smooth_map_routine(system: DiscreteSystem) -> Routine | None:
     the numeric path and ``vcigen.sensitivity.Tangents.smooth_map``, the solve done once symbolically.
     """
     n = system.n
-    if n > SYMBOLIC_MAP:
+    if n > SYMBOLIC_MAP or system.stages:  # internal points: the numeric path with (v, u) (sens.c.j2)
         return None
     d = system.routines["d_segment"]
     q0, v, tau, par = d.inputs

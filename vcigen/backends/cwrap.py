@@ -130,6 +130,11 @@ class CKernels(ParameterSlots):
         self._legendre.argtypes = [ctypes.c_void_p] * 5
         self._segment = getattr(self.lib, f"{pre}_eval_segment")
         self._segment.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D]
+        self._rattle_end = getattr(
+            self.lib, f"{pre}_eval_rattle_end", None
+        )  # only with internal points, rows
+        if self._rattle_end is not None:
+            self._rattle_end.argtypes = [_D, _D, ctypes.c_double, _D, _D, _D, _D, _D, _D]
         self._start_energy = getattr(self.lib, f"{pre}_eval_start_energy", None)  # only with forces
         if self._start_energy is not None:
             self._start_energy.argtypes = [_D, _D, ctypes.c_double, _D, _D]
@@ -228,6 +233,16 @@ class CKernels(ParameterSlots):
             _ptr(_vec(q0, n)), _ptr(_vec(v, n)), float(tau), _ptr(self.par), _ptr(pm), _ptr(pp), _ptr(e)
         )
         return pm, pp, float(e[0])
+
+    def rattle_end(self, q0, v, tau, u, lm, act):
+        """``(p+, E_d)`` of a constrained segment with its internal points held (routine ``rattle_end``)."""
+        n, pp, e = self.n, np.empty(self.n), np.empty(1)
+        ns, nl = self.system.stages, self.r * self.system.rule.stages
+        self._rattle_end(
+            _ptr(_vec(q0, n)), _ptr(_vec(v, n)), float(tau), _ptr(_vec(u, ns)), _ptr(_vec(lm, nl)),
+            _ptr(_vec(np.asarray(act, dtype=float), self.r)), _ptr(self.par), _ptr(pp), _ptr(e),
+        )  # fmt: skip
+        return pp, float(e[0])
 
     def start_energy(self, q0, v, tau) -> float:
         """The energy at the segment's start (``E_d - f_d- . v``); without forces ``E_d`` itself."""
@@ -478,32 +493,7 @@ class CSimulator(Simulator):
         sk.sens_start(_ptr(sk.par), _ptr(_vec(q0, n)), _ptr(_vec(v0, n)), _ptr(s0))
         steps = _n_steps(h, t0, t_end, MAX_STEPS)
         run = SensRun(sk, sk.par, q0, v0, p0, steps, n_impacts, self._rooms(sk), s0, column_names(self.model))
-        res = self._drive(sk, run, h, t_end, n_impacts, t0, progress)
-        return self._liftoff_tangent(res, kern, q0, v0, p0, h, t_end, n_impacts, t0)
-
-    def _liftoff_tangent(self, res: Result, kern, q0, v0, p0, h, t_end, n_impacts, t0) -> Result:
-        """The C loop has no tangent of a lift-off step yet (``Tracker.liftoff``): a run whose tangent broke
-        at a held step with a lift-off in it gets it from the Python stepper on these kernels, if that run
-        takes the same mode (impacts, active sets, lift-offs); the trajectory stays the C loop's."""
-        if not res.sensitivity_breaks or res.sensitivity_breaks[0][1] != "held step (sustained contact)":
-            return res
-        lost = res.stats["sensitivity_lost"]
-        if not any(t0 + lost * h <= t <= t0 + (lost + 1) * h for t, _ in res.liftoffs):
-            return res
-        py = Simulator._run_sensitive(self, kern, q0, v0, p0, h, t_end, n_impacts, t0, None)
-        same = (
-            py.t.size == res.t.size
-            and [(im.step, im.contact, im.kind) for im in py.impacts]
-            == [(im.step, im.contact, im.kind) for im in res.impacts]
-            and np.array_equal(py.active, res.active)
-            and len(py.liftoffs) == len(res.liftoffs)
-        )
-        if same:
-            res.sensitivity, res.sensitivity_breaks = py.sensitivity, py.sensitivity_breaks
-            res.stats.pop("sensitivity_lost", None)
-            if "sensitivity_lost" in py.stats:
-                res.stats["sensitivity_lost"] = py.stats["sensitivity_lost"]
-        return res
+        return self._drive(sk, run, h, t_end, n_impacts, t0, progress)
 
     def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
         """All runs through ``<model>_run_many``: in batches (of runs) sized for the progress bar, each

@@ -360,17 +360,38 @@ static inline void pendulum_wall_jump_quadratic(const double *qc, const double *
 /* Run constants of the held step: its subexpressions of (h, par) alone. */
 static inline void pendulum_wall_held_consts(const double *tau, const double *par, double *k)
 {
-    const double t0 = (1.0/2.0)*par[0];
-    const double t1 = tau[0]*par[1]*t0;
-    k[0] = 1.0/par[0];
-    k[1] = -t1;
+    const double t0 = 1.0/par[0];
+    const double t1 = (1.0/2.0)*par[0];
+    const double t2 = tau[0]*par[1]*t1;
+    const double t3 = ((par[2])*(par[2]));
+    const double t4 = tau[0]*t0;
+    const double t5 = 1.0/t3;
+    const double t6 = (1.0/4.0)*par[0]*t5;
+    const double t7 = ((tau[0])*(tau[0]));
+    const double t8 = 1.0/t7;
+    const double t9 = ((par[0])*(par[0]));
+    const double t10 = 1.0/t9;
+    k[0] = t0;
+    k[1] = -t2;
     k[2] = par[3];
-    k[3] = -((par[2])*(par[2]));
+    k[3] = -t3;
     k[4] = par[0];
-    k[5] = t0;
+    k[5] = t1;
     k[6] = par[1]*par[0];
-    k[7] = t1;
+    k[7] = t2;
     k[8] = -par[1];
+    k[9] = 4*t4;
+    k[10] = t6/tau[0];
+    k[11] = t6*t8;
+    k[12] = 2*t0;
+    k[13] = -t1*t5;
+    k[14] = t4;
+    k[15] = -16*t10*t3*t7;
+    k[16] = (1.0/8.0)*t5*t8*t9;
+    k[17] = -t6;
+    k[18] = -2*t10;
+    k[19] = 2*par[1];
+    k[20] = t6;
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -425,6 +446,76 @@ static inline void pendulum_wall_held_line(const double *a, const double *b, con
     coef[3] = ((b[0])*(b[0])) + ((b[1])*(b[1]));
     coef[4] = 2*(a[0]*b[0] + a[1]*b[1]);
     coef[5] = ((a[0])*(a[0])) + ((a[1])*(a[1])) + k[3];
+}
+
+/* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
+static inline void pendulum_wall_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w)
+{
+    m[0] = 0;
+    m[1] = 0;
+    m[2] = k[9]*q[0];
+    m[3] = k[9]*q[1];
+    e[0] = 0;
+    e[1] = 0;
+    e[2] = k[10]*q[0];
+    e[3] = k[10]*q[1];
+    f[0] = 0;
+    f[1] = 0;
+    f[2] = k[11]*q[0];
+    f[3] = k[11]*q[1];
+    s[0] = 0;
+    s[1] = 0;
+    y[0] = 0;
+    y[1] = 0;
+    y[2] = k[12]*q[0];
+    y[3] = k[12]*q[1];
+    w[0] = 0;
+    w[1] = 0;
+    w[2] = k[13]*q[0];
+    w[3] = k[13]*q[1];
+}
+
+/* The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D. */
+static inline void pendulum_wall_held_root(const double *q0, const double *p0, const double *m, const double *e, const double *f, const double *s, const double *k, double *v, double *q1, double *lam, double *slope, double *disc)
+{
+    const double t0 = k[14]*p0[0] + q0[0];
+    const double t1 = k[1] + p0[1];
+    const double t2 = k[14]*t1 + q0[1];
+    const double t3 = m[2]*t0 + m[3]*t2 + s[1];
+    const double t4 = k[15]*(k[3] + ((t0)*(t0)) + ((t2)*(t2))) + ((t3)*(t3));
+    const double t5 = t3 - sqrt(t4);
+    v[0] = 0;
+    v[1] = 0;
+    v[2] = -f[2]*t5 + k[0]*p0[0];
+    v[3] = -f[3]*t5 + k[0]*t1;
+    q1[0] = 0;
+    q1[1] = 0;
+    q1[2] = -e[2]*t5 + t0;
+    q1[3] = -e[3]*t5 + t2;
+    lam[0] = 0;
+    lam[1] = -k[16]*t5;
+    slope[0] = 0;
+    slope[1] = t3;
+    disc[0] = 0;
+    disc[1] = t4;
+}
+
+/* Its projection (p1, Lam'), force and residual F(q1)/gain. */
+static inline void pendulum_wall_held_root_end(const double *q, const double *p_plus, const double *y, const double *w, const double *k, double *p1, double *lam1, double *force, double *res)
+{
+    const double t0 = p_plus[0]*y[2] + p_plus[1]*y[3];
+    const double t1 = p_plus[0] + w[2]*t0;
+    const double t2 = p_plus[1] + w[3]*t0;
+    p1[0] = 0;
+    p1[1] = 0;
+    p1[2] = t1;
+    p1[3] = t2;
+    lam1[0] = 0;
+    lam1[1] = k[17]*t0;
+    force[0] = 0;
+    force[1] = k[20]*(k[18]*((t1)*(t1)) + k[18]*((t2)*(t2)) + k[19]*q[1]);
+    res[0] = 0;
+    res[1] = k[3] + ((q[0])*(q[0])) + ((q[1])*(q[1]));
 }
 
 /* Adapters: the routines with an unknown x, as pendulum_wall_fun for the solvers. */
@@ -1972,7 +2063,7 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
 
 /* ---- the held grid step (vcigen/held.py): a grid step in sustained contact as straight-line code ---- */
 #define PENDULUM_WALL_HELD_ITER 8 /* held.HELD_ITER: Newton iterations at most, then the general chain */
-#define PENDULUM_WALL_NKH 9
+#define PENDULUM_WALL_NKH 21
 #define PENDULUM_WALL_NH_DIM 2 /* Hessian entries a row may need (held.hess_pattern) */
 #if defined(__GNUC__)
 #define PENDULUM_WALL_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
@@ -2050,6 +2141,74 @@ PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_line_start(const double *coef,
     if (isfinite(root)) {
         *x = root;
     }
+}
+
+/* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
+static const unsigned char pendulum_wall_held_closed[PENDULUM_WALL_R_DIM] = { 0, 1 };
+
+/* held.closed_step: the held step on the one active row `row`, which has a closed form: the small root of its
+ * quadratic along the line (held_root: one sqrt and products on the state's chain; the line's direction from
+ * held_root_dir), the segment, the projection dividing by a run constant, the force and the residual F(q1)/gain
+ * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row], lam1[row]
+ * written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain takes it. */
+PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_step(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
+    double *v, double *e)
+{
+    double vr[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], qr[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], lr[PENDULUM_WALL_R_DIM];
+    double slope[PENDULUM_WALL_R_DIM], disc[PENDULUM_WALL_R_DIM], pp[PENDULUM_WALL_N], pr[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    double l1[PENDULUM_WALL_R_DIM], force[PENDULUM_WALL_R_DIM], res[PENDULUM_WALL_R_DIM], f, sum;
+    double dm[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], de[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], df[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    double dy[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], dw[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], ds[PENDULUM_WALL_R_DIM];
+    int i, clear;
+    /* held_root_dir at q (its m, e, f, s: the line's direction, off the state's chain), then at q1 (y, w) */
+    pendulum_wall_held_root_dir(q, kh, dm, de, df, ds, dy, dw);
+    pendulum_wall_held_root(q, p, dm, de, df, ds, kh, vr, qr, lr, slope, disc);
+    if (PENDULUM_WALL_HELD_UNLIKELY(!(slope[row] > 0.0) || !(disc[row] >= 0.0))) {
+        return 1;
+    }
+    PENDULUM_WALL_HELD_UNROLL
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        v[i] = vr[row * PENDULUM_WALL_N + i];
+        q1[i] = qr[row * PENDULUM_WALL_N + i];
+    }
+    pendulum_wall_held_segment(q, v, kh, pp, e);
+    pendulum_wall_held_root_dir(q1, kh, dm, de, df, ds, dy, dw);
+    pendulum_wall_held_root_end(q1, pp, dy, dw, kh, pr, l1, force, res);
+    PENDULUM_WALL_HELD_UNROLL
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        p1[i] = pr[row * PENDULUM_WALL_N + i];
+    }
+    if (!(fabs(res[row]) <= residual) && !(fabs(res[row]) <= residual * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_N, p)))) {
+        return 1;
+    }
+    f = force[row];
+    if (PENDULUM_WALL_HELD_UNLIKELY(!pendulum_wall_row_free[row] && f < -PENDULUM_WALL_EPS_LAM * (1.0 + fabs(f)))) {
+        return 1; /* a lift-off inside the step */
+    }
+    clear = 1;
+    {
+        double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], hess[PENDULUM_WALL_R_DIM * PENDULUM_WALL_NH_DIM];
+        int r;
+        pendulum_wall_held_rows(q1, kh, psi, grad, hess);
+        PENDULUM_WALL_HELD_UNROLL
+        for (r = 0; r < PENDULUM_WALL_R; ++r) {
+            clear &= act[r] | (pendulum_wall_row_stick[r] >= 0) | !(psi[r] < -phi_tol); /* an inactive row crossed */
+        }
+    }
+    sum = *e; /* held.all_finite */
+    sum += f;
+    sum += q1[0];
+    sum += p1[0];
+    sum += q1[1];
+    sum += p1[1];
+    clear &= isfinite(sum);
+    if (!clear) {
+        return 1;
+    }
+    lam[row] = lr[row];
+    lam1[row] = l1[row];
+    return 0;
 }
 
 /* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
@@ -2154,6 +2313,9 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_step(const double *kh, double h
     double w[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM];
     double l1[PENDULUM_WALL_R_DIM], f[PENDULUM_WALL_R_DIM], res, f_eps, curv, sum;
     int piv[PENDULUM_WALL_R_DIM], a, b, r, clear, pull;
+    if (na == 1 && pendulum_wall_held_lines[rows[0]] && pendulum_wall_held_closed[rows[0]]) { /* a closed row is a line row */
+        return pendulum_wall_held_closed_step(kh, residual, phi_tol, act, rows[0], q, p, lam, lam1, q1, p1, v, e);
+    }
     pendulum_wall_held_free(q, p, kh, v0, jinv);
     PENDULUM_WALL_HELD_UNROLL
     for (a = 0; a < PENDULUM_WALL_R_DIM && a < na; ++a) {

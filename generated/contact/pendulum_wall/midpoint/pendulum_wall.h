@@ -27,6 +27,9 @@
  *       one such row held starts its Newton at its root
  *   held_pattern = [[0, 0, 1], [1, 1, 1]]: (i, j, weight) where some row's Hessian is not
  *       identically 0 (the curvature u . Hess psi . u needs no other entries)
+ *   held_closed = [0, 1]: per row, 1 where, held alone, its step is closed-form: F(a + Lam b) = 0 a
+ *       quadratic in Lam, its root by one sqrt, the projection dividing by a constant
+ *       (held.closed_forms); no Newton
  */
 #ifndef PENDULUM_WALL_H
 #define PENDULUM_WALL_H

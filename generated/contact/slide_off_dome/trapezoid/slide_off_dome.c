@@ -373,17 +373,39 @@ static inline void slide_off_dome_jump_quadratic(const double *qc, const double 
 /* Run constants of the held step: its subexpressions of (h, par) alone. */
 static inline void slide_off_dome_held_consts(const double *tau, const double *par, double *k)
 {
-    const double t0 = (1.0/2.0)*par[0];
-    const double t1 = tau[0]*par[1]*t0;
-    k[0] = 1.0/par[0];
-    k[1] = -t1;
+    const double t0 = 1.0/par[0];
+    const double t1 = (1.0/2.0)*par[0];
+    const double t2 = tau[0]*par[1]*t1;
+    const double t3 = ((par[2])*(par[2]));
+    const double t4 = tau[0]*t0;
+    const double t5 = 1.0/t3;
+    const double t6 = (1.0/4.0)*par[0]*t5;
+    const double t7 = ((tau[0])*(tau[0]));
+    const double t8 = 1.0/t7;
+    const double t9 = ((par[0])*(par[0]));
+    const double t10 = 1.0/t9;
+    const double t11 = 1.0/par[2];
+    k[0] = t0;
+    k[1] = -t2;
     k[2] = -par[2];
     k[3] = par[0];
-    k[4] = t0;
+    k[4] = t1;
     k[5] = par[1]*par[0];
-    k[6] = t1;
+    k[6] = t2;
     k[7] = -par[1];
-    k[8] = -((par[2])*(par[2]));
+    k[8] = -t3;
+    k[9] = 4*t4;
+    k[10] = t6/tau[0];
+    k[11] = t6*t8;
+    k[12] = 2*t0;
+    k[13] = -t1*t5;
+    k[14] = t4;
+    k[15] = -16*t10*t3*t7;
+    k[16] = (1.0/4.0)*t11*t8*t9;
+    k[17] = -t1*t11;
+    k[18] = -2*par[1];
+    k[19] = 2*t10;
+    k[20] = (1.0/2.0)*t11;
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -437,6 +459,53 @@ static inline void slide_off_dome_held_line(const double *a, const double *b, co
     coef[0] = ((b[0])*(b[0])) + ((b[1])*(b[1]));
     coef[1] = 2*(a[0]*b[0] + a[1]*b[1]);
     coef[2] = ((a[0])*(a[0])) + ((a[1])*(a[1])) + k[8];
+}
+
+/* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
+static inline void slide_off_dome_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w)
+{
+    m[0] = k[9]*q[0];
+    m[1] = k[9]*q[1];
+    e[0] = k[10]*q[0];
+    e[1] = k[10]*q[1];
+    f[0] = k[11]*q[0];
+    f[1] = k[11]*q[1];
+    s[0] = 0;
+    y[0] = k[12]*q[0];
+    y[1] = k[12]*q[1];
+    w[0] = k[13]*q[0];
+    w[1] = k[13]*q[1];
+}
+
+/* The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D. */
+static inline void slide_off_dome_held_root(const double *q0, const double *p0, const double *m, const double *e, const double *f, const double *s, const double *k, double *v, double *q1, double *lam, double *slope, double *disc)
+{
+    const double t0 = k[14]*p0[0] + q0[0];
+    const double t1 = k[1] + p0[1];
+    const double t2 = k[14]*t1 + q0[1];
+    const double t3 = m[0]*t0 + m[1]*t2 + s[0];
+    const double t4 = k[15]*(k[8] + ((t0)*(t0)) + ((t2)*(t2))) + ((t3)*(t3));
+    const double t5 = t3 - sqrt(t4);
+    v[0] = -f[0]*t5 + k[0]*p0[0];
+    v[1] = -f[1]*t5 + k[0]*t1;
+    q1[0] = -e[0]*t5 + t0;
+    q1[1] = -e[1]*t5 + t2;
+    lam[0] = -k[16]*t5;
+    slope[0] = t3;
+    disc[0] = t4;
+}
+
+/* Its projection (p1, Lam'), force and residual F(q1)/gain. */
+static inline void slide_off_dome_held_root_end(const double *q, const double *p_plus, const double *y, const double *w, const double *k, double *p1, double *lam1, double *force, double *res)
+{
+    const double t0 = p_plus[0]*y[0] + p_plus[1]*y[1];
+    const double t1 = p_plus[0] + w[0]*t0;
+    const double t2 = p_plus[1] + w[1]*t0;
+    p1[0] = t1;
+    p1[1] = t2;
+    lam1[0] = k[17]*t0;
+    force[0] = k[17]*(k[18]*q[1] + k[19]*((t1)*(t1)) + k[19]*((t2)*(t2)));
+    res[0] = k[20]*(k[8] + ((q[0])*(q[0])) + ((q[1])*(q[1])));
 }
 
 /* Adapters: the routines with an unknown x, as slide_off_dome_fun for the solvers. */
@@ -1984,7 +2053,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 
 /* ---- the held grid step (vcigen/held.py): a grid step in sustained contact as straight-line code ---- */
 #define SLIDE_OFF_DOME_HELD_ITER 8 /* held.HELD_ITER: Newton iterations at most, then the general chain */
-#define SLIDE_OFF_DOME_NKH 9
+#define SLIDE_OFF_DOME_NKH 21
 #define SLIDE_OFF_DOME_NH_DIM 3 /* Hessian entries a row may need (held.hess_pattern) */
 #if defined(__GNUC__)
 #define SLIDE_OFF_DOME_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
@@ -2062,6 +2131,67 @@ SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_line_start(const double *coe
     if (isfinite(root)) {
         *x = root;
     }
+}
+
+/* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
+static const unsigned char slide_off_dome_held_closed[SLIDE_OFF_DOME_R_DIM] = { 1 };
+
+/* held.closed_step: the held step on the one active row `row`, which has a closed form: the small root of its
+ * quadratic along the line (held_root: one sqrt and products on the state's chain; the line's direction from
+ * held_root_dir), the segment, the projection dividing by a run constant, the force and the residual F(q1)/gain
+ * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row], lam1[row]
+ * written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain takes it. */
+SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_step(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
+    double *v, double *e)
+{
+    double vr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], qr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], lr[SLIDE_OFF_DOME_R_DIM];
+    double slope[SLIDE_OFF_DOME_R_DIM], disc[SLIDE_OFF_DOME_R_DIM], pp[SLIDE_OFF_DOME_N], pr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    double l1[SLIDE_OFF_DOME_R_DIM], force[SLIDE_OFF_DOME_R_DIM], res[SLIDE_OFF_DOME_R_DIM], f, sum;
+    double dm[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], de[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], df[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    double dy[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], dw[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], ds[SLIDE_OFF_DOME_R_DIM];
+    int i, clear;
+    /* held_root_dir at q (its m, e, f, s: the line's direction, off the state's chain), then at q1 (y, w) */
+    slide_off_dome_held_root_dir(q, kh, dm, de, df, ds, dy, dw);
+    slide_off_dome_held_root(q, p, dm, de, df, ds, kh, vr, qr, lr, slope, disc);
+    if (SLIDE_OFF_DOME_HELD_UNLIKELY(!(slope[row] > 0.0) || !(disc[row] >= 0.0))) {
+        return 1;
+    }
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        v[i] = vr[row * SLIDE_OFF_DOME_N + i];
+        q1[i] = qr[row * SLIDE_OFF_DOME_N + i];
+    }
+    slide_off_dome_held_segment(q, v, kh, pp, e);
+    slide_off_dome_held_root_dir(q1, kh, dm, de, df, ds, dy, dw);
+    slide_off_dome_held_root_end(q1, pp, dy, dw, kh, pr, l1, force, res);
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        p1[i] = pr[row * SLIDE_OFF_DOME_N + i];
+    }
+    if (!(fabs(res[row]) <= residual) && !(fabs(res[row]) <= residual * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_N, p)))) {
+        return 1;
+    }
+    f = force[row];
+    if (SLIDE_OFF_DOME_HELD_UNLIKELY(!slide_off_dome_row_free[row] && f < -SLIDE_OFF_DOME_EPS_LAM * (1.0 + fabs(f)))) {
+        return 1; /* a lift-off inside the step */
+    }
+    clear = 1;
+    (void)act;
+    (void)phi_tol;
+    sum = *e; /* held.all_finite */
+    sum += f;
+    sum += q1[0];
+    sum += p1[0];
+    sum += q1[1];
+    sum += p1[1];
+    clear &= isfinite(sum);
+    if (!clear) {
+        return 1;
+    }
+    lam[row] = lr[row];
+    lam1[row] = l1[row];
+    return 0;
 }
 
 /* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
@@ -2166,6 +2296,9 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     double w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
     double l1[SLIDE_OFF_DOME_R_DIM], f[SLIDE_OFF_DOME_R_DIM], res, f_eps, curv, sum;
     int piv[SLIDE_OFF_DOME_R_DIM], a, b, r, clear, pull;
+    if (na == 1 && slide_off_dome_held_lines[rows[0]] && slide_off_dome_held_closed[rows[0]]) { /* a closed row is a line row */
+        return slide_off_dome_held_closed_step(kh, residual, phi_tol, act, rows[0], q, p, lam, lam1, q1, p1, v, e);
+    }
     slide_off_dome_held_free(q, p, kh, v0, jinv);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
