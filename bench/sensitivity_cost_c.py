@@ -5,8 +5,10 @@
 Target (the issue): at most 3x + O(n^2) per step in C. The tangent is carried inside the generated loop
 (``templates/sens.c.j2``, the library variant ``vcigen.backends.csens``): per smooth step one ``d_segment``
 evaluation, an n x n LU and the products of the chain with the K = 2n + P columns; per impact the implicit
-function theorem of (47)/(78) and (48). The runs are long enough (thousands of steps) to time the C loop
-itself: ``res.stats["wall_time"]`` is the loop's time, without the Python set-up of ``simulate``; the CPU
+function theorem of (47)/(78) and (48); per held step of the held glide's scenes its active set's fused map
+(``vcigen.backends.cheld_map``), else the IFTs of ``rattle`` and ``rattle_project``. The runs are long enough
+(thousands of steps) to time the C loop itself: ``res.stats["wall_time"]`` is the loop's time, without the
+Python set-up of ``simulate``; the CPU
 time of the whole ``simulate`` call (``time.thread_time``) is given too, which a loaded machine inflates
 less, and its wall time (what a caller waits: on short runs such as the dome's the set-up weighs). Off and
 on are interleaved round-robin after a warm-up pair (the variant is compiled on first use),

@@ -26,6 +26,7 @@ from ..result import KINDS
 from ..routines import Routine
 from ..stage import reduced_phases
 from ..stepper import Tolerances, unheld_note
+from .cheld_map import held_maps, is_held_map
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
 from .cspecialise import phi_routine
@@ -117,7 +118,7 @@ def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
     ``inverse_powers``: ``b^-k`` as ``1/(b ... b)``, not libm's ``pow`` (the routines of a rule with internal
     points: its quadrature nodes put the potential's negative powers in every residual)."""
     temps, outs, fills = print_routine_body(
-        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers
+        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers, plain_cse=is_held_map(r.name)
     )
     return {
         "name": r.name,
@@ -232,6 +233,9 @@ def render_context(
     routines += [phi_routine(system)]
     sens_map = smooth_map_routine(system) if sensitivities else None  # the smooth step's tangent, fused
     routines += [sens_map] if sens_map else []
+    # a held step's tangent per active set of one or two rows, fused (vcigen.backends.cheld_map)
+    fused = held_maps(system, held_sets(system.r)) if sensitivities else []
+    routines += [r for f in fused for r in (f.atoms, f.phi, f.map)]
     if structure.explicit_path:
         routines += path_routines(system)
     grid = grid_routines(system) if structure.explicit_grid else []
@@ -374,6 +378,7 @@ def render_context(
         # the sensitivity variant (templates/sens.c.j2): K = 2n + P columns, P the model's parameters
         "sens": bool(sensitivities),
         "sens_map": sens_map is not None,
+        "held_maps": [f.context() for f in fused],
         "np": len(model.defaults),
         "sens_reasons": [
             {"index": k, "name": why, "macro": macro} for k, (macro, why) in enumerate(SENS_REASONS)

@@ -77,11 +77,13 @@ ZERO_FILL = 16
 
 
 def print_routine_body(
-    routine: Routine, sqrt_powers: bool = False, inverse_powers: bool = False
+    routine: Routine, sqrt_powers: bool = False, inverse_powers: bool = False, plain_cse: bool = False
 ) -> tuple[list[tuple[str, str]], list[list[tuple[int, str]]], list[tuple[int, int] | None]]:
     """CSE'd body of ``routine``: ``(temporaries, outputs, fills)``; with ``sqrt_powers``, half-integer powers
     ``b^(k/2)`` (``3 <= |k| <= 9``) are printed as ``b^((k-1)/2) sqrt(b)``, without libm's ``pow``; with
-    ``inverse_powers``, ``b^-k`` (``2 <= k <= 4``) as ``1/(b ... b)``.
+    ``inverse_powers``, ``b^-k`` (``2 <= k <= 4``) as ``1/(b ... b)``; with ``plain_cse``, SymPy's CSE
+    without its ``basic`` pre-optimisations (whose ``factor_terms`` takes minutes on the nested rational
+    expressions of ``vcigen.backends.cheld_map``, for about the same operation count).
 
     ``temporaries`` are ``(name, C expression)`` in evaluation order; each output is a list of
     ``(flat index, C expression)`` of the entries this routine writes itself: those past the ones
@@ -97,7 +99,8 @@ def print_routine_body(
         fills.append((first, o.size) if sparse else None)
         listed.append([(k, e) for k, e in own if not (sparse and e == 0)])
     flat = [e for entries in listed for _, e in entries]
-    repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t", real=True), optimizations="basic")
+    opt = None if plain_cse else "basic"
+    repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t", real=True), optimizations=opt)
     for sym, _ in repl:
         names[sym] = sym.name
     printer = ArrayC99Printer(names, sqrt_powers, inverse_powers)

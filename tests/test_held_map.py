@@ -1,0 +1,136 @@
+"""The fused tangent of a held grid step (``vcigen.backends.cheld_map``, ``templates/sens_held_map.c.j2``).
+
+Per active set of one or two rows the C variant prints the tangent of a held step as three straight-line
+routines (the state-dependent partials, ``Phi = d(q1, p1)/d(q, p, params)`` eliminated symbolically, ``S_k+1
+= Phi S_k``). Checked here: the slide's map is the closed form of a unit mass on a floor; on curved and
+two-row sets the routines equal the numeric implicit-function theorem (``Tracker.held``'s algebra:
+``rattle``, ``rattle_project``, ``d_segment``, ``d_legendre``, solved with ``numpy.linalg.solve``) at random
+states, since every zero or one the elimination leaves out holds for any values of the partials; and the
+generated C calls them from the held glide. The whole runs (C against CasADi, the same breaks) are
+``test_sensitivity_c``'s.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+import pytest
+import test_sensitivity as ts
+
+from vcigen.backends.c import LIBRARY_TEMPLATES, render
+from vcigen.backends.ccontext import held_sets, render_context
+from vcigen.backends.cheld_map import HeldMap, held_map, held_maps
+from vcigen.derive import DiscreteSystem, derive
+from vcigen.routines import Routine
+
+
+@cache
+def system(scene: str) -> DiscreteSystem:
+    return derive(ts.HELD_SCENES[scene][0](), "trapezoid", sensitivities=True)
+
+
+def call(r: Routine, *args) -> np.ndarray:
+    """Routine ``r``'s first output at ``args`` (one array per input), as a float array."""
+    syms = [s for a in r.inputs for s in a.symbols]
+    vals = [float(x) for a in args for x in np.ravel(a)]
+    expr = r.outputs[0].expr
+    return np.array(expr.xreplace(dict(zip(syms, vals))).evalf(), dtype=float).reshape(expr.shape)
+
+
+def fused(m: HeldMap, q, p, tau, v, lam, lam1, u1, par, s) -> np.ndarray:
+    """``S_k+1`` from the three routines, as the C variant calls them."""
+    a = call(m.atoms, q, p, [tau], v, lam, lam1, u1, par)
+    f = call(m.phi, a, [tau], par)
+    return call(m.map, f, [tau], par, s)
+
+
+def numeric(sys_: DiscreteSystem, rows, q, p, tau, v, lam, lam1, u1, par, s) -> np.ndarray:
+    """``S_k+1`` by ``Tracker.held``'s algebra: the two implicit-function theorems solved numerically."""
+    r = sys_.routines
+    n, nr, big_p = sys_.n, sys_.r, len(sys_.model.defaults)
+    k = s.shape[1]
+    act = np.array([1.0 if j in rows else 0.0 for j in range(nr)])
+    dq, dp = s[:n], s[n:]
+    dpar = np.zeros((par.size, k))
+    dpar[:big_p, 2 * n :] = np.eye(big_p)
+    zr = np.zeros((nr, k))
+    x = np.concatenate([v, lam])
+    jac = call_out(r["rattle"], "jac", x, q, p, [tau], act, par)
+    dres = call(r["d_rattle"], x, q, p, [tau], act, par)
+    dv = -np.linalg.solve(jac, dres @ np.vstack([dq, dp, np.zeros((1, k)), zr, dpar]))[:n]
+    q1 = q + tau * v
+    dq1 = dq + tau * dv
+    dpp = call_out(r["d_segment"], "dp_plus", q, v, [tau], par) @ np.vstack([dq, dv, np.zeros((1, k)), dpar])
+    y = np.concatenate([u1, lam1])
+    pp = np.zeros(n)  # p1 enters rattle_project linearly: its value is not read by jac nor dres
+    jac = call_out(r["rattle_project"], "jac", y, q1, pp, act, par)
+    dres = call(r["d_rattle_project"], y, q1, pp, act, par)
+    du1 = -np.linalg.solve(jac, dres @ np.vstack([dq1, dpp, zr, dpar]))[:n]
+    dmom = call(r["d_legendre"], q1, u1, np.zeros(n), par)
+    return np.vstack([dq1, dmom @ np.vstack([dq1, du1, dpar])])
+
+
+def parameters(sys_: DiscreteSystem) -> np.ndarray:
+    """The full ``par`` vector: the model's defaults, then 0 in the other slots."""
+    given = [float(x) for x in sys_.model.defaults.values()]
+    return np.array(given + [0.0] * (len(sys_.params) - len(given)))
+
+
+def call_out(r: Routine, name: str, *args) -> np.ndarray:
+    out = r.output(name)
+    return call(Routine(r.name, r.inputs, (out,)), *args)
+
+
+def test_the_slides_map_is_the_closed_form() -> None:
+    """A unit mass held on the floor y = 0: x1 = x + h px, y1 = 0, px1 = px, py1 = 0 for any S_k (and the map
+    reads no partial: every entry of Phi is a number or h)."""
+    sys_ = system("slide")
+    (m,) = held_maps(sys_, held_sets(sys_.r))
+    assert m.atoms.outputs[0].size == 0 and m.phi.outputs[0].size == 0
+    h = 0.01
+    rng = np.random.default_rng(1)
+    s = rng.normal(size=(4, 2 * 2 + len(sys_.model.defaults)))
+    par = parameters(sys_)
+    got = call(m.map, [], [h], par, s)
+    want = np.vstack([s[0] + h * s[2], 0 * s[1], s[2], 0 * s[3]])
+    assert np.array_equal(got, want)
+
+
+SETS = [("bowl", (0,)), ("box_face", (0, 1)), ("box_face", (2,)), ("rod", (0,))]
+
+
+@pytest.mark.parametrize(("scene", "rows"), SETS)
+def test_the_fused_map_is_the_numeric_tangent(scene: str, rows: tuple[int, ...]) -> None:
+    """At random states (the identity holds for any values): fused == numeric to round-off."""
+    sys_ = system(scene)
+    n, nr = sys_.n, sys_.r
+    key = next(s["key"] for s in held_sets(nr) if tuple(s["rows"]) == rows)
+    m = held_map(sys_, rows, key)
+    rng = np.random.default_rng(7)
+    k = 2 * n + len(sys_.model.defaults)
+    for _ in range(3):
+        q, p, v, u1 = (rng.normal(size=n) for _ in range(4))
+        q[:2] += 2.0  # off the bowl's centre (its row's gradient q/|q|)
+        lam = np.array([rng.normal() if j in rows else 0.0 for j in range(nr)])
+        lam1 = np.array([rng.normal() if j in rows else 0.0 for j in range(nr)])
+        par = parameters(sys_)
+        s = rng.normal(size=(2 * n, k))
+        got = fused(m, q, p, 0.01, v, lam, lam1, u1, par, s)
+        want = numeric(sys_, rows, q, p, 0.01, v, lam, lam1, u1, par, s)
+        assert np.abs(got - want).max() <= 1e-12 * (1.0 + np.abs(want).max())
+
+
+def test_the_held_glide_calls_the_fused_map() -> None:
+    """The variant of a held-glide scene prints a map per active set of one or two rows and its held loop
+    hands each step to sens_held_step (the map straight into the row); the plain library has none of it."""
+    sys_ = system("box_face")
+    ctx = render_context(sys_, sensitivities=True)
+    assert [m["key"] for m in ctx["held_maps"]] == [s["key"] for s in held_sets(sys_.r)]
+    names = {r["name"] for r in ctx["routines"]}
+    parts = ("atoms", "phi", "map")
+    assert all(f"sens_held_{part}_{m['key']}" in names for m in ctx["held_maps"] for part in parts)
+    src = next(t for f, t in render(ctx, LIBRARY_TEMPLATES).items() if f.endswith(".c"))
+    assert "_sens_held_step(c, q, p, h, v, lam, lam1, u1, S, W, s);" in src
+    plain = render_context(sys_)
+    assert plain["held_maps"] == [] and not any(r["name"].startswith("sens_held_") for r in plain["routines"])
