@@ -98,7 +98,7 @@ def rattle_end_tangent(r: Routine) -> Routine:
     return explicit_tangent(
         r,
         ("p_plus", "energy"),
-        "Partials of p+ (51) and E_d (55) of a constrained segment with held internal points, in every input.",
+        "Partials of p+ (51) and E_d (55) of a constrained segment with held internal points (every input).",
     )
 
 
