@@ -262,3 +262,29 @@ def test_c_held_phases_equal_casadi(scene: str, backend: str) -> None:
     rel = relative_error(c.sensitivity, py.sensitivity)
     print(f"{scene} [lobatto3]: C against CasADi {rel:.1e}")
     assert rel <= 1e-9, rel
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scene", ["lifted", "drop"])
+def test_liftoff_under_a_force_of_time_and_after_a_plastic_impact(scene: str, backend: str) -> None:
+    """tests/test_sensitivity_liftoff_c.py's scenes under lobatto3: a particle lifted off a floor by a force
+    of time (the located root's time slot chained), and the same dropped onto the floor so that the plastic
+    impact and the lift-off fall in one step (``Tracker.liftoff`` with ``entry``: the sub-step starts from the
+    impact point); against central differences, and C = CasADi."""
+    from test_sensitivity_liftoff_c import DROP, LIFTED
+
+    scenes = DROP if scene == "drop" else LIFTED
+    make, q0, v0, h, t_end, params, _ = scenes[scene]
+    sim = vcigen.build(make(), backend=backend, rule=RULE)
+    res, per = held_finite_differences(sim, scene, scenes=scenes)
+    assert len(res.liftoffs) == 1 and res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    lift = int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0]))
+    if scene == "drop":
+        assert [(im.step, im.kind) for im in res.impacts] == [(lift, "plastic")]
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(f"{scene} [lobatto3, {backend}]: " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    assert max(errs.values()) <= 1e-6, errs
+    if backend != "casadi":
+        kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
+        ref = vcigen.build(make(), backend="casadi", rule=RULE).simulate(q0, v0, h, **kw)
+        assert relative_error(res.sensitivity, ref.sensitivity) <= 1e-9
