@@ -82,8 +82,8 @@ def timed(
     return res.stats["wall_time"], time.thread_time() - cpu, time.perf_counter() - wall, res
 
 
-def measure(scene: str, repeats: int, scale: float) -> dict[str, float | int | str]:
-    sim = vcigen.build(SCENES[scene][0](), backend="c")
+def measure(scene: str, repeats: int, scale: float, rule: str = "trapezoid") -> dict[str, float | int | str]:
+    sim = vcigen.build(SCENES[scene][0](), backend="c", rule=rule)
     best = {False: [float("inf")] * 3, True: [float("inf")] * 3}
     for i in range(repeats + 1):
         for on in (False, True):
@@ -111,10 +111,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every t_end")
     ap.add_argument("--only", nargs="*", default=list(SCENES), help="scenes to time")
+    ap.add_argument("--rule", default="trapezoid", help="the rule (lobatto3: its own csv)")
     args = ap.parse_args(argv)
     rows = []
     for scene in args.only:
-        row = measure(scene, args.repeats, args.scale)
+        row = measure(scene, args.repeats, args.scale, args.rule)
         rows.append(row)
         print(
             f"{scene:16s} n={row['n']} K={row['K']:2d} {row['steps']:6d} steps {row['impacts']:4d} impacts: "
@@ -124,7 +125,8 @@ def main(argv: list[str] | None = None) -> None:
             f"{row['simulate_us_on']:.0f} us, ratio {row['simulate_ratio']:.2f}",
             flush=True,
         )
-    out = HERE / "results" / "sensitivity_cost_c.csv"
+    suffix = "" if args.rule == "trapezoid" else f"_{args.rule}"
+    out = HERE / "results" / f"sensitivity_cost_c{suffix}.csv"
     out.parent.mkdir(exist_ok=True)
     with out.open("w", newline="") as fh:
         w = csv.DictWriter(fh, list(rows[0]))

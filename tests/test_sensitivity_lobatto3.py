@@ -5,7 +5,9 @@ The internal point ``u`` of each segment is one more unknown of every phase's im
 impacts in one step (78), restitution (39), forces. Checked as ``tests/test_sensitivity.py`` checks the
 trapezoid rule, on both backends (the Python stepper's tangent, ``vcigen.sensitivity``; the C loop's,
 ``templates/sens.c.j2``): against central finite differences of whole runs with the same mode sequence,
-the symplecticity of impact steps from the exact tangent, and C = CasADi.
+the symplecticity of impact steps from the exact tangent, and C = CasADi. The held phases (sustained
+contact: held steps, bilateral constraints, the plastic entry, lift-off): FD agreement and the symplecticity
+of held steps on the constraint manifold, on both backends, and C = CasADi.
 """
 
 from __future__ import annotations
@@ -16,7 +18,16 @@ import hard_scenes
 import numpy as np
 import pytest
 import sympy as sp
-from test_sensitivity import SCENES, finite_differences, relative_error, step_jacobians
+from test_sensitivity import (
+    HELD_SCENES,
+    LIFT_SCENES,
+    SCENES,
+    finite_differences,
+    held_finite_differences,
+    held_mode,
+    relative_error,
+    step_jacobians,
+)
 
 import vcigen
 from vcigen.analysis import jacobian_symplectic_defect
@@ -116,25 +127,164 @@ def test_c_equals_casadi(scene: str, backend: str) -> None:
     assert rel <= 1e-9, rel
 
 
+# ------------------------------------------------------------------ held phases (sustained contact)
+# The internal point is held on the active rows with its own multipliers Lam_m (derive.held_internal_points):
+# the held step's tangent solves rattle's (v, Lam, Lam_m, u) by the implicit-function theorem and takes p+
+# from rattle_end (Tracker._held_sub; C sens_held, sens_liftoff under internal points).
+
+
+@cache
+def held_simulator(scene: str, backend: str = "casadi") -> vcigen.Simulator:
+    return vcigen.build(HELD_SCENES[scene][0](), backend=backend, rule=RULE)
+
+
+@cache
+def lift_simulator(scene: str, backend: str = "casadi") -> vcigen.Simulator:
+    return vcigen.build(LIFT_SCENES[scene][0](), backend=backend, rule=RULE)
+
+
+def _pairs(scenes):
+    for scene in sorted(scenes):
+        for b in BACKENDS:
+            backend, marks = (b, ()) if isinstance(b, str) else (b.values[0], b.marks)
+            yield pytest.param(scene, backend, marks=marks, id=f"{scene}-{backend}")
+
+
+@pytest.mark.parametrize("scene, backend", list(_pairs(HELD_SCENES)))
+def test_held_steps_match_finite_differences(scene: str, backend: str) -> None:
+    """Sustained contact with a fixed active set under lobatto3 (the scenes of tests/test_sensitivity.py: the
+    Cartesian pendulum on a rod, sliding on a floor and down an incline, resting, the box and the star on a
+    face, the bowl, the dragged particle with forces of time): central differences of whole runs along paths
+    that keep the mode; every step covered."""
+    sim = held_simulator(scene, backend)
+    res, per = held_finite_differences(sim, scene)
+    assert res.active[1:].any(axis=1).all() or sim.model.constraint
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(f"{scene} [lobatto3, {backend}]: " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    assert max(errs.values()) <= 1e-6, errs
+    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_held_phases_say_they_have_no_tangent(backend: str) -> None:
-    """A ball coming to rest under lobatto3 (tests/test_lobatto3_sustained.py): the restitution impacts are
-    differentiated, the plastic entry is reported as a break with its reason (never a wrong tangent), the run
-    itself is the one without sensitivities, and the C loop breaks where the Python stepper does."""
+@pytest.mark.parametrize("scene", ["rod", "incline", "slide", "box_face"])
+def test_held_steps_are_symplectic_on_the_constraint_manifold(scene: str, backend: str) -> None:
+    """A held step maps the constraint manifold's cotangent bundle to itself symplectically (RATTLE, and the
+    Lobatto IIIA-IIIB SPARK step): the tangent's columns after the first step lie on it, so the Gram matrix
+    ``S_k^T Omega S_k`` of their symplectic products is the same at every grid point ``k >= 1`` (round-off).
+    Dropping the internal points' share of ``p+`` (``d_rattle_end``'s ``u`` or ``Lam_m`` columns) moves it
+    by 1e-7 and 2e-4 on the rod."""
+    _, q0, v0, h, t_end, params, _ = HELD_SCENES[scene]
+    sim = held_simulator(scene, backend)
+    res = sim.simulate(q0, v0, h, t_end=t_end, params=params, sensitivities=True, progress=False)
+    n = len(q0)
+    s = res.sensitivity[:, :, : 2 * n]
+    omega = np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
+    gram = np.einsum("kia,ij,kjb->kab", s, omega, s)
+    drift = float(np.abs(gram[2:] - gram[1:-1]).max())
+    print(
+        f"{scene} [lobatto3, {backend}]: symplectic drift {drift:.1e} (|S^T W S| {np.abs(gram[1]).max():.2f})"
+    )
+    assert np.abs(gram[1]).max() > 0.5 and drift <= 1e-13, drift
+
+
+@pytest.mark.parametrize("scene, backend", list(_pairs(LIFT_SCENES)))
+def test_liftoff_matches_finite_differences(scene: str, backend: str) -> None:
+    """A lift-off located inside a held step under lobatto3 (the dome, the hump): the constrained sub-step to
+    the root of the row's force, its time by the implicit-function theorem, then the free rest (46) with its
+    internal point; against central differences of whole runs along paths that keep the mode."""
+    sim = lift_simulator(scene, backend)
+    res, per = held_finite_differences(sim, scene, scenes=LIFT_SCENES)
+    assert len(res.liftoffs) == 1 and res.n_impacts == 0
+    lift = int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0]))
+    assert res.active[: lift + 1, 0].all() and not res.active[lift + 1 :].any() and lift > 50
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(f"{scene} [lobatto3, {backend}]: " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    assert max(errs.values()) <= 1e-6, errs
+    for exact, fd in per.values():  # the step across the lift-off on its own
+        jump = exact[lift + 1] - exact[lift]
+        assert np.abs(jump - (fd[lift + 1] - fd[lift])).max() <= 1e-6 * max(1.0, np.abs(exact).max())
+
+
+BALL = {"q0": [0.0, 1.0], "v0": [0.3, 0.0], "h": 0.005, "t_end": 3.0, "params": {"e": 0.5}, "progress": False}
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_ball_coming_to_rest_matches_finite_differences(backend: str) -> None:
+    """A lossy ball bouncing to rest under lobatto3: restitution impacts, the plastic entry (contact time,
+    the impulse law, the constrained rest of its step from the impact point), then held steps: covered to the
+    end, against central differences of every column (the perturbed runs keep impacts, kinds, active sets);
+    asking for the tangent leaves the run unchanged."""
     sim = hard_scenes.simulator("ball", backend, RULE, None)
-    run = {"q0": [0.0, 1.0], "v0": [0.3, 0.0], "h": 0.005, "t_end": 3.0, "params": {"e": 0.5}}
-    run["progress"] = False
-    res = sim.simulate(**run, sensitivities=True)
-    plain = sim.simulate(**run)
-    np.testing.assert_array_equal(res.q, plain.q)
+    res = sim.simulate(**BALL, sensitivities=True)
+    np.testing.assert_array_equal(res.q, sim.simulate(**BALL).q)
     kinds = [im.kind for im in res.impacts]
-    assert "plastic" in kinds and kinds.index("plastic") >= 3
-    k = res.stats["sensitivity_lost"]
-    assert res.sensitivity_breaks[0] == (k, "held phases under a rule with internal points")
-    entry = res.impacts[kinds.index("plastic")].t
-    assert res.t[k] < entry <= res.t[k + 1]  # lost at the plastic impact's step, not before
-    assert np.isfinite(res.sensitivity[: k + 1]).all() and np.isnan(res.sensitivity[k + 1 :]).all()
+    assert kinds[-1] == "plastic" and kinds.count("restitution") >= 4 and res.active[-1].all()
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    fd = np.empty_like(res.sensitivity)
+    z0 = np.array(BALL["q0"] + BALL["v0"] + [0.5])
+    for c in range(5):
+        ends = []
+        for sign in (1.0, -1.0):
+            z = z0.copy()
+            z[c] += sign * 1e-6
+            r = sim.simulate(**{**BALL, "q0": z[:2], "v0": z[2:4], "params": {"e": z[4]}})
+            assert held_mode(r) == held_mode(res), res.sensitivity_names[c]
+            ends.append(np.hstack([r.q, r.p]))
+        fd[:, :, c] = (ends[0] - ends[1]) / 2e-6
+    err = relative_error(res.sensitivity, fd)
+    print(f"ball to rest [lobatto3, {backend}]: {len(kinds)} impacts, FD {err:.1e}")
+    assert err <= 1e-6, err
+
+
+HELD_AGREEMENT = {**{s: (held_simulator, HELD_SCENES) for s in HELD_SCENES}}
+HELD_AGREEMENT |= {s: (lift_simulator, LIFT_SCENES) for s in LIFT_SCENES}
+
+
+@pytest.mark.parametrize("backend", [hard_scenes.backend_param("c")])
+@pytest.mark.parametrize("scene", ["ball", *sorted(HELD_AGREEMENT)])
+def test_c_held_phases_equal_casadi(scene: str, backend: str) -> None:
+    """The C loop's held phases under internal points (sens_held, sens_plastic, sens_liftoff) equal the Python
+    stepper's tangent to 1e-9, with the same (no) breaks."""
+    if scene == "ball":
+        py, c = (
+            hard_scenes.simulator("ball", b, RULE, None).simulate(**BALL, sensitivities=True)
+            for b in ("casadi", backend)
+        )
+    else:
+        make, scenes = HELD_AGREEMENT[scene]
+        _, q0, v0, h, t_end, params, _ = scenes[scene]
+        kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
+        py, c = (make(scene, b).simulate(q0, v0, h, **kw) for b in ("casadi", backend))
+    assert held_mode(py) == held_mode(c)
+    assert c.sensitivity_breaks == py.sensitivity_breaks == [] and np.isfinite(c.sensitivity).all()
+    rel = relative_error(c.sensitivity, py.sensitivity)
+    print(f"{scene} [lobatto3]: C against CasADi {rel:.1e}")
+    assert rel <= 1e-9, rel
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scene", ["lifted", "drop"])
+def test_liftoff_under_a_force_of_time_and_after_a_plastic_impact(scene: str, backend: str) -> None:
+    """tests/test_sensitivity_liftoff_c.py's scenes under lobatto3: a particle lifted off a floor by a force
+    of time (the located root's time slot chained), and the same dropped onto the floor so that the plastic
+    impact and the lift-off fall in one step (``Tracker.liftoff`` with ``entry``: the sub-step starts from the
+    impact point); against central differences, and C = CasADi."""
+    from test_sensitivity_liftoff_c import DROP, LIFTED
+
+    scenes = DROP if scene == "drop" else LIFTED
+    make, q0, v0, h, t_end, params, _ = scenes[scene]
+    sim = vcigen.build(make(), backend=backend, rule=RULE)
+    res, per = held_finite_differences(sim, scene, scenes=scenes)
+    assert len(res.liftoffs) == 1 and res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    lift = int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0]))
+    if scene == "drop":
+        assert [(im.step, im.kind) for im in res.impacts] == [(lift, "plastic")]
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(f"{scene} [lobatto3, {backend}]: " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    assert max(errs.values()) <= 1e-6, errs
     if backend != "casadi":
-        ref = hard_scenes.simulator("ball", "casadi", RULE, None).simulate(**run, sensitivities=True)
-        assert ref.sensitivity_breaks == res.sensitivity_breaks
-        assert np.max(np.abs(res.sensitivity[: k + 1] - ref.sensitivity[: k + 1])) <= 1e-9
+        kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
+        ref = vcigen.build(make(), backend="casadi", rule=RULE).simulate(q0, v0, h, **kw)
+        assert relative_error(res.sensitivity, ref.sensitivity) <= 1e-9

@@ -6,13 +6,16 @@ import casadi as ca
 import numpy as np
 import pytest
 from forced_scenes import driven_oscillator
-from hard_scenes import box, double_pendulum, star
+from hard_scenes import ball, box, double_pendulum, star
+from test_sustained_closed_forms import pendulum
 
 from vcigen.backends.casadi import routine_to_function
 from vcigen.derive import derive
 
 SCENES = {"box_lossy": lambda: box(lossy=True), "star": star, "double_pendulum": double_pendulum}
 SCENES["driven"] = driven_oscillator
+# under lobatto3 (internal points held on the rows): the wider rattle (v, Lam, Lam_m, u) and rattle_end
+LOBATTO3 = {"ball_lobatto3": ball, "pendulum_lobatto3": pendulum}
 
 
 def _reference(system, name: str, ins: list) -> list:
@@ -43,15 +46,19 @@ def _reference(system, name: str, ins: list) -> list:
     return [ca.jacobian(o, ca.vertcat(*ins)) for o in outs]
 
 
-@pytest.mark.parametrize("scene", sorted(SCENES))
+@pytest.mark.parametrize("scene", sorted(SCENES | LOBATTO3))
 def test_tangents_match_automatic_differentiation(scene: str) -> None:
-    plain, system = derive(SCENES[scene]()), derive(SCENES[scene](), sensitivities=True)
+    maker, rule = (LOBATTO3[scene], "lobatto3") if scene in LOBATTO3 else (SCENES[scene], "trapezoid")
+    plain, system = derive(maker(), rule), derive(maker(), rule, sensitivities=True)
     assert not [r for r in plain.routines if r.startswith("d_")]  # a scene that does not ask does not pay
     names = [r for r in system.routines if r.startswith("d_")]
     expected = {"d_smooth", "d_jump", "d_segment", "d_contacts", "d_legendre", "d_restitution"}
     expected |= {f"d_{p}_{c}" for p in ("contact_time", "jump_contact") for c in system.contact_names}
     if "rows" in system.routines:  # sustained contact: the held step's residuals and the rows' directions
         expected |= {"d_rattle", "d_rattle_project", "d_rows", "d_forces"}
+    if rule == "lobatto3" and "rows" in system.routines:  # p+ of a constrained segment, internal points held
+        expected.add("d_rattle_end")
+        assert system.routines["rattle"].inputs[0].size == 2 * system.n + 2 * system.r  # (v, Lam, Lam_m, u)
     assert set(names) == expected
     rng = np.random.default_rng(1)
     for name in names:

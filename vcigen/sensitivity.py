@@ -24,7 +24,10 @@ in ``(x, d)``, their partials chained. Phases:
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
-  ``p±``, ``E_d`` through ``d_segment``'s ``u`` columns. No held phase under them (no sustained contact).
+  ``p±``, ``E_d`` through ``d_segment``'s ``u`` columns. In a held phase the internal points are held on
+  the active rows with their own multipliers ``Lam_m`` (``derive.held_internal_points``): ``rattle``'s
+  unknowns are ``(v, Lam, Lam_m, u)``, all of the implicit-function theorem, and ``p+`` is ``rattle_end``'s
+  (``d_rattle_end``; :meth:`Tracker._held_sub`).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once), a grazing impact taking the continuous law, a held step with any other
@@ -47,7 +50,6 @@ from .derive import DiscreteSystem
 from .tangents import tangent_routines
 
 SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many unknowns
-STAGED_HELD = "held phases under a rule with internal points"  # no tangent there yet (both steppers)
 STAGE_ITERATIONS = 30  # Newton iterations recovering the internal points of a phase (Tangents.internal)
 
 
@@ -285,15 +287,6 @@ class Tracker:
         internal points ``u`` and their tangent ``du`` under a rule that has them)."""
         return self._segment_cols(q, v, tau, t, dq, dv, dtau, self.dpar(dt), u, du)
 
-    def _staged_refused(self) -> bool:
-        """Under a rule with internal points the held phases (plastic entry, held step, lift-off) have no
-        tangent yet (their internal points are held on the rows, ``derive.held_internal_points``): loses the
-        tangent and says so (the C loop: ``WHY_STAGED_HELD``, the same reason)."""
-        if self.tg.ns:
-            self.lose(STAGED_HELD)
-            return True
-        return False
-
     @_guarded
     def smooth(self, q, p, h: float, v) -> None:
         """Smooth step (46): ``v`` from ``p_k = p-(q_k, q_k + h v, h)``; ``S_k+1``."""
@@ -396,7 +389,7 @@ class Tracker:
         ``p+ = p~- + G^T Lam``, ``G M^-1 G^T Lam = -G vel`` (the frictionless impulse law, target normal
         velocity 0), ``vel`` one Newton step of the inverse Legendre transform from ``v_in``, ``G`` and ``M``
         at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the step starts there)."""
-        if not self.active or self._staged_refused():
+        if not self.active:
             return
         k, n = self.k, self.n
         par, dpar = self.par(seg.t), self.dpar(self.dt)
@@ -442,44 +435,64 @@ class Tracker:
         self.next = np.vstack([dq_end, dp_end])
 
     @_guarded
-    def held(self, q, p, tau: float, v, lam, lam1, u1, act, entry: bool = False) -> None:
+    def held(self, q, p, tau: float, v, lam, lam1, lam_m, u1, act, entry: bool = False) -> None:
         """A held grid step with a fixed active set (MATH.md *Sustained contact*): ``S_k+1``.
 
         ``rattle``, unknowns ``x = (v, Lam)`` given ``(q_k, p_k, tau, act, par)``, then ``rattle_project``,
         unknowns ``y = (u1, Lam')`` given ``(q_k+1, p+, act, par)``, ``q_k+1 = q_k + tau v``,
         ``p+ = p+(q_k, v, tau)``; ``p_k+1 = dL/dqdot(q_k+1, u1)`` (``= p+ + G1^T Lam'``). The active set and
         the multipliers off it are held fixed (their columns 0): the derivative of the step for its mode.
+        With internal points held on the rows (lobatto3, ``derive.held_internal_points``) ``x = (v, Lam,
+        Lam_m, u)`` (``lam_m`` the internal points' multipliers, ``u`` recovered) and ``p+`` is routine
+        ``rattle_end``'s (:meth:`_held_sub`).
         ``entry``: the rest of a step after a plastic impact (:meth:`plastic`), from the impact point ``q~``,
         ``p+``, its time and the rest of the step (the segment's tangents ``dq, dp, dt, dtau``).
         """
-        if not self.active or self._staged_refused():
+        if not self.active:
             return
         n, K = self.n, self.K
         if entry:
             dq, dp, dtau, dt, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
         else:
             dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
-        dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, u1, act, dq, dp, dtau, dt, t)
+        dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t)
         dmom, _ = self.tg.get("d_legendre")(q + tau * v, u1, np.zeros(n), self.par(t))
         self.next = np.vstack([dq1, dmom @ np.vstack([dq1, du1, dpar])])
 
-    def _held_sub(self, q, p, tau: float, v, lam, lam1, u1, act, dq, dp, dtau, dt, t):
+    def _held_sub(self, q, p, tau: float, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t):
         """Tangents ``(dq1, du1, dpar)`` of a constrained segment ``(q, p, tau)`` from ``t`` (``rattle`` then
-        ``rattle_project``, the active set ``act`` fixed); the columns are those of ``dq`` (any number)."""
+        ``rattle_project``, the active set ``act`` fixed); the columns are those of ``dq`` (any number).
+
+        With internal points held on the rows (``lam_m`` their multipliers, stage after stage) ``rattle``'s
+        unknowns are ``(v, Lam, Lam_m, u)``: ``u`` is recovered at the solution (:meth:`Tangents.internal`,
+        Newton on the stationarity rows ``l_u + G_m^T Lam_m = 0`` at the given ``Lam_m``), all of them are
+        unknowns of the implicit-function theorem, and ``p+`` is ``rattle_end(q, v, tau, u, Lam_m, act)``
+        (``D2 L_d`` with the internal multipliers' share), its partials ``d_rattle_end`` chained with
+        ``(dq, dv, dtau, du, dLam_m, 0, dpar)``."""
         n, cols = self.n, dq.shape[1]
         nr = len(act)
         actf = np.asarray(act, dtype=float)
+        par = self.par(t)
         dpar = self.dpar(dt)
         if dpar.shape[1] != cols:
             dpar = np.hstack([dpar, np.zeros((dpar.shape[0], cols - dpar.shape[1]))])
         zr = np.zeros((nr, cols))
-        x = np.concatenate([v, lam])
-        dx = self._ift("rattle", x, (q, p, [tau], actf), np.vstack([dq, dp, dtau, zr, dpar]), t)
+        data = (q, p, [tau], actf)
+        x = np.concatenate([v, lam, lam_m])
+        u = self.tg.internal("rattle", x, data, par)
+        dx = self._ift("rattle", np.concatenate([x, u]), data, np.vstack([dq, dp, dtau, zr, dpar]), t)
         dv = dx[:n]
         q1 = q + tau * v
         dq1 = dq + np.outer(v, dtau) + tau * dv
-        p_plus = self.k.segment(q, v, tau)[1]
-        _, dpp, _ = self._segment_cols(q, v, tau, t, dq, dv, dtau, dpar)
+        if self.tg.ns:  # p+ of the segment with its internal points held (rattle_end)
+            nx = x.size
+            dlm, du = dx[n + nr : nx], dx[nx:]
+            ins = (q, v, [tau], u, lam_m, actf, par)
+            p_plus = self.tg.get("rattle_end")(*ins)[0][:, 0]
+            dpp = self.tg.get("d_rattle_end")(*ins)[0] @ np.vstack([dq, dv, dtau, du, dlm, zr, dpar])
+        else:
+            p_plus = self.k.segment(q, v, tau)[1]
+            _, dpp, _ = self._segment_cols(q, v, tau, t, dq, dv, dtau, dpar)
         y = np.concatenate([u1, lam1])
         dy = self._ift("rattle_project", y, (q1, p_plus, actf), np.vstack([dq1, dpp, zr, dpar]), t)
         return dq1, dy[:n], dpar
@@ -508,10 +521,10 @@ class Tracker:
         a step after a plastic impact (:meth:`plastic`), from the impact point, its time and the rest of the
         step (the segment's tangents ``dq, dp, dt, dtau``), as :meth:`held`.
         """
-        if not self.active or self._staged_refused():
+        if not self.active:
             return
         n, K = self.n, self.K
-        q, p, v, lam, lam1, u1, act = sub
+        q, p, v, lam, lam1, lam_m, u1, act = sub
         if entry:
             dq0, dp0, dtau0, dt0, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
         else:
@@ -521,7 +534,7 @@ class Tracker:
         dp = np.hstack([dp0, np.zeros((n, 1))])
         dtau = np.zeros((1, K + 1))
         dtau[0, K] = 1.0  # the extra column: d/d tau_s
-        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, u1, act, dq, dp, dtau, dt0, t)
+        dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt0, t)
         q1 = q + tau_s * v
         t_l = t + tau_s
         dpar_end = dpar.copy()
@@ -540,9 +553,10 @@ class Tracker:
         tau_r = tau - tau_s
         dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
         dtau_r = dtau0 - dtau_s
-        dw = self._ift("smooth", w, (ql, pl, [tau_r]), np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)]), t_l)
+        dd = np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)])
+        dw, uw, duw = self._ift_staged("smooth", w, (ql, pl, [tau_r]), dd, t_l)
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
-        _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l)
+        _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l, uw, duw)
         self.next = np.vstack([dq_end, dp_end])
 
     def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:

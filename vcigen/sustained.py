@@ -641,6 +641,8 @@ class SustainedSteps:
             np.where(self.act, y[n:], 0.0),
         )  # 0 off the active rows
         p1 = p_plus + self._dirs(end.grad).T @ lam1
+        # the tangent's (Tracker.held): Lam' alone and the internal points' Lam_m (0 off the active rows)
+        self._seg_inner = lam1, np.where(np.tile(self.act, self._stages), x[n + r :], 0.0)
         for s in range(self._stages):  # the internal points' impulses: booked with Lam' (after the start)
             lam1 = lam1 + np.where(self.act, x[n + r * (s + 1) : n + r * (s + 2)], 0.0)
         return v, lam, q + tau * v, p_plus, e_seg, lam1, p1, y[:n], end
@@ -688,7 +690,7 @@ class SustainedSteps:
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
             if not events and not cross.any():
                 if plain and self._record_held:  # the tangent of the step (Stepper.step, Tracker.held)
-                    self._held_seg = (v, lam, lam1, u1, self.act.copy())
+                    self._held_seg = (v, lam, *self._seg_inner, u1, self.act.copy())
                 self._book(lam + lam1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                 return q1, p1, e_step, v
@@ -701,7 +703,7 @@ class SustainedSteps:
             q_s, p_s, tau_s = q, p, tau
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
             if plain and self._record_held and events[r0][0] == "lift":  # the tangent: Tracker.liftoff
-                self._lift_seg = ((q_s, p_s, v, lam, lam1, u1, act0), r0, s, tau_s)
+                self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)

@@ -12,7 +12,11 @@ named ``d_<routine>`` (SENS_DESIGN.md):
   input after x, concatenated in input order)``; (46), (47), (48), (78), and the constrained step of
   sustained contact with its end projection (MATH.md *Sustained contact*; their ``act`` columns are
   those of a fixed active set, never used);
-* ``d_segment(q0, v, tau, par)``: ``dp_minus``, ``dp_plus``, ``denergy``, each ``d/d(q0, v, tau, par)``;
+* ``d_segment(q0, v, tau, par)``: ``dp_minus``, ``dp_plus``, ``denergy``, each ``d/d(q0, v, tau, par)``
+  (with internal points ``d/d(q0, v, tau, u, par)``);
+* ``d_rattle_end(q0, v, tau, u, lm, act, par)`` (a rule with internal points and rows): ``dp_plus``,
+  ``denergy``, each ``d/d(every input)``: ``p+`` and ``E_d`` of a constrained segment whose internal points
+  are held (``derive.held_internal_points``), the tangent of the held step's end momentum;
 * ``d_contacts(q, par)``: ``dgrad``, ``(m n) x (n + npar)``, row ``j n + i`` is ``d grad_j[i] / d(q, par)``;
 * ``d_legendre(q, v, a, par)``: ``dmom = d mom / d(q, v, par)`` and ``dmass_a = d (M(q, v) a) / d(q, v, par)``
   (the tangent of one Newton step of the inverse Legendre transform, and of ``M^-1 n``);
@@ -67,14 +71,34 @@ def residual_tangent(r: Routine) -> Routine:
     )
 
 
-def segment_tangent(r: Routine) -> Routine:
-    """``d_segment``: partials of ``p-``, ``p+`` (50)-(51) and ``E_d`` (55) in ``(q0, v, tau, par)``."""
+def explicit_tangent(r: Routine, outputs: tuple[str, ...], doc: str) -> Routine:
+    """``d_<name>``: partials of the explicit routine ``r``'s ``outputs`` in all its inputs (in order)."""
     xs = _data_symbols(r.inputs)
     return Routine(
-        "d_segment",
+        TANGENT_PREFIX + r.name,
         r.inputs,
-        tuple(Output("d" + o, jacobian(r.output(o).expr, xs)) for o in ("p_minus", "p_plus", "energy")),
+        tuple(Output("d" + o, jacobian(r.output(o).expr, xs)) for o in outputs),
+        doc,
+    )
+
+
+def segment_tangent(r: Routine) -> Routine:
+    """``d_segment``: partials of ``p-``, ``p+`` (50)-(51) and ``E_d`` (55) in ``(q0, v, tau, [u,] par)``."""
+    return explicit_tangent(
+        r,
+        ("p_minus", "p_plus", "energy"),
         "Partials of the discrete momenta (50)-(51) and energy (55) in (q0, v, tau, par).",
+    )
+
+
+def rattle_end_tangent(r: Routine) -> Routine:
+    """``d_rattle_end``: partials of ``p+ = D2 L_d`` (51) and ``E_d = -D3 L_d`` (55) of a constrained segment
+    whose internal points are held on the active rows (``derive.held_internal_points``) in ``(q0, v, tau,
+    u, lm, act, par)``: the chain from the held step's unknowns ``(v, Lam, Lam_m, u)`` to ``p+``."""
+    return explicit_tangent(
+        r,
+        ("p_plus", "energy"),
+        "Partials of p+ (51) and E_d (55) of a constrained segment with held internal points (every input).",
     )
 
 
@@ -162,6 +186,8 @@ def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     if "rows" in routines:
         out["d_rows"] = rows_tangent(routines["rows"])
         out["d_forces"] = forces_tangent(routines)
+    if "rattle_end" in routines:  # internal points held on the rows (lobatto3): p+ of the held step
+        out["d_rattle_end"] = rattle_end_tangent(routines["rattle_end"])
     for name, r in routines.items():
         if _covered(name):
             out[TANGENT_PREFIX + name] = residual_tangent(r)
