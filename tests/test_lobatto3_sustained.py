@@ -15,10 +15,10 @@ from functools import cache
 import numpy as np
 import pytest
 import sympy as sp
-from hard_scenes import BACKENDS, G, parabola, zeno_time
+from hard_scenes import BACKENDS, G, zeno_time
 from scipy.integrate import quad, solve_ivp
 from test_c_agreement_sustained import SCENES as AGREE
-from test_sustained_closed_forms import dome, incline, pendulum
+from test_sustained_closed_forms import dome, incline, landed_and_slid_on_the_incline, pendulum
 
 import vcigen
 from vcigen.analysis import fit_order
@@ -175,27 +175,11 @@ def test_frictionless_incline_slides_exactly_and_is_pushed_with_g_cos_a(backend,
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_plastic_landing_on_an_incline_then_slides_exactly(backend):
     """e = 0: dropped from (0, 1) with vx = 0.5 onto y = x tan(0.3): the impact at the closed-form time, the
-    normal velocity removed, then the exact slide from the landing point with g sin(a) down the slope."""
+    normal velocity removed, then the exact slide from the landing point with g sin(a) down the slope (the
+    closed form of tests/test_sustained_closed_forms.py)."""
     a, h, q0, v0 = 0.3, 0.01, [0.0, 1.0], [0.5, 0.0]
     res = sim("incline", backend).simulate(q0, v0, h, t_end=1.0, params={"a": a})
-    tangent, normal = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
-    ta = math.tan(a)
-    t_c = (-0.5 * ta + math.sqrt(0.25 * ta * ta + 2 * G)) / G
-    q_c, v_c = parabola(q0, v0, [t_c])[0], np.array([0.5, -G * t_c])
-    (im,) = res.impacts
-    assert im.kind == "plastic" and im.t == pytest.approx(t_c, abs=1e-12)
-    assert im.impulse == pytest.approx(-(v_c @ normal), rel=1e-12)
-    after = res.t > t_c
-    np.testing.assert_array_equal(res.active[:, 0], after)
-    dt = res.t[after] - t_c
-    u_t = v_c @ tangent
-    s = u_t * dt - G * math.sin(a) * dt**2 / 2
-    np.testing.assert_allclose(res.q[after], q_c + np.outer(s, tangent), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(
-        res.p[after], np.outer(u_t - G * math.sin(a) * dt, tangent), rtol=0, atol=1e-12
-    )
-    full = res.t[:-1] > t_c
-    np.testing.assert_allclose(res.contact_force[full, 0], G * math.cos(a), rtol=1e-12, atol=0)
+    landed_and_slid_on_the_incline(res, a, h)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -616,14 +616,19 @@ def test_liftoff_matches_finite_differences(scene: str, backend: str) -> None:
     force, its time by the implicit-function theorem, then the free rest of the step, against central
     differences of whole runs across the lift-off along paths that keep the mode (the same lift-off step);
     covered to the end."""
-    sim = lift_simulator(scene, backend)
+    liftoff_tangent_matches_finite_differences(lift_simulator(scene, backend), scene, f"{scene} ({backend})")
+
+
+def liftoff_tangent_matches_finite_differences(sim: vcigen.Simulator, scene: str, label: str) -> None:
+    """The lift-off scene's tangent against central differences along paths that keep the mode, over the
+    whole run and over the step across the lift-off on its own (every rule)."""
     res, per = held_finite_differences(sim, scene, scenes=LIFT_SCENES)
     assert len(res.liftoffs) == 1 and res.n_impacts == 0
     lift = int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0]))
     assert res.active[: lift + 1, 0].all() and not res.active[lift + 1 :].any() and lift > 50
     assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
-    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
-    print(f"{scene} ({backend}): " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
+    errs = {column: relative_error(exact, fd) for column, (exact, fd) in per.items()}
+    print(f"{label}: " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
     assert max(errs.values()) <= 1e-6, errs
     for exact, fd in per.values():  # the step across the lift-off on its own
         jump = exact[lift + 1] - exact[lift]

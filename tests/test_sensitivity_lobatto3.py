@@ -25,6 +25,7 @@ from test_sensitivity import (
     finite_differences,
     held_finite_differences,
     held_mode,
+    liftoff_tangent_matches_finite_differences,
     relative_error,
     step_jacobians,
 )
@@ -193,18 +194,8 @@ def test_liftoff_matches_finite_differences(scene: str, backend: str) -> None:
     """A lift-off located inside a held step under lobatto3 (the dome, the hump): the constrained sub-step to
     the root of the row's force, its time by the implicit-function theorem, then the free rest (46) with its
     internal point; against central differences of whole runs along paths that keep the mode."""
-    sim = lift_simulator(scene, backend)
-    res, per = held_finite_differences(sim, scene, scenes=LIFT_SCENES)
-    assert len(res.liftoffs) == 1 and res.n_impacts == 0
-    lift = int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0]))
-    assert res.active[: lift + 1, 0].all() and not res.active[lift + 1 :].any() and lift > 50
-    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
-    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
-    print(f"{scene} [lobatto3, {backend}]: " + ", ".join(f"{k} {v:.1e}" for k, v in errs.items()))
-    assert max(errs.values()) <= 1e-6, errs
-    for exact, fd in per.values():  # the step across the lift-off on its own
-        jump = exact[lift + 1] - exact[lift]
-        assert np.abs(jump - (fd[lift + 1] - fd[lift])).max() <= 1e-6 * max(1.0, np.abs(exact).max())
+    label = f"{scene} [lobatto3, {backend}]"
+    liftoff_tangent_matches_finite_differences(lift_simulator(scene, backend), scene, label)
 
 
 BALL = {"q0": [0.0, 1.0], "v0": [0.3, 0.0], "h": 0.005, "t_end": 3.0, "params": {"e": 0.5}, "progress": False}

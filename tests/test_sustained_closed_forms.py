@@ -115,6 +115,13 @@ def test_plastic_landing_on_an_incline_keeps_the_tangential_momentum_and_slides_
     """
     h, q0, v0 = 0.01, [0.0, 1.0], [0.5, 0.0]
     res = sim("incline", backend).simulate(q0, v0, h, t_end=1.0, params={"a": a})
+    landed_and_slid_on_the_incline(res, a, h)
+
+
+def landed_and_slid_on_the_incline(res: vcigen.Result, a: float, h: float) -> None:
+    """The closed form of the run from (0, 1) with velocity (0.5, 0) onto y = x tan(a): its plastic landing
+    and the slide after it (for every rule)."""
+    q0, v0 = [0.0, 1.0], [0.5, 0.0]
     tangent, normal = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
     ta = math.tan(a)
     t_c = (-0.5 * ta + math.sqrt(0.25 * ta * ta + 2 * G)) / G
