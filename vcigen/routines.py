@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from . import csememo
+
 
 @dataclass(frozen=True)
 class Arg:
@@ -72,7 +74,7 @@ class Routine:
     def cse(self) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[list[sp.Expr]]]:
         """Common subexpressions across all outputs; reduced entries per output."""
         flat = self.flat_outputs()
-        repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t", real=True), optimizations="basic")
+        repl, reduced = csememo.cse(flat, optimizations="basic")
         out, k = [], 0
         for o in self.outputs:
             out.append(list(reduced[k : k + o.size]))

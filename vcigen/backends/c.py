@@ -22,6 +22,7 @@ from typing import Any
 
 import jinja2
 
+from ..csememo import cache_root
 from ..derive import DiscreteSystem
 from ..errors import CompileError
 from ..stepper import Tolerances
@@ -75,12 +76,6 @@ def write(files: Mapping[str, str], out: str | Path) -> list[Path]:
         path.write_text(text)
         paths.append(path)
     return paths
-
-
-def cache_root() -> Path:
-    """``$VCIGEN_CACHE`` or ``~/.cache/vcigen``."""
-    env = os.environ.get("VCIGEN_CACHE")
-    return Path(env) if env else Path.home() / ".cache" / "vcigen"
 
 
 def build_library(

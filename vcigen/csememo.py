@@ -1,0 +1,108 @@
+"""SymPy's common-subexpression elimination, remembered on disk.
+
+``sympy.cse`` with its ``basic`` pre-optimisations (``factor_terms``) is a large part of a build: tens of
+seconds for the derived tangent routines of a double pendulum under ``lobatto3``. It is a pure function of
+its expressions, so its result is kept in ``<cache>/cse`` (``$VCIGEN_CACHE`` or ``~/.cache/vcigen``, the
+compile cache's root) under a digest of the expressions, the options and SymPy's version: a second build of
+the same model (another process, another session, a Dask worker) reads it back.
+
+The derivation's own symbols are ``Dummy`` (no clash with the user's); their indices differ from one
+process to the next, so the digest names each by its rank among the expressions' dummies (in creation
+order) and the stored result holds placeholders that are mapped back to this process's dummies. Equal
+digests mean equal expressions up to that renaming, so what is read back is a valid elimination of them.
+A cache that cannot be read or written is skipped: the result is computed as without it.
+``VCIGEN_CSE_MEMO=0`` turns the memo off.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import sympy as sp
+
+# bump when the digest or the stored form changes
+FORMAT = 2
+PLACEHOLDER = "_vcigen_memo_d{}"
+
+Result = tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]
+
+
+def cache_root() -> Path:
+    """``$VCIGEN_CACHE`` or ``~/.cache/vcigen``."""
+    env = os.environ.get("VCIGEN_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "vcigen"
+
+
+def _assumptions(s: sp.Symbol) -> str:
+    return ",".join(f"{k}={v}" for k, v in sorted(s.assumptions0.items()))
+
+
+def digest(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> str:
+    """A digest of ``exprs`` stable across processes: each node hashed once (shared subtrees too), dummies
+    by ``rank``."""
+    memo: dict[sp.Basic, bytes] = {}
+
+    def node(e: sp.Basic) -> bytes:
+        got = memo.get(e)
+        if got is not None:
+            return got
+        if isinstance(e, sp.Dummy):
+            text = f"D{rank[e]}:{_assumptions(e)}".encode()
+        elif isinstance(e, sp.Symbol):
+            text = f"S{e.name}:{_assumptions(e)}".encode()
+        elif e.is_Atom:
+            text = sp.srepr(e).encode()
+        else:
+            text = b"(".join([type(e).__name__.encode(), *(node(a) for a in e.args)])
+        out = hashlib.sha256(text).digest()
+        memo[e] = out
+        return out
+
+    return hashlib.sha256(b"|".join(node(e) for e in exprs)).hexdigest()
+
+
+def cse(exprs: Sequence[sp.Basic], optimizations: str | None = "basic") -> Result:
+    """``sympy.cse(exprs, symbols=t0, t1, ... (real), optimizations=...)``, read from the disk memo when
+    the same expressions were eliminated before."""
+    exprs = list(exprs)
+
+    def compute() -> Result:
+        names = sp.numbered_symbols("t", real=True)
+        repl, reduced = sp.cse(exprs, symbols=names, optimizations=optimizations)
+        return list(repl), list(reduced)
+
+    if os.environ.get("VCIGEN_CSE_MEMO", "1") == "0" or not exprs:
+        return compute()
+    dummies = sorted(set().union(*(e.atoms(sp.Dummy) for e in exprs)), key=lambda d: d.dummy_index)
+    rank = {d: i for i, d in enumerate(dummies)}
+    holders = [sp.Symbol(PLACEHOLDER.format(i), **d.assumptions0) for i, d in enumerate(dummies)]
+    if any(s.name.startswith("_vcigen_memo_") for e in exprs for s in e.free_symbols):
+        return compute()
+    key = hashlib.sha256(
+        f"{FORMAT}\0{sp.__version__}\0{optimizations}\0{digest(exprs, rank)}".encode()
+    ).hexdigest()
+    path = cache_root() / "cse" / key[:2] / f"{key}.pickle"
+    back = dict(zip(holders, dummies))
+    try:
+        with path.open("rb") as fh:
+            repl, reduced = pickle.load(fh)
+        if len(reduced) == len(exprs):
+            return [(s, e.xreplace(back)) for s, e in repl], [e.xreplace(back) for e in reduced]
+    except (OSError, pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError):
+        pass
+    repl, reduced = compute()
+    there = dict(zip(dummies, holders))
+    stored = ([(s, e.xreplace(there)) for s, e in repl], [e.xreplace(there) for e in reduced])
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
+            pickle.dump(stored, tmp, protocol=pickle.HIGHEST_PROTOCOL)
+        Path(tmp.name).replace(path)  # atomic: concurrent writers of one key are harmless
+    except OSError:
+        pass
+    return repl, reduced
