@@ -4,6 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 OUT    ?= results
+JOBS   ?= auto
 
 .PHONY: venv demo test test-fast lint generate bench clean
 
@@ -23,8 +24,8 @@ demo: venv            ## the paper's examples on both backends: CSV + energy plo
 	$(PY) examples/contact/ball_to_rest.py --out $(OUT) --backend c
 	$(PY) examples/forced/impact_oscillator.py --out $(OUT) --backend c
 
-test: venv            ## the whole test suite
-	$(PY) -m pytest -q
+test: venv            ## the whole test suite, on every core (pytest-xdist; JOBS=1 for one process)
+	$(PY) -m pytest -q -n $(JOBS)
 
 lint: venv
 	$(VENV)/bin/ruff check vcigen tests examples bench
