@@ -369,7 +369,7 @@ def _damped(kind: str) -> vcigen.Model:
 def test_forces_on_held_rows_are_fourth_order_with_the_work_booked(backend):
     """Drag on the pendulum rod (t = 3): q against DOP853 on theta'' = -g sin(theta) - c theta' and
     ``energy_balance()`` both order 4.0 +- 0.3 (the work of a held step at its held internal point,
-    ``vcigen.work._held_stationarity``; at the free one the balance was order 2.00: 6.7e-3 ... 4.2e-4).
+    ``vcigen.booking._held_stationarity``; at the free one the balance was order 2.00: 6.7e-3 ... 4.2e-4).
     A ball sliding on a floor against drag: x = v0 (1 - exp(-c t))/c to O(h^4), balance <= 1e-11."""
     sol = solve_ivp(
         lambda _t, z: [z[1], -G * math.sin(z[0]) - 0.3 * z[1]], (0.0, 3.0), [THETA0, 0.0],

@@ -10,6 +10,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from .backends import registry
+from .booking import tangent_function, work_function
 from .derive import DiscreteSystem, derive
 from .errors import SolverError
 from .model import Model
@@ -18,7 +19,7 @@ from .result import Result
 from .rules import Rule
 from .stepper import Stepper, Tolerances, warn_reflected
 from .velocity import LegendreInverse
-from .work import friction_work, step_work, tangent_function, work_function
+from .work import friction_work, step_work
 
 Backend = Literal["casadi", "c"]
 BACKENDS = ("casadi", "c")  # the built-in backends (vcigen.backends.registry.names() has any others)
