@@ -24,8 +24,8 @@ demo: venv            ## the paper's examples on both backends: CSV + energy plo
 	$(PY) examples/contact/ball_to_rest.py --out $(OUT) --backend c
 	$(PY) examples/forced/impact_oscillator.py --out $(OUT) --backend c
 
-test: venv            ## the whole test suite, on every core (pytest-xdist; JOBS=1 for one process)
-	$(PY) -m pytest -q -n $(JOBS)
+test: venv            ## the whole test suite, on every core (pytest-xdist, a file per worker: its builds once; JOBS=1 for one process)
+	$(PY) -m pytest -q -n $(JOBS) --dist loadfile
 
 lint: venv
 	$(VENV)/bin/ruff check vcigen tests examples bench
