@@ -557,8 +557,8 @@ class Tracker:
         """The constrained sub-step ``sub = (q, p, v, lam, lam1, lam_m, u1, act)`` over ``tau_s = s tau`` from
         ``t`` to an event of row ``r`` (``kind``: ``"lift"``, the root of its force, :meth:`_dforce`;
         ``"cross"``, the root of its value ``psi_r(q1)``, ``d_psi``), with one extra column ``d/d tau_s``,
-        and the root's ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``: ``(dq_l, dp_l, dv_l, dtau_s)`` at the event
-        (``dv_l`` the sub-step's velocity ``v``, from which the impulse law's one Newton step starts)."""
+        and the root's ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``: ``(dq_l, dp_l, dv_l, dtau_s)`` at the
+        event (``dv_l``: the sub-step's velocity ``v``, where the impulse law's Newton step starts)."""
         n, K = self.n, self.K
         q, p, v, lam, lam1, lam_m, u1, act = sub
         tau_s = s * tau
@@ -588,8 +588,8 @@ class Tracker:
         return dq_l, dp_l, dv_l, dtau_s
 
     def _free_end(self, free, tau_r: float, t_l: float, dq_l, dp_l, dtau_r, dt_l) -> None:
-        """The free rest (46) ``free = (q_l, p_l, w)`` over ``tau_r`` from ``t_l`` to the grid time, its start,
-        start time and duration chained (their tangents ``dq_l, dp_l, dt_l, dtau_r``): ``S_k+1``."""
+        """The free rest (46) ``free = (q_l, p_l, w)`` over ``tau_r`` from ``t_l`` to the grid time, its
+        start, start time and duration chained (their tangents ``dq_l, dp_l, dt_l, dtau_r``): ``S_k+1``."""
         ql, pl, w = free
         dd = np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)])
         dw, uw, duw = self._ift_staged("smooth", w, (ql, pl, [tau_r]), dd, t_l)
@@ -597,7 +597,7 @@ class Tracker:
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l, uw, duw)
         self.next = np.vstack([dq_end, dp_end])
 
-    # -- events inside a held step (SustainedSteps._chain): the segment's tangents carried event by event ------
+    # -- events inside a held step (SustainedSteps._chain): the segment's tangents carried event by event --
     def events_begin(self, entry: bool) -> None:
         """Before the first event of a held grid step: its segment's tangents ``(dq, dp, dtau, dt)`` start at
         the grid point (``S_k``, 0, 0, ``t_k``); the rest of a plastic impact's step (``entry``) has them."""

@@ -112,7 +112,7 @@ class Stepper(SustainedSteps, HeldSteps):
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
-        self._ev_tan = None  # inside a held step: the tangent its events are carried by (SustainedSteps._ev_*)
+        self._ev_tan = None  # inside a held step: the tangent its events are carried by (SustainedSteps)
         self._ev_entry = self._ev_done = False
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)

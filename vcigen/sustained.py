@@ -760,9 +760,9 @@ class SustainedSteps:
             self._ev_tan.event(sub, r, s, tau, kind)
 
     def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
-        """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows with
-        an impulse, each with the contact whose restitution sets its target (-1: target 0); a group of rows
-        hit at once (the weights of its impulse switch) breaks."""
+        """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
+        with an impulse, each with the contact whose restitution sets its target (-1: target 0); a group of
+        rows hit at once (the weights of its impulse switch) breaks."""
         tan = self._ev_tan
         if tan is None:
             return
