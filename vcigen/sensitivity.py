@@ -171,17 +171,23 @@ class Tangents:
         return f
 
 
-def _guarded(hook):
-    """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run."""
+def _guarded(hook, name: str | None = None):
+    """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run (the
+    reason names ``name``, else the hook)."""
 
     @functools.wraps(hook)
     def run(self, *args) -> None:
         try:
             hook(self, *args)
         except np.linalg.LinAlgError:
-            self.lose(f"a singular Jacobian in the tangent of {hook.__name__}")
+            self.lose(f"a singular Jacobian in the tangent of {name or hook.__name__}")
 
     return run
+
+
+def _event_hook(hook):
+    """:func:`_guarded`, each phase of an event inside a held step named ``event`` (C WHY_SINGULAR_EVENT)."""
+    return _guarded(hook, "event")
 
 
 class Tracker:
@@ -394,7 +400,7 @@ class Tracker:
             return
         self._impulse(seg.q, v_in, seg.p_in, tight, [-1] * len(tight))
 
-    @_guarded
+    @_event_hook
     def impulse(self, q, v, p, tight, contact) -> None:
         """An impact while rows are held (``SustainedSteps._chain_impact``, after :meth:`event`): the impulse
         law on the rows ``tight`` (those with an impulse), each row's target ``-e g_r.vel`` (``contact[l]``
@@ -608,7 +614,7 @@ class Tracker:
         self.dtau, self.dt, self.t_seg = np.zeros((1, K)), np.zeros(K), self.t
         self._ev_step = self.step
 
-    @_guarded
+    @_event_hook
     def event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
         """A constrained sub-step of a held step to an event of row ``r`` at fraction ``s`` of ``tau`` (a
         lift-off, ``"lift"``, or an inactive row crossed, ``"cross"``, :meth:`_located`) from the segment's
@@ -619,7 +625,7 @@ class Tracker:
         self.dq, self.dp, self.dvin = dq_l, dp_l, dv_l
         self.dt, self.dtau, self.t_seg = self.dt + dtau_s[0], self.dtau - dtau_s, self.t_seg + s * tau
 
-    @_guarded
+    @_event_hook
     def free_end(self, q, p, w, tau: float) -> None:
         """The free rest (46) of a held step after its events (:meth:`event`), from the segment's tangents."""
         if self.active:
