@@ -1,0 +1,200 @@
+"""Exact sensitivities through events inside a held step (``vcigen.sensitivity``: ``Tracker.event``,
+``impulse``, ``free_end``; C ``templates/sens_events.c.j2``): an impact of another contact while rows are
+held (a particle sliding on the floor into a wall, elastic and with restitution; a box landing on a vertex
+and settling on its long face, the second vertex plastic or bouncing while the first is held), located like
+(47) along the constrained sub-step map, the impulse law onto the rows, then the constrained rest of the step
+with the new active set. Against central differences of whole runs along paths that keep the mode, on both
+backends; C = CasADi; the step across an elastic impact while held is symplectic (its exact Jacobian on the
+free coordinates); the events still not covered give their break.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import hard_scenes
+import numpy as np
+import pytest
+import sympy as sp
+from test_sensitivity import BACKENDS, held_finite_differences, held_mode, relative_error
+from test_sensitivity_c import assert_same_tangent
+
+import vcigen
+from vcigen.analysis import jacobian_symplectic_defect
+
+G = 9.81
+
+
+def floor_wall(lossy: bool = False) -> vcigen.Model:
+    """A unit particle on the floor ``y >= 0`` under gravity ``g``, sliding into the wall ``x <= W``
+    (restitution ``e`` with ``lossy``, else elastic)."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    g, w, e = sp.symbols("g W e", positive=True)
+    return vcigen.Model(
+        name="ev_wall_lossy" if lossy else "ev_wall",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={"floor": y, "wall": w - x},
+        params={g: G, w: 0.455, e: 0.6},
+        restitution={"wall": e} if lossy else {},
+    )
+
+
+def box(e0: float) -> vcigen.Model:
+    """A 2 x 1 box with a contact at each vertex, restitution ``e`` (a parameter) at every one."""
+    x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
+    e = sp.Symbol("e")
+    corners = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+    contacts = {f"v{i}": y + a * sp.sin(th) + b * sp.cos(th) for i, (a, b) in enumerate(corners)}
+    return vcigen.Model(
+        name=f"ev_box{int(round(10 * e0))}",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=(xd**2 + yd**2) / 2 + sp.Rational(5, 24) * thd**2 - G * y,
+        contacts=contacts,
+        params={e: e0},
+        restitution=dict.fromkeys(contacts, e),
+    )
+
+
+def _tilted(dx: float = 0.0, dth: float = 0.0, dvx: float = 0.0, dw: float = 0.0):
+    return [dx, 0.6, 0.1 + dth], [0.3 + dvx, 0.0, dw], {}
+
+
+# scene -> (model maker, q0, v0, h, t_end, params, paths): paths keep the mode (test_sensitivity.held_mode)
+SCENES = {
+    # the particle slides on the floor (held) into the wall: an elastic impact while held, inside step 45
+    "wall": (
+        floor_wall,
+        [0.0, 0.0],
+        [1.0, 0.0],
+        0.01,
+        0.8,
+        None,
+        {
+            "q0[x]": lambda e: ([e, 0.0], [1.0, 0.0], {}),
+            "v0[x]": lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}),
+            "W": lambda e: ([0.0, 0.0], [1.0, 0.0], {"W": 0.455 + e}),
+        },
+    ),
+    # the same with restitution e at the wall (its target -e g.qdot moves with e)
+    "wall_lossy": (
+        lambda: floor_wall(True),
+        [0.0, 0.0],
+        [1.0, 0.0],
+        0.01,
+        0.8,
+        None,
+        {
+            "v0[x]": lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}),
+            "W": lambda e: ([0.0, 0.0], [1.0, 0.0], {"W": 0.455 + e}),
+            "e": lambda e: ([0.0, 0.0], [1.0, 0.0], {"e": 0.6 + e}),
+        },
+    ),
+    # dropped tilted, plastic (e = 0): lands on v1 (the plastic entry), rotates about it, v0 lands while v1 is
+    # held (an impact while held, plastic: both held after it)
+    "box_settle": (
+        lambda: box(0.0),
+        *_tilted()[:2],
+        0.005,
+        0.4,
+        None,
+        {
+            "q0[x]": lambda e: _tilted(dx=e),
+            "q0[theta]": lambda e: _tilted(dth=e),
+            "v0[x]": lambda e: _tilted(dvx=e),
+            "v0[theta]": lambda e: _tilted(dw=e),
+        },
+    ),
+    # e = 0.3: v0 bounces twice while v1 is held (restitution impacts while held), then lands plastic
+    "box_bounce": (
+        lambda: box(0.3),
+        *_tilted()[:2],
+        0.005,
+        0.4,
+        None,
+        {
+            "q0[theta]": lambda e: _tilted(dth=e),
+            "v0[x]": lambda e: _tilted(dvx=e),
+            "v0[theta]": lambda e: _tilted(dw=e),
+        },
+    ),
+}
+KINDS = {
+    "wall": {"elastic"},
+    "wall_lossy": {"restitution"},
+    "box_settle": {"plastic"},
+    "box_bounce": {"restitution"},
+}
+
+
+@cache
+def simulator(scene: str, backend: str) -> vcigen.Simulator:
+    return vcigen.build(SCENES[scene][0](), backend=backend)
+
+
+def impacts_while_held(res: vcigen.Result) -> list:
+    """The impacts whose step started with another contact held."""
+    names = res.contact_names
+    return [
+        im
+        for im in res.impacts
+        if any(res.active[im.step, j] for j, c in enumerate(names) if c != im.contact)
+    ]
+
+
+def _pairs():
+    for scene in sorted(SCENES):
+        for b in BACKENDS:
+            backend, marks = (b, ()) if isinstance(b, str) else (b.values[0], b.marks)
+            yield pytest.param(scene, backend, marks=marks, id=f"{scene}-{backend}")
+
+
+@pytest.mark.parametrize("scene, backend", list(_pairs()))
+def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -> None:
+    """The tangent across impacts while held against central differences of whole runs (every grid point),
+    covered throughout (no break), the impacts while held of the kinds the scene makes."""
+    sim = simulator(scene, backend)
+    res, per = held_finite_differences(sim, scene, scenes=SCENES)
+    held = impacts_while_held(res)
+    assert held and KINDS[scene] <= {im.kind for im in held}, [(im.step, im.kind) for im in res.impacts]
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(
+        f"{scene} ({backend}): {len(held)} impacts while held; "
+        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
+    )
+    assert max(errs.values()) <= 1e-6, errs
+    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+
+
+@pytest.mark.skipif(hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem()))
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_c_equals_casadi(scene: str) -> None:
+    """The C loop's tangent (sens_events.c.j2) is the Python stepper's (Tracker.event, impulse), to 1e-9."""
+    _, q0, v0, h, t_end, params, _ = SCENES[scene]
+    kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
+    a, b = (simulator(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
+    assert held_mode(a) == held_mode(b)
+    rel = assert_same_tangent(a, b)
+    print(f"{scene}: C against CasADi {rel:.1e}")
+    assert b.sensitivity_breaks == []
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_an_elastic_impact_while_held_is_symplectic(backend: str) -> None:
+    """The particle held on the floor hitting the wall elastically: on the free coordinates ``(x, p_x)`` the
+    exact step Jacobian ``J = S_k+1 S_k^-1`` (columns ``q0[x]``, ``v0[x]``) of the impact step is symplectic
+    to round-off (``vcigen.analysis.jacobian_symplectic_defect``: 0 here, the map is linear), as are the
+    held steps around it; with the impact time's tangent ``d tau_s`` dropped (``Tracker._located``) the
+    impact step's defect is 1."""
+    _, q0, v0, h, t_end, params, _ = SCENES["wall"]
+    res = simulator("wall", backend).simulate(q0, v0, h, t_end=t_end, sensitivities=True, progress=False)
+    (k,) = [im.step for im in res.impacts]
+    block = res.sensitivity[:, [0, 2]][:, :, [0, 2]]  # rows (x, p_x), columns (q0[x], v0[x])
+    defects = [jacobian_symplectic_defect(block[j + 1] @ np.linalg.inv(block[j])) for j in range(1, k + 3)]
+    print(
+        f"wall ({backend}): symplectic defect of the impact step {defects[k - 1]:.1e}, max {max(defects):.1e}"
+    )
+    assert max(defects) <= 1e-12, defects
