@@ -75,6 +75,24 @@ def twin() -> vcigen.Model:
     )
 
 
+def pop() -> vcigen.Model:
+    """A unit particle dropped on a plastic floor under a vertical force ``A + c yd`` (``A > g``): falling fast
+    it is pressed in, so the impact is plastic, but with the normal velocity gone the floor pulls: its force
+    is negative at the start of the rest of the step, released there (a lift-off at the segment's start)."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    g, a, c = sp.symbols("g A c", positive=True)
+    return vcigen.Model(
+        name="ev_pop",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={"floor": y},
+        params={g: G, a: 12.0, c: 5.0},
+        forces=[0, a + c * yd],
+        restitution={"floor": 0},
+    )
+
+
 def _tilted(dx: float = 0.0, dth: float = 0.0, dvx: float = 0.0, dw: float = 0.0):
     return [dx, 0.6, 0.1 + dth], [0.3 + dvx, 0.0, dw], {}
 
@@ -153,6 +171,22 @@ SCENES = {
             "B": lambda e: ([0.0, 0.0, 1.0, 0.0], [0.5, 0.0, -0.5, 0.0], {"B": 16.99 + e}),
         },
     ),
+    # released at the start of the rest of its plastic impact's step: the free rest from the impact point
+    "pop": (
+        pop,
+        [0.0, 0.3],
+        [0.4, -1.0],
+        0.01,
+        0.5,
+        None,
+        {
+            "q0[y]": lambda e: ([0.0, 0.3 + e], [0.4, -1.0], {}),
+            "v0[x]": lambda e: ([0.0, 0.3], [0.4 + e, -1.0], {}),
+            "v0[y]": lambda e: ([0.0, 0.3], [0.4, -1.0 + e], {}),
+            "A": lambda e: ([0.0, 0.3], [0.4, -1.0], {"A": 12.0 + e}),
+            "c": lambda e: ([0.0, 0.3], [0.4, -1.0], {"c": 5.0 + e}),
+        },
+    ),
 }
 KINDS = {
     "wall": {"elastic"},
@@ -191,7 +225,10 @@ def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -
     sim = simulator(scene, backend)
     res, per = held_finite_differences(sim, scene, scenes=SCENES)
     held = impacts_while_held(res)
-    if scene == "twin":  # both lift-offs inside one step
+    if scene == "pop":  # the plastic impact and the lift-off at the same instant
+        (im,) = res.impacts
+        assert im.kind == "plastic" and len(res.liftoffs) == 1 and res.liftoffs[0][0] == pytest.approx(im.t)
+    elif scene == "twin":  # both lift-offs inside one step
         steps = {int((t - res.t[0]) / (res.t[1] - res.t[0])) for t, _ in res.liftoffs}
         assert len(res.liftoffs) == 2 and len(steps) == 1 and res.n_impacts == 0, res.liftoffs
     else:
