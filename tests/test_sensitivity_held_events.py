@@ -76,9 +76,9 @@ def twin() -> vcigen.Model:
 
 
 def pop() -> vcigen.Model:
-    """A unit particle dropped on a plastic floor under a vertical force ``A + c yd`` (``A > g``): falling fast
-    it is pressed in, so the impact is plastic, but with the normal velocity gone the floor pulls: its force
-    is negative at the start of the rest of the step, released there (a lift-off at the segment's start)."""
+    """A unit particle dropped on a plastic floor under a vertical force ``A + c yd`` (``A > g``): falling
+    fast it is pressed in, so the impact is plastic, but with the normal velocity gone the floor pulls: its
+    force is negative at the start of the rest of the step, released there (a lift-off at its start)."""
     x, y, xd, yd = sp.symbols("x y xd yd")
     g, a, c = sp.symbols("g A c", positive=True)
     return vcigen.Model(
