@@ -16,7 +16,7 @@ import hard_scenes
 import numpy as np
 import pytest
 import sympy as sp
-from test_sensitivity import BACKENDS, held_finite_differences, held_mode, relative_error
+from test_sensitivity import BACKENDS, assert_lost, held_finite_differences, held_mode, relative_error
 from test_sensitivity_c import assert_same_tangent
 
 import vcigen
@@ -90,6 +90,35 @@ def pop() -> vcigen.Model:
         params={g: G, a: 12.0, c: 5.0},
         forces=[0, a + c * yd],
         restitution={"floor": 0},
+    )
+
+
+def lift_wall() -> vcigen.Model:
+    """A unit particle sliding on the floor, lifted by a force of time ``A t`` (it leaves the floor at
+    ``g / A``), into the wall ``x <= W`` in the same step as its lift-off (an impact in the free rest)."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    g, a, w = sp.symbols("g A W", positive=True)
+    return vcigen.Model(
+        name="ev_lift_wall",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={"floor": y, "wall": w - x},
+        params={g: G, a: 17.0, w: 0.2887},
+        forces=[0, a * t],
+        time=t,
+    )
+
+
+def pair() -> vcigen.Model:
+    """Two unit particles sliding on the floor into two walls that both meet at the same instant."""
+    x1, y1, x2, y2, a1, b1, a2, b2 = sp.symbols("x1 y1 x2 y2 x1d y1d x2d y2d")
+    return vcigen.Model(
+        name="ev_pair",
+        q=[x1, y1, x2, y2],
+        qdot=[a1, b1, a2, b2],
+        lagrangian=(a1**2 + b1**2 + a2**2 + b2**2) / 2 - G * (y1 + y2),
+        contacts={"floor1": y1, "floor2": y2, "right": 0.455 - x1, "left": 0.455 + x2},
     )
 
 
@@ -187,6 +216,21 @@ SCENES = {
             "c": lambda e: ([0.0, 0.3], [0.4, -1.0], {"c": 5.0 + e}),
         },
     ),
+    # lifted off the floor, then into the wall in the same step: the free rest's impact chain (47)-(48)
+    "lift_wall": (
+        lift_wall,
+        [0.0, 0.0],
+        [0.5, 0.0],
+        0.01,
+        0.7,
+        None,
+        {
+            "v0[x]": lambda e: ([0.0, 0.0], [0.5 + e, 0.0], {}),
+            "g": lambda e: ([0.0, 0.0], [0.5, 0.0], {"g": G + e}),
+            "A": lambda e: ([0.0, 0.0], [0.5, 0.0], {"A": 17.0 + e}),
+            "W": lambda e: ([0.0, 0.0], [0.5, 0.0], {"W": 0.2887 + e}),
+        },
+    ),
 }
 KINDS = {
     "wall": {"elastic"},
@@ -228,6 +272,11 @@ def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -
     if scene == "pop":  # the plastic impact and the lift-off at the same instant
         (im,) = res.impacts
         assert im.kind == "plastic" and len(res.liftoffs) == 1 and res.liftoffs[0][0] == pytest.approx(im.t)
+    elif scene == "lift_wall":  # the lift-off and the wall impact inside one step
+        (im,) = res.impacts
+        assert (
+            len(res.liftoffs) == 1 and int((res.liftoffs[0][0] - res.t[0]) / (res.t[1] - res.t[0])) == im.step
+        )
     elif scene == "twin":  # both lift-offs inside one step
         steps = {int((t - res.t[0]) / (res.t[1] - res.t[0])) for t, _ in res.liftoffs}
         assert len(res.liftoffs) == 2 and len(steps) == 1 and res.n_impacts == 0, res.liftoffs
@@ -277,3 +326,23 @@ def test_an_elastic_impact_while_held_is_symplectic(backend: str) -> None:
         f"wall ({backend}): symplectic defect of the impact step {defects[k - 1]:.1e}, max {max(defects):.1e}"
     )
     assert max(defects) <= 1e-12, defects
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_simultaneous_impact_while_held_breaks(backend: str) -> None:
+    """Two rows hit at the same instant while held (the weights of the impulse switch): the tangent stops
+    there with its reason (the same step and reason on both backends)."""
+    sim = vcigen.build(pair(), backend=backend)
+    res = sim.simulate([0.0] * 4, [1.0, 0.0, -1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
+    assert [im.step for im in res.impacts] == [45, 45] and res.active[45].all()
+    assert assert_lost(res, "simultaneous impact") == 45
+
+
+def test_events_under_lobatto3_still_break() -> None:
+    """Under a rule with internal points (lobatto3) an impact while held is not covered: the held step breaks
+    with its reason (``SustainedSteps._events_tangent``; C renders no event hooks then: CasADi here, the C
+    build of a lobatto3 variant costs ~30 s)."""
+    sim = vcigen.build(floor_wall(), backend="casadi", rule="lobatto3")
+    res = sim.simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
+    (im,) = res.impacts
+    assert assert_lost(res, "held step (sustained contact)") == im.step

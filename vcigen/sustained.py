@@ -744,7 +744,7 @@ class SustainedSteps:
             self._free_seg = (q, p, v) if self._record_held else None
             self._ev_free(q, p, v, tau)
             return q + tau * v, p1, e_step, v
-        q1, p1, e_end, w = self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        q1, p1, e_end, w = self._ev_impacts(step, t_k, h, seg, crossings, impacts, e_step)
         return q1, p1, (e_end if self._forced else e_step), w
 
     # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
@@ -778,6 +778,26 @@ class SustainedSteps:
         if self._ev_tan is not None and self._lift_seg is None:
             self._ev_tan.events_begin(self._ev_entry)
             self._ev_tan.free_end(q, p, w, tau)
+            self._ev_done = True
+
+    def _ev_impacts(self, step, t_k, h, seg, crossings, impacts, e_step):
+        """The impact chain (47)-(79) of a held step's free rest (``Stepper._impact_step``). With the tangent
+        of its events (a pending lone lift-off is one first) the free impact hooks (``Tracker.contact``,
+        ``jump``, ``jump_end``; a plastic impact's own held rest) carry it from the segment's tangents: the
+        step is covered as far as they cover it."""
+        tan = self._ev_tan
+        if tan is None:
+            return self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        if self._lift_seg is not None:
+            self._ev_event(*self._lift_seg, "lift")
+            self._lift_seg = None
+        tan.events_begin(self._ev_entry)
+        entry, self._tan = self._ev_entry, tan
+        try:
+            return self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        finally:  # a plastic impact in it ran its own held rest (Stepper._tangent_held): the flags back
+            self._tan, self._ev_tan, self._ev_entry, self._record_held = None, tan, entry, True
+            self._held_seg = self._lift_seg = self._free_seg = None
             self._ev_done = True
 
     def _release(self, step, t_k, t, r: int) -> None:
