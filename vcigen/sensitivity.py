@@ -20,6 +20,13 @@ in ``(x, d)``, their partials chained. Phases:
 * a lift-off at a located time in a held grid step (or in the rest of a plastic impact's step), then a free
   rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
   ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
+* events inside a held step, one after another (``Tracker.event``, ``impulse``, ``free_end``): the segment's
+  tangents ``(dq, dp, dtau, dt)`` are carried from the grid point (or the plastic impact) through each
+  constrained sub-step to an event, located like (47) with its fraction: a lift-off (the root of the row's
+  force) or an inactive row crossed (the root of ``psi_r(q1)``, ``d_psi``), whose impact takes the impulse law
+  onto the rows (``p+ = p~- + G^T Lam``, targets ``-e g_r.qdot``: elastic, restitution or plastic); a release
+  at a segment's start changes the active set only; then the constrained rest with the active set it has
+  (``Tracker.held`` from the segment's tangents) or the free rest (46), with its own impacts (47)-(79);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
@@ -30,9 +37,9 @@ in ``(x, d)``, their partials chained. Phases:
   (``d_rattle_end``; :meth:`Tracker._held_sub`).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once), a grazing impact taking the continuous law, a held step with any other
-event inside (a lift-off at its start or after another event, an impact or a row crossed while held, a
-friction switch) or with friction, friction at an impact, the ``_restart`` fallback. From the first such
+group of contacts at once, free or while held), a grazing impact taking the continuous law, a held step
+with friction (a friction switch) or with an event under a rule with internal points, friction at an
+impact, the ``_restart`` fallback. From the first such
 step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
 ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
