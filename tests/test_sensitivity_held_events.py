@@ -34,35 +34,35 @@ G = 9.81
 ROD = [float(np.sin(1.0)), -float(np.cos(1.0))]  # the rod's end, 1 rad from the vertical
 
 
-def floor_wall(lossy: bool = False) -> vcigen.Model:
-    """A unit particle on the floor ``y >= 0`` under gravity ``g``, sliding into the wall ``x <= W``
-    (restitution ``e`` with ``lossy``, else elastic)."""
+def floor_wall() -> vcigen.Model:
+    """A unit particle on the floor ``y >= 0`` under gravity ``g``, sliding into the wall ``x <= W`` with
+    restitution ``e`` (1 by default: elastic)."""
     x, y, xd, yd = sp.symbols("x y xd yd")
     g, w, e = sp.symbols("g W e", positive=True)
     return vcigen.Model(
-        name="ev_wall_lossy" if lossy else "ev_wall",
+        name="ev_wall",
         q=[x, y],
         qdot=[xd, yd],
         lagrangian=(xd**2 + yd**2) / 2 - g * y,
         contacts={"floor": y, "wall": w - x},
-        params={g: G, w: 0.455, e: 0.6},
-        restitution={"wall": e} if lossy else {},
+        params={g: G, w: 0.455, e: 1.0},
+        restitution={"wall": e},
     )
 
 
-def box(e0: float) -> vcigen.Model:
+def box() -> vcigen.Model:
     """A 2 x 1 box with a contact at each vertex, restitution ``e`` (a parameter) at every one."""
     x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
     e = sp.Symbol("e")
     corners = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
     contacts = {f"v{i}": y + a * sp.sin(th) + b * sp.cos(th) for i, (a, b) in enumerate(corners)}
     return vcigen.Model(
-        name=f"ev_box{int(round(10 * e0))}",
+        name="ev_box",
         q=[x, y, th],
         qdot=[xd, yd, thd],
         lagrangian=(xd**2 + yd**2) / 2 + sp.Rational(5, 24) * thd**2 - G * y,
         contacts=contacts,
-        params={e: e0},
+        params={e: 0.0},
         restitution=dict.fromkeys(contacts, e),
     )
 
@@ -153,12 +153,12 @@ SCENES = {
     ),
     # the same with restitution e at the wall (its target -e g.qdot moves with e)
     "wall_lossy": (
-        lambda: floor_wall(True),
+        floor_wall,
         [0.0, 0.0],
         [1.0, 0.0],
         0.01,
         0.8,
-        None,
+        {"e": 0.6},
         {
             "v0[x]": lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}),
             "W": lambda e: ([0.0, 0.0], [1.0, 0.0], {"W": 0.455 + e}),
@@ -168,7 +168,7 @@ SCENES = {
     # dropped tilted, plastic (e = 0): lands on v1 (the plastic entry), rotates about it, v0 lands while v1 is
     # held (an impact while held, plastic: both held after it)
     "box_settle": (
-        lambda: box(0.0),
+        box,
         *_tilted()[:2],
         0.005,
         0.4,
@@ -182,11 +182,11 @@ SCENES = {
     ),
     # e = 0.3: v0 bounces twice while v1 is held (restitution impacts while held), then lands plastic
     "box_bounce": (
-        lambda: box(0.3),
+        box,
         *_tilted()[:2],
         0.005,
         0.4,
-        None,
+        {"e": 0.3},
         {
             "q0[theta]": lambda e: _tilted(dth=e),
             "v0[x]": lambda e: _tilted(dvx=e),
@@ -242,7 +242,7 @@ SCENES = {
     ),
     # a bilateral rod (Cartesian pendulum), always held, swinging into the wall x >= -0.5 (elastic)
     "rod_wall": (
-        lambda: _pendulum(),
+        _pendulum,
         ROD,
         [0.0, 0.0],
         0.01,
@@ -264,8 +264,13 @@ KINDS = {
 
 
 @cache
+def _built(maker, backend: str) -> vcigen.Simulator:
+    return vcigen.build(maker(), backend=backend)
+
+
 def simulator(scene: str, backend: str) -> vcigen.Simulator:
-    return vcigen.build(SCENES[scene][0](), backend=backend)
+    """The scene's simulator, one build per model (the walls and the boxes share theirs)."""
+    return _built(SCENES[scene][0], backend)
 
 
 def impacts_while_held(res: vcigen.Result) -> list:
