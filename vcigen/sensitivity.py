@@ -20,6 +20,13 @@ in ``(x, d)``, their partials chained. Phases:
 * a lift-off at a located time in a held grid step (or in the rest of a plastic impact's step), then a free
   rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
   ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
+* events inside a held step, one after another (``Tracker.event``, ``impulse``, ``free_end``): the segment's
+  tangents ``(dq, dp, dtau, dt)`` are carried from the grid point (or the plastic impact) through each
+  constrained sub-step to an event, located like (47) with its fraction: a lift-off (the root of the row's
+  force) or an inactive row crossed (the root of ``psi_r(q1)``, ``d_psi``), whose impact takes the impulse law
+  onto the rows (``p+ = p~- + G^T Lam``, targets ``-e g_r.qdot``: elastic, restitution or plastic); a release
+  at a segment's start changes the active set only; then the constrained rest with the active set it has
+  (``Tracker.held`` from the segment's tangents) or the free rest (46), with its own impacts (47)-(79);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
@@ -30,9 +37,9 @@ in ``(x, d)``, their partials chained. Phases:
   (``d_rattle_end``; :meth:`Tracker._held_sub`).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once), a grazing impact taking the continuous law, a held step with any other
-event inside (a lift-off at its start or after another event, an impact or a row crossed while held, a
-friction switch) or with friction, friction at an impact, the ``_restart`` fallback. From the first such
+group of contacts at once, free or while held), a grazing impact taking the continuous law, a held step
+with friction (a friction switch) or with an event under a rule with internal points, friction at an
+impact, the ``_restart`` fallback. From the first such
 step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
 ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
@@ -171,17 +178,23 @@ class Tangents:
         return f
 
 
-def _guarded(hook):
-    """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run."""
+def _guarded(hook, name: str | None = None):
+    """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run (the
+    reason names ``name``, else the hook)."""
 
     @functools.wraps(hook)
     def run(self, *args) -> None:
         try:
             hook(self, *args)
         except np.linalg.LinAlgError:
-            self.lose(f"a singular Jacobian in the tangent of {hook.__name__}")
+            self.lose(f"a singular Jacobian in the tangent of {name or hook.__name__}")
 
     return run
+
+
+def _event_hook(hook):
+    """:func:`_guarded`, each phase of an event inside a held step named ``event`` (C WHY_SINGULAR_EVENT)."""
+    return _guarded(hook, "event")
 
 
 class Tracker:
@@ -205,6 +218,7 @@ class Tracker:
         self.step = -1
         self.cur: np.ndarray | None = None  # S_k
         self.next: np.ndarray | None = None  # S_k+1, once a hook has it
+        self._ev_step = -1  # the grid step whose events carry the segment's tangents (events_begin)
 
     # -- bookkeeping ---------------------------------------------------------------
     def par(self, t: float) -> np.ndarray:
@@ -391,26 +405,46 @@ class Tracker:
         at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the step starts there)."""
         if not self.active:
             return
+        self._impulse(seg.q, v_in, seg.p_in, tight, [-1] * len(tight))
+
+    @_event_hook
+    def impulse(self, q, v, p, tight, contact) -> None:
+        """An impact while rows are held (``SustainedSteps._chain_impact``, after :meth:`event`): the impulse
+        law on the rows ``tight`` (those with an impulse), each row's target ``-e g_r.vel`` (``contact[l]``
+        the contact whose restitution ``e`` it takes, ``-1``: target 0, an active or plastic row)."""
+        if self.active:
+            self._impulse(q, v, p, tight, contact)
+
+    def _impulse(self, q, v_in, p_in, tight, contact) -> None:
+        """``p+ = p + G^T Lam``, ``G M^-1 G^T Lam = b``, ``b_l = -(1 + e_l) g_l.vel`` (``e_l = 0`` where
+        ``contact[l] < 0``), ``vel`` one Newton step of the inverse Legendre transform from ``v_in`` (its
+        tangent ``self.dvin``), ``G`` and ``M`` at ``(q, vel)``: ``self.dp`` becomes the tangent of ``p+``."""
         k, n = self.k, self.n
-        par, dpar = self.par(seg.t), self.dpar(self.dt)
-        mom0, mass0 = k.legendre(seg.q, v_in)
-        a = np.linalg.solve(mass0, seg.p_in - mom0)
+        par, dpar = self.par(self.t_seg), self.dpar(self.dt)  # at the impact point
+        mom0, mass0 = k.legendre(q, v_in)
+        a = np.linalg.solve(mass0, p_in - mom0)
         vel = v_in + a
-        dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
-        mass1 = k.legendre(seg.q, vel)[1]
-        grad = k.rows(seg.q, vel)[1][tight]  # (na, n)
-        dgrad = self.tg.get("d_rows")(seg.q, vel, par)[0]
+        dvel = self._dvel(q, v_in, a, mass0, par, dpar)
+        mass1 = k.legendre(q, vel)[1]
+        grad = k.rows(q, vel)[1][tight]  # (na, n)
+        dgrad = self.tg.get("d_rows")(q, vel, par)[0]
         dq_par = np.vstack([self.dq, dpar])
         dg = [dgrad[r * n : (r + 1) * n] @ dq_par for r in tight]  # each (n, K)
         y = np.linalg.solve(mass1, grad.T)  # M^-1 G^T, (n, na)
         dleg = self.tg.get("d_legendre")
         dy = []
         for c in range(len(tight)):
-            dma = dleg(seg.q, vel, y[:, c], par)[1]
+            dma = dleg(q, vel, y[:, c], par)[1]
             dy.append(np.linalg.solve(mass1, dg[c] - dma @ np.vstack([self.dq, dvel, dpar])))
+        rest = k.restitution() if any(j >= 0 for j in contact) else None
+        de = self.tg.get("d_restitution")(par)[0] @ dpar if rest is not None else None
+        coef = np.array([1.0 + (float(rest[j]) if j >= 0 else 0.0) for j in contact])
         w = grad @ y
-        lam = np.linalg.solve(w, -(grad @ vel))
-        db = np.array([-(vel @ dg[c] + grad[c] @ dvel) for c in range(len(tight))])
+        lam = np.linalg.solve(w, -coef * (grad @ vel))
+        db = -coef[:, None] * np.array([vel @ dg[c] + grad[c] @ dvel for c in range(len(tight))])
+        for c, j in enumerate(contact):  # a restitution target moves with e
+            if j >= 0:
+                db[c] -= de[j] * float(grad[c] @ vel)
         dw_lam = np.array(
             [
                 sum((y[:, e] @ dg[c] + grad[c] @ dy[e]) * lam[e] for e in range(len(tight)))
@@ -481,7 +515,7 @@ class Tracker:
         x = np.concatenate([v, lam, lam_m])
         u = self.tg.internal("rattle", x, data, par)
         dx = self._ift("rattle", np.concatenate([x, u]), data, np.vstack([dq, dp, dtau, zr, dpar]), t)
-        dv = dx[:n]
+        dv = self._sub_dv = dx[:n]  # the sub-step's velocity (an impulse law after it starts from it)
         q1 = q + tau * v
         dq1 = dq + np.outer(v, dtau) + tau * dv
         if self.tg.ns:  # p+ of the segment with its internal points held (rattle_end)
@@ -524,40 +558,85 @@ class Tracker:
         if not self.active:
             return
         n, K = self.n, self.K
-        q, p, v, lam, lam1, lam_m, u1, act = sub
         if entry:
             dq0, dp0, dtau0, dt0, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
         else:
             dq0, dp0, dtau0, dt0, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
+        dq_l, dp_l, _, dtau_s = self._located(sub, r, s, tau, "lift", dq0, dp0, dt0, t)
+        dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
+        self._free_end(free, tau - s * tau, t + s * tau, dq_l, dp_l, dtau0 - dtau_s, dt_l)
+
+    def _located(self, sub, r: int, s: float, tau: float, kind: str, dq0, dp0, dt0, t):
+        """The constrained sub-step ``sub = (q, p, v, lam, lam1, lam_m, u1, act)`` over ``tau_s = s tau`` from
+        ``t`` to an event of row ``r`` (``kind``: ``"lift"``, the root of its force, :meth:`_dforce`;
+        ``"cross"``, the root of its value ``psi_r(q1)``, ``d_psi``), with one extra column ``d/d tau_s``,
+        and the root's ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``: ``(dq_l, dp_l, dv_l, dtau_s)`` at the
+        event (``dv_l``: the sub-step's velocity ``v``, where the impulse law's Newton step starts)."""
+        n, K = self.n, self.K
+        q, p, v, lam, lam1, lam_m, u1, act = sub
         tau_s = s * tau
         dq = np.hstack([dq0, np.zeros((n, 1))])
         dp = np.hstack([dp0, np.zeros((n, 1))])
         dtau = np.zeros((1, K + 1))
         dtau[0, K] = 1.0  # the extra column: d/d tau_s
         dq1, du1, dpar = self._held_sub(q, p, tau_s, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt0, t)
+        dv = self._sub_dv
         q1 = q + tau_s * v
         t_l = t + tau_s
         dpar_end = dpar.copy()
         if self.timed:
             dpar_end[-1] = dpar[-1] + dtau[0]
-        dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
+        if kind == "lift":
+            dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
+        else:
+            dg = self.tg.get("d_psi")(q1, u1, self.par(t_l))[0][r] @ np.vstack([dq1, dpar_end])
         if dg[K] == 0.0:
-            self.lose("a singular Jacobian in the tangent of liftoff")
-            return
+            raise np.linalg.LinAlgError("the event's root does not move with its fraction")
         dtau_s = (-dg[:K] / dg[K])[None, :]
         dq_l = dq1[:, :K] + np.outer(dq1[:, K], dtau_s)
         du_l = du1[:, :K] + np.outer(du1[:, K], dtau_s)
+        dv_l = dv[:, :K] + np.outer(dv[:, K], dtau_s)
         dmom, _ = self.tg.get("d_legendre")(q1, u1, np.zeros(n), self.par(t))
         dp_l = dmom @ np.vstack([dq_l, du_l, dpar[:, :K]])
+        return dq_l, dp_l, dv_l, dtau_s
+
+    def _free_end(self, free, tau_r: float, t_l: float, dq_l, dp_l, dtau_r, dt_l) -> None:
+        """The free rest (46) ``free = (q_l, p_l, w)`` over ``tau_r`` from ``t_l`` to the grid time, its
+        start, start time and duration chained (their tangents ``dq_l, dp_l, dt_l, dtau_r``): ``S_k+1``."""
         ql, pl, w = free
-        tau_r = tau - tau_s
-        dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
-        dtau_r = dtau0 - dtau_s
         dd = np.vstack([dq_l, dp_l, dtau_r, self.dpar(dt_l)])
         dw, uw, duw = self._ift_staged("smooth", w, (ql, pl, [tau_r]), dd, t_l)
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l, uw, duw)
         self.next = np.vstack([dq_end, dp_end])
+
+    # -- events inside a held step (SustainedSteps._chain): the segment's tangents carried event by event --
+    def events_begin(self, entry: bool) -> None:
+        """Before the first event of a held grid step: its segment's tangents ``(dq, dp, dtau, dt)`` start at
+        the grid point (``S_k``, 0, 0, ``t_k``); the rest of a plastic impact's step (``entry``) has them."""
+        if not self.active or entry or self._ev_step == self.step:
+            return
+        n, K = self.n, self.K
+        self.dq, self.dp = self.cur[:n].copy(), self.cur[n:].copy()
+        self.dtau, self.dt, self.t_seg = np.zeros((1, K)), np.zeros(K), self.t
+        self._ev_step = self.step
+
+    @_event_hook
+    def event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
+        """A constrained sub-step of a held step to an event of row ``r`` at fraction ``s`` of ``tau`` (a
+        lift-off, ``"lift"``, or an inactive row crossed, ``"cross"``, :meth:`_located`) from the segment's
+        tangents: they become the event point's (the rest of the step after it, from ``t_seg + s tau``)."""
+        if not self.active:
+            return
+        dq_l, dp_l, dv_l, dtau_s = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
+        self.dq, self.dp, self.dvin = dq_l, dp_l, dv_l
+        self.dt, self.dtau, self.t_seg = self.dt + dtau_s[0], self.dtau - dtau_s, self.t_seg + s * tau
+
+    @_event_hook
+    def free_end(self, q, p, w, tau: float) -> None:
+        """The free rest (46) of a held step after its events (:meth:`event`), from the segment's tangents."""
+        if self.active:
+            self._free_end((q, p, w), tau, self.t_seg, self.dq, self.dp, self.dtau, self.dt)
 
     def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:
         """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the

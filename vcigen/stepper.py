@@ -112,6 +112,8 @@ class Stepper(SustainedSteps, HeldSteps):
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
+        self._ev_tan = None  # inside a held step: the tangent its events are carried by (SustainedSteps)
+        self._ev_entry = self._ev_done = False
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -254,16 +256,21 @@ class Stepper(SustainedSteps, HeldSteps):
     def _tangent_held(self, q, p, tau: float, entry: bool, run, *args):
         """``run()``, a held step (or the rest of a step after a plastic impact, ``entry``), with the
         tangent's hooks set aside: its phases have none. One with its active set unchanged (one segment, no
-        event, no friction) leaves its solution in ``_held_seg``: then ``Tracker.held``, else a break."""
+        event, no friction) leaves its solution in ``_held_seg``: then ``Tracker.held``; its events carried
+        one by one as they happen (``_ev_tan``, ``SustainedSteps._ev_*``; ``_ev_done``: covered), a lone
+        lift-off then a free rest ``Tracker.liftoff``; else a break."""
         tan, self._tan = self._tan, None
         self._held_seg, self._record_held = None, tan is not None
         self._lift_seg = self._free_seg = None
+        self._ev_tan, self._ev_entry, self._ev_done = self._events_tangent(tan), entry, False
         try:
             out = run(*args)
         finally:
-            self._tan, self._record_held = tan, False
+            self._tan, self._record_held, self._ev_tan = tan, False, None
         if tan is not None and self._held_seg is not None:
             tan.held(q, p, tau, *self._held_seg, entry)
+        elif self._ev_done:  # events inside it, carried one by one (SustainedSteps._ev_*)
+            pass
         elif tan is not None and self._lift_seg is not None and self._free_seg is not None:
             sub, r, s, tau_s = self._lift_seg
             tan.liftoff(sub, r, s, tau_s, self._free_seg, entry)

@@ -661,6 +661,8 @@ class SustainedSteps:
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             if not plain:  # a constrained segment after an event: no lift-off then a free rest
+                if self._lift_seg is not None:  # the lift-off is one event of several (Tracker.event)
+                    self._ev_event(*self._lift_seg, "lift")
                 self._lift_seg = None
             v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)
             e_step = e_seg if (e_step is None or self._forced) else e_step
@@ -691,6 +693,10 @@ class SustainedSteps:
             if not events and not cross.any():
                 if plain and self._record_held:  # the tangent of the step (Stepper.step, Tracker.held)
                     self._held_seg = (v, lam, *self._seg_inner, u1, self.act.copy())
+                elif self._ev_tan is not None:  # the constrained rest after events (Tracker.held, entry)
+                    self._ev_tan.events_begin(self._ev_entry)
+                    self._ev_tan.held(q, p, tau, v, lam, *self._seg_inner, u1, self.act.copy(), True)
+                    self._ev_done = True
                 self._book(lam + lam1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                 return q1, p1, e_step, v
@@ -704,6 +710,8 @@ class SustainedSteps:
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
             if plain and self._record_held and events[r0][0] == "lift":  # the tangent: Tracker.liftoff
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
+            else:  # one event of several, or an impact while held (Tracker.event)
+                self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)
@@ -728,14 +736,69 @@ class SustainedSteps:
         e_step = e if (e_step is None or self._forced) else e_step
         if phi1.size == 0 or (phi1.min() >= -self.tol.phi and not ((d0 < 0) & (d1 > 0)).any()):
             self._free_seg = (q, p, v) if self._record_held else None  # the tangent: Tracker.liftoff
+            self._ev_free(q, p, v, tau)
             return q + tau * v, p1, e_step, v
         seg = _Seg(q=q, t=t, tau=tau, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
         crossings = self._crossings(seg, phi0, phi1, d0, d1)
         if not crossings:
             self._free_seg = (q, p, v) if self._record_held else None
+            self._ev_free(q, p, v, tau)
             return q + tau * v, p1, e_step, v
-        q1, p1, e_end, w = self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        q1, p1, e_end, w = self._ev_impacts(step, t_k, h, seg, crossings, impacts, e_step)
         return q1, p1, (e_end if self._forced else e_step), w
+
+    # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
+    def _events_tangent(self, tan):
+        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless, a rule
+        without internal points; else None (the step breaks as before)."""
+        return tan if tan is not None and not self._stick_rows and not self._stages else None
+
+    def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
+        """A constrained sub-step to an event of row ``r`` (``"lift"`` or ``"cross"``): ``Tracker.event``."""
+        if self._ev_tan is not None:
+            self._ev_tan.events_begin(self._ev_entry)
+            self._ev_tan.event(sub, r, s, tau, kind)
+
+    def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
+        """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
+        with an impulse, each with the contact whose restitution sets its target (-1: target 0); a group of
+        rows hit at once (the weights of its impulse switch) breaks."""
+        tan = self._ev_tan
+        if tan is None:
+            return
+        if len(group) > 1:
+            tan.lose("simultaneous impact")
+            return
+        tight = [int(r) for r in np.flatnonzero(lam)]
+        tan.impulse(q, v, p, tight, [self.k.row_contact[r] if r in targets else -1 for r in tight])
+
+    def _ev_free(self, q, p, w, tau: float) -> None:
+        """The free rest after a held step's events (``Tracker.free_end``); a lone lift-off before it is
+        ``Tracker.liftoff``'s (``_lift_seg``)."""
+        if self._ev_tan is not None and self._lift_seg is None:
+            self._ev_tan.events_begin(self._ev_entry)
+            self._ev_tan.free_end(q, p, w, tau)
+            self._ev_done = True
+
+    def _ev_impacts(self, step, t_k, h, seg, crossings, impacts, e_step):
+        """The impact chain (47)-(79) of a held step's free rest (``Stepper._impact_step``). With the tangent
+        of its events (a pending lone lift-off is one first) the free impact hooks (``Tracker.contact``,
+        ``jump``, ``jump_end``; a plastic impact's own held rest) carry it from the segment's tangents: the
+        step is covered as far as they cover it."""
+        tan = self._ev_tan
+        if tan is None:
+            return self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        if self._lift_seg is not None:
+            self._ev_event(*self._lift_seg, "lift")
+            self._lift_seg = None
+        tan.events_begin(self._ev_entry)
+        entry, self._tan = self._ev_entry, tan
+        try:
+            return self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
+        finally:  # a plastic impact in it ran its own held rest (Stepper._tangent_held): the flags back
+            self._tan, self._ev_tan, self._ev_entry, self._record_held = None, tan, entry, True
+            self._held_seg = self._lift_seg = self._free_seg = None
+            self._ev_done = True
 
     def _release(self, step, t_k, t, r: int) -> None:
         """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact."""
@@ -877,6 +940,7 @@ class SustainedSteps:
             else:
                 targets[r] = -e * rate
         p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, group, targets)
+        self._ev_impulse(q, v, p, lam, targets, group)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution

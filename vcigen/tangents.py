@@ -26,7 +26,9 @@ named ``d_<routine>`` (SENS_DESIGN.md):
 * ``d_forces(q, u, a, lam, par)``: ``dres``, ``(n + R) x (2n + npar)``: ``d/d(q, u, par)`` of the contact
   force law ``M(q, u) a - rhs(q, u) - G(q)^T lam = 0``, ``G(q) a + curv(q, u) = 0`` (unknowns the
   acceleration ``a`` and the forces ``lam``; the second block on the active rows only): the tangent of the
-  force whose root locates a lift-off (``SustainedSteps._forces``, ``Tracker.liftoff``).
+  force whose root locates a lift-off (``SustainedSteps._forces``, ``Tracker.liftoff``);
+* ``d_psi(q, u, par)``: ``dpsi``, ``R x (n + npar)``: the rows' values, whose root locates a row crossed
+  while others are held (``SustainedSteps._row_crossing``, ``Tracker.event``).
 
 They are added to :attr:`DiscreteSystem.routines` only by ``derive(model, rule, sensitivities=True)``;
 a simulator asked for sensitivities derives them lazily from the system it has (:func:`tangent_routines`).
@@ -141,6 +143,18 @@ def rows_tangent(r: Routine) -> Routine:
     )
 
 
+def psi_tangent(r: Routine) -> Routine:
+    """``d_psi``: partials of the rows' values ``psi`` in ``(q, par)``: the root of a row crossed while others
+    are held (an impact while held, located along the constrained sub-step map like (47))."""
+    q, _, par = r.inputs
+    return Routine(
+        "d_psi",
+        r.inputs,
+        (Output("dpsi", jacobian(r.output("psi").expr, [*q.symbols, *par.symbols])),),
+        "Partials of psi_r in (q, par): the tangent of the fraction where an inactive row is crossed.",
+    )
+
+
 def forces_tangent(routines: dict[str, Routine]) -> Routine:
     """``d_forces(q, u, a, lam, par)``: partials in ``(q, u, par)`` of the force law of sustained contact
     (``rows``, ``dynamics``, ``legendre``): ``[M(q, u) a - rhs - G^T lam; G a + curv]`` (MATH.md *Sustained
@@ -186,6 +200,7 @@ def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     if "rows" in routines:
         out["d_rows"] = rows_tangent(routines["rows"])
         out["d_forces"] = forces_tangent(routines)
+        out["d_psi"] = psi_tangent(routines["rows"])
     if "rattle_end" in routines:  # internal points held on the rows (lobatto3): p+ of the held step
         out["d_rattle_end"] = rattle_end_tangent(routines["rattle_end"])
     for name, r in routines.items():

@@ -37,6 +37,7 @@ SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("HELD_STEP", "held step (sustained contact)"),
     ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
     ("SINGULAR_LIFTOFF", "a singular Jacobian in the tangent of liftoff"),
+    ("SINGULAR_EVENT", "a singular Jacobian in the tangent of event"),
     ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
     ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
     ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
