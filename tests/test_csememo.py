@@ -78,3 +78,17 @@ def test_an_unwritable_cache_is_skipped(tmp_path, monkeypatch):
     exprs, _ = _exprs()
     repl, reduced = csememo.cse(exprs)
     assert [sp.simplify(g - e) for g, e in zip(_rebuild(repl, reduced), exprs)] == [0, 0]
+
+
+def test_read_back_prints_as_computed(cache):
+    """What the memo returns prints exactly as what SymPy computed (no re-evaluation: ``(1/2)*(a + b)``
+    stays, so the generated C does not depend on the cache)."""
+    a, b = sp.Dummy("a", real=True), sp.Dummy("b", real=True)
+    exprs = [a**2 / 2 + b**2 / 2, sp.sin(a * b) * a, sp.sin(a * b) ** 2]
+    fresh = sp.cse(exprs, symbols=sp.numbered_symbols("t", real=True), optimizations="basic")
+    assert sp.srepr(fresh[1][0]) != sp.srepr(pickle.loads(pickle.dumps(fresh[1][0])))  # SymPy re-evaluates
+    first = csememo.cse(exprs)
+    again = csememo.cse(exprs)  # read back
+    for got in (first, again):
+        assert [(s, sp.srepr(e)) for s, e in got[0]] == [(s, sp.srepr(e)) for s, e in fresh[0]]
+        assert [sp.srepr(e) for e in got[1]] == [sp.srepr(e) for e in fresh[1]]

@@ -8,8 +8,10 @@ the same model (another process, another session, a Dask worker) reads it back.
 
 The derivation's own symbols are ``Dummy`` (no clash with the user's); their indices differ from one
 process to the next, so the digest names each by its rank among the expressions' dummies (in creation
-order) and the stored result holds placeholders that are mapped back to this process's dummies. Equal
-digests mean equal expressions up to that renaming, so what is read back is a valid elimination of them.
+order) and the stored result holds those ranks, rebuilt with this process's dummies, without evaluation
+(SymPy would otherwise distribute ``(1/2)*(a + b)``: the same trees as computed, so the generated code
+does not depend on the cache). Equal digests mean equal expressions up to that renaming, so what is read
+back is a valid elimination of them.
 A cache that cannot be read or written is skipped: the result is computed as without it.
 ``VCIGEN_CSE_MEMO=0`` turns the memo off.
 """
@@ -26,8 +28,7 @@ from pathlib import Path
 import sympy as sp
 
 # bump when the digest or the stored form changes
-FORMAT = 2
-PLACEHOLDER = "_vcigen_memo_d{}"
+FORMAT = 3
 
 Result = tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]
 
@@ -66,9 +67,51 @@ def digest(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> str:
     return hashlib.sha256(b"|".join(node(e) for e in exprs)).hexdigest()
 
 
+def _encode(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> tuple[list[tuple], list[int]]:
+    """``exprs`` as a list of nodes (each unique subtree once) and the indices of the roots: dummies by
+    ``rank``, every other atom as itself, an operation as its class and its arguments' indices."""
+    nodes: list[tuple] = []
+    index: dict[sp.Basic, int] = {}
+
+    def node(e: sp.Basic) -> int:
+        got = index.get(e)
+        if got is not None:
+            return got
+        if isinstance(e, sp.Dummy):
+            item: tuple = ("D", rank[e])
+        elif e.is_Atom:
+            item = ("A", e)
+        else:
+            item = ("F", e.func, tuple(node(a) for a in e.args))
+        index[e] = len(nodes)
+        nodes.append(item)
+        return index[e]
+
+    return nodes, [node(e) for e in exprs]
+
+
+def _decode(nodes: list[tuple], roots: list[int], dummies: list[sp.Dummy]) -> list[sp.Basic]:
+    """The expressions of :func:`_encode`, rebuilt without evaluation (the same trees, so that a result
+    read back prints as the one computed) and with this process's ``dummies``."""
+    built: list[sp.Basic] = []
+    for item in nodes:
+        if item[0] == "D":
+            built.append(dummies[item[1]])
+        elif item[0] == "A":
+            built.append(item[1])
+        else:
+            args = [built[i] for i in item[2]]
+            try:
+                built.append(item[1](*args, evaluate=False))
+            except TypeError:
+                built.append(item[1](*args))
+    return [built[i] for i in roots]
+
+
 def cse(exprs: Sequence[sp.Basic], optimizations: str | None = "basic") -> Result:
     """``sympy.cse(exprs, symbols=t0, t1, ... (real), optimizations=...)``, read from the disk memo when
-    the same expressions were eliminated before."""
+    the same expressions were eliminated before. What is computed is returned as it is read back (the
+    same trees, whether the memo had it or not)."""
     exprs = list(exprs)
 
     def compute() -> Result:
@@ -80,28 +123,25 @@ def cse(exprs: Sequence[sp.Basic], optimizations: str | None = "basic") -> Resul
         return compute()
     dummies = sorted(set().union(*(e.atoms(sp.Dummy) for e in exprs)), key=lambda d: d.dummy_index)
     rank = {d: i for i, d in enumerate(dummies)}
-    holders = [sp.Symbol(PLACEHOLDER.format(i), **d.assumptions0) for i, d in enumerate(dummies)]
-    if any(s.name.startswith("_vcigen_memo_") for e in exprs for s in e.free_symbols):
-        return compute()
     key = hashlib.sha256(
         f"{FORMAT}\0{sp.__version__}\0{optimizations}\0{digest(exprs, rank)}".encode()
     ).hexdigest()
     path = cache_root() / "cse" / key[:2] / f"{key}.pickle"
-    back = dict(zip(holders, dummies))
     try:
         with path.open("rb") as fh:
-            repl, reduced = pickle.load(fh)
-        if len(reduced) == len(exprs):
-            return [(s, e.xreplace(back)) for s, e in repl], [e.xreplace(back) for e in reduced]
-    except (OSError, pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError):
+            syms, nodes, roots = pickle.load(fh)
+        if len(roots) == len(syms) + len(exprs):
+            got = _decode(nodes, roots, dummies)
+            return list(zip(syms, got[: len(syms)])), got[len(syms) :]
+    except (OSError, pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, IndexError):
         pass
     repl, reduced = compute()
-    there = dict(zip(dummies, holders))
-    stored = ([(s, e.xreplace(there)) for s, e in repl], [e.xreplace(there) for e in reduced])
+    syms = [s for s, _ in repl]
+    nodes, roots = _encode([e for _, e in repl] + reduced, rank)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
-            pickle.dump(stored, tmp, protocol=pickle.HIGHEST_PROTOCOL)
+            pickle.dump((syms, nodes, roots), tmp, protocol=pickle.HIGHEST_PROTOCOL)
         Path(tmp.name).replace(path)  # atomic: concurrent writers of one key are harmless
     except OSError:
         pass
