@@ -202,6 +202,7 @@ class Tracker:
         base = np.zeros((tangents.npar, self.K))
         base[: tangents.P, 2 * self.n :] = np.eye(tangents.P)
         self._par0 = base
+        self._slots: np.ndarray | None = None  # the friction slots' tangent in a held step (_friction_slots)
         self.step = -1
         self.cur: np.ndarray | None = None  # S_k
         self.next: np.ndarray | None = None  # S_k+1, once a hook has it
@@ -215,11 +216,41 @@ class Tracker:
         return par
 
     def dpar(self, dt: np.ndarray | None) -> np.ndarray:
-        """``d par / dz``: ``I_P`` on the model's parameters, 0 on the friction slots, ``dt`` on time."""
+        """``d par / dz``: ``I_P`` on the model's parameters, ``dt`` on time, on the friction slots 0 but in a
+        held step with friction (:meth:`_friction_slots`)."""
+        out = self._par0 if self._slots is None else self._par0 + self._slots
         if not self.timed or dt is None:
-            return self._par0
-        out = self._par0.copy()
+            return out
+        out = out.copy()
         out[-1] = dt
+        return out
+
+    def _friction_slots(self, q, dq, act, t: float) -> np.ndarray | None:
+        """The tangent of the friction slots of ``par`` within a friction mode (MATH.md *Friction*), at the
+        start ``q`` of a held segment (``dq`` its tangent): a slipping contact's slot ``-mu_f s`` moves with
+        ``mu_f`` alone (``d_friction``; the sliding direction ``s`` of a one-tangent contact is fixed within
+        the mode), a sticking one's reference ``ref_f`` with the point it sticks at: its stick row
+        ``tangent_f(q) - ref_f = 0`` holds at every point of the mode, so ``d ref_f = grad tangent_f(q) dq``
+        (exact, whenever the stick began: before the step it held at ``q`` too). The branch signs: 0.
+        ``None`` without friction (every slot 0)."""
+        k = self.k
+        nf = len(getattr(k, "frictional", ()))
+        if not nf:
+            return None
+        fs, par = k.friction_slot, self.par(t)
+        out = np.zeros((self.tg.npar, self.K))
+        slip = par[fs : fs + nf]
+        if slip.any():
+            mu = k.friction(q)[0]
+            dmu = self.tg.get("d_friction")(q, par)[0] @ self._par0  # (m, K)
+            for f, j in enumerate(k.frictional):
+                if slip[f]:
+                    out[fs + f] = slip[f] / mu[j] * dmu[j]
+        grad = self.tg.get("rows")(q, np.zeros(self.n), par)[1]
+        for f in range(nf):
+            sr = k.row_stick.index(f)
+            if act[sr]:
+                out[fs + nf + f] = grad[sr] @ dq[:, : self.K]
         return out
 
     def start(self, q0, v0, t0: float, cap: int) -> None:
@@ -455,7 +486,11 @@ class Tracker:
             dq, dp, dtau, dt, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
         else:
             dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
-        dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t)
+        self._slots = self._friction_slots(q, dq, act, t)
+        try:
+            dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t)
+        finally:
+            self._slots = None
         dmom, _ = self.tg.get("d_legendre")(q + tau * v, u1, np.zeros(n), self.par(t))
         self.next = np.vstack([dq1, dmom @ np.vstack([dq1, du1, dpar])])
 

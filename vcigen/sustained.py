@@ -260,6 +260,18 @@ class SustainedSteps:
         self._cone_modes(q, u, tau)
         self._set_friction()
 
+    def _friction_mode(self) -> tuple:
+        """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks."""
+        return (self.act.tobytes(), self._slip.tobytes(), self._ref.tobytes(), self._branch.tobytes(), *self._ride)
+
+    def _friction_acts(self) -> bool:
+        """Whether a frictional contact slips or holds its stick row."""
+        return bool(self._slip.any() or any(self.act[sr] for sr in self._stick_rows))
+
+    def _cone_slips(self) -> bool:
+        """Whether a cone contact slips (its direction aimed anew every segment, from the state)."""
+        return any(self._slip[f] or self._slip[p] for f, p in self._cones())
+
     # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) -----------
     def _dependent(self, grad, sr: int, skip: int = -1) -> bool:
         """Is stick row ``sr``'s gradient in the span of the other active rows' (but row ``skip``)?
@@ -651,13 +663,16 @@ class SustainedSteps:
         """The rest of a grid step from ``(q, p)`` at ``t`` (``tau`` left) with the active rows held."""
         k, tol = self.k, self.tol
         self._chained = True
-        plain = not self._stick_rows  # no event, no friction so far: a held step the tangent goes through
+        plain = True  # no event, no change of friction mode so far: a held step the tangent goes through
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
+                mode = self._friction_mode()
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
+                # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
+                plain = plain and mode == self._friction_mode() and not self._cone_slips()
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             if not plain:  # a constrained segment after an event: no lift-off then a free rest
@@ -702,7 +717,8 @@ class SustainedSteps:
             act0 = self.act.copy()
             q_s, p_s, tau_s = q, p, tau
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
-            if plain and self._record_held and events[r0][0] == "lift":  # the tangent: Tracker.liftoff
+            if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
+                # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
