@@ -262,7 +262,7 @@ class SustainedSteps:
 
     def _friction_mode(self) -> tuple:
         """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks."""
-        return (self.act.tobytes(), self._slip.tobytes(), self._ref.tobytes(), self._branch.tobytes(), *self._ride)
+        return (*self.act.tolist(), *self._slip.tolist(), *self._ref.tolist(), *self._branch.tolist(), *self._ride)
 
     def _friction_acts(self) -> bool:
         """Whether a frictional contact slips or holds its stick row."""

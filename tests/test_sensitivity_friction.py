@@ -1,0 +1,206 @@
+"""Exact sensitivities through Coulomb friction in one friction mode (MATH.md *Friction*, *Exact sensitivities*).
+
+A disk on a rough incline of angle ``a`` (``q = (x, y, theta)`` along and normal to it, sliding velocity
+``xd - r thetad``; the level floor at ``a = 0``), every quantity a parameter. Within a mode the step maps are
+smooth: a contact that slips throughout (the slot ``-mu_f s``, its tangent through ``mu_f``), one that sticks
+throughout (its stick row held, its reference moving with the start); a switch stays a reported break. The
+tangent against central differences of whole runs along directions that keep the mode, against the closed forms
+of the motion (sliding: ``x(T) = x0 + v0 T + (mu_f cos a - sin a) g T^2 / 2``; rolling: ``x(T) = x0 + v0 T -
+g sin a T^2 / (2 (1 + I/(m r^2)))``; the trapezoidal rule reproduces a constant acceleration exactly), and C
+against CasADi.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import hard_scenes
+import numpy as np
+import pytest
+import sympy as sp
+from hard_scenes import G
+
+import vcigen
+
+BACKENDS = [hard_scenes.backend_param("casadi"), hard_scenes.backend_param("c")]
+PARAMS = {"m": 1.0, "I": 0.5, "r": 1.0, "g": G, "mu": 0.2, "a": 0.3}
+H, T = 0.01, 0.3
+FD_TOL = 1e-6  # the tangent against central differences, relative (test_sensitivity.relative_error)
+C_TOL = 1e-9  # C against CasADi, relative
+
+
+def incline_disk() -> vcigen.Model:
+    x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
+    m, inertia, r, g, mu, a = sp.symbols("m I r g mu a")
+    return vcigen.Model(
+        name="incline_disk",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=m / 2 * (xd**2 + yd**2) + inertia / 2 * thd**2 - m * g * (y * sp.cos(a) + x * sp.sin(a)),
+        contacts={"floor": y - r},
+        params={m: 1.0, inertia: 0.5, r: 1.0, g: G, mu: 0.2, a: 0.3},
+        friction={"floor": (mu, x - r * th)},
+    )
+
+
+@cache
+def sim(backend: str) -> vcigen.Simulator:
+    return vcigen.build(incline_disk(), backend=backend)
+
+
+# scene -> (v0, params, directions): the disk set down on the floor (y = r), each direction in z = (q0, v0,
+# params) one that keeps the mode (the normal coordinates and r, whose changes lift or press the disk or set it
+# sliding, left out)
+SLIDE = {"x0": {0: 1.0}, "th0": {2: 1.0}, "vx0": {3: 1.0}, "w0": {5: 1.0}, "m": {6: 1.0}, "I": {7: 1.0}}
+SLIDE |= {"g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}}
+SCENES = {
+    # sliding on the level floor, no spin: friction slows it and spins it up, slipping throughout to T
+    "floor_slide": ([2.0, 0.0, 0.0], {"a": 0.0}, SLIDE),
+    # sliding down the incline (tan a < 3 mu: it would roll later), slipping throughout to T
+    "incline_slide": ([-1.0, 0.0, 0.0], {}, SLIDE),
+    # rolling up the incline (sticking throughout: vx = r w): the rolling direction of (vx, w) keeps it
+    "incline_roll": (
+        [1.0, 0.0, 1.0],
+        {},
+        {"x0": {0: 1.0}, "th0": {2: 1.0}, "roll": {3: 1.0, 5: 1.0}, "m": {6: 1.0}, "I": {7: 1.0}}
+        | {"g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}},
+    ),
+}
+
+
+def direction(spec: dict[int, float], k: int) -> np.ndarray:
+    dz = np.zeros(k)
+    for c, w in spec.items():
+        dz[c] = w
+    return dz
+
+
+def start(v0, params) -> tuple[list[float], list[float], dict]:
+    return [0.0, PARAMS["r"], 0.0], list(v0), {**PARAMS, **params}
+
+
+def perturbed(q0, v0, par: dict, dz: np.ndarray, eps: float) -> tuple[list[float], list[float], dict]:
+    names = list(PARAMS)
+    q = [q0[i] + eps * dz[i] for i in range(3)]
+    v = [v0[i] + eps * dz[3 + i] for i in range(3)]
+    return q, v, {k: par[k] + eps * dz[6 + i] for i, k in enumerate(names)}
+
+
+@pytest.fixture(scope="module", params=BACKENDS)
+def runs(request) -> dict:
+    """Each scene on one backend: the run with its tangent, and the central differences along its directions."""
+    backend = request.param
+    s = sim(backend)
+    out = {}
+    for scene, (v0, params, dirs) in SCENES.items():
+        q0, v0, par = start(v0, params)
+        res = s.simulate(q0, v0, H, t_end=T, params=par, sensitivities=True, progress=False)
+        fd = {}
+        for label, spec in dirs.items():
+            dz = direction(spec, res.sensitivity.shape[2])
+            ends = []
+            for sign in (1.0, -1.0):
+                r = s.simulate(*perturbed(q0, v0, par, dz, sign * 1e-6)[:2], H, t_end=T, progress=False,
+                               params=perturbed(q0, v0, par, dz, sign * 1e-6)[2])  # fmt: skip
+                assert r.impacts == [] and np.array_equal(r.active, res.active), f"{scene} {label}: mode changed"
+                ends.append(np.hstack([r.q, r.p]))
+            fd[label] = (res.sensitivity @ dz, (ends[0] - ends[1]) / 2e-6)
+        out[scene] = (res, fd)
+    return backend, out
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_friction_tangent_matches_finite_differences(runs, scene: str) -> None:
+    """Held steps slipping or sticking throughout: every step covered, the tangent along every direction that
+    keeps the mode against central differences (the parameters' columns included: mu_f, g, a, m, I)."""
+    backend, out = runs
+    res, fd = out[scene]
+    assert res.active[:, 0].all() and res.impacts == []
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    scale = max(float(np.abs(ex).max()) for ex, _ in fd.values())  # mu_f moves nothing while rolling
+    errs = {k: float(np.abs(ex - d).max()) / scale for k, (ex, d) in fd.items()}
+    print(f"{scene} ({backend}): worst {max(errs, key=errs.get)} {max(errs.values()):.1e}")
+    assert max(errs.values()) <= FD_TOL, errs
+
+
+def test_sliding_tangent_is_the_closed_forms(runs) -> None:
+    """Slipping: x(t) = x0 + v0 t + (mu_f cos a - sin a) g t^2/2 (against the sliding: here v0 < 0 on the
+    incline, v0 > 0 on the floor): dx/dv0 = t, dx/dmu_f = -+g cos a t^2/2, dx/dg, dx/da; the spin
+    w(t) = w0 -+ mu_f m g cos a r t / I, so dtheta/dmu_f; both exact in the discrete map."""
+    _, out = runs
+    for scene, sign in (("floor_slide", -1.0), ("incline_slide", 1.0)):
+        res, _ = out[scene]
+        a, mu, g, inertia = SCENES[scene][1].get("a", PARAMS["a"]), PARAMS["mu"], G, PARAMS["I"]
+        t, S = res.t, res.sensitivity
+        col = {name: i for i, name in enumerate(res.sensitivity_names)}
+        half = t**2 / 2
+        acc = (sign * mu * math.cos(a) - math.sin(a)) * g
+        assert np.allclose(res.q[:, 0], res.q[0, 0] + SCENES[scene][0][0] * t + acc * half, atol=1e-12, rtol=0)
+        expect = {
+            "v0[x]": t,
+            "mu": sign * g * math.cos(a) * half,
+            "g": (sign * mu * math.cos(a) - math.sin(a)) * half,
+            "a": -(sign * mu * math.sin(a) + math.cos(a)) * g * half,
+        }
+        for name, value in expect.items():
+            assert np.allclose(S[:, 0, col[name]], value, atol=1e-10, rtol=0), (scene, name)
+        # theta(t) = w0 t - sign mu m g cos a r t^2/(2 I): its mu_f column
+        dth = -sign * g * math.cos(a) * PARAMS["m"] * PARAMS["r"] / inertia * half
+        assert np.allclose(S[:, 2, col["mu"]], dth, atol=1e-10, rtol=0), scene
+
+
+def test_rolling_tangent_is_the_closed_form(runs) -> None:
+    """Sticking (rolling up the incline, slowing): x(t) = x0 + v0 t - g sin a t^2 / (2 (1 + I/(m r^2))); its
+    columns in x0 and theta0 (the stick's reference moves with the start: dx/dx0 = 1, dx/dtheta0 = 0), g, a,
+    I, m and none in mu_f."""
+    _, out = runs
+    res, _ = out["incline_roll"]
+    t, S = res.t, res.sensitivity
+    col = {name: i for i, name in enumerate(res.sensitivity_names)}
+    m, inertia, r, a = PARAMS["m"], PARAMS["I"], PARAMS["r"], PARAMS["a"]
+    k = 1.0 + inertia / (m * r * r)
+    half = t**2 / 2
+    assert np.allclose(res.q[:, 0], t - G * math.sin(a) / k * half, atol=1e-12, rtol=0)
+    expect = {
+        "q0[x]": np.ones_like(t),
+        "q0[th]": np.zeros_like(t),
+        "g": -math.sin(a) / k * half,
+        "a": -G * math.cos(a) / k * half,
+        "I": G * math.sin(a) / k**2 / (m * r * r) * half,
+        "m": -G * math.sin(a) / k**2 * inertia / (m * m * r * r) * half,
+        "mu": np.zeros_like(t),
+    }
+    for name, value in expect.items():
+        assert np.allclose(S[:, 0, col[name]], value, atol=1e-10, rtol=0), name
+    assert np.allclose(S[:, 0, col["v0[x]"]] + S[:, 0, col["v0[th]"]], t, atol=1e-10, rtol=0)  # along the roll
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_switch_is_a_break(backend: str) -> None:
+    """Sliding down the incline until the disk rolls (slip -> stick inside a step): the tangent is exact up to
+    that step and NaN from it, the break reported with its step."""
+    q0, v0, par = start(SCENES["incline_slide"][0], {})
+    res = sim(backend).simulate(q0, v0, H, t_end=0.5, params=par, sensitivities=True, progress=False)
+    # the sliding velocity xd - r w rises from v0 at the rate mu m g cos a (1/m + r^2/I) - g sin a to 0 at t*
+    m, inertia, r, a = par["m"], par["I"], par["r"], par["a"]
+    rate = par["mu"] * m * G * math.cos(a) * (1 / m + r * r / inertia) - G * math.sin(a)
+    t_stop = -(v0[0] - r * v0[2]) / rate
+    k = res.stats["sensitivity_lost"]
+    assert res.sensitivity_breaks == [(k, "held step (sustained contact)")]
+    assert k == int(t_stop / H)  # the step the sliding stops in
+    assert np.isfinite(res.sensitivity[: k + 1]).all() and np.isnan(res.sensitivity[k + 1 :]).all()
+
+
+def test_c_equals_casadi(runs) -> None:
+    """The C tangent (templates/sens.c.j2: sens_slots, sens_add_slots) against the CasADi one."""
+    backend, out = runs
+    if backend != "c":
+        pytest.skip("compares the C runs with the CasADi ones")
+    for scene, (v0, params, _) in SCENES.items():
+        q0, v0, par = start(v0, params)
+        a = sim("casadi").simulate(q0, v0, H, t_end=T, params=par, sensitivities=True, progress=False)
+        b = out[scene][0]
+        rel = float(np.abs(a.sensitivity - b.sensitivity).max() / np.abs(a.sensitivity).max())
+        print(f"{scene}: C against CasADi {rel:.1e}")
+        assert a.sensitivity_breaks == b.sensitivity_breaks == [] and rel <= C_TOL
