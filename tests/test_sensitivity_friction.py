@@ -1,13 +1,13 @@
-"""Exact sensitivities through Coulomb friction in one friction mode (MATH.md *Friction*, *Exact sensitivities*).
+"""Exact sensitivities through Coulomb friction in one mode (MATH.md *Friction*, *Exact sensitivities*).
 
 A disk on a rough incline of angle ``a`` (``q = (x, y, theta)`` along and normal to it, sliding velocity
 ``xd - r thetad``; the level floor at ``a = 0``), every quantity a parameter. Within a mode the step maps are
 smooth: a contact that slips throughout (the slot ``-mu_f s``, its tangent through ``mu_f``), one that sticks
-throughout (its stick row held, its reference moving with the start); a switch stays a reported break. The
-tangent against central differences of whole runs along directions that keep the mode, against the closed forms
-of the motion (sliding: ``x(T) = x0 + v0 T + (mu_f cos a - sin a) g T^2 / 2``; rolling: ``x(T) = x0 + v0 T -
-g sin a T^2 / (2 (1 + I/(m r^2)))``; the trapezoidal rule reproduces a constant acceleration exactly), and C
-against CasADi.
+throughout (its stick row held, its reference moving with the start); a switch stays a reported break.
+The tangent against central differences of whole runs along directions that keep the mode, against the
+closed forms of the motion (sliding: ``x(T) = x0 + v0 T + (mu_f cos a - sin a) g T^2 / 2``; rolling:
+``x(T) = x0 + v0 T - g sin a T^2 / (2 (1 + I/(m r^2)))``; the trapezoidal rule reproduces a constant
+acceleration exactly), and C against CasADi.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ def sim(backend: str) -> vcigen.Simulator:
 
 
 # scene -> (v0, params, directions): the disk set down on the floor (y = r), each direction in z = (q0, v0,
-# params) one that keeps the mode (the normal coordinates and r, whose changes lift or press the disk or set it
-# sliding, left out)
+# params) one that keeps the mode (the normal coordinates and r, whose changes lift or press the disk or set
+# it sliding, left out)
 SLIDE = {"x0": {0: 1.0}, "th0": {2: 1.0}, "vx0": {3: 1.0}, "w0": {5: 1.0}, "m": {6: 1.0}, "I": {7: 1.0}}
 SLIDE |= {"g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}}
 SCENES = {
@@ -89,7 +89,7 @@ def perturbed(q0, v0, par: dict, dz: np.ndarray, eps: float) -> tuple[list[float
 
 @pytest.fixture(scope="module", params=BACKENDS)
 def runs(request) -> dict:
-    """Each scene on one backend: the run with its tangent, and the central differences along its directions."""
+    """Each scene on one backend: the run with its tangent, and central differences along its directions."""
     backend = request.param
     s = sim(backend)
     out = {}
@@ -101,9 +101,9 @@ def runs(request) -> dict:
             dz = direction(spec, res.sensitivity.shape[2])
             ends = []
             for sign in (1.0, -1.0):
-                r = s.simulate(*perturbed(q0, v0, par, dz, sign * 1e-6)[:2], H, t_end=T, progress=False,
-                               params=perturbed(q0, v0, par, dz, sign * 1e-6)[2])  # fmt: skip
-                assert r.impacts == [] and np.array_equal(r.active, res.active), f"{scene} {label}: mode changed"
+                q, v, p = perturbed(q0, v0, par, dz, sign * 1e-6)
+                r = s.simulate(q, v, H, t_end=T, params=p, progress=False)
+                assert r.impacts == [] and np.array_equal(r.active, res.active), (scene, label)
                 ends.append(np.hstack([r.q, r.p]))
             fd[label] = (res.sensitivity @ dz, (ends[0] - ends[1]) / 2e-6)
         out[scene] = (res, fd)
@@ -136,7 +136,8 @@ def test_sliding_tangent_is_the_closed_forms(runs) -> None:
         col = {name: i for i, name in enumerate(res.sensitivity_names)}
         half = t**2 / 2
         acc = (sign * mu * math.cos(a) - math.sin(a)) * g
-        assert np.allclose(res.q[:, 0], res.q[0, 0] + SCENES[scene][0][0] * t + acc * half, atol=1e-12, rtol=0)
+        x = res.q[0, 0] + SCENES[scene][0][0] * t + acc * half
+        assert np.allclose(res.q[:, 0], x, atol=1e-12, rtol=0)
         expect = {
             "v0[x]": t,
             "mu": sign * g * math.cos(a) * half,
@@ -173,7 +174,8 @@ def test_rolling_tangent_is_the_closed_form(runs) -> None:
     }
     for name, value in expect.items():
         assert np.allclose(S[:, 0, col[name]], value, atol=1e-10, rtol=0), name
-    assert np.allclose(S[:, 0, col["v0[x]"]] + S[:, 0, col["v0[th]"]], t, atol=1e-10, rtol=0)  # along the roll
+    roll = S[:, 0, col["v0[x]"]] + S[:, 0, col["v0[th]"]]  # along the rolling direction (r = 1)
+    assert np.allclose(roll, t, atol=1e-10, rtol=0)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -262,7 +262,8 @@ class SustainedSteps:
 
     def _friction_mode(self) -> tuple:
         """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks."""
-        return (*self.act.tolist(), *self._slip.tolist(), *self._ref.tolist(), *self._branch.tolist(), *self._ride)
+        slots = (*self._slip.tolist(), *self._ref.tolist(), *self._branch.tolist())
+        return (*self.act.tolist(), *slots, *self._ride)
 
     def _friction_acts(self) -> bool:
         """Whether a frictional contact slips or holds its stick row."""
