@@ -242,7 +242,7 @@ class Tracker:
         slip = par[fs : fs + nf]
         if slip.any():
             mu = k.friction(q)[0]
-            dmu = self.tg.get("d_friction")(q, par)[0] @ self._par0  # (m, K)
+            dmu = self.tg.get("d_friction")(q, par)[0] @ self._par0  # (m, K): mu_f moves with the parameters
             for f, j in enumerate(k.frictional):
                 if slip[f]:
                     out[fs + f] = slip[f] / mu[j] * dmu[j]
@@ -373,14 +373,22 @@ class Tracker:
         self.dvin, self.t_seg = dv, t_c
 
     @_guarded
-    def jump(self, seg, v_in, rest: float, kind: str) -> None:
-        """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39)."""
+    def jump(self, seg, v_in, rest: float, kind: str, law=None) -> None:
+        """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39), or with
+        Coulomb friction (``law = (j, n)``: the contact and its normal before the impulse direction became
+        ``n + rho t``) the tangent of its impulse law (:meth:`_friction_impact`)."""
         if not self.active:
             return
         if kind == "plastic":  # the impulse law and the constrained rest of the step follow (plastic, held)
             return
         if kind != "jump":
             self.lose(f"{kind} impact")
+            return
+        if law is not None and getattr(self.k, "cone", ()) and self.k.cone[law[0]]:
+            self.lose("friction at an impact")  # the isotropic cone's impulse: not differentiated
+            return
+        if law is not None:
+            self._friction_impact(seg, v_in, rest, *law)
             return
         if rest >= 1.0:
             return
@@ -406,6 +414,48 @@ class Tracker:
             nv * dnv / nmn - 0.5 * nv * nv * dnmn / (nmn * nmn)
         )
         self.de = self.de - dloss
+
+    def _friction_impact(self, seg, v_in, rest: float, j: int, nrm) -> None:
+        """Coulomb friction at an impact on contact ``j`` (``Stepper._frictional_law``, :func:`impact_law`) in
+        the branch it took: the jump (48) runs along ``n + rho t`` with the energy ``E + dK``; ``dnrm`` and
+        ``de`` become their tangents. ``rho`` and ``dK`` are closed forms of ``n.qdot``, ``t.qdot``, ``n.A n``,
+        ``n.A t``, ``t.A t`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the inverse Legendre
+        transform from ``v_in``), ``mu_f`` and ``e`` (:func:`vcigen.friction.impact_law_tangent`); ``dn`` is
+        the contact time's ``dnrm``, ``dt`` from ``d_friction``, ``d(A n) = A (dn - d(M) A n)`` by
+        ``d_legendre``."""
+        from .friction import impact_law_tangent
+
+        k, n = self.k, self.n
+        par, dpar = self.par(seg.t), self.dpar(self.dt)
+        mom0, mass0 = k.legendre(seg.q, v_in)
+        a = np.linalg.solve(mass0, seg.p_in - mom0)
+        vel = v_in + a
+        dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
+        mu, tgrad, _ = k.friction(seg.q)
+        t = tgrad[j]
+        mass = k.legendre(seg.q, vel)[1]
+        an, at = np.linalg.solve(mass, np.column_stack([nrm, t])).T
+        dmu, dtg = self.tg.get("d_friction")(seg.q, par)
+        dt = dtg[j * n : (j + 1) * n] @ np.vstack([self.dq, dpar])
+        dn = self.dnrm
+        dleg = self.tg.get("d_legendre")
+        d_state = np.vstack([self.dq, dvel, dpar])
+        dan = np.linalg.solve(mass, dn - dleg(seg.q, vel, an, par)[1] @ d_state)
+        dat = np.linalg.solve(mass, dt - dleg(seg.q, vel, at, par)[1] @ d_state)
+        scalars = (float(nrm @ vel), float(t @ vel), float(nrm @ an), float(nrm @ at), float(t @ at))
+        dscalars = np.array(
+            [
+                vel @ dn + nrm @ dvel,
+                vel @ dt + t @ dvel,
+                an @ dn + nrm @ dan,
+                at @ dn + nrm @ dat,
+                at @ dt + t @ dat,
+            ]
+        )
+        de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
+        rho, _, drho, ddk, _ = impact_law_tangent(scalars, dscalars, float(mu[j]), dmu[j] @ dpar, rest, de_rest)
+        self.dnrm = dn + np.outer(t, drho) + rho * dt
+        self.de = self.de + ddk
 
     def _dvel(self, q, v_in, a, mass0, par, dpar) -> np.ndarray:
         """Tangent of ``vel = v_in + a``, ``a = M(q, v_in)^-1 (p - mom(q, v_in))`` (``Stepper._velocity``, one

@@ -112,6 +112,7 @@ class Stepper(SustainedSteps, HeldSteps):
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
+        self._law = None  # the last jump's frictional impulse law (contact, normal): the tangent's (Tracker.jump)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -385,7 +386,7 @@ class Stepper(SustainedSteps, HeldSteps):
             seg.rest = e_rest
             x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
             if self._tan is not None:
-                self._tan.jump(seg, v_c, e_rest, kind)
+                self._tan.jump(seg, v_c, e_rest, kind, self._law)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
                 self._count_event(step, t_k)
                 p_plus, lam, loss, rows = self._plastic_entry(step, t_k, h, q_c, p_minus_c, v_c, t_c, group)
@@ -556,15 +557,16 @@ class Stepper(SustainedSteps, HeldSteps):
         k = self.k
         n = k.n
         self._at(seg.t)
+        self._law = None
         vel, minv_n, nv, nmn, mu0 = self._continuous_law(seg.q, v_in, seg.p_in, seg.nrm, restitution)
         sustain = self.tol.grazing == "contact" and k.r > 0
         accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
         pressed = accel < 0.0
         if pressed and self._settles(nv, accel, restitution, self._h):
             return None, "plastic"
+        nrm0 = seg.nrm
         law = self._frictional_law(seg, vel, group, restitution) if nv < 0.0 else None
-        if law is not None and self._tan is not None:
-            self._tan.lose("friction at an impact")
+        self._law = (group[0], nrm0) if law is not None else None  # the tangent's (Tracker.jump)
         if law is not None:  # Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK
             mu0, minv_n, dk = law
             seg.e_in += dk
