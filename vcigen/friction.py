@@ -41,13 +41,13 @@ def impact_law(vel: np.ndarray, mass: np.ndarray, n: np.ndarray, t: np.ndarray, 
     return mu_n, mu_t, dk, an, at
 
 
-def impact_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f: np.ndarray, e: float, de: np.ndarray):
-    """The tangent of :func:`impact_law` in its branch (stick, or slip at either edge of the cone): ``(rho, dK,
-    drho, ddK, branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential share (``n + rho t``), each
-    ``d`` a row of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, +1 or -1 the cone's edge.
+def impact_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):
+    """The tangent of :func:`impact_law` in its branch (stick, or slip at either edge of the cone): ``(rho,
+    dK, drho, ddK, branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential share (``n + rho t``),
+    each ``d`` a row of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, +1 or -1 the edge.
 
-    ``scalars = (n.qdot, t.qdot, n.A n, n.A t, t.A t)``, ``dscalars`` their tangents (5, K); ``mu_f``, ``e`` and
-    theirs. The branch is the one :func:`impact_law` takes from the same numbers (the same expressions in the
+    ``scalars = (n.qdot, t.qdot, n.A n, n.A t, t.A t)``, ``dscalars`` their tangents (5, K); ``mu_f``, ``e``
+    and theirs. The branch is the one :func:`impact_law` takes from the same numbers (the same expressions in the
     same order); within it every quantity is a closed form of the scalars, differentiated here. A branch at
     its boundary (the unconstrained impulse on the cone's edge) is a mode change: the derivative of the branch
     taken is returned, the caller's finite differences must stay away from it."""

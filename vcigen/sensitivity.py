@@ -416,10 +416,10 @@ class Tracker:
         self.de = self.de - dloss
 
     def _friction_impact(self, seg, v_in, rest: float, j: int, nrm) -> None:
-        """Coulomb friction at an impact on contact ``j`` (``Stepper._frictional_law``, :func:`impact_law`) in
-        the branch it took: the jump (48) runs along ``n + rho t`` with the energy ``E + dK``; ``dnrm`` and
-        ``de`` become their tangents. ``rho`` and ``dK`` are closed forms of ``n.qdot``, ``t.qdot``, ``n.A n``,
-        ``n.A t``, ``t.A t`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the inverse Legendre
+        """Coulomb friction at an impact on contact ``j`` (``Stepper._frictional_law``, :func:`impact_law`)
+        in the branch it took: the jump (48) runs along ``n + rho t`` with the energy ``E + dK``; ``dnrm`` and
+        ``de`` become their tangents. ``rho`` and ``dK`` are closed forms of ``n.qdot``, ``t.qdot``,
+        ``n.A n``, ``n.A t``, ``t.A t`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the inverse Legendre
         transform from ``v_in``), ``mu_f`` and ``e`` (:func:`vcigen.friction.impact_law_tangent`); ``dn`` is
         the contact time's ``dnrm``, ``dt`` from ``d_friction``, ``d(A n) = A (dn - d(M) A n)`` by
         ``d_legendre``."""
@@ -453,7 +453,8 @@ class Tracker:
             ]
         )
         de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
-        rho, _, drho, ddk, _ = impact_law_tangent(scalars, dscalars, float(mu[j]), dmu[j] @ dpar, rest, de_rest)
+        law = impact_law_tangent(scalars, dscalars, float(mu[j]), dmu[j] @ dpar, rest, de_rest)
+        rho, _, drho, ddk, _ = law
         self.dnrm = dn + np.outer(t, drho) + rho * dt
         self.de = self.de + ddk
 

@@ -191,7 +191,7 @@ def friction_tangent(r: Routine) -> Routine:
             Output("dmu", jacobian(r.output("mu").expr, list(par.symbols))),
             Output("dtgrad", jacobian(flat, _data_symbols(r.inputs))),
         ),
-        "Partials of each contact's mu_f in par and of its tangent's gradient in (q, par) (Coulomb friction).",
+        "Partials of each contact's mu_f in par and of its tangent's gradient in (q, par) (Coulomb).",
     )
 
 
