@@ -47,10 +47,10 @@ def impact_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: flo
     each ``d`` a row of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, +1 or -1 the edge.
 
     ``scalars = (n.qdot, t.qdot, n.A n, n.A t, t.A t)``, ``dscalars`` their tangents (5, K); ``mu_f``, ``e``
-    and theirs. The branch is the one :func:`impact_law` takes from the same numbers (the same expressions in the
-    same order); within it every quantity is a closed form of the scalars, differentiated here. A branch at
-    its boundary (the unconstrained impulse on the cone's edge) is a mode change: the derivative of the branch
-    taken is returned, the caller's finite differences must stay away from it."""
+    and theirs. The branch is the one :func:`impact_law` takes from the same numbers (the same expressions
+    in the same order); within it every quantity is a closed form of the scalars, differentiated here. A
+    branch at its boundary (the unconstrained impulse on the cone's edge) is a mode change: the derivative of
+    the branch taken is returned, finite differences must stay away from it."""
     nv, tv, nn, nt, tt = scalars
     dnv, dtv, dnn, dnt, dtt = dscalars
     a = -(1.0 + e) * nv / nn

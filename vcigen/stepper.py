@@ -112,7 +112,7 @@ class Stepper(SustainedSteps, HeldSteps):
         self._tan = tangent  # exact sensitivities (vcigen.sensitivity.Tracker): hooks after each phase
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
-        self._law = None  # the last jump's frictional law (contact, normal before): the tangent's (Tracker.jump)
+        self._law = None  # the last jump's frictional law (contact, normal before it): Tracker.jump's
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
