@@ -420,9 +420,9 @@ class Tracker:
         in the branch it took: the jump (48) runs along ``n + rho t`` with the energy ``E + dK``; ``dnrm`` and
         ``de`` become their tangents. ``rho`` and ``dK`` are closed forms of ``n.qdot``, ``t.qdot``,
         ``n.A n``, ``n.A t``, ``t.A t`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the
-        inverse Legendre transform from ``v_in``), ``mu_f`` and ``e`` (:func:`vcigen.friction.impact_law_tangent`);
-        ``dn`` is the contact time's ``dnrm``, ``dt`` from ``d_friction``, ``d(A n) = A (dn - d(M) A n)`` by
-        ``d_legendre``."""
+        inverse Legendre transform from ``v_in``), ``mu_f`` and ``e``
+        (:func:`vcigen.friction.impact_law_tangent`); ``dn`` is the contact time's ``dnrm``, ``dt`` from
+        ``d_friction``, ``d(A n) = A (dn - d(M) A n)`` by ``d_legendre``."""
         from .friction import impact_law_tangent
 
         k, n = self.k, self.n
