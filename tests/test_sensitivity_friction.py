@@ -8,6 +8,11 @@ The tangent against central differences of whole runs along directions that keep
 closed forms of the motion (sliding: ``x(T) = x0 + v0 T + (mu_f cos a - sin a) g T^2 / 2``; rolling:
 ``x(T) = x0 + v0 T - g sin a T^2 / (2 (1 + I/(m r^2)))``; the trapezoidal rule reproduces a constant
 acceleration exactly), and C against CasADi.
+
+At an impact (a spinning disk dropped on a rough floor, ``vcigen.friction.impact_law``): the tangent through
+Coulomb's impulse law in the branch it takes (slip then roll, or slip throughout), against central differences
+of every column and the law's closed forms. The isotropic cone of a 3-D contact (a puck) is still a break, at
+an impact and slipping in sustained contact.
 """
 
 from __future__ import annotations
@@ -206,3 +211,86 @@ def test_c_equals_casadi(runs) -> None:
         rel = float(np.abs(a.sensitivity - b.sensitivity).max() / np.abs(a.sensitivity).max())
         print(f"{scene}: C against CasADi {rel:.1e}")
         assert a.sensitivity_breaks == b.sensitivity_breaks == [] and rel <= C_TOL
+
+
+# -- frictional impacts -------------------------------------------------------------------------------------
+DROP = ([0.0, 2.0, 0.0], 0.01, 0.6)  # q0 (height 1 above the floor y >= r), h, t_end: one impact, at step 45
+
+
+@cache
+def rough_disk(backend: str) -> vcigen.Simulator:
+    import test_friction
+
+    return test_friction.sim("disk", backend)
+
+
+@pytest.mark.parametrize("spin, branch", [(5.0, "roll"), (30.0, "slip")])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_frictional_impact_matches_finite_differences(backend: str, spin: float, branch: str) -> None:
+    """A disk dropped with (vx, w) = (2, spin) on a floor with e = 0.7, mu_f = 0.3: one impact, the sliding
+    stopped by it (rolls) or not (slips throughout). Every column against central differences; the law's
+    direction n + rho t with t = (1, 0, -r): the spin's momentum jumps by -r times the x one, so their mu_f
+    columns after it are in that ratio; rolling, mu_f moves nothing; slipping, d vx+/d mu_f = (1 + e) |vy| to
+    the O(h^2) of the discrete impact."""
+    sim = rough_disk(backend)
+    q0, h, t_end = DROP
+    v0 = [2.0, 0.0, spin]
+    names = [str(s) for s in sim.model.defaults]
+    values = dict(zip(names, sim.model.resolve_params(None)))
+    res = sim.simulate(q0, v0, h, t_end=t_end, sensitivities=True, progress=False)
+    assert [im.kind for im in res.impacts] == ["restitution"] and res.sensitivity_breaks == []
+    S, n = res.sensitivity, 3
+    fd = np.empty_like(S)
+    for c in range(S.shape[2]):
+        ends = []
+        for sign in (1.0, -1.0):
+            z, par = np.array(q0 + v0), dict(values)
+            if c < 2 * n:
+                z[c] += sign * 1e-6
+            else:
+                par[names[c - 2 * n]] += sign * 1e-6
+            r = sim.simulate(z[:n], z[n:], h, t_end=t_end, params=par, progress=False)
+            assert [im.step for im in r.impacts] == [res.impacts[0].step], res.sensitivity_names[c]
+            ends.append(np.hstack([r.q, r.p]))
+        fd[:, :, c] = (ends[0] - ends[1]) / 2e-6
+    err = float(np.abs(S - fd).max() / np.abs(S).max())
+    print(f"disk impact, {branch} ({backend}): FD {err:.1e}")
+    assert err <= FD_TOL
+    k = res.impacts[0].step + 1  # the grid point after the impact
+    mu, r_ = names.index("mu") + 2 * n, values["r"]
+    assert np.allclose(S[k:, 5, mu], -r_ * S[k:, 3, mu], rtol=1e-12, atol=1e-14)
+    if branch == "roll":
+        assert np.abs(S[:, :, mu]).max() == 0.0
+    else:
+        vy = math.sqrt(2 * values["g"] * 1.0)
+        want = (1 + values["e"]) * vy / values["m"]
+        assert abs(S[k, 3, mu] / values["m"] - want) <= 1e-4 * want, (S[k, 3, mu], want)
+
+
+def test_frictional_impact_c_equals_casadi() -> None:
+    """Both branches of the impulse law: the C tangent (sens_friction_impact) against the CasADi one."""
+    q0, h, t_end = DROP
+    for spin in (5.0, 30.0):
+        a, b = (
+            rough_disk(backend).simulate(
+                q0, [2.0, 0.0, spin], h, t_end=t_end, sensitivities=True, progress=False
+            )
+            for backend in ("casadi", "c")
+        )
+        rel = float(np.abs(a.sensitivity - b.sensitivity).max() / np.abs(a.sensitivity).max())
+        print(f"disk impact, spin {spin}: C against CasADi {rel:.1e}")
+        assert a.sensitivity_breaks == b.sensitivity_breaks == [] and rel <= C_TOL
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_cone_friction_is_a_break(backend: str) -> None:
+    """The isotropic cone (a puck, two tangents): an impact through its impulse law, and slipping in sustained
+    contact (its direction aimed anew every segment from the state), are reported breaks."""
+    import test_friction_3d
+
+    sim = test_friction_3d.sim("puck", backend)
+    res = sim.simulate([0.0, 0.0, 0.5], [1.0, 0.5, 0.0], 0.01, t_end=0.5, sensitivities=True, progress=False)
+    assert res.sensitivity_breaks[0] == (res.impacts[0].step, "friction at an impact")
+    res = sim.simulate([0.0, 0.0, 0.0], [1.0, 0.5, 0.0], 0.01, t_end=0.1, sensitivities=True, progress=False)
+    assert res.sensitivity_breaks[0] == (0, "held step (sustained contact)") and res.active[:, 0].all()
+    assert res.stats["sensitivity_lost"] == 0
