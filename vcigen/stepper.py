@@ -113,6 +113,7 @@ class Stepper(SustainedSteps, HeldSteps):
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
         self._law = None  # the last jump's frictional law (contact, normal before it): Tracker.jump's
+        self._fswitch = False  # a held step's first event was a friction switch (Stepper._tangent_held)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -259,6 +260,7 @@ class Stepper(SustainedSteps, HeldSteps):
         tan, self._tan = self._tan, None
         self._held_seg, self._record_held = None, tan is not None
         self._lift_seg = self._free_seg = None
+        self._fswitch = False
         try:
             out = run(*args)
         finally:
@@ -269,7 +271,7 @@ class Stepper(SustainedSteps, HeldSteps):
             sub, r, s, tau_s = self._lift_seg
             tan.liftoff(sub, r, s, tau_s, self._free_seg, entry)
         elif tan is not None and not entry:
-            tan.lose("held step (sustained contact)")
+            tan.lose("friction switch in a held step" if self._fswitch else "held step (sustained contact)")
         elif tan is not None and tan.active:
             tan.lose("plastic impact")
         return out

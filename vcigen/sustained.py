@@ -673,7 +673,9 @@ class SustainedSteps:
                 mode = self._friction_mode()
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
-                plain = plain and mode == self._friction_mode() and not self._cone_slips()
+                same, cone = mode == self._friction_mode(), self._cone_slips()
+                self._fswitch = self._fswitch or (plain and not same and not cone)  # what stops the tangent
+                plain = plain and same and not cone
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             if not plain:  # a constrained segment after an event: no lift-off then a free rest
@@ -694,8 +696,9 @@ class SustainedSteps:
                         self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
                     )
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
-                plain = False
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
+                self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
+                plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
                 else:
@@ -721,6 +724,7 @@ class SustainedSteps:
             if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
+            self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)
