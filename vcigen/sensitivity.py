@@ -21,6 +21,12 @@ in ``(x, d)``, their partials chained. Phases:
   rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
   ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
+* Coulomb friction in one mode (MATH.md *Friction*; one tangent): a held step whose frictional contacts slip
+  throughout (the slip slot ``-mu_f s`` of ``par``, ``s`` fixed within the mode, its tangent through ``mu_f``:
+  ``d_friction``) or stick throughout (the stick row ``t(q) - ref = 0`` held, ``d ref = grad t(q_k) dq_k``):
+  :meth:`Tracker._friction_slots`; a frictional impact in the branch of Coulomb's impulse law it takes (stick,
+  or slip at either edge of the cone): the impulse direction ``n + rho t`` and the energy ``E + dK`` by
+  :func:`vcigen.friction.impact_law_tangent` (:meth:`Tracker._friction_impact`);
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
@@ -32,9 +38,11 @@ in ``(x, d)``, their partials chained. Phases:
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once), a grazing impact taking the continuous law, a held step with any other
 event inside (a lift-off at its start or after another event, an impact or a row crossed while held, a
-friction switch) or with friction, friction at an impact, the ``_restart`` fallback. From the first such
-step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
-``Result.sensitivity_breaks`` lists ``(step, reason)``.
+lift-off while friction acts), a friction switch (``"friction switch in a held step"``: stick <-> slip, the
+sliding direction turned, a contact released or on another face), an isotropic cone (two tangents) slipping
+(its direction aimed anew every segment from the state) or at an impact, the ``_restart`` fallback. From
+the first such step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] =
+k`` and ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
 
 from __future__ import annotations

@@ -255,8 +255,9 @@ class Stepper(SustainedSteps, HeldSteps):
 
     def _tangent_held(self, q, p, tau: float, entry: bool, run, *args):
         """``run()``, a held step (or the rest of a step after a plastic impact, ``entry``), with the
-        tangent's hooks set aside: its phases have none. One with its active set unchanged (one segment, no
-        event, no friction) leaves its solution in ``_held_seg``: then ``Tracker.held``, else a break."""
+        tangent's hooks set aside: its phases have none. One with its active set and friction mode unchanged
+        (one segment, no event, no switch, no cone slipping) leaves its solution in ``_held_seg``: then
+        ``Tracker.held``, else a break (``"friction switch in a held step"`` if a switch stopped it first)."""
         tan, self._tan = self._tan, None
         self._held_seg, self._record_held = None, tan is not None
         self._lift_seg = self._free_seg = None
