@@ -286,15 +286,89 @@ def test_frictional_impact_c_equals_casadi() -> None:
         assert a.sensitivity_breaks == b.sensitivity_breaks == [] and rel <= C_TOL
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_cone_friction_is_a_break(backend: str) -> None:
-    """The isotropic cone (a puck, two tangents): an impact through its impulse law, and slipping in sustained
-    contact (its direction aimed anew every segment from the state), are reported breaks."""
+# -- the isotropic cone (two tangents): a puck on a rough plane ----------------------------------------------
+@cache
+def puck(backend: str) -> vcigen.Simulator:
     import test_friction_3d
 
-    sim = test_friction_3d.sim("puck", backend)
-    res = sim.simulate([0.0, 0.0, 0.5], [1.0, 0.5, 0.0], 0.01, t_end=0.5, sensitivities=True, progress=False)
+    return vcigen.build(test_friction_3d.puck(), backend=backend)
+
+
+def puck_run(backend: str, v0, params: dict, t_end: float) -> vcigen.Result:
+    return puck(backend).simulate(
+        [0.0, 0.0, 0.0], v0, H, t_end=t_end, params=params, sensitivities=True, progress=False
+    )
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_cone_slip_is_the_closed_form(backend: str) -> None:
+    """A puck sliding on the level floor at v0 = (1.2, -0.9): its slip direction is aimed anew every step from
+    the state (``SustainedSteps._cone_aim``), its tangent through that aim (``Tracker._cone_slots``, C
+    ``sens_cone_slots``). Sliding straight, p(t) = p0 + v0 t - mu g t^2/2 e, e = v0/|v0| (exact in the
+    discrete map), so dp/dv0 = I t - mu g t^2/2 (I - e e^T)/|v0|: the direction turns with v0; dp/dmu, dp/dg
+    along -e."""
+    import test_friction_3d
+
+    mu, v0 = test_friction_3d.MU, np.array([1.2, -0.9])
+    res = puck_run(backend, [*v0, 0.0], {"a": 0.0}, T)
+    assert res.sensitivity_breaks == [] and res.active[:, 0].all()
+    t, S = res.t, res.sensitivity
+    col = {name: i for i, name in enumerate(res.sensitivity_names)}
+    speed = float(np.linalg.norm(v0))
+    e = v0 / speed
+    half = (t**2 / 2)[:, None, None]
+    dv = t[:, None, None] * np.eye(2) - mu * G * half * (np.eye(2) - np.outer(e, e)) / speed
+    assert np.allclose(S[:, :2, [col["v0[x]"], col["v0[y]"]]], dv, atol=1e-10, rtol=0)
+    assert np.allclose(S[:, :2, col["mu"]], -G * (t**2 / 2)[:, None] * e, atol=1e-10, rtol=0)
+    assert np.allclose(S[:, :2, col["g"]], -mu * (t**2 / 2)[:, None] * e, atol=1e-10, rtol=0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_cone_slip_on_an_incline_matches_finite_differences(backend: str) -> None:
+    """Launched across an incline (tan a = mu/2): the sliding direction turns downhill while friction slows
+    it; to t = 0.4 (it stops at 0.46, a switch: a break) the tangent along every column but the normal ones
+    against central differences of whole runs; C against CasADi through the stop."""
+    import test_friction_3d
+
+    par = {"a": math.atan(test_friction_3d.MU / 2), "g": G, "mu": test_friction_3d.MU}
+    v0, t_end = [1.5, 0.5, 0.0], 0.4
+    res = puck_run(backend, v0, par, t_end)
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    names = res.sensitivity_names
+    errs = {}
+    for c in (0, 1, 3, 4, 6, 7, 8):
+        ends = []
+        for sign in (1.0, -1.0):
+            q, v, p = [0.0, 0.0, 0.0], list(v0), dict(par)
+            if c < 3:
+                q[c] += sign * 1e-6
+            elif c < 6:
+                v[c - 3] += sign * 1e-6
+            else:
+                p[names[c]] += sign * 1e-6
+            r = puck(backend).simulate(q, v, H, t_end=t_end, params=p, progress=False)
+            assert r.active[:, 0].all()
+            ends.append(np.hstack([r.q, r.p]))
+        errs[names[c]] = float(np.abs(res.sensitivity[:, :, c] - (ends[0] - ends[1]) / 2e-6).max())
+    err = max(errs.values()) / float(np.abs(res.sensitivity).max())
+    print(f"puck on the incline ({backend}): FD {err:.1e}")
+    assert err <= FD_TOL, errs
+    if backend == "c":
+        a = puck_run("casadi", v0, par, 0.8)
+        b = puck_run("c", v0, par, 0.8)  # through the stop: the same break
+        fin = np.isfinite(a.sensitivity)
+        rel = float(np.abs(a.sensitivity[fin] - b.sensitivity[fin]).max() / np.abs(a.sensitivity[fin]).max())
+        print(f"puck on the incline to 0.8: C against CasADi {rel:.1e}, breaks {b.sensitivity_breaks[:1]}")
+        assert a.sensitivity_breaks == b.sensitivity_breaks and np.array_equal(
+            fin, np.isfinite(b.sensitivity)
+        )
+        assert b.sensitivity_breaks[0][1] == "friction switch in a held step" and rel <= C_TOL
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_cone_impact_is_a_break(backend: str) -> None:
+    """The isotropic cone's impulse law at an impact (a puck dropped while sliding) is still a break."""
+    res = puck(backend).simulate(
+        [0.0, 0.0, 0.5], [1.0, 0.5, 0.0], H, t_end=0.5, sensitivities=True, progress=False
+    )
     assert res.sensitivity_breaks[0] == (res.impacts[0].step, "friction at an impact")
-    res = sim.simulate([0.0, 0.0, 0.0], [1.0, 0.5, 0.0], 0.01, t_end=0.1, sensitivities=True, progress=False)
-    assert res.sensitivity_breaks[0] == (0, "held step (sustained contact)") and res.active[:, 0].all()
-    assert res.stats["sensitivity_lost"] == 0

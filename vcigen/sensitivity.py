@@ -21,12 +21,14 @@ in ``(x, d)``, their partials chained. Phases:
   rest (46): the constrained sub-step to the root of the released row's force (its force law's partials
   ``d_forces``), that root's time by the implicit-function theorem (``Tracker.liftoff``);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
-* Coulomb friction in one mode (MATH.md *Friction*; one tangent): a held step whose frictional contacts slip
-  throughout (the slip slot ``-mu_f s`` of ``par``, ``s`` fixed within the mode, its tangent through ``mu_f``:
-  ``d_friction``) or stick throughout (the stick row ``t(q) - ref = 0`` held, ``d ref = grad t(q_k) dq_k``):
-  :meth:`Tracker._friction_slots`; a frictional impact in the branch of Coulomb's impulse law it takes (stick,
-  or slip at either edge of the cone): the impulse direction ``n + rho t`` and the energy ``E + dK`` by
-  :func:`vcigen.friction.impact_law_tangent` (:meth:`Tracker._friction_impact`);
+* Coulomb friction in one mode (MATH.md *Friction*): a held step whose frictional contacts slip throughout
+  (the slip slot ``-mu_f s`` of ``par``, ``s`` fixed within the mode for one tangent, its tangent through
+  ``mu_f``: ``d_friction``; an isotropic cone's ``s`` aimed at the segment's start from the state, its tangent
+  through that aim, :meth:`Tracker._cone_slots`) or stick throughout (the stick row ``t(q) - ref = 0`` held,
+  ``d ref = grad t(q_k) dq_k``): :meth:`Tracker._friction_slots`; a frictional impact (one tangent) in the
+  branch of Coulomb's impulse law it takes (stick, or slip at either edge of the cone): the impulse direction
+  ``n + rho t`` and the energy ``E + dK`` by :func:`vcigen.friction.impact_law_tangent`
+  (:meth:`Tracker._friction_impact`);
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
@@ -39,8 +41,8 @@ Not covered (each a mode change or a set-valued law, no derivative to give): a s
 group of contacts at once), a grazing impact taking the continuous law, a held step with any other
 event inside (a lift-off at its start or after another event, an impact or a row crossed while held, a
 lift-off while friction acts), a friction switch (``"friction switch in a held step"``: stick <-> slip, the
-sliding direction turned, a contact released or on another face), an isotropic cone (two tangents) slipping
-(its direction aimed anew every segment from the state) or at an impact, the ``_restart`` fallback. From
+sliding direction turned, a contact released or on another face), several cones aimed implicitly near rest
+(``SustainedSteps._cone_brake``), an isotropic cone's impulse at an impact, the ``_restart`` fallback. From
 the first such step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] =
 k`` and ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
@@ -260,6 +262,96 @@ class Tracker:
             if act[sr]:
                 out[fs + nf + f] = grad[sr] @ dq[:, : self.K]
         return out
+
+    def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray) -> bool:
+        """The slip slots of the slipping cones (two tangents) in ``out``: ``SustainedSteps._cone_aim`` at the
+        segment's start ``(q, u)``, ``u = M^-1 p`` (the stepper's one Newton step, exact for a momentum
+        linear in the velocity): every slipping cone first along its sliding velocity ``w = (grad t1 . u,
+        grad t2 . u)``, ``s0 = -mu_f w / |w|``, then, if the stepper took it, along the midpoint prediction
+        ``mid = w + tau/2 (grad t . a + curv_t)``, ``s1 = -mu_f mid / |mid|``, ``a`` the acceleration of
+        the force law with the directions ``s0`` (``M a = rhs + dirs^T lam``, ``G a + curv = 0`` on the
+        active rows: its tangent by the implicit-function theorem with ``d_forces`` at ``lam~``, the stick
+        rows carrying ``s lam``). Which one the stepper took is read from the slots (to 1e-9); ``False`` if
+        neither (the implicit aim of several cones near rest, or a cone too slow to aim): no tangent then."""
+        k, n, K, tg = self.k, self.n, self.K, self.tg
+        fs, nf = k.friction_slot, len(k.frictional)
+        par = self.par(t)
+        cones = [(f, g) for f, g in enumerate(k.partner) if g > f and (par[fs + f] or par[fs + g])]
+        if not cones:
+            return True
+        rows = [k.row_stick.index(f) for f in range(nf)]
+        dpar = self._par0 + out  # the one-tangent slips' tangents already in out
+        mom0, mass0 = k.legendre(q, np.zeros(n))
+        u = np.linalg.solve(mass0, p - mom0)
+        dmom0, dma0 = tg.get("d_legendre")(q, np.zeros(n), u, par)
+        d0 = np.vstack([dq, np.zeros((n, K)), dpar])
+        du = np.linalg.solve(mass0, dp - (dmom0 + dma0) @ d0)
+        _, grad, curv = k.rows(q, u)
+        rhs, mass = k.dynamics(q, u)[0], k.legendre(q, u)[1]
+        dgrad = tg.get("d_rows")(q, u, par)[0]
+        dqp = np.vstack([dq, dpar])
+        mu = k.friction(q)[0]
+        dmu = tg.get("d_friction")(q, par)[0] @ self._par0
+        tiny = 1e-12 * (1.0 + float(np.max(np.abs(u))))  # sustained.SLIDE_EPS
+
+        def unit(vec, dvec, m, dm):  # -m vec/|vec| and its tangent
+            nv = float(np.linalg.norm(vec))
+            e = vec / nv
+            return -m * e, -np.outer(e, dm) - m * (dvec - np.outer(e, e @ dvec)) / nv
+
+        slip = par[fs : fs + nf].copy()
+        dslip = out[fs : fs + nf].copy()
+        w, dw = {}, {}
+        for f, g in cones:
+            rr = [rows[f], rows[g]]
+            w[f] = np.array([grad[r] @ u for r in rr])
+            dw[f] = np.array([u @ (dgrad[r * n : (r + 1) * n] @ dqp) + grad[r] @ du for r in rr])
+            if float(np.linalg.norm(w[f])) <= tiny:
+                return False
+            j = k.frictional[f]
+            slip[[f, g]], dslip[[f, g]] = unit(w[f], dw[f], mu[j], dmu[j])
+        # the force law with the directions s0 (SustainedSteps._forces), and its tangent
+        on = np.flatnonzero(act)
+        dirs = grad.copy()
+        for f, j in enumerate(k.frictional):
+            if slip[f]:
+                dirs[[r for r in on if k.row_contact[r] == j]] += slip[f] * grad[rows[f]]
+        jac = np.block([[mass, -dirs[on].T], [grad[on], np.zeros((on.size, on.size))]])
+        sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[on]]))
+        acc, lam = sol[:n], np.zeros(k.r)
+        lam[on] = sol[n:]
+        lam_t = lam.copy()  # the stick rows carry slip_f times their contact's normal force
+        normal = {}
+        for f, j in enumerate(k.frictional):
+            if slip[f]:
+                normal[f] = sum(lam[r] for r in on if k.row_contact[r] == j)
+                lam_t[rows[f]] += slip[f] * normal[f]
+        dres = tg.get("d_forces")(q, u, acc, lam_t, par)[0]
+        d_state = np.vstack([dq, du, self._par0])
+        d_state[2 * n :] += out  # the one-tangent slips (par's friction slots)
+        df = dres[np.r_[np.arange(n), n + on]] @ d_state
+        for f, s in normal.items():  # the slips' own columns: -N_f grad t_f dslip_f
+            df[:n] -= s * np.outer(grad[rows[f]], dslip[f])
+        dsol = -np.linalg.solve(jac, df)
+        dacc = dsol[:n]
+        for f, g in cones:
+            rr = [rows[f], rows[g]]
+            turn = 0.5 * tau * np.array([grad[r] @ acc + curv[r] for r in rr])
+            dturn = 0.5 * tau * np.array([dres[n + r] @ d_state + grad[r] @ dacc for r in rr])
+            j = k.frictional[f]
+            s0, ds0 = slip[[f, g]], dslip[[f, g]]
+            have = par[fs + np.array([f, g])]
+            scale = 1e-9 * max(mu[j], 1e-300)
+            if float(np.linalg.norm(w[f] + turn)) > tiny:
+                s1, ds1 = unit(w[f] + turn, dw[f] + dturn, mu[j], dmu[j])
+                if np.abs(have - s1).max() <= scale:
+                    out[fs + f], out[fs + g] = ds1
+                    continue
+            if np.abs(have - s0).max() <= scale:
+                out[fs + f], out[fs + g] = ds0
+                continue
+            return False
+        return True
 
     def start(self, q0, v0, t0: float, cap: int) -> None:
         """``S_0``: ``dq0/dz = [I 0 0]``, ``dp0/dz = [dmom/dq, M, dmom/dpar]`` (``d_legendre``)."""
@@ -546,6 +638,10 @@ class Tracker:
         else:
             dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
         self._slots = self._friction_slots(q, dq, act, t)
+        if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots):
+            self._slots = None
+            self.lose("a phase without a tangent")
+            return
         try:
             dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t)
         finally:

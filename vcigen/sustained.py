@@ -150,6 +150,7 @@ class SustainedSteps:
         self._booked = False  # whether a constraint acted in it
         self._chained = False  # whether it ran the constrained chain (the active set may have changed)
         self._held = bool(self.act.any())  # whether any row is active at the start of the next step
+        self._braked = False  # whether cones were aimed implicitly in this step (_cone_brake)
 
     def _start_sustained(self, q0, v0, h: float) -> None:
         """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in."""
@@ -261,17 +262,18 @@ class SustainedSteps:
         self._set_friction()
 
     def _friction_mode(self) -> tuple:
-        """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks."""
-        slots = (*self._slip.tolist(), *self._ref.tolist(), *self._branch.tolist())
+        """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks; a
+        slipping cone's slips as 1 (its direction is aimed anew every segment, within the mode)."""
+        slip = self._slip.copy()
+        for f, p in self._cones():
+            if slip[f] or slip[p]:
+                slip[[f, p]] = 1.0
+        slots = (*slip.tolist(), *self._ref.tolist(), *self._branch.tolist())
         return (*self.act.tolist(), *slots, *self._ride)
 
     def _friction_acts(self) -> bool:
         """Whether a frictional contact slips or holds its stick row."""
         return bool(self._slip.any() or any(self.act[sr] for sr in self._stick_rows))
-
-    def _cone_slips(self) -> bool:
-        """Whether a cone contact slips (its direction aimed anew every segment, from the state)."""
-        return any(self._slip[f] or self._slip[p] for f, p in self._cones())
 
     # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) -----------
     def _dependent(self, grad, sr: int, skip: int = -1) -> bool:
@@ -384,6 +386,7 @@ class SustainedSteps:
             if math.hypot(*w) <= BRAKE * tau * brake:
                 slow.append((f, p))
         if len(slow) >= 2:  # several cones near rest: implicit in the direction
+            self._braked = True
             aims = [a for a in aims if (a[0], a[1]) not in slow] + self._cone_brake(slow, q, u, tau)
         for f, p, slip in aims:
             self._slip[[f, p]] = slip
@@ -665,6 +668,7 @@ class SustainedSteps:
         k, tol = self.k, self.tol
         self._chained = True
         plain = True  # no event, no change of friction mode so far: a held step the tangent goes through
+        self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
@@ -673,9 +677,9 @@ class SustainedSteps:
                 mode = self._friction_mode()
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
-                same, cone = mode == self._friction_mode(), self._cone_slips()
-                self._fswitch = self._fswitch or (plain and not same and not cone)  # what stops the tangent
-                plain = plain and same and not cone
+                same = mode == self._friction_mode()
+                self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
+                plain = plain and same and not self._braked
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             if not plain:  # a constrained segment after an event: no lift-off then a free rest
