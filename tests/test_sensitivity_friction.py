@@ -324,6 +324,19 @@ def test_cone_slip_is_the_closed_form(backend: str) -> None:
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_cone_stick_holds_the_start(backend: str) -> None:
+    """A puck at rest on an incline with tan a = mu/2 sticks (both stick rows held): it stays where it starts,
+    so d(x, y)/d(x0, y0) = I and every other column of (x, y) is 0 (the references move with the start)."""
+    import test_friction_3d
+
+    res = puck_run(backend, [0.0, 0.0, 0.0], {"a": math.atan(test_friction_3d.MU / 2)}, T)
+    assert res.sensitivity_breaks == [] and res.active[:, 0].all()
+    want = np.zeros((2, res.sensitivity.shape[2]))
+    want[:, :2] = np.eye(2)
+    assert np.abs(res.sensitivity[:, :2, :] - want).max() <= 1e-12
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_cone_slip_on_an_incline_matches_finite_differences(backend: str) -> None:
     """Launched across an incline (tan a = mu/2): the sliding direction turns downhill while friction slows
     it; to t = 0.4 (it stops at 0.46, a switch: a break) the tangent along every column but the normal ones
