@@ -232,14 +232,6 @@ def test_a_ball_coming_to_rest_matches_finite_differences(backend: str) -> None:
     assert err <= 1e-6
 
 
-def test_friction_at_an_impact_is_reported() -> None:
-    import test_friction
-
-    sim = test_friction.sim("disk", "casadi")
-    res = sim.simulate([0.0, 2.0, 0.0], [2.0, 0.0, 5.0], 0.01, t_end=0.9, sensitivities=True, progress=False)
-    assert assert_lost(res, "friction") == res.impacts[0].step
-
-
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("scene", ["box_lossy", "driven", "walls"])
 def test_sensitivities_leave_the_run_unchanged(scene: str, backend: str) -> None:

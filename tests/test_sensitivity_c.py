@@ -213,17 +213,6 @@ def test_parameters_are_columns_and_override_at_run_time() -> None:
     assert abs(b.sensitivity[k, 1, -1] + b.t[k] ** 2 / 2) <= 1e-12
 
 
-def test_friction_at_an_impact_breaks_the_same() -> None:
-    """A spinning disk with Coulomb friction hits the floor: the impact is reported, as in Python."""
-    import test_friction
-
-    a, b = both(
-        lambda backend: test_friction.sim("disk", backend), [0.0, 2.0, 0.0], [2.0, 0.0, 5.0], 0.01, t_end=0.9
-    )
-    assert_same_tangent(a, b)
-    assert b.sensitivity_breaks[0] == (b.impacts[0].step, "friction at an impact")
-
-
 def test_grazing_impact_breaks_the_same() -> None:
     """Apex 1e-8 above a ceiling with ``grazing="reflect"``: the continuous law is no jump (48) to
     differentiate; the impact's step is reported, as in Python."""

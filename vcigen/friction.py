@@ -41,6 +41,56 @@ def impact_law(vel: np.ndarray, mass: np.ndarray, n: np.ndarray, t: np.ndarray, 
     return mu_n, mu_t, dk, an, at
 
 
+def impact_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):
+    """The tangent of :func:`impact_law` in its branch (stick, or slip at either edge of the cone): ``(rho,
+    dK, drho, ddK, branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential share (``n + rho t``),
+    each ``d`` a row of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, +1 or -1 the edge.
+
+    ``scalars = (n.qdot, t.qdot, n.A n, n.A t, t.A t)``, ``dscalars`` their tangents (5, K); ``mu_f``, ``e``
+    and theirs. The branch is the one :func:`impact_law` takes from the same numbers (the same expressions
+    in the same order); within it every quantity is a closed form of the scalars, differentiated here. A
+    branch at its boundary (the unconstrained impulse on the cone's edge) is a mode change: the derivative of
+    the branch taken is returned, finite differences must stay away from it."""
+    nv, tv, nn, nt, tt = scalars
+    dnv, dtv, dnn, dnt, dtt = dscalars
+    a = -(1.0 + e) * nv / nn
+    da = -de * nv / nn - (1.0 + e) * (dnv * nn - nv * dnn) / (nn * nn)
+    b = nt / nn
+    db = (dnt * nn - nt * dnn) / (nn * nn)
+    dv, dad = tv - b * nv, tt - b * nt
+    ddv, ddad = dtv - db * nv - b * dnv, dtt - db * nt - b * dnt
+    mu_t = -dv / dad
+    hi = mu_f * a / (1.0 + mu_f * b) if 1.0 + mu_f * b > 0.0 else math.inf
+    lo = -mu_f * a / (1.0 - mu_f * b) if 1.0 - mu_f * b > 0.0 else -math.inf
+    if mu_t > hi:  # slip, the cone's upper edge
+        branch, mu_t = 1, hi
+        c = 1.0 + mu_f * b
+        dmu_t = ((dmu_f * a + mu_f * da) * c - mu_f * a * (dmu_f * b + mu_f * db)) / (c * c)
+    elif mu_t < lo:  # slip, the lower edge
+        branch, mu_t = -1, lo
+        c = 1.0 - mu_f * b
+        dmu_t = -((dmu_f * a + mu_f * da) * c + mu_f * a * (dmu_f * b + mu_f * db)) / (c * c)
+    else:  # stick: the sliding velocity leaves at what the normal impulse leaves it (0 when n.A t = 0)
+        branch = 0
+        dmu_t = -(ddv * dad - dv * ddad) / (dad * dad)
+    mu_n = a - b * mu_t
+    dmu_n = da - db * mu_t - b * dmu_t
+    dk = mu_t * dv + 0.5 * mu_t * mu_t * dad + a * nv + 0.5 * a * a * nn
+    ddk = (
+        dmu_t * dv
+        + mu_t * ddv
+        + mu_t * dmu_t * dad
+        + 0.5 * mu_t * mu_t * ddad
+        + da * nv
+        + a * dnv
+        + a * da * nn
+        + 0.5 * a * a * dnn
+    )
+    rho = mu_t / mu_n
+    drho = (dmu_t * mu_n - mu_t * dmu_n) / (mu_n * mu_n)
+    return rho, dk, drho, ddk, branch
+
+
 CONE_ITER = 200  # iterations of each 1-D root of the cone's impulse at most (doublings of its bracket too)
 
 

@@ -28,6 +28,14 @@ in ``(x, d)``, their partials chained. Phases:
   at a segment's start changes the active set only; then the constrained rest with the active set it has
   (``Tracker.held`` from the segment's tangents) or the free rest (46), with its own impacts (47)-(79);
 * forces of time: the time slot of ``par`` is the start of the segment, its tangent ``d t~/dz``;
+* Coulomb friction in one mode (MATH.md *Friction*): a held step whose frictional contacts slip throughout
+  (the slip slot ``-mu_f s`` of ``par``, ``s`` fixed within the mode for one tangent, its tangent through
+  ``mu_f``: ``d_friction``; an isotropic cone's ``s`` aimed at the segment's start from the state, its tangent
+  through that aim, :meth:`Tracker._cone_slots`) or stick throughout (the stick row ``t(q) - ref = 0`` held,
+  ``d ref = grad t(q_k) dq_k``): :meth:`Tracker._friction_slots`; a frictional impact (one tangent) in the
+  branch of Coulomb's impulse law it takes (stick, or slip at either edge of the cone): the impulse direction
+  ``n + rho t`` and the energy ``E + dK`` by :func:`vcigen.friction.impact_law_tangent`
+  (:meth:`Tracker._friction_impact`);
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
@@ -37,11 +45,13 @@ in ``(x, d)``, their partials chained. Phases:
   (``d_rattle_end``; :meth:`Tracker._held_sub`).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
-group of contacts at once, free or while held), a grazing impact taking the continuous law, a held step
-with friction (a friction switch) or with an event under a rule with internal points, friction at an
-impact, the ``_restart`` fallback. From the first such
-step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
-``Result.sensitivity_breaks`` lists ``(step, reason)``.
+group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
+a held step while friction acts or under a rule with internal points, a friction switch (``"friction switch
+in a held step"``: stick <-> slip, the sliding direction turned, a contact released or on another face),
+several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse at an
+impact, the ``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for
+``j > k``), ``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists
+``(step, reason)``.
 """
 
 from __future__ import annotations
@@ -215,6 +225,7 @@ class Tracker:
         base = np.zeros((tangents.npar, self.K))
         base[: tangents.P, 2 * self.n :] = np.eye(tangents.P)
         self._par0 = base
+        self._slots: np.ndarray | None = None  # the friction slots' tangent in a held step (_friction_slots)
         self.step = -1
         self.cur: np.ndarray | None = None  # S_k
         self.next: np.ndarray | None = None  # S_k+1, once a hook has it
@@ -229,12 +240,132 @@ class Tracker:
         return par
 
     def dpar(self, dt: np.ndarray | None) -> np.ndarray:
-        """``d par / dz``: ``I_P`` on the model's parameters, 0 on the friction slots, ``dt`` on time."""
+        """``d par / dz``: ``I_P`` on the model's parameters, ``dt`` on time, on the friction slots 0 but in a
+        held step with friction (:meth:`_friction_slots`)."""
+        out = self._par0 if self._slots is None else self._par0 + self._slots
         if not self.timed or dt is None:
-            return self._par0
-        out = self._par0.copy()
+            return out
+        out = out.copy()
         out[-1] = dt
         return out
+
+    def _friction_slots(self, q, dq, act, t: float) -> np.ndarray | None:
+        """The tangent of the friction slots of ``par`` within a friction mode (MATH.md *Friction*), at the
+        start ``q`` of a held segment (``dq`` its tangent): a slipping contact's slot ``-mu_f s`` moves with
+        ``mu_f`` alone (``d_friction``; the sliding direction ``s`` of a one-tangent contact is fixed within
+        the mode), a sticking one's reference ``ref_f`` with the point it sticks at: its stick row
+        ``tangent_f(q) - ref_f = 0`` holds at every point of the mode, so ``d ref_f = grad tangent_f(q) dq``
+        (exact, whenever the stick began: before the step it held at ``q`` too). The branch signs: 0.
+        ``None`` without friction (every slot 0)."""
+        k = self.k
+        nf = len(getattr(k, "frictional", ()))
+        if not nf:
+            return None
+        fs, par = k.friction_slot, self.par(t)
+        out = np.zeros((self.tg.npar, self.K))
+        slip = par[fs : fs + nf]
+        if slip.any():
+            mu = k.friction(q)[0]
+            dmu = self.tg.get("d_friction")(q, par)[0] @ self._par0  # (m, K): mu_f moves with the parameters
+            for f, j in enumerate(k.frictional):
+                if slip[f]:
+                    out[fs + f] = slip[f] / mu[j] * dmu[j]
+        grad = self.tg.get("rows")(q, np.zeros(self.n), par)[1]
+        for f in range(nf):
+            sr = k.row_stick.index(f)
+            if act[sr]:
+                out[fs + nf + f] = grad[sr] @ dq[:, : self.K]
+        return out
+
+    def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray) -> bool:
+        """The slip slots of the slipping cones (two tangents) in ``out``: ``SustainedSteps._cone_aim`` at the
+        segment's start ``(q, u)``, ``u = M^-1 p`` (the stepper's one Newton step, exact for a momentum
+        linear in the velocity): every slipping cone first along its sliding velocity ``w = (grad t1 . u,
+        grad t2 . u)``, ``s0 = -mu_f w / |w|``, then, if the stepper took it, along the midpoint prediction
+        ``mid = w + tau/2 (grad t . a + curv_t)``, ``s1 = -mu_f mid / |mid|``, ``a`` the acceleration of
+        the force law with the directions ``s0`` (``M a = rhs + dirs^T lam``, ``G a + curv = 0`` on the
+        active rows: its tangent by the implicit-function theorem with ``d_forces`` at ``lam~``, the stick
+        rows carrying ``s lam``). Which one the stepper took is read from the slots (to 1e-9); ``False`` if
+        neither (the implicit aim of several cones near rest, or a cone too slow to aim): no tangent then."""
+        k, n, K, tg = self.k, self.n, self.K, self.tg
+        fs, nf = k.friction_slot, len(k.frictional)
+        par = self.par(t)
+        cones = [(f, g) for f, g in enumerate(k.partner) if g > f and (par[fs + f] or par[fs + g])]
+        if not cones:
+            return True
+        rows = [k.row_stick.index(f) for f in range(nf)]
+        dpar = self._par0 + out  # the one-tangent slips' tangents already in out
+        mom0, mass0 = k.legendre(q, np.zeros(n))
+        u = np.linalg.solve(mass0, p - mom0)
+        dmom0, dma0 = tg.get("d_legendre")(q, np.zeros(n), u, par)
+        d0 = np.vstack([dq, np.zeros((n, K)), dpar])
+        du = np.linalg.solve(mass0, dp - (dmom0 + dma0) @ d0)
+        _, grad, curv = k.rows(q, u)
+        rhs, mass = k.dynamics(q, u)[0], k.legendre(q, u)[1]
+        dgrad = tg.get("d_rows")(q, u, par)[0]
+        dqp = np.vstack([dq, dpar])
+        mu = k.friction(q)[0]
+        dmu = tg.get("d_friction")(q, par)[0] @ self._par0
+        tiny = 1e-12 * (1.0 + float(np.max(np.abs(u))))  # sustained.SLIDE_EPS
+
+        def unit(vec, dvec, m, dm):  # -m vec/|vec| and its tangent
+            nv = float(np.linalg.norm(vec))
+            e = vec / nv
+            return -m * e, -np.outer(e, dm) - m * (dvec - np.outer(e, e @ dvec)) / nv
+
+        slip = par[fs : fs + nf].copy()
+        dslip = out[fs : fs + nf].copy()
+        w, dw = {}, {}
+        for f, g in cones:
+            rr = [rows[f], rows[g]]
+            w[f] = np.array([grad[r] @ u for r in rr])
+            dw[f] = np.array([u @ (dgrad[r * n : (r + 1) * n] @ dqp) + grad[r] @ du for r in rr])
+            if float(np.linalg.norm(w[f])) <= tiny:
+                return False
+            j = k.frictional[f]
+            slip[[f, g]], dslip[[f, g]] = unit(w[f], dw[f], mu[j], dmu[j])
+        # the force law with the directions s0 (SustainedSteps._forces), and its tangent
+        on = np.flatnonzero(act)
+        dirs = grad.copy()
+        for f, j in enumerate(k.frictional):
+            if slip[f]:
+                dirs[[r for r in on if k.row_contact[r] == j]] += slip[f] * grad[rows[f]]
+        jac = np.block([[mass, -dirs[on].T], [grad[on], np.zeros((on.size, on.size))]])
+        sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[on]]))
+        acc, lam = sol[:n], np.zeros(k.r)
+        lam[on] = sol[n:]
+        lam_t = lam.copy()  # the stick rows carry slip_f times their contact's normal force
+        normal = {}
+        for f, j in enumerate(k.frictional):
+            if slip[f]:
+                normal[f] = sum(lam[r] for r in on if k.row_contact[r] == j)
+                lam_t[rows[f]] += slip[f] * normal[f]
+        dres = tg.get("d_forces")(q, u, acc, lam_t, par)[0]
+        d_state = np.vstack([dq, du, self._par0])
+        d_state[2 * n :] += out  # the one-tangent slips (par's friction slots)
+        df = dres[np.r_[np.arange(n), n + on]] @ d_state
+        for f, s in normal.items():  # the slips' own columns: -N_f grad t_f dslip_f
+            df[:n] -= s * np.outer(grad[rows[f]], dslip[f])
+        dsol = -np.linalg.solve(jac, df)
+        dacc = dsol[:n]
+        for f, g in cones:
+            rr = [rows[f], rows[g]]
+            turn = 0.5 * tau * np.array([grad[r] @ acc + curv[r] for r in rr])
+            dturn = 0.5 * tau * np.array([dres[n + r] @ d_state + grad[r] @ dacc for r in rr])
+            j = k.frictional[f]
+            s0, ds0 = slip[[f, g]], dslip[[f, g]]
+            have = par[fs + np.array([f, g])]
+            scale = 1e-9 * max(mu[j], 1e-300)
+            if float(np.linalg.norm(w[f] + turn)) > tiny:
+                s1, ds1 = unit(w[f] + turn, dw[f] + dturn, mu[j], dmu[j])
+                if np.abs(have - s1).max() <= scale:
+                    out[fs + f], out[fs + g] = ds1
+                    continue
+            if np.abs(have - s0).max() <= scale:
+                out[fs + f], out[fs + g] = ds0
+                continue
+            return False
+        return True
 
     def start(self, q0, v0, t0: float, cap: int) -> None:
         """``S_0``: ``dq0/dz = [I 0 0]``, ``dp0/dz = [dmom/dq, M, dmom/dpar]`` (``d_legendre``)."""
@@ -356,14 +487,22 @@ class Tracker:
         self.dvin, self.t_seg = dv, t_c
 
     @_guarded
-    def jump(self, seg, v_in, rest: float, kind: str) -> None:
-        """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39)."""
+    def jump(self, seg, v_in, rest: float, kind: str, law=None) -> None:
+        """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39), or with
+        Coulomb friction (``law = (j, n)``: the contact and its normal before the impulse direction became
+        ``n + rho t``) the tangent of its impulse law (:meth:`_friction_impact`)."""
         if not self.active:
             return
         if kind == "plastic":  # the impulse law and the constrained rest of the step follow (plastic, held)
             return
         if kind != "jump":
             self.lose(f"{kind} impact")
+            return
+        if law is not None and getattr(self.k, "cone", ()) and self.k.cone[law[0]]:
+            self.lose("friction at an impact")  # the isotropic cone's impulse: not differentiated
+            return
+        if law is not None:
+            self._friction_impact(seg, v_in, rest, *law)
             return
         if rest >= 1.0:
             return
@@ -389,6 +528,49 @@ class Tracker:
             nv * dnv / nmn - 0.5 * nv * nv * dnmn / (nmn * nmn)
         )
         self.de = self.de - dloss
+
+    def _friction_impact(self, seg, v_in, rest: float, j: int, nrm) -> None:
+        """Coulomb friction at an impact on contact ``j`` (``Stepper._frictional_law``, :func:`impact_law`)
+        in the branch it took: the jump (48) runs along ``n + rho t`` with the energy ``E + dK``; ``dnrm`` and
+        ``de`` become their tangents. ``rho`` and ``dK`` are closed forms of ``n.qdot``, ``t.qdot``,
+        ``n.A n``, ``n.A t``, ``t.A t`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the
+        inverse Legendre transform from ``v_in``), ``mu_f`` and ``e``
+        (:func:`vcigen.friction.impact_law_tangent`); ``dn`` is the contact time's ``dnrm``, ``dt`` from
+        ``d_friction``, ``d(A n) = A (dn - d(M) A n)`` by ``d_legendre``."""
+        from .friction import impact_law_tangent
+
+        k, n = self.k, self.n
+        par, dpar = self.par(seg.t), self.dpar(self.dt)
+        mom0, mass0 = k.legendre(seg.q, v_in)
+        a = np.linalg.solve(mass0, seg.p_in - mom0)
+        vel = v_in + a
+        dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
+        mu, tgrad, _ = k.friction(seg.q)
+        t = tgrad[j]
+        mass = k.legendre(seg.q, vel)[1]
+        an, at = np.linalg.solve(mass, np.column_stack([nrm, t])).T
+        dmu, dtg = self.tg.get("d_friction")(seg.q, par)
+        dt = dtg[j * n : (j + 1) * n] @ np.vstack([self.dq, dpar])
+        dn = self.dnrm
+        dleg = self.tg.get("d_legendre")
+        d_state = np.vstack([self.dq, dvel, dpar])
+        dan = np.linalg.solve(mass, dn - dleg(seg.q, vel, an, par)[1] @ d_state)
+        dat = np.linalg.solve(mass, dt - dleg(seg.q, vel, at, par)[1] @ d_state)
+        scalars = (float(nrm @ vel), float(t @ vel), float(nrm @ an), float(nrm @ at), float(t @ at))
+        dscalars = np.array(
+            [
+                vel @ dn + nrm @ dvel,
+                vel @ dt + t @ dvel,
+                an @ dn + nrm @ dan,
+                at @ dn + nrm @ dat,
+                at @ dt + t @ dat,
+            ]
+        )
+        de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
+        law = impact_law_tangent(scalars, dscalars, float(mu[j]), dmu[j] @ dpar, rest, de_rest)
+        rho, _, drho, ddk, _ = law
+        self.dnrm = dn + np.outer(t, drho) + rho * dt
+        self.de = self.de + ddk
 
     def _dvel(self, q, v_in, a, mass0, par, dpar) -> np.ndarray:
         """Tangent of ``vel = v_in + a``, ``a = M(q, v_in)^-1 (p - mom(q, v_in))`` (``Stepper._velocity``, one
@@ -489,7 +671,15 @@ class Tracker:
             dq, dp, dtau, dt, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
         else:
             dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
-        dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t)
+        self._slots = self._friction_slots(q, dq, act, t)
+        if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots):
+            self._slots = None
+            self.lose("a phase without a tangent")
+            return
+        try:
+            dq1, du1, dpar = self._held_sub(q, p, tau, v, lam, lam1, lam_m, u1, act, dq, dp, dtau, dt, t)
+        finally:
+            self._slots = None
         dmom, _ = self.tg.get("d_legendre")(q + tau * v, u1, np.zeros(n), self.par(t))
         self.next = np.vstack([dq1, dmom @ np.vstack([dq1, du1, dpar])])
 

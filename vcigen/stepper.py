@@ -114,6 +114,8 @@ class Stepper(SustainedSteps, HeldSteps):
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
         self._ev_tan = None  # inside a held step: the tangent its events are carried by (SustainedSteps)
         self._ev_entry = self._ev_done = False
+        self._law = None  # the last jump's frictional law (contact, normal before it): Tracker.jump's
+        self._fswitch = False  # a held step's first event was a friction switch (Stepper._tangent_held)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -255,14 +257,16 @@ class Stepper(SustainedSteps, HeldSteps):
 
     def _tangent_held(self, q, p, tau: float, entry: bool, run, *args):
         """``run()``, a held step (or the rest of a step after a plastic impact, ``entry``), with the
-        tangent's hooks set aside: its phases have none. One with its active set unchanged (one segment, no
-        event, no friction) leaves its solution in ``_held_seg``: then ``Tracker.held``; its events carried
-        one by one as they happen (``_ev_tan``, ``SustainedSteps._ev_*``; ``_ev_done``: covered), a lone
-        lift-off then a free rest ``Tracker.liftoff``; else a break."""
+        tangent's hooks set aside: its phases have none. One with its active set and friction mode unchanged
+        (one segment, no event, no switch, no cone slipping) leaves its solution in ``_held_seg``: then
+        ``Tracker.held``; its events carried one by one as they happen (``_ev_tan``, ``SustainedSteps._ev_*``;
+        ``_ev_done``: covered; frictionless only), a lone lift-off then a free rest ``Tracker.liftoff``; else
+        a break (``"friction switch in a held step"`` if a switch stopped it first)."""
         tan, self._tan = self._tan, None
         self._held_seg, self._record_held = None, tan is not None
         self._lift_seg = self._free_seg = None
         self._ev_tan, self._ev_entry, self._ev_done = self._events_tangent(tan), entry, False
+        self._fswitch = False
         try:
             out = run(*args)
         finally:
@@ -275,7 +279,7 @@ class Stepper(SustainedSteps, HeldSteps):
             sub, r, s, tau_s = self._lift_seg
             tan.liftoff(sub, r, s, tau_s, self._free_seg, entry)
         elif tan is not None and not entry:
-            tan.lose("held step (sustained contact)")
+            tan.lose("friction switch in a held step" if self._fswitch else "held step (sustained contact)")
         elif tan is not None and tan.active:
             tan.lose("plastic impact")
         return out
@@ -392,7 +396,7 @@ class Stepper(SustainedSteps, HeldSteps):
             seg.rest = e_rest
             x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
             if self._tan is not None:
-                self._tan.jump(seg, v_c, e_rest, kind)
+                self._tan.jump(seg, v_c, e_rest, kind, self._law)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
                 self._count_event(step, t_k)
                 p_plus, lam, loss, rows = self._plastic_entry(step, t_k, h, q_c, p_minus_c, v_c, t_c, group)
@@ -563,15 +567,16 @@ class Stepper(SustainedSteps, HeldSteps):
         k = self.k
         n = k.n
         self._at(seg.t)
+        self._law = None
         vel, minv_n, nv, nmn, mu0 = self._continuous_law(seg.q, v_in, seg.p_in, seg.nrm, restitution)
         sustain = self.tol.grazing == "contact" and k.r > 0
         accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
         pressed = accel < 0.0
         if pressed and self._settles(nv, accel, restitution, self._h):
             return None, "plastic"
+        nrm0 = seg.nrm
         law = self._frictional_law(seg, vel, group, restitution) if nv < 0.0 else None
-        if law is not None and self._tan is not None:
-            self._tan.lose("friction at an impact")
+        self._law = (group[0], nrm0) if law is not None else None  # the tangent's (Tracker.jump)
         if law is not None:  # Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK
             mu0, minv_n, dk = law
             seg.e_in += dk

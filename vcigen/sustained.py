@@ -150,6 +150,7 @@ class SustainedSteps:
         self._booked = False  # whether a constraint acted in it
         self._chained = False  # whether it ran the constrained chain (the active set may have changed)
         self._held = bool(self.act.any())  # whether any row is active at the start of the next step
+        self._braked = False  # whether cones were aimed implicitly in this step (_cone_brake)
 
     def _start_sustained(self, q0, v0, h: float) -> None:
         """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in."""
@@ -259,6 +260,20 @@ class SustainedSteps:
                     self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
         self._cone_modes(q, u, tau)
         self._set_friction()
+
+    def _friction_mode(self) -> tuple:
+        """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks; a
+        slipping cone's slips as 1 (its direction is aimed anew every segment, within the mode)."""
+        slip = self._slip.copy()
+        for f, p in self._cones():
+            if slip[f] or slip[p]:
+                slip[[f, p]] = 1.0
+        slots = (*slip.tolist(), *self._ref.tolist(), *self._branch.tolist())
+        return (*self.act.tolist(), *slots, *self._ride)
+
+    def _friction_acts(self) -> bool:
+        """Whether a frictional contact slips or holds its stick row."""
+        return bool(self._slip.any() or any(self.act[sr] for sr in self._stick_rows))
 
     # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) -----------
     def _dependent(self, grad, sr: int, skip: int = -1) -> bool:
@@ -371,6 +386,7 @@ class SustainedSteps:
             if math.hypot(*w) <= BRAKE * tau * brake:
                 slow.append((f, p))
         if len(slow) >= 2:  # several cones near rest: implicit in the direction
+            self._braked = True
             aims = [a for a in aims if (a[0], a[1]) not in slow] + self._cone_brake(slow, q, u, tau)
         for f, p, slip in aims:
             self._slip[[f, p]] = slip
@@ -651,13 +667,19 @@ class SustainedSteps:
         """The rest of a grid step from ``(q, p)`` at ``t`` (``tau`` left) with the active rows held."""
         k, tol = self.k, self.tol
         self._chained = True
-        plain = not self._stick_rows  # no event, no friction so far: a held step the tangent goes through
+        plain = True  # no event, no change of friction mode so far: a held step the tangent goes through
+        self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
+                mode = self._friction_mode()
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
+                # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
+                same = mode == self._friction_mode()
+                self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
+                plain = plain and same and not self._braked
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
             if not plain:  # a constrained segment after an event: no lift-off then a free rest
@@ -680,8 +702,9 @@ class SustainedSteps:
                         self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
                     )
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
-                plain = False
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
+                self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
+                plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
                 else:
@@ -708,10 +731,12 @@ class SustainedSteps:
             act0 = self.act.copy()
             q_s, p_s, tau_s = q, p, tau
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
-            if plain and self._record_held and events[r0][0] == "lift":  # the tangent: Tracker.liftoff
+            if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
+                # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
             else:  # one event of several, or an impact while held (Tracker.event)
                 self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
+            self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)

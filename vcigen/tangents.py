@@ -21,6 +21,9 @@ named ``d_<routine>`` (SENS_DESIGN.md):
 * ``d_legendre(q, v, a, par)``: ``dmom = d mom / d(q, v, par)`` and ``dmass_a = d (M(q, v) a) / d(q, v, par)``
   (the tangent of one Newton step of the inverse Legendre transform, and of ``M^-1 n``);
 * ``d_restitution(par)``: ``de``, ``m x npar`` (the loss of (39));
+* ``d_friction(q, par)`` (a model with friction): ``dmu``, ``m x npar``: each contact's ``mu_f`` in ``par``
+  (the tangent of a slip slot ``-mu_f s``, the sliding direction ``s`` fixed within a friction mode), and
+  ``dtgrad``, ``(m n) x (n + npar)``: the tangents' gradients (a frictional impact's direction ``n + rho t``);
 * ``d_rows(q, u, par)``: ``dgrad``, ``(R n) x (n + npar)``: the rows' gradients (a plastic impact's
   impulse law);
 * ``d_forces(q, u, a, lam, par)``: ``dres``, ``(n + R) x (2n + npar)``: ``d/d(q, u, par)`` of the contact
@@ -189,6 +192,23 @@ def restitution_tangent(r: Routine) -> Routine:
     )
 
 
+def friction_tangent(r: Routine) -> Routine:
+    """``d_friction(q, par)``: partials of each contact's ``mu_f`` in ``par`` (a slip slot's tangent) and of
+    the tangents' gradients (row-major, ``(m n) x (n + npar)``, as ``d_contacts``; a frictional impact's)."""
+    par = r.inputs[-1]
+    tgrad = r.output("tgrad").expr
+    flat = sp.Matrix(tgrad.rows * tgrad.cols, 1, list(tgrad))
+    return Routine(
+        "d_friction",
+        r.inputs,
+        (
+            Output("dmu", jacobian(r.output("mu").expr, list(par.symbols))),
+            Output("dtgrad", jacobian(flat, _data_symbols(r.inputs))),
+        ),
+        "Partials of each contact's mu_f in par and of its tangent's gradient in (q, par) (Coulomb).",
+    )
+
+
 def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     """The ``d_*`` routines of the derived ``routines`` (a :class:`DiscreteSystem`'s), by name."""
     out = {
@@ -197,6 +217,8 @@ def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
         "d_legendre": legendre_tangent(routines["legendre"]),
         "d_restitution": restitution_tangent(routines["restitution"]),
     }
+    if "friction" in routines:
+        out["d_friction"] = friction_tangent(routines["friction"])
     if "rows" in routines:
         out["d_rows"] = rows_tangent(routines["rows"])
         out["d_forces"] = forces_tangent(routines)

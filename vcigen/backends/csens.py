@@ -49,6 +49,7 @@ SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("SINGULAR_JUMP_END", "a singular Jacobian in the tangent of jump_end"),
     ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
     ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
+    ("FRICTION_SWITCH", "friction switch in a held step"),
 )
 BASE_ROUTINES = ("d_segment", "d_contacts", "d_legendre", "d_restitution", "d_smooth", "d_jump")
 
