@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from forced_scenes import driven_oscillator
 from hard_scenes import ball, box, double_pendulum, star
+from test_sensitivity_friction import incline_disk
 from test_sustained_closed_forms import pendulum
 
 from vcigen.backends.casadi import routine_to_function
@@ -14,6 +15,7 @@ from vcigen.derive import derive
 
 SCENES = {"box_lossy": lambda: box(lossy=True), "star": star, "double_pendulum": double_pendulum}
 SCENES["driven"] = driven_oscillator
+SCENES["incline_disk"] = incline_disk  # Coulomb friction: d_friction
 # under lobatto3 (internal points held on the rows): the wider rattle (v, Lam, Lam_m, u) and rattle_end
 LOBATTO3 = {"ball_lobatto3": ball, "pendulum_lobatto3": pendulum}
 
@@ -27,6 +29,9 @@ def _reference(system, name: str, ins: list) -> list:
         mass = routine_to_function(system.routines["legendre"])(q, u, par)[1]
         res = ca.vertcat(ca.mtimes(mass, a) - rhs - ca.mtimes(grad.T, lam), ca.mtimes(grad, a) + curv)
         return [ca.jacobian(res, ca.vertcat(q, u, par))]
+    if name == "psi":  # the rows' values in (q, par): a row crossed while others are held
+        q, _, par = ins
+        return [ca.jacobian(routine_to_function(system.routines["rows"])(*ins)[0], ca.vertcat(q, par))]
     base = system.routines[name]
     g = routine_to_function(base)
     if name == "legendre":
@@ -38,6 +43,9 @@ def _reference(system, name: str, ins: list) -> list:
         return [ca.jacobian(g(*ins)[0], ca.vertcat(*ins[1:]))]
     if name == "contacts":
         return [ca.jacobian(ca.vec(g(*ins)[1].T), ca.vertcat(*ins))]
+    if name == "friction":  # each contact's mu_f in par; the tangents' gradients, row-major, in (q, par)
+        mu, tgrad = g(*ins)[:2]
+        return [ca.jacobian(mu, ins[-1]), ca.jacobian(ca.vec(tgrad.T), ca.vertcat(*ins))]
     if name == "rows":  # the rows' gradients, row-major, in (q, par); u does not enter them
         q, _, par = ins
         return [ca.jacobian(ca.vec(g(*ins)[1].T), ca.vertcat(q, par))]
@@ -55,7 +63,9 @@ def test_tangents_match_automatic_differentiation(scene: str) -> None:
     expected = {"d_smooth", "d_jump", "d_segment", "d_contacts", "d_legendre", "d_restitution"}
     expected |= {f"d_{p}_{c}" for p in ("contact_time", "jump_contact") for c in system.contact_names}
     if "rows" in system.routines:  # sustained contact: the held step's residuals and the rows' directions
-        expected |= {"d_rattle", "d_rattle_project", "d_rows", "d_forces"}
+        expected |= {"d_rattle", "d_rattle_project", "d_rows", "d_forces", "d_psi"}
+    if "friction" in system.routines:  # Coulomb: mu_f in par, the tangents' gradients
+        expected.add("d_friction")
     if rule == "lobatto3" and "rows" in system.routines:  # p+ of a constrained segment, internal points held
         expected.add("d_rattle_end")
         assert system.routines["rattle"].inputs[0].size == 2 * system.n + 2 * system.r  # (v, Lam, Lam_m, u)
