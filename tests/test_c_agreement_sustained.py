@@ -285,7 +285,7 @@ def _same_to_newton_tolerance(fast: vcigen.Result, slow: vcigen.Result) -> None:
 @pytest.mark.parametrize("name", sorted(HELD))
 def test_held_step_c_loop_casadi_and_python(name: str) -> None:
     """The C loop's held glide is the Python stepper on the C kernels bit for bit (to 1e-12), and CasADi's
-    held step (vcigen.held.held_step on its routines) the same trajectory to round-off."""
+    held step (vcigen.held_step.held_step on its routines) the same trajectory to round-off."""
     _, q0, v0, h, t_end = HELD[name]
     c = held_sim(name, "c").simulate(q0, v0, h, t_end=t_end)
     py, _ = _stepper_run(name, "c", True)

@@ -4,7 +4,7 @@ A row ``psi`` whose zero set is that of a quadratic ``F`` (a circle's, a sphere'
 RATTLE's position step ``q1 = a + Lam b`` with ``psi(q1) = 0`` is the quadratic ``F(a + Lam b) = 0`` in
 ``Lam``, solved by one square root; the tangent projection divides by ``W = grad F . M^-1 grad F``, a
 constant on the surface when the mass is isotropic. Checked here: which rows are detected, the surface
-values, and each step against the held Newton (held.held_step with the closed form off) and against the
+values, and each step against the held Newton (held_step.held_step with the closed form off) and against the
 geometry (q1 on the row, q1 - a along grad psi(q0)). Whole trajectories across the backends:
 tests/test_c_agreement_sustained.py.
 """
@@ -18,7 +18,7 @@ import pytest
 import sympy as sp
 
 import vcigen
-from vcigen import held
+from vcigen import held, held_step
 from vcigen.derive import derive
 
 X, Y, Z, XD, YD, ZD = sp.symbols("x y z xd yd zd")
@@ -166,11 +166,11 @@ def test_closed_step_is_the_held_newton_step(name: str, h: float) -> None:
             refused += 1
             continue
         taken += 1
-        # the Newton ends where |psi(q1)| <= held.ABSTOL (1e-13): q1 within that; p1's error is its tangential
-        # part, O(h) of it
+        # the Newton ends where |psi(q1)| <= held_step.ABSTOL (1e-13): q1 within that; p1's error is its
+        # tangential part, O(h) of it
         scale = 1.0 + np.abs(p).max()
-        np.testing.assert_allclose(fast.q1, slow.q1, rtol=0, atol=2 * held.ABSTOL)
-        np.testing.assert_allclose(fast.p1, slow.p1, rtol=0, atol=2 * held.ABSTOL * scale)
+        np.testing.assert_allclose(fast.q1, slow.q1, rtol=0, atol=2 * held_step.ABSTOL)
+        np.testing.assert_allclose(fast.p1, slow.p1, rtol=0, atol=2 * held_step.ABSTOL * scale)
         assert fast.energy == pytest.approx(slow.energy, abs=1e-12 * scale**2)
         # psi(q1) = 0 fixes Lam only to the rounding of q1 (eps |q1|): in v that is eps |q1| / h, which Lam
         # and Lam' each carry and their sum (the impulse the step books, the contact force) does not

@@ -15,7 +15,7 @@ import pytest
 import sympy as sp
 
 import vcigen
-from vcigen import held
+from vcigen import held, held_step
 from vcigen.derive import derive
 
 X, Y, Z, XD, YD, ZD = sp.symbols("x y z xd yd zd")
@@ -113,14 +113,14 @@ def test_held_line_is_the_row_along_the_line() -> None:
 
 def _newton_steps(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
     """Held steps taken and the held Newton steps they made past the first evaluation and the line start
-    (``held.factor_small`` calls less the one of each step's projection), on CasADi's kernels
-    (held.held_step), with the line start or (``lines`` False) without. The closed-form step of a circle
-    (``held.closed_step``, tests/test_held_closed.py) would take these rows past both: it is off here."""
+    (``held_step.factor_small`` calls less the one of each step's projection), on CasADi's kernels
+    (held_step.held_step), with the line start or (``lines`` False) without. The closed-form step of a circle
+    (``held_step.closed_step``, tests/test_held_closed.py) would take these rows past both: it is off here."""
     s = vcigen.build(model(), backend="casadi")
     k = s.kernels.bind(s.model.resolve_params(None))
     assert any(k.held_closed)  # the bowl and the rod are closed rows: switched off below
     k.held_closed = [False] * len(k.held_closed)
-    kept, factor = k.held_lines, held.factor_small
+    kept, factor = k.held_lines, held_step.factor_small
     k.held_lines = kept if lines else [False] * len(kept)
     calls, taken = [0], [0]
 
@@ -130,7 +130,7 @@ def _newton_steps(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
 
     step = k.held_step
 
-    def held_step(*args):
+    def counted_step(*args):
         before = calls[0]
         out = step(*args)
         if out is not None:
@@ -140,13 +140,13 @@ def _newton_steps(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
             calls[0] = before  # only the held steps taken are counted
         return out
 
-    held.factor_small, k.held_step = counted, held_step
+    held_step.factor_small, k.held_step = counted, counted_step
     try:
         from vcigen.stepper import Stepper
 
         res = Stepper(k, s.tol).simulate(q0, v0, h, t_end=steps * h)
     finally:
-        held.factor_small, k.held_lines = factor, kept
+        held_step.factor_small, k.held_lines = factor, kept
         del k.held_step
     assert len(res.t) == steps + 1 and not res.liftoffs
     return taken[0], calls[0]

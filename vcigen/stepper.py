@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import NONFINITE, SolverError
 from .friction import cone_law, impact_law
-from .held import HeldSteps
+from .held_step import HeldSteps
 from .progress import Progress
 from .result import Impact, Result
 from .sustained import SustainedSteps, SustainLog, held_contacts

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..derive import WHOLE, DiscreteSystem, set_rows
 from ..explicit import grid_routines, jump_quadratic, path_routines
-from ..held import held_routines, held_step
+from ..held import held_routines
+from ..held_step import held_step
 from ..routines import Routine
 from ..simulator import Simulator
 from ..stepper import Tolerances
@@ -108,7 +109,7 @@ class CasadiKernels(ParameterSlots):
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
         self.held_pattern = list(self.structure.held_pattern)
         self.held_lines = list(self.structure.held_lines)  # held_line's rows
-        self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held.closed_step)
+        self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held_step.closed_step)
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -349,7 +350,7 @@ class CasadiKernels(ParameterSlots):
 
     # -- the held grid step (vcigen.held) ----------------------------------------------
     def held_step(self, q, p, lam_in, act, h: float, residual: float, phi_tol: float):
-        """``vcigen.held.held_step`` on these kernels."""
+        """``vcigen.held_step.held_step`` on these kernels."""
         return held_step(self, q, p, lam_in, act, h, residual, phi_tol)
 
     def held_consts(self, h: float) -> np.ndarray:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
 from ..errors import SolverError
-from ..held import Held
+from ..held_step import Held
 from ..progress import Progress
 from ..result import Result
 from ..simulator import MAX_CONDITION, ManyStarts, Simulator, conditions
@@ -295,7 +295,7 @@ class CKernels(ParameterSlots):
         return rattle_segment(self, q, p, tau, x0, act)
 
     def held_step(self, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
-        """``vcigen.held.held_step``, by the C loop's own ``<model>_held_step``."""
+        """``vcigen.held_step.held_step``, by the C loop's own ``<model>_held_step``."""
         n, r = self.n, self.r
         lam, lam1, q1, p1, v, e = (
             np.array(lam_in, dtype=float),  # a copy: the C step writes Lam into it

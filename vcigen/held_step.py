@@ -1,0 +1,208 @@
+"""The held grid step run by the Python stepper (:class:`HeldSteps`, :func:`held_step`, :func:`closed_step`)
+on the routines of :mod:`vcigen.held` (whose docstring gives the algorithm). The C loop
+(``<model>_held_glide`` in ``templates/sustained.c.j2``) and :func:`held_step` are one algorithm; a step
+whose end shows an event, whose solve does not converge or whose state is not finite is not taken (``None``):
+the general chain (:mod:`vcigen.sustained`) takes it from the same start.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from .sustained import EPS_LAM
+
+HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
+
+ABSTOL, ABSTOL_STEP = 1e-13, 1e-15  # the general Newton's (backends.ccontext.NEWTON)
+
+
+def factor_small(a: np.ndarray):
+    """``a`` factored for :func:`apply_small` (the C ``<model>_held_factor``): for 1 and 2 unknowns its
+    inverse in closed form, above ``a`` itself (solved by LU); ``None`` if singular."""
+    na = a.shape[0]
+    if na == 1:
+        return None if not a[0, 0] != 0.0 else np.array([[1.0 / a[0, 0]]])
+    if na == 2:
+        det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+        if not det != 0.0:
+            return None
+        inv = 1.0 / det
+        return np.array([[a[1, 1] * inv, -a[0, 1] * inv], [-a[1, 0] * inv, a[0, 0] * inv]])
+    return None if np.linalg.matrix_rank(a) < na else a
+
+
+def apply_small(f: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The solution of ``a x = b`` from ``f = factor_small(a)`` (the C ``<model>_held_apply``)."""
+    if len(b) == 1:
+        return np.array([b[0] * f[0, 0]])
+    if len(b) == 2:
+        return np.array([f[0, 0] * b[0] + f[0, 1] * b[1], f[1, 0] * b[0] + f[1, 1] * b[1]])
+    return np.linalg.solve(f, b)
+
+
+def all_finite(energy: float, forces: np.ndarray, q1: np.ndarray, p1: np.ndarray) -> bool:
+    """Whether ``E_d``, the active rows' forces, ``q1`` and ``p1`` are all finite, by one test of their sum in
+    the C loop's order: a sum of finite values is not finite only past ~1e307 (then the general chain takes
+    the step, as for a non-finite value)."""
+    total = energy
+    for f in forces:
+        total += float(f)
+    for a, b in zip(q1, p1):
+        total += float(a)
+        total += float(b)
+    return bool(np.isfinite(total))
+
+
+class Held(NamedTuple):
+    """A held grid step that cleared its tests: the end state and what the step books."""
+
+    q1: np.ndarray
+    p1: np.ndarray
+    v: np.ndarray
+    lam: np.ndarray  # Lam per row (0 off the active rows)
+    lam1: np.ndarray  # Lam' per row
+    energy: float
+
+
+def line_start(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The held Newton's second start on one row with a :func:`line_form` (C: ``<model>_held_line_start``).
+
+    Two Newton steps from the previous multipliers ``x`` on the row's quadratic along the line,
+    ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` (exact in ``Lam``: no evaluation of the rows, no square root),
+    where they give a finite number; else ``x``. Each squares the error times ``coef[0] / (2 coef[0] Lam +
+    coef[1])`` (``O(h)``): the evaluation at their end then converges (bench bowl, h = 1e-3 and 1e-2).
+    """
+    x0 = float(x[0])
+    x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1])
+    root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1])
+    return np.array([root]) if math.isfinite(root) else x
+
+
+def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: float) -> Held | None:
+    """:func:`held_step` on one active row with a closed form (:func:`closed_forms`; C:
+    ``<model>_held_closed_step``): the root of the row's quadratic along the line (``held_closed``), then the
+    segment, the projection, the force and the residual (``held_root_end``) and the tests of ``held_step``
+    in the same order; ``None`` where the root does not hold (``B <= 0`` or ``D < 0``) or a test fails."""
+    kc = k.held_consts(h)
+    m, e, f, s, _, _ = k.held_root_dir(q, kc)
+    v, q1, lam_r, slope, disc = k.held_root(q, p, m, e, f, s, kc)
+    if not (slope[row] > 0.0 and disc[row] >= 0.0):
+        return None
+    v, q1 = v[row], q1[row]
+    p_plus, energy = k.held_segment(q, v, kc)
+    _, _, _, _, y, w = k.held_root_dir(q1, kc)
+    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, kc)
+    p1 = p1[row]
+    if not abs(float(res[row])) <= residual * (1.0 + float(np.max(np.abs(p)))):
+        return None
+    f = float(force[row])
+    if not k.row_bilateral[row] and f < -EPS_LAM * (1.0 + abs(f)):
+        return None  # a lift-off inside the step
+    if k.r > 1:
+        psi = k.held_rows(q1, kc)[0]
+        if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
+            return None  # an inactive row crossed
+    if not all_finite(float(energy), [f], q1, p1):
+        return None
+    lam, lam1 = np.zeros(k.r), np.zeros(k.r)
+    lam[row], lam1[row] = lam_r[row], lam1_r[row]
+    return Held(q1, p1, v, lam, lam1, float(energy))
+
+
+def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
+    """One held grid step from ``(q, p)`` (the C ``<model>_held_step``), or ``None`` if it does not clear.
+
+    ``k``: the kernels (``held_consts``, ``held_free``, ``held_rows``, ``held_segment``, ``held_end``);
+    ``lam_in``: the previous step's multipliers (the Newton start); ``act``: the active rows;
+    ``residual``: ``Tolerances.residual`` (the accepted residual, relative to ``1 + |p|``), ``phi_tol``:
+    ``Tolerances.phi`` (an inactive row below ``-phi_tol`` is crossed).
+    """
+    rows = [int(r) for r in np.flatnonzero(act)]
+    if len(rows) == 1 and k.held_lines[rows[0]] and k.held_closed[rows[0]]:  # a closed row is a line row
+        return closed_step(k, q, p, rows[0], act, h, residual, phi_tol)
+    kc = k.held_consts(h)
+    v0, jinv = k.held_free(q, p, kc)
+    g0 = k.held_rows(q, kc)[1][rows]
+    x = np.array([lam_in[r] for r in rows])
+
+    def evaluate(x):
+        v = v0 + jinv * (g0.T @ x)
+        q1 = q + h * v
+        psi, grad, hess = k.held_rows(q1, kc)
+        res = float(np.max(np.abs(psi[rows]))) if np.isfinite(psi[rows]).all() else np.nan
+        return v, q1, psi, grad, hess, res
+
+    v, q1, psi, grad, hess, res = evaluate(x)
+    if len(rows) == 1 and k.held_lines[rows[0]] and not res <= ABSTOL and res == res:
+        # the previous multipliers do not solve it: F(q + h v0 + Lam h J^-1 g0) = 0 is a quadratic in Lam
+        x = line_start(k.held_line(q + h * v0, h * jinv * g0[0], kc)[rows[0]], x)
+        v, q1, psi, grad, hess, res = evaluate(x)
+    for _ in range(HELD_ITER):
+        if res <= ABSTOL or not res == res:
+            break
+        jac = factor_small(grad[rows] @ ((h * jinv)[:, None] * g0.T))
+        if jac is None:
+            break
+        d = apply_small(jac, psi[rows])
+        if np.max(np.abs(d)) <= ABSTOL_STEP:
+            break
+        x = x - d
+        v, q1, psi, grad, hess, res = evaluate(x)
+    if not res <= residual * (1.0 + float(np.max(np.abs(p)))):
+        return None
+    p_plus, energy = k.held_segment(q, v, kc)
+    acc, minv = k.held_end(q1, kc)
+    g1 = grad[rows]
+    w = factor_small(g1 @ (minv[:, None] * g1.T))  # the Delassus matrix, the projection's and the forces'
+    if w is None:
+        return None
+    lam1_a = apply_small(w, -(g1 @ (minv * p_plus)))
+    u1 = minv * p_plus + minv * (g1.T @ lam1_a)
+    p1 = p_plus + g1.T @ lam1_a
+    curv = np.zeros(len(rows))
+    for a, r in enumerate(rows):  # u1 . Hess psi_r . u1 on the pattern, in its order (as the C loop)
+        for m, (i, j, wgt) in enumerate(k.held_pattern):
+            curv[a] += wgt * u1[i] * hess[r, m] * u1[j]
+    f_a = apply_small(w, -(g1 @ acc + curv))
+    forces = np.zeros(k.r)
+    forces[rows] = f_a
+    f_eps = EPS_LAM * (1.0 + float(np.max(np.abs(forces))))
+    unilateral = [r for r in rows if not k.row_bilateral[r]]
+    if any(forces[r] < -f_eps for r in unilateral):
+        return None  # a lift-off inside the step
+    idle = [r for r in range(k.r) if not act[r]]
+    if any(psi[r] < -phi_tol for r in idle):
+        return None  # an inactive row crossed
+    if not all_finite(float(energy), f_a, q1, p1):
+        return None
+    lam, lam1 = np.zeros(k.r), np.zeros(k.r)
+    lam[rows], lam1[rows] = x, lam1_a
+    return Held(q1, p1, v, lam, lam1, float(energy))
+
+
+class HeldSteps:
+    """The held grid step in :class:`~vcigen.stepper.Stepper` (the C loop's ``<model>_held_glide``)."""
+
+    def _held_step(self, h: float, q, p):
+        """A held grid step from ``(q, p)`` if the kernels have it and it clears its tests, else ``None``.
+
+        Taken, it books what ``SustainedSteps._chain`` books for a segment with no event: the impulses
+        ``Lam + Lam'`` as the step's forces and ``Lam`` as the next step's Newton start.
+        """
+        k = self.k
+        if not getattr(k, "held", False):
+            return None
+        out = k.held_step(q, p, self._lam, self.act, h, self.tol.residual, self.tol.phi)
+        if out is None:
+            return None
+        self._chained = True
+        if self._record_held:  # the tangent (vcigen.sensitivity.Tracker.held): u1 of M u1 = p1
+            u1 = self._velocity(out.q1, out.v, out.p1)
+            lam_m = np.zeros(0)  # no internal points (a rule with them has no held grid step)
+            self._held_seg = (out.v, out.lam, out.lam1, lam_m, u1, self.act.copy())
+        self._book(out.lam + out.lam1)
+        self._lam = np.where(self.act, out.lam * (self._h / h), 0.0)
+        return out.q1, out.p1, out.energy, out.v
