@@ -113,10 +113,10 @@ def model_hash(system: DiscreteSystem) -> str:
 
 
 def tangent_only(name: str) -> bool:
-    """Whether routine ``name`` reads only into the tangent of the sensitivity variant (its ``d_*`` partials and
-    the fused maps): its half-integer powers are printed with ``sqrt`` (``cprinter``), as the trajectory never
-    reads them (the plain library and the variant still step bit for bit alike). On the bowl, libm's ``pow``
-    (four calls a step in its fused held tangent) was ~40% of the C time of a run with sensitivities."""
+    """Whether routine ``name`` reads only into the tangent of the sensitivity variant (its ``d_*`` partials
+    and the fused maps): its half-integer powers are printed with ``sqrt`` (``cprinter``), as the trajectory
+    never reads them (the plain library and the variant still step bit for bit alike). On the bowl, libm's
+    ``pow`` (four calls a step in its fused held tangent) was ~40% of the C time of a run with the tangent."""
     return is_tangent(name) or is_held_map(name) or name == "sens_smooth_map"
 
 

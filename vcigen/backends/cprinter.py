@@ -46,7 +46,8 @@ class ArrayC99Printer(C99CodePrinter):
         if self._inverse_powers and exp.is_Integer and -_MAX_PRODUCT_POWER <= int(exp) <= -2:
             b = self.parenthesize(base, 1000)  # b^-k = 1/(b ... b): no pow (not bit for bit pow's)
             return "(1.0/(" + "*".join([b] * -int(exp)) + "))"
-        half = exp.is_Rational and exp.q == 2 and (3 <= abs(exp.p) <= 2 * _MAX_PRODUCT_POWER + 1 or exp.p == -1)
+        odd = exp.is_Rational and exp.q == 2
+        half = odd and (3 <= abs(exp.p) <= 2 * _MAX_PRODUCT_POWER + 1 or exp.p == -1)
         if self._sqrt_powers and half:
             b = self.parenthesize(base, 1000)  # b^(k/2) = b^((k-1)/2) sqrt(b): no pow (not bit for bit pow's)
             prod = "(" + "*".join([b] * ((abs(exp.p) - 1) // 2) + [f"sqrt({self._print(base)})"]) + ")"
