@@ -112,13 +112,24 @@ def model_hash(system: DiscreteSystem) -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
+def tangent_only(name: str) -> bool:
+    """Whether routine ``name`` reads only into the tangent of the sensitivity variant (its ``d_*`` partials
+    and the fused maps): its half-integer powers are printed with ``sqrt`` (``cprinter``), as the trajectory
+    never reads them (the plain library and the variant still step bit for bit alike). On the bowl, libm's
+    ``pow`` (four calls a step in its fused held tangent) was ~40% of the C time of a run with the tangent."""
+    return is_tangent(name) or is_held_map(name) or name == "sens_smooth_map"
+
+
 def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
     """One routine as printable pieces: signature, temporaries, assignments (after its head's call).
 
     ``inverse_powers``: ``b^-k`` as ``1/(b ... b)``, not libm's ``pow`` (the routines of a rule with internal
     points: its quadrature nodes put the potential's negative powers in every residual)."""
     temps, outs, fills = print_routine_body(
-        r, sqrt_powers=r.name in SQRT_POWERS, inverse_powers=inverse_powers, plain_cse=is_held_map(r.name)
+        r,
+        sqrt_powers=r.name in SQRT_POWERS or tangent_only(r.name),
+        inverse_powers=inverse_powers or tangent_only(r.name),
+        plain_cse=is_held_map(r.name),
     )
     return {
         "name": r.name,

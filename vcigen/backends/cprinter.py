@@ -47,7 +47,8 @@ class ArrayC99Printer(C99CodePrinter):
         if self._inverse_powers and exp.is_Integer and -_MAX_PRODUCT_POWER <= int(exp) <= -2:
             b = self.parenthesize(base, 1000)  # b^-k = 1/(b ... b): no pow (not bit for bit pow's)
             return "(1.0/(" + "*".join([b] * -int(exp)) + "))"
-        half = exp.is_Rational and exp.q == 2 and 3 <= abs(exp.p) <= 2 * _MAX_PRODUCT_POWER + 1
+        odd = exp.is_Rational and exp.q == 2
+        half = odd and (3 <= abs(exp.p) <= 2 * _MAX_PRODUCT_POWER + 1 or exp.p == -1)
         if self._sqrt_powers and half:
             b = self.parenthesize(base, 1000)  # b^(k/2) = b^((k-1)/2) sqrt(b): no pow (not bit for bit pow's)
             prod = "(" + "*".join([b] * ((abs(exp.p) - 1) // 2) + [f"sqrt({self._print(base)})"]) + ")"
@@ -81,7 +82,8 @@ def print_routine_body(
     routine: Routine, sqrt_powers: bool = False, inverse_powers: bool = False, plain_cse: bool = False
 ) -> tuple[list[tuple[str, str]], list[list[tuple[int, str]]], list[tuple[int, int] | None]]:
     """CSE'd body of ``routine``: ``(temporaries, outputs, fills)``; with ``sqrt_powers``, half-integer powers
-    ``b^(k/2)`` (``3 <= |k| <= 9``) are printed as ``b^((k-1)/2) sqrt(b)``, without libm's ``pow``; with
+    ``b^(k/2)`` (``3 <= |k| <= 9``, and ``k = -1``) are printed as ``b^((|k|-1)/2) sqrt(b)`` (its inverse for
+    ``k < 0``), without libm's ``pow``; with
     ``inverse_powers``, ``b^-k`` (``2 <= k <= 4``) as ``1/(b ... b)``; with ``plain_cse``, SymPy's CSE
     without its ``basic`` pre-optimisations (whose ``factor_terms`` takes minutes on the nested rational
     expressions of ``vcigen.backends.cheld_map``, for about the same operation count).
