@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from . import csememo
+from . import csememo, sympy_speed
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,8 @@ class Routine:
     def cse(self) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[list[sp.Expr]]]:
         """Common subexpressions across all outputs; reduced entries per output."""
         flat = self.flat_outputs()
-        repl, reduced = csememo.cse(flat, optimizations="basic")
+        with sympy_speed.fast_factors():
+            repl, reduced = csememo.cse(flat, optimizations="basic")
         out, k = [], 0
         for o in self.outputs:
             out.append(list(reduced[k : k + o.size]))

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from .. import csememo
+from .. import csememo, sympy_speed
 from ..routines import Routine
 
 # Integer powers up to this exponent are printed as products (exact, and fast without -ffast-math).
@@ -101,7 +101,8 @@ def print_routine_body(
         listed.append([(k, e) for k, e in own if not (sparse and e == 0)])
     flat = [e for entries in listed for _, e in entries]
     opt = None if plain_cse else "basic"
-    repl, reduced = csememo.cse(flat, optimizations=opt)
+    with sympy_speed.fast_factors():
+        repl, reduced = csememo.cse(flat, optimizations=opt)
     for sym, _ in repl:
         names[sym] = sym.name
     printer = ArrayC99Printer(names, sqrt_powers, inverse_powers)
