@@ -22,6 +22,7 @@ turns both off.
 from __future__ import annotations
 
 import os
+import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from dataclasses import replace
@@ -40,24 +41,29 @@ def enabled() -> bool:
 
 
 class Lru:
-    """A small least-recently-used map; :meth:`get_or_make` computes a missing value once."""
+    """A small least-recently-used map; :meth:`get_or_make` computes a missing value (outside the lock:
+    two threads missing the same key at once both compute it, and the first stored is kept)."""
 
     def __init__(self, size: int = SIZE) -> None:
         self.size = size
         self._items: OrderedDict[Hashable, object] = OrderedDict()
+        self._lock = threading.Lock()
 
     def get_or_make(self, key: Hashable, make: Callable[[], T]) -> T:
-        if key in self._items:
-            self._items.move_to_end(key)
-            return self._items[key]  # type: ignore[return-value]
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]  # type: ignore[return-value]
         value = make()
-        self._items[key] = value
-        while len(self._items) > self.size:
-            self._items.popitem(last=False)
-        return value
+        with self._lock:
+            value = self._items.setdefault(key, value)
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return value  # type: ignore[return-value]
 
     def clear(self) -> None:
-        self._items.clear()
+        with self._lock:
+            self._items.clear()
 
     def __len__(self) -> int:
         return len(self._items)
