@@ -18,12 +18,13 @@ all polynomial in ``tau``, so sub-steps of vanishing length (impacts at
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import sympy as sp
 
+from . import memo
 from .calculus import hessian, jacobian
 from .model import Model
 from .routines import Arg, Output, Routine
@@ -224,13 +225,31 @@ def _residual_routine(
     return Routine(name, (unknown, *args), (Output("res", top.col_join(res)), Output("jac", jac)), doc, head)
 
 
+_DERIVED = memo.Lru()  # (model_key, id(rule)) -> (rule, DiscreteSystem): vcigen.memo
+
+
 def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = False) -> DiscreteSystem:
     """Derive every routine of MATH.md for ``model`` under ``rule``.
 
     ``sensitivities``: also the ``d_*`` routines of :mod:`vcigen.tangents` (the partials of every phase in
     its data, for exact sensitivities); a scene that does not ask does not pay for them.
+
+    A model derived before in this process under the same rule is not derived again (:mod:`vcigen.memo`):
+    the same routines, in a new dict with copied matrices, with ``model`` as the system's model.
     """
     rule = get_rule(rule)
+    if not memo.enabled():
+        return _derive(model, rule, sensitivities)
+    # the rule is kept in the entry, so that its id is not reused while the entry lives
+    _, first = _DERIVED.get_or_make((memo.model_key(model), id(rule)), lambda: (rule, _derive(model, rule)))
+    routines = memo.copy_routines(first.routines)
+    if sensitivities:
+        routines.update(tangent_routines(routines))
+    return replace(first, model=model, routines=routines)
+
+
+def _derive(model: Model, rule: Rule, sensitivities: bool = False) -> DiscreteSystem:
+    """:func:`derive` without the memo."""
     n = model.n
     if rule.stages:
         unsupported(model, rule)

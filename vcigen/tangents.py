@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from . import memo
 from .calculus import jacobian
 from .routines import Arg, Output, Routine
 
@@ -209,8 +210,23 @@ def friction_tangent(r: Routine) -> Routine:
     )
 
 
+_TANGENTS = memo.Lru()  # memo.routines_key(routines) -> (routines, their d_* routines): vcigen.memo
+
+
 def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
-    """The ``d_*`` routines of the derived ``routines`` (a :class:`DiscreteSystem`'s), by name."""
+    """The ``d_*`` routines of the derived ``routines`` (a :class:`DiscreteSystem`'s), by name.
+
+    Derived once per process for the same expressions (:mod:`vcigen.memo`): a copy of the first result."""
+    if not memo.enabled():
+        return _tangent_routines(routines)
+    key, held = memo.routines_key(routines)
+    # what the key names is kept in the entry, so that its identities are not reused while the entry lives
+    _, out = _TANGENTS.get_or_make(key, lambda: (held, _tangent_routines(routines)))
+    return memo.copy_routines(out)
+
+
+def _tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
+    """:func:`tangent_routines` without the memo."""
     out = {
         "d_segment": segment_tangent(routines["segment"]),
         "d_contacts": contacts_tangent(routines["contacts"]),
