@@ -28,7 +28,7 @@ from pathlib import Path
 import sympy as sp
 
 # bump when the digest or the stored form changes
-FORMAT = 3
+FORMAT = 4
 
 Result = tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]
 
@@ -41,30 +41,6 @@ def cache_root() -> Path:
 
 def _assumptions(s: sp.Symbol) -> str:
     return ",".join(f"{k}={v}" for k, v in sorted(s.assumptions0.items()))
-
-
-def digest(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> str:
-    """A digest of ``exprs`` stable across processes: each node hashed once (shared subtrees too), dummies
-    by ``rank``."""
-    memo: dict[sp.Basic, bytes] = {}
-
-    def node(e: sp.Basic) -> bytes:
-        got = memo.get(e)
-        if got is not None:
-            return got
-        if isinstance(e, sp.Dummy):
-            text = f"D{rank[e]}:{_assumptions(e)}".encode()
-        elif isinstance(e, sp.Symbol):
-            text = f"S{e.name}:{_assumptions(e)}".encode()
-        elif e.is_Atom:
-            text = sp.srepr(e).encode()
-        else:
-            text = b"(".join([type(e).__name__.encode(), *(node(a) for a in e.args)])
-        out = hashlib.sha256(text).digest()
-        memo[e] = out
-        return out
-
-    return hashlib.sha256(b"|".join(node(e) for e in exprs)).hexdigest()
 
 
 def _encode(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> tuple[list[tuple], list[int]]:
@@ -88,6 +64,24 @@ def _encode(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> tuple[list[
         return index[e]
 
     return nodes, [node(e) for e in exprs]
+
+
+def digest(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> str:
+    """A digest of ``exprs`` stable across processes: their :func:`_encode` nodes as text (a dummy by its
+    rank and assumptions, a symbol by its name and assumptions, an operation by its class and arguments)."""
+    nodes, roots = _encode(exprs, rank)
+    dummies = {r: d for d, r in rank.items()}
+
+    def text(item: tuple) -> str:
+        if item[0] == "D":
+            return f"D{item[1]}:{_assumptions(dummies[item[1]])}"
+        if item[0] == "A":
+            atom = item[1]
+            return f"S{atom.name}:{_assumptions(atom)}" if isinstance(atom, sp.Symbol) else sp.srepr(atom)
+        return f"F{item[1].__name__}{item[2]}"
+
+    body = "\n".join(map(text, nodes)) + f"\n{roots}"
+    return hashlib.sha256(body.encode()).hexdigest()
 
 
 def _decode(nodes: list[tuple], roots: list[int], dummies: list[sp.Dummy]) -> list[sp.Basic]:
