@@ -238,11 +238,8 @@ class HeldTangents:
         """
         if not self.active:
             return
-        n, K = self.n, self.K
-        if entry:
-            dq, dp, dtau, dt, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
-        else:
-            dq, dp, dtau, dt, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
+        n = self.n
+        dq, dp, dtau, dt, t = self._start(entry)
         self._slots = self._friction_slots(q, dq, act, t)
         if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots):
             self._slots = None
@@ -319,11 +316,7 @@ class HeldTangents:
         """
         if not self.active:
             return
-        n, K = self.n, self.K
-        if entry:
-            dq0, dp0, dtau0, dt0, t = self.dq, self.dp, self.dtau, self.dt, self.t_seg
-        else:
-            dq0, dp0, dtau0, dt0, t = self.cur[:n], self.cur[n:], np.zeros((1, K)), None, self.t
+        dq0, dp0, dtau0, dt0, t = self._start(entry)
         dq_l, dp_l, _, dtau_s = self._located(sub, r, s, tau, "lift", dq0, dp0, dt0, t)
         dt_l = dtau_s[0] if dt0 is None else dt0 + dtau_s[0]
         self._free_end(free, tau - s * tau, t + s * tau, dq_l, dp_l, dtau0 - dtau_s, dt_l)
@@ -371,6 +364,15 @@ class HeldTangents:
         dq_end = dq_l + np.outer(w, dtau_r) + tau_r * dw
         _, dp_end, _ = self._segment(ql, w, tau_r, t_l, dq_l, dw, dtau_r, dt_l, uw, duw)
         self.next = np.vstack([dq_end, dp_end])
+
+    def _start(self, entry: bool) -> tuple:
+        """The tangents ``(dq, dp, dtau, dt)`` and the time of a held segment's start: the grid point's
+        (``S_k``, 0, ``None``: the grid time has no tangent; ``t_k``), or after a plastic impact (``entry``)
+        the segment's carried ones."""
+        if entry:
+            return self.dq, self.dp, self.dtau, self.dt, self.t_seg
+        n = self.n
+        return self.cur[:n], self.cur[n:], np.zeros((1, self.K)), None, self.t
 
     # -- events inside a held step (SustainedSteps._chain): the segment's tangents carried event by event --
     def events_begin(self, entry: bool) -> None:
