@@ -195,7 +195,7 @@ def closed_routines(
       order).
     """
     n, nr = system.n, system.r
-    forms = closed_forms(system)
+    forms = system.structure.held_closed_forms
 
     def arg(name: str, size: int) -> Arg:
         return Arg(name, tuple(sp.Dummy(f"{name}{i}", real=True) for i in range(size)))
@@ -318,7 +318,7 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
         ),
         ("held_end", (q,), [("acc", acc), ("minv", minv)], "M^-1 rhs(q) and 1/M_ii."),
     ]
-    forms = line_forms(system)
+    forms = system.structure.held_line_forms
     if any(f is not None for f in forms):
         a_arg = Arg("a", tuple(sp.Dummy(f"a{i}", real=True) for i in range(n)))
         b_arg = Arg("b", tuple(sp.Dummy(f"b{i}", real=True) for i in range(n)))

@@ -83,6 +83,9 @@ class Structure:
     held_columns: tuple[int, ...] = ()  # coordinates where some row's gradient is not identically 0
     held_constant: tuple[int, ...] = ()  # per row, coordinate (r * n + i): 1 where d psi_r/d q_i is constant
     held_closed: tuple[bool, ...] = ()  # per row, whether held alone its step is closed-form (closed_forms)
+    # the forms behind held_lines and held_closed, detected here once for vcigen.held.held_routines to read
+    held_line_forms: tuple = field(default=(), compare=False, repr=False)
+    held_closed_forms: tuple = field(default=(), compare=False, repr=False)
     why: dict[str, str] = field(default_factory=dict, compare=False)
 
     def lines(self, width: int = 96) -> list[str]:
@@ -351,6 +354,8 @@ def detect(system: DiscreteSystem) -> Structure:
         else "par changes between steps (the time of forces, friction's slots): every step computes its own"
     )
     held, why["held"] = _held(system, explicit_grid)
+    lines = tuple(line_forms(system)) if held else ()
+    closed = tuple(closed_forms(system)) if held else ()
     return Structure(
         stages=stages,
         stage_reduced=stage_reduced,
@@ -364,10 +369,12 @@ def detect(system: DiscreteSystem) -> Structure:
         explicit_path=explicit_path,
         jump_quadratic=jump,
         held=held,
-        held_lines=tuple(f is not None for f in line_forms(system)) if held else (),
+        held_lines=tuple(f is not None for f in lines),
         held_pattern=tuple(hess_pattern(system)) if held else (),
         held_columns=tuple(gradient_columns(system)) if held else (),
         held_constant=tuple(constant_gradients(system)) if held else (),
-        held_closed=tuple(c is not None for c in closed_forms(system)) if held else (),
+        held_closed=tuple(c is not None for c in closed),
+        held_line_forms=lines,
+        held_closed_forms=closed,
         why=why,
     )
