@@ -20,7 +20,7 @@ from scenes import billiard, load_example, star_nonlinear
 import vcigen
 from vcigen.errors import NONFINITE
 from vcigen.explicit import grid_routines, hoist, jump_quadratic
-from vcigen.stepper import quadratic_root
+from vcigen.impact_step import quadratic_root
 
 RULES = ["trapezoid", "midpoint"]
 BACKENDS = [backend_param("casadi"), backend_param("c")]

@@ -34,6 +34,7 @@ import numpy as np
 from .cone_split import null_combination, split
 from .derive import KINK
 from .errors import SolverError
+from .impact_step import Seg
 from .result import KINDS, Impact
 
 ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at the bracket ends|
@@ -752,8 +753,6 @@ class SustainedSteps:
 
     def _free_rest(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
         """A free remainder of the grid step from ``(q, p)``: smooth (46), or the impact chain (47)-(79)."""
-        from .stepper import _Seg
-
         k = self.k
         self._at(t)
         v, res, p1, e, phi0, phi1, d0, d1 = k.smooth_step(q, p, tau, guess)
@@ -763,7 +762,7 @@ class SustainedSteps:
             self._free_seg = (q, p, v) if self._record_held else None  # the tangent: Tracker.liftoff
             self._ev_free(q, p, v, tau)
             return q + tau * v, p1, e_step, v
-        seg = _Seg(q=q, t=t, tau=tau, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
+        seg = Seg(q=q, t=t, tau=tau, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)
         crossings = self._crossings(seg, phi0, phi1, d0, d1)
         if not crossings:
             self._free_seg = (q, p, v) if self._record_held else None

@@ -21,11 +21,12 @@ from ..derive import KINK, WHOLE, DiscreteSystem
 from ..errors import NONFINITE, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import SQRT_POWERS, held_routines
+from ..impact_step import unheld_note
 from ..implicit import implicit_routines
 from ..result import KINDS
 from ..routines import Routine
 from ..stage import reduced_phases
-from ..stepper import Tolerances, unheld_note
+from ..stepper import Tolerances
 from .cheld_map import held_maps, is_held_map
 from .cprinter import print_routine_body
 from .csens import SENS_REASONS, is_tangent, sens_routines, smooth_map_routine
