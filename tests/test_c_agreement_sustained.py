@@ -1,4 +1,4 @@
-"""Sustained contact in C and in CasADi: one algorithm (vcigen/sustained.py, templates/sustained.c.j2).
+"""Sustained contact in C and in CasADi: one algorithm (vcigen/sustained.py, templates/sustained*.c.j2).
 
 The same scenes on both backends give the same grid trajectories, impact logs (kinds included),
 active sets, contact forces and lift-offs; the Python stepper on the C kernels is the C loop bit

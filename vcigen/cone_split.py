@@ -16,7 +16,7 @@ maximiser lies between the terms' own maximisers ``-F_c . d_c / |d_c|^2`` and is
 sign of the least term's slope (:func:`split`), to the last bit after ``SPLIT_ITER`` halvings. Exact when
 ``n`` has no part on the normal rows (a flat floor); a normal part is not shifted.
 
-Pure NumPy; ``templates/sustained.c.j2`` has the same functions (``null_combination``, ``split``).
+Pure NumPy; ``templates/sustained_cone_split.c.j2`` has the same functions (``null_combination``, ``split``).
 """
 
 from __future__ import annotations

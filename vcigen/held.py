@@ -32,8 +32,8 @@ step's ``G0``. Every subexpression of ``(h, par)`` alone is hoisted into run con
 (``held_consts``). A step whose end shows an event (a force turning negative, an inactive row
 crossed), whose solve does not converge or whose state is not finite is not taken: the general
 chain (:mod:`vcigen.sustained`) takes it from the same start. The C loop (``<model>_held_glide``
-in ``templates/sustained.c.j2``) and :func:`vcigen.held_step.held_step` (the Python stepper's) are one
-algorithm.
+in ``templates/sustained_held_glide.c.j2``) and :func:`vcigen.held_step.held_step` (the Python stepper's)
+are one algorithm.
 """
 
 from __future__ import annotations

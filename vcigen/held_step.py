@@ -1,8 +1,8 @@
 """The held grid step run by the Python stepper (:class:`HeldSteps`, :func:`held_step`, :func:`closed_step`)
 on the routines of :mod:`vcigen.held` (whose docstring gives the algorithm). The C loop
-(``<model>_held_glide`` in ``templates/sustained.c.j2``) and :func:`held_step` are one algorithm; a step
-whose end shows an event, whose solve does not converge or whose state is not finite is not taken (``None``):
-the general chain (:mod:`vcigen.sustained`) takes it from the same start.
+(``<model>_held_glide`` in ``templates/sustained_held_glide.c.j2``) and :func:`held_step` are one algorithm;
+a step whose end shows an event, whose solve does not converge or whose state is not finite is not taken
+(``None``): the general chain (:mod:`vcigen.sustained`) takes it from the same start.
 """
 
 from __future__ import annotations
