@@ -674,10 +674,12 @@ class SustainedSteps:
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
-                mode = self._friction_mode()
+                mode, before = self._friction_mode(), self._friction_state()
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
+                if not same and not self._released_only(before):  # a contact let go ends its friction only
+                    self._ev_switch()
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
             if not self.act.any():
@@ -704,6 +706,8 @@ class SustainedSteps:
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
+                if events[r][0] in ("stop", "slide"):
+                    self._ev_switch()
                 plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
@@ -731,10 +735,12 @@ class SustainedSteps:
             act0 = self.act.copy()
             q_s, p_s, tau_s = q, p, tau
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
-            if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
+            if events[r0][0] in ("stop", "slide"):  # a friction switch: no tangent
+                self._ev_switch()
+            elif plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
-            else:  # one event of several, or an impact while held (Tracker.event)
+            else:  # one event of several, or an impact while held, or a lift-off under friction (Tracker.event)
                 self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
             self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
@@ -774,9 +780,39 @@ class SustainedSteps:
 
     # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
     def _events_tangent(self, tan):
-        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless, a rule
-        without internal points; else None (the step breaks as before)."""
-        return tan if tan is not None and not self._stick_rows and not self._stages else None
+        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
+        one-tangent Coulomb friction (no isotropic cone: its aim moves with each segment's duration), a rule
+        without internal points; else None (the step breaks as before). A friction switch in it still breaks
+        (:meth:`_ev_switch`)."""
+        cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
+        return tan if tan is not None and not cones and not self._stages else None
+
+    def _ev_switch(self) -> None:
+        """A friction switch inside a held step whose events the tangent carries (stick <-> slip, the sliding
+        direction turned, a contact held anew or on another face): a mode change, no derivative; the step
+        breaks with its reason (the later hooks find the tangent lost)."""
+        if self._ev_tan is not None:
+            self._fswitch = True
+            self._ev_tan.lose("friction switch in a held step")
+
+    def _friction_state(self) -> tuple:
+        """The friction mode as arrays (:meth:`_released_only`): stick rows held, slips, references, branch
+        signs, dependent sticks."""
+        return self.act.copy(), self._slip.copy(), self._ref.copy(), self._branch.copy(), list(self._ride)
+
+    def _released_only(self, before: tuple) -> bool:
+        """Whether the friction mode is ``before`` (:meth:`_friction_state`) but for frictional contacts let go
+        (no row of theirs held any more): their friction ends with their normal force, at an event whose time
+        the tangent has (a lift-off, an impact pulling them off). Anything else is a switch."""
+        act, slip, ref, branch, ride = before
+        if not np.array_equal(branch, self._branch):
+            return False
+        for f, sr in enumerate(self._stick_rows):
+            if self._held_rows[f] == 0:
+                continue
+            if act[sr] != self.act[sr] or slip[f] != self._slip[f] or ref[f] != self._ref[f] or ride[f] != self._ride[f]:
+                return False
+        return True
 
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
         """A constrained sub-step to an event of row ``r`` (``"lift"`` or ``"cross"``): ``Tracker.event``."""
