@@ -392,12 +392,13 @@ class HeldTangents:
         tangents: they become the event point's (the rest of the step after it, from ``t_seg + s tau``)."""
         if not self.active:
             return
-        # friction in its mode over the sub-step: its slots' tangent from the sub-step's start (_friction_slots)
+        # friction in its mode over the sub-step: the slots' tangent from its start (_friction_slots)
         self._slots = self._friction_slots(sub[0], self.dq, sub[-1], self.t_seg)
         try:
-            dq_l, dp_l, dv_l, dtau_s = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
+            out = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
         finally:
             self._slots = None
+        dq_l, dp_l, dv_l, dtau_s = out
         self.dq, self.dp, self.dvin = dq_l, dp_l, dv_l
         self.dt, self.dtau, self.t_seg = self.dt + dtau_s[0], self.dtau - dtau_s, self.t_seg + s * tau
 
@@ -410,12 +411,12 @@ class HeldTangents:
     def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:
         """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the rows
         ``act`` held), ``dd`` the tangent of ``(q1, u1, par)`` (any number of columns): the force law
-        ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -D^T], [G, 0]]`` on the active rows, by the implicit-function
-        theorem with its derived partials ``d_forces`` (C: ``sens_located``). ``D = G`` but on the rows of a
-        slipping frictional contact ``f`` (one tangent), whose force pushes along ``grad psi_r + slip_f grad
-        t_f`` (``SustainedSteps._dirs``): ``d_forces`` at ``lam~`` (the stick row ``t_f`` carrying ``slip_f
-        N_f``, ``N_f`` the contact's normal force) and the slip's own column ``-N_f grad t_f dslip_f`` (its
-        tangent, the slot's row of ``dd``)."""
+        ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -D^T], [G, 0]]`` on the active rows, by the
+        implicit-function theorem with its derived partials ``d_forces`` (C: ``sens_located``). ``D = G``
+        but on the rows of a slipping frictional contact ``f`` (one tangent), whose force pushes along
+        ``grad psi_r + slip_f grad t_f`` (``SustainedSteps._dirs``): ``d_forces`` at ``lam~`` (the stick row
+        ``t_f`` carrying ``slip_f N_f``, ``N_f`` the contact's normal force) and the slip's own column
+        ``-N_f grad t_f dslip_f`` (its tangent: the slot's row of ``dd``)."""
         n, tg, k = self.n, self.tg, self.k
         rows = np.flatnonzero(act)
         _, grad, curv = tg.get("rows")(q1, u1, par)

@@ -740,7 +740,7 @@ class SustainedSteps:
             elif plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
-            else:  # one event of several, or an impact while held, or a lift-off under friction (Tracker.event)
+            else:  # one event of several, an impact while held, a lift-off under friction (Tracker.event)
                 self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
             self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
@@ -801,16 +801,17 @@ class SustainedSteps:
         return self.act.copy(), self._slip.copy(), self._ref.copy(), self._branch.copy(), list(self._ride)
 
     def _released_only(self, before: tuple) -> bool:
-        """Whether the friction mode is ``before`` (:meth:`_friction_state`) but for frictional contacts let go
-        (no row of theirs held any more): their friction ends with their normal force, at an event whose time
-        the tangent has (a lift-off, an impact pulling them off). Anything else is a switch."""
+        """Whether the friction mode is ``before`` (:meth:`_friction_state`) but for frictional contacts let
+        go (no row of theirs held any more): their friction ends with their normal force, at an event whose
+        time the tangent has (a lift-off, an impact pulling them off). Anything else is a switch."""
         act, slip, ref, branch, ride = before
         if not np.array_equal(branch, self._branch):
             return False
         for f, sr in enumerate(self._stick_rows):
             if self._held_rows[f] == 0:
                 continue
-            if act[sr] != self.act[sr] or slip[f] != self._slip[f] or ref[f] != self._ref[f] or ride[f] != self._ride[f]:
+            now = (self.act[sr], self._slip[f], self._ref[f], self._ride[f])
+            if (act[sr], slip[f], ref[f], ride[f]) != now:
                 return False
         return True
 
