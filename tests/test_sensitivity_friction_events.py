@@ -1,6 +1,6 @@
-"""Exact sensitivities through events inside a held step while Coulomb friction acts (one tangent, in its mode:
-``vcigen.sensitivity`` ``Tracker.event``, ``impulse``, ``free_end`` with each sub-step's friction slots; C
-``templates/sens_events.c.j2``, ``sens_located``).
+"""Exact sensitivities through events inside a held step while Coulomb friction acts (one tangent, in its
+mode: ``vcigen.sensitivity`` ``Tracker.event``, ``impulse``, ``free_end`` with each sub-step's friction slots;
+C ``templates/sens_events.c.j2``, ``sens_located``).
 
 * a spinning disk sliding on a rough floor into a frictionless wall (restitution ``e``): an impact while held,
   the floor slipping the same way before and after it;
@@ -8,13 +8,15 @@
   (its friction ends with its normal force), then free flight;
 * a particle lifted off a smooth floor while a second one, coupled to it through the kinetic energy (an
   off-diagonal mass term ``k x1d y2d``), slips on a rough floor: the lift-off's force law with the slipping
-  contact's direction ``grad psi + slip grad t`` (its slip moves the lifted row's force through ``k``).
+  contact's direction ``grad psi + slip grad t`` (its slip moves the lifted row's force through ``k``);
+* a particle landing plastically on a rough floor, sliding on (its friction held anew at the impact), and the
+  same landing of a second particle while the first is held and slips (a plastic impact while held).
 
 Against central differences of whole runs along paths that keep the mode, on both backends, under the
-trapezoidal and the midpoint rules; the disk against the closed form of its motion (sliding deceleration
-``mu g`` before and after the impact, the rebound ``-e u``; the discrete map reproduces it exactly); C against
-CasADi. A friction switch among the events (the sliding turned by the impact, a stick broken by it) stays a
-break, the same on both backends.
+trapezoidal and the midpoint rules; the disk and the landing against the closed forms of their motion (sliding
+deceleration ``mu g`` before and after the impact, the rebound ``-e u``, the fall; the discrete map reproduces
+them exactly); C against CasADi. A friction switch among the events (the sliding turned by the impact, or
+stopped by it) stays a break, the same on both backends.
 """
 
 from __future__ import annotations
@@ -94,6 +96,38 @@ def coupled_lift() -> vcigen.Model:
     )
 
 
+def land() -> vcigen.Model:
+    """A unit particle dropped on the rough plastic floor ``y >= 0`` (restitution 0) while moving sideways."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    g, mu = sp.symbols("g mu", positive=True)
+    return vcigen.Model(
+        name="fe_land",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y,
+        contacts={"floor": y},
+        params={g: G, mu: 0.3},
+        friction={"floor": (mu, x)},
+        restitution={"floor": 0},
+    )
+
+
+def land_held() -> vcigen.Model:
+    """Particle 1 slipping on a rough floor (``mu``), particle 2 dropped on another, plastic (``nu``)."""
+    x1, y1, x2, y2, a1, b1, a2, b2 = sp.symbols("x1 y1 x2 y2 x1d y1d x2d y2d")
+    g, mu, nu = sp.symbols("g mu nu", positive=True)
+    return vcigen.Model(
+        name="fe_land_held",
+        q=[x1, y1, x2, y2],
+        qdot=[a1, b1, a2, b2],
+        lagrangian=(a1**2 + b1**2 + a2**2 + b2**2) / 2 - g * (y1 + y2),
+        contacts={"floor1": y1, "floor2": y2},
+        params={g: G, mu: 0.2, nu: 0.3},
+        friction={"floor1": (mu, x1), "floor2": (nu, x2)},
+        restitution={"floor2": 0},
+    )
+
+
 def slide_wall() -> vcigen.Model:
     """A unit particle sliding on the rough floor into the wall ``x <= W``: the impact turns its sliding."""
     x, y, xd, yd = sp.symbols("x y xd yd")
@@ -135,6 +169,20 @@ def _coupled(i: int | None = None, e: float = 0.0, par: str | None = None):
     return q, v, ({par: {"g": G, "A": 17.0, "mu": 0.3, "k": 0.4}[par] + e} if par else {})
 
 
+def _point(q0: list[float], v0: list[float], base: dict[str, float]):
+    def point(i: int | None = None, e: float = 0.0, par: str | None = None):
+        q, v = list(q0), list(v0)
+        if i is not None:
+            (q if i < len(q0) else v)[i % len(q0)] += e
+        return q, v, ({par: base[par] + e} if par else {})
+
+    return point
+
+
+_land = _point([0.0, 0.3], [2.0, -1.0], {"g": G, "mu": 0.3})
+_land_held = _point([0.0, 0.0, 0.0, 0.3], [2.0, 0.0, 1.5, -1.0], {"g": G, "mu": 0.2, "nu": 0.3})
+
+
 def _paths(point, coords: dict[str, int], params: list[str]) -> dict:
     out = {name: (lambda e, i=i: point(i, e)) for name, i in coords.items()}
     return out | {name: (lambda e, p=name: point(None, e, p)) for name in params}
@@ -149,7 +197,8 @@ def _roll(i: int | None = None, e: float = 0.0, par: str | None = None):
     return q, v, ({par: DISK[par] + e} if par else {})
 
 
-# scene -> (model maker, q0, v0, h, t_end, params, paths): each path keeps the mode (test_sensitivity.held_mode)
+# scene -> (model maker, q0, v0, h, t_end, params, paths): each path keeps the mode
+# (test_sensitivity.held_mode)
 SCENES = {
     # an impact (restitution 0.8) on the smooth wall while the floor is held and slips, the same way after it
     "disk_wall": (
@@ -189,6 +238,24 @@ SCENES = {
         None,
         _paths(_coupled, {"q0[x1]": 0, "v0[x1]": 4}, ["g", "A", "mu", "k"]),
     ),
+    # lands plastically in step 16, slipping from there (held anew: the slip slot set at the impact)
+    "land": (
+        land,
+        *_land()[:2],
+        0.01,
+        0.5,
+        None,
+        _paths(_land, {"q0[x]": 0, "q0[y]": 1, "v0[x]": 2, "v0[y]": 3}, ["g", "mu"]),
+    ),
+    # particle 2 lands plastically (step 16) while particle 1 is held and slips: an impact while held
+    "land_held": (
+        land_held,
+        *_land_held()[:2],
+        0.01,
+        0.5,
+        None,
+        _paths(_land_held, {"q0[y2]": 3, "v0[x1]": 4, "v0[x2]": 6, "v0[y2]": 7}, ["g", "mu", "nu"]),
+    ),
 }
 
 
@@ -212,6 +279,10 @@ def _events(res: vcigen.Result, scene: str) -> None:
         (im,) = res.impacts
         assert im.contact == "wall" and im.kind == "restitution" and res.active[im.step, 0], res.impacts
         assert res.active[:, 0].all() and res.liftoffs == []
+    elif scene in ("land", "land_held"):
+        (im,) = res.impacts
+        assert im.kind == "plastic" and res.active[im.step + 1 :].all() and not res.active[im.step, -1]
+        assert res.liftoffs == [] and (scene == "land" or res.active[im.step, 0])
     else:
         (lift,) = res.liftoffs
         assert res.impacts == [] and lift[1] == ("floor" if scene == "block_lift" else "floor2")
@@ -270,6 +341,35 @@ def test_disk_against_the_closed_form(backend: str, rule: str) -> None:
     assert worst <= 1e-10, worst
 
 
+def land_closed_form(t: float, g: float, mu: float, vx: float = 2.0, vy: float = -1.0, y0: float = 0.3):
+    """``dx(t)/d(v0[y], g, mu)`` of the landing particle: it lands at ``t*`` (``y0 + vy t - g t^2/2 = 0``),
+    keeps ``xd = vx`` (plastic) and slips on, decelerated by ``mu g``: ``x = vx t - mu g (t - t*)^2 / 2``."""
+    ts = (vy + np.sqrt(vy * vy + 2.0 * g * y0)) / g
+    d, rate = t - ts, g * ts - vy  # rate: the speed of the fall at t*, -dy/dt
+    dts = {"v0[y]": ts / rate, "g": -ts * ts / (2.0 * rate)}
+    out = {name: mu * g * d * dt for name, dt in dts.items()}
+    out["g"] -= mu * d * d / 2
+    out["mu"] = -g * d * d / 2
+    return out
+
+
+@pytest.mark.parametrize("rule", RULES)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_landing_against_the_closed_form(backend: str, rule: str) -> None:
+    """The landing's ``dx/d(v0[y], g, mu)`` at every grid point after the plastic impact is the closed form's
+    (the fall, the contact time (47) and the slipping deceleration are exact in the discrete map)."""
+    res = simulator("land", backend, rule).simulate(
+        *_land()[:2], 0.01, t_end=0.5, sensitivities=True, progress=False
+    )
+    (im,) = res.impacts
+    names, worst = res.sensitivity_names, 0.0
+    for k in range(im.step + 1, res.t.size):
+        for name, value in land_closed_form(float(res.t[k]), G, 0.3).items():
+            worst = max(worst, abs(res.sensitivity[k, 0, names.index(name)] - value) / max(1.0, abs(value)))
+    print(f"landing closed form ({backend}, {rule}): {worst:.1e}")
+    assert worst <= 1e-10, worst
+
+
 @needs_c
 @pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("scene", sorted(SCENES))
@@ -291,9 +391,9 @@ def _switch_sim(backend: str) -> vcigen.Simulator:
     return vcigen.build(slide_wall(), backend=backend)
 
 
-# break scene -> (simulator, q0, v0, t_end): the impact turns the sliding (slip -> the other way, a switch at the
-# start of the rest of the step), or leaves the disk sliding so slowly that it stops (slip -> stick) in the rest
-# of the impact's step
+# break scene -> (simulator, q0, v0, t_end): the impact turns the sliding (slip -> the other way, a switch
+# at the start of the rest of the step), or leaves the disk sliding so slowly that it stops (slip -> stick)
+# in the rest of the impact's step
 SWITCHES = {
     "slip_turned": (_switch_sim, [0.0, 0.0], [1.0, 0.0], 0.5),
     "slip_stopped": (lambda backend: simulator("disk_wall", backend), DISK_Q0, [1.0, 0.0, -1.27], 0.3),

@@ -678,7 +678,7 @@ class SustainedSteps:
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
-                if not same and not self._released_only(before):  # a contact let go ends its friction only
+                if not same and not self._no_switch(before):  # let go or held anew: no switch
                     self._ev_switch()
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
@@ -796,22 +796,31 @@ class SustainedSteps:
             self._ev_tan.lose("friction switch in a held step")
 
     def _friction_state(self) -> tuple:
-        """The friction mode as arrays (:meth:`_released_only`): stick rows held, slips, references, branch
-        signs, dependent sticks."""
-        return self.act.copy(), self._slip.copy(), self._ref.copy(), self._branch.copy(), list(self._ride)
+        """The friction mode as arrays (:meth:`_no_switch`): stick rows held, slips, references, branch signs,
+        dependent sticks, each contact's held rows."""
+        return (
+            self.act.copy(),
+            self._slip.copy(),
+            self._ref.copy(),
+            self._branch.copy(),
+            list(self._ride),
+            list(self._held_rows),
+        )
 
-    def _released_only(self, before: tuple) -> bool:
-        """Whether the friction mode is ``before`` (:meth:`_friction_state`) but for frictional contacts let
-        go (no row of theirs held any more): their friction ends with their normal force, at an event whose
-        time the tangent has (a lift-off, an impact pulling them off). Anything else is a switch."""
-        act, slip, ref, branch, ride = before
-        if not np.array_equal(branch, self._branch):
-            return False
+    def _no_switch(self, before: tuple) -> bool:
+        """Whether the friction mode changed from ``before`` (:meth:`_friction_state`) only by frictional
+        contacts let go (no row of theirs held any more: their friction ends with their normal force) or held
+        anew (slipping or sticking from the impact that put them in contact), each at an event whose time the
+        tangent has. Anything else (stick <-> slip, the sliding turned, a contact on another face) is a
+        switch."""
+        act, slip, ref, branch, ride, held = before
         for f, sr in enumerate(self._stick_rows):
-            if self._held_rows[f] == 0:
-                continue
-            now = (self.act[sr], self._slip[f], self._ref[f], self._ride[f])
-            if (act[sr], slip[f], ref[f], ride[f]) != now:
+            if not self._held_rows[f] or not held[f]:
+                continue  # let go, or held anew
+            now = (self._held_rows[f], self.act[sr], self._slip[f], self._ref[f], self._ride[f])
+            if (held[f], act[sr], slip[f], ref[f], ride[f]) != now:
+                return False
+            if any(branch[b] != self._branch[b] for b in self._branch_of[f]):
                 return False
         return True
 
