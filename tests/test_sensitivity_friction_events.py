@@ -410,3 +410,36 @@ def test_a_friction_switch_among_the_events_breaks(scene: str, backend: str) -> 
     (im,) = res.impacts
     assert assert_lost(res, "friction switch in a held step") == im.step
     assert res.sensitivity_breaks == [(im.step, "friction switch in a held step")]
+
+
+def puck_wall() -> vcigen.Model:
+    """A unit puck on the rough floor ``z >= 0`` (an isotropic cone: two tangents) sliding into the smooth
+    wall ``x <= W``."""
+    x, y, z, xd, yd, zd = sp.symbols("x y z xd yd zd")
+    g, mu, w = sp.symbols("g mu W", positive=True)
+    return vcigen.Model(
+        name="fe_puck_wall",
+        q=[x, y, z],
+        qdot=[xd, yd, zd],
+        lagrangian=(xd**2 + yd**2 + zd**2) / 2 - g * z,
+        contacts={"floor": z, "wall": w - x},
+        params={g: G, mu: 0.2, w: 0.2},
+        friction={"floor": (mu, (x, y))},
+    )
+
+
+@cache
+def _puck_sim(backend: str) -> vcigen.Simulator:
+    return vcigen.build(puck_wall(), backend=backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_an_event_with_a_cone_held_still_breaks(backend: str) -> None:
+    """An impact while an isotropic cone is held and slipping (its direction aimed anew every segment, with
+    the segment's duration) is not carried: the step breaks as before, the same on both backends."""
+    res = _puck_sim(backend).simulate(
+        [0.0, 0.0, 0.0], [1.0, 0.5, 0.0], 0.01, t_end=0.4, sensitivities=True, progress=False
+    )
+    (im,) = res.impacts
+    assert im.contact == "wall" and res.active[im.step, 0]
+    assert assert_lost(res, "held step (sustained contact)") == im.step
