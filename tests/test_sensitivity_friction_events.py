@@ -413,17 +413,17 @@ def test_a_friction_switch_among_the_events_breaks(scene: str, backend: str) -> 
 
 
 def puck_wall() -> vcigen.Model:
-    """A unit puck on the rough floor ``z >= 0`` (an isotropic cone: two tangents) sliding into the smooth
-    wall ``x <= W``."""
+    """A unit puck on the rough plane ``z >= 0`` (an isotropic cone: two tangents) tilted by ``a`` about the x
+    axis (its sliding direction turns downhill), sliding into the smooth wall ``x <= W``."""
     x, y, z, xd, yd, zd = sp.symbols("x y z xd yd zd")
-    g, mu, w = sp.symbols("g mu W", positive=True)
+    g, mu, w, a = sp.symbols("g mu W a", positive=True)
     return vcigen.Model(
         name="fe_puck_wall",
         q=[x, y, z],
         qdot=[xd, yd, zd],
-        lagrangian=(xd**2 + yd**2 + zd**2) / 2 - g * z,
+        lagrangian=(xd**2 + yd**2 + zd**2) / 2 - g * (z * sp.cos(a) + y * sp.sin(a)),
         contacts={"floor": z, "wall": w - x},
-        params={g: G, mu: 0.2, w: 0.2},
+        params={g: G, mu: 0.2, w: 0.2, a: 0.15},
         friction={"floor": (mu, (x, y))},
     )
 

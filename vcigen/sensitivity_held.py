@@ -68,7 +68,7 @@ class HeldTangents:
                 out[fs + nf + f] = grad[sr] @ dq[:, : self.K]
         return out
 
-    def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray) -> bool:
+    def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray, dtau=None) -> bool:
         """The slip slots of the slipping cones (two tangents) in ``out``: ``SustainedSteps._cone_aim`` at the
         segment's start ``(q, u)``, ``u = M^-1 p`` (the stepper's one Newton step, exact for a momentum
         linear in the velocity): every slipping cone first along its sliding velocity ``w = (grad t1 . u,
@@ -77,7 +77,9 @@ class HeldTangents:
         the force law with the directions ``s0`` (``M a = rhs + dirs^T lam``, ``G a + curv = 0`` on the
         active rows: its tangent by the implicit-function theorem with ``d_forces`` at ``lam~``, the stick
         rows carrying ``s lam``). Which one the stepper took is read from the slots (to 1e-9); ``False`` if
-        neither (the implicit aim of several cones near rest, or a cone too slow to aim): no tangent then."""
+        neither (the implicit aim of several cones near rest, or a cone too slow to aim): no tangent then.
+        ``dtau``: the tangent of the segment's duration ``tau`` (after an event inside the step), or None (a
+        grid step's ``h``)."""
         k, n, K, tg = self.k, self.n, self.K, self.tg
         fs, nf = k.friction_slot, len(k.frictional)
         par = self.par(t)
@@ -141,8 +143,11 @@ class HeldTangents:
         dacc = dsol[:n]
         for f, g in cones:
             rr = [rows[f], rows[g]]
-            turn = 0.5 * tau * np.array([grad[r] @ acc + curv[r] for r in rr])
+            raw = np.array([grad[r] @ acc + curv[r] for r in rr])
+            turn = 0.5 * tau * raw
             dturn = 0.5 * tau * np.array([dres[n + r] @ d_state + grad[r] @ dacc for r in rr])
+            if dtau is not None:  # the aim over what is left of the step after an event
+                dturn = dturn + 0.5 * np.outer(raw, dtau[0, :K])
             j = k.frictional[f]
             s0, ds0 = slip[[f, g]], dslip[[f, g]]
             have = par[fs + np.array([f, g])]
@@ -241,7 +246,7 @@ class HeldTangents:
         n = self.n
         dq, dp, dtau, dt, t = self._start(entry)
         self._slots = self._friction_slots(q, dq, act, t)
-        if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots):
+        if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots, dtau):
             self._slots = None
             self.lose("a phase without a tangent")
             return
@@ -392,8 +397,15 @@ class HeldTangents:
         tangents: they become the event point's (the rest of the step after it, from ``t_seg + s tau``)."""
         if not self.active:
             return
-        # friction in its mode over the sub-step: the slots' tangent from its start (_friction_slots)
-        self._slots = self._friction_slots(sub[0], self.dq, sub[-1], self.t_seg)
+        # friction in its mode over the sub-step: the slots' tangent from its start (_friction_slots), a
+        # slipping cone's aimed there over the segment's tau (_cone_slots)
+        self._slots = slots = self._friction_slots(sub[0], self.dq, sub[-1], self.t_seg)
+        if slots is not None and not self._cone_slots(
+            sub[0], sub[1], self.dq, self.dp, tau, sub[-1], self.t_seg, slots, self.dtau
+        ):
+            self._slots = None
+            self.lose("a phase without a tangent")
+            return
         try:
             out = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
         finally:

@@ -680,6 +680,8 @@ class SustainedSteps:
                 same = mode == self._friction_mode()
                 if not same and not self._no_switch(before):  # let go or held anew: no switch
                     self._ev_switch()
+                if self._braked and self._ev_tan is not None:  # cones aimed implicitly: no tangent
+                    self._ev_tan.lose("held step (sustained contact)")
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
             if not self.act.any():
@@ -781,11 +783,11 @@ class SustainedSteps:
     # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
     def _events_tangent(self, tan):
         """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
-        one-tangent Coulomb friction (no isotropic cone: its aim moves with each segment's duration), a rule
-        without internal points; else None (the step breaks as before). A friction switch in it still breaks
-        (:meth:`_ev_switch`)."""
+        Coulomb friction (isotropic cones but under forces of time: ``Tracker._cone_slots`` holds the time
+        fixed), a rule without internal points; else None (the step breaks as before). A friction switch in it
+        still breaks (:meth:`_ev_switch`), so do cones aimed implicitly (``_braked``)."""
         cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
-        return tan if tan is not None and not cones and not self._stages else None
+        return tan if tan is not None and not (cones and self._timed) and not self._stages else None
 
     def _ev_switch(self) -> None:
         """A friction switch inside a held step whose events the tangent carries (stick <-> slip, the sliding
