@@ -36,9 +36,10 @@ in ``(x, d)``, their partials chained. Phases:
   branch of Coulomb's impulse law it takes (stick, or slip at either edge of the cone): the impulse direction
   ``n + rho t`` and the energy ``E + dK`` by :func:`vcigen.friction.impact_law_tangent`
   (:meth:`Tracker._friction_impact`);
-* events inside a held step while one-tangent friction acts, the friction mode kept
-  (``SustainedSteps._no_switch``): each constrained sub-step with its friction slots' tangent from its start
-  (:meth:`Tracker._friction_slots`), a lift-off's force law with the slipping contacts' directions
+* events inside a held step while friction acts, the friction mode kept (``SustainedSteps._no_switch``):
+  each constrained sub-step with its friction slots' tangent from its start (:meth:`Tracker._friction_slots`;
+  a slipping cone's aim there over what is left of the step, :meth:`Tracker._cone_slots` with ``dtau``),
+  a lift-off's force law with the slipping contacts' directions
   ``grad psi + slip grad t`` (:meth:`Tracker._dforce`); a frictional contact let go (its friction ends with
   its normal force) or held anew at the event (a plastic landing: it slips or sticks from there) is no
   switch;
@@ -52,7 +53,7 @@ in ``(x, d)``, their partials chained. Phases:
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
-a held step with isotropic cones (two tangents) or under a rule with internal points, a friction switch
+a held step with isotropic cones under forces of time or under a rule with internal points, a friction switch
 (``"friction switch in a held step"``: stick <-> slip, the sliding direction turned, a contact on another
 face),
 several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse at an
