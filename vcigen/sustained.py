@@ -680,7 +680,7 @@ class SustainedSteps:
                 same = mode == self._friction_mode()
                 if not same and not self._no_switch(before):  # let go or held anew: no switch
                     self._ev_switch()
-                if self._braked and self._ev_tan is not None:  # cones aimed implicitly: no tangent
+                if self._braked and self._ev_tan is not None and self._ev_tan.active:
                     self._ev_tan.lose("held step (sustained contact)")
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
