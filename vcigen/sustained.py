@@ -791,7 +791,7 @@ class SustainedSteps:
 
     def _ev_switch(self) -> None:
         """A friction switch inside a held step whose events the tangent carries (stick <-> slip, the sliding
-        direction turned, a contact held anew or on another face): a mode change, no derivative; the step
+        direction turned, a contact set on another face): a mode change, no derivative; the step
         breaks with its reason (the later hooks find the tangent lost)."""
         if self._ev_tan is not None:
             self._fswitch = True
