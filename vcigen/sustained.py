@@ -674,11 +674,12 @@ class SustainedSteps:
             if tau <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
-                mode, before = self._friction_mode(), self._friction_state()
+                mode = self._friction_mode()
+                before = self._friction_state() if self._ev_tan is not None else None  # the events' tangent's
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
-                if not same and not self._no_switch(before):  # let go or held anew: no switch
+                if not same and before is not None and not self._no_switch(before):  # let go, held anew: none
                     self._ev_switch()
                 if self._braked and self._ev_tan is not None and self._ev_tan.active:
                     self._ev_tan.lose("held step (sustained contact)")
