@@ -162,6 +162,25 @@ def puck_timed() -> vcigen.Model:
     )
 
 
+def rough_box() -> vcigen.Model:
+    """The 2 x 1 box of ``test_sensitivity_held_events.box`` with Coulomb friction ``mu`` at every vertex (its
+    tangent: the vertex's x), plastic (``e = 0``)."""
+    x, y, th, xd, yd, thd = sp.symbols("x y theta xd yd thetad")
+    e, mu = sp.symbols("e mu")
+    corners = [(1.0, -0.5), (-1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+    contacts = {f"v{i}": y + a * sp.sin(th) + b * sp.cos(th) for i, (a, b) in enumerate(corners)}
+    return vcigen.Model(
+        name="fe_rough_box",
+        q=[x, y, th],
+        qdot=[xd, yd, thd],
+        lagrangian=(xd**2 + yd**2) / 2 + sp.Rational(5, 24) * thd**2 - G * y,
+        contacts=contacts,
+        params={e: 0.0, mu: 0.3},
+        restitution=dict.fromkeys(contacts, e),
+        friction={f"v{i}": (mu, x + a * sp.cos(th) - b * sp.sin(th)) for i, (a, b) in enumerate(corners)},
+    )
+
+
 def slide_wall() -> vcigen.Model:
     """A unit particle sliding on the rough floor into the wall ``x <= W``: the impact turns its sliding."""
     x, y, xd, yd = sp.symbols("x y xd yd")
@@ -214,6 +233,7 @@ def _point(q0: list[float], v0: list[float], base: dict[str, float]):
 
 
 _puck = _point([0.0, 0.0, 0.0], [1.0, 0.5, 0.0], {"g": G, "mu": 0.2, "W": 0.2, "a": 0.15})
+_box = _point([0.0, 0.6, 0.1], [1.5, 0.0, 0.0], {"e": 0.0, "mu": 0.3})
 _land = _point([0.0, 0.3], [2.0, -1.0], {"g": G, "mu": 0.3})
 _land_held = _point([0.0, 0.0, 0.0, 0.3], [2.0, 0.0, 1.5, -1.0], {"g": G, "mu": 0.2, "nu": 0.3})
 
@@ -283,6 +303,16 @@ SCENES = {
         None,
         _paths(_puck, {"q0[x]": 0, "q0[y]": 1, "v0[x]": 3, "v0[y]": 4}, ["g", "mu", "W", "a"]),
     ),
+    # dropped tilted while moving sideways (h = 0.005): lands on v1 (plastic, slipping from there), turns onto
+    # its face about it, v0 lands plastically while v1 is held and slips (both slip on to t = 0.4)
+    "rough_box": (
+        rough_box,
+        *_box()[:2],
+        0.005,
+        0.4,
+        None,
+        _paths(_box, {"q0[x]": 0, "q0[theta]": 2, "v0[x]": 3, "v0[theta]": 5}, ["mu"]),
+    ),
     # lands plastically in step 16, slipping from there (held anew: the slip slot set at the impact)
     "land": (
         land,
@@ -328,6 +358,10 @@ def _events(res: vcigen.Result, scene: str) -> None:
         (im,) = res.impacts
         assert im.kind == "plastic" and res.active[im.step + 1 :].all() and not res.active[im.step, -1]
         assert res.liftoffs == [] and (scene == "land" or res.active[im.step, 0])
+    elif scene == "rough_box":
+        first, second = res.impacts
+        assert (first.contact, second.contact, first.kind, second.kind) == ("v1", "v0", "plastic", "plastic")
+        assert res.active[second.step, 1] and res.active[-1, :2].all() and res.liftoffs == []
     else:
         (lift,) = res.liftoffs
         assert res.impacts == [] and lift[1] == ("floor" if scene == "block_lift" else "floor2")
