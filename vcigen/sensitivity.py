@@ -36,6 +36,13 @@ in ``(x, d)``, their partials chained. Phases:
   branch of Coulomb's impulse law it takes (stick, or slip at either edge of the cone): the impulse direction
   ``n + rho t`` and the energy ``E + dK`` by :func:`vcigen.friction.impact_law_tangent`
   (:meth:`Tracker._friction_impact`);
+* events inside a held step while friction acts, the friction mode kept (``SustainedSteps._no_switch``):
+  each constrained sub-step with its friction slots' tangent from its start (:meth:`Tracker._friction_slots`;
+  a slipping cone's aim there over what is left of the step, :meth:`Tracker._cone_slots` with ``dtau``),
+  a lift-off's force law with the slipping contacts' directions
+  ``grad psi + slip grad t`` (:meth:`Tracker._dforce`); a frictional contact let go (its friction ends with
+  its normal force) or held anew at the event (a plastic landing: it slips or sticks from there) is no
+  switch;
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
@@ -46,8 +53,9 @@ in ``(x, d)``, their partials chained. Phases:
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
-a held step while friction acts or under a rule with internal points, a friction switch (``"friction switch
-in a held step"``: stick <-> slip, the sliding direction turned, a contact released or on another face),
+a held step with isotropic cones under forces of time or under a rule with internal points, a friction switch
+(``"friction switch in a held step"``: stick <-> slip, the sliding direction turned, a contact on another
+face),
 several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse at an
 impact, the ``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for
 ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists

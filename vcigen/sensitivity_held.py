@@ -68,7 +68,7 @@ class HeldTangents:
                 out[fs + nf + f] = grad[sr] @ dq[:, : self.K]
         return out
 
-    def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray) -> bool:
+    def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray, dtau=None) -> bool:
         """The slip slots of the slipping cones (two tangents) in ``out``: ``SustainedSteps._cone_aim`` at the
         segment's start ``(q, u)``, ``u = M^-1 p`` (the stepper's one Newton step, exact for a momentum
         linear in the velocity): every slipping cone first along its sliding velocity ``w = (grad t1 . u,
@@ -77,7 +77,9 @@ class HeldTangents:
         the force law with the directions ``s0`` (``M a = rhs + dirs^T lam``, ``G a + curv = 0`` on the
         active rows: its tangent by the implicit-function theorem with ``d_forces`` at ``lam~``, the stick
         rows carrying ``s lam``). Which one the stepper took is read from the slots (to 1e-9); ``False`` if
-        neither (the implicit aim of several cones near rest, or a cone too slow to aim): no tangent then."""
+        neither (the implicit aim of several cones near rest, or a cone too slow to aim): no tangent then.
+        ``dtau``: the tangent of the segment's duration ``tau`` (after an event inside the step), or None (a
+        grid step's ``h``)."""
         k, n, K, tg = self.k, self.n, self.K, self.tg
         fs, nf = k.friction_slot, len(k.frictional)
         par = self.par(t)
@@ -141,8 +143,11 @@ class HeldTangents:
         dacc = dsol[:n]
         for f, g in cones:
             rr = [rows[f], rows[g]]
-            turn = 0.5 * tau * np.array([grad[r] @ acc + curv[r] for r in rr])
+            raw = np.array([grad[r] @ acc + curv[r] for r in rr])
+            turn = 0.5 * tau * raw
             dturn = 0.5 * tau * np.array([dres[n + r] @ d_state + grad[r] @ dacc for r in rr])
+            if dtau is not None:  # the aim over what is left of the step after an event
+                dturn = dturn + 0.5 * np.outer(raw, dtau[0, :K])
             j = k.frictional[f]
             s0, ds0 = slip[[f, g]], dslip[[f, g]]
             have = par[fs + np.array([f, g])]
@@ -241,7 +246,7 @@ class HeldTangents:
         n = self.n
         dq, dp, dtau, dt, t = self._start(entry)
         self._slots = self._friction_slots(q, dq, act, t)
-        if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots):
+        if self._slots is not None and not self._cone_slots(q, p, dq, dp, tau, act, t, self._slots, dtau):
             self._slots = None
             self.lose("a phase without a tangent")
             return
@@ -392,7 +397,20 @@ class HeldTangents:
         tangents: they become the event point's (the rest of the step after it, from ``t_seg + s tau``)."""
         if not self.active:
             return
-        dq_l, dp_l, dv_l, dtau_s = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
+        # friction in its mode over the sub-step: the slots' tangent from its start (_friction_slots), a
+        # slipping cone's aimed there over the segment's tau (_cone_slots)
+        self._slots = slots = self._friction_slots(sub[0], self.dq, sub[-1], self.t_seg)
+        if slots is not None and not self._cone_slots(
+            sub[0], sub[1], self.dq, self.dp, tau, sub[-1], self.t_seg, slots, self.dtau
+        ):
+            self._slots = None
+            self.lose("a phase without a tangent")
+            return
+        try:
+            out = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
+        finally:
+            self._slots = None
+        dq_l, dp_l, dv_l, dtau_s = out
         self.dq, self.dp, self.dvin = dq_l, dp_l, dv_l
         self.dt, self.dtau, self.t_seg = self.dt + dtau_s[0], self.dtau - dtau_s, self.t_seg + s * tau
 
@@ -403,20 +421,36 @@ class HeldTangents:
             self._free_end((q, p, w), tau, self.t_seg, self.dq, self.dp, self.dtau, self.dt)
 
     def _dforce(self, q1, u1, act, r: int, par, dd) -> np.ndarray:
-        """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the
-        frictionless rows ``act`` held), ``dd`` the tangent of ``(q1, u1, par)`` (any number of columns): the
-        force law ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -G^T], [G, 0]]`` on the active rows, by the
-        implicit-function theorem with its derived partials ``d_forces`` (C: ``sens_liftoff``)."""
-        n, tg = self.n, self.tg
+        """The tangent of row ``r``'s force ``lambda_r(q1, u1, par)`` (``SustainedSteps._forces``, the rows
+        ``act`` held), ``dd`` the tangent of ``(q1, u1, par)`` (any number of columns): the force law
+        ``J (a, lam) = (rhs, -curv)``, ``J = [[M, -D^T], [G, 0]]`` on the active rows, by the
+        implicit-function theorem with its derived partials ``d_forces`` (C: ``sens_located``). ``D = G``
+        but on the rows of a slipping frictional contact ``f`` (one tangent), whose force pushes along
+        ``grad psi_r + slip_f grad t_f`` (``SustainedSteps._dirs``): ``d_forces`` at ``lam~`` (the stick row
+        ``t_f`` carrying ``slip_f N_f``, ``N_f`` the contact's normal force) and the slip's own column
+        ``-N_f grad t_f dslip_f`` (its tangent: the slot's row of ``dd``)."""
+        n, tg, k = self.n, self.tg, self.k
         rows = np.flatnonzero(act)
         _, grad, curv = tg.get("rows")(q1, u1, par)
         rhs = tg.get("dynamics")(q1, u1, par)[0][:, 0]
         mass = tg.get("legendre")(q1, u1, par)[1]
-        g = grad[rows]
-        jac = np.block([[mass, -g.T], [g, np.zeros((rows.size, rows.size))]])
+        g, dirs = grad[rows], grad[rows].copy()
+        fs = getattr(k, "friction_slot", 0)
+        slips = [(f, j) for f, j in enumerate(getattr(k, "frictional", ())) if par[fs + f]]
+        for f, j in slips:
+            dirs[np.asarray(k.row_contact)[rows] == j] += par[fs + f] * grad[k.row_stick.index(f)]
+        jac = np.block([[mass, -dirs.T], [g, np.zeros((rows.size, rows.size))]])
         sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[rows, 0]]))
         lam = np.zeros(grad.shape[0])
         lam[rows] = sol[n:]
-        dres = tg.get("d_forces")(q1, u1, sol[:n], lam, par)[0]
-        dx = -np.linalg.solve(jac, dres[np.r_[np.arange(n), n + rows]] @ dd)
+        lam_t = lam.copy()
+        normal = {}
+        for f, j in slips:
+            normal[f] = float(sum(lam[x] for x in rows if k.row_contact[x] == j))
+            lam_t[k.row_stick.index(f)] += par[fs + f] * normal[f]
+        dres = tg.get("d_forces")(q1, u1, sol[:n], lam_t, par)[0]
+        df = dres[np.r_[np.arange(n), n + rows]] @ dd
+        for f, _ in slips:  # the slip's own column
+            df[:n] -= normal[f] * np.outer(grad[k.row_stick.index(f)], dd[2 * n + fs + f])
+        dx = -np.linalg.solve(jac, df)
         return dx[n + int(np.flatnonzero(rows == r)[0])]

@@ -676,9 +676,14 @@ class SustainedSteps:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
                 mode = self._friction_mode()
+                before = self._friction_state() if self._ev_tan is not None else None  # the events' tangent's
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
+                if not same and before is not None and not self._no_switch(before):  # let go, held anew: none
+                    self._ev_switch()
+                if self._braked and self._ev_tan is not None and self._ev_tan.active:
+                    self._ev_tan.lose("held step (sustained contact)")
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
             if not self.act.any():
@@ -705,6 +710,8 @@ class SustainedSteps:
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
+                if events[r][0] in ("stop", "slide"):
+                    self._ev_switch()
                 plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
@@ -732,10 +739,12 @@ class SustainedSteps:
             act0 = self.act.copy()
             q_s, p_s, tau_s = q, p, tau
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
-            if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
+            if events[r0][0] in ("stop", "slide"):  # a friction switch: no tangent
+                self._ev_switch()
+            elif plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
-            else:  # one event of several, or an impact while held (Tracker.event)
+            else:  # one event of several, an impact while held, a lift-off under friction (Tracker.event)
                 self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
             self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
@@ -773,9 +782,49 @@ class SustainedSteps:
 
     # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
     def _events_tangent(self, tan):
-        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless, a rule
-        without internal points; else None (the step breaks as before)."""
-        return tan if tan is not None and not self._stick_rows and not self._stages else None
+        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
+        Coulomb friction (isotropic cones but under forces of time: ``Tracker._cone_slots`` holds the time
+        fixed), a rule without internal points; else None (the step breaks as before). A friction switch in it
+        still breaks (:meth:`_ev_switch`), so do cones aimed implicitly (``_braked``)."""
+        cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
+        return tan if tan is not None and not (cones and self._timed) and not self._stages else None
+
+    def _ev_switch(self) -> None:
+        """A friction switch inside a held step whose events the tangent carries (stick <-> slip, the sliding
+        direction turned, a contact set on another face): a mode change, no derivative; the step
+        breaks with its reason (the later hooks find the tangent lost)."""
+        if self._ev_tan is not None:
+            self._fswitch = True
+            self._ev_tan.lose("friction switch in a held step")
+
+    def _friction_state(self) -> tuple:
+        """The friction mode as arrays (:meth:`_no_switch`): stick rows held, slips, references, branch signs,
+        dependent sticks, each contact's held rows."""
+        return (
+            self.act.copy(),
+            self._slip.copy(),
+            self._ref.copy(),
+            self._branch.copy(),
+            list(self._ride),
+            list(self._held_rows),
+        )
+
+    def _no_switch(self, before: tuple) -> bool:
+        """Whether the friction mode changed from ``before`` (:meth:`_friction_state`) only by frictional
+        contacts let go (no row of theirs held any more: their friction ends with their normal force) or held
+        anew (slipping or sticking from the impact that put them in contact), each at an event whose time the
+        tangent has. Anything else (stick <-> slip, the sliding turned, a contact on another face) is a
+        switch."""
+        act, slip, ref, branch, ride, held = before
+        for f, sr in enumerate(self._stick_rows):
+            if not self._held_rows[f] or not held[f]:
+                continue  # let go, or held anew
+            now = (self._held_rows[f], self.act[sr], self._slip[f], self._ref[f], self._ride[f])
+            if (held[f], act[sr], slip[f], ref[f], ride[f]) != now:
+                return False
+            if any(branch[b] != self._branch[b] for b in self._branch_of[f]):
+                return False
+        return True
 
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
         """A constrained sub-step to an event of row ``r`` (``"lift"`` or ``"cross"``): ``Tracker.event``."""
