@@ -58,10 +58,11 @@ def sim(backend: str) -> vcigen.Simulator:
 
 
 # scene -> (v0, params, directions): the disk set down on the floor (y = r), each direction in z = (q0, v0,
-# params) one that keeps the mode (the normal coordinates and r, whose changes lift or press the disk or set
-# it sliding, left out)
+# params) one that keeps the mode (the normal coordinates left out: they lift or press the disk; r moves
+# with y0, so that the disk stays on the floor, and while rolling with w0 = vx0 / r, so that it stays rolling:
+# r enters the stick row x - r th, whose reference moves with it)
 SLIDE = {"x0": {0: 1.0}, "th0": {2: 1.0}, "vx0": {3: 1.0}, "w0": {5: 1.0}, "m": {6: 1.0}, "I": {7: 1.0}}
-SLIDE |= {"g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}}
+SLIDE |= {"r": {1: 1.0, 8: 1.0}, "g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}}
 SCENES = {
     # sliding on the level floor, no spin: friction slows it and spins it up, slipping throughout to T
     "floor_slide": ([2.0, 0.0, 0.0], {"a": 0.0}, SLIDE),
@@ -72,7 +73,7 @@ SCENES = {
         [1.0, 0.0, 1.0],
         {},
         {"x0": {0: 1.0}, "th0": {2: 1.0}, "roll": {3: 1.0, 5: 1.0}, "m": {6: 1.0}, "I": {7: 1.0}}
-        | {"g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}},
+        | {"r": {1: 1.0, 8: 1.0, 5: -1.0}, "g": {9: 1.0}, "mu": {10: 1.0}, "a": {11: 1.0}},  # w0 = vx0/r
     ),
 }
 
@@ -121,7 +122,7 @@ def runs(request) -> dict:
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_friction_tangent_matches_finite_differences(runs, scene: str) -> None:
     """Held steps slipping or sticking throughout: every step covered, the tangent along every direction that
-    keeps the mode against central differences (the parameters' columns included: mu_f, g, a, m, I)."""
+    keeps the mode against central differences (the parameters' columns included: mu_f, g, a, m, I, r)."""
     backend, out = runs
     res, fd = out[scene]
     assert res.active[:, 0].all() and res.impacts == []

@@ -45,8 +45,9 @@ class HeldTangents:
         start ``q`` of a held segment (``dq`` its tangent): a slipping contact's slot ``-mu_f s`` moves with
         ``mu_f`` alone (``d_friction``; the sliding direction ``s`` of a one-tangent contact is fixed within
         the mode), a sticking one's reference ``ref_f`` with the point it sticks at: its stick row
-        ``tangent_f(q) - ref_f = 0`` holds at every point of the mode, so ``d ref_f = grad tangent_f(q) dq``
-        (exact, whenever the stick began: before the step it held at ``q`` too). The branch signs: 0.
+        ``tangent_f(q) - ref_f = 0`` holds at every point of the mode, so ``d ref_f = d tangent_f(q; par) =
+        grad tangent_f dq + d tangent_f/d par dpar`` (``d_psi``; exact, whenever the stick began: before the
+        step it held at ``q`` too; the parameters' term: a disk's ``x - r th`` in ``r``). The branch signs: 0.
         ``None`` without friction (every slot 0)."""
         k = self.k
         nf = len(getattr(k, "frictional", ()))
@@ -61,11 +62,11 @@ class HeldTangents:
             for f, j in enumerate(k.frictional):
                 if slip[f]:
                     out[fs + f] = slip[f] / mu[j] * dmu[j]
-        grad = self.tg.get("rows")(q, np.zeros(self.n), par)[1]
-        for f in range(nf):
-            sr = k.row_stick.index(f)
-            if act[sr]:
-                out[fs + nf + f] = grad[sr] @ dq[:, : self.K]
+        sticks = [(f, k.row_stick.index(f)) for f in range(nf) if act[k.row_stick.index(f)]]
+        if sticks:
+            dpsi = self.tg.get("d_psi")(q, np.zeros(self.n), par)[0]  # R x (n + npar): psi_sr = t_f - ref_f
+            for f, sr in sticks:  # the slots' own rows of _par0 are 0: what moves is t_f's q and parameters
+                out[fs + nf + f] = dpsi[sr, : self.n] @ dq[:, : self.K] + dpsi[sr, self.n :] @ self._par0
         return out
 
     def _cone_slots(self, q, p, dq, dp, tau: float, act, t: float, out: np.ndarray, dtau=None) -> bool:
