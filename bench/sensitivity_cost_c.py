@@ -12,7 +12,12 @@ Python set-up of ``simulate``; the CPU
 time of the whole ``simulate`` call (``time.thread_time``) is given too, which a loaded machine inflates
 less, and its wall time (what a caller waits: on short runs such as the dome's the set-up weighs). Off and
 on are interleaved round-robin after a warm-up pair (the variant is compiled on first use),
-best of ``--repeats``. ``bench/sensitivity_cost.py`` (sens-py) times short runs of both backends.
+best of ``--repeats``. ``bench/sensitivity_cost.py`` (sens-py) times short runs of both backends. Freed
+buffers are kept in the heap (``bench.sustained_cost.keep_heap``), so that the best run writes its output on
+pages touched before: a fresh page costs ~1 us on this VM, and the tangent's output (``2n K`` doubles a
+step against the plain run's ``2n + 1``) took ~780 of them a run on the slide, +60-90 ns a step on the
+slide and the particle in runs of this session that did not recycle the buffer (``--fresh-pages`` keeps
+that behaviour).
 
 The target's ``O(n^2)`` term, measured: in the same round-robin, after the scene's two runs, the dense
 reference of :mod:`bench.sens_dense_ref` (a ``2n x 2n`` matrix that changes every step times the ``2n x K``
@@ -59,6 +64,7 @@ from scenes import load_example  # noqa: E402
 
 import vcigen  # noqa: E402
 from bench.sens_dense_ref import DenseRef  # noqa: E402
+from bench.sustained_cost import keep_heap  # noqa: E402
 
 # scene -> (model maker, q0, v0, h, t_end)
 SCENES = {
@@ -135,7 +141,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every t_end")
     ap.add_argument("--only", nargs="*", default=list(SCENES), help="scenes to time")
     ap.add_argument("--rule", default="trapezoid", help="the rule (lobatto3: its own csv)")
+    ap.add_argument("--fresh-pages", action="store_true", help="no keep_heap: buffers on fresh pages")
     args = ap.parse_args(argv)
+    if not args.fresh_pages:
+        keep_heap()
     rows = []
     for scene in args.only:
         row = measure(scene, args.repeats, args.scale, args.rule)
