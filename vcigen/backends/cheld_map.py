@@ -271,13 +271,17 @@ def _settled_on_states(m: sp.Matrix, atoms: dict[sp.Symbol, sp.Expr], state: lis
     out = m.copy()
     tol = sp.Float(10) ** (-DPS // 2)
     for c in cells:
-        vals = [_rational(m[c]).xreplace(pt).evalf(DPS) for pt in points]
-        if not all(v.is_real and v.is_Number for v in vals):
-            continue
-        for k in (0, 1):
-            if all(abs(v - k) <= tol for v in vals):
+        e = _rational(m[c])
+        first = e.xreplace(points[0]).evalf(DPS)
+        for k in (0, 1):  # the other points only where the first is k (most entries are neither there)
+            if _near(first, k, tol) and all(_near(e.xreplace(pt).evalf(DPS), k, tol) for pt in points[1:]):
                 out[c] = sp.Integer(k)
     return out
+
+
+def _near(v: sp.Expr, k: int, tol: sp.Float) -> bool:
+    """Whether ``v`` is a real number within ``tol`` of ``k``."""
+    return bool(v.is_Number and v.is_real and abs(v - k) <= tol)
 
 
 def _rational(e: sp.Expr) -> sp.Expr:
