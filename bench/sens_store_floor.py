@@ -8,7 +8,7 @@ the plain run writes ``q, p`` and ``t`` (``2n + 1``); ``templates/sens.c.j2``'s 
 generated code's flags (``-O2``), into a freshly allocated buffer (first touch included, as a run's) and
 into an already touched one: ``store`` = the copy only, ``store+check`` = the copy and ``sens_row``'s check.
 Its first entry changes every step (so the stores are not hoisted; the tangent's own update is
-not timed).
+not timed; ``bench.sens_dense_ref`` times it with the stores).
 Sizes: the particle (n = 2, K = 6: 24 vs 5), the star (n = 3, K = 9: 54 vs 7), the double pendulum
 (n = 2, K = 10: 40 vs 5).
 """
@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import subprocess
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
+
+from bench.sens_dense_ref import compile_c
 
 SRC = r"""
 #include <stdlib.h>
@@ -53,11 +52,7 @@ SIZES = {"particle": (2, 6), "star": (3, 9), "double_pendulum": (2, 10)}
 
 
 def _lib() -> ctypes.CDLL:
-    tmp = Path(tempfile.mkdtemp(prefix="vcigen_floor_"))
-    (tmp / "floor.c").write_text(SRC)
-    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared",
-                    str(tmp / "floor.c"), "-o", str(tmp / "floor.so")], check=True)  # fmt: skip
-    lib = ctypes.CDLL(str(tmp / "floor.so"))
+    lib = compile_c(SRC)
     lib.vc_store.restype = ctypes.c_long
     lib.vc_store.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_void_p, ctypes.c_int]
     return lib

@@ -16,11 +16,12 @@ from functools import cache
 
 import numpy as np
 import pytest
+import sympy as sp
 import test_sensitivity as ts
 
 from vcigen.backends.c import LIBRARY_TEMPLATES, render
 from vcigen.backends.ccontext import held_sets, render_context
-from vcigen.backends.cheld_map import HeldMap, held_map, held_maps
+from vcigen.backends.cheld_map import HeldMap, _settled_on_states, held_map, held_maps
 from vcigen.derive import DiscreteSystem, derive
 from vcigen.routines import Routine
 
@@ -95,6 +96,38 @@ def test_the_slides_map_is_the_closed_form() -> None:
     got = call(m.map, [], [h], par, s)
     want = np.vstack([s[0] + h * s[2], 0 * s[1], s[2], 0 * s[3]])
     assert np.array_equal(got, want)
+
+
+def test_the_box_on_its_face_map_is_the_closed_form() -> None:
+    """The box held on any two of its vertices (every two-row set): the two rows fix y and theta, so y1,
+    theta1 and their momenta do not move with the start, and x1 = x + h px, px1 = px (unit mass, no force
+    along x).
+    Those zeros hold through the relations between the partials (sin and cos of one angle), not for
+    independent values of them: ``_settled_on_states`` finds them, and the map reads no partial at all."""
+    sys_ = system("box_face")
+    h = 0.002
+    rng = np.random.default_rng(3)
+    par = parameters(sys_)
+    s = rng.normal(size=(6, 2 * 3 + len(sys_.model.defaults)))
+    want = np.vstack([s[0] + h * s[3], 0 * s[1], 0 * s[2], s[3], 0 * s[4], 0 * s[5]])
+    pairs = [st for st in held_sets(sys_.r) if len(st["rows"]) == 2]
+    assert len(pairs) == 6
+    for st in pairs:
+        m = held_map(sys_, tuple(st["rows"]), st["key"])
+        assert m.atoms.outputs[0].size == 0 and m.phi.outputs[0].size == 0, st["rows"]
+        assert np.array_equal(call(m.map, [], [h], par, s), want), st["rows"]
+
+
+def test_settled_on_states_keeps_what_is_not_identically_0_or_1() -> None:
+    """On partials ``a0 = sin q``, ``a1 = cos q``, ``a2 = |q|``: ``a0^2 + a1^2`` is 1 and
+    ``a0^2 + a1^2 - 1`` is 0 as functions of ``q`` (settled); ``a0 - a1``, ``a0 a1`` and a rough entry
+    that is 0 where it is sampled (``a2 - q``, 0 for ``q > 0`` only) stay."""
+    q = sp.Symbol("q", real=True)
+    a = sp.symbols("a0:3", real=True)
+    atoms = {a[0]: sp.sin(q), a[1]: sp.cos(q), a[2]: sp.Abs(q)}
+    m = sp.Matrix([[a[0] ** 2 + a[1] ** 2, a[0] ** 2 + a[1] ** 2 - 1, a[0] - a[1], a[0] * a[1], a[2] - q]])
+    got = _settled_on_states(m, atoms, [q])
+    assert list(got) == [1, 0, *m[2:]]
 
 
 SETS = [("bowl", (0,)), ("box_face", (0, 1)), ("box_face", (2,)), ("rod", (0,))]

@@ -46,6 +46,7 @@ from ..derive import DiscreteSystem
 from ..explicit import expanded
 from ..routines import Arg, Output, Routine
 
+DPS = 60  # digits of the evaluations of _settled_on_states
 HELD_MAP_N = 3  # coordinates at most for a held step's tangent as straight-line routines
 HELD_MAP_ARGS = ("q", "p", "tau", "v", "lam", "lam1", "u1", "par", "s")
 
@@ -166,6 +167,8 @@ def held_map(system: DiscreteSystem, active: tuple[int, ...], key: int) -> HeldM
     dmom = atom(dleg.output("dmom").expr.xreplace(rep))
     dp1 = dmom[:, :n] * dq1 + dmom[:, n : 2 * n] * du1 + dmom[:, 2 * n :] * dpar
     phi = _settled(dq1.col_join(dp1), [*atom.exprs.values(), h, *par.symbols])
+    state = [*q.symbols, *p.symbols, h, *v.symbols, *lam.symbols, *lam1.symbols, *u1.symbols, *par.symbols]
+    phi = _settled_on_states(phi, {a: e for e, a in atom.exprs.items()}, state)
     used = set().union(*(e.free_symbols for e in phi))
     atoms = [(e, a) for e, a in atom.exprs.items() if a in used]  # the partials Phi reads
     syms = tuple(a for _, a in atoms)
@@ -238,6 +241,53 @@ def held_maps(system: DiscreteSystem, sets: list[dict]) -> list[HeldMap]:
     if system.stages:  # internal points: rattle's unknowns are not (v, Lam) alone (and no held glide there)
         return []
     return [held_map(system, tuple(s["rows"]), s["key"]) for s in sets]
+
+
+ROUGH = (sp.Abs, sp.sign, sp.Heaviside, sp.Piecewise, sp.Min, sp.Max, sp.floor, sp.ceiling)
+
+
+def _settled_on_states(m: sp.Matrix, atoms: dict[sp.Symbol, sp.Expr], state: list[sp.Symbol]) -> sp.Matrix:
+    """``m`` (in the partials' symbols ``atoms``, each an expression of the ``state``) with its entries that
+    are identically 0 or 1 *as functions of the state* as such. :func:`_settled` treats the partials as
+    independent, so a zero that comes from their relations stays there: on the box held on its face the two
+    rows fix ``y`` and ``theta``, so ``d(y1, theta1, p1_y, p1_theta)`` is 0 whatever the state, but as a
+    rational function of the partials it is not. Here each entry is evaluated at three random states to
+    ``DPS`` digits (the partials from their expressions, then the entry), and taken as 0 (or 1) where all
+    three are within ``10^-(DPS/2)`` of it: a nonzero analytic function vanishes to 30 digits at three random
+    points with probability nil. Entries that read a partial with a function that is not analytic
+    (``ROUGH``: ``Abs``, ``sign``, ...), or that do not evaluate to a real number at each point, are left as
+    they are."""
+    smooth = {a for a, e in atoms.items() if not e.has(*ROUGH)}
+    cells = [(i, j) for i in range(m.rows) for j in range(m.cols) if m[i, j].free_symbols]
+    cells = [c for c in cells if m[c].free_symbols & set(atoms) and m[c].free_symbols & set(atoms) <= smooth]
+    if not cells:
+        return m
+    rng = random.Random(20261203)
+    points = []
+    for _ in range(3):
+        st = {x: sp.Rational(rng.randint(3 * 10**6, 13 * 10**6), 10**7) for x in state}
+        vals = {a: _rational(atoms[a]).xreplace(st).evalf(DPS) for a in smooth}
+        points.append(vals | {x: sp.Float(v, DPS) for x, v in st.items()})
+    out = m.copy()
+    tol = sp.Float(10) ** (-DPS // 2)
+    for c in cells:
+        e = _rational(m[c])
+        first = e.xreplace(points[0]).evalf(DPS)
+        for k in (0, 1):  # the other points only where the first is k (most entries are neither there)
+            if _near(first, k, tol) and all(_near(e.xreplace(pt).evalf(DPS), k, tol) for pt in points[1:]):
+                out[c] = sp.Integer(k)
+    return out
+
+
+def _near(v: sp.Expr, k: int, tol: sp.Float) -> bool:
+    """Whether ``v`` is a real number within ``tol`` of ``k``."""
+    return bool(v.is_Number and v.is_real and abs(v - k) <= tol)
+
+
+def _rational(e: sp.Expr) -> sp.Expr:
+    """``e`` with its floats as the rationals they are exactly (a model's ``0.5``, ``1.0``): else ``evalf``
+    keeps them at 15 digits."""
+    return e.xreplace({f: sp.Rational(f) for f in e.atoms(sp.Float)})
 
 
 def _settled(m: sp.Matrix, symbols: list[sp.Symbol]) -> sp.Matrix:
