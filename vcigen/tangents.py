@@ -24,6 +24,8 @@ named ``d_<routine>`` (SENS_DESIGN.md):
 * ``d_friction(q, par)`` (a model with friction): ``dmu``, ``m x npar``: each contact's ``mu_f`` in ``par``
   (the tangent of a slip slot ``-mu_f s``, the sliding direction ``s`` fixed within a friction mode), and
   ``dtgrad``, ``(m n) x (n + npar)``: the tangents' gradients (a frictional impact's direction ``n + rho t``);
+* ``d_friction_cone(q, par)`` (a contact with an isotropic cone): ``dtgrad2``, ``(m n) x (n + npar)``: the
+  second tangents' gradients (a cone's impulse direction ``n + rho_1 t1 + rho_2 t2`` at an impact);
 * ``d_rows(q, u, par)``: ``dgrad``, ``(R n) x (n + npar)``: the rows' gradients (a plastic impact's
   impulse law);
 * ``d_forces(q, u, a, lam, par)``: ``dres``, ``(n + R) x (2n + npar)``: ``d/d(q, u, par)`` of the contact
@@ -210,6 +212,19 @@ def friction_tangent(r: Routine) -> Routine:
     )
 
 
+def friction_cone_tangent(r: Routine) -> Routine:
+    """``d_friction_cone(q, par)``: partials of the second tangents' gradients (row-major, ``(m n) x (n +
+    npar)``, as ``d_friction``'s ``dtgrad``; an isotropic cone's impulse direction at an impact)."""
+    tgrad = r.output("tgrad2").expr
+    flat = sp.Matrix(tgrad.rows * tgrad.cols, 1, list(tgrad))
+    return Routine(
+        "d_friction_cone",
+        r.inputs,
+        (Output("dtgrad2", jacobian(flat, _data_symbols(r.inputs))),),
+        "Partials of each cone contact's second tangent's gradient in (q, par) (Coulomb, two tangents).",
+    )
+
+
 _TANGENTS = memo.Lru()  # memo.routines_key(routines) -> (routines, their d_* routines): vcigen.memo
 
 
@@ -235,6 +250,8 @@ def _tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     }
     if "friction" in routines:
         out["d_friction"] = friction_tangent(routines["friction"])
+    if "friction_cone" in routines:
+        out["d_friction_cone"] = friction_cone_tangent(routines["friction_cone"])
     if "rows" in routines:
         out["d_rows"] = rows_tangent(routines["rows"])
         out["d_forces"] = forces_tangent(routines)
