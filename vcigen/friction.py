@@ -220,19 +220,20 @@ def cone_impulse(g, h, b, mu_f: float, a: float) -> tuple[float, float]:
 
 
 def cone_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):
-    """The tangent of :func:`cone_law` in its branch (stick, or slip on the cone's edge): ``(rho, dK, drho, ddK,
-    branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential shares (``n + rho_1 t1 + rho_2 t2``),
-    each ``d`` rows of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, 1 slip; ``None`` where
-    :func:`cone_impulse` gave its degenerate ``0`` (no derivative).
+    """The tangent of :func:`cone_law` in its branch (stick, or slip on the cone's edge): ``(rho, dK, drho,
+    ddK, branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential shares (``n + rho_1 t1 + rho_2
+    t2``), each ``d`` rows of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, 1 slip; ``None``
+    where :func:`cone_impulse` gave its degenerate ``0`` (no derivative).
 
     ``scalars = (n.qdot, t1.qdot, t2.qdot, n.A n, n.A t1, n.A t2, t1.A t1, t1.A t2, t2.A t2)``, ``dscalars``
-    their tangents (9, K). ``a``, ``b``, ``g``, ``H`` as in :func:`cone_law` (the same expressions in the same
-    order), the minimiser ``m`` by :func:`cone_impulse` from them. Stick: ``H m + g = 0``, so ``dm = -H^-1 (dg +
-    dH m)``. Slip: ``m`` and the multiplier ``nu > 0`` solve the law's defining equations (the Lagrangian's
-    stationarity on the edge) ``F = [g + H m + nu (u + mu_f b); |m| - mu_f (a - b.m)] = 0``, ``u = m/|m|``;
-    by the implicit-function theorem ``d(m, nu) = -J^-1 dF`` with the symmetric ``J = [[H + nu (I - u u^T)/|m|,
-    w], [w^T, 0]]``, ``w = u + mu_f b`` (``nu`` from the first rows at ``m``: ``-(g + H m).w / w.w``). At the
-    branch's boundary (``-H^-1 g`` on the cone's edge) it is a mode change: the branch taken is returned."""
+    their tangents (9, K). ``a``, ``b``, ``g``, ``H`` as in :func:`cone_law` (the same expressions in the
+    same order), the minimiser ``m`` by :func:`cone_impulse` from them. Stick: ``H m + g = 0``, so ``dm =
+    -H^-1 (dg + dH m)``. Slip: ``m`` and the multiplier ``nu > 0`` solve the law's defining equations (the
+    Lagrangian's stationarity on the edge) ``F = [g + H m + nu (u + mu_f b); |m| - mu_f (a - b.m)] = 0``,
+    ``u = m/|m|``; by the implicit-function theorem ``d(m, nu) = -J^-1 dF`` with the symmetric ``J = [[H +
+    nu (I - u u^T)/|m|, w], [w^T, 0]]``, ``w = u + mu_f b`` (``nu`` from the first rows at ``m``: ``-(g + H
+    m).w / w.w``). At the branch's boundary (``-H^-1 g`` on the cone's edge) it is a mode change: the branch
+    taken is returned."""
     nv, t1v, t2v, nn, nt1, nt2, t11, t12, t22 = scalars
     dnv, dt1v, dt2v, dnn, dnt1, dnt2, dt11, dt12, dt22 = dscalars
     a = -(1.0 + e) * nv / nn

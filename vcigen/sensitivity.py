@@ -51,9 +51,9 @@ group of contacts at once, free or while held), a grazing impact taking the cont
 a held step while friction acts or under a rule with internal points, a friction switch (``"friction switch
 in a held step"``: stick <-> slip, the sliding direction turned, a contact released or on another face),
 several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse at its
-degenerate 0 (``"friction at an impact"``: round-off only), the ``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for
-``j > k``), ``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists
-``(step, reason)``.
+degenerate 0 (``"friction at an impact"``: round-off only), the ``_restart`` fallback. From the first such
+step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
+``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
 
 from __future__ import annotations
@@ -422,14 +422,16 @@ class Tracker(HeldTangents):
         adirs = np.linalg.solve(mass, np.column_stack(dirs)).T  # A n, A t_i
         dleg = self.tg.get("d_legendre")
         d_state = np.vstack([self.dq, dvel, dpar])
-        dadirs = [np.linalg.solve(mass, dd - dleg(seg.q, vel, ad, par)[1] @ d_state) for dd, ad in zip(ddirs, adirs)]
+        dadirs = [
+            np.linalg.solve(mass, dd - dleg(seg.q, vel, ad, par)[1] @ d_state) for dd, ad in zip(ddirs, adirs)
+        ]
         # the scalars in the laws' order: n.qdot, t_i.qdot, then d_i.A d_l over the pairs (impact_law_tangent:
         # n.qdot, t.qdot, n.A n, n.A t, t.A t; cone_law_tangent: with t1, t2)
         pairs = [(0, 0), (0, 1), (1, 1)] if not cone else [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
-        scalars = [float(d @ vel) for d in dirs] + [float(dirs[i] @ adirs[l]) for i, l in pairs]
+        scalars = [float(d @ vel) for d in dirs] + [float(dirs[i] @ adirs[r]) for i, r in pairs]
         dscalars = np.array(
             [vel @ dd + d @ dvel for d, dd in zip(dirs, ddirs)]
-            + [adirs[l] @ ddirs[i] + dirs[i] @ dadirs[l] for i, l in pairs]
+            + [adirs[r] @ ddirs[i] + dirs[i] @ dadirs[r] for i, r in pairs]
         )
         de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
         tangent = cone_law_tangent if cone else impact_law_tangent
