@@ -217,3 +217,78 @@ def cone_impulse(g, h, b, mu_f: float, a: float) -> tuple[float, float]:
     if g[0] * m1 + g[1] * m2 + 0.5 * (h[0] * m1 * m1 + 2 * h[1] * m1 * m2 + h[2] * m2 * m2) > 0.0:
         return 0.0, 0.0  # never above the frictionless law (round-off only)
     return m1, m2
+
+
+def cone_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):
+    """The tangent of :func:`cone_law` in its branch (stick, or slip on the cone's edge): ``(rho, dK, drho,
+    ddK, branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential shares (``n + rho_1 t1 + rho_2
+    t2``), each ``d`` rows of the ``K`` columns of ``z`` (forward mode), ``branch`` 0 stick, 1 slip; ``None``
+    where :func:`cone_impulse` gave its degenerate ``0`` (no derivative).
+
+    ``scalars = (n.qdot, t1.qdot, t2.qdot, n.A n, n.A t1, n.A t2, t1.A t1, t1.A t2, t2.A t2)``, ``dscalars``
+    their tangents (9, K). ``a``, ``b``, ``g``, ``H`` as in :func:`cone_law` (the same expressions in the
+    same order), the minimiser ``m`` by :func:`cone_impulse` from them. Stick: ``H m + g = 0``, so ``dm =
+    -H^-1 (dg + dH m)``. Slip: ``m`` and the multiplier ``nu > 0`` solve the law's defining equations (the
+    Lagrangian's stationarity on the edge) ``F = [g + H m + nu (u + mu_f b); |m| - mu_f (a - b.m)] = 0``,
+    ``u = m/|m|``; by the implicit-function theorem ``d(m, nu) = -J^-1 dF`` with the symmetric ``J = [[H +
+    nu (I - u u^T)/|m|, w], [w^T, 0]]``, ``w = u + mu_f b`` (``nu`` from the first rows at ``m``: ``-(g + H
+    m).w / w.w``). At the branch's boundary (``-H^-1 g`` on the cone's edge) it is a mode change: the branch
+    taken is returned."""
+    nv, t1v, t2v, nn, nt1, nt2, t11, t12, t22 = scalars
+    dnv, dt1v, dt2v, dnn, dnt1, dnt2, dt11, dt12, dt22 = dscalars
+    a = -(1.0 + e) * nv / nn
+    da = -de * nv / nn - (1.0 + e) * (dnv * nn - nv * dnn) / (nn * nn)
+    b = np.array([nt1 / nn, nt2 / nn])
+    db = np.array([(dnt1 * nn - nt1 * dnn) / (nn * nn), (dnt2 * nn - nt2 * dnn) / (nn * nn)])
+    g = np.array([t1v - b[0] * nv, t2v - b[1] * nv])
+    dg = np.array([dt1v - db[0] * nv - b[0] * dnv, dt2v - db[1] * nv - b[1] * dnv])
+    h = (t11 - nt1 * nt1 / nn, t12 - nt1 * nt2 / nn, t22 - nt2 * nt2 / nn)
+    dh = (
+        dt11 - (2.0 * nt1 * dnt1 * nn - nt1 * nt1 * dnn) / (nn * nn),
+        dt12 - ((dnt1 * nt2 + nt1 * dnt2) * nn - nt1 * nt2 * dnn) / (nn * nn),
+        dt22 - (2.0 * nt2 * dnt2 * nn - nt2 * nt2 * dnn) / (nn * nn),
+    )
+    hm = np.array([[h[0], h[1]], [h[1], h[2]]])
+    m = np.array(cone_impulse(tuple(g), h, tuple(b), mu_f, max(a, 0.0)))
+    det = h[0] * h[2] - h[1] * h[1]
+    if not (mu_f > 0.0 and a > 0.0 and h[0] > 0.0 and det > 0.0):
+        return None
+    free = -np.array([h[2] * g[0] - h[1] * g[1], h[0] * g[1] - h[1] * g[0]]) / det
+    # dH m and dg: the first rows' partials (both branches)
+    dhm = np.array([dh[0] * m[0] + dh[1] * m[1], dh[1] * m[0] + dh[2] * m[1]])
+    if math.hypot(*free) <= mu_f * (a - b[0] * free[0] - b[1] * free[1]):  # stick (cone_impulse's test)
+        branch = 0
+        dm = -np.linalg.solve(hm, dg + dhm)
+    else:  # slip: the implicit-function theorem on the edge's equations
+        branch = 1
+        norm = math.hypot(*m)
+        if norm == 0.0:
+            return None
+        u = m / norm
+        w = u + mu_f * b
+        nu = -float((g + hm @ m) @ w) / float(w @ w)
+        jac = np.zeros((3, 3))
+        jac[:2, :2] = hm + nu * (np.eye(2) - np.outer(u, u)) / norm
+        jac[:2, 2] = jac[2, :2] = w
+        d_f = np.vstack(
+            [
+                dg + dhm + nu * (np.outer(b, dmu_f) + mu_f * db),
+                -dmu_f * (a - b @ m) - mu_f * (da - m @ db),
+            ]
+        )
+        dm = -np.linalg.solve(jac, d_f)[:2]
+    mu_n = a - b @ m
+    dmu_n = da - m @ db - b @ dm
+    dk = a * nv + 0.5 * a * a * nn + g @ m + 0.5 * m @ hm @ m
+    ddk = (
+        da * nv
+        + a * dnv
+        + a * da * nn
+        + 0.5 * a * a * dnn
+        + m @ dg
+        + (g + hm @ m) @ dm
+        + 0.5 * (dh[0] * m[0] * m[0] + 2.0 * dh[1] * m[0] * m[1] + dh[2] * m[1] * m[1])
+    )
+    rho = m / mu_n
+    drho = (dm * mu_n - np.outer(m, dmu_n)) / (mu_n * mu_n)
+    return rho, dk, drho, ddk, branch

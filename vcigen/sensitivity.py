@@ -32,10 +32,13 @@ in ``(x, d)``, their partials chained. Phases:
   (the slip slot ``-mu_f s`` of ``par``, ``s`` fixed within the mode for one tangent, its tangent through
   ``mu_f``: ``d_friction``; an isotropic cone's ``s`` aimed at the segment's start from the state, its tangent
   through that aim, :meth:`Tracker._cone_slots`) or stick throughout (the stick row ``t(q) - ref = 0`` held,
-  ``d ref = grad t(q_k) dq_k``): :meth:`Tracker._friction_slots`; a frictional impact (one tangent) in the
-  branch of Coulomb's impulse law it takes (stick, or slip at either edge of the cone): the impulse direction
-  ``n + rho t`` and the energy ``E + dK`` by :func:`vcigen.friction.impact_law_tangent`
-  (:meth:`Tracker._friction_impact`);
+  ``d ref = d t(q_k; par)``, its ``q`` and parameter partials): :meth:`Tracker._friction_slots`; a
+  frictional impact (one tangent) in the branch of Coulomb's impulse law it takes (stick, or slip at either
+  edge of the cone): the impulse direction ``n + rho t`` and the energy ``E + dK`` by
+  :func:`vcigen.friction.impact_law_tangent`
+  (:meth:`Tracker._friction_impact`); with an isotropic cone (two tangents, :func:`vcigen.friction.cone_law`)
+  in its branch (stick: ``H m + g = 0``; slip: the edge's equations in ``(m, nu)`` by the implicit-function
+  theorem), the direction ``n + rho_1 t1 + rho_2 t2`` by :func:`vcigen.friction.cone_law_tangent`;
 * events inside a held step while friction acts, the friction mode kept (``SustainedSteps._no_switch``):
   each constrained sub-step with its friction slots' tangent from its start (:meth:`Tracker._friction_slots`;
   a slipping cone's aim there over what is left of the step, :meth:`Tracker._cone_slots` with ``dtau``),
@@ -55,11 +58,10 @@ Not covered (each a mode change or a set-valued law, no derivative to give): a s
 group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
 a held step with isotropic cones under forces of time or under a rule with internal points, a friction switch
 (``"friction switch in a held step"``: stick <-> slip, the sliding direction turned, a contact on another
-face),
-several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse at an
-impact, the ``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for
-``j > k``), ``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists
-``(step, reason)``.
+face), several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse
+at its degenerate 0 (``"friction at an impact"``: round-off only), the ``_restart`` fallback. From the first
+such step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
+``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
 
 from __future__ import annotations
@@ -369,9 +371,6 @@ class Tracker(HeldTangents):
         if kind != "jump":
             self.lose(f"{kind} impact")
             return
-        if law is not None and getattr(self.k, "cone", ()) and self.k.cone[law[0]]:
-            self.lose("friction at an impact")  # the isotropic cone's impulse: not differentiated
-            return
         if law is not None:
             self._friction_impact(seg, v_in, rest, *law)
             return
@@ -401,14 +400,16 @@ class Tracker(HeldTangents):
         self.de = self.de - dloss
 
     def _friction_impact(self, seg, v_in, rest: float, j: int, nrm) -> None:
-        """Coulomb friction at an impact on contact ``j`` (``Stepper._frictional_law``, :func:`impact_law`)
-        in the branch it took: the jump (48) runs along ``n + rho t`` with the energy ``E + dK``; ``dnrm`` and
-        ``de`` become their tangents. ``rho`` and ``dK`` are closed forms of ``n.qdot``, ``t.qdot``,
-        ``n.A n``, ``n.A t``, ``t.A t`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the
-        inverse Legendre transform from ``v_in``), ``mu_f`` and ``e``
-        (:func:`vcigen.friction.impact_law_tangent`); ``dn`` is the contact time's ``dnrm``, ``dt`` from
-        ``d_friction``, ``d(A n) = A (dn - d(M) A n)`` by ``d_legendre``."""
-        from .friction import impact_law_tangent
+        """Coulomb friction at an impact on contact ``j`` (``Stepper._frictional_law``, :func:`impact_law`, or
+        :func:`cone_law` on a contact with an isotropic cone) in the branch it took: the jump (48) runs along
+        ``n + rho t`` (a cone: ``n + rho_1 t1 + rho_2 t2``) with the energy ``E + dK``; ``dnrm`` and ``de``
+        become their tangents. ``rho`` and ``dK`` are functions of the scalars ``n.qdot``, ``t_i.qdot``,
+        ``n.A n``, ``n.A t_i``, ``t_i.A t_l`` (``A = M^-1`` at ``(q~, qdot)``, ``qdot`` one Newton step of the
+        inverse Legendre transform from ``v_in``), ``mu_f`` and ``e``, differentiated in their branch
+        (:func:`vcigen.friction.impact_law_tangent`, :func:`vcigen.friction.cone_law_tangent`); ``dn`` is the
+        contact time's ``dnrm``, ``dt_i`` from ``d_friction`` (``d_friction_cone``), ``d(A n) = A (dn - d(M)
+        A n)`` by ``d_legendre``."""
+        from .friction import cone_law_tangent, impact_law_tangent
 
         k, n = self.k, self.n
         par, dpar = self.par(seg.t), self.dpar(self.dt)
@@ -417,30 +418,38 @@ class Tracker(HeldTangents):
         vel = v_in + a
         dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
         mu, tgrad, _ = k.friction(seg.q)
-        t = tgrad[j]
-        mass = k.legendre(seg.q, vel)[1]
-        an, at = np.linalg.solve(mass, np.column_stack([nrm, t])).T
         dmu, dtg = self.tg.get("d_friction")(seg.q, par)
-        dt = dtg[j * n : (j + 1) * n] @ np.vstack([self.dq, dpar])
-        dn = self.dnrm
+        dqp = np.vstack([self.dq, dpar])
+        tans, dtans = [tgrad[j]], [dtg[j * n : (j + 1) * n] @ dqp]
+        cone = bool(getattr(k, "cone", ())) and bool(k.cone[j])
+        if cone:  # the second tangent of the isotropic cone
+            tans.append(k.friction_cone(seg.q)[j])
+            dtans.append(self.tg.get("d_friction_cone")(seg.q, par)[0][j * n : (j + 1) * n] @ dqp)
+        mass = k.legendre(seg.q, vel)[1]
+        dirs, ddirs = [nrm, *tans], [self.dnrm, *dtans]
+        adirs = np.linalg.solve(mass, np.column_stack(dirs)).T  # A n, A t_i
         dleg = self.tg.get("d_legendre")
         d_state = np.vstack([self.dq, dvel, dpar])
-        dan = np.linalg.solve(mass, dn - dleg(seg.q, vel, an, par)[1] @ d_state)
-        dat = np.linalg.solve(mass, dt - dleg(seg.q, vel, at, par)[1] @ d_state)
-        scalars = (float(nrm @ vel), float(t @ vel), float(nrm @ an), float(nrm @ at), float(t @ at))
+        dadirs = [
+            np.linalg.solve(mass, dd - dleg(seg.q, vel, ad, par)[1] @ d_state) for dd, ad in zip(ddirs, adirs)
+        ]
+        # the scalars in the laws' order: n.qdot, t_i.qdot, then d_i.A d_l over the pairs (impact_law_tangent:
+        # n.qdot, t.qdot, n.A n, n.A t, t.A t; cone_law_tangent: with t1, t2)
+        pairs = [(0, 0), (0, 1), (1, 1)] if not cone else [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+        scalars = [float(d @ vel) for d in dirs] + [float(dirs[i] @ adirs[r]) for i, r in pairs]
         dscalars = np.array(
-            [
-                vel @ dn + nrm @ dvel,
-                vel @ dt + t @ dvel,
-                an @ dn + nrm @ dan,
-                at @ dn + nrm @ dat,
-                at @ dt + t @ dat,
-            ]
+            [vel @ dd + d @ dvel for d, dd in zip(dirs, ddirs)]
+            + [adirs[r] @ ddirs[i] + dirs[i] @ dadirs[r] for i, r in pairs]
         )
         de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
-        law = impact_law_tangent(scalars, dscalars, float(mu[j]), dmu[j] @ dpar, rest, de_rest)
+        tangent = cone_law_tangent if cone else impact_law_tangent
+        law = tangent(tuple(scalars), dscalars, float(mu[j]), dmu[j] @ dpar, rest, de_rest)
+        if law is None:  # the cone's impulse at its degenerate 0 (round-off): no derivative
+            self.lose("friction at an impact")
+            return
         rho, _, drho, ddk, _ = law
-        self.dnrm = dn + np.outer(t, drho) + rho * dt
+        rho, drho = np.atleast_1d(rho), np.atleast_2d(drho)
+        self.dnrm = self.dnrm + sum(np.outer(t, dr) + r * dt for t, dt, r, dr in zip(tans, dtans, rho, drho))
         self.de = self.de + ddk
 
     @_guarded

@@ -24,6 +24,8 @@ named ``d_<routine>`` (SENS_DESIGN.md):
 * ``d_friction(q, par)`` (a model with friction): ``dmu``, ``m x npar``: each contact's ``mu_f`` in ``par``
   (the tangent of a slip slot ``-mu_f s``, the sliding direction ``s`` fixed within a friction mode), and
   ``dtgrad``, ``(m n) x (n + npar)``: the tangents' gradients (a frictional impact's direction ``n + rho t``);
+* ``d_friction_cone(q, par)`` (a contact with an isotropic cone): ``dtgrad2``, ``(m n) x (n + npar)``: the
+  second tangents' gradients (a cone's impulse direction ``n + rho_1 t1 + rho_2 t2`` at an impact);
 * ``d_rows(q, u, par)``: ``dgrad``, ``(R n) x (n + npar)``: the rows' gradients (a plastic impact's
   impulse law);
 * ``d_forces(q, u, a, lam, par)``: ``dres``, ``(n + R) x (2n + npar)``: ``d/d(q, u, par)`` of the contact
@@ -108,14 +110,19 @@ def rattle_end_tangent(r: Routine) -> Routine:
     )
 
 
+def _matrix_tangent(r: Routine, name: str) -> sp.Matrix:
+    """Partials of the matrix output ``name`` of ``r`` (row-major: row ``j n + i`` its entry ``[j, i]``) in
+    every input of ``r`` (gradients of the contacts or of the tangents in ``(q, par)``)."""
+    grad = r.output(name).expr
+    return jacobian(sp.Matrix(grad.rows * grad.cols, 1, list(grad)), _data_symbols(r.inputs))
+
+
 def contacts_tangent(r: Routine) -> Routine:
     """``d_contacts``: partials of the contact gradients (row-major) in ``(q, par)``."""
-    grad = r.output("grad").expr
-    flat = sp.Matrix(grad.rows * grad.cols, 1, list(grad))
     return Routine(
         "d_contacts",
         r.inputs,
-        (Output("dgrad", jacobian(flat, _data_symbols(r.inputs))),),
+        (Output("dgrad", _matrix_tangent(r, "grad")),),
         "Partials of grad phi_j[i] (row j n + i) in (q, par): the tangent of the impulse direction.",
     )
 
@@ -197,16 +204,25 @@ def friction_tangent(r: Routine) -> Routine:
     """``d_friction(q, par)``: partials of each contact's ``mu_f`` in ``par`` (a slip slot's tangent) and of
     the tangents' gradients (row-major, ``(m n) x (n + npar)``, as ``d_contacts``; a frictional impact's)."""
     par = r.inputs[-1]
-    tgrad = r.output("tgrad").expr
-    flat = sp.Matrix(tgrad.rows * tgrad.cols, 1, list(tgrad))
     return Routine(
         "d_friction",
         r.inputs,
         (
             Output("dmu", jacobian(r.output("mu").expr, list(par.symbols))),
-            Output("dtgrad", jacobian(flat, _data_symbols(r.inputs))),
+            Output("dtgrad", _matrix_tangent(r, "tgrad")),
         ),
         "Partials of each contact's mu_f in par and of its tangent's gradient in (q, par) (Coulomb).",
+    )
+
+
+def friction_cone_tangent(r: Routine) -> Routine:
+    """``d_friction_cone(q, par)``: partials of the second tangents' gradients (row-major, ``(m n) x (n +
+    npar)``, as ``d_friction``'s ``dtgrad``; an isotropic cone's impulse direction at an impact)."""
+    return Routine(
+        "d_friction_cone",
+        r.inputs,
+        (Output("dtgrad2", _matrix_tangent(r, "tgrad2")),),
+        "Partials of each cone contact's second tangent's gradient in (q, par) (Coulomb, two tangents).",
     )
 
 
@@ -235,6 +251,8 @@ def _tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     }
     if "friction" in routines:
         out["d_friction"] = friction_tangent(routines["friction"])
+    if "friction_cone" in routines:
+        out["d_friction_cone"] = friction_cone_tangent(routines["friction_cone"])
     if "rows" in routines:
         out["d_rows"] = rows_tangent(routines["rows"])
         out["d_forces"] = forces_tangent(routines)
