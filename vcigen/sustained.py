@@ -776,7 +776,7 @@ class SustainedSteps:
     def _events_tangent(self, tan):
         """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless, a rule
         without internal points; else None (the step breaks as before)."""
-        return tan if tan is not None and not self._stick_rows and not self._stages else None
+        return tan if tan is not None and not self._stick_rows else None
 
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
         """A constrained sub-step to an event of row ``r`` (``"lift"`` or ``"cross"``): ``Tracker.event``."""
