@@ -296,6 +296,20 @@ def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -
     covered throughout (no break), the impacts while held of the kinds the scene makes."""
     sim = simulator(scene, backend)
     res, per = held_finite_differences(sim, scene, scenes=SCENES)
+    held = assert_scene_events(scene, res)
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(
+        f"{scene} ({backend}): {len(held)} impacts while held; "
+        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
+    )
+    assert max(errs.values()) <= 1e-6, errs
+    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+
+
+def assert_scene_events(scene: str, res: vcigen.Result) -> list:
+    """The events inside held steps the scene is made for (its impacts while held, of the kinds it makes, or
+    its lift-offs inside one step); returns the impacts while held."""
     held = impacts_while_held(res)
     if scene == "pop":  # the plastic impact and the lift-off at the same instant
         (im,) = res.impacts
@@ -310,14 +324,7 @@ def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -
         assert len(res.liftoffs) == 2 and len(steps) == 1 and res.n_impacts == 0, res.liftoffs
     else:
         assert held and KINDS[scene] <= {im.kind for im in held}, [(im.step, im.kind) for im in res.impacts]
-    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
-    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
-    print(
-        f"{scene} ({backend}): {len(held)} impacts while held; "
-        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
-    )
-    assert max(errs.values()) <= 1e-6, errs
-    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+    return held
 
 
 @pytest.mark.skipif(hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem()))
@@ -364,16 +371,6 @@ def test_a_simultaneous_impact_while_held_breaks(backend: str) -> None:
     res = sim.simulate([0.0] * 4, [1.0, 0.0, -1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
     assert [im.step for im in res.impacts] == [45, 45] and res.active[45, :2].all()  # both on the floor
     assert assert_lost(res, "simultaneous impact") == 45
-
-
-def test_events_under_lobatto3_still_break() -> None:
-    """Under a rule with internal points (lobatto3) an impact while held is not covered: the held step breaks
-    with its reason (``SustainedSteps._events_tangent``; C renders no event hooks then: CasADi here, the C
-    build of a lobatto3 variant costs ~30 s)."""
-    sim = vcigen.build(floor_wall(), backend="casadi", rule="lobatto3")
-    res = sim.simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
-    (im,) = res.impacts
-    assert assert_lost(res, "held step (sustained contact)") == im.step
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -1,0 +1,105 @@
+"""Exact sensitivities through events inside held steps under the fourth-order rule ``lobatto3`` (issue 11 item 1):
+the scenes of tests/test_sensitivity_held_events.py built with internal points. A lift-off located inside a held
+step, then free flight and an impact in the same step; two lift-offs in one step; impacts while another row or a
+bilateral constraint is held (elastic, restitution, plastic); a plastic impact released at once. The internal
+point of every constrained sub-step is held on the active rows with its own multipliers (``Tracker._held_sub``;
+C ``sens_sub``), the free rest carries its own (``Tracker._free_end``; C ``sens_free_end``). Against central
+differences of whole runs along paths that keep the mode and against a closed form, on both backends; C = CasADi;
+what stays uncovered breaks with its reason.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import hard_scenes
+import numpy as np
+import pytest
+from test_sensitivity import BACKENDS, assert_lost, held_finite_differences, held_mode, relative_error
+from test_sensitivity_c import assert_same_tangent
+from test_sensitivity_held_events import SCENES, _pairs, assert_scene_events, pair
+
+import vcigen
+
+RULE = "lobatto3"
+
+
+@cache
+def _built(maker, backend: str) -> vcigen.Simulator:
+    return vcigen.build(maker(), backend=backend, rule=RULE)
+
+
+def simulator(scene: str, backend: str) -> vcigen.Simulator:
+    """The scene's lobatto3 simulator, one build per model (the walls and the boxes share theirs)."""
+    return _built(SCENES[scene][0], backend)
+
+
+@pytest.mark.parametrize("scene, backend", list(_pairs()))
+def test_events_inside_held_steps_match_finite_differences(scene: str, backend: str) -> None:
+    """The tangent across events inside held steps under lobatto3 against central differences of whole runs
+    (every grid point, every path of the scene), covered throughout (no break), with the events the scene is
+    made for."""
+    res, per = held_finite_differences(simulator(scene, backend), scene, scenes=SCENES)
+    held = assert_scene_events(scene, res)
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(
+        f"{scene} [lobatto3, {backend}]: {len(held)} impacts while held, {len(res.liftoffs)} lift-offs; "
+        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
+    )
+    assert max(errs.values()) <= 1e-6, errs
+    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+
+
+@pytest.mark.skipif(hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem()))
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_c_equals_casadi(scene: str) -> None:
+    """The C loop's tangent (sens_events.c.j2 over sens_sub with the internal points) is the Python stepper's to
+    1e-9, with the same (no) breaks, and its run is the plain library's bit for bit."""
+    _, q0, v0, h, t_end, params, _ = SCENES[scene]
+    kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
+    a, b = (simulator(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
+    assert held_mode(a) == held_mode(b)
+    plain = simulator(scene, "c").simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
+    np.testing.assert_array_equal(b.q, plain.q)
+    np.testing.assert_array_equal(b.p, plain.p)
+    rel = assert_same_tangent(a, b)
+    print(f"{scene} [lobatto3]: C against CasADi {rel:.1e}")
+    assert b.sensitivity_breaks == []
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_wall_hit_while_held_has_its_closed_form(backend: str) -> None:
+    """The particle held on the floor sliding into the elastic wall ``x <= W``: ``x`` moves freely at constant
+    velocity and is reflected, so for every rule ``x = x0 + v0 t`` before the impact and ``2 W - x0 - v0 t``
+    after it, ``p_x = +-v0``: ``dx/d(x0, v0, W) = (1, t, 0)`` then ``(-1, -t, 2)``, ``dp_x/dv0 = 1`` then
+    ``-1``, to round-off. The impact's fraction inside its held step moves with ``x0``, ``v0`` and ``W``
+    (``Tracker._located``'s ``d tau_s``): with it dropped the end reads ``dx/dW = 1``, ``dx/dv0 = -0.345``
+    (against 2 and -0.8)."""
+    _, q0, v0, h, t_end, params, _ = SCENES["wall"]
+    res = simulator("wall", backend).simulate(q0, v0, h, t_end=t_end, sensitivities=True, progress=False)
+    (im,) = res.impacts
+    assert res.active[1:, 0].all() and res.sensitivity_breaks == []
+    names = res.sensitivity_names
+    col = {name: names.index(name) for name in ("q0[x]", "v0[x]", "W")}
+    after = np.arange(res.t.size) > im.step
+    sign = np.where(after, -1.0, 1.0)
+    s = res.sensitivity
+    err = max(
+        np.abs(s[:, 0, col["q0[x]"]] - sign).max(),
+        np.abs(s[:, 0, col["v0[x]"]] - sign * res.t).max(),
+        np.abs(s[:, 0, col["W"]] - np.where(after, 2.0, 0.0)).max(),
+        np.abs(s[:, 2, col["v0[x]"]] - sign).max(),
+    )
+    print(f"wall [lobatto3, {backend}]: impact in step {im.step}, closed form to {err:.1e}")
+    assert after.sum() > 10 and err <= 1e-12, err
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_simultaneous_impact_while_held_still_breaks(backend: str) -> None:
+    """Two rows hit at the same instant while held (the weights of the impulse switch) under lobatto3: the
+    tangent stops there with its reason, the same step on both backends."""
+    sim = _built(pair, backend)
+    res = sim.simulate([0.0] * 4, [1.0, 0.0, -1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
+    assert [im.step for im in res.impacts] == [45, 45] and res.active[45, :2].all()  # both on the floor
+    assert assert_lost(res, "simultaneous impact") == 45
