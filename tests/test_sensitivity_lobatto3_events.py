@@ -1,11 +1,11 @@
-"""Exact sensitivities through events inside held steps under the fourth-order rule ``lobatto3`` (issue 11 item 1):
-the scenes of tests/test_sensitivity_held_events.py built with internal points. A lift-off located inside a held
-step, then free flight and an impact in the same step; two lift-offs in one step; impacts while another row or a
-bilateral constraint is held (elastic, restitution, plastic); a plastic impact released at once. The internal
-point of every constrained sub-step is held on the active rows with its own multipliers (``Tracker._held_sub``;
-C ``sens_sub``), the free rest carries its own (``Tracker._free_end``; C ``sens_free_end``). Against central
-differences of whole runs along paths that keep the mode and against a closed form, on both backends; C = CasADi;
-what stays uncovered breaks with its reason.
+"""Exact sensitivities through events inside held steps under the fourth-order rule ``lobatto3`` (issue
+11 item 1): the scenes of tests/test_sensitivity_held_events.py built with internal points. A lift-off
+located inside a held step, then free flight and an impact in the same step; two lift-offs in one step;
+impacts while another row or a bilateral constraint is held (elastic, restitution, plastic); a plastic impact
+released at once. The internal point of every constrained sub-step is held on the active rows with its own
+multipliers (``Tracker._held_sub``; C ``sens_sub``), the free rest carries its own (``Tracker._free_end``;
+C ``sens_free_end``). Against central differences of whole runs along paths that keep the mode and against
+a closed form, on both backends; C = CasADi; what stays uncovered breaks with its reason.
 """
 
 from __future__ import annotations
@@ -54,8 +54,8 @@ def test_events_inside_held_steps_match_finite_differences(scene: str, backend: 
 @pytest.mark.skipif(hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem()))
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_c_equals_casadi(scene: str) -> None:
-    """The C loop's tangent (sens_events.c.j2 over sens_sub with the internal points) is the Python stepper's to
-    1e-9, with the same (no) breaks, and its run is the plain library's bit for bit."""
+    """The C loop's tangent (sens_events.c.j2 over sens_sub with the internal points) is the Python
+    stepper's to 1e-9, with the same (no) breaks, and its run is the plain library's bit for bit."""
     _, q0, v0, h, t_end, params, _ = SCENES[scene]
     kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
     a, b = (simulator(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))

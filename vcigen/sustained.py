@@ -774,9 +774,9 @@ class SustainedSteps:
 
     # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
     def _events_tangent(self, tan):
-        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless (under any
-        rule: internal points are held in each constrained sub-step, ``Tracker._held_sub``); else None (the step
-        breaks as before)."""
+        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless (under
+        any rule: internal points are held in each constrained sub-step, ``Tracker._held_sub``); else None
+        (the step breaks as before)."""
         return tan if tan is not None and not self._stick_rows else None
 
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
