@@ -294,13 +294,18 @@ def _pairs():
 def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -> None:
     """The tangent across impacts while held against central differences of whole runs (every grid point),
     covered throughout (no break), the impacts while held of the kinds the scene makes."""
-    sim = simulator(scene, backend)
+    events_match_finite_differences(simulator(scene, backend), scene, backend)
+
+
+def events_match_finite_differences(sim: vcigen.Simulator, scene: str, tag: str) -> None:
+    """The scene's events inside held steps (:func:`assert_scene_events`), no break, and its tangent along
+    each of its paths within 1e-6 of central differences of whole runs (relative to the largest entry)."""
     res, per = held_finite_differences(sim, scene, scenes=SCENES)
     held = assert_scene_events(scene, res)
     assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
     errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
     print(
-        f"{scene} ({backend}): {len(held)} impacts while held; "
+        f"{scene} ({tag}): {len(held)} impacts while held, {len(res.liftoffs)} lift-offs; "
         + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
     )
     assert max(errs.values()) <= 1e-6, errs
@@ -333,15 +338,21 @@ def test_c_equals_casadi(scene: str) -> None:
     """The C loop's tangent (sens_events.c.j2) is the Python stepper's (Tracker.event, impulse), to 1e-9, and
     its run the plain library's bit for bit (its hooks give the forces' time slot back: without that the twin
     met a spurious impact, 4e-11, at its first lift-off)."""
+    c_equals_casadi(simulator, scene, "")
+
+
+def c_equals_casadi(make, scene: str, tag: str) -> None:
+    """``make(scene, backend)``'s C run: the same mode and tangent as CasADi's (to 1e-9), no break, and its
+    (q, p) the plain library's bit for bit."""
     _, q0, v0, h, t_end, params, _ = SCENES[scene]
     kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
-    a, b = (simulator(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
+    a, b = (make(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
     assert held_mode(a) == held_mode(b)
-    plain = simulator(scene, "c").simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
+    plain = make(scene, "c").simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
     np.testing.assert_array_equal(b.q, plain.q)  # the tangent's hooks leave the C run as it is
     np.testing.assert_array_equal(b.p, plain.p)
     rel = assert_same_tangent(a, b)
-    print(f"{scene}: C against CasADi {rel:.1e}")
+    print(f"{scene}{tag}: C against CasADi {rel:.1e}")
     assert b.sensitivity_breaks == []
 
 

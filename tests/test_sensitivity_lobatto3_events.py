@@ -15,9 +15,14 @@ from functools import cache
 import hard_scenes
 import numpy as np
 import pytest
-from test_sensitivity import BACKENDS, assert_lost, held_finite_differences, held_mode, relative_error
-from test_sensitivity_c import assert_same_tangent
-from test_sensitivity_held_events import SCENES, _pairs, assert_scene_events, pair
+from test_sensitivity import BACKENDS, assert_lost
+from test_sensitivity_held_events import (
+    SCENES,
+    _pairs,
+    c_equals_casadi,
+    events_match_finite_differences,
+    pair,
+)
 
 import vcigen
 
@@ -39,16 +44,7 @@ def test_events_inside_held_steps_match_finite_differences(scene: str, backend: 
     """The tangent across events inside held steps under lobatto3 against central differences of whole runs
     (every grid point, every path of the scene), covered throughout (no break), with the events the scene is
     made for."""
-    res, per = held_finite_differences(simulator(scene, backend), scene, scenes=SCENES)
-    held = assert_scene_events(scene, res)
-    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
-    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
-    print(
-        f"{scene} [lobatto3, {backend}]: {len(held)} impacts while held, {len(res.liftoffs)} lift-offs; "
-        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
-    )
-    assert max(errs.values()) <= 1e-6, errs
-    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+    events_match_finite_differences(simulator(scene, backend), scene, f"lobatto3, {backend}")
 
 
 @pytest.mark.skipif(hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem()))
@@ -56,16 +52,7 @@ def test_events_inside_held_steps_match_finite_differences(scene: str, backend: 
 def test_c_equals_casadi(scene: str) -> None:
     """The C loop's tangent (sens_events.c.j2 over sens_sub with the internal points) is the Python
     stepper's to 1e-9, with the same (no) breaks, and its run is the plain library's bit for bit."""
-    _, q0, v0, h, t_end, params, _ = SCENES[scene]
-    kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
-    a, b = (simulator(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
-    assert held_mode(a) == held_mode(b)
-    plain = simulator(scene, "c").simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
-    np.testing.assert_array_equal(b.q, plain.q)
-    np.testing.assert_array_equal(b.p, plain.p)
-    rel = assert_same_tangent(a, b)
-    print(f"{scene} [lobatto3]: C against CasADi {rel:.1e}")
-    assert b.sensitivity_breaks == []
+    c_equals_casadi(simulator, scene, " [lobatto3]")
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
