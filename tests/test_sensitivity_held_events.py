@@ -294,8 +294,27 @@ def _pairs():
 def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -> None:
     """The tangent across impacts while held against central differences of whole runs (every grid point),
     covered throughout (no break), the impacts while held of the kinds the scene makes."""
-    sim = simulator(scene, backend)
+    events_match_finite_differences(simulator(scene, backend), scene, backend)
+
+
+def events_match_finite_differences(sim: vcigen.Simulator, scene: str, tag: str) -> None:
+    """The scene's events inside held steps (:func:`assert_scene_events`), no break, and its tangent along
+    each of its paths within 1e-6 of central differences of whole runs (relative to the largest entry)."""
     res, per = held_finite_differences(sim, scene, scenes=SCENES)
+    held = assert_scene_events(scene, res)
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    print(
+        f"{scene} ({tag}): {len(held)} impacts while held, {len(res.liftoffs)} lift-offs; "
+        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
+    )
+    assert max(errs.values()) <= 1e-6, errs
+    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+
+
+def assert_scene_events(scene: str, res: vcigen.Result) -> list:
+    """The events inside held steps the scene is made for (its impacts while held, of the kinds it makes, or
+    its lift-offs inside one step); returns the impacts while held."""
     held = impacts_while_held(res)
     if scene == "pop":  # the plastic impact and the lift-off at the same instant
         (im,) = res.impacts
@@ -310,14 +329,7 @@ def test_impacts_while_held_match_finite_differences(scene: str, backend: str) -
         assert len(res.liftoffs) == 2 and len(steps) == 1 and res.n_impacts == 0, res.liftoffs
     else:
         assert held and KINDS[scene] <= {im.kind for im in held}, [(im.step, im.kind) for im in res.impacts]
-    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
-    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
-    print(
-        f"{scene} ({backend}): {len(held)} impacts while held; "
-        + ", ".join(f"{k} {v:.1e}" for k, v in errs.items())
-    )
-    assert max(errs.values()) <= 1e-6, errs
-    assert max(np.abs(exact[-1]).max() for exact, _ in per.values()) > 0.1  # the paths do move the end
+    return held
 
 
 @pytest.mark.skipif(hard_scenes.c_backend_problem() is not None, reason=str(hard_scenes.c_backend_problem()))
@@ -326,15 +338,21 @@ def test_c_equals_casadi(scene: str) -> None:
     """The C loop's tangent (sens_events.c.j2) is the Python stepper's (Tracker.event, impulse), to 1e-9, and
     its run the plain library's bit for bit (its hooks give the forces' time slot back: without that the twin
     met a spurious impact, 4e-11, at its first lift-off)."""
+    c_equals_casadi(simulator, scene, "")
+
+
+def c_equals_casadi(make, scene: str, tag: str) -> None:
+    """``make(scene, backend)``'s C run: the same mode and tangent as CasADi's (to 1e-9), no break, and its
+    (q, p) the plain library's bit for bit."""
     _, q0, v0, h, t_end, params, _ = SCENES[scene]
     kw = {"t_end": t_end, "params": params, "sensitivities": True, "progress": False}
-    a, b = (simulator(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
+    a, b = (make(scene, backend).simulate(q0, v0, h, **kw) for backend in ("casadi", "c"))
     assert held_mode(a) == held_mode(b)
-    plain = simulator(scene, "c").simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
+    plain = make(scene, "c").simulate(q0, v0, h, t_end=t_end, params=params, progress=False)
     np.testing.assert_array_equal(b.q, plain.q)  # the tangent's hooks leave the C run as it is
     np.testing.assert_array_equal(b.p, plain.p)
     rel = assert_same_tangent(a, b)
-    print(f"{scene}: C against CasADi {rel:.1e}")
+    print(f"{scene}{tag}: C against CasADi {rel:.1e}")
     assert b.sensitivity_breaks == []
 
 
@@ -364,16 +382,6 @@ def test_a_simultaneous_impact_while_held_breaks(backend: str) -> None:
     res = sim.simulate([0.0] * 4, [1.0, 0.0, -1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
     assert [im.step for im in res.impacts] == [45, 45] and res.active[45, :2].all()  # both on the floor
     assert assert_lost(res, "simultaneous impact") == 45
-
-
-def test_events_under_lobatto3_still_break() -> None:
-    """Under a rule with internal points (lobatto3) an impact while held is not covered: the held step breaks
-    with its reason (``SustainedSteps._events_tangent``; C renders no event hooks then: CasADi here, the C
-    build of a lobatto3 variant costs ~30 s)."""
-    sim = vcigen.build(floor_wall(), backend="casadi", rule="lobatto3")
-    res = sim.simulate([0.0, 0.0], [1.0, 0.0], 0.01, t_end=0.6, sensitivities=True, progress=False)
-    (im,) = res.impacts
-    assert assert_lost(res, "held step (sustained contact)") == im.step
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

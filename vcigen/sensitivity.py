@@ -52,11 +52,12 @@ in ``(x, d)``, their partials chained. Phases:
   ``p±``, ``E_d`` through ``d_segment``'s ``u`` columns. In a held phase the internal points are held on
   the active rows with their own multipliers ``Lam_m`` (``derive.held_internal_points``): ``rattle``'s
   unknowns are ``(v, Lam, Lam_m, u)``, all of the implicit-function theorem, and ``p+`` is ``rattle_end``'s
-  (``d_rattle_end``; :meth:`Tracker._held_sub`).
+  (``d_rattle_end``; :meth:`Tracker._held_sub`), also in each constrained sub-step to an event inside a held
+  step (:meth:`Tracker._located`).
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
-a held step with isotropic cones under forces of time or under a rule with internal points, a friction switch
+a held step with isotropic cones under forces of time, a friction switch
 (``"friction switch in a held step"``: stick <-> slip, the sliding direction turned, a contact on another
 face), several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse
 at its degenerate 0 (``"friction at an impact"``: round-off only), the ``_restart`` fallback. From the first

@@ -784,10 +784,11 @@ class SustainedSteps:
     def _events_tangent(self, tan):
         """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
         Coulomb friction (isotropic cones but under forces of time: ``Tracker._cone_slots`` holds the time
-        fixed), a rule without internal points; else None (the step breaks as before). A friction switch in it
-        still breaks (:meth:`_ev_switch`), so do cones aimed implicitly (``_braked``)."""
+        fixed), under any rule (internal points are held in each constrained sub-step,
+        ``Tracker._held_sub``); else None (the step breaks as before). A friction switch in it still breaks
+        (:meth:`_ev_switch`), so do cones aimed implicitly (``_braked``)."""
         cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
-        return tan if tan is not None and not (cones and self._timed) and not self._stages else None
+        return tan if tan is not None and not (cones and self._timed) else None
 
     def _ev_switch(self) -> None:
         """A friction switch inside a held step whose events the tangent carries (stick <-> slip, the sliding
