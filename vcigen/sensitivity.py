@@ -64,6 +64,7 @@ import numpy as np
 from .backends.casadi import routine_to_function
 from .derive import DiscreteSystem
 from .sensitivity_held import HeldTangents, _guarded
+from .sensitivity_switch import SwitchTangents
 from .tangents import tangent_routines
 
 SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many unknowns
@@ -188,7 +189,7 @@ class Tangents:
         return f
 
 
-class Tracker(HeldTangents):
+class Tracker(HeldTangents, SwitchTangents):
     """The tangent of one run, updated by the stepper's hooks after each phase (``Stepper(..., tangent=)``).
 
     Holds the tangent of the grid state and, inside an impact step, of the current segment's data:

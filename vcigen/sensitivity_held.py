@@ -343,6 +343,8 @@ class HeldTangents:
             dpar_end[-1] = dpar[-1] + dtau[0]
         if kind == "lift":
             dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
+        elif kind in ("stop", "slide"):  # a friction switch (vcigen.sensitivity_switch)
+            dg = self._switch_root(kind, q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))
         else:
             dg = self.tg.get("d_psi")(q1, u1, self.par(t_l))[0][r] @ np.vstack([dq1, dpar_end])
         if dg[K] == 0.0:
@@ -392,7 +394,13 @@ class HeldTangents:
         tangents: they become the event point's (the rest of the step after it, from ``t_seg + s tau``)."""
         if not self.active:
             return
-        dq_l, dp_l, dv_l, dtau_s = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
+        # friction in its mode over the sub-step: the slots' tangent from its start (_friction_slots)
+        self._slots = self._friction_slots(sub[0], self.dq, sub[-1], self.t_seg)
+        try:
+            out = self._located(sub, r, s, tau, kind, self.dq, self.dp, self.dt, self.t_seg)
+        finally:
+            self._slots = None
+        dq_l, dp_l, dv_l, dtau_s = out
         self.dq, self.dp, self.dvin = dq_l, dp_l, dv_l
         self.dt, self.dtau, self.t_seg = self.dt + dtau_s[0], self.dtau - dtau_s, self.t_seg + s * tau
 

@@ -679,6 +679,10 @@ class SustainedSteps:
                 self._friction_modes(q, self._velocity(q, guess, p), tau)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
+                if not same:  # a switch at a segment's start: no located event (a plastic entry's: held anew)
+                    self._sw_lose(
+                        "plastic impact" if plain and self._ev_entry else "friction switch in a held step"
+                    )
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
             if not self.act.any():
@@ -705,6 +709,8 @@ class SustainedSteps:
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
+                if events[r][0] in ("stop", "slide"):  # at the segment's start: not located
+                    self._sw_lose()
                 plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
@@ -746,7 +752,9 @@ class SustainedSteps:
                 self._release(step, t_k, t, r0)
                 continue
             if events[r0][0] in ("stop", "slide"):
+                before = self._sw_state()
                 self._friction_switch(events[r0][0], r0, q, self._velocity(q, v, p))
+                self._sw_check(events[r0][0], r0, before)
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub)
@@ -773,15 +781,65 @@ class SustainedSteps:
 
     # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
     def _events_tangent(self, tan):
-        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless, a rule
-        without internal points; else None (the step breaks as before)."""
-        return tan if tan is not None and not self._stick_rows and not self._stages else None
+        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
+        one-tangent Coulomb friction (no isotropic cone), a rule without internal points; else None (the step
+        breaks as before). Under friction a switch is carried (:meth:`_sw_covered`), other events break."""
+        cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
+        return tan if tan is not None and not cones and not self._stages else None
 
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
-        """A constrained sub-step to an event of row ``r`` (``"lift"`` or ``"cross"``): ``Tracker.event``."""
+        """A constrained sub-step to an event of row ``r`` (``"lift"``, ``"cross"``, a friction switch
+        ``"stop"`` or ``"slide"``): ``Tracker.event``."""
+        if self._ev_tan is not None and not self._sw_covered(kind):
+            return
         if self._ev_tan is not None:
             self._ev_tan.events_begin(self._ev_entry)
             self._ev_tan.event(sub, r, s, tau, kind)
+
+    # -- a friction switch inside a held step (vcigen.sensitivity_switch): a located event ----------------
+    def _sw_covered(self, kind: str) -> bool:
+        """Whether the tangent carries an event of ``kind`` in the current friction mode: with no friction
+        acting, every event; under one-tangent friction a slipping contact's stop, a lone sticking contact's
+        slide (no other contact slipping, no dependent stick: the force law of the stick row alone). Else the
+        step breaks here (``"held step (sustained contact)"``, an event while friction acts;
+        ``"friction switch in a held step"``)."""
+        if not self._stick_rows or not self._friction_acts():
+            return True
+        if kind == "stop":
+            return True
+        if kind == "slide" and not self._slip.any() and all(o < 0 for o in self._ride):
+            return True
+        self._sw_lose(
+            "friction switch in a held step" if kind == "slide" else "held step (sustained contact)"
+        )
+        return False
+
+    def _sw_lose(self, reason: str = "friction switch in a held step") -> None:
+        """A switch (or an event under friction) the tangent of a held step's events does not carry: the step
+        breaks with ``reason`` (the later hooks find the tangent lost)."""
+        if self._ev_tan is not None:
+            self._ev_tan.lose(reason)
+            self._ev_done = True
+
+    def _sw_state(self) -> tuple:
+        """The rows held, slips and dependent sticks before a located switch (:meth:`_sw_check`)."""
+        return self.act.copy(), self._slip.copy(), list(self._ride)
+
+    def _sw_check(self, kind: str, sr: int, before: tuple) -> None:
+        """After a located switch of stick row ``sr`` (:meth:`_friction_switch`): carried if it switched that
+        contact alone, into a stick on its own row (``"stop"``) or a slip (``"slide"``); else (the sliding
+        turned by an impact, a dependent stick, others switched with it) the step breaks."""
+        act, slip, ride = before
+        f = self.k.row_stick[sr]
+        others = [g for g in range(len(self._stick_rows)) if g != f]
+        same = all(slip[g] == self._slip[g] and ride[g] == self._ride[g] for g in others)
+        same = same and all(act[x] == self.act[x] for x in range(self.k.r) if x != sr)
+        if kind == "stop":
+            ok = bool(self.act[sr]) and self._slip[f] == 0.0 and self._ride[f] < 0
+        else:
+            ok = not self.act[sr] and self._slip[f] != 0.0
+        if not (ok and same):
+            self._sw_lose()
 
     def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
         """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
