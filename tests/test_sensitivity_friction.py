@@ -189,9 +189,9 @@ def test_rolling_tangent_is_the_closed_form(runs) -> None:
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_stop_is_carried(backend: str) -> None:
-    """Sliding down the incline until the disk rolls (slip -> stick inside a step, formerly a break): the stop is a
-    located event (vcigen.sensitivity_switch), the tangent carried through it with no break; the sliding stops in
-    the step of the closed form's t*. Its values: tests/test_sensitivity_friction_switch.py."""
+    """Sliding down the incline until the disk rolls (slip -> stick inside a step, formerly a break): the stop
+    is a located event (vcigen.sensitivity_switch), the tangent carried through it with no break; the sliding
+    stops in the step of the closed form's t*. Its values: tests/test_sensitivity_friction_switch.py."""
     q0, v0, par = start(SCENES["incline_slide"][0], {})
     res = sim(backend).simulate(q0, v0, H, t_end=0.5, params=par, sensitivities=True, progress=False)
     # the sliding velocity xd - r w rises from v0 at the rate mu m g cos a (1/m + r^2/I) - g sin a to 0 at t*
@@ -218,7 +218,7 @@ def test_c_equals_casadi() -> None:
         assert a.sensitivity_breaks == b.sensitivity_breaks == [] and rel <= C_TOL
 
 
-# -- frictional impacts -------------------------------------------------------------------------------------
+# -- frictional impacts --------------------------------------------------------------------------------------
 DROP = ([0.0, 2.0, 0.0], 0.01, 0.6)  # q0 (height 1 above the floor y >= r), h, t_end: one impact, at step 45
 
 

@@ -1,16 +1,17 @@
-"""Exact sensitivities through a friction switch inside a held step (MATH.md *Friction*, *Exact sensitivities*;
-``vcigen/sensitivity_switch.py``, ``templates/sens_switch.c.j2``).
+"""Exact sensitivities through a friction switch inside a held step (MATH.md *Friction*, *Exact
+sensitivities*; ``vcigen/sensitivity_switch.py``, ``templates/sens_switch.c.j2``).
 
-A one-tangent contact that slips and comes to rest inside a step (``"stop"``, slip -> stick) or sticks until its
-force reaches the cone (``"slide"``, stick -> slip) is a located event: a small change of the data keeps the mode
-sequence and moves the event time smoothly, so the end state is differentiable. The tangent goes through it:
-the event's fraction by the implicit-function theorem on its root, then the rest of the step in the new mode.
+A one-tangent contact that slips and comes to rest inside a step (``"stop"``, slip -> stick) or sticks until
+its force reaches the cone (``"slide"``, stick -> slip) is a located event: a small change of the data keeps
+the mode sequence and moves the event time smoothly, so the end state is differentiable. The tangent goes
+through it: the event's fraction by the implicit-function theorem on its root, then the rest of the step in
+the new mode.
 
-Checked against closed forms (a block launched on a level floor and on an incline below the friction angle stops
-at ``x0 + v0^2 / (2 D)``, ``D = g (mu cos a - sin a)``, at ``t* = v0 / D``; a disk sliding down an incline until
-it rolls, differentiated symbolically), against central differences of whole runs (relative to the largest
-entry), C against CasADi, on the trapezoidal and midpoint rules. What stays a break is reported on both backends.
-"""
+Checked against closed forms (a block launched on a level floor and on an incline below the friction angle
+stops at ``x0 + v0^2 / (2 D)``, ``D = g (mu cos a - sin a)``, at ``t* = v0 / D``; a disk sliding down an
+incline until it rolls, differentiated symbolically), against central differences of whole runs (relative to
+the largest entry), C against CasADi, on the trapezoidal and midpoint rules. What stays a break is reported on
+both backends."""
 
 from __future__ import annotations
 
@@ -37,7 +38,8 @@ needs_c = pytest.mark.skipif(
 
 
 def block() -> vcigen.Model:
-    """A block on a rough incline of angle ``a`` (``q = (x, y)`` along it, downhill ``+x``, and normal to it)."""
+    """A block on a rough incline of angle ``a`` (``q = (x, y)`` along it, downhill ``+x``, and normal to
+    it)."""
     x, y, xd, yd = sp.symbols("x y xd yd")
     m, g, mu, a = sp.symbols("m g mu a")
     return vcigen.Model(
@@ -52,8 +54,9 @@ def block() -> vcigen.Model:
 
 
 def spring_disk() -> vcigen.Model:
-    """A disk rolling on a rough level floor, tied to ``x = 0`` by a spring: it sticks (rolls) until the spring's
-    pull needs more friction than the cone has (slide), slips, and rolls again when its sliding stops (stop)."""
+    """A disk rolling on a rough level floor, tied to ``x = 0`` by a spring: it sticks (rolls) until the
+    spring's pull needs more friction than the cone has (slide), slips, and rolls again when its sliding stops
+    (stop)."""
     x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
     m, inertia, r, g, mu, k = sp.symbols("m I r g mu k")
     return vcigen.Model(
@@ -111,8 +114,9 @@ def fd_error(name, backend, rule, q0, v0, h, t_end, params, columns) -> tuple[vc
 
 # -- a block that stops: the closed form ---------------------------------------------------------------------
 def stop_closed_form(t: np.ndarray, a: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Launched downhill at ``V0`` from ``x0 = 0``: ``x = V0 t - D t^2/2`` until ``t* = V0/D``, then ``V0^2/(2D)``;
-    ``p = m (V0 - D t)``, then 0. Each column as ``(dx, dp)`` (``m = 1``), ``D = g (mu cos a - sin a)``."""
+    """Launched downhill at ``V0`` from ``x0 = 0``: ``x = V0 t - D t^2/2`` until ``t* = V0/D``, then
+    ``V0^2/(2D)``; ``p = m (V0 - D t)``, then 0. Each column as ``(dx, dp)`` (``m = 1``), ``D = g (mu cos a -
+    sin a)``."""
     d = G * (MU * math.cos(a) - math.sin(a))
     d_mu, d_g, d_a = G * math.cos(a), d / G, -G * (MU * math.sin(a) + math.cos(a))  # dD/d(mu, g, a)
     before = t < V0 / d
@@ -138,9 +142,9 @@ def stop_closed_form(t: np.ndarray, a: float) -> dict[str, tuple[np.ndarray, np.
 @pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_stop_is_the_closed_form(backend: str, rule: str, a: float, h: float) -> None:
-    """A block launched at V0 on the level floor or downhill on an incline below the friction angle
-    (tan 0.25 < mu) stops inside a step and sticks: d x_end/d v0 = v0/D, d x_end/d mu = -v0^2 g cos a/(2 D^2),
-    ... at every grid point (before the stop: the sliding closed form), p and its tangent 0 after it; no break."""
+    """A block launched at V0 on the level floor or downhill on an incline below the friction angle (tan 0.25
+    < mu) stops inside a step and sticks: d x_end/d v0 = v0/D, d x_end/d mu = -v0^2 g cos a/(2 D^2), ... at
+    every grid point (before the stop: the sliding closed form), p and its tangent 0 after it; no break."""
     t_stop = V0 / (G * (MU * math.cos(a) - math.sin(a)))
     res = run("block", backend, rule, [0.0, 0.0], [V0, 0.0], h, 1.5 * t_stop, {"a": a})
     assert res.sensitivity_breaks == [] and res.active[:, 0].all()
@@ -161,18 +165,23 @@ def test_stop_is_the_closed_form(backend: str, rule: str, a: float, h: float) ->
 @pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_stop_matches_finite_differences(backend: str, rule: str) -> None:
-    """The block on the incline through its stop: every column that keeps the mode sequence (all but the normal
-    ones, whose change lifts or presses the block) against central differences of whole runs."""
-    res, errs = fd_error("block", backend, rule, [0.0, 0.0], [V0, 0.0], 0.01, 1.0, {"a": 0.25}, [0, 2, 4, 5, 6, 7])
-    print(f"block stopping on the incline ({backend}, {rule}): FD worst {max(errs, key=errs.get)} {max(errs.values()):.1e}")
+    """The block on the incline through its stop: every column that keeps the mode sequence (all but the
+    normal ones, whose change lifts or presses the block) against central differences of whole runs."""
+    res, errs = fd_error(
+        "block", backend, rule, [0.0, 0.0], [V0, 0.0], 0.01, 1.0, {"a": 0.25}, [0, 2, 4, 5, 6, 7]
+    )
+    print(
+        f"block stopping on the incline ({backend}, {rule}): FD worst "
+        f"{max(errs, key=errs.get)} {max(errs.values()):.1e}"
+    )
     assert max(errs.values()) <= FD_TOL, errs
 
 
-# -- a disk that slides until it rolls --------------------------------------------------------------------
+# -- a disk that slides until it rolls -----------------------------------------------------------------------
 def disk_closed_form(t_end: float):
-    """The disk of test_sensitivity_friction (q = (x, y, theta), r, m, I, g, mu, a parameters) sliding down the
-    incline from ``(x0, theta0)`` at ``(v0, w0)``, sliding velocity ``v0 - r w0 < 0``: slipping with
-    ``x'' = (mu cos a - sin a) g``, ``theta'' = -mu m g cos a r / I`` until the sliding stops at ``t*``, then
+    """The disk of test_sensitivity_friction (q = (x, y, theta), r, m, I, g, mu, a parameters) sliding down
+    the incline from ``(x0, theta0)`` at ``(v0, w0)``, sliding velocity ``v0 - r w0 < 0``: slipping with ``x''
+    = (mu cos a - sin a) g``, ``theta'' = -mu m g cos a r / I`` until the sliding stops at ``t*``, then
     rolling with ``x'' = -g sin a / (1 + I/(m r^2))``: ``x(t_end)`` as a SymPy expression and its symbols."""
     x0, th0, v0, w0, m, inertia, r, g, mu, a = sp.symbols("x0 th0 v0 w0 m I r g mu a")
     acc = (mu * sp.cos(a) - sp.sin(a)) * g
@@ -188,9 +197,9 @@ def disk_closed_form(t_end: float):
 @pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_disk_rolls_after_a_stop_closed_form(backend: str, rule: str) -> None:
-    """The disk sliding down the incline until it rolls (the slip -> stick of test_sensitivity_friction, formerly
-    a break): x(T) and its columns in x0, v0, w0, m, I, g, mu, a against the symbolic derivative of the closed
-    form through the stop time t*."""
+    """The disk sliding down the incline until it rolls (the slip -> stick of test_sensitivity_friction,
+    formerly a break): x(T) and its columns in x0, v0, w0, m, I, g, mu, a against the symbolic derivative of
+    the closed form through the stop time t*."""
     import test_sensitivity_friction as tsf
 
     T = 0.5
@@ -198,13 +207,19 @@ def test_disk_rolls_after_a_stop_closed_form(backend: str, rule: str) -> None:
     res = run("disk", backend, rule, [0.0, tsf.PARAMS["r"], 0.0], v0, tsf.H, T, dict(tsf.PARAMS))
     assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
     x_end, syms = disk_closed_form(T)
-    values = dict(zip(syms, [0.0, 0.0, v0[0], v0[2], *(tsf.PARAMS[k] for k in ("m", "I", "r", "g", "mu", "a"))]))
+    values = dict(
+        zip(syms, [0.0, 0.0, v0[0], v0[2], *(tsf.PARAMS[k] for k in ("m", "I", "r", "g", "mu", "a"))])
+    )
     assert abs(res.q[-1, 0] - float(x_end.subs(values))) <= 1e-12
     col = {name: i for i, name in enumerate(res.sensitivity_names)}
     pairs = {"q0[x]": 0, "v0[x]": 2, "v0[th]": 3, "m": 4, "I": 5, "g": 7, "mu": 8, "a": 9}
     for name, i in pairs.items():
         want = float(sp.diff(x_end, syms[i]).subs(values))
-        assert abs(res.sensitivity[-1, 0, col[name]] - want) <= 1e-10, (name, res.sensitivity[-1, 0, col[name]], want)
+        assert abs(res.sensitivity[-1, 0, col[name]] - want) <= 1e-10, (
+            name,
+            res.sensitivity[-1, 0, col[name]],
+            want,
+        )
 
 
 @pytest.mark.parametrize("rule", RULES)
@@ -214,12 +229,17 @@ def test_disk_stop_matches_finite_differences(backend: str, rule: str) -> None:
     import test_sensitivity_friction as tsf
 
     cols = [0, 2, 3, 5, 6, 7, 9, 10, 11]  # x0, th0, vx0, w0, m, I, g, mu, a
-    res, errs = fd_error("disk", backend, rule, [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], tsf.H, 0.5, tsf.PARAMS, cols)
-    print(f"disk rolling after its stop ({backend}, {rule}): FD worst {max(errs, key=errs.get)} {max(errs.values()):.1e}")
+    res, errs = fd_error(
+        "disk", backend, rule, [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], tsf.H, 0.5, tsf.PARAMS, cols
+    )
+    print(
+        f"disk rolling after its stop ({backend}, {rule}): FD worst "
+        f"{max(errs, key=errs.get)} {max(errs.values()):.1e}"
+    )
     assert max(errs.values()) <= FD_TOL, errs
 
 
-# -- stick -> slip -> stick: a disk on a spring ----------------------------------------------------------------
+# -- stick -> slip -> stick: a disk on a spring --------------------------------------------------------------
 def sliding(res: vcigen.Result) -> np.ndarray:
     """The spring disk's sliding velocity ``xd - r thetad`` at each grid point (m = 1, I = 0.5, r = 1)."""
     return res.p[:, 0] - res.p[:, 2] / 0.5
@@ -228,15 +248,20 @@ def sliding(res: vcigen.Result) -> np.ndarray:
 @pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_slide_then_stop_matches_finite_differences(backend: str, rule: str) -> None:
-    """The spring disk rolls, slides when the spring's pull leaves the cone (stick -> slip inside a step), then
-    rolls again when its sliding stops (slip -> stick): both switches carried, every column that keeps the mode
-    sequence against central differences."""
+    """The spring disk rolls, slides when the spring's pull leaves the cone (stick -> slip inside a step),
+    then rolls again when its sliding stops (slip -> stick): both switches carried, every column that keeps
+    the mode sequence against central differences."""
     cols = [0, 2, 3, 5, 6, 7, 9, 10, 11]  # x0, th0, vx0, w0, m, I, g, mu, k
-    res, errs = fd_error("spring_disk", backend, rule, [0.0, 1.0, 0.0], [2.0, 0.0, 2.0], 0.01, 1.3, None, cols)
+    res, errs = fd_error(
+        "spring_disk", backend, rule, [0.0, 1.0, 0.0], [2.0, 0.0, 2.0], 0.01, 1.3, None, cols
+    )
     stuck = np.abs(sliding(res)) <= 1e-9
     changes = np.flatnonzero(stuck[1:] != stuck[:-1]) + 1
     assert stuck[0] and len(changes) == 2 and not stuck[changes[0]] and stuck[changes[1]]  # roll, slide, roll
-    print(f"spring disk, slide then stop ({backend}, {rule}): FD worst {max(errs, key=errs.get)} {max(errs.values()):.1e}")
+    print(
+        f"spring disk, slide then stop ({backend}, {rule}): FD worst "
+        f"{max(errs, key=errs.get)} {max(errs.values()):.1e}"
+    )
     assert max(errs.values()) <= FD_TOL, errs
 
 
@@ -257,12 +282,12 @@ def test_c_equals_casadi(rule: str) -> None:
         assert a.sensitivity_breaks == b.sensitivity_breaks == [] and rel <= C_TOL
 
 
-# -- what stays a break ----------------------------------------------------------------------------------------
+# -- what stays a break --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_stop_then_slide_back_is_a_break(backend: str) -> None:
-    """Launched uphill on an incline steeper than the friction angle (tan 0.6 > mu): the block stops inside a step
-    and its stick force is at once outside the cone, so it slides back at the same instant (a slide at the start
-    of the rest of the step, not located): still a break, with its reason, at the stop's step."""
+    """Launched uphill on an incline steeper than the friction angle (tan 0.6 > mu): the block stops inside a
+    step and its stick force is at once outside the cone, so it slides back at the same instant (a slide at
+    the start of the rest of the step, not located): still a break, with its reason, at the stop's step."""
     a = 0.6
     t_stop = V0 / (G * (MU * math.cos(a) + math.sin(a)))
     res = run("block", backend, "trapezoid", [0.0, 0.0], [-V0, 0.0], 0.01, 2 * t_stop, {"a": a})
