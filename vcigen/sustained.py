@@ -709,14 +709,16 @@ class SustainedSteps:
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
-                if events[r][0] in ("stop", "slide"):  # at the segment's start: not located
-                    self._sw_lose()
+                if events[r][0] in ("stop", "slide") and not self._sw_back(events[r][0]):
+                    self._sw_lose()  # at the start: not located (a slide back at a stop: _sw_back)
                 plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
                 else:
+                    before = self._sw_state()
                     self._count_event(step, t_k)  # stick <-> slip at one instant: bounded, never a loop
                     self._friction_switch(events[r][0], r, q, self._velocity(q, v, p))
+                    self._sw_check(events[r][0], r, before)
                 continue
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
@@ -840,6 +842,15 @@ class SustainedSteps:
             ok = not self.act[sr] and self._slip[f] != 0.0
         if not (ok and same):
             self._sw_lose()
+        elif kind == "stop" and self._ev_tan is not None:  # a slide back at once (_sw_back) is carried too
+            self._sw_stop = (self._ev_tan.step, self._events)
+
+    def _sw_back(self, kind: str) -> bool:
+        """A slide at the start of a segment right after a carried stop, no event between (a body stopped on a
+        slope steeper than its friction angle slides back at once): its time is the stop's, whose tangent the
+        events' tangent has, and the rest of the step slips from there (its slot by ``_friction_slots``)."""
+        tan = self._ev_tan
+        return kind == "slide" and tan is not None and self._sw_stop == (tan.step, self._events)
 
     def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
         """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
