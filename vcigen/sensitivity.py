@@ -36,6 +36,11 @@ in ``(x, d)``, their partials chained. Phases:
   branch of Coulomb's impulse law it takes (stick, or slip at either edge of the cone): the impulse direction
   ``n + rho t`` and the energy ``E + dK`` by :func:`vcigen.friction.impact_law_tangent`
   (:meth:`Tracker._friction_impact`);
+* a friction switch of a one-tangent contact inside a held step, located like a lift-off
+  (:mod:`vcigen.sensitivity_switch`): a slipping contact that stops (the root of its sliding speed
+  ``grad t(q1) . u1``) or a sticking one whose force reaches the cone (the root of ``mu_f N - |lambda_t|``),
+  then the rest of the step in the new mode (a stick's reference ``d ref = grad t(q*) dq*`` at the point it
+  stuck; a slip's slot); a slide back at the instant of such a stop (a slope steeper than the friction angle);
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
@@ -46,8 +51,10 @@ in ``(x, d)``, their partials chained. Phases:
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
-a held step while friction acts or under a rule with internal points, a friction switch (``"friction switch
-in a held step"``: stick <-> slip, the sliding direction turned, a contact released or on another face),
+a held step while friction acts (but a switch above) or under a rule with internal points, a friction switch
+not located inside the step or not of one contact alone (``"friction switch in a held step"``: at a segment's
+start, the sliding direction turned, a dependent stick, a cone's stop or slide, a slide while another contact
+slips, a contact released or on another face),
 several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse at an
 impact, the ``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for
 ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists
