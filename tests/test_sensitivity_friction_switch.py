@@ -366,3 +366,25 @@ def test_two_ends_stopping_is_a_break(backend: str) -> None:
     k = int(v / (tfr.MU * G) / 0.01)
     assert res.sensitivity_breaks == [(k, "friction switch in a held step")]
     assert np.isfinite(res.sensitivity[: k + 1]).all() and np.isnan(res.sensitivity[k + 1 :]).all()
+
+
+@needs_c
+def test_c_run_with_the_tangent_is_the_plain_one() -> None:
+    """The switch hooks only read the stepper's state (and give the forces' time slot back): the C run with
+    the tangent is the plain library's bit for bit, through the spring disk's five switches and the pushed
+    block's slide (forces of time)."""
+    import test_friction
+
+    a, b = (
+        run("spring_disk", "c", "trapezoid", [0.0, 1.0, 0.0], [2.0, 0.0, 2.0], 0.01, 3.0, sens=s)
+        for s in (1, 0)
+    )
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.p, b.p)
+    s = vcigen.build(test_friction.block(), backend="c")
+    a, b = (
+        s.simulate(
+            [0.0, 0.0], [0.0, 0.0], 0.01, t_end=1.6, params={"F": 3.0}, sensitivities=w, progress=False
+        )
+        for w in (True, False)
+    )
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.p, b.p)
