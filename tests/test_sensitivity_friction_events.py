@@ -10,13 +10,16 @@ C ``templates/sens_events.c.j2``, ``sens_located``).
   off-diagonal mass term ``k x1d y2d``), slips on a rough floor: the lift-off's force law with the slipping
   contact's direction ``grad psi + slip grad t`` (its slip moves the lifted row's force through ``k``);
 * a particle landing plastically on a rough floor, sliding on (its friction held anew at the impact), and the
-  same landing of a second particle while the first is held and slips (a plastic impact while held).
+  same landing of a second particle while the first is held and slips (a plastic impact while held);
+* the disk into the wall slowly enough that its sliding stops in the rest of the impact's step: an impact
+  while held, then a located friction stop (``vcigen.sensitivity_switch``) in the same step.
 
 Against central differences of whole runs along paths that keep the mode, on both backends, under the
 trapezoidal and the midpoint rules; the disk and the landing against the closed forms of their motion (sliding
 deceleration ``mu g`` before and after the impact, the rebound ``-e u``, the fall; the discrete map reproduces
-them exactly); C against CasADi. A friction switch among the events (the sliding turned by the impact, or
-stopped by it) stays a break, the same on both backends.
+them exactly); the disk stopping after the impact against the closed form of its slide, rebound, stop and
+roll; C against CasADi. A friction switch among the events that is not a located stop or slide (the sliding
+turned by the impact) stays a break, the same on both backends.
 """
 
 from __future__ import annotations
@@ -197,6 +200,7 @@ def slide_wall() -> vcigen.Model:
 
 
 DISK_Q0, DISK_V0 = [0.0, 1.0, 0.0], [1.0, 0.0, -5.0]  # sliding at xd - r thetad = 6, down to 2.4 by t = 0.4
+STOP_V0 = [1.0, 0.0, -1.27]  # sliding at 2.27: 1.27 at the wall (t = 0.17), 0.06 after it, stops in that step
 
 
 def _disk(i: int | None = None, e: float = 0.0, par: str | None = None):
@@ -236,6 +240,7 @@ _puck = _point([0.0, 0.0, 0.0], [1.0, 0.5, 0.0], {"g": G, "mu": 0.2, "W": 0.2, "
 _box = _point([0.0, 0.6, 0.1], [1.5, 0.0, 0.0], {"e": 0.0, "mu": 0.3})
 _land = _point([0.0, 0.3], [2.0, -1.0], {"g": G, "mu": 0.3})
 _land_held = _point([0.0, 0.0, 0.0, 0.3], [2.0, 0.0, 1.5, -1.0], {"g": G, "mu": 0.2, "nu": 0.3})
+_stop = _point(DISK_Q0, STOP_V0, DISK)
 
 
 def _paths(point, coords: dict[str, int], params: list[str]) -> dict:
@@ -274,6 +279,17 @@ SCENES = {
         0.4,
         None,
         _paths(_roll, {"q0[x]": 0, "q0[th]": 2, "v0 rolling": 3}, ["m", "I", "W", "e"]),
+    ),
+    # the disk into the wall (step 17) while the floor slips; the rebound leaves it sliding at 0.06 the same
+    # way, and the sliding stops in the rest of that step (a located stop, SustainedSteps._sw_*): rolls on
+    "wall_stop": (
+        disk_wall,
+        DISK_Q0,
+        STOP_V0,
+        0.01,
+        0.3,
+        None,
+        _paths(_stop, {"q0[x]": 0, "q0[th]": 2, "v0[x]": 3, "v0[th]": 5}, ["m", "I", "g", "mu", "W", "e"]),
     ),
     # the slipping contact lifted off (at g / A = 0.577, inside step 57), then free flight
     "block_lift": (
@@ -350,10 +366,13 @@ def _cases():
 def _events(res: vcigen.Result, scene: str) -> None:
     """The scene makes its event inside a held step, friction acting, and keeps the floor slipping."""
     steps = (res.t[1] - res.t[0], res.t[0])
-    if scene in ("disk_wall", "roll_wall", "puck_wall"):
+    if scene in ("disk_wall", "roll_wall", "puck_wall", "wall_stop"):
         (im,) = res.impacts
         assert im.contact == "wall" and im.kind in ("restitution", "elastic") and res.active[im.step, 0]
         assert res.active[:, 0].all() and res.liftoffs == []
+        if scene == "wall_stop":  # slipping up to the impact's step, rolling from its end on
+            slide = disk_sliding(res)
+            assert (slide[: im.step + 1] > 0.05).all() and (np.abs(slide[im.step + 1 :]) <= 1e-12).all()
     elif scene in ("land", "land_held"):
         (im,) = res.impacts
         assert im.kind == "plastic" and res.active[im.step + 1 :].all() and not res.active[im.step, -1]
@@ -367,6 +386,11 @@ def _events(res: vcigen.Result, scene: str) -> None:
         assert res.impacts == [] and lift[1] == ("floor" if scene == "block_lift" else "floor2")
         k = int((lift[0] - steps[1]) / steps[0])
         assert res.active[k, 0] and not res.active[k + 1, -1], res.active[k : k + 2]
+
+
+def disk_sliding(res: vcigen.Result) -> np.ndarray:
+    """The disk's sliding velocity ``xd - r thetad`` at the grid points (``p = (m xd, m yd, I thetad)``)."""
+    return res.p[:, 0] / DISK["m"] - DISK["r"] * res.p[:, 2] / DISK["I"]
 
 
 @pytest.mark.parametrize("scene, backend, rule", list(_cases()))
@@ -420,6 +444,49 @@ def test_disk_against_the_closed_form(backend: str, rule: str) -> None:
     assert worst <= 1e-10, worst
 
 
+@cache
+def wall_stop_closed_form() -> tuple:
+    """``x(t)`` of the disk that stops after the wall for ``t`` after the stop, as a SymPy expression; its
+    symbols ``(t, v0, w0, m, I, g, mu, W, e)`` (``r = 1``, ``x0 = 0``); the stop time. Slipping forward,
+    ``xd = v0 - a t`` (``a = mu g``), ``thetad = w0 + c t`` (``c = mu m g r / I``) up to the wall
+    ``x = W - r`` at ``t*``; the impact turns ``u = xd(t*)`` to ``-e u`` (the wall frictionless); the sliding
+    ``-e u - r thetad(t*) - (a + r c) d`` (``d = t - t*``) stops at ``d_s``; then it rolls at
+    ``-e u - a d_s``."""
+    t, v0, w0, m, inertia, g, mu, w, e = sp.symbols("t v0 w0 m I g mu W e")
+    r = 1
+    a, c = mu * g, mu * m * g * r / inertia
+    ts = (v0 - sp.sqrt(v0**2 - 2 * a * (w - r))) / a
+    u = v0 - a * ts
+    ds = (-e * u - r * (w0 + c * ts)) / (a + r * c)
+    x_stop = w - r - e * u * ds - a * ds**2 / 2
+    return x_stop + (-e * u - a * ds) * (t - ts - ds), (t, v0, w0, m, inertia, g, mu, w, e), ts + ds
+
+
+@pytest.mark.parametrize("rule", RULES)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_wall_then_stop_against_the_closed_form(backend: str, rule: str) -> None:
+    """An impact while held and a located stop in one step: the disk's ``dx/dz`` at every grid point after
+    the stop is the closed form's derivative (SymPy) in ``v0[x]``, ``v0[th]``, ``m``, ``I``, ``g``, ``mu``,
+    ``W``, ``e``; no break."""
+    res = simulator("wall_stop", backend, rule).simulate(
+        DISK_Q0, STOP_V0, 0.01, t_end=0.3, sensitivities=True, progress=False
+    )
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    (im,) = res.impacts
+    x, syms, t_stop = wall_stop_closed_form()
+    at = dict(zip(syms[1:], (STOP_V0[0], STOP_V0[2], *(DISK[k] for k in ("m", "I", "g", "mu", "W", "e")))))
+    assert im.step * 0.01 < float(t_stop.subs(at)) < (im.step + 1) * 0.01  # the stop is in the impact's step
+    names, worst = res.sensitivity_names, 0.0
+    columns = dict(zip(("v0[x]", "v0[th]", "m", "I", "g", "mu", "W", "e"), syms[1:]))
+    for name, sym in columns.items():
+        dx = sp.lambdify(syms[0], sp.diff(x, sym).subs(at))
+        for k in range(im.step + 1, res.t.size):
+            value = float(dx(float(res.t[k])))
+            worst = max(worst, abs(res.sensitivity[k, 0, names.index(name)] - value) / max(1.0, abs(value)))
+    print(f"wall then stop, closed form ({backend}, {rule}): {worst:.1e}")
+    assert worst <= 1e-10, worst
+
+
 def land_closed_form(t: float, g: float, mu: float, vx: float = 2.0, vy: float = -1.0, y0: float = 0.3):
     """``dx(t)/d(v0[y], g, mu)`` of the landing particle: it lands at ``t*`` (``y0 + vy t - g t^2/2 = 0``),
     keeps ``xd = vx`` (plastic) and slips on, decelerated by ``mu g``: ``x = vx t - mu g (t - t*)^2 / 2``."""
@@ -470,22 +537,14 @@ def _switch_sim(backend: str) -> vcigen.Simulator:
     return vcigen.build(slide_wall(), backend=backend)
 
 
-# break scene -> (simulator, q0, v0, t_end): the impact turns the sliding (slip -> the other way, a switch
-# at the start of the rest of the step), or leaves the disk sliding so slowly that it stops (slip -> stick)
-# in the rest of the impact's step
-SWITCHES = {
-    "slip_turned": (_switch_sim, [0.0, 0.0], [1.0, 0.0], 0.5),
-    "slip_stopped": (lambda backend: simulator("disk_wall", backend), DISK_Q0, [1.0, 0.0, -1.27], 0.3),
-}
-
-
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("scene", sorted(SWITCHES))
-def test_a_friction_switch_among_the_events_breaks(scene: str, backend: str) -> None:
-    """A friction switch in the step of the impact is a mode change: the step breaks with its reason (the
-    tangent finite before it, NaN after), at the impact's step, the same on both backends."""
-    make, q0, v0, t_end = SWITCHES[scene]
-    res = make(backend).simulate(q0, v0, 0.01, t_end=t_end, sensitivities=True, progress=False)
+def test_a_friction_switch_among_the_events_breaks(backend: str) -> None:
+    """The impact turns the sliding (slip -> the other way, a switch at the start of the rest of the step, not
+    located): a mode change, the step breaks with its reason (the tangent finite before it, NaN after), at
+    the impact's step, the same on both backends. (A stop after the impact is carried: ``wall_stop``.)"""
+    res = _switch_sim(backend).simulate(
+        [0.0, 0.0], [1.0, 0.0], 0.01, t_end=0.5, sensitivities=True, progress=False
+    )
     (im,) = res.impacts
     assert assert_lost(res, "friction switch in a held step") == im.step
     assert res.sensitivity_breaks == [(im.step, "friction switch in a held step")]

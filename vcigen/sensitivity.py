@@ -46,6 +46,12 @@ in ``(x, d)``, their partials chained. Phases:
   ``grad psi + slip grad t`` (:meth:`Tracker._dforce`); a frictional contact let go (its friction ends with
   its normal force) or held anew at the event (a plastic landing: it slips or sticks from there) is no
   switch;
+* a friction switch of a one-tangent contact inside a held step (no isotropic cone in the model), located
+  like a lift-off (:mod:`vcigen.sensitivity_switch`), among the events above: a slipping contact that stops
+  (the root of its sliding speed ``grad t(q1) . u1``) or a sticking one whose force reaches the cone (the root
+  of ``mu_f N - |lambda_t|``), then the rest of the step in the new mode (a stick's reference
+  ``d ref = grad t(q*) dq*`` at the point it stuck; a slip's slot); a slide back at the instant of such a stop
+  (a slope steeper than the friction angle);
 * rules with internal points (lobatto3): in every phase above the internal points ``u`` are one more
   unknown of the implicit-function theorem (their stationarity rows are the residual's first), recovered
   at the phase's solution (:meth:`Tangents.internal`; the stepper never sees them) and chained into
@@ -57,12 +63,13 @@ in ``(x, d)``, their partials chained. Phases:
 
 Not covered (each a mode change or a set-valued law, no derivative to give): a simultaneous impact (a
 group of contacts at once, free or while held), a grazing impact taking the continuous law, an event inside
-a held step with isotropic cones under forces of time, a friction switch
-(``"friction switch in a held step"``: stick <-> slip, the sliding direction turned, a contact on another
-face), several cones aimed implicitly near rest (``SustainedSteps._cone_brake``), an isotropic cone's impulse
-at its degenerate 0 (``"friction at an impact"``: round-off only), the ``_restart`` fallback. From the first
-such step ``k`` on the tangent is NaN (``S_j`` for ``j > k``), ``Result.stats["sensitivity_lost"] = k`` and
-``Result.sensitivity_breaks`` lists ``(step, reason)``.
+a held step with isotropic cones under forces of time, a friction switch not located inside the step or not
+of one contact alone (``"friction switch in a held step"``: at a segment's start, the sliding direction
+turned, a dependent stick, a stop or slide in a model with isotropic cones, a slide while another contact
+slips, a contact on another face), several cones aimed implicitly near rest (``SustainedSteps._cone_brake``),
+an isotropic cone's impulse at its degenerate 0 (``"friction at an impact"``: round-off only), the
+``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for ``j > k``),
+``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
 
 from __future__ import annotations
@@ -75,6 +82,7 @@ import numpy as np
 from .backends.casadi import routine_to_function
 from .derive import DiscreteSystem
 from .sensitivity_held import HeldTangents, _guarded
+from .sensitivity_switch import SwitchTangents
 from .tangents import tangent_routines
 
 SYMBOLIC_SOLVE = 6  # the smooth step's tangent solves F_v symbolically (SX) up to this many unknowns
@@ -199,7 +207,7 @@ class Tangents:
         return f
 
 
-class Tracker(HeldTangents):
+class Tracker(HeldTangents, SwitchTangents):
     """The tangent of one run, updated by the stepper's hooks after each phase (``Stepper(..., tangent=)``).
 
     Holds the tangent of the grid state and, inside an impact step, of the current segment's data:

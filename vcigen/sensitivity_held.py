@@ -330,9 +330,11 @@ class HeldTangents:
     def _located(self, sub, r: int, s: float, tau: float, kind: str, dq0, dp0, dt0, t):
         """The constrained sub-step ``sub = (q, p, v, lam, lam1, lam_m, u1, act)`` over ``tau_s = s tau`` from
         ``t`` to an event of row ``r`` (``kind``: ``"lift"``, the root of its force, :meth:`_dforce`;
-        ``"cross"``, the root of its value ``psi_r(q1)``, ``d_psi``), with one extra column ``d/d tau_s``,
-        and the root's ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``: ``(dq_l, dp_l, dv_l, dtau_s)`` at the
-        event (``dv_l``: the sub-step's velocity ``v``, where the impulse law's Newton step starts)."""
+        ``"cross"``, the root of its value ``psi_r(q1)``, ``d_psi``; a friction switch ``"stop"``
+        or ``"slide"`` of stick row ``r``, :meth:`SwitchTangents._switch_root`), with one extra column
+        ``d/d tau_s``, and the root's ``d tau_s = -(dg|_{tau_s}) / (dg/d tau_s)``: ``(dq_l, dp_l, dv_l,
+        dtau_s)`` at the event (``dv_l``: the sub-step's velocity ``v``, where the impulse law's Newton step
+        starts)."""
         n, K = self.n, self.K
         q, p, v, lam, lam1, lam_m, u1, act = sub
         tau_s = s * tau
@@ -349,6 +351,8 @@ class HeldTangents:
             dpar_end[-1] = dpar[-1] + dtau[0]
         if kind == "lift":
             dg = self._dforce(q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))  # (K + 1,)
+        elif kind in ("stop", "slide"):  # a friction switch (vcigen.sensitivity_switch)
+            dg = self._switch_root(kind, q1, u1, act, r, self.par(t_l), np.vstack([dq1, du1, dpar_end]))
         else:
             dg = self.tg.get("d_psi")(q1, u1, self.par(t_l))[0][r] @ np.vstack([dq1, dpar_end])
         if dg[K] == 0.0:
@@ -394,8 +398,10 @@ class HeldTangents:
     @_event_hook
     def event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
         """A constrained sub-step of a held step to an event of row ``r`` at fraction ``s`` of ``tau`` (a
-        lift-off, ``"lift"``, or an inactive row crossed, ``"cross"``, :meth:`_located`) from the segment's
-        tangents: they become the event point's (the rest of the step after it, from ``t_seg + s tau``)."""
+        lift-off, ``"lift"``, an inactive row crossed, ``"cross"``, a friction switch ``"stop"``
+        or ``"slide"``, :meth:`_located`; each sub-step with its friction slots, :meth:`_friction_slots`) from
+        the segment's tangents: they become the event point's (the rest of the step after it, from
+        ``t_seg + s tau``)."""
         if not self.active:
             return
         # friction in its mode over the sub-step: the slots' tangent from its start (_friction_slots), a

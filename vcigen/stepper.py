@@ -101,6 +101,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self._ev_entry = self._ev_done = False
         self._law = None  # the last jump's frictional law (contact, normal before it): Tracker.jump's
         self._fswitch = False  # a held step's first event was a friction switch (Stepper._tangent_held)
+        self._sw_stop = None  # (step, events) after a carried friction stop (SustainedSteps._sw_back)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution

@@ -681,7 +681,7 @@ class SustainedSteps:
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
                 if not same and before is not None and not self._no_switch(before):  # let go, held anew: none
-                    self._ev_switch()
+                    self._sw_lose()  # a switch at a segment's start: not located
                 if self._braked and self._ev_tan is not None and self._ev_tan.active:
                     self._ev_tan.lose("held step (sustained contact)")
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
@@ -710,14 +710,16 @@ class SustainedSteps:
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 r = min(r for r, (_, s) in events.items() if s == 0.0)
                 self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
-                if events[r][0] in ("stop", "slide"):
-                    self._ev_switch()
+                if events[r][0] in ("stop", "slide") and not self._sw_back(events[r][0]):
+                    self._sw_lose()  # at the start: not located (a slide back at a stop: _sw_back)
                 plain = False
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
                 else:
+                    before = self._sw_state()
                     self._count_event(step, t_k)  # stick <-> slip at one instant: bounded, never a loop
                     self._friction_switch(events[r][0], r, q, self._velocity(q, v, p))
+                    self._sw_check(events[r][0], r, before)
                 continue
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
@@ -739,12 +741,10 @@ class SustainedSteps:
             act0 = self.act.copy()
             q_s, p_s, tau_s = q, p, tau
             v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
-            if events[r0][0] in ("stop", "slide"):  # a friction switch: no tangent
-                self._ev_switch()
-            elif plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
+            if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
-            else:  # one event of several, an impact while held, a lift-off under friction (Tracker.event)
+            else:  # one event of several, an impact while held, a lift-off under friction, a friction switch
                 self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
             self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
@@ -755,7 +755,9 @@ class SustainedSteps:
                 self._release(step, t_k, t, r0)
                 continue
             if events[r0][0] in ("stop", "slide"):
+                before = self._sw_state()
                 self._friction_switch(events[r0][0], r0, q, self._velocity(q, v, p))
+                self._sw_check(events[r0][0], r0, before)
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub)
@@ -785,18 +787,11 @@ class SustainedSteps:
         """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
         Coulomb friction (isotropic cones but under forces of time: ``Tracker._cone_slots`` holds the time
         fixed), under any rule (internal points are held in each constrained sub-step,
-        ``Tracker._held_sub``); else None (the step breaks as before). A friction switch in it still breaks
-        (:meth:`_ev_switch`), so do cones aimed implicitly (``_braked``)."""
+        ``Tracker._held_sub``); else None (the step breaks as before). A friction switch in it is a located
+        event if :meth:`_sw_covered`, else a break (:meth:`_sw_lose`); cones aimed implicitly (``_braked``)
+        break."""
         cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
         return tan if tan is not None and not (cones and self._timed) else None
-
-    def _ev_switch(self) -> None:
-        """A friction switch inside a held step whose events the tangent carries (stick <-> slip, the sliding
-        direction turned, a contact set on another face): a mode change, no derivative; the step
-        breaks with its reason (the later hooks find the tangent lost)."""
-        if self._ev_tan is not None:
-            self._fswitch = True
-            self._ev_tan.lose("friction switch in a held step")
 
     def _friction_state(self) -> tuple:
         """The friction mode as arrays (:meth:`_no_switch`): stick rows held, slips, references, branch signs,
@@ -828,10 +823,69 @@ class SustainedSteps:
         return True
 
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
-        """A constrained sub-step to an event of row ``r`` (``"lift"`` or ``"cross"``): ``Tracker.event``."""
+        """A constrained sub-step to an event of row ``r`` (``"lift"``, ``"cross"``, a friction switch
+        ``"stop"`` or ``"slide"``): ``Tracker.event``."""
+        if self._ev_tan is not None and not self._sw_covered(kind):
+            return
         if self._ev_tan is not None:
             self._ev_tan.events_begin(self._ev_entry)
             self._ev_tan.event(sub, r, s, tau, kind)
+
+    # -- a friction switch inside a held step (vcigen.sensitivity_switch): a located event ----------------
+    def _sw_covered(self, kind: str) -> bool:
+        """Whether the tangent carries an event of ``kind`` in the current friction mode: a lift-off or a row
+        crossed in any mode (``Tracker.event``: the sub-step's friction slots, the slipping contacts'
+        directions); without isotropic cones a slipping contact's stop and a lone sticking contact's slide (no
+        contact slipping, no dependent stick: the force law of the stick row alone). Else the step breaks here
+        (``"friction switch in a held step"``)."""
+        if kind in ("lift", "cross"):
+            return True
+        if not any(g >= 0 for g in self._partner):  # no cone: one-tangent switches (SwitchTangents)
+            if kind == "stop" or (not self._slip.any() and all(o < 0 for o in self._ride)):
+                return True
+        self._sw_lose()
+        return False
+
+    def _sw_lose(self) -> None:
+        """A friction switch the tangent of a held step's events does not carry (stick <-> slip at a
+        segment's start or not of one contact alone, the sliding direction turned, a contact set on another
+        face, a cone's stop or slide): a mode change, no derivative; the step breaks with ``"friction switch
+        in a held step"`` (the later hooks find the tangent lost)."""
+        if self._ev_tan is not None:
+            self._ev_tan.lose("friction switch in a held step")
+            self._ev_done = True
+
+    def _sw_state(self) -> tuple:
+        """The rows held, slips and dependent sticks before a located switch (:meth:`_sw_check`)."""
+        return self.act.copy(), self._slip.copy(), list(self._ride)
+
+    def _sw_check(self, kind: str, sr: int, before: tuple) -> None:
+        """After a located switch of stick row ``sr`` (:meth:`_friction_switch`): carried if it switched that
+        contact alone, into a stick on its own row (``"stop"``) or a slip (``"slide"``); else (the sliding
+        turned by an impact, a dependent stick, others switched with it) the step breaks. With isotropic cones
+        the switch broke already (:meth:`_sw_covered`; C: no ``sens_sw_check``)."""
+        if any(g >= 0 for g in self._partner):
+            return
+        act, slip, ride = before
+        f = self.k.row_stick[sr]
+        others = [g for g in range(len(self._stick_rows)) if g != f]
+        same = all(slip[g] == self._slip[g] and ride[g] == self._ride[g] for g in others)
+        same = same and all(act[x] == self.act[x] for x in range(self.k.r) if x != sr)
+        if kind == "stop":
+            ok = bool(self.act[sr]) and self._slip[f] == 0.0 and self._ride[f] < 0
+        else:
+            ok = not self.act[sr] and self._slip[f] != 0.0
+        if not (ok and same):
+            self._sw_lose()
+        elif kind == "stop" and self._ev_tan is not None:  # a slide back at once (_sw_back) is carried too
+            self._sw_stop = (self._ev_tan.step, self._events)
+
+    def _sw_back(self, kind: str) -> bool:
+        """A slide at the start of a segment right after a carried stop, no event between (a body stopped on a
+        slope steeper than its friction angle slides back at once): its time is the stop's, whose tangent the
+        events' tangent has, and the rest of the step slips from there (its slot by ``_friction_slots``)."""
+        tan = self._ev_tan
+        return kind == "slide" and tan is not None and self._sw_stop == (tan.step, self._events)
 
     def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
         """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
