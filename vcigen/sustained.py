@@ -940,14 +940,23 @@ class SustainedSteps:
 
     # -- impacts with rows ---------------------------------------------------------------
     def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
-        """Frictionless Newton law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``).
+        """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with Coulomb's
+        cone on the held stick rows (MATH.md *Friction*).
 
         The complementarity problem of the rows ``S`` involved: impulses ``Lam >= 0`` and outgoing normal
         velocities ``g_r.qdot+ >= target_r``, one of the two tight for every row (bilateral rows: equality,
-        ``Lam`` free). Its Delassus matrix ``G M^-1 G^T`` is positive definite, so the solution is unique;
-        it is found by trying the sets of tight rows from the largest (every row, the usual case) down.
-        Returns ``(p+, Lam, vel-, vel+, dropped)``, ``dropped`` the rows left with no impulse (the caller
-        releases the active ones).
+        ``Lam`` free). A held stick row (a one-tangent contact ``f`` sticking, :meth:`_law_cones`) sticks
+        (tight, ``|Lam_t| <= mu_f Lam_n`` with ``Lam_n`` its contact's normal impulse in this impact) or slips
+        at either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0`` resp.
+        ``<= 0`` (then its contact's normal rows push along ``g_n -+ mu_f g_t``). Without friction the Delassus
+        matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes are tried all
+        sticking first (the law of old where it stays inside the cones), then with the first stick row slipping
+        (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over the sets of tight rows
+        from the largest down: the first solution is taken, deterministically. A stick row of an isotropic cone
+        or one carrying dependent sticks has no slip alternative: its stick impulse out of the cone is a
+        ``SolverError``. Returns ``(p+, Lam, vel-, vel+, dropped, slipped)``, ``dropped`` the rows left with no
+        impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped (the caller sets
+        their contacts' modes, :meth:`_slip_at_impact`).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -966,22 +975,52 @@ class SustainedSteps:
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
         vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
         n = len(rows)
-        for mask in range((1 << n) - 1, -1, -1):
-            tight = [i for i in range(n) if mask >> i & 1]
-            if any(not free[i] and not mask >> i & 1 for i in range(n)):
-                continue
-            lam = np.zeros(n)
-            if tight:
-                try:
-                    lam[tight] = np.linalg.solve(w[np.ix_(tight, tight)], b[tight])
-                except np.linalg.LinAlgError:
+        cones, strict = self._law_cones(rows)
+        out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
+        for modes in range(3 ** len(cones)):
+            slips = [(modes // 3**c) % 3 for c in range(len(cones))]  # 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 +
+            ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
+            for (i, normals, mu), mode in zip(cones, slips):
+                if mode:
+                    ws[:, normals] += (-mu if mode == 1 else mu) * w[:, [i]]
+            sliding = {i for (i, _, _), mode in zip(cones, slips) if mode}
+            for mask in range((1 << n) - 1, -1, -1):
+                tight = [i for i in range(n) if mask >> i & 1]
+                if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
                     continue
-            gap = w @ lam - b  # g_r.qdot+ - target_r
-            if all(lam[i] >= -lam_eps or not free[i] for i in tight) and all(
-                gap[i] >= -vel_eps for i in range(n) if not mask >> i & 1
-            ):
-                break
+                lam = np.zeros(n)
+                if tight:
+                    try:
+                        lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
+                    except np.linalg.LinAlgError:
+                        continue
+                for (i, normals, mu), mode in zip(cones, slips):
+                    if mode:
+                        lam[i] = (-mu if mode == 1 else mu) * float(np.sum(lam[normals]))
+                gap = w @ lam - b  # g_r.qdot+ - target_r
+                if not (
+                    all(lam[i] >= -lam_eps or not free[i] for i in tight)
+                    and all(gap[i] >= -vel_eps for i in range(n) if not mask >> i & 1 and i not in sliding)
+                ):
+                    continue
+                inside = True
+                for (i, normals, mu), mode in zip(cones, slips):
+                    cap = mu * float(np.sum(lam[normals]))
+                    if mode == 0:
+                        inside = inside and abs(lam[i]) <= cap + lam_eps
+                    else:
+                        inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
+                if inside and not modes:
+                    out = out or self._law_strict(strict, rows, lam, lam_eps)
+                    inside = not out
+                if inside:
+                    break
+            else:
+                continue
+            break
         else:
+            if out:
+                raise SolverError(step, t_k, "sustained", math.nan, out)
             raise SolverError(
                 step,
                 t_k,
@@ -991,9 +1030,78 @@ class SustainedSteps:
             )
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
-        dropped = [r for i, r in enumerate(rows) if not mask >> i & 1]
+        dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
+        slipped = [rows[i] for i in sorted(sliding)]
         p_plus = p + grad.T @ lam_full
-        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped
+        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped
+
+    def _law_cones(self, rows):
+        """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, normals, mu_f)]`` of
+        each one-tangent contact sticking with its own row (``i`` its index in ``rows``, ``normals`` those of
+        its contact's normal rows), and ``[(i, normals, mu_f, others)]`` of the strict ones (an isotropic
+        cone: ``i`` its first tangent, ``others`` its second's index; a row carrying dependent sticks:
+        ``others`` the riders' ``(normals, mu_f)``), which may only stick."""
+        k = self.k
+        cones, strict = [], []
+        if not self._stick_rows:
+            return cones, strict
+        for f, sr in enumerate(self._stick_rows):
+            if sr not in rows or 0 <= self._partner[f] < f:
+                continue
+            normals = [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
+            riders = [
+                ([i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[g]], float(self._mu_f[g]))
+                for g, owner in enumerate(self._ride)
+                if owner == f and g != f
+            ]
+            if self._partner[f] >= 0:
+                other = self._stick_rows[self._partner[f]]
+                strict.append((rows.index(sr), normals, float(self._mu_f[f]), rows.index(other) if other in rows else -1))
+            elif riders:
+                strict.append((rows.index(sr), normals, float(self._mu_f[f]), riders))
+            else:
+                cones.append((rows.index(sr), normals, float(self._mu_f[f])))
+        return cones, strict
+
+    def _law_strict(self, strict, rows, lam, lam_eps) -> str:
+        """The first strict stick row (:meth:`_law_cones`) whose impulse leaves its cone: the error's text,
+        "" if none does (a strict row sticks; slipping at an impact while held is one-tangent only)."""
+        k = self.k
+        for i, normals, mu, others in strict:
+            cap = mu * float(np.sum(lam[normals]))
+            if isinstance(others, list):  # the dependent sticks' cones are room too
+                cap += sum(mu_g * float(np.sum(lam[ns])) for ns, mu_g in others)
+                tangential = abs(float(lam[i]))
+            else:
+                tangential = math.hypot(float(lam[i]), float(lam[others]) if others >= 0 else 0.0)
+            if tangential > cap + lam_eps:
+                name = k.contact_names[k.frictional[k.row_stick[rows[i]]]]
+                return (
+                    f"impulse law: the stick impulse of {name} leaves its friction cone at an impact while held "
+                    f"({tangential:.3g} > {cap:.3g}; slip at an impact is one-tangent contacts without dependent "
+                    "sticks only)"
+                )
+        return ""
+
+    def _slip_at_impact(self, q, vel_p, slipped) -> bool:
+        """The stick rows that slipped in the impulse law (:meth:`_impulse_law`): their contacts slip after it
+        along the tangential velocity after, ``slip_f = -mu_f sign(g_t.qdot+)``, or stick on where that is 0
+        (to round-off). Whether any contact's mode changed (a friction switch: no tangent)."""
+        k = self.k
+        if not slipped:
+            return False
+        grad = k.rows(q, vel_p)[1]
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel_p))))
+        switched = False
+        for sr in slipped:
+            f = k.row_stick[sr]
+            sliding = float(grad[sr] @ vel_p)
+            if abs(sliding) > tiny:
+                self.act[sr] = False
+                self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
+                switched = True
+        self._set_friction()
+        return switched
 
     def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before):
         """An impact on rows ``group`` during sustained contact; returns the momentum after it."""
@@ -1012,8 +1120,11 @@ class SustainedSteps:
                 plastic.append(r)
             else:
                 targets[r] = -e * rate
-        p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, group, targets)
-        self._ev_impulse(q, v, p, lam, targets, group)
+        p_plus, lam, vel_m, vel_p, dropped, slipped = self._impulse_law(step, t_k, q, p, v, group, targets)
+        if self._slip_at_impact(q, vel_p, slipped):  # stick -> slip at the impact: a mode change, no tangent
+            self._ev_switch()
+        else:
+            self._ev_impulse(q, v, p, lam, targets, group)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution
@@ -1053,7 +1164,8 @@ class SustainedSteps:
             own = [r for r in range(k.r) if k.row_contact[r] == j]
             lowest.append(min(own, key=lambda r: (psi[r], r)))
             rows += [r for r in own if psi[r] <= psi[lowest[-1]] + self.tol.admissible]
-        p_plus, lam, vel_m, vel_p, dropped = self._impulse_law(step, t_k, q, p, v, rows, {})
+        p_plus, lam, vel_m, vel_p, dropped, slipped = self._impulse_law(step, t_k, q, p, v, rows, {})
+        self._law_switch = self._slip_at_impact(q, vel_p, slipped)  # stick -> slip: the caller's tangent breaks
         for r in rows:  # the touching row of each contact is held; another branch at a kink if it presses
             self.act[r] = r in lowest or r not in dropped
         mass = k.legendre(q, vel_m)[1]
