@@ -940,23 +940,23 @@ class SustainedSteps:
 
     # -- impacts with rows ---------------------------------------------------------------
     def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
-        """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with Coulomb's
-        cone on the held stick rows (MATH.md *Friction*).
+        """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with
+        Coulomb's cone on the held stick rows (MATH.md *Friction*).
 
         The complementarity problem of the rows ``S`` involved: impulses ``Lam >= 0`` and outgoing normal
         velocities ``g_r.qdot+ >= target_r``, one of the two tight for every row (bilateral rows: equality,
         ``Lam`` free). A held stick row (a one-tangent contact ``f`` sticking, :meth:`_law_cones`) sticks
-        (tight, ``|Lam_t| <= mu_f Lam_n`` with ``Lam_n`` its contact's normal impulse in this impact) or slips
-        at either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0`` resp.
-        ``<= 0`` (then its contact's normal rows push along ``g_n -+ mu_f g_t``). Without friction the Delassus
-        matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes are tried all
-        sticking first (the law of old where it stays inside the cones), then with the first stick row slipping
-        (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over the sets of tight rows
-        from the largest down: the first solution is taken, deterministically. A stick row of an isotropic cone
-        or one carrying dependent sticks has no slip alternative: its stick impulse out of the cone is a
-        ``SolverError``. Returns ``(p+, Lam, vel-, vel+, dropped, slipped)``, ``dropped`` the rows left with no
-        impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped (the caller sets
-        their contacts' modes, :meth:`_slip_at_impact`).
+        (tight, ``|Lam_t| <= mu_f Lam_n``, ``Lam_n`` its contact's normal impulse in this impact) or slips
+        at either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0``
+        resp. ``<= 0`` (its contact's normal rows then push along ``g_n -+ mu_f g_t``). Without friction
+        the Delassus matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes
+        are tried all sticking first (the law of old where it stays inside the cones), then the first
+        stick row slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over
+        the sets of tight rows from the largest down: the first solution is taken, deterministically. The
+        strict stick rows (an isotropic cone, a row carrying dependent sticks) may only stick: an impulse
+        out of their cone is a ``SolverError``. Returns ``(p+, Lam, vel-, vel+, dropped, slipped)``,
+        ``dropped`` the rows left with no impulse (the caller releases the active ones), ``slipped`` the
+        stick rows that slipped (the caller sets their contacts' modes, :meth:`_slip_at_impact`).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -978,7 +978,9 @@ class SustainedSteps:
         cones, strict = self._law_cones(rows)
         out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
         for modes in range(3 ** len(cones)):
-            slips = [(modes // 3**c) % 3 for c in range(len(cones))]  # 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 +
+            slips = [
+                (modes // 3**c) % 3 for c in range(len(cones))
+            ]  # 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 +
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
             for (i, normals, mu), mode in zip(cones, slips):
                 if mode:
@@ -1010,9 +1012,9 @@ class SustainedSteps:
                         inside = inside and abs(lam[i]) <= cap + lam_eps
                     else:
                         inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
-                if inside and not modes:
-                    out = out or self._law_strict(strict, rows, lam, lam_eps)
-                    inside = not out
+                if inside and strict:
+                    why = self._law_strict(strict, rows, lam, lam_eps)
+                    out, inside = out or why, not why
                 if inside:
                     break
             else:
@@ -1037,28 +1039,43 @@ class SustainedSteps:
 
     def _law_cones(self, rows):
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, normals, mu_f)]`` of
-        each one-tangent contact sticking with its own row (``i`` its index in ``rows``, ``normals`` those of
-        its contact's normal rows), and ``[(i, normals, mu_f, others)]`` of the strict ones (an isotropic
-        cone: ``i`` its first tangent, ``others`` its second's index; a row carrying dependent sticks:
-        ``others`` the riders' ``(normals, mu_f)``), which may only stick."""
+        each one-tangent contact sticking with its own row and carrying no dependent stick (``i`` its index in
+        ``rows``, ``normals`` those of its contact's normal rows), and ``[(i, normals, mu_f, others)]`` of the
+        strict ones, which may only stick: an isotropic cone (``i``, ``others`` its tangents' indices, -1 for
+        one not held) and a one-tangent row carrying dependent sticks (``others`` the riders' ``(normals,
+        mu_f)``: their cones are its room too, as in :meth:`_cone_margin`). A cone coupled to others by a
+        dependent stick (:meth:`_cone_split`) is not checked."""
         k = self.k
         cones, strict = [], []
-        if not self._stick_rows:
-            return cones, strict
         for f, sr in enumerate(self._stick_rows):
-            if sr not in rows or 0 <= self._partner[f] < f:
-                continue
+            pf = self._partner[f]
+            if 0 <= pf < f:
+                continue  # a cone's second tangent: with its first
             normals = [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
-            riders = [
-                ([i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[g]], float(self._mu_f[g]))
-                for g, owner in enumerate(self._ride)
-                if owner == f and g != f
-            ]
-            if self._partner[f] >= 0:
-                other = self._stick_rows[self._partner[f]]
-                strict.append((rows.index(sr), normals, float(self._mu_f[f]), rows.index(other) if other in rows else -1))
+            riders = [g for g, owner in enumerate(self._ride) if g != f and owner in (f, pf)]
+            if pf >= 0:
+                both = [rows.index(x) if x in rows else -1 for x in (sr, self._stick_rows[pf])]
+                if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
+                    strict.append(
+                        (
+                            max(both) if both[0] < 0 else both[0],
+                            normals,
+                            float(self._mu_f[f]),
+                            both[1] if both[0] >= 0 else -1,
+                        )
+                    )
+            elif sr not in rows:
+                continue
             elif riders:
-                strict.append((rows.index(sr), normals, float(self._mu_f[f]), riders))
+                others = [
+                    (
+                        [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[g]],
+                        float(self._mu_f[g]),
+                    )
+                    for g in riders
+                    if self._partner[g] < 0
+                ]
+                strict.append((rows.index(sr), normals, float(self._mu_f[f]), others))
             else:
                 cones.append((rows.index(sr), normals, float(self._mu_f[f])))
         return cones, strict
@@ -1077,9 +1094,9 @@ class SustainedSteps:
             if tangential > cap + lam_eps:
                 name = k.contact_names[k.frictional[k.row_stick[rows[i]]]]
                 return (
-                    f"impulse law: the stick impulse of {name} leaves its friction cone at an impact while held "
-                    f"({tangential:.3g} > {cap:.3g}; slip at an impact is one-tangent contacts without dependent "
-                    "sticks only)"
+                    f"impulse law: the stick impulse of {name} leaves its friction cone at an impact "
+                    f"while held ({tangential:.3g} > {cap:.3g}); slip at such an impact is for one-tangent "
+                    "contacts without dependent sticks only"
                 )
         return ""
 
@@ -1164,8 +1181,8 @@ class SustainedSteps:
             own = [r for r in range(k.r) if k.row_contact[r] == j]
             lowest.append(min(own, key=lambda r: (psi[r], r)))
             rows += [r for r in own if psi[r] <= psi[lowest[-1]] + self.tol.admissible]
-        p_plus, lam, vel_m, vel_p, dropped, slipped = self._impulse_law(step, t_k, q, p, v, rows, {})
-        self._law_switch = self._slip_at_impact(q, vel_p, slipped)  # stick -> slip: the caller's tangent breaks
+        # no row is held here (the free impact chain runs with none), so no stick row slips in the law
+        p_plus, lam, vel_m, vel_p, dropped, _ = self._impulse_law(step, t_k, q, p, v, rows, {})
         for r in rows:  # the touching row of each contact is held; another branch at a kink if it presses
             self.act[r] = r in lowest or r not in dropped
         mass = k.legendre(q, vel_m)[1]
