@@ -74,6 +74,11 @@ def _illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int
     return b
 
 
+def _pooled(pools, lam) -> float:
+    """``sum mu_f Lam_n`` over the pools of a stick row's cone (``SustainedSteps._law_cones``): its room."""
+    return sum(mu * float(np.sum(lam[normals])) for normals, mu in pools)
+
+
 class End(NamedTuple):
     """Evaluations at the end ``(q1, u1)`` of a constrained segment: rows, their gradients and curvatures,
     the free dynamics' right-hand side and the mass matrix."""
@@ -953,10 +958,10 @@ class SustainedSteps:
         are tried all sticking first (the law of old where it stays inside the cones), then the first
         stick row slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over
         the sets of tight rows from the largest down: the first solution is taken, deterministically. The
-        strict stick rows (an isotropic cone, a row carrying dependent sticks) may only stick: an impulse
-        out of their cone is a ``SolverError``. Returns ``(p+, Lam, vel-, vel+, dropped, slipped)``,
-        ``dropped`` the rows left with no impulse (the caller releases the active ones), ``slipped`` the
-        stick rows that slipped (the caller sets their contacts' modes, :meth:`_slip_at_impact`).
+        isotropic cones held may only stick: an impulse out of their cone is a ``SolverError``. Returns
+        ``(p+, Lam, vel-, vel+, dropped, slipped)``, ``dropped`` the rows left with no impulse (the caller
+        releases the active ones), ``slipped`` the stick rows that slipped (the caller sets their contacts'
+        modes, :meth:`_slip_at_impact`).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -978,14 +983,12 @@ class SustainedSteps:
         cones, strict = self._law_cones(rows)
         out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
         for modes in range(3 ** len(cones)):
-            slips = [
-                (modes // 3**c) % 3 for c in range(len(cones))
-            ]  # 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 +
+            slips = [(modes // 3**c) % 3 for c in range(len(cones))]  # 0 stick, 1 Lam_t = -mu Lam_n, 2 +
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
-            for (i, normals, mu), mode in zip(cones, slips):
-                if mode:
+            for (i, pools), mode in zip(cones, slips):
+                for normals, mu in pools if mode else ():
                     ws[:, normals] += (-mu if mode == 1 else mu) * w[:, [i]]
-            sliding = {i for (i, _, _), mode in zip(cones, slips) if mode}
+            sliding = {i for (i, _), mode in zip(cones, slips) if mode}
             for mask in range((1 << n) - 1, -1, -1):
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
@@ -996,9 +999,9 @@ class SustainedSteps:
                         lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
                     except np.linalg.LinAlgError:
                         continue
-                for (i, normals, mu), mode in zip(cones, slips):
+                for (i, pools), mode in zip(cones, slips):
                     if mode:
-                        lam[i] = (-mu if mode == 1 else mu) * float(np.sum(lam[normals]))
+                        lam[i] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
                 gap = w @ lam - b  # g_r.qdot+ - target_r
                 if not (
                     all(lam[i] >= -lam_eps or not free[i] for i in tight)
@@ -1006,10 +1009,9 @@ class SustainedSteps:
                 ):
                     continue
                 inside = True
-                for (i, normals, mu), mode in zip(cones, slips):
-                    cap = mu * float(np.sum(lam[normals]))
+                for (i, pools), mode in zip(cones, slips):
                     if mode == 0:
-                        inside = inside and abs(lam[i]) <= cap + lam_eps
+                        inside = inside and abs(lam[i]) <= _pooled(pools, lam) + lam_eps
                     else:
                         inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
                 if inside and strict:
@@ -1038,65 +1040,50 @@ class SustainedSteps:
         return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped
 
     def _law_cones(self, rows):
-        """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, normals, mu_f)]`` of
-        each one-tangent contact sticking with its own row and carrying no dependent stick (``i`` its index in
-        ``rows``, ``normals`` those of its contact's normal rows), and ``[(i, normals, mu_f, others)]`` of the
-        strict ones, which may only stick: an isotropic cone (``i``, ``others`` its tangents' indices, -1 for
-        one not held) and a one-tangent row carrying dependent sticks (``others`` the riders' ``(normals,
-        mu_f)``: their cones are its room too, as in :meth:`_cone_margin`). A cone coupled to others by a
-        dependent stick (:meth:`_cone_split`) is not checked."""
+        """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
+        one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
+        ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
+        ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too,
+        as in :meth:`_cone_margin`; they slip with it); and ``[(i, normals, mu_f, o)]`` of the isotropic
+        cones held (``i``, ``o`` their tangents' indices, -1 for one not held), which may only stick. A cone
+        coupled to others by a dependent stick (:meth:`_cone_split`) is not checked."""
         k = self.k
         cones, strict = [], []
+
+        def normals(f):
+            return [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
+
         for f, sr in enumerate(self._stick_rows):
             pf = self._partner[f]
-            if 0 <= pf < f:
-                continue  # a cone's second tangent: with its first
-            normals = [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
-            riders = [g for g, owner in enumerate(self._ride) if g != f and owner in (f, pf)]
             if pf >= 0:
+                if pf < f:
+                    continue  # a cone's second tangent: with its first
+                riders = [g for g, owner in enumerate(self._ride) if g not in (f, pf) and owner in (f, pf)]
                 both = [rows.index(x) if x in rows else -1 for x in (sr, self._stick_rows[pf])]
                 if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
-                    strict.append(
-                        (
-                            max(both) if both[0] < 0 else both[0],
-                            normals,
-                            float(self._mu_f[f]),
-                            both[1] if both[0] >= 0 else -1,
-                        )
-                    )
-            elif sr not in rows:
-                continue
-            elif riders:
-                others = [
-                    (
-                        [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[g]],
-                        float(self._mu_f[g]),
-                    )
-                    for g in riders
-                    if self._partner[g] < 0
+                    i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
+                    strict.append((i, normals(f), float(self._mu_f[f]), o))
+            elif sr in rows:
+                riders = [
+                    g for g, owner in enumerate(self._ride) if g != f and owner == f and self._partner[g] < 0
                 ]
-                strict.append((rows.index(sr), normals, float(self._mu_f[f]), others))
-            else:
-                cones.append((rows.index(sr), normals, float(self._mu_f[f])))
+                pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
+                cones.append((rows.index(sr), pools))
         return cones, strict
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
-        """The first strict stick row (:meth:`_law_cones`) whose impulse leaves its cone: the error's text,
-        "" if none does (a strict row sticks; slipping at an impact while held is one-tangent only)."""
+        """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's
+        text, "" if none does (slipping at an impact while held is for one-tangent contacts only)."""
         k = self.k
-        for i, normals, mu, others in strict:
+        for i, normals, mu, o in strict:
             cap = mu * float(np.sum(lam[normals]))
-            if isinstance(others, list):  # the dependent sticks' cones are room too
-                cap += sum(mu_g * float(np.sum(lam[ns])) for ns, mu_g in others)
-                tangential = abs(float(lam[i]))
-            else:
-                tangential = math.hypot(float(lam[i]), float(lam[others]) if others >= 0 else 0.0)
+            tangential = math.hypot(float(lam[i]), float(lam[o]) if o >= 0 else 0.0)
             if tangential > cap + lam_eps:
                 name = k.contact_names[k.frictional[k.row_stick[rows[i]]]]
                 return (
                     f"impulse law: the stick impulse of {name} leaves its friction cone at an impact "
                     f"while held ({tangential:.3g} > {cap:.3g}); slip at such an impact is for one-tangent "
-                    "contacts without dependent sticks only"
+                    "contacts only"
                 )
         return ""
 
@@ -1117,6 +1104,11 @@ class SustainedSteps:
                 self.act[sr] = False
                 self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
                 switched = True
+                for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
+                    if owner == f and g != f and self._partner[g] < 0:
+                        along = float(grad[self._stick_rows[g]] @ grad[sr])
+                        self._slip[g] = -self._mu_f[g] * math.copysign(1.0, sliding * along)
+                        self._ride[g] = -1
         self._set_friction()
         return switched
 
