@@ -204,7 +204,7 @@ def _rolling(i: int | None = None, eps: float = 0.0, par: str | None = None):
         q[i] += eps
     elif i is not None:  # along the rolling: xd and thetad together
         v = [V + eps, 0.0, V + eps]
-    base = dict(DISK) | {"mu": 0.5}
+    base = dict(DISK) | {"mu": 0.5, "b": 0.7, "W": DISK["r"] * (1 + math.sin(0.7)) + X_HIT * math.cos(0.7)}
     return q, v, ({par: base[par] + eps} if par else {})
 
 
@@ -218,7 +218,7 @@ FD_SCENES = {
         {"mu": 0.5},
         {
             **{name: (lambda e, i=i: _rolling(i, e)) for name, i in (("q0[x]", 0), ("q0[th]", 2), ("v0", 3))},
-            **{name: (lambda e, p=name: _rolling(None, e, p)) for name in ("m", "I", "e", "mu")},
+            **{name: (lambda e, p=name: _rolling(None, e, p)) for name in ("m", "I", "e", "W", "b")},
         },
     )
 }
@@ -238,3 +238,5 @@ def test_a_stick_within_the_cone_keeps_the_tangent(backend: str, rule: str) -> N
     worst = max(errs, key=errs.get)
     print(f"slope_stick ({backend}, {rule}): worst {worst} {errs[worst]:.1e}")
     assert errs[worst] <= 1e-6, errs
+    mu = res.sensitivity_names.index("mu")  # the stick holds: mu moves nothing (its tangent exactly 0)
+    assert np.all(res.sensitivity[:, :, mu] == 0.0)
