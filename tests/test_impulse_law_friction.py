@@ -240,3 +240,31 @@ def test_a_stick_within_the_cone_keeps_the_tangent(backend: str, rule: str) -> N
     assert errs[worst] <= 1e-6, errs
     mu = res.sensitivity_names.index("mu")  # the stick holds: mu moves nothing (its tangent exactly 0)
     assert np.all(res.sensitivity[:, :, mu] == 0.0)
+
+
+def ball_wall() -> vcigen.Model:
+    """A ball (centre ``x, y, z``, rotation angles ``ax, ay``) on a rough floor with an isotropic cone (two
+    tangents ``x - r ay``, ``y + r ax``) rolling into the smooth wall ``x <= W - r``."""
+    x, y, z, ax, ay = sp.symbols("x y z ax ay")
+    xd, yd, zd, axd, ayd = sp.symbols("xd yd zd axd ayd")
+    return vcigen.Model(
+        name="ilf_ball_wall",
+        q=[x, y, z, ax, ay],
+        qdot=[xd, yd, zd, axd, ayd],
+        lagrangian=(xd**2 + yd**2 + zd**2) / 2 + sp.Rational(2, 5) / 2 * (axd**2 + ayd**2) - G * z,
+        contacts={"floor": z - 1, "wall": 1 + X_HIT - x - 1},
+        params={},
+        restitution={"wall": 0.8},
+        friction={"floor": (0.2, (x - ay, y + ax))},
+    )
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_an_isotropic_cone_out_of_its_cone_at_an_impact_is_an_error(backend: str) -> None:
+    """The documented limit: a held isotropic cone may only stick at an impact (its slip direction would need
+    a nonlinear solve); the ball rolling into the wall (the floor's normal impulse 0) is a ``SolverError``
+    naming the contact and the cone, with the run so far, on both backends (before: it rolled back)."""
+    sim = vcigen.build(ball_wall(), backend=backend)
+    with pytest.raises(vcigen.SolverError, match="stick impulse of floor leaves its friction cone") as err:
+        sim.simulate([0.0, 0.0, 1.0, 0.0, 0.0], [V, 0.0, 0.0, 0.0, V], H, t_end=0.4, progress=False)
+    assert err.value.result is not None and err.value.result.t[-1] <= X_HIT / V + H
