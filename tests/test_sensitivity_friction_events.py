@@ -19,7 +19,7 @@ trapezoidal and the midpoint rules; the disk and the landing against the closed 
 deceleration ``mu g`` before and after the impact, the rebound ``-e u``, the fall; the discrete map reproduces
 them exactly); the disk stopping after the impact against the closed form of its slide, rebound, stop and
 roll; C against CasADi. A friction switch among the events that is not a located stop or slide (the sliding
-turned by the impact) stays a break, the same on both backends.
+turned by the impact, or a rolling contact slipping at it) stays a break, the same on both backends.
 """
 
 from __future__ import annotations
@@ -270,16 +270,6 @@ SCENES = {
         None,
         _paths(_disk, {"q0[x]": 0, "q0[th]": 2, "v0[x]": 3, "v0[th]": 5}, ["m", "I", "g", "mu", "W", "e"]),
     ),
-    # the disk rolling (its stick row held) into the wall: the impulse law holds the stick row with the wall's
-    # (SustainedSteps._impulse_law: a held stick row is bilateral there), the disk rolls back
-    "roll_wall": (
-        disk_wall,
-        *_roll()[:2],
-        0.01,
-        0.4,
-        None,
-        _paths(_roll, {"q0[x]": 0, "q0[th]": 2, "v0 rolling": 3}, ["m", "I", "W", "e"]),
-    ),
     # the disk into the wall (step 17) while the floor slips; the rebound leaves it sliding at 0.06 the same
     # way, and the sliding stops in the rest of that step (a located stop, SustainedSteps._sw_*): rolls on
     "wall_stop": (
@@ -366,7 +356,7 @@ def _cases():
 def _events(res: vcigen.Result, scene: str) -> None:
     """The scene makes its event inside a held step, friction acting, and keeps the floor slipping."""
     steps = (res.t[1] - res.t[0], res.t[0])
-    if scene in ("disk_wall", "roll_wall", "puck_wall", "wall_stop"):
+    if scene in ("disk_wall", "puck_wall", "wall_stop"):
         (im,) = res.impacts
         assert im.contact == "wall" and im.kind in ("restitution", "elastic") and res.active[im.step, 0]
         assert res.active[:, 0].all() and res.liftoffs == []
@@ -537,14 +527,24 @@ def _switch_sim(backend: str) -> vcigen.Simulator:
     return vcigen.build(slide_wall(), backend=backend)
 
 
+# break scene -> (simulator, q0, v0, t_end): the impact turns the sliding (slip -> the other way, a switch
+# at the start of the rest of the step, not located), or the disk rolling into the wall slips there (the
+# floor's normal impulse is 0, so its stick leaves the cone: SustainedSteps._impulse_law; the stick within
+# the cone is tests/test_impulse_law_friction.py's). A stop after the impact is carried: ``wall_stop``.
+SWITCHES = {
+    "roll_slipped": (lambda backend: simulator("disk_wall", backend), *_roll()[:2], 0.4),
+    "slip_turned": (_switch_sim, [0.0, 0.0], [1.0, 0.0], 0.5),
+}
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_a_friction_switch_among_the_events_breaks(backend: str) -> None:
+@pytest.mark.parametrize("scene", sorted(SWITCHES))
+def test_a_friction_switch_among_the_events_breaks(scene: str, backend: str) -> None:
     """The impact turns the sliding (slip -> the other way, a switch at the start of the rest of the step, not
-    located): a mode change, the step breaks with its reason (the tangent finite before it, NaN after), at
-    the impact's step, the same on both backends. (A stop after the impact is carried: ``wall_stop``.)"""
-    res = _switch_sim(backend).simulate(
-        [0.0, 0.0], [1.0, 0.0], 0.01, t_end=0.5, sensitivities=True, progress=False
-    )
+    located), or a rolling contact slips at it: a mode change, the step breaks with its reason (the tangent
+    finite before it, NaN after), at the impact's step, the same on both backends."""
+    make, q0, v0, t_end = SWITCHES[scene]
+    res = make(backend).simulate(q0, v0, 0.01, t_end=t_end, sensitivities=True, progress=False)
     (im,) = res.impacts
     assert assert_lost(res, "friction switch in a held step") == im.step
     assert res.sensitivity_breaks == [(im.step, "friction switch in a held step")]

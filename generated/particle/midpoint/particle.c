@@ -1436,21 +1436,25 @@ static int particle_row_crossing(const particle_ctx_t *c, const double *q, const
         4e-16, 200, s_out);
 }
 
-/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
- * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
- * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
- * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
- * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+/* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
+ * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
+ * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
+ * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
+ * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
+ * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
+ * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
+ * left with no impulse (dropped) and the stick rows that slipped (slipped). */
 static int particle_impulse_law(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped)
+    int *dropped, int *slipped)
 {
     double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_g[PARTICLE_R_DIM * PARTICLE_N];
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double w[PARTICLE_R_DIM * PARTICLE_R_DIM] = {0.0}, b[PARTICLE_R_DIM] = {0.0}, a[PARTICLE_R_DIM * PARTICLE_R_DIM];
+    double ws[PARTICLE_R_DIM * PARTICLE_R_DIM] = {0.0};
     double lam[PARTICLE_R_DIM], sol[PARTICLE_R_DIM], lam_eps, vel_eps, gap;
     int rows[PARTICLE_R_DIM], tight[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
-    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    int sliding[PARTICLE_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     long mask = 0;
     particle_velocity(c, q, guess, p, vel_m);
     particle_legendre(q, vel_m, c->par, mom, mass);
@@ -1460,6 +1464,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
     for (r = 0; r < PARTICLE_R; ++r) {
         lam_full[r] = 0.0;
         dropped[r] = 0;
+        slipped[r] = 0;
         if (c->sus->act[r]) {
             rows[nr++] = r;
         }
@@ -1493,59 +1498,70 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
             }
         }
     }
-    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
-        int valid = 1;
-        nt = 0;
+    for (modes = 0; modes < n_modes && !found; ++modes) {
+        for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
+            ws[k] = w[k];
+        }
         for (k = 0; k < nr; ++k) {
-            if (mask >> k & 1) {
-                tight[nt++] = k;
-            } else if (particle_row_free[rows[k]]) {
-                valid = 0; /* a bilateral (or stick) row is always tight */
-            }
-            lam[k] = 0.0;
+            sliding[k] = 0;
         }
-        if (!valid) {
-            continue;
-        }
-        for (k = 0; k < nt; ++k) {
-            sol[k] = b[tight[k]];
-            for (l = 0; l < nt; ++l) {
-                a[k * nt + l] = w[tight[k] * nr + tight[l]];
-            }
-        }
-        if (nt > 0) {
-            if (!particle_lu(nt, a, piv)) {
-                continue;
-            }
-            particle_lu_solve(nt, a, piv, sol);
-        }
-        for (k = 0; k < nt; ++k) {
-            lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && !particle_row_free[rows[tight[k]]]) {
-                valid = 0;
-            }
-        }
-        for (k = 0; k < nr && valid; ++k) {
-            if (mask >> k & 1) {
-                continue;
-            }
-            gap = -b[k]; /* g_r.qdot+ - target_r */
-            for (l = 0; l < nr; ++l) {
-                gap += w[k * nr + l] * lam[l];
-            }
-            valid = gap >= -vel_eps;
-        }
-        if (valid) {
-            found = 1;
+        for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+            int valid = 1;
+            nt = 0;
             for (k = 0; k < nr; ++k) {
-                lam_full[rows[k]] = lam[k];
-                dropped[rows[k]] = !(mask >> k & 1);
+                if (mask >> k & 1) {
+                    tight[nt++] = k;
+                    valid = valid && !sliding[k]; /* a slipping stick row is not tight */
+                } else if (particle_row_free[rows[k]] && !sliding[k]) {
+                    valid = 0; /* a bilateral (or sticking) row is always tight */
+                }
+                lam[k] = 0.0;
+            }
+            if (!valid) {
+                continue;
+            }
+            for (k = 0; k < nt; ++k) {
+                sol[k] = b[tight[k]];
+                for (l = 0; l < nt; ++l) {
+                    a[k * nt + l] = ws[tight[k] * nr + tight[l]];
+                }
+            }
+            if (nt > 0) {
+                if (!particle_lu(nt, a, piv)) {
+                    continue;
+                }
+                particle_lu_solve(nt, a, piv, sol);
+            }
+            for (k = 0; k < nt; ++k) {
+                lam[tight[k]] = sol[k];
+            }
+            for (k = 0; k < nt; ++k) {
+                if (lam[tight[k]] < -lam_eps && !particle_row_free[rows[tight[k]]]) {
+                    valid = 0;
+                }
+            }
+            for (k = 0; k < nr; ++k) {
+                gap = -b[k]; /* g_r.qdot+ - target_r */
+                for (l = 0; l < nr; ++l) {
+                    gap += w[k * nr + l] * lam[l];
+                }
+                if (!(mask >> k & 1) && !sliding[k]) {
+                    valid = valid && gap >= -vel_eps;
+                }
+            }
+            if (valid) {
+                found = 1;
+                for (k = 0; k < nr; ++k) {
+                    lam_full[rows[k]] = lam[k];
+                    dropped[rows[k]] = !(mask >> k & 1) && !sliding[k];
+                    slipped[rows[k]] = sliding[k];
+                }
             }
         }
     }
     if (!found) {
-        return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
-            "(dependent normals?)", nr);
+        return out ? 1 : particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
+            "contacts (dependent normals?)", nr);
     }
     for (i = 0; i < PARTICLE_N; ++i) {
         p_plus[i] = p[i];
@@ -1602,7 +1618,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
-    int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], i, g, r, j, any, done;
+    int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
     particle_at(c, t);
     particle_restitution(c->par, rest);
     particle_velocity(c, q, v, p, vel);
@@ -1628,9 +1644,10 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             tgt[r] = -e * rate;
         }
     }
-    if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
+    (void)slipped;
     loss = particle_loss(c, q, vel_m, vel_p);
     for (r = 0; r < PARTICLE_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1688,7 +1705,7 @@ static int particle_plastic_entry(const particle_ctx_t *c, const double *q, cons
 {
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double tgt[PARTICLE_R_DIM] = {0.0}, vel_m[PARTICLE_N], vel_p[PARTICLE_N];
-    int dropped[PARTICLE_R_DIM], lowest[PARTICLE_R_DIM] = {0}, g, r, k, low;
+    int dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], lowest[PARTICLE_R_DIM] = {0}, g, r, k, low;
     particle_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1708,7 +1725,8 @@ static int particle_plastic_entry(const particle_ctx_t *c, const double *q, cons
             }
         }
     }
-    if (particle_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    if (particle_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1558,21 +1558,25 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
         4e-16, 200, s_out);
 }
 
-/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
- * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
- * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
- * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
- * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+/* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
+ * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
+ * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
+ * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
+ * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
+ * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
+ * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
+ * left with no impulse (dropped) and the stick rows that slipped (slipped). */
 static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped)
+    int *dropped, int *slipped)
 {
     double mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM] = {0.0}, b[SLIDE_OFF_DOME_R_DIM] = {0.0}, a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
+    double ws[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM] = {0.0};
     double lam[SLIDE_OFF_DOME_R_DIM], sol[SLIDE_OFF_DOME_R_DIM], lam_eps, vel_eps, gap;
     int rows[SLIDE_OFF_DOME_R_DIM], tight[SLIDE_OFF_DOME_R_DIM], piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
-    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    int sliding[SLIDE_OFF_DOME_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     long mask = 0;
     slide_off_dome_velocity(c, q, guess, p, vel_m);
     slide_off_dome_legendre(q, vel_m, c->par, mom, mass);
@@ -1582,6 +1586,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         lam_full[r] = 0.0;
         dropped[r] = 0;
+        slipped[r] = 0;
         if (c->sus->act[r]) {
             rows[nr++] = r;
         }
@@ -1615,59 +1620,70 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
             }
         }
     }
-    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
-        int valid = 1;
-        nt = 0;
+    for (modes = 0; modes < n_modes && !found; ++modes) {
+        for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
+            ws[k] = w[k];
+        }
         for (k = 0; k < nr; ++k) {
-            if (mask >> k & 1) {
-                tight[nt++] = k;
-            } else if (slide_off_dome_row_free[rows[k]]) {
-                valid = 0; /* a bilateral (or stick) row is always tight */
-            }
-            lam[k] = 0.0;
+            sliding[k] = 0;
         }
-        if (!valid) {
-            continue;
-        }
-        for (k = 0; k < nt; ++k) {
-            sol[k] = b[tight[k]];
-            for (l = 0; l < nt; ++l) {
-                a[k * nt + l] = w[tight[k] * nr + tight[l]];
-            }
-        }
-        if (nt > 0) {
-            if (!slide_off_dome_lu(nt, a, piv)) {
-                continue;
-            }
-            slide_off_dome_lu_solve(nt, a, piv, sol);
-        }
-        for (k = 0; k < nt; ++k) {
-            lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && !slide_off_dome_row_free[rows[tight[k]]]) {
-                valid = 0;
-            }
-        }
-        for (k = 0; k < nr && valid; ++k) {
-            if (mask >> k & 1) {
-                continue;
-            }
-            gap = -b[k]; /* g_r.qdot+ - target_r */
-            for (l = 0; l < nr; ++l) {
-                gap += w[k * nr + l] * lam[l];
-            }
-            valid = gap >= -vel_eps;
-        }
-        if (valid) {
-            found = 1;
+        for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+            int valid = 1;
+            nt = 0;
             for (k = 0; k < nr; ++k) {
-                lam_full[rows[k]] = lam[k];
-                dropped[rows[k]] = !(mask >> k & 1);
+                if (mask >> k & 1) {
+                    tight[nt++] = k;
+                    valid = valid && !sliding[k]; /* a slipping stick row is not tight */
+                } else if (slide_off_dome_row_free[rows[k]] && !sliding[k]) {
+                    valid = 0; /* a bilateral (or sticking) row is always tight */
+                }
+                lam[k] = 0.0;
+            }
+            if (!valid) {
+                continue;
+            }
+            for (k = 0; k < nt; ++k) {
+                sol[k] = b[tight[k]];
+                for (l = 0; l < nt; ++l) {
+                    a[k * nt + l] = ws[tight[k] * nr + tight[l]];
+                }
+            }
+            if (nt > 0) {
+                if (!slide_off_dome_lu(nt, a, piv)) {
+                    continue;
+                }
+                slide_off_dome_lu_solve(nt, a, piv, sol);
+            }
+            for (k = 0; k < nt; ++k) {
+                lam[tight[k]] = sol[k];
+            }
+            for (k = 0; k < nt; ++k) {
+                if (lam[tight[k]] < -lam_eps && !slide_off_dome_row_free[rows[tight[k]]]) {
+                    valid = 0;
+                }
+            }
+            for (k = 0; k < nr; ++k) {
+                gap = -b[k]; /* g_r.qdot+ - target_r */
+                for (l = 0; l < nr; ++l) {
+                    gap += w[k * nr + l] * lam[l];
+                }
+                if (!(mask >> k & 1) && !sliding[k]) {
+                    valid = valid && gap >= -vel_eps;
+                }
+            }
+            if (valid) {
+                found = 1;
+                for (k = 0; k < nr; ++k) {
+                    lam_full[rows[k]] = lam[k];
+                    dropped[rows[k]] = !(mask >> k & 1) && !sliding[k];
+                    slipped[rows[k]] = sliding[k];
+                }
             }
         }
     }
     if (!found) {
-        return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
-            "(dependent normals?)", nr);
+        return out ? 1 : slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
+            "contacts (dependent normals?)", nr);
     }
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         p_plus[i] = p[i];
@@ -1724,7 +1740,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double racc[SLIDE_OFF_DOME_R_DIM], psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;
-    int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
+    int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
     slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
     slide_off_dome_velocity(c, q, v, p, vel);
@@ -1750,9 +1766,10 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             tgt[r] = -e * rate;
         }
     }
-    if (slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    if (slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
+    (void)slipped;
     loss = slide_off_dome_loss(c, q, vel_m, vel_p);
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1810,7 +1827,7 @@ static int slide_off_dome_plastic_entry(const slide_off_dome_ctx_t *c, const dou
 {
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double tgt[SLIDE_OFF_DOME_R_DIM] = {0.0}, vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N];
-    int dropped[SLIDE_OFF_DOME_R_DIM], lowest[SLIDE_OFF_DOME_R_DIM] = {0}, g, r, k, low;
+    int dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], lowest[SLIDE_OFF_DOME_R_DIM] = {0}, g, r, k, low;
     slide_off_dome_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1830,7 +1847,8 @@ static int slide_off_dome_plastic_entry(const slide_off_dome_ctx_t *c, const dou
             }
         }
     }
-    if (slide_off_dome_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    if (slide_off_dome_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

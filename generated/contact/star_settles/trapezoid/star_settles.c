@@ -1720,21 +1720,25 @@ static int star_settles_row_crossing(const star_settles_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
-/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
- * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
- * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
- * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
- * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+/* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
+ * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
+ * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
+ * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
+ * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
+ * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
+ * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
+ * left with no impulse (dropped) and the stick rows that slipped (slipped). */
 static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped)
+    int *dropped, int *slipped)
 {
     double mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N], minv_g[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
     double w[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM] = {0.0}, b[STAR_SETTLES_R_DIM] = {0.0}, a[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM];
+    double ws[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM] = {0.0};
     double lam[STAR_SETTLES_R_DIM], sol[STAR_SETTLES_R_DIM], lam_eps, vel_eps, gap;
     int rows[STAR_SETTLES_R_DIM], tight[STAR_SETTLES_R_DIM], piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
-    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    int sliding[STAR_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     long mask = 0;
     star_settles_velocity(c, q, guess, p, vel_m);
     star_settles_legendre(q, vel_m, c->par, mom, mass);
@@ -1744,6 +1748,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         lam_full[r] = 0.0;
         dropped[r] = 0;
+        slipped[r] = 0;
         if (c->sus->act[r]) {
             rows[nr++] = r;
         }
@@ -1777,59 +1782,70 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
             }
         }
     }
-    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
-        int valid = 1;
-        nt = 0;
+    for (modes = 0; modes < n_modes && !found; ++modes) {
+        for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
+            ws[k] = w[k];
+        }
         for (k = 0; k < nr; ++k) {
-            if (mask >> k & 1) {
-                tight[nt++] = k;
-            } else if (star_settles_row_free[rows[k]]) {
-                valid = 0; /* a bilateral (or stick) row is always tight */
-            }
-            lam[k] = 0.0;
+            sliding[k] = 0;
         }
-        if (!valid) {
-            continue;
-        }
-        for (k = 0; k < nt; ++k) {
-            sol[k] = b[tight[k]];
-            for (l = 0; l < nt; ++l) {
-                a[k * nt + l] = w[tight[k] * nr + tight[l]];
-            }
-        }
-        if (nt > 0) {
-            if (!star_settles_lu(nt, a, piv)) {
-                continue;
-            }
-            star_settles_lu_solve(nt, a, piv, sol);
-        }
-        for (k = 0; k < nt; ++k) {
-            lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && !star_settles_row_free[rows[tight[k]]]) {
-                valid = 0;
-            }
-        }
-        for (k = 0; k < nr && valid; ++k) {
-            if (mask >> k & 1) {
-                continue;
-            }
-            gap = -b[k]; /* g_r.qdot+ - target_r */
-            for (l = 0; l < nr; ++l) {
-                gap += w[k * nr + l] * lam[l];
-            }
-            valid = gap >= -vel_eps;
-        }
-        if (valid) {
-            found = 1;
+        for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+            int valid = 1;
+            nt = 0;
             for (k = 0; k < nr; ++k) {
-                lam_full[rows[k]] = lam[k];
-                dropped[rows[k]] = !(mask >> k & 1);
+                if (mask >> k & 1) {
+                    tight[nt++] = k;
+                    valid = valid && !sliding[k]; /* a slipping stick row is not tight */
+                } else if (star_settles_row_free[rows[k]] && !sliding[k]) {
+                    valid = 0; /* a bilateral (or sticking) row is always tight */
+                }
+                lam[k] = 0.0;
+            }
+            if (!valid) {
+                continue;
+            }
+            for (k = 0; k < nt; ++k) {
+                sol[k] = b[tight[k]];
+                for (l = 0; l < nt; ++l) {
+                    a[k * nt + l] = ws[tight[k] * nr + tight[l]];
+                }
+            }
+            if (nt > 0) {
+                if (!star_settles_lu(nt, a, piv)) {
+                    continue;
+                }
+                star_settles_lu_solve(nt, a, piv, sol);
+            }
+            for (k = 0; k < nt; ++k) {
+                lam[tight[k]] = sol[k];
+            }
+            for (k = 0; k < nt; ++k) {
+                if (lam[tight[k]] < -lam_eps && !star_settles_row_free[rows[tight[k]]]) {
+                    valid = 0;
+                }
+            }
+            for (k = 0; k < nr; ++k) {
+                gap = -b[k]; /* g_r.qdot+ - target_r */
+                for (l = 0; l < nr; ++l) {
+                    gap += w[k * nr + l] * lam[l];
+                }
+                if (!(mask >> k & 1) && !sliding[k]) {
+                    valid = valid && gap >= -vel_eps;
+                }
+            }
+            if (valid) {
+                found = 1;
+                for (k = 0; k < nr; ++k) {
+                    lam_full[rows[k]] = lam[k];
+                    dropped[rows[k]] = !(mask >> k & 1) && !sliding[k];
+                    slipped[rows[k]] = sliding[k];
+                }
             }
         }
     }
     if (!found) {
-        return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
-            "(dependent normals?)", nr);
+        return out ? 1 : star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
+            "contacts (dependent normals?)", nr);
     }
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         p_plus[i] = p[i];
@@ -1886,7 +1902,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     double racc[STAR_SETTLES_R_DIM], psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     double curv[STAR_SETTLES_R_DIM], tgt[STAR_SETTLES_R_DIM], p_plus[STAR_SETTLES_N] = {0.0}, lam[STAR_SETTLES_R_DIM];
     double vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N], rate, e, loss, imp;
-    int plastic[STAR_SETTLES_R_DIM], dropped[STAR_SETTLES_R_DIM], i, g, r, j, any, done;
+    int plastic[STAR_SETTLES_R_DIM], dropped[STAR_SETTLES_R_DIM], slipped[STAR_SETTLES_R_DIM], i, g, r, j, any, done;
     star_settles_at(c, t);
     star_settles_restitution(c->par, rest);
     star_settles_velocity(c, q, v, p, vel);
@@ -1912,9 +1928,10 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
             tgt[r] = -e * rate;
         }
     }
-    if (star_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    if (star_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
+    (void)slipped;
     loss = star_settles_loss(c, q, vel_m, vel_p);
     for (r = 0; r < STAR_SETTLES_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1972,7 +1989,7 @@ static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double 
 {
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
     double tgt[STAR_SETTLES_R_DIM] = {0.0}, vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N];
-    int dropped[STAR_SETTLES_R_DIM], lowest[STAR_SETTLES_R_DIM] = {0}, g, r, k, low;
+    int dropped[STAR_SETTLES_R_DIM], slipped[STAR_SETTLES_R_DIM], lowest[STAR_SETTLES_R_DIM] = {0}, g, r, k, low;
     star_settles_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1992,7 +2009,8 @@ static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double 
             }
         }
     }
-    if (star_settles_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    if (star_settles_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1777,21 +1777,92 @@ static int rough_disk_row_crossing(const rough_disk_ctx_t *c, const double *q, c
         4e-16, 200, s_out);
 }
 
-/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
- * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
- * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
- * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
- * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+/* SustainedSteps._law_cones: the held stick rows of the impulse law on rows[0..nr) with Coulomb's cone: of each
+ * one-tangent contact sticking with its own row, its index in rows (cone_i) and frictional contact (cone_f), whose
+ * room is its own normal impulse and those of the one-tangent dependent sticks it carries (law_pooled; they slip
+ * with it); the isotropic cones held, which may only stick (strict_i, strict_f, strict_o: its second tangent's
+ * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. */
+static void rough_disk_law_cones(const rough_disk_ctx_t *c, const int *rows, int nr, int *cone_i, int *cone_f,
+    int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+{
+    int f, k, ia, ib;
+    *n_cones = *n_strict = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        ia = ib = -1;
+        for (k = 0; k < nr; ++k) {
+            if (rows[k] == rough_disk_stick_row[f]) {
+                ia = k;
+            }
+        }
+        if (ia >= 0) {
+            cone_i[*n_cones] = ia;
+            cone_f[(*n_cones)++] = f;
+        }
+    }
+    (void)c;
+    (void)strict_i;
+    (void)strict_f;
+    (void)strict_o;
+    (void)ib;
+}
+
+/* The normal impulse of frictional contact f's contact in the impulse law: lam over its rows among rows[0..nr). */
+static double rough_disk_law_normal(const int *rows, int nr, const double *lam, int f)
+{
+    double s = 0.0;
+    int k;
+    for (k = 0; k < nr; ++k) {
+        if (rough_disk_row_contact[rows[k]] == rough_disk_fric_contact[f]) {
+            s += lam[k];
+        }
+    }
+    return s;
+}
+
+/* Is frictional contact g in the pool of one-tangent contact f's stick row (f itself, or a one-tangent dependent
+ * stick it carries)? (SustainedSteps._law_cones) */
+static int rough_disk_law_in_pool(const rough_disk_ctx_t *c, int f, int g)
+{
+    return g == f || (c->sus->ride[g] == f);
+}
+
+/* sustained._pooled: sum mu_g Lam_n,g over the pool of f's stick row (its room), f first, then its riders. */
+static double rough_disk_law_pooled(const rough_disk_ctx_t *c, const int *rows, int nr, const double *lam, int f)
+{
+    double s = c->mu_f[f] * rough_disk_law_normal(rows, nr, lam, f);
+    int g;
+    for (g = 0; g < ROUGH_DISK_NF; ++g) {
+        if (g != f && rough_disk_law_in_pool(c, f, g)) {
+            s += c->mu_f[g] * rough_disk_law_normal(rows, nr, lam, g);
+        }
+    }
+    return s;
+}
+
+/* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
+ * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
+ * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
+ * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
+ * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
+ * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
+ * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
+ * left with no impulse (dropped) and the stick rows that slipped (slipped). */
 static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped)
+    int *dropped, int *slipped)
 {
     double mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N], minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double w[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM] = {0.0}, b[ROUGH_DISK_R_DIM] = {0.0}, a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM];
+    double ws[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM] = {0.0};
     double lam[ROUGH_DISK_R_DIM], sol[ROUGH_DISK_R_DIM], lam_eps, vel_eps, gap;
     int rows[ROUGH_DISK_R_DIM], tight[ROUGH_DISK_R_DIM], piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
-    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    int sliding[ROUGH_DISK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int cone_i[ROUGH_DISK_NF_DIM], cone_f[ROUGH_DISK_NF_DIM], strict_i[ROUGH_DISK_NF_DIM];
+    int strict_f[ROUGH_DISK_NF_DIM], strict_o[ROUGH_DISK_NF_DIM], mode[ROUGH_DISK_NF_DIM] = {0};
+    int n_cones = 0, n_strict = 0;
+    double slope, gaps[ROUGH_DISK_R_DIM];
+    int digits, g, pg;
     long mask = 0;
     rough_disk_velocity(c, q, guess, p, vel_m);
     rough_disk_legendre(q, vel_m, c->par, mom, mass);
@@ -1801,6 +1872,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         lam_full[r] = 0.0;
         dropped[r] = 0;
+        slipped[r] = 0;
         if (c->sus->act[r]) {
             rows[nr++] = r;
         }
@@ -1834,59 +1906,108 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
             }
         }
     }
-    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
-        int valid = 1;
-        nt = 0;
+    rough_disk_law_cones(c, rows, nr, cone_i, cone_f, &n_cones, strict_i, strict_f, strict_o, &n_strict);
+    for (k = 0; k < n_cones; ++k) {
+        n_modes *= 3;
+    }
+    for (modes = 0; modes < n_modes && !found; ++modes) {
+        for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
+            ws[k] = w[k];
+        }
         for (k = 0; k < nr; ++k) {
-            if (mask >> k & 1) {
-                tight[nt++] = k;
-            } else if (rough_disk_row_free[rows[k]]) {
-                valid = 0; /* a bilateral (or stick) row is always tight */
-            }
-            lam[k] = 0.0;
+            sliding[k] = 0;
         }
-        if (!valid) {
-            continue;
-        }
-        for (k = 0; k < nt; ++k) {
-            sol[k] = b[tight[k]];
-            for (l = 0; l < nt; ++l) {
-                a[k * nt + l] = w[tight[k] * nr + tight[l]];
-            }
-        }
-        if (nt > 0) {
-            if (!rough_disk_lu(nt, a, piv)) {
+        for (i = 0, digits = modes; i < n_cones; ++i, digits /= 3) {
+            mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n */
+            if (!mode[i]) {
                 continue;
             }
-            rough_disk_lu_solve(nt, a, piv, sol);
-        }
-        for (k = 0; k < nt; ++k) {
-            lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && !rough_disk_row_free[rows[tight[k]]]) {
-                valid = 0;
+            sliding[cone_i[i]] = 1;
+            for (g = 0; g < ROUGH_DISK_NF; ++g) { /* its pool in order: f, then its riders */
+                pg = g == 0 ? cone_f[i] : (g <= cone_f[i] ? g - 1 : g);
+                if (!rough_disk_law_in_pool(c, cone_f[i], pg)) {
+                    continue;
+                }
+                slope = mode[i] == 1 ? -c->mu_f[pg] : c->mu_f[pg];
+                for (l = 0; l < nr; ++l) {
+                    if (rough_disk_row_contact[rows[l]] == rough_disk_fric_contact[pg]) {
+                        for (k = 0; k < nr; ++k) {
+                            ws[k * nr + l] += slope * w[k * nr + cone_i[i]];
+                        }
+                    }
+                }
             }
         }
-        for (k = 0; k < nr && valid; ++k) {
-            if (mask >> k & 1) {
-                continue;
-            }
-            gap = -b[k]; /* g_r.qdot+ - target_r */
-            for (l = 0; l < nr; ++l) {
-                gap += w[k * nr + l] * lam[l];
-            }
-            valid = gap >= -vel_eps;
-        }
-        if (valid) {
-            found = 1;
+        for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+            int valid = 1;
+            nt = 0;
             for (k = 0; k < nr; ++k) {
-                lam_full[rows[k]] = lam[k];
-                dropped[rows[k]] = !(mask >> k & 1);
+                if (mask >> k & 1) {
+                    tight[nt++] = k;
+                    valid = valid && !sliding[k]; /* a slipping stick row is not tight */
+                } else if (rough_disk_row_free[rows[k]] && !sliding[k]) {
+                    valid = 0; /* a bilateral (or sticking) row is always tight */
+                }
+                lam[k] = 0.0;
+            }
+            if (!valid) {
+                continue;
+            }
+            for (k = 0; k < nt; ++k) {
+                sol[k] = b[tight[k]];
+                for (l = 0; l < nt; ++l) {
+                    a[k * nt + l] = ws[tight[k] * nr + tight[l]];
+                }
+            }
+            if (nt > 0) {
+                if (!rough_disk_lu(nt, a, piv)) {
+                    continue;
+                }
+                rough_disk_lu_solve(nt, a, piv, sol);
+            }
+            for (k = 0; k < nt; ++k) {
+                lam[tight[k]] = sol[k];
+            }
+            for (i = 0; i < n_cones; ++i) {
+                if (mode[i]) {
+                    lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * rough_disk_law_pooled(c, rows, nr, lam, cone_f[i]);
+                }
+            }
+            for (k = 0; k < nt; ++k) {
+                if (lam[tight[k]] < -lam_eps && !rough_disk_row_free[rows[tight[k]]]) {
+                    valid = 0;
+                }
+            }
+            for (k = 0; k < nr; ++k) {
+                gap = -b[k]; /* g_r.qdot+ - target_r */
+                for (l = 0; l < nr; ++l) {
+                    gap += w[k * nr + l] * lam[l];
+                }
+                gaps[k] = gap;
+                if (!(mask >> k & 1) && !sliding[k]) {
+                    valid = valid && gap >= -vel_eps;
+                }
+            }
+            for (i = 0; i < n_cones && valid; ++i) {
+                if (mode[i] == 0) {
+                    valid = fabs(lam[cone_i[i]]) <= rough_disk_law_pooled(c, rows, nr, lam, cone_f[i]) + lam_eps;
+                } else {
+                    valid = mode[i] == 1 ? gaps[cone_i[i]] >= -vel_eps : gaps[cone_i[i]] <= vel_eps;
+                }
+            }
+            if (valid) {
+                found = 1;
+                for (k = 0; k < nr; ++k) {
+                    lam_full[rows[k]] = lam[k];
+                    dropped[rows[k]] = !(mask >> k & 1) && !sliding[k];
+                    slipped[rows[k]] = sliding[k];
+                }
             }
         }
     }
     if (!found) {
-        return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
-            "(dependent normals?)", nr);
+        return out ? 1 : rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
+            "contacts (dependent normals?)", nr);
     }
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         p_plus[i] = p[i];
@@ -1896,6 +2017,52 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     }
     rough_disk_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* SustainedSteps._slip_at_impact: the stick rows that slipped in the impulse law: their contacts slip after it
+ * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
+ * Whether any contact's mode changed (a friction switch: no tangent). */
+static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q, const double *vel_p,
+    const int *slipped)
+{
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double tiny, sliding, along;
+    int r, i, f, g, any = 0, switched = 0;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        any = any || slipped[r];
+    }
+    if (!any) {
+        return 0;
+    }
+    rough_disk_rows(q, vel_p, c->par, psi, grad, curv);
+    tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel_p));
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        f = rough_disk_row_stick[r];
+        if (!slipped[r] || f < 0) { /* (only stick rows slip) */
+            continue;
+        }
+        sliding = 0.0;
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            sliding += grad[r * ROUGH_DISK_N + i] * vel_p[i];
+        }
+        if (fabs(sliding) > tiny) {
+            c->sus->act[r] = 0;
+            c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0);
+            switched = 1;
+            for (g = 0; g < ROUGH_DISK_NF; ++g) { /* its dependent sticks slide with it, the same way */
+                if (c->sus->ride[g] == f && g != f) {
+                    along = 0.0;
+                    for (i = 0; i < ROUGH_DISK_N; ++i) {
+                        along += grad[rough_disk_stick_row[g] * ROUGH_DISK_N + i] * grad[r * ROUGH_DISK_N + i];
+                    }
+                    c->sus->slip[g] = -c->mu_f[g] * (sliding * along >= 0.0 ? 1.0 : -1.0);
+                    c->sus->ride[g] = -1;
+                }
+            }
+        }
+    }
+    rough_disk_set_friction(c);
+    return switched;
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
@@ -1943,7 +2110,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp;
-    int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
+    int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
     rough_disk_at(c, t);
     rough_disk_restitution(c->par, rest);
     rough_disk_velocity(c, q, v, p, vel);
@@ -1969,8 +2136,11 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             tgt[r] = -e * rate;
         }
     }
-    if (rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    if (rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
+    }
+    if (rough_disk_slip_at_impact(c, q, vel_p, slipped)) { /* stick -> slip at the impact: no tangent */
+    } else {
     }
     loss = rough_disk_loss(c, q, vel_m, vel_p);
     for (r = 0; r < ROUGH_DISK_R; ++r) { /* an active row the impact pulls off */
@@ -2029,7 +2199,7 @@ static int rough_disk_plastic_entry(const rough_disk_ctx_t *c, const double *q, 
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double tgt[ROUGH_DISK_R_DIM] = {0.0}, vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N];
-    int dropped[ROUGH_DISK_R_DIM], lowest[ROUGH_DISK_R_DIM] = {0}, g, r, k, low;
+    int dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], lowest[ROUGH_DISK_R_DIM] = {0}, g, r, k, low;
     rough_disk_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2049,7 +2219,8 @@ static int rough_disk_plastic_entry(const rough_disk_ctx_t *c, const double *q, 
             }
         }
     }
-    if (rough_disk_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    if (rough_disk_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1980,21 +1980,92 @@ static int star_friction_row_crossing(const star_friction_ctx_t *c, const double
         4e-16, 200, s_out);
 }
 
-/* SustainedSteps._impulse_law: the frictionless Newton law on the active rows and the rows hit (target
- * outgoing g_r.qdot: tgt[r], 0 where plastic): the complementarity problem Lam >= 0, g_r.qdot+ >= target_r,
- * one of the two tight for every row (bilateral rows: equality), solved by trying the sets of tight rows
- * from the largest down (its Delassus matrix is positive definite: the solution is unique). Out: p+, Lam
- * (per row), the velocities before and after, and the rows left with no impulse (dropped). */
+/* SustainedSteps._law_cones: the held stick rows of the impulse law on rows[0..nr) with Coulomb's cone: of each
+ * one-tangent contact sticking with its own row, its index in rows (cone_i) and frictional contact (cone_f), whose
+ * room is its own normal impulse and those of the one-tangent dependent sticks it carries (law_pooled; they slip
+ * with it); the isotropic cones held, which may only stick (strict_i, strict_f, strict_o: its second tangent's
+ * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. */
+static void star_friction_law_cones(const star_friction_ctx_t *c, const int *rows, int nr, int *cone_i, int *cone_f,
+    int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+{
+    int f, k, ia, ib;
+    *n_cones = *n_strict = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        ia = ib = -1;
+        for (k = 0; k < nr; ++k) {
+            if (rows[k] == star_friction_stick_row[f]) {
+                ia = k;
+            }
+        }
+        if (ia >= 0) {
+            cone_i[*n_cones] = ia;
+            cone_f[(*n_cones)++] = f;
+        }
+    }
+    (void)c;
+    (void)strict_i;
+    (void)strict_f;
+    (void)strict_o;
+    (void)ib;
+}
+
+/* The normal impulse of frictional contact f's contact in the impulse law: lam over its rows among rows[0..nr). */
+static double star_friction_law_normal(const int *rows, int nr, const double *lam, int f)
+{
+    double s = 0.0;
+    int k;
+    for (k = 0; k < nr; ++k) {
+        if (star_friction_row_contact[rows[k]] == star_friction_fric_contact[f]) {
+            s += lam[k];
+        }
+    }
+    return s;
+}
+
+/* Is frictional contact g in the pool of one-tangent contact f's stick row (f itself, or a one-tangent dependent
+ * stick it carries)? (SustainedSteps._law_cones) */
+static int star_friction_law_in_pool(const star_friction_ctx_t *c, int f, int g)
+{
+    return g == f || (c->sus->ride[g] == f);
+}
+
+/* sustained._pooled: sum mu_g Lam_n,g over the pool of f's stick row (its room), f first, then its riders. */
+static double star_friction_law_pooled(const star_friction_ctx_t *c, const int *rows, int nr, const double *lam, int f)
+{
+    double s = c->mu_f[f] * star_friction_law_normal(rows, nr, lam, f);
+    int g;
+    for (g = 0; g < STAR_FRICTION_NF; ++g) {
+        if (g != f && star_friction_law_in_pool(c, f, g)) {
+            s += c->mu_f[g] * star_friction_law_normal(rows, nr, lam, g);
+        }
+    }
+    return s;
+}
+
+/* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
+ * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
+ * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
+ * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
+ * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
+ * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
+ * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
+ * left with no impulse (dropped) and the stick rows that slipped (slipped). */
 static int star_friction_impulse_law(const star_friction_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped)
+    int *dropped, int *slipped)
 {
     double mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N], minv_g[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double w[STAR_FRICTION_R_DIM * STAR_FRICTION_R_DIM] = {0.0}, b[STAR_FRICTION_R_DIM] = {0.0}, a[STAR_FRICTION_R_DIM * STAR_FRICTION_R_DIM];
+    double ws[STAR_FRICTION_R_DIM * STAR_FRICTION_R_DIM] = {0.0};
     double lam[STAR_FRICTION_R_DIM], sol[STAR_FRICTION_R_DIM], lam_eps, vel_eps, gap;
     int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM], piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
-    int nr = 0, nt, i, k, l, r, ok, found = 0;
+    int sliding[STAR_FRICTION_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
+    int strict_f[STAR_FRICTION_NF_DIM], strict_o[STAR_FRICTION_NF_DIM], mode[STAR_FRICTION_NF_DIM] = {0};
+    int n_cones = 0, n_strict = 0;
+    double slope, gaps[STAR_FRICTION_R_DIM];
+    int digits, g, pg;
     long mask = 0;
     star_friction_velocity(c, q, guess, p, vel_m);
     star_friction_legendre(q, vel_m, c->par, mom, mass);
@@ -2004,6 +2075,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         lam_full[r] = 0.0;
         dropped[r] = 0;
+        slipped[r] = 0;
         if (c->sus->act[r]) {
             rows[nr++] = r;
         }
@@ -2037,59 +2109,108 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             }
         }
     }
-    for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
-        int valid = 1;
-        nt = 0;
+    star_friction_law_cones(c, rows, nr, cone_i, cone_f, &n_cones, strict_i, strict_f, strict_o, &n_strict);
+    for (k = 0; k < n_cones; ++k) {
+        n_modes *= 3;
+    }
+    for (modes = 0; modes < n_modes && !found; ++modes) {
+        for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
+            ws[k] = w[k];
+        }
         for (k = 0; k < nr; ++k) {
-            if (mask >> k & 1) {
-                tight[nt++] = k;
-            } else if (star_friction_row_free[rows[k]]) {
-                valid = 0; /* a bilateral (or stick) row is always tight */
-            }
-            lam[k] = 0.0;
+            sliding[k] = 0;
         }
-        if (!valid) {
-            continue;
-        }
-        for (k = 0; k < nt; ++k) {
-            sol[k] = b[tight[k]];
-            for (l = 0; l < nt; ++l) {
-                a[k * nt + l] = w[tight[k] * nr + tight[l]];
-            }
-        }
-        if (nt > 0) {
-            if (!star_friction_lu(nt, a, piv)) {
+        for (i = 0, digits = modes; i < n_cones; ++i, digits /= 3) {
+            mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n */
+            if (!mode[i]) {
                 continue;
             }
-            star_friction_lu_solve(nt, a, piv, sol);
-        }
-        for (k = 0; k < nt; ++k) {
-            lam[tight[k]] = sol[k];
-            if (sol[k] < -lam_eps && !star_friction_row_free[rows[tight[k]]]) {
-                valid = 0;
+            sliding[cone_i[i]] = 1;
+            for (g = 0; g < STAR_FRICTION_NF; ++g) { /* its pool in order: f, then its riders */
+                pg = g == 0 ? cone_f[i] : (g <= cone_f[i] ? g - 1 : g);
+                if (!star_friction_law_in_pool(c, cone_f[i], pg)) {
+                    continue;
+                }
+                slope = mode[i] == 1 ? -c->mu_f[pg] : c->mu_f[pg];
+                for (l = 0; l < nr; ++l) {
+                    if (star_friction_row_contact[rows[l]] == star_friction_fric_contact[pg]) {
+                        for (k = 0; k < nr; ++k) {
+                            ws[k * nr + l] += slope * w[k * nr + cone_i[i]];
+                        }
+                    }
+                }
             }
         }
-        for (k = 0; k < nr && valid; ++k) {
-            if (mask >> k & 1) {
-                continue;
-            }
-            gap = -b[k]; /* g_r.qdot+ - target_r */
-            for (l = 0; l < nr; ++l) {
-                gap += w[k * nr + l] * lam[l];
-            }
-            valid = gap >= -vel_eps;
-        }
-        if (valid) {
-            found = 1;
+        for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
+            int valid = 1;
+            nt = 0;
             for (k = 0; k < nr; ++k) {
-                lam_full[rows[k]] = lam[k];
-                dropped[rows[k]] = !(mask >> k & 1);
+                if (mask >> k & 1) {
+                    tight[nt++] = k;
+                    valid = valid && !sliding[k]; /* a slipping stick row is not tight */
+                } else if (star_friction_row_free[rows[k]] && !sliding[k]) {
+                    valid = 0; /* a bilateral (or sticking) row is always tight */
+                }
+                lam[k] = 0.0;
+            }
+            if (!valid) {
+                continue;
+            }
+            for (k = 0; k < nt; ++k) {
+                sol[k] = b[tight[k]];
+                for (l = 0; l < nt; ++l) {
+                    a[k * nt + l] = ws[tight[k] * nr + tight[l]];
+                }
+            }
+            if (nt > 0) {
+                if (!star_friction_lu(nt, a, piv)) {
+                    continue;
+                }
+                star_friction_lu_solve(nt, a, piv, sol);
+            }
+            for (k = 0; k < nt; ++k) {
+                lam[tight[k]] = sol[k];
+            }
+            for (i = 0; i < n_cones; ++i) {
+                if (mode[i]) {
+                    lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * star_friction_law_pooled(c, rows, nr, lam, cone_f[i]);
+                }
+            }
+            for (k = 0; k < nt; ++k) {
+                if (lam[tight[k]] < -lam_eps && !star_friction_row_free[rows[tight[k]]]) {
+                    valid = 0;
+                }
+            }
+            for (k = 0; k < nr; ++k) {
+                gap = -b[k]; /* g_r.qdot+ - target_r */
+                for (l = 0; l < nr; ++l) {
+                    gap += w[k * nr + l] * lam[l];
+                }
+                gaps[k] = gap;
+                if (!(mask >> k & 1) && !sliding[k]) {
+                    valid = valid && gap >= -vel_eps;
+                }
+            }
+            for (i = 0; i < n_cones && valid; ++i) {
+                if (mode[i] == 0) {
+                    valid = fabs(lam[cone_i[i]]) <= star_friction_law_pooled(c, rows, nr, lam, cone_f[i]) + lam_eps;
+                } else {
+                    valid = mode[i] == 1 ? gaps[cone_i[i]] >= -vel_eps : gaps[cone_i[i]] <= vel_eps;
+                }
+            }
+            if (valid) {
+                found = 1;
+                for (k = 0; k < nr; ++k) {
+                    lam_full[rows[k]] = lam[k];
+                    dropped[rows[k]] = !(mask >> k & 1) && !sliding[k];
+                    slipped[rows[k]] = sliding[k];
+                }
             }
         }
     }
     if (!found) {
-        return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d contacts "
-            "(dependent normals?)", nr);
+        return out ? 1 : star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
+            "contacts (dependent normals?)", nr);
     }
     for (i = 0; i < STAR_FRICTION_N; ++i) {
         p_plus[i] = p[i];
@@ -2099,6 +2220,52 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     }
     star_friction_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* SustainedSteps._slip_at_impact: the stick rows that slipped in the impulse law: their contacts slip after it
+ * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
+ * Whether any contact's mode changed (a friction switch: no tangent). */
+static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const double *q, const double *vel_p,
+    const int *slipped)
+{
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double tiny, sliding, along;
+    int r, i, f, g, any = 0, switched = 0;
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        any = any || slipped[r];
+    }
+    if (!any) {
+        return 0;
+    }
+    star_friction_rows(q, vel_p, c->par, psi, grad, curv);
+    tiny = STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel_p));
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        f = star_friction_row_stick[r];
+        if (!slipped[r] || f < 0) { /* (only stick rows slip) */
+            continue;
+        }
+        sliding = 0.0;
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            sliding += grad[r * STAR_FRICTION_N + i] * vel_p[i];
+        }
+        if (fabs(sliding) > tiny) {
+            c->sus->act[r] = 0;
+            c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0);
+            switched = 1;
+            for (g = 0; g < STAR_FRICTION_NF; ++g) { /* its dependent sticks slide with it, the same way */
+                if (c->sus->ride[g] == f && g != f) {
+                    along = 0.0;
+                    for (i = 0; i < STAR_FRICTION_N; ++i) {
+                        along += grad[star_friction_stick_row[g] * STAR_FRICTION_N + i] * grad[r * STAR_FRICTION_N + i];
+                    }
+                    c->sus->slip[g] = -c->mu_f[g] * (sliding * along >= 0.0 ? 1.0 : -1.0);
+                    c->sus->ride[g] = -1;
+                }
+            }
+        }
+    }
+    star_friction_set_friction(c);
+    return switched;
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
@@ -2146,7 +2313,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double curv[STAR_FRICTION_R_DIM], tgt[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N] = {0.0}, lam[STAR_FRICTION_R_DIM];
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;
-    int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
+    int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
     star_friction_at(c, t);
     star_friction_restitution(c->par, rest);
     star_friction_velocity(c, q, v, p, vel);
@@ -2172,8 +2339,11 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             tgt[r] = -e * rate;
         }
     }
-    if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
+    }
+    if (star_friction_slip_at_impact(c, q, vel_p, slipped)) { /* stick -> slip at the impact: no tangent */
+    } else {
     }
     loss = star_friction_loss(c, q, vel_m, vel_p);
     for (r = 0; r < STAR_FRICTION_R; ++r) { /* an active row the impact pulls off */
@@ -2232,7 +2402,7 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double tgt[STAR_FRICTION_R_DIM] = {0.0}, vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N];
-    int dropped[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, g, r, k, low;
+    int dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, g, r, k, low;
     star_friction_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2252,7 +2422,8 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
             }
         }
     }
-    if (star_friction_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped)) {
+    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    if (star_friction_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
