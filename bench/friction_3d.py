@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_friction_3d import INERTIA, MASS, MU, G, coulomb_ball, incline_reference, sim  # noqa: E402
 
-from vcigen import sustained  # noqa: E402
+from vcigen import held_roots, sustained  # noqa: E402
 
 
 def straight(backend: str) -> str:
@@ -79,7 +79,7 @@ def frozen_aim(self, cones, q, u, tau):
     _, grad, _ = self.k.rows(q, u)
     for f, p in cones:
         w = self._sliding(f, p, grad, u)
-        if math.hypot(*w) > sustained.SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+        if math.hypot(*w) > held_roots.SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
             self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
     self._set_friction()
 

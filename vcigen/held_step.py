@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .sustained import EPS_LAM
+from .held_roots import EPS_LAM
 
 HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
 

@@ -1,0 +1,276 @@
+"""Impacts with rows held (MATH.md *Sustained contact*), for :class:`vcigen.sustained.SustainedSteps`:
+the impulse law on the active rows and the rows hit (Newton's law, a complementarity problem solved by
+enumeration, with Coulomb's cone on the held stick rows), an impact while held, the plastic entry (a free
+impact whose rows become held) and its log. :class:`HeldImpacts` reads the stepper's state."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import SolverError
+from .held_roots import EPS_LAM, MAX_LAW_ROWS, SLIDE_EPS
+from .result import Impact
+
+
+def _pooled(pools, lam) -> float:
+    """``sum mu_f Lam_n`` over the pools of a stick row's cone (``SustainedSteps._law_cones``): its room."""
+    return sum(mu * float(np.sum(lam[normals])) for normals, mu in pools)
+
+
+class HeldImpacts:
+    """Impacts while rows are held (a base of :class:`vcigen.sustained.SustainedSteps`)."""
+
+    def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
+        """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with
+        Coulomb's cone on the held stick rows (MATH.md *Friction*).
+
+        The complementarity problem of the rows ``S`` involved: impulses ``Lam >= 0`` and outgoing normal
+        velocities ``g_r.qdot+ >= target_r``, one of the two tight for every row (bilateral rows: equality,
+        ``Lam`` free). A held stick row (a one-tangent contact ``f`` sticking, :meth:`_law_cones`) sticks
+        (tight, ``|Lam_t| <= mu_f Lam_n``, ``Lam_n`` its contact's normal impulse in this impact) or slips
+        at either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0``
+        resp. ``<= 0`` (its contact's normal rows then push along ``g_n -+ mu_f g_t``). Without friction
+        the Delassus matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes
+        are tried all sticking first (the law of old where it stays inside the cones), then the first
+        stick row slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over
+        the sets of tight rows from the largest down: the first solution is taken, deterministically. The
+        isotropic cones held may only stick: an impulse out of their cone is a ``SolverError``. Returns
+        ``(p+, Lam, vel-, vel+, dropped, slipped)``, ``dropped`` the rows left with no impulse (the caller
+        releases the active ones), ``slipped`` the stick rows that slipped (the caller sets their contacts'
+        modes, :meth:`_slip_at_impact`).
+        """
+        k = self.k
+        vel = self._velocity(q, guess, p)
+        mass = k.legendre(q, vel)[1]
+        grad = k.rows(q, vel)[1]
+        rows = [int(r) for r in np.flatnonzero(self.act)] + [r for r in hit if not self.act[r]]
+        if len(rows) > MAX_LAW_ROWS:
+            raise SolverError(
+                step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
+            )
+        tgt = {r: 0.0 for r in rows} | dict(targets)
+        free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
+        g = grad[rows]
+        w = g @ np.linalg.solve(mass, g.T)
+        b = np.array([tgt[r] for r in rows]) - g @ vel
+        lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
+        vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
+        n = len(rows)
+        cones, strict = self._law_cones(rows)
+        out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
+        for modes in range(3 ** len(cones)):
+            slips = [(modes // 3**c) % 3 for c in range(len(cones))]  # 0 stick, 1 Lam_t = -mu Lam_n, 2 +
+            ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
+            for (i, pools), mode in zip(cones, slips):
+                for normals, mu in pools if mode else ():
+                    ws[:, normals] += (-mu if mode == 1 else mu) * w[:, [i]]
+            sliding = {i for (i, _), mode in zip(cones, slips) if mode}
+            for mask in range((1 << n) - 1, -1, -1):
+                tight = [i for i in range(n) if mask >> i & 1]
+                if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
+                    continue
+                lam = np.zeros(n)
+                if tight:
+                    try:
+                        lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
+                    except np.linalg.LinAlgError:
+                        continue
+                for (i, pools), mode in zip(cones, slips):
+                    if mode:
+                        lam[i] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
+                gap = w @ lam - b  # g_r.qdot+ - target_r
+                if not (
+                    all(lam[i] >= -lam_eps or not free[i] for i in tight)
+                    and all(gap[i] >= -vel_eps for i in range(n) if not mask >> i & 1 and i not in sliding)
+                ):
+                    continue
+                inside = True
+                for (i, pools), mode in zip(cones, slips):
+                    if mode == 0:
+                        inside = inside and abs(lam[i]) <= _pooled(pools, lam) + lam_eps
+                    else:
+                        inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
+                if inside and strict:
+                    why = self._law_strict(strict, rows, lam, lam_eps)
+                    out, inside = out or why, not why
+                if inside:
+                    break
+            else:
+                continue
+            break
+        else:
+            if out:
+                raise SolverError(step, t_k, "sustained", math.nan, out)
+            raise SolverError(
+                step,
+                t_k,
+                "sustained",
+                math.nan,
+                f"impulse law: no solution on {n} contacts (dependent normals?)",
+            )
+        lam_full = np.zeros(k.r)
+        lam_full[rows] = lam
+        dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
+        slipped = [rows[i] for i in sorted(sliding)]
+        p_plus = p + grad.T @ lam_full
+        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped
+
+    def _law_cones(self, rows):
+        """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
+        one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
+        ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
+        ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too,
+        as in :meth:`_cone_margin`; they slip with it); and ``[(i, normals, mu_f, o)]`` of the isotropic
+        cones held (``i``, ``o`` their tangents' indices, -1 for one not held), which may only stick. A cone
+        coupled to others by a dependent stick (:meth:`_cone_split`) is not checked."""
+        k = self.k
+        cones, strict = [], []
+
+        def normals(f):
+            return [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
+
+        for f, sr in enumerate(self._stick_rows):
+            pf = self._partner[f]
+            if pf >= 0:
+                if pf < f:
+                    continue  # a cone's second tangent: with its first
+                riders = [g for g, owner in enumerate(self._ride) if g not in (f, pf) and owner in (f, pf)]
+                both = [rows.index(x) if x in rows else -1 for x in (sr, self._stick_rows[pf])]
+                if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
+                    i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
+                    strict.append((i, normals(f), float(self._mu_f[f]), o))
+            elif sr in rows:
+                riders = [
+                    g for g, owner in enumerate(self._ride) if g != f and owner == f and self._partner[g] < 0
+                ]
+                pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
+                cones.append((rows.index(sr), pools))
+        return cones, strict
+
+    def _law_strict(self, strict, rows, lam, lam_eps) -> str:
+        """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's
+        text, "" if none does (slipping at an impact while held is for one-tangent contacts only)."""
+        k = self.k
+        for i, normals, mu, o in strict:
+            cap = mu * float(np.sum(lam[normals]))
+            tangential = math.hypot(float(lam[i]), float(lam[o]) if o >= 0 else 0.0)
+            if tangential > cap + lam_eps:
+                name = k.contact_names[k.frictional[k.row_stick[rows[i]]]]
+                return (
+                    f"impulse law: the stick impulse of {name} leaves its friction cone at an impact "
+                    f"while held ({tangential:.3g} > {cap:.3g}); slip at such an impact is for one-tangent "
+                    "contacts only"
+                )
+        return ""
+
+    def _slip_at_impact(self, q, vel_p, slipped) -> bool:
+        """The stick rows that slipped in the impulse law (:meth:`_impulse_law`): their contacts slip after it
+        along the tangential velocity after, ``slip_f = -mu_f sign(g_t.qdot+)``, or stick on where that is 0
+        (to round-off). Whether any contact's mode changed (a friction switch: no tangent)."""
+        k = self.k
+        if not slipped:
+            return False
+        grad = k.rows(q, vel_p)[1]
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel_p))))
+        switched = False
+        for sr in slipped:
+            f = k.row_stick[sr]
+            sliding = float(grad[sr] @ vel_p)
+            if abs(sliding) > tiny:
+                self.act[sr] = False
+                self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
+                switched = True
+                for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
+                    if owner == f and g != f and self._partner[g] < 0:
+                        along = float(grad[self._stick_rows[g]] @ grad[sr])
+                        self._slip[g] = -self._mu_f[g] * math.copysign(1.0, sliding * along)
+                        self._ride[g] = -1
+        self._set_friction()
+        return switched
+
+    def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before):
+        """An impact on rows ``group`` during sustained contact; returns the momentum after it."""
+        k = self.k
+        self._at(t)
+        rest = k.restitution()
+        vel = self._velocity(q, v, p)
+        lam_now = np.where(self.act, self._lam, 0.0) * self._lam_rate / self._h
+        acc = self._row_accel(q, vel, self._accel(q, vel, lam_now))
+        grad = k.rows(q, vel)[1]
+        targets, plastic = {}, []
+        for r in group:
+            e = float(rest[k.row_contact[r]])
+            rate = float(grad[r] @ vel)
+            if self.tol.grazing == "contact" and self._settles(rate, acc[r], e, h):
+                plastic.append(r)
+            else:
+                targets[r] = -e * rate
+        p_plus, lam, vel_m, vel_p, dropped, slipped = self._impulse_law(step, t_k, q, p, v, group, targets)
+        if self._slip_at_impact(q, vel_p, slipped):  # stick -> slip at the impact: a mode change, no tangent
+            self._sw_lose()
+        else:
+            self._ev_impulse(q, v, p, lam, targets, group)
+        mass = k.legendre(q, vel_m)[1]
+        loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
+        for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution
+            if self.act[r] and r not in group and not self._settles(float(grad[r] @ vel_p), acc[r], 1.0, h):
+                self._release(step, t_k, t, r)
+        for r in plastic:  # pressed in and settling: held (its force, checked next, may release it)
+            self.act[r] = True
+        by_contact: dict[int, list[int]] = {}
+        for r in group:
+            by_contact.setdefault(k.row_contact[r], []).append(r)
+        for j, rs in by_contact.items():
+            kind = (
+                "plastic"
+                if any(self.act[r] for r in rs)
+                else ("elastic" if rest[j] == 1.0 else "restitution")
+            )
+            self._log(
+                impacts,
+                t,
+                j,
+                q,
+                (t - t_k) / h,
+                float(sum(lam[r] for r in rs)),
+                step,
+                e_before,
+                e_before - loss,
+                kind,
+            )
+        return p_plus
+
+    def _plastic_entry(self, step, t_k, h, q, p, v, t, group_contacts):
+        """Plastic impact on contacts ``group_contacts`` at ``q``: their touching rows become active."""
+        k = self.k
+        psi = k.rows(q, v)[0]
+        rows, lowest = [], []
+        for j in group_contacts:
+            own = [r for r in range(k.r) if k.row_contact[r] == j]
+            lowest.append(min(own, key=lambda r: (psi[r], r)))
+            rows += [r for r in own if psi[r] <= psi[lowest[-1]] + self.tol.admissible]
+        # no row is held here (the free impact chain runs with none), so no stick row slips in the law
+        p_plus, lam, vel_m, vel_p, dropped, _ = self._impulse_law(step, t_k, q, p, v, rows, {})
+        for r in rows:  # the touching row of each contact is held; another branch at a kink if it presses
+            self.act[r] = r in lowest or r not in dropped
+        mass = k.legendre(q, vel_m)[1]
+        loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
+        return p_plus, lam, loss, rows
+
+    def _log(self, impacts, t, j, q, alpha, impulse, step, e_before, e_after, kind) -> None:
+        self.kinds[kind] += 1
+        impacts.append(
+            Impact(
+                t=float(t),
+                contact=self.k.contact_names[j],
+                q=np.array(q, dtype=float),
+                alpha=float(alpha),
+                impulse=float(impulse),
+                step=step,
+                energy_before=float(e_before),
+                energy_after=float(e_after),
+                kind=kind,
+            )
+        )
