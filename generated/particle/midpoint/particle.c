@@ -574,7 +574,7 @@ typedef struct {
     double h;
 } particle_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[PARTICLE_N];      /* start point */
     double t;                      /* start time */

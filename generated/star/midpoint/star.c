@@ -855,7 +855,7 @@ typedef struct {
     double h;
 } star_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[STAR_N];      /* start point */
     double t;                      /* start time */

@@ -580,7 +580,7 @@ typedef struct {
     double h;
 } ball_to_rest_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[BALL_TO_REST_N];      /* start point */
     double t;                      /* start time */

@@ -711,7 +711,7 @@ typedef struct {
     double h;
 } pendulum_wall_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[PENDULUM_WALL_N];      /* start point */
     double t;                      /* start time */

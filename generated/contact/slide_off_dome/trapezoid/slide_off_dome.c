@@ -701,7 +701,7 @@ typedef struct {
     double h;
 } slide_off_dome_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[SLIDE_OFF_DOME_N];      /* start point */
     double t;                      /* start time */

@@ -448,7 +448,7 @@ typedef struct {
     double h;
 } impact_oscillator_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[IMPACT_OSCILLATOR_N];      /* start point */
     double t;                      /* start time */

@@ -656,7 +656,7 @@ typedef struct {
     double mu_f[ROUGH_DISK_NF]; /* each frictional contact's mu_f at these parameters (SustainedSteps._mu_f) */
 } rough_disk_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[ROUGH_DISK_N];      /* start point */
     double t;                      /* start time */

@@ -744,7 +744,7 @@ typedef struct {
     double mu_f[SPUN_BALL_NF]; /* each frictional contact's mu_f at these parameters (SustainedSteps._mu_f) */
 } spun_ball_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[SPUN_BALL_N];      /* start point */
     double t;                      /* start time */

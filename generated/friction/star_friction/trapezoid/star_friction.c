@@ -852,7 +852,7 @@ typedef struct {
     double mu_f[STAR_FRICTION_NF]; /* each frictional contact's mu_f at these parameters (SustainedSteps._mu_f) */
 } star_friction_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[STAR_FRICTION_N];      /* start point */
     double t;                      /* start time */

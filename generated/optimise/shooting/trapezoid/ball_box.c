@@ -781,7 +781,7 @@ typedef struct {
     double h;
 } ball_box_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[BALL_BOX_N];      /* start point */
     double t;                      /* start time */

@@ -1009,7 +1009,7 @@ typedef struct {
     double_pendulum_carry_t *carry; /* 0: every step computes its invariants */
 } double_pendulum_ctx_t;
 
-/* The segment under construction (stepper._Seg): its start and incoming data. */
+/* The segment under construction (impact_step.Seg): its start and incoming data. */
 typedef struct {
     double q[DOUBLE_PENDULUM_N];      /* start point */
     double t;                      /* start time */
