@@ -239,19 +239,24 @@ def _stepper_run(name: str, backend: str, held: bool):
     kern = s.kernels.bind(s.model.resolve_params(None))
     assert kern.held  # the scene has the structure
     taken = []
-    step = kern.held_step
+    step, rotation = kern.held_step, kern.circle_step
 
     def counted(*args):
         out = step(*args)
         taken.append(out is not None)
         return out
 
-    kern.held, kern.held_step = held, counted
+    def counted_rotation(*args):  # a circle's row held alone: the rotation (vcigen.held_circle)
+        out = rotation(*args)
+        taken.append(out is not None)
+        return out
+
+    kern.held, kern.held_step, kern.circle_step = held, counted, counted_rotation
     try:
         return Stepper(kern, s.tol).simulate(q0, v0, h, t_end=t_end), sum(taken)
     finally:
         kern.held = True
-        del kern.held_step
+        del kern.held_step, kern.circle_step
 
 
 @pytest.mark.parametrize("name", sorted(HELD))

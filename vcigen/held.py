@@ -44,6 +44,7 @@ import sympy as sp
 
 from .derive import DiscreteSystem, _no_dirac
 from .explicit import expanded, hoist, shorter, smooth_jacobian
+from .held_circle import circle_pieces
 from .routines import Arg, Output, Routine
 
 # Routines whose half-integer powers C prints with sqrt (cprinter.print_routine_body): a curved row's Hessian
@@ -263,6 +264,40 @@ def closed_routines(
     ]
 
 
+def free_parts(system: DiscreteSystem) -> dict:
+    """What the held step reads of the free grid step, as expressions: the smooth routine's inputs
+    (``q0_arg``, ``p0_arg``, ``tau``, ``par``; ``h``), ``v0`` and ``jinv`` (the free velocity of (46) over
+    ``h`` and ``1/J_ii``), the segment's ``p_plus`` (51) and ``energy`` (55) at ``(q0, v)`` (``v_arg``), and
+    at the rows' ``q`` (``q_arg``, ``q0`` its symbols) the constant ``mass``, ``minv`` and the free
+    acceleration ``acc = M^-1 rhs(q)``. Needs a constant diagonal ``J`` and ``M`` (``Structure.held``)."""
+    r = system.routines
+    smooth = r["smooth"]
+    xs, q0, p0, tau, par = smooth.inputs
+    h = tau.symbols[0]
+    n = system.n
+    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
+    res, jac = smooth.output("res").expr, smooth_jacobian(system)
+    v0 = sp.Matrix([-res[i].xreplace(zero) / jac[i, i] for i in range(n)])
+    jinv = sp.Matrix([1 / jac[i, i] for i in range(n)])
+    rows = r["rows"]
+    q = Arg("q", tuple(rows.input("q").symbols))
+    seg = r["segment"]
+    v = Arg("v", tuple(seg.input("v").symbols))
+    seg_rep = dict(zip(seg.input("q0").symbols, q0.symbols)) | {seg.input("tau").symbols[0]: h}
+    p_plus = seg.output("p_plus").expr.xreplace(seg_rep)
+    energy = shorter(seg.output("energy").expr[0]).xreplace(seg_rep)
+    dyn, leg = r["dynamics"], r["legendre"]
+    u0 = dict.fromkeys(dyn.input("u").symbols, sp.S.Zero)
+    rhs = dyn.output("rhs").expr.xreplace(u0).xreplace(dict(zip(dyn.input("q").symbols, q.symbols)))
+    mass = expanded(leg.output("mass").expr)
+    minv = sp.Matrix([1 / mass[i, i] for i in range(n)])
+    acc = sp.Matrix([rhs[i] * minv[i] for i in range(n)])
+    return {
+        "q0_arg": q0, "p0_arg": p0, "tau": tau, "par": par, "h": h, "q_arg": q, "v_arg": v, "q0": q0.symbols,
+        "v0": v0, "jinv": jinv, "p_plus": p_plus, "energy": energy, "mass": mass, "minv": minv, "acc": acc,
+    }  # fmt: skip
+
+
 def held_routines(system: DiscreteSystem) -> list[Routine]:
     """``held_consts(tau, par) -> k`` and the four pieces of the held step, all reading ``k``:
 
@@ -275,19 +310,16 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
       ``F(a + Lam b) = A Lam^2 + B Lam + C`` (exact: ``A = b . Hess F . b / 2``, ``B = grad F(a) . b``,
       ``C = F(a)``; zeros for the other rows);
     * if some row has a :func:`closed_forms` form, ``held_root_dir``, ``held_root`` and ``held_root_end``
-      (:func:`closed_routines`).
+      (:func:`closed_routines`);
+    * if some row's closed step is a rotation (:func:`vcigen.held_circle.circle_forms`),
+      ``held_circle_start``, ``held_circle_step`` and ``held_circle_lam``
+      (:func:`vcigen.held_circle.circle_pieces`).
     """
-    r = system.routines
-    smooth = r["smooth"]
-    xs, q0, p0, tau, par = smooth.inputs
-    h = tau.symbols[0]
-    n = system.n
-    zero = dict.fromkeys(xs.symbols, sp.S.Zero)
-    res, jac = smooth.output("res").expr, smooth_jacobian(system)
-    v0 = sp.Matrix([-res[i].xreplace(zero) / jac[i, i] for i in range(n)])
-    jinv = sp.Matrix([1 / jac[i, i] for i in range(n)])
-    rows = r["rows"]
-    q = Arg("q", tuple(rows.input("q").symbols))
+    fp = free_parts(system)
+    q0, p0, tau, par, q, v = (fp[k] for k in ("q0_arg", "p0_arg", "tau", "par", "q_arg", "v_arg"))
+    h, n = fp["h"], system.n
+    v0, jinv, p_plus, energy, acc, minv = (fp[k] for k in ("v0", "jinv", "p_plus", "energy", "acc", "minv"))
+    rows = system.routines["rows"]
     psi = rows.output("psi").expr
     grad = rows.output("grad").expr
     pattern = system.structure.held_pattern
@@ -296,17 +328,6 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
         len(pattern),
         [row_hessian(system, r)[i, j] for r in range(system.r) for i, j, _ in pattern],
     )
-    seg = r["segment"]
-    v = Arg("v", tuple(seg.input("v").symbols))
-    seg_rep = dict(zip(seg.input("q0").symbols, q0.symbols)) | {seg.input("tau").symbols[0]: h}
-    p_plus = seg.output("p_plus").expr.xreplace(seg_rep)
-    energy = shorter(seg.output("energy").expr[0]).xreplace(seg_rep)
-    dyn, leg = r["dynamics"], r["legendre"]
-    u0 = dict.fromkeys(dyn.input("u").symbols, sp.S.Zero)
-    rhs = dyn.output("rhs").expr.xreplace(u0).xreplace(dict(zip(dyn.input("q").symbols, q.symbols)))
-    mass = expanded(leg.output("mass").expr)
-    minv = sp.Matrix([1 / mass[i, i] for i in range(n)])
-    acc = sp.Matrix([rhs[i] * minv[i] for i in range(n)])
     pieces = [
         ("held_free", (q0, p0), [("v0", v0), ("jinv", jinv)], "Free velocity of (46) over h and 1/J_ii."),
         ("held_rows", (q,), [("psi", psi), ("grad", grad), ("hess", hess)], "Rows, gradients, Hessians."),
@@ -338,6 +359,8 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
         )
     if any(system.structure.held_closed):
         pieces += closed_routines(system, q0, p0, q, v0, jinv, acc, minv, h)
+    if any(system.structure.held_circle):
+        pieces += circle_pieces(system, list(system.structure.held_circle_forms), fp, p0)
     flat = [e for _, _, outs, _ in pieces for _, o in outs for e in o]
     varying = {*q0.symbols, *p0.symbols, *q.symbols, *v.symbols}
     varying |= {x for _, ins, _, _ in pieces for arg in ins for x in arg.symbols}

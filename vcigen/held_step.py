@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .held_circle import Carry
 from .held_roots import EPS_LAM
 
 HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
@@ -186,6 +187,8 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
 class HeldSteps:
     """The held grid step in :class:`~vcigen.stepper.Stepper` (the C loop's ``<model>_held_glide``)."""
 
+    _carry = None  # the last rotation step's hand-over (vcigen.held_circle.Carry), as the C loop carries it
+
     def _held_step(self, h: float, q, p):
         """A held grid step from ``(q, p)`` if the kernels have it and it clears its tests, else ``None``.
 
@@ -195,7 +198,17 @@ class HeldSteps:
         k = self.k
         if not getattr(k, "held", False):
             return None
-        out = k.held_step(q, p, self._lam, self.act, h, self.tol.residual, self.tol.phi)
+        rows = np.flatnonzero(self.act)
+        circle = len(rows) == 1 and any(getattr(k, "held_circle", ())) and k.held_closed[rows[0]]
+        circle = circle and k.held_circle[rows[0]]  # a rotation is a closed step (off with it)
+        if circle:  # the step as a rotation (vcigen.held_circle)
+            tol, c = self.tol, self._carry
+            w = None if c is None else c.at(q, p, h, k.par)
+            got = k.circle_step(q, p, w, int(rows[0]), self.act, h, tol.residual, tol.phi)
+            out = None if got is None else got[0]
+            self._carry = None if got is None else Carry(out.q1, out.p1, h, np.array(k.par, float), got[1])
+        else:
+            out = k.held_step(q, p, self._lam, self.act, h, self.tol.residual, self.tol.phi)
         if out is None:
             return None
         self._chained = True

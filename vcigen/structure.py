@@ -42,7 +42,8 @@ import sympy as sp
 
 from .derive import DiscreteSystem
 from .explicit import expanded, quadratic_energy, smooth_jacobian
-from .held import closed_forms, line_forms, row_hessian
+from .held import closed_forms, free_parts, line_forms, row_hessian
+from .held_circle import circle_forms
 from .stage import reduced_smooth
 
 # The flags in the order the generated header lists them (Structure.lines).
@@ -83,9 +84,11 @@ class Structure:
     held_columns: tuple[int, ...] = ()  # coordinates where some row's gradient is not identically 0
     held_constant: tuple[int, ...] = ()  # per row, coordinate (r * n + i): 1 where d psi_r/d q_i is constant
     held_closed: tuple[bool, ...] = ()  # per row, whether held alone its step is closed-form (closed_forms)
+    held_circle: tuple[bool, ...] = ()  # per row, whether that closed step is a rotation (held_circle)
     # the forms behind held_lines and held_closed, detected here once for vcigen.held.held_routines to read
     held_line_forms: tuple = field(default=(), compare=False, repr=False)
     held_closed_forms: tuple = field(default=(), compare=False, repr=False)
+    held_circle_forms: tuple = field(default=(), compare=False, repr=False)
     why: dict[str, str] = field(default_factory=dict, compare=False)
 
     def lines(self, width: int = 96) -> list[str]:
@@ -105,6 +108,12 @@ class Structure:
                     f"held_closed = {[int(x) for x in self.held_closed]}: per row, 1 where, held alone, its "
                     "step is closed-form: F(a + Lam b) = 0 a quadratic in Lam, its root by one sqrt, the "
                     "projection dividing by a constant (held.closed_forms); no Newton"
+                )
+            if any(self.held_circle):
+                out.append(
+                    f"held_circle = {[int(x) for x in self.held_circle]}: per row, 1 where that step is a "
+                    "rotation (a circle under a constant force, isotropic mass: held_circle), its loop "
+                    "carrying the next sqrt's argument: one multiply-add between two sqrt"
                 )
         return [w for line in out for w in textwrap.wrap(line, width, subsequent_indent="    ")]
 
@@ -210,6 +219,12 @@ def constant_gradients(system: DiscreteSystem) -> list[int]:
     rows = system.routines["rows"]
     grad, q = rows.output("grad").expr, set(rows.input("q").symbols)
     return [int(not (sp.sympify(g).free_symbols & q)) for g in grad]
+
+
+def _circles(system: DiscreteSystem, closed: tuple) -> list:
+    """:func:`vcigen.held_circle.circle_forms` of the closed rows (``closed``)."""
+    fp = free_parts(system)
+    return circle_forms(list(closed), fp["q_arg"].symbols, fp["p0_arg"].symbols, fp["v_arg"].symbols, fp)
 
 
 def _held(system: DiscreteSystem, explicit_grid: bool) -> tuple[bool, str]:
@@ -356,6 +371,7 @@ def detect(system: DiscreteSystem) -> Structure:
     held, why["held"] = _held(system, explicit_grid)
     lines = tuple(line_forms(system)) if held else ()
     closed = tuple(closed_forms(system)) if held else ()
+    circles = tuple(_circles(system, closed)) if any(c is not None for c in closed) else ()
     return Structure(
         stages=stages,
         stage_reduced=stage_reduced,
@@ -376,5 +392,7 @@ def detect(system: DiscreteSystem) -> Structure:
         held_closed=tuple(c is not None for c in closed),
         held_line_forms=lines,
         held_closed_forms=closed,
+        held_circle=tuple(c is not None for c in circles),
+        held_circle_forms=circles,
         why=why,
     )

@@ -17,6 +17,7 @@ import numpy as np
 from ..derive import WHOLE, DiscreteSystem, set_rows
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import held_routines
+from ..held_circle import circle_step
 from ..held_step import held_step
 from ..routines import Routine
 from ..simulator import Simulator
@@ -110,6 +111,9 @@ class CasadiKernels(ParameterSlots):
         self.held_pattern = list(self.structure.held_pattern)
         self.held_lines = list(self.structure.held_lines)  # held_line's rows
         self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held_step.closed_step)
+        self.held_circle = list(
+            self.structure.held_circle
+        )  # rows whose closed step is a rotation (held_circle)
 
     def bind(self, par: list[float]) -> CasadiKernels:
         """Fix the parameter values for the next simulation."""
@@ -411,6 +415,32 @@ class CasadiKernels(ParameterSlots):
         n, r = self.n, self.r
         p1, lam1, force, res = self._held_call("held_root_end", (r * n, r, r, r), q1, p_plus, y, w, kc)
         return p1.reshape(r, n), lam1, force, res
+
+    def circle_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
+        """``vcigen.held_circle.circle_step`` on these kernels."""
+        return circle_step(self, q, p, w, row, act, h, residual, phi_tol)
+
+    def held_circle_start(self, q, p, kc):
+        """Per row ``(omega, arg)`` of the rotation step at ``(q, p)`` (``vcigen.held_circle``), ``r x 2``."""
+        return self._held_call("held_circle_start", (2 * self.r,), q, p, kc)[0].reshape(self.r, 2)
+
+    def held_circle_step(self, q, p, w, s, kc):
+        """Per row ``(q1, p1, v, w1, imp, E_d, force, res, slope)`` of the rotation step from ``(q, p, w)``
+        with ``s = sqrt(w[1])``."""
+        r = self.r
+        sizes = (2 * r, 2 * r, 2 * r, 4 * r, r, r, r, r, r)
+        q1, p1, v, w1, *rest = self._held_call("held_circle_step", sizes, q, p, w, s, kc)
+        return (
+            q1.reshape(r, 2),
+            p1.reshape(r, 2),
+            v.reshape(r, 2),
+            w1.reshape(r, 4),
+            *(np.asarray(x, float) for x in rest),
+        )
+
+    def held_circle_lam(self, q, p, v, kc):
+        """Per row ``Lam`` of a rotation step from ``(q, p)`` with velocity ``v``."""
+        return self._held_call("held_circle_lam", (self.r,), q, p, v, kc)[0]
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

@@ -121,6 +121,11 @@ def tangent_only(name: str) -> bool:
     return is_tangent(name) or is_held_map(name) or name == "sens_smooth_map"
 
 
+# Routines inlined into their loop whatever their size (GCC left held_circle_step out of line: its outputs
+# then went through memory, 26 ns a step against 16 inlined, bench.held_curved)
+ALWAYS_INLINE = frozenset({"held_circle_step"})
+
+
 def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
     """One routine as printable pieces: signature, temporaries, assignments (after its head's call).
 
@@ -135,6 +140,7 @@ def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:
     return {
         "name": r.name,
         "doc": r.doc,
+        "hot": r.name in ALWAYS_INLINE,
         "inputs": [{"name": a.name, "size": a.size} for a in r.inputs],
         "head": None
         if r.head is None
@@ -329,6 +335,9 @@ def render_context(
         # per row, 1 where held alone its step is closed-form (held.closed_forms: <model>_held_closed_step);
         # empty when no row has one
         "held_closed": [int(f) for f in structure.held_closed] if any(structure.held_closed) else [],
+        # per row, 1 where that closed step is a rotation (vcigen.held_circle: <model>_held_circle_loop);
+        # empty when no row has one
+        "held_circle": [int(f) for f in structure.held_circle] if any(structure.held_circle) else [],
         "held_sets_max": HELD_SETS_MAX,
         "held_sets": held_sets(system.r) if held else [],
         # the coordinates some row's gradient has: the held step's products with gradients skip the others

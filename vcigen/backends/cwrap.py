@@ -164,6 +164,13 @@ class CKernels(ParameterSlots):
             self._held = getattr(self.lib, f"{pre}_eval_held_step")
             self._held.argtypes = [_D, ctypes.c_double, ctypes.c_double, ctypes.c_double] + [_D] * 9
             self._held.restype = ctypes.c_int
+            self._circle = getattr(self.lib, f"{pre}_eval_held_circle_step", None)  # vcigen.held_circle
+            if self._circle is not None:
+                self._circle.argtypes = [_D, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+                self._circle.argtypes += [_D] * 10
+                self._circle.restype = ctypes.c_int
+        self.held_circle = list(self.structure.held_circle) if getattr(self, "_circle", None) else []
+        self.held_closed = list(self.structure.held_closed)
         self._solve = getattr(self.lib, f"{pre}_solve")
         self._solve.argtypes = [ctypes.c_int, _D, _D, _D, _D]
         self.run = getattr(self.lib, f"{pre}_run")
@@ -308,9 +315,24 @@ class CKernels(ParameterSlots):
         acts = _vec(np.asarray(act, dtype=float), r)
         ok = self._held(
             _ptr(self.par), float(h), float(residual), float(phi_tol), _ptr(_vec(q, n)), _ptr(_vec(p, n)),
-            _ptr(acts), _ptr(lam), _ptr(lam1), _ptr(q1), _ptr(p1), _ptr(v), _ptr(e),
+            _ptr(acts), _ptr(lam), _ptr(lam1), _ptr(q1), _ptr(p1), _ptr(v),
+            _ptr(e),
         )  # fmt: skip
         return Held(q1, p1, v, lam, lam1, float(e[0])) if ok else None
+
+    def circle_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
+        """``vcigen.held_circle.circle_step``, by the C loop's own ``<model>_held_circle_one``: ``(Held, w1)``
+        or ``None``; ``w`` ``None`` forms it (``held_circle_start``)."""
+        n, r = self.n, self.r
+        wio = np.full(2, np.nan) if w is None else np.array(w, dtype=float)
+        lam, lam1, q1, p1, v, e = np.empty(r), np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(1)
+        acts = _vec(np.asarray(act, dtype=float), r)
+        ok = self._circle(
+            _ptr(self.par), float(h), float(residual), float(phi_tol), int(row), _ptr(_vec(q, n)),
+            _ptr(_vec(p, n)), _ptr(acts), _ptr(wio), _ptr(lam), _ptr(lam1), _ptr(q1), _ptr(p1), _ptr(v),
+            _ptr(e),
+        )  # fmt: skip
+        return (Held(q1, p1, v, lam, lam1, float(e[0])), wio) if ok else None
 
     def rows(self, q, u):
         """``(psi, grad psi, u . Hess psi . u)`` of every row (vcigen.rows)."""

@@ -57,6 +57,11 @@ void slide_off_dome_default_tol(slide_off_dome_tol_t *tol)
     tol->rest = 1.0;
 }
 /* ---- routines of the DiscreteSystem, printed from SymPy with CSE ---- */
+#if defined(__GNUC__)
+#define SLIDE_OFF_DOME_ROUTINE_HOT static inline __attribute__((always_inline)) /* inlined into its loop */
+#else
+#define SLIDE_OFF_DOME_ROUTINE_HOT static inline
+#endif
 
 /* p = dL/dqdot and M = d2L/dqdot2 (start, reflected initial guess). */
 static inline void slide_off_dome_legendre(const double *q, const double *v, const double *par, double *momentum, double *mass)
@@ -375,37 +380,66 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
 {
     const double t0 = 1.0/par[0];
     const double t1 = (1.0/2.0)*par[0];
-    const double t2 = tau[0]*par[1]*t1;
-    const double t3 = ((par[2])*(par[2]));
-    const double t4 = tau[0]*t0;
-    const double t5 = 1.0/t3;
-    const double t6 = (1.0/4.0)*par[0]*t5;
-    const double t7 = ((tau[0])*(tau[0]));
-    const double t8 = 1.0/t7;
-    const double t9 = ((par[0])*(par[0]));
-    const double t10 = 1.0/t9;
-    const double t11 = 1.0/par[2];
+    const double t2 = tau[0]*par[1];
+    const double t3 = t1*t2;
+    const double t4 = par[1]*par[0];
+    const double t5 = ((par[2])*(par[2]));
+    const double t6 = tau[0]*t0;
+    const double t7 = 1.0/tau[0];
+    const double t8 = 1.0/t5;
+    const double t9 = (1.0/4.0)*par[0]*t8;
+    const double t10 = ((tau[0])*(tau[0]));
+    const double t11 = 1.0/t10;
+    const double t12 = ((par[0])*(par[0]));
+    const double t13 = 1.0/t12;
+    const double t14 = 1.0/par[2];
+    const double t15 = 2*par[1];
+    const double t16 = t0*t14;
+    const double t17 = t10*t8;
+    const double t18 = tau[0]*t8;
     k[0] = t0;
-    k[1] = -t2;
+    k[1] = -t3;
     k[2] = -par[2];
     k[3] = par[0];
     k[4] = t1;
-    k[5] = par[1]*par[0];
-    k[6] = t2;
+    k[5] = t4;
+    k[6] = t3;
     k[7] = -par[1];
-    k[8] = -t3;
-    k[9] = 4*t4;
-    k[10] = t6/tau[0];
-    k[11] = t6*t8;
+    k[8] = -t5;
+    k[9] = 4*t6;
+    k[10] = t7*t9;
+    k[11] = t11*t9;
     k[12] = 2*t0;
-    k[13] = -t1*t5;
-    k[14] = t4;
-    k[15] = -16*t10*t3*t7;
-    k[16] = (1.0/4.0)*t11*t8*t9;
-    k[17] = -t1*t11;
-    k[18] = -2*par[1];
-    k[19] = 2*t10;
-    k[20] = (1.0/2.0)*t11;
+    k[13] = -t1*t8;
+    k[14] = t6;
+    k[15] = -16*t10*t13*t5;
+    k[16] = (1.0/4.0)*t11*t12*t14;
+    k[17] = -t1*t14;
+    k[18] = -t15;
+    k[19] = 2*t13;
+    k[20] = (1.0/2.0)*t14;
+    k[21] = t16;
+    k[22] = -t16;
+    k[23] = t8;
+    k[24] = -t17;
+    k[25] = t14;
+    k[26] = -t18;
+    k[27] = par[2];
+    k[28] = t18;
+    k[29] = -t14;
+    k[30] = t7;
+    k[31] = par[1]*t17;
+    k[32] = -t14*t2;
+    k[33] = t17;
+    k[34] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))/((par[2])*(par[2])*(par[2])*(par[2]));
+    k[35] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
+    k[36] = tau[0]*t4;
+    k[37] = par[1]*t1;
+    k[38] = t1*t11;
+    k[39] = -par[2]*t15;
+    k[40] = t5;
+    k[41] = tau[0];
+    k[42] = -t0;
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -506,6 +540,60 @@ static inline void slide_off_dome_held_root_end(const double *q, const double *p
     lam1[0] = k[17]*t0;
     force[0] = k[17]*(k[18]*q[1] + k[19]*((t1)*(t1)) + k[19]*((t2)*(t2)));
     res[0] = k[20]*(k[8] + ((q[0])*(q[0])) + ((q[1])*(q[1])));
+}
+
+/* Per circle row, (omega, arg) at (q, p). */
+static inline void slide_off_dome_held_circle_start(const double *q0, const double *p0, const double *k, double *w)
+{
+    const double t0 = k[21]*q0[0]*(k[1] + p0[1]) + k[22]*p0[0]*q0[1];
+    w[0] = t0;
+    w[1] = k[24]*((t0)*(t0)) + 1/(k[23]*(((q0[0])*(q0[0])) + ((q0[1])*(q0[1]))));
+}
+
+/* Per circle row, the held step as a rotation (vcigen.held_circle). */
+SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *v, double *w1, double *imp, double *energy, double *force, double *res, double *slope)
+{
+    const double t0 = k[25]*q0[0];
+    const double t1 = k[26]*w[0];
+    const double t2 = q0[1]*t1 + s[0]*t0;
+    const double t3 = k[27]*t2;
+    const double t4 = k[25]*q0[1];
+    const double t5 = k[28]*w[0]*q0[0] + s[0]*t4;
+    const double t6 = k[27]*t5;
+    const double t7 = k[29]*q0[1]*s[0] + q0[0]*t1;
+    const double t8 = k[1]*t2 + k[3]*w[0];
+    const double t9 = t7*t8;
+    const double t10 = t2*t8;
+    const double t11 = -q0[0] + t3;
+    const double t12 = -q0[1] + t6;
+    const double t13 = k[31]*q0[1] + 1;
+    const double t14 = w[0]*t13;
+    const double t15 = ((q0[0])*(q0[0]));
+    const double t16 = ((w[0])*(w[0]));
+    const double t17 = k[23]*(((q0[1])*(q0[1])) + t15);
+    const double t18 = ((t2)*(t2));
+    const double t19 = k[19]*((t8)*(t8));
+    q1[0] = t3;
+    q1[1] = t6;
+    p1[0] = t9;
+    p1[1] = t10;
+    v[0] = k[30]*t11;
+    v[1] = k[30]*t12;
+    w1[0] = t14;
+    w1[1] = k[32]*q0[0];
+    w1[2] = w[1]*k[34]*t15 + k[24]*((t13)*(t13))*t16 - t17*(w[1] + k[33]*t16) + 2;
+    w1[3] = k[35]*q0[0]*t14;
+    imp[0] = -k[30]*((p0[0] - t9)*(t0 + t2) - (t4 + t5)*(k[36] - p0[1] + t10))/(s[0] + 1);
+    energy[0] = k[37]*t12 + k[38]*((t11)*(t11)) + k[38]*((t12)*(t12)) + k[5]*q0[1];
+    force[0] = k[17]*(k[39]*t5 + t18*t19 + t19*((t7)*(t7)));
+    res[0] = k[20]*(k[40]*t18 + k[40]*((t5)*(t5)) + k[8]);
+    slope[0] = k[21]*k[41]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + k[27]*t17;
+}
+
+/* Per circle row, Lam of a step. */
+static inline void slide_off_dome_held_circle_lam(const double *q0, const double *p0, const double *v, const double *k, double *lam)
+{
+    lam[0] = k[25]*k[3]*(q0[0]*(k[42]*p0[0] + v[0]) + q0[1]*(k[42]*(k[1] + p0[1]) + v[1]));
 }
 
 /* Adapters: the routines with an unknown x, as slide_off_dome_fun for the solvers. */
@@ -2071,7 +2159,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 
 /* ---- the held grid step (vcigen/held.py): a grid step in sustained contact as straight-line code ---- */
 #define SLIDE_OFF_DOME_HELD_ITER 8 /* held.HELD_ITER: Newton iterations at most, then the general chain */
-#define SLIDE_OFF_DOME_NKH 21
+#define SLIDE_OFF_DOME_NKH 43
 #define SLIDE_OFF_DOME_NH_DIM 3 /* Hessian entries a row may need (held.hess_pattern) */
 #if defined(__GNUC__)
 #define SLIDE_OFF_DOME_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
@@ -2471,6 +2559,143 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     return 0;
 }
 
+/* held_circle: per row, 1 where the closed held step is a rotation (vcigen.held_circle.circle_forms) */
+static const unsigned char slide_off_dome_held_circle[SLIDE_OFF_DOME_R_DIM] = { 1 };
+
+/* held_circle.circle_step: the rotation step from (q, p) on row `row` held alone, with w = (omega, arg) (the
+ * previous step's w1, or held_circle_start's); returns 0 if it cleared the closed step's tests (B > 0, D >= 0,
+ * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, v, w1 (the next w), *e (E_d) and
+ * *imp ((Lam + Lam') / h) written; 1 if not: the general chain takes it. */
+SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_circle_one(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, const double *w, double *q1, double *p1, double *v,
+    double *w1, double *e, double *imp)
+{
+    double qr[SLIDE_OFF_DOME_R_DIM * 2], pr[SLIDE_OFF_DOME_R_DIM * 2], vr[SLIDE_OFF_DOME_R_DIM * 2], wr[SLIDE_OFF_DOME_R_DIM * 4];
+    double ir[SLIDE_OFF_DOME_R_DIM], er[SLIDE_OFF_DOME_R_DIM], force[SLIDE_OFF_DOME_R_DIM], res[SLIDE_OFF_DOME_R_DIM];
+    double slope[SLIDE_OFF_DOME_R_DIM], f, r0, tot;
+    const double sk[1] = { sqrt(w[1]) };
+    int clear;
+    slide_off_dome_held_circle_step(q, p, w, sk, kh, qr, pr, vr, wr, ir, er, force, res, slope);
+    f = force[row];
+    r0 = res[row];
+    tot = er[row] + f + qr[row * 2] + pr[row * 2] + qr[row * 2 + 1] + pr[row * 2 + 1]; /* held.all_finite */
+    clear = (slope[row] > 0.0) & (w[1] >= 0.0) & (isfinite(tot) != 0); /* B > 0, D >= 0 */
+    clear &= slide_off_dome_row_free[row] | !(f < -SLIDE_OFF_DOME_EPS_LAM * (1.0 + fabs(f))); /* a lift-off */
+    (void)act;
+    (void)phi_tol;
+    if (SLIDE_OFF_DOME_HELD_UNLIKELY(!clear || !(fabs(r0) <= residual
+                                || fabs(r0) <= residual * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_N, p))))) {
+        return 1;
+    }
+    q1[0] = qr[row * 2];
+    q1[1] = qr[row * 2 + 1];
+    p1[0] = pr[row * 2];
+    p1[1] = pr[row * 2 + 1];
+    v[0] = vr[row * 2];
+    v[1] = vr[row * 2 + 1];
+    w1[0] = wr[row * 4] + wr[row * 4 + 1] * sk[0]; /* (o0 + o1 s, a0 + a1 s): one multiply-add on the chain */
+    w1[1] = wr[row * 4 + 2] + wr[row * 4 + 3] * sk[0];
+    *e = er[row];
+    *imp = ir[row];
+    return 0;
+}
+
+/* The loop of held_circle.circle_step on row `row` held alone: rotation steps from (q, p) (in/out; v, lam[row]
+ * out: the last step's velocity and Lam) while each clears its tests; returns the number taken, each stored as
+ * <model>_held_loop stores its steps. w = (omega, arg) is formed at the entry (held_circle_start) and carried:
+ * the next argument is A + B s with A, B off the chain, so one multiply-add separates two sqrt on the state's
+ * chain. */
+SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_circle_loop(const slide_off_dome_ctx_t *c, const double *kh,
+    long n, const int *act, int row, const unsigned char *held, double *q, double *p, double *v, double *lam,
+    double *Q, double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+{
+    double w[SLIDE_OFF_DOME_R_DIM * 2], lr[SLIDE_OFF_DOME_R_DIM], sum = 0.0, qk[2], pk[2], wk[2], e, imp;
+    const double residual = c->tol->residual, phi_tol = c->tol->phi;
+    long s;
+    int j;
+    slide_off_dome_held_circle_start(q, p, kh, w);
+    qk[0] = q[0];
+    qk[1] = q[1];
+    pk[0] = p[0];
+    pk[1] = p[1];
+    wk[0] = w[row * 2];
+    wk[1] = w[row * 2 + 1];
+    for (s = 0; s < n; ++s) {
+        double q1[2], p1[2], w1[2];
+        if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, qk, pk, wk, q1, p1, v, w1, &e, &imp)) {
+            break;
+        }
+        if (s + 1 == n) { /* Lam of the last step: the general chain's Newton start */
+            slide_off_dome_held_circle_lam(qk, pk, v, kh, lr);
+            lam[row] = lr[row];
+        }
+        qk[0] = q1[0];
+        qk[1] = q1[1];
+        pk[0] = p1[0];
+        pk[1] = p1[1];
+        wk[0] = w1[0];
+        wk[1] = w1[1];
+        Q[s * SLIDE_OFF_DOME_N] = qk[0];
+        Q[s * SLIDE_OFF_DOME_N + 1] = qk[1];
+        P[s * SLIDE_OFF_DOME_N] = pk[0];
+        P[s * SLIDE_OFF_DOME_N + 1] = pk[1];
+        E[s] = e;
+        sum += e;
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (j = 0; j < SLIDE_OFF_DOME_M; ++j) { /* SustainedSteps._book, then <model>_record */
+            F[s * SLIDE_OFF_DOME_M + j] = j == slide_off_dome_row_contact[row] ? imp : 0.0;
+            A[s * SLIDE_OFF_DOME_M + j] = held[j];
+        }
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (j = 0; j < SLIDE_OFF_DOME_NC; ++j) {
+            FC[s * SLIDE_OFF_DOME_NC + j] = j == slide_off_dome_row_constraint[row] ? imp : 0.0;
+        }
+    }
+    if (s > 0 && s < n) { /* stopped by a step the general chain takes: Lam of the last one taken */
+        const double qb[2] = { s > 1 ? Q[(s - 2) * SLIDE_OFF_DOME_N] : q[0], s > 1 ? Q[(s - 2) * SLIDE_OFF_DOME_N + 1] : q[1] };
+        const double pb[2] = { s > 1 ? P[(s - 2) * SLIDE_OFF_DOME_N] : p[0], s > 1 ? P[(s - 2) * SLIDE_OFF_DOME_N + 1] : p[1] };
+        slide_off_dome_held_circle_lam(qb, pb, v, kh, lr);
+        lam[row] = lr[row];
+    }
+    q[0] = qk[0];
+    q[1] = qk[1];
+    p[0] = pk[0];
+    p[1] = pk[1];
+    *sum_e += sum;
+    return s;
+}
+
+/* The kernels interface (Kernels.circle_step): one rotation step from (q, p) over h on row `row` held alone
+ * (act: per row, 0 or 1); w in: the previous step's w1, or NaN to form it (held_circle_start); out: this
+ * step's w1. 0: not taken; 1: taken, with its end (q1, p1), velocity v, E_d e, and Lam, Lam' per row. */
+int slide_off_dome_eval_held_circle_step(const double *par, double h, double residual, double phi_tol, int row,
+    const double *q, const double *p, const double *act_d, double *w, double *lam, double *lam1, double *q1,
+    double *p1, double *v, double *e)
+{
+    double kh[SLIDE_OFF_DOME_NKH], ws[SLIDE_OFF_DOME_R_DIM * 2], w1[2], lr[SLIDE_OFF_DOME_R_DIM], imp;
+    int act[SLIDE_OFF_DOME_R_DIM], r;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        act[r] = act_d[r] != 0.0;
+        lam[r] = 0.0;
+        lam1[r] = 0.0;
+    }
+    slide_off_dome_held_consts(&h, par, kh);
+    if (w[0] != w[0]) {
+        slide_off_dome_held_circle_start(q, p, kh, ws);
+        w[0] = ws[row * 2];
+        w[1] = ws[row * 2 + 1];
+    }
+    if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, v, w1, e, &imp)) {
+        return 0;
+    }
+    slide_off_dome_held_circle_lam(q, p, v, kh, lr);
+    lam[row] = lr[row];
+    lam1[row] = imp * h - lr[row];
+    w[0] = w1[0];
+    w[1] = w1[1];
+    return 1;
+}
+
 /* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
  * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
  * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
@@ -2486,6 +2711,10 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_loop(const slide_off_dome_ct
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
     int i, j, r, a;
     long s;
+    if (na == 1 && slide_off_dome_held_circle[rows[0]]) { /* vcigen.held_circle: the step as a rotation */
+        return slide_off_dome_held_circle_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC,
+            sum_e);
+    }
     slide_off_dome_held_rows(q, kh, psi, grad, hess);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) { /* the active rows' gradients at q */

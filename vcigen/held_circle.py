@@ -1,0 +1,212 @@
+"""The held step on a circle as a rotation: the closed held step (:func:`vcigen.held.closed_forms`) of a row
+whose zero set is a circle in the plane, under a constant force, with one multiplication on its chain.
+
+Where it applies (:func:`circle_forms`, detected once in :mod:`vcigen.structure`): two coordinates, an
+isotropic constant mass ``m`` (``J = M``), the row's ``F`` a circle of radius ``R`` about ``c``, the free
+velocity ``v0 = (p0 + c_v) / m`` and the segment's momentum ``p+ = m v + c_p`` with ``c_v``, ``c_p`` free of
+the state (a force constant in ``q``: gravity). Then, with ``n = (q - c) / R``, ``t = (-n_y, n_x)`` and
+``omega = t . v0`` (MATH.md *Sustained contact*, the RATTLE step held on the row):
+
+* the position step is a rotation, ``n1 = s n + a t`` with ``a = h omega / R``, ``s = sqrt(arg)``,
+  ``arg = 1 / |n|^2 - a^2`` (``z1 = z (s + i a)``: ``|n1| = 1`` and ``n1 - n`` along ``v0``'s tangential
+  part; the small root of the closed step's quadratic, ``B > 0`` being ``R |n|^2 + h v0 . n > 0``);
+* the projection of ``p+`` onto the tangent at ``q1`` is ``p1 = pi1 t1``, ``pi1 = m omega + c_p . t1``
+  (``v . t1 = omega`` on the circle);
+* the next ``omega1 = omega + g . t1`` (``g = (c_v + c_p) / m``) is ``o0 + o1 s``, so the next argument
+  ``1 / |n1|^2 - (h omega1 / R)^2`` is ``A + B s`` (``s^2 = arg``, ``|n1|^2 = |n|^2 (arg + a^2)``,
+  ``1 / x = 2 - x`` to ``O((x - 1)^2)``): formed off the chain, the chain from one ``sqrt`` to the next is
+  one multiply-add (the C loop carries ``(omega, arg)`` from step to step; :class:`Carry` here);
+* the impulse ``Lam + Lam'`` from the momentum change ``J = p1 - p0 - c_v - c_p = gamma (Lam n + Lam' n1)``
+  (``grad psi = gamma n`` on the row) along ``n + n1``: ``n . (n + n1) = n1 . (n + n1) = 1 + s``; ``Lam``
+  from ``m (v - v0) = gamma Lam n``;
+* ``E_d`` (``held_segment``), the normal force and the residual ``F(q1) / gain`` (``held_circle_end``) and
+  the tests are the closed step's.
+
+The same RATTLE solution to round-off as :func:`vcigen.held_step.closed_step` (``bench.held_rot``:
+``q`` <= 4e-15, ``p`` <= 1e-14 over 300 steps). The C loop is ``<model>_held_circle_loop``
+(``templates/sustained_held_circle.c.j2``); :func:`circle_step` is the Python stepper's. A run recording
+the tangent takes the closed step (its tangent reads that step's ``Lam``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+import sympy as sp
+
+from .held_roots import EPS_LAM
+from .routines import Arg
+
+
+class Circle(NamedTuple):
+    """A row whose held step is a rotation (:func:`circle_forms`)."""
+
+    centre: tuple[sp.Expr, sp.Expr]
+    radius: sp.Expr
+    mass: sp.Expr
+    cv: tuple[sp.Expr, sp.Expr]  # v0 = (p0 + cv) / m
+    cp: tuple[sp.Expr, sp.Expr]  # p+ = m v + cp
+    gamma: sp.Expr  # grad psi = gamma n on the row
+
+
+def circle_forms(closed: list, q: tuple, p0: tuple, v: tuple, free: dict) -> list[Circle | None]:
+    """Per row, its :class:`Circle` or ``None``: rows with a closed form (``closed``, :func:`closed_forms`)
+    whose zero set is a circle, in a scene with two coordinates, an isotropic mass and a force constant in
+    ``q``. ``free``: ``vcigen.held.free_parts`` (``v0``, ``jinv``, ``p_plus``, ``mass``, ``acc``)."""
+    if len(q) != 2:
+        return [None] * len(closed)
+    v0, jinv, p_plus, mass, acc = (free[k] for k in ("v0", "jinv", "p_plus", "mass", "acc"))
+    m = mass[0, 0]
+    state = set(q) | set(p0) | set(v) | set(free["q0"])
+    ok = sp.simplify(mass[1, 1] - m) == 0 and all(sp.simplify(m * jinv[i] - 1) == 0 for i in range(2))
+    cv = [sp.simplify(m * v0[i] - p0[i]) for i in range(2)]
+    cp = [sp.simplify(p_plus[i] - m * v[i]) for i in range(2)]
+    ok = ok and not any(e.free_symbols & state for e in (*cv, *cp, *acc))
+    out: list[Circle | None] = []
+    for cf in closed:
+        if cf is None or not ok:
+            out.append(None)
+            continue
+        poly = sp.Poly(sp.expand(cf.form), *q)
+        kappa = poly.coeff_monomial(q[0] ** 2)
+        if sp.simplify(poly.coeff_monomial(q[1] ** 2) - kappa) != 0 or poly.coeff_monomial(q[0] * q[1]) != 0:
+            out.append(None)
+            continue
+        centre = tuple(sp.simplify(-poly.coeff_monomial(x) / (2 * kappa)) for x in q)
+        r2 = sp.simplify(centre[0] ** 2 + centre[1] ** 2 - poly.coeff_monomial(1) / kappa)
+        radius = sp.sqrt(r2)
+        gamma = sp.simplify(2 * kappa * radius / cf.gain)  # grad F = 2 kappa R n = gain grad psi
+        out.append(Circle(centre, radius, m, (cv[0], cv[1]), (cp[0], cp[1]), gamma))
+    return out
+
+
+def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list[tuple]:
+    """The routines of the rotation step (pieces of ``vcigen.held.held_routines``; ``fp``:
+    ``vcigen.held.free_parts``), per row (zeros for rows without one), on the state ``(q, p)`` (``q0_arg``,
+    ``p_arg``) and the carried ``w = (omega, arg)``:
+
+    * ``held_circle_start(q, p, k) -> w``: ``(omega, arg)`` formed from the state (a loop's entry);
+    * ``held_circle_step(q, p, w, s, k) -> q1, p1, v, w1, imp, energy, force, res, slope``: the step
+      (:mod:`vcigen.held_circle`'s docstring) with ``s = sqrt(arg)``, ``w1 = (o0, o1, a0, a1)``: the next
+      ``w`` is ``(o0 + o1 s, a0 + a1 s)``, the impulse ``(Lam + Lam') / h``, ``E_d`` (55),
+      the closed step's normal force (``held_root_end``'s at ``u1 = M^-1 p1``), its residual ``F(q1) / gain``
+      and ``slope = R |n|^2 + h v0 . n`` (> 0: the small root holds, ``B > 0``);
+    * ``held_circle_lam(q, p, v, k) -> lam``: ``Lam`` of a step from its velocity
+      (``m (v - v0) = gamma Lam n``).
+    """
+    nr = system.r
+    q0, h = fp["q0_arg"], fp["h"]
+    x, y = q0.symbols
+    px, py = p_arg.symbols
+    w_arg = Arg("w", (sp.Dummy("om", real=True), sp.Dummy("arg", real=True)))
+    s_arg = Arg("s", (sp.Dummy("s", real=True),))
+    v_arg = Arg("v", tuple(sp.Dummy(f"v{i}", real=True) for i in range(2)))
+    om, arg = w_arg.symbols
+    qs = fp["q_arg"].symbols
+    outs = {k: sp.zeros(nr, size) for k, size in (("w", 2), ("q1", 2), ("p1", 2), ("v", 2), ("w1", 4))}
+    outs |= {k: sp.zeros(nr, 1) for k in ("imp", "energy", "force", "res", "slope", "lam")}
+    forms = system.structure.held_closed_forms
+    for r, c in enumerate(circles):
+        if c is None:
+            continue
+        f, gain, _, w0 = forms[r]
+        (cx, cy), big_r, m, (cvx, cvy), (cpx, cpy), gamma = c
+        nx, ny = (x - cx) / big_r, (y - cy) / big_r
+        v0x, v0y = (px + cvx) / m, (py + cvy) / m
+        om0 = v0x * -ny + v0y * nx
+        outs["w"][r, 0], outs["w"][r, 1] = om0, 1 / (nx**2 + ny**2) - (h * om0 / big_r) ** 2
+        nn, a, sq = nx**2 + ny**2, h * om / big_r, s_arg.symbols[0]
+        n1x, n1y = sq * nx - a * ny, sq * ny + a * nx
+        q1 = (cx + big_r * n1x, cy + big_r * n1y)
+        pi1 = m * om + (cpx * -n1y + cpy * n1x)
+        p1 = (pi1 * -n1y, pi1 * n1x)
+        v = ((q1[0] - x) / h, (q1[1] - y) / h)
+        gx, gy = (cvx + cpx) / m, (cvy + cpy) / m
+        o0, o1 = om - a * (gx * nx + gy * ny), gx * -ny + gy * nx
+        ho0, ho1 = h * o0 / big_r, h * o1 / big_r
+        imp = ((p1[0] - px - cvx - cpx) * (nx + n1x) + (p1[1] - py - cvy - cpy) * (ny + n1y)) / (
+            gamma * (1 + sq)
+        )
+        at1 = dict(zip(qs, q1))
+        grad = [f.diff(z) for z in qs]
+        hf = sp.hessian(f, qs)
+        u1 = [fp["minv"][i] * p1[i] for i in range(2)]
+        curv = sum((u1[i] * hf[i, j] * u1[j] for i in range(2) for j in range(2) if hf[i, j] != 0), sp.S.Zero)
+        force = -gain * (sum((grad[i] * fp["acc"][i] for i in range(2)), sp.S.Zero) + curv) / w0
+        seg = dict(zip(fp["v_arg"].symbols, v))
+        for i in range(2):
+            outs["q1"][r, i], outs["p1"][r, i], outs["v"][r, i] = q1[i], p1[i], v[i]
+        # the next (omega, arg) = (o0 + o1 s, a0 + a1 s): s^2 = arg taken off; the loop forms them (its chain
+        # from one sqrt to the next is then one multiply-add)
+        w1 = (o0, o1, (2 - nn * (arg + a**2) - ho1**2 * arg) - ho0**2, -2 * ho0 * ho1)
+        for i in range(4):
+            outs["w1"][r, i] = w1[i]
+        outs["imp"][r] = imp / h
+        outs["energy"][r] = fp["energy"].xreplace(seg)
+        outs["force"][r] = force.xreplace(at1)
+        outs["res"][r] = (f / gain).xreplace(at1)
+        outs["slope"][r] = big_r * nn + h * (v0x * nx + v0y * ny)
+        vx, vy = v_arg.symbols
+        outs["lam"][r] = m * ((vx - v0x) * nx + (vy - v0y) * ny) / gamma
+    step_outs = ("q1", "p1", "v", "w1", "imp", "energy", "force", "res", "slope")
+    return [
+        ("held_circle_start", (q0, p_arg), [("w", outs["w"])], "Per circle row, (omega, arg) at (q, p)."),
+        (
+            "held_circle_step",
+            (q0, p_arg, w_arg, s_arg),
+            [(k, outs[k]) for k in step_outs],
+            "Per circle row, the held step as a rotation (vcigen.held_circle).",
+        ),
+        ("held_circle_lam", (q0, p_arg, v_arg), [("lam", outs["lam"])], "Per circle row, Lam of a step."),
+    ]
+
+
+class Carry(NamedTuple):
+    """What a rotation step hands the next (the C loop's ``w``), with the state, step and parameters it
+    belongs to (:class:`vcigen.held_step.HeldSteps` uses it only from those)."""
+
+    q: np.ndarray
+    p: np.ndarray
+    h: float
+    par: np.ndarray
+    w: np.ndarray  # (omega, arg)
+
+    def at(self, q, p, h: float, par) -> np.ndarray | None:
+        """``w`` if this carry belongs to ``(q, p, h, par)``, else ``None`` (the step forms its own)."""
+        same = self.h == h and np.array_equal(self.par, par)
+        return self.w if same and np.array_equal(self.q, q) and np.array_equal(self.p, p) else None
+
+
+def circle_step(k, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
+    """The rotation step from ``(q, p)`` on row ``row`` held alone, on CasADi's kernels (C:
+    ``<model>_held_circle_one``, the body of ``<model>_held_circle_loop``, on the same routines):
+    ``(Held, w1)`` with ``w1`` the next step's ``(omega, arg)``, or ``None`` where the closed step's tests
+    refuse it (``B <= 0``, ``D < 0``, the residual, a lift-off, an inactive row crossed, a value not finite).
+    ``w``: the previous rotation step's ``w1`` (the C loop carries it), or ``None``: formed here."""
+    from .held_step import Held, all_finite
+
+    kc = k.held_consts(h)
+    if w is None:
+        w = k.held_circle_start(q, p, kc)[row]
+    if not w[1] >= 0.0:
+        return None  # D < 0
+    s = math.sqrt(w[1])
+    q1, p1, v, w1, imp, energy, force, res, slope = (x[row] for x in k.held_circle_step(q, p, w, [s], kc))
+    if not slope > 0.0:
+        return None  # the small root does not hold (B <= 0)
+    if not abs(res) <= residual * (1.0 + float(np.max(np.abs(p)))):
+        return None
+    if not k.row_bilateral[row] and force < -EPS_LAM * (1.0 + abs(force)):
+        return None  # a lift-off inside the step
+    if k.r > 1:
+        psi = k.held_rows(q1, kc)[0]
+        if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
+            return None  # an inactive row crossed
+    if not all_finite(float(energy), [force], q1, p1):
+        return None
+    lam, lam1 = np.zeros(k.r), np.zeros(k.r)
+    lam[row] = k.held_circle_lam(q, p, v, kc)[row]
+    lam1[row] = imp * h - lam[row]
+    return Held(q1, p1, v, lam, lam1, float(energy)), np.array([w1[0] + w1[1] * s, w1[2] + w1[3] * s])
