@@ -15,7 +15,7 @@ less):
 * ``A_k`` and ``B_k`` are read from a ring of ``RING`` precomputed random matrices (in L1), so the compiler
   can neither fold nor hoist them; ``|A_k|_inf <= 0.9`` keeps ``S`` bounded (no overflow, and the forcing
   keeps it away from subnormals);
-* the result is checked finite by the same ``0 * s`` sum as ``templates/sens.c.j2``'s ``sens_store`` and
+* the result is checked finite by the same ``0 * s`` sum as ``templates/sens_run.c.j2``'s ``sens_store`` and
   copied into row ``k`` of an ``N``-row buffer (what ``res.sensitivity`` holds), freshly allocated per call
   as a run's is; the two halves of the tangent are swapped (no copy back), as the held glide's map does;
 * the loop bounds are compile-time constants (``-DN2=2n -DKC=K``) like the generated code's, compiled with

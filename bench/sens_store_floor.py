@@ -3,7 +3,7 @@
     .venv/bin/python -m bench.sens_store_floor [--steps 20000] [--repeats 7]
 
 A C run with sensitivities writes ``S_k+1`` (``2n x K`` doubles) per grid step into the run's buffer, where
-the plain run writes ``q, p`` and ``t`` (``2n + 1``); ``templates/sens.c.j2``'s ``sens_row`` also sums
+the plain run writes ``q, p`` and ``t`` (``2n + 1``); ``templates/sens_run.c.j2``'s ``sens_row`` also sums
 ``0 * S`` for the finiteness check. This times those stores alone, in a small C loop compiled here with the
 generated code's flags (``-O2``), into a freshly allocated buffer (first touch included, as a run's) and
 into an already touched one: ``store`` = the copy only, ``store+check`` = the copy and ``sens_row``'s check.

@@ -208,7 +208,7 @@ def test_a_stop_is_carried(backend: str) -> None:
 
 @needs_c
 def test_c_equals_casadi() -> None:
-    """The C tangent (templates/sens.c.j2: sens_slots, sens_add_slots) against the CasADi one."""
+    """The C tangent (templates/sens_held_slots.c.j2: sens_slots, sens_add_slots) against the CasADi one."""
     for scene, (v0, params, _) in SCENES.items():
         q0, v0, par = start(v0, params)
         a, b = (

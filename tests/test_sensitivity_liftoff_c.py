@@ -1,8 +1,8 @@
-"""The lift-off tangent inside the C loop (``sens_liftoff``, ``templates/sens.c.j2``; ``Tracker.liftoff`` in
-Python): the C run never hands a lift-off step to the Python stepper, its tangent is the Python stepper's, and
-a lift-off driven by a force of time (the time slot of ``par`` in the located root) agrees with finite
-differences and with the closed form of the lift-off time on both backends; so does a lift-off in the same
-step as the plastic impact that started the contact (the rest of that step, ``entry``).
+"""The lift-off tangent inside the C loop (``sens_liftoff``, ``templates/sens_liftoff.c.j2``;
+``Tracker.liftoff`` in Python): the C run never hands a lift-off step to the Python stepper, its tangent is
+the Python stepper's, and a lift-off driven by a force of time (the time slot of ``par`` in the located root)
+agrees with finite differences and with the closed form of the lift-off time on both backends; so does a
+lift-off in the same step as the plastic impact that started the contact (the rest of that step, ``entry``).
 """
 
 from __future__ import annotations

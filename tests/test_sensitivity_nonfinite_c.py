@@ -1,8 +1,8 @@
 """A non-finite tangent on the C variant's fast paths is a reported break, never a silent NaN nor a wrong
 tangent.
 
-The fast paths (``templates/sens.c.j2``) check the tangent as they store it into its row: the explicit glide's
-fused smooth map (``sens_smooth_map``, checked by ``sens_row``) and the held glide's fused held map
+The fast paths (``templates/sens_run.c.j2``) check the tangent as they store it into its row: the explicit
+glide's fused smooth map (``sens_smooth_map``, checked by ``sens_row``) and the held glide's fused held map
 (``sens_held_step``: a non-finite map falls back to the numeric tangent of ``sens_held``, which then names the
 break as the Python tracker does). The scenes put a parameter ``c = 0`` under a square root: the trajectory
 is finite (``sqrt(0) = 0``), the tangent's column ``d/dc`` is not (``1/(2 sqrt(0))``). Both backends must

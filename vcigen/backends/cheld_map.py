@@ -1,8 +1,8 @@
 """The tangent of a held grid step as one straight-line routine per active set (C sensitivity variant).
 
 A held grid step with its active set ``A`` unchanged (MATH.md *Sustained contact*; ``Tracker.held`` in
-:mod:`vcigen.sensitivity`, ``<model>_sens_held`` in ``templates/sens.c.j2``) maps ``S_k`` to ``S_k+1`` by two
-implicit-function theorems and a chain:
+:mod:`vcigen.sensitivity`, ``<model>_sens_held`` in ``templates/sens_held.c.j2``) maps ``S_k`` to ``S_k+1`` by
+two implicit-function theorems and a chain:
 
 * ``rattle`` at ``x = (v, Lam_A)`` given ``(q, p, par)`` (``tau`` and the active set fixed, ``Lam`` off ``A``
   fixed at 0): ``dx = -F_x^-1 (F_q dq + F_p dp + F_par dpar)``;

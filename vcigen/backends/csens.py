@@ -63,7 +63,7 @@ def sens_routines(contact_names: tuple[str, ...]) -> list[str]:
 def smooth_map_routine(system: DiscreteSystem) -> Routine | None:
     """``sens_smooth_map(q0, v, tau, par, s) -> s1``: the tangent of a smooth grid step (46) as one CSE'd
     straight-line routine, ``S_k -> S_k+1`` (``s``, ``s1``: ``2n x K`` row-major), or ``None`` past
-    :data:`SYMBOLIC_MAP` coordinates (then ``templates/sens.c.j2`` solves it numerically).
+    :data:`SYMBOLIC_MAP` coordinates (then ``templates/sens_smooth.c.j2`` solves it numerically).
 
     The smooth residual is ``p-(q0, v, tau) - p0``, so with ``d_segment``'s partials
     ``dv = -J^-1 (dp-/dq0 dq - dp + dp-/dpar dpar)``, ``J = dp-/dv`` (its entries expanded, so that a
@@ -73,7 +73,7 @@ def smooth_map_routine(system: DiscreteSystem) -> Routine | None:
     the numeric path and ``vcigen.sensitivity.Tangents.smooth_map``, the solve done once symbolically.
     """
     n = system.n
-    if n > SYMBOLIC_MAP or system.stages:  # internal points: the numeric path with (v, u) (sens.c.j2)
+    if n > SYMBOLIC_MAP or system.stages:  # internal points: the numeric path with (v, u) (sens_smooth.c.j2)
         return None
     d = system.routines["d_segment"]
     q0, v, tau, par = d.inputs
