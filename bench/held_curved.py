@@ -11,8 +11,10 @@ Scenes (best of ``--repeats`` of each run, held and free interleaved; CPU time o
   ``v0 = (0.1, 0)``, 5e4 steps at h = 1e-5 (held throughout: it lifts off at t = 1.27); free: from
   ``(0, 10)``, the same ``v0``.
 
-At h = 1e-3 and 1e-2 the bowl's previous multipliers never solve its held step (the line start of
-``vcigen.held`` then gives the second evaluation); at h = 1e-5 the dome's mostly do.
+Both rows are circles in the plane under gravity: every held step is the rotation of :mod:`vcigen.held_circle`
+(``<model>_held_circle_loop``: ``(omega, arg)`` carried, one multiply-add between two ``sqrt`` on the state's
+chain); before it, the closed step of ``held.closed_forms`` (stop 21: 5.7-5.9x) and, before that, the held
+Newton with its line start.
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@
 
 ``bench.held_floor`` writes the rotation form by hand for the unit circle, unit mass and gravity. This is the
 same algorithm for any row of ``held.closed_forms`` in the plane (a circle of radius ``R`` about ``c``, an
-isotropic mass ``m``) under a constant force ``f`` (a prototype in numpy: not generated), run against
+isotropic mass ``m``) under a constant force ``f`` (the numpy prototype of :mod:`vcigen.held_circle`, which
+generates it; that module's routines are tested in ``tests/test_held_circle.py``), run against
 vcigen's held step (``Kernels.held_step``: today's closed step, CasADi kernels) from the same start, each for
 ``--steps`` steps or until its tests refuse a step (the dome's lift-off):
 

@@ -113,22 +113,24 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
             continue
         f, gain, _, w0 = forms[r]
         (cx, cy), big_r, m, (cvx, cvy), (cpx, cpy), gamma = c
-        nx, ny = (x - cx) / big_r, (y - cy) / big_r
+        # in d = q - c and D1 = q1 - c (R n, R n1): each a common subexpression of its uses, no sign or factor
+        # distributed into it (sympy distributes -1 * (a + b)), so that CSE shares them
+        dx, dy = x - cx, y - cy
         v0x, v0y = (px + cvx) / m, (py + cvy) / m
-        om0 = v0x * -ny + v0y * nx
-        outs["w"][r, 0], outs["w"][r, 1] = om0, 1 / (nx**2 + ny**2) - (h * om0 / big_r) ** 2
-        nn, a, sq = nx**2 + ny**2, h * om / big_r, s_arg.symbols[0]
-        n1x, n1y = sq * nx - a * ny, sq * ny + a * nx
-        q1 = (cx + big_r * n1x, cy + big_r * n1y)
-        pi1 = m * om + (cpx * -n1y + cpy * n1x)
-        p1 = (pi1 * -n1y, pi1 * n1x)
-        v = ((q1[0] - x) / h, (q1[1] - y) / h)
+        om0 = (v0y * dx - v0x * dy) / big_r
+        nn = (dx**2 + dy**2) / big_r**2
+        outs["w"][r, 0], outs["w"][r, 1] = om0, 1 / nn - (h * om0 / big_r) ** 2
+        a, sq = h * om / big_r, s_arg.symbols[0]
+        d1x, d1y = sq * dx - a * dy, sq * dy + a * dx
+        q1 = (cx + d1x, cy + d1y)
+        pi1 = (m * om + (cpy * d1x - cpx * d1y) / big_r) / big_r  # pi1 / R: p1 = (pi1 / R) (-D1y, D1x)
+        p1 = (sp.Mul(-1, pi1, d1y, evaluate=False), pi1 * d1x)
+        v = ((d1x - dx) / h, (d1y - dy) / h)
         gx, gy = (cvx + cpx) / m, (cvy + cpy) / m
-        o0, o1 = om - a * (gx * nx + gy * ny), gx * -ny + gy * nx
+        o0, o1 = om - a * (gx * dx + gy * dy) / big_r, (gy * dx - gx * dy) / big_r
         ho0, ho1 = h * o0 / big_r, h * o1 / big_r
-        imp = ((p1[0] - px - cvx - cpx) * (nx + n1x) + (p1[1] - py - cvy - cpy) * (ny + n1y)) / (
-            gamma * (1 + sq)
-        )
+        jx, jy = p1[0] - px - cvx - cpx, p1[1] - py - cvy - cpy
+        imp = (jx * (dx + d1x) + jy * (dy + d1y)) / (big_r * gamma * (1 + sq))
         at1 = dict(zip(qs, q1))
         grad = [f.diff(z) for z in qs]
         hf = sp.hessian(f, qs)
@@ -147,9 +149,9 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
         outs["energy"][r] = fp["energy"].xreplace(seg)
         outs["force"][r] = force.xreplace(at1)
         outs["res"][r] = (f / gain).xreplace(at1)
-        outs["slope"][r] = big_r * nn + h * (v0x * nx + v0y * ny)
+        outs["slope"][r] = (dx**2 + dy**2 + h * (v0x * dx + v0y * dy)) / big_r
         vx, vy = v_arg.symbols
-        outs["lam"][r] = m * ((vx - v0x) * nx + (vy - v0y) * ny) / gamma
+        outs["lam"][r] = m * ((vx - v0x) * dx + (vy - v0y) * dy) / (big_r * gamma)
     step_outs = ("q1", "p1", "v", "w1", "imp", "energy", "force", "res", "slope")
     return [
         ("held_circle_start", (q0, p_arg), [("w", outs["w"])], "Per circle row, (omega, arg) at (q, p)."),

@@ -375,8 +375,8 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
 {
     const double t0 = 1.0/par[0];
     const double t1 = (1.0/2.0)*par[0];
-    const double t2 = tau[0]*par[1];
-    const double t3 = t1*t2;
+    const double t2 = par[1]*t1;
+    const double t3 = tau[0]*t2;
     const double t4 = par[1]*par[0];
     const double t5 = ((par[2])*(par[2]));
     const double t6 = tau[0]*t0;
@@ -389,9 +389,11 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     const double t13 = 1.0/t12;
     const double t14 = 1.0/par[2];
     const double t15 = 2*par[1];
-    const double t16 = t0*t14;
-    const double t17 = t10*t8;
-    const double t18 = tau[0]*t8;
+    const double t16 = 2*t13;
+    const double t17 = pow(par[2], -4);
+    const double t18 = tau[0]*t14;
+    const double t19 = par[1]*t18;
+    const double t20 = t10*t8;
     k[0] = t0;
     k[1] = -t3;
     k[2] = -par[2];
@@ -411,30 +413,30 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[16] = (1.0/4.0)*t11*t12*t14;
     k[17] = -t1*t14;
     k[18] = -t15;
-    k[19] = 2*t13;
+    k[19] = t16;
     k[20] = (1.0/2.0)*t14;
-    k[21] = t16;
-    k[22] = -t16;
-    k[23] = t8;
-    k[24] = -t17;
-    k[25] = t14;
-    k[26] = -t18;
-    k[27] = par[2];
-    k[28] = t18;
-    k[29] = -t14;
-    k[30] = t7;
-    k[31] = par[1]*t17;
-    k[32] = -t14*t2;
-    k[33] = t17;
-    k[34] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))/((par[2])*(par[2])*(par[2])*(par[2]));
+    k[21] = -t0;
+    k[22] = t14;
+    k[23] = t5;
+    k[24] = -t10*t17;
+    k[25] = -t18;
+    k[26] = t18;
+    k[27] = -t1*t19;
+    k[28] = t7;
+    k[29] = par[1]*t20;
+    k[30] = -t19;
+    k[31] = -t20;
+    k[32] = t20;
+    k[33] = -t8;
+    k[34] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t17;
     k[35] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
     k[36] = tau[0]*t4;
-    k[37] = par[1]*t1;
-    k[38] = t1*t11;
-    k[39] = -par[2]*t15;
-    k[40] = t5;
+    k[37] = t14*t7;
+    k[38] = t2;
+    k[39] = t1*t11;
+    k[40] = t16*t8;
     k[41] = tau[0];
-    k[42] = -t0;
+    k[42] = par[0]*t14;
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -540,55 +542,51 @@ static inline void slide_off_dome_held_root_end(const double *q, const double *p
 /* Per circle row, (omega, arg) at (q, p). */
 static inline void slide_off_dome_held_circle_start(const double *q0, const double *p0, const double *k, double *w)
 {
-    const double t0 = k[21]*q0[0]*(k[1] + p0[1]) + k[22]*p0[0]*q0[1];
-    w[0] = t0;
-    w[1] = k[24]*((t0)*(t0)) + 1/(k[23]*(((q0[0])*(q0[0])) + ((q0[1])*(q0[1]))));
+    const double t0 = k[0]*q0[0]*(k[1] + p0[1]) + k[21]*p0[0]*q0[1];
+    w[0] = k[22]*t0;
+    w[1] = k[23]/(((q0[0])*(q0[0])) + ((q0[1])*(q0[1]))) + k[24]*((t0)*(t0));
 }
 
 /* Per circle row, the held step as a rotation (vcigen.held_circle). */
 SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *v, double *w1, double *imp, double *energy, double *force, double *res, double *slope)
 {
-    const double t0 = k[25]*q0[0];
-    const double t1 = k[26]*w[0];
-    const double t2 = q0[1]*t1 + s[0]*t0;
-    const double t3 = k[27]*t2;
-    const double t4 = k[25]*q0[1];
-    const double t5 = k[28]*w[0]*q0[0] + s[0]*t4;
-    const double t6 = k[27]*t5;
-    const double t7 = k[29]*q0[1]*s[0] + q0[0]*t1;
-    const double t8 = k[1]*t2 + k[3]*w[0];
-    const double t9 = t7*t8;
-    const double t10 = t2*t8;
-    const double t11 = -q0[0] + t3;
-    const double t12 = -q0[1] + t6;
-    const double t13 = k[31]*q0[1] + 1;
-    const double t14 = w[0]*t13;
-    const double t15 = ((q0[0])*(q0[0]));
-    const double t16 = ((w[0])*(w[0]));
-    const double t17 = k[23]*(((q0[1])*(q0[1])) + t15);
-    const double t18 = ((t2)*(t2));
-    const double t19 = k[19]*((t8)*(t8));
-    q1[0] = t3;
-    q1[1] = t6;
-    p1[0] = t9;
-    p1[1] = t10;
-    v[0] = k[30]*t11;
-    v[1] = k[30]*t12;
-    w1[0] = t14;
-    w1[1] = k[32]*q0[0];
-    w1[2] = w[1]*k[34]*t15 + k[24]*((t13)*(t13))*t16 - t17*(w[1] + k[33]*t16) + 2;
-    w1[3] = k[35]*q0[0]*t14;
-    imp[0] = -k[30]*((p0[0] - t9)*(t0 + t2) - (t4 + t5)*(k[36] - p0[1] + t10))/(s[0] + 1);
-    energy[0] = k[37]*t12 + k[38]*((t11)*(t11)) + k[38]*((t12)*(t12)) + k[5]*q0[1];
-    force[0] = k[17]*(k[39]*t5 + t18*t19 + t19*((t7)*(t7)));
-    res[0] = k[20]*(k[40]*t18 + k[40]*((t5)*(t5)) + k[8]);
-    slope[0] = k[21]*k[41]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + k[27]*t17;
+    const double t0 = k[25]*w[0]*q0[1] + q0[0]*s[0];
+    const double t1 = k[26]*w[0]*q0[0] + q0[1]*s[0];
+    const double t2 = k[27]*t0 + k[3]*w[0];
+    const double t3 = k[22]*t2;
+    const double t4 = t1*t3;
+    const double t5 = t0*t3;
+    const double t6 = -q0[0] + t0;
+    const double t7 = -q0[1] + t1;
+    const double t8 = k[29]*q0[1] + 1;
+    const double t9 = w[0]*t8;
+    const double t10 = ((q0[0])*(q0[0]));
+    const double t11 = ((w[0])*(w[0]));
+    const double t12 = ((q0[1])*(q0[1])) + t10;
+    const double t13 = ((t0)*(t0));
+    const double t14 = k[40]*((t2)*(t2));
+    const double t15 = ((t1)*(t1));
+    q1[0] = t0;
+    q1[1] = t1;
+    p1[0] = -t4;
+    p1[1] = t5;
+    v[0] = k[28]*t6;
+    v[1] = k[28]*t7;
+    w1[0] = t9;
+    w1[1] = k[30]*q0[0];
+    w1[2] = w[1]*k[34]*t10 + k[31]*t11*((t8)*(t8)) + k[33]*t12*(w[1] + k[32]*t11) + 2;
+    w1[3] = k[35]*q0[0]*t9;
+    imp[0] = -k[37]*((p0[0] + t4)*(q0[0] + t0) - (q0[1] + t1)*(k[36] - p0[1] + t5))/(s[0] + 1);
+    energy[0] = k[38]*t7 + k[39]*((t6)*(t6)) + k[39]*((t7)*(t7)) + k[5]*q0[1];
+    force[0] = k[17]*(k[18]*t1 + t13*t14 + t14*t15);
+    res[0] = k[20]*(k[8] + t13 + t15);
+    slope[0] = k[22]*(k[0]*k[41]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t12);
 }
 
 /* Per circle row, Lam of a step. */
 static inline void slide_off_dome_held_circle_lam(const double *q0, const double *p0, const double *v, const double *k, double *lam)
 {
-    lam[0] = k[25]*k[3]*(q0[0]*(k[42]*p0[0] + v[0]) + q0[1]*(k[42]*(k[1] + p0[1]) + v[1]));
+    lam[0] = k[42]*(q0[0]*(k[21]*p0[0] + v[0]) + q0[1]*(k[21]*(k[1] + p0[1]) + v[1]));
 }
 
 /* Adapters: the routines with an unknown x, as slide_off_dome_fun for the solvers. */
@@ -2616,7 +2614,7 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_circle_loop(const slide_off_
     wk[0] = w[row * 2];
     wk[1] = w[row * 2 + 1];
     for (s = 0; s < n; ++s) {
-        double q1[2], p1[2], w1[2];
+        double q1[2] = {0.0, 0.0}, p1[2] = {0.0, 0.0}, w1[2] = {0.0, 0.0}; /* set by a step taken */
         if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, qk, pk, wk, q1, p1, v, w1, &e, &imp)) {
             break;
         }
