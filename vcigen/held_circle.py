@@ -36,7 +36,6 @@ from typing import NamedTuple
 import numpy as np
 import sympy as sp
 
-from .held_roots import EPS_LAM
 from .routines import Arg
 
 
@@ -187,7 +186,7 @@ def circle_step(k, q, p, w, row: int, act, h: float, residual: float, phi_tol: f
     ``(Held, w1)`` with ``w1`` the next step's ``(omega, arg)``, or ``None`` where the closed step's tests
     refuse it (``B <= 0``, ``D < 0``, the residual, a lift-off, an inactive row crossed, a value not finite).
     ``w``: the previous rotation step's ``w1`` (the C loop carries it), or ``None``: formed here."""
-    from .held_step import Held, all_finite
+    from .held_step import Held, one_row_clears
 
     kc = k.held_consts(h)
     if w is None:
@@ -198,15 +197,9 @@ def circle_step(k, q, p, w, row: int, act, h: float, residual: float, phi_tol: f
     q1, p1, v, w1, imp, energy, force, res, slope = (x[row] for x in k.held_circle_step(q, p, w, [s], kc))
     if not slope > 0.0:
         return None  # the small root does not hold (B <= 0)
-    if not abs(res) <= residual * (1.0 + float(np.max(np.abs(p)))):
-        return None
-    if not k.row_bilateral[row] and force < -EPS_LAM * (1.0 + abs(force)):
-        return None  # a lift-off inside the step
-    if k.r > 1:
-        psi = k.held_rows(q1, kc)[0]
-        if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
-            return None  # an inactive row crossed
-    if not all_finite(float(energy), [force], q1, p1):
+    if not one_row_clears(
+        k, kc, row, act, p, q1, p1, float(energy), float(force), float(res), residual, phi_tol
+    ):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)
     lam[row] = k.held_circle_lam(q, p, v, kc)[row]

@@ -57,6 +57,23 @@ def all_finite(energy: float, forces: np.ndarray, q1: np.ndarray, p1: np.ndarray
     return bool(np.isfinite(total))
 
 
+def one_row_clears(k, kc, row: int, act, p, q1, p1, energy: float, force: float, res: float, residual: float,
+                   phi_tol: float) -> bool:  # fmt: skip
+    """The tests of a closed step on one row (:func:`closed_step`, ``vcigen.held_circle.circle_step``; C:
+    ``<model>_held_closed_step``, ``<model>_held_circle_one``): the residual ``res`` within
+    ``residual (1 + |p|)``, no lift-off (``force`` not below ``-EPS_LAM (1 + |force|)`` on a contact row),
+    no inactive row crossed, ``E_d``, the force, ``q1`` and ``p1`` finite."""
+    if not abs(res) <= residual * (1.0 + float(np.max(np.abs(p)))):
+        return False
+    if not k.row_bilateral[row] and force < -EPS_LAM * (1.0 + abs(force)):
+        return False  # a lift-off inside the step
+    if k.r > 1:
+        psi = k.held_rows(q1, kc)[0]
+        if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
+            return False  # an inactive row crossed
+    return all_finite(energy, [force], q1, p1)
+
+
 class Held(NamedTuple):
     """A held grid step that cleared its tests: the end state and what the step books."""
 
@@ -97,16 +114,9 @@ def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: floa
     _, _, _, _, y, w = k.held_root_dir(q1, kc)
     p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, kc)
     p1 = p1[row]
-    if not abs(float(res[row])) <= residual * (1.0 + float(np.max(np.abs(p)))):
-        return None
-    f = float(force[row])
-    if not k.row_bilateral[row] and f < -EPS_LAM * (1.0 + abs(f)):
-        return None  # a lift-off inside the step
-    if k.r > 1:
-        psi = k.held_rows(q1, kc)[0]
-        if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
-            return None  # an inactive row crossed
-    if not all_finite(float(energy), [f], q1, p1):
+    if not one_row_clears(
+        k, kc, row, act, p, q1, p1, float(energy), float(force[row]), float(res[row]), residual, phi_tol
+    ):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)
     lam[row], lam1[row] = lam_r[row], lam1_r[row]
