@@ -140,7 +140,7 @@ def test_rotation_is_the_closed_step(name: str, h: float) -> None:
     ("name", "q0", "v0", "t_end"),
     [
         ("bowl", [0.6, -0.8], [0.0, 0.0], 3.0),
-        ("dome", [0.0, 1.0], [0.1, 0.0], 3.0),  # slides, lifts off, lands, ...
+        ("dome", [0.0, 1.0], [0.1, 0.0], 3.0),  # slides, then lifts off
         ("offset", [1.2, -1.4], [0.5, 0.375], 3.0),
         ("rod", [0.0, -1.0], [3.0, 0.0], 3.0),
     ],
