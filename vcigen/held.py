@@ -161,6 +161,17 @@ def closed_forms(system: DiscreteSystem) -> list[Closed | None]:
     return out
 
 
+def closed_force(cf: Closed, q: tuple, p1: list, acc: sp.Matrix, minv: sp.Matrix) -> sp.Expr:
+    """The normal force of ``SustainedSteps._forces`` on one closed row held alone, at ``q`` with momentum
+    ``p1``: ``-gain (grad F . M^-1 rhs + u1 . Hess F . u1) / w0`` (``u1 = M^-1 p1``; equal to it there:
+    ``grad psi = grad F / gain``, ``u1 . grad F = 0``)."""
+    n = len(q)
+    grad, hf = [cf.form.diff(x) for x in q], sp.hessian(cf.form, q)
+    u1 = [minv[i] * p1[i] for i in range(n)]
+    curv = sum((u1[i] * hf[i, j] * u1[j] for i in range(n) for j in range(n) if hf[i, j] != 0), sp.S.Zero)
+    return -cf.gain * (sum((grad[i] * acc[i] for i in range(n)), sp.S.Zero) + curv) / cf.w0
+
+
 def closed_routines(
     system: DiscreteSystem,
     q0: Arg,
@@ -237,9 +248,7 @@ def closed_routines(
         dot = sum((y_.symbols[at + i] * pp.symbols[i] for i in range(n)), sp.S.Zero)
         for i in range(n):
             p1[r, i] = pp.symbols[i] + w_.symbols[at + i] * dot
-        u1 = [minv[i] * p1[r, i] for i in range(n)]
-        curv = sum((u1[i] * hf[i, j] * u1[j] for i in range(n) for j in range(n) if hf[i, j] != 0), sp.S.Zero)
-        force[r] = -gain * (sum((grad[i] * acc[i] for i in range(n)), sp.S.Zero) + curv) / w0
+        force[r] = closed_force(cf, q.symbols, [p1[r, i] for i in range(n)], acc, minv)
         lam1[r] = -gain / w0 * dot
         res[r] = f / gain
     return [

@@ -95,6 +95,8 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
     * ``held_circle_lam(q, p, v, k) -> lam``: ``Lam`` of a step from its velocity
       (``m (v - v0) = gamma Lam n``).
     """
+    from .held import closed_force  # held imports this module
+
     nr = system.r
     q0, h = fp["q0_arg"], fp["h"]
     x, y = q0.symbols
@@ -110,7 +112,7 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
     for r, c in enumerate(circles):
         if c is None:
             continue
-        f, gain, _, w0 = forms[r]
+        f, gain, _, _ = forms[r]
         (cx, cy), big_r, m, (cvx, cvy), (cpx, cpy), gamma = c
         # in d = q - c and D1 = q1 - c (R n, R n1): each a common subexpression of its uses, no sign or factor
         # distributed into it (sympy distributes -1 * (a + b)), so that CSE shares them
@@ -131,11 +133,7 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
         jx, jy = p1[0] - px - cvx - cpx, p1[1] - py - cvy - cpy
         imp = (jx * (dx + d1x) + jy * (dy + d1y)) / (big_r * gamma * (1 + sq))
         at1 = dict(zip(qs, q1))
-        grad = [f.diff(z) for z in qs]
-        hf = sp.hessian(f, qs)
-        u1 = [fp["minv"][i] * p1[i] for i in range(2)]
-        curv = sum((u1[i] * hf[i, j] * u1[j] for i in range(2) for j in range(2) if hf[i, j] != 0), sp.S.Zero)
-        force = -gain * (sum((grad[i] * fp["acc"][i] for i in range(2)), sp.S.Zero) + curv) / w0
+        force = closed_force(forms[r], qs, list(p1), fp["acc"], fp["minv"])
         seg = dict(zip(fp["v_arg"].symbols, v))
         for i in range(2):
             outs["q1"][r, i], outs["p1"][r, i], outs["v"][r, i] = q1[i], p1[i], v[i]
