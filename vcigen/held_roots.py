@@ -1,7 +1,8 @@
 """What the phases of sustained contact share (:mod:`vcigen.sustained`, :mod:`vcigen.friction_modes`,
 :mod:`vcigen.held_impacts`): their tolerances, a constrained segment's end (:class:`End`) and the Illinois
-root finder that locates their events (a lift-off, a row crossed, a stop, a slide) like the contact time
-(47)."""
+root finder that locates their events (a lift-off, a row crossed, a stop, a slide), whose steps
+(:func:`illinois_point`, :func:`illinois_update`) also locate the contact time (47) in
+:mod:`vcigen.impact_step`."""
 
 from __future__ import annotations
 
@@ -18,6 +19,22 @@ BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 
 
+def illinois_point(a: float, ga: float, b: float, gb: float) -> float:
+    """The next point of Illinois regula falsi on ``[a, b]`` (``ga >= 0 > gb``): the secant's root, or the
+    midpoint where that is not strictly inside."""
+    c = (a * gb - b * ga) / (gb - ga)
+    return c if a < c < b else 0.5 * (a + b)
+
+
+def illinois_update(a: float, ga: float, b: float, gb: float, side: int, c: float, gc: float):
+    """The bracket after ``g(c) = gc`` (``ga >= 0 > gb``): ``(a, ga, b, gb, side)``, ``c`` taking the end of
+    its sign; the other end's value halved when the same end moved twice in a row (``side``: -1 the end ``b``
+    moved last, 1 the end ``a``, 0 none yet)."""
+    if gc < 0:
+        return a, ga / 2 if side == -1 else ga, c, gc, -1
+    return c, gc, b, gb / 2 if side == 1 else gb, 1
+
+
 def illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int, guess) -> float:
     """Illinois regula falsi for the root of ``value`` on ``[0, 1]`` (``value(0) = ga >= 0 > gb = value(1)``).
 
@@ -27,18 +44,9 @@ def illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int,
     """
     a, b, side, v = 0.0, 1.0, 0, guess
     for _ in range(iters):
-        c = (a * gb - b * ga) / (gb - ga)
-        if not a < c < b:
-            c = 0.5 * (a + b)
+        c = illinois_point(a, ga, b, gb)
         gc, v = value(c, v)
-        if gc < 0:
-            b, gb = c, gc
-            ga = ga / 2 if side == -1 else ga
-            side = -1
-        else:
-            a, ga = c, gc
-            gb = gb / 2 if side == 1 else gb
-            side = 1
+        a, ga, b, gb, side = illinois_update(a, ga, b, gb, side, c, gc)
         if abs(gc) <= tiny:
             return c
         if b - a <= width:

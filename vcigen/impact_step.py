@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_law, impact_law
+from .held_roots import illinois_point, illinois_update
 from .result import Impact
 
 
@@ -434,23 +435,16 @@ class ImpactSteps:
             )
         side, phi_b = 0, gb
         for _ in range(200):
-            c = (a * gb - b * ga) / (gb - ga)
-            if not a < c < b:
-                c = 0.5 * (a + b)
+            c = illinois_point(a, ga, b, gb)
             xc, phic = self._sub_solve(seg, c, xb)
             gc = phic[j]
             if gc == 0:  # c is a root
                 b, gb, xb, phi_b = c, gc, xc, gc
                 break
+            a, ga, b, gb, side = illinois_update(a, ga, b, gb, side, c, gc)
             if gc < 0:
-                b, gb, xb, phi_b = c, gc, xc, gc
-                ga = ga / 2 if side == -1 else ga
-                side = -1
-            else:
-                a, ga = c, gc
-                gb = gb / 2 if side == 1 else gb
-                side = 1
-            if b - a < 4e-16 or gc == 0:
+                xb, phi_b = xc, gc
+            if b - a < 4e-16:
                 break
         x, res = k.solve(name, np.append(xb, b), *self._args(seg))
         if not (a - 1e-12 <= x[-1] <= b + 1e-12) and (b - a <= 1e-12 or abs(phi_b) <= self.tol.phi):
