@@ -66,9 +66,7 @@ def parse(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--hs", default=None, help="override the h sweep of every scene, comma list")
     ap.add_argument("--rtols", default=",".join(f"{r:g}" for r in RTOLS))
     ap.add_argument("--phases", type=int, default=8, help="start phases per (method, h)")
-    ap.add_argument(
-        "--targets", default="1e-4,1e-8", help="accuracies for 'wall time to reach', comma list"
-    )
+    ap.add_argument("--targets", default="1e-4,1e-8", help="accuracies for 'wall time to reach', comma list")
     ap.add_argument("--long-steps", type=int, default=100_000, help="steps of the energy long runs")
     ap.add_argument("--drift-steps", type=int, default=1_000_000, help="steps of the C drift runs")
     ap.add_argument("--no-long", action="store_true", help="skip the long runs")

@@ -70,6 +70,19 @@ def test_hoist_groups_invariants_and_keeps_the_value() -> None:
     assert len({v for _, v in consts}) == len(consts)
 
 
+def test_hoist_keeps_a_number_factored_out_of_a_sum() -> None:
+    """A number factored out of a sum (``sympy.factor_terms``) becomes a constant, so that CSE's basic
+    optimizations do not distribute it again: one product, not one a term. Other numbers stay literal."""
+    y0, y1, k = sp.symbols("y0 y1 k", real=True)
+    factored = sp.factor_terms(sp.Float(4.905) * y0 + sp.Float(4.905) * y1)
+    consts, (out,) = hoist([factored + 2 * k * y0], {y0, y1})
+    assert [v for _, v in consts] == [sp.Float(4.905), 2 * k]
+    (c, _), (ck, _) = consts
+    assert out == c * (y0 + y1) + ck * y0
+    _, (reduced,) = sp.cse([out], optimizations="basic")
+    assert reduced.count_ops(visual=True).coeff(sp.Symbol("MUL")) == 2  # c (y0 + y1), ck y0
+
+
 def _numeric(routine: vcigen.routines.Routine, *args: np.ndarray) -> list[np.ndarray]:
     syms = [s for a in routine.inputs for s in a.symbols]
     f = sp.lambdify(syms, [o.expr for o in routine.outputs], modules="numpy")

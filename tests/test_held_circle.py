@@ -135,6 +135,30 @@ def test_rotation_is_the_closed_step(name: str, h: float) -> None:
         assert refused >= 5
 
 
+@pytest.mark.parametrize("name", CIRCLES)
+def test_rotation_force_is_the_closed_force(name: str) -> None:
+    """``held_circle_end``'s normal force, written with ``|q1 - c| = R`` (``|p1|^2 = pt^2 R^2``), is the
+    closed step's (``held_root_end``'s, from the row's gradient and Hessian at ``q1``) at the rotation's end,
+    and so is its residual."""
+    s, k = _kernels(CLOSED[name][0])
+    state = {"rod": "bowl"}.get(name, name)
+    for h in (1e-5, 1e-3, 1e-2):
+        kc = k.held_consts(h)
+        for q, p, _, _ in _states(state, np.random.default_rng(11), 20):
+            w = k.held_circle_start(q, p, kc)[0]
+            if not w[1] >= 0.0:
+                continue
+            sq = math.sqrt(w[1])
+            q1, p1, pt, _, _ = (x[0] for x in k.held_circle_step(q, p, w, [sq], kc))
+            _, _, force, res = (x[0] for x in k.held_circle_end(q, p, q1, p1, [pt, sq], kc))
+            y, wn = k.held_root_dir(q1, kc)[4:]
+            _, _, ref_force, ref_res = k.held_root_end(q1, p1, y, wn, kc)
+            scale = 1.0 + np.abs(p).max()
+            assert abs(force) > 0.1  # not a force that vanishes
+            assert force == pytest.approx(ref_force[0], rel=0, abs=1e-13 * scale**2)
+            assert res == pytest.approx(ref_res[0], rel=0, abs=1e-15 * scale)
+
+
 @needs_cc
 @pytest.mark.parametrize(
     ("name", "q0", "v0", "t_end"),

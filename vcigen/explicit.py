@@ -62,12 +62,14 @@ def hoist(exprs: list[sp.Expr], varying: set[sp.Symbol]) -> tuple[Constants, lis
 
     Inside a sum or product the invariant terms are grouped into one constant
     (``(p0 - h g m / 2) / m`` -> ``(p0 + k1) k0``). Returns ``(constants, exprs)``
-    with the constants in order of first use; numbers stay literal.
+    with the constants in order of first use; numbers stay literal, except a number factored out of a sum
+    (``4.905 (y0 + y1)``, as ``sympy.factor_terms`` leaves it), which becomes a constant: CSE's basic
+    optimizations would distribute a literal one again.
     """
     consts: dict[sp.Expr, sp.Symbol] = {}
 
-    def const(e: sp.Expr) -> sp.Expr:
-        if e.is_number:
+    def const(e: sp.Expr, number: bool = False) -> sp.Expr:
+        if e.is_number and not number:
             return e
         if e not in consts:
             consts[e] = sp.Dummy(f"k{len(consts)}", real=True)
@@ -80,6 +82,10 @@ def hoist(exprs: list[sp.Expr], varying: set[sp.Symbol]) -> tuple[Constants, lis
             return const(e)
         if e.is_Atom:
             return e
+        if isinstance(e, sp.Mul) and len(e.args) == 2 and e.args[0].is_Number and e.args[1].is_Add:
+            # a number factored out of a sum (sympy.factor_terms): a constant, so that no later pass (CSE's
+            # basic optimizations) distributes it again
+            return sp.Mul(const(e.args[0], number=True), visit(e.args[1]))
         if isinstance(e, (sp.Add, sp.Mul)):
             fixed = [a for a in e.args if not a.free_symbols & varying]
             moving = [visit(a) for a in e.args if a.free_symbols & varying]

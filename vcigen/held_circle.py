@@ -19,8 +19,10 @@ the state (a force constant in ``q``: gravity). Then, with ``n = (q - c) / R``, 
 * the impulse ``Lam + Lam'`` from the momentum change ``J = p1 - p0 - c_v - c_p = gamma (Lam n + Lam' n1)``
   (``grad psi = gamma n`` on the row) along ``n + n1``: ``n . (n + n1) = n1 . (n + n1) = 1 + s``; ``Lam``
   from ``m (v - v0) = gamma Lam n``;
-* ``E_d`` (``held_segment``), the normal force and the residual ``F(q1) / gain`` (``held_circle_end``) and
-  the tests are the closed step's.
+* ``E_d`` (``held_segment``'s), the normal force and the residual ``F(q1) / gain`` (``held_root_end``'s) and
+  the tests are the closed step's; the first three, with the impulse, are written in the end's own symbols
+  (``held_circle_end``: in ``q1``, ``p1``, not in the rotation, where SymPy expands them) and the force with
+  ``|q1 - c| = R`` (``|p1|^2 = pt^2 R^2``): about 40 products a step, 55 before (``bench.held_curved``).
 
 The same RATTLE solution to round-off as :func:`vcigen.held_step.closed_step` (``bench.held_rot``:
 ``q`` <= 4e-15, ``p`` <= 1e-14 over 300 steps). The C loop is ``<model>_held_circle_loop``
@@ -81,17 +83,36 @@ def circle_forms(closed: list, q: tuple, p0: tuple, v: tuple, free: dict) -> lis
     return out
 
 
+def circle_energy(energy: sp.Expr, q0: tuple, v: tuple, q1: tuple, h: sp.Symbol) -> sp.Expr:
+    """``E_d`` (55) of a segment (``energy`` at ``(q0, v)``, quadratic in ``v``) at ``v = (q1 - q0) / h``, in
+    ``q1``'s own symbols: ``c |q1 - q0|^2 / h^2`` (an isotropic mass: one factor over the sum) plus the rest,
+    linear in ``q0`` and ``q1`` under a constant force, its common factor taken out (the bowl's potential
+    ``g (y0 + y1) / 2`` is one product, not three)."""
+    poly = sp.Poly(energy, *v)
+    quad = [poly.coeff_monomial(v[i] * v[j]) for i in range(2) for j in range(i, 2)]
+    seg = {v[i]: (q1[i] - q0[i]) / h for i in range(2)}
+    if quad[1] != 0 or sp.simplify(quad[0] - quad[2]) != 0:
+        return energy.xreplace(seg)
+    rest = sp.expand((energy - quad[0] * (v[0] ** 2 + v[1] ** 2)).xreplace(seg))
+    squares = sp.Add(*((q1[i] - q0[i]) ** 2 for i in range(2)))
+    return sp.Mul(quad[0] / h**2, squares, evaluate=False) + sp.factor_terms(rest)
+
+
 def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list[tuple]:
     """The routines of the rotation step (pieces of ``vcigen.held.held_routines``; ``fp``:
     ``vcigen.held.free_parts``), per row (zeros for rows without one), on the state ``(q, p)`` (``q0_arg``,
     ``p_arg``) and the carried ``w = (omega, arg)``:
 
     * ``held_circle_start(q, p, k) -> w``: ``(omega, arg)`` formed from the state (a loop's entry);
-    * ``held_circle_step(q, p, w, s, k) -> q1, p1, v, w1, imp, energy, force, res, slope``: the step
-      (:mod:`vcigen.held_circle`'s docstring) with ``s = sqrt(arg)``, ``w1 = (o0, o1, a0, a1)``: the next
-      ``w`` is ``(o0 + o1 s, a0 + a1 s)``, the impulse ``(Lam + Lam') / h``, ``E_d`` (55),
-      the closed step's normal force (``held_root_end``'s at ``u1 = M^-1 p1``), its residual ``F(q1) / gain``
-      and ``slope = R |n|^2 + h v0 . n`` (> 0: the small root holds, ``B > 0``);
+    * ``held_circle_step(q, p, w, s, k) -> q1, p1, pt, w1, slope``: the rotation
+      (:mod:`vcigen.held_circle`'s docstring) with ``s = sqrt(arg)``, ``p1 = pt (-D1_y, D1_x)``,
+      ``w1 = (o0, o1, a0, a1)``: the next ``w`` is ``(o0 + o1 s, a0 + a1 s)``, and
+      ``slope = |d|^2 + h v0 . d`` (> 0: the small root holds, ``B > 0``);
+    * ``held_circle_end(q, p, q1, p1, e, k) -> imp, energy, force, res`` with ``e = (pt, s)``: the impulse
+      ``(Lam + Lam') / h``, ``E_d`` (55), the closed step's normal force (``held_root_end``'s at
+      ``u1 = M^-1 p1``, with ``|q1 - c| = R``: ``|p1|^2 = pt^2 R^2``) and its residual ``F(q1) / gain``, all
+      in ``q1`` and ``p1``'s own symbols (its own routine: written in them, each is a few products; in the
+      rotation's symbols SymPy expands them);
     * ``held_circle_lam(q, p, v, k) -> lam``: ``Lam`` of a step from its velocity
       (``m (v - v0) = gamma Lam n``).
     """
@@ -104,10 +125,13 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
     w_arg = Arg("w", (sp.Dummy("om", real=True), sp.Dummy("arg", real=True)))
     s_arg = Arg("s", (sp.Dummy("s", real=True),))
     v_arg = Arg("v", tuple(sp.Dummy(f"v{i}", real=True) for i in range(2)))
+    q1_arg = Arg("q1", tuple(sp.Dummy(f"q1_{i}", real=True) for i in range(2)))
+    p1_arg = Arg("p1", tuple(sp.Dummy(f"p1_{i}", real=True) for i in range(2)))
+    e_arg = Arg("e", (sp.Dummy("pt", real=True), sp.Dummy("s", real=True)))
     om, arg = w_arg.symbols
     qs = fp["q_arg"].symbols
-    outs = {k: sp.zeros(nr, size) for k, size in (("w", 2), ("q1", 2), ("p1", 2), ("v", 2), ("w1", 4))}
-    outs |= {k: sp.zeros(nr, 1) for k in ("imp", "energy", "force", "res", "slope", "lam")}
+    outs = {k: sp.zeros(nr, size) for k, size in (("w", 2), ("q1", 2), ("p1", 2), ("w1", 4))}
+    outs |= {k: sp.zeros(nr, 1) for k in ("pt", "imp", "energy", "force", "res", "slope", "lam")}
     forms = system.structure.held_closed_forms
     for r, c in enumerate(circles):
         if c is None:
@@ -123,40 +147,49 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
         outs["w"][r, 0], outs["w"][r, 1] = om0, 1 / nn - (h * om0 / big_r) ** 2
         a, sq = h * om / big_r, s_arg.symbols[0]
         d1x, d1y = sq * dx - a * dy, sq * dy + a * dx
-        q1 = (cx + d1x, cy + d1y)
         pi1 = (m * om + (cpy * d1x - cpx * d1y) / big_r) / big_r  # pi1 / R: p1 = (pi1 / R) (-D1y, D1x)
-        p1 = (sp.Mul(-1, pi1, d1y, evaluate=False), pi1 * d1x)
-        v = ((d1x - dx) / h, (d1y - dy) / h)
         gx, gy = (cvx + cpx) / m, (cvy + cpy) / m
         o0, o1 = om - a * (gx * dx + gy * dy) / big_r, (gy * dx - gx * dy) / big_r
         ho0, ho1 = h * o0 / big_r, h * o1 / big_r
-        jx, jy = p1[0] - px - cvx - cpx, p1[1] - py - cvy - cpy
-        imp = (jx * (dx + d1x) + jy * (dy + d1y)) / (big_r * gamma * (1 + sq))
-        at1 = dict(zip(qs, q1))
-        force = closed_force(forms[r], qs, list(p1), fp["acc"], fp["minv"])
-        seg = dict(zip(fp["v_arg"].symbols, v))
-        for i in range(2):
-            outs["q1"][r, i], outs["p1"][r, i], outs["v"][r, i] = q1[i], p1[i], v[i]
+        outs["q1"][r, 0], outs["q1"][r, 1] = cx + d1x, cy + d1y
+        outs["p1"][r, 0], outs["p1"][r, 1] = sp.Mul(-1, pi1, d1y, evaluate=False), pi1 * d1x
+        outs["pt"][r] = pi1
         # the next (omega, arg) = (o0 + o1 s, a0 + a1 s): s^2 = arg taken off; the loop forms them (its chain
         # from one sqrt to the next is then one multiply-add)
         w1 = (o0, o1, (2 - nn * (arg + a**2) - ho1**2 * arg) - ho0**2, -2 * ho0 * ho1)
         for i in range(4):
             outs["w1"][r, i] = w1[i]
-        outs["imp"][r] = imp / h
-        outs["energy"][r] = fp["energy"].xreplace(seg)
-        outs["force"][r] = force.xreplace(at1)
-        outs["res"][r] = (f / gain).xreplace(at1)
-        outs["slope"][r] = (dx**2 + dy**2 + h * (v0x * dx + v0y * dy)) / big_r
+        outs["slope"][r] = dx**2 + dy**2 + h * (v0x * dx + v0y * dy)
+        # the end, in q1 = (X, Y), p1 and e = (pt, s)
+        (bx, by), (qx, qy), (pt, se) = q1_arg.symbols, p1_arg.symbols, e_arg.symbols
+        ex, ey = bx - cx, by - cy
+        jx, jy = qx - px - cvx - cpx, qy - py - cvy - cpy
+        outs["imp"][r] = (jx * (dx + ex) + jy * (dy + ey)) / (big_r * gamma * (1 + se)) / h
+        outs["energy"][r] = circle_energy(fp["energy"], (x, y), fp["v_arg"].symbols, (bx, by), h)
+        # the force with p1 = pt (-D1y, D1x) and |D1|^2 = R^2 (the row): pt^2 R^2 for |p1|^2
+        ux, uy = sp.Dummy("ux"), sp.Dummy("uy")
+        force = closed_force(forms[r], qs, [-pt * uy, pt * ux], fp["acc"], fp["minv"])
+        force = sp.expand(force.xreplace({qs[0]: cx + ux, qs[1]: cy + uy}))
+        force = sp.rem(force, ux**2 + uy**2 - big_r**2, ux)
+        outs["force"][r] = sp.factor_terms(sp.expand(force.xreplace({ux: ex, uy: ey})))
+        outs["res"][r] = (f / gain).xreplace(dict(zip(qs, (bx, by))))
         vx, vy = v_arg.symbols
         outs["lam"][r] = m * ((vx - v0x) * dx + (vy - v0y) * dy) / (big_r * gamma)
-    step_outs = ("q1", "p1", "v", "w1", "imp", "energy", "force", "res", "slope")
+    step = ("q1", "p1", "pt", "w1", "slope")
+    end = ("imp", "energy", "force", "res")
     return [
         ("held_circle_start", (q0, p_arg), [("w", outs["w"])], "Per circle row, (omega, arg) at (q, p)."),
         (
             "held_circle_step",
             (q0, p_arg, w_arg, s_arg),
-            [(k, outs[k]) for k in step_outs],
+            [(k, outs[k]) for k in step],
             "Per circle row, the held step as a rotation (vcigen.held_circle).",
+        ),
+        (
+            "held_circle_end",
+            (q0, p_arg, q1_arg, p1_arg, e_arg),
+            [(k, outs[k]) for k in end],
+            "Per circle row, the rotation step's impulse, E_d, force and residual at its end.",
         ),
         ("held_circle_lam", (q0, p_arg, v_arg), [("lam", outs["lam"])], "Per circle row, Lam of a step."),
     ]
@@ -192,9 +225,11 @@ def circle_step(k, q, p, w, row: int, act, h: float, residual: float, phi_tol: f
     if not w[1] >= 0.0:
         return None  # D < 0
     s = math.sqrt(w[1])
-    q1, p1, v, w1, imp, energy, force, res, slope = (x[row] for x in k.held_circle_step(q, p, w, [s], kc))
+    q1, p1, pt, w1, slope = (x[row] for x in k.held_circle_step(q, p, w, [s], kc))
     if not slope > 0.0:
         return None  # the small root does not hold (B <= 0)
+    imp, energy, force, res = (x[row] for x in k.held_circle_end(q, p, q1, p1, [pt, s], kc))
+    v = (q1 - q) / h
     if not one_row_clears(
         k, kc, row, act, p, q1, p1, float(energy), float(force), float(res), residual, phi_tol
     ):

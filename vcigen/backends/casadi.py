@@ -425,18 +425,17 @@ class CasadiKernels(ParameterSlots):
         return self._held_call("held_circle_start", (2 * self.r,), q, p, kc)[0].reshape(self.r, 2)
 
     def held_circle_step(self, q, p, w, s, kc):
-        """Per row ``(q1, p1, v, w1, imp, E_d, force, res, slope)`` of the rotation step from ``(q, p, w)``
-        with ``s = sqrt(w[1])``."""
+        """Per row ``(q1, p1, pt, w1, slope)`` of the rotation step from ``(q, p, w)`` with
+        ``s = sqrt(w[1])``."""
         r = self.r
-        sizes = (2 * r, 2 * r, 2 * r, 4 * r, r, r, r, r, r)
-        q1, p1, v, w1, *rest = self._held_call("held_circle_step", sizes, q, p, w, s, kc)
-        return (
-            q1.reshape(r, 2),
-            p1.reshape(r, 2),
-            v.reshape(r, 2),
-            w1.reshape(r, 4),
-            *(np.asarray(x, float) for x in rest),
-        )
+        sizes = (2 * r, 2 * r, r, 4 * r, r)
+        q1, p1, pt, w1, slope = self._held_call("held_circle_step", sizes, q, p, w, s, kc)
+        return q1.reshape(r, 2), p1.reshape(r, 2), pt, w1.reshape(r, 4), slope
+
+    def held_circle_end(self, q, p, q1, p1, e, kc):
+        """Per row ``(imp, E_d, force, res)`` of the rotation step from ``(q, p)`` to ``(q1, p1)``, with
+        ``e = (pt, s)``."""
+        return self._held_call("held_circle_end", (self.r,) * 4, q, p, q1, p1, e, kc)
 
     def held_circle_lam(self, q, p, v, kc):
         """Per row ``Lam`` of a rotation step from ``(q, p)`` with velocity ``v``."""

@@ -123,7 +123,7 @@ def tangent_only(name: str) -> bool:
 
 # Routines inlined into their loop whatever their size (GCC left held_circle_step out of line: its outputs
 # then went through memory, 26 ns a step against 16 inlined, bench.held_curved)
-ALWAYS_INLINE = frozenset({"held_circle_step"})
+ALWAYS_INLINE = frozenset({"held_circle_step", "held_circle_end"})
 
 
 def routine_context(r: Routine, inverse_powers: bool = False) -> dict[str, Any]:

@@ -380,13 +380,12 @@ static inline void pendulum_wall_held_consts(const double *tau, const double *pa
     const double t12 = t1*t8;
     const double t13 = ((par[0])*(par[0]));
     const double t14 = 1.0/t13;
-    const double t15 = 2*t14;
-    const double t16 = 2*par[1];
-    const double t17 = 1.0/par[2];
-    const double t18 = pow(par[2], -4);
-    const double t19 = tau[0]*t17;
-    const double t20 = par[1]*t19;
-    const double t21 = t10*t8;
+    const double t15 = 2*par[1];
+    const double t16 = 1.0/par[2];
+    const double t17 = pow(par[2], -4);
+    const double t18 = tau[0]*t16;
+    const double t19 = par[1]*t18;
+    const double t20 = t10*t8;
     k[0] = t0;
     k[1] = -t3;
     k[2] = par[3];
@@ -405,30 +404,30 @@ static inline void pendulum_wall_held_consts(const double *tau, const double *pa
     k[15] = -16*t10*t14*t4;
     k[16] = (1.0/8.0)*t11*t13*t8;
     k[17] = -t9;
-    k[18] = -t15;
-    k[19] = t16;
+    k[18] = -2*t14;
+    k[19] = t15;
     k[20] = t9;
     k[21] = -t0;
-    k[22] = t17;
+    k[22] = t16;
     k[23] = t4;
-    k[24] = -t10*t18;
-    k[25] = -t19;
-    k[26] = t19;
-    k[27] = -t1*t20;
-    k[28] = t7;
-    k[29] = par[1]*t21;
+    k[24] = -t10*t17;
+    k[25] = -t18;
+    k[26] = t18;
+    k[27] = -t1*t19;
+    k[28] = par[1]*t20;
+    k[29] = -t19;
     k[30] = -t20;
-    k[31] = -t21;
-    k[32] = t21;
-    k[33] = -t8;
-    k[34] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t18;
-    k[35] = ((tau[0])*(tau[0])*(tau[0]))*t16/((par[2])*(par[2])*(par[2]));
+    k[31] = t20;
+    k[32] = -t8;
+    k[33] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t17;
+    k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
+    k[35] = tau[0];
     k[36] = tau[0]*t5;
     k[37] = (1.0/2.0)*t7*t8;
-    k[38] = t2;
-    k[39] = t1*t11;
-    k[40] = -t15*t8;
-    k[41] = tau[0];
+    k[38] = t1*t11;
+    k[39] = t2;
+    k[40] = 1.0/2.0;
+    k[41] = t5*t8;
     k[42] = t12;
 }
 
@@ -567,54 +566,50 @@ static inline void pendulum_wall_held_circle_start(const double *q0, const doubl
 }
 
 /* Per circle row, the held step as a rotation (vcigen.held_circle). */
-PENDULUM_WALL_ROUTINE_HOT void pendulum_wall_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *v, double *w1, double *imp, double *energy, double *force, double *res, double *slope)
+PENDULUM_WALL_ROUTINE_HOT void pendulum_wall_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *pt, double *w1, double *slope)
 {
     const double t0 = k[25]*w[0]*q0[1] + q0[0]*s[0];
     const double t1 = k[26]*w[0]*q0[0] + q0[1]*s[0];
-    const double t2 = k[27]*t0 + k[4]*w[0];
-    const double t3 = k[22]*t2;
-    const double t4 = t1*t3;
-    const double t5 = t0*t3;
-    const double t6 = -q0[0] + t0;
-    const double t7 = -q0[1] + t1;
-    const double t8 = k[29]*q0[1] + 1;
-    const double t9 = w[0]*t8;
-    const double t10 = ((q0[0])*(q0[0]));
-    const double t11 = ((w[0])*(w[0]));
-    const double t12 = ((q0[1])*(q0[1])) + t10;
-    const double t13 = ((t0)*(t0));
-    const double t14 = k[40]*((t2)*(t2));
-    const double t15 = ((t1)*(t1));
+    const double t2 = k[22]*(k[27]*t0 + k[4]*w[0]);
+    const double t3 = k[28]*q0[1] + 1;
+    const double t4 = w[0]*t3;
+    const double t5 = ((q0[0])*(q0[0]));
+    const double t6 = ((w[0])*(w[0]));
+    const double t7 = ((q0[1])*(q0[1])) + t5;
     q1[0] = 0;
     q1[1] = 0;
     q1[2] = t0;
     q1[3] = t1;
     p1[0] = 0;
     p1[1] = 0;
-    p1[2] = -t4;
-    p1[3] = t5;
-    v[0] = 0;
-    v[1] = 0;
-    v[2] = k[28]*t6;
-    v[3] = k[28]*t7;
+    p1[2] = -t1*t2;
+    p1[3] = t0*t2;
+    pt[0] = 0;
+    pt[1] = t2;
     w1[0] = 0;
     w1[1] = 0;
     w1[2] = 0;
     w1[3] = 0;
-    w1[4] = t9;
-    w1[5] = k[30]*q0[0];
-    w1[6] = w[1]*k[34]*t10 + k[31]*t11*((t8)*(t8)) + k[33]*t12*(w[1] + k[32]*t11) + 2;
-    w1[7] = k[35]*q0[0]*t9;
-    imp[0] = 0;
-    imp[1] = -k[37]*((p0[0] + t4)*(q0[0] + t0) - (q0[1] + t1)*(k[36] - p0[1] + t5))/(s[0] + 1);
-    energy[0] = 0;
-    energy[1] = k[38]*t7 + k[39]*((t6)*(t6)) + k[39]*((t7)*(t7)) + k[6]*q0[1];
-    force[0] = 0;
-    force[1] = k[20]*(k[19]*t1 + t13*t14 + t14*t15);
-    res[0] = 0;
-    res[1] = k[3] + t13 + t15;
+    w1[4] = t4;
+    w1[5] = k[29]*q0[0];
+    w1[6] = w[1]*k[33]*t5 + k[30]*((t3)*(t3))*t6 + k[32]*t7*(w[1] + k[31]*t6) + 2;
+    w1[7] = k[34]*q0[0]*t4;
     slope[0] = 0;
-    slope[1] = k[22]*(k[0]*k[41]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t12);
+    slope[1] = k[0]*k[35]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t7;
+}
+
+/* Per circle row, the rotation step's impulse, E_d, force and residual at its end. */
+PENDULUM_WALL_ROUTINE_HOT void pendulum_wall_held_circle_end(const double *q0, const double *p0, const double *q1, const double *p1, const double *e, const double *k, double *imp, double *energy, double *force, double *res)
+{
+    const double t0 = q0[1] + q1[1];
+    imp[0] = 0;
+    imp[1] = -k[37]*(-t0*(k[36] - p0[1] + p1[1]) + (p0[0] - p1[0])*(q0[0] + q1[0]))/(e[1] + 1);
+    energy[0] = 0;
+    energy[1] = k[38]*(((q0[0] - q1[0])*(q0[0] - q1[0])) + ((q0[1] - q1[1])*(q0[1] - q1[1]))) + k[39]*t0;
+    force[0] = 0;
+    force[1] = k[40]*(((e[0])*(e[0]))*k[21] + k[41]*q1[1]);
+    res[0] = 0;
+    res[1] = k[3] + ((q1[0])*(q1[0])) + ((q1[1])*(q1[1]));
 }
 
 /* Per circle row, Lam of a step. */
@@ -2597,18 +2592,22 @@ static const unsigned char pendulum_wall_held_circle[PENDULUM_WALL_R_DIM] = { 0,
 
 /* held_circle.circle_step: the rotation step from (q, p) on row `row` held alone, with w = (omega, arg) (the
  * previous step's w1, or held_circle_start's); returns 0 if it cleared the closed step's tests (B > 0, D >= 0,
- * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, v, w1 (the next w), *e (E_d) and
- * *imp ((Lam + Lam') / h) written; 1 if not: the general chain takes it. */
+ * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, w1 (the next w), *e (E_d) and
+ * *imp ((Lam + Lam') / h) written; 1 if not: the general chain takes it. Its velocity (q1 - q) / h is formed
+ * by those that read it (the loop at its exit). */
 PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_circle_one(const double *kh, double residual, double phi_tol,
-    const int *act, int row, const double *q, const double *p, const double *w, double *q1, double *p1, double *v,
-    double *w1, double *e, double *imp)
+    const int *act, int row, const double *q, const double *p, const double *w, double *q1, double *p1, double *w1,
+    double *e, double *imp)
 {
-    double qr[PENDULUM_WALL_R_DIM * 2], pr[PENDULUM_WALL_R_DIM * 2], vr[PENDULUM_WALL_R_DIM * 2], wr[PENDULUM_WALL_R_DIM * 4];
+    double qr[PENDULUM_WALL_R_DIM * 2], pr[PENDULUM_WALL_R_DIM * 2], pt[PENDULUM_WALL_R_DIM], wr[PENDULUM_WALL_R_DIM * 4];
     double ir[PENDULUM_WALL_R_DIM], er[PENDULUM_WALL_R_DIM], force[PENDULUM_WALL_R_DIM], res[PENDULUM_WALL_R_DIM];
-    double slope[PENDULUM_WALL_R_DIM], f, r0, tot;
+    double slope[PENDULUM_WALL_R_DIM], ek[2], f, r0, tot;
     const double sk[1] = { sqrt(w[1]) };
     int clear;
-    pendulum_wall_held_circle_step(q, p, w, sk, kh, qr, pr, vr, wr, ir, er, force, res, slope);
+    pendulum_wall_held_circle_step(q, p, w, sk, kh, qr, pr, pt, wr, slope);
+    ek[0] = pt[row];
+    ek[1] = sk[0];
+    pendulum_wall_held_circle_end(q, p, qr + row * 2, pr + row * 2, ek, kh, ir, er, force, res);
     f = force[row];
     r0 = res[row];
     tot = er[row] + f + qr[row * 2] + pr[row * 2] + qr[row * 2 + 1] + pr[row * 2 + 1]; /* held.all_finite */
@@ -2631,8 +2630,6 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_circle_one(const double *kh, do
     q1[1] = qr[row * 2 + 1];
     p1[0] = pr[row * 2];
     p1[1] = pr[row * 2 + 1];
-    v[0] = vr[row * 2];
-    v[1] = vr[row * 2 + 1];
     w1[0] = wr[row * 4] + wr[row * 4 + 1] * sk[0]; /* (o0 + o1 s, a0 + a1 s): one multiply-add on the chain */
     w1[1] = wr[row * 4 + 2] + wr[row * 4 + 3] * sk[0];
     *e = er[row];
@@ -2662,12 +2659,8 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_circle_loop(const pendulum_wal
     wk[1] = w[row * 2 + 1];
     for (s = 0; s < n; ++s) {
         double q1[2] = {0.0, 0.0}, p1[2] = {0.0, 0.0}, w1[2] = {0.0, 0.0}; /* set by a step taken */
-        if (pendulum_wall_held_circle_one(kh, residual, phi_tol, act, row, qk, pk, wk, q1, p1, v, w1, &e, &imp)) {
+        if (pendulum_wall_held_circle_one(kh, residual, phi_tol, act, row, qk, pk, wk, q1, p1, w1, &e, &imp)) {
             break;
-        }
-        if (s + 1 == n) { /* Lam of the last step: the general chain's Newton start */
-            pendulum_wall_held_circle_lam(qk, pk, v, kh, lr);
-            lam[row] = lr[row];
         }
         qk[0] = q1[0];
         qk[1] = q1[1];
@@ -2691,9 +2684,11 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_circle_loop(const pendulum_wal
             FC[s * PENDULUM_WALL_NC + j] = j == pendulum_wall_row_constraint[row] ? imp : 0.0;
         }
     }
-    if (s > 0 && s < n) { /* stopped by a step the general chain takes: Lam of the last one taken */
+    if (s > 0) { /* the last step's velocity and (the general chain's Newton start) Lam, from its start */
         const double qb[2] = { s > 1 ? Q[(s - 2) * PENDULUM_WALL_N] : q[0], s > 1 ? Q[(s - 2) * PENDULUM_WALL_N + 1] : q[1] };
         const double pb[2] = { s > 1 ? P[(s - 2) * PENDULUM_WALL_N] : p[0], s > 1 ? P[(s - 2) * PENDULUM_WALL_N + 1] : p[1] };
+        v[0] = (qk[0] - qb[0]) / c->h;
+        v[1] = (qk[1] - qb[1]) / c->h;
         pendulum_wall_held_circle_lam(qb, pb, v, kh, lr);
         lam[row] = lr[row];
     }
@@ -2725,9 +2720,11 @@ int pendulum_wall_eval_held_circle_step(const double *par, double h, double resi
         w[0] = ws[row * 2];
         w[1] = ws[row * 2 + 1];
     }
-    if (pendulum_wall_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, v, w1, e, &imp)) {
+    if (pendulum_wall_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, w1, e, &imp)) {
         return 0;
     }
+    v[0] = (q1[0] - q[0]) / h;
+    v[1] = (q1[1] - q[1]) / h;
     pendulum_wall_held_circle_lam(q, p, v, kh, lr);
     lam[row] = lr[row];
     lam1[row] = imp * h - lr[row];

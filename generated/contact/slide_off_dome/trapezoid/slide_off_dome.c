@@ -394,11 +394,10 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     const double t13 = 1.0/t12;
     const double t14 = 1.0/par[2];
     const double t15 = 2*par[1];
-    const double t16 = 2*t13;
-    const double t17 = pow(par[2], -4);
-    const double t18 = tau[0]*t14;
-    const double t19 = par[1]*t18;
-    const double t20 = t10*t8;
+    const double t16 = pow(par[2], -4);
+    const double t17 = tau[0]*t14;
+    const double t18 = par[1]*t17;
+    const double t19 = t10*t8;
     k[0] = t0;
     k[1] = -t3;
     k[2] = -par[2];
@@ -418,29 +417,29 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[16] = (1.0/4.0)*t11*t12*t14;
     k[17] = -t1*t14;
     k[18] = -t15;
-    k[19] = t16;
+    k[19] = 2*t13;
     k[20] = (1.0/2.0)*t14;
     k[21] = -t0;
     k[22] = t14;
     k[23] = t5;
-    k[24] = -t10*t17;
-    k[25] = -t18;
-    k[26] = t18;
-    k[27] = -t1*t19;
-    k[28] = t7;
-    k[29] = par[1]*t20;
+    k[24] = -t10*t16;
+    k[25] = -t17;
+    k[26] = t17;
+    k[27] = -t1*t18;
+    k[28] = par[1]*t19;
+    k[29] = -t18;
     k[30] = -t19;
-    k[31] = -t20;
-    k[32] = t20;
-    k[33] = -t8;
-    k[34] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t17;
-    k[35] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
+    k[31] = t19;
+    k[32] = -t8;
+    k[33] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t16;
+    k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
+    k[35] = tau[0];
     k[36] = tau[0]*t4;
     k[37] = t14*t7;
-    k[38] = t2;
-    k[39] = t1*t11;
-    k[40] = t16*t8;
-    k[41] = tau[0];
+    k[38] = t1*t11;
+    k[39] = t2;
+    k[40] = -par[2]*t0;
+    k[41] = t14*t4;
     k[42] = par[0]*t14;
 }
 
@@ -553,39 +552,36 @@ static inline void slide_off_dome_held_circle_start(const double *q0, const doub
 }
 
 /* Per circle row, the held step as a rotation (vcigen.held_circle). */
-SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *v, double *w1, double *imp, double *energy, double *force, double *res, double *slope)
+SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *pt, double *w1, double *slope)
 {
     const double t0 = k[25]*w[0]*q0[1] + q0[0]*s[0];
     const double t1 = k[26]*w[0]*q0[0] + q0[1]*s[0];
-    const double t2 = k[27]*t0 + k[3]*w[0];
-    const double t3 = k[22]*t2;
-    const double t4 = t1*t3;
-    const double t5 = t0*t3;
-    const double t6 = -q0[0] + t0;
-    const double t7 = -q0[1] + t1;
-    const double t8 = k[29]*q0[1] + 1;
-    const double t9 = w[0]*t8;
-    const double t10 = ((q0[0])*(q0[0]));
-    const double t11 = ((w[0])*(w[0]));
-    const double t12 = ((q0[1])*(q0[1])) + t10;
-    const double t13 = ((t0)*(t0));
-    const double t14 = k[40]*((t2)*(t2));
-    const double t15 = ((t1)*(t1));
+    const double t2 = k[22]*(k[27]*t0 + k[3]*w[0]);
+    const double t3 = k[28]*q0[1] + 1;
+    const double t4 = w[0]*t3;
+    const double t5 = ((q0[0])*(q0[0]));
+    const double t6 = ((w[0])*(w[0]));
+    const double t7 = ((q0[1])*(q0[1])) + t5;
     q1[0] = t0;
     q1[1] = t1;
-    p1[0] = -t4;
-    p1[1] = t5;
-    v[0] = k[28]*t6;
-    v[1] = k[28]*t7;
-    w1[0] = t9;
-    w1[1] = k[30]*q0[0];
-    w1[2] = w[1]*k[34]*t10 + k[31]*t11*((t8)*(t8)) + k[33]*t12*(w[1] + k[32]*t11) + 2;
-    w1[3] = k[35]*q0[0]*t9;
-    imp[0] = -k[37]*((p0[0] + t4)*(q0[0] + t0) - (q0[1] + t1)*(k[36] - p0[1] + t5))/(s[0] + 1);
-    energy[0] = k[38]*t7 + k[39]*((t6)*(t6)) + k[39]*((t7)*(t7)) + k[5]*q0[1];
-    force[0] = k[17]*(k[18]*t1 + t13*t14 + t14*t15);
-    res[0] = k[20]*(k[8] + t13 + t15);
-    slope[0] = k[22]*(k[0]*k[41]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t12);
+    p1[0] = -t1*t2;
+    p1[1] = t0*t2;
+    pt[0] = t2;
+    w1[0] = t4;
+    w1[1] = k[29]*q0[0];
+    w1[2] = w[1]*k[33]*t5 + k[30]*((t3)*(t3))*t6 + k[32]*t7*(w[1] + k[31]*t6) + 2;
+    w1[3] = k[34]*q0[0]*t4;
+    slope[0] = k[0]*k[35]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t7;
+}
+
+/* Per circle row, the rotation step's impulse, E_d, force and residual at its end. */
+SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_end(const double *q0, const double *p0, const double *q1, const double *p1, const double *e, const double *k, double *imp, double *energy, double *force, double *res)
+{
+    const double t0 = q0[1] + q1[1];
+    imp[0] = -k[37]*(-t0*(k[36] - p0[1] + p1[1]) + (p0[0] - p1[0])*(q0[0] + q1[0]))/(e[1] + 1);
+    energy[0] = k[38]*(((q0[0] - q1[0])*(q0[0] - q1[0])) + ((q0[1] - q1[1])*(q0[1] - q1[1]))) + k[39]*t0;
+    force[0] = ((e[0])*(e[0]))*k[40] + k[41]*q1[1];
+    res[0] = k[20]*(k[8] + ((q1[0])*(q1[0])) + ((q1[1])*(q1[1])));
 }
 
 /* Per circle row, Lam of a step. */
@@ -2562,18 +2558,22 @@ static const unsigned char slide_off_dome_held_circle[SLIDE_OFF_DOME_R_DIM] = { 
 
 /* held_circle.circle_step: the rotation step from (q, p) on row `row` held alone, with w = (omega, arg) (the
  * previous step's w1, or held_circle_start's); returns 0 if it cleared the closed step's tests (B > 0, D >= 0,
- * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, v, w1 (the next w), *e (E_d) and
- * *imp ((Lam + Lam') / h) written; 1 if not: the general chain takes it. */
+ * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, w1 (the next w), *e (E_d) and
+ * *imp ((Lam + Lam') / h) written; 1 if not: the general chain takes it. Its velocity (q1 - q) / h is formed
+ * by those that read it (the loop at its exit). */
 SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_circle_one(const double *kh, double residual, double phi_tol,
-    const int *act, int row, const double *q, const double *p, const double *w, double *q1, double *p1, double *v,
-    double *w1, double *e, double *imp)
+    const int *act, int row, const double *q, const double *p, const double *w, double *q1, double *p1, double *w1,
+    double *e, double *imp)
 {
-    double qr[SLIDE_OFF_DOME_R_DIM * 2], pr[SLIDE_OFF_DOME_R_DIM * 2], vr[SLIDE_OFF_DOME_R_DIM * 2], wr[SLIDE_OFF_DOME_R_DIM * 4];
+    double qr[SLIDE_OFF_DOME_R_DIM * 2], pr[SLIDE_OFF_DOME_R_DIM * 2], pt[SLIDE_OFF_DOME_R_DIM], wr[SLIDE_OFF_DOME_R_DIM * 4];
     double ir[SLIDE_OFF_DOME_R_DIM], er[SLIDE_OFF_DOME_R_DIM], force[SLIDE_OFF_DOME_R_DIM], res[SLIDE_OFF_DOME_R_DIM];
-    double slope[SLIDE_OFF_DOME_R_DIM], f, r0, tot;
+    double slope[SLIDE_OFF_DOME_R_DIM], ek[2], f, r0, tot;
     const double sk[1] = { sqrt(w[1]) };
     int clear;
-    slide_off_dome_held_circle_step(q, p, w, sk, kh, qr, pr, vr, wr, ir, er, force, res, slope);
+    slide_off_dome_held_circle_step(q, p, w, sk, kh, qr, pr, pt, wr, slope);
+    ek[0] = pt[row];
+    ek[1] = sk[0];
+    slide_off_dome_held_circle_end(q, p, qr + row * 2, pr + row * 2, ek, kh, ir, er, force, res);
     f = force[row];
     r0 = res[row];
     tot = er[row] + f + qr[row * 2] + pr[row * 2] + qr[row * 2 + 1] + pr[row * 2 + 1]; /* held.all_finite */
@@ -2589,8 +2589,6 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_circle_one(const double *kh, 
     q1[1] = qr[row * 2 + 1];
     p1[0] = pr[row * 2];
     p1[1] = pr[row * 2 + 1];
-    v[0] = vr[row * 2];
-    v[1] = vr[row * 2 + 1];
     w1[0] = wr[row * 4] + wr[row * 4 + 1] * sk[0]; /* (o0 + o1 s, a0 + a1 s): one multiply-add on the chain */
     w1[1] = wr[row * 4 + 2] + wr[row * 4 + 3] * sk[0];
     *e = er[row];
@@ -2620,12 +2618,8 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_circle_loop(const slide_off_
     wk[1] = w[row * 2 + 1];
     for (s = 0; s < n; ++s) {
         double q1[2] = {0.0, 0.0}, p1[2] = {0.0, 0.0}, w1[2] = {0.0, 0.0}; /* set by a step taken */
-        if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, qk, pk, wk, q1, p1, v, w1, &e, &imp)) {
+        if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, qk, pk, wk, q1, p1, w1, &e, &imp)) {
             break;
-        }
-        if (s + 1 == n) { /* Lam of the last step: the general chain's Newton start */
-            slide_off_dome_held_circle_lam(qk, pk, v, kh, lr);
-            lam[row] = lr[row];
         }
         qk[0] = q1[0];
         qk[1] = q1[1];
@@ -2649,9 +2643,11 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_circle_loop(const slide_off_
             FC[s * SLIDE_OFF_DOME_NC + j] = j == slide_off_dome_row_constraint[row] ? imp : 0.0;
         }
     }
-    if (s > 0 && s < n) { /* stopped by a step the general chain takes: Lam of the last one taken */
+    if (s > 0) { /* the last step's velocity and (the general chain's Newton start) Lam, from its start */
         const double qb[2] = { s > 1 ? Q[(s - 2) * SLIDE_OFF_DOME_N] : q[0], s > 1 ? Q[(s - 2) * SLIDE_OFF_DOME_N + 1] : q[1] };
         const double pb[2] = { s > 1 ? P[(s - 2) * SLIDE_OFF_DOME_N] : p[0], s > 1 ? P[(s - 2) * SLIDE_OFF_DOME_N + 1] : p[1] };
+        v[0] = (qk[0] - qb[0]) / c->h;
+        v[1] = (qk[1] - qb[1]) / c->h;
         slide_off_dome_held_circle_lam(qb, pb, v, kh, lr);
         lam[row] = lr[row];
     }
@@ -2683,9 +2679,11 @@ int slide_off_dome_eval_held_circle_step(const double *par, double h, double res
         w[0] = ws[row * 2];
         w[1] = ws[row * 2 + 1];
     }
-    if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, v, w1, e, &imp)) {
+    if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, w1, e, &imp)) {
         return 0;
     }
+    v[0] = (q1[0] - q[0]) / h;
+    v[1] = (q1[1] - q[1]) / h;
     slide_off_dome_held_circle_lam(q, p, v, kh, lr);
     lam[row] = lr[row];
     lam1[row] = imp * h - lr[row];
