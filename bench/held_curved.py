@@ -1,6 +1,6 @@
 """Cost of a held step on a curved row that moves, at several steps h, against a free step (C, CPU time).
 
-    .venv/bin/python -m bench.held_curved [--repeats 7]
+    .venv/bin/python -m bench.held_curved [--repeats 7] [--scenes bowl dome sphere spring ellipse]
 
 Scenes (best of ``--repeats`` of each run, held and free interleaved; CPU time of the C loop as in
 ``bench.sustained_cost``, whose helpers it uses):
@@ -15,6 +15,15 @@ Both rows are circles in the plane under gravity: every held step is the rotatio
 (``<model>_held_circle_loop``: ``(omega, arg)`` carried, one multiply-add between two ``sqrt`` on the state's
 chain); before it, the closed step of ``held.closed_forms`` (stop 21: 5.7-5.9x) and, before that, the held
 Newton with its line start.
+
+Curved rows whose held step is not a rotation, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
+
+* ``sphere``: the bowl in three coordinates (``r - |q|``, released at ``(0.6, 0, -0.8)`` with ``v0 = (0, 0.5,
+  0)``): the closed step (``held.closed_forms``; a rotation needs the plane);
+* ``spring``: the bowl under a spring to its centre besides gravity (stiffness 3): the closed step (the
+  rotation needs a force constant in ``q``);
+* ``ellipse``: ``r - sqrt(x^2 / 4 + y^2)`` from ``(1.2, -0.8)`` at rest: the held Newton (not closed: the
+  projection's ``W`` varies on the row).
 """
 
 from __future__ import annotations
@@ -25,10 +34,47 @@ import sys
 import warnings
 from pathlib import Path
 
+import sympy as sp
+
 import vcigen
-from bench.sustained_cost import bowl, cpu_clock, keep_heap
+from bench.sustained_cost import G, bowl, cpu_clock, keep_heap
 
 HERE = Path(__file__).resolve().parent
+
+
+def _planar_bowl(name: str, row, potential) -> vcigen.Model:
+    """A particle inside the closed curve ``row(x, y) = r`` under gravity and ``potential(x, y)``."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    r = sp.Symbol("r", positive=True)
+    return vcigen.Model(
+        name=name,
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - G * y - potential(x, y),
+        contacts={"bowl": r - row(x, y)},
+        params={r: 1.0},
+    )
+
+
+def spring() -> vcigen.Model:
+    return _planar_bowl("hc_spring", lambda x, y: sp.sqrt(x**2 + y**2), lambda x, y: 3 * (x**2 + y**2) / 2)
+
+
+def ellipse() -> vcigen.Model:
+    return _planar_bowl("hc_ellipse", lambda x, y: sp.sqrt(x**2 / 4 + y**2), lambda x, y: 0)
+
+
+def sphere() -> vcigen.Model:
+    x, y, z, xd, yd, zd = sp.symbols("x y z xd yd zd")
+    r = sp.Symbol("r", positive=True)
+    return vcigen.Model(
+        name="hc_sphere",
+        q=[x, y, z],
+        qdot=[xd, yd, zd],
+        lagrangian=(xd**2 + yd**2 + zd**2) / 2 - G * z,
+        contacts={"bowl": r - sp.sqrt(x**2 + y**2 + z**2)},
+        params={r: 1.0},
+    )
 
 
 def dome() -> vcigen.Model:
@@ -44,20 +90,33 @@ RUNS = [  # name, model, h, steps, held (q0, v0, params), free (q0, v0, params)
     ("bowl", bowl, 1e-3, 200_000, BOWL_HELD, BOWL_FREE),
     ("bowl", bowl, 1e-2, 200_000, BOWL_HELD, BOWL_FREE),
     ("dome", dome, 1e-5, 50_000, ([0.0, 1.0], [0.1, 0.0], None), ([0.0, 10.0], [0.1, 0.0], None)),
+    (
+        "sphere",
+        sphere,
+        1e-3,
+        100_000,
+        ([0.6, 0.0, -0.8], [0.0, 0.5, 0.0], {"r": 1.0}),
+        ([0.0] * 3, [1.0, 0, 0], {"r": 1e9}),
+    ),
+    ("spring", spring, 1e-3, 100_000, BOWL_HELD, BOWL_FREE),
+    ("ellipse", ellipse, 1e-3, 100_000, ([1.2, -0.8], [0.0, 0.0], {"r": 1.0}), BOWL_FREE),
 ]
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
+    names = list(dict.fromkeys(name for name, *_ in RUNS))
+    ap.add_argument("--scenes", nargs="+", choices=names, default=names)
     a = ap.parse_args(argv)
+    runs = [run for run in RUNS if run[0] in a.scenes]
     warnings.simplefilter("ignore", RuntimeWarning)
     keep_heap()
-    sims = {name: vcigen.build(model(), backend="c") for name, model, *_ in RUNS}
+    sims = {name: vcigen.build(model(), backend="c") for name, model, *_ in runs}
     clocks = {name: cpu_clock(sim) for name, sim in sims.items()}
     best = {}
     for _ in range(a.repeats):
-        for name, _, h, steps, held, free in RUNS:
+        for name, _, h, steps, held, free in runs:
             for kind, (q0, v0, params) in (("held", held), ("free", free)):
                 t0 = clocks[name][0]
                 res = sims[name].simulate(q0, v0, h, t_end=steps * h, params=params)
@@ -65,10 +124,10 @@ def main(argv: list[str] | None = None) -> int:
                 ok = res.active.all() if kind == "held" else not res.active.any()
                 assert ok and res.t.size == steps + 1, (name, h, kind)
                 best[name, h, kind] = min(best.get((name, h, kind), math.inf), spent / steps * 1e9)
-    print(f"{'scene':<6} {'h':>7} {'held ns':>8} {'free ns':>8} {'ratio':>6}   (CPU time of the C loop)")
-    for name, _, h, *_ in RUNS:
+    print(f"{'scene':<7} {'h':>7} {'held ns':>8} {'free ns':>8} {'ratio':>6}   (CPU time of the C loop)")
+    for name, _, h, *_ in runs:
         held_ns, free_ns = best[name, h, "held"], best[name, h, "free"]
-        print(f"{name:<6} {h:>7.0e} {held_ns:>8.1f} {free_ns:>8.1f} {held_ns / free_ns:>6.1f}")
+        print(f"{name:<7} {h:>7.0e} {held_ns:>8.1f} {free_ns:>8.1f} {held_ns / free_ns:>6.2f}")
     return 0
 
 
