@@ -57,18 +57,18 @@ def _planar_bowl(name: str, row, potential) -> vcigen.Model:
 
 
 def spring() -> vcigen.Model:
-    return _planar_bowl("hc_spring", lambda x, y: sp.sqrt(x**2 + y**2), lambda x, y: 3 * (x**2 + y**2) / 2)
+    return _planar_bowl("hcv_spring", lambda x, y: sp.sqrt(x**2 + y**2), lambda x, y: 3 * (x**2 + y**2) / 2)
 
 
 def ellipse() -> vcigen.Model:
-    return _planar_bowl("hc_ellipse", lambda x, y: sp.sqrt(x**2 / 4 + y**2), lambda x, y: 0)
+    return _planar_bowl("hcv_ellipse", lambda x, y: sp.sqrt(x**2 / 4 + y**2), lambda x, y: 0)
 
 
 def sphere() -> vcigen.Model:
     x, y, z, xd, yd, zd = sp.symbols("x y z xd yd zd")
     r = sp.Symbol("r", positive=True)
     return vcigen.Model(
-        name="hc_sphere",
+        name="hcv_sphere",
         q=[x, y, z],
         qdot=[xd, yd, zd],
         lagrangian=(xd**2 + yd**2 + zd**2) / 2 - G * z,
