@@ -16,12 +16,12 @@ Both rows are circles in the plane under gravity: every held step is the rotatio
 chain); before it, the closed step of ``held.closed_forms`` (stop 21: 5.7-5.9x) and, before that, the held
 Newton with its line start.
 
-Curved rows whose held step is not a rotation, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
+Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
 
 * ``sphere``: the bowl in three coordinates (``r - |q|``, released at ``(0.6, 0, -0.8)`` with ``v0 = (0, 0.5,
   0)``): the closed step (``held.closed_forms``; a rotation needs the plane);
-* ``spring``: the bowl under a spring to its centre besides gravity (stiffness 3): the closed step (the
-  rotation needs a force constant in ``q``);
+* ``spring``: the bowl under a spring to its centre besides gravity (stiffness 3): a rotation (the force is
+  affine in ``q``; stop 23, before it the closed step: 3.0-3.3x);
 * ``ellipse``: ``r - sqrt(x^2 / 4 + y^2)`` from ``(1.2, -0.8)`` at rest: the held Newton (not closed: the
   projection's ``W`` varies on the row).
 """

@@ -18,7 +18,7 @@ from vcigen.derive import derive
 
 R = sp.Symbol("R", positive=True)
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
-CIRCLES = ("bowl", "dome", "offset", "rod")
+CIRCLES = ("bowl", "dome", "offset", "rod", "spring")
 
 
 def _free_circle(kind: str) -> vcigen.Model:
@@ -33,7 +33,8 @@ def _free_circle(kind: str) -> vcigen.Model:
 
 
 def _spring_circle() -> vcigen.Model:
-    """A circle's row under a force of q (a spring to the origin): closed, not a rotation."""
+    """A circle's row under a force affine in q (a spring to the centre, and gravity): a rotation whose next
+    omega is a polynomial in s (held_circle.circle_pieces)."""
     return vcigen.Model(
         name="hcr_spring",
         q=[X, Y],
@@ -44,11 +45,21 @@ def _spring_circle() -> vcigen.Model:
     )
 
 
-@pytest.mark.parametrize("name", sorted(CLOSED))
+def _model(name: str):
+    return _spring_circle if name == "spring" else CLOSED[name][0]
+
+
+def _state(name: str) -> str:
+    """The states of ``test_held_closed._states`` a row is tested from (the rod's, the spring's: the unit
+    circle's lower half)."""
+    return {"rod": "bowl", "spring": "bowl"}.get(name, name)
+
+
+@pytest.mark.parametrize("name", sorted({*CLOSED, *CIRCLES}))
 def test_circle_rows_are_detected(name: str) -> None:
-    """A circle's row in the plane with an isotropic mass under a constant force is a rotation (with its
-    centre, radius, mass and ``grad psi = gamma n``); the sphere (n = 3) is not; the header says which."""
-    system = derive(CLOSED[name][0]())
+    """A circle's row in the plane with an isotropic mass under a force affine in ``q`` is a rotation (with
+    its centre, radius, mass and ``grad psi = gamma n``); the sphere (n = 3) is not; the header says which."""
+    system = derive(_model(name)())
     circle = name in CIRCLES
     assert system.structure.held_circle == (circle,)
     assert any(line.startswith("held_circle = [1]") for line in system.structure.lines()) == circle
@@ -61,16 +72,30 @@ def test_circle_rows_are_detected(name: str) -> None:
         "dome": ((0, 0), 1.0, 2.0, 1.0),
         "offset": ((0.3, -0.2), 1.5, 1.0, -1.0),
         "rod": ((0, 0), 1.0, 1.0, 2.0),  # grad (x^2 + y^2 - 1) = 2 q = 2 R n
+        "spring": ((0, 0), 1.0, 1.0, -1.0),
     }[name]
     got = [float(sp.sympify(e).subs(at)) for e in (*c.centre, c.radius, c.mass, c.gamma)]
     np.testing.assert_allclose(got, [*centre, radius, mass, gamma], rtol=1e-15, atol=1e-15)
 
 
+def _cubic_spring_circle() -> vcigen.Model:
+    """A circle's row under a force not affine in q (a cubic spring): closed, not a rotation."""
+    return vcigen.Model(
+        name="hcr_cubic",
+        q=[X, Y],
+        qdot=[XD, YD],
+        lagrangian=(XD**2 + YD**2) / 2 - (X**4 + Y**4) / 4 - 9.81 * Y,
+        contacts={"row": R - sp.sqrt(X**2 + Y**2)},
+        params={R: 1.0},
+    )
+
+
 @pytest.mark.parametrize(
-    "model", [_spring_circle, *(m for m, _ in NOT_CLOSED.values())], ids=["spring", *sorted(NOT_CLOSED)]
+    "model", [_cubic_spring_circle, *(m for m, _ in NOT_CLOSED.values())], ids=["cubic", *sorted(NOT_CLOSED)]
 )
 def test_other_rows_are_not_rotations(model) -> None:
-    """A circle under a force of ``q`` keeps the closed step; rows that are not closed have no rotation."""
+    """A circle under a force not affine in ``q`` keeps the closed step; rows that are not closed have no
+    rotation."""
     system = derive(model())
     assert system.structure.held_circle in ((), (False,))
     assert not any(line.startswith("held_circle") for line in system.structure.lines())
@@ -108,11 +133,10 @@ def test_rotation_is_the_closed_step(name: str, h: float) -> None:
     """From states on the row, the rotation and the closed step take the same steps (both or neither: a
     lift-off, a failed test), with the same end, impulse and E_d to round-off, and its Lam to the rounding of
     ``q1`` in ``v`` (``eps / h``, as the closed step's own)."""
-    s, k = _kernels(CLOSED[name][0])
+    s, k = _kernels(_model(name))
     act = np.ones(1, dtype=bool)
     taken = refused = 0
-    state = {"rod": "bowl"}.get(name, name)  # the rod's states: the unit circle's lower half
-    for q, p, _, _ in _states(state, np.random.default_rng(5), 40):
+    for q, p, _, _ in _states(_state(name), np.random.default_rng(5), 40):
         if name == "rod":
             p = p / 1.0
         got = held_circle.circle_step(k, q, p, None, 0, act, h, s.tol.residual, s.tol.phi)
@@ -140,11 +164,10 @@ def test_rotation_force_is_the_closed_force(name: str) -> None:
     """``held_circle_end``'s normal force, written with ``|q1 - c| = R`` (``|p1|^2 = pt^2 R^2``), is the
     closed step's (``held_root_end``'s, from the row's gradient and Hessian at ``q1``) at the rotation's end,
     and so is its residual."""
-    s, k = _kernels(CLOSED[name][0])
-    state = {"rod": "bowl"}.get(name, name)
+    s, k = _kernels(_model(name))
     for h in (1e-5, 1e-3, 1e-2):
         kc = k.held_consts(h)
-        for q, p, _, _ in _states(state, np.random.default_rng(11), 20):
+        for q, p, _, _ in _states(_state(name), np.random.default_rng(11), 20):
             w = k.held_circle_start(q, p, kc)[0]
             if not w[1] >= 0.0:
                 continue
@@ -167,12 +190,13 @@ def test_rotation_force_is_the_closed_force(name: str) -> None:
         ("dome", [0.0, 1.0], [0.1, 0.0], 3.0),  # slides, then lifts off
         ("offset", [1.2, -1.4], [0.5, 0.375], 3.0),
         ("rod", [0.0, -1.0], [3.0, 0.0], 3.0),
+        ("spring", [0.6, -0.8], [0.0, 0.0], 3.0),
     ],
 )
 def test_c_rotation_loop_is_casadis(name: str, q0, v0, t_end: float) -> None:
     """The C loop (<model>_held_circle_loop, carrying (omega, arg)) against the Python stepper's rotation
     steps on CasADi's kernels: the same run to round-off, the same active sets, lift-offs and impacts."""
-    model = CLOSED[name][0]
+    model = _model(name)
     c = vcigen.build(model(), backend="c").simulate(q0, v0, 1e-3, t_end=t_end)
     py = vcigen.build(model(), backend="casadi").simulate(q0, v0, 1e-3, t_end=t_end)
     assert c.t.size == py.t.size

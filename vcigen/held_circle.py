@@ -1,18 +1,21 @@
 """The held step on a circle as a rotation: the closed held step (:func:`vcigen.held.closed_forms`) of a row
-whose zero set is a circle in the plane, under a constant force, with one multiplication on its chain.
+whose zero set is a circle in the plane, under a force affine in ``q``, with one multiplication on its chain.
 
 Where it applies (:func:`circle_forms`, detected once in :mod:`vcigen.structure`): two coordinates, an
 isotropic constant mass ``m`` (``J = M``), the row's ``F`` a circle of radius ``R`` about ``c``, the free
-velocity ``v0 = (p0 + c_v) / m`` and the segment's momentum ``p+ = m v + c_p`` with ``c_v``, ``c_p`` free of
-the state (a force constant in ``q``: gravity). Then, with ``n = (q - c) / R``, ``t = (-n_y, n_x)`` and
-``omega = t . v0`` (MATH.md *Sustained contact*, the RATTLE step held on the row):
+velocity ``v0 = (p0 + c_v) / m`` and the segment's momentum ``p+ = m v + c_p`` with ``c_v`` affine in
+``q0`` and ``c_p`` in ``(q0, v)``, free of ``p`` (a force affine in ``q``: gravity, springs). Then, with
+``n = (q - c) / R``, ``t = (-n_y, n_x)`` and ``omega = t . v0`` (MATH.md *Sustained contact*, the RATTLE
+step held on the row):
 
 * the position step is a rotation, ``n1 = s n + a t`` with ``a = h omega / R``, ``s = sqrt(arg)``,
   ``arg = 1 / |n|^2 - a^2`` (``z1 = z (s + i a)``: ``|n1| = 1`` and ``n1 - n`` along ``v0``'s tangential
   part; the small root of the closed step's quadratic, ``B > 0`` being ``R |n|^2 + h v0 . n > 0``);
 * the projection of ``p+`` onto the tangent at ``q1`` is ``p1 = pi1 t1``, ``pi1 = m omega + c_p . t1``
-  (``v . t1 = omega`` on the circle);
-* the next ``omega1 = omega + g . t1`` (``g = (c_v + c_p) / m``) is ``o0 + o1 s``, so the next argument
+  (``v . t1 = omega`` on the circle; ``c_p`` of the segment from ``q0`` to ``q1``);
+* the next ``omega1 = t1 . v0(q1, p1) = omega + (c_p + c_v(q1)) . t1 / m``, a polynomial in ``s`` (``q1`` is
+  affine in ``s``), is ``o0 + o1 s`` once ``s^2 = arg`` is taken off (a force constant in ``q``:
+  ``o0 = omega - a g . d / R``, ``o1 = g . (-d_y, d_x) / R``, ``g = (c_v + c_p) / m``), so the next argument
   ``1 / |n1|^2 - (h omega1 / R)^2`` is ``A + B s`` (``s^2 = arg``, ``|n1|^2 = |n|^2 (arg + a^2)``,
   ``1 / x = 2 - x`` to ``O((x - 1)^2)``): formed off the chain, the chain from one ``sqrt`` to the next is
   one multiply-add (the C loop carries ``(omega, arg)`` from step to step; :class:`Carry` here);
@@ -52,19 +55,30 @@ class Circle(NamedTuple):
     gamma: sp.Expr  # grad psi = gamma n on the row
 
 
+def _affine(e: sp.Expr, of: tuple, others: set) -> bool:
+    """Whether ``e`` is free of ``others`` and a polynomial of degree <= 1 in ``of``."""
+    if e.free_symbols & others or not e.is_polynomial(*of):
+        return False
+    return sp.Poly(e, *of).total_degree() <= 1 if e.free_symbols & set(of) else True
+
+
 def circle_forms(closed: list, q: tuple, p0: tuple, v: tuple, free: dict) -> list[Circle | None]:
     """Per row, its :class:`Circle` or ``None``: rows with a closed form (``closed``, :func:`closed_forms`)
-    whose zero set is a circle, in a scene with two coordinates, an isotropic mass and a force constant in
-    ``q``. ``free``: ``vcigen.held.free_parts`` (``v0``, ``jinv``, ``p_plus``, ``mass``, ``acc``)."""
+    whose zero set is a circle, in a scene with two coordinates, an isotropic mass with ``J = M`` and a force
+    affine in ``q`` (gravity, springs): ``c_v`` affine in ``q0``, ``c_p`` in ``(q0, v)``, the free
+    acceleration in ``q``. ``free``: ``vcigen.held.free_parts`` (``v0``, ``jinv``, ``p_plus``, ``mass``,
+    ``acc``)."""
     if len(q) != 2:
         return [None] * len(closed)
     v0, jinv, p_plus, mass, acc = (free[k] for k in ("v0", "jinv", "p_plus", "mass", "acc"))
     m = mass[0, 0]
-    state = set(q) | set(p0) | set(v) | set(free["q0"])
+    q0 = tuple(free["q0"])
     ok = sp.simplify(mass[1, 1] - m) == 0 and all(sp.simplify(m * jinv[i] - 1) == 0 for i in range(2))
     cv = [sp.simplify(m * v0[i] - p0[i]) for i in range(2)]
     cp = [sp.simplify(p_plus[i] - m * v[i]) for i in range(2)]
-    ok = ok and not any(e.free_symbols & state for e in (*cv, *cp, *acc))
+    ok = ok and all(_affine(e, q0, {*q, *p0, *v}) for e in cv)
+    ok = ok and all(_affine(e, (*q0, *v), {*q, *p0}) for e in cp)
+    ok = ok and all(_affine(e, tuple(q), {*q0, *p0, *v}) for e in acc)
     out: list[Circle | None] = []
     for cf in closed:
         if cf is None or not ok:
@@ -86,8 +100,8 @@ def circle_forms(closed: list, q: tuple, p0: tuple, v: tuple, free: dict) -> lis
 def circle_energy(energy: sp.Expr, q0: tuple, v: tuple, q1: tuple, h: sp.Symbol) -> sp.Expr:
     """``E_d`` (55) of a segment (``energy`` at ``(q0, v)``, quadratic in ``v``) at ``v = (q1 - q0) / h``, in
     ``q1``'s own symbols: ``c |q1 - q0|^2 / h^2`` (an isotropic mass: one factor over the sum) plus the rest,
-    linear in ``q0`` and ``q1`` under a constant force, its common factor taken out (the bowl's potential
-    ``g (y0 + y1) / 2`` is one product, not three)."""
+    in ``q0`` and ``q1``, its common factor taken out (the bowl's potential ``g (y0 + y1) / 2`` is one
+    product, not three)."""
     poly = sp.Poly(energy, *v)
     quad = [poly.coeff_monomial(v[i] * v[j]) for i in range(2) for j in range(i, 2)]
     seg = {v[i]: (q1[i] - q0[i]) / h for i in range(2)}
@@ -141,15 +155,23 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
         # in d = q - c and D1 = q1 - c (R n, R n1): each a common subexpression of its uses, no sign or factor
         # distributed into it (sympy distributes -1 * (a + b)), so that CSE shares them
         dx, dy = x - cx, y - cy
-        v0x, v0y = (px + cvx) / m, (py + cvy) / m
+        v0x, v0y = (px + cvx) / m, (py + cvy) / m  # c_v at q0
         om0 = (v0y * dx - v0x * dy) / big_r
         nn = (dx**2 + dy**2) / big_r**2
         outs["w"][r, 0], outs["w"][r, 1] = om0, 1 / nn - (h * om0 / big_r) ** 2
         a, sq = h * om / big_r, s_arg.symbols[0]
         d1x, d1y = sq * dx - a * dy, sq * dy + a * dx
-        pi1 = (m * om + (cpy * d1x - cpx * d1y) / big_r) / big_r  # pi1 / R: p1 = (pi1 / R) (-D1y, D1x)
-        gx, gy = (cvx + cpx) / m, (cvy + cpy) / m
-        o0, o1 = om - a * (gx * dx + gy * dy) / big_r, (gy * dx - gx * dy) / big_r
+        seg = dict(zip(fp["v_arg"].symbols, ((d1x - dx) / h, (d1y - dy) / h)))
+        cp1x, cp1y = cpx.xreplace(seg), cpy.xreplace(seg)  # c_p of the segment to q1
+        pi1 = (m * om + (cp1y * d1x - cp1x * d1y) / big_r) / big_r  # pi1 / R: p1 = (pi1 / R) (-D1y, D1x)
+        # the next omega = t1 . v0(q1, p1) = (t1 . p+ + t1 . c_v(q1)) / m, a polynomial in s (the force affine
+        # in q): reduced by s^2 = arg to o0 + o1 s (a force constant in q: o0 = omega - a g . d / R,
+        # o1 = (g_y d_x - g_x d_y) / R, g = (c_v + c_p) / m)
+        at_q1 = {x: cx + d1x, y: cy + d1y}
+        cv1x, cv1y = cvx.xreplace(at_q1), cvy.xreplace(at_q1)
+        om1 = om + ((cp1y + cv1y) * d1x - (cp1x + cv1x) * d1y) / (big_r * m)
+        c0, c1, c2 = (sp.Poly(sp.expand(om1), sq).all_coeffs()[::-1] + [sp.S.Zero] * 3)[:3]
+        o0, o1 = sp.collect(sp.expand(c0 + c2 * arg), om), sp.collect(sp.expand(c1), om)
         ho0, ho1 = h * o0 / big_r, h * o1 / big_r
         outs["q1"][r, 0], outs["q1"][r, 1] = cx + d1x, cy + d1y
         outs["p1"][r, 0], outs["p1"][r, 1] = sp.Mul(-1, pi1, d1y, evaluate=False), pi1 * d1x
@@ -163,7 +185,8 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
         # the end, in q1 = (X, Y), p1 and e = (pt, s)
         (bx, by), (qx, qy), (pt, se) = q1_arg.symbols, p1_arg.symbols, e_arg.symbols
         ex, ey = bx - cx, by - cy
-        jx, jy = qx - px - cvx - cpx, qy - py - cvy - cpy
+        seg_end = dict(zip(fp["v_arg"].symbols, ((bx - x) / h, (by - y) / h)))
+        jx, jy = qx - px - cvx - cpx.xreplace(seg_end), qy - py - cvy - cpy.xreplace(seg_end)
         outs["imp"][r] = (jx * (dx + ex) + jy * (dy + ey)) / (big_r * gamma * (1 + se)) / h
         outs["energy"][r] = circle_energy(fp["energy"], (x, y), fp["v_arg"].symbols, (bx, by), h)
         # the force with p1 = pt (-D1y, D1x) and |D1|^2 = R^2 (the row): pt^2 R^2 for |p1|^2

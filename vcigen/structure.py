@@ -112,7 +112,7 @@ class Structure:
             if any(self.held_circle):
                 out.append(
                     f"held_circle = {[int(x) for x in self.held_circle]}: per row, 1 where that step is a "
-                    "rotation (a circle under a constant force, isotropic mass: held_circle), its loop "
+                    "rotation (a circle under a force affine in q, isotropic mass: held_circle), its loop "
                     "carrying the next sqrt's argument: one multiply-add between two sqrt"
                 )
         return [w for line in out for w in textwrap.wrap(line, width, subsequent_indent="    ")]

@@ -416,9 +416,9 @@ static inline void pendulum_wall_held_consts(const double *tau, const double *pa
     k[27] = -t1*t19;
     k[28] = par[1]*t20;
     k[29] = -t19;
-    k[30] = -t20;
-    k[31] = t20;
-    k[32] = -t8;
+    k[30] = t20;
+    k[31] = -t8;
+    k[32] = -t20;
     k[33] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t17;
     k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
     k[35] = tau[0];
@@ -592,7 +592,7 @@ PENDULUM_WALL_ROUTINE_HOT void pendulum_wall_held_circle_step(const double *q0, 
     w1[3] = 0;
     w1[4] = t4;
     w1[5] = k[29]*q0[0];
-    w1[6] = w[1]*k[33]*t5 + k[30]*((t3)*(t3))*t6 + k[32]*t7*(w[1] + k[31]*t6) + 2;
+    w1[6] = w[1]*k[33]*t5 + k[31]*t7*(w[1] + k[30]*t6) + k[32]*((t3)*(t3))*t6 + 2;
     w1[7] = k[34]*q0[0]*t4;
     slope[0] = 0;
     slope[1] = k[0]*k[35]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t7;

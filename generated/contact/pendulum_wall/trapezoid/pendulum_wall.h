@@ -32,9 +32,9 @@
  *   held_closed = [0, 1]: per row, 1 where, held alone, its step is closed-form: F(a + Lam b) = 0 a
  *       quadratic in Lam, its root by one sqrt, the projection dividing by a constant
  *       (held.closed_forms); no Newton
- *   held_circle = [0, 1]: per row, 1 where that step is a rotation (a circle under a constant force,
- *       isotropic mass: held_circle), its loop carrying the next sqrt's argument: one multiply-add
- *       between two sqrt
+ *   held_circle = [0, 1]: per row, 1 where that step is a rotation (a circle under a force affine in
+ *       q, isotropic mass: held_circle), its loop carrying the next sqrt's argument: one multiply-
+ *       add between two sqrt
  */
 #ifndef PENDULUM_WALL_H
 #define PENDULUM_WALL_H

@@ -428,9 +428,9 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[27] = -t1*t18;
     k[28] = par[1]*t19;
     k[29] = -t18;
-    k[30] = -t19;
-    k[31] = t19;
-    k[32] = -t8;
+    k[30] = t19;
+    k[31] = -t8;
+    k[32] = -t19;
     k[33] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t16;
     k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
     k[35] = tau[0];
@@ -569,7 +569,7 @@ SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0
     pt[0] = t2;
     w1[0] = t4;
     w1[1] = k[29]*q0[0];
-    w1[2] = w[1]*k[33]*t5 + k[30]*((t3)*(t3))*t6 + k[32]*t7*(w[1] + k[31]*t6) + 2;
+    w1[2] = w[1]*k[33]*t5 + k[31]*t7*(w[1] + k[30]*t6) + k[32]*((t3)*(t3))*t6 + 2;
     w1[3] = k[34]*q0[0]*t4;
     slope[0] = k[0]*k[35]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t7;
 }
