@@ -257,13 +257,19 @@ def test_a_carried_step_is_the_fresh_step(backend: str) -> None:
 
 
 @pytest.mark.parametrize("backend", ["casadi", pytest.param("c", marks=needs_cc)])
-def test_a_run_with_its_tangent_takes_the_same_rotation_steps(backend: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "centre", "radius"), [("offset", (0.3, -0.2), 1.5), ("spring", (0.0, 0.0), 1.0)]
+)
+def test_a_run_with_its_tangent_takes_the_same_rotation_steps(
+    backend: str, name: str, centre: tuple, radius: float
+) -> None:
     """The tangent reads each rotation step's Lam, Lam' and u1: a run with it takes the same steps bit for
-    bit, and its tangent through 400 held steps on the off-centre circle is the central differences', along
-    directions that keep the start held: q0 along the row, v0 along it, R with q0 moved out with it."""
-    sim = vcigen.build(CLOSED["offset"][0](), backend=backend)
-    c, n0, t0 = np.array([0.3, -0.2]), np.array([0.6, -0.8]), np.array([0.8, 0.6])
-    x0 = np.array([*(c + 1.5 * n0), *(0.625 * t0), 1.5])  # q0 = (1.2, -1.4), v0 = (0.5, 0.375), R
+    bit, and its tangent through 400 held steps on the off-centre circle (and on the circle under a spring)
+    is the central differences', along directions that keep the start held: q0 along the row, v0 along it,
+    R with q0 moved out with it."""
+    sim = vcigen.build(_model(name)(), backend=backend)
+    c, n0, t0 = np.array(centre, float), np.array([0.6, -0.8]), np.array([0.8, 0.6])
+    x0 = np.array([*(c + radius * n0), *(0.625 * t0), radius])  # offset: q0 = (1.2, -1.4), v0 = (0.5, 0.375)
     h, t_end = 1e-3, 0.4
 
     def run(x, sens=False):
