@@ -2590,6 +2590,14 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_step(const double *kh, double h
 /* held_circle: per row, 1 where the closed held step is a rotation (vcigen.held_circle.circle_forms) */
 static const unsigned char pendulum_wall_held_circle[PENDULUM_WALL_R_DIM] = { 0, 1 };
 
+/* A rotation step's velocity (q1 - q) / h: formed alike by its readers (the loop at its exit and for the tangent,
+ * the kernels interface; held_circle.circle_step), so that they agree bit for bit. */
+static inline void pendulum_wall_held_circle_v(const double *q, const double *q1, double h, double *v)
+{
+    v[0] = (q1[0] - q[0]) / h;
+    v[1] = (q1[1] - q[1]) / h;
+}
+
 /* held_circle.circle_step: the rotation step from (q, p) on row `row` held alone, with w = (omega, arg) (the
  * previous step's w1, or held_circle_start's); returns 0 if it cleared the closed step's tests (B > 0, D >= 0,
  * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, w1 (the next w), *e (E_d) and
@@ -2687,8 +2695,7 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_circle_loop(const pendulum_wal
     if (s > 0) { /* the last step's velocity and (the general chain's Newton start) Lam, from its start */
         const double qb[2] = { s > 1 ? Q[(s - 2) * PENDULUM_WALL_N] : q[0], s > 1 ? Q[(s - 2) * PENDULUM_WALL_N + 1] : q[1] };
         const double pb[2] = { s > 1 ? P[(s - 2) * PENDULUM_WALL_N] : p[0], s > 1 ? P[(s - 2) * PENDULUM_WALL_N + 1] : p[1] };
-        v[0] = (qk[0] - qb[0]) / c->h;
-        v[1] = (qk[1] - qb[1]) / c->h;
+        pendulum_wall_held_circle_v(qb, qk, c->h, v);
         pendulum_wall_held_circle_lam(qb, pb, v, kh, lr);
         lam[row] = lr[row];
     }
@@ -2723,8 +2730,7 @@ int pendulum_wall_eval_held_circle_step(const double *par, double h, double resi
     if (pendulum_wall_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, w1, e, &imp)) {
         return 0;
     }
-    v[0] = (q1[0] - q[0]) / h;
-    v[1] = (q1[1] - q[1]) / h;
+    pendulum_wall_held_circle_v(q, q1, h, v);
     pendulum_wall_held_circle_lam(q, p, v, kh, lr);
     lam[row] = lr[row];
     lam1[row] = imp * h - lr[row];

@@ -2551,6 +2551,14 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
 /* held_circle: per row, 1 where the closed held step is a rotation (vcigen.held_circle.circle_forms) */
 static const unsigned char slide_off_dome_held_circle[SLIDE_OFF_DOME_R_DIM] = { 1 };
 
+/* A rotation step's velocity (q1 - q) / h: formed alike by its readers (the loop at its exit and for the tangent,
+ * the kernels interface; held_circle.circle_step), so that they agree bit for bit. */
+static inline void slide_off_dome_held_circle_v(const double *q, const double *q1, double h, double *v)
+{
+    v[0] = (q1[0] - q[0]) / h;
+    v[1] = (q1[1] - q[1]) / h;
+}
+
 /* held_circle.circle_step: the rotation step from (q, p) on row `row` held alone, with w = (omega, arg) (the
  * previous step's w1, or held_circle_start's); returns 0 if it cleared the closed step's tests (B > 0, D >= 0,
  * the residual, no lift-off, no inactive row crossed, finite): then q1, p1, w1 (the next w), *e (E_d) and
@@ -2641,8 +2649,7 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_circle_loop(const slide_off_
     if (s > 0) { /* the last step's velocity and (the general chain's Newton start) Lam, from its start */
         const double qb[2] = { s > 1 ? Q[(s - 2) * SLIDE_OFF_DOME_N] : q[0], s > 1 ? Q[(s - 2) * SLIDE_OFF_DOME_N + 1] : q[1] };
         const double pb[2] = { s > 1 ? P[(s - 2) * SLIDE_OFF_DOME_N] : p[0], s > 1 ? P[(s - 2) * SLIDE_OFF_DOME_N + 1] : p[1] };
-        v[0] = (qk[0] - qb[0]) / c->h;
-        v[1] = (qk[1] - qb[1]) / c->h;
+        slide_off_dome_held_circle_v(qb, qk, c->h, v);
         slide_off_dome_held_circle_lam(qb, pb, v, kh, lr);
         lam[row] = lr[row];
     }
@@ -2677,8 +2684,7 @@ int slide_off_dome_eval_held_circle_step(const double *par, double h, double res
     if (slide_off_dome_held_circle_one(kh, residual, phi_tol, act, row, q, p, w, q1, p1, w1, e, &imp)) {
         return 0;
     }
-    v[0] = (q1[0] - q[0]) / h;
-    v[1] = (q1[1] - q[1]) / h;
+    slide_off_dome_held_circle_v(q, q1, h, v);
     slide_off_dome_held_circle_lam(q, p, v, kh, lr);
     lam[row] = lr[row];
     lam1[row] = imp * h - lr[row];
