@@ -3,7 +3,8 @@
 A row ``psi`` whose zero set is that of a quadratic ``F`` (a circle's, a sphere's, a rod's), held alone:
 RATTLE's position step ``q1 = a + Lam b`` with ``psi(q1) = 0`` is the quadratic ``F(a + Lam b) = 0`` in
 ``Lam``, solved by one square root; the tangent projection divides by ``W = grad F . M^-1 grad F``, a
-constant on the surface when the mass is isotropic. Checked here: which rows are detected, the surface
+constant on the surface when the mass is isotropic (else a quadric's step: tests/test_held_quadric.py).
+Checked here: which rows are detected, the surface
 values, and each step against the held Newton (held_step.held_step with the closed form off) and against the
 geometry (q1 on the row, q1 - a along grad psi(q0)). Whole trajectories across the backends:
 tests/test_c_agreement_sustained.py.
@@ -73,9 +74,7 @@ CLOSED = {  # name: (model, gain, w0) at the default parameters; gain = dF/dpsi 
     "rod": (_rod, 1.0, 4.0),
     "sphere": (_sphere, -2.0, 4.0),
 }
-NOT_CLOSED = {  # name: (model, whether it has a line form)
-    "ellipse": (lambda: _planar("hc_ellipse", 3 - 2 * sp.sqrt(X**2 + 4 * Y**2)), True),  # A, W vary on it
-    "anisotropic": (lambda: _planar("hc_aniso", R - sp.sqrt(X**2 + Y**2), (1, 3), {R: 1.0}), True),
+NOT_CLOSED = {  # name: (model, whether it has a line form); an ellipse's row: tests/test_held_quadric.py
     "floor": (lambda: _planar("hc_floor", Y), False),
     "hump": (lambda: _planar("hc_hump", Y - sp.exp(-(X**2))), False),
 }
@@ -98,8 +97,8 @@ def test_closed_rows_are_detected_with_their_constants(name: str) -> None:
 
 @pytest.mark.parametrize("name", sorted(NOT_CLOSED))
 def test_other_rows_are_not_closed(name: str) -> None:
-    """An ellipse's row or a circle's with an anisotropic mass has a line form but no constant ``A``/``W`` on
-    it: the held Newton keeps it (no ``held_closed`` line in the header); rows without a line form neither."""
+    """Rows without a line form (a floor's, a hump's) have no closed step: the held Newton keeps them (no
+    ``held_closed`` line in the header)."""
     model, line = NOT_CLOSED[name]
     system = derive(model())
     assert system.structure.held_lines == (line,)

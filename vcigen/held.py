@@ -112,8 +112,19 @@ class Closed(NamedTuple):
 
     form: sp.Expr  # F (line_form), in the rows' q
     gain: sp.Expr  # dF/dpsi on psi = 0 (line_parts): grad F = gain grad psi there
-    a0: sp.Expr  # A = |h J^-1 grad F(q0)|^2_{Hess F} / 2 on F = 0 (free of q)
-    w0: sp.Expr  # W = grad F(q1) . M^-1 grad F(q1) on F = 0 (free of q)
+    a0: sp.Expr  # A = |h J^-1 grad F(q)|^2_{Hess F} / 2: on F = 0 if fixed (free of q), else at q (the start)
+    w0: sp.Expr  # W = grad F(q) . M^-1 grad F(q): on F = 0 if fixed (free of q), else at q (the end)
+    fixed: bool = True  # A, W constants on F = 0 (a sphere's row): no division by the state on the chain
+    definite: bool = False  # Hess F definite (an ellipse's row): A far from 0 against B, as on a fixed row
+
+
+def definite(hf: sp.Matrix) -> bool:
+    """Whether the constant symmetric ``hf`` is definite (Sylvester: the leading minors of ``hf`` or of
+    ``-hf`` provably positive)."""
+    for sign in (1, -1):
+        if all(sp.simplify((sign * hf)[:k, :k].det()).is_positive for k in range(1, hf.rows + 1)):
+            return True
+    return False
 
 
 def on_surface(e: sp.Expr, f: sp.Expr, q: tuple[sp.Symbol, ...]) -> sp.Expr | None:
@@ -133,10 +144,13 @@ def closed_forms(system: DiscreteSystem) -> list[Closed | None]:
 
     For one active row with a :func:`line_parts` ``(F, gain)``, RATTLE's position step ``q1 = a + Lam b``
     (``a = q0 + h v0``, ``b = h J^-1 grad F(q0)``, a multiple of ``grad psi(q0)``) with ``psi(q1) = 0`` is
-    ``F(a + Lam b) = A Lam^2 + B Lam + C = 0``: one square root, no Newton. Closed when, besides, ``A``
-    and the projection's ``W = grad F . M^-1 grad F`` are constants on ``F = 0`` (``a0``, ``w0``: a
-    sphere's row with an isotropic mass, a rod's): the step then divides by no value of the state on its
-    chain from ``(q0, p0)`` to ``(q1, p1)``. Needs a constant diagonal ``J`` and ``M`` (``Structure.held``).
+    ``F(a + Lam b) = A Lam^2 + B Lam + C = 0``: one square root, no Newton. Where, besides, ``A`` and the
+    projection's ``W = grad F . M^-1 grad F`` are constants on ``F = 0`` (``fixed``; ``a0``, ``w0``: a
+    sphere's row with an isotropic mass, a rod's), the step divides by no value of the state on its chain
+    from ``(q0, p0)`` to ``(q1, p1)``. Else (an ellipse's, a paraboloid's, a circle's with an anisotropic
+    mass: a quadric's) ``A`` is formed at the step's start and ``W`` at its end, each divided by once; where
+    ``Hess F`` is :func:`definite` the division by ``A`` is off the state's chain (:func:`closed_routines`).
+    Needs a constant diagonal ``J`` and ``M`` (``Structure.held``).
     """
     rows = system.routines["rows"]
     q = tuple(rows.input("q").symbols)
@@ -156,8 +170,11 @@ def closed_forms(system: DiscreteSystem) -> list[Closed | None]:
         a_form = sum((b[i] * hf[i, j] * b[j] for i in range(len(q)) for j in range(len(q))), sp.S.Zero) / 2
         w_form = sum((g * g / mass[i, i] for i, g in enumerate(grad)), sp.S.Zero)
         a0, w0 = on_surface(a_form, f, q), on_surface(w_form, f, q)
-        ok = a0 is not None and w0 is not None and a0 != 0 and w0 != 0
-        out.append(Closed(f, gain, sp.simplify(a0), sp.simplify(w0)) if ok else None)
+        fixed = a0 is not None and w0 is not None and a0 != 0 and w0 != 0
+        if fixed:
+            out.append(Closed(f, gain, sp.simplify(a0), sp.simplify(w0)))
+        else:  # a quadric's row: A at the step's start, W at its end
+            out.append(Closed(f, gain, a_form, w_form, False, definite(hf)))
     return out
 
 
@@ -186,22 +203,29 @@ def closed_routines(
     """The pieces of the closed held step (:func:`closed_forms`), per row (zeros for rows without one), with
     ``b = h J^-1 grad F(q0)``, ``a = q0 + h v0`` and ``F(a + Lam b) = a0 Lam^2 + B Lam + C``:
 
-    * ``held_root_dir(q, k) -> m, e, f, s, y, w``: what the step needs of ``grad F`` at ``q`` (at the step's
-      start: ``m = Hess F b``, ``s = grad F(0) . b``, so that ``B = m . a + s``; ``e = b / (2 a0)``,
-      ``f = J^-1 grad F / (2 a0)``; at its end: ``y = M^-1 grad F``, ``w = -grad F / w0``). Its own routine,
+    * ``held_root_dir(q, k) -> m, e, f, s, y, w, a2, g``: what the step needs of ``grad F`` at ``q`` (at
+      the step's start: ``m = Hess F b``, ``s = grad F(0) . b``, so that ``B = m . a + s``; ``e = b / (2
+      a0)``, ``f = J^-1 grad F / (2 a0)``, ``g = gain / (2 a0)``; a quadric's ``a2 = 2 A = b . Hess F . b``
+      (0 for a fixed row); at its end: ``y = M^-1 grad F``, ``w = -grad F / w0``). Its own routine,
       so that these per-coordinate factors are products off the state's chain and the chain multiplies
       each by one value (one routine would share a common factor and add a product to the chain);
-    * ``held_root(q0, p0, m, e, f, s, k) -> v, q1, lam, slope, disc``: in ``nu = 2 a0 Lam``,
-      ``nu^2 + 2 B nu + 4 a0 C = 0``; ``D = B^2 - 4 a0 C``, the small root ``nu = sqrt(D) - B`` (one
-      ``sqrt``, no division: ``a0`` is a run constant), ``q1 = a + nu e``, ``v = v0 + nu f``, ``lam = gain
-      nu / (2 a0)`` (the multiplier of ``psi``: ``grad F = gain grad psi``); ``slope = B`` (> 0 for the
-      small root) and ``disc = D`` (>= 0) say whether it holds. ``psi(q1) = 0`` fixes ``Lam`` only to the
-      rounding of ``q1`` (``eps |q1| / h`` in ``v``, as for the Newton); the form's cancellation stays
-      within that, and the projection's ``Lam'`` takes it back, so the impulse ``Lam + Lam'`` the step
-      books is exact to round-off only if ``lam`` is the root that moved ``v`` (not ``-2C / (B +
-      sqrt(D))``, which differs by that rounding);
+    * ``held_root(q0, p0, m, s, a2, k) -> v0, a, nu, slope, disc``: the free velocity ``v0``, the line's
+      start ``a = q0 + h v0`` and per row, in ``nu = 2 a0 Lam``, the small root of ``nu^2 + 2 B nu + 4 a0 C
+      = 0``: ``D = B^2 - 4 a0 C``, ``nu = sqrt(D) - B`` (one ``sqrt``, no division: ``a0`` is a run
+      constant); ``slope = B`` (> 0 for the small root) and ``disc = D`` (>= 0) say whether it holds. Its
+      readers (:func:`vcigen.held_step.closed_step`, C ``<model>_held_closed_one``) form ``q1 = a + nu e``,
+      ``v = v0 + nu f`` and ``lam = g nu`` (the multiplier of ``psi``: ``grad F = gain grad psi``) from the
+      one ``nu``: ``psi(q1) = 0`` fixes ``Lam`` only to the rounding of ``q1`` (``eps |q1| / h`` in ``v``,
+      as for the Newton; ``nu``'s cancellation stays within that), and the projection's ``Lam'`` takes it
+      back, so the impulse ``Lam + Lam'`` the step books is exact to round-off only if ``lam`` is the root
+      that moved ``v``. Formed in one routine, CSE may round ``nu`` twice (a rational in ``B``, as
+      ``p / 3`` under a mass 3, gave ``v`` and ``lam`` ``nu`` from ``3 B / 3`` and from ``B``). A quadric's
+      row (not ``fixed``) reads its ``A`` from ``a2``: where ``Hess F`` is definite, as a fixed row (``e``,
+      ``f``, ``g`` divided by ``2 A`` at ``q0``, off the chain); else ``e = b``, ``f = J^-1 grad F``, ``g =
+      gain`` and ``nu = Lam = -2C / (B + sqrt(D))``: no cancellation where ``A`` is small against ``B`` (a
+      paraboloid's vertex, where ``A = 0``), one division on the chain;
     * ``held_root_end(q1, p_plus, y, w, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)``,
-      ``p1 = p+ + w (y . p+)`` (dividing by ``w0``), ``lam1 = gain Lam'``; the force of
+      ``p1 = p+ + w (y . p+)`` (dividing by ``w0``; a quadric's ``W(q1)``), ``lam1 = gain Lam'``; the force of
       ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 . Hess F . u1) / w0`` (equal there:
       ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) / gain`` (``psi(q1)`` to first
       order).
@@ -213,37 +237,44 @@ def closed_routines(
         return Arg(name, tuple(sp.Dummy(f"{name}{i}", real=True) for i in range(size)))
 
     pp = arg("p_plus", n)
-    m_, e_, f_, s_ = arg("m", nr * n), arg("e", nr * n), arg("f", nr * n), arg("s", nr)
-    y_, w_ = arg("y", nr * n), arg("w", nr * n)
+    m_, s_ = arg("m", nr * n), arg("s", nr)
+    y_, w_, a2_ = arg("y", nr * n), arg("w", nr * n), arg("a2", nr)
     dirs = {name: sp.zeros(nr, n) for name in ("m", "e", "f", "y", "w")}
-    dirs["s"] = sp.zeros(nr, 1)
-    v, q1, p1 = sp.zeros(nr, n), sp.zeros(nr, n), sp.zeros(nr, n)
-    lam, slope, disc, lam1, force, res = (sp.zeros(nr, 1) for _ in range(6))
+    dirs["s"], dirs["a2"], dirs["g"] = sp.zeros(nr, 1), sp.zeros(nr, 1), sp.zeros(nr, 1)
+    p1 = sp.zeros(nr, n)
+    nus, slope, disc, lam1, force, res = (sp.zeros(nr, 1) for _ in range(6))
+    a = [q0.symbols[i] + h * v0[i] for i in range(n)]  # the line's start
     zero = dict.fromkeys(q.symbols, sp.S.Zero)
     for r, cf in enumerate(forms):
         if cf is None:
             continue
-        f, gain, a0, w0 = cf
+        f, gain, a0, w0 = cf.form, cf.gain, cf.a0, cf.w0
         grad = [f.diff(x) for x in q.symbols]
         hf = sp.hessian(f, q.symbols)
         b = [h * jinv[i] * grad[i] for i in range(n)]  # at the direction routine's q (q0 of the step)
+        nu_form = cf.fixed or cf.definite  # e, f in nu = 2 A Lam; else (stable) in Lam
+        scale = 2 * a0 if nu_form else sp.S.One
+        if not cf.fixed:
+            dirs["a2"][r] = 2 * a0  # 2 A at q: b . Hess F . b
+        dirs["g"][r] = gain / scale  # lam = g nu
         for i in range(n):
             dirs["m"][r, i] = sum((hf[i, j] * b[j] for j in range(n)), sp.S.Zero)  # grad F(a) . b = m . a + s
-            dirs["e"][r, i] = b[i] / (2 * a0)
-            dirs["f"][r, i] = jinv[i] * grad[i] / (2 * a0)
+            dirs["e"][r, i] = b[i] / scale
+            dirs["f"][r, i] = jinv[i] * grad[i] / scale
             dirs["y"][r, i] = grad[i] * minv[i]  # at q1 of the step: the projection's
             dirs["w"][r, i] = -grad[i] / w0
         dirs["s"][r] = sum((g.xreplace(zero) * b[i] for i, g in enumerate(grad)), sp.S.Zero)
         at = r * n
-        a = [q0.symbols[i] + h * v0[i] for i in range(n)]
         big_b = sum((m_.symbols[at + i] * a[i] for i in range(n)), s_.symbols[r])
-        # in nu = 2 a0 Lam: nu^2 + 2 B nu + 4 a0 C = 0; its small root nu = sqrt(D) - B, D = B^2 - 4 a0 C
-        d = big_b**2 - 4 * a0 * f.xreplace(dict(zip(q.symbols, a)))
-        nu = sp.sqrt(d) - big_b
-        for i in range(n):
-            v[r, i] = v0[i] + nu * f_.symbols[at + i]
-            q1[r, i] = a[i] + nu * e_.symbols[at + i]
-        lam[r] = gain / (2 * a0) * nu
+        big_c = f.xreplace(dict(zip(q.symbols, a)))
+        two_a = 2 * a0 if cf.fixed else a2_.symbols[r]  # 2 A: a run constant, or the step's start's
+        # in nu = 2 A Lam: nu^2 + 2 B nu + 4 A C = 0, D = B^2 - 4 A C
+        d = big_b**2 - 2 * two_a * big_c
+        if nu_form:  # its small root nu = sqrt(D) - B: no division on the chain (1 / A is formed at q0)
+            nu = sp.sqrt(d) - big_b
+        else:  # Lam = -2C / (B + sqrt(D)): no cancellation where A is small (a paraboloid's vertex: 0)
+            nu = -2 * big_c / (big_b + sp.sqrt(d))
+        nus[r] = nu
         slope[r], disc[r] = big_b, d
         dot = sum((y_.symbols[at + i] * pp.symbols[i] for i in range(n)), sp.S.Zero)
         for i in range(n):
@@ -255,14 +286,14 @@ def closed_routines(
         (
             "held_root_dir",
             (q,),
-            [(name, dirs[name]) for name in ("m", "e", "f", "s", "y", "w")],
+            [(name, dirs[name]) for name in ("m", "e", "f", "s", "y", "w", "a2", "g")],
             "Per closed row, what its held step needs of grad F at q (held.closed_routines).",
         ),
         (
             "held_root",
-            (q0, p0, m_, e_, f_, s_),
-            [("v", v), ("q1", q1), ("lam", lam), ("slope", slope), ("disc", disc)],
-            "The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D.",
+            (q0, p0, m_, s_, a2_),
+            [("v0", v0), ("a", sp.Matrix(a)), ("nu", nus), ("slope", slope), ("disc", disc)],
+            "The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D.",
         ),
         (
             "held_root_end",

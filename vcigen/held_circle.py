@@ -81,7 +81,7 @@ def circle_forms(closed: list, q: tuple, p0: tuple, v: tuple, free: dict) -> lis
     ok = ok and all(_affine(e, tuple(q), {*q0, *p0, *v}) for e in acc)
     out: list[Circle | None] = []
     for cf in closed:
-        if cf is None or not ok:
+        if cf is None or not cf.fixed or not ok:
             out.append(None)
             continue
         poly = sp.Poly(sp.expand(cf.form), *q)
@@ -150,7 +150,7 @@ def circle_pieces(system, circles: list[Circle | None], fp: dict, p_arg) -> list
     for r, c in enumerate(circles):
         if c is None:
             continue
-        f, gain, _, _ = forms[r]
+        f, gain = forms[r].form, forms[r].gain
         (cx, cy), big_r, m, (cvx, cvy), (cpx, cpy), gamma = c
         # in d = q - c and D1 = q1 - c (R n, R n1): each a common subexpression of its uses, no sign or factor
         # distributed into it (sympy distributes -1 * (a + b)), so that CSE shares them

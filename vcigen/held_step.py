@@ -105,13 +105,15 @@ def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: floa
     segment, the projection, the force and the residual (``held_root_end``) and the tests of ``held_step``
     in the same order; ``None`` where the root does not hold (``B <= 0`` or ``D < 0``) or a test fails."""
     kc = k.held_consts(h)
-    m, e, f, s, _, _ = k.held_root_dir(q, kc)
-    v, q1, lam_r, slope, disc = k.held_root(q, p, m, e, f, s, kc)
+    m, e, f, s, _, _, a2, g = k.held_root_dir(q, kc)
+    v0, a, nu, slope, disc = k.held_root(q, p, m, s, a2, kc)
     if not (slope[row] > 0.0 and disc[row] >= 0.0):
         return None
-    v, q1 = v[row], q1[row]
+    n, at = len(q), row * len(q)
+    v = v0 + nu[row] * f[at : at + n]  # the C loop's operations: a product, then a sum
+    q1 = a + nu[row] * e[at : at + n]
     p_plus, energy = k.held_segment(q, v, kc)
-    _, _, _, _, y, w = k.held_root_dir(q1, kc)
+    _, _, _, _, y, w, _, _ = k.held_root_dir(q1, kc)
     p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, kc)
     p1 = p1[row]
     if not one_row_clears(
@@ -119,7 +121,7 @@ def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: floa
     ):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)
-    lam[row], lam1[row] = lam_r[row], lam1_r[row]
+    lam[row], lam1[row] = nu[row] * g[row], lam1_r[row]
     return Held(q1, p1, v, lam, lam1, float(energy))
 
 

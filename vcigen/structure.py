@@ -107,7 +107,9 @@ class Structure:
                 out.append(
                     f"held_closed = {[int(x) for x in self.held_closed]}: per row, 1 where, held alone, its "
                     "step is closed-form: F(a + Lam b) = 0 a quadratic in Lam, its root by one sqrt, the "
-                    "projection dividing by a constant (held.closed_forms); no Newton"
+                    "projection dividing by a constant (a sphere's row) or by W(q1) (a quadric's: "
+                    f"{[int(not c.fixed) if c else 0 for c in self.held_closed_forms]}; held.closed_forms); "
+                    "no Newton"
                 )
             if any(self.held_circle):
                 out.append(

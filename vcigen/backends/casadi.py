@@ -398,17 +398,15 @@ class CasadiKernels(ParameterSlots):
         return self._held_call("held_line", (3 * self.r,), a, b, kc)[0].reshape(self.r, 3)
 
     def held_root_dir(self, q, kc):
-        """Per row ``(m, e, f, s, y, w)`` at ``q`` for its closed held step (``vcigen.held.closed_routines``),
+        """Per row ``(m, e, f, s, y, w, a2, g)`` at ``q`` for its closed held step (``held.closed_routines``),
         flat (row-major, as ``held_root`` and ``held_root_end`` read them)."""
         n, r = self.n, self.r
-        return self._held_call("held_root_dir", (r * n, r * n, r * n, r, r * n, r * n), q, kc)
+        return self._held_call("held_root_dir", (r * n, r * n, r * n, r, r * n, r * n, r, r), q, kc)
 
-    def held_root(self, q0, p0, m, e, f, s, kc):
-        """Per row ``(v, q1, Lam, B, D)`` of its closed held step."""
+    def held_root(self, q0, p0, m, s, a2, kc):
+        """``(v0, a, nu, B, D)`` of its closed held step: ``v0``, ``a`` once, the others per row."""
         n, r = self.n, self.r
-        sizes = (r * n, r * n, r, r, r)
-        v, q1, lam, slope, disc = self._held_call("held_root", sizes, q0, p0, m, e, f, s, kc)
-        return v.reshape(r, n), q1.reshape(r, n), lam, slope, disc
+        return self._held_call("held_root", (n, n, r, r, r), q0, p0, m, s, a2, kc)
 
     def held_root_end(self, q1, p_plus, y, w, kc):
         """Per row ``(p1, Lam', force, res)`` of its closed held step's end."""

@@ -400,9 +400,9 @@ static inline void pendulum_wall_held_consts(const double *tau, const double *pa
     k[11] = t11*t9;
     k[12] = 2*t0;
     k[13] = -t12;
-    k[14] = t6;
-    k[15] = -16*t10*t14*t4;
-    k[16] = (1.0/8.0)*t11*t13*t8;
+    k[14] = (1.0/8.0)*t11*t13*t8;
+    k[15] = t6;
+    k[16] = -16*t10*t14*t4;
     k[17] = -t9;
     k[18] = -2*t14;
     k[19] = t15;
@@ -486,7 +486,7 @@ static inline void pendulum_wall_held_line(const double *a, const double *b, con
 }
 
 /* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
-static inline void pendulum_wall_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w)
+static inline void pendulum_wall_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g)
 {
     m[0] = 0;
     m[1] = 0;
@@ -510,27 +510,27 @@ static inline void pendulum_wall_held_root_dir(const double *q, const double *k,
     w[1] = 0;
     w[2] = k[13]*q[0];
     w[3] = k[13]*q[1];
+    a2[0] = 0;
+    a2[1] = 0;
+    g[0] = 0;
+    g[1] = k[14];
 }
 
-/* The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D. */
-static inline void pendulum_wall_held_root(const double *q0, const double *p0, const double *m, const double *e, const double *f, const double *s, const double *k, double *v, double *q1, double *lam, double *slope, double *disc)
+/* The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D. */
+static inline void pendulum_wall_held_root(const double *q0, const double *p0, const double *m, const double *s, const double *a2, const double *k, double *v0, double *a, double *nu, double *slope, double *disc)
 {
-    const double t0 = k[14]*p0[0] + q0[0];
-    const double t1 = k[1] + p0[1];
-    const double t2 = k[14]*t1 + q0[1];
-    const double t3 = m[2]*t0 + m[3]*t2 + s[1];
-    const double t4 = k[15]*(k[3] + ((t0)*(t0)) + ((t2)*(t2))) + ((t3)*(t3));
-    const double t5 = t3 - sqrt(t4);
-    v[0] = 0;
-    v[1] = 0;
-    v[2] = -f[2]*t5 + k[0]*p0[0];
-    v[3] = -f[3]*t5 + k[0]*t1;
-    q1[0] = 0;
-    q1[1] = 0;
-    q1[2] = -e[2]*t5 + t0;
-    q1[3] = -e[3]*t5 + t2;
-    lam[0] = 0;
-    lam[1] = -k[16]*t5;
+    (void)a2;
+    const double t0 = k[1] + p0[1];
+    const double t1 = k[15]*p0[0] + q0[0];
+    const double t2 = k[15]*t0 + q0[1];
+    const double t3 = m[2]*t1 + m[3]*t2 + s[1];
+    const double t4 = k[16]*(k[3] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
+    v0[0] = k[0]*p0[0];
+    v0[1] = k[0]*t0;
+    a[0] = t1;
+    a[1] = t2;
+    nu[0] = 0;
+    nu[1] = -t3 + sqrt(t4);
     slope[0] = 0;
     slope[1] = t3;
     disc[0] = 0;
@@ -2265,35 +2265,47 @@ PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_line_start(const double *coef,
 /* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
 static const unsigned char pendulum_wall_held_closed[PENDULUM_WALL_R_DIM] = { 0, 1 };
 
-/* held.closed_step: the held step on the one active row `row`, which has a closed form: the small root of its
- * quadratic along the line (held_root: one sqrt and products on the state's chain; the line's direction from
- * held_root_dir), the segment, the projection dividing by a run constant, the force and the residual F(q1)/gain
- * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row], lam1[row]
- * written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain takes it. */
-PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_step(const double *kh, double residual, double phi_tol,
-    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
-    double *v, double *e)
+/* held_root_dir's outputs at a point: the line's direction from it (m, e, f, s, g; a quadric's 2 A, a2) and the
+ * projection onto the row there (y, w). */
+typedef struct {
+    double m[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], e[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], f[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], s[PENDULUM_WALL_R_DIM];
+    double y[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], w[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], a2[PENDULUM_WALL_R_DIM];
+    double g[PENDULUM_WALL_R_DIM];
+} pendulum_wall_held_dir_t;
+
+static inline void pendulum_wall_held_dir(const double *q, const double *kh, pendulum_wall_held_dir_t *d)
 {
-    double vr[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], qr[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], lr[PENDULUM_WALL_R_DIM];
+    pendulum_wall_held_root_dir(q, kh, d->m, d->e, d->f, d->s, d->y, d->w, d->a2, d->g);
+}
+
+/* held.closed_step from held_root_dir at q (d0): the held step on the one active row `row`, which has a closed
+ * form: the small root of its quadratic along the line (held_root: one sqrt on the state's chain; a quadric's
+ * row whose Hess F is not definite, held.closed_forms, divides by B + sqrt(D)), v, q1 and Lam from it, the
+ * segment, held_root_dir at q1 (d1, out: the next step's
+ * d0), the projection dividing by a run constant (a quadric's: by W(q1)), the force and the residual F(q1)/gain
+ * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row],
+ * lam1[row], d1 written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain
+ * takes it. */
+PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_one(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, const pendulum_wall_held_dir_t *d0,
+    pendulum_wall_held_dir_t *d1, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
+{
+    double v0[PENDULUM_WALL_N], a[PENDULUM_WALL_N], nu[PENDULUM_WALL_R_DIM];
     double slope[PENDULUM_WALL_R_DIM], disc[PENDULUM_WALL_R_DIM], pp[PENDULUM_WALL_N], pr[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double l1[PENDULUM_WALL_R_DIM], force[PENDULUM_WALL_R_DIM], res[PENDULUM_WALL_R_DIM], f, sum;
-    double dm[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], de[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], df[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
-    double dy[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], dw[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], ds[PENDULUM_WALL_R_DIM];
     int i, clear;
-    /* held_root_dir at q (its m, e, f, s: the line's direction, off the state's chain), then at q1 (y, w) */
-    pendulum_wall_held_root_dir(q, kh, dm, de, df, ds, dy, dw);
-    pendulum_wall_held_root(q, p, dm, de, df, ds, kh, vr, qr, lr, slope, disc);
+    pendulum_wall_held_root(q, p, d0->m, d0->s, d0->a2, kh, v0, a, nu, slope, disc);
     if (PENDULUM_WALL_HELD_UNLIKELY(!(slope[row] > 0.0) || !(disc[row] >= 0.0))) {
         return 1;
     }
     PENDULUM_WALL_HELD_UNROLL
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        v[i] = vr[row * PENDULUM_WALL_N + i];
-        q1[i] = qr[row * PENDULUM_WALL_N + i];
+    for (i = 0; i < PENDULUM_WALL_N; ++i) { /* from the one nu (held.closed_routines) */
+        v[i] = v0[i] + nu[row] * d0->f[row * PENDULUM_WALL_N + i];
+        q1[i] = a[i] + nu[row] * d0->e[row * PENDULUM_WALL_N + i];
     }
     pendulum_wall_held_segment(q, v, kh, pp, e);
-    pendulum_wall_held_root_dir(q1, kh, dm, de, df, ds, dy, dw);
-    pendulum_wall_held_root_end(q1, pp, dy, dw, kh, pr, l1, force, res);
+    pendulum_wall_held_dir(q1, kh, d1);
+    pendulum_wall_held_root_end(q1, pp, d1->y, d1->w, kh, pr, l1, force, res);
     PENDULUM_WALL_HELD_UNROLL
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         p1[i] = pr[row * PENDULUM_WALL_N + i];
@@ -2325,9 +2337,19 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_step(const double *kh, d
     if (!clear) {
         return 1;
     }
-    lam[row] = lr[row];
+    lam[row] = nu[row] * d0->g[row];
     lam1[row] = l1[row];
     return 0;
+}
+
+/* held.closed_step: <model>_held_closed_one from held_root_dir at q. */
+PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_step(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
+    double *v, double *e)
+{
+    pendulum_wall_held_dir_t d0, d1;
+    pendulum_wall_held_dir(q, kh, &d0);
+    return pendulum_wall_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, e);
 }
 
 /* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
@@ -2739,6 +2761,49 @@ int pendulum_wall_eval_held_circle_step(const double *par, double h, double resi
     return 1;
 }
 
+/* The loop of held.closed_step on row `row` held alone (a closed row whose step is not a rotation): closed steps
+ * from (q, p) (in/out; v, lam[row] out: the last step's velocity and Lam) while each clears its tests; returns
+ * the number taken, each stored as <model>_held_loop stores its steps. held_root_dir at a step's end is the next
+ * step's at its start: one evaluation a step. */
+PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_closed_loop(const pendulum_wall_ctx_t *c, const double *kh, long n,
+    const int *act, int row, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
+    double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+{
+    pendulum_wall_held_dir_t d0, d1;
+    double q1[PENDULUM_WALL_N], p1[PENDULUM_WALL_N], lam1[PENDULUM_WALL_R_DIM], e, imp, sum = 0.0;
+    const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
+    long s;
+    int i, j;
+    pendulum_wall_held_dir(q, kh, &d0);
+    for (s = 0; s < n; ++s) {
+        if (pendulum_wall_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, &e)) {
+            break;
+        }
+        PENDULUM_WALL_HELD_UNROLL
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            q[i] = q1[i];
+            p[i] = p1[i];
+            Q[s * PENDULUM_WALL_N + i] = q1[i];
+            P[s * PENDULUM_WALL_N + i] = p1[i];
+        }
+        d0 = d1;
+        E[s] = e;
+        sum += e;
+        imp = 0.0 + (lam[row] + lam1[row]) / h; /* as <model>_held_loop books it: from +0.0 */
+        PENDULUM_WALL_HELD_UNROLL
+        for (j = 0; j < PENDULUM_WALL_M; ++j) { /* SustainedSteps._book, then <model>_record */
+            F[s * PENDULUM_WALL_M + j] = j == pendulum_wall_row_contact[row] ? imp : 0.0;
+            A[s * PENDULUM_WALL_M + j] = held[j];
+        }
+        PENDULUM_WALL_HELD_UNROLL
+        for (j = 0; j < PENDULUM_WALL_NC; ++j) {
+            FC[s * PENDULUM_WALL_NC + j] = j == pendulum_wall_row_constraint[row] ? imp : 0.0;
+        }
+    }
+    *sum_e += sum;
+    return s;
+}
+
 /* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
  * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
  * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
@@ -2757,6 +2822,9 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_loop(const pendulum_wall_ctx_t
     if (na == 1 && pendulum_wall_held_circle[rows[0]]) { /* vcigen.held_circle: the step as a rotation */
         return pendulum_wall_held_circle_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC,
             sum_e);
+    }
+    if (na == 1 && pendulum_wall_held_closed[rows[0]]) { /* held.closed_step: the direction carried */
+        return pendulum_wall_held_closed_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
     }
     pendulum_wall_held_rows(q, kh, psi, grad, hess);
     PENDULUM_WALL_HELD_UNROLL

@@ -30,8 +30,8 @@
  *   held_pattern = [[0, 0, 1], [1, 1, 1]]: (i, j, weight) where some row's Hessian is not
  *       identically 0 (the curvature u . Hess psi . u needs no other entries)
  *   held_closed = [0, 1]: per row, 1 where, held alone, its step is closed-form: F(a + Lam b) = 0 a
- *       quadratic in Lam, its root by one sqrt, the projection dividing by a constant
- *       (held.closed_forms); no Newton
+ *       quadratic in Lam, its root by one sqrt, the projection dividing by a constant (a sphere's
+ *       row) or by W(q1) (a quadric's: [0, 0]; held.closed_forms); no Newton
  *   held_circle = [0, 1]: per row, 1 where that step is a rotation (a circle under a force affine in
  *       q, isotropic mass: held_circle), its loop carrying the next sqrt's argument: one multiply-
  *       add between two sqrt

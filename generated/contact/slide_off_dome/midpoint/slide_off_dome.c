@@ -385,12 +385,12 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     const double t9 = (1.0/4.0)*par[0]*t8;
     const double t10 = ((tau[0])*(tau[0]));
     const double t11 = 1.0/t10;
-    const double t12 = ((par[0])*(par[0]));
-    const double t13 = 1.0/t12;
-    const double t14 = 1.0/par[2];
+    const double t12 = 1.0/par[2];
+    const double t13 = ((par[0])*(par[0]));
+    const double t14 = 1.0/t13;
     const double t15 = 2*par[1];
     const double t16 = pow(par[2], -4);
-    const double t17 = tau[0]*t14;
+    const double t17 = tau[0]*t12;
     const double t18 = par[1]*t17;
     const double t19 = t10*t8;
     k[0] = t0;
@@ -407,15 +407,15 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[11] = t11*t9;
     k[12] = 2*t0;
     k[13] = -t1*t8;
-    k[14] = t6;
-    k[15] = -16*t10*t13*t5;
-    k[16] = (1.0/4.0)*t11*t12*t14;
-    k[17] = -t1*t14;
+    k[14] = (1.0/4.0)*t11*t12*t13;
+    k[15] = t6;
+    k[16] = -16*t10*t14*t5;
+    k[17] = -t1*t12;
     k[18] = -t15;
-    k[19] = 2*t13;
-    k[20] = (1.0/2.0)*t14;
+    k[19] = 2*t14;
+    k[20] = (1.0/2.0)*t12;
     k[21] = -t0;
-    k[22] = t14;
+    k[22] = t12;
     k[23] = t5;
     k[24] = -t10*t16;
     k[25] = -t17;
@@ -430,12 +430,12 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
     k[35] = tau[0];
     k[36] = tau[0]*t4;
-    k[37] = t14*t7;
+    k[37] = t12*t7;
     k[38] = t1*t11;
     k[39] = t2;
     k[40] = -par[2]*t0;
-    k[41] = t14*t4;
-    k[42] = par[0]*t14;
+    k[41] = t12*t4;
+    k[42] = par[0]*t12;
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -492,7 +492,7 @@ static inline void slide_off_dome_held_line(const double *a, const double *b, co
 }
 
 /* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
-static inline void slide_off_dome_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w)
+static inline void slide_off_dome_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g)
 {
     m[0] = k[9]*q[0];
     m[1] = k[9]*q[1];
@@ -505,22 +505,24 @@ static inline void slide_off_dome_held_root_dir(const double *q, const double *k
     y[1] = k[12]*q[1];
     w[0] = k[13]*q[0];
     w[1] = k[13]*q[1];
+    a2[0] = 0;
+    g[0] = k[14];
 }
 
-/* The closed held step of each closed row (held.closed_forms): v, q1, Lam, B, D. */
-static inline void slide_off_dome_held_root(const double *q0, const double *p0, const double *m, const double *e, const double *f, const double *s, const double *k, double *v, double *q1, double *lam, double *slope, double *disc)
+/* The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D. */
+static inline void slide_off_dome_held_root(const double *q0, const double *p0, const double *m, const double *s, const double *a2, const double *k, double *v0, double *a, double *nu, double *slope, double *disc)
 {
-    const double t0 = k[14]*p0[0] + q0[0];
-    const double t1 = k[1] + p0[1];
-    const double t2 = k[14]*t1 + q0[1];
-    const double t3 = m[0]*t0 + m[1]*t2 + s[0];
-    const double t4 = k[15]*(k[8] + ((t0)*(t0)) + ((t2)*(t2))) + ((t3)*(t3));
-    const double t5 = t3 - sqrt(t4);
-    v[0] = -f[0]*t5 + k[0]*p0[0];
-    v[1] = -f[1]*t5 + k[0]*t1;
-    q1[0] = -e[0]*t5 + t0;
-    q1[1] = -e[1]*t5 + t2;
-    lam[0] = -k[16]*t5;
+    (void)a2;
+    const double t0 = k[1] + p0[1];
+    const double t1 = k[15]*p0[0] + q0[0];
+    const double t2 = k[15]*t0 + q0[1];
+    const double t3 = m[0]*t1 + m[1]*t2 + s[0];
+    const double t4 = k[16]*(k[8] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
+    v0[0] = k[0]*p0[0];
+    v0[1] = k[0]*t0;
+    a[0] = t1;
+    a[1] = t2;
+    nu[0] = -t3 + sqrt(t4);
     slope[0] = t3;
     disc[0] = t4;
 }
@@ -2231,35 +2233,47 @@ SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_line_start(const double *coe
 /* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
 static const unsigned char slide_off_dome_held_closed[SLIDE_OFF_DOME_R_DIM] = { 1 };
 
-/* held.closed_step: the held step on the one active row `row`, which has a closed form: the small root of its
- * quadratic along the line (held_root: one sqrt and products on the state's chain; the line's direction from
- * held_root_dir), the segment, the projection dividing by a run constant, the force and the residual F(q1)/gain
- * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row], lam1[row]
- * written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain takes it. */
-SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_step(const double *kh, double residual, double phi_tol,
-    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
-    double *v, double *e)
+/* held_root_dir's outputs at a point: the line's direction from it (m, e, f, s, g; a quadric's 2 A, a2) and the
+ * projection onto the row there (y, w). */
+typedef struct {
+    double m[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], e[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], f[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], s[SLIDE_OFF_DOME_R_DIM];
+    double y[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], a2[SLIDE_OFF_DOME_R_DIM];
+    double g[SLIDE_OFF_DOME_R_DIM];
+} slide_off_dome_held_dir_t;
+
+static inline void slide_off_dome_held_dir(const double *q, const double *kh, slide_off_dome_held_dir_t *d)
 {
-    double vr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], qr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], lr[SLIDE_OFF_DOME_R_DIM];
+    slide_off_dome_held_root_dir(q, kh, d->m, d->e, d->f, d->s, d->y, d->w, d->a2, d->g);
+}
+
+/* held.closed_step from held_root_dir at q (d0): the held step on the one active row `row`, which has a closed
+ * form: the small root of its quadratic along the line (held_root: one sqrt on the state's chain; a quadric's
+ * row whose Hess F is not definite, held.closed_forms, divides by B + sqrt(D)), v, q1 and Lam from it, the
+ * segment, held_root_dir at q1 (d1, out: the next step's
+ * d0), the projection dividing by a run constant (a quadric's: by W(q1)), the force and the residual F(q1)/gain
+ * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row],
+ * lam1[row], d1 written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain
+ * takes it. */
+SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_one(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, const slide_off_dome_held_dir_t *d0,
+    slide_off_dome_held_dir_t *d1, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
+{
+    double v0[SLIDE_OFF_DOME_N], a[SLIDE_OFF_DOME_N], nu[SLIDE_OFF_DOME_R_DIM];
     double slope[SLIDE_OFF_DOME_R_DIM], disc[SLIDE_OFF_DOME_R_DIM], pp[SLIDE_OFF_DOME_N], pr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double l1[SLIDE_OFF_DOME_R_DIM], force[SLIDE_OFF_DOME_R_DIM], res[SLIDE_OFF_DOME_R_DIM], f, sum;
-    double dm[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], de[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], df[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
-    double dy[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], dw[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], ds[SLIDE_OFF_DOME_R_DIM];
     int i, clear;
-    /* held_root_dir at q (its m, e, f, s: the line's direction, off the state's chain), then at q1 (y, w) */
-    slide_off_dome_held_root_dir(q, kh, dm, de, df, ds, dy, dw);
-    slide_off_dome_held_root(q, p, dm, de, df, ds, kh, vr, qr, lr, slope, disc);
+    slide_off_dome_held_root(q, p, d0->m, d0->s, d0->a2, kh, v0, a, nu, slope, disc);
     if (SLIDE_OFF_DOME_HELD_UNLIKELY(!(slope[row] > 0.0) || !(disc[row] >= 0.0))) {
         return 1;
     }
     SLIDE_OFF_DOME_HELD_UNROLL
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        v[i] = vr[row * SLIDE_OFF_DOME_N + i];
-        q1[i] = qr[row * SLIDE_OFF_DOME_N + i];
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) { /* from the one nu (held.closed_routines) */
+        v[i] = v0[i] + nu[row] * d0->f[row * SLIDE_OFF_DOME_N + i];
+        q1[i] = a[i] + nu[row] * d0->e[row * SLIDE_OFF_DOME_N + i];
     }
     slide_off_dome_held_segment(q, v, kh, pp, e);
-    slide_off_dome_held_root_dir(q1, kh, dm, de, df, ds, dy, dw);
-    slide_off_dome_held_root_end(q1, pp, dy, dw, kh, pr, l1, force, res);
+    slide_off_dome_held_dir(q1, kh, d1);
+    slide_off_dome_held_root_end(q1, pp, d1->y, d1->w, kh, pr, l1, force, res);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         p1[i] = pr[row * SLIDE_OFF_DOME_N + i];
@@ -2284,9 +2298,19 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_step(const double *kh,
     if (!clear) {
         return 1;
     }
-    lam[row] = lr[row];
+    lam[row] = nu[row] * d0->g[row];
     lam1[row] = l1[row];
     return 0;
+}
+
+/* held.closed_step: <model>_held_closed_one from held_root_dir at q. */
+SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_step(const double *kh, double residual, double phi_tol,
+    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
+    double *v, double *e)
+{
+    slide_off_dome_held_dir_t d0, d1;
+    slide_off_dome_held_dir(q, kh, &d0);
+    return slide_off_dome_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, e);
 }
 
 /* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
@@ -2693,6 +2717,49 @@ int slide_off_dome_eval_held_circle_step(const double *par, double h, double res
     return 1;
 }
 
+/* The loop of held.closed_step on row `row` held alone (a closed row whose step is not a rotation): closed steps
+ * from (q, p) (in/out; v, lam[row] out: the last step's velocity and Lam) while each clears its tests; returns
+ * the number taken, each stored as <model>_held_loop stores its steps. held_root_dir at a step's end is the next
+ * step's at its start: one evaluation a step. */
+SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_closed_loop(const slide_off_dome_ctx_t *c, const double *kh, long n,
+    const int *act, int row, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
+    double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
+{
+    slide_off_dome_held_dir_t d0, d1;
+    double q1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], lam1[SLIDE_OFF_DOME_R_DIM], e, imp, sum = 0.0;
+    const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
+    long s;
+    int i, j;
+    slide_off_dome_held_dir(q, kh, &d0);
+    for (s = 0; s < n; ++s) {
+        if (slide_off_dome_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, &e)) {
+            break;
+        }
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            q[i] = q1[i];
+            p[i] = p1[i];
+            Q[s * SLIDE_OFF_DOME_N + i] = q1[i];
+            P[s * SLIDE_OFF_DOME_N + i] = p1[i];
+        }
+        d0 = d1;
+        E[s] = e;
+        sum += e;
+        imp = 0.0 + (lam[row] + lam1[row]) / h; /* as <model>_held_loop books it: from +0.0 */
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (j = 0; j < SLIDE_OFF_DOME_M; ++j) { /* SustainedSteps._book, then <model>_record */
+            F[s * SLIDE_OFF_DOME_M + j] = j == slide_off_dome_row_contact[row] ? imp : 0.0;
+            A[s * SLIDE_OFF_DOME_M + j] = held[j];
+        }
+        SLIDE_OFF_DOME_HELD_UNROLL
+        for (j = 0; j < SLIDE_OFF_DOME_NC; ++j) {
+            FC[s * SLIDE_OFF_DOME_NC + j] = j == slide_off_dome_row_constraint[row] ? imp : 0.0;
+        }
+    }
+    *sum_e += sum;
+    return s;
+}
+
 /* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
  * loops are unrolled): held steps from (q, p, v, lam), in/out, while each clears its tests; returns the number
  * taken. The active rows' gradients at q (g0) are taken here, from constant row indices: rows linear in q give
@@ -2711,6 +2778,9 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_loop(const slide_off_dome_ct
     if (na == 1 && slide_off_dome_held_circle[rows[0]]) { /* vcigen.held_circle: the step as a rotation */
         return slide_off_dome_held_circle_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC,
             sum_e);
+    }
+    if (na == 1 && slide_off_dome_held_closed[rows[0]]) { /* held.closed_step: the direction carried */
+        return slide_off_dome_held_closed_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
     }
     slide_off_dome_held_rows(q, kh, psi, grad, hess);
     SLIDE_OFF_DOME_HELD_UNROLL
