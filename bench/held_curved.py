@@ -22,8 +22,12 @@ Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
   0)``): the closed step (``held.closed_forms``; a rotation needs the plane);
 * ``spring``: the bowl under a spring to its centre besides gravity (stiffness 3): a rotation (the force is
   affine in ``q``; stop 23, before it the closed step: 3.0-3.3x);
-* ``ellipse``: ``r - sqrt(x^2 / 4 + y^2)`` from ``(1.2, -0.8)`` at rest: the held Newton (not closed: the
-  projection's ``W`` varies on the row).
+* ``ellipse``: ``r - sqrt(x^2 / 4 + y^2)`` from ``(1.2, -0.8)`` at rest: a quadric's closed step
+  (``held.closed_forms``, not ``fixed``: ``A`` and the projection's ``W`` vary on the row, ``Hess F``
+  definite), ``<model>_held_closed_loop``; before stop 24 the held Newton (9-10x);
+* ``valley``: a particle in the parabola ``y >= x^2 / 2``, from ``(0.8, 0.32)`` at rest, through its vertex:
+  a quadric's closed step whose ``Hess F`` is not definite (its root divides by ``B + sqrt(D)``); free: from
+  ``(0, 1e6)``.
 """
 
 from __future__ import annotations
@@ -64,6 +68,17 @@ def ellipse() -> vcigen.Model:
     return _planar_bowl("hcv_ellipse", lambda x, y: sp.sqrt(x**2 / 4 + y**2), lambda x, y: 0)
 
 
+def valley() -> vcigen.Model:
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    return vcigen.Model(
+        name="hcv_valley",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - G * y,
+        contacts={"valley": y - x**2 / 2},
+    )
+
+
 def sphere() -> vcigen.Model:
     x, y, z, xd, yd, zd = sp.symbols("x y z xd yd zd")
     r = sp.Symbol("r", positive=True)
@@ -100,6 +115,7 @@ RUNS = [  # name, model, h, steps, held (q0, v0, params), free (q0, v0, params)
     ),
     ("spring", spring, 1e-3, 100_000, BOWL_HELD, BOWL_FREE),
     ("ellipse", ellipse, 1e-3, 100_000, ([1.2, -0.8], [0.0, 0.0], {"r": 1.0}), BOWL_FREE),
+    ("valley", valley, 1e-3, 100_000, ([0.8, 0.32], [0.0, 0.0], None), ([0.0, 1e6], [1.0, 0.0], None)),
 ]
 
 

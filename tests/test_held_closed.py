@@ -121,6 +121,20 @@ def _kernels(model):
     return s, s.kernels.bind(s.model.resolve_params(None))
 
 
+def closed_and_newton(s, k, q, p, h: float):
+    """The held step of ``k`` (CasADi kernels of ``s``, one row held) from ``(q, p)`` over ``h`` with its
+    closed form and with the held Newton (the closed form off): both ``Held``, or both ``None``."""
+    act, lam0 = np.ones(1, dtype=bool), np.zeros(1)
+    fast = k.held_step(q, p, lam0, act, h, s.tol.residual, s.tol.phi)
+    k.held_closed = [False]
+    try:
+        slow = k.held_step(q, p, lam0, act, h, s.tol.residual, s.tol.phi)
+    finally:
+        k.held_closed = [True]
+    assert (fast is None) == (slow is None), (q, p)
+    return fast, slow
+
+
 def _states(name: str, rng, count: int):
     """Points on the row with tangent momenta (some fast enough to leave a dome), and the row's centre and
     radius at the default parameters."""
@@ -150,17 +164,9 @@ def test_closed_step_is_the_held_newton_step(name: str, h: float) -> None:
     take the same steps: both or neither (a lift-off, a failed test); the same end, multipliers and E_d to
     the Newton's tolerance. The closed end is on the row to round-off, ``q1 - a`` along ``grad psi(q0)``."""
     s, k = _kernels(CLOSED[name][0])
-    act = np.ones(1, dtype=bool)
-    lam0 = np.zeros(1)
     taken = refused = 0
     for q, p, centre, radius in _states(name, np.random.default_rng(3), 40):
-        fast = k.held_step(q, p, lam0, act, h, s.tol.residual, s.tol.phi)
-        k.held_closed = [False]
-        try:
-            slow = k.held_step(q, p, lam0, act, h, s.tol.residual, s.tol.phi)
-        finally:
-            k.held_closed = [True]
-        assert (fast is None) == (slow is None), (q, p)
+        fast, slow = closed_and_newton(s, k, q, p, h)
         if fast is None:
             refused += 1
             continue

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 import sympy as sp
 from scipy.integrate import solve_ivp
+from test_held_closed import closed_and_newton
 
 import vcigen
 from vcigen import held, held_step
@@ -144,16 +145,9 @@ def test_quadric_step_is_rattle_and_the_held_newton(name: str, h: float) -> None
     along ``J^-1 grad F(q0)``, the end velocity ``M^-1 p1`` tangent at ``q1``."""
     s, k = _kernels(QUADRICS[name][0])
     form, masses = QUADRICS[name][2], np.array(QUADRICS[name][3])
-    act, lam0 = np.ones(1, dtype=bool), np.zeros(1)
     taken = 0
     for q, p in _states(name, np.random.default_rng(5), 30):
-        fast = k.held_step(q, p, lam0, act, h, s.tol.residual, s.tol.phi)
-        k.held_closed = [False]
-        try:
-            slow = k.held_step(q, p, lam0, act, h, s.tol.residual, s.tol.phi)
-        finally:
-            k.held_closed = [True]
-        assert (fast is None) == (slow is None), (q, p)
+        fast, slow = closed_and_newton(s, k, q, p, h)
         if fast is None:
             continue
         taken += 1
