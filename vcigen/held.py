@@ -16,11 +16,12 @@ multipliers of the active rows ``A``:
   ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): when the previous
   multipliers do not solve it, its second evaluation is at two Newton steps on that quadratic past them
   (``line_start``: no evaluation of the rows, so that in C it runs beside the first), where it mostly ends.
-  Where, besides, that quadratic's leading coefficient and the projection's ``W`` are constants on the row
-  (:func:`closed_forms`: a circle's or a sphere's row with an isotropic mass, a rod's), the step held on it
-  alone is closed-form (:func:`vcigen.held_step.closed_step`, ``held_root``, ``held_root_end``): the
-  quadratic's small root by one square root, the projection onto ``grad F(q1)`` dividing by a run
-  constant; no Newton, no evaluation of the row's square root on the state's chain.
+  The step held on such a row alone is closed-form (:func:`closed_forms`,
+  :func:`vcigen.held_step.closed_step`, ``held_root``, ``held_root_end``): the quadratic's small root by
+  one square root, the projection onto ``grad F(q1)``; no Newton, no evaluation of the row's square root
+  on the state's chain. Where that quadratic's leading coefficient and the projection's ``W`` are
+  constants on the row (a circle's or a sphere's row with an isotropic mass, a rod's) it divides by run
+  constants only; else (a quadric's row: an ellipse's, a paraboloid's) they are formed per step.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the
