@@ -1,11 +1,11 @@
-"""The held step's line start on a row whose zero set is a quadratic's (vcigen.held.line_form).
+"""The line form of a row whose zero set is a quadratic's (vcigen.held.line_form).
 
 One active row ``psi`` with ``psi = 0`` equivalent to ``F(q) = 0``, ``F`` a polynomial of degree 2 (a
 circle's, a sphere's, an ellipse's, a rod's row): along the held step's line ``q1 = a + Lam b`` the row
-vanishes where the quadratic ``held_line`` gives ``A Lam^2 + B Lam + C = 0``. Where the previous multipliers
-do not solve the held step, its second evaluation is at two Newton steps on that quadratic past them (no
-evaluation of the rows), where it mostly ends. The trajectories it gives are checked against the general
-chain and across the backends in ``tests/test_c_agreement_sustained.py`` (the bowl, the dome, the rod).
+vanishes where ``F(a + Lam b) = A Lam^2 + B Lam + C = 0``, which the closed step solves
+(tests/test_held_closed.py, tests/test_held_quadric.py). Until stop 24 a row with a line form whose ``A``
+and ``W`` varied (an ellipse's) kept the held Newton with a second start at that quadratic's root (the
+line start); every such row now has the closed step, and the line start is gone.
 """
 
 from __future__ import annotations
@@ -14,13 +14,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-import vcigen
-from vcigen import held, held_step
-from vcigen.derive import derive
+from vcigen import held
 
-X, Y, Z, XD, YD, ZD = sp.symbols("x y z xd yd zd")
+X, Y, Z = sp.symbols("x y z")
 R = sp.Symbol("R", positive=True)
-G = 9.81
 
 
 @pytest.mark.parametrize(
@@ -70,98 +67,3 @@ def test_line_form_has_the_rows_zero_set(psi: sp.Expr, curved: bool) -> None:
         far = c + 1.5 * lo * d  # psi clearly not 0 there
         assert abs(fpsi(*far)) > 1e-3 and abs(ff(*far)) > 1e-3
     assert hits >= 20
-
-
-def _bowl() -> vcigen.Model:
-    return vcigen.Model(
-        name="hl_bowl",
-        q=[X, Y],
-        qdot=[XD, YD],
-        lagrangian=(XD**2 + YD**2) / 2 - G * Y,
-        contacts={"bowl": R - sp.sqrt(X**2 + Y**2)},
-        params={R: 1.0},
-    )
-
-
-def _rod() -> vcigen.Model:
-    """A Cartesian pendulum (bilateral rod) beside a wall it never reaches: the rod held alone."""
-    return vcigen.Model(
-        name="hl_rod",
-        q=[X, Y],
-        qdot=[XD, YD],
-        lagrangian=(XD**2 + YD**2) / 2 - G * Y,
-        contacts={"wall": X + 5},
-        constraints={"rod": X**2 + Y**2 - 1},
-    )
-
-
-def test_held_line_is_the_row_along_the_line() -> None:
-    """``held_line``'s ``(A, B, C)`` at random ``a``, ``b`` give ``F(a + Lam b)`` for every ``Lam``."""
-    system = derive(_bowl())
-    (f,) = held.line_forms(system)
-    k = vcigen.build(_bowl(), backend="casadi").kernels.bind([1.0])
-    kc = k.held_consts(1e-3)
-    rows = system.routines["rows"]
-    ff = sp.lambdify([rows.input("q").symbols], f.subs(R, 1.0))
-    rng = np.random.default_rng(1)
-    for _ in range(20):
-        a, b = rng.normal(size=2), rng.normal(size=2)
-        coef = k.held_line(a, b, kc)[0]
-        for lam in rng.normal(size=3) * 3:
-            assert coef[0] * lam**2 + coef[1] * lam + coef[2] == pytest.approx(ff(a + lam * b), abs=1e-12)
-
-
-def _newton_steps(model, q0, v0, h, steps, lines: bool) -> tuple[int, int]:
-    """Held steps taken and the held Newton steps they made past the first evaluation and the line start
-    (``held_step.factor_small`` calls less the one of each step's projection), on CasADi's kernels
-    (held_step.held_step), with the line start or (``lines`` False) without. The closed-form step of a circle
-    (``held_step.closed_step``, tests/test_held_closed.py) would take these rows past both: it is off here."""
-    s = vcigen.build(model(), backend="casadi")
-    k = s.kernels.bind(s.model.resolve_params(None))
-    assert any(k.held_closed)  # the bowl and the rod are closed rows: switched off below
-    k.held_closed = [False] * len(k.held_closed)
-    kept, factor = k.held_lines, held_step.factor_small
-    k.held_lines = kept if lines else [False] * len(kept)
-    calls, taken = [0], [0]
-
-    def counted(a):
-        calls[0] += 1
-        return factor(a)
-
-    step = k.held_step
-
-    def counted_step(*args):
-        before = calls[0]
-        out = step(*args)
-        if out is not None:
-            taken[0] += 1
-            calls[0] -= 1  # the projection's
-        else:
-            calls[0] = before  # only the held steps taken are counted
-        return out
-
-    held_step.factor_small, k.held_step = counted, counted_step
-    try:
-        from vcigen.stepper import Stepper
-
-        res = Stepper(k, s.tol).simulate(q0, v0, h, t_end=steps * h)
-    finally:
-        held_step.factor_small, k.held_lines = factor, kept
-        del k.held_step
-    assert len(res.t) == steps + 1 and not res.liftoffs
-    return taken[0], calls[0]
-
-
-@pytest.mark.parametrize(
-    ("model", "q0"),
-    [(_bowl, [0.6, -0.8]), (_rod, [float(np.sin(1.0)), -float(np.cos(1.0))])],
-)
-@pytest.mark.parametrize("h", [1e-3, 1e-2])
-def test_no_newton_past_the_line_start_on_a_curved_row(model, q0, h: float) -> None:
-    """On a moving curved row the previous multipliers do not solve the held step: from them the held Newton
-    takes a step every step; from the line start (two Newton steps on the row's quadratic along the line) the
-    second evaluation converges, but in a few steps in 100."""
-    taken, newton = _newton_steps(model, q0, [0.0, 0.0], h, 300, lines=False)
-    assert taken >= 290 and newton >= taken
-    taken, newton = _newton_steps(model, q0, [0.0, 0.0], h, 300, lines=True)
-    assert taken >= 290 and 0 <= newton <= 0.05 * taken, (taken, newton)

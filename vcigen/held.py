@@ -13,10 +13,8 @@ multipliers of the active rows ``A``:
   Newton in ``Lam`` with the Jacobian ``h G1 J^-1 G0^T`` (``G1`` at ``q1``), from the previous
   step's multipliers. Rows linear in ``q`` (floors, walls) converge in one step. One active row whose zero set
   is that of a polynomial ``F`` of degree 2 in ``q`` (:func:`line_form`: a circle's, a sphere's, an
-  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam`` (``held_line``): when the previous
-  multipliers do not solve it, its second evaluation is at two Newton steps on that quadratic past them
-  (``line_start``: no evaluation of the rows, so that in C it runs beside the first), where it mostly ends.
-  The step held on such a row alone is closed-form (:func:`closed_forms`,
+  ellipse's row) has ``F(q0 + h v(Lam))`` quadratic in ``Lam``: the step held on it alone is
+  closed-form (:func:`closed_forms`,
   :func:`vcigen.held_step.closed_step`, ``held_root``, ``held_root_end``): the quadratic's small root by
   one square root, the projection onto ``grad F(q1)``; no Newton, no evaluation of the row's square root
   on the state's chain. Where that quadratic's leading coefficient and the projection's ``W`` are
@@ -347,9 +345,6 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
       on ``system.structure.held_pattern`` (the curvature ``u . Hess psi . u`` needs no others);
     * ``held_segment(q0, v, k) -> p_plus, energy``: ``p+`` (51) and ``E_d`` (55) of the segment;
     * ``held_end(q1, k) -> acc, minv``: ``M^-1 rhs(q1)`` (the free acceleration) and ``1/M_ii``;
-    * if some row has a :func:`line_form` ``F``, ``held_line(a, b, k) -> coef``: per row ``(A, B, C)`` with
-      ``F(a + Lam b) = A Lam^2 + B Lam + C`` (exact: ``A = b . Hess F . b / 2``, ``B = grad F(a) . b``,
-      ``C = F(a)``; zeros for the other rows);
     * if some row has a :func:`closed_forms` form, ``held_root_dir``, ``held_root`` and ``held_root_end``
       (:func:`closed_routines`);
     * if some row's closed step is a rotation (:func:`vcigen.held_circle.circle_forms`),
@@ -358,7 +353,7 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
     """
     fp = free_parts(system)
     q0, p0, tau, par, q, v = (fp[k] for k in ("q0_arg", "p0_arg", "tau", "par", "q_arg", "v_arg"))
-    h, n = fp["h"], system.n
+    h = fp["h"]
     v0, jinv, p_plus, energy, acc, minv = (fp[k] for k in ("v0", "jinv", "p_plus", "energy", "acc", "minv"))
     rows = system.routines["rows"]
     psi = rows.output("psi").expr
@@ -380,24 +375,6 @@ def held_routines(system: DiscreteSystem) -> list[Routine]:
         ),
         ("held_end", (q,), [("acc", acc), ("minv", minv)], "M^-1 rhs(q) and 1/M_ii."),
     ]
-    forms = system.structure.held_line_forms
-    if any(f is not None for f in forms):
-        a_arg = Arg("a", tuple(sp.Dummy(f"a{i}", real=True) for i in range(n)))
-        b_arg = Arg("b", tuple(sp.Dummy(f"b{i}", real=True) for i in range(n)))
-        at_a = dict(zip(q.symbols, a_arg.symbols))
-        coef = sp.zeros(system.r, 3)
-        for row, f in enumerate(forms):
-            if f is None:
-                continue
-            b = sp.Matrix(b_arg.symbols)
-            hf = sp.hessian(f, q.symbols)
-            coef[row, 0] = sp.expand((b.T * hf * b)[0] / 2)
-            slope = (f.diff(qi).xreplace(at_a) * b[i] for i, qi in enumerate(q.symbols))
-            coef[row, 1] = sum(slope, sp.S.Zero)
-            coef[row, 2] = f.xreplace(at_a)
-        pieces.append(
-            ("held_line", (a_arg, b_arg), [("coef", coef)], "Each row's F(a + Lam b) = A Lam^2 + B Lam + C.")
-        )
     if any(system.structure.held_closed):
         pieces += closed_routines(system, q0, p0, q, v0, jinv, acc, minv, h)
     if any(system.structure.held_circle):

@@ -7,7 +7,6 @@ a step whose end shows an event, whose solve does not converge or whose state is
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -85,20 +84,6 @@ class Held(NamedTuple):
     energy: float
 
 
-def line_start(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The held Newton's second start on one row with a :func:`line_form` (C: ``<model>_held_line_start``).
-
-    Two Newton steps from the previous multipliers ``x`` on the row's quadratic along the line,
-    ``coef[0] Lam^2 + coef[1] Lam + coef[2]`` (exact in ``Lam``: no evaluation of the rows, no square root),
-    where they give a finite number; else ``x``. Each squares the error times ``coef[0] / (2 coef[0] Lam +
-    coef[1])`` (``O(h)``): the evaluation at their end then converges (bench bowl, h = 1e-3 and 1e-2).
-    """
-    x0 = float(x[0])
-    x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1])
-    root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1])
-    return np.array([root]) if math.isfinite(root) else x
-
-
 def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: float) -> Held | None:
     """:func:`held_step` on one active row with a closed form (:func:`closed_forms`; C:
     ``<model>_held_closed_step``): the root of the row's quadratic along the line (``held_closed``), then the
@@ -134,7 +119,7 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     ``Tolerances.phi`` (an inactive row below ``-phi_tol`` is crossed).
     """
     rows = [int(r) for r in np.flatnonzero(act)]
-    if len(rows) == 1 and k.held_lines[rows[0]] and k.held_closed[rows[0]]:  # a closed row is a line row
+    if len(rows) == 1 and k.held_closed[rows[0]]:
         return closed_step(k, q, p, rows[0], act, h, residual, phi_tol)
     kc = k.held_consts(h)
     v0, jinv = k.held_free(q, p, kc)
@@ -149,10 +134,6 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
         return v, q1, psi, grad, hess, res
 
     v, q1, psi, grad, hess, res = evaluate(x)
-    if len(rows) == 1 and k.held_lines[rows[0]] and not res <= ABSTOL and res == res:
-        # the previous multipliers do not solve it: F(q + h v0 + Lam h J^-1 g0) = 0 is a quadratic in Lam
-        x = line_start(k.held_line(q + h * v0, h * jinv * g0[0], kc)[rows[0]], x)
-        v, q1, psi, grad, hess, res = evaluate(x)
     for _ in range(HELD_ITER):
         if res <= ABSTOL or not res == res:
             break

@@ -85,8 +85,7 @@ class Structure:
     held_constant: tuple[int, ...] = ()  # per row, coordinate (r * n + i): 1 where d psi_r/d q_i is constant
     held_closed: tuple[bool, ...] = ()  # per row, whether held alone its step is closed-form (closed_forms)
     held_circle: tuple[bool, ...] = ()  # per row, whether that closed step is a rotation (held_circle)
-    # the forms behind held_lines and held_closed, detected here once for vcigen.held.held_routines to read
-    held_line_forms: tuple = field(default=(), compare=False, repr=False)
+    # the forms behind held_closed and held_circle, detected here once for vcigen.held.held_routines to read
     held_closed_forms: tuple = field(default=(), compare=False, repr=False)
     held_circle_forms: tuple = field(default=(), compare=False, repr=False)
     why: dict[str, str] = field(default_factory=dict, compare=False)
@@ -97,7 +96,7 @@ class Structure:
         if self.held:
             out.append(
                 f"held_lines = {[int(x) for x in self.held_lines]}: per row, 1 where its zero set is a "
-                "quadratic's (a circle's, a sphere's): one such row held starts its Newton at its root"
+                "quadratic's (a circle's, a sphere's, an ellipse's): held alone, its step is closed-form"
             )
             out.append(
                 f"held_pattern = {[list(p) for p in self.held_pattern]}: (i, j, weight) where some row's "
@@ -392,7 +391,6 @@ def detect(system: DiscreteSystem) -> Structure:
         held_columns=tuple(gradient_columns(system)) if held else (),
         held_constant=tuple(constant_gradients(system)) if held else (),
         held_closed=tuple(c is not None for c in closed),
-        held_line_forms=lines,
         held_closed_forms=closed,
         held_circle=tuple(c is not None for c in circles),
         held_circle_forms=circles,

@@ -109,7 +109,6 @@ class CasadiKernels(ParameterSlots):
         )
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
         self.held_pattern = list(self.structure.held_pattern)
-        self.held_lines = list(self.structure.held_lines)  # held_line's rows
         self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held_step.closed_step)
         self.held_circle = list(
             self.structure.held_circle
@@ -392,10 +391,6 @@ class CasadiKernels(ParameterSlots):
     def held_end(self, q, kc):
         """``(M^-1 rhs(q), 1/M_ii)``."""
         return self._held_call("held_end", (self.n, self.n), q, kc)
-
-    def held_line(self, a, b, kc):
-        """Per row ``(A, B, C)`` of its ``held.line_form``: ``F(a + Lam b) = A Lam^2 + B Lam + C``."""
-        return self._held_call("held_line", (3 * self.r,), a, b, kc)[0].reshape(self.r, 3)
 
     def held_root_dir(self, q, kc):
         """Per row ``(m, e, f, s, y, w, a2, g)`` at ``q`` for its closed held step (``held.closed_routines``),

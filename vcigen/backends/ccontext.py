@@ -329,9 +329,6 @@ def render_context(
         "nkh": held[0].outputs[0].size if held else 0,
         "held_hess": [{"i": i, "j": j, "w": c_number(float(w))} for i, j, w in structure.held_pattern],
         "nh_dim": max(len(structure.held_pattern), 1) if held else 1,
-        # per row, 1 where held.line_form has its zero set as a quadratic's: one such row held starts its
-        # Newton at the root of held_line (<model>_held_line_start); empty when no row has one
-        "held_lines": [int(f) for f in structure.held_lines] if any(structure.held_lines) else [],
         # per row, 1 where held alone its step is closed-form (held.closed_forms: <model>_held_closed_step);
         # empty when no row has one
         "held_closed": [int(f) for f in structure.held_closed] if any(structure.held_closed) else [],

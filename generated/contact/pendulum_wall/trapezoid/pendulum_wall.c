@@ -479,17 +479,6 @@ static inline void pendulum_wall_held_end(const double *q, const double *k, doub
     minv[1] = k[0];
 }
 
-/* Each row's F(a + Lam b) = A Lam^2 + B Lam + C. */
-static inline void pendulum_wall_held_line(const double *a, const double *b, const double *k, double *coef)
-{
-    coef[0] = 0;
-    coef[1] = 0;
-    coef[2] = 0;
-    coef[3] = ((b[0])*(b[0])) + ((b[1])*(b[1]));
-    coef[4] = 2*(a[0]*b[0] + a[1]*b[1]);
-    coef[5] = ((a[0])*(a[0])) + ((a[1])*(a[1])) + k[3];
-}
-
 /* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
 static inline void pendulum_wall_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g)
 {
@@ -2252,21 +2241,6 @@ PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_apply(int na, const double *a,
     }
 }
 
-/* held.line_forms: 1 for a row whose zero set is a quadratic's F (its line form in held_line) */
-static const unsigned char pendulum_wall_held_lines[PENDULUM_WALL_R_DIM] = { 0, 1 };
-
-/* held.line_start: two Newton steps from *x on the line's quadratic coef[0] L^2 + coef[1] L + coef[2] (exact in L:
- * no evaluation of the rows, no sqrt), written to *x where they give a finite number. */
-PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_line_start(const double *coef, double *x)
-{
-    const double x0 = *x;
-    const double x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1]);
-    const double root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1]);
-    if (isfinite(root)) {
-        *x = root;
-    }
-}
-
 /* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
 static const unsigned char pendulum_wall_held_closed[PENDULUM_WALL_R_DIM] = { 0, 1 };
 
@@ -2459,7 +2433,7 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_step(const double *kh, double h
     double w[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM];
     double l1[PENDULUM_WALL_R_DIM], f[PENDULUM_WALL_R_DIM], res, f_eps, curv, sum;
     int piv[PENDULUM_WALL_R_DIM], a, b, r, clear, pull;
-    if (na == 1 && pendulum_wall_held_lines[rows[0]] && pendulum_wall_held_closed[rows[0]]) { /* a closed row is a line row */
+    if (na == 1 && pendulum_wall_held_closed[rows[0]]) { /* held.closed_step */
         return pendulum_wall_held_closed_step(kh, residual, phi_tol, act, rows[0], q, p, lam, lam1, q1, p1, v, e);
     }
     pendulum_wall_held_free(q, p, kh, v0, jinv);
@@ -2470,19 +2444,6 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_step(const double *kh, double h
     /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
      * needed: the previous multipliers mostly solve it) in <model>_held_newton */
     res = pendulum_wall_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
-    if (na == 1 && pendulum_wall_held_lines[rows[0]] && !(res <= 1e-13) && res == res) {
-        /* the previous multipliers do not solve it: F(q + h v0 + L h J^-1 g0) = 0 is a quadratic in L, whose
-         * Newton step (held.line_start, no evaluation of the rows: its inputs are there at the step's start, so
-         * that it runs beside the first evaluation) starts a second evaluation */
-        double la[PENDULUM_WALL_N], lb[PENDULUM_WALL_N], coef[PENDULUM_WALL_R_DIM * 3];
-        la[0] = q[0] + h * v0[0];
-        lb[0] = h * jinv[0] * g0[0];
-        la[1] = q[1] + h * v0[1];
-        lb[1] = h * jinv[1] * g0[1];
-        pendulum_wall_held_line(la, lb, kh, coef);
-        pendulum_wall_held_line_start(coef + 3 * rows[0], x);
-        res = pendulum_wall_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
-    }
     if (PENDULUM_WALL_HELD_UNLIKELY(!(res <= 1e-13) && res == res && PENDULUM_WALL_HELD_ITER > 0)) {
         pendulum_wall_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         PENDULUM_WALL_HELD_UNROLL

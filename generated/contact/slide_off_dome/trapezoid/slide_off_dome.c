@@ -383,10 +383,10 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     const double t2 = par[1]*t1;
     const double t3 = tau[0]*t2;
     const double t4 = par[1]*par[0];
-    const double t5 = ((par[2])*(par[2]));
-    const double t6 = tau[0]*t0;
-    const double t7 = 1.0/tau[0];
-    const double t8 = 1.0/t5;
+    const double t5 = tau[0]*t0;
+    const double t6 = 1.0/tau[0];
+    const double t7 = ((par[2])*(par[2]));
+    const double t8 = 1.0/t7;
     const double t9 = (1.0/4.0)*par[0]*t8;
     const double t10 = ((tau[0])*(tau[0]));
     const double t11 = 1.0/t10;
@@ -406,22 +406,22 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[5] = t4;
     k[6] = t3;
     k[7] = -par[1];
-    k[8] = -t5;
-    k[9] = 4*t6;
-    k[10] = t7*t9;
-    k[11] = t11*t9;
-    k[12] = 2*t0;
-    k[13] = -t1*t8;
-    k[14] = (1.0/4.0)*t11*t12*t13;
-    k[15] = t6;
-    k[16] = -16*t10*t14*t5;
+    k[8] = 4*t5;
+    k[9] = t6*t9;
+    k[10] = t11*t9;
+    k[11] = 2*t0;
+    k[12] = -t1*t8;
+    k[13] = (1.0/4.0)*t11*t12*t13;
+    k[14] = t5;
+    k[15] = -t7;
+    k[16] = -16*t10*t14*t7;
     k[17] = -t1*t12;
     k[18] = -t15;
     k[19] = 2*t14;
     k[20] = (1.0/2.0)*t12;
     k[21] = -t0;
     k[22] = t12;
-    k[23] = t5;
+    k[23] = t7;
     k[24] = -t10*t16;
     k[25] = -t17;
     k[26] = t17;
@@ -435,7 +435,7 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
     k[35] = tau[0];
     k[36] = tau[0]*t4;
-    k[37] = t12*t7;
+    k[37] = t12*t6;
     k[38] = t1*t11;
     k[39] = t2;
     k[40] = -par[2]*t0;
@@ -488,30 +488,22 @@ static inline void slide_off_dome_held_end(const double *q, const double *k, dou
     minv[1] = k[0];
 }
 
-/* Each row's F(a + Lam b) = A Lam^2 + B Lam + C. */
-static inline void slide_off_dome_held_line(const double *a, const double *b, const double *k, double *coef)
-{
-    coef[0] = ((b[0])*(b[0])) + ((b[1])*(b[1]));
-    coef[1] = 2*(a[0]*b[0] + a[1]*b[1]);
-    coef[2] = ((a[0])*(a[0])) + ((a[1])*(a[1])) + k[8];
-}
-
 /* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
 static inline void slide_off_dome_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g)
 {
-    m[0] = k[9]*q[0];
-    m[1] = k[9]*q[1];
-    e[0] = k[10]*q[0];
-    e[1] = k[10]*q[1];
-    f[0] = k[11]*q[0];
-    f[1] = k[11]*q[1];
+    m[0] = k[8]*q[0];
+    m[1] = k[8]*q[1];
+    e[0] = k[9]*q[0];
+    e[1] = k[9]*q[1];
+    f[0] = k[10]*q[0];
+    f[1] = k[10]*q[1];
     s[0] = 0;
-    y[0] = k[12]*q[0];
-    y[1] = k[12]*q[1];
-    w[0] = k[13]*q[0];
-    w[1] = k[13]*q[1];
+    y[0] = k[11]*q[0];
+    y[1] = k[11]*q[1];
+    w[0] = k[12]*q[0];
+    w[1] = k[12]*q[1];
     a2[0] = 0;
-    g[0] = k[14];
+    g[0] = k[13];
 }
 
 /* The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D. */
@@ -519,10 +511,10 @@ static inline void slide_off_dome_held_root(const double *q0, const double *p0, 
 {
     (void)a2;
     const double t0 = k[1] + p0[1];
-    const double t1 = k[15]*p0[0] + q0[0];
-    const double t2 = k[15]*t0 + q0[1];
+    const double t1 = k[14]*p0[0] + q0[0];
+    const double t2 = k[14]*t0 + q0[1];
     const double t3 = m[0]*t1 + m[1]*t2 + s[0];
-    const double t4 = k[16]*(k[8] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
+    const double t4 = k[16]*(k[15] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
     v0[0] = k[0]*p0[0];
     v0[1] = k[0]*t0;
     a[0] = t1;
@@ -542,7 +534,7 @@ static inline void slide_off_dome_held_root_end(const double *q, const double *p
     p1[1] = t2;
     lam1[0] = k[17]*t0;
     force[0] = k[17]*(k[18]*q[1] + k[19]*((t1)*(t1)) + k[19]*((t2)*(t2)));
-    res[0] = k[20]*(k[8] + ((q[0])*(q[0])) + ((q[1])*(q[1])));
+    res[0] = k[20]*(k[15] + ((q[0])*(q[0])) + ((q[1])*(q[1])));
 }
 
 /* Per circle row, (omega, arg) at (q, p). */
@@ -583,7 +575,7 @@ SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_end(const double *q0,
     imp[0] = -k[37]*(-t0*(k[36] - p0[1] + p1[1]) + (p0[0] - p1[0])*(q0[0] + q1[0]))/(e[1] + 1);
     energy[0] = k[38]*(((q0[0] - q1[0])*(q0[0] - q1[0])) + ((q0[1] - q1[1])*(q0[1] - q1[1]))) + k[39]*t0;
     force[0] = ((e[0])*(e[0]))*k[40] + k[41]*q1[1];
-    res[0] = k[20]*(k[8] + ((q1[0])*(q1[0])) + ((q1[1])*(q1[1])));
+    res[0] = k[20]*(k[15] + ((q1[0])*(q1[0])) + ((q1[1])*(q1[1])));
 }
 
 /* Per circle row, Lam of a step. */
@@ -2220,21 +2212,6 @@ SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_apply(int na, const double *
     }
 }
 
-/* held.line_forms: 1 for a row whose zero set is a quadratic's F (its line form in held_line) */
-static const unsigned char slide_off_dome_held_lines[SLIDE_OFF_DOME_R_DIM] = { 1 };
-
-/* held.line_start: two Newton steps from *x on the line's quadratic coef[0] L^2 + coef[1] L + coef[2] (exact in L:
- * no evaluation of the rows, no sqrt), written to *x where they give a finite number. */
-SLIDE_OFF_DOME_HELD_INLINE void slide_off_dome_held_line_start(const double *coef, double *x)
-{
-    const double x0 = *x;
-    const double x1 = x0 - ((coef[0] * x0 + coef[1]) * x0 + coef[2]) / (2.0 * coef[0] * x0 + coef[1]);
-    const double root = x1 - ((coef[0] * x1 + coef[1]) * x1 + coef[2]) / (2.0 * coef[0] * x1 + coef[1]);
-    if (isfinite(root)) {
-        *x = root;
-    }
-}
-
 /* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
 static const unsigned char slide_off_dome_held_closed[SLIDE_OFF_DOME_R_DIM] = { 1 };
 
@@ -2420,7 +2397,7 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     double w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
     double l1[SLIDE_OFF_DOME_R_DIM], f[SLIDE_OFF_DOME_R_DIM], res, f_eps, curv, sum;
     int piv[SLIDE_OFF_DOME_R_DIM], a, b, r, clear, pull;
-    if (na == 1 && slide_off_dome_held_lines[rows[0]] && slide_off_dome_held_closed[rows[0]]) { /* a closed row is a line row */
+    if (na == 1 && slide_off_dome_held_closed[rows[0]]) { /* held.closed_step */
         return slide_off_dome_held_closed_step(kh, residual, phi_tol, act, rows[0], q, p, lam, lam1, q1, p1, v, e);
     }
     slide_off_dome_held_free(q, p, kh, v0, jinv);
@@ -2431,19 +2408,6 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
      * needed: the previous multipliers mostly solve it) in <model>_held_newton */
     res = slide_off_dome_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
-    if (na == 1 && slide_off_dome_held_lines[rows[0]] && !(res <= 1e-13) && res == res) {
-        /* the previous multipliers do not solve it: F(q + h v0 + L h J^-1 g0) = 0 is a quadratic in L, whose
-         * Newton step (held.line_start, no evaluation of the rows: its inputs are there at the step's start, so
-         * that it runs beside the first evaluation) starts a second evaluation */
-        double la[SLIDE_OFF_DOME_N], lb[SLIDE_OFF_DOME_N], coef[SLIDE_OFF_DOME_R_DIM * 3];
-        la[0] = q[0] + h * v0[0];
-        lb[0] = h * jinv[0] * g0[0];
-        la[1] = q[1] + h * v0[1];
-        lb[1] = h * jinv[1] * g0[1];
-        slide_off_dome_held_line(la, lb, kh, coef);
-        slide_off_dome_held_line_start(coef + 3 * rows[0], x);
-        res = slide_off_dome_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
-    }
     if (SLIDE_OFF_DOME_HELD_UNLIKELY(!(res <= 1e-13) && res == res && SLIDE_OFF_DOME_HELD_ITER > 0)) {
         slide_off_dome_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         SLIDE_OFF_DOME_HELD_UNROLL
