@@ -2239,6 +2239,23 @@ PENDULUM_WALL_HELD_INLINE void pendulum_wall_held_apply(int na, const double *a,
 /* held.closed_forms: 1 for a row whose held step, held alone, is closed-form (held_root_dir, held_root, ...) */
 static const unsigned char pendulum_wall_held_closed[PENDULUM_WALL_R_DIM] = { 0, 1 };
 
+/* Books step s of a loop over one row `row` held alone (SustainedSteps._book, then <model>_record): its force
+ * imp on its contact or constraint, 0 on the others, and the held contacts. A circle's row is a closed row: its loop books alike. */
+static inline void pendulum_wall_held_book_row(long s, int row, double imp, const unsigned char *held,
+    unsigned char *A, double *F, double *FC)
+{
+    int j;
+    PENDULUM_WALL_HELD_UNROLL
+    for (j = 0; j < PENDULUM_WALL_M; ++j) {
+        F[s * PENDULUM_WALL_M + j] = j == pendulum_wall_row_contact[row] ? imp : 0.0;
+        A[s * PENDULUM_WALL_M + j] = held[j];
+    }
+    PENDULUM_WALL_HELD_UNROLL
+    for (j = 0; j < PENDULUM_WALL_NC; ++j) {
+        FC[s * PENDULUM_WALL_NC + j] = j == pendulum_wall_row_constraint[row] ? imp : 0.0;
+    }
+}
+
 /* held_root_dir's outputs at a point: the line's direction from it (m, e, f, s, g; a quadric's 2 A, a2) and the
  * projection onto the row there (y, w). */
 typedef struct {
@@ -2255,9 +2272,8 @@ static inline void pendulum_wall_held_dir(const double *q, const double *kh, pen
 /* held.closed_step from held_root_dir at q (d0): the held step on the one active row `row`, which has a closed
  * form: the small root of its quadratic along the line (held_root: one sqrt on the state's chain; a quadric's
  * row whose Hess F is not definite, held.closed_forms, divides by B + sqrt(D)), v, q1 and Lam from it, the
- * segment, held_root_dir at q1 (d1, out: the next step's
- * d0), the projection dividing by a run constant (a quadric's: by W(q1)), the force and the residual F(q1)/gain
- * (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row],
+ * segment, held_root_dir at q1 (d1, out: the next step's d0), the projection dividing by a run constant (a
+ * quadric's: by W(q1)), the force and the residual F(q1)/gain (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row],
  * lam1[row], d1 written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain
  * takes it. */
 PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_one(const double *kh, double residual, double phi_tol,
@@ -2640,7 +2656,6 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_circle_loop(const pendulum_wal
     double w[PENDULUM_WALL_R_DIM * 2], lr[PENDULUM_WALL_R_DIM], sum = 0.0, qk[2], pk[2], wk[2], e, imp;
     const double residual = c->tol->residual, phi_tol = c->tol->phi;
     long s;
-    int j;
     pendulum_wall_held_circle_start(q, p, kh, w);
     qk[0] = q[0];
     qk[1] = q[1];
@@ -2665,15 +2680,7 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_circle_loop(const pendulum_wal
         P[s * PENDULUM_WALL_N + 1] = pk[1];
         E[s] = e;
         sum += e;
-        PENDULUM_WALL_HELD_UNROLL
-        for (j = 0; j < PENDULUM_WALL_M; ++j) { /* SustainedSteps._book, then <model>_record */
-            F[s * PENDULUM_WALL_M + j] = j == pendulum_wall_row_contact[row] ? imp : 0.0;
-            A[s * PENDULUM_WALL_M + j] = held[j];
-        }
-        PENDULUM_WALL_HELD_UNROLL
-        for (j = 0; j < PENDULUM_WALL_NC; ++j) {
-            FC[s * PENDULUM_WALL_NC + j] = j == pendulum_wall_row_constraint[row] ? imp : 0.0;
-        }
+        pendulum_wall_held_book_row(s, row, imp, held, A, F, FC);
     }
     if (s > 0) { /* the last step's velocity and (the general chain's Newton start) Lam, from its start */
         const double qb[2] = { s > 1 ? Q[(s - 2) * PENDULUM_WALL_N] : q[0], s > 1 ? Q[(s - 2) * PENDULUM_WALL_N + 1] : q[1] };
@@ -2734,7 +2741,7 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_closed_loop(const pendulum_wal
     double q1[PENDULUM_WALL_N], p1[PENDULUM_WALL_N], lam1[PENDULUM_WALL_R_DIM], e, imp, sum = 0.0;
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
     long s;
-    int i, j;
+    int i;
     pendulum_wall_held_dir(q, kh, &d0);
     for (s = 0; s < n; ++s) {
         if (pendulum_wall_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, &e)) {
@@ -2751,15 +2758,7 @@ PENDULUM_WALL_HELD_INLINE long pendulum_wall_held_closed_loop(const pendulum_wal
         E[s] = e;
         sum += e;
         imp = 0.0 + (lam[row] + lam1[row]) / h; /* as <model>_held_loop books it: from +0.0 */
-        PENDULUM_WALL_HELD_UNROLL
-        for (j = 0; j < PENDULUM_WALL_M; ++j) { /* SustainedSteps._book, then <model>_record */
-            F[s * PENDULUM_WALL_M + j] = j == pendulum_wall_row_contact[row] ? imp : 0.0;
-            A[s * PENDULUM_WALL_M + j] = held[j];
-        }
-        PENDULUM_WALL_HELD_UNROLL
-        for (j = 0; j < PENDULUM_WALL_NC; ++j) {
-            FC[s * PENDULUM_WALL_NC + j] = j == pendulum_wall_row_constraint[row] ? imp : 0.0;
-        }
+        pendulum_wall_held_book_row(s, row, imp, held, A, F, FC);
     }
     *sum_e += sum;
     return s;
