@@ -91,7 +91,7 @@ def _cubic_spring_circle() -> vcigen.Model:
 
 
 @pytest.mark.parametrize(
-    "model", [_cubic_spring_circle, *(m for m, _ in NOT_CLOSED.values())], ids=["cubic", *sorted(NOT_CLOSED)]
+    "model", [_cubic_spring_circle, *NOT_CLOSED.values()], ids=["cubic", *sorted(NOT_CLOSED)]
 )
 def test_other_rows_are_not_rotations(model) -> None:
     """A circle under a force not affine in ``q`` keeps the closed step; rows that are not closed have no
@@ -174,8 +174,8 @@ def test_rotation_force_is_the_closed_force(name: str) -> None:
             sq = math.sqrt(w[1])
             q1, p1, pt, _, _ = (x[0] for x in k.held_circle_step(q, p, w, [sq], kc))
             _, _, force, res = (x[0] for x in k.held_circle_end(q, p, q1, p1, [pt, sq], kc))
-            y, wn = k.held_root_dir(q1, kc)[4:6]
-            _, _, ref_force, ref_res = k.held_root_end(q1, p1, y, wn, kc)
+            _, _, _, _, y, wn, _, _, iw = k.held_root_dir(q1, kc)
+            _, _, ref_force, ref_res = k.held_root_end(q1, p1, y, wn, iw, kc)
             scale = 1.0 + np.abs(p).max()
             assert abs(force) > 0.1  # not a force that vanishes
             assert force == pytest.approx(ref_force[0], rel=0, abs=1e-13 * scale**2)

@@ -99,13 +99,6 @@ def line_parts(psi: sp.Expr, q: tuple[sp.Symbol, ...]) -> tuple[sp.Expr, sp.Expr
     return (f, -2 * alpha) if beta != 0 and quadratic(f) else None
 
 
-def line_forms(system: DiscreteSystem) -> list[sp.Expr | None]:
-    """:func:`line_form` of every row."""
-    rows = system.routines["rows"]
-    q = tuple(rows.input("q").symbols)
-    return [line_form(sp.sympify(e), q) for e in rows.output("psi").expr]
-
-
 class Closed(NamedTuple):
     """A row whose held step has a closed form (:func:`closed_forms`)."""
 
@@ -202,12 +195,12 @@ def closed_routines(
     """The pieces of the closed held step (:func:`closed_forms`), per row (zeros for rows without one), with
     ``b = h J^-1 grad F(q0)``, ``a = q0 + h v0`` and ``F(a + Lam b) = a0 Lam^2 + B Lam + C``:
 
-    * ``held_root_dir(q, k) -> m, e, f, s, y, w, a2, g``: what the step needs of ``grad F`` at ``q`` (at
+    * ``held_root_dir(q, k) -> m, e, f, s, y, w, a2, g, iw``: what the step needs of ``grad F`` at ``q`` (at
       the step's start: ``m = Hess F b``, ``s = grad F(0) . b``, so that ``B = m . a + s``; ``e = b / (2
       a0)``, ``f = J^-1 grad F / (2 a0)``, ``g = gain / (2 a0)``; a quadric's ``a2 = 2 A = b . Hess F . b``
-      (0 for a fixed row); at its end: ``y = M^-1 grad F``, ``w = -grad F / w0``). Its own routine,
-      so that these per-coordinate factors are products off the state's chain and the chain multiplies
-      each by one value (one routine would share a common factor and add a product to the chain);
+      (0 for a fixed row); at its end: ``y = M^-1 grad F``, ``iw = 1 / w0``, ``w = -grad F iw``). Its own
+      routine, so that these per-coordinate factors are products off the state's chain and the chain
+      multiplies each by one value (one routine would share a common factor and add a product to the chain);
     * ``held_root(q0, p0, m, s, a2, k) -> v0, a, nu, slope, disc``: the free velocity ``v0``, the line's
       start ``a = q0 + h v0`` and per row, in ``nu = 2 a0 Lam``, the small root of ``nu^2 + 2 B nu + 4 a0 C
       = 0``: ``D = B^2 - 4 a0 C``, ``nu = sqrt(D) - B`` (one ``sqrt``, no division: ``a0`` is a run
@@ -223,11 +216,12 @@ def closed_routines(
       ``f``, ``g`` divided by ``2 A`` at ``q0``, off the chain); else ``e = b``, ``f = J^-1 grad F``, ``g =
       gain`` and ``nu = Lam = -2C / (B + sqrt(D))``: no cancellation where ``A`` is small against ``B`` (a
       paraboloid's vertex, where ``A = 0``), one division on the chain;
-    * ``held_root_end(q1, p_plus, y, w, k) -> p1, lam1, force, res``: rattle_project onto ``grad F(q1)``,
-      ``p1 = p+ + w (y . p+)`` (dividing by ``w0``; a quadric's ``W(q1)``), ``lam1 = gain Lam'``; the force of
-      ``SustainedSteps._forces``, ``-gain (grad F . M^-1 rhs + u1 . Hess F . u1) / w0`` (equal there:
-      ``grad psi = grad F / gain``, ``u1 . grad F = 0``); ``res = F(q1) / gain`` (``psi(q1)`` to first
-      order).
+    * ``held_root_end(q1, p_plus, y, w, iw, k) -> p1, lam1, force, res``: rattle_project onto ``grad
+      F(q1)``, ``p1 = p+ + w (y . p+)``, ``lam1 = gain Lam'``; the force ``-gain (grad F . M^-1 rhs + u1 .
+      Hess F . u1) iw`` (that of ``SustainedSteps._forces``: ``grad psi = grad F / gain``, ``u1 . grad F =
+      0``); ``res = F(q1) / gain`` (``psi(q1)`` to first order). A quadric's ``1 / W(q1)`` is
+      ``held_root_dir``'s one division, which ``w``, ``lam1`` and the force share (before, ``held_root_end``
+      divided by ``W(q1)`` a second time); a fixed row's ``1 / w0`` is a run constant.
     """
     n, nr = system.n, system.r
     forms = system.structure.held_closed_forms
@@ -237,9 +231,9 @@ def closed_routines(
 
     pp = arg("p_plus", n)
     m_, s_ = arg("m", nr * n), arg("s", nr)
-    y_, w_, a2_ = arg("y", nr * n), arg("w", nr * n), arg("a2", nr)
+    y_, w_, a2_, iw_ = arg("y", nr * n), arg("w", nr * n), arg("a2", nr), arg("iw", nr)
     dirs = {name: sp.zeros(nr, n) for name in ("m", "e", "f", "y", "w")}
-    dirs["s"], dirs["a2"], dirs["g"] = sp.zeros(nr, 1), sp.zeros(nr, 1), sp.zeros(nr, 1)
+    dirs["s"], dirs["a2"], dirs["g"], dirs["iw"] = (sp.zeros(nr, 1) for _ in range(4))
     p1 = sp.zeros(nr, n)
     nus, slope, disc, lam1, force, res = (sp.zeros(nr, 1) for _ in range(6))
     a = [q0.symbols[i] + h * v0[i] for i in range(n)]  # the line's start
@@ -278,14 +272,16 @@ def closed_routines(
         dot = sum((y_.symbols[at + i] * pp.symbols[i] for i in range(n)), sp.S.Zero)
         for i in range(n):
             p1[r, i] = pp.symbols[i] + w_.symbols[at + i] * dot
-        force[r] = closed_force(cf, q.symbols, [p1[r, i] for i in range(n)], acc, minv)
-        lam1[r] = -gain / w0 * dot
+        dirs["iw"][r] = 1 / w0
+        iw = 1 / w0 if cf.fixed else iw_.symbols[r]  # 1 / W(q1): divided once, in held_root_dir
+        force[r] = closed_force(cf._replace(w0=1 / iw), q.symbols, [p1[r, i] for i in range(n)], acc, minv)
+        lam1[r] = -gain * iw * dot
         res[r] = f / gain
     return [
         (
             "held_root_dir",
             (q,),
-            [(name, dirs[name]) for name in ("m", "e", "f", "s", "y", "w", "a2", "g")],
+            [(name, dirs[name]) for name in ("m", "e", "f", "s", "y", "w", "a2", "g", "iw")],
             "Per closed row, what its held step needs of grad F at q (held.closed_routines).",
         ),
         (
@@ -296,7 +292,7 @@ def closed_routines(
         ),
         (
             "held_root_end",
-            (q, pp, y_, w_),
+            (q, pp, y_, w_, iw_),
             [("p1", p1), ("lam1", lam1), ("force", force), ("res", res)],
             "Its projection (p1, Lam'), force and residual F(q1)/gain.",
         ),

@@ -90,7 +90,7 @@ def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: floa
     segment, the projection, the force and the residual (``held_root_end``) and the tests of ``held_step``
     in the same order; ``None`` where the root does not hold (``B <= 0`` or ``D < 0``) or a test fails."""
     kc = k.held_consts(h)
-    m, e, f, s, _, _, a2, g = k.held_root_dir(q, kc)
+    m, e, f, s, _, _, a2, g, _ = k.held_root_dir(q, kc)
     v0, a, nu, slope, disc = k.held_root(q, p, m, s, a2, kc)
     if not (slope[row] > 0.0 and disc[row] >= 0.0):
         return None
@@ -98,8 +98,8 @@ def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: floa
     v = v0 + nu[row] * f[at : at + n]  # the C loop's operations: a product, then a sum
     q1 = a + nu[row] * e[at : at + n]
     p_plus, energy = k.held_segment(q, v, kc)
-    _, _, _, _, y, w, _, _ = k.held_root_dir(q1, kc)
-    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, kc)
+    _, _, _, _, y, w, _, _, iw = k.held_root_dir(q1, kc)
+    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, iw, kc)
     p1 = p1[row]
     if not one_row_clears(
         k, kc, row, act, p, q1, p1, float(energy), float(force[row]), float(res[row]), residual, phi_tol

@@ -28,7 +28,7 @@ own modules (:mod:`vcigen.explicit`, :mod:`vcigen.implicit`, :mod:`vcigen.held`)
   velocity: the jump (48) is a quadratic in ``mu``.
 * **Held grid step** (``held``, :mod:`vcigen.held`): rows of sustained contact in an explicit scene
   with momentum ``M qdot`` and no friction: a grid step in sustained contact is straight-line code;
-  ``held_lines``, ``held_pattern``, ``held_columns`` and ``held_constant`` say what of its rows it
+  ``held_pattern``, ``held_columns`` and ``held_constant`` say what of its rows it
   specialises further; ``held_closed`` the rows whose held step, held alone, is closed-form (one square root,
   no Newton: :func:`vcigen.held.closed_forms`).
 """
@@ -42,7 +42,7 @@ import sympy as sp
 
 from .derive import DiscreteSystem
 from .explicit import expanded, quadratic_energy, smooth_jacobian
-from .held import closed_forms, free_parts, line_forms, row_hessian
+from .held import closed_forms, free_parts, row_hessian
 from .held_circle import circle_forms
 from .stage import reduced_smooth
 
@@ -79,7 +79,6 @@ class Structure:
     explicit_path: bool  # the contact time (47) is a scalar root along the explicit segment map
     jump_quadratic: bool  # the jump (48) is a quadratic in mu
     held: bool  # a grid step in sustained contact is straight-line code (vcigen.held)
-    held_lines: tuple[bool, ...] = ()  # per row, whether its zero set is a quadratic's (held.line_form)
     held_pattern: tuple[tuple[int, int, int], ...] = ()  # (i, j, weight) where a row's Hessian is not 0
     held_columns: tuple[int, ...] = ()  # coordinates where some row's gradient is not identically 0
     held_constant: tuple[int, ...] = ()  # per row, coordinate (r * n + i): 1 where d psi_r/d q_i is constant
@@ -94,10 +93,6 @@ class Structure:
         """``name = value: why`` per flag, wrapped at ``width`` (the generated header's comment block)."""
         out = [f"{f} = {int(getattr(self, f))}: {self.why[f]}" for f in FLAGS]
         if self.held:
-            out.append(
-                f"held_lines = {[int(x) for x in self.held_lines]}: per row, 1 where its zero set is a "
-                "quadratic's (a circle's, a sphere's, an ellipse's): held alone, its step is closed-form"
-            )
             out.append(
                 f"held_pattern = {[list(p) for p in self.held_pattern]}: (i, j, weight) where some row's "
                 "Hessian is not identically 0 (the curvature u . Hess psi . u needs no other entries)"
@@ -370,7 +365,6 @@ def detect(system: DiscreteSystem) -> Structure:
         else "par changes between steps (the time of forces, friction's slots): every step computes its own"
     )
     held, why["held"] = _held(system, explicit_grid)
-    lines = tuple(line_forms(system)) if held else ()
     closed = tuple(closed_forms(system)) if held else ()
     circles = tuple(_circles(system, closed)) if any(c is not None for c in closed) else ()
     return Structure(
@@ -386,7 +380,6 @@ def detect(system: DiscreteSystem) -> Structure:
         explicit_path=explicit_path,
         jump_quadratic=jump,
         held=held,
-        held_lines=tuple(f is not None for f in lines),
         held_pattern=tuple(hess_pattern(system)) if held else (),
         held_columns=tuple(gradient_columns(system)) if held else (),
         held_constant=tuple(constant_gradients(system)) if held else (),

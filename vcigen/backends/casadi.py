@@ -108,6 +108,7 @@ class CasadiKernels(ParameterSlots):
             else {}
         )
         self._held_k: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._held_dir: tuple[np.ndarray, np.ndarray, list[np.ndarray]] | None = None  # held_root_dir's last
         self.held_pattern = list(self.structure.held_pattern)
         self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held_step.closed_step)
         self.held_circle = list(
@@ -393,20 +394,27 @@ class CasadiKernels(ParameterSlots):
         return self._held_call("held_end", (self.n, self.n), q, kc)
 
     def held_root_dir(self, q, kc):
-        """Per row ``(m, e, f, s, y, w, a2, g)`` at ``q`` for its closed held step (``held.closed_routines``),
-        flat (row-major, as ``held_root`` and ``held_root_end`` read them)."""
+        """Per row ``(m, e, f, s, y, w, a2, g, iw)`` at ``q`` for its closed held step
+        (``held.closed_routines``), flat (row-major, as ``held_root`` and ``held_root_end`` read them). The
+        last call's are kept: a closed step reads them at its end, the next step at its start (as the C loop
+        carries them)."""
+        last = self._held_dir
+        if last is not None and last[1] is kc and np.array_equal(last[0], q):
+            return last[2]
         n, r = self.n, self.r
-        return self._held_call("held_root_dir", (r * n, r * n, r * n, r, r * n, r * n, r, r), q, kc)
+        out = self._held_call("held_root_dir", (r * n, r * n, r * n, r, r * n, r * n, r, r, r), q, kc)
+        self._held_dir = (np.array(q, dtype=float), kc, out)
+        return out
 
     def held_root(self, q0, p0, m, s, a2, kc):
         """``(v0, a, nu, B, D)`` of its closed held step: ``v0``, ``a`` once, the others per row."""
         n, r = self.n, self.r
         return self._held_call("held_root", (n, n, r, r, r), q0, p0, m, s, a2, kc)
 
-    def held_root_end(self, q1, p_plus, y, w, kc):
+    def held_root_end(self, q1, p_plus, y, w, iw, kc):
         """Per row ``(p1, Lam', force, res)`` of its closed held step's end."""
         n, r = self.n, self.r
-        p1, lam1, force, res = self._held_call("held_root_end", (r * n, r, r, r), q1, p_plus, y, w, kc)
+        p1, lam1, force, res = self._held_call("held_root_end", (r * n, r, r, r), q1, p_plus, y, w, iw, kc)
         return p1.reshape(r, n), lam1, force, res
 
     def circle_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):

@@ -406,12 +406,12 @@ static inline void pendulum_wall_held_consts(const double *tau, const double *pa
     k[12] = 2*t0;
     k[13] = -t12;
     k[14] = (1.0/8.0)*t11*t13*t8;
-    k[15] = t6;
-    k[16] = -16*t10*t14*t4;
-    k[17] = -t9;
-    k[18] = -2*t14;
-    k[19] = t15;
-    k[20] = t9;
+    k[15] = t9;
+    k[16] = t6;
+    k[17] = -16*t10*t14*t4;
+    k[18] = -t9;
+    k[19] = -2*t14;
+    k[20] = t15;
     k[21] = -t0;
     k[22] = t16;
     k[23] = t4;
@@ -480,7 +480,7 @@ static inline void pendulum_wall_held_end(const double *q, const double *k, doub
 }
 
 /* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
-static inline void pendulum_wall_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g)
+static inline void pendulum_wall_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g, double *iw)
 {
     m[0] = 0;
     m[1] = 0;
@@ -508,6 +508,8 @@ static inline void pendulum_wall_held_root_dir(const double *q, const double *k,
     a2[1] = 0;
     g[0] = 0;
     g[1] = k[14];
+    iw[0] = 0;
+    iw[1] = k[15];
 }
 
 /* The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D. */
@@ -515,10 +517,10 @@ static inline void pendulum_wall_held_root(const double *q0, const double *p0, c
 {
     (void)a2;
     const double t0 = k[1] + p0[1];
-    const double t1 = k[15]*p0[0] + q0[0];
-    const double t2 = k[15]*t0 + q0[1];
+    const double t1 = k[16]*p0[0] + q0[0];
+    const double t2 = k[16]*t0 + q0[1];
     const double t3 = m[2]*t1 + m[3]*t2 + s[1];
-    const double t4 = k[16]*(k[3] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
+    const double t4 = k[17]*(k[3] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
     v0[0] = k[0]*p0[0];
     v0[1] = k[0]*t0;
     a[0] = t1;
@@ -532,8 +534,9 @@ static inline void pendulum_wall_held_root(const double *q0, const double *p0, c
 }
 
 /* Its projection (p1, Lam'), force and residual F(q1)/gain. */
-static inline void pendulum_wall_held_root_end(const double *q, const double *p_plus, const double *y, const double *w, const double *k, double *p1, double *lam1, double *force, double *res)
+static inline void pendulum_wall_held_root_end(const double *q, const double *p_plus, const double *y, const double *w, const double *iw, const double *k, double *p1, double *lam1, double *force, double *res)
 {
+    (void)iw;
     const double t0 = p_plus[0]*y[2] + p_plus[1]*y[3];
     const double t1 = p_plus[0] + w[2]*t0;
     const double t2 = p_plus[1] + w[3]*t0;
@@ -542,9 +545,9 @@ static inline void pendulum_wall_held_root_end(const double *q, const double *p_
     p1[2] = t1;
     p1[3] = t2;
     lam1[0] = 0;
-    lam1[1] = k[17]*t0;
+    lam1[1] = k[18]*t0;
     force[0] = 0;
-    force[1] = k[20]*(k[18]*((t1)*(t1)) + k[18]*((t2)*(t2)) + k[19]*q[1]);
+    force[1] = k[15]*(k[19]*((t1)*(t1)) + k[19]*((t2)*(t2)) + k[20]*q[1]);
     res[0] = 0;
     res[1] = k[3] + ((q[0])*(q[0])) + ((q[1])*(q[1]));
 }
@@ -2266,12 +2269,12 @@ static inline void pendulum_wall_held_book_row(long s, int row, double imp, cons
 typedef struct {
     double m[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], e[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], f[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], s[PENDULUM_WALL_R_DIM];
     double y[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], w[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], a2[PENDULUM_WALL_R_DIM];
-    double g[PENDULUM_WALL_R_DIM];
+    double g[PENDULUM_WALL_R_DIM], iw[PENDULUM_WALL_R_DIM];
 } pendulum_wall_held_dir_t;
 
 static inline void pendulum_wall_held_dir(const double *q, const double *kh, pendulum_wall_held_dir_t *d)
 {
-    pendulum_wall_held_root_dir(q, kh, d->m, d->e, d->f, d->s, d->y, d->w, d->a2, d->g);
+    pendulum_wall_held_root_dir(q, kh, d->m, d->e, d->f, d->s, d->y, d->w, d->a2, d->g, d->iw);
 }
 
 /* held.closed_step from held_root_dir at q (d0): the held step on the one active row `row`, which has a closed
@@ -2300,7 +2303,7 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_one(const double *kh, do
     }
     pendulum_wall_held_segment(q, v, kh, pp, e);
     pendulum_wall_held_dir(q1, kh, d1);
-    pendulum_wall_held_root_end(q1, pp, d1->y, d1->w, kh, pr, l1, force, res);
+    pendulum_wall_held_root_end(q1, pp, d1->y, d1->w, d1->iw, kh, pr, l1, force, res);
     PENDULUM_WALL_HELD_UNROLL
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         p1[i] = pr[row * PENDULUM_WALL_N + i];

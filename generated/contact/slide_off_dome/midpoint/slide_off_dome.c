@@ -407,35 +407,36 @@ static inline void slide_off_dome_held_consts(const double *tau, const double *p
     k[11] = 2*t0;
     k[12] = -t1*t8;
     k[13] = (1.0/4.0)*t11*t12*t13;
-    k[14] = t5;
-    k[15] = -t7;
-    k[16] = -16*t10*t14*t7;
-    k[17] = -t1*t12;
-    k[18] = -t15;
-    k[19] = 2*t14;
-    k[20] = (1.0/2.0)*t12;
-    k[21] = -t0;
-    k[22] = t12;
-    k[23] = t7;
-    k[24] = -t10*t16;
-    k[25] = -t17;
-    k[26] = t17;
-    k[27] = -t1*t18;
-    k[28] = par[1]*t19;
-    k[29] = -t18;
-    k[30] = t19;
-    k[31] = -t8;
-    k[32] = -t19;
-    k[33] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t16;
-    k[34] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
-    k[35] = tau[0];
-    k[36] = tau[0]*t4;
-    k[37] = t12*t6;
-    k[38] = t1*t11;
-    k[39] = t2;
-    k[40] = -par[2]*t0;
-    k[41] = t12*t4;
-    k[42] = par[0]*t12;
+    k[14] = t9;
+    k[15] = t5;
+    k[16] = -t7;
+    k[17] = -16*t10*t14*t7;
+    k[18] = -t1*t12;
+    k[19] = -t15;
+    k[20] = 2*t14;
+    k[21] = (1.0/2.0)*t12;
+    k[22] = -t0;
+    k[23] = t12;
+    k[24] = t7;
+    k[25] = -t10*t16;
+    k[26] = -t17;
+    k[27] = t17;
+    k[28] = -t1*t18;
+    k[29] = par[1]*t19;
+    k[30] = -t18;
+    k[31] = t19;
+    k[32] = -t8;
+    k[33] = -t19;
+    k[34] = -((tau[0])*(tau[0])*(tau[0])*(tau[0]))*((par[1])*(par[1]))*t16;
+    k[35] = ((tau[0])*(tau[0])*(tau[0]))*t15/((par[2])*(par[2])*(par[2]));
+    k[36] = tau[0];
+    k[37] = tau[0]*t4;
+    k[38] = t12*t6;
+    k[39] = t1*t11;
+    k[40] = t2;
+    k[41] = -par[2]*t0;
+    k[42] = t12*t4;
+    k[43] = par[0]*t12;
 }
 
 /* Free velocity of (46) over h and 1/J_ii. */
@@ -484,7 +485,7 @@ static inline void slide_off_dome_held_end(const double *q, const double *k, dou
 }
 
 /* Per closed row, what its held step needs of grad F at q (held.closed_routines). */
-static inline void slide_off_dome_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g)
+static inline void slide_off_dome_held_root_dir(const double *q, const double *k, double *m, double *e, double *f, double *s, double *y, double *w, double *a2, double *g, double *iw)
 {
     m[0] = k[8]*q[0];
     m[1] = k[8]*q[1];
@@ -499,6 +500,7 @@ static inline void slide_off_dome_held_root_dir(const double *q, const double *k
     w[1] = k[12]*q[1];
     a2[0] = 0;
     g[0] = k[13];
+    iw[0] = k[14];
 }
 
 /* The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D. */
@@ -506,10 +508,10 @@ static inline void slide_off_dome_held_root(const double *q0, const double *p0, 
 {
     (void)a2;
     const double t0 = k[1] + p0[1];
-    const double t1 = k[14]*p0[0] + q0[0];
-    const double t2 = k[14]*t0 + q0[1];
+    const double t1 = k[15]*p0[0] + q0[0];
+    const double t2 = k[15]*t0 + q0[1];
     const double t3 = m[0]*t1 + m[1]*t2 + s[0];
-    const double t4 = k[16]*(k[15] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
+    const double t4 = k[17]*(k[16] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
     v0[0] = k[0]*p0[0];
     v0[1] = k[0]*t0;
     a[0] = t1;
@@ -520,33 +522,34 @@ static inline void slide_off_dome_held_root(const double *q0, const double *p0, 
 }
 
 /* Its projection (p1, Lam'), force and residual F(q1)/gain. */
-static inline void slide_off_dome_held_root_end(const double *q, const double *p_plus, const double *y, const double *w, const double *k, double *p1, double *lam1, double *force, double *res)
+static inline void slide_off_dome_held_root_end(const double *q, const double *p_plus, const double *y, const double *w, const double *iw, const double *k, double *p1, double *lam1, double *force, double *res)
 {
+    (void)iw;
     const double t0 = p_plus[0]*y[0] + p_plus[1]*y[1];
     const double t1 = p_plus[0] + w[0]*t0;
     const double t2 = p_plus[1] + w[1]*t0;
     p1[0] = t1;
     p1[1] = t2;
-    lam1[0] = k[17]*t0;
-    force[0] = k[17]*(k[18]*q[1] + k[19]*((t1)*(t1)) + k[19]*((t2)*(t2)));
-    res[0] = k[20]*(k[15] + ((q[0])*(q[0])) + ((q[1])*(q[1])));
+    lam1[0] = k[18]*t0;
+    force[0] = k[18]*(k[19]*q[1] + k[20]*((t1)*(t1)) + k[20]*((t2)*(t2)));
+    res[0] = k[21]*(k[16] + ((q[0])*(q[0])) + ((q[1])*(q[1])));
 }
 
 /* Per circle row, (omega, arg) at (q, p). */
 static inline void slide_off_dome_held_circle_start(const double *q0, const double *p0, const double *k, double *w)
 {
-    const double t0 = k[0]*q0[0]*(k[1] + p0[1]) + k[21]*p0[0]*q0[1];
-    w[0] = k[22]*t0;
-    w[1] = k[23]/(((q0[0])*(q0[0])) + ((q0[1])*(q0[1]))) + k[24]*((t0)*(t0));
+    const double t0 = k[0]*q0[0]*(k[1] + p0[1]) + k[22]*p0[0]*q0[1];
+    w[0] = k[23]*t0;
+    w[1] = k[24]/(((q0[0])*(q0[0])) + ((q0[1])*(q0[1]))) + k[25]*((t0)*(t0));
 }
 
 /* Per circle row, the held step as a rotation (vcigen.held_circle). */
 SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0, const double *p0, const double *w, const double *s, const double *k, double *q1, double *p1, double *pt, double *w1, double *slope)
 {
-    const double t0 = k[25]*w[0]*q0[1] + q0[0]*s[0];
-    const double t1 = k[26]*w[0]*q0[0] + q0[1]*s[0];
-    const double t2 = k[22]*(k[27]*t0 + k[3]*w[0]);
-    const double t3 = k[28]*q0[1] + 1;
+    const double t0 = k[26]*w[0]*q0[1] + q0[0]*s[0];
+    const double t1 = k[27]*w[0]*q0[0] + q0[1]*s[0];
+    const double t2 = k[23]*(k[28]*t0 + k[3]*w[0]);
+    const double t3 = k[29]*q0[1] + 1;
     const double t4 = w[0]*t3;
     const double t5 = ((q0[0])*(q0[0]));
     const double t6 = ((w[0])*(w[0]));
@@ -557,26 +560,26 @@ SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_step(const double *q0
     p1[1] = t0*t2;
     pt[0] = t2;
     w1[0] = t4;
-    w1[1] = k[29]*q0[0];
-    w1[2] = w[1]*k[33]*t5 + k[31]*t7*(w[1] + k[30]*t6) + k[32]*((t3)*(t3))*t6 + 2;
-    w1[3] = k[34]*q0[0]*t4;
-    slope[0] = k[0]*k[35]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t7;
+    w1[1] = k[30]*q0[0];
+    w1[2] = w[1]*k[34]*t5 + k[32]*t7*(w[1] + k[31]*t6) + k[33]*((t3)*(t3))*t6 + 2;
+    w1[3] = k[35]*q0[0]*t4;
+    slope[0] = k[0]*k[36]*(p0[0]*q0[0] + q0[1]*(k[1] + p0[1])) + t7;
 }
 
 /* Per circle row, the rotation step's impulse, E_d, force and residual at its end. */
 SLIDE_OFF_DOME_ROUTINE_HOT void slide_off_dome_held_circle_end(const double *q0, const double *p0, const double *q1, const double *p1, const double *e, const double *k, double *imp, double *energy, double *force, double *res)
 {
     const double t0 = q0[1] + q1[1];
-    imp[0] = -k[37]*(-t0*(k[36] - p0[1] + p1[1]) + (p0[0] - p1[0])*(q0[0] + q1[0]))/(e[1] + 1);
-    energy[0] = k[38]*(((q0[0] - q1[0])*(q0[0] - q1[0])) + ((q0[1] - q1[1])*(q0[1] - q1[1]))) + k[39]*t0;
-    force[0] = ((e[0])*(e[0]))*k[40] + k[41]*q1[1];
-    res[0] = k[20]*(k[15] + ((q1[0])*(q1[0])) + ((q1[1])*(q1[1])));
+    imp[0] = -k[38]*(-t0*(k[37] - p0[1] + p1[1]) + (p0[0] - p1[0])*(q0[0] + q1[0]))/(e[1] + 1);
+    energy[0] = k[39]*(((q0[0] - q1[0])*(q0[0] - q1[0])) + ((q0[1] - q1[1])*(q0[1] - q1[1]))) + k[40]*t0;
+    force[0] = ((e[0])*(e[0]))*k[41] + k[42]*q1[1];
+    res[0] = k[21]*(k[16] + ((q1[0])*(q1[0])) + ((q1[1])*(q1[1])));
 }
 
 /* Per circle row, Lam of a step. */
 static inline void slide_off_dome_held_circle_lam(const double *q0, const double *p0, const double *v, const double *k, double *lam)
 {
-    lam[0] = k[42]*(q0[0]*(k[21]*p0[0] + v[0]) + q0[1]*(k[21]*(k[1] + p0[1]) + v[1]));
+    lam[0] = k[43]*(q0[0]*(k[22]*p0[0] + v[0]) + q0[1]*(k[22]*(k[1] + p0[1]) + v[1]));
 }
 
 /* Adapters: the routines with an unknown x, as slide_off_dome_fun for the solvers. */
@@ -2142,7 +2145,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 
 /* ---- the held grid step (vcigen/held.py): a grid step in sustained contact as straight-line code ---- */
 #define SLIDE_OFF_DOME_HELD_ITER 8 /* held.HELD_ITER: Newton iterations at most, then the general chain */
-#define SLIDE_OFF_DOME_NKH 43
+#define SLIDE_OFF_DOME_NKH 44
 #define SLIDE_OFF_DOME_NH_DIM 3 /* Hessian entries a row may need (held.hess_pattern) */
 #if defined(__GNUC__)
 #define SLIDE_OFF_DOME_HELD_HOT __attribute__((noinline)) /* out of line: the glide keeps its state in registers */
@@ -2232,12 +2235,12 @@ static inline void slide_off_dome_held_book_row(long s, int row, double imp, con
 typedef struct {
     double m[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], e[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], f[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], s[SLIDE_OFF_DOME_R_DIM];
     double y[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], a2[SLIDE_OFF_DOME_R_DIM];
-    double g[SLIDE_OFF_DOME_R_DIM];
+    double g[SLIDE_OFF_DOME_R_DIM], iw[SLIDE_OFF_DOME_R_DIM];
 } slide_off_dome_held_dir_t;
 
 static inline void slide_off_dome_held_dir(const double *q, const double *kh, slide_off_dome_held_dir_t *d)
 {
-    slide_off_dome_held_root_dir(q, kh, d->m, d->e, d->f, d->s, d->y, d->w, d->a2, d->g);
+    slide_off_dome_held_root_dir(q, kh, d->m, d->e, d->f, d->s, d->y, d->w, d->a2, d->g, d->iw);
 }
 
 /* held.closed_step from held_root_dir at q (d0): the held step on the one active row `row`, which has a closed
@@ -2266,7 +2269,7 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_one(const double *kh, 
     }
     slide_off_dome_held_segment(q, v, kh, pp, e);
     slide_off_dome_held_dir(q1, kh, d1);
-    slide_off_dome_held_root_end(q1, pp, d1->y, d1->w, kh, pr, l1, force, res);
+    slide_off_dome_held_root_end(q1, pp, d1->y, d1->w, d1->iw, kh, pr, l1, force, res);
     SLIDE_OFF_DOME_HELD_UNROLL
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         p1[i] = pr[row * SLIDE_OFF_DOME_N + i];

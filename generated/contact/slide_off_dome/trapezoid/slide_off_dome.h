@@ -25,8 +25,6 @@
  *       in mu, its root in closed form (Newton checks it)
  *   held = 1: rows, an explicit scene, momentum M qdot, no friction: a grid step in sustained
  *       contact is straight-line code on the active rows' multipliers (vcigen.held)
- *   held_lines = [1]: per row, 1 where its zero set is a quadratic's (a circle's, a sphere's, an
- *       ellipse's): held alone, its step is closed-form
  *   held_pattern = [[0, 0, 1], [0, 1, 2], [1, 1, 1]]: (i, j, weight) where some row's Hessian is not
  *       identically 0 (the curvature u . Hess psi . u needs no other entries)
  *   held_closed = [1]: per row, 1 where, held alone, its step is closed-form: F(a + Lam b) = 0 a
