@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from .held_roots import illinois_point, illinois_update
+
 
 def impact_law(vel: np.ndarray, mass: np.ndarray, n: np.ndarray, t: np.ndarray, mu_f: float, e: float):
     """``(mu_n, mu_t, dK, M^-1 n, M^-1 t)``: the impulses, the kinetic energy change, and the two solves."""
@@ -138,25 +140,18 @@ def _eigen(h):
 
 def _illinois_up(fn, lo: float, hi: float, f_lo: float, f_hi: float) -> float:
     """Illinois on ``[lo, hi]`` for the root of increasing ``fn`` (``f_lo <= 0 <= f_hi``): the end where
-    ``fn >= 0`` once the bracket is as narrow as the doubles allow (or ``fn = 0``)."""
-    side = 0
+    ``fn >= 0`` once the bracket is as narrow as the doubles allow (or ``fn = 0``). Illinois' steps
+    (:func:`~vcigen.held_roots.illinois_point`, :func:`~vcigen.held_roots.illinois_update`) on ``g = -fn``,
+    which has their signs."""
+    g_lo, g_hi, side = -f_lo, -f_hi, 0
     for _ in range(CONE_ITER):
-        c = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+        c = illinois_point(lo, g_lo, hi, g_hi)
         if not lo < c < hi:
-            c = 0.5 * (lo + hi)
-            if not lo < c < hi:
-                break
+            break  # the bracket is as narrow as the doubles allow
         fc = fn(c)
         if fc == 0.0:
             return c
-        if fc > 0.0:
-            hi, f_hi = c, fc
-            f_lo = f_lo / 2 if side == 1 else f_lo
-            side = 1
-        else:
-            lo, f_lo = c, fc
-            f_hi = f_hi / 2 if side == -1 else f_hi
-            side = -1
+        lo, g_lo, hi, g_hi, side = illinois_update(lo, g_lo, hi, g_hi, side, c, -fc)
         if hi - lo <= 4e-16 * hi:
             break
     return hi

@@ -21,8 +21,9 @@ DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active ro
 
 def illinois_point(a: float, ga: float, b: float, gb: float) -> float:
     """The next point of Illinois regula falsi on ``[a, b]`` (``ga >= 0 > gb``): the secant's root, or the
-    midpoint where that is not strictly inside."""
-    c = (a * gb - b * ga) / (gb - ga)
+    midpoint where that is not strictly inside (or where ``ga = gb``: both 0, in
+    :func:`vcigen.friction._illinois_up`)."""
+    c = (a * gb - b * ga) / (gb - ga) if gb != ga else 0.5 * (a + b)
     return c if a < c < b else 0.5 * (a + b)
 
 

@@ -698,6 +698,32 @@ static inline void particle_smooth_step(const double *q0, const double *p0, doub
     particle_slopes(par, tau, q1, v, p1, grad1, d1);
 }
 
+/* held_roots.illinois_point: the next point of Illinois regula falsi on [a, b] (ga >= 0 > gb): the secant's root,
+ * or the midpoint where that is not strictly inside. */
+static inline double particle_illinois_point(double a, double ga, double b, double gb)
+{
+    const double c = gb != ga ? (a * gb - b * ga) / (gb - ga) : 0.5 * (a + b);
+    return a < c && c < b ? c : 0.5 * (a + b);
+}
+
+/* held_roots.illinois_update: the bracket after g(c) = gc: c takes the end of its sign; the other end's value is
+ * halved when the same end moved twice in a row (side: -1 the end b moved last, 1 the end a, 0 none yet). */
+static inline void particle_illinois_update(double *a, double *ga, double *b, double *gb, int *side, double c,
+    double gc)
+{
+    if (gc < 0) {
+        *b = c;
+        *gb = gc;
+        *ga = *side == -1 ? *ga / 2 : *ga;
+        *side = -1;
+    } else {
+        *a = c;
+        *ga = gc;
+        *gb = *side == 1 ? *gb / 2 : *gb;
+        *side = 1;
+    }
+}
+
 /* The inputs of a segment's residual routines between the unknown and par (Stepper._args). */
 static void particle_seg_args(const particle_seg_t *seg, const double *tau, const double *par,
     const double **arg)
@@ -869,28 +895,26 @@ static int particle_bracketed_root(const particle_ctx_t *c, const particle_seg_t
             particle_contact_names[j], a, ga, gb);
     }
     for (it = 0; it < 200; ++it) {
-        cc = (a * gb - b * ga) / (gb - ga);
-        if (!(a < cc && cc < b)) {
-            cc = 0.5 * (a + b);
-        }
+        cc = particle_illinois_point(a, ga, b, gb);
         particle_sub_solve(c, seg, cc, xb, xc, phi);
         gc = phi[j];
-        if (gc <= 0) { /* gc == 0: cc is a root (Stepper._bracketed_root) */
+        if (gc == 0) { /* cc is a root (Stepper._bracketed_root) */
             b = cc;
             gb = gc;
             phi_b = gc;
             for (i = 0; i < nx - 1; ++i) {
                 xb[i] = xc[i];
             }
-            ga = side == -1 ? ga / 2 : ga;
-            side = -1;
-        } else {
-            a = cc;
-            ga = gc;
-            gb = side == 1 ? gb / 2 : gb;
-            side = 1;
+            break;
         }
-        if (b - a < 4e-16 || gc == 0) {
+        particle_illinois_update(&a, &ga, &b, &gb, &side, cc, gc);
+        if (gc < 0) {
+            phi_b = gc;
+            for (i = 0; i < nx - 1; ++i) {
+                xb[i] = xc[i];
+            }
+        }
+        if (b - a < 4e-16) {
             break;
         }
     }
@@ -1370,10 +1394,7 @@ static int particle_illinois(const particle_ctx_t *c, int r, int height, const d
         v[i] = guess[i];
     }
     for (it = 0; it < iters; ++it) {
-        cc = (a * gb - b * ga) / (gb - ga);
-        if (!(a < cc && cc < b)) {
-            cc = 0.5 * (a + b);
-        }
+        cc = particle_illinois_point(a, ga, b, gb);
         if (particle_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
             return 1;
         }
@@ -1387,17 +1408,7 @@ static int particle_illinois(const particle_ctx_t *c, int r, int height, const d
         }
         gc = f[r];
 
-        if (gc < 0) {
-            b = cc;
-            gb = gc;
-            ga = side == -1 ? ga / 2 : ga;
-            side = -1;
-        } else {
-            a = cc;
-            ga = gc;
-            gb = side == 1 ? gb / 2 : gb;
-            side = 1;
-        }
+        particle_illinois_update(&a, &ga, &b, &gb, &side, cc, gc);
         if (fabs(gc) <= tiny) {
             *s_out = cc;
             return 0;

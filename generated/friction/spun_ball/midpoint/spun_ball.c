@@ -867,6 +867,32 @@ static inline void spun_ball_smooth_step(const double *q0, const double *p0, dou
     spun_ball_slopes(par, tau, q1, v, p1, grad1, d1);
 }
 
+/* held_roots.illinois_point: the next point of Illinois regula falsi on [a, b] (ga >= 0 > gb): the secant's root,
+ * or the midpoint where that is not strictly inside. */
+static inline double spun_ball_illinois_point(double a, double ga, double b, double gb)
+{
+    const double c = gb != ga ? (a * gb - b * ga) / (gb - ga) : 0.5 * (a + b);
+    return a < c && c < b ? c : 0.5 * (a + b);
+}
+
+/* held_roots.illinois_update: the bracket after g(c) = gc: c takes the end of its sign; the other end's value is
+ * halved when the same end moved twice in a row (side: -1 the end b moved last, 1 the end a, 0 none yet). */
+static inline void spun_ball_illinois_update(double *a, double *ga, double *b, double *gb, int *side, double c,
+    double gc)
+{
+    if (gc < 0) {
+        *b = c;
+        *gb = gc;
+        *ga = *side == -1 ? *ga / 2 : *ga;
+        *side = -1;
+    } else {
+        *a = c;
+        *ga = gc;
+        *gb = *side == 1 ? *gb / 2 : *gb;
+        *side = 1;
+    }
+}
+
 /* The inputs of a segment's residual routines between the unknown and par (Stepper._args). */
 static void spun_ball_seg_args(const spun_ball_seg_t *seg, const double *tau, const double *par,
     const double **arg)
@@ -1038,28 +1064,26 @@ static int spun_ball_bracketed_root(const spun_ball_ctx_t *c, const spun_ball_se
             spun_ball_contact_names[j], a, ga, gb);
     }
     for (it = 0; it < 200; ++it) {
-        cc = (a * gb - b * ga) / (gb - ga);
-        if (!(a < cc && cc < b)) {
-            cc = 0.5 * (a + b);
-        }
+        cc = spun_ball_illinois_point(a, ga, b, gb);
         spun_ball_sub_solve(c, seg, cc, xb, xc, phi);
         gc = phi[j];
-        if (gc <= 0) { /* gc == 0: cc is a root (Stepper._bracketed_root) */
+        if (gc == 0) { /* cc is a root (Stepper._bracketed_root) */
             b = cc;
             gb = gc;
             phi_b = gc;
             for (i = 0; i < nx - 1; ++i) {
                 xb[i] = xc[i];
             }
-            ga = side == -1 ? ga / 2 : ga;
-            side = -1;
-        } else {
-            a = cc;
-            ga = gc;
-            gb = side == 1 ? gb / 2 : gb;
-            side = 1;
+            break;
         }
-        if (b - a < 4e-16 || gc == 0) {
+        spun_ball_illinois_update(&a, &ga, &b, &gb, &side, cc, gc);
+        if (gc < 0) {
+            phi_b = gc;
+            for (i = 0; i < nx - 1; ++i) {
+                xb[i] = xc[i];
+            }
+        }
+        if (b - a < 4e-16) {
             break;
         }
     }
@@ -2268,10 +2292,7 @@ static int spun_ball_illinois(const spun_ball_ctx_t *c, int r, int height, const
         v[i] = guess[i];
     }
     for (it = 0; it < iters; ++it) {
-        cc = (a * gb - b * ga) / (gb - ga);
-        if (!(a < cc && cc < b)) {
-            cc = 0.5 * (a + b);
-        }
+        cc = spun_ball_illinois_point(a, ga, b, gb);
         if (spun_ball_sub_end(c, q, p, tau, cc, v, vn, q1, u1)) {
             return 1;
         }
@@ -2304,17 +2325,7 @@ static int spun_ball_illinois(const spun_ball_ctx_t *c, int r, int height, const
             gc = -(c->sus->slip[fc] / c->mu_f[fc]) * w[0] - (c->sus->slip[pc] / c->mu_f[fc]) * w[1];
         }
 
-        if (gc < 0) {
-            b = cc;
-            gb = gc;
-            ga = side == -1 ? ga / 2 : ga;
-            side = -1;
-        } else {
-            a = cc;
-            ga = gc;
-            gb = side == 1 ? gb / 2 : gb;
-            side = 1;
-        }
+        spun_ball_illinois_update(&a, &ga, &b, &gb, &side, cc, gc);
         if (fabs(gc) <= tiny) {
             *s_out = cc;
             return 0;
@@ -3229,36 +3240,24 @@ static double spun_ball_continuous_law(const spun_ball_ctx_t *c, const double *q
 static const int spun_ball_cone_contact[SPUN_BALL_M_DIM] = { 1, };
 
 /* friction._illinois_up: the root of increasing fn (kind 0: cone_excess, 1: cone_infeasible) on [lo, hi]
- * (f_lo <= 0 <= f_hi): the end where fn >= 0 once the bracket is as narrow as the doubles allow. */
+ * (f_lo <= 0 <= f_hi): the end where fn >= 0 once the bracket is as narrow as the doubles allow. Illinois'
+ * steps (illinois_point, illinois_update) on g = -fn, which has their signs. */
 static double spun_ball_cone_value(int kind, double x, const double *d);
 
 static double spun_ball_illinois_up(int kind, const double *d, double lo, double hi, double f_lo, double f_hi)
 {
-    double x, fx;
+    double x, fx, g_lo = -f_lo, g_hi = -f_hi;
     int it, side = 0;
     for (it = 0; it < SPUN_BALL_CONE_ITER; ++it) {
-        x = f_hi != f_lo ? (lo * f_hi - hi * f_lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
+        x = spun_ball_illinois_point(lo, g_lo, hi, g_hi);
         if (!(lo < x && x < hi)) {
-            x = 0.5 * (lo + hi);
-            if (!(lo < x && x < hi)) {
-                break;
-            }
+            break; /* the bracket is as narrow as the doubles allow */
         }
         fx = spun_ball_cone_value(kind, x, d);
         if (fx == 0.0) {
             return x;
         }
-        if (fx > 0.0) {
-            hi = x;
-            f_hi = fx;
-            f_lo = side == 1 ? f_lo / 2 : f_lo;
-            side = 1;
-        } else {
-            lo = x;
-            f_lo = fx;
-            f_hi = side == -1 ? f_hi / 2 : f_hi;
-            side = -1;
-        }
+        spun_ball_illinois_update(&lo, &g_lo, &hi, &g_hi, &side, x, -fx);
         if (hi - lo <= 4e-16 * hi) {
             break;
         }
