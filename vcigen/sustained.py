@@ -379,13 +379,14 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._sw_lose()
         return False
 
-    def _sw_lose(self) -> None:
+    def _sw_lose(self, why: str = "friction switch in a held step") -> None:
         """A friction switch the tangent of a held step's events does not carry (stick <-> slip at a
         segment's start or not of one contact alone, the sliding direction turned, a contact set on another
         face, a cone's stop or slide): a mode change, no derivative; the step breaks with ``"friction switch
-        in a held step"`` (the later hooks find the tangent lost)."""
+        in a held step"`` (the later hooks find the tangent lost). ``why``: another reason (``"friction at an
+        impact"``: a slipping contact's sliding impulse at an impact while held, :meth:`_chain_impact`)."""
         if self._ev_tan is not None:
-            self._ev_tan.lose("friction switch in a held step")
+            self._ev_tan.lose(why)
             self._ev_done = True
 
     def _sw_state(self) -> tuple:
