@@ -272,10 +272,8 @@ class HeldImpacts:
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips = law
         if self._slip_at_impact(q, vel_p, slipped, slips):  # stick <-> slip at the impact: a mode change
             self._sw_lose()
-        elif any(lam[self._stick_rows[f]] for f, _ in slips):  # a sliding impulse: not in Tracker.impulse
-            self._sw_lose("friction at an impact")
-        else:
-            self._ev_impulse(q, v, p, lam, targets, group)
+        else:  # the contacts slipping on: their sliding impulse in Tracker.impulse
+            self._ev_impulse(q, v, p, lam, targets, group, slips)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution

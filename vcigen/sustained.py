@@ -421,18 +421,28 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         tan = self._ev_tan
         return kind == "slide" and tan is not None and self._sw_stop == (tan.step, self._events)
 
-    def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
+    def _ev_impulse(self, q, v, p, lam, targets, group, slips=()) -> None:
         """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
-        with an impulse, each with the contact whose restitution sets its target (-1: target 0); a group of
-        rows hit at once (the weights of its impulse switch) breaks."""
+        with an impulse, each with the contact whose restitution sets its target (-1: target 0), the normal
+        rows of the contacts slipping on through it (``slips``, :meth:`_law_slips`) with their sliding
+        impulse along their owner's stick row (whose own impulse follows from theirs: not a row of the law); a
+        group of rows hit at once (the weights of its impulse switch) breaks."""
         tan = self._ev_tan
         if tan is None:
             return
         if len(group) > 1:
             tan.lose("simultaneous impact")
             return
-        tight = [int(r) for r in np.flatnonzero(lam)]
-        tan.impulse(q, v, p, tight, [self.k.row_contact[r] if r in targets else -1 for r in tight])
+        k = self.k
+        along = {}  # contact -> (the owner's stick row, the sign of its sliding impulse, the contact)
+        for f, riders in slips:
+            for g in [f, *riders]:
+                sgn = math.copysign(1.0, self._slip[f])
+                along[k.frictional[g]] = (self._stick_rows[f], sgn, k.frictional[g])
+        skip = {self._stick_rows[f] for f, _ in slips}
+        tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
+        contact = [k.row_contact[r] if r in targets else -1 for r in tight]
+        tan.impulse(q, v, p, tight, contact, [along.get(k.row_contact[r]) for r in tight])
 
     def _ev_free(self, q, p, w, tau: float) -> None:
         """The free rest after a held step's events (``Tracker.free_end``); a lone lift-off before it is

@@ -2169,12 +2169,8 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         slip_ride)) {
         return 1;
     }
-    for (i = 0, any = 0; i < BLOCK_NF; ++i) { /* a slipping contact's sliding impulse */
-        any = any || (slip_own[i] && lam[block_stick_row[i]] != 0.0);
-    }
     if (block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
-    } else if (any) { /* a sliding impulse: not in sens_ev_impulse */
-    } else {
+    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = block_loss(c, q, vel_m, vel_p);
     for (r = 0; r < BLOCK_R; ++r) { /* an active row the impact pulls off */

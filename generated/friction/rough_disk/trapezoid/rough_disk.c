@@ -2249,12 +2249,8 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         slip_ride)) {
         return 1;
     }
-    for (i = 0, any = 0; i < ROUGH_DISK_NF; ++i) { /* a slipping contact's sliding impulse */
-        any = any || (slip_own[i] && lam[rough_disk_stick_row[i]] != 0.0);
-    }
     if (rough_disk_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
-    } else if (any) { /* a sliding impulse: not in sens_ev_impulse */
-    } else {
+    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = rough_disk_loss(c, q, vel_m, vel_p);
     for (r = 0; r < ROUGH_DISK_R; ++r) { /* an active row the impact pulls off */

@@ -2899,12 +2899,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         slip_ride)) {
         return 1;
     }
-    for (i = 0, any = 0; i < SPUN_BALL_NF; ++i) { /* a slipping contact's sliding impulse */
-        any = any || (slip_own[i] && lam[spun_ball_stick_row[i]] != 0.0);
-    }
     if (spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
-    } else if (any) { /* a sliding impulse: not in sens_ev_impulse */
-    } else {
+    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = spun_ball_loss(c, q, vel_m, vel_p);
     for (r = 0; r < SPUN_BALL_R; ++r) { /* an active row the impact pulls off */

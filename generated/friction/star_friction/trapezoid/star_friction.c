@@ -2453,12 +2453,8 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
         slip_ride)) {
         return 1;
     }
-    for (i = 0, any = 0; i < STAR_FRICTION_NF; ++i) { /* a slipping contact's sliding impulse */
-        any = any || (slip_own[i] && lam[star_friction_stick_row[i]] != 0.0);
-    }
     if (star_friction_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
-    } else if (any) { /* a sliding impulse: not in sens_ev_impulse */
-    } else {
+    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = star_friction_loss(c, q, vel_m, vel_p);
     for (r = 0; r < STAR_FRICTION_R; ++r) { /* an active row the impact pulls off */
