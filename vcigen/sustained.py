@@ -214,7 +214,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
                 if not same and before is not None and not self._no_switch(before):  # let go, held anew: none
-                    self._sw_lose()  # a switch at a segment's start: not located
+                    # a switch at a segment's start: not located (after a plastic entry: its impact)
+                    entry = plain and self._ev_entry
+                    self._sw_lose("plastic impact" if entry else "friction switch in a held step")
                 if self._braked and self._ev_tan is not None and self._ev_tan.active:
                     self._ev_tan.lose("held step (sustained contact)")
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
