@@ -356,3 +356,44 @@ def test_the_box_tangent_breaks_at_the_impact(case: str, backend: str) -> None:
     res = run_box(case, backend, sensitivities=True)
     (im,) = res.impacts
     assert assert_lost(res, "friction switch in a held step") == im.step
+
+
+def _box_path(i: int | None = None, eps: float = 0.0, par: str | None = None):
+    im, _ = box_closed_form(np.zeros(1), BOX_CASES["sliding"])
+    q, v = [0.0, BOX["b"], 0.0, *PUCK0], [BOX_CASES["sliding"], 0.0, 0.0, *PUCK_V]
+    if i is not None:
+        (q if i < 5 else v)[i % 5] += eps
+    base = {"mu": BOX["mu"], "d": im["d"]}
+    return q, v, {"d": base["d"]} | ({par: base[par] + eps} if par else {})
+
+
+# the box sliding on both vertices through the puck's impact (to t = 0.3, before it stops)
+BOX_PATHS = (("q0[x]", 0), ("v0[x]", 5), ("v0[u]", 8))
+BOX_FD = {
+    "sliding": (
+        lambda: None,
+        *_box_path()[:2],
+        H,
+        0.3,
+        {"d": _box_path()[2]["d"]},
+        {
+            **{name: (lambda e, i=i: _box_path(i, e)) for name, i in (BOX_PATHS)},
+            **{name: (lambda e, p=name: _box_path(None, e, p)) for name in ("mu", "d")},
+        },
+    )
+}
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_box_tangent_through_the_pooled_sliding_impulse(backend: str) -> None:
+    """The box sliding on both vertices (the second's cone pooled on the first's stick row): the tangent
+    through the impact carries both vertices' sliding impulses (``d = g_n + sgn mu g_t`` of the owner's
+    tangent on each vertex's normal row) against central differences of whole runs, no break."""
+    res, per = held_finite_differences(box_simulator(backend, "trapezoid"), "sliding", scenes=BOX_FD)
+    (im,) = res.impacts
+    assert im.contact == "face" and res.active[:, :2].all()
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    errs = {label: relative_error(exact, fd) for label, (exact, fd) in per.items()}
+    worst = max(errs, key=errs.get)
+    print(f"box sliding ({backend}): worst {worst} {errs[worst]:.1e}")
+    assert errs[worst] <= 1e-6, errs
