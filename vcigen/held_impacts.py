@@ -36,16 +36,21 @@ class HeldImpacts:
         are tried all sticking first (the law of old where it stays inside the cones), then the first
         stick row slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over
         the sets of tight rows from the largest down: the first solution is taken, deterministically. The
-        isotropic cones held may only stick: an impulse out of their cone is a ``SolverError``. Returns
-        ``(p+, Lam, vel-, vel+, dropped, slipped)``, ``dropped`` the rows left with no impulse (the caller
-        releases the active ones), ``slipped`` the stick rows that slipped (the caller sets their contacts'
-        modes, :meth:`_slip_at_impact`).
+        isotropic cones held may only stick: an impulse out of their cone is a ``SolverError``. A one-tangent
+        contact held and slipping (:meth:`_law_slips`) joins with its stick row and the same three modes, its
+        own first: on the edge against its slip (``Lam_t = slip_f / mu_f * mu_f Lam_n``, Coulomb's sliding
+        impulse, its tangential velocity after not reversed), then sticking within its cone, then the other
+        edge. Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips)``, ``dropped`` the rows left with no
+        impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
+        slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
         mass = k.legendre(q, vel)[1]
         grad = k.rows(q, vel)[1]
         rows = [int(r) for r in np.flatnonzero(self.act)] + [r for r in hit if not self.act[r]]
+        slips = self._law_slips(grad, rows)
+        rows += [self._stick_rows[f] for f, _ in slips]
         if len(rows) > MAX_LAW_ROWS:
             raise SolverError(
                 step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
@@ -58,15 +63,16 @@ class HeldImpacts:
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
         vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
         n = len(rows)
-        cones, strict = self._law_cones(rows)
+        cones, strict, orders = self._law_cones(rows, slips)
         out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
         for modes in range(3 ** len(cones)):
-            slips = [(modes // 3**c) % 3 for c in range(len(cones))]  # 0 stick, 1 Lam_t = -mu Lam_n, 2 +
+            # 0 stick, 1 Lam_t = -mu Lam_n, 2 +; each cone's digits in its order (its own mode first)
+            slips_ = [orders[c][(modes // 3**c) % 3] for c in range(len(cones))]
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
-            for (i, pools), mode in zip(cones, slips):
+            for (i, pools), mode in zip(cones, slips_):
                 for normals, mu in pools if mode else ():
                     ws[:, normals] += (-mu if mode == 1 else mu) * w[:, [i]]
-            sliding = {i for (i, _), mode in zip(cones, slips) if mode}
+            sliding = {i for (i, _), mode in zip(cones, slips_) if mode}
             for mask in range((1 << n) - 1, -1, -1):
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
@@ -77,7 +83,7 @@ class HeldImpacts:
                         lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
                     except np.linalg.LinAlgError:
                         continue
-                for (i, pools), mode in zip(cones, slips):
+                for (i, pools), mode in zip(cones, slips_):
                     if mode:
                         lam[i] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
                 gap = w @ lam - b  # g_r.qdot+ - target_r
@@ -87,7 +93,7 @@ class HeldImpacts:
                 ):
                     continue
                 inside = True
-                for (i, pools), mode in zip(cones, slips):
+                for (i, pools), mode in zip(cones, slips_):
                     if mode == 0:
                         inside = inside and abs(lam[i]) <= _pooled(pools, lam) + lam_eps
                     else:
@@ -115,18 +121,52 @@ class HeldImpacts:
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
         slipped = [rows[i] for i in sorted(sliding)]
         p_plus = p + grad.T @ lam_full
-        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped
+        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips
 
-    def _law_cones(self, rows):
+    def _law_slips(self, grad, rows) -> list[tuple[int, list[int]]]:
+        """The one-tangent contacts held and slipping whose friction joins the impulse law on ``rows``
+        (:meth:`_impulse_law`): ``[(f, riders)]``, ``f`` one whose stick row is independent of the active rows
+        and of the stick rows of those before it (it joins the law), ``riders`` the slipping contacts whose
+        stick row depends on ``f``'s (a box slipping on a face, two vertices: their normal impulses are
+        ``f``'s room too, as for a dependent stick, :meth:`_law_cones`). A slipping contact whose stick row
+        depends on the held rows alone (its sliding fixed by them) takes none."""
+        k = self.k
+        out: list[tuple[int, list[int]]] = []
+        if not self._stick_rows:
+            return out
+        act = self.act.copy()
+        try:
+            for f, sr in enumerate(self._stick_rows):
+                j = k.frictional[f]
+                held = any(self.act[r] and k.row_contact[r] == j for r in rows)
+                if not (self._slip[f] and self._partner[f] < 0 and held):
+                    continue
+                if not self._dependent(grad, sr):
+                    self.act[sr] = True
+                    out.append((f, []))
+                    continue
+                for g, riders in out:
+                    if not self._dependent(grad, sr, self._stick_rows[g]):
+                        riders.append(f)
+                        break
+        finally:
+            self.act = act
+        return out
+
+    def _law_cones(self, rows, slips=()):
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
         one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
         ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
         ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too,
         as in :meth:`_cone_margin`; they slip with it); and ``[(i, normals, mu_f, o)]`` of the isotropic
         cones held (``i``, ``o`` their tangents' indices, -1 for one not held), which may only stick. A cone
-        coupled to others by a dependent stick (:meth:`_cone_split`) is not checked."""
+        coupled to others by a dependent stick (:meth:`_cone_split`) is not checked. Then the slipping
+        contacts ``slips`` (:meth:`_law_slips`), pooled the same way. ``orders``: each cone's modes in the
+        order tried, its own first (stick ``(0, 1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against
+        ``-`` ``(2, 0, 1)``)."""
         k = self.k
-        cones, strict = [], []
+        cones, strict, orders = [], [], []
+        slipping = {f for f, _ in slips}
 
         def normals(f):
             return [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
@@ -141,13 +181,18 @@ class HeldImpacts:
                 if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
                     i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
                     strict.append((i, normals(f), float(self._mu_f[f]), o))
-            elif sr in rows:
+            elif sr in rows and f not in slipping:
                 riders = [
                     g for g, owner in enumerate(self._ride) if g != f and owner == f and self._partner[g] < 0
                 ]
                 pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
                 cones.append((rows.index(sr), pools))
-        return cones, strict
+                orders.append((0, 1, 2))
+        for f, riders in slips:
+            pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
+            cones.append((rows.index(self._stick_rows[f]), pools))
+            orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
+        return cones, strict, orders
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
         """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's
@@ -165,19 +210,30 @@ class HeldImpacts:
                 )
         return ""
 
-    def _slip_at_impact(self, q, vel_p, slipped) -> bool:
+    def _slip_at_impact(self, q, vel_p, slipped, slips=()) -> bool:
         """The stick rows that slipped in the impulse law (:meth:`_impulse_law`): their contacts slip after it
         along the tangential velocity after, ``slip_f = -mu_f sign(g_t.qdot+)``, or stick on where that is 0
-        (to round-off). Whether any contact's mode changed (a friction switch: no tangent)."""
+        (to round-off). The slipping contacts that joined it (``slips``, :meth:`_law_slips`): slip on (the
+        same way: no switch; turned: a switch) or, where their sliding after is 0 (to round-off), stick
+        (:meth:`_stick`, a switch). Whether any contact's mode changed (a friction switch: no tangent)."""
         k = self.k
-        if not slipped:
+        if not slipped and not slips:
             return False
         grad = k.rows(q, vel_p)[1]
         tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel_p))))
         switched = False
+        owners = {self._stick_rows[f]: riders for f, riders in slips}
         for sr in slipped:
             f = k.row_stick[sr]
             sliding = float(grad[sr] @ vel_p)
+            if sr in owners:  # a slipping contact that joined: on, turned, or stuck (below)
+                for g in [f, *owners[sr]]:
+                    along = float(grad[self._stick_rows[g]] @ vel_p)
+                    if abs(along) > tiny:
+                        slip = -self._mu_f[g] * math.copysign(1.0, along)
+                        switched = switched or slip != self._slip[g]
+                        self._slip[g] = slip
+                continue
             if abs(sliding) > tiny:
                 self.act[sr] = False
                 self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
@@ -187,6 +243,11 @@ class HeldImpacts:
                         along = float(grad[self._stick_rows[g]] @ grad[sr])
                         self._slip[g] = -self._mu_f[g] * math.copysign(1.0, sliding * along)
                         self._ride[g] = -1
+        for f, riders in slips:  # stuck in the law (its stick row tight) or at a sliding of 0 after it
+            for g in [f, *riders]:
+                if self._slip[g] and abs(float(grad[self._stick_rows[g]] @ vel_p)) <= tiny:
+                    self._stick(g, q, vel_p)
+                    switched = True
         self._set_friction()
         return switched
 
@@ -207,11 +268,12 @@ class HeldImpacts:
                 plastic.append(r)
             else:
                 targets[r] = -e * rate
-        p_plus, lam, vel_m, vel_p, dropped, slipped = self._impulse_law(step, t_k, q, p, v, group, targets)
-        if self._slip_at_impact(q, vel_p, slipped):  # stick -> slip at the impact: a mode change, no tangent
+        law = self._impulse_law(step, t_k, q, p, v, group, targets)
+        p_plus, lam, vel_m, vel_p, dropped, slipped, slips = law
+        if self._slip_at_impact(q, vel_p, slipped, slips):  # stick <-> slip at the impact: a mode change
             self._sw_lose()
-        else:
-            self._ev_impulse(q, v, p, lam, targets, group)
+        else:  # the contacts slipping on: their sliding impulse in Tracker.impulse
+            self._ev_impulse(q, v, p, lam, targets, group, slips)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution
@@ -252,7 +314,7 @@ class HeldImpacts:
             lowest.append(min(own, key=lambda r: (psi[r], r)))
             rows += [r for r in own if psi[r] <= psi[lowest[-1]] + self.tol.admissible]
         # no row is held here (the free impact chain runs with none), so no stick row slips in the law
-        p_plus, lam, vel_m, vel_p, dropped, _ = self._impulse_law(step, t_k, q, p, v, rows, {})
+        p_plus, lam, vel_m, vel_p, dropped, _, _ = self._impulse_law(step, t_k, q, p, v, rows, {})
         for r in rows:  # the touching row of each contact is held; another branch at a kink if it presses
             self.act[r] = r in lowest or r not in dropped
         mass = k.legendre(q, vel_m)[1]

@@ -182,17 +182,23 @@ class HeldTangents:
         self._impulse(seg.q, v_in, seg.p_in, tight, [-1] * len(tight))
 
     @_event_hook
-    def impulse(self, q, v, p, tight, contact) -> None:
+    def impulse(self, q, v, p, tight, contact, slides=None) -> None:
         """An impact while rows are held (``SustainedSteps._chain_impact``, after :meth:`event`): the impulse
         law on the rows ``tight`` (those with an impulse), each row's target ``-e g_r.vel`` (``contact[l]``
-        the contact whose restitution ``e`` it takes, ``-1``: target 0, an active or plastic row)."""
+        the contact whose restitution ``e`` it takes, ``-1``: target 0, an active or plastic row);
+        ``slides[l]``: a normal row of a contact slipping on through the impact, its sliding impulse along
+        (:meth:`_impulse`), or None."""
         if self.active:
-            self._impulse(q, v, p, tight, contact)
+            self._impulse(q, v, p, tight, contact, slides)
 
-    def _impulse(self, q, v_in, p_in, tight, contact) -> None:
-        """``p+ = p + G^T Lam``, ``G M^-1 G^T Lam = b``, ``b_l = -(1 + e_l) g_l.vel`` (``e_l = 0`` where
+    def _impulse(self, q, v_in, p_in, tight, contact, slides=None) -> None:
+        """``p+ = p + D^T Lam``, ``G M^-1 D^T Lam = b``, ``b_l = -(1 + e_l) g_l.vel`` (``e_l = 0`` where
         ``contact[l] < 0``), ``vel`` one Newton step of the inverse Legendre transform from ``v_in`` (its
-        tangent ``self.dvin``), ``G`` and ``M`` at ``(q, vel)``: ``self.dp`` becomes the tangent of ``p+``."""
+        tangent ``self.dvin``), ``G`` and ``M`` at ``(q, vel)``: ``self.dp`` becomes the tangent of ``p+``.
+        ``D = G`` but on the normal rows of a contact slipping on through the impact (``slides[l] = (sr, sgn,
+        j)``, ``SustainedSteps._law_slips``): ``d_l = g_l + sgn mu_j g_sr``, Coulomb's sliding impulse along
+        the stick row ``sr`` of the slip's owner, ``mu_j`` (contact ``j``'s) moving with the parameters
+        (``d_friction``), the sign fixed within the mode."""
         k, n = self.k, self.n
         par, dpar = self.par(self.t_seg), self.dpar(self.dt)  # at the impact point
         mom0, mass0 = k.legendre(q, v_in)
@@ -200,16 +206,27 @@ class HeldTangents:
         vel = v_in + a
         dvel = self._dvel(q, v_in, a, mass0, par, dpar)
         mass1 = k.legendre(q, vel)[1]
-        grad = k.rows(q, vel)[1][tight]  # (na, n)
+        rows = k.rows(q, vel)[1]
+        grad = rows[tight]  # (na, n)
         dgrad = self.tg.get("d_rows")(q, vel, par)[0]
         dq_par = np.vstack([self.dq, dpar])
         dg = [dgrad[r * n : (r + 1) * n] @ dq_par for r in tight]  # each (n, K)
-        y = np.linalg.solve(mass1, grad.T)  # M^-1 G^T, (n, na)
+        dirs, ddirs = grad.copy(), list(dg)  # D and its tangent
+        if slides is not None and any(s is not None for s in slides):
+            mu = k.friction(q)[0]
+            dmu = self.tg.get("d_friction")(q, par)[0] @ dpar  # (m, K)
+            for c, slide in enumerate(slides):
+                if slide is not None:
+                    sr, sgn, j = slide
+                    dirs[c] = grad[c] + sgn * mu[j] * rows[sr]
+                    dgt = dgrad[sr * n : (sr + 1) * n] @ dq_par
+                    ddirs[c] = dg[c] + sgn * mu[j] * dgt + sgn * np.outer(rows[sr], dmu[j])
+        y = np.linalg.solve(mass1, dirs.T)  # M^-1 D^T, (n, na)
         dleg = self.tg.get("d_legendre")
         dy = []
         for c in range(len(tight)):
             dma = dleg(q, vel, y[:, c], par)[1]
-            dy.append(np.linalg.solve(mass1, dg[c] - dma @ np.vstack([self.dq, dvel, dpar])))
+            dy.append(np.linalg.solve(mass1, ddirs[c] - dma @ np.vstack([self.dq, dvel, dpar])))
         rest = k.restitution() if any(j >= 0 for j in contact) else None
         de = self.tg.get("d_restitution")(par)[0] @ dpar if rest is not None else None
         coef = np.array([1.0 + (float(rest[j]) if j >= 0 else 0.0) for j in contact])
@@ -226,7 +243,7 @@ class HeldTangents:
             ]
         )
         dlam = np.linalg.solve(w, db - dw_lam)
-        self.dp = self.dp + sum(dg[c] * lam[c] + np.outer(grad[c], dlam[c]) for c in range(len(tight)))
+        self.dp = self.dp + sum(ddirs[c] * lam[c] + np.outer(dirs[c], dlam[c]) for c in range(len(tight)))
 
     @_guarded
     def held(self, q, p, tau: float, v, lam, lam1, lam_m, u1, act, entry: bool = False) -> None:

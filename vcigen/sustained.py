@@ -214,7 +214,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
                 if not same and before is not None and not self._no_switch(before):  # let go, held anew: none
-                    self._sw_lose()  # a switch at a segment's start: not located
+                    # a switch at a segment's start: not located (after a plastic entry: its impact)
+                    entry = plain and self._ev_entry
+                    self._sw_lose("plastic impact" if entry else "friction switch in a held step")
                 if self._braked and self._ev_tan is not None and self._ev_tan.active:
                     self._ev_tan.lose("held step (sustained contact)")
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
@@ -379,13 +381,14 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._sw_lose()
         return False
 
-    def _sw_lose(self) -> None:
+    def _sw_lose(self, why: str = "friction switch in a held step") -> None:
         """A friction switch the tangent of a held step's events does not carry (stick <-> slip at a
         segment's start or not of one contact alone, the sliding direction turned, a contact set on another
         face, a cone's stop or slide): a mode change, no derivative; the step breaks with ``"friction switch
-        in a held step"`` (the later hooks find the tangent lost)."""
+        in a held step"`` (the later hooks find the tangent lost). ``why``: another reason (``"friction at an
+        impact"``: a slipping contact's sliding impulse at an impact while held, :meth:`_chain_impact`)."""
         if self._ev_tan is not None:
-            self._ev_tan.lose("friction switch in a held step")
+            self._ev_tan.lose(why)
             self._ev_done = True
 
     def _sw_state(self) -> tuple:
@@ -420,18 +423,28 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         tan = self._ev_tan
         return kind == "slide" and tan is not None and self._sw_stop == (tan.step, self._events)
 
-    def _ev_impulse(self, q, v, p, lam, targets, group) -> None:
+    def _ev_impulse(self, q, v, p, lam, targets, group, slips=()) -> None:
         """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
-        with an impulse, each with the contact whose restitution sets its target (-1: target 0); a group of
-        rows hit at once (the weights of its impulse switch) breaks."""
+        with an impulse, each with the contact whose restitution sets its target (-1: target 0), the normal
+        rows of the contacts slipping on through it (``slips``, :meth:`_law_slips`) with their sliding
+        impulse along their owner's stick row (whose own impulse follows from theirs: not a row of the law); a
+        group of rows hit at once (the weights of its impulse switch) breaks."""
         tan = self._ev_tan
         if tan is None:
             return
         if len(group) > 1:
             tan.lose("simultaneous impact")
             return
-        tight = [int(r) for r in np.flatnonzero(lam)]
-        tan.impulse(q, v, p, tight, [self.k.row_contact[r] if r in targets else -1 for r in tight])
+        k = self.k
+        along = {}  # contact -> (the owner's stick row, the sign of its sliding impulse, the contact)
+        for f, riders in slips:
+            for g in [f, *riders]:
+                sgn = math.copysign(1.0, self._slip[f])
+                along[k.frictional[g]] = (self._stick_rows[f], sgn, k.frictional[g])
+        skip = {self._stick_rows[f] for f, _ in slips}
+        tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
+        contact = [k.row_contact[r] if r in targets else -1 for r in tight]
+        tan.impulse(q, v, p, tight, contact, [along.get(k.row_contact[r]) for r in tight])
 
     def _ev_free(self, q, p, w, tau: float) -> None:
         """The free rest after a held step's events (``Tracker.free_end``); a lone lift-off before it is

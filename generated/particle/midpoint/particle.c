@@ -1452,12 +1452,15 @@ static int particle_row_crossing(const particle_ctx_t *c, const double *q, const
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int particle_impulse_law(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_g[PARTICLE_R_DIM * PARTICLE_N];
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
@@ -1485,6 +1488,8 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > PARTICLE_MAX_LAW_ROWS) {
         return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1630,6 +1635,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
+    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM];
     particle_at(c, t);
     particle_restitution(c->par, rest);
     particle_velocity(c, q, v, p, vel);
@@ -1655,10 +1661,13 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             tgt[r] = -e * rate;
         }
     }
-    if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = particle_loss(c, q, vel_m, vel_p);
     for (r = 0; r < PARTICLE_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1717,6 +1726,7 @@ static int particle_plastic_entry(const particle_ctx_t *c, const double *q, cons
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double tgt[PARTICLE_R_DIM] = {0.0}, vel_m[PARTICLE_N], vel_p[PARTICLE_N];
     int dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], lowest[PARTICLE_R_DIM] = {0}, g, r, k, low;
+    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM];
     particle_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1737,7 +1747,8 @@ static int particle_plastic_entry(const particle_ctx_t *c, const double *q, cons
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (particle_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (particle_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1733,12 +1733,15 @@ static int star_row_crossing(const star_ctx_t *c, const double *q, const double 
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int star_impulse_law(const star_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[STAR_N], mass[STAR_N * STAR_N], minv_g[STAR_R_DIM * STAR_N];
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
@@ -1766,6 +1769,8 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > STAR_MAX_LAW_ROWS) {
         return star_fail(c, STAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1911,6 +1916,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
+    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM];
     star_at(c, t);
     star_restitution(c->par, rest);
     star_velocity(c, q, v, p, vel);
@@ -1936,10 +1942,13 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
             tgt[r] = -e * rate;
         }
     }
-    if (star_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (star_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = star_loss(c, q, vel_m, vel_p);
     for (r = 0; r < STAR_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1998,6 +2007,7 @@ static int star_plastic_entry(const star_ctx_t *c, const double *q, const double
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
     double tgt[STAR_R_DIM] = {0.0}, vel_m[STAR_N], vel_p[STAR_N];
     int dropped[STAR_R_DIM], slipped[STAR_R_DIM], lowest[STAR_R_DIM] = {0}, g, r, k, low;
+    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM];
     star_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2018,7 +2028,8 @@ static int star_plastic_entry(const star_ctx_t *c, const double *q, const double
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (star_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (star_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1458,12 +1458,15 @@ static int ball_to_rest_row_crossing(const ball_to_rest_ctx_t *c, const double *
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], minv_g[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
@@ -1491,6 +1494,8 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > BALL_TO_REST_MAX_LAW_ROWS) {
         return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1636,6 +1641,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp;
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
+    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM];
     ball_to_rest_at(c, t);
     ball_to_rest_restitution(c->par, rest);
     ball_to_rest_velocity(c, q, v, p, vel);
@@ -1661,10 +1667,13 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
             tgt[r] = -e * rate;
         }
     }
-    if (ball_to_rest_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (ball_to_rest_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = ball_to_rest_loss(c, q, vel_m, vel_p);
     for (r = 0; r < BALL_TO_REST_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1723,6 +1732,7 @@ static int ball_to_rest_plastic_entry(const ball_to_rest_ctx_t *c, const double 
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
     double tgt[BALL_TO_REST_R_DIM] = {0.0}, vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N];
     int dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], lowest[BALL_TO_REST_R_DIM] = {0}, g, r, k, low;
+    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM];
     ball_to_rest_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1743,7 +1753,8 @@ static int ball_to_rest_plastic_entry(const ball_to_rest_ctx_t *c, const double 
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (ball_to_rest_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (ball_to_rest_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1682,12 +1682,15 @@ static int pendulum_wall_row_crossing(const pendulum_wall_ctx_t *c, const double
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
@@ -1715,6 +1718,8 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > PENDULUM_WALL_MAX_LAW_ROWS) {
         return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1860,6 +1865,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
+    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM];
     pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
     pendulum_wall_velocity(c, q, v, p, vel);
@@ -1885,10 +1891,13 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             tgt[r] = -e * rate;
         }
     }
-    if (pendulum_wall_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (pendulum_wall_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = pendulum_wall_loss(c, q, vel_m, vel_p);
     for (r = 0; r < PENDULUM_WALL_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1947,6 +1956,7 @@ static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const doubl
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     double tgt[PENDULUM_WALL_R_DIM] = {0.0}, vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N];
     int dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], lowest[PENDULUM_WALL_R_DIM] = {0}, g, r, k, low;
+    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM];
     pendulum_wall_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1967,7 +1977,8 @@ static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const doubl
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (pendulum_wall_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (pendulum_wall_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1653,12 +1653,15 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
@@ -1686,6 +1689,8 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > SLIDE_OFF_DOME_MAX_LAW_ROWS) {
         return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1831,6 +1836,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
+    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM];
     slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
     slide_off_dome_velocity(c, q, v, p, vel);
@@ -1856,10 +1862,13 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             tgt[r] = -e * rate;
         }
     }
-    if (slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = slide_off_dome_loss(c, q, vel_m, vel_p);
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1918,6 +1927,7 @@ static int slide_off_dome_plastic_entry(const slide_off_dome_ctx_t *c, const dou
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double tgt[SLIDE_OFF_DOME_R_DIM] = {0.0}, vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N];
     int dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], lowest[SLIDE_OFF_DOME_R_DIM] = {0}, g, r, k, low;
+    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM];
     slide_off_dome_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1938,7 +1948,8 @@ static int slide_off_dome_plastic_entry(const slide_off_dome_ctx_t *c, const dou
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (slide_off_dome_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (slide_off_dome_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1736,12 +1736,15 @@ static int star_settles_row_crossing(const star_settles_ctx_t *c, const double *
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N], minv_g[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
@@ -1769,6 +1772,8 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > STAR_SETTLES_MAX_LAW_ROWS) {
         return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1914,6 +1919,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     double curv[STAR_SETTLES_R_DIM], tgt[STAR_SETTLES_R_DIM], p_plus[STAR_SETTLES_N] = {0.0}, lam[STAR_SETTLES_R_DIM];
     double vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N], rate, e, loss, imp;
     int plastic[STAR_SETTLES_R_DIM], dropped[STAR_SETTLES_R_DIM], slipped[STAR_SETTLES_R_DIM], i, g, r, j, any, done;
+    int slip_own[STAR_SETTLES_NF_DIM], slip_ride[STAR_SETTLES_NF_DIM];
     star_settles_at(c, t);
     star_settles_restitution(c->par, rest);
     star_settles_velocity(c, q, v, p, vel);
@@ -1939,10 +1945,13 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
             tgt[r] = -e * rate;
         }
     }
-    if (star_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (star_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = star_settles_loss(c, q, vel_m, vel_p);
     for (r = 0; r < STAR_SETTLES_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -2001,6 +2010,7 @@ static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double 
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
     double tgt[STAR_SETTLES_R_DIM] = {0.0}, vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N];
     int dropped[STAR_SETTLES_R_DIM], slipped[STAR_SETTLES_R_DIM], lowest[STAR_SETTLES_R_DIM] = {0}, g, r, k, low;
+    int slip_own[STAR_SETTLES_NF_DIM], slip_ride[STAR_SETTLES_NF_DIM];
     star_settles_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2021,7 +2031,8 @@ static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double 
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (star_settles_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (star_settles_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

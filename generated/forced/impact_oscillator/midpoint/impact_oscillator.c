@@ -1276,12 +1276,15 @@ static int impact_oscillator_row_crossing(const impact_oscillator_ctx_t *c, cons
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
@@ -1309,6 +1312,8 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > IMPACT_OSCILLATOR_MAX_LAW_ROWS) {
         return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1454,6 +1459,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     double curv[IMPACT_OSCILLATOR_R_DIM], tgt[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N] = {0.0}, lam[IMPACT_OSCILLATOR_R_DIM];
     double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp;
     int plastic[IMPACT_OSCILLATOR_R_DIM], dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], i, g, r, j, any, done;
+    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM];
     impact_oscillator_at(c, t);
     impact_oscillator_restitution(c->par, rest);
     impact_oscillator_velocity(c, q, v, p, vel);
@@ -1479,10 +1485,13 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             tgt[r] = -e * rate;
         }
     }
-    if (impact_oscillator_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (impact_oscillator_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = impact_oscillator_loss(c, q, vel_m, vel_p);
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -1541,6 +1550,7 @@ static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, con
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     double tgt[IMPACT_OSCILLATOR_R_DIM] = {0.0}, vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N];
     int dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], lowest[IMPACT_OSCILLATOR_R_DIM] = {0}, g, r, k, low;
+    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM];
     impact_oscillator_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1561,7 +1571,8 @@ static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, con
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (impact_oscillator_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (impact_oscillator_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1713,13 +1713,18 @@ static int block_row_crossing(const block_ctx_t *c, const double *q, const doubl
  * one-tangent contact sticking with its own row, its index in rows (cone_i) and frictional contact (cone_f), whose
  * room is its own normal impulse and those of the one-tangent dependent sticks it carries (law_pooled; they slip
  * with it); the isotropic cones held, which may only stick (strict_i, strict_f, strict_o: its second tangent's
- * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. */
-static void block_law_cones(const block_ctx_t *c, const int *rows, int nr, int *cone_i, int *cone_f,
-    int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+ * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. Then the slipping contacts
+ * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
+ * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). */
+static void block_law_cones(const block_ctx_t *c, const int *rows, int nr, const int *slip_own,
+    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
 {
     int f, k, ia, ib;
     *n_cones = *n_strict = 0;
     for (f = 0; f < BLOCK_NF; ++f) {
+        if (slip_own[f]) {
+            continue; /* below, after the stick rows */
+        }
         ia = ib = -1;
         for (k = 0; k < nr; ++k) {
             if (rows[k] == block_stick_row[f]) {
@@ -1728,7 +1733,17 @@ static void block_law_cones(const block_ctx_t *c, const int *rows, int nr, int *
         }
         if (ia >= 0) {
             cone_i[*n_cones] = ia;
+            cone_on[*n_cones] = 0;
             cone_f[(*n_cones)++] = f;
+        }
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        for (k = 0; k < nr && slip_own[f]; ++k) {
+            if (rows[k] == block_stick_row[f]) {
+                cone_i[*n_cones] = k;
+                cone_on[*n_cones] = c->sus->slip[f] < 0.0 ? 1 : 2;
+                cone_f[(*n_cones)++] = f;
+            }
         }
     }
     (void)c;
@@ -1751,37 +1766,83 @@ static double block_law_normal(const int *rows, int nr, const double *lam, int f
     return s;
 }
 
-/* Is frictional contact g in the pool of one-tangent contact f's stick row (f itself, or a one-tangent dependent
- * stick it carries)? (SustainedSteps._law_cones) */
-static int block_law_in_pool(const block_ctx_t *c, int f, int g)
+/* Is frictional contact g in the pool of one-tangent contact f's stick row (f itself, a one-tangent dependent
+ * stick it carries, or a slipping contact riding on f's slip in the law, slip_ride)? (SustainedSteps._law_cones) */
+static int block_law_in_pool(const block_ctx_t *c, const int *slip_ride, int f, int g)
 {
-    return g == f || (c->sus->ride[g] == f);
+    return g == f || (c->sus->ride[g] == f) || slip_ride[g] == f;
 }
 
 /* sustained._pooled: sum mu_g Lam_n,g over the pool of f's stick row (its room), f first, then its riders. */
-static double block_law_pooled(const block_ctx_t *c, const int *rows, int nr, const double *lam, int f)
+static double block_law_pooled(const block_ctx_t *c, const int *slip_ride, const int *rows, int nr,
+    const double *lam, int f)
 {
     double s = c->mu_f[f] * block_law_normal(rows, nr, lam, f);
     int g;
     for (g = 0; g < BLOCK_NF; ++g) {
-        if (g != f && block_law_in_pool(c, f, g)) {
+        if (g != f && block_law_in_pool(c, slip_ride, f, g)) {
             s += c->mu_f[g] * block_law_normal(rows, nr, lam, g);
         }
     }
     return s;
 }
 
+
+/* SustainedSteps._law_slips: the one-tangent contacts held and slipping whose friction joins the impulse law on
+ * rows[0..nr): slip_own[f] = 1 for one whose stick row is independent of the active rows and of the stick rows of
+ * those before it (appended to rows), slip_ride[g] = f for a slipping contact whose stick row depends on f's (a
+ * box slipping on a face: its normal impulse is f's room too); -1 else. One whose stick row depends on the held
+ * rows alone takes none. */
+static void block_law_slips(const block_ctx_t *c, const double *grad, int *rows, int *nr, int *slip_own,
+    int *slip_ride)
+{
+    int act[BLOCK_R_DIM], f, g, r, sr, held;
+    for (r = 0; r < BLOCK_R; ++r) {
+        act[r] = c->sus->act[r];
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        slip_own[f] = 0;
+        slip_ride[f] = -1;
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        sr = block_stick_row[f];
+        for (r = 0, held = 0; r < BLOCK_R; ++r) {
+            held = held || (act[r] && block_row_contact[r] == block_fric_contact[f]);
+        }
+        if (c->sus->slip[f] == 0.0 || !held) {
+            continue;
+        }
+        if (!block_dependent(c, grad, sr, -1)) {
+            c->sus->act[sr] = 1;
+            slip_own[f] = 1;
+            rows[(*nr)++] = sr;
+            continue;
+        }
+        for (g = 0; g < BLOCK_NF; ++g) {
+            if (slip_own[g] && !block_dependent(c, grad, sr, block_stick_row[g])) {
+                slip_ride[f] = g;
+                break;
+            }
+        }
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+}
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int block_impulse_law(const block_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[BLOCK_N], mass[BLOCK_N * BLOCK_N], minv_g[BLOCK_R_DIM * BLOCK_N];
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
@@ -1790,7 +1851,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     double lam[BLOCK_R_DIM], sol[BLOCK_R_DIM], lam_eps, vel_eps, gap;
     int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM], piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
     int sliding[BLOCK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int cone_i[BLOCK_NF_DIM], cone_f[BLOCK_NF_DIM], strict_i[BLOCK_NF_DIM];
+    int cone_i[BLOCK_NF_DIM], cone_f[BLOCK_NF_DIM], cone_on[BLOCK_NF_DIM], strict_i[BLOCK_NF_DIM];
     int strict_f[BLOCK_NF_DIM], strict_o[BLOCK_NF_DIM], mode[BLOCK_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
     double slope, gaps[BLOCK_R_DIM];
@@ -1814,6 +1875,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
             rows[nr++] = hit[k];
         }
     }
+    block_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     if (nr > BLOCK_MAX_LAW_ROWS) {
         return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1838,7 +1900,8 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
             }
         }
     }
-    block_law_cones(c, rows, nr, cone_i, cone_f, &n_cones, strict_i, strict_f, strict_o, &n_strict);
+    block_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
+        &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
     }
@@ -1850,14 +1913,15 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
             sliding[k] = 0;
         }
         for (i = 0, digits = modes; i < n_cones; ++i, digits /= 3) {
-            mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n */
+            mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n: its own first */
+            mode[i] = !cone_on[i] ? mode[i] : (mode[i] == 0 ? cone_on[i] : (mode[i] == 1 ? 0 : 3 - cone_on[i]));
             if (!mode[i]) {
                 continue;
             }
             sliding[cone_i[i]] = 1;
             for (g = 0; g < BLOCK_NF; ++g) { /* its pool in order: f, then its riders */
                 pg = g == 0 ? cone_f[i] : (g <= cone_f[i] ? g - 1 : g);
-                if (!block_law_in_pool(c, cone_f[i], pg)) {
+                if (!block_law_in_pool(c, slip_ride, cone_f[i], pg)) {
                     continue;
                 }
                 slope = mode[i] == 1 ? -c->mu_f[pg] : c->mu_f[pg];
@@ -1902,7 +1966,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
             }
             for (i = 0; i < n_cones; ++i) {
                 if (mode[i]) {
-                    lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * block_law_pooled(c, rows, nr, lam, cone_f[i]);
+                    lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * block_law_pooled(c, slip_ride, rows, nr, lam, cone_f[i]);
                 }
             }
             for (k = 0; k < nt; ++k) {
@@ -1922,7 +1986,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
             }
             for (i = 0; i < n_cones && valid; ++i) {
                 if (mode[i] == 0) {
-                    valid = fabs(lam[cone_i[i]]) <= block_law_pooled(c, rows, nr, lam, cone_f[i]) + lam_eps;
+                    valid = fabs(lam[cone_i[i]]) <= block_law_pooled(c, slip_ride, rows, nr, lam, cone_f[i]) + lam_eps;
                 } else {
                     valid = mode[i] == 1 ? gaps[cone_i[i]] >= -vel_eps : gaps[cone_i[i]] <= vel_eps;
                 }
@@ -1951,17 +2015,33 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     return 0;
 }
 
+/* The sliding velocity grad t_f . u of frictional contact f (grad: all rows at q). */
+static double block_law_sliding(const double *grad, int f, const double *u)
+{
+    double s = 0.0;
+    int i;
+    for (i = 0; i < BLOCK_N; ++i) {
+        s += grad[block_stick_row[f] * BLOCK_N + i] * u[i];
+    }
+    return s;
+}
+
 /* SustainedSteps._slip_at_impact: the stick rows that slipped in the impulse law: their contacts slip after it
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
- * Whether any contact's mode changed (a friction switch: no tangent). */
+ * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
+ * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
+ * changed (a friction switch: no tangent). */
 static int block_slip_at_impact(const block_ctx_t *c, const double *q, const double *vel_p,
-    const int *slipped)
+    const int *slipped, const int *slip_own, const int *slip_ride)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
-    double tiny, sliding, along;
-    int r, i, f, g, any = 0, switched = 0;
+    double tiny, sliding, along, slip;
+    int r, i, f, g, k, any = 0, switched = 0;
     for (r = 0; r < BLOCK_R; ++r) {
         any = any || slipped[r];
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        any = any || slip_own[f];
     }
     if (!any) {
         return 0;
@@ -1977,6 +2057,21 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
         for (i = 0; i < BLOCK_N; ++i) {
             sliding += grad[r * BLOCK_N + i] * vel_p[i];
         }
+        if (slip_own[f]) { /* a slipping contact that joined: on, turned, or stuck (below) */
+            for (k = -1; k < BLOCK_NF; ++k) { /* f, then its riders */
+                g = k < 0 ? f : k;
+                if (k >= 0 && slip_ride[g] != f) {
+                    continue;
+                }
+                along = block_law_sliding(grad, g, vel_p);
+                if (fabs(along) > tiny) {
+                    slip = -c->mu_f[g] * (along > 0.0 ? 1.0 : -1.0);
+                    switched = switched || slip != c->sus->slip[g];
+                    c->sus->slip[g] = slip;
+                }
+            }
+            continue;
+        }
         if (fabs(sliding) > tiny) {
             c->sus->act[r] = 0;
             c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0);
@@ -1990,6 +2085,18 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
                     c->sus->slip[g] = -c->mu_f[g] * (sliding * along >= 0.0 ? 1.0 : -1.0);
                     c->sus->ride[g] = -1;
                 }
+            }
+        }
+    }
+    for (f = 0; f < BLOCK_NF; ++f) { /* stuck in the law (its stick row tight) or at a sliding of 0 after */
+        for (k = -1; k < BLOCK_NF && slip_own[f]; ++k) {
+            g = k < 0 ? f : k;
+            if (k >= 0 && slip_ride[g] != f) {
+                continue;
+            }
+            if (c->sus->slip[g] != 0.0 && fabs(block_law_sliding(grad, g, vel_p)) <= tiny) {
+                block_stick(c, g, q, vel_p);
+                switched = 1;
             }
         }
     }
@@ -2043,6 +2150,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double curv[BLOCK_R_DIM], tgt[BLOCK_R_DIM], p_plus[BLOCK_N] = {0.0}, lam[BLOCK_R_DIM];
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
+    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM];
     block_at(c, t);
     block_restitution(c->par, rest);
     block_velocity(c, q, v, p, vel);
@@ -2068,11 +2176,12 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             tgt[r] = -e * rate;
         }
     }
-    if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
-    if (block_slip_at_impact(c, q, vel_p, slipped)) { /* stick -> slip at the impact: no tangent */
-    } else {
+    if (block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
+    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = block_loss(c, q, vel_m, vel_p);
     for (r = 0; r < BLOCK_R; ++r) { /* an active row the impact pulls off */
@@ -2132,6 +2241,7 @@ static int block_plastic_entry(const block_ctx_t *c, const double *q, const doub
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double tgt[BLOCK_R_DIM] = {0.0}, vel_m[BLOCK_N], vel_p[BLOCK_N];
     int dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], lowest[BLOCK_R_DIM] = {0}, g, r, k, low;
+    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM];
     block_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2152,7 +2262,8 @@ static int block_plastic_entry(const block_ctx_t *c, const double *q, const doub
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (block_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (block_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

@@ -1995,13 +1995,18 @@ static int star_friction_row_crossing(const star_friction_ctx_t *c, const double
  * one-tangent contact sticking with its own row, its index in rows (cone_i) and frictional contact (cone_f), whose
  * room is its own normal impulse and those of the one-tangent dependent sticks it carries (law_pooled; they slip
  * with it); the isotropic cones held, which may only stick (strict_i, strict_f, strict_o: its second tangent's
- * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. */
-static void star_friction_law_cones(const star_friction_ctx_t *c, const int *rows, int nr, int *cone_i, int *cone_f,
-    int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+ * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. Then the slipping contacts
+ * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
+ * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). */
+static void star_friction_law_cones(const star_friction_ctx_t *c, const int *rows, int nr, const int *slip_own,
+    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
 {
     int f, k, ia, ib;
     *n_cones = *n_strict = 0;
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        if (slip_own[f]) {
+            continue; /* below, after the stick rows */
+        }
         ia = ib = -1;
         for (k = 0; k < nr; ++k) {
             if (rows[k] == star_friction_stick_row[f]) {
@@ -2010,7 +2015,17 @@ static void star_friction_law_cones(const star_friction_ctx_t *c, const int *row
         }
         if (ia >= 0) {
             cone_i[*n_cones] = ia;
+            cone_on[*n_cones] = 0;
             cone_f[(*n_cones)++] = f;
+        }
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        for (k = 0; k < nr && slip_own[f]; ++k) {
+            if (rows[k] == star_friction_stick_row[f]) {
+                cone_i[*n_cones] = k;
+                cone_on[*n_cones] = c->sus->slip[f] < 0.0 ? 1 : 2;
+                cone_f[(*n_cones)++] = f;
+            }
         }
     }
     (void)c;
@@ -2033,37 +2048,83 @@ static double star_friction_law_normal(const int *rows, int nr, const double *la
     return s;
 }
 
-/* Is frictional contact g in the pool of one-tangent contact f's stick row (f itself, or a one-tangent dependent
- * stick it carries)? (SustainedSteps._law_cones) */
-static int star_friction_law_in_pool(const star_friction_ctx_t *c, int f, int g)
+/* Is frictional contact g in the pool of one-tangent contact f's stick row (f itself, a one-tangent dependent
+ * stick it carries, or a slipping contact riding on f's slip in the law, slip_ride)? (SustainedSteps._law_cones) */
+static int star_friction_law_in_pool(const star_friction_ctx_t *c, const int *slip_ride, int f, int g)
 {
-    return g == f || (c->sus->ride[g] == f);
+    return g == f || (c->sus->ride[g] == f) || slip_ride[g] == f;
 }
 
 /* sustained._pooled: sum mu_g Lam_n,g over the pool of f's stick row (its room), f first, then its riders. */
-static double star_friction_law_pooled(const star_friction_ctx_t *c, const int *rows, int nr, const double *lam, int f)
+static double star_friction_law_pooled(const star_friction_ctx_t *c, const int *slip_ride, const int *rows, int nr,
+    const double *lam, int f)
 {
     double s = c->mu_f[f] * star_friction_law_normal(rows, nr, lam, f);
     int g;
     for (g = 0; g < STAR_FRICTION_NF; ++g) {
-        if (g != f && star_friction_law_in_pool(c, f, g)) {
+        if (g != f && star_friction_law_in_pool(c, slip_ride, f, g)) {
             s += c->mu_f[g] * star_friction_law_normal(rows, nr, lam, g);
         }
     }
     return s;
 }
 
+
+/* SustainedSteps._law_slips: the one-tangent contacts held and slipping whose friction joins the impulse law on
+ * rows[0..nr): slip_own[f] = 1 for one whose stick row is independent of the active rows and of the stick rows of
+ * those before it (appended to rows), slip_ride[g] = f for a slipping contact whose stick row depends on f's (a
+ * box slipping on a face: its normal impulse is f's room too); -1 else. One whose stick row depends on the held
+ * rows alone takes none. */
+static void star_friction_law_slips(const star_friction_ctx_t *c, const double *grad, int *rows, int *nr, int *slip_own,
+    int *slip_ride)
+{
+    int act[STAR_FRICTION_R_DIM], f, g, r, sr, held;
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        act[r] = c->sus->act[r];
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        slip_own[f] = 0;
+        slip_ride[f] = -1;
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        sr = star_friction_stick_row[f];
+        for (r = 0, held = 0; r < STAR_FRICTION_R; ++r) {
+            held = held || (act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
+        }
+        if (c->sus->slip[f] == 0.0 || !held) {
+            continue;
+        }
+        if (!star_friction_dependent(c, grad, sr, -1)) {
+            c->sus->act[sr] = 1;
+            slip_own[f] = 1;
+            rows[(*nr)++] = sr;
+            continue;
+        }
+        for (g = 0; g < STAR_FRICTION_NF; ++g) {
+            if (slip_own[g] && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g])) {
+                slip_ride[f] = g;
+                break;
+            }
+        }
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+}
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int star_friction_impulse_law(const star_friction_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N], minv_g[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
@@ -2072,7 +2133,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     double lam[STAR_FRICTION_R_DIM], sol[STAR_FRICTION_R_DIM], lam_eps, vel_eps, gap;
     int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM], piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
     int sliding[STAR_FRICTION_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
+    int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], cone_on[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
     int strict_f[STAR_FRICTION_NF_DIM], strict_o[STAR_FRICTION_NF_DIM], mode[STAR_FRICTION_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
     double slope, gaps[STAR_FRICTION_R_DIM];
@@ -2096,6 +2157,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             rows[nr++] = hit[k];
         }
     }
+    star_friction_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     if (nr > STAR_FRICTION_MAX_LAW_ROWS) {
         return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2120,7 +2182,8 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             }
         }
     }
-    star_friction_law_cones(c, rows, nr, cone_i, cone_f, &n_cones, strict_i, strict_f, strict_o, &n_strict);
+    star_friction_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
+        &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
     }
@@ -2132,14 +2195,15 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             sliding[k] = 0;
         }
         for (i = 0, digits = modes; i < n_cones; ++i, digits /= 3) {
-            mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n */
+            mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n: its own first */
+            mode[i] = !cone_on[i] ? mode[i] : (mode[i] == 0 ? cone_on[i] : (mode[i] == 1 ? 0 : 3 - cone_on[i]));
             if (!mode[i]) {
                 continue;
             }
             sliding[cone_i[i]] = 1;
             for (g = 0; g < STAR_FRICTION_NF; ++g) { /* its pool in order: f, then its riders */
                 pg = g == 0 ? cone_f[i] : (g <= cone_f[i] ? g - 1 : g);
-                if (!star_friction_law_in_pool(c, cone_f[i], pg)) {
+                if (!star_friction_law_in_pool(c, slip_ride, cone_f[i], pg)) {
                     continue;
                 }
                 slope = mode[i] == 1 ? -c->mu_f[pg] : c->mu_f[pg];
@@ -2184,7 +2248,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             }
             for (i = 0; i < n_cones; ++i) {
                 if (mode[i]) {
-                    lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * star_friction_law_pooled(c, rows, nr, lam, cone_f[i]);
+                    lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * star_friction_law_pooled(c, slip_ride, rows, nr, lam, cone_f[i]);
                 }
             }
             for (k = 0; k < nt; ++k) {
@@ -2204,7 +2268,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             }
             for (i = 0; i < n_cones && valid; ++i) {
                 if (mode[i] == 0) {
-                    valid = fabs(lam[cone_i[i]]) <= star_friction_law_pooled(c, rows, nr, lam, cone_f[i]) + lam_eps;
+                    valid = fabs(lam[cone_i[i]]) <= star_friction_law_pooled(c, slip_ride, rows, nr, lam, cone_f[i]) + lam_eps;
                 } else {
                     valid = mode[i] == 1 ? gaps[cone_i[i]] >= -vel_eps : gaps[cone_i[i]] <= vel_eps;
                 }
@@ -2233,17 +2297,33 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     return 0;
 }
 
+/* The sliding velocity grad t_f . u of frictional contact f (grad: all rows at q). */
+static double star_friction_law_sliding(const double *grad, int f, const double *u)
+{
+    double s = 0.0;
+    int i;
+    for (i = 0; i < STAR_FRICTION_N; ++i) {
+        s += grad[star_friction_stick_row[f] * STAR_FRICTION_N + i] * u[i];
+    }
+    return s;
+}
+
 /* SustainedSteps._slip_at_impact: the stick rows that slipped in the impulse law: their contacts slip after it
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
- * Whether any contact's mode changed (a friction switch: no tangent). */
+ * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
+ * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
+ * changed (a friction switch: no tangent). */
 static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const double *q, const double *vel_p,
-    const int *slipped)
+    const int *slipped, const int *slip_own, const int *slip_ride)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
-    double tiny, sliding, along;
-    int r, i, f, g, any = 0, switched = 0;
+    double tiny, sliding, along, slip;
+    int r, i, f, g, k, any = 0, switched = 0;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         any = any || slipped[r];
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        any = any || slip_own[f];
     }
     if (!any) {
         return 0;
@@ -2259,6 +2339,21 @@ static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const doub
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             sliding += grad[r * STAR_FRICTION_N + i] * vel_p[i];
         }
+        if (slip_own[f]) { /* a slipping contact that joined: on, turned, or stuck (below) */
+            for (k = -1; k < STAR_FRICTION_NF; ++k) { /* f, then its riders */
+                g = k < 0 ? f : k;
+                if (k >= 0 && slip_ride[g] != f) {
+                    continue;
+                }
+                along = star_friction_law_sliding(grad, g, vel_p);
+                if (fabs(along) > tiny) {
+                    slip = -c->mu_f[g] * (along > 0.0 ? 1.0 : -1.0);
+                    switched = switched || slip != c->sus->slip[g];
+                    c->sus->slip[g] = slip;
+                }
+            }
+            continue;
+        }
         if (fabs(sliding) > tiny) {
             c->sus->act[r] = 0;
             c->sus->slip[f] = -c->mu_f[f] * (sliding > 0.0 ? 1.0 : -1.0);
@@ -2272,6 +2367,18 @@ static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const doub
                     c->sus->slip[g] = -c->mu_f[g] * (sliding * along >= 0.0 ? 1.0 : -1.0);
                     c->sus->ride[g] = -1;
                 }
+            }
+        }
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) { /* stuck in the law (its stick row tight) or at a sliding of 0 after */
+        for (k = -1; k < STAR_FRICTION_NF && slip_own[f]; ++k) {
+            g = k < 0 ? f : k;
+            if (k >= 0 && slip_ride[g] != f) {
+                continue;
+            }
+            if (c->sus->slip[g] != 0.0 && fabs(star_friction_law_sliding(grad, g, vel_p)) <= tiny) {
+                star_friction_stick(c, g, q, vel_p);
+                switched = 1;
             }
         }
     }
@@ -2325,6 +2432,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double curv[STAR_FRICTION_R_DIM], tgt[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N] = {0.0}, lam[STAR_FRICTION_R_DIM];
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
+    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM];
     star_friction_at(c, t);
     star_friction_restitution(c->par, rest);
     star_friction_velocity(c, q, v, p, vel);
@@ -2350,11 +2458,12 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             tgt[r] = -e * rate;
         }
     }
-    if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
-    if (star_friction_slip_at_impact(c, q, vel_p, slipped)) { /* stick -> slip at the impact: no tangent */
-    } else {
+    if (star_friction_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
+    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = star_friction_loss(c, q, vel_m, vel_p);
     for (r = 0; r < STAR_FRICTION_R; ++r) { /* an active row the impact pulls off */
@@ -2414,6 +2523,7 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double tgt[STAR_FRICTION_R_DIM] = {0.0}, vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N];
     int dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, g, r, k, low;
+    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM];
     star_friction_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2434,7 +2544,8 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (star_friction_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (star_friction_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */

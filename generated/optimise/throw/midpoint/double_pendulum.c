@@ -1813,12 +1813,15 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
  * one-tangent contact sticks (tight, |Lam_t| <= mu_f Lam_n) or slips at either edge of its cone (Lam_t = -+mu_f
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
- * Solved by trying the friction modes in base 3 (all sticking first), each over the sets of tight rows from the
- * largest down; the first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows
- * left with no impulse (dropped) and the stick rows that slipped (slipped). */
+ * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
+ * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
+ * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
+ * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
+ * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
+ * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
 static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride)
 {
     double mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
@@ -1846,6 +1849,8 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
             rows[nr++] = hit[k];
         }
     }
+    slip_own[0] = 0;
+    slip_ride[0] = -1;
     if (nr > DOUBLE_PENDULUM_MAX_LAW_ROWS) {
         return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1991,6 +1996,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp;
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM];
     double_pendulum_at(c, t);
     double_pendulum_restitution(c->par, rest);
     double_pendulum_velocity(c, q, v, p, vel);
@@ -2016,10 +2022,13 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             tgt[r] = -e * rate;
         }
     }
-    if (double_pendulum_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (double_pendulum_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     (void)slipped;
+    (void)slip_own;
+    (void)slip_ride;
     loss = double_pendulum_loss(c, q, vel_m, vel_p);
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* an active row the impact pulls off */
         int in_group = 0;
@@ -2078,6 +2087,7 @@ static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const d
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double tgt[DOUBLE_PENDULUM_R_DIM] = {0.0}, vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N];
     int dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, g, r, k, low;
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM];
     double_pendulum_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2098,7 +2108,8 @@ static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const d
         }
     }
     /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
-    if (double_pendulum_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped)) {
+    if (double_pendulum_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+        slip_ride)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
