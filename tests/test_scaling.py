@@ -21,6 +21,8 @@ from vcigen.explicit import path_routines  # noqa: E402
 
 @pytest.mark.slow
 def test_fast_scaling_bench_writes_csv_plot_and_sane_fits(tmp_path: Path) -> None:
+    # scaling.FAST: three chains, two boxes (box N = 4 cost a third of the test's CPU); every row is checked
+    # (its m, admissible, impacts, times), each scene has a fit and the chain's source grows over three sizes
     out = scaling.main(["--fast", "--repeats", "2", "--out", str(tmp_path)])
     assert out["csv"].is_file() and out["png"].is_file() and out["png"].stat().st_size > 10_000
     with out["csv"].open() as fh:
