@@ -49,7 +49,7 @@ import hard_scenes
 import numpy as np
 import pytest
 import sympy as sp
-from test_impulse_law_friction import DISK, X_HIT, simulator
+from test_impulse_law_friction import DISK, X_HIT, max_error, simulator
 from test_sensitivity import BACKENDS, assert_lost, held_finite_differences, held_mode, relative_error
 
 import vcigen
@@ -135,12 +135,7 @@ def test_the_disk_run_is_the_closed_form(case: str, backend: str, rule: str) -> 
     (im,) = res.impacts
     x, th, xd, thd = disk_closed_form(res.t, DISK_CASES[case])
     vel = res.v
-    err = max(
-        np.abs(res.q[:, 0] - x).max(),
-        np.abs(res.q[:, 2] - th).max(),
-        np.abs(vel[:, 0] - xd).max(),
-        np.abs(vel[:, 2] - thd).max(),
-    )
+    err = max_error(res.q, vel, {0: x, 2: th}, {0: xd, 2: thd})
     print(f"{case} ({backend}, {rule}): closed form {err:.1e}")
     assert err <= TOL, err
     assert np.abs(res.q[:, 1] - DISK["r"]).max() <= 1e-14 and res.active[:, 0].all() and res.liftoffs == []
@@ -321,14 +316,7 @@ def test_the_box_run_is_the_closed_form(case: str, backend: str, rule: str) -> N
     im_cf, (x, xd, u, w, ud, wd) = box_closed_form(res.t, BOX_CASES[case])
     (im,) = res.impacts
     vel = res.v
-    err = max(
-        np.abs(res.q[:, 0] - x).max(),
-        np.abs(vel[:, 0] - xd).max(),
-        np.abs(res.q[:, 3] - u).max(),
-        np.abs(res.q[:, 4] - w).max(),
-        np.abs(vel[:, 3] - ud).max(),
-        np.abs(vel[:, 4] - wd).max(),
-    )
+    err = max_error(res.q, vel, {0: x, 3: u, 4: w}, {0: xd, 3: ud, 4: wd})
     print(f"box {case} ({backend}, {rule}): closed form {err:.1e}")
     assert err <= TOL, err
     assert np.abs(res.q[:, 1] - BOX["b"]).max() <= 1e-14 and np.abs(res.q[:, 2]).max() <= 1e-14
