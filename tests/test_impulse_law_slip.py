@@ -19,6 +19,9 @@ its normal impulse is ``N = P sin b`` (``P`` the wall's), and the wall makes ``x
   cos b``, ``thetad+ = thetad-``.
 * sticking (``w0 = -1.3``): the sliding impulse would reverse ``s``; ``thetad+ = -e xd- / r``, ``Lam_t = -I
   (thetad+ - thetad-) / r``, ``P cos b = m (1 + e) xd- + Lam_t``, ``|Lam_t| <= mu P sin b``.
+* slipping the other way (``w0 = -0.2``, a small forward slip ``s- = 0.17`` at the wall): the sliding impulse
+  would reverse it and the stick impulse leaves the cone, so it slips at the other edge, ``Lam_t = +mu N``,
+  ``P (cos b - mu sin b) = m (1 + e) xd-`` (the law's third mode), ``s+ < 0``.
 
 After the impact: slipping under ``mu m g`` until ``s = 0`` (``s' = -mu g (1 + m r^2 / I)``), rolling on.
 
@@ -65,7 +68,9 @@ V = 1.05
 SLOPE = 0.7  # the wall of test_impulse_law_friction.disk(0.7)
 MU = 0.2
 # case -> backspin thetad(0)
-DISK_CASES = {"slip_on": -3.0, "slip_stops": -1.3}
+DISK_CASES = {"slip_on": -3.0, "slip_stops": -1.3, "slip_reverses": -0.2}
+# case -> the mode of the closed form's impact
+DISK_MODES = {"slip_on": "slip", "slip_stops": "stick", "slip_reverses": "reverse"}
 
 
 def disk_impact(w0: float) -> dict[str, float]:
@@ -86,7 +91,12 @@ def disk_impact(w0: float) -> dict[str, float]:
         lam_t = -inertia * (om_p - om) / r
         p = (m * (1 + e) * xd + lam_t) / c
         mode = "stick"
-        assert abs(lam_t) <= MU * p * s
+        if abs(lam_t) > MU * p * s:  # the cone cannot stop it: it slips the other way, at the other edge
+            p = m * (1 + e) * xd / (c - MU * s)
+            lam_t = MU * p * s
+            om_p = om - r * lam_t / inertia
+            mode = "reverse"
+            assert -e * xd - r * om_p < 0
     return {"t": ts, "xd": xd, "om": om, "mode": mode, "P": p, "lam_t": lam_t, "xd+": -e * xd, "om+": om_p}
 
 
@@ -127,11 +137,11 @@ def run_disk(case: str, backend: str, rule: str = "trapezoid", **kw) -> vcigen.R
 def test_the_disk_run_is_the_closed_form(case: str, backend: str, rule: str) -> None:
     """``x, theta, xd, thetad`` at every grid point are the closed form's; the wall's impulse is ``P`` (not
     the frictionless ``m (1 + e) xd- / cos b``); the disk stays on the floor; right after the impact it slips
-    on forwards (``slip_on``) or rolls (``slip_stops``); the impact's energy loss is the kinetic energy the
-    closed form loses (wall and floor friction)."""
+    on forwards (``slip_on``), rolls (``slip_stops``) or slips backwards (``slip_reverses``); the impact's
+    energy loss is the kinetic energy the closed form loses (wall and floor friction)."""
     res = run_disk(case, backend, rule)
     im_cf = disk_impact(DISK_CASES[case])
-    assert im_cf["mode"] == ("slip" if case == "slip_on" else "stick")
+    assert im_cf["mode"] == DISK_MODES[case]
     (im,) = res.impacts
     x, th, xd, thd = disk_closed_form(res.t, DISK_CASES[case])
     vel = res.v
@@ -150,6 +160,8 @@ def test_the_disk_run_is_the_closed_form(case: str, backend: str, rule: str) -> 
     slip_after = vel[im.step + 1, 0] - DISK["r"] * vel[im.step + 1, 2]
     if case == "slip_on":
         assert slip_after > 0.5
+    elif case == "slip_reverses":
+        assert slip_after < -0.5
     else:
         assert abs(slip_after) <= 1e-13
 
@@ -166,10 +178,12 @@ def test_c_equals_casadi(case: str, rule: str) -> None:
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_the_tangent_breaks_where_the_slip_stops(backend: str) -> None:
-    """Where the sliding impulse would reverse the slip the contact sticks at the impact: a mode change, the
-    step breaks with ``"friction switch in a held step"``, finite before, on both backends."""
-    res = run_disk("slip_stops", backend, sensitivities=True)
+@pytest.mark.parametrize("case", ["slip_stops", "slip_reverses"])
+def test_the_tangent_breaks_where_the_slip_stops(case: str, backend: str) -> None:
+    """Where the sliding impulse would reverse the slip the contact sticks at the impact, or slips the other
+    way: a mode change, the step breaks with ``"friction switch in a held step"``, finite before, on both
+    backends."""
+    res = run_disk(case, backend, sensitivities=True)
     (im,) = res.impacts
     assert assert_lost(res, "friction switch in a held step") == im.step
     assert res.sensitivity_breaks[0] == (im.step, "friction switch in a held step")
