@@ -276,9 +276,12 @@ class HeldImpacts:
             self._ev_impulse(q, v, p, lam, targets, group, slips)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
-        for r in dropped:  # an active row the impact pulls off, unless it leaves below the resolution
-            if self.act[r] and r not in group and not self._settles(float(grad[r] @ vel_p), acc[r], 1.0, h):
-                self._release(step, t_k, t, r)
+        leaving = [r for r in dropped if self.act[r] and r not in group]  # active rows the impact pulls off
+        if leaving:  # each stays unless it leaves below the resolution, pulled back by the rows held after
+            after = self._held_accel(q, vel_p, leaving, plastic)
+            for r in leaving:
+                if not self._settles(float(grad[r] @ vel_p), after[r], 1.0, h):
+                    self._release(step, t_k, t, r)
         for r in plastic:  # pressed in and settling: held (its force, checked next, may release it)
             self.act[r] = True
         by_contact: dict[int, list[int]] = {}
@@ -303,6 +306,26 @@ class HeldImpacts:
                 kind,
             )
         return p_plus
+
+    def _held_accel(self, q, u, off, on) -> np.ndarray:
+        """Every row's ``d2 psi/dt2`` at ``(q, u)`` under the forces of the rows held after an impact (the
+        active ones but ``off``, and ``on``): how a row the impact pulls off is pulled back (a held row's own
+        force would cancel it)."""
+        k = self.k
+        act = self.act.copy()
+        self.act[list(off)] = False
+        self.act[list(on)] = True
+        held = {k.row_contact[r] for r in np.flatnonzero(self.act) if k.row_contact[r] >= 0}
+        for r in np.flatnonzero(self.act):  # a contact no longer held keeps no stick row
+            if k.row_stick and k.row_stick[r] >= 0 and k.frictional[k.row_stick[r]] not in held:
+                self.act[r] = False
+        try:
+            lam = self._contact_forces(q, u)
+        except np.linalg.LinAlgError:  # dependent rows: no forces (C: <model>_forces_to's failed LU)
+            lam = np.zeros(k.r)
+        finally:
+            self.act[:] = act
+        return self._row_accel(q, u, self._accel(q, u, lam))
 
     def _plastic_entry(self, step, t_k, h, q, p, v, t, group_contacts):
         """Plastic impact on contacts ``group_contacts`` at ``q``: their touching rows become active."""

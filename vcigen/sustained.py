@@ -243,7 +243,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                         self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
                     )
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
-                r = min(r for r, (_, s) in events.items() if s == 0.0)
+                # a friction switch first: a stick force out of its cone says nothing of the normal force
+                # (sticking, it may pull; slipping, it presses), and a release there would land again at once
+                r = min(
+                    (r for r, (_, s) in events.items() if s == 0.0), key=lambda r: (events[r][0] == "lift", r)
+                )
                 self._fswitch = self._fswitch or (plain and events[r][0] in ("stop", "slide"))
                 if events[r][0] in ("stop", "slide") and not self._sw_back(events[r][0]):
                     self._sw_lose()  # at the start: not located (a slide back at a stop: _sw_back)

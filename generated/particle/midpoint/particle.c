@@ -1625,6 +1625,25 @@ static void particle_log(const particle_ctx_t *c, double *rec, long *n_rec, doub
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void particle_held_accel(const particle_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[PARTICLE_R_DIM], acc[PARTICLE_N];
+    int act[PARTICLE_R_DIM], r;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    particle_contact_forces(c, q, u, lam);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    particle_accel(c, q, u, lam, acc);
+    particle_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int particle_chain_impact(const particle_ctx_t *c, const double *q, double *p, const double *v,
@@ -1635,7 +1654,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
-    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM];
+    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], leaving[PARTICLE_R_DIM];
     particle_at(c, t);
     particle_restitution(c->par, rest);
     particle_velocity(c, q, v, p, vel);
@@ -1669,12 +1688,21 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     (void)slip_own;
     (void)slip_ride;
     loss = particle_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < PARTICLE_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < PARTICLE_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        particle_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < PARTICLE_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < PARTICLE_N; ++i) {
                 rate += grad[r * PARTICLE_N + i] * vel_p[i];

@@ -1908,6 +1908,25 @@ static void star_log(const star_ctx_t *c, double *rec, long *n_rec, double t, in
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void star_held_accel(const star_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[STAR_R_DIM], acc[STAR_N];
+    int act[STAR_R_DIM], r;
+    for (r = 0; r < STAR_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    star_contact_forces(c, q, u, lam);
+    for (r = 0; r < STAR_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    star_accel(c, q, u, lam, acc);
+    star_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, const double *v,
@@ -1918,7 +1937,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
-    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM];
+    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], leaving[STAR_R_DIM];
     star_at(c, t);
     star_restitution(c->par, rest);
     star_velocity(c, q, v, p, vel);
@@ -1952,12 +1971,21 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     (void)slip_own;
     (void)slip_ride;
     loss = star_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < STAR_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < STAR_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        star_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < STAR_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < STAR_N; ++i) {
                 rate += grad[r * STAR_N + i] * vel_p[i];

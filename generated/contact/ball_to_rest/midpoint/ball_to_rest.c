@@ -1626,6 +1626,25 @@ static void ball_to_rest_log(const ball_to_rest_ctx_t *c, double *rec, long *n_r
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void ball_to_rest_held_accel(const ball_to_rest_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N];
+    int act[BALL_TO_REST_R_DIM], r;
+    for (r = 0; r < BALL_TO_REST_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    ball_to_rest_contact_forces(c, q, u, lam);
+    for (r = 0; r < BALL_TO_REST_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    ball_to_rest_accel(c, q, u, lam, acc);
+    ball_to_rest_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *q, double *p, const double *v,
@@ -1636,7 +1655,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp;
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
-    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM];
+    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], leaving[BALL_TO_REST_R_DIM];
     ball_to_rest_at(c, t);
     ball_to_rest_restitution(c->par, rest);
     ball_to_rest_velocity(c, q, v, p, vel);
@@ -1670,12 +1689,21 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     (void)slip_own;
     (void)slip_ride;
     loss = ball_to_rest_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < BALL_TO_REST_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < BALL_TO_REST_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        ball_to_rest_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < BALL_TO_REST_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < BALL_TO_REST_N; ++i) {
                 rate += grad[r * BALL_TO_REST_N + i] * vel_p[i];

@@ -1855,6 +1855,25 @@ static void pendulum_wall_log(const pendulum_wall_ctx_t *c, double *rec, long *n
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void pendulum_wall_held_accel(const pendulum_wall_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N];
+    int act[PENDULUM_WALL_R_DIM], r;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    pendulum_wall_contact_forces(c, q, u, lam);
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    pendulum_wall_accel(c, q, u, lam, acc);
+    pendulum_wall_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double *q, double *p, const double *v,
@@ -1865,7 +1884,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
-    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM];
+    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
     pendulum_wall_velocity(c, q, v, p, vel);
@@ -1899,12 +1918,21 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     (void)slip_own;
     (void)slip_ride;
     loss = pendulum_wall_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < PENDULUM_WALL_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        pendulum_wall_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < PENDULUM_WALL_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < PENDULUM_WALL_N; ++i) {
                 rate += grad[r * PENDULUM_WALL_N + i] * vel_p[i];

@@ -1831,6 +1831,25 @@ static void slide_off_dome_log(const slide_off_dome_ctx_t *c, double *rec, long 
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void slide_off_dome_held_accel(const slide_off_dome_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N];
+    int act[SLIDE_OFF_DOME_R_DIM], r;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    slide_off_dome_contact_forces(c, q, u, lam);
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    slide_off_dome_accel(c, q, u, lam, acc);
+    slide_off_dome_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const double *q, double *p, const double *v,
@@ -1841,7 +1860,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
-    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM];
+    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], leaving[SLIDE_OFF_DOME_R_DIM];
     slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
     slide_off_dome_velocity(c, q, v, p, vel);
@@ -1875,12 +1894,21 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     (void)slip_own;
     (void)slip_ride;
     loss = slide_off_dome_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        slide_off_dome_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
                 rate += grad[r * SLIDE_OFF_DOME_N + i] * vel_p[i];

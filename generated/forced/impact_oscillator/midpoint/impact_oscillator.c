@@ -1449,6 +1449,25 @@ static void impact_oscillator_log(const impact_oscillator_ctx_t *c, double *rec,
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void impact_oscillator_held_accel(const impact_oscillator_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N];
+    int act[IMPACT_OSCILLATOR_R_DIM], r;
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    impact_oscillator_contact_forces(c, q, u, lam);
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    impact_oscillator_accel(c, q, u, lam, acc);
+    impact_oscillator_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, const double *q, double *p, const double *v,
@@ -1459,7 +1478,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     double curv[IMPACT_OSCILLATOR_R_DIM], tgt[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N] = {0.0}, lam[IMPACT_OSCILLATOR_R_DIM];
     double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp;
     int plastic[IMPACT_OSCILLATOR_R_DIM], dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], i, g, r, j, any, done;
-    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM];
+    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], leaving[IMPACT_OSCILLATOR_R_DIM];
     impact_oscillator_at(c, t);
     impact_oscillator_restitution(c->par, rest);
     impact_oscillator_velocity(c, q, v, p, vel);
@@ -1493,12 +1512,21 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     (void)slip_own;
     (void)slip_ride;
     loss = impact_oscillator_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        impact_oscillator_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
                 rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel_p[i];

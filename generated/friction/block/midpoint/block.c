@@ -2140,6 +2140,34 @@ static void block_log(const block_ctx_t *c, double *rec, long *n_rec, double t, 
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void block_held_accel(const block_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[BLOCK_R_DIM], acc[BLOCK_N];
+    int act[BLOCK_R_DIM], r;
+    for (r = 0; r < BLOCK_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    for (r = 0; r < BLOCK_R; ++r) { /* a contact no longer held keeps no stick row */
+        if (block_row_stick[r] >= 0 && c->sus->act[r]) {
+            int i, held = 0;
+            for (i = 0; i < BLOCK_R; ++i) {
+                held = held || (c->sus->act[i] && block_row_contact[i] == block_fric_contact[block_row_stick[r]]);
+            }
+            c->sus->act[r] = held;
+        }
+    }
+    block_contact_forces(c, q, u, lam);
+    for (r = 0; r < BLOCK_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    block_accel(c, q, u, lam, acc);
+    block_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, const double *v,
@@ -2150,7 +2178,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double curv[BLOCK_R_DIM], tgt[BLOCK_R_DIM], p_plus[BLOCK_N] = {0.0}, lam[BLOCK_R_DIM];
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
-    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM];
+    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
     block_at(c, t);
     block_restitution(c->par, rest);
     block_velocity(c, q, v, p, vel);
@@ -2184,12 +2212,21 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = block_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < BLOCK_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < BLOCK_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        block_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < BLOCK_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < BLOCK_N; ++i) {
                 rate += grad[r * BLOCK_N + i] * vel_p[i];
@@ -2421,8 +2458,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             }
         }
         start = -1;
-        for (r = 0; r < BLOCK_R; ++r) {
-            if (ev[r] && s_ev[r] == 0.0 && start < 0) {
+        for (r = 0; r < BLOCK_R; ++r) { /* a friction switch first (SustainedSteps._chain) */
+            if (ev[r] && s_ev[r] == 0.0 && (start < 0 || (ev[r] >= 3 && ev[start] < 3))) {
                 start = r;
             }
         }

@@ -2220,6 +2220,34 @@ static void rough_disk_log(const rough_disk_ctx_t *c, double *rec, long *n_rec, 
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void rough_disk_held_accel(const rough_disk_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N];
+    int act[ROUGH_DISK_R_DIM], r;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) { /* a contact no longer held keeps no stick row */
+        if (rough_disk_row_stick[r] >= 0 && c->sus->act[r]) {
+            int i, held = 0;
+            for (i = 0; i < ROUGH_DISK_R; ++i) {
+                held = held || (c->sus->act[i] && rough_disk_row_contact[i] == rough_disk_fric_contact[rough_disk_row_stick[r]]);
+            }
+            c->sus->act[r] = held;
+        }
+    }
+    rough_disk_contact_forces(c, q, u, lam);
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    rough_disk_accel(c, q, u, lam, acc);
+    rough_disk_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
@@ -2230,7 +2258,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp;
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
-    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM];
+    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     rough_disk_at(c, t);
     rough_disk_restitution(c->par, rest);
     rough_disk_velocity(c, q, v, p, vel);
@@ -2264,12 +2292,21 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = rough_disk_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < ROUGH_DISK_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < ROUGH_DISK_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        rough_disk_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < ROUGH_DISK_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 rate += grad[r * ROUGH_DISK_N + i] * vel_p[i];
@@ -2501,8 +2538,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             }
         }
         start = -1;
-        for (r = 0; r < ROUGH_DISK_R; ++r) {
-            if (ev[r] && s_ev[r] == 0.0 && start < 0) {
+        for (r = 0; r < ROUGH_DISK_R; ++r) { /* a friction switch first (SustainedSteps._chain) */
+            if (ev[r] && s_ev[r] == 0.0 && (start < 0 || (ev[r] >= 3 && ev[start] < 3))) {
                 start = r;
             }
         }

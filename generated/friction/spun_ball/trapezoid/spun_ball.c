@@ -2871,6 +2871,34 @@ static void spun_ball_log(const spun_ball_ctx_t *c, double *rec, long *n_rec, do
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void spun_ball_held_accel(const spun_ball_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[SPUN_BALL_R_DIM], acc[SPUN_BALL_N];
+    int act[SPUN_BALL_R_DIM], r;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) { /* a contact no longer held keeps no stick row */
+        if (spun_ball_row_stick[r] >= 0 && c->sus->act[r]) {
+            int i, held = 0;
+            for (i = 0; i < SPUN_BALL_R; ++i) {
+                held = held || (c->sus->act[i] && spun_ball_row_contact[i] == spun_ball_fric_contact[spun_ball_row_stick[r]]);
+            }
+            c->sus->act[r] = held;
+        }
+    }
+    spun_ball_contact_forces(c, q, u, lam);
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    spun_ball_accel(c, q, u, lam, acc);
+    spun_ball_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, double *p, const double *v,
@@ -2881,7 +2909,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double curv[SPUN_BALL_R_DIM], tgt[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N] = {0.0}, lam[SPUN_BALL_R_DIM];
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
-    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM];
+    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     spun_ball_at(c, t);
     spun_ball_restitution(c->par, rest);
     spun_ball_velocity(c, q, v, p, vel);
@@ -2915,12 +2943,21 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = spun_ball_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < SPUN_BALL_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < SPUN_BALL_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        spun_ball_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < SPUN_BALL_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 rate += grad[r * SPUN_BALL_N + i] * vel_p[i];
@@ -3160,8 +3197,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             }
         }
         start = -1;
-        for (r = 0; r < SPUN_BALL_R; ++r) {
-            if (ev[r] && s_ev[r] == 0.0 && start < 0) {
+        for (r = 0; r < SPUN_BALL_R; ++r) { /* a friction switch first (SustainedSteps._chain) */
+            if (ev[r] && s_ev[r] == 0.0 && (start < 0 || (ev[r] >= 3 && ev[start] < 3))) {
                 start = r;
             }
         }

@@ -2424,6 +2424,34 @@ static void star_friction_log(const star_friction_ctx_t *c, double *rec, long *n
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void star_friction_held_accel(const star_friction_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N];
+    int act[STAR_FRICTION_R_DIM], r;
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) { /* a contact no longer held keeps no stick row */
+        if (star_friction_row_stick[r] >= 0 && c->sus->act[r]) {
+            int i, held = 0;
+            for (i = 0; i < STAR_FRICTION_R; ++i) {
+                held = held || (c->sus->act[i] && star_friction_row_contact[i] == star_friction_fric_contact[star_friction_row_stick[r]]);
+            }
+            c->sus->act[r] = held;
+        }
+    }
+    star_friction_contact_forces(c, q, u, lam);
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    star_friction_accel(c, q, u, lam, acc);
+    star_friction_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int star_friction_chain_impact(const star_friction_ctx_t *c, const double *q, double *p, const double *v,
@@ -2434,7 +2462,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double curv[STAR_FRICTION_R_DIM], tgt[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N] = {0.0}, lam[STAR_FRICTION_R_DIM];
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
-    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM];
+    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], leaving[STAR_FRICTION_R_DIM];
     star_friction_at(c, t);
     star_friction_restitution(c->par, rest);
     star_friction_velocity(c, q, v, p, vel);
@@ -2468,12 +2496,21 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = star_friction_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < STAR_FRICTION_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < STAR_FRICTION_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        star_friction_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < STAR_FRICTION_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
@@ -2705,8 +2742,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             }
         }
         start = -1;
-        for (r = 0; r < STAR_FRICTION_R; ++r) {
-            if (ev[r] && s_ev[r] == 0.0 && start < 0) {
+        for (r = 0; r < STAR_FRICTION_R; ++r) { /* a friction switch first (SustainedSteps._chain) */
+            if (ev[r] && s_ev[r] == 0.0 && (start < 0 || (ev[r] >= 3 && ev[start] < 3))) {
                 start = r;
             }
         }

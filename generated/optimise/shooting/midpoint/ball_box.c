@@ -1838,6 +1838,25 @@ static void ball_box_log(const ball_box_ctx_t *c, double *rec, long *n_rec, doub
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void ball_box_held_accel(const ball_box_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[BALL_BOX_R_DIM], acc[BALL_BOX_N];
+    int act[BALL_BOX_R_DIM], r;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    ball_box_contact_forces(c, q, u, lam);
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    ball_box_accel(c, q, u, lam, acc);
+    ball_box_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, double *p, const double *v,
@@ -1848,7 +1867,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     double curv[BALL_BOX_R_DIM], tgt[BALL_BOX_R_DIM], p_plus[BALL_BOX_N] = {0.0}, lam[BALL_BOX_R_DIM];
     double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp;
     int plastic[BALL_BOX_R_DIM], dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], i, g, r, j, any, done;
-    int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM];
+    int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], leaving[BALL_BOX_R_DIM];
     ball_box_at(c, t);
     ball_box_restitution(c->par, rest);
     ball_box_velocity(c, q, v, p, vel);
@@ -1882,12 +1901,21 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     (void)slip_own;
     (void)slip_ride;
     loss = ball_box_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < BALL_BOX_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < BALL_BOX_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        ball_box_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < BALL_BOX_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < BALL_BOX_N; ++i) {
                 rate += grad[r * BALL_BOX_N + i] * vel_p[i];

@@ -2043,6 +2043,25 @@ static void double_pendulum_log(const double_pendulum_ctx_t *c, double *rec, lon
     ++*n_rec;
 }
 
+/* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
+ * impact: the active ones but off, and on. */
+static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const double *q, const double *u, const int *off,
+    const int *on, double *racc)
+{
+    double lam[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N];
+    int act[DOUBLE_PENDULUM_R_DIM], r;
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        act[r] = c->sus->act[r];
+        c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    double_pendulum_contact_forces(c, q, u, lam);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    double_pendulum_accel(c, q, u, lam, acc);
+    double_pendulum_row_accel(c, q, u, acc, racc);
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const double *q, double *p, const double *v,
@@ -2053,7 +2072,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp;
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
-    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM];
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
     double_pendulum_restitution(c->par, rest);
     double_pendulum_velocity(c, q, v, p, vel);
@@ -2087,12 +2106,21 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     (void)slip_own;
     (void)slip_ride;
     loss = double_pendulum_loss(c, q, vel_m, vel_p);
-    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* an active row the impact pulls off */
+    any = 0;
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* the active rows the impact pulls off */
         int in_group = 0;
         for (g = 0; g < n_group; ++g) {
             in_group = in_group || group[g] == r;
         }
-        if (dropped[r] && c->sus->act[r] && !in_group) { /* unless it leaves below the resolution */
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+        double_pendulum_held_accel(c, q, vel_p, leaving, plastic, racc);
+        for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+            if (!leaving[r]) {
+                continue;
+            }
             rate = 0.0;
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
                 rate += grad[r * DOUBLE_PENDULUM_N + i] * vel_p[i];
