@@ -184,7 +184,7 @@ class HeldImpacts:
                     out.append((f, []))
                     continue
                 for g, riders in out:
-                    if not self._dependent(grad, sr, self._stick_rows[g]):
+                    if self._partner[g] < 0 and not self._dependent(grad, sr, self._stick_rows[g]):
                         riders.append(f)
                         break
         finally:
