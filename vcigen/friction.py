@@ -229,11 +229,11 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
     the cone). With ``b = 0`` and ``H`` symmetric this is :func:`cone_impulse`'s minimiser; with ``b != 0``
     maximal dissipation in Coulomb's sense (``m`` against the velocity after) is not the energy's minimum over
     the cone's slice, which :func:`cone_impulse` gives (its velocity after is along ``-(u + mu_f b)``)."""
+    if not (mu_f > 0.0 and a > 0.0):
+        return 0.0, 0.0  # no normal impulse (a < 0: the law's row check refuses it): no friction impulse
     det, tr = h[0] * h[3] - h[1] * h[2], h[0] + h[3]
     if not (det > 0.0 and tr > 0.0):
         return None
-    if not (mu_f > 0.0 and a > 0.0):
-        return 0.0, 0.0  # no normal impulse (a < 0: the law's row check refuses it): no friction impulse
 
     def tangential(sg: float) -> tuple[float, float]:
         d = (h[0] + sg) * (h[3] + sg) - h[1] * h[2]

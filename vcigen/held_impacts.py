@@ -94,7 +94,7 @@ class HeldImpacts:
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
                     continue
                 if slide:
-                    lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_)
+                    lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_, lam_eps)
                     if lam is None:
                         continue
                 else:
@@ -119,7 +119,7 @@ class HeldImpacts:
                         inside = inside and abs(lam[i]) <= _pooled(pools, lam) + lam_eps
                     else:
                         inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
-                for (i, o, normals, mu, _), on in zip(isos, slides):
+                for (i, o, normals, mu, _, _), on in zip(isos, slides):
                     if not on:  # sticking: within its cone (slipping: on its edge by _law_slide)
                         cap = mu * float(np.sum(lam[normals]))
                         inside = inside and math.hypot(float(lam[i]), float(lam[o])) <= cap + lam_eps
@@ -145,6 +145,10 @@ class HeldImpacts:
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
         slipped = [rows[i] for i in sorted(sliding)]
+        for (i, o, _, _, on, f), slid in zip(isos, slides):
+            if on and slid and lam[i] == 0.0 and lam[o] == 0.0:  # no normal impulse: it slips on as before
+                slips = [s for s in slips if s[0] != f]
+                slipped = [r for r in slipped if r not in (rows[i], rows[o])]
         p_plus = p + grad.T @ lam_full
         return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips
 
@@ -195,13 +199,14 @@ class HeldImpacts:
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
         one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
         ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
-        ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too,
-        as in :meth:`_cone_margin`; they slip with it); and ``[(i, normals, mu_f, o)]`` of the isotropic
-        cones held (``i``, ``o`` their tangents' indices, -1 for one not held), which may only stick. A cone
-        coupled to others by a dependent stick (:meth:`_cone_split`) is not checked. Then the slipping
-        contacts ``slips`` (:meth:`_law_slips`), pooled the same way. ``orders``: each cone's modes in the
-        order tried, its own first (stick ``(0, 1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against
-        ``-`` ``(2, 0, 1)``)."""
+        ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too, as
+        in :meth:`_cone_margin`; they slip with it); ``[(i, normals, mu_f, -1)]`` of the isotropic cones with
+        one tangent held, which may only stick; ``isos``: ``[(i, o, normals, mu_f, on, f)]`` of those with
+        both held (``i``, ``o`` their indices, ``f`` the first tangent, ``on`` 1 if slipping and joined by
+        :meth:`_law_slips`), which stick or slip (:meth:`_law_slide`). A cone coupled to others by a dependent
+        stick (:meth:`_cone_split`) is not checked. Then the slipping one-tangent contacts ``slips``, pooled
+        the same way. ``orders``: each one-tangent cone's modes in the order tried, its own first (stick ``(0,
+        1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against ``-`` ``(2, 0, 1)``)."""
         k = self.k
         cones, strict, orders, isos = [], [], [], []
         slipping = {f for f, _ in slips}
@@ -219,7 +224,7 @@ class HeldImpacts:
                 if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
                     i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
                     if o >= 0:  # both tangents held: stick or slip (on the slipping ones, below)
-                        isos.append((i, o, normals(f), float(self._mu_f[f]), int(f in slipping)))
+                        isos.append((i, o, normals(f), float(self._mu_f[f]), int(f in slipping), f))
                     else:
                         strict.append((i, normals(f), float(self._mu_f[f]), o))
             elif sr in rows and f not in slipping:
@@ -237,15 +242,16 @@ class HeldImpacts:
             orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
         return cones, strict, orders, isos
 
-    def _law_slide(self, iso, w, ws, b, tight, cones, slips_):
+    def _law_slide(self, iso, w, ws, b, tight, cones, slips_, lam_eps):
         """The impulses of the impulse law (:meth:`_impulse_law`) on the tight rows ``tight`` with the
-        isotropic cone ``iso = (i, o, normals, mu_f, on)`` slipping: Coulomb's sliding impulse, its tangential
-        impulse ``m`` against its tangential velocity after (:func:`vcigen.friction.cone_slide`); None if it
-        would stick (or the rows are singular). The law is affine in ``m`` (the tight rows' impulses, the
-        one-tangent slipping rows' edges): its value at ``m = 0`` and its two columns give the cone's normal
-        impulse ``a - b.m`` and the tangential velocity after ``g + H m``, one solve with three right-hand
+        isotropic cone ``iso = (i, o, normals, mu_f, on, f)`` slipping: Coulomb's sliding impulse, its
+        tangential impulse ``m`` against its tangential velocity after (:func:`vcigen.friction.cone_slide`);
+        None if it would stick (or the rows are singular, or a tangent is fixed by them: ``H`` singular). The
+        law is affine in ``m`` (the tight rows' impulses, the one-tangent slipping rows' edges): its value at
+        ``m = 0`` and its two columns give the cone's normal impulse ``a - b.m`` (``a`` within ``lam_eps`` of
+        0: none, ``m = 0``) and the tangential velocity after ``g + H m``, one solve with three right-hand
         sides."""
-        i, o, normals, mu, _ = iso
+        i, o, normals, mu, _, _ = iso
         n = len(b)
         lams = np.zeros((3, n))  # the law at m = 0, then its columns in m1, m2
         if tight:
@@ -261,6 +267,7 @@ class HeldImpacts:
                     lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
         gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
         a = float(np.sum(lams[0, normals]))
+        a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
         bn = (-float(np.sum(lams[1, normals])), -float(np.sum(lams[2, normals])))
         g = (float(gaps[0, i] - b[i]), float(gaps[0, o] - b[o]))
         m = cone_slide(g, (gaps[1, i], gaps[2, i], gaps[1, o], gaps[2, o]), bn, mu, a)
