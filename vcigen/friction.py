@@ -218,7 +218,8 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
     """Coulomb's sliding impulse of an isotropic cone held at an impact while held
     (``SustainedSteps._impulse_law``): the tangential impulse ``m`` (in R^2) with ``m = -mu_f N s``, ``s`` the
     unit tangential velocity *after*, ``N = a - b.m`` its normal impulse; ``0`` where ``a <= 0``; None where
-    the stick ``-H^-1 g`` is inside the cone (or ``H`` is degenerate).
+    the stick ``-H^-1 g`` is inside the cone (or ``H`` is indefinite; singular to round-off, a tangent fixed
+    by the law's other rows that cannot stick: the bracket starts at ``sigma = 1e-12 tr H``).
 
     The tangential velocity after is ``w = g + H m`` (``H = [[h0, h1], [h2, h3]]``, the law's Schur complement
     on the two stick rows, ``det H > 0``, ``tr H > 0``). Coulomb's law ``w = -sigma m``, ``sigma >= 0``, makes
@@ -232,8 +233,9 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
     if not (mu_f > 0.0 and a > 0.0):
         return 0.0, 0.0  # no normal impulse (a < 0: the law's row check refuses it): no friction impulse
     det, tr = h[0] * h[3] - h[1] * h[2], h[0] + h[3]
-    if not (det > 0.0 and tr > 0.0):
+    if not (det > -1e-12 * tr * tr and tr > 0.0):
         return None
+    lo = 0.0 if det > 0.0 else 1e-12 * tr  # H singular to round-off (a tangent fixed by the law's other rows)
 
     def tangential(sg: float) -> tuple[float, float]:
         d = (h[0] + sg) * (h[3] + sg) - h[1] * h[2]
@@ -243,10 +245,10 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
         m1, m2 = tangential(sg)
         return mu_f * (a - b[0] * m1 - b[1] * m2) - math.hypot(m1, m2)
 
-    f_lo = room(0.0)
+    f_lo = room(lo)
     if f_lo >= 0.0:
         return None  # the stick is inside the cone
-    hi = max(math.hypot(g[0], g[1]) / (mu_f * a), 1e-300)
+    hi = max(math.hypot(g[0], g[1]) / (mu_f * a), 2.0 * lo, 1e-300)
     f_hi = room(hi)
     for _ in range(CONE_ITER):
         if f_hi >= 0.0:
@@ -255,7 +257,7 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
         f_hi = room(hi)
     if f_hi < 0.0:
         return None
-    return tangential(_illinois_up(room, 0.0, hi, f_lo, f_hi))
+    return tangential(_illinois_up(room, lo, hi, f_lo, f_hi))
 
 
 def cone_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):
