@@ -3684,21 +3684,22 @@ static void spun_ball_slide_min(const double *d, double sg, double *m1, double *
  * m = -mu_f N w+ / |w+| with w+ = g + H m its tangential velocity after (H = [[h0, h1], [h2, h3]], det, trace > 0)
  * and N = a - b.m, i.e. m = -(H + sigma I)^-1 g at the sigma > 0 where |m| = mu_f N (a bracket doubled until it
  * holds, then illinois_up to the last bit; the feasible end). 1 and m; m = 0 if a <= 0 (no normal impulse); 0
- * where the stick -H^-1 g is inside the cone or H is degenerate. */
+ * where the stick -H^-1 g is inside the cone or H is indefinite (singular to round-off: from sigma = 1e-12 tr H). */
 static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
     double *m1, double *m2)
 {
     const double det = h[0] * h[3] - h[1] * h[2], tr = h[0] + h[3];
-    double d[10], hi, f_lo, f_hi;
+    double d[10], lo, hi, f_lo, f_hi;
     int i;
     *m1 = 0.0;
     *m2 = 0.0;
     if (!(mf > 0.0 && a > 0.0)) {
         return 1; /* no normal impulse (a < 0: the law's row check refuses it): no friction impulse */
     }
-    if (!(det > 0.0 && tr > 0.0)) {
+    if (!(det > -1e-12 * tr * tr && tr > 0.0)) {
         return 0;
     }
+    lo = det > 0.0 ? 0.0 : 1e-12 * tr; /* H singular to round-off (a tangent fixed by the law's other rows) */
     d[0] = g[0];
     d[1] = g[1];
     for (i = 0; i < 4; ++i) {
@@ -3708,11 +3709,12 @@ static int spun_ball_cone_slide(const double *g, const double *h, const double *
     d[7] = b[1];
     d[8] = mf;
     d[9] = a;
-    f_lo = spun_ball_cone_value(2, 0.0, d);
+    f_lo = spun_ball_cone_value(2, lo, d);
     if (f_lo >= 0.0) {
         return 0; /* the stick is inside the cone */
     }
     hi = hypot(g[0], g[1]) / (mf * a);
+    hi = hi > 2.0 * lo ? hi : 2.0 * lo;
     hi = hi > 1e-300 ? hi : 1e-300;
     f_hi = spun_ball_cone_value(2, hi, d);
     for (i = 0; i < SPUN_BALL_CONE_ITER && f_hi < 0.0; ++i) {
@@ -3722,7 +3724,7 @@ static int spun_ball_cone_slide(const double *g, const double *h, const double *
     if (f_hi < 0.0) {
         return 0;
     }
-    spun_ball_slide_min(d, spun_ball_illinois_up(2, d, 0.0, hi, f_lo, f_hi), m1, m2);
+    spun_ball_slide_min(d, spun_ball_illinois_up(2, d, lo, hi, f_lo, f_hi), m1, m2);
     return 1;
 }
 
