@@ -291,7 +291,7 @@ def test_cone_slide_is_coulombs_law() -> None:
         slid += 1
         m = np.array(m)
         w = g + h @ m
-        assert np.linalg.norm(m) > 0 and abs(np.cross(m, w)) <= 1e-12 * np.linalg.norm(m) * max(
+        assert np.linalg.norm(m) > 0 and abs(m[0] * w[1] - m[1] * w[0]) <= 1e-12 * np.linalg.norm(m) * max(
             np.linalg.norm(w), 1
         )
         assert m @ w <= 0
