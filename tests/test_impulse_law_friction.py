@@ -261,11 +261,17 @@ def ball_wall() -> vcigen.Model:
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_an_isotropic_cone_out_of_its_cone_at_an_impact_is_an_error(backend: str) -> None:
-    """The documented limit: a held isotropic cone may only stick at an impact (its slip direction would need
-    a nonlinear solve); the ball rolling into the wall (the floor's normal impulse 0) is a ``SolverError``
-    naming the contact and the cone, with the run so far, on both backends (before: it rolled back)."""
+def test_an_isotropic_cone_out_of_its_cone_at_an_impact_slips(backend: str) -> None:
+    """Once the documented limit (a held isotropic cone could only stick at an impact: its stick impulse out
+    of the cone was a ``SolverError``): the ball rolling into the wall now slips at its cone's edge
+    (``tests/test_impulse_law_cone.py``), here with the floor's normal impulse 0, so no friction impulse: it
+    leaves at ``xd = -e V`` with its spin, the impact's loss ``m V^2 (1 - e^2) / 2``, and slips on the floor
+    (before: the SolverError; before that: it rolled back), on both backends."""
     sim = vcigen.build(ball_wall(), backend=backend)
-    with pytest.raises(vcigen.SolverError, match="stick impulse of floor leaves its friction cone") as err:
-        sim.simulate([0.0, 0.0, 1.0, 0.0, 0.0], [V, 0.0, 0.0, 0.0, V], H, t_end=0.4, progress=False)
-    assert err.value.result is not None and err.value.result.t[-1] <= X_HIT / V + H
+    res = sim.simulate([0.0, 0.0, 1.0, 0.0, 0.0], [V, 0.0, 0.0, 0.0, V], H, t_end=0.4, progress=False)
+    (im,) = res.impacts
+    assert im.contact == "wall" and abs(im.t - X_HIT / V) <= 1e-13
+    assert abs((im.energy_before - im.energy_after) - 0.5 * V * V * (1 - 0.8**2)) <= 1e-12
+    v = res.v[im.step + 1]
+    assert v[0] - v[4] < -1.0 and abs(v[1] + v[3]) <= 1e-15  # slipping backwards along x
+    assert res.active[:, 0].all()

@@ -214,6 +214,52 @@ def cone_impulse(g, h, b, mu_f: float, a: float) -> tuple[float, float]:
     return m1, m2
 
 
+def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
+    """Coulomb's sliding impulse of an isotropic cone held at an impact while held
+    (``SustainedSteps._impulse_law``): the tangential impulse ``m`` (in R^2) with ``m = -mu_f N s``, ``s`` the
+    unit tangential velocity *after*, ``N = a - b.m`` its normal impulse; ``0`` where ``a <= 0``; None where
+    the stick ``-H^-1 g`` is inside the cone (or ``H`` is indefinite; singular to round-off, a tangent fixed
+    by the law's other rows that cannot stick: the bracket starts at ``sigma = 1e-12 tr H``).
+
+    The tangential velocity after is ``w = g + H m`` (``H = [[h0, h1], [h2, h3]]``, the law's Schur complement
+    on the two stick rows, ``det H > 0``, ``tr H > 0``). Coulomb's law ``w = -sigma m``, ``sigma >= 0``, makes
+    ``m = m(sigma) = -(H + sigma I)^-1 g``, so the slip direction is one unknown along a curve: the ``sigma >
+    0`` where ``|m(sigma)| = mu_f (a - b.m(sigma))``. The room ``mu_f (a - b.m) - |m|`` is negative at ``sigma
+    = 0`` (the stick is out of the cone) and ``-> mu_f a > 0`` as ``sigma -> oo``: a bracket (doubled until it
+    holds) and Illinois' steps (:func:`_illinois_up`) to the last bit; the feasible end is returned (inside
+    the cone). With ``b = 0`` and ``H`` symmetric this is :func:`cone_impulse`'s minimiser; with ``b != 0``
+    maximal dissipation in Coulomb's sense (``m`` against the velocity after) is not the energy's minimum over
+    the cone's slice, which :func:`cone_impulse` gives (its velocity after is along ``-(u + mu_f b)``)."""
+    if not (mu_f > 0.0 and a > 0.0):
+        return 0.0, 0.0  # no normal impulse (a < 0: the law's row check refuses it): no friction impulse
+    det, tr = h[0] * h[3] - h[1] * h[2], h[0] + h[3]
+    if not (det > -1e-12 * tr * tr and tr > 0.0):
+        return None
+    lo = 0.0 if det > 0.0 else 1e-12 * tr  # H singular to round-off (a tangent fixed by the law's other rows)
+
+    def tangential(sg: float) -> tuple[float, float]:
+        d = (h[0] + sg) * (h[3] + sg) - h[1] * h[2]
+        return -((h[3] + sg) * g[0] - h[1] * g[1]) / d, -((h[0] + sg) * g[1] - h[2] * g[0]) / d
+
+    def room(sg: float) -> float:  # mu_f N - |m|: < 0 out of the cone
+        m1, m2 = tangential(sg)
+        return mu_f * (a - b[0] * m1 - b[1] * m2) - math.hypot(m1, m2)
+
+    f_lo = room(lo)
+    if f_lo >= 0.0:
+        return None  # the stick is inside the cone
+    hi = max(math.hypot(g[0], g[1]) / (mu_f * a), 2.0 * lo, 1e-300)
+    f_hi = room(hi)
+    for _ in range(CONE_ITER):
+        if f_hi >= 0.0:
+            break
+        hi *= 2.0
+        f_hi = room(hi)
+    if f_hi < 0.0:
+        return None
+    return tangential(_illinois_up(room, lo, hi, f_lo, f_hi))
+
+
 def cone_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):
     """The tangent of :func:`cone_law` in its branch (stick, or slip on the cone's edge): ``(rho, dK, drho,
     ddK, branch)``, ``rho = mu_t / mu_n`` the impulse direction's tangential shares (``n + rho_1 t1 + rho_2

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from .errors import SolverError
+from .friction import cone_slide
 from .held_roots import EPS_LAM, MAX_LAW_ROWS, SLIDE_EPS
 from .result import Impact
 
@@ -29,20 +30,24 @@ class HeldImpacts:
         The complementarity problem of the rows ``S`` involved: impulses ``Lam >= 0`` and outgoing normal
         velocities ``g_r.qdot+ >= target_r``, one of the two tight for every row (bilateral rows: equality,
         ``Lam`` free). A held stick row (a one-tangent contact ``f`` sticking, :meth:`_law_cones`) sticks
-        (tight, ``|Lam_t| <= mu_f Lam_n``, ``Lam_n`` its contact's normal impulse in this impact) or slips
-        at either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0``
-        resp. ``<= 0`` (its contact's normal rows then push along ``g_n -+ mu_f g_t``). Without friction
-        the Delassus matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes
-        are tried all sticking first (the law of old where it stays inside the cones), then the first
-        stick row slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over
-        the sets of tight rows from the largest down: the first solution is taken, deterministically. The
-        isotropic cones held may only stick: an impulse out of their cone is a ``SolverError``. A one-tangent
+        (tight, ``|Lam_t| <= mu_f Lam_n``, ``Lam_n`` its contact's normal impulse in this impact) or slips at
+        either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0`` resp.
+        ``<= 0`` (its contact's normal rows then push along ``g_n -+ mu_f g_t``). Without friction the
+        Delassus matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes are
+        tried all sticking first (the law of old where it stays inside the cones), then the first stick row
+        slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over the sets of
+        tight rows from the largest down: the first solution is taken, deterministically. A one-tangent
         contact held and slipping (:meth:`_law_slips`) joins with its stick row and the same three modes, its
         own first: on the edge against its slip (``Lam_t = slip_f / mu_f * mu_f Lam_n``, Coulomb's sliding
         impulse, its tangential velocity after not reversed), then sticking within its cone, then the other
-        edge. Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips)``, ``dropped`` the rows left with no
-        impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
-        slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`).
+        edge. An isotropic cone held (both tangents' stick rows; sticking, or slipping and joined by
+        :meth:`_law_slips`) sticks within its cone (``|Lam_t| <= mu_f Lam_n``, 2-norm) or slips with Coulomb's
+        sliding impulse ``Lam_t = -mu_f Lam_n w+ / |w+|`` against its tangential velocity after ``w+``
+        (:meth:`_law_slide`, a 1-D root); its modes come after all the one-tangent ones (stick then slip, a
+        slipping cone's slip first), one cone slipping at a time. Returns ``(p+, Lam, vel-, vel+, dropped,
+        slipped, slips)``, ``dropped`` the rows left with no impulse (the caller releases the active ones),
+        ``slipped`` the stick rows that slipped, ``slips`` the slipping contacts that joined (the caller sets
+        their contacts' modes, :meth:`_slip_at_impact`).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -50,7 +55,8 @@ class HeldImpacts:
         grad = k.rows(q, vel)[1]
         rows = [int(r) for r in np.flatnonzero(self.act)] + [r for r in hit if not self.act[r]]
         slips = self._law_slips(grad, rows)
-        rows += [self._stick_rows[f] for f, _ in slips]
+        for f, _ in slips:  # a cone's two stick rows, its first tangent's first
+            rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
         if len(rows) > MAX_LAW_ROWS:
             raise SolverError(
                 step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
@@ -63,29 +69,44 @@ class HeldImpacts:
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
         vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
         n = len(rows)
-        cones, strict, orders = self._law_cones(rows, slips)
+        cones, strict, orders, isos = self._law_cones(rows, slips)
         out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
-        for modes in range(3 ** len(cones)):
+        for modes in range(3 ** len(cones) * 2 ** len(isos)):
             # 0 stick, 1 Lam_t = -mu Lam_n, 2 +; each cone's digits in its order (its own mode first)
             slips_ = [orders[c][(modes // 3**c) % 3] for c in range(len(cones))]
+            # then the isotropic cones' (after all of those): 0 stick, 1 slip; each its own first
+            upper = modes // 3 ** len(cones)
+            slides = [(upper >> c & 1) ^ iso[4] for c, iso in enumerate(isos)]
+            if sum(slides) > 1:
+                out = out or (
+                    f"impulse law: {sum(slides)} isotropic cones slipping at once at an impact while held"
+                )
+                continue
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
             for (i, pools), mode in zip(cones, slips_):
                 for normals, mu in pools if mode else ():
                     ws[:, normals] += (-mu if mode == 1 else mu) * w[:, [i]]
             sliding = {i for (i, _), mode in zip(cones, slips_) if mode}
+            slide = [iso for iso, on in zip(isos, slides) if on]
+            sliding |= {x for iso in slide for x in iso[:2]}
             for mask in range((1 << n) - 1, -1, -1):
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
                     continue
-                lam = np.zeros(n)
-                if tight:
-                    try:
-                        lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
-                    except np.linalg.LinAlgError:
+                if slide:
+                    lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_, lam_eps)
+                    if lam is None:
                         continue
-                for (i, pools), mode in zip(cones, slips_):
-                    if mode:
-                        lam[i] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
+                else:
+                    lam = np.zeros(n)
+                    if tight:
+                        try:
+                            lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
+                        except np.linalg.LinAlgError:
+                            continue
+                    for (i, pools), mode in zip(cones, slips_):
+                        if mode:
+                            lam[i] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
                 gap = w @ lam - b  # g_r.qdot+ - target_r
                 if not (
                     all(lam[i] >= -lam_eps or not free[i] for i in tight)
@@ -98,6 +119,10 @@ class HeldImpacts:
                         inside = inside and abs(lam[i]) <= _pooled(pools, lam) + lam_eps
                     else:
                         inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
+                for (i, o, normals, mu, _, _), on in zip(isos, slides):
+                    if not on:  # sticking: within its cone (slipping: on its edge by _law_slide)
+                        cap = mu * float(np.sum(lam[normals]))
+                        inside = inside and math.hypot(float(lam[i]), float(lam[o])) <= cap + lam_eps
                 if inside and strict:
                     why = self._law_strict(strict, rows, lam, lam_eps)
                     out, inside = out or why, not why
@@ -120,6 +145,10 @@ class HeldImpacts:
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
         slipped = [rows[i] for i in sorted(sliding)]
+        for (i, o, _, _, on, f), slid in zip(isos, slides):
+            if on and slid and lam[i] == 0.0 and lam[o] == 0.0:  # no normal impulse: it slips on as before
+                slips = [s for s in slips if s[0] != f]
+                slipped = [r for r in slipped if r not in (rows[i], rows[o])]
         p_plus = p + grad.T @ lam_full
         return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips
 
@@ -129,7 +158,9 @@ class HeldImpacts:
         and of the stick rows of those before it (it joins the law), ``riders`` the slipping contacts whose
         stick row depends on ``f``'s (a box slipping on a face, two vertices: their normal impulses are
         ``f``'s room too, as for a dependent stick, :meth:`_law_cones`). A slipping contact whose stick row
-        depends on the held rows alone (its sliding fixed by them) takes none."""
+        depends on the held rows alone (its sliding fixed by them) takes none. An isotropic cone slipping
+        (``f`` its first tangent, ``riders`` empty) joins with both its stick rows if both are independent of
+        those before (else it takes none: a cone coupled to another's slip is not handled)."""
         k = self.k
         out: list[tuple[int, list[int]]] = []
         if not self._stick_rows:
@@ -139,14 +170,25 @@ class HeldImpacts:
             for f, sr in enumerate(self._stick_rows):
                 j = k.frictional[f]
                 held = any(self.act[r] and k.row_contact[r] == j for r in rows)
-                if not (self._slip[f] and self._partner[f] < 0 and held):
+                pf = self._partner[f]
+                if pf > f and held and (self._slip[f] or self._slip[pf]):  # a cone: both rows independent
+                    sp_ = self._stick_rows[pf]
+                    if not self._dependent(grad, sr):
+                        self.act[sr] = True
+                        if not self._dependent(grad, sp_):
+                            self.act[sp_] = True
+                            out.append((f, []))
+                            continue
+                        self.act[sr] = False
+                    continue
+                if not (self._slip[f] and pf < 0 and held):
                     continue
                 if not self._dependent(grad, sr):
                     self.act[sr] = True
                     out.append((f, []))
                     continue
                 for g, riders in out:
-                    if not self._dependent(grad, sr, self._stick_rows[g]):
+                    if self._partner[g] < 0 and not self._dependent(grad, sr, self._stick_rows[g]):
                         riders.append(f)
                         break
         finally:
@@ -157,15 +199,16 @@ class HeldImpacts:
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
         one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
         ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
-        ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too,
-        as in :meth:`_cone_margin`; they slip with it); and ``[(i, normals, mu_f, o)]`` of the isotropic
-        cones held (``i``, ``o`` their tangents' indices, -1 for one not held), which may only stick. A cone
-        coupled to others by a dependent stick (:meth:`_cone_split`) is not checked. Then the slipping
-        contacts ``slips`` (:meth:`_law_slips`), pooled the same way. ``orders``: each cone's modes in the
-        order tried, its own first (stick ``(0, 1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against
-        ``-`` ``(2, 0, 1)``)."""
+        ``rows``), then those of the one-tangent dependent sticks it carries (their cones are its room too, as
+        in :meth:`_cone_margin`; they slip with it); ``[(i, normals, mu_f, -1)]`` of the isotropic cones with
+        one tangent held, which may only stick; ``isos``: ``[(i, o, normals, mu_f, on, f)]`` of those with
+        both held (``i``, ``o`` their indices, ``f`` the first tangent, ``on`` 1 if slipping and joined by
+        :meth:`_law_slips`), which stick or slip (:meth:`_law_slide`). A cone coupled to others by a dependent
+        stick (:meth:`_cone_split`) is not checked. Then the slipping one-tangent contacts ``slips``, pooled
+        the same way. ``orders``: each one-tangent cone's modes in the order tried, its own first (stick ``(0,
+        1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against ``-`` ``(2, 0, 1)``)."""
         k = self.k
-        cones, strict, orders = [], [], []
+        cones, strict, orders, isos = [], [], [], []
         slipping = {f for f, _ in slips}
 
         def normals(f):
@@ -180,7 +223,10 @@ class HeldImpacts:
                 both = [rows.index(x) if x in rows else -1 for x in (sr, self._stick_rows[pf])]
                 if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
                     i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
-                    strict.append((i, normals(f), float(self._mu_f[f]), o))
+                    if o >= 0:  # both tangents held: stick or slip (on the slipping ones, below)
+                        isos.append((i, o, normals(f), float(self._mu_f[f]), int(f in slipping), f))
+                    else:
+                        strict.append((i, normals(f), float(self._mu_f[f]), o))
             elif sr in rows and f not in slipping:
                 riders = [
                     g for g, owner in enumerate(self._ride) if g != f and owner == f and self._partner[g] < 0
@@ -189,10 +235,45 @@ class HeldImpacts:
                 cones.append((rows.index(sr), pools))
                 orders.append((0, 1, 2))
         for f, riders in slips:
+            if self._partner[f] >= 0:
+                continue  # an isotropic cone: in isos
             pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
             cones.append((rows.index(self._stick_rows[f]), pools))
             orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
-        return cones, strict, orders
+        return cones, strict, orders, isos
+
+    def _law_slide(self, iso, w, ws, b, tight, cones, slips_, lam_eps):
+        """The impulses of the impulse law (:meth:`_impulse_law`) on the tight rows ``tight`` with the
+        isotropic cone ``iso = (i, o, normals, mu_f, on, f)`` slipping: Coulomb's sliding impulse, its
+        tangential impulse ``m`` against its tangential velocity after (:func:`vcigen.friction.cone_slide`);
+        None if it would stick (or the rows are singular, or a tangent is fixed by them: ``H`` singular). The
+        law is affine in ``m`` (the tight rows' impulses, the one-tangent slipping rows' edges): its value at
+        ``m = 0`` and its two columns give the cone's normal impulse ``a - b.m`` (``a`` within ``lam_eps`` of
+        0: none, ``m = 0``) and the tangential velocity after ``g + H m``, one solve with three right-hand
+        sides."""
+        i, o, normals, mu, _, _ = iso
+        n = len(b)
+        lams = np.zeros((3, n))  # the law at m = 0, then its columns in m1, m2
+        if tight:
+            rhs = np.column_stack([b[tight], -w[tight, i], -w[tight, o]])
+            try:
+                lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T
+            except np.linalg.LinAlgError:
+                return None
+        lams[1, i] = lams[2, o] = 1.0
+        for lam in lams:
+            for (c, pools), mode in zip(cones, slips_):
+                if mode:
+                    lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
+        gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
+        a = float(np.sum(lams[0, normals]))
+        a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
+        bn = (-float(np.sum(lams[1, normals])), -float(np.sum(lams[2, normals])))
+        g = (float(gaps[0, i] - b[i]), float(gaps[0, o] - b[o]))
+        m = cone_slide(g, (gaps[1, i], gaps[2, i], gaps[1, o], gaps[2, o]), bn, mu, a)
+        if m is None:
+            return None
+        return lams[0] + m[0] * lams[1] + m[1] * lams[2]
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
         """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's
@@ -210,21 +291,27 @@ class HeldImpacts:
                 )
         return ""
 
-    def _slip_at_impact(self, q, vel_p, slipped, slips=()) -> bool:
+    def _slip_at_impact(self, q, vel_p, slipped, slips=()) -> str:
         """The stick rows that slipped in the impulse law (:meth:`_impulse_law`): their contacts slip after it
         along the tangential velocity after, ``slip_f = -mu_f sign(g_t.qdot+)``, or stick on where that is 0
         (to round-off). The slipping contacts that joined it (``slips``, :meth:`_law_slips`): slip on (the
         same way: no switch; turned: a switch) or, where their sliding after is 0 (to round-off), stick
-        (:meth:`_stick`, a switch). Whether any contact's mode changed (a friction switch: no tangent)."""
+        (:meth:`_stick`, a switch). Isotropic cones (:meth:`_law_cones`) the same way, along their sliding
+        after (``slip = -mu_f w+ / |w+|``): a sticking one that slipped or a slipping one that stuck is a
+        switch; one slipping on took a sliding impulse the tangent does not carry. Why the tangent stops
+        here: ``"friction switch in a held step"`` (a contact's mode changed), ``"friction at an impact"``
+        (a cone's sliding impulse), ``""`` (carried)."""
         k = self.k
         if not slipped and not slips:
-            return False
+            return ""
         grad = k.rows(q, vel_p)[1]
         tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel_p))))
-        switched = False
+        switched, slid = self._cone_at_impact(q, vel_p, grad, tiny, slipped, slips)
         owners = {self._stick_rows[f]: riders for f, riders in slips}
         for sr in slipped:
             f = k.row_stick[sr]
+            if self._partner[f] >= 0:
+                continue  # an isotropic cone's: above
             sliding = float(grad[sr] @ vel_p)
             if sr in owners:  # a slipping contact that joined: on, turned, or stuck (below)
                 for g in [f, *owners[sr]]:
@@ -244,12 +331,36 @@ class HeldImpacts:
                         self._slip[g] = -self._mu_f[g] * math.copysign(1.0, sliding * along)
                         self._ride[g] = -1
         for f, riders in slips:  # stuck in the law (its stick row tight) or at a sliding of 0 after it
-            for g in [f, *riders]:
+            for g in [f, *riders] if self._partner[f] < 0 else ():
                 if self._slip[g] and abs(float(grad[self._stick_rows[g]] @ vel_p)) <= tiny:
                     self._stick(g, q, vel_p)
                     switched = True
         self._set_friction()
-        return switched
+        if switched:
+            return "friction switch in a held step"
+        return "friction at an impact" if slid else ""
+
+    def _cone_at_impact(self, q, vel_p, grad, tiny, slipped, slips) -> tuple[bool, bool]:
+        """The isotropic cones of the impulse law after it (:meth:`_slip_at_impact`): one that slipped in it
+        (its stick rows in ``slipped``) slips on along its sliding after, ``slip = -mu_f w+ / |w+|`` (a switch
+        if it stuck before), or sticks where that is 0 (to round-off); one that slipped before and joined
+        (``slips``) but stuck in it sticks (:meth:`_stick`, a switch). ``(switched, slid)``, ``slid``: a cone
+        slipped on through the impact."""
+        switched = slid = False
+        for f, p in self._cones():
+            sr, sp_ = self._stick_rows[f], self._stick_rows[p]
+            joined = any(g == f for g, _ in slips)
+            w = self._sliding(f, p, grad, vel_p)
+            if sr in slipped and math.hypot(*w) > tiny:
+                switched = switched or not joined
+                slid = slid or joined
+                self.act[sr] = self.act[sp_] = False
+                self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
+            elif joined:
+                self._stick(f, q, vel_p)
+                self._stick(p, q, vel_p)
+                switched = True
+        return switched, slid
 
     def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before):
         """An impact on rows ``group`` during sustained contact; returns the momentum after it."""
@@ -270,8 +381,9 @@ class HeldImpacts:
                 targets[r] = -e * rate
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips = law
-        if self._slip_at_impact(q, vel_p, slipped, slips):  # stick <-> slip at the impact: a mode change
-            self._sw_lose()
+        why = self._slip_at_impact(q, vel_p, slipped, slips)
+        if why:  # stick <-> slip at the impact (a mode change), or a cone's sliding impulse: no tangent
+            self._sw_lose(why)
         else:  # the contacts slipping on: their sliding impulse in Tracker.impulse
             self._ev_impulse(q, v, p, lam, targets, group, slips)
         mass = k.legendre(q, vel_m)[1]

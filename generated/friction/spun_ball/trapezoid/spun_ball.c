@@ -2397,15 +2397,19 @@ static int spun_ball_cone_stop(const spun_ball_ctx_t *c, int f, int p, const dou
  * with it); the isotropic cones held, which may only stick (strict_i, strict_f, strict_o: its second tangent's
  * index, -1 if not held). A cone coupled to others by a dependent stick: not checked. Then the slipping contacts
  * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
- * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). */
+ * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). Of the isotropic
+ * cones only those with one tangent held (strict_o = -1) may only stick: those with both (iso_i, iso_o: their
+ * indices, iso_f: the first tangent, iso_on: 1 if it slipped before and joined, law_slips) stick or slip. */
 static void spun_ball_law_cones(const spun_ball_ctx_t *c, const int *rows, int nr, const int *slip_own,
-    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict,
+    int *iso_i, int *iso_o, int *iso_f, int *iso_on, int *n_iso)
 {
     int f, k, ia, ib;
     int g, pf, riders;
+    *n_iso = 0;
     *n_cones = *n_strict = 0;
     for (f = 0; f < SPUN_BALL_NF; ++f) {
-        if (slip_own[f]) {
+        if (slip_own[f] && spun_ball_partner[f] < 0) {
             continue; /* below, after the stick rows */
         }
         ia = ib = -1;
@@ -2429,9 +2433,16 @@ static void spun_ball_law_cones(const spun_ball_ctx_t *c, const int *rows, int n
                 }
             }
             if ((ia >= 0 || ib >= 0) && !riders && c->sus->ride[f] < 0 && c->sus->ride[pf] < 0) {
-                strict_i[*n_strict] = ia >= 0 ? ia : ib;
-                strict_o[*n_strict] = ia >= 0 ? ib : -1;
-                strict_f[(*n_strict)++] = f;
+                if (ia >= 0 && ib >= 0) { /* both tangents held: stick or slip (the slipping ones first) */
+                    iso_i[*n_iso] = ia;
+                    iso_o[*n_iso] = ib;
+                    iso_on[*n_iso] = slip_own[f] != 0;
+                    iso_f[(*n_iso)++] = f;
+                } else {
+                    strict_i[*n_strict] = ia >= 0 ? ia : ib;
+                    strict_o[*n_strict] = -1;
+                    strict_f[(*n_strict)++] = f;
+                }
             }
             continue;
         }
@@ -2442,7 +2453,7 @@ static void spun_ball_law_cones(const spun_ball_ctx_t *c, const int *rows, int n
         }
     }
     for (f = 0; f < SPUN_BALL_NF; ++f) {
-        for (k = 0; k < nr && slip_own[f]; ++k) {
+        for (k = 0; k < nr && slip_own[f] && spun_ball_partner[f] < 0; ++k) {
             if (rows[k] == spun_ball_stick_row[f]) {
                 cone_i[*n_cones] = k;
                 cone_on[*n_cones] = c->sus->slip[f] < 0.0 ? 1 : 2;
@@ -2517,11 +2528,13 @@ static int spun_ball_law_strict(const spun_ball_ctx_t *c, const int *rows, int n
  * rows[0..nr): slip_own[f] = 1 for one whose stick row is independent of the active rows and of the stick rows of
  * those before it (appended to rows), slip_ride[g] = f for a slipping contact whose stick row depends on f's (a
  * box slipping on a face: its normal impulse is f's room too); -1 else. One whose stick row depends on the held
- * rows alone takes none. */
+ * rows alone takes none. An isotropic cone slipping (slip_own[f] = 1, f its first tangent) joins with both its
+ * stick rows if both are independent of those before (else it takes none). */
 static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, int *rows, int *nr, int *slip_own,
     int *slip_ride)
 {
     int act[SPUN_BALL_R_DIM], f, g, r, sr, held;
+    int pf;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         act[r] = c->sus->act[r];
     }
@@ -2534,6 +2547,21 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
         for (r = 0, held = 0; r < SPUN_BALL_R; ++r) {
             held = held || (act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
         }
+        pf = spun_ball_partner[f];
+        if (pf > f && held && (c->sus->slip[f] != 0.0 || c->sus->slip[pf] != 0.0)) { /* a cone: both independent */
+            if (!spun_ball_dependent(c, grad, sr, -1)) {
+                c->sus->act[sr] = 1;
+                if (!spun_ball_dependent(c, grad, spun_ball_stick_row[pf], -1)) {
+                    c->sus->act[spun_ball_stick_row[pf]] = 1;
+                    slip_own[f] = 1;
+                    rows[(*nr)++] = sr;
+                    rows[(*nr)++] = spun_ball_stick_row[pf];
+                    continue;
+                }
+                c->sus->act[sr] = 0;
+            }
+            continue;
+        }
         if (c->sus->slip[f] == 0.0 || !held || spun_ball_partner[f] >= 0) {
             continue;
         }
@@ -2544,7 +2572,7 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
             continue;
         }
         for (g = 0; g < SPUN_BALL_NF; ++g) {
-            if (slip_own[g] && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
+            if (slip_own[g] && spun_ball_partner[g] < 0 && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
                 slip_ride[f] = g;
                 break;
             }
@@ -2554,6 +2582,85 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
         c->sus->act[r] = act[r];
     }
 }
+
+static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
+    double *m1, double *m2); /* stepper_cone.c.j2 */
+
+/* SustainedSteps._law_slide: the impulses lam (per index in rows) of the impulse law on the tight rows tight[0..nt)
+ * with the isotropic cone of first tangent f (stick rows at i, o in rows) slipping: Coulomb's sliding impulse, its
+ * tangential impulse m against its tangential velocity after (cone_slide); 0 if it would stick (or the rows are
+ * singular, or a tangent is fixed by them: H singular). The law is affine in m (the tight rows' impulses, the
+ * one-tangent slipping rows' edges, mode): its value at m = 0 and its two columns give the cone's normal impulse
+ * a - b.m (a within lam_eps of 0: none, m = 0) and the tangential velocity after g + H m, one LU with three
+ * right-hand sides. */
+static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, const int *rows, int nr,
+    const double *w, const double *ws, const double *b, const int *tight, int nt, const int *cone_i,
+    const int *cone_f, const int *mode, int n_cones, int i, int o, int f, double lam_eps, double *lam)
+{
+    double lams[3 * SPUN_BALL_R_DIM], gaps[3 * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
+    double sol[SPUN_BALL_R_DIM], g[2], h[4], bn[2], an, m1, m2;
+    int piv[SPUN_BALL_R_DIM], j, k, l, x;
+    for (k = 0; k < 3 * nr; ++k) {
+        lams[k] = 0.0; /* the law at m = 0, then its columns in m1, m2 */
+    }
+    if (nt > 0) {
+        for (k = 0; k < nt; ++k) {
+            for (l = 0; l < nt; ++l) {
+                a[k * nt + l] = ws[tight[k] * nr + tight[l]];
+            }
+        }
+        if (!spun_ball_lu(nt, a, piv)) {
+            return 0;
+        }
+        for (j = 0; j < 3; ++j) {
+            for (k = 0; k < nt; ++k) {
+                sol[k] = j == 0 ? b[tight[k]] : -w[tight[k] * nr + (j == 1 ? i : o)];
+            }
+            spun_ball_lu_solve(nt, a, piv, sol);
+            for (k = 0; k < nt; ++k) {
+                lams[j * nr + tight[k]] = sol[k];
+            }
+        }
+    }
+    lams[nr + i] = 1.0;
+    lams[2 * nr + o] = 1.0;
+    for (j = 0; j < 3; ++j) {
+        for (x = 0; x < n_cones; ++x) {
+            if (mode[x]) {
+                lams[j * nr + cone_i[x]] = (mode[x] == 1 ? -1.0 : 1.0)
+                    * spun_ball_law_pooled(c, slip_ride, rows, nr, lams + j * nr, cone_f[x]);
+            }
+        }
+        for (k = 0; k < nr; ++k) { /* their velocities: g_r.qdot+ (less b at m = 0) */
+            gaps[j * nr + k] = 0.0;
+            for (l = 0; l < nr; ++l) {
+                gaps[j * nr + k] += w[k * nr + l] * lams[j * nr + l];
+            }
+        }
+    }
+    an = spun_ball_law_normal(rows, nr, lams, f);
+    an = an > lam_eps ? an : 0.0; /* no normal impulse (to round-off): no friction impulse */
+    bn[0] = -spun_ball_law_normal(rows, nr, lams + nr, f);
+    bn[1] = -spun_ball_law_normal(rows, nr, lams + 2 * nr, f);
+    g[0] = gaps[i] - b[i];
+    g[1] = gaps[o] - b[o];
+    h[0] = gaps[nr + i];
+    h[1] = gaps[2 * nr + i];
+    h[2] = gaps[nr + o];
+    h[3] = gaps[2 * nr + o];
+    if (!spun_ball_cone_slide(g, h, bn, c->mu_f[f], an, &m1, &m2)) {
+        return 0;
+    }
+    for (k = 0; k < nr; ++k) {
+        lam[k] = lams[k] + m1 * lams[nr + k] + m2 * lams[2 * nr + k];
+    }
+    return 1;
+}
+
+/* With isotropic cones: one held with both tangents (sticking, or slipping and joined, law_slips) sticks within its
+ * cone (|Lam_t| <= mu_f Lam_n) or slips with Coulomb's sliding impulse against its tangential velocity after
+ * (law_slide); its modes (stick, slip; its own first) come after all the one-tangent ones, in base 2, one cone
+ * slipping at a time. A slipping cone that took no normal impulse is left out (slips on as before). */
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -2581,6 +2688,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int n_cones = 0, n_strict = 0;
     double slope, gaps[SPUN_BALL_R_DIM];
     int digits, g, pg;
+    int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
+    int slide_on[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_slide, slide_c;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
     spun_ball_legendre(q, vel_m, c->par, mom, mass);
@@ -2626,11 +2735,32 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         }
     }
     spun_ball_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
-        &n_strict);
+        &n_strict, iso_i, iso_o, iso_f, iso_on, &n_iso);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
     }
+    n_base = n_modes;
+    for (k = 0; k < n_iso; ++k) {
+        n_modes *= 2;
+    }
     for (modes = 0; modes < n_modes && !found; ++modes) {
+        n_slide = 0; /* the isotropic cones' digits, after all the one-tangent ones': 0 stick, 1 slip, own first */
+        slide_c = -1;
+        for (i = 0; i < n_iso; ++i) {
+            slide_on[i] = ((modes / n_base) >> i & 1) ^ iso_on[i];
+            if (slide_on[i]) {
+                ++n_slide;
+                slide_c = i;
+            }
+        }
+        if (n_slide > 1) {
+            if (!out) {
+                spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: %d isotropic cones slipping at "
+                    "once at an impact while held", n_slide);
+                out = 1;
+            }
+            continue;
+        }
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
             ws[k] = w[k];
         }
@@ -2659,6 +2789,10 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
             }
         }
+        if (slide_c >= 0) {
+            sliding[iso_i[slide_c]] = 1;
+            sliding[iso_o[slide_c]] = 1;
+        }
         for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
             int valid = 1;
             nt = 0;
@@ -2674,6 +2808,12 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             if (!valid) {
                 continue;
             }
+            if (slide_c >= 0) {
+                if (!spun_ball_law_slide(c, slip_ride, rows, nr, w, ws, b, tight, nt, cone_i, cone_f, mode, n_cones,
+                    iso_i[slide_c], iso_o[slide_c], iso_f[slide_c], lam_eps, lam)) {
+                    continue;
+                }
+            } else {
             for (k = 0; k < nt; ++k) {
                 sol[k] = b[tight[k]];
                 for (l = 0; l < nt; ++l) {
@@ -2693,6 +2833,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 if (mode[i]) {
                     lam[cone_i[i]] = (mode[i] == 1 ? -1.0 : 1.0) * spun_ball_law_pooled(c, slip_ride, rows, nr, lam, cone_f[i]);
                 }
+            }
             }
             for (k = 0; k < nt; ++k) {
                 if (lam[tight[k]] < -lam_eps && !spun_ball_row_free[rows[tight[k]]]) {
@@ -2716,6 +2857,12 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                     valid = mode[i] == 1 ? gaps[cone_i[i]] >= -vel_eps : gaps[cone_i[i]] <= vel_eps;
                 }
             }
+            for (i = 0; i < n_iso && valid; ++i) { /* sticking: within its cone (slipping: on its edge, law_slide) */
+                if (!slide_on[i]) {
+                    valid = hypot(lam[iso_i[i]], lam[iso_o[i]])
+                        <= c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]) + lam_eps;
+                }
+            }
             if (valid && n_strict > 0) {
                 const int why = spun_ball_law_strict(c, rows, nr, lam, lam_eps, strict_i, strict_f, strict_o,
                     n_strict);
@@ -2735,6 +2882,13 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     if (!found) {
         return out ? 1 : spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
             "contacts (dependent normals?)", nr);
+    }
+    for (i = 0; i < n_iso; ++i) { /* a slipping cone with no normal impulse: it slips on as before */
+        if (iso_on[i] && slide_on[i] && lam[iso_i[i]] == 0.0 && lam[iso_o[i]] == 0.0) {
+            slip_own[iso_f[i]] = 0;
+            slipped[rows[iso_i[i]]] = 0;
+            slipped[rows[iso_o[i]]] = 0;
+        }
     }
     for (i = 0; i < SPUN_BALL_N; ++i) {
         p_plus[i] = p[i];
@@ -2757,17 +2911,52 @@ static double spun_ball_law_sliding(const double *grad, int f, const double *u)
     return s;
 }
 
+/* SustainedSteps._cone_at_impact: the isotropic cones of the impulse law after it (slip_at_impact): one that slipped
+ * in it (its stick rows slipped) slips on along its sliding after, slip = -mu_f w+ / |w+| (a switch if it stuck
+ * before), or sticks where that is 0 (to round-off); one that slipped before and joined (slip_own) but stuck in it
+ * sticks (stick, a switch). Bit 1: switched; bit 2: a cone slipped on through the impact. */
+static int spun_ball_cone_at_impact(const spun_ball_ctx_t *c, const double *q, const double *vel_p,
+    const double *grad, double tiny, const int *slipped, const int *slip_own)
+{
+    double w[2], nw;
+    int f, p, sr, sp, out = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        p = spun_ball_partner[f];
+        if (p <= f) {
+            continue; /* cones (f, p), f the first tangent */
+        }
+        sr = spun_ball_stick_row[f];
+        sp = spun_ball_stick_row[p];
+        spun_ball_sliding(f, p, grad, vel_p, w);
+        nw = hypot(w[0], w[1]);
+        if (slipped[sr] && nw > tiny) {
+            out |= slip_own[f] ? 2 : 1;
+            c->sus->act[sr] = 0;
+            c->sus->act[sp] = 0;
+            c->sus->slip[f] = -c->mu_f[f] * w[0] / nw;
+            c->sus->slip[p] = -c->mu_f[f] * w[1] / nw;
+        } else if (slip_own[f]) {
+            spun_ball_stick(c, f, q, vel_p);
+            spun_ball_stick(c, p, q, vel_p);
+            out |= 1;
+        }
+    }
+    return out;
+}
+
 /* SustainedSteps._slip_at_impact: the stick rows that slipped in the impulse law: their contacts slip after it
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). */
+ * changed (a friction switch: no tangent). Isotropic cones the same way (cone_at_impact); 2: a cone's sliding
+ * impulse (friction at an impact: no tangent). */
 static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, const double *vel_p,
     const int *slipped, const int *slip_own, const int *slip_ride)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double tiny, sliding, along, slip;
     int r, i, f, g, k, any = 0, switched = 0;
+    int cones;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         any = any || slipped[r];
     }
@@ -2779,9 +2968,12 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
     }
     spun_ball_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel_p));
+    cones = spun_ball_cone_at_impact(c, q, vel_p, grad, tiny, slipped, slip_own);
+    switched = cones & 1;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         f = spun_ball_row_stick[r];
-        if (!slipped[r] || f < 0) { /* (only stick rows slip) */
+        if (!slipped[r] || f < 0 || spun_ball_partner[f] >= 0) { /* (only stick rows slip; a
+            cone's: above) */
             continue;
         }
         sliding = 0.0;
@@ -2820,7 +3012,7 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
         }
     }
     for (f = 0; f < SPUN_BALL_NF; ++f) { /* stuck in the law (its stick row tight) or at a sliding of 0 after */
-        for (k = -1; k < SPUN_BALL_NF && slip_own[f]; ++k) {
+        for (k = -1; k < SPUN_BALL_NF && slip_own[f] && spun_ball_partner[f] < 0; ++k) {
             g = k < 0 ? f : k;
             if (k >= 0 && slip_ride[g] != f) {
                 continue;
@@ -2832,7 +3024,7 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
         }
     }
     spun_ball_set_friction(c);
-    return switched;
+    return switched ? 1 : (cones & 2 ? 2 : 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
@@ -2910,6 +3102,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
+    int why;
     spun_ball_at(c, t);
     spun_ball_restitution(c->par, rest);
     spun_ball_velocity(c, q, v, p, vel);
@@ -2939,7 +3132,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         slip_ride)) {
         return 1;
     }
-    if (spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
+    why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride);
+    if (why) { /* stick <-> slip (a mode change), or a cone's sliding impulse: no tangent */
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = spun_ball_loss(c, q, vel_m, vel_p);
@@ -3388,7 +3582,7 @@ static double spun_ball_continuous_law(const spun_ball_ctx_t *c, const double *q
 /* Per contact: does it have two tangents (an isotropic cone)? */
 static const int spun_ball_cone_contact[SPUN_BALL_M_DIM] = { 1, };
 
-/* friction._illinois_up: the root of increasing fn (kind 0: cone_excess, 1: cone_infeasible) on [lo, hi]
+/* friction._illinois_up: the root of increasing fn (kind 0: cone_excess, 1: cone_infeasible, 2: slide_room) on [lo, hi]
  * (f_lo <= 0 <= f_hi): the end where fn >= 0 once the bracket is as narrow as the doubles allow. Illinois'
  * steps (illinois_point, illinois_update) on g = -fn, which has their signs. */
 static double spun_ball_cone_value(int kind, double x, const double *d);
@@ -3438,12 +3632,18 @@ static void spun_ball_cone_min(double *d, double nu, double *m1, double *m2)
     *m2 = sn * z1 + cs * z2;
 }
 
+static void spun_ball_slide_min(const double *d, double sg, double *m1, double *m2);
+
 static double spun_ball_cone_value(int kind, double x, const double *d)
 {
     double m1, m2, e[16];
     int i;
     if (kind == 0) { /* excess: |sh (H + sh I)^-1 gt| - nu, increasing in sh */
         return hypot(x * d[14] / (d[9] + x), x * d[15] / (d[10] + x)) - d[13];
+    }
+    if (kind == 2) { /* cone_slide's room: mu_f (a - b.m(sigma)) - |m(sigma)|, < 0 out of the cone */
+        spun_ball_slide_min(d, x, &m1, &m2);
+        return d[8] * (d[9] - d[6] * m1 - d[7] * m2) - hypot(m1, m2);
     }
     for (i = 0; i < 16; ++i) { /* infeasible: -c(nu) = mu_f (a - b.m) - |m|, increasing in nu */
         e[i] = d[i];
@@ -3507,6 +3707,62 @@ static void spun_ball_cone_impulse(const double *g, const double *h, const doubl
         *m1 = 0.0; /* never above the frictionless law (round-off only) */
         *m2 = 0.0;
     }
+}
+
+/* friction.cone_slide's m(sigma) = -(H + sigma I)^-1 g (d: g0 g1, h0 h1 h2 h3, b0 b1, mu_f, a). */
+static void spun_ball_slide_min(const double *d, double sg, double *m1, double *m2)
+{
+    const double det = (d[2] + sg) * (d[5] + sg) - d[3] * d[4];
+    *m1 = -((d[5] + sg) * d[0] - d[3] * d[1]) / det;
+    *m2 = -((d[2] + sg) * d[1] - d[4] * d[0]) / det;
+}
+
+/* friction.cone_slide: Coulomb's sliding impulse of an isotropic cone held at an impact while held (law_slide):
+ * m = -mu_f N w+ / |w+| with w+ = g + H m its tangential velocity after (H = [[h0, h1], [h2, h3]], det, trace > 0)
+ * and N = a - b.m, i.e. m = -(H + sigma I)^-1 g at the sigma > 0 where |m| = mu_f N (a bracket doubled until it
+ * holds, then illinois_up to the last bit; the feasible end). 1 and m; m = 0 if a <= 0 (no normal impulse); 0
+ * where the stick -H^-1 g is inside the cone or H is indefinite (singular to round-off: from sigma = 1e-12 tr H). */
+static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
+    double *m1, double *m2)
+{
+    const double det = h[0] * h[3] - h[1] * h[2], tr = h[0] + h[3];
+    double d[10], lo, hi, f_lo, f_hi;
+    int i;
+    *m1 = 0.0;
+    *m2 = 0.0;
+    if (!(mf > 0.0 && a > 0.0)) {
+        return 1; /* no normal impulse (a < 0: the law's row check refuses it): no friction impulse */
+    }
+    if (!(det > -1e-12 * tr * tr && tr > 0.0)) {
+        return 0;
+    }
+    lo = det > 0.0 ? 0.0 : 1e-12 * tr; /* H singular to round-off (a tangent fixed by the law's other rows) */
+    d[0] = g[0];
+    d[1] = g[1];
+    for (i = 0; i < 4; ++i) {
+        d[2 + i] = h[i];
+    }
+    d[6] = b[0];
+    d[7] = b[1];
+    d[8] = mf;
+    d[9] = a;
+    f_lo = spun_ball_cone_value(2, lo, d);
+    if (f_lo >= 0.0) {
+        return 0; /* the stick is inside the cone */
+    }
+    hi = hypot(g[0], g[1]) / (mf * a);
+    hi = hi > 2.0 * lo ? hi : 2.0 * lo;
+    hi = hi > 1e-300 ? hi : 1e-300;
+    f_hi = spun_ball_cone_value(2, hi, d);
+    for (i = 0; i < SPUN_BALL_CONE_ITER && f_hi < 0.0; ++i) {
+        hi *= 2.0;
+        f_hi = spun_ball_cone_value(2, hi, d);
+    }
+    if (f_hi < 0.0) {
+        return 0;
+    }
+    spun_ball_slide_min(d, spun_ball_illinois_up(2, d, lo, hi, f_lo, f_hi), m1, m2);
+    return 1;
 }
 
 /* Stepper._frictional_law with vcigen.friction.cone_law: friction at an impact on contact j, which has two
