@@ -138,6 +138,18 @@ def _eigen(h):
     return mean - rad, mean + rad, -math.sin(ang), math.cos(ang)
 
 
+def _widen(f, hi: float) -> tuple[float, float]:
+    """``(hi, f(hi))`` with ``hi`` doubled until ``f(hi) >= 0``, at most ``CONE_ITER`` times (``f(hi) < 0`` if
+    it never held): a cone root's upper end (C ``<model>_widen``)."""
+    f_hi = f(hi)
+    for _ in range(CONE_ITER):
+        if f_hi >= 0.0:
+            break
+        hi *= 2.0
+        f_hi = f(hi)
+    return hi, f_hi
+
+
 def _illinois_up(fn, lo: float, hi: float, f_lo: float, f_hi: float) -> float:
     """Illinois on ``[lo, hi]`` for the root of increasing ``fn`` (``f_lo <= 0 <= f_hi``): the end where
     ``fn >= 0`` once the bracket is as narrow as the doubles allow (or ``fn = 0``). Illinois' steps
@@ -198,13 +210,7 @@ def cone_impulse(g, h, b, mu_f: float, a: float) -> tuple[float, float]:
         return mu_f * (a - b[0] * p1 - b[1] * p2) - math.hypot(p1, p2)
 
     f_lo = infeasible(0.0)
-    hi = max(math.hypot(*g), 1e-300)
-    f_hi = infeasible(hi)
-    for _ in range(CONE_ITER):
-        if f_hi >= 0.0:
-            break
-        hi *= 2.0
-        f_hi = infeasible(hi)
+    hi, f_hi = _widen(infeasible, max(math.hypot(*g), 1e-300))
     if f_hi < 0.0:
         return 0.0, 0.0
     nu = _illinois_up(infeasible, 0.0, hi, f_lo, f_hi)
@@ -248,13 +254,7 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
     f_lo = room(lo)
     if f_lo >= 0.0:
         return None  # the stick is inside the cone
-    hi = max(math.hypot(g[0], g[1]) / (mu_f * a), 2.0 * lo, 1e-300)
-    f_hi = room(hi)
-    for _ in range(CONE_ITER):
-        if f_hi >= 0.0:
-            break
-        hi *= 2.0
-        f_hi = room(hi)
+    hi, f_hi = _widen(room, max(math.hypot(g[0], g[1]) / (mu_f * a), 2.0 * lo, 1e-300))
     if f_hi < 0.0:
         return None
     return tangential(_illinois_up(room, lo, hi, f_lo, f_hi))

@@ -3608,6 +3608,19 @@ static double spun_ball_illinois_up(int kind, const double *d, double lo, double
     return hi;
 }
 
+/* friction._widen: hi doubled until the root's function (kind, d: as illinois_up) is >= 0 there, at most
+ * CONE_ITER times; returns hi, *f_hi its value there (< 0 if it never held): a cone root's upper end. */
+static double spun_ball_widen(int kind, const double *d, double hi, double *f_hi)
+{
+    int i;
+    *f_hi = spun_ball_cone_value(kind, hi, d);
+    for (i = 0; i < SPUN_BALL_CONE_ITER && *f_hi < 0.0; ++i) {
+        hi *= 2.0;
+        *f_hi = spun_ball_cone_value(kind, hi, d);
+    }
+    return hi;
+}
+
 /* friction.cone_impulse's Lagrangian minimiser m(nu) (d: g0 g1, h0 h1 h2, b0 b1, mu_f, a, then l1 l2 c s,
  * the eigenvalues of H and the eigenvector of l1; d[13] = nu, d[14] d[15] = gt in H's eigenbasis). */
 static void spun_ball_cone_min(double *d, double nu, double *m1, double *m2)
@@ -3659,7 +3672,6 @@ static void spun_ball_cone_impulse(const double *g, const double *h, const doubl
 {
     const double det = h[0] * h[2] - h[1] * h[1];
     double d[16], mean, half, rad, ang, hi, f_lo, f_hi, nu;
-    int i;
     *m1 = 0.0;
     *m2 = 0.0;
     if (!(mf > 0.0 && a > 0.0 && h[0] > 0.0 && det > 0.0)) {
@@ -3690,12 +3702,7 @@ static void spun_ball_cone_impulse(const double *g, const double *h, const doubl
     d[13] = d[14] = d[15] = 0.0;
     f_lo = spun_ball_cone_value(1, 0.0, d);
     hi = hypot(g[0], g[1]);
-    hi = hi > 1e-300 ? hi : 1e-300;
-    f_hi = spun_ball_cone_value(1, hi, d);
-    for (i = 0; i < SPUN_BALL_CONE_ITER && f_hi < 0.0; ++i) {
-        hi *= 2.0;
-        f_hi = spun_ball_cone_value(1, hi, d);
-    }
+    hi = spun_ball_widen(1, d, hi > 1e-300 ? hi : 1e-300, &f_hi);
     if (f_hi < 0.0) {
         *m1 = 0.0;
         *m2 = 0.0;
@@ -3752,12 +3759,7 @@ static int spun_ball_cone_slide(const double *g, const double *h, const double *
     }
     hi = hypot(g[0], g[1]) / (mf * a);
     hi = hi > 2.0 * lo ? hi : 2.0 * lo;
-    hi = hi > 1e-300 ? hi : 1e-300;
-    f_hi = spun_ball_cone_value(2, hi, d);
-    for (i = 0; i < SPUN_BALL_CONE_ITER && f_hi < 0.0; ++i) {
-        hi *= 2.0;
-        f_hi = spun_ball_cone_value(2, hi, d);
-    }
+    hi = spun_ball_widen(2, d, hi > 1e-300 ? hi : 1e-300, &f_hi);
     if (f_hi < 0.0) {
         return 0;
     }
