@@ -18,18 +18,18 @@ all polynomial in ``tau``, so sub-steps of vanishing length (impacts at
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import sympy as sp
 
-from . import memo
+from . import diskmemo, memo
 from .calculus import hessian, jacobian
 from .model import Model
 from .routines import Arg, Output, Routine
 from .rows import Rows, contact_rows
-from .rules import Rule, get_rule
+from .rules import RULES, Rule, get_rule
 from .tangents import tangent_routines
 
 if TYPE_CHECKING:
@@ -235,17 +235,32 @@ def derive(model: Model, rule: str | Rule = "trapezoid", sensitivities: bool = F
     its data, for exact sensitivities); a scene that does not ask does not pay for them.
 
     A model derived before in this process under the same rule is not derived again (:mod:`vcigen.memo`):
-    the same routines, in a new dict with copied matrices, with ``model`` as the system's model.
+    the same routines, in a new dict with copied matrices, with ``model`` as the system's model. One
+    derived by another process under a built-in rule is read from disk (:mod:`vcigen.diskmemo`).
     """
     rule = get_rule(rule)
     if not memo.enabled():
         return _derive(model, rule, sensitivities)
+    key = memo.model_key(model)
     # the rule is kept in the entry, so that its id is not reused while the entry lives
-    _, first = _DERIVED.get_or_make((memo.model_key(model), id(rule)), lambda: (rule, _derive(model, rule)))
+    _, first = _DERIVED.get_or_make((key, id(rule)), lambda: (rule, _derive_stored(model, rule, key)))
     routines = memo.copy_routines(first.routines)
     if sensitivities:
         routines.update(tangent_routines(routines))
     return replace(first, model=model, routines=routines)
+
+
+def _derive_stored(model: Model, rule: Rule, key: str) -> DiscreteSystem:
+    """:func:`_derive`, read from the disk memo when it can be (a built-in rule, a model without dummies:
+    their key prints the same in every process)."""
+    if not diskmemo.enabled() or RULES.get(rule.name) is not rule or "Dummy(" in key:
+        return _derive(model, rule)
+
+    def parts() -> dict:
+        system = _derive(model, rule)
+        return {f.name: getattr(system, f.name) for f in fields(system) if f.name not in ("model", "rule")}
+
+    return DiscreteSystem(model, rule, **diskmemo.get_or_make("derive", f"{key}\0{rule.name}", parts))
 
 
 def _derive(model: Model, rule: Rule, sensitivities: bool = False) -> DiscreteSystem:

@@ -16,7 +16,8 @@ here (the last :data:`SIZE` of each) and handed out again:
 
 What is handed out is exactly what the first derivation computed, so every backend's result is the same
 as without the memo (the generated C byte for byte, ``tests/test_memo.py``). ``VCIGEN_DERIVE_MEMO=0``
-turns both off.
+turns both off. What a memo misses is read from disk when another process derived it
+(:mod:`vcigen.diskmemo`; ``VCIGEN_DERIVE_DISK=0`` turns that off).
 """
 
 from __future__ import annotations

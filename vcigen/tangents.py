@@ -41,9 +41,11 @@ a simulator asked for sensitivities derives them lazily from the system it has (
 
 from __future__ import annotations
 
+import pickle
+
 import sympy as sp
 
-from . import memo
+from . import diskmemo, memo
 from .calculus import jacobian
 from .routines import Arg, Output, Routine
 
@@ -232,13 +234,27 @@ _TANGENTS = memo.Lru()  # memo.routines_key(routines) -> (routines, their d_* ro
 def tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
     """The ``d_*`` routines of the derived ``routines`` (a :class:`DiscreteSystem`'s), by name.
 
-    Derived once per process for the same expressions (:mod:`vcigen.memo`): a copy of the first result."""
+    Derived once per process for the same expressions (:mod:`vcigen.memo`): a copy of the first result;
+    derived by another process, read from disk (:mod:`vcigen.diskmemo`)."""
     if not memo.enabled():
         return _tangent_routines(routines)
     key, held = memo.routines_key(routines)
     # what the key names is kept in the entry, so that its identities are not reused while the entry lives
-    _, out = _TANGENTS.get_or_make(key, lambda: (held, _tangent_routines(routines)))
+    _, out = _TANGENTS.get_or_make(key, lambda: (held, _tangent_routines_stored(routines)))
     return memo.copy_routines(out)
+
+
+def _tangent_routines_stored(routines: dict[str, Routine]) -> dict[str, Routine]:
+    """:func:`_tangent_routines`, read from the disk memo when the same routines (up to their dummies'
+    indices) were differentiated before."""
+    if not diskmemo.enabled():
+        return _tangent_routines(routines)
+    try:
+        nodes, payload, dummies = diskmemo.encode(routines, {}, canonical=True)
+    except (pickle.PicklingError, TypeError, AttributeError, RecursionError, ValueError):
+        return _tangent_routines(routines)
+    key = diskmemo.digest(nodes, payload)
+    return diskmemo.get_or_make("tangents", key, lambda: _tangent_routines(routines), dummies)
 
 
 def _tangent_routines(routines: dict[str, Routine]) -> dict[str, Routine]:
