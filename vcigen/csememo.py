@@ -22,7 +22,7 @@ import hashlib
 import os
 import pickle
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import sympy as sp
@@ -84,21 +84,28 @@ def digest(exprs: Sequence[sp.Basic], rank: dict[sp.Dummy, int]) -> str:
     return hashlib.sha256(body.encode()).hexdigest()
 
 
-def _decode(nodes: list[tuple], roots: list[int], dummies: list[sp.Dummy]) -> list[sp.Basic]:
-    """The expressions of :func:`_encode`, rebuilt without evaluation (the same trees, so that a result
-    read back prints as the one computed) and with this process's ``dummies``."""
+def rebuild(nodes: list[tuple], leaf: Callable[[tuple], sp.Basic]) -> list[sp.Basic]:
+    """Every node of an encoding (:func:`_encode`; :mod:`vcigen.diskmemo`'s) rebuilt without evaluation (the
+    same trees, so that a result read back prints as the one computed): an atom as stored (``"A"``), a
+    function of the nodes before it, and any other node (a dummy) as ``leaf(node)``."""
     built: list[sp.Basic] = []
     for item in nodes:
-        if item[0] == "D":
-            built.append(dummies[item[1]])
-        elif item[0] == "A":
+        if item[0] == "A":
             built.append(item[1])
+        elif item[0] != "F":
+            built.append(leaf(item))
         else:
             args = [built[i] for i in item[2]]
             try:
                 built.append(item[1](*args, evaluate=False))
             except TypeError:
                 built.append(item[1](*args))
+    return built
+
+
+def _decode(nodes: list[tuple], roots: list[int], dummies: list[sp.Dummy]) -> list[sp.Basic]:
+    """The expressions of :func:`_encode` with this process's ``dummies`` (by rank)."""
+    built = rebuild(nodes, lambda item: dummies[item[1]])
     return [built[i] for i in roots]
 
 

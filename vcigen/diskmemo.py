@@ -34,7 +34,7 @@ from typing import TypeVar
 
 import sympy as sp
 
-from .csememo import cache_root
+from .csememo import cache_root, rebuild
 
 # bump when the stored form changes
 FORMAT = 1
@@ -150,20 +150,7 @@ def decode(nodes: list[tuple], payload: bytes, dummies: list[sp.Dummy]) -> objec
     every expression rebuilt without evaluation (the same trees)."""
     new = sorted((item for item in nodes if item[0] == "N"), key=lambda item: item[1])
     fresh = {item[1]: sp.Dummy(item[2], **item[3]) for item in new}
-    built: list[sp.Basic] = []
-    for item in nodes:
-        if item[0] == "D":
-            built.append(dummies[item[1]])
-        elif item[0] == "N":
-            built.append(fresh[item[1]])
-        elif item[0] == "A":
-            built.append(item[1])
-        else:
-            args = [built[i] for i in item[2]]
-            try:
-                built.append(item[1](*args, evaluate=False))
-            except TypeError:
-                built.append(item[1](*args))
+    built = rebuild(nodes, lambda item: dummies[item[1]] if item[0] == "D" else fresh[item[1]])
     return _Decoder(payload, built).load()
 
 
