@@ -9,8 +9,9 @@ C ``templates/sens_events.c.j2``, ``sens_located``).
 * a particle lifted off a smooth floor while a second one, coupled to it through the kinetic energy (an
   off-diagonal mass term ``k x1d y2d``), slips on a rough floor: the lift-off's force law with the slipping
   contact's direction ``grad psi + slip grad t`` (its slip moves the lifted row's force through ``k``);
-* a particle landing plastically on a rough floor, sliding on (its friction held anew at the impact), and the
-  same landing of a second particle while the first is held and slips (a plastic impact while held);
+* a particle landing plastically on a rough floor, sliding through the impact (Coulomb's sliding impulse, the
+  landing's friction: ``ImpulseLaw._law_lands``) and on (its friction held anew), and the same landing of a
+  second particle while the first is held and slips (a plastic impact while held);
 * the disk into the wall slowly enough that its sliding stops in the rest of the impact's step: an impact
   while held, then a located friction stop (``vcigen.sensitivity_switch``) in the same step.
 
@@ -478,14 +479,18 @@ def test_wall_then_stop_against_the_closed_form(backend: str, rule: str) -> None
 
 
 def land_closed_form(t: float, g: float, mu: float, vx: float = 2.0, vy: float = -1.0, y0: float = 0.3):
-    """``dx(t)/d(v0[y], g, mu)`` of the landing particle: it lands at ``t*`` (``y0 + vy t - g t^2/2 = 0``),
-    keeps ``xd = vx`` (plastic) and slips on, decelerated by ``mu g``: ``x = vx t - mu g (t - t*)^2 / 2``."""
+    """``dx(t)/d(v0[y], g, mu)`` of the landing particle: it lands at ``t*`` (``y0 + vy t - g t^2/2 = 0``)
+    with the speed ``rate = g t* - vy``, plastic: the normal impulse ``m rate`` and Coulomb's sliding impulse
+    ``mu m rate`` against ``xd = vx`` (``vx > mu rate``: it slides through the impact), then slips on,
+    decelerated by ``mu g``: ``x = vx t - mu rate (t - t*) - mu g (t - t*)^2 / 2``."""
     ts = (vy + np.sqrt(vy * vy + 2.0 * g * y0)) / g
     d, rate = t - ts, g * ts - vy  # rate: the speed of the fall at t*, -dy/dt
+    assert vx > mu * rate
     dts = {"v0[y]": ts / rate, "g": -ts * ts / (2.0 * rate)}
-    out = {name: mu * g * d * dt for name, dt in dts.items()}
+    drate = {"v0[y]": g * dts["v0[y]"] - 1.0, "g": ts + g * dts["g"]}
+    out = {name: mu * (rate + g * d) * dt - mu * drate[name] * d for name, dt in dts.items()}
     out["g"] -= mu * d * d / 2
-    out["mu"] = -g * d * d / 2
+    out["mu"] = -rate * d - g * d * d / 2
     return out
 
 

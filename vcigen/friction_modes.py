@@ -13,7 +13,7 @@ import numpy as np
 
 from .cone_split import null_combination, split
 from .derive import KINK
-from .held_roots import BRAKE, DEP_EPS, EPS_LAM, LIFT_ITER, SLIDE_EPS, End, illinois
+from .held_roots import BRAKE, DEP_EPS, EPS_LAM, LIFT_ITER, SLIDE_EPS, SLIDE_LEAVE, End, illinois
 
 
 class FrictionModes:
@@ -399,7 +399,17 @@ class FrictionModes:
                         w, end_c, u_c = self._sub_end(step, t_k, q, p, tau, c, w)
                         return s * float(end_c.grad[sr] @ u_c), w
 
-                    frac = 0.0 if g0 <= 0.0 else illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, v)
+                    lo, w = 0.0, v
+                    if abs(g0) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0)))):
+                        # slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a
+                        # stop is where the sliding, grown, comes back to 0 (none grown: a stop at the start)
+                        g0 = 0.0
+                        for s_try in SLIDE_LEAVE:
+                            g_try, w_try = sliding(s_try, v)
+                            if g_try > 1e-14:
+                                lo, g0, w = s_try, g_try, w_try
+                                break
+                    frac = 0.0 if g0 <= 0.0 else illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, w, lo)
                     events[sr] = ("stop", frac)
             elif self.act[sr] or (self._partner[f] >= 0 and self.act[self._stick_rows[self._partner[f]]]):
                 g1 = self._cone_margin(f, f1, end.grad)
@@ -415,10 +425,17 @@ class FrictionModes:
                     events[sr] = ("slide", frac)
 
     def _friction_switch(self, kind: str, sr: int, q, u) -> None:
-        """At a located friction event: a stopped contact sticks; a sliding one slips against its force."""
+        """At a located friction event: a stopped contact sticks; a sliding one slips against its force. A
+        ``"turn"`` (:meth:`_chain`: a stop at the instant its slide began, the held step's impulse turning its
+        sliding at once, as where a row an impact pulled off stays held) slips the other way: sticking there,
+        its force would leave the cone again."""
         f = self.k.row_stick[sr]
         if self._partner[f] >= 0:
-            self._cone_switch(kind, f, self._partner[f], q, u)
+            self._cone_switch("stop" if kind == "turn" else kind, f, self._partner[f], q, u)
+            return
+        if kind == "turn":
+            self._slip[f] = -self._slip[f]
+            self._set_friction()
             return
         sliding = float(self.k.rows(q, u)[1][sr] @ u)
         if kind == "stop" and abs(sliding) > SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):

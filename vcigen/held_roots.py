@@ -14,6 +14,10 @@ ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at
 LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
+SLIDE_LEAVE = (
+    1e-3,
+    1e-6,
+)  # fractions tried to leave s = 0 where a slip starts from rest (its stop's root there)
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
@@ -36,14 +40,16 @@ def illinois_update(a: float, ga: float, b: float, gb: float, side: int, c: floa
     return c, gc, b, gb / 2 if side == 1 else gb, 1
 
 
-def illinois(value, ga: float, gb: float, tiny: float, width: float, iters: int, guess) -> float:
-    """Illinois regula falsi for the root of ``value`` on ``[0, 1]`` (``value(0) = ga >= 0 > gb = value(1)``).
+def illinois(
+    value, ga: float, gb: float, tiny: float, width: float, iters: int, guess, lo: float = 0.0
+) -> float:
+    """Illinois regula falsi for the root of ``value`` on ``[lo, 1]`` (``value(lo) = ga >= 0 > gb = g(1)``).
 
     ``value(s, guess) -> (g(s), guess')`` evaluates the sub-step map at ``s`` from a warm guess. Returns
     the first ``s`` with ``|g(s)| <= tiny``, or else, once the bracket is narrower than ``width`` (or after
     ``iters`` evaluations), its end where ``g < 0``.
     """
-    a, b, side, v = 0.0, 1.0, 0, guess
+    a, b, side, v = lo, 1.0, 0, guess
     for _ in range(iters):
         c = illinois_point(a, ga, b, gb)
         gc, v = value(c, v)

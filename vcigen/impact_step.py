@@ -100,12 +100,16 @@ class ImpactSteps:
                 self._tan.jump(seg, v_c, e_rest, kind, self._law)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
                 self._count_event(step, t_k)
-                p_plus, lam, loss, rows = self._plastic_entry(step, t_k, h, q_c, p_minus_c, v_c, t_c, group)
+                p_plus, lam, loss, rows, law = self._plastic_entry(
+                    step, t_k, h, q_c, p_minus_c, v_c, t_c, group
+                )
                 for i in group:
                     own = sum(lam[r] for r in rows if k.row_contact[r] == i)
                     self._log(impacts, t_c, i, q_c, (t_c - t_k) / h, own, step, e_in, e_in - loss, "plastic")
-                if self._tan is not None:
-                    self._tan.plastic(seg, v_c, [r for r in rows if lam[r] != 0.0])
+                if self._tan is not None and law[2]:  # a landing cone's sliding impulse
+                    self._tan.lose(law[2])
+                elif self._tan is not None:
+                    self._tan.plastic(seg, v_c, law[0], law[1])
                 return self._tangent_held(
                     q_c,
                     p_plus,

@@ -172,14 +172,16 @@ class HeldTangents:
         return self.dvin + np.linalg.solve(mass0, self.dp - dmom0 @ d0 - dma0 @ d0)
 
     @_guarded
-    def plastic(self, seg, v_in, tight) -> None:
-        """A plastic impact (``SustainedSteps._plastic_entry``) on the rows ``tight`` (those with an impulse):
-        ``p+ = p~- + G^T Lam``, ``G M^-1 G^T Lam = -G vel`` (the frictionless impulse law, target normal
-        velocity 0), ``vel`` one Newton step of the inverse Legendre transform from ``v_in``, ``G`` and ``M``
-        at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the step starts there)."""
+    def plastic(self, seg, v_in, tight, slides=None) -> None:
+        """A plastic impact (``SustainedSteps._plastic_entry``) on the rows ``tight`` (those with an impulse,
+        a landing contact's stick row where it sticks): ``p+ = p~- + D^T Lam``, ``G M^-1 D^T Lam = -G vel``
+        (the impulse law, target velocity 0; ``D`` along ``slides`` as in :meth:`_impulse`: a landing
+        contact sliding on an edge of its cone), ``vel`` one Newton step of the inverse Legendre transform
+        from ``v_in``, ``G`` and ``M`` at ``(q~, vel)``: ``dp`` becomes the tangent of ``p+`` (the rest of the
+        step starts there)."""
         if not self.active:
             return
-        self._impulse(seg.q, v_in, seg.p_in, tight, [-1] * len(tight))
+        self._impulse(seg.q, v_in, seg.p_in, tight, [-1] * len(tight), slides)
 
     @_event_hook
     def impulse(self, q, v, p, tight, contact, slides=None) -> None:

@@ -202,6 +202,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         k, tol = self.k, self.tol
         self._chained = True
         plain = True  # no event, no change of friction mode so far: a held step the tangent goes through
+        turn = -1  # the stick row that slid at this instant (a stop of it here turns it, _friction_switch)
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         while True:
             self._at(t)
@@ -255,10 +256,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r)
                 else:
+                    kind = "turn" if events[r][0] == "stop" and r == turn else events[r][0]
                     before = self._sw_state()
                     self._count_event(step, t_k)  # stick <-> slip at one instant: bounded, never a loop
-                    self._friction_switch(events[r][0], r, q, self._velocity(q, v, p))
+                    self._friction_switch(kind, r, q, self._velocity(q, v, p))
                     self._sw_check(events[r][0], r, before)
+                    turn = r if kind == "slide" else -1
                 continue
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
@@ -290,6 +293,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
+            turn = -1
             if events[r0][0] == "lift":
                 self._release(step, t_k, t, r0)
                 continue
@@ -427,12 +431,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         tan = self._ev_tan
         return kind == "slide" and tan is not None and self._sw_stop == (tan.step, self._events)
 
-    def _ev_impulse(self, q, v, p, lam, targets, group, slips=()) -> None:
+    def _ev_impulse(self, q, v, p, lam, targets, group, law) -> None:
         """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
-        with an impulse, each with the contact whose restitution sets its target (-1: target 0), the normal
-        rows of the contacts slipping on through it (``slips``, :meth:`_law_slips`) with their sliding
-        impulse along their owner's stick row (whose own impulse follows from theirs: not a row of the law); a
-        group of rows hit at once (the weights of its impulse switch) breaks."""
+        with an impulse (``law``, :meth:`_law_tangent`), each with the contact whose restitution sets its
+        target (-1: target 0), the normal rows of the contacts slipping on or landing and sliding through it
+        with their sliding impulse along their owner's stick row (whose own impulse follows from theirs: not
+        a row of the law); a group of rows hit at once (the weights of its impulse switch) breaks."""
         tan = self._ev_tan
         if tan is None:
             return
@@ -440,15 +444,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             tan.lose("simultaneous impact")
             return
         k = self.k
-        along = {}  # contact -> (the owner's stick row, the sign of its sliding impulse, the contact)
-        for f, riders in slips:
-            for g in [f, *riders]:
-                sgn = math.copysign(1.0, self._slip[f])
-                along[k.frictional[g]] = (self._stick_rows[f], sgn, k.frictional[g])
-        skip = {self._stick_rows[f] for f, _ in slips}
-        tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
+        tight, slides, _ = law
         contact = [k.row_contact[r] if r in targets else -1 for r in tight]
-        tan.impulse(q, v, p, tight, contact, [along.get(k.row_contact[r]) for r in tight])
+        tan.impulse(q, v, p, tight, contact, slides)
 
     def _ev_free(self, q, p, w, tau: float) -> None:
         """The free rest after a held step's events (``Tracker.free_end``); a lone lift-off before it is

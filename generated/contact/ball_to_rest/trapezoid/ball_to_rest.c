@@ -1383,18 +1383,19 @@ static int ball_to_rest_sub_end(const ball_to_rest_ctx_t *c, const double *q, co
     return ball_to_rest_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
- * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int ball_to_rest_illinois(const ball_to_rest_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
+    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double *s_out)
 {
     double v[BALL_TO_REST_N], vn[BALL_TO_REST_N], q1[BALL_TO_REST_N], u1[BALL_TO_REST_N], f[BALL_TO_REST_R_DIM];
-    double grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM], a = 0.0, b = 1.0, cc, gc;
+    double grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM], a = lo, b = 1.0, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         v[i] = guess[i];
@@ -1437,7 +1438,7 @@ static int ball_to_rest_liftoff_fraction(const ball_to_rest_ctx_t *c, const doub
         *s_out = 0.0;
         return 0;
     }
-    return ball_to_rest_illinois(c, r, 0, q, p, tau, guess, f0, f1, BALL_TO_REST_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return ball_to_rest_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, BALL_TO_REST_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, BALL_TO_REST_LIFT_ITER, s_out);
 }
 
@@ -1449,7 +1450,7 @@ static int ball_to_rest_row_crossing(const ball_to_rest_ctx_t *c, const double *
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM], ga;
     ball_to_rest_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return ball_to_rest_illinois(c, r, 1, q, p, tau, guess, ga, g1, BALL_TO_REST_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return ball_to_rest_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, BALL_TO_REST_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -1460,13 +1461,15 @@ static int ball_to_rest_row_crossing(const ball_to_rest_ctx_t *c, const double *
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
  * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
  * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
- * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
- * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
- * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
- * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
+ * sticking within its cone, then the other edge. A frictional contact that lands (law_lands) joins the same way,
+ * sticking first, with a stick row of its own or in the cone of the contact whose stick row carries it. Solved by
+ * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
+ * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
+ * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
 static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], minv_g[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
@@ -1496,6 +1499,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
     }
     slip_own[0] = 0;
     slip_ride[0] = -1;
+    land[0] = -1;
     if (nr > BALL_TO_REST_MAX_LAW_ROWS) {
         return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1660,7 +1664,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp;
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
-    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], leaving[BALL_TO_REST_R_DIM];
+    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM], leaving[BALL_TO_REST_R_DIM];
     ball_to_rest_at(c, t);
     ball_to_rest_restitution(c->par, rest);
     ball_to_rest_velocity(c, q, v, p, vel);
@@ -1687,12 +1691,13 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
         }
     }
     if (ball_to_rest_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     (void)slipped;
     (void)slip_own;
     (void)slip_ride;
+    (void)land;
     loss = ball_to_rest_loss(c, q, vel_m, vel_p);
     any = 0;
     for (r = 0; r < BALL_TO_REST_R; ++r) { /* the active rows the impact pulls off */
@@ -1705,6 +1710,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     }
     if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
         ball_to_rest_held_accel(c, q, vel_p, leaving, plastic, racc);
+
         for (r = 0; r < BALL_TO_REST_R; ++r) {
             if (!leaving[r]) {
                 continue;
@@ -1753,14 +1759,16 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
 }
 
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
 static int ball_to_rest_plastic_entry(const ball_to_rest_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
 {
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
     double tgt[BALL_TO_REST_R_DIM] = {0.0}, vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N];
-    int dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], lowest[BALL_TO_REST_R_DIM] = {0}, g, r, k, low;
-    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM];
+    int dropped[BALL_TO_REST_R_DIM], lowest[BALL_TO_REST_R_DIM] = {0}, g, r, k, low;
+    int slip_own[BALL_TO_REST_NF_DIM];
     ball_to_rest_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1780,9 +1788,9 @@ static int ball_to_rest_plastic_entry(const ball_to_rest_ctx_t *c, const double 
             }
         }
     }
-    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (ball_to_rest_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
@@ -2776,9 +2784,11 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
         }
         if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
             double p_plus[BALL_TO_REST_N], lam[BALL_TO_REST_R_DIM], loss, own;
-            int rows[BALL_TO_REST_R_DIM] = {0}, n_rows = 0, l;
+            int rows[BALL_TO_REST_R_DIM] = {0}, n_rows = 0, l, slipped[BALL_TO_REST_R_DIM];
+            int slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM];
             if (ball_to_rest_count_event(c)
-                || ball_to_rest_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                || ball_to_rest_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows,
+                    slipped, slip_ride, land)) {
                 return 1;
             }
             for (g = 0; g < n_group; ++g) {

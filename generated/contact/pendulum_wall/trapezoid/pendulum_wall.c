@@ -1612,18 +1612,19 @@ static int pendulum_wall_sub_end(const pendulum_wall_ctx_t *c, const double *q, 
     return pendulum_wall_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
- * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int pendulum_wall_illinois(const pendulum_wall_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
+    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double *s_out)
 {
     double v[PENDULUM_WALL_N], vn[PENDULUM_WALL_N], q1[PENDULUM_WALL_N], u1[PENDULUM_WALL_N], f[PENDULUM_WALL_R_DIM];
-    double grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], a = 0.0, b = 1.0, cc, gc;
+    double grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], a = lo, b = 1.0, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         v[i] = guess[i];
@@ -1666,7 +1667,7 @@ static int pendulum_wall_liftoff_fraction(const pendulum_wall_ctx_t *c, const do
         *s_out = 0.0;
         return 0;
     }
-    return pendulum_wall_illinois(c, r, 0, q, p, tau, guess, f0, f1, PENDULUM_WALL_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return pendulum_wall_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, PENDULUM_WALL_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, PENDULUM_WALL_LIFT_ITER, s_out);
 }
 
@@ -1678,7 +1679,7 @@ static int pendulum_wall_row_crossing(const pendulum_wall_ctx_t *c, const double
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], ga;
     pendulum_wall_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return pendulum_wall_illinois(c, r, 1, q, p, tau, guess, ga, g1, PENDULUM_WALL_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return pendulum_wall_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, PENDULUM_WALL_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -1689,13 +1690,15 @@ static int pendulum_wall_row_crossing(const pendulum_wall_ctx_t *c, const double
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
  * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
  * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
- * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
- * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
- * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
- * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
+ * sticking within its cone, then the other edge. A frictional contact that lands (law_lands) joins the same way,
+ * sticking first, with a stick row of its own or in the cone of the contact whose stick row carries it. Solved by
+ * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
+ * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
+ * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
 static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
@@ -1725,6 +1728,7 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
     }
     slip_own[0] = 0;
     slip_ride[0] = -1;
+    land[0] = -1;
     if (nr > PENDULUM_WALL_MAX_LAW_ROWS) {
         return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -1889,7 +1893,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
-    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
+    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
     pendulum_wall_velocity(c, q, v, p, vel);
@@ -1916,12 +1920,13 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
         }
     }
     if (pendulum_wall_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     (void)slipped;
     (void)slip_own;
     (void)slip_ride;
+    (void)land;
     loss = pendulum_wall_loss(c, q, vel_m, vel_p);
     any = 0;
     for (r = 0; r < PENDULUM_WALL_R; ++r) { /* the active rows the impact pulls off */
@@ -1934,6 +1939,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     }
     if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
         pendulum_wall_held_accel(c, q, vel_p, leaving, plastic, racc);
+
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
             if (!leaving[r]) {
                 continue;
@@ -1982,14 +1988,16 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
 }
 
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
 static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
 {
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     double tgt[PENDULUM_WALL_R_DIM] = {0.0}, vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N];
-    int dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], lowest[PENDULUM_WALL_R_DIM] = {0}, g, r, k, low;
-    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM];
+    int dropped[PENDULUM_WALL_R_DIM], lowest[PENDULUM_WALL_R_DIM] = {0}, g, r, k, low;
+    int slip_own[PENDULUM_WALL_NF_DIM];
     pendulum_wall_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2009,9 +2017,9 @@ static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const doubl
             }
         }
     }
-    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (pendulum_wall_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
@@ -3326,9 +3334,11 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
         }
         if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
             double p_plus[PENDULUM_WALL_N], lam[PENDULUM_WALL_R_DIM], loss, own;
-            int rows[PENDULUM_WALL_R_DIM] = {0}, n_rows = 0, l;
+            int rows[PENDULUM_WALL_R_DIM] = {0}, n_rows = 0, l, slipped[PENDULUM_WALL_R_DIM];
+            int slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM];
             if (pendulum_wall_count_event(c)
-                || pendulum_wall_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                || pendulum_wall_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows,
+                    slipped, slip_ride, land)) {
                 return 1;
             }
             for (g = 0; g < n_group; ++g) {

@@ -1595,13 +1595,19 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
 }
 
 /* SustainedSteps._friction_switch: at a located friction event on stick row sr, a stopped contact sticks (kind 3)
- * and a sliding one slips the way its stick force pushes (kind 4). */
+ * and a sliding one slips the way its stick force pushes (kind 4); a turn (kind 5, chain: a stop at the instant its
+ * slide began, the held step's impulse turning its sliding at once) slips the other way. */
 static void block_friction_switch(const block_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[BLOCK_R_DIM], psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N];
     double curv[BLOCK_R_DIM], sliding = 0.0, along;
     const int f = block_row_stick[sr];
     int i, g;
+    if (kind == 5) {
+        c->sus->slip[f] = -c->sus->slip[f];
+        block_set_friction(c);
+        return;
+    }
     block_rows(q, u, c->par, psi, grad, curv);
     for (i = 0; i < BLOCK_N; ++i) {
         sliding += grad[sr * BLOCK_N + i] * u[i];
@@ -1627,18 +1633,19 @@ static void block_friction_switch(const block_ctx_t *c, int kind, int sr, const 
     block_set_friction(c);
 }
 
-/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
- * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int block_illinois(const block_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
+    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double *s_out)
 {
     double v[BLOCK_N], vn[BLOCK_N], q1[BLOCK_N], u1[BLOCK_N], f[BLOCK_R_DIM];
-    double grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], a = 0.0, b = 1.0, cc, gc;
+    double grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], a = lo, b = 1.0, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < BLOCK_N; ++i) {
         v[i] = guess[i];
@@ -1693,7 +1700,7 @@ static int block_liftoff_fraction(const block_ctx_t *c, const double *q, const d
         *s_out = 0.0;
         return 0;
     }
-    return block_illinois(c, r, 0, q, p, tau, guess, f0, f1, BLOCK_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return block_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, BLOCK_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, BLOCK_LIFT_ITER, s_out);
 }
 
@@ -1705,7 +1712,7 @@ static int block_row_crossing(const block_ctx_t *c, const double *q, const doubl
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], ga;
     block_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return block_illinois(c, r, 1, q, p, tau, guess, ga, g1, BLOCK_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return block_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, BLOCK_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -1829,6 +1836,71 @@ static void block_law_slips(const block_ctx_t *c, const double *grad, int *rows,
         c->sus->act[r] = act[r];
     }
 }
+
+/* SustainedSteps._law_lands: the frictional contacts landing in the impulse law on rows[0..nr) (a row of their
+ * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row is independent of the rows and of the stick rows of those before it (appended to rows), else
+ * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
+ * is then taken anew at q, vel). */
+static int block_law_lands(const block_ctx_t *c, const double *q, const double *vel, double *grad,
+    int *rows, int *nr, int *slip_ride, int *land)
+{
+    double psi[BLOCK_R_DIM], curv[BLOCK_R_DIM];
+    int act[BLOCK_R_DIM], hit[BLOCK_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        land[f] = -1;
+    }
+    for (k = 0; k < *nr; ++k) {
+        if (block_row_contact[rows[k]] >= 0) {
+            hit[block_row_contact[rows[k]]] = 1;
+        }
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        act[r] = c->sus->act[r];
+        if (act[r] && block_row_contact[r] >= 0) {
+            hit[block_row_contact[r]] = 0; /* held */
+        }
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        if (hit[block_fric_contact[f]] && c->mu_f[f] > 0.0) {
+            land[f] = -2; /* landing: its owner below */
+            any = 1;
+            block_freeze_branch(c, f, q);
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    block_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < *nr; ++k) {
+        c->sus->act[rows[k]] = 1;
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        if (land[f] != -2) {
+            continue;
+        }
+        land[f] = -1;
+        sr = block_stick_row[f];
+        if (!block_dependent(c, grad, sr, -1)) {
+            c->sus->act[sr] = 1;
+            land[f] = f;
+            rows[(*nr)++] = sr;
+            continue;
+        }
+        for (g = 0; g < BLOCK_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
+            if (g != f && c->sus->act[block_stick_row[g]]
+                && !block_dependent(c, grad, sr, block_stick_row[g])) {
+                land[f] = g;
+                slip_ride[f] = g;
+                break;
+            }
+        }
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    return 1;
+}
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1836,13 +1908,15 @@ static void block_law_slips(const block_ctx_t *c, const double *grad, int *rows,
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
  * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
  * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
- * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
- * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
- * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
- * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
+ * sticking within its cone, then the other edge. A frictional contact that lands (law_lands) joins the same way,
+ * sticking first, with a stick row of its own or in the cone of the contact whose stick row carries it. Solved by
+ * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
+ * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
+ * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
 static int block_impulse_law(const block_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double mom[BLOCK_N], mass[BLOCK_N * BLOCK_N], minv_g[BLOCK_R_DIM * BLOCK_N];
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
@@ -1876,6 +1950,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
         }
     }
     block_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
+    block_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
     if (nr > BLOCK_MAX_LAW_ROWS) {
         return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2030,21 +2105,24 @@ static double block_law_sliding(const double *grad, int f, const double *u)
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). */
+ * changed (a friction switch: no tangent). The landing contacts (land) keep no mode
+ * here. */
 static int block_slip_at_impact(const block_ctx_t *c, const double *q, const double *vel_p,
-    const int *slipped, const int *slip_own, const int *slip_ride)
+    const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double tiny, sliding, along, slip;
-    int r, i, f, g, k, any = 0, switched = 0;
+    int slipped[BLOCK_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
     for (r = 0; r < BLOCK_R; ++r) {
+        f = block_row_stick[r];
+        slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
         any = any || slipped[r];
     }
     for (f = 0; f < BLOCK_NF; ++f) {
         any = any || slip_own[f];
     }
     if (!any) {
-        return 0;
+        return why ? 2 : 0;
     }
     block_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel_p));
@@ -2058,9 +2136,9 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
             sliding += grad[r * BLOCK_N + i] * vel_p[i];
         }
         if (slip_own[f]) { /* a slipping contact that joined: on, turned, or stuck (below) */
-            for (k = -1; k < BLOCK_NF; ++k) { /* f, then its riders */
+            for (k = -1; k < BLOCK_NF; ++k) { /* f, then its riders (not the landing ones) */
                 g = k < 0 ? f : k;
-                if (k >= 0 && slip_ride[g] != f) {
+                if (k >= 0 && (slip_ride[g] != f || land[g] >= 0)) {
                     continue;
                 }
                 along = block_law_sliding(grad, g, vel_p);
@@ -2091,7 +2169,7 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
     for (f = 0; f < BLOCK_NF; ++f) { /* stuck in the law (its stick row tight) or at a sliding of 0 after */
         for (k = -1; k < BLOCK_NF && slip_own[f]; ++k) {
             g = k < 0 ? f : k;
-            if (k >= 0 && slip_ride[g] != f) {
+            if (k >= 0 && (slip_ride[g] != f || land[g] >= 0)) {
                 continue;
             }
             if (c->sus->slip[g] != 0.0 && fabs(block_law_sliding(grad, g, vel_p)) <= tiny) {
@@ -2101,6 +2179,7 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
         }
     }
     block_set_friction(c);
+    (void)why;
     return switched;
 }
 
@@ -2168,6 +2247,33 @@ static void block_held_accel(const block_ctx_t *c, const double *q, const double
     block_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._landed: on = plastic and the stick rows of the contacts that landed and stuck in the impulse law
+ * (land; their owner's stick row not slipped) and are held after it (a row of theirs plastic): they stick from
+ * there on (friction_modes). One carried by another's stick row takes its own where that contact is no longer
+ * held (its rows off: a rocking block's pivot). */
+static void block_landed(const block_ctx_t *c, const int *land, const int *slipped, const int *plastic,
+    const int *off, int *on)
+{
+    int held[BLOCK_M_DIM] = {0}, f, o, r;
+    for (r = 0; r < BLOCK_R; ++r) {
+        on[r] = plastic[r];
+        if ((plastic[r] || (c->sus->act[r] && !off[r])) && block_row_contact[r] >= 0) {
+            held[block_row_contact[r]] = 1;
+        }
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        o = land[f];
+        if (o < 0 || !held[block_fric_contact[f]] || slipped[block_stick_row[o]]) {
+            continue;
+        }
+        if (o == f) {
+            on[block_stick_row[f]] = 1;
+        } else if (!held[block_fric_contact[o]]) {
+            on[block_stick_row[f]] = 1;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, const double *v,
@@ -2178,7 +2284,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double curv[BLOCK_R_DIM], tgt[BLOCK_R_DIM], p_plus[BLOCK_N] = {0.0}, lam[BLOCK_R_DIM];
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
-    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
+    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
     block_at(c, t);
     block_restitution(c->par, rest);
     block_velocity(c, q, v, p, vel);
@@ -2205,11 +2311,11 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         }
     }
     if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
-    if (block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
-    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
+    if (block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land)) { /* stick <-> slip: no tangent */
+    } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = block_loss(c, q, vel_m, vel_p);
     any = 0;
@@ -2222,7 +2328,10 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         any = any || leaving[r];
     }
     if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
-        block_held_accel(c, q, vel_p, leaving, plastic, racc);
+        int on[BLOCK_R_DIM];
+        block_landed(c, land, slipped, plastic, leaving, on);
+        block_held_accel(c, q, vel_p, leaving, on, racc);
+
         for (r = 0; r < BLOCK_R; ++r) {
             if (!leaving[r]) {
                 continue;
@@ -2271,14 +2380,16 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
 }
 
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
 static int block_plastic_entry(const block_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double tgt[BLOCK_R_DIM] = {0.0}, vel_m[BLOCK_N], vel_p[BLOCK_N];
-    int dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], lowest[BLOCK_R_DIM] = {0}, g, r, k, low;
-    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM];
+    int dropped[BLOCK_R_DIM], lowest[BLOCK_R_DIM] = {0}, g, r, k, low;
+    int slip_own[BLOCK_NF_DIM];
     block_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2298,9 +2409,9 @@ static int block_plastic_entry(const block_ctx_t *c, const double *q, const doub
             }
         }
     }
-    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (block_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
@@ -2370,6 +2481,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps;
     int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         block_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2416,7 +2528,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         for (i = 0; i < BLOCK_NF; ++i) {
             const int sr = block_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn;
+            double g0, g1 = 0.0, sgn, lo;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N], curv0[BLOCK_R_DIM];
@@ -2433,7 +2545,30 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     }
                     g0 *= sgn;
                     s_ev[sr] = 0.0;
-                    if (g0 > 0.0 && block_illinois(c, sr, 2, q, p, tau, vv, g0, g1, 1e-14, 1e-13,
+                    lo = 0.0;
+                    if (fabs(g0) <= BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel0))) {
+                        /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
+                         * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
+                        g0 = 0.0;
+                        for (l = 0; l < 2; ++l) {
+                            double v_try[BLOCK_N], q_try[BLOCK_N], u_try[BLOCK_N], g_try = 0.0;
+                            const double s_try = l == 0 ? 1e-3 : 1e-6;
+                            int m;
+                            if (block_sub_end(c, q, p, tau, s_try, vv, v_try, q_try, u_try)) {
+                                return 1;
+                            }
+                            block_rows(q_try, u_try, c->par, psi0, grad0, curv0);
+                            for (m = 0; m < BLOCK_N; ++m) {
+                                g_try += grad0[sr * BLOCK_N + m] * u_try[m];
+                            }
+                            if (sgn * g_try > 1e-14) {
+                                lo = s_try;
+                                g0 = sgn * g_try;
+                                break;
+                            }
+                        }
+                    }
+                    if (g0 > 0.0 && block_illinois(c, sr, 2, q, p, tau, vv, lo, g0, g1, 1e-14, 1e-13,
                             BLOCK_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -2449,7 +2584,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     block_rows(q, vel0, c->par, psi0, grad0, curv0);
                     g0 = block_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
-                    if (!(g0 < 0.0) && block_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
+                    if (!(g0 < 0.0) && block_illinois(c, sr, 3, q, p, tau, vv, 0.0, g0, g1,
                             BLOCK_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, BLOCK_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -2469,7 +2604,9 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     return 1;
                 }
                 block_velocity(c, q, vv, p, vel);
-                block_friction_switch(c, ev[start], start, q, vel);
+                kind = ev[start] == 3 && start == turn ? 5 : ev[start];
+                block_friction_switch(c, kind, start, q, vel);
+                turn = kind == 4 ? start : -1;
                 continue;
             }
             block_release(c, t, start);
@@ -2519,6 +2656,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             p[i] = p1[i];
         }
         t += s * tau;
+        turn = -1;
         tau = (1.0 - s) * tau;
         if (ev[r0] == 1) {
             block_release(c, t, r0);
@@ -2965,9 +3103,11 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
         }
         if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
             double p_plus[BLOCK_N], lam[BLOCK_R_DIM], loss, own;
-            int rows[BLOCK_R_DIM] = {0}, n_rows = 0, l;
+            int rows[BLOCK_R_DIM] = {0}, n_rows = 0, l, slipped[BLOCK_R_DIM];
+            int slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM];
             if (block_count_event(c)
-                || block_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                || block_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows,
+                    slipped, slip_ride, land)) {
                 return 1;
             }
             for (g = 0; g < n_group; ++g) {

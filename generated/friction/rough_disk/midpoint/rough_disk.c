@@ -1674,13 +1674,19 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
 }
 
 /* SustainedSteps._friction_switch: at a located friction event on stick row sr, a stopped contact sticks (kind 3)
- * and a sliding one slips the way its stick force pushes (kind 4). */
+ * and a sliding one slips the way its stick force pushes (kind 4); a turn (kind 5, chain: a stop at the instant its
+ * slide began, the held step's impulse turning its sliding at once) slips the other way. */
 static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double curv[ROUGH_DISK_R_DIM], sliding = 0.0, along;
     const int f = rough_disk_row_stick[sr];
     int i, g;
+    if (kind == 5) {
+        c->sus->slip[f] = -c->sus->slip[f];
+        rough_disk_set_friction(c);
+        return;
+    }
     rough_disk_rows(q, u, c->par, psi, grad, curv);
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         sliding += grad[sr * ROUGH_DISK_N + i] * u[i];
@@ -1706,18 +1712,19 @@ static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int 
     rough_disk_set_friction(c);
 }
 
-/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
- * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int rough_disk_illinois(const rough_disk_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
+    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double *s_out)
 {
     double v[ROUGH_DISK_N], vn[ROUGH_DISK_N], q1[ROUGH_DISK_N], u1[ROUGH_DISK_N], f[ROUGH_DISK_R_DIM];
-    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], a = 0.0, b = 1.0, cc, gc;
+    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], a = lo, b = 1.0, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         v[i] = guess[i];
@@ -1772,7 +1779,7 @@ static int rough_disk_liftoff_fraction(const rough_disk_ctx_t *c, const double *
         *s_out = 0.0;
         return 0;
     }
-    return rough_disk_illinois(c, r, 0, q, p, tau, guess, f0, f1, ROUGH_DISK_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return rough_disk_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, ROUGH_DISK_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, ROUGH_DISK_LIFT_ITER, s_out);
 }
 
@@ -1784,7 +1791,7 @@ static int rough_disk_row_crossing(const rough_disk_ctx_t *c, const double *q, c
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], ga;
     rough_disk_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return rough_disk_illinois(c, r, 1, q, p, tau, guess, ga, g1, ROUGH_DISK_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return rough_disk_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, ROUGH_DISK_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -1908,6 +1915,71 @@ static void rough_disk_law_slips(const rough_disk_ctx_t *c, const double *grad, 
         c->sus->act[r] = act[r];
     }
 }
+
+/* SustainedSteps._law_lands: the frictional contacts landing in the impulse law on rows[0..nr) (a row of their
+ * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row is independent of the rows and of the stick rows of those before it (appended to rows), else
+ * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
+ * is then taken anew at q, vel). */
+static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, const double *vel, double *grad,
+    int *rows, int *nr, int *slip_ride, int *land)
+{
+    double psi[ROUGH_DISK_R_DIM], curv[ROUGH_DISK_R_DIM];
+    int act[ROUGH_DISK_R_DIM], hit[ROUGH_DISK_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        land[f] = -1;
+    }
+    for (k = 0; k < *nr; ++k) {
+        if (rough_disk_row_contact[rows[k]] >= 0) {
+            hit[rough_disk_row_contact[rows[k]]] = 1;
+        }
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        act[r] = c->sus->act[r];
+        if (act[r] && rough_disk_row_contact[r] >= 0) {
+            hit[rough_disk_row_contact[r]] = 0; /* held */
+        }
+    }
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        if (hit[rough_disk_fric_contact[f]] && c->mu_f[f] > 0.0) {
+            land[f] = -2; /* landing: its owner below */
+            any = 1;
+            rough_disk_freeze_branch(c, f, q);
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    rough_disk_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < *nr; ++k) {
+        c->sus->act[rows[k]] = 1;
+    }
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        if (land[f] != -2) {
+            continue;
+        }
+        land[f] = -1;
+        sr = rough_disk_stick_row[f];
+        if (!rough_disk_dependent(c, grad, sr, -1)) {
+            c->sus->act[sr] = 1;
+            land[f] = f;
+            rows[(*nr)++] = sr;
+            continue;
+        }
+        for (g = 0; g < ROUGH_DISK_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
+            if (g != f && c->sus->act[rough_disk_stick_row[g]]
+                && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g])) {
+                land[f] = g;
+                slip_ride[f] = g;
+                break;
+            }
+        }
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    return 1;
+}
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1915,13 +1987,15 @@ static void rough_disk_law_slips(const rough_disk_ctx_t *c, const double *grad, 
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
  * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
  * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
- * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
- * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
- * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
- * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
+ * sticking within its cone, then the other edge. A frictional contact that lands (law_lands) joins the same way,
+ * sticking first, with a stick row of its own or in the cone of the contact whose stick row carries it. Solved by
+ * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
+ * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
+ * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
 static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N], minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
@@ -1955,6 +2029,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
         }
     }
     rough_disk_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
+    rough_disk_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
     if (nr > ROUGH_DISK_MAX_LAW_ROWS) {
         return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2109,21 +2184,24 @@ static double rough_disk_law_sliding(const double *grad, int f, const double *u)
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). */
+ * changed (a friction switch: no tangent). The landing contacts (land) keep no mode
+ * here. */
 static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q, const double *vel_p,
-    const int *slipped, const int *slip_own, const int *slip_ride)
+    const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double tiny, sliding, along, slip;
-    int r, i, f, g, k, any = 0, switched = 0;
+    int slipped[ROUGH_DISK_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
+        f = rough_disk_row_stick[r];
+        slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
         any = any || slipped[r];
     }
     for (f = 0; f < ROUGH_DISK_NF; ++f) {
         any = any || slip_own[f];
     }
     if (!any) {
-        return 0;
+        return why ? 2 : 0;
     }
     rough_disk_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel_p));
@@ -2137,9 +2215,9 @@ static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q,
             sliding += grad[r * ROUGH_DISK_N + i] * vel_p[i];
         }
         if (slip_own[f]) { /* a slipping contact that joined: on, turned, or stuck (below) */
-            for (k = -1; k < ROUGH_DISK_NF; ++k) { /* f, then its riders */
+            for (k = -1; k < ROUGH_DISK_NF; ++k) { /* f, then its riders (not the landing ones) */
                 g = k < 0 ? f : k;
-                if (k >= 0 && slip_ride[g] != f) {
+                if (k >= 0 && (slip_ride[g] != f || land[g] >= 0)) {
                     continue;
                 }
                 along = rough_disk_law_sliding(grad, g, vel_p);
@@ -2170,7 +2248,7 @@ static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q,
     for (f = 0; f < ROUGH_DISK_NF; ++f) { /* stuck in the law (its stick row tight) or at a sliding of 0 after */
         for (k = -1; k < ROUGH_DISK_NF && slip_own[f]; ++k) {
             g = k < 0 ? f : k;
-            if (k >= 0 && slip_ride[g] != f) {
+            if (k >= 0 && (slip_ride[g] != f || land[g] >= 0)) {
                 continue;
             }
             if (c->sus->slip[g] != 0.0 && fabs(rough_disk_law_sliding(grad, g, vel_p)) <= tiny) {
@@ -2180,6 +2258,7 @@ static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q,
         }
     }
     rough_disk_set_friction(c);
+    (void)why;
     return switched;
 }
 
@@ -2247,6 +2326,33 @@ static void rough_disk_held_accel(const rough_disk_ctx_t *c, const double *q, co
     rough_disk_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._landed: on = plastic and the stick rows of the contacts that landed and stuck in the impulse law
+ * (land; their owner's stick row not slipped) and are held after it (a row of theirs plastic): they stick from
+ * there on (friction_modes). One carried by another's stick row takes its own where that contact is no longer
+ * held (its rows off: a rocking block's pivot). */
+static void rough_disk_landed(const rough_disk_ctx_t *c, const int *land, const int *slipped, const int *plastic,
+    const int *off, int *on)
+{
+    int held[ROUGH_DISK_M_DIM] = {0}, f, o, r;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        on[r] = plastic[r];
+        if ((plastic[r] || (c->sus->act[r] && !off[r])) && rough_disk_row_contact[r] >= 0) {
+            held[rough_disk_row_contact[r]] = 1;
+        }
+    }
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        o = land[f];
+        if (o < 0 || !held[rough_disk_fric_contact[f]] || slipped[rough_disk_stick_row[o]]) {
+            continue;
+        }
+        if (o == f) {
+            on[rough_disk_stick_row[f]] = 1;
+        } else if (!held[rough_disk_fric_contact[o]]) {
+            on[rough_disk_stick_row[f]] = 1;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
@@ -2257,7 +2363,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp;
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
-    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
+    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     rough_disk_at(c, t);
     rough_disk_restitution(c->par, rest);
     rough_disk_velocity(c, q, v, p, vel);
@@ -2284,11 +2390,11 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         }
     }
     if (rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
-    if (rough_disk_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride)) { /* stick <-> slip: no tangent */
-    } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
+    if (rough_disk_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land)) { /* stick <-> slip: no tangent */
+    } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = rough_disk_loss(c, q, vel_m, vel_p);
     any = 0;
@@ -2301,7 +2407,10 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         any = any || leaving[r];
     }
     if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
-        rough_disk_held_accel(c, q, vel_p, leaving, plastic, racc);
+        int on[ROUGH_DISK_R_DIM];
+        rough_disk_landed(c, land, slipped, plastic, leaving, on);
+        rough_disk_held_accel(c, q, vel_p, leaving, on, racc);
+
         for (r = 0; r < ROUGH_DISK_R; ++r) {
             if (!leaving[r]) {
                 continue;
@@ -2350,14 +2459,16 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
 }
 
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
 static int rough_disk_plastic_entry(const rough_disk_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double tgt[ROUGH_DISK_R_DIM] = {0.0}, vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N];
-    int dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], lowest[ROUGH_DISK_R_DIM] = {0}, g, r, k, low;
-    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM];
+    int dropped[ROUGH_DISK_R_DIM], lowest[ROUGH_DISK_R_DIM] = {0}, g, r, k, low;
+    int slip_own[ROUGH_DISK_NF_DIM];
     rough_disk_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2377,9 +2488,9 @@ static int rough_disk_plastic_entry(const rough_disk_ctx_t *c, const double *q, 
             }
         }
     }
-    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (rough_disk_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
@@ -2449,6 +2560,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         rough_disk_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2495,7 +2607,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         for (i = 0; i < ROUGH_DISK_NF; ++i) {
             const int sr = rough_disk_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn;
+            double g0, g1 = 0.0, sgn, lo;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv0[ROUGH_DISK_R_DIM];
@@ -2512,7 +2624,30 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     }
                     g0 *= sgn;
                     s_ev[sr] = 0.0;
-                    if (g0 > 0.0 && rough_disk_illinois(c, sr, 2, q, p, tau, vv, g0, g1, 1e-14, 1e-13,
+                    lo = 0.0;
+                    if (fabs(g0) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0))) {
+                        /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
+                         * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
+                        g0 = 0.0;
+                        for (l = 0; l < 2; ++l) {
+                            double v_try[ROUGH_DISK_N], q_try[ROUGH_DISK_N], u_try[ROUGH_DISK_N], g_try = 0.0;
+                            const double s_try = l == 0 ? 1e-3 : 1e-6;
+                            int m;
+                            if (rough_disk_sub_end(c, q, p, tau, s_try, vv, v_try, q_try, u_try)) {
+                                return 1;
+                            }
+                            rough_disk_rows(q_try, u_try, c->par, psi0, grad0, curv0);
+                            for (m = 0; m < ROUGH_DISK_N; ++m) {
+                                g_try += grad0[sr * ROUGH_DISK_N + m] * u_try[m];
+                            }
+                            if (sgn * g_try > 1e-14) {
+                                lo = s_try;
+                                g0 = sgn * g_try;
+                                break;
+                            }
+                        }
+                    }
+                    if (g0 > 0.0 && rough_disk_illinois(c, sr, 2, q, p, tau, vv, lo, g0, g1, 1e-14, 1e-13,
                             ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -2528,7 +2663,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
                     g0 = rough_disk_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
-                    if (!(g0 < 0.0) && rough_disk_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
+                    if (!(g0 < 0.0) && rough_disk_illinois(c, sr, 3, q, p, tau, vv, 0.0, g0, g1,
                             ROUGH_DISK_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -2548,7 +2683,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     return 1;
                 }
                 rough_disk_velocity(c, q, vv, p, vel);
-                rough_disk_friction_switch(c, ev[start], start, q, vel);
+                kind = ev[start] == 3 && start == turn ? 5 : ev[start];
+                rough_disk_friction_switch(c, kind, start, q, vel);
+                turn = kind == 4 ? start : -1;
                 continue;
             }
             rough_disk_release(c, t, start);
@@ -2598,6 +2735,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             p[i] = p1[i];
         }
         t += s * tau;
+        turn = -1;
         tau = (1.0 - s) * tau;
         if (ev[r0] == 1) {
             rough_disk_release(c, t, r0);
@@ -3044,9 +3182,11 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
         }
         if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
             double p_plus[ROUGH_DISK_N], lam[ROUGH_DISK_R_DIM], loss, own;
-            int rows[ROUGH_DISK_R_DIM] = {0}, n_rows = 0, l;
+            int rows[ROUGH_DISK_R_DIM] = {0}, n_rows = 0, l, slipped[ROUGH_DISK_R_DIM];
+            int slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM];
             if (rough_disk_count_event(c)
-                || rough_disk_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                || rough_disk_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows,
+                    slipped, slip_ride, land)) {
                 return 1;
             }
             for (g = 0; g < n_group; ++g) {

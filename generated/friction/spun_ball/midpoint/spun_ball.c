@@ -2239,7 +2239,8 @@ static void spun_ball_cone_switch(const spun_ball_ctx_t *c, int kind, int f, int
 }
 
 /* SustainedSteps._friction_switch: at a located friction event on stick row sr, a stopped contact sticks (kind 3)
- * and a sliding one slips the way its stick force pushes (kind 4). */
+ * and a sliding one slips the way its stick force pushes (kind 4); a turn (kind 5, chain: a stop at the instant its
+ * slide began, the held step's impulse turning its sliding at once) slips the other way. */
 static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr, const double *q, const double *u)
 {
     double fr[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
@@ -2247,7 +2248,12 @@ static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr
     const int f = spun_ball_row_stick[sr];
     int i, g;
     if (spun_ball_partner[f] >= 0) {
-        spun_ball_cone_switch(c, kind, f, spun_ball_partner[f], q, u);
+        spun_ball_cone_switch(c, kind == 5 ? 3 : kind, f, spun_ball_partner[f], q, u);
+        return;
+    }
+    if (kind == 5) {
+        c->sus->slip[f] = -c->sus->slip[f];
+        spun_ball_set_friction(c);
         return;
     }
     spun_ball_rows(q, u, c->par, psi, grad, curv);
@@ -2275,18 +2281,19 @@ static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr
     spun_ball_set_friction(c);
 }
 
-/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
- * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int spun_ball_illinois(const spun_ball_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
+    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double *s_out)
 {
     double v[SPUN_BALL_N], vn[SPUN_BALL_N], q1[SPUN_BALL_N], u1[SPUN_BALL_N], f[SPUN_BALL_R_DIM];
-    double grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], a = 0.0, b = 1.0, cc, gc;
+    double grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], a = lo, b = 1.0, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < SPUN_BALL_N; ++i) {
         v[i] = guess[i];
@@ -2348,7 +2355,7 @@ static int spun_ball_liftoff_fraction(const spun_ball_ctx_t *c, const double *q,
         *s_out = 0.0;
         return 0;
     }
-    return spun_ball_illinois(c, r, 0, q, p, tau, guess, f0, f1, SPUN_BALL_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return spun_ball_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, SPUN_BALL_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, SPUN_BALL_LIFT_ITER, s_out);
 }
 
@@ -2360,7 +2367,7 @@ static int spun_ball_row_crossing(const spun_ball_ctx_t *c, const double *q, con
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], ga;
     spun_ball_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return spun_ball_illinois(c, r, 1, q, p, tau, guess, ga, g1, SPUN_BALL_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return spun_ball_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, SPUN_BALL_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -2382,7 +2389,7 @@ static int spun_ball_cone_stop(const spun_ball_ctx_t *c, int f, int p, const dou
     spun_ball_sliding(f, p, grad, vel0, w);
     g0 = s0 * w[0] + s1 * w[1];
     *s_out = 0.0;
-    if (g0 > 0.0 && spun_ball_illinois(c, spun_ball_stick_row[f], 5, q, pp, tau, guess, g0, g1, 1e-14, 1e-13,
+    if (g0 > 0.0 && spun_ball_illinois(c, spun_ball_stick_row[f], 5, q, pp, tau, guess, 0.0, g0, g1, 1e-14, 1e-13,
             SPUN_BALL_LIFT_ITER, s_out)) {
         return 1;
     }
@@ -2582,6 +2589,92 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
     }
 }
 
+/* SustainedSteps._law_lands: the frictional contacts landing in the impulse law on rows[0..nr) (a row of their
+ * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row (an isotropic
+ * cone: both) is independent of the rows and of the stick rows of those before it (appended to rows), else
+ * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone, a cone
+ * with a dependent row). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
+ * is then taken anew at q, vel). */
+static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const double *vel, double *grad,
+    int *rows, int *nr, int *slip_ride, int *land)
+{
+    double psi[SPUN_BALL_R_DIM], curv[SPUN_BALL_R_DIM];
+    int act[SPUN_BALL_R_DIM], hit[SPUN_BALL_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    int pf;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        land[f] = -1;
+    }
+    for (k = 0; k < *nr; ++k) {
+        if (spun_ball_row_contact[rows[k]] >= 0) {
+            hit[spun_ball_row_contact[rows[k]]] = 1;
+        }
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        act[r] = c->sus->act[r];
+        if (act[r] && spun_ball_row_contact[r] >= 0) {
+            hit[spun_ball_row_contact[r]] = 0; /* held */
+        }
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (hit[spun_ball_fric_contact[f]] && c->mu_f[f] > 0.0 && !(spun_ball_partner[f] >= 0 && spun_ball_partner[f] < f)) {
+            land[f] = -2; /* landing: its owner below */
+            any = 1;
+            spun_ball_freeze_branch(c, f, q);
+            if (spun_ball_partner[f] >= 0) {
+                spun_ball_freeze_branch(c, spun_ball_partner[f], q);
+            }
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    spun_ball_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < *nr; ++k) {
+        c->sus->act[rows[k]] = 1;
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (land[f] != -2) {
+            continue;
+        }
+        land[f] = -1;
+        sr = spun_ball_stick_row[f];
+        pf = spun_ball_partner[f];
+        if (pf >= 0) { /* an isotropic cone: both rows independent */
+            if (!spun_ball_dependent(c, grad, sr, -1)) {
+                c->sus->act[sr] = 1;
+                if (!spun_ball_dependent(c, grad, spun_ball_stick_row[pf], -1)) {
+                    c->sus->act[spun_ball_stick_row[pf]] = 1;
+                    land[f] = f;
+                    rows[(*nr)++] = sr;
+                    rows[(*nr)++] = spun_ball_stick_row[pf];
+                    continue;
+                }
+                c->sus->act[sr] = 0;
+            }
+            continue;
+        }
+        if (!spun_ball_dependent(c, grad, sr, -1)) {
+            c->sus->act[sr] = 1;
+            land[f] = f;
+            rows[(*nr)++] = sr;
+            continue;
+        }
+        for (g = 0; g < SPUN_BALL_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
+            if (g != f && c->sus->act[spun_ball_stick_row[g]] && spun_ball_partner[g] < 0
+                && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
+                land[f] = g;
+                slip_ride[f] = g;
+                break;
+            }
+        }
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        c->sus->act[r] = act[r];
+    }
+    return 1;
+}
+
 static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
     double *m1, double *m2); /* stepper_cone.c.j2 */
 
@@ -2667,13 +2760,15 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
  * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
  * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
- * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
- * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
- * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
- * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
+ * sticking within its cone, then the other edge. A frictional contact that lands (law_lands) joins the same way,
+ * sticking first, with a stick row of its own or in the cone of the contact whose stick row carries it. Solved by
+ * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
+ * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
+ * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
 static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], minv_g[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
@@ -2709,6 +2804,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         }
     }
     spun_ball_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
+    spun_ball_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
     if (nr > SPUN_BALL_MAX_LAW_ROWS) {
         return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2948,22 +3044,26 @@ static int spun_ball_cone_at_impact(const spun_ball_ctx_t *c, const double *q, c
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
  * changed (a friction switch: no tangent). Isotropic cones the same way (cone_at_impact); 2: a cone's sliding
- * impulse (friction at an impact: no tangent). */
+ * impulse (friction at an impact: no tangent), a landing cone's too. The landing contacts (land) keep no mode
+ * here. */
 static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, const double *vel_p,
-    const int *slipped, const int *slip_own, const int *slip_ride)
+    const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double tiny, sliding, along, slip;
-    int r, i, f, g, k, any = 0, switched = 0;
+    int slipped[SPUN_BALL_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
     int cones;
     for (r = 0; r < SPUN_BALL_R; ++r) {
+        f = spun_ball_row_stick[r];
+        slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
+        why = why || (slipped_in[r] && f >= 0 && land[f] == f && spun_ball_partner[f] >= 0); /* a landing cone slid */
         any = any || slipped[r];
     }
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         any = any || slip_own[f];
     }
     if (!any) {
-        return 0;
+        return why ? 2 : 0;
     }
     spun_ball_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel_p));
@@ -2980,9 +3080,9 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
             sliding += grad[r * SPUN_BALL_N + i] * vel_p[i];
         }
         if (slip_own[f]) { /* a slipping contact that joined: on, turned, or stuck (below) */
-            for (k = -1; k < SPUN_BALL_NF; ++k) { /* f, then its riders */
+            for (k = -1; k < SPUN_BALL_NF; ++k) { /* f, then its riders (not the landing ones) */
                 g = k < 0 ? f : k;
-                if (k >= 0 && slip_ride[g] != f) {
+                if (k >= 0 && (slip_ride[g] != f || land[g] >= 0)) {
                     continue;
                 }
                 along = spun_ball_law_sliding(grad, g, vel_p);
@@ -3013,7 +3113,7 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
     for (f = 0; f < SPUN_BALL_NF; ++f) { /* stuck in the law (its stick row tight) or at a sliding of 0 after */
         for (k = -1; k < SPUN_BALL_NF && slip_own[f] && spun_ball_partner[f] < 0; ++k) {
             g = k < 0 ? f : k;
-            if (k >= 0 && slip_ride[g] != f) {
+            if (k >= 0 && (slip_ride[g] != f || land[g] >= 0)) {
                 continue;
             }
             if (c->sus->slip[g] != 0.0 && fabs(spun_ball_law_sliding(grad, g, vel_p)) <= tiny) {
@@ -3023,7 +3123,7 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
         }
     }
     spun_ball_set_friction(c);
-    return switched ? 1 : (cones & 2 ? 2 : 0);
+    return switched ? 1 : (cones & 2 || why ? 2 : 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
@@ -3090,6 +3190,37 @@ static void spun_ball_held_accel(const spun_ball_ctx_t *c, const double *q, cons
     spun_ball_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._landed: on = plastic and the stick rows of the contacts that landed and stuck in the impulse law
+ * (land; their owner's stick row not slipped) and are held after it (a row of theirs plastic): they stick from
+ * there on (friction_modes). One carried by another's stick row takes its own where that contact is no longer
+ * held (its rows off: a rocking block's pivot). */
+static void spun_ball_landed(const spun_ball_ctx_t *c, const int *land, const int *slipped, const int *plastic,
+    const int *off, int *on)
+{
+    int held[SPUN_BALL_M_DIM] = {0}, f, o, r;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        on[r] = plastic[r];
+        if ((plastic[r] || (c->sus->act[r] && !off[r])) && spun_ball_row_contact[r] >= 0) {
+            held[spun_ball_row_contact[r]] = 1;
+        }
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        o = land[f];
+        if (o < 0 || !held[spun_ball_fric_contact[f]] || slipped[spun_ball_stick_row[o]]
+            || (spun_ball_partner[o] >= 0 && slipped[spun_ball_stick_row[spun_ball_partner[o]]])) {
+            continue;
+        }
+        if (o == f) {
+            on[spun_ball_stick_row[f]] = 1;
+            if (spun_ball_partner[f] >= 0) {
+                on[spun_ball_stick_row[spun_ball_partner[f]]] = 1;
+            }
+        } else if (!held[spun_ball_fric_contact[o]]) {
+            on[spun_ball_stick_row[f]] = 1;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. */
 static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, double *p, const double *v,
@@ -3100,7 +3231,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double curv[SPUN_BALL_R_DIM], tgt[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N] = {0.0}, lam[SPUN_BALL_R_DIM];
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
-    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
+    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     int why;
     spun_ball_at(c, t);
     spun_ball_restitution(c->par, rest);
@@ -3128,10 +3259,10 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         }
     }
     if (spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
-    why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride);
+    why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land);
     if (why) { /* stick <-> slip (a mode change), or a cone's sliding impulse: no tangent */
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
@@ -3146,7 +3277,10 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         any = any || leaving[r];
     }
     if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
-        spun_ball_held_accel(c, q, vel_p, leaving, plastic, racc);
+        int on[SPUN_BALL_R_DIM];
+        spun_ball_landed(c, land, slipped, plastic, leaving, on);
+        spun_ball_held_accel(c, q, vel_p, leaving, on, racc);
+
         for (r = 0; r < SPUN_BALL_R; ++r) {
             if (!leaving[r]) {
                 continue;
@@ -3195,14 +3329,16 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
 }
 
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
 static int spun_ball_plastic_entry(const spun_ball_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double tgt[SPUN_BALL_R_DIM] = {0.0}, vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N];
-    int dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], lowest[SPUN_BALL_R_DIM] = {0}, g, r, k, low;
-    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM];
+    int dropped[SPUN_BALL_R_DIM], lowest[SPUN_BALL_R_DIM] = {0}, g, r, k, low;
+    int slip_own[SPUN_BALL_NF_DIM];
     spun_ball_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -3222,9 +3358,9 @@ static int spun_ball_plastic_entry(const spun_ball_ctx_t *c, const double *q, co
             }
         }
     }
-    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (spun_ball_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
@@ -3294,6 +3430,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         spun_ball_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -3340,7 +3477,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         for (i = 0; i < SPUN_BALL_NF; ++i) {
             const int sr = spun_ball_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn;
+            double g0, g1 = 0.0, sgn, lo;
             int l;
             if (spun_ball_partner[i] >= 0 && spun_ball_partner[i] < i) {
                 continue; /* a cone's second tangent: its events are its first's */
@@ -3365,7 +3502,30 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     }
                     g0 *= sgn;
                     s_ev[sr] = 0.0;
-                    if (g0 > 0.0 && spun_ball_illinois(c, sr, 2, q, p, tau, vv, g0, g1, 1e-14, 1e-13,
+                    lo = 0.0;
+                    if (fabs(g0) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) {
+                        /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
+                         * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
+                        g0 = 0.0;
+                        for (l = 0; l < 2; ++l) {
+                            double v_try[SPUN_BALL_N], q_try[SPUN_BALL_N], u_try[SPUN_BALL_N], g_try = 0.0;
+                            const double s_try = l == 0 ? 1e-3 : 1e-6;
+                            int m;
+                            if (spun_ball_sub_end(c, q, p, tau, s_try, vv, v_try, q_try, u_try)) {
+                                return 1;
+                            }
+                            spun_ball_rows(q_try, u_try, c->par, psi0, grad0, curv0);
+                            for (m = 0; m < SPUN_BALL_N; ++m) {
+                                g_try += grad0[sr * SPUN_BALL_N + m] * u_try[m];
+                            }
+                            if (sgn * g_try > 1e-14) {
+                                lo = s_try;
+                                g0 = sgn * g_try;
+                                break;
+                            }
+                        }
+                    }
+                    if (g0 > 0.0 && spun_ball_illinois(c, sr, 2, q, p, tau, vv, lo, g0, g1, 1e-14, 1e-13,
                             SPUN_BALL_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -3381,7 +3541,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
                     g0 = spun_ball_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
-                    if (!(g0 < 0.0) && spun_ball_illinois(c, sr, 3, q, p, tau, vv, g0, g1,
+                    if (!(g0 < 0.0) && spun_ball_illinois(c, sr, 3, q, p, tau, vv, 0.0, g0, g1,
                             SPUN_BALL_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, SPUN_BALL_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -3401,7 +3561,9 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     return 1;
                 }
                 spun_ball_velocity(c, q, vv, p, vel);
-                spun_ball_friction_switch(c, ev[start], start, q, vel);
+                kind = ev[start] == 3 && start == turn ? 5 : ev[start];
+                spun_ball_friction_switch(c, kind, start, q, vel);
+                turn = kind == 4 ? start : -1;
                 continue;
             }
             spun_ball_release(c, t, start);
@@ -3451,6 +3613,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             p[i] = p1[i];
         }
         t += s * tau;
+        turn = -1;
         tau = (1.0 - s) * tau;
         if (ev[r0] == 1) {
             spun_ball_release(c, t, r0);
@@ -4145,9 +4308,11 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
         }
         if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
             double p_plus[SPUN_BALL_N], lam[SPUN_BALL_R_DIM], loss, own;
-            int rows[SPUN_BALL_R_DIM] = {0}, n_rows = 0, l;
+            int rows[SPUN_BALL_R_DIM] = {0}, n_rows = 0, l, slipped[SPUN_BALL_R_DIM];
+            int slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM];
             if (spun_ball_count_event(c)
-                || spun_ball_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                || spun_ball_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows,
+                    slipped, slip_ride, land)) {
                 return 1;
             }
             for (g = 0; g < n_group; ++g) {

@@ -1738,18 +1738,19 @@ static int double_pendulum_sub_end(const double_pendulum_ctx_t *c, const double 
     return double_pendulum_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* sustained._illinois: Illinois regula falsi on [0, 1] for the root of row r's value along the constrained
- * sub-step map (value(0) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int double_pendulum_illinois(const double_pendulum_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double ga, double gb, double tiny, double width, int iters, double *s_out)
+    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double *s_out)
 {
     double v[DOUBLE_PENDULUM_N], vn[DOUBLE_PENDULUM_N], q1[DOUBLE_PENDULUM_N], u1[DOUBLE_PENDULUM_N], f[DOUBLE_PENDULUM_R_DIM];
-    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], a = 0.0, b = 1.0, cc, gc;
+    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], a = lo, b = 1.0, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         v[i] = guess[i];
@@ -1792,7 +1793,7 @@ static int double_pendulum_liftoff_fraction(const double_pendulum_ctx_t *c, cons
         *s_out = 0.0;
         return 0;
     }
-    return double_pendulum_illinois(c, r, 0, q, p, tau, guess, f0, f1, DOUBLE_PENDULUM_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return double_pendulum_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, DOUBLE_PENDULUM_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, DOUBLE_PENDULUM_LIFT_ITER, s_out);
 }
 
@@ -1804,7 +1805,7 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], ga;
     double_pendulum_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return double_pendulum_illinois(c, r, 1, q, p, tau, guess, ga, g1, DOUBLE_PENDULUM_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return double_pendulum_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, DOUBLE_PENDULUM_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -1815,13 +1816,15 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
  * Lam_n, its tangential velocity after >= 0 resp. <= 0); strict stick rows (cones, dependent sticks) only stick.
  * A one-tangent contact held and slipping (law_slips) joins with its stick row and the same three modes, its own
  * first: the edge against its slip (Coulomb's sliding impulse, its tangential velocity after not reversed), then
- * sticking within its cone, then the other edge. Solved by trying the friction modes in base 3 (each cone's own
- * first: all sticking, the slipping slipping on), each over the sets of tight rows from the largest down; the
- * first solution is taken. Out: p+, Lam (per row), the velocities before and after, the rows left with no impulse
- * (dropped), the stick rows that slipped (slipped) and the slipping contacts that joined (slip_own, slip_ride). */
+ * sticking within its cone, then the other edge. A frictional contact that lands (law_lands) joins the same way,
+ * sticking first, with a stick row of its own or in the cone of the contact whose stick row carries it. Solved by
+ * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
+ * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
+ * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
 static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
@@ -1851,6 +1854,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
     }
     slip_own[0] = 0;
     slip_ride[0] = -1;
+    land[0] = -1;
     if (nr > DOUBLE_PENDULUM_MAX_LAW_ROWS) {
         return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2015,7 +2019,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp;
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
-    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
     double_pendulum_restitution(c->par, rest);
     double_pendulum_velocity(c, q, v, p, vel);
@@ -2042,12 +2046,13 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
         }
     }
     if (double_pendulum_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     (void)slipped;
     (void)slip_own;
     (void)slip_ride;
+    (void)land;
     loss = double_pendulum_loss(c, q, vel_m, vel_p);
     any = 0;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* the active rows the impact pulls off */
@@ -2060,6 +2065,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     }
     if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
         double_pendulum_held_accel(c, q, vel_p, leaving, plastic, racc);
+
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
             if (!leaving[r]) {
                 continue;
@@ -2108,14 +2114,16 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
 }
 
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active. Out: p+, Lam per row, the kinetic energy lost, and the rows involved. */
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
 static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows)
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
 {
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double tgt[DOUBLE_PENDULUM_R_DIM] = {0.0}, vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N];
-    int dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, g, r, k, low;
-    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM];
+    int dropped[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, g, r, k, low;
+    int slip_own[DOUBLE_PENDULUM_NF_DIM];
     double_pendulum_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2135,9 +2143,9 @@ static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const d
             }
         }
     }
-    /* no row is held here (the free impact chain runs with none), so no stick row slips in the law */
+    /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (double_pendulum_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride)) {
+        slip_ride, land)) {
         return 1;
     }
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
@@ -2629,9 +2637,11 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
         }
         if (rc == 2) { /* plastic: the contact is held for the rest of the step (SustainedSteps._plastic_entry) */
             double p_plus[DOUBLE_PENDULUM_N], lam[DOUBLE_PENDULUM_R_DIM], loss, own;
-            int rows[DOUBLE_PENDULUM_R_DIM] = {0}, n_rows = 0, l;
+            int rows[DOUBLE_PENDULUM_R_DIM] = {0}, n_rows = 0, l, slipped[DOUBLE_PENDULUM_R_DIM];
+            int slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM];
             if (double_pendulum_count_event(c)
-                || double_pendulum_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows)) {
+                || double_pendulum_plastic_entry(c, seg->q, seg->p_in, v_c, group, n_group, p_plus, lam, &loss, rows, &n_rows,
+                    slipped, slip_ride, land)) {
                 return 1;
             }
             for (g = 0; g < n_group; ++g) {

@@ -1,0 +1,392 @@
+"""The impulse law of an impact with rows held (MATH.md *Sustained contact*, *Friction*), for
+:class:`vcigen.held_impacts.HeldImpacts`: Newton's law on the active rows and the rows hit, a complementarity
+problem solved by enumeration, with Coulomb's cone on the held stick rows (sticking or slipping), on the
+contacts that land, and on isotropic cones (a 1-D root); and the law as the tangent takes it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import SolverError
+from .friction import cone_slide
+from .held_roots import EPS_LAM, MAX_LAW_ROWS
+
+
+def _pooled(pools, lam) -> float:
+    """``sum mu_f Lam_n`` over the pools of a stick row's cone (``SustainedSteps._law_cones``): its room."""
+    return sum(mu * float(np.sum(lam[normals])) for normals, mu in pools)
+
+
+class ImpulseLaw:
+    """The impulse law while rows are held (a base of :class:`vcigen.held_impacts.HeldImpacts`)."""
+
+    def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
+        """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with
+        Coulomb's cone on the held stick rows (MATH.md *Friction*).
+
+        The complementarity problem of the rows ``S`` involved: impulses ``Lam >= 0`` and outgoing normal
+        velocities ``g_r.qdot+ >= target_r``, one of the two tight for every row (bilateral rows: equality,
+        ``Lam`` free). A held stick row (a one-tangent contact ``f`` sticking, :meth:`_law_cones`) sticks
+        (tight, ``|Lam_t| <= mu_f Lam_n``, ``Lam_n`` its contact's normal impulse in this impact) or slips at
+        either edge of its cone, ``Lam_t = -+mu_f Lam_n`` with the tangential velocity after ``>= 0`` resp.
+        ``<= 0`` (its contact's normal rows then push along ``g_n -+ mu_f g_t``). Without friction the
+        Delassus matrix ``G M^-1 G^T`` is positive definite and the solution unique; the friction modes are
+        tried all sticking first (the law of old where it stays inside the cones), then the first stick row
+        slipping (``Lam_t = -mu_f Lam_n``, then ``+mu_f Lam_n``) and so on in base 3, each over the sets of
+        tight rows from the largest down: the first solution is taken, deterministically. A one-tangent
+        contact held and slipping (:meth:`_law_slips`) joins with its stick row and the same three modes, its
+        own first: on the edge against its slip (``Lam_t = slip_f / mu_f * mu_f Lam_n``, Coulomb's sliding
+        impulse, its tangential velocity after not reversed), then sticking within its cone, then the other
+        edge. An isotropic cone held (both tangents' stick rows; sticking, or slipping and joined by
+        :meth:`_law_slips`) sticks within its cone (``|Lam_t| <= mu_f Lam_n``, 2-norm) or slips with Coulomb's
+        sliding impulse ``Lam_t = -mu_f Lam_n w+ / |w+|`` against its tangential velocity after ``w+``
+        (:meth:`_law_slide`, a 1-D root); its modes come after all the one-tangent ones (stick then slip, a
+        slipping cone's slip first), one cone slipping at a time. A frictional contact that lands (a row
+        of its hit, none held: :meth:`_law_lands`) joins the same way, sticking first: with a stick row of its
+        own (a one-tangent contact's three modes, a cone's stick or slide), or in the cone of the contact
+        whose stick row carries its tangent (its normal impulse is that one's room too). Returns ``(p+, Lam,
+        vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no impulse (the caller
+        releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the slipping contacts
+        that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`), ``lands`` the landing
+        ones (their modes are set when they are held, ``_friction_modes``).
+        """
+        k = self.k
+        vel = self._velocity(q, guess, p)
+        mass = k.legendre(q, vel)[1]
+        grad = k.rows(q, vel)[1]
+        rows = [int(r) for r in np.flatnonzero(self.act)] + [r for r in hit if not self.act[r]]
+        slips = self._law_slips(grad, rows)
+        for f, _ in slips:  # a cone's two stick rows, its first tangent's first
+            rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
+        lands = self._law_lands(q, vel, rows)
+        if lands:
+            grad = k.rows(q, vel)[1]  # their branches frozen where they land
+        for f in sorted({o for o in lands.values()} & set(lands)):  # landing with a row of its own
+            rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
+        if len(rows) > MAX_LAW_ROWS:
+            raise SolverError(
+                step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
+            )
+        tgt = {r: 0.0 for r in rows} | dict(targets)
+        free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
+        g = grad[rows]
+        w = g @ np.linalg.solve(mass, g.T)
+        b = np.array([tgt[r] for r in rows]) - g @ vel
+        lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
+        vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
+        n = len(rows)
+        cones, strict, orders, isos = self._law_cones(rows, slips, lands)
+        out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
+        for modes in range(3 ** len(cones) * 2 ** len(isos)):
+            # 0 stick, 1 Lam_t = -mu Lam_n, 2 +; each cone's digits in its order (its own mode first)
+            slips_ = [orders[c][(modes // 3**c) % 3] for c in range(len(cones))]
+            # then the isotropic cones' (after all of those): 0 stick, 1 slip; each its own first
+            upper = modes // 3 ** len(cones)
+            slides = [(upper >> c & 1) ^ iso[4] for c, iso in enumerate(isos)]
+            if sum(slides) > 1:
+                out = out or (
+                    f"impulse law: {sum(slides)} isotropic cones slipping at once at an impact while held"
+                )
+                continue
+            ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
+            for (i, pools), mode in zip(cones, slips_):
+                for normals, mu in pools if mode else ():
+                    ws[:, normals] += (-mu if mode == 1 else mu) * w[:, [i]]
+            sliding = {i for (i, _), mode in zip(cones, slips_) if mode}
+            slide = [iso for iso, on in zip(isos, slides) if on]
+            sliding |= {x for iso in slide for x in iso[:2]}
+            for mask in range((1 << n) - 1, -1, -1):
+                tight = [i for i in range(n) if mask >> i & 1]
+                if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
+                    continue
+                if slide:
+                    lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_, lam_eps)
+                    if lam is None:
+                        continue
+                else:
+                    lam = np.zeros(n)
+                    if tight:
+                        try:
+                            lam[tight] = np.linalg.solve(ws[np.ix_(tight, tight)], b[tight])
+                        except np.linalg.LinAlgError:
+                            continue
+                    for (i, pools), mode in zip(cones, slips_):
+                        if mode:
+                            lam[i] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
+                gap = w @ lam - b  # g_r.qdot+ - target_r
+                if not (
+                    all(lam[i] >= -lam_eps or not free[i] for i in tight)
+                    and all(gap[i] >= -vel_eps for i in range(n) if not mask >> i & 1 and i not in sliding)
+                ):
+                    continue
+                inside = True
+                for (i, pools), mode in zip(cones, slips_):
+                    if mode == 0:
+                        inside = inside and abs(lam[i]) <= _pooled(pools, lam) + lam_eps
+                    else:
+                        inside = inside and (gap[i] >= -vel_eps if mode == 1 else gap[i] <= vel_eps)
+                for (i, o, normals, mu, _, _), on in zip(isos, slides):
+                    if not on:  # sticking: within its cone (slipping: on its edge by _law_slide)
+                        cap = mu * float(np.sum(lam[normals]))
+                        inside = inside and math.hypot(float(lam[i]), float(lam[o])) <= cap + lam_eps
+                if inside and strict:
+                    why = self._law_strict(strict, rows, lam, lam_eps)
+                    out, inside = out or why, not why
+                if inside:
+                    break
+            else:
+                continue
+            break
+        else:
+            if out:
+                raise SolverError(step, t_k, "sustained", math.nan, out)
+            raise SolverError(
+                step,
+                t_k,
+                "sustained",
+                math.nan,
+                f"impulse law: no solution on {n} contacts (dependent normals?)",
+            )
+        lam_full = np.zeros(k.r)
+        lam_full[rows] = lam
+        dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
+        slipped = [rows[i] for i in sorted(sliding)]
+        for (i, o, _, _, on, f), slid in zip(isos, slides):
+            if on and slid and lam[i] == 0.0 and lam[o] == 0.0:  # no normal impulse: it slips on as before
+                slips = [s for s in slips if s[0] != f]
+                slipped = [r for r in slipped if r not in (rows[i], rows[o])]
+        p_plus = p + grad.T @ lam_full
+        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips, lands
+
+    def _law_slips(self, grad, rows) -> list[tuple[int, list[int]]]:
+        """The one-tangent contacts held and slipping whose friction joins the impulse law on ``rows``
+        (:meth:`_impulse_law`): ``[(f, riders)]``, ``f`` one whose stick row is independent of the active rows
+        and of the stick rows of those before it (it joins the law), ``riders`` the slipping contacts whose
+        stick row depends on ``f``'s (a box slipping on a face, two vertices: their normal impulses are
+        ``f``'s room too, as for a dependent stick, :meth:`_law_cones`). A slipping contact whose stick row
+        depends on the held rows alone (its sliding fixed by them) takes none. An isotropic cone slipping
+        (``f`` its first tangent, ``riders`` empty) joins with both its stick rows if both are independent of
+        those before (else it takes none: a cone coupled to another's slip is not handled)."""
+        k = self.k
+        out: list[tuple[int, list[int]]] = []
+        if not self._stick_rows:
+            return out
+        act = self.act.copy()
+        try:
+            for f, sr in enumerate(self._stick_rows):
+                j = k.frictional[f]
+                held = any(self.act[r] and k.row_contact[r] == j for r in rows)
+                pf = self._partner[f]
+                if pf > f and held and (self._slip[f] or self._slip[pf]):  # a cone: both rows independent
+                    sp_ = self._stick_rows[pf]
+                    if not self._dependent(grad, sr):
+                        self.act[sr] = True
+                        if not self._dependent(grad, sp_):
+                            self.act[sp_] = True
+                            out.append((f, []))
+                            continue
+                        self.act[sr] = False
+                    continue
+                if not (self._slip[f] and pf < 0 and held):
+                    continue
+                if not self._dependent(grad, sr):
+                    self.act[sr] = True
+                    out.append((f, []))
+                    continue
+                for g, riders in out:
+                    if self._partner[g] < 0 and not self._dependent(grad, sr, self._stick_rows[g]):
+                        riders.append(f)
+                        break
+        finally:
+            self.act = act
+        return out
+
+    def _law_lands(self, q, vel, rows) -> dict[int, int]:
+        """The frictional contacts landing in the impulse law on ``rows`` (a row of their contact among them,
+        none held) whose friction joins it (MATH.md *Friction*: Coulomb's impulse at an impact): ``{f:
+        owner}``, ``owner = f`` for one whose stick row (an isotropic cone: both) is independent of ``rows``
+        and of the stick rows of those before it (it joins the law), else the one-tangent contact whose stick
+        row carries its tangent (held and sticking, slipping and joined, or landing before it; a box landing
+        flat, two vertices). One whose stick row depends on the normal rows alone takes none, as does a cone
+        with a dependent row. Their branches are frozen where they land (:meth:`_freeze_branch`)."""
+        k = self.k
+        out: dict[int, int] = {}
+        if not self._stick_rows:
+            return out
+        held = {k.row_contact[r] for r in np.flatnonzero(self.act)}
+        hit = {k.row_contact[r] for r in rows} - held
+        landing = [
+            f
+            for f, j in enumerate(k.frictional)
+            if j in hit and self._mu_f[f] > 0.0 and not 0 <= self._partner[f] < f
+        ]
+        if not landing:
+            return out
+        for f in landing:
+            for x in (f, self._partner[f]):
+                if x >= 0:
+                    self._freeze_branch(x, q)
+        grad = k.rows(q, vel)[1]
+        act = self.act.copy()
+        try:
+            self.act[rows] = True
+            owners = [g for g, sg in enumerate(self._stick_rows) if self.act[sg] and self._partner[g] < 0]
+            for f in landing:
+                sr, pf = self._stick_rows[f], self._partner[f]
+                if pf >= 0:  # an isotropic cone: both rows independent
+                    if not self._dependent(grad, sr):
+                        self.act[sr] = True
+                        if not self._dependent(grad, self._stick_rows[pf]):
+                            self.act[self._stick_rows[pf]] = True
+                            out[f] = f
+                            continue
+                        self.act[sr] = False
+                    continue
+                if not self._dependent(grad, sr):
+                    self.act[sr] = True
+                    out[f] = f
+                    owners.append(f)
+                    continue
+                for g in sorted(owners):  # held and sticking or slipping and joined, or landing before
+                    if not self._dependent(grad, sr, self._stick_rows[g]):
+                        out[f] = g
+                        break
+        finally:
+            self.act = act
+        return out
+
+    def _law_cones(self, rows, slips=(), lands=None):
+        """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
+        one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
+        ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
+        ``rows``), then those of the one-tangent dependent sticks and landing contacts it carries (``lands``,
+        :meth:`_law_lands`; their cones are its room too, as in :meth:`_cone_margin`; they slip with it), in
+        index order; ``[(i, normals, mu_f, -1)]`` of the isotropic cones with
+        one tangent held, which may only stick; ``isos``: ``[(i, o, normals, mu_f, on, f)]`` of those with
+        both held (``i``, ``o`` their indices, ``f`` the first tangent, ``on`` 1 if slipping and joined by
+        :meth:`_law_slips`), which stick or slip (:meth:`_law_slide`). A cone coupled to others by a dependent
+        stick (:meth:`_cone_split`) is not checked. Then the slipping one-tangent contacts ``slips``, pooled
+        the same way. ``orders``: each one-tangent cone's modes in the order tried, its own first (stick ``(0,
+        1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against ``-`` ``(2, 0, 1)``)."""
+        k = self.k
+        cones, strict, orders, isos = [], [], [], []
+        slipping = {f for f, _ in slips}
+        lands = lands or {}
+
+        def normals(f):
+            return [i for i, r in enumerate(rows) if k.row_contact[r] == k.frictional[f]]
+
+        for f, sr in enumerate(self._stick_rows):
+            pf = self._partner[f]
+            if pf >= 0:
+                if pf < f:
+                    continue  # a cone's second tangent: with its first
+                riders = [g for g, owner in enumerate(self._ride) if g not in (f, pf) and owner in (f, pf)]
+                both = [rows.index(x) if x in rows else -1 for x in (sr, self._stick_rows[pf])]
+                if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
+                    i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
+                    if o >= 0:  # both tangents held: stick or slip (on the slipping ones, below)
+                        isos.append((i, o, normals(f), float(self._mu_f[f]), int(f in slipping), f))
+                    else:
+                        strict.append((i, normals(f), float(self._mu_f[f]), o))
+            elif sr in rows and f not in slipping:
+                riders = [
+                    g
+                    for g, owner in enumerate(self._ride)
+                    if g != f and (owner == f and self._partner[g] < 0 or lands.get(g, -1) == f)
+                ]
+                pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
+                cones.append((rows.index(sr), pools))
+                orders.append((0, 1, 2))
+        for f, riders in slips:
+            if self._partner[f] >= 0:
+                continue  # an isotropic cone: in isos
+            riders = sorted([*riders, *(g for g, o in lands.items() if o == f and g != f)])
+            pools = [(normals(g), float(self._mu_f[g])) for g in [f, *riders]]
+            cones.append((rows.index(self._stick_rows[f]), pools))
+            orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
+        return cones, strict, orders, isos
+
+    def _law_slide(self, iso, w, ws, b, tight, cones, slips_, lam_eps):
+        """The impulses of the impulse law (:meth:`_impulse_law`) on the tight rows ``tight`` with the
+        isotropic cone ``iso = (i, o, normals, mu_f, on, f)`` slipping: Coulomb's sliding impulse, its
+        tangential impulse ``m`` against its tangential velocity after (:func:`vcigen.friction.cone_slide`);
+        None if it would stick (or the rows are singular, or a tangent is fixed by them: ``H`` singular). The
+        law is affine in ``m`` (the tight rows' impulses, the one-tangent slipping rows' edges): its value at
+        ``m = 0`` and its two columns give the cone's normal impulse ``a - b.m`` (``a`` within ``lam_eps`` of
+        0: none, ``m = 0``) and the tangential velocity after ``g + H m``, one solve with three right-hand
+        sides."""
+        i, o, normals, mu, _, _ = iso
+        n = len(b)
+        lams = np.zeros((3, n))  # the law at m = 0, then its columns in m1, m2
+        if tight:
+            rhs = np.column_stack([b[tight], -w[tight, i], -w[tight, o]])
+            try:
+                lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T
+            except np.linalg.LinAlgError:
+                return None
+        lams[1, i] = lams[2, o] = 1.0
+        for lam in lams:
+            for (c, pools), mode in zip(cones, slips_):
+                if mode:
+                    lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
+        gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
+        a = float(np.sum(lams[0, normals]))
+        a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
+        bn = (-float(np.sum(lams[1, normals])), -float(np.sum(lams[2, normals])))
+        g = (float(gaps[0, i] - b[i]), float(gaps[0, o] - b[o]))
+        m = cone_slide(g, (gaps[1, i], gaps[2, i], gaps[1, o], gaps[2, o]), bn, mu, a)
+        if m is None:
+            return None
+        return lams[0] + m[0] * lams[1] + m[1] * lams[2]
+
+    def _law_strict(self, strict, rows, lam, lam_eps) -> str:
+        """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's
+        text, "" if none does (slipping at an impact while held is for one-tangent contacts only)."""
+        k = self.k
+        for i, normals, mu, o in strict:
+            cap = mu * float(np.sum(lam[normals]))
+            tangential = math.hypot(float(lam[i]), float(lam[o]) if o >= 0 else 0.0)
+            if tangential > cap + lam_eps:
+                name = k.contact_names[k.frictional[k.row_stick[rows[i]]]]
+                return (
+                    f"impulse law: the stick impulse of {name} leaves its friction cone at an impact "
+                    f"while held ({tangential:.3g} > {cap:.3g}); slip at such an impact is for one-tangent "
+                    "contacts only"
+                )
+        return ""
+
+    def _law_tangent(self, lam, slipped, slips, lands):
+        """The impulse law (:meth:`_impulse_law`) as the tangent takes it (``Tracker._impulse``): ``(tight,
+        slides, why)``, ``tight`` the rows with an impulse but the stick rows of the one-tangent contacts
+        sliding through it (their impulse follows from their normal rows'), ``slides`` per row of ``tight``
+        ``(sr, sgn, j)`` for a normal row of such a contact (Coulomb's sliding impulse along the stick row
+        ``sr`` of its owner, sign ``sgn``, contact ``j``'s mu) or None: the slipping contacts that joined
+        (``slips``, the sign of their slip) and the landing ones (``lands``) whose owner slid on an edge (the
+        sign of its impulse). ``why``: ``"friction at an impact"`` where a landing cone slid (its sliding
+        impulse turns with its velocity after: not carried), else ``""``."""
+        k = self.k
+        along = {}
+        for f, riders in slips:
+            for g in [f, *riders]:
+                along[k.frictional[g]] = (
+                    self._stick_rows[f],
+                    math.copysign(1.0, self._slip[f]),
+                    k.frictional[g],
+                )
+        skip = {self._stick_rows[f] for f, _ in slips}
+        why = ""
+        for g, o in lands.items():
+            so = self._stick_rows[o]
+            if so not in skip and so not in slipped:
+                continue  # sticking (its stick row tight)
+            if self._partner[o] >= 0:
+                why = "friction at an impact"
+                continue
+            sgn = math.copysign(1.0, self._slip[o] if so in skip else float(lam[so]))
+            skip.add(so)
+            along[k.frictional[g]] = (so, sgn, k.frictional[g])
+        tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
+        return tight, [along.get(k.row_contact[r]) for r in tight], why
