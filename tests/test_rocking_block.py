@@ -60,14 +60,16 @@ def _drop(a: float, b: float) -> float:
     return 2 * math.sin((a - b) / 2) * (B * math.cos((a + b) / 2) - A * math.sin((a + b) / 2))
 
 
-def _down(top: float) -> float:
-    """The time from the turning point ``top`` down to ``theta = 0`` (``theta = top (1 - s^2)``)."""
+def _down(top: float, inertia=None) -> float:
+    """The time from the turning point ``top`` down to ``theta = 0`` (``theta = top (1 - s^2)``), the
+    inertia per unit mass about the pivot's line ``inertia(theta)`` (default: sliding, :func:`_inertia`)."""
+    inertia = inertia or _inertia
 
     def f(s: float) -> float:
         th = top * (1 - s * s)
         if s == 0.0:
-            return 2 * top / math.sqrt(2 * G * top * (B * math.cos(top) - A * math.sin(top)) / _inertia(top))
-        return 2 * s * top / math.sqrt(2 * G * _drop(top, th) / _inertia(th))
+            return 2 * top / math.sqrt(2 * G * top * (B * math.cos(top) - A * math.sin(top)) / inertia(top))
+        return 2 * s * top / math.sqrt(2 * G * _drop(top, th) / inertia(th))
 
     return quad(f, 0, 1, epsabs=1e-17, epsrel=1e-12, limit=200)[0]
 
