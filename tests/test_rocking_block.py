@@ -74,6 +74,11 @@ def _down(top: float, inertia=None) -> float:
     return quad(f, 0, 1, epsabs=1e-17, epsrel=1e-12, limit=200)[0]
 
 
+def _top(rise: float) -> float:
+    """The turning point of a swing whose centre rises by ``rise`` above its height at ``theta = 0``."""
+    return brentq(lambda th: _drop(th, 0.0) - rise, 0.0, math.atan2(B, A), xtol=1e-300, rtol=1e-15)
+
+
 @cache
 def closed_form() -> tuple[list[float], list[float], float]:
     """The landing times, the landings' impulses and the accumulation time ``t*``."""
@@ -87,8 +92,7 @@ def closed_form() -> tuple[list[float], list[float], float]:
         rise = 0.5 * _inertia(0.0) * w * w / G
         if rise < 1e-30:
             return times, impulses, t
-        top = brentq(lambda th, k=rise: _drop(th, 0.0) - k, 0.0, math.atan2(B, A), xtol=1e-300, rtol=1e-15)
-        t += 2 * _down(top)
+        t += 2 * _down(_top(rise))
 
 
 @cache

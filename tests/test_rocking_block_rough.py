@@ -23,8 +23,7 @@ import numpy as np
 import pytest
 import sympy as sp
 from hard_scenes import BACKENDS, c_backend_problem
-from scipy.optimize import brentq
-from test_rocking_block import CORNERS, INERTIA, MASS, THETA0, A, B, G, _drop
+from test_rocking_block import CORNERS, INERTIA, MASS, THETA0, A, B, G, _drop, _top
 from test_rocking_block import _down as down
 
 import vcigen
@@ -71,8 +70,7 @@ def closed_form() -> tuple[list[float], list[float], list[float], list[float], f
         rise = 0.5 * PIVOT * w * w / G
         if rise < 1e-30:
             return times, normal, tangential, speeds, t
-        top = brentq(lambda th, k=rise: _drop(th, 0.0) - k, 0.0, math.atan2(B, A), xtol=1e-300, rtol=1e-15)
-        t += 2 * _down(top)
+        t += 2 * _down(_top(rise))
 
 
 @cache
