@@ -236,14 +236,14 @@ def test_puck_on_a_steep_incline_slides_downhill_as_scipy(backend):
 
 
 # -- impacts -----------------------------------------------------------------------------------------------
-def coulomb_ball(v, w):
+def coulomb_ball(v, w, rest: float = REST):
     """Velocity and spin after an impact of the ball on the floor by Coulomb's law: ``(v+, w+, rolls)``."""
-    pn = MASS * (1 + REST) * (-v[2])
+    pn = MASS * (1 + rest) * (-v[2])
     slide = np.array([v[0] - RADIUS * w[1], v[1] + RADIUS * w[0]])
     stick = -slide / (1 / MASS + RADIUS**2 / INERTIA)
     rolls = math.hypot(*stick) <= BALL_MU * pn
     pt = stick if rolls else -BALL_MU * pn * slide / math.hypot(*slide)
-    v_out = np.array([v[0] + pt[0] / MASS, v[1] + pt[1] / MASS, -REST * v[2]])
+    v_out = np.array([v[0] + pt[0] / MASS, v[1] + pt[1] / MASS, -rest * v[2]])
     w_out = np.array([w[0] + RADIUS * pt[1] / INERTIA, w[1] - RADIUS * pt[0] / INERTIA])
     return v_out, w_out, rolls
 

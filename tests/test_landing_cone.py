@@ -1,0 +1,95 @@
+"""An isotropic cone at a plastic landing from flight: Coulomb's impulse law at the landing (MATH.md
+*Friction*; ``ImpulseLaw._law_lands`` with ``_law_slide``, C ``law_lands``, ``law_slide``).
+
+The ball of ``tests/test_friction_3d.py`` (``m = 1, I = 0.4, r = 1``, ``mu = 0.3``, two tangents ``x - r ay``,
+``y + r ax``) with ``e = 0``, dropped from ``z = 2`` at ``(vx, vy) = (2, -1)`` with a spin: it lands at
+``t* = sqrt(2/g)`` with the normal impulse ``P = m sqrt(2 g)`` and the tangential one of Coulomb's law (the
+cone's normal impulse is not coupled to it: the sliding after is along the sliding before). Spin ``(1, 4)``:
+the stick impulse is inside the cone, it rolls from the landing on at the constant ``v1, w1``. Spin ``(3,
+-20)``: it slides through the landing (``P_t = -mu P u/|u|``) and on, its sliding ``u`` shrinking along a
+fixed direction at ``mu g (1 + m r^2/I)`` while the centre decelerates at ``mu g`` along it, until it rolls.
+Before this contract the landing kept the tangential momentum (``v1 = (2, -1)``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hard_scenes import BACKENDS
+from test_friction_3d import BALL_MU, INERTIA, MASS, RADIUS, G, coulomb_ball, sim
+
+V0, Z0, H = np.array([2.0, -1.0]), 2.0, 0.01
+
+
+def closed_form(t: np.ndarray, spin) -> tuple[np.ndarray, np.ndarray, float, bool]:
+    """The ball's ``(vx, vy)`` and spin ``(wx, wy)`` at the times ``t`` after its landing at ``t*``."""
+    ts = math.sqrt(2 * (Z0 - RADIUS) / G)
+    v1, w1, rolls = coulomb_ball(np.array([*V0, -G * ts]), np.array(spin), rest=0.0)
+    u1 = np.array([v1[0] - RADIUS * w1[1], v1[1] + RADIUS * w1[0]])
+    d = np.clip(t - ts, 0.0, None)[:, None]
+    if not rolls:  # sliding on: the friction force -mu m g u/|u| until u = 0
+        d = np.minimum(d, math.hypot(*u1) / (BALL_MU * G * (1 + MASS * RADIUS**2 / INERTIA)))
+    force = np.zeros(2) if rolls else -BALL_MU * MASS * G * u1 / math.hypot(*u1)
+    v = v1[:2] + force / MASS * d
+    w = w1 + RADIUS / INERTIA * np.array([force[1], -force[0]]) * d
+    return v, w, ts, rolls
+
+
+@pytest.mark.parametrize("spin, rolls", [((1.0, 4.0), True), ((3.0, -20.0), False)])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_plastic_landing_takes_coulombs_cone(backend: str, spin, rolls: bool) -> None:
+    """One plastic landing at ``t*`` with the normal impulse ``m sqrt(2 g)``; from the grid point after it
+    the velocity and spin on the closed form to 1e-12 (rolling, or sliding then rolling); held throughout.
+    The tangent: a landing that sticks is carried (no break), one that slides breaks at its step with
+    ``"friction at an impact"`` (the cone's sliding impulse turns with the velocity after it)."""
+    res = sim("ball", backend).simulate(
+        q0=[0.0, 0.0, Z0, 0.0, 0.0],
+        v0=[*V0, 0.0, *spin],
+        h=H,
+        t_end=0.9,
+        params={"e": 0.0},
+        sensitivities=True,
+        progress=False,
+    )
+    v, w, ts, roll = closed_form(res.t, spin)
+    assert roll == rolls
+    (im,) = res.impacts
+    assert im.kind == "plastic" and abs(im.t - ts) <= 1e-12
+    assert abs(im.impulse - MASS * G * ts) <= 1e-12
+    after = slice(im.step + 1, None)
+    err = max(
+        float(np.abs(res.p[after, :2] / MASS - v[after]).max()),
+        float(np.abs(res.p[after, 3:] / INERTIA - w[after]).max()),
+    )
+    print(f"{backend} spin {spin}: {'rolls' if rolls else 'slides'}, max error {err:.1e}")
+    assert err <= 1e-12
+    assert res.active[after, 0].all()
+    assert res.sensitivity_breaks == ([] if rolls else [(im.step, "friction at an impact")])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_rolling_landings_tangent_against_central_differences(backend: str) -> None:
+    """The tangent carried through the sticking landing (spin ``(1, 4)``): the end state's derivatives in
+    ``q0[z]`` (the landing time), ``v0[x]``, ``v0[y]``, ``v0[ax]``, ``v0[ay]`` against central differences of
+    whole runs (eps 1e-6) to 1e-6 of the largest entry; the run's own paths keep the mode (it rolls)."""
+    sim_ = sim("ball", backend)
+    kw = {"h": H, "t_end": 0.9, "params": {"e": 0.0}, "progress": False}
+    q0, v0 = [0.0, 0.0, Z0, 0.0, 0.0], [*V0, 0.0, 1.0, 4.0]
+    res = sim_.simulate(q0=q0, v0=v0, sensitivities=True, **kw)
+    assert res.sensitivity_breaks == []
+
+    def end(name: str, e: float) -> np.ndarray:
+        q, v = list(q0), list(v0)
+        (q if name[0] == "q" else v)[["x", "y", "z", "ax", "ay"].index(name[3:-1])] += e
+        r = sim_.simulate(q0=q, v0=v, **kw)
+        return np.concatenate([r.q[-1], r.p[-1]])
+
+    worst = 0.0
+    for name in ("q0[z]", "v0[x]", "v0[y]", "v0[ax]", "v0[ay]"):
+        fd = (end(name, 1e-6) - end(name, -1e-6)) / 2e-6
+        exact = res.sensitivity[-1, :, res.sensitivity_names.index(name)]
+        worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
+    print(f"{backend}: rolling landing's tangent vs central differences {worst:.1e}")
+    assert worst <= 1e-6
