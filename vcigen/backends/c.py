@@ -5,7 +5,8 @@ Separate, separately callable steps:
 * :func:`render` -- pure: a :class:`~vcigen.derive.DiscreteSystem` to ``{filename: text}``;
 * :func:`write` -- the text to a directory (``vcigen generate``);
 * :func:`build_library` -- compile the model source into a shared library, cached by a
-  hash of the source and the compiler command (``VCIGEN_CACHE`` or ``~/.cache/vcigen``);
+  hash of the source and the compiler command (``VCIGEN_CACHE`` or ``~/.cache/vcigen``), at the
+  optimisation level :func:`cflags` reads from ``VCIGEN_CC_OPT`` (default ``-O2``);
 * :func:`build_c` -- all of it, wrapped as a :class:`~vcigen.simulator.Simulator`.
 """
 
@@ -36,7 +37,26 @@ TEMPLATES = {
     "Makefile.j2": "Makefile",
 }
 LIBRARY_TEMPLATES = ("model.h.j2", "model.c.j2")
-CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")
+CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")  # the shipped flags
+# VCIGEN_CC_OPT: the optimisation levels build_library accepts in place of CFLAGS' -O2. Both give the same
+# floating-point results bit for bit on x86-64 (SSE2, no FMA contraction under -std=c99, no -ffast-math): only
+# the compile and run times differ. make test builds at -O0 (the compiler's time a fifth of -O2's; the shipped
+# -O2 -Werror is held by tests/test_shipped_flags.py). Not offered: -O1, where GCC 12's -Wmaybe-uninitialized
+# reports false positives that -O2 does not (an error under -Werror), and -Ofast/-ffast-math (other numbers).
+OPT_LEVELS = ("-O0", "-O2")
+
+
+def cflags() -> tuple[str, ...]:
+    """:data:`CFLAGS` with ``-O2`` replaced by ``$VCIGEN_CC_OPT`` (one of :data:`OPT_LEVELS`) if it is set."""
+    level = os.environ.get("VCIGEN_CC_OPT", "")
+    if not level:
+        return CFLAGS
+    if level not in OPT_LEVELS:
+        raise ValueError(
+            f"VCIGEN_CC_OPT = {level!r} is not an optimisation level vcigen builds at; "
+            f"set one of {', '.join(OPT_LEVELS)} or unset it (the default, -O2)"
+        )
+    return tuple(level if flag == "-O2" else flag for flag in CFLAGS)
 
 
 def template_dir() -> Path:
@@ -83,15 +103,17 @@ def build_library(
 ) -> Path:
     """Compile ``<model>.c`` into ``lib<model>.so`` in a directory named by the sources' hash.
 
-    Raises :class:`~vcigen.errors.CompileError` with the compiler's message if the
-    compiler is missing or fails.
+    The flags are :func:`cflags` (``VCIGEN_CC_OPT``), part of the hash. Raises
+    :class:`~vcigen.errors.CompileError` with the compiler's message if the compiler is missing
+    or fails, and ValueError for a bad ``VCIGEN_CC_OPT``.
     """
+    flags = cflags()
     cc = cc or os.environ.get("CC", "cc")
     exe = shutil.which(cc)
     if exe is None:
         raise CompileError(f"C compiler {cc!r} not found; install one (e.g. gcc) or pass cc=... / set CC")
     digest = hashlib.sha256(
-        "\0".join([cc, *CFLAGS, *(f"{k}\0{v}" for k, v in sorted(files.items()))]).encode()
+        "\0".join([cc, *flags, *(f"{k}\0{v}" for k, v in sorted(files.items()))]).encode()
     )
     where = Path(cache or cache_root()) / digest.hexdigest()[:24]
     lib = where / f"lib{model}.so"
@@ -101,7 +123,7 @@ def build_library(
     write(files, where)
     with tempfile.NamedTemporaryFile(dir=where, suffix=".so", delete=False) as tmp:
         tmp_lib = Path(tmp.name)
-    cmd = [exe, *CFLAGS, "-o", str(tmp_lib), str(where / f"{model}.c"), "-lm"]
+    cmd = [exe, *flags, "-o", str(tmp_lib), str(where / f"{model}.c"), "-lm"]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     except (OSError, subprocess.SubprocessError) as exc:

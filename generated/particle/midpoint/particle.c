@@ -2009,7 +2009,9 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
 #define PARTICLE_HELD_COLD __attribute__((noinline, cold))
 #define PARTICLE_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define PARTICLE_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
-#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#if !defined(__OPTIMIZE__) /* -O0 (VCIGEN_CC_OPT): nothing unrolls, and GCC warns that it ignores the pragma */
+#define PARTICLE_HELD_UNROLL
+#elif defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define PARTICLE_HELD_UNROLL _Pragma("unroll")
 #elif __GNUC__ >= 8
 #define PARTICLE_HELD_UNROLL _Pragma("GCC unroll 16")
@@ -2677,7 +2679,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
     const double *par = c->par;
     double x[PARTICLE_NX_MAX] = {0.0}, x_best[PARTICLE_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[PARTICLE_N], pm[PARTICLE_N], p_c[PARTICLE_N], p_end[PARTICLE_N];
-    double q_end[PARTICLE_N], *r, s_all[PARTICLE_M_DIM] = {0.0}, wgt[PARTICLE_M_DIM], pend_w[PARTICLE_M_DIM];
+    double q_end[PARTICLE_N], *r, s_all[PARTICLE_M_DIM] = {0.0}, wgt[PARTICLE_M_DIM], pend_w[PARTICLE_M_DIM] = {0.0};
     particle_seg_t next;
     double rest[PARTICLE_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic, kind, rc, restarted;

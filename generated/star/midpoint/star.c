@@ -2290,7 +2290,9 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
 #define STAR_HELD_COLD __attribute__((noinline, cold))
 #define STAR_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define STAR_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
-#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#if !defined(__OPTIMIZE__) /* -O0 (VCIGEN_CC_OPT): nothing unrolls, and GCC warns that it ignores the pragma */
+#define STAR_HELD_UNROLL
+#elif defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define STAR_HELD_UNROLL _Pragma("unroll")
 #elif __GNUC__ >= 8
 #define STAR_HELD_UNROLL _Pragma("GCC unroll 16")
@@ -3039,7 +3041,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     const double *par = c->par;
     double x[STAR_NX_MAX] = {0.0}, x_best[STAR_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[STAR_N], pm[STAR_N], p_c[STAR_N], p_end[STAR_N];
-    double q_end[STAR_N], *r, s_all[STAR_M_DIM] = {0.0}, wgt[STAR_M_DIM], pend_w[STAR_M_DIM];
+    double q_end[STAR_N], *r, s_all[STAR_M_DIM] = {0.0}, wgt[STAR_M_DIM], pend_w[STAR_M_DIM] = {0.0};
     star_seg_t next;
     double rest[STAR_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group, elastic, kind, rc, restarted;

@@ -2015,7 +2015,9 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
 #define BALL_TO_REST_HELD_COLD __attribute__((noinline, cold))
 #define BALL_TO_REST_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define BALL_TO_REST_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
-#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#if !defined(__OPTIMIZE__) /* -O0 (VCIGEN_CC_OPT): nothing unrolls, and GCC warns that it ignores the pragma */
+#define BALL_TO_REST_HELD_UNROLL
+#elif defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define BALL_TO_REST_HELD_UNROLL _Pragma("unroll")
 #elif __GNUC__ >= 8
 #define BALL_TO_REST_HELD_UNROLL _Pragma("GCC unroll 16")
@@ -2683,7 +2685,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
     const double *par = c->par;
     double x[BALL_TO_REST_NX_MAX] = {0.0}, x_best[BALL_TO_REST_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[BALL_TO_REST_N], pm[BALL_TO_REST_N], p_c[BALL_TO_REST_N], p_end[BALL_TO_REST_N];
-    double q_end[BALL_TO_REST_N], *r, s_all[BALL_TO_REST_M_DIM] = {0.0}, wgt[BALL_TO_REST_M_DIM], pend_w[BALL_TO_REST_M_DIM];
+    double q_end[BALL_TO_REST_N], *r, s_all[BALL_TO_REST_M_DIM] = {0.0}, wgt[BALL_TO_REST_M_DIM], pend_w[BALL_TO_REST_M_DIM] = {0.0};
     ball_to_rest_seg_t next;
     double rest[BALL_TO_REST_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[BALL_TO_REST_M_DIM], n_group, elastic, kind, rc, restarted;

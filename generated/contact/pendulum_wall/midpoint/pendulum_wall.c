@@ -2239,7 +2239,9 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
 #define PENDULUM_WALL_HELD_COLD __attribute__((noinline, cold))
 #define PENDULUM_WALL_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define PENDULUM_WALL_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
-#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#if !defined(__OPTIMIZE__) /* -O0 (VCIGEN_CC_OPT): nothing unrolls, and GCC warns that it ignores the pragma */
+#define PENDULUM_WALL_HELD_UNROLL
+#elif defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define PENDULUM_WALL_HELD_UNROLL _Pragma("unroll")
 #elif __GNUC__ >= 8
 #define PENDULUM_WALL_HELD_UNROLL _Pragma("GCC unroll 16")
@@ -3228,7 +3230,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
     const double *par = c->par;
     double x[PENDULUM_WALL_NX_MAX] = {0.0}, x_best[PENDULUM_WALL_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[PENDULUM_WALL_N], pm[PENDULUM_WALL_N], p_c[PENDULUM_WALL_N], p_end[PENDULUM_WALL_N];
-    double q_end[PENDULUM_WALL_N], *r, s_all[PENDULUM_WALL_M_DIM] = {0.0}, wgt[PENDULUM_WALL_M_DIM], pend_w[PENDULUM_WALL_M_DIM];
+    double q_end[PENDULUM_WALL_N], *r, s_all[PENDULUM_WALL_M_DIM] = {0.0}, wgt[PENDULUM_WALL_M_DIM], pend_w[PENDULUM_WALL_M_DIM] = {0.0};
     pendulum_wall_seg_t next;
     double rest[PENDULUM_WALL_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[PENDULUM_WALL_M_DIM], n_group, elastic, kind, rc, restarted;

@@ -2215,7 +2215,9 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 #define SLIDE_OFF_DOME_HELD_COLD __attribute__((noinline, cold))
 #define SLIDE_OFF_DOME_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define SLIDE_OFF_DOME_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
-#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#if !defined(__OPTIMIZE__) /* -O0 (VCIGEN_CC_OPT): nothing unrolls, and GCC warns that it ignores the pragma */
+#define SLIDE_OFF_DOME_HELD_UNROLL
+#elif defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define SLIDE_OFF_DOME_HELD_UNROLL _Pragma("unroll")
 #elif __GNUC__ >= 8
 #define SLIDE_OFF_DOME_HELD_UNROLL _Pragma("GCC unroll 16")
@@ -3180,7 +3182,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
     const double *par = c->par;
     double x[SLIDE_OFF_DOME_NX_MAX] = {0.0}, x_best[SLIDE_OFF_DOME_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[SLIDE_OFF_DOME_N], pm[SLIDE_OFF_DOME_N], p_c[SLIDE_OFF_DOME_N], p_end[SLIDE_OFF_DOME_N];
-    double q_end[SLIDE_OFF_DOME_N], *r, s_all[SLIDE_OFF_DOME_M_DIM] = {0.0}, wgt[SLIDE_OFF_DOME_M_DIM], pend_w[SLIDE_OFF_DOME_M_DIM];
+    double q_end[SLIDE_OFF_DOME_N], *r, s_all[SLIDE_OFF_DOME_M_DIM] = {0.0}, wgt[SLIDE_OFF_DOME_M_DIM], pend_w[SLIDE_OFF_DOME_M_DIM] = {0.0};
     slide_off_dome_seg_t next;
     double rest[SLIDE_OFF_DOME_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[SLIDE_OFF_DOME_M_DIM], n_group, elastic, kind, rc, restarted;

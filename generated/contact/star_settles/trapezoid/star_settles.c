@@ -2293,7 +2293,9 @@ static void star_settles_start_sustained(const star_settles_ctx_t *c, const doub
 #define STAR_SETTLES_HELD_COLD __attribute__((noinline, cold))
 #define STAR_SETTLES_HELD_UNLIKELY(x) __builtin_expect(!!(x), 0)
 #define STAR_SETTLES_HELD_INLINE static inline __attribute__((always_inline)) /* specialised to the rows held */
-#if defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
+#if !defined(__OPTIMIZE__) /* -O0 (VCIGEN_CC_OPT): nothing unrolls, and GCC warns that it ignores the pragma */
+#define STAR_SETTLES_HELD_UNROLL
+#elif defined(__clang__) /* loops over rows unrolled: constant row indices once the active set is known */
 #define STAR_SETTLES_HELD_UNROLL _Pragma("unroll")
 #elif __GNUC__ >= 8
 #define STAR_SETTLES_HELD_UNROLL _Pragma("GCC unroll 16")
@@ -3042,7 +3044,7 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
     const double *par = c->par;
     double x[STAR_SETTLES_NX_MAX] = {0.0}, x_best[STAR_SETTLES_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[STAR_SETTLES_N], pm[STAR_SETTLES_N], p_c[STAR_SETTLES_N], p_end[STAR_SETTLES_N];
-    double q_end[STAR_SETTLES_N], *r, s_all[STAR_SETTLES_M_DIM] = {0.0}, wgt[STAR_SETTLES_M_DIM], pend_w[STAR_SETTLES_M_DIM];
+    double q_end[STAR_SETTLES_N], *r, s_all[STAR_SETTLES_M_DIM] = {0.0}, wgt[STAR_SETTLES_M_DIM], pend_w[STAR_SETTLES_M_DIM] = {0.0};
     star_settles_seg_t next;
     double rest[STAR_SETTLES_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[STAR_SETTLES_M_DIM], n_group, elastic, kind, rc, restarted;

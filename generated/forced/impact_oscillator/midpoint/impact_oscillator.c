@@ -2001,7 +2001,7 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
     const double *par = c->par;
     double x[IMPACT_OSCILLATOR_NX_MAX] = {0.0}, x_best[IMPACT_OSCILLATOR_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[IMPACT_OSCILLATOR_N], pm[IMPACT_OSCILLATOR_N], p_c[IMPACT_OSCILLATOR_N], p_end[IMPACT_OSCILLATOR_N];
-    double q_end[IMPACT_OSCILLATOR_N], *r, s_all[IMPACT_OSCILLATOR_M_DIM] = {0.0}, wgt[IMPACT_OSCILLATOR_M_DIM], pend_w[IMPACT_OSCILLATOR_M_DIM];
+    double q_end[IMPACT_OSCILLATOR_N], *r, s_all[IMPACT_OSCILLATOR_M_DIM] = {0.0}, wgt[IMPACT_OSCILLATOR_M_DIM], pend_w[IMPACT_OSCILLATOR_M_DIM] = {0.0};
     impact_oscillator_seg_t next;
     double rest[IMPACT_OSCILLATOR_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[IMPACT_OSCILLATOR_M_DIM], n_group, elastic, kind, rc, restarted;

@@ -3002,7 +3002,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
     const double *par = c->par;
     double x[BLOCK_NX_MAX] = {0.0}, x_best[BLOCK_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[BLOCK_N], pm[BLOCK_N], p_c[BLOCK_N], p_end[BLOCK_N];
-    double q_end[BLOCK_N], *r, s_all[BLOCK_M_DIM] = {0.0}, wgt[BLOCK_M_DIM], pend_w[BLOCK_M_DIM];
+    double q_end[BLOCK_N], *r, s_all[BLOCK_M_DIM] = {0.0}, wgt[BLOCK_M_DIM], pend_w[BLOCK_M_DIM] = {0.0};
     block_seg_t next;
     double rest[BLOCK_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[BLOCK_M_DIM], n_group, elastic, kind, rc, restarted;

@@ -3082,7 +3082,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
     const double *par = c->par;
     double x[ROUGH_DISK_NX_MAX] = {0.0}, x_best[ROUGH_DISK_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[ROUGH_DISK_N], pm[ROUGH_DISK_N], p_c[ROUGH_DISK_N], p_end[ROUGH_DISK_N];
-    double q_end[ROUGH_DISK_N], *r, s_all[ROUGH_DISK_M_DIM] = {0.0}, wgt[ROUGH_DISK_M_DIM], pend_w[ROUGH_DISK_M_DIM];
+    double q_end[ROUGH_DISK_N], *r, s_all[ROUGH_DISK_M_DIM] = {0.0}, wgt[ROUGH_DISK_M_DIM], pend_w[ROUGH_DISK_M_DIM] = {0.0};
     rough_disk_seg_t next;
     double rest[ROUGH_DISK_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[ROUGH_DISK_M_DIM], n_group, elastic, kind, rc, restarted;

@@ -4207,7 +4207,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
     const double *par = c->par;
     double x[SPUN_BALL_NX_MAX] = {0.0}, x_best[SPUN_BALL_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[SPUN_BALL_N], pm[SPUN_BALL_N], p_c[SPUN_BALL_N], p_end[SPUN_BALL_N];
-    double q_end[SPUN_BALL_N], *r, s_all[SPUN_BALL_M_DIM] = {0.0}, wgt[SPUN_BALL_M_DIM], pend_w[SPUN_BALL_M_DIM];
+    double q_end[SPUN_BALL_N], *r, s_all[SPUN_BALL_M_DIM] = {0.0}, wgt[SPUN_BALL_M_DIM], pend_w[SPUN_BALL_M_DIM] = {0.0};
     spun_ball_seg_t next;
     double rest[SPUN_BALL_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[SPUN_BALL_M_DIM], n_group, elastic, kind, rc, restarted;

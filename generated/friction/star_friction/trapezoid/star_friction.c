@@ -3286,7 +3286,7 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
     const double *par = c->par;
     double x[STAR_FRICTION_NX_MAX] = {0.0}, x_best[STAR_FRICTION_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[STAR_FRICTION_N], pm[STAR_FRICTION_N], p_c[STAR_FRICTION_N], p_end[STAR_FRICTION_N];
-    double q_end[STAR_FRICTION_N], *r, s_all[STAR_FRICTION_M_DIM] = {0.0}, wgt[STAR_FRICTION_M_DIM], pend_w[STAR_FRICTION_M_DIM];
+    double q_end[STAR_FRICTION_N], *r, s_all[STAR_FRICTION_M_DIM] = {0.0}, wgt[STAR_FRICTION_M_DIM], pend_w[STAR_FRICTION_M_DIM] = {0.0};
     star_friction_seg_t next;
     double rest[STAR_FRICTION_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[STAR_FRICTION_M_DIM], n_group, elastic, kind, rc, restarted;

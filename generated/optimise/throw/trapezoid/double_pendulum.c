@@ -2593,7 +2593,7 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
     const double *par = c->par;
     double x[DOUBLE_PENDULUM_NX_MAX] = {0.0}, x_best[DOUBLE_PENDULUM_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[DOUBLE_PENDULUM_N], pm[DOUBLE_PENDULUM_N], p_c[DOUBLE_PENDULUM_N], p_end[DOUBLE_PENDULUM_N];
-    double q_end[DOUBLE_PENDULUM_N], *r, s_all[DOUBLE_PENDULUM_M_DIM] = {0.0}, wgt[DOUBLE_PENDULUM_M_DIM], pend_w[DOUBLE_PENDULUM_M_DIM];
+    double q_end[DOUBLE_PENDULUM_N], *r, s_all[DOUBLE_PENDULUM_M_DIM] = {0.0}, wgt[DOUBLE_PENDULUM_M_DIM], pend_w[DOUBLE_PENDULUM_M_DIM] = {0.0};
     double_pendulum_seg_t next;
     double rest[DOUBLE_PENDULUM_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[DOUBLE_PENDULUM_M_DIM], n_group, elastic, kind, rc, restarted;
