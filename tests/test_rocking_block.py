@@ -37,16 +37,24 @@ R = (A * A - 2 * B * B) / (A * A + 4 * B * B)
 CORNERS = {"left": (-B, -A), "right": (B, -A)}
 
 
-def block() -> vcigen.Model:
+def block(mu: float | None = None) -> vcigen.Model:
+    """The block on a smooth floor, or with Coulomb friction ``mu`` (a parameter) at each corner (one
+    tangent: the corner's ``x``; ``tests/test_rocking_block_rough.py``)."""
     x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
     contacts = {k: y + px * sp.sin(th) + py * sp.cos(th) for k, (px, py) in CORNERS.items()}
+    rough = {}
+    if mu is not None:
+        m = sp.Symbol("mu")
+        tangents = {k: x + px * sp.cos(th) - py * sp.sin(th) for k, (px, py) in CORNERS.items()}
+        rough = {"params": {m: mu}, "friction": {k: (m, t) for k, t in tangents.items()}}
     return vcigen.Model(
-        name="rocking_block",
+        name="rocking_block" if mu is None else "rough_rocking_block",
         q=[x, y, th],
         qdot=[xd, yd, thd],
         lagrangian=MASS * (xd**2 + yd**2) / 2 + INERTIA * thd**2 / 2 - G * MASS * y,
         contacts=contacts,
         restitution=dict.fromkeys(contacts, 0.0),
+        **rough,
     )
 
 

@@ -21,9 +21,8 @@ from functools import cache
 
 import numpy as np
 import pytest
-import sympy as sp
 from hard_scenes import BACKENDS, c_backend_problem
-from test_rocking_block import CORNERS, INERTIA, MASS, THETA0, A, B, G, _drop, _top
+from test_rocking_block import CORNERS, INERTIA, MASS, THETA0, A, B, G, _drop, _top, block
 from test_rocking_block import _down as down
 
 import vcigen
@@ -31,22 +30,6 @@ import vcigen
 MU = 0.8
 PIVOT = INERTIA / MASS + A * A + B * B  # I_o / m
 ETA = 1 - 1.5 * B * B / (A * A + B * B)
-
-
-def rough_block() -> vcigen.Model:
-    x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
-    mu = sp.Symbol("mu")
-    contacts = {k: y + px * sp.sin(th) + py * sp.cos(th) for k, (px, py) in CORNERS.items()}
-    return vcigen.Model(
-        name="rough_rocking_block",
-        q=[x, y, th],
-        qdot=[xd, yd, thd],
-        lagrangian=MASS * (xd**2 + yd**2) / 2 + INERTIA * thd**2 / 2 - G * MASS * y,
-        contacts=contacts,
-        params={mu: MU},
-        restitution=dict.fromkeys(contacts, 0.0),
-        friction={k: (mu, x + px * sp.cos(th) - py * sp.sin(th)) for k, (px, py) in CORNERS.items()},
-    )
 
 
 def _down(top: float) -> float:
@@ -75,7 +58,7 @@ def closed_form() -> tuple[list[float], list[float], list[float], list[float], f
 
 @cache
 def simulator(backend: str) -> vcigen.Simulator:
-    return vcigen.build(rough_block(), backend=backend)
+    return vcigen.build(block(MU), backend=backend)
 
 
 @cache
