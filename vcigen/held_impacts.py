@@ -27,9 +27,9 @@ class HeldImpacts(ImpulseLaw):
         switch; one slipping on took a sliding impulse the tangent does not carry. Why the tangent stops
         here: ``"friction switch in a held step"`` (a contact's mode changed), ``"friction at an impact"``
         (a cone's sliding impulse), ``""`` (carried). The landing contacts (``lands``) keep no mode here: a
-        landing cone's sliding impulse is ``"friction at an impact"`` (:meth:`_law_tangent`)."""
+        landing cone's sliding impulse is ``"friction at an impact"`` (:meth:`_landing_why`)."""
         k = self.k
-        why = self._law_tangent(np.zeros(k.r), slipped, (), lands or {})[2]
+        why = self._landing_why(slipped, lands or {})
         slipped = [r for r in slipped if k.row_stick[r] not in (lands or {})]
         if not slipped and not slips:
             return why

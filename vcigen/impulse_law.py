@@ -63,7 +63,7 @@ class ImpulseLaw:
         lands = self._law_lands(q, vel, rows)
         if lands:
             grad = k.rows(q, vel)[1]  # their branches frozen where they land
-        for f in sorted({o for o in lands.values()} & set(lands)):  # landing with a row of its own
+        for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
         if len(rows) > MAX_LAW_ROWS:
             raise SolverError(
@@ -377,16 +377,18 @@ class ImpulseLaw:
                     k.frictional[g],
                 )
         skip = {self._stick_rows[f] for f, _ in slips}
-        why = ""
         for g, o in lands.items():
             so = self._stick_rows[o]
-            if so not in skip and so not in slipped:
-                continue  # sticking (its stick row tight)
-            if self._partner[o] >= 0:
-                why = "friction at an impact"
-                continue
+            if so not in skip and so not in slipped or self._partner[o] >= 0:
+                continue  # sticking (its stick row tight), or a cone (_landing_why)
             sgn = math.copysign(1.0, self._slip[o] if so in skip else float(lam[so]))
             skip.add(so)
             along[k.frictional[g]] = (so, sgn, k.frictional[g])
         tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
-        return tight, [along.get(k.row_contact[r]) for r in tight], why
+        return tight, [along.get(k.row_contact[r]) for r in tight], self._landing_why(slipped, lands)
+
+    def _landing_why(self, slipped, lands) -> str:
+        """``"friction at an impact"`` where a landing cone slid in the impulse law (``slipped``, ``lands``:
+        its sliding impulse turns with its velocity after, the tangent does not carry it), else ``""``."""
+        slid = any(self._partner[o] >= 0 and self._stick_rows[o] in slipped for o in set(lands.values()))
+        return "friction at an impact" if slid else ""
