@@ -188,11 +188,25 @@ class HeldImpacts(ImpulseLaw):
             self.act[:] = act
         return self._row_accel(q, u, self._accel(q, u, lam))
 
-    def _plastic_entry(self, step, t_k, h, q, p, v, t, group_contacts):
-        """Plastic impact on contacts ``group_contacts`` at ``q``: their touching rows become active.
-        Coulomb's cone acts on the frictional ones (:meth:`_law_lands`). Returns ``(p+, Lam, loss, rows,
-        law)``, ``law`` the tangent's (:meth:`_law_tangent`: its rows in the order of ``rows``, then the stick
-        rows)."""
+    def _rough(self, group) -> bool:
+        """Does an impact on the contacts ``group`` of the free chain take the impulse law with Coulomb's cone
+        (:meth:`_rough_rest`): sustained contact on (``Tolerances(grazing="contact")``) and one of them
+        frictional? The jump (48) along the normal cone (86) has no friction for several contacts."""
+        k = self.k
+        rough = {k.frictional[f] for f in range(len(self._stick_rows)) if self._mu_f[f] > 0.0}
+        return self.tol.grazing == "contact" and bool(rough & set(group))
+
+    def _rough_rest(self, step, t_k, h, q, p, t, tau, v, rows, impacts, e_before, e_step):
+        """An impact of the free chain on several contacts at once, one with friction (:meth:`_rough`), as an
+        impact while held with none held (:meth:`_chain_impact`: Newton's law with each contact's restitution,
+        Coulomb's cone on the frictional ones as they land, the rows that settle held), then the rest of the
+        step from it (:meth:`_chain`: held, or free)."""
+        p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before)
+        return self._chain(step, t_k, h, q, p, t, tau, v, impacts, e_step)
+
+    def _touching(self, q, v, group_contacts) -> tuple[list[int], list[int]]:
+        """The rows of the contacts ``group_contacts`` at ``q`` that touch: each contact's lowest row and
+        those within ``Tolerances.admissible`` of it (another branch at a kink); ``(rows, lowest)``."""
         k = self.k
         psi = k.rows(q, v)[0]
         rows, lowest = [], []
@@ -200,6 +214,15 @@ class HeldImpacts(ImpulseLaw):
             own = [r for r in range(k.r) if k.row_contact[r] == j]
             lowest.append(min(own, key=lambda r: (psi[r], r)))
             rows += [r for r in own if psi[r] <= psi[lowest[-1]] + self.tol.admissible]
+        return rows, lowest
+
+    def _plastic_entry(self, step, t_k, h, q, p, v, t, group_contacts):
+        """Plastic impact on contacts ``group_contacts`` at ``q``: their touching rows become active.
+        Coulomb's cone acts on the frictional ones (:meth:`_law_lands`). Returns ``(p+, Lam, loss, rows,
+        law)``, ``law`` the tangent's (:meth:`_law_tangent`: its rows in the order of ``rows``, then the stick
+        rows)."""
+        k = self.k
+        rows, lowest = self._touching(q, v, group_contacts)
         # no row is held here (the free impact chain runs with none): friction only where they land
         p_plus, lam, vel_m, vel_p, dropped, slipped, _, lands = self._impulse_law(
             step, t_k, q, p, v, rows, {}

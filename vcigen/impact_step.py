@@ -90,6 +90,12 @@ class ImpactSteps:
             t_c = seg.t + tau_c
             nrm, weights = self._normal(q_c, v_c, p_minus_c, group)
             seg = Seg(q=q_c, t=t_c, tau=seg.tau - tau_c, p_in=p_minus_c, e_in=e_in, nrm=nrm, contact=j, x=x)
+            if len(group) > 1 and self._rough(group):  # several contacts at once, one with friction: no (86)
+                self._count_event(step, t_k)  # the tangent broke at the contact (simultaneous impact)
+                rest = (step, t_k, h, q_c, p_minus_c, t_c, seg.tau, v_c, self._touching(q_c, v_c, group)[0])
+                return self._tangent_held(
+                    q_c, p_minus_c, seg.tau, True, self._rough_rest, *rest, impacts, e_in, e_step
+                )
             # Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept
             # (less the loss of (39) with restitution; seg.e_in becomes the energy after).
             elastic = all(restitution[i] == 1.0 for i in group)

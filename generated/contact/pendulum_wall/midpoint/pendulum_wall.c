@@ -1982,17 +1982,13 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     return 0;
 }
 
-/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
- * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
-static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
-    int *slip_ride, int *land)
+/* SustainedSteps._touching: the rows of the contacts group at q that touch: each contact's lowest row (lowest[r] =
+ * 1) and those within Tolerances.admissible of it (another branch at a kink), in rows[0..n_rows). */
+static void pendulum_wall_touching(const pendulum_wall_ctx_t *c, const double *q, const double *v, const int *group,
+    int n_group, int *rows, int *n_rows, int *lowest)
 {
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
-    double tgt[PENDULUM_WALL_R_DIM] = {0.0}, vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N];
-    int dropped[PENDULUM_WALL_R_DIM], lowest[PENDULUM_WALL_R_DIM] = {0}, g, r, k, low;
-    int slip_own[PENDULUM_WALL_NF_DIM];
+    int g, r, low;
     pendulum_wall_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2012,6 +2008,19 @@ static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const doubl
             }
         }
     }
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
+static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
+{
+    double tgt[PENDULUM_WALL_R_DIM] = {0.0}, vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N];
+    int dropped[PENDULUM_WALL_R_DIM], lowest[PENDULUM_WALL_R_DIM] = {0}, k;
+    int slip_own[PENDULUM_WALL_NF_DIM];
+    pendulum_wall_touching(c, q, v, group, n_group, rows, n_rows, lowest);
     /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (pendulum_wall_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

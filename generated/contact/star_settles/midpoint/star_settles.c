@@ -2034,17 +2034,13 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     return 0;
 }
 
-/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
- * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
-static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
-    int *slip_ride, int *land)
+/* SustainedSteps._touching: the rows of the contacts group at q that touch: each contact's lowest row (lowest[r] =
+ * 1) and those within Tolerances.admissible of it (another branch at a kink), in rows[0..n_rows). */
+static void star_settles_touching(const star_settles_ctx_t *c, const double *q, const double *v, const int *group,
+    int n_group, int *rows, int *n_rows, int *lowest)
 {
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
-    double tgt[STAR_SETTLES_R_DIM] = {0.0}, vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N];
-    int dropped[STAR_SETTLES_R_DIM], lowest[STAR_SETTLES_R_DIM] = {0}, g, r, k, low;
-    int slip_own[STAR_SETTLES_NF_DIM];
+    int g, r, low;
     star_settles_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2064,6 +2060,19 @@ static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double 
             }
         }
     }
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
+static int star_settles_plastic_entry(const star_settles_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
+{
+    double tgt[STAR_SETTLES_R_DIM] = {0.0}, vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N];
+    int dropped[STAR_SETTLES_R_DIM], lowest[STAR_SETTLES_R_DIM] = {0}, k;
+    int slip_own[STAR_SETTLES_NF_DIM];
+    star_settles_touching(c, q, v, group, n_group, rows, n_rows, lowest);
     /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (star_settles_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

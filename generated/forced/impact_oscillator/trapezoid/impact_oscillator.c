@@ -1583,17 +1583,13 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     return 0;
 }
 
-/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
- * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
-static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
-    int *slip_ride, int *land)
+/* SustainedSteps._touching: the rows of the contacts group at q that touch: each contact's lowest row (lowest[r] =
+ * 1) and those within Tolerances.admissible of it (another branch at a kink), in rows[0..n_rows). */
+static void impact_oscillator_touching(const impact_oscillator_ctx_t *c, const double *q, const double *v, const int *group,
+    int n_group, int *rows, int *n_rows, int *lowest)
 {
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
-    double tgt[IMPACT_OSCILLATOR_R_DIM] = {0.0}, vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N];
-    int dropped[IMPACT_OSCILLATOR_R_DIM], lowest[IMPACT_OSCILLATOR_R_DIM] = {0}, g, r, k, low;
-    int slip_own[IMPACT_OSCILLATOR_NF_DIM];
+    int g, r, low;
     impact_oscillator_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1613,6 +1609,19 @@ static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, con
             }
         }
     }
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
+static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
+{
+    double tgt[IMPACT_OSCILLATOR_R_DIM] = {0.0}, vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N];
+    int dropped[IMPACT_OSCILLATOR_R_DIM], lowest[IMPACT_OSCILLATOR_R_DIM] = {0}, k;
+    int slip_own[IMPACT_OSCILLATOR_NF_DIM];
+    impact_oscillator_touching(c, q, v, group, n_group, rows, n_rows, lowest);
     /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (impact_oscillator_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

@@ -2663,17 +2663,13 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     return 0;
 }
 
-/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
- * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
-static int star_friction_plastic_entry(const star_friction_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
-    int *slip_ride, int *land)
+/* SustainedSteps._touching: the rows of the contacts group at q that touch: each contact's lowest row (lowest[r] =
+ * 1) and those within Tolerances.admissible of it (another branch at a kink), in rows[0..n_rows). */
+static void star_friction_touching(const star_friction_ctx_t *c, const double *q, const double *v, const int *group,
+    int n_group, int *rows, int *n_rows, int *lowest)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
-    double tgt[STAR_FRICTION_R_DIM] = {0.0}, vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N];
-    int dropped[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, g, r, k, low;
-    int slip_own[STAR_FRICTION_NF_DIM];
+    int g, r, low;
     star_friction_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2693,6 +2689,32 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
             }
         }
     }
+}
+
+/* SustainedSteps._rough: does an impact of the free chain on the contacts group take the impulse law with Coulomb's
+ * cone (sustained contact on and one of them frictional)? The jump (48) along (86) has no friction for several. */
+static int star_friction_rough(const star_friction_ctx_t *c, const int *group, int n_group)
+{
+    int f, g, out = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        for (g = 0; g < n_group; ++g) {
+            out = out || (c->mu_f[f] > 0.0 && star_friction_fric_contact[f] == group[g]);
+        }
+    }
+    return out && c->tol->grazing_contact;
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
+static int star_friction_plastic_entry(const star_friction_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
+{
+    double tgt[STAR_FRICTION_R_DIM] = {0.0}, vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N];
+    int dropped[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, k;
+    int slip_own[STAR_FRICTION_NF_DIM];
+    star_friction_touching(c, q, v, group, n_group, rows, n_rows, lowest);
     /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (star_friction_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
@@ -3372,6 +3394,28 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
             next.x[i] = x_best[i];
         }
         *seg = next;
+        if (n_group > 1 && star_friction_rough(c, group, n_group)) {
+            /* several contacts at once, one with friction (SustainedSteps._rough_rest): an impact while held with none
+             * held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of the step (chain); the
+             * tangent broke at the contact (simultaneous impact) */
+            int rows[STAR_FRICTION_R_DIM] = {0}, lowest[STAR_FRICTION_R_DIM] = {0}, n_rows = 0;
+            if (star_friction_count_event(c)) {
+                return 1;
+            }
+            star_friction_touching(c, seg->q, v_c, group, n_group, rows, &n_rows, lowest);
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = seg->p_in[i];
+                v[i] = v_c[i];
+            }
+            if (star_friction_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec)) {
+                return 1;
+            }
+            rc = star_friction_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            star_friction_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
         /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
          * loss of (39) with restitution; seg->e_in becomes the energy after). */
         elastic = 1;

@@ -1965,17 +1965,13 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     return 0;
 }
 
-/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
- * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
-static int ball_box_plastic_entry(const ball_box_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
-    int *slip_ride, int *land)
+/* SustainedSteps._touching: the rows of the contacts group at q that touch: each contact's lowest row (lowest[r] =
+ * 1) and those within Tolerances.admissible of it (another branch at a kink), in rows[0..n_rows). */
+static void ball_box_touching(const ball_box_ctx_t *c, const double *q, const double *v, const int *group,
+    int n_group, int *rows, int *n_rows, int *lowest)
 {
     double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
-    double tgt[BALL_BOX_R_DIM] = {0.0}, vel_m[BALL_BOX_N], vel_p[BALL_BOX_N];
-    int dropped[BALL_BOX_R_DIM], lowest[BALL_BOX_R_DIM] = {0}, g, r, k, low;
-    int slip_own[BALL_BOX_NF_DIM];
+    int g, r, low;
     ball_box_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -1995,6 +1991,19 @@ static int ball_box_plastic_entry(const ball_box_ctx_t *c, const double *q, cons
             }
         }
     }
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
+static int ball_box_plastic_entry(const ball_box_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
+{
+    double tgt[BALL_BOX_R_DIM] = {0.0}, vel_m[BALL_BOX_N], vel_p[BALL_BOX_N];
+    int dropped[BALL_BOX_R_DIM], lowest[BALL_BOX_R_DIM] = {0}, k;
+    int slip_own[BALL_BOX_NF_DIM];
+    ball_box_touching(c, q, v, group, n_group, rows, n_rows, lowest);
     /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (ball_box_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

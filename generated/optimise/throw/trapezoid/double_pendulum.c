@@ -2170,17 +2170,13 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     return 0;
 }
 
-/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
- * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
- * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
-static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *v,
-    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
-    int *slip_ride, int *land)
+/* SustainedSteps._touching: the rows of the contacts group at q that touch: each contact's lowest row (lowest[r] =
+ * 1) and those within Tolerances.admissible of it (another branch at a kink), in rows[0..n_rows). */
+static void double_pendulum_touching(const double_pendulum_ctx_t *c, const double *q, const double *v, const int *group,
+    int n_group, int *rows, int *n_rows, int *lowest)
 {
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
-    double tgt[DOUBLE_PENDULUM_R_DIM] = {0.0}, vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N];
-    int dropped[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, g, r, k, low;
-    int slip_own[DOUBLE_PENDULUM_NF_DIM];
+    int g, r, low;
     double_pendulum_rows(q, v, c->par, psi, grad, curv);
     *n_rows = 0;
     for (g = 0; g < n_group; ++g) {
@@ -2200,6 +2196,19 @@ static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const d
             }
         }
     }
+}
+
+/* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
+ * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
+ * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
+static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *p_plus, double *lam, double *loss, int *rows, int *n_rows, int *slipped,
+    int *slip_ride, int *land)
+{
+    double tgt[DOUBLE_PENDULUM_R_DIM] = {0.0}, vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N];
+    int dropped[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, k;
+    int slip_own[DOUBLE_PENDULUM_NF_DIM];
+    double_pendulum_touching(c, q, v, group, n_group, rows, n_rows, lowest);
     /* no row is held here (the free impact chain runs with none): friction only where they land */
     if (double_pendulum_impulse_law(c, q, p, v, rows, *n_rows, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
