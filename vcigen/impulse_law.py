@@ -60,9 +60,7 @@ class ImpulseLaw:
         slips = self._law_slips(grad, rows)
         for f, _ in slips:  # a cone's two stick rows, its first tangent's first
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
-        lands = self._law_lands(q, vel, rows)
-        if lands:
-            grad = k.rows(q, vel)[1]  # their branches frozen where they land
+        lands, grad = self._law_lands(q, vel, rows, grad)
         for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
         if len(rows) > MAX_LAW_ROWS:
@@ -180,14 +178,8 @@ class ImpulseLaw:
                 held = any(self.act[r] and k.row_contact[r] == j for r in rows)
                 pf = self._partner[f]
                 if pf > f and held and (self._slip[f] or self._slip[pf]):  # a cone: both rows independent
-                    sp_ = self._stick_rows[pf]
-                    if not self._dependent(grad, sr):
-                        self.act[sr] = True
-                        if not self._dependent(grad, sp_):
-                            self.act[sp_] = True
-                            out.append((f, []))
-                            continue
-                        self.act[sr] = False
+                    if self._cone_joins(grad, f):
+                        out.append((f, []))
                     continue
                 if not (self._slip[f] and pf < 0 and held):
                     continue
@@ -203,18 +195,31 @@ class ImpulseLaw:
             self.act = act
         return out
 
-    def _law_lands(self, q, vel, rows) -> dict[int, int]:
+    def _cone_joins(self, grad, f: int) -> bool:
+        """Are both stick rows of the isotropic cone ``f`` (its first tangent) independent of the active rows,
+        the second of the first too? Then both are set active (they join the impulse law), else neither."""
+        sr, sp_ = self._stick_rows[f], self._stick_rows[self._partner[f]]
+        if not self._dependent(grad, sr):
+            self.act[sr] = True
+            if not self._dependent(grad, sp_):
+                self.act[sp_] = True
+                return True
+            self.act[sr] = False
+        return False
+
+    def _law_lands(self, q, vel, rows, grad) -> tuple[dict[int, int], np.ndarray]:
         """The frictional contacts landing in the impulse law on ``rows`` (a row of their contact among them,
         none held) whose friction joins it (MATH.md *Friction*: Coulomb's impulse at an impact): ``{f:
         owner}``, ``owner = f`` for one whose stick row (an isotropic cone: both) is independent of ``rows``
         and of the stick rows of those before it (it joins the law), else the one-tangent contact whose stick
         row carries its tangent (held and sticking, slipping and joined, or landing before it; a box landing
         flat, two vertices). One whose stick row depends on the normal rows alone takes none, as does a cone
-        with a dependent row. Their branches are frozen where they land (:meth:`_freeze_branch`)."""
+        with a dependent row. Their branches are frozen where they land (:meth:`_freeze_branch`); with any
+        landing, ``grad`` (the rows' gradients at ``(q, vel)``) is taken anew. Returns ``(lands, grad)``."""
         k = self.k
         out: dict[int, int] = {}
         if not self._stick_rows:
-            return out
+            return out, grad
         held = {k.row_contact[r] for r in np.flatnonzero(self.act)}
         hit = {k.row_contact[r] for r in rows} - held
         landing = [
@@ -223,7 +228,7 @@ class ImpulseLaw:
             if j in hit and self._mu_f[f] > 0.0 and not 0 <= self._partner[f] < f
         ]
         if not landing:
-            return out
+            return out, grad
         for f in landing:
             for x in (f, self._partner[f]):
                 if x >= 0:
@@ -236,13 +241,8 @@ class ImpulseLaw:
             for f in landing:
                 sr, pf = self._stick_rows[f], self._partner[f]
                 if pf >= 0:  # an isotropic cone: both rows independent
-                    if not self._dependent(grad, sr):
-                        self.act[sr] = True
-                        if not self._dependent(grad, self._stick_rows[pf]):
-                            self.act[self._stick_rows[pf]] = True
-                            out[f] = f
-                            continue
-                        self.act[sr] = False
+                    if self._cone_joins(grad, f):
+                        out[f] = f
                     continue
                 if not self._dependent(grad, sr):
                     self.act[sr] = True
@@ -255,7 +255,7 @@ class ImpulseLaw:
                         break
         finally:
             self.act = act
-        return out
+        return out, grad
 
     def _law_cones(self, rows, slips=(), lands=None):
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each

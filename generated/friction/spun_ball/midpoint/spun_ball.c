@@ -2530,6 +2530,22 @@ static int spun_ball_law_strict(const spun_ball_ctx_t *c, const int *rows, int n
 }
 
 
+/* ImpulseLaw._cone_joins: are both stick rows of the isotropic cone f (its first tangent) independent of the active
+ * rows, the second of the first too? Then both are set active (they join the impulse law), else neither. */
+static int spun_ball_cone_joins(const spun_ball_ctx_t *c, const double *grad, int f)
+{
+    const int sr = spun_ball_stick_row[f], sp = spun_ball_stick_row[spun_ball_partner[f]];
+    if (!spun_ball_dependent(c, grad, sr, -1)) {
+        c->sus->act[sr] = 1;
+        if (!spun_ball_dependent(c, grad, sp, -1)) {
+            c->sus->act[sp] = 1;
+            return 1;
+        }
+        c->sus->act[sr] = 0;
+    }
+    return 0;
+}
+
 /* SustainedSteps._law_slips: the one-tangent contacts held and slipping whose friction joins the impulse law on
  * rows[0..nr): slip_own[f] = 1 for one whose stick row is independent of the active rows and of the stick rows of
  * those before it (appended to rows), slip_ride[g] = f for a slipping contact whose stick row depends on f's (a
@@ -2555,16 +2571,10 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
         }
         pf = spun_ball_partner[f];
         if (pf > f && held && (c->sus->slip[f] != 0.0 || c->sus->slip[pf] != 0.0)) { /* a cone: both independent */
-            if (!spun_ball_dependent(c, grad, sr, -1)) {
-                c->sus->act[sr] = 1;
-                if (!spun_ball_dependent(c, grad, spun_ball_stick_row[pf], -1)) {
-                    c->sus->act[spun_ball_stick_row[pf]] = 1;
-                    slip_own[f] = 1;
-                    rows[(*nr)++] = sr;
-                    rows[(*nr)++] = spun_ball_stick_row[pf];
-                    continue;
-                }
-                c->sus->act[sr] = 0;
+            if (spun_ball_cone_joins(c, grad, f)) {
+                slip_own[f] = 1;
+                rows[(*nr)++] = sr;
+                rows[(*nr)++] = spun_ball_stick_row[pf];
             }
             continue;
         }
@@ -2641,16 +2651,10 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
         sr = spun_ball_stick_row[f];
         pf = spun_ball_partner[f];
         if (pf >= 0) { /* an isotropic cone: both rows independent */
-            if (!spun_ball_dependent(c, grad, sr, -1)) {
-                c->sus->act[sr] = 1;
-                if (!spun_ball_dependent(c, grad, spun_ball_stick_row[pf], -1)) {
-                    c->sus->act[spun_ball_stick_row[pf]] = 1;
-                    land[f] = f;
-                    rows[(*nr)++] = sr;
-                    rows[(*nr)++] = spun_ball_stick_row[pf];
-                    continue;
-                }
-                c->sus->act[sr] = 0;
+            if (spun_ball_cone_joins(c, grad, f)) {
+                land[f] = f;
+                rows[(*nr)++] = sr;
+                rows[(*nr)++] = spun_ball_stick_row[pf];
             }
             continue;
         }
