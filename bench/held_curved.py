@@ -25,6 +25,9 @@ Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
 * ``ellipse``: ``r - sqrt(x^2 / 4 + y^2)`` from ``(1.2, -0.8)`` at rest: a quadric's closed step
   (``held.closed_forms``, not ``fixed``: ``A`` and the projection's ``W`` vary on the row, ``Hess F``
   definite), ``<model>_held_closed_loop``; before stop 24 the held Newton (9-10x);
+* ``ellipse``, hand-written: ``bench/handwritten/ellipse.c``, the same held step written for this row alone
+  (the fewest operations we could write, the next line's start one multiply-add after the root), timed in the
+  same loop and checked against the generated run (q, p to 1e-9): the practical limit of the generated loop;
 * ``valley``: a particle in the parabola ``y >= x^2 / 2``, from ``(0.8, 0.32)`` at rest, through its vertex:
   a quadric's closed step whose ``Hess F`` is not definite (its root divides by ``B + sqrt(D)``); free: from
   ``(0, 1e6)``.
@@ -33,11 +36,16 @@ Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
 from __future__ import annotations
 
 import argparse
+import ctypes
 import math
+import subprocess
 import sys
+import tempfile
+import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import sympy as sp
 
 import vcigen
@@ -119,6 +127,28 @@ RUNS = [  # name, model, h, steps, held (q0, v0, params), free (q0, v0, params)
 ]
 
 
+def handwritten_ellipse():
+    """``run(q0, p0, h, steps) -> (seconds of CPU time, Q, P)`` over ``bench/handwritten/ellipse.c`` (r = 1,
+    the ``ellipse`` scene's row), compiled with the shipped flags."""
+    out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / "libhw_ellipse.so"
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared"]
+    subprocess.run(["cc", *flags, "-o", str(out), str(HERE / "handwritten" / "ellipse.c"), "-lm"], check=True)
+    f = ctypes.CDLL(str(out)).hw_ellipse_run
+    f.restype = ctypes.c_long
+    f.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_double] * 3 + [ctypes.c_long] + [ctypes.c_void_p] * 4
+
+    def run(q0, p0, h: float, steps: int):
+        q0, p0 = np.array(q0, float), np.array(p0, float)
+        Q, P, E, F = np.empty((steps, 2)), np.empty((steps, 2)), np.empty(steps), np.empty(steps)
+        t = time.thread_time()
+        done = f(q0.ctypes.data, p0.ctypes.data, h, 1.0, G, steps, *(a.ctypes.data for a in (Q, P, E, F)))
+        spent = time.thread_time() - t
+        assert done == steps, ("hand-written ellipse stopped at", done)
+        return spent, Q, P
+
+    return run
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
@@ -130,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     keep_heap()
     sims = {name: vcigen.build(model(), backend="c") for name, model, *_ in runs}
     clocks = {name: cpu_clock(sim) for name, sim in sims.items()}
+    hand = handwritten_ellipse() if "ellipse" in sims else None
     best = {}
     for _ in range(a.repeats):
         for name, _, h, steps, held, free in runs:
@@ -140,10 +171,20 @@ def main(argv: list[str] | None = None) -> int:
                 ok = res.active.all() if kind == "held" else not res.active.any()
                 assert ok and res.t.size == steps + 1, (name, h, kind)
                 best[name, h, kind] = min(best.get((name, h, kind), math.inf), spent / steps * 1e9)
+                if name == "ellipse" and kind == "held" and hand is not None:  # the hand-written step, alike
+                    spent, Q, P = hand(q0, v0, h, steps)
+                    assert np.abs(Q - res.q[1:]).max() < 1e-9 and np.abs(P - res.p[1:]).max() < 1e-9
+                    best[name, h, "hand"] = min(best.get((name, h, "hand"), math.inf), spent / steps * 1e9)
     print(f"{'scene':<7} {'h':>7} {'held ns':>8} {'free ns':>8} {'ratio':>6}   (CPU time of the C loop)")
     for name, _, h, *_ in runs:
         held_ns, free_ns = best[name, h, "held"], best[name, h, "free"]
         print(f"{name:<7} {h:>7.0e} {held_ns:>8.1f} {free_ns:>8.1f} {held_ns / free_ns:>6.2f}")
+        if (name, h, "hand") in best:
+            hand_ns = best[name, h, "hand"]
+            print(
+                f"{'  hand':<7} {h:>7.0e} {hand_ns:>8.1f} {free_ns:>8.1f} {hand_ns / free_ns:>6.2f}"
+                f"   (bench/handwritten/ellipse.c; generated / hand-written {held_ns / hand_ns:.2f})"
+            )
     return 0
 
 

@@ -282,3 +282,37 @@ def test_a_run_with_its_tangent_takes_the_same_quadric_steps(backend: str) -> No
         hi, lo = run(x0 + eps * d), run(x0 - eps * d)
         fd = (np.r_[hi.q[-1], hi.p[-1]] - np.r_[lo.q[-1], lo.p[-1]]) / (2 * eps)
         np.testing.assert_allclose(tan.sensitivity[-1] @ d, fd, rtol=0, atol=1e-6 * (1 + np.abs(fd).max()))
+
+
+@pytest.mark.parametrize("backend", ["casadi", pytest.param("c", marks=needs_cc)])
+@pytest.mark.parametrize("name", ["ellipse", "aniso", "valley", "ellipsoid"])
+def test_a_carried_closed_step_is_the_fresh_step(backend: str, name: str) -> None:
+    """The C loop starts each closed step's line from the previous step's p+ before its projection (w = (p+,
+    Lam'), carried; the Python stepper alike): the root absorbs that move along the row's gradient, so a step
+    from the carried w and one from (q, p) alone are the same step to round-off, end state and Lam, Lam'
+    (Lam, Lam' to 1e-12: v's rounding, eps |q| / h, times the gradient), over 300 held steps of
+    h = 1e-2 (the valley from rest at x = 0.8 through its vertex)."""
+    sim = vcigen.build(QUADRICS[name][0](), backend=backend)
+    k = sim.kernels.bind(sim.model.resolve_params(None))
+    grad = _kernels(QUADRICS[name][0])[1]  # CasADi's, for the row's gradient
+    act, tol, h = np.ones(1, dtype=bool), sim.tol, 1e-2
+    q, p = next(_states(name, np.random.default_rng(3), 1))
+    if name == "valley":
+        q, p = np.array([0.8, 0.32]), np.zeros(2)
+    x0, w, lp_seen, crossed = q[0], None, 0.0, False
+    for _ in range(300):
+        held, w1 = k.closed_step(q, p, w, 0, act, h, tol.residual, tol.phi)
+        fresh, _ = k.closed_step(held.q1, held.p1, None, 0, act, h, tol.residual, tol.phi)
+        carried, w = k.closed_step(held.q1, held.p1, w1, 0, act, h, tol.residual, tol.phi)
+        scale = 1.0 + np.abs(held.p1).max()
+        np.testing.assert_allclose(carried.q1, fresh.q1, rtol=0, atol=1e-14 * (1 + np.abs(q).max()))
+        np.testing.assert_allclose(carried.p1, fresh.p1, rtol=0, atol=1e-14 * scale)
+        np.testing.assert_allclose(carried.lam, fresh.lam, rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(carried.lam1, fresh.lam1, rtol=0, atol=1e-12 * scale)
+        g1 = grad.held_rows(held.q1, grad.held_consts(h))[1][0]
+        np.testing.assert_allclose(w1[:-1], held.p1 - held.lam1[0] * g1, rtol=0, atol=1e-14 * scale)  # p+
+        lp_seen = max(lp_seen, abs(w1[-1]))
+        q, p = held.q1, held.p1
+        crossed |= bool(q[0] * x0 < 0)
+    assert lp_seen > 1e-6  # the carried Lam' is not 0: the line did move
+    assert crossed or name != "valley"  # through the vertex

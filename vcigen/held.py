@@ -17,9 +17,11 @@ multipliers of the active rows ``A``:
   closed-form (:func:`closed_forms`,
   :func:`vcigen.held_step.closed_step`, ``held_root``, ``held_root_end``): the quadratic's small root by
   one square root, the projection onto ``grad F(q1)``; no Newton, no evaluation of the row's square root
-  on the state's chain. Where that quadratic's leading coefficient and the projection's ``W`` are
-  constants on the row (a circle's or a sphere's row with an isotropic mass, a rod's) it divides by run
-  constants only; else (a quadric's row: an ellipse's, a paraboloid's) they are formed per step.
+  on the state's chain; the C loop starts each step's line from the step before's ``p+`` before its
+  projection (:func:`vcigen.held_step.closed_carried`: the root absorbs the move along the gradient), so the
+  projection is off the state's chain too. Where that quadratic's leading coefficient and the projection's
+  ``W`` are constants on the row (a circle's or a sphere's row with an isotropic mass, a rod's) it divides
+  by run constants only; else (a quadric's row: an ellipse's, a paraboloid's) they are formed per step.
 * ``rattle_project``: ``M u = p+ + G1^T Lam'``, ``G1 u = 0`` is linear in ``Lam'``:
   ``W Lam' = -G1 M^-1 p+`` with the Delassus matrix ``W = G1 M^-1 G1^T``.
 * the lift-off check (``SustainedSteps._forces``): ``W lambda = -(G1 M^-1 rhs + curv)`` with the

@@ -226,7 +226,8 @@ class Carry(NamedTuple):
     p: np.ndarray
     h: float
     par: np.ndarray
-    w: np.ndarray  # (omega, arg)
+    w: np.ndarray  # (omega, arg); a closed step's (p+, Lam') (vcigen.held_step.closed_carried)
+    row: int = -1  # the row held (HeldSteps hands it on only to a step on the same row)
 
     def at(self, q, p, h: float, par) -> np.ndarray | None:
         """``w`` if this carry belongs to ``(q, p, h, par)``, else ``None`` (the step forms its own)."""

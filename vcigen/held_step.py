@@ -84,30 +84,45 @@ class Held(NamedTuple):
     energy: float
 
 
-def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: float) -> Held | None:
+def closed_carried(k, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
     """:func:`held_step` on one active row with a closed form (:func:`closed_forms`; C:
-    ``<model>_held_closed_step``): the root of the row's quadratic along the line (``held_closed``), then the
-    segment, the projection, the force and the residual (``held_root_end``) and the tests of ``held_step``
-    in the same order; ``None`` where the root does not hold (``B <= 0`` or ``D < 0``) or a test fails."""
+    ``<model>_held_closed_one``, the body of ``<model>_held_closed_loop``): the root of the row's quadratic
+    along the line (``held_closed``), then the segment, the projection, the force and the residual
+    (``held_root_end``) and the tests of ``held_step`` in the same order: ``(Held, w1)``, or ``None`` where
+    the root does not hold (``B <= 0`` or ``D < 0``) or a test fails.
+
+    ``w = (pc, lp)``: the momentum the line starts from and the ``Lam'`` it is short of ``p`` by (``pc = p +
+    G^T lp``, ``G`` the row's gradient at ``q``), the previous step's ``w1``: its ``p+`` before the projection
+    and that projection's ``Lam'``; ``None``: ``(p, 0)``. The root absorbs a move of the line along ``G``
+    (RATTLE's ``Lam`` by ``lp``), so the step is the one from ``(q, p)`` to round-off, with the projection off
+    the state's chain in the C loop, which carries ``w``; ``Lam`` is the root's less ``lp``.
+    """
     kc = k.held_consts(h)
     m, e, f, s, _, _, a2, g, _ = k.held_root_dir(q, kc)
-    v0, a, nu, slope, disc = k.held_root(q, p, m, s, a2, kc)
+    pc, lp = (p, 0.0) if w is None else (w[:-1], float(w[-1]))
+    v0, a, nu, slope, disc = k.held_root(q, pc, m, s, a2, kc)
     if not (slope[row] > 0.0 and disc[row] >= 0.0):
         return None
     n, at = len(q), row * len(q)
     v = v0 + nu[row] * f[at : at + n]  # the C loop's operations: a product, then a sum
     q1 = a + nu[row] * e[at : at + n]
     p_plus, energy = k.held_segment(q, v, kc)
-    _, _, _, _, y, w, _, _, iw = k.held_root_dir(q1, kc)
-    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w, iw, kc)
+    _, _, _, _, y, w_, _, _, iw = k.held_root_dir(q1, kc)
+    p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w_, iw, kc)
     p1 = p1[row]
     if not one_row_clears(
         k, kc, row, act, p, q1, p1, float(energy), float(force[row]), float(res[row]), residual, phi_tol
     ):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)
-    lam[row], lam1[row] = nu[row] * g[row], lam1_r[row]
-    return Held(q1, p1, v, lam, lam1, float(energy))
+    lam[row], lam1[row] = nu[row] * g[row] - lp, lam1_r[row]
+    return Held(q1, p1, v, lam, lam1, float(energy)), np.r_[p_plus, lam1_r[row]]
+
+
+def closed_step(k, q, p, row: int, act, h: float, residual: float, phi_tol: float) -> Held | None:
+    """:func:`closed_carried` from ``(p, 0)``: the closed step from ``(q, p)`` alone."""
+    got = closed_carried(k, q, p, None, row, act, h, residual, phi_tol)
+    return None if got is None else got[0]
 
 
 def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -> Held | None:
@@ -180,7 +195,7 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
 class HeldSteps:
     """The held grid step in :class:`~vcigen.stepper.Stepper` (the C loop's ``<model>_held_glide``)."""
 
-    _carry = None  # the last rotation step's hand-over (vcigen.held_circle.Carry), as the C loop carries it
+    _carry = None  # the last rotation or closed step's hand-over (held_circle.Carry), as the C loop's
 
     def _held_step(self, h: float, q, p):
         """A held grid step from ``(q, p)`` if the kernels have it and it clears its tests, else ``None``.
@@ -194,12 +209,15 @@ class HeldSteps:
         rows = np.flatnonzero(self.act)
         circle = len(rows) == 1 and any(getattr(k, "held_circle", ())) and k.held_closed[rows[0]]
         circle = circle and k.held_circle[rows[0]]  # a rotation is a closed step (off with it)
-        if circle:  # the step as a rotation (vcigen.held_circle)
+        closed = len(rows) == 1 and k.held_closed[rows[0]] and getattr(k, "closed_carried", False)
+        if circle or closed:  # the step as a rotation (vcigen.held_circle) or a closed step, w carried
             tol, c = self.tol, self._carry
-            w = None if c is None else c.at(q, p, h, k.par)
-            got = k.circle_step(q, p, w, int(rows[0]), self.act, h, tol.residual, tol.phi)
+            w = None if c is None or c.row != rows[0] else c.at(q, p, h, k.par)
+            step = k.circle_step if circle else k.closed_step
+            got = step(q, p, w, int(rows[0]), self.act, h, tol.residual, tol.phi)
             out = None if got is None else got[0]
-            self._carry = None if got is None else Carry(out.q1, out.p1, h, np.array(k.par, float), got[1])
+            par = np.array(k.par, float)
+            self._carry = None if got is None else Carry(out.q1, out.p1, h, par, got[1], int(rows[0]))
         else:
             out = k.held_step(q, p, self._lam, self.act, h, self.tol.residual, self.tol.phi)
         if out is None:

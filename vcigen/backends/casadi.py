@@ -18,7 +18,7 @@ from ..derive import WHOLE, DiscreteSystem, set_rows
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import held_routines
 from ..held_circle import circle_step
-from ..held_step import held_step
+from ..held_step import closed_carried, held_step
 from ..routines import Routine
 from ..simulator import Simulator
 from ..stepper import Tolerances
@@ -111,6 +111,7 @@ class CasadiKernels(ParameterSlots):
         self._held_dir: tuple[np.ndarray, np.ndarray, list[np.ndarray]] | None = None  # held_root_dir's last
         self.held_pattern = list(self.structure.held_pattern)
         self.held_closed = list(self.structure.held_closed)  # held_root's rows (vcigen.held_step.closed_step)
+        self.closed_carried = True  # closed_step takes w (vcigen.held_step.HeldSteps)
         self.held_circle = list(
             self.structure.held_circle
         )  # rows whose closed step is a rotation (held_circle)
@@ -420,6 +421,10 @@ class CasadiKernels(ParameterSlots):
     def circle_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
         """``vcigen.held_circle.circle_step`` on these kernels."""
         return circle_step(self, q, p, w, row, act, h, residual, phi_tol)
+
+    def closed_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
+        """``vcigen.held_step.closed_carried`` on these kernels (``w`` ``None``: from ``(p, 0)``)."""
+        return closed_carried(self, q, p, w, row, act, h, residual, phi_tol)
 
     def held_circle_start(self, q, p, kc):
         """Per row ``(omega, arg)`` of the rotation step at ``(q, p)`` (``vcigen.held_circle``), ``r x 2``."""

@@ -169,7 +169,13 @@ class CKernels(ParameterSlots):
                 self._circle.argtypes = [_D, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_int]
                 self._circle.argtypes += [_D] * 10
                 self._circle.restype = ctypes.c_int
+            self._closed = getattr(self.lib, f"{pre}_eval_held_closed_step", None)  # held_step.closed_carried
+            if self._closed is not None:
+                self._closed.argtypes = [_D, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+                self._closed.argtypes += [_D] * 10
+                self._closed.restype = ctypes.c_int
         self.held_circle = list(self.structure.held_circle) if getattr(self, "_circle", None) else []
+        self.closed_carried = getattr(self, "_closed", None) is not None  # closed_step with w (HeldSteps)
         self.held_closed = list(self.structure.held_closed)
         self._solve = getattr(self.lib, f"{pre}_solve")
         self._solve.argtypes = [ctypes.c_int, _D, _D, _D, _D]
@@ -323,11 +329,21 @@ class CKernels(ParameterSlots):
     def circle_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
         """``vcigen.held_circle.circle_step``, by the C loop's own ``<model>_held_circle_one``: ``(Held, w1)``
         or ``None``; ``w`` ``None`` forms it (``held_circle_start``)."""
+        return self._carried(self._circle, 2, q, p, w, row, act, h, residual, phi_tol)
+
+    def closed_step(self, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
+        """``vcigen.held_step.closed_carried``, by the C loop's own ``<model>_held_closed_one``:
+        ``(Held, w1)`` or ``None``; ``w`` ``None`` starts from ``(p, 0)``."""
+        return self._carried(self._closed, self.n + 1, q, p, w, row, act, h, residual, phi_tol)
+
+    def _carried(self, step, size: int, q, p, w, row: int, act, h: float, residual: float, phi_tol: float):
+        """One step of a closed loop's C kernel ``step`` (``<model>_eval_held_circle_step`` or
+        ``<model>_eval_held_closed_step``) with its carry ``w`` of ``size`` values (NaN: formed by it)."""
         n, r = self.n, self.r
-        wio = np.full(2, np.nan) if w is None else np.array(w, dtype=float)
+        wio = np.full(size, np.nan) if w is None else np.array(w, dtype=float)
         lam, lam1, q1, p1, v, e = np.empty(r), np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(1)
         acts = _vec(np.asarray(act, dtype=float), r)
-        ok = self._circle(
+        ok = step(
             _ptr(self.par), float(h), float(residual), float(phi_tol), int(row), _ptr(_vec(q, n)),
             _ptr(_vec(p, n)), _ptr(acts), _ptr(wio), _ptr(lam), _ptr(lam1), _ptr(q1), _ptr(p1), _ptr(v),
             _ptr(e),

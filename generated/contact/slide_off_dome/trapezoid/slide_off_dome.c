@@ -2321,18 +2321,22 @@ static inline void slide_off_dome_held_dir(const double *q, const double *kh, sl
  * form: the small root of its quadratic along the line (held_root: one sqrt on the state's chain; a quadric's
  * row whose Hess F is not definite, held.closed_forms, divides by B + sqrt(D)), v, q1 and Lam from it, the
  * segment, held_root_dir at q1 (d1, out: the next step's d0), the projection dividing by a run constant (a
- * quadric's: by W(q1)), the force and the residual F(q1)/gain (held_root_end), then held_step's tests. Returns 0 if the step cleared them (q1, p1, v, *e, lam[row],
- * lam1[row], d1 written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general chain
- * takes it. */
+ * quadric's: by W(q1)), the force and the residual F(q1)/gain (held_root_end), then held_step's tests.
+ * w = (pc, lp): the momentum the line starts from and the Lam' it is short of p by (pc = p + G^T lp): the
+ * previous step's p+ before its projection and that projection's Lam' (the loop carries them, so that the
+ * projection is off the state's chain: the line moves along the row's gradient, which its root absorbs), or
+ * (p, 0). Returns 0 if the step cleared the tests (q1, p1, v, *e, lam[row] = Lam, lam1[row], d1 and w1, the
+ * next step's w, written), 1 if not (the root does not hold: B <= 0 or D < 0; or a test fails): the general
+ * chain takes it. */
 SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_one(const double *kh, double residual, double phi_tol,
-    const int *act, int row, const double *q, const double *p, const slide_off_dome_held_dir_t *d0,
-    slide_off_dome_held_dir_t *d1, double *lam, double *lam1, double *q1, double *p1, double *v, double *e)
+    const int *act, int row, const double *q, const double *p, const double *w, const slide_off_dome_held_dir_t *d0,
+    slide_off_dome_held_dir_t *d1, double *lam, double *lam1, double *q1, double *p1, double *v, double *e, double *w1)
 {
     double v0[SLIDE_OFF_DOME_N], a[SLIDE_OFF_DOME_N], nu[SLIDE_OFF_DOME_R_DIM];
     double slope[SLIDE_OFF_DOME_R_DIM], disc[SLIDE_OFF_DOME_R_DIM], pp[SLIDE_OFF_DOME_N], pr[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double l1[SLIDE_OFF_DOME_R_DIM], force[SLIDE_OFF_DOME_R_DIM], res[SLIDE_OFF_DOME_R_DIM], f, sum;
     int i, clear;
-    slide_off_dome_held_root(q, p, d0->m, d0->s, d0->a2, kh, v0, a, nu, slope, disc);
+    slide_off_dome_held_root(q, w, d0->m, d0->s, d0->a2, kh, v0, a, nu, slope, disc);
     if (SLIDE_OFF_DOME_HELD_UNLIKELY(!(slope[row] > 0.0) || !(disc[row] >= 0.0))) {
         return 1;
     }
@@ -2368,19 +2372,31 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_one(const double *kh, 
     if (!clear) {
         return 1;
     }
-    lam[row] = nu[row] * d0->g[row];
+    SLIDE_OFF_DOME_HELD_UNROLL
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        w1[i] = pp[i];
+    }
+    w1[SLIDE_OFF_DOME_N] = l1[row];
+    lam[row] = nu[row] * d0->g[row] - w[SLIDE_OFF_DOME_N]; /* the root's Lam, less the Lam' it absorbed */
     lam1[row] = l1[row];
     return 0;
 }
 
-/* held.closed_step: <model>_held_closed_one from held_root_dir at q. */
+/* held.closed_step: <model>_held_closed_one from held_root_dir at q, with w = (p, 0) if w[0] is NaN (the step
+ * forms its own) else the previous step's w1 (in); w1 out. */
 SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_step(const double *kh, double residual, double phi_tol,
-    const int *act, int row, const double *q, const double *p, double *lam, double *lam1, double *q1, double *p1,
-    double *v, double *e)
+    const int *act, int row, const double *q, const double *p, const double *w, double *lam, double *lam1, double *q1,
+    double *p1, double *v, double *e, double *w1)
 {
     slide_off_dome_held_dir_t d0, d1;
+    double wf[SLIDE_OFF_DOME_N + 1];
+    int i;
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        wf[i] = w[0] != w[0] ? p[i] : w[i];
+    }
+    wf[SLIDE_OFF_DOME_N] = w[0] != w[0] ? 0.0 : w[SLIDE_OFF_DOME_N];
     slide_off_dome_held_dir(q, kh, &d0);
-    return slide_off_dome_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, e);
+    return slide_off_dome_held_closed_one(kh, residual, phi_tol, act, row, q, p, wf, &d0, &d1, lam, lam1, q1, p1, v, e, w1);
 }
 
 /* <model>_norm_inf over the na active rows, without branches: |d|_inf, NaN if some d[a] is NaN. */
@@ -2485,8 +2501,10 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
     double w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
     double l1[SLIDE_OFF_DOME_R_DIM], f[SLIDE_OFF_DOME_R_DIM], res, f_eps, curv, sum;
     int piv[SLIDE_OFF_DOME_R_DIM], a, b, r, clear, pull;
-    if (na == 1 && slide_off_dome_held_closed[rows[0]]) { /* held.closed_step */
-        return slide_off_dome_held_closed_step(kh, residual, phi_tol, act, rows[0], q, p, lam, lam1, q1, p1, v, e);
+    if (na == 1 && slide_off_dome_held_closed[rows[0]]) { /* held.closed_step, forming its own w */
+        const double wn[SLIDE_OFF_DOME_N + 1] = { NAN };
+        double w1[SLIDE_OFF_DOME_N + 1];
+        return slide_off_dome_held_closed_step(kh, residual, phi_tol, act, rows[0], q, p, wn, lam, lam1, q1, p1, v, e, w1);
     }
     slide_off_dome_held_free(q, p, kh, v0, jinv);
     SLIDE_OFF_DOME_HELD_UNROLL
@@ -2767,29 +2785,38 @@ int slide_off_dome_eval_held_circle_step(const double *par, double h, double res
 
 /* The loop of held.closed_step on row `row` held alone (a closed row whose step is not a rotation): closed steps
  * from (q, p) (in/out; v, lam[row] out: the last step's velocity and Lam) while each clears its tests; returns
- * the number taken, each stored as <model>_held_loop stores its steps. held_root_dir at a step's end is the next
- * step's at its start: one evaluation a step. */
+ * the number taken, each stored as <model>_held_loop stores its steps (with its tangent in the sensitivity
+ * variant). held_root_dir at a step's end is the next step's at its start: one evaluation a step; and the line
+ * starts from the step's p+ before its projection (w = (p+, Lam'), carried; (p, 0) at the entry), so that the
+ * projection is off the state's chain. */
 SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_closed_loop(const slide_off_dome_ctx_t *c, const double *kh, long n,
     const int *act, int row, const unsigned char *held, double *q, double *p, double *v, double *lam, double *Q,
     double *P, double *E, unsigned char *A, double *F, double *FC, double *sum_e)
 {
     slide_off_dome_held_dir_t d0, d1;
-    double q1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], lam1[SLIDE_OFF_DOME_R_DIM], e, imp, sum = 0.0;
+    double q1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], lam1[SLIDE_OFF_DOME_R_DIM], w[SLIDE_OFF_DOME_N + 1], w1[SLIDE_OFF_DOME_N + 1];
+    double e, imp, sum = 0.0;
     const double h = c->h, residual = c->tol->residual, phi_tol = c->tol->phi;
     long s;
     int i;
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        w[i] = p[i];
+    }
+    w[SLIDE_OFF_DOME_N] = 0.0;
     slide_off_dome_held_dir(q, kh, &d0);
     for (s = 0; s < n; ++s) {
-        if (slide_off_dome_held_closed_one(kh, residual, phi_tol, act, row, q, p, &d0, &d1, lam, lam1, q1, p1, v, &e)) {
+        if (slide_off_dome_held_closed_one(kh, residual, phi_tol, act, row, q, p, w, &d0, &d1, lam, lam1, q1, p1, v, &e, w1)) {
             break;
         }
         SLIDE_OFF_DOME_HELD_UNROLL
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];
+            w[i] = w1[i];
             Q[s * SLIDE_OFF_DOME_N + i] = q1[i];
             P[s * SLIDE_OFF_DOME_N + i] = p1[i];
         }
+        w[SLIDE_OFF_DOME_N] = w1[SLIDE_OFF_DOME_N];
         d0 = d1;
         E[s] = e;
         sum += e;
@@ -2798,6 +2825,30 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_closed_loop(const slide_off_
     }
     *sum_e += sum;
     return s;
+}
+
+/* The kernels interface (Kernels.closed_step): one closed step from (q, p) over h on row `row` held alone
+ * (act: per row, 0 or 1); w in: the previous step's w1 (p+, Lam'), or NaN to start from (p, 0); out: this
+ * step's w1. 0: not taken; 1: taken, with its end (q1, p1), velocity v, E_d e, and Lam, Lam' per row. */
+int slide_off_dome_eval_held_closed_step(const double *par, double h, double residual, double phi_tol, int row,
+    const double *q, const double *p, const double *act_d, double *w, double *lam, double *lam1, double *q1,
+    double *p1, double *v, double *e)
+{
+    double kh[SLIDE_OFF_DOME_NKH], w1[SLIDE_OFF_DOME_N + 1];
+    int act[SLIDE_OFF_DOME_R_DIM], r, i;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        act[r] = act_d[r] != 0.0;
+        lam[r] = 0.0;
+        lam1[r] = 0.0;
+    }
+    slide_off_dome_held_consts(&h, par, kh);
+    if (slide_off_dome_held_closed_step(kh, residual, phi_tol, act, row, q, p, w, lam, lam1, q1, p1, v, e, w1)) {
+        return 0;
+    }
+    for (i = 0; i <= SLIDE_OFF_DOME_N; ++i) {
+        w[i] = w1[i];
+    }
+    return 1;
 }
 
 /* The loop of <model>_held_glide over na active rows (inlined per active set, or for na = 1 and 2, so that its
@@ -2819,8 +2870,9 @@ SLIDE_OFF_DOME_HELD_INLINE long slide_off_dome_held_loop(const slide_off_dome_ct
         return slide_off_dome_held_circle_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC,
             sum_e);
     }
-    if (na == 1 && slide_off_dome_held_closed[rows[0]]) { /* held.closed_step: the direction carried */
-        return slide_off_dome_held_closed_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC, sum_e);
+    if (na == 1 && slide_off_dome_held_closed[rows[0]]) { /* held.closed_step: the direction and w carried */
+        return slide_off_dome_held_closed_loop(c, kh, n, act, rows[0], held, q, p, v, lam, Q, P, E, A, F, FC,
+            sum_e);
     }
     slide_off_dome_held_rows(q, kh, psi, grad, hess);
     SLIDE_OFF_DOME_HELD_UNROLL
