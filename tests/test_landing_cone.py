@@ -8,7 +8,9 @@ cone's normal impulse is not coupled to it: the sliding after is along the slidi
 the stick impulse is inside the cone, it rolls from the landing on at the constant ``v1, w1``. Spin ``(3,
 -20)``: it slides through the landing (``P_t = -mu P u/|u|``) and on, its sliding ``u`` shrinking along a
 fixed direction at ``mu g (1 + m r^2/I)`` while the centre decelerates at ``mu g`` along it, until it rolls.
-Before this contract the landing kept the tangential momentum (``v1 = (2, -1)``).
+Before this contract the landing kept the tangential momentum (``v1 = (2, -1)``). The tangent through the
+sliding landing (stop 28; before it a break, ``"friction at an impact"``) and the rolling one against central
+differences.
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ def closed_form(t: np.ndarray, spin) -> tuple[np.ndarray, np.ndarray, float, boo
 def test_a_plastic_landing_takes_coulombs_cone(backend: str, spin, rolls: bool) -> None:
     """One plastic landing at ``t*`` with the normal impulse ``m sqrt(2 g)``; from the grid point after it
     the velocity and spin on the closed form to 1e-12 (rolling, or sliding then rolling); held throughout.
-    The tangent: a landing that sticks is carried (no break), one that slides breaks at its step with
-    ``"friction at an impact"`` (the cone's sliding impulse turns with the velocity after it)."""
+    The tangent is carried through both (no break; a sliding landing's impulse turns with the velocity after
+    it: ``Tracker._cone_slides``, C ``sens_cone_slides``)."""
     res = sim("ball", backend).simulate(
         q0=[0.0, 0.0, Z0, 0.0, 0.0],
         v0=[*V0, 0.0, *spin],
@@ -66,7 +68,7 @@ def test_a_plastic_landing_takes_coulombs_cone(backend: str, spin, rolls: bool) 
     print(f"{backend} spin {spin}: {'rolls' if rolls else 'slides'}, max error {err:.1e}")
     assert err <= 1e-12
     assert res.active[after, 0].all()
-    assert res.sensitivity_breaks == ([] if rolls else [(im.step, "friction at an impact")])
+    assert res.sensitivity_breaks == []
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -93,3 +95,45 @@ def test_the_rolling_landings_tangent_against_central_differences(backend: str) 
         worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
     print(f"{backend}: rolling landing's tangent vs central differences {worst:.1e}")
     assert worst <= 1e-6
+
+
+NAMES = ("q0[z]", "v0[x]", "v0[y]", "v0[ax]", "v0[ay]", "mu", "m")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_sliding_landings_tangent_against_central_differences(backend: str) -> None:
+    """The tangent carried through the landing that slides (spin ``(3, -20)``; it slides on to t = 2.14):
+    Coulomb's sliding impulse ``-mu P w+/|w+|`` turns with the sliding after it, solved with the impulse's
+    tangent. The state at t = 0.9 (a plastic landing at 0.45, sliding since) against central differences of
+    whole runs (eps 1e-6) in ``q0[z]`` (the landing time), ``v0``, the spin, ``mu`` and ``m``, to 1e-6 of the
+    largest entry; C's tangent against CasADi's to 1e-12 of it."""
+    kw = {"h": H, "t_end": 0.9, "progress": False}
+    q0, v0 = [0.0, 0.0, Z0, 0.0, 0.0], [*V0, 0.0, 3.0, -20.0]
+    sim_ = sim("ball", backend)
+    res = sim_.simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
+    (im,) = res.impacts
+    assert im.kind == "plastic" and res.sensitivity_breaks == []
+
+    def end(name: str, e: float) -> np.ndarray:
+        q, v, par = list(q0), list(v0), {"e": 0.0}
+        if name in ("mu", "m"):
+            par[name] = {"mu": BALL_MU, "m": MASS}[name] + e
+        else:
+            (q if name[0] == "q" else v)[["x", "y", "z", "ax", "ay"].index(name[3:-1])] += e
+        r = sim_.simulate(q0=q, v0=v, params=par, **kw)
+        assert r.impacts[0].step == im.step and r.impacts[0].kind == "plastic"
+        return np.concatenate([r.q[-1], r.p[-1]])
+
+    worst = 0.0
+    for name in NAMES:
+        fd = (end(name, 1e-6) - end(name, -1e-6)) / 2e-6
+        exact = res.sensitivity[-1, :, res.sensitivity_names.index(name)]
+        worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
+    print(f"{backend}: sliding landing's tangent vs central differences {worst:.1e}")
+    assert worst <= 1e-6
+    if backend == "c":
+        ref = sim("ball", "casadi").simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
+        scale = max(1.0, float(np.abs(ref.sensitivity[-1]).max()))
+        gap = float(np.abs(res.sensitivity[-1] - ref.sensitivity[-1]).max()) / scale
+        print(f"C vs CasADi tangent {gap:.1e}")
+        assert gap <= 1e-12

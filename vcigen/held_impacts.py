@@ -26,10 +26,10 @@ class HeldImpacts(ImpulseLaw):
         after (``slip = -mu_f w+ / |w+|``): a sticking one that slipped or a slipping one that stuck is a
         switch; one slipping on took a sliding impulse the tangent does not carry. Why the tangent stops
         here: ``"friction switch in a held step"`` (a contact's mode changed), ``"friction at an impact"``
-        (a cone's sliding impulse), ``""`` (carried). The landing contacts (``lands``) keep no mode here: a
-        landing cone's sliding impulse is ``"friction at an impact"`` (:meth:`_landing_why`)."""
+        (a cone's sliding impulse), ``""`` (carried). The landing contacts (``lands``) keep no mode here (a
+        landing cone's sliding impulse the tangent carries: ``ImpulseLaw._law_tangent``)."""
         k = self.k
-        why = self._landing_why(slipped, lands or {})
+        why = ""
         slipped = [r for r in slipped if k.row_stick[r] not in (lands or {})]
         if not slipped and not slips:
             return why

@@ -365,8 +365,9 @@ class ImpulseLaw:
         ``(sr, sgn, j)`` for a normal row of such a contact (Coulomb's sliding impulse along the stick row
         ``sr`` of its owner, sign ``sgn``, contact ``j``'s mu) or None: the slipping contacts that joined
         (``slips``, the sign of their slip) and the landing ones (``lands``) whose owner slid on an edge (the
-        sign of its impulse). ``why``: ``"friction at an impact"`` where a landing cone slid (its sliding
-        impulse turns with its velocity after: not carried), else ``""``."""
+        sign of its impulse); ``(t1, t2, w_hat, j)`` for a normal row of a landing isotropic cone that slid,
+        ``-mu_j N w_hat`` on its stick rows ``t1, t2`` (``w_hat`` its direction: the tangent turns it with
+        the sliding after, ``Tracker._cone_slides``). ``why``: ``""`` (kept for the readers' shape)."""
         k = self.k
         along = {}
         for f, riders in slips:
@@ -378,17 +379,17 @@ class ImpulseLaw:
                 )
         skip = {self._stick_rows[f] for f, _ in slips}
         for g, o in lands.items():
-            so = self._stick_rows[o]
-            if so not in skip and so not in slipped or self._partner[o] >= 0:
-                continue  # sticking (its stick row tight), or a cone (_landing_why)
+            so, po = self._stick_rows[o], self._partner[o]
+            if po >= 0 and so in slipped:  # a landing cone sliding: -mu N w_hat on its two stick rows
+                t1, t2 = so, self._stick_rows[po]
+                tang = np.array([float(lam[t1]), float(lam[t2])])
+                skip.update((t1, t2))
+                along[k.frictional[g]] = (t1, t2, -tang / max(math.hypot(*tang), 1e-300), k.frictional[g])
+                continue
+            if so not in skip and so not in slipped or po >= 0:
+                continue  # sticking (its stick row, or a cone's two, tight)
             sgn = math.copysign(1.0, self._slip[o] if so in skip else float(lam[so]))
             skip.add(so)
             along[k.frictional[g]] = (so, sgn, k.frictional[g])
         tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
-        return tight, [along.get(k.row_contact[r]) for r in tight], self._landing_why(slipped, lands)
-
-    def _landing_why(self, slipped, lands) -> str:
-        """``"friction at an impact"`` where a landing cone slid in the impulse law (``slipped``, ``lands``:
-        its sliding impulse turns with its velocity after, the tangent does not carry it), else ``""``."""
-        slid = any(self._partner[o] >= 0 and self._stick_rows[o] in slipped for o in set(lands.values()))
-        return "friction at an impact" if slid else ""
+        return tight, [along.get(k.row_contact[r]) for r in tight], ""

@@ -16,6 +16,8 @@ import functools
 
 import numpy as np
 
+from .held_roots import SLIDE_EPS
+
 
 def _guarded(hook, name: str | None = None):
     """A hook whose linear solve meets a singular matrix loses the tangent instead of stopping the run (the
@@ -213,12 +215,21 @@ class HeldTangents:
         dgrad = self.tg.get("d_rows")(q, vel, par)[0]
         dq_par = np.vstack([self.dq, dpar])
         dg = [dgrad[r * n : (r + 1) * n] @ dq_par for r in tight]  # each (n, K)
-        dirs, ddirs = grad.copy(), list(dg)  # D and its tangent
+        dirs, ddirs = grad.copy(), list(dg)  # D and its tangent (a landing cone's: but its direction's)
+        cones: dict[int, tuple] = {}  # contact j of a sliding landing cone: (t1, t2, w_hat, its rows)
         if slides is not None and any(s is not None for s in slides):
             mu = k.friction(q)[0]
             dmu = self.tg.get("d_friction")(q, par)[0] @ dpar  # (m, K)
             for c, slide in enumerate(slides):
-                if slide is not None:
+                if slide is not None and len(slide) == 4:  # (t1, t2, w_hat, j): -mu N w_hat on t1, t2
+                    t1, t2, what, j = slide
+                    cones.setdefault(j, (t1, t2, np.asarray(what, float), []))[3].append(c)
+                    gt = rows[[t1, t2]]
+                    dirs[c] = grad[c] - mu[j] * (what @ gt)
+                    dgt = [dgrad[t * n : (t + 1) * n] @ dq_par for t in (t1, t2)]
+                    ddirs[c] = dg[c] - mu[j] * (what[0] * dgt[0] + what[1] * dgt[1])
+                    ddirs[c] = ddirs[c] - np.outer(what @ gt, dmu[j])
+                elif slide is not None:
                     sr, sgn, j = slide
                     dirs[c] = grad[c] + sgn * mu[j] * rows[sr]
                     dgt = dgrad[sr * n : (sr + 1) * n] @ dq_par
@@ -244,8 +255,60 @@ class HeldTangents:
                 for c in range(len(tight))
             ]
         )
-        dlam = np.linalg.solve(w, db - dw_lam)
+        if cones:  # their directions w_hat = w+ / |w+| move with the velocity after: solved with dLam
+            dlam, ddirs = self._cone_slides(cones, q, vel, dvel, par, dq_par, mass1, grad, dg, y, dy, w, lam,
+                                            db - dw_lam, ddirs, mu, rows, dgrad)  # fmt: skip
+            if dlam is None:
+                return
+        else:
+            dlam = np.linalg.solve(w, db - dw_lam)
         self.dp = self.dp + sum(ddirs[c] * lam[c] + np.outer(dirs[c], dlam[c]) for c in range(len(tight)))
+
+    def _cone_slides(self, cones, q, vel, dvel, par, dq_par, mass1, grad, dg, y, dy, w, lam, rhs, ddirs, mu,
+                     rows, dgrad):  # fmt: skip
+        """:meth:`_impulse` with landing cones sliding through it (``cones``: per contact ``j`` ``(t1, t2,
+        w_hat, its normal rows' indices in tight)``): their impulse ``-mu_j N_j w_hat`` turns with ``w+ = G_t
+        vel+``, ``vel+ = vel + M^-1 D^T Lam``, ``w_hat = w+ / |w+|``. The tangents ``dLam`` and ``dw_hat_j``
+        solve together ``W dLam + sum_j N_j G M^-1 E_j dw_j = rhs`` (``E_j = -mu_j G_t^T``, the part of
+        ``d D`` the direction's tangent makes) and ``dw_j = P_j / |w+_j| d(w+_j)`` (``P_j = I - w_hat
+        w_hat^T``, ``d(w+) = dG_t vel+ + G_t (dvel + sum_e dy_e Lam_e + M^-1 E dw N + y dLam)``). Returns
+        ``(dLam, ddirs)`` (``ddirs`` with the directions' tangents), or ``(None, None)`` where a cone's
+        sliding after is 0 (to round-off): its direction has no tangent (``"friction at an impact"``)."""
+        n, na, cols = self.n, len(lam), dq_par.shape[1]
+        vel_p = vel + y @ lam
+        dvel_p0 = dvel + sum(dy[e] * lam[e] for e in range(na))  # without the directions' tangents
+        keys = sorted(cones)
+        size = na + 2 * len(keys)
+        mat, rhs_all = np.zeros((size, size)), np.zeros((size, cols))
+        mat[:na, :na], rhs_all[:na] = w, rhs
+        zs = []
+        for j in keys:
+            t1, t2, _, own = cones[j]
+            e_j = -mu[j] * rows[[t1, t2]].T  # (n, 2)
+            zs.append((np.linalg.solve(mass1, e_j), float(sum(lam[c] for c in own)), e_j))
+        for i, j in enumerate(keys):
+            t1, t2, what, own = cones[j]
+            gt = rows[[t1, t2]]
+            wp = gt @ vel_p
+            size_w = float(np.hypot(*wp))
+            if not size_w > SLIDE_EPS * (1.0 + float(np.max(np.abs(vel_p)))):
+                self.lose("friction at an impact")
+                return None, None
+            proj = (np.eye(2) - np.outer(what, what)) / size_w
+            at = na + 2 * i
+            mat[:na, at : at + 2] = zs[i][1] * (grad @ zs[i][0])
+            mat[at : at + 2, at : at + 2] = np.eye(2)
+            for i2, (z2, n2, _) in enumerate(zs):
+                mat[at : at + 2, na + 2 * i2 : na + 2 * i2 + 2] -= proj @ gt @ z2 * n2
+            mat[at : at + 2, :na] = -proj @ gt @ y
+            dgt_v = np.array([vel_p @ (dgrad[t * n : (t + 1) * n] @ dq_par) for t in (t1, t2)])
+            rhs_all[at : at + 2] = proj @ (dgt_v + gt @ dvel_p0)
+        sol = np.linalg.solve(mat, rhs_all)
+        ddirs = list(ddirs)
+        for i, j in enumerate(keys):
+            for c in cones[j][3]:
+                ddirs[c] = ddirs[c] + zs[i][2] @ sol[na + 2 * i : na + 2 * i + 2]
+        return sol[:na], ddirs
 
     @_guarded
     def held(self, q, p, tau: float, v, lam, lam1, lam_m, u1, act, entry: bool = False) -> None:

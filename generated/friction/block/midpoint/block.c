@@ -2105,14 +2105,14 @@ static double block_law_sliding(const double *grad, int f, const double *u)
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). The landing contacts (land) keep no mode
- * here. */
+ * changed (a friction switch: no tangent).
+ * The landing contacts (land) keep no mode here. */
 static int block_slip_at_impact(const block_ctx_t *c, const double *q, const double *vel_p,
     const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double tiny, sliding, along, slip;
-    int slipped[BLOCK_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
+    int slipped[BLOCK_R_DIM], r, i, f, g, k, any = 0, switched = 0;
     for (r = 0; r < BLOCK_R; ++r) {
         f = block_row_stick[r];
         slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
@@ -2122,7 +2122,7 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
         any = any || slip_own[f];
     }
     if (!any) {
-        return why ? 2 : 0;
+        return 0;
     }
     block_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel_p));
@@ -2179,7 +2179,6 @@ static int block_slip_at_impact(const block_ctx_t *c, const double *q, const dou
         }
     }
     block_set_friction(c);
-    (void)why;
     return switched;
 }
 

@@ -2184,14 +2184,14 @@ static double rough_disk_law_sliding(const double *grad, int f, const double *u)
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). The landing contacts (land) keep no mode
- * here. */
+ * changed (a friction switch: no tangent).
+ * The landing contacts (land) keep no mode here. */
 static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q, const double *vel_p,
     const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double tiny, sliding, along, slip;
-    int slipped[ROUGH_DISK_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
+    int slipped[ROUGH_DISK_R_DIM], r, i, f, g, k, any = 0, switched = 0;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         f = rough_disk_row_stick[r];
         slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
@@ -2201,7 +2201,7 @@ static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q,
         any = any || slip_own[f];
     }
     if (!any) {
-        return why ? 2 : 0;
+        return 0;
     }
     rough_disk_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel_p));
@@ -2258,7 +2258,6 @@ static int rough_disk_slip_at_impact(const rough_disk_ctx_t *c, const double *q,
         }
     }
     rough_disk_set_friction(c);
-    (void)why;
     return switched;
 }
 

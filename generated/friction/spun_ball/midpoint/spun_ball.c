@@ -3047,27 +3047,26 @@ static int spun_ball_cone_at_impact(const spun_ball_ctx_t *c, const double *q, c
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). Isotropic cones the same way (cone_at_impact); 2: a cone's sliding
- * impulse (friction at an impact: no tangent), a landing cone's too. The landing contacts (land) keep no mode
- * here. */
+ * changed (a friction switch: no tangent). Isotropic cones the same way (cone_at_impact); 2: a held cone's
+ * sliding impulse (friction at an impact: no tangent; a landing cone's the tangent carries, sens_cone_slides).
+ * The landing contacts (land) keep no mode here. */
 static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, const double *vel_p,
     const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double tiny, sliding, along, slip;
-    int slipped[SPUN_BALL_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
+    int slipped[SPUN_BALL_R_DIM], r, i, f, g, k, any = 0, switched = 0;
     int cones;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         f = spun_ball_row_stick[r];
         slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
-        why = why || (slipped_in[r] && f >= 0 && land[f] == f && spun_ball_partner[f] >= 0); /* a landing cone slid */
         any = any || slipped[r];
     }
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         any = any || slip_own[f];
     }
     if (!any) {
-        return why ? 2 : 0;
+        return 0;
     }
     spun_ball_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel_p));
@@ -3127,7 +3126,7 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
         }
     }
     spun_ball_set_friction(c);
-    return switched ? 1 : (cones & 2 || why ? 2 : 0);
+    return switched ? 1 : (cones & 2 ? 2 : 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -2387,14 +2387,14 @@ static double star_friction_law_sliding(const double *grad, int f, const double 
  * along the tangential velocity after (slip_f = -mu_f sign(g_t.qdot+)), or stick on where that is 0 (to round-off).
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
- * changed (a friction switch: no tangent). The landing contacts (land) keep no mode
- * here. */
+ * changed (a friction switch: no tangent).
+ * The landing contacts (land) keep no mode here. */
 static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const double *q, const double *vel_p,
     const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double tiny, sliding, along, slip;
-    int slipped[STAR_FRICTION_R_DIM], r, i, f, g, k, any = 0, switched = 0, why = 0;
+    int slipped[STAR_FRICTION_R_DIM], r, i, f, g, k, any = 0, switched = 0;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         f = star_friction_row_stick[r];
         slipped[r] = slipped_in[r] && !(f >= 0 && land[f] >= 0); /* a landing contact's: no mode here */
@@ -2404,7 +2404,7 @@ static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const doub
         any = any || slip_own[f];
     }
     if (!any) {
-        return why ? 2 : 0;
+        return 0;
     }
     star_friction_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel_p));
@@ -2461,7 +2461,6 @@ static int star_friction_slip_at_impact(const star_friction_ctx_t *c, const doub
         }
     }
     star_friction_set_friction(c);
-    (void)why;
     return switched;
 }
 
