@@ -74,7 +74,8 @@ class HeldImpacts(ImpulseLaw):
         (its stick rows in ``slipped``) slips on along its sliding after, ``slip = -mu_f w+ / |w+|`` (a switch
         if it stuck before), or sticks where that is 0 (to round-off); one that slipped before and joined
         (``slips``) but stuck in it sticks (:meth:`_stick`, a switch). ``(switched, slid)``, ``slid``: a cone
-        slipped on through the impact."""
+        with riders slipped on through the impact (one without: the tangent carries its sliding impulse,
+        ``ImpulseLaw._law_tangent``)."""
         switched = slid = False
         for f, p in self._cones():
             sr, sp_ = self._stick_rows[f], self._stick_rows[p]
@@ -82,7 +83,7 @@ class HeldImpacts(ImpulseLaw):
             w = self._sliding(f, p, grad, vel_p)
             if sr in slipped and math.hypot(*w) > tiny:
                 switched = switched or not joined
-                slid = slid or joined
+                slid = slid or (joined and any(g == f and riders for g, riders in slips))  # with riders: none
                 self.act[sr] = self.act[sp_] = False
                 self._slip[[f, p]] = -self._mu_f[f] * w / math.hypot(*w)
             elif joined:

@@ -370,21 +370,22 @@ class ImpulseLaw:
         the sliding after, ``Tracker._cone_slides``). ``why``: ``""`` (kept for the readers' shape)."""
         k = self.k
         along = {}
+        skip = set()
         for f, riders in slips:
+            if self._partner[f] >= 0 and self._stick_rows[f] in slipped and not riders:  # a cone slipping on
+                self._cone_along(along, skip, lam, f, f)
+                continue
+            skip.add(self._stick_rows[f])
             for g in [f, *riders]:
                 along[k.frictional[g]] = (
                     self._stick_rows[f],
                     math.copysign(1.0, self._slip[f]),
                     k.frictional[g],
                 )
-        skip = {self._stick_rows[f] for f, _ in slips}
         for g, o in lands.items():
             so, po = self._stick_rows[o], self._partner[o]
-            if po >= 0 and so in slipped:  # a landing cone sliding: -mu N w_hat on its two stick rows
-                t1, t2 = so, self._stick_rows[po]
-                tang = np.array([float(lam[t1]), float(lam[t2])])
-                skip.update((t1, t2))
-                along[k.frictional[g]] = (t1, t2, -tang / max(math.hypot(*tang), 1e-300), k.frictional[g])
+            if po >= 0 and so in slipped:  # a landing cone sliding
+                self._cone_along(along, skip, lam, o, g)
                 continue
             if so not in skip and so not in slipped or po >= 0:
                 continue  # sticking (its stick row, or a cone's two, tight)
@@ -393,3 +394,11 @@ class ImpulseLaw:
             along[k.frictional[g]] = (so, sgn, k.frictional[g])
         tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
         return tight, [along.get(k.row_contact[r]) for r in tight], ""
+
+    def _cone_along(self, along: dict, skip: set, lam, o: int, g: int) -> None:
+        """:meth:`_law_tangent` for the cone ``o`` (its first tangent) of contact ``g``'s that slid in the
+        law: ``-mu N w_hat`` on its two stick rows (``skip``), ``w_hat = -(Lam_t1, Lam_t2) / |.|``."""
+        t1, t2 = self._stick_rows[o], self._stick_rows[self._partner[o]]
+        tang = np.array([float(lam[t1]), float(lam[t2])])
+        skip.update((t1, t2))
+        along[self.k.frictional[g]] = (t1, t2, -tang / max(math.hypot(*tang), 1e-300), self.k.frictional[g])

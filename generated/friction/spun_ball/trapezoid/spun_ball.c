@@ -3014,12 +3014,13 @@ static double spun_ball_law_sliding(const double *grad, int f, const double *u)
 /* SustainedSteps._cone_at_impact: the isotropic cones of the impulse law after it (slip_at_impact): one that slipped
  * in it (its stick rows slipped) slips on along its sliding after, slip = -mu_f w+ / |w+| (a switch if it stuck
  * before), or sticks where that is 0 (to round-off); one that slipped before and joined (slip_own) but stuck in it
- * sticks (stick, a switch). Bit 1: switched; bit 2: a cone slipped on through the impact. */
+ * sticks (stick, a switch). Bit 1: switched; bit 2: a cone with riders (slip_ride) slipped on through the impact
+ * (one without: the tangent carries its sliding impulse, law_tangent, sens_cone_slides). */
 static int spun_ball_cone_at_impact(const spun_ball_ctx_t *c, const double *q, const double *vel_p,
-    const double *grad, double tiny, const int *slipped, const int *slip_own)
+    const double *grad, double tiny, const int *slipped, const int *slip_own, const int *slip_ride)
 {
     double w[2], nw;
-    int f, p, sr, sp, out = 0;
+    int f, p, sr, sp, g, riders, out = 0;
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         p = spun_ball_partner[f];
         if (p <= f) {
@@ -3030,7 +3031,10 @@ static int spun_ball_cone_at_impact(const spun_ball_ctx_t *c, const double *q, c
         spun_ball_sliding(f, p, grad, vel_p, w);
         nw = hypot(w[0], w[1]);
         if (slipped[sr] && nw > tiny) {
-            out |= slip_own[f] ? 2 : 1;
+            for (g = 0, riders = 0; g < SPUN_BALL_NF; ++g) {
+                riders = riders || (g != f && slip_ride[g] == f);
+            }
+            out |= slip_own[f] ? (riders ? 2 : 0) : 1; /* slipping on: the tangent carries it without riders */
             c->sus->act[sr] = 0;
             c->sus->act[sp] = 0;
             c->sus->slip[f] = -c->mu_f[f] * w[0] / nw;
@@ -3049,7 +3053,7 @@ static int spun_ball_cone_at_impact(const spun_ball_ctx_t *c, const double *q, c
  * The slipping contacts that joined it (slip_own, slip_ride; law_slips): slip on (the same way: no switch; turned:
  * a switch) or, where their sliding after is 0 (to round-off), stick (stick, a switch). Whether any contact's mode
  * changed (a friction switch: no tangent). Isotropic cones the same way (cone_at_impact); 2: a held cone's
- * sliding impulse (friction at an impact: no tangent; a landing cone's the tangent carries, sens_cone_slides).
+ * sliding impulse with riders (friction at an impact: no tangent; others' the tangent carries, sens_cone_slides).
  * The landing contacts (land) keep no mode here. */
 static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, const double *vel_p,
     const int *slipped_in, const int *slip_own, const int *slip_ride, const int *land)
@@ -3071,7 +3075,7 @@ static int spun_ball_slip_at_impact(const spun_ball_ctx_t *c, const double *q, c
     }
     spun_ball_rows(q, vel_p, c->par, psi, grad, curv);
     tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel_p));
-    cones = spun_ball_cone_at_impact(c, q, vel_p, grad, tiny, slipped, slip_own);
+    cones = spun_ball_cone_at_impact(c, q, vel_p, grad, tiny, slipped, slip_own, slip_ride);
     switched = cones & 1;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         f = spun_ball_row_stick[r];
