@@ -188,11 +188,11 @@ class Simulator:
 
     def _finish(self, res: Result, mu_f: list[float], par: list[float]) -> None:
         """What ``simulate`` adds to a run: the work (``vcigen.work``), names, the Legendre inverse."""
+        res.contact_names = self.system.contact_names
         res.friction_work = friction_work(res, self._friction, mu_f, par)
         res.work = step_work(res, self._work, par) + res.friction_work
         res.energy_at_end = bool(self.model.force)
         res.coordinate_names = list(self._coordinate_names)
-        res.contact_names = self.system.contact_names
         res.velocity_of = partial(self._velocity, par=par)
 
     def _finish_many(self, results: list[Result], pars: list[list[float]], mu_fs: list[list[float]]) -> None:

@@ -380,7 +380,11 @@ def _impact_velocities(pair, owner, vs, tau, v_start, v_end, h: float) -> tuple[
 def friction_work(res: Result, tangents, mu_f, par) -> np.ndarray:
     """``(N-1,)``: the work of Coulomb friction in sustained contact, ``-mu_f lambda h |t . v|`` per step with
     the mean normal force ``lambda`` of ``res.contact_force`` and the tangent gradient ``t`` at the step's
-    midpoint (0 while a contact sticks, to round-off). Friction at impacts is in each impact's energy loss."""
+    midpoint (0 while a contact sticks, to round-off). Friction at impacts is in each impact's energy loss.
+    On the step a contact lands in (an impact of it, not held at the step's start) only the motion after its
+    last impact there is sliding under its force: ``-mu_f lambda h / tau |t . (q_k+1 - q*)|``, ``q*`` the
+    impact point, ``tau`` the rest of the step (``lambda h / tau`` the force's mean over it), ``t`` at the
+    middle of that rest."""
     steps = res.energy.size
     if tangents is None or steps == 0 or res.contact_force is None:
         return np.zeros(steps)
@@ -393,10 +397,30 @@ def friction_work(res: Result, tangents, mu_f, par) -> np.ndarray:
         held = lam != 0.0
         if not held.any() or mu <= 0.0:
             continue
-        dq = q[1:][held] - q[:-1][held]
-        if grads.ndim == 3:
-            slide = np.abs(np.einsum("kn,kn->k", grads[held, j], dq))
-        else:  # isotropic cones: the length of the two-tangent sliding
-            slide = np.hypot(*np.einsum("kdn,kn->dk", grads[held, j], dq))
-        out[held] -= mu_f[j] * lam[held] * slide
+        out[held] -= mu_f[j] * lam[held] * _slide(grads[held, j], q[1:][held] - q[:-1][held])
+    h = float(res.t[1] - res.t[0]) if res.t.size > 1 else 0.0
+    landed = {}  # (step, contact): its last impact, for a contact not held at the step's start
+    names = list(res.contact_names)
+    for im in res.impacts:
+        j = names.index(im.contact) if im.contact in names else -1
+        k = im.step
+        if j >= 0 and k < steps and mu_f[j] > 0.0 and res.contact_force[k, j] != 0.0:
+            if res.active is None or not res.active[k, j]:
+                landed[k, j] = im
+    for (k, j), im in landed.items():
+        tau = float(res.t[k + 1] - im.t)
+        if not tau > 0.0:
+            continue
+        rest = tangents(0.5 * (im.q + q[k + 1])[None, :], par)[0, j]
+        slide = _slide(rest[None], (q[k + 1] - im.q)[None, :])[0]
+        out[k] += mu_f[j] * res.contact_force[k, j] * _slide(grads[k, j][None], (q[k + 1] - q[k])[None, :])[0]
+        out[k] -= mu_f[j] * res.contact_force[k, j] * h / tau * slide
     return out
+
+
+def _slide(grads: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Per row of ``dq``, the sliding ``|t . dq|`` (one tangent, ``grads`` ``(k, n)``) or its length over
+    two (an isotropic cone, ``(k, 2, n)``)."""
+    if grads.ndim == 2:
+        return np.abs(np.einsum("kn,kn->k", grads, dq))
+    return np.hypot(*np.einsum("kdn,kn->dk", grads, dq))
