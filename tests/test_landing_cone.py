@@ -167,3 +167,44 @@ def test_the_landing_steps_friction_work_is_the_closed_forms(backend: str, spin,
         after.append(abs(res.energy_balance()[k + 2 :]).max())
     print(f"{backend} spin {spin}: energy balance after the landing {after[0]:.2e}, {after[1]:.2e}")
     assert after[0] / after[1] >= 3.5
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_tangent_through_the_cones_stop_against_central_differences(backend: str) -> None:
+    """The ball that lands sliding (spin ``(3, -20)``) stops sliding at t = 2.14 and rolls on: the cone's stop
+    is a located event the tangent carries (its root ``-slip . w`` along the frozen slip, the slots' tangents
+    in it: ``SwitchTangents._cone_stop_root``, C ``sens_cone_stop_root``; before stop 28 a break, ``"friction
+    switch in a held step"``). The state at t = 2.5 against central differences of whole runs (eps 1e-5, the
+    event's time in them) in ``q0[z]``, ``v0``, the spin, ``mu``, ``m``: to 1e-6 of the largest entry; C's
+    tangent against CasADi's to 1e-10 of it."""
+    kw = {"h": H, "t_end": 2.5, "progress": False}
+    q0, v0 = [0.0, 0.0, Z0, 0.0, 0.0], [*V0, 0.0, 3.0, -20.0]
+    sim_ = sim("ball", backend)
+    res = sim_.simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
+    assert res.sensitivity_breaks == [] and len(res.impacts) == 1
+    v = res.p[-1, :2] / MASS
+    w = res.p[-1, 3:] / INERTIA
+    assert math.hypot(v[0] - RADIUS * w[1], v[1] + RADIUS * w[0]) <= 1e-12  # rolling at the end
+
+    def end(name: str, e: float) -> np.ndarray:
+        q, v_, par = list(q0), list(v0), {"e": 0.0}
+        if name in ("mu", "m"):
+            par[name] = {"mu": BALL_MU, "m": MASS}[name] + e
+        else:
+            (q if name[0] == "q" else v_)[["x", "y", "z", "ax", "ay"].index(name[3:-1])] += e
+        r = sim_.simulate(q0=q, v0=v_, params=par, **kw)
+        return np.concatenate([r.q[-1], r.p[-1]])
+
+    worst = 0.0
+    for name in NAMES:
+        fd = (end(name, 1e-5) - end(name, -1e-5)) / 2e-5
+        exact = res.sensitivity[-1, :, res.sensitivity_names.index(name)]
+        worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
+    print(f"{backend}: through the cone's stop, tangent vs central differences {worst:.1e}")
+    assert worst <= 1e-6
+    if backend == "c":
+        ref = sim("ball", "casadi").simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
+        scale = max(1.0, float(np.abs(ref.sensitivity[-1]).max()))
+        gap = float(np.abs(res.sensitivity[-1] - ref.sensitivity[-1]).max()) / scale
+        print(f"C vs CasADi tangent {gap:.1e}")
+        assert gap <= 1e-10

@@ -123,19 +123,21 @@ class HeldTangents:
         # the force law with the directions s0 (SustainedSteps._forces), and its tangent
         on = np.flatnonzero(act)
         dirs = grad.copy()
-        for f, j in enumerate(k.frictional):
-            if slip[f]:
-                dirs[[r for r in on if k.row_contact[r] == j]] += slip[f] * grad[rows[f]]
+        # a slipping cone's two tangents both (one may slip by 0: its own column is not 0)
+        slipping = [f for f in range(nf) if slip[f] or (k.partner[f] >= 0 and slip[k.partner[f]])]
+        for f in slipping:
+            j = k.frictional[f]
+            dirs[[r for r in on if k.row_contact[r] == j]] += slip[f] * grad[rows[f]]
         jac = np.block([[mass, -dirs[on].T], [grad[on], np.zeros((on.size, on.size))]])
         sol = np.linalg.solve(jac, np.concatenate([rhs, -curv[on]]))
         acc, lam = sol[:n], np.zeros(k.r)
         lam[on] = sol[n:]
         lam_t = lam.copy()  # the stick rows carry slip_f times their contact's normal force
         normal = {}
-        for f, j in enumerate(k.frictional):
-            if slip[f]:
-                normal[f] = sum(lam[r] for r in on if k.row_contact[r] == j)
-                lam_t[rows[f]] += slip[f] * normal[f]
+        for f in slipping:  # a cone tangent whose slip is 0 (sliding along the other) has its own column too
+            j = k.frictional[f]
+            normal[f] = sum(lam[r] for r in on if k.row_contact[r] == j)
+            lam_t[rows[f]] += slip[f] * normal[f]
         dres = tg.get("d_forces")(q, u, acc, lam_t, par)[0]
         d_state = np.vstack([dq, du, self._par0])
         d_state[2 * n :] += out  # the one-tangent slips (par's friction slots)
@@ -525,7 +527,12 @@ class HeldTangents:
         mass = tg.get("legendre")(q1, u1, par)[1]
         g, dirs = grad[rows], grad[rows].copy()
         fs = getattr(k, "friction_slot", 0)
-        slips = [(f, j) for f, j in enumerate(getattr(k, "frictional", ())) if par[fs + f]]
+        partner = getattr(k, "partner", ())
+        slips = [
+            (f, j)
+            for f, j in enumerate(getattr(k, "frictional", ()))
+            if par[fs + f] or (partner[f] >= 0 and par[fs + partner[f]])  # a cone's: both tangents
+        ]
         for f, j in slips:
             dirs[np.asarray(k.row_contact)[rows] == j] += par[fs + f] * grad[k.row_stick.index(f)]
         jac = np.block([[mass, -dirs.T], [g, np.zeros((rows.size, rows.size))]])

@@ -30,6 +30,8 @@ class SwitchTangents:
         slide, ``SustainedSteps._sw_covered``: the force law frictionless) and ``mu_f`` moving with ``par``
         (``d_friction``)."""
         n, k, tg = self.n, self.k, self.tg
+        if kind == "stop" and k.partner[k.row_stick[r]] >= 0:  # a cone: the sliding along its slip, -slip . w
+            return self._cone_stop_root(q1, u1, r, par, dd)
         if kind == "stop":
             _, grad, _ = tg.get("rows")(q1, u1, par)
             dgrad = tg.get("d_rows")(q1, u1, par)[0][r * n : (r + 1) * n]
@@ -44,6 +46,24 @@ class SwitchTangents:
         dmu = tg.get("d_friction")(q1, par)[0][j] @ dd[2 * n :]
         dn = sum(self._dforce(q1, u1, act, x, par, dd) for x in rows)
         return dmu * normal + mu * dn - np.sign(lam[r]) * self._dforce(q1, u1, act, r, par, dd)
+
+    def _cone_stop_root(self, q1, u1, r: int, par, dd) -> np.ndarray:
+        """A slipping cone's stop (``SustainedSteps._cone_stop``; ``r`` its first stick row): the root ``g =
+        -(slip_f w_1 + slip_p w_2)``, ``w_i = grad t_i(q1) . u1``, the slots ``slip = -mu_f s`` parameters
+        whose tangents ``dd`` carries (the slip's aim moves with the segment's start: ``_cone_slots``)."""
+        n, k, tg = self.n, self.k, self.tg
+        f = k.row_stick[r]
+        pf, fs = k.partner[f], k.friction_slot
+        rows = (r, k.row_stick.index(pf))
+        _, grad, _ = tg.get("rows")(q1, u1, par)
+        dgrad = tg.get("d_rows")(q1, u1, par)[0]
+        dqp = np.vstack([dd[:n], dd[2 * n :]])
+        out = np.zeros(dd.shape[1])
+        for g, x in zip((f, pf), rows):
+            w = float(grad[x] @ u1)
+            dw = u1 @ (dgrad[x * n : (x + 1) * n] @ dqp) + grad[x] @ dd[n : 2 * n]
+            out -= par[fs + g] * dw + w * dd[2 * n + fs + g]
+        return out
 
     def _switch_forces(self, q1, u1, act, par) -> np.ndarray:
         """The rows' forces at ``(q1, u1)`` (``SustainedSteps._forces``, frictionless: the stick row held)."""

@@ -368,23 +368,27 @@ class SustainedSteps(FrictionModes, HeldImpacts):
     def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
         """A constrained sub-step to an event of row ``r`` (``"lift"``, ``"cross"``, a friction switch
         ``"stop"`` or ``"slide"``): ``Tracker.event``."""
-        if self._ev_tan is not None and not self._sw_covered(kind):
+        if self._ev_tan is not None and not self._sw_covered(kind, r):
             return
         if self._ev_tan is not None:
             self._ev_tan.events_begin(self._ev_entry)
             self._ev_tan.event(sub, r, s, tau, kind)
 
     # -- a friction switch inside a held step (vcigen.sensitivity_switch): a located event ----------------
-    def _sw_covered(self, kind: str) -> bool:
-        """Whether the tangent carries an event of ``kind`` in the current friction mode: a lift-off or a row
-        crossed in any mode (``Tracker.event``: the sub-step's friction slots, the slipping contacts'
-        directions); without isotropic cones a slipping contact's stop and a lone sticking contact's slide (no
-        contact slipping, no dependent stick: the force law of the stick row alone). Else the step breaks here
-        (``"friction switch in a held step"``)."""
+    def _sw_covered(self, kind: str, r: int = -1) -> bool:
+        """Whether the tangent carries an event of ``kind`` (of row ``r``) in the current friction mode: a
+        lift-off or a row crossed in any mode (``Tracker.event``: the sub-step's friction slots, the slipping
+        contacts' directions); without isotropic cones a slipping contact's stop and a lone sticking contact's
+        slide (no contact slipping, no dependent stick: the force law of the stick row alone); with them a
+        slipping cone's stop (its root along its slip, ``SwitchTangents._switch_root``) where no stick is
+        dependent. Else the step breaks here (``"friction switch in a held step"``)."""
         if kind in ("lift", "cross"):
             return True
         if not any(g >= 0 for g in self._partner):  # no cone: one-tangent switches (SwitchTangents)
             if kind == "stop" or (not self._slip.any() and all(o < 0 for o in self._ride)):
+                return True
+        elif kind == "stop" and r >= 0 and self._partner[self.k.row_stick[r]] >= 0:
+            if all(o < 0 for o in self._ride):
                 return True
         self._sw_lose()
         return False
@@ -407,21 +411,23 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         """After a located switch of stick row ``sr`` (:meth:`_friction_switch`): carried if it switched that
         contact alone, into a stick on its own row (``"stop"``) or a slip (``"slide"``); else (the sliding
         turned by an impact, a dependent stick, others switched with it) the step breaks. With isotropic cones
-        the switch broke already (:meth:`_sw_covered`; C: no ``sens_sw_check``)."""
-        if any(g >= 0 for g in self._partner):
+        a cone's stop, into a stick on both its rows (:meth:`_sw_covered`); any other switch broke already."""
+        f = self.k.row_stick[sr]
+        own = [f] if self._partner[f] < 0 else [f, self._partner[f]]
+        if any(g >= 0 for g in self._partner) and (kind != "stop" or len(own) == 1):
             return
         act, slip, ride = before
-        f = self.k.row_stick[sr]
-        others = [g for g in range(len(self._stick_rows)) if g != f]
+        rows = {self._stick_rows[g] for g in own}
+        others = [g for g in range(len(self._stick_rows)) if g not in own]
         same = all(slip[g] == self._slip[g] and ride[g] == self._ride[g] for g in others)
-        same = same and all(act[x] == self.act[x] for x in range(self.k.r) if x != sr)
+        same = same and all(act[x] == self.act[x] for x in range(self.k.r) if x not in rows)
         if kind == "stop":
-            ok = bool(self.act[sr]) and self._slip[f] == 0.0 and self._ride[f] < 0
+            ok = all(self.act[self._stick_rows[g]] and not self._slip[g] and self._ride[g] < 0 for g in own)
         else:
             ok = not self.act[sr] and self._slip[f] != 0.0
         if not (ok and same):
             self._sw_lose()
-        elif kind == "stop" and self._ev_tan is not None:  # a slide back at once (_sw_back) is carried too
+        elif kind == "stop" and self._ev_tan is not None and len(own) == 1:  # a slide back at once (_sw_back)
             self._sw_stop = (self._ev_tan.step, self._events)
 
     def _sw_back(self, kind: str) -> bool:

@@ -1,0 +1,111 @@
+"""The tangent through a slipping isotropic cone that stops and rolls on (stop 28).
+
+The ball of ``tests/test_friction_3d.py`` (``m = 1, I = 0.4, r = 1``, ``mu = 0.3``, two tangents ``x - r
+ay``, ``y + r ax``) resting on the floor, sliding at ``(0, 1.5)`` without spin, pushed along ``x`` by a
+constant force ``m push`` (``push = 2``, a floor tilted in ``x``): its sliding ``w`` shrinks at ``mu g k``
+(``k = 1 + m r^2/I``) while the push turns it, until it stops at step 16 and rolls on (``mu g = 2.9 > push
+(1 - 1/k)``). The stop is a located event of the cone (``SustainedSteps._cone_stop``: the root of ``-slip .
+w`` along the slip frozen over the segment), which the tangent now carries
+(``SwitchTangents._cone_stop_root``, C ``sens_cone_stop_root``; before, a break ``"friction switch in a held
+step"``): the root's tangent includes the slip's own (the aim moves with the segment's start,
+``Tracker._cone_slots``). Without the push the sliding keeps its direction along ``y``: the cone's ``x``
+slip is 0 throughout, and its force law's own column (``-N grad t_x dslip_x``) was dropped by the tangent
+(``if slip[f]``), an error of 7e-4 after one step in ``v0[x]``: fixed on both backends (``_cone_slots``,
+``_dforce``; C ``sens_slipping``).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+import pytest
+import sympy as sp
+from hard_scenes import BACKENDS
+from test_friction_3d import BALL_MU, INERTIA, MASS, RADIUS, G
+
+import vcigen
+
+PUSH = 2.0
+Q0, V0 = [0.0, 0.0, RADIUS, 0.0, 0.0], [0.0, 1.5, 0.0, 0.0, 0.0]
+NAMES = ("q0[x]", "v0[x]", "v0[y]", "v0[ax]", "v0[ay]", "mu", "push", "m")
+
+
+def pushed_ball() -> vcigen.Model:
+    x, y, z, ax, ay = sp.symbols("x y z ax ay")
+    xd, yd, zd, axd, ayd = sp.symbols("xd yd zd axd ayd")
+    m, inertia, r, g, mu, e, push = sp.symbols("m I r g mu e push")
+    return vcigen.Model(
+        name="pushed_ball",
+        q=[x, y, z, ax, ay],
+        qdot=[xd, yd, zd, axd, ayd],
+        lagrangian=m / 2 * (xd**2 + yd**2 + zd**2) + inertia / 2 * (axd**2 + ayd**2) - m * (g * z - push * x),
+        contacts={"floor": z - r},
+        params={m: MASS, inertia: INERTIA, r: RADIUS, g: G, mu: BALL_MU, e: 0.0, push: PUSH},
+        restitution={"floor": e},
+        friction={"floor": (mu, (x - r * ay, y + r * ax))},
+    )
+
+
+@cache
+def sim(backend: str) -> vcigen.Simulator:
+    return vcigen.build(pushed_ball(), backend=backend)
+
+
+def sliding(p: np.ndarray) -> float:
+    return math.hypot(p[0] / MASS - RADIUS * p[4] / INERTIA, p[1] / MASS + RADIUS * p[3] / INERTIA)
+
+
+def tangent_error(backend: str, push: float, t_end: float) -> tuple[float, vcigen.Result]:
+    """The run's tangent at ``t_end`` against central differences of whole runs (eps 1e-5, the stop's time in
+    them), relative to the largest entry, over ``NAMES``."""
+    kw = {"h": 0.01, "t_end": t_end, "progress": False}
+    base = {"mu": BALL_MU, "push": push, "m": MASS}
+    res = sim(backend).simulate(Q0, V0, sensitivities=True, params={"push": push}, **kw)
+
+    def end(name: str, e: float) -> np.ndarray:
+        q, v, par = list(Q0), list(V0), {"push": push}
+        if name in base:
+            par[name] = base[name] + e
+        else:
+            (q if name[0] == "q" else v)[["x", "y", "z", "ax", "ay"].index(name[3:-1])] += e
+        r = sim(backend).simulate(q, v, params=par, **kw)
+        return np.concatenate([r.q[-1], r.p[-1]])
+
+    worst = 0.0
+    for name in NAMES:
+        fd = (end(name, 1e-5) - end(name, -1e-5)) / 2e-5
+        exact = res.sensitivity[-1, :, res.sensitivity_names.index(name)]
+        worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
+    return worst, res
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_tangent_through_a_cones_stop_against_central_differences(backend: str) -> None:
+    """Pushed: the stop at step 16 carried (no break, rolling at the end, held throughout); the state at
+    t = 0.5 against central differences to 1e-7 (1.4e-9 seen; the one-tangent root instead: 1.3e-4; the root
+    without the slip's own tangent: 1.3e-5); C's tangent against CasADi's to 1e-12."""
+    worst, res = tangent_error(backend, PUSH, 0.5)
+    stops = [k for k in range(1, res.p.shape[0]) if sliding(res.p[k]) <= 1e-12 < sliding(res.p[k - 1])]
+    print(f"{backend}: pushed ball, stops at step {stops}, tangent vs central differences {worst:.1e}")
+    assert res.sensitivity_breaks == [] and not res.impacts and res.active[:, 0].all()
+    assert stops == [16] and sliding(res.p[-1]) <= 1e-12
+    assert worst <= 1e-7
+    if backend == "c":
+        ref = tangent_error("casadi", PUSH, 0.5)[1]
+        scale = max(1.0, float(np.abs(ref.sensitivity[-1]).max()))
+        gap = float(np.abs(res.sensitivity[-1] - ref.sensitivity[-1]).max()) / scale
+        print(f"C vs CasADi tangent {gap:.1e}")
+        assert gap <= 1e-12
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_cone_slipping_along_one_tangent_keeps_the_others_column(backend: str) -> None:
+    """Unpushed: sliding along ``y``, the ``x`` slip 0 (its tangent not): one step against central differences
+    to 1e-9 (7e-4 before the fix, ``v0[x]``), and through its stop at t = 0.146 to t = 0.3."""
+    for t_end in (0.01, 0.3):
+        worst, res = tangent_error(backend, 0.0, t_end)
+        print(f"{backend}: unpushed ball to t = {t_end}, tangent vs central differences {worst:.1e}")
+        assert res.sensitivity_breaks == []
+        assert worst <= 1e-9 if t_end == 0.01 else worst <= 1e-7
