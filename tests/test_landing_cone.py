@@ -22,6 +22,8 @@ import pytest
 from hard_scenes import BACKENDS
 from test_friction_3d import BALL_MU, INERTIA, MASS, RADIUS, G, coulomb_ball, sim
 
+import vcigen
+
 V0, Z0, H = np.array([2.0, -1.0]), 2.0, 0.01
 
 
@@ -98,24 +100,22 @@ def test_the_rolling_landings_tangent_against_central_differences(backend: str) 
 
 
 NAMES = ("q0[z]", "v0[x]", "v0[y]", "v0[ax]", "v0[ay]", "mu", "m")
+SLIDES = [*V0, 0.0, 3.0, -20.0]  # v0 of the landing that slides
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-def test_the_sliding_landings_tangent_against_central_differences(backend: str) -> None:
-    """The tangent carried through the landing that slides (spin ``(3, -20)``; it slides on to t = 2.14):
-    Coulomb's sliding impulse ``-mu P w+/|w+|`` turns with the sliding after it, solved with the impulse's
-    tangent. The state at t = 0.9 (a plastic landing at 0.45, sliding since) against central differences of
-    whole runs (eps 1e-6) in ``q0[z]`` (the landing time), ``v0``, the spin, ``mu`` and ``m``, to 1e-6 of the
-    largest entry; C's tangent against CasADi's to 1e-12 of it."""
-    kw = {"h": H, "t_end": 0.9, "progress": False}
-    q0, v0 = [0.0, 0.0, Z0, 0.0, 0.0], [*V0, 0.0, 3.0, -20.0]
+def sliding_tangent(backend: str, t_end: float, eps: float) -> tuple[float, float | None, vcigen.Result]:
+    """The run that lands sliding (``SLIDES``) to ``t_end`` with its tangent: ``(worst, gap, res)``, ``worst``
+    the tangent's error against central differences of whole runs (``eps``; each with the same landing) over
+    ``NAMES`` relative to the largest entry, ``gap`` C's tangent against CasADi's (None on CasADi)."""
+    kw = {"h": H, "t_end": t_end, "progress": False}
+    q0 = [0.0, 0.0, Z0, 0.0, 0.0]
     sim_ = sim("ball", backend)
-    res = sim_.simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
+    res = sim_.simulate(q0=q0, v0=SLIDES, sensitivities=True, params={"e": 0.0}, **kw)
     (im,) = res.impacts
     assert im.kind == "plastic" and res.sensitivity_breaks == []
 
     def end(name: str, e: float) -> np.ndarray:
-        q, v, par = list(q0), list(v0), {"e": 0.0}
+        q, v, par = list(q0), list(SLIDES), {"e": 0.0}
         if name in ("mu", "m"):
             par[name] = {"mu": BALL_MU, "m": MASS}[name] + e
         else:
@@ -126,17 +126,27 @@ def test_the_sliding_landings_tangent_against_central_differences(backend: str) 
 
     worst = 0.0
     for name in NAMES:
-        fd = (end(name, 1e-6) - end(name, -1e-6)) / 2e-6
+        fd = (end(name, eps) - end(name, -eps)) / (2 * eps)
         exact = res.sensitivity[-1, :, res.sensitivity_names.index(name)]
         worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
-    print(f"{backend}: sliding landing's tangent vs central differences {worst:.1e}")
-    assert worst <= 1e-6
+    gap = None
     if backend == "c":
-        ref = sim("ball", "casadi").simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
+        ref = sim("ball", "casadi").simulate(q0=q0, v0=SLIDES, sensitivities=True, params={"e": 0.0}, **kw)
         scale = max(1.0, float(np.abs(ref.sensitivity[-1]).max()))
         gap = float(np.abs(res.sensitivity[-1] - ref.sensitivity[-1]).max()) / scale
-        print(f"C vs CasADi tangent {gap:.1e}")
-        assert gap <= 1e-12
+    return worst, gap, res
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_sliding_landings_tangent_against_central_differences(backend: str) -> None:
+    """The tangent carried through the landing that slides (spin ``(3, -20)``; it slides on to t = 2.14):
+    Coulomb's sliding impulse ``-mu P w+/|w+|`` turns with the sliding after it, solved with the impulse's
+    tangent. The state at t = 0.9 (a plastic landing at 0.45, sliding since) against central differences of
+    whole runs (eps 1e-6) in ``q0[z]`` (the landing time), ``v0``, the spin, ``mu`` and ``m``, to 1e-6 of the
+    largest entry; C's tangent against CasADi's to 1e-12 of it."""
+    worst, gap, _ = sliding_tangent(backend, 0.9, 1e-6)
+    print(f"{backend}: sliding landing's tangent vs central differences {worst:.1e}, C vs CasADi {gap}")
+    assert worst <= 1e-6 and (gap is None or gap <= 1e-12)
 
 
 @pytest.mark.parametrize("spin, rolls", [((1.0, 4.0), True), ((3.0, -20.0), False)])
@@ -177,34 +187,10 @@ def test_the_tangent_through_the_cones_stop_against_central_differences(backend:
     switch in a held step"``). The state at t = 2.5 against central differences of whole runs (eps 1e-5, the
     event's time in them) in ``q0[z]``, ``v0``, the spin, ``mu``, ``m``: to 1e-6 of the largest entry; C's
     tangent against CasADi's to 1e-10 of it."""
-    kw = {"h": H, "t_end": 2.5, "progress": False}
-    q0, v0 = [0.0, 0.0, Z0, 0.0, 0.0], [*V0, 0.0, 3.0, -20.0]
-    sim_ = sim("ball", backend)
-    res = sim_.simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
-    assert res.sensitivity_breaks == [] and len(res.impacts) == 1
-    v = res.p[-1, :2] / MASS
-    w = res.p[-1, 3:] / INERTIA
+    worst, gap, res = sliding_tangent(backend, 2.5, 1e-5)
+    v, w = res.p[-1, :2] / MASS, res.p[-1, 3:] / INERTIA
+    print(
+        f"{backend}: through the cone's stop, tangent vs central differences {worst:.1e}, C vs CasADi {gap}"
+    )
     assert math.hypot(v[0] - RADIUS * w[1], v[1] + RADIUS * w[0]) <= 1e-12  # rolling at the end
-
-    def end(name: str, e: float) -> np.ndarray:
-        q, v_, par = list(q0), list(v0), {"e": 0.0}
-        if name in ("mu", "m"):
-            par[name] = {"mu": BALL_MU, "m": MASS}[name] + e
-        else:
-            (q if name[0] == "q" else v_)[["x", "y", "z", "ax", "ay"].index(name[3:-1])] += e
-        r = sim_.simulate(q0=q, v0=v_, params=par, **kw)
-        return np.concatenate([r.q[-1], r.p[-1]])
-
-    worst = 0.0
-    for name in NAMES:
-        fd = (end(name, 1e-5) - end(name, -1e-5)) / 2e-5
-        exact = res.sensitivity[-1, :, res.sensitivity_names.index(name)]
-        worst = max(worst, float(np.abs(fd - exact).max() / max(1.0, np.abs(exact).max())))
-    print(f"{backend}: through the cone's stop, tangent vs central differences {worst:.1e}")
-    assert worst <= 1e-6
-    if backend == "c":
-        ref = sim("ball", "casadi").simulate(q0=q0, v0=v0, sensitivities=True, params={"e": 0.0}, **kw)
-        scale = max(1.0, float(np.abs(ref.sensitivity[-1]).max()))
-        gap = float(np.abs(res.sensitivity[-1] - ref.sensitivity[-1]).max()) / scale
-        print(f"C vs CasADi tangent {gap:.1e}")
-        assert gap <= 1e-10
+    assert worst <= 1e-6 and (gap is None or gap <= 1e-10)

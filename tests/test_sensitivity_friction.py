@@ -340,6 +340,19 @@ def test_cone_stick_holds_the_start(backend: str) -> None:
     assert np.abs(res.sensitivity[:, :2, :] - want).max() <= 1e-12
 
 
+def _puck_perturbed(backend: str, v0, par: dict, t_end: float, name: str, c: int, e: float) -> vcigen.Result:
+    """The puck's run from the origin with column ``c`` (named ``name``: ``q0``, ``v0`` or a parameter) moved
+    by ``e``."""
+    q, v, p = [0.0, 0.0, 0.0], list(v0), dict(par)
+    if c < 3:
+        q[c] += e
+    elif c < 6:
+        v[c - 3] += e
+    else:
+        p[name] += e
+    return puck(backend).simulate(q, v, H, t_end=t_end, params=p, progress=False)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_cone_slip_on_an_incline_matches_finite_differences(backend: str) -> None:
     """Launched across an incline (tan a = mu/2): the sliding direction turns downhill while friction slows
@@ -355,19 +368,10 @@ def test_cone_slip_on_an_incline_matches_finite_differences(backend: str) -> Non
     names = res.sensitivity_names
     errs = {}
     for c in (0, 1, 3, 4, 6, 7, 8):
-        ends = []
-        for sign in (1.0, -1.0):
-            q, v, p = [0.0, 0.0, 0.0], list(v0), dict(par)
-            if c < 3:
-                q[c] += sign * 1e-6
-            elif c < 6:
-                v[c - 3] += sign * 1e-6
-            else:
-                p[names[c]] += sign * 1e-6
-            r = puck(backend).simulate(q, v, H, t_end=t_end, params=p, progress=False)
-            assert r.active[:, 0].all()
-            ends.append(np.hstack([r.q, r.p]))
-        errs[names[c]] = float(np.abs(res.sensitivity[:, :, c] - (ends[0] - ends[1]) / 2e-6).max())
+        hi, lo = (_puck_perturbed(backend, v0, par, t_end, names[c], c, e) for e in (1e-6, -1e-6))
+        assert hi.active[:, 0].all() and lo.active[:, 0].all()
+        fd = (np.hstack([hi.q, hi.p]) - np.hstack([lo.q, lo.p])) / 2e-6
+        errs[names[c]] = float(np.abs(res.sensitivity[:, :, c] - fd).max())
     err = max(errs.values()) / float(np.abs(res.sensitivity).max())
     print(f"puck on the incline ({backend}): FD {err:.1e}")
     assert err <= FD_TOL, errs
@@ -386,18 +390,8 @@ def test_cone_slip_on_an_incline_matches_finite_differences(backend: str) -> Non
     end = puck_run(backend, v0, par, 0.8)  # through the stop: carried
     worst = 0.0
     for c in (0, 1, 3, 4, 6, 7, 8):
-        ends = []
-        for sign in (1.0, -1.0):
-            q, v, p = [0.0, 0.0, 0.0], list(v0), dict(par)
-            if c < 3:
-                q[c] += sign * 1e-5
-            elif c < 6:
-                v[c - 3] += sign * 1e-5
-            else:
-                p[names[c]] += sign * 1e-5
-            r = puck(backend).simulate(q, v, H, t_end=0.8, params=p, progress=False)
-            ends.append(np.hstack([r.q[-1], r.p[-1]]))
-        fd = (ends[0] - ends[1]) / 2e-5
+        hi, lo = (_puck_perturbed(backend, v0, par, 0.8, names[c], c, e) for e in (1e-5, -1e-5))
+        fd = (np.hstack([hi.q[-1], hi.p[-1]]) - np.hstack([lo.q[-1], lo.p[-1]])) / 2e-5
         worst = max(worst, float(np.abs(end.sensitivity[-1, :, c] - fd).max()))
     worst /= max(1.0, float(np.abs(end.sensitivity[-1]).max()))
     print(f"puck on the incline to 0.8 ({backend}), through its stop: FD {worst:.1e}")
