@@ -365,9 +365,10 @@ class ImpulseLaw:
         ``(sr, sgn, j)`` for a normal row of such a contact (Coulomb's sliding impulse along the stick row
         ``sr`` of its owner, sign ``sgn``, contact ``j``'s mu) or None: the slipping contacts that joined
         (``slips``, the sign of their slip) and the landing ones (``lands``) whose owner slid on an edge (the
-        sign of its impulse); ``(t1, t2, w_hat, j)`` for a normal row of a landing isotropic cone that slid,
-        ``-mu_j N w_hat`` on its stick rows ``t1, t2`` (``w_hat`` its direction: the tangent turns it with
-        the sliding after, ``Tracker._cone_slides``). ``why``: ``""`` (kept for the readers' shape)."""
+        sign of its impulse); ``(t1, t2, w_hat, j)`` for a normal row of an isotropic cone that slid, landing
+        or slipping on through it without riders: ``-mu_j N w_hat`` on its stick rows ``t1, t2`` (``w_hat``
+        its direction: the tangent turns it with the sliding after, ``Tracker._cone_slides``). ``why``:
+        ``""`` (kept for the readers' shape)."""
         k = self.k
         along = {}
         skip = set()
