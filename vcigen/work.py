@@ -389,31 +389,27 @@ def friction_work(res: Result, tangents, mu_f, par) -> np.ndarray:
     if tangents is None or steps == 0 or res.contact_force is None:
         return np.zeros(steps)
     q = res.q
+    h = float(res.t[1] - res.t[0]) if res.t.size > 1 else 0.0
+    landed = {}  # (step, contact): its last impact there, for a contact not held at the step's start
+    names = list(res.contact_names)
+    for im in res.impacts:
+        j, k = names.index(im.contact) if im.contact in names else -1, im.step
+        if j >= 0 and k < steps and mu_f[j] > 0.0 and res.contact_force[k, j] != 0.0:
+            if (res.active is None or not res.active[k, j]) and res.t[k + 1] > im.t:
+                landed[k, j] = im
     mid = 0.5 * (q[:-1] + q[1:])
     grads = tangents(mid, par)
     out = np.zeros(steps)
     for j, mu in enumerate(mu_f):
         lam = res.contact_force[:, j]
         held = lam != 0.0
-        if not held.any() or mu <= 0.0:
-            continue
-        out[held] -= mu_f[j] * lam[held] * _slide(grads[held, j], q[1:][held] - q[:-1][held])
-    h = float(res.t[1] - res.t[0]) if res.t.size > 1 else 0.0
-    landed = {}  # (step, contact): its last impact, for a contact not held at the step's start
-    names = list(res.contact_names)
-    for im in res.impacts:
-        j = names.index(im.contact) if im.contact in names else -1
-        k = im.step
-        if j >= 0 and k < steps and mu_f[j] > 0.0 and res.contact_force[k, j] != 0.0:
-            if res.active is None or not res.active[k, j]:
-                landed[k, j] = im
-    for (k, j), im in landed.items():
+        held[[k for k, c in landed if c == j]] = False  # those below
+        if held.any() and mu > 0.0:
+            out[held] -= mu_f[j] * lam[held] * _slide(grads[held, j], q[1:][held] - q[:-1][held])
+    for (k, j), im in landed.items():  # the rest of the step after the impact, its force's mean over it
         tau = float(res.t[k + 1] - im.t)
-        if not tau > 0.0:
-            continue
         rest = tangents(0.5 * (im.q + q[k + 1])[None, :], par)[0, j]
         slide = _slide(rest[None], (q[k + 1] - im.q)[None, :])[0]
-        out[k] += mu_f[j] * res.contact_force[k, j] * _slide(grads[k, j][None], (q[k + 1] - q[k])[None, :])[0]
         out[k] -= mu_f[j] * res.contact_force[k, j] * h / tau * slide
     return out
 
