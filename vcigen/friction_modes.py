@@ -83,14 +83,16 @@ class FrictionModes:
         return bool(self._slip.any() or any(self.act[sr] for sr in self._stick_rows))
 
     # -- dependent sticks: two contacts of one body sticking at once (statically indeterminate) -----------
-    def _dependent(self, grad, sr: int, skip: int = -1) -> bool:
-        """Is stick row ``sr``'s gradient in the span of the other active rows' (but row ``skip``)?
+    def _dependent(self, grad, sr: int, skip: int = -1, sticks: bool = True) -> bool:
+        """Is row ``sr``'s gradient in the span of the other active rows' (but row ``skip``; the normal rows
+        alone if not ``sticks``)?
 
         Modified Gram-Schmidt over the active rows in index order (a row within ``DEP_EPS`` of the span so far
         adds nothing), then ``sr``'s residual against that basis, relative to its length."""
         basis = []
+        stick = self.k.row_stick
         for r in np.flatnonzero(self.act):
-            if r in (sr, skip):
+            if r in (sr, skip) or (not sticks and stick and stick[r] >= 0):
                 continue
             w = grad[r].copy()
             for b in basis:

@@ -126,14 +126,14 @@ class HeldImpacts(ImpulseLaw):
                 if not self._settles(float(grad[r] @ vel_p), after[r], 1.0, h):
                     self._release(step, t_k, t, r)
         for r in plastic:  # pressed in and settling: held (its force, checked next, may release it)
-            self.act[r] = True
+            self._hold(grad, r)
         by_contact: dict[int, list[int]] = {}
         for r in group:
             by_contact.setdefault(k.row_contact[r], []).append(r)
         for j, rs in by_contact.items():
             kind = (
                 "plastic"
-                if any(self.act[r] for r in rs)
+                if any(self.act[r] or r in plastic for r in rs)  # held, or riding on the rows held
                 else ("elastic" if rest[j] == 1.0 else "restitution")
             )
             self._log(
@@ -149,6 +149,14 @@ class HeldImpacts(ImpulseLaw):
                 kind,
             )
         return p_plus
+
+    def _hold(self, grad, r: int) -> None:
+        """Holds contact row ``r`` unless its gradient is in the span of the normal rows held (a box's fourth
+        vertex landing on its face, statically indeterminate: held, the rows would be dependent): it then
+        rides at ``phi = 0`` by the others, not held, with no force (a lift-off of one held passes the load
+        to it through an impact)."""
+        if not self._dependent(grad, r, sticks=False):
+            self.act[r] = True
 
     def _landed(self, lands, slipped, plastic, off) -> list[int]:
         """The stick rows of the contacts that landed and stuck in the impulse law (``lands``,
@@ -232,8 +240,11 @@ class HeldImpacts(ImpulseLaw):
         order = [tight.index(r) for r in rows if r in tight]
         order += [i for i, r in enumerate(tight) if r not in rows]
         law = ([tight[i] for i in order], [slides[i] for i in order], why)
+        grad = k.rows(q, v)[1]
         for r in rows:  # the touching row of each contact is held; another branch at a kink if it presses
-            self.act[r] = r in lowest or r not in dropped
+            self.act[r] = False
+            if r in lowest or r not in dropped:
+                self._hold(grad, r)
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         return p_plus, lam, loss, rows, law

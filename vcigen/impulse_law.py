@@ -11,12 +11,30 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_slide
-from .held_roots import EPS_LAM, MAX_LAW_ROWS
+from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS
 
 
 def _pooled(pools, lam) -> float:
     """``sum mu_f Lam_n`` over the pools of a stick row's cone (``SustainedSteps._law_cones``): its room."""
     return sum(mu * float(np.sum(lam[normals])) for normals, mu in pools)
+
+
+def _spanned(g, tight, normal) -> bool:
+    """Is a normal row among ``tight`` (indices of the law's rows ``g``) within ``DEP_EPS`` of the span of the
+    normal rows before it (modified Gram-Schmidt)? Such a set of tight rows (a box's four vertices on a face)
+    has no unique split of its impulse: the law takes a subset of them instead, the first independent one."""
+    basis: list[np.ndarray] = []
+    for i in tight:
+        if not normal[i]:
+            continue
+        w = g[i].copy()
+        for b in basis:
+            w -= float(b @ w) * b
+        nw = float(np.linalg.norm(w))
+        if nw <= DEP_EPS * float(np.linalg.norm(g[i])):
+            return True
+        basis.append(w / nw)
+    return False
 
 
 class ImpulseLaw:
@@ -69,6 +87,7 @@ class ImpulseLaw:
             )
         tgt = {r: 0.0 for r in rows} | dict(targets)
         free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
+        normal = [not (k.row_stick and k.row_stick[r] >= 0) for r in rows]
         g = grad[rows]
         w = g @ np.linalg.solve(mass, g.T)
         b = np.array([tgt[r] for r in rows]) - g @ vel
@@ -98,6 +117,8 @@ class ImpulseLaw:
             for mask in range((1 << n) - 1, -1, -1):
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
+                    continue
+                if _spanned(g, tight, normal):  # dependent normals: a subset of them carries the impulse
                     continue
                 if slide:
                     lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_, lam_eps)

@@ -118,7 +118,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if k.row_bilateral[r] or k.row_stick[r] >= 0 or abs(psi[r]) > self.tol.admissible:
                 continue
             if self._settles(rates[r], accs[r], 1.0, h):  # at rest to the resolution of the jump
-                self.act[r] = True
+                self._hold(grad, r)
         self._friction_modes(q0, v0)
         self._held = bool(self.act.any())
 

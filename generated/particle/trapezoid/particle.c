@@ -1101,6 +1101,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define PARTICLE_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define PARTICLE_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define PARTICLE_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
@@ -1124,6 +1125,57 @@ static void particle_dirs(const particle_ctx_t *c, const double *grad, double *d
 static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int particle_dependent(const particle_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[PARTICLE_R_DIM * PARTICLE_N] = {0.0}, w[PARTICLE_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= PARTICLE_R; ++row) {
+        r = row < PARTICLE_R ? row : sr; /* the active rows, then sr itself */
+        if (row < PARTICLE_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && particle_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            w[i] = grad[r * PARTICLE_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < PARTICLE_N; ++i) {
+                d += basis[b * PARTICLE_N + i] * w[i];
+            }
+            for (i = 0; i < PARTICLE_N; ++i) {
+                w[i] -= d * basis[b * PARTICLE_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < PARTICLE_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * PARTICLE_N + i] * grad[r * PARTICLE_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == PARTICLE_R) {
+            return nw <= PARTICLE_DEP_EPS * ng;
+        }
+        if (nw > PARTICLE_DEP_EPS * ng) {
+            for (i = 0; i < PARTICLE_N; ++i) {
+                basis[nb * PARTICLE_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void particle_hold(const particle_ctx_t *c, const double *grad, int r)
+{
+    if (!particle_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1453,6 +1505,45 @@ static int particle_row_crossing(const particle_ctx_t *c, const double *q, const
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int particle_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[PARTICLE_R_DIM * PARTICLE_N] = {0.0}, w[PARTICLE_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (particle_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            w[i] = grad[r * PARTICLE_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < PARTICLE_N; ++i) {
+                d += basis[b * PARTICLE_N + i] * w[i];
+            }
+            for (i = 0; i < PARTICLE_N; ++i) {
+                w[i] -= d * basis[b * PARTICLE_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < PARTICLE_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * PARTICLE_N + i] * grad[r * PARTICLE_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= PARTICLE_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < PARTICLE_N; ++i) {
+            basis[nb * PARTICLE_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1542,7 +1633,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || particle_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1723,9 +1814,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             }
         }
     }
-    for (r = 0; r < PARTICLE_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            particle_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -1744,7 +1835,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (particle_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -1793,6 +1884,7 @@ static int particle_plastic_entry(const particle_ctx_t *c, const double *q, cons
     int *slip_ride, int *land)
 {
     double tgt[PARTICLE_R_DIM] = {0.0}, vel_m[PARTICLE_N], vel_p[PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     int dropped[PARTICLE_R_DIM], lowest[PARTICLE_R_DIM] = {0}, k;
     int slip_own[PARTICLE_NF_DIM];
     particle_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -1801,8 +1893,12 @@ static int particle_plastic_entry(const particle_ctx_t *c, const double *q, cons
         slip_ride, land)) {
         return 1;
     }
+    particle_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            particle_hold(c, grad, rows[k]);
+        }
     }
     *loss = particle_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2009,7 +2105,7 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
             rate += grad[r * PARTICLE_N + i] * v[i];
         }
         if (particle_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            particle_hold(c, grad, r);
         }
     }
 }

@@ -1377,6 +1377,7 @@ static inline int star_held(const star_sustain_t *sus)
 #define STAR_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define STAR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define STAR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define STAR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_row_contact[STAR_R_DIM] = { 0, 0, 0, 0, };
@@ -1400,6 +1401,57 @@ static void star_dirs(const star_ctx_t *c, const double *grad, double *dirs)
 static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int star_dependent(const star_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[STAR_R_DIM * STAR_N] = {0.0}, w[STAR_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= STAR_R; ++row) {
+        r = row < STAR_R ? row : sr; /* the active rows, then sr itself */
+        if (row < STAR_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && star_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            w[i] = grad[r * STAR_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < STAR_N; ++i) {
+                d += basis[b * STAR_N + i] * w[i];
+            }
+            for (i = 0; i < STAR_N; ++i) {
+                w[i] -= d * basis[b * STAR_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < STAR_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * STAR_N + i] * grad[r * STAR_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == STAR_R) {
+            return nw <= STAR_DEP_EPS * ng;
+        }
+        if (nw > STAR_DEP_EPS * ng) {
+            for (i = 0; i < STAR_N; ++i) {
+                basis[nb * STAR_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void star_hold(const star_ctx_t *c, const double *grad, int r)
+{
+    if (!star_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1729,6 +1781,45 @@ static int star_row_crossing(const star_ctx_t *c, const double *q, const double 
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int star_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[STAR_R_DIM * STAR_N] = {0.0}, w[STAR_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (star_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            w[i] = grad[r * STAR_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < STAR_N; ++i) {
+                d += basis[b * STAR_N + i] * w[i];
+            }
+            for (i = 0; i < STAR_N; ++i) {
+                w[i] -= d * basis[b * STAR_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < STAR_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * STAR_N + i] * grad[r * STAR_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= STAR_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < STAR_N; ++i) {
+            basis[nb * STAR_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1818,7 +1909,7 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || star_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1999,9 +2090,9 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
             }
         }
     }
-    for (r = 0; r < STAR_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            star_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -2020,7 +2111,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (star_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -2069,6 +2160,7 @@ static int star_plastic_entry(const star_ctx_t *c, const double *q, const double
     int *slip_ride, int *land)
 {
     double tgt[STAR_R_DIM] = {0.0}, vel_m[STAR_N], vel_p[STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
     int dropped[STAR_R_DIM], lowest[STAR_R_DIM] = {0}, k;
     int slip_own[STAR_NF_DIM];
     star_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -2077,8 +2169,12 @@ static int star_plastic_entry(const star_ctx_t *c, const double *q, const double
         slip_ride, land)) {
         return 1;
     }
+    star_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            star_hold(c, grad, rows[k]);
+        }
     }
     *loss = star_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2285,7 +2381,7 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
             rate += grad[r * STAR_N + i] * v[i];
         }
         if (star_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            star_hold(c, grad, r);
         }
     }
 }

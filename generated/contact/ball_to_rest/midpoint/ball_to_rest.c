@@ -1097,6 +1097,7 @@ static inline int ball_to_rest_held(const ball_to_rest_sustain_t *sus)
 #define BALL_TO_REST_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define BALL_TO_REST_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define BALL_TO_REST_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define BALL_TO_REST_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_to_rest_row_contact[BALL_TO_REST_R_DIM] = { 0, };
@@ -1120,6 +1121,57 @@ static void ball_to_rest_dirs(const ball_to_rest_ctx_t *c, const double *grad, d
 static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int ball_to_rest_dependent(const ball_to_rest_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[BALL_TO_REST_R_DIM * BALL_TO_REST_N] = {0.0}, w[BALL_TO_REST_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= BALL_TO_REST_R; ++row) {
+        r = row < BALL_TO_REST_R ? row : sr; /* the active rows, then sr itself */
+        if (row < BALL_TO_REST_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && ball_to_rest_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < BALL_TO_REST_N; ++i) {
+            w[i] = grad[r * BALL_TO_REST_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < BALL_TO_REST_N; ++i) {
+                d += basis[b * BALL_TO_REST_N + i] * w[i];
+            }
+            for (i = 0; i < BALL_TO_REST_N; ++i) {
+                w[i] -= d * basis[b * BALL_TO_REST_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < BALL_TO_REST_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * BALL_TO_REST_N + i] * grad[r * BALL_TO_REST_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == BALL_TO_REST_R) {
+            return nw <= BALL_TO_REST_DEP_EPS * ng;
+        }
+        if (nw > BALL_TO_REST_DEP_EPS * ng) {
+            for (i = 0; i < BALL_TO_REST_N; ++i) {
+                basis[nb * BALL_TO_REST_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void ball_to_rest_hold(const ball_to_rest_ctx_t *c, const double *grad, int r)
+{
+    if (!ball_to_rest_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1449,6 +1501,45 @@ static int ball_to_rest_row_crossing(const ball_to_rest_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int ball_to_rest_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[BALL_TO_REST_R_DIM * BALL_TO_REST_N] = {0.0}, w[BALL_TO_REST_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (ball_to_rest_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < BALL_TO_REST_N; ++i) {
+            w[i] = grad[r * BALL_TO_REST_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < BALL_TO_REST_N; ++i) {
+                d += basis[b * BALL_TO_REST_N + i] * w[i];
+            }
+            for (i = 0; i < BALL_TO_REST_N; ++i) {
+                w[i] -= d * basis[b * BALL_TO_REST_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < BALL_TO_REST_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * BALL_TO_REST_N + i] * grad[r * BALL_TO_REST_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= BALL_TO_REST_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < BALL_TO_REST_N; ++i) {
+            basis[nb * BALL_TO_REST_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1538,7 +1629,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || ball_to_rest_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1719,9 +1810,9 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
             }
         }
     }
-    for (r = 0; r < BALL_TO_REST_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            ball_to_rest_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -1740,7 +1831,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (ball_to_rest_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -1789,6 +1880,7 @@ static int ball_to_rest_plastic_entry(const ball_to_rest_ctx_t *c, const double 
     int *slip_ride, int *land)
 {
     double tgt[BALL_TO_REST_R_DIM] = {0.0}, vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N];
+    double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
     int dropped[BALL_TO_REST_R_DIM], lowest[BALL_TO_REST_R_DIM] = {0}, k;
     int slip_own[BALL_TO_REST_NF_DIM];
     ball_to_rest_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -1797,8 +1889,12 @@ static int ball_to_rest_plastic_entry(const ball_to_rest_ctx_t *c, const double 
         slip_ride, land)) {
         return 1;
     }
+    ball_to_rest_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            ball_to_rest_hold(c, grad, rows[k]);
+        }
     }
     *loss = ball_to_rest_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2005,7 +2101,7 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
             rate += grad[r * BALL_TO_REST_N + i] * v[i];
         }
         if (ball_to_rest_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            ball_to_rest_hold(c, grad, r);
         }
     }
 }

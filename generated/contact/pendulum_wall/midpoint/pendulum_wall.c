@@ -1326,6 +1326,7 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define PENDULUM_WALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define PENDULUM_WALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define PENDULUM_WALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };
@@ -1349,6 +1350,57 @@ static void pendulum_wall_dirs(const pendulum_wall_ctx_t *c, const double *grad,
 static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int pendulum_wall_dependent(const pendulum_wall_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N] = {0.0}, w[PENDULUM_WALL_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= PENDULUM_WALL_R; ++row) {
+        r = row < PENDULUM_WALL_R ? row : sr; /* the active rows, then sr itself */
+        if (row < PENDULUM_WALL_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && pendulum_wall_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            w[i] = grad[r * PENDULUM_WALL_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < PENDULUM_WALL_N; ++i) {
+                d += basis[b * PENDULUM_WALL_N + i] * w[i];
+            }
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                w[i] -= d * basis[b * PENDULUM_WALL_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < PENDULUM_WALL_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * PENDULUM_WALL_N + i] * grad[r * PENDULUM_WALL_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == PENDULUM_WALL_R) {
+            return nw <= PENDULUM_WALL_DEP_EPS * ng;
+        }
+        if (nw > PENDULUM_WALL_DEP_EPS * ng) {
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                basis[nb * PENDULUM_WALL_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void pendulum_wall_hold(const pendulum_wall_ctx_t *c, const double *grad, int r)
+{
+    if (!pendulum_wall_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1678,6 +1730,45 @@ static int pendulum_wall_row_crossing(const pendulum_wall_ctx_t *c, const double
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int pendulum_wall_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N] = {0.0}, w[PENDULUM_WALL_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (pendulum_wall_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            w[i] = grad[r * PENDULUM_WALL_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < PENDULUM_WALL_N; ++i) {
+                d += basis[b * PENDULUM_WALL_N + i] * w[i];
+            }
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                w[i] -= d * basis[b * PENDULUM_WALL_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < PENDULUM_WALL_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * PENDULUM_WALL_N + i] * grad[r * PENDULUM_WALL_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= PENDULUM_WALL_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            basis[nb * PENDULUM_WALL_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1767,7 +1858,7 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || pendulum_wall_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1948,9 +2039,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             }
         }
     }
-    for (r = 0; r < PENDULUM_WALL_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            pendulum_wall_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -1969,7 +2060,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (pendulum_wall_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -2018,6 +2109,7 @@ static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const doubl
     int *slip_ride, int *land)
 {
     double tgt[PENDULUM_WALL_R_DIM] = {0.0}, vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N];
+    double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     int dropped[PENDULUM_WALL_R_DIM], lowest[PENDULUM_WALL_R_DIM] = {0}, k;
     int slip_own[PENDULUM_WALL_NF_DIM];
     pendulum_wall_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -2026,8 +2118,12 @@ static int pendulum_wall_plastic_entry(const pendulum_wall_ctx_t *c, const doubl
         slip_ride, land)) {
         return 1;
     }
+    pendulum_wall_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            pendulum_wall_hold(c, grad, rows[k]);
+        }
     }
     *loss = pendulum_wall_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2234,7 +2330,7 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
             rate += grad[r * PENDULUM_WALL_N + i] * v[i];
         }
         if (pendulum_wall_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            pendulum_wall_hold(c, grad, r);
         }
     }
 }

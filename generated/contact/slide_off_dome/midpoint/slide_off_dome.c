@@ -1297,6 +1297,7 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define SLIDE_OFF_DOME_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SLIDE_OFF_DOME_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define SLIDE_OFF_DOME_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int slide_off_dome_row_contact[SLIDE_OFF_DOME_R_DIM] = { 0, };
@@ -1320,6 +1321,57 @@ static void slide_off_dome_dirs(const slide_off_dome_ctx_t *c, const double *gra
 static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_dome_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int slide_off_dome_dependent(const slide_off_dome_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0}, w[SLIDE_OFF_DOME_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= SLIDE_OFF_DOME_R; ++row) {
+        r = row < SLIDE_OFF_DOME_R ? row : sr; /* the active rows, then sr itself */
+        if (row < SLIDE_OFF_DOME_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && slide_off_dome_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            w[i] = grad[r * SLIDE_OFF_DOME_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < SLIDE_OFF_DOME_N; ++i) {
+                d += basis[b * SLIDE_OFF_DOME_N + i] * w[i];
+            }
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                w[i] -= d * basis[b * SLIDE_OFF_DOME_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < SLIDE_OFF_DOME_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * SLIDE_OFF_DOME_N + i] * grad[r * SLIDE_OFF_DOME_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == SLIDE_OFF_DOME_R) {
+            return nw <= SLIDE_OFF_DOME_DEP_EPS * ng;
+        }
+        if (nw > SLIDE_OFF_DOME_DEP_EPS * ng) {
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                basis[nb * SLIDE_OFF_DOME_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void slide_off_dome_hold(const slide_off_dome_ctx_t *c, const double *grad, int r)
+{
+    if (!slide_off_dome_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1649,6 +1701,45 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int slide_off_dome_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N] = {0.0}, w[SLIDE_OFF_DOME_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (slide_off_dome_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            w[i] = grad[r * SLIDE_OFF_DOME_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < SLIDE_OFF_DOME_N; ++i) {
+                d += basis[b * SLIDE_OFF_DOME_N + i] * w[i];
+            }
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                w[i] -= d * basis[b * SLIDE_OFF_DOME_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < SLIDE_OFF_DOME_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * SLIDE_OFF_DOME_N + i] * grad[r * SLIDE_OFF_DOME_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= SLIDE_OFF_DOME_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            basis[nb * SLIDE_OFF_DOME_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1738,7 +1829,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || slide_off_dome_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1919,9 +2010,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             }
         }
     }
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            slide_off_dome_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -1940,7 +2031,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (slide_off_dome_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -1989,6 +2080,7 @@ static int slide_off_dome_plastic_entry(const slide_off_dome_ctx_t *c, const dou
     int *slip_ride, int *land)
 {
     double tgt[SLIDE_OFF_DOME_R_DIM] = {0.0}, vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N];
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     int dropped[SLIDE_OFF_DOME_R_DIM], lowest[SLIDE_OFF_DOME_R_DIM] = {0}, k;
     int slip_own[SLIDE_OFF_DOME_NF_DIM];
     slide_off_dome_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -1997,8 +2089,12 @@ static int slide_off_dome_plastic_entry(const slide_off_dome_ctx_t *c, const dou
         slip_ride, land)) {
         return 1;
     }
+    slide_off_dome_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            slide_off_dome_hold(c, grad, rows[k]);
+        }
     }
     *loss = slide_off_dome_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2205,7 +2301,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
             rate += grad[r * SLIDE_OFF_DOME_N + i] * v[i];
         }
         if (slide_off_dome_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            slide_off_dome_hold(c, grad, r);
         }
     }
 }

@@ -918,6 +918,7 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define IMPACT_OSCILLATOR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define IMPACT_OSCILLATOR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int impact_oscillator_row_contact[IMPACT_OSCILLATOR_R_DIM] = { 0, };
@@ -941,6 +942,57 @@ static void impact_oscillator_dirs(const impact_oscillator_ctx_t *c, const doubl
 static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impact_oscillator_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int impact_oscillator_dependent(const impact_oscillator_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N] = {0.0}, w[IMPACT_OSCILLATOR_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= IMPACT_OSCILLATOR_R; ++row) {
+        r = row < IMPACT_OSCILLATOR_R ? row : sr; /* the active rows, then sr itself */
+        if (row < IMPACT_OSCILLATOR_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && impact_oscillator_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            w[i] = grad[r * IMPACT_OSCILLATOR_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < IMPACT_OSCILLATOR_N; ++i) {
+                d += basis[b * IMPACT_OSCILLATOR_N + i] * w[i];
+            }
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                w[i] -= d * basis[b * IMPACT_OSCILLATOR_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < IMPACT_OSCILLATOR_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * IMPACT_OSCILLATOR_N + i] * grad[r * IMPACT_OSCILLATOR_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == IMPACT_OSCILLATOR_R) {
+            return nw <= IMPACT_OSCILLATOR_DEP_EPS * ng;
+        }
+        if (nw > IMPACT_OSCILLATOR_DEP_EPS * ng) {
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                basis[nb * IMPACT_OSCILLATOR_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void impact_oscillator_hold(const impact_oscillator_ctx_t *c, const double *grad, int r)
+{
+    if (!impact_oscillator_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1272,6 +1324,45 @@ static int impact_oscillator_row_crossing(const impact_oscillator_ctx_t *c, cons
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int impact_oscillator_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N] = {0.0}, w[IMPACT_OSCILLATOR_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (impact_oscillator_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            w[i] = grad[r * IMPACT_OSCILLATOR_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < IMPACT_OSCILLATOR_N; ++i) {
+                d += basis[b * IMPACT_OSCILLATOR_N + i] * w[i];
+            }
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                w[i] -= d * basis[b * IMPACT_OSCILLATOR_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < IMPACT_OSCILLATOR_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * IMPACT_OSCILLATOR_N + i] * grad[r * IMPACT_OSCILLATOR_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= IMPACT_OSCILLATOR_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            basis[nb * IMPACT_OSCILLATOR_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1361,7 +1452,7 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || impact_oscillator_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1542,9 +1633,9 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             }
         }
     }
-    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            impact_oscillator_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -1563,7 +1654,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (impact_oscillator_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -1612,6 +1703,7 @@ static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, con
     int *slip_ride, int *land)
 {
     double tgt[IMPACT_OSCILLATOR_R_DIM] = {0.0}, vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N];
+    double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     int dropped[IMPACT_OSCILLATOR_R_DIM], lowest[IMPACT_OSCILLATOR_R_DIM] = {0}, k;
     int slip_own[IMPACT_OSCILLATOR_NF_DIM];
     impact_oscillator_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -1620,8 +1712,12 @@ static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, con
         slip_ride, land)) {
         return 1;
     }
+    impact_oscillator_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            impact_oscillator_hold(c, grad, rows[k]);
+        }
     }
     *loss = impact_oscillator_loss(c, q, vel_m, vel_p);
     return 0;
@@ -1830,7 +1926,7 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
             rate += grad[r * IMPACT_OSCILLATOR_N + i] * v[i];
         }
         if (impact_oscillator_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            impact_oscillator_hold(c, grad, r);
         }
     }
 }

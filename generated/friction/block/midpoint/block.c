@@ -1099,6 +1099,7 @@ static inline int block_held(const block_sustain_t *sus)
 #define BLOCK_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define BLOCK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define BLOCK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define BLOCK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int block_row_contact[BLOCK_R_DIM] = { 0, -1, };
@@ -1107,7 +1108,6 @@ static const int block_row_constraint[BLOCK_R_DIM] = { -1, -1, };
 static const int block_row_stick[BLOCK_R_DIM] = { -1, 0, };
 static const int block_row_free[BLOCK_R_DIM] = { 0, 1, };
 #define BLOCK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
-#define BLOCK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 #define BLOCK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define BLOCK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
@@ -1176,6 +1176,57 @@ static void block_dirs(const block_ctx_t *c, const double *grad, double *dirs)
 static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int block_dependent(const block_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[BLOCK_R_DIM * BLOCK_N] = {0.0}, w[BLOCK_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= BLOCK_R; ++row) {
+        r = row < BLOCK_R ? row : sr; /* the active rows, then sr itself */
+        if (row < BLOCK_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && block_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < BLOCK_N; ++i) {
+            w[i] = grad[r * BLOCK_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < BLOCK_N; ++i) {
+                d += basis[b * BLOCK_N + i] * w[i];
+            }
+            for (i = 0; i < BLOCK_N; ++i) {
+                w[i] -= d * basis[b * BLOCK_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < BLOCK_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * BLOCK_N + i] * grad[r * BLOCK_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == BLOCK_R) {
+            return nw <= BLOCK_DEP_EPS * ng;
+        }
+        if (nw > BLOCK_DEP_EPS * ng) {
+            for (i = 0; i < BLOCK_N; ++i) {
+                basis[nb * BLOCK_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void block_hold(const block_ctx_t *c, const double *grad, int r)
+{
+    if (!block_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1450,47 +1501,6 @@ static double block_cone_margin(const block_ctx_t *c, int f, const double *force
     return c->mu_f[f] * normal - fabs(forces[block_stick_row[f]]);
 }
 
-/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
- * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
-static int block_dependent(const block_ctx_t *c, const double *grad, int sr, int skip)
-{
-    double basis[BLOCK_R_DIM * BLOCK_N], w[BLOCK_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= BLOCK_R; ++row) {
-        r = row < BLOCK_R ? row : sr; /* the active rows, then sr itself */
-        if (row < BLOCK_R && (!c->sus->act[r] || r == sr || r == skip)) {
-            continue;
-        }
-        for (i = 0; i < BLOCK_N; ++i) {
-            w[i] = grad[r * BLOCK_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < BLOCK_N; ++i) {
-                d += basis[b * BLOCK_N + i] * w[i];
-            }
-            for (i = 0; i < BLOCK_N; ++i) {
-                w[i] -= d * basis[b * BLOCK_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < BLOCK_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * BLOCK_N + i] * grad[r * BLOCK_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == BLOCK_R) {
-            return nw <= BLOCK_DEP_EPS * ng;
-        }
-        if (nw > BLOCK_DEP_EPS * ng) {
-            for (i = 0; i < BLOCK_N; ++i) {
-                basis[nb * BLOCK_N + i] = w[i] / nw;
-            }
-            ++nb;
-        }
-    }
-    return 0;
-}
-
 /* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
  * other rows hold it alone). A cone's row too (cone_split). */
@@ -1498,11 +1508,11 @@ static int block_owner(const block_ctx_t *c, int f, const double *grad)
 {
     const int sr = block_stick_row[f];
     int g;
-    if (!block_dependent(c, grad, sr, -1)) {
+    if (!block_dependent(c, grad, sr, -1, 1)) {
         return -1;
     }
     for (g = 0; g < BLOCK_NF; ++g) {
-        if (g != f && c->sus->act[block_stick_row[g]] && !block_dependent(c, grad, sr, block_stick_row[g])) {
+        if (g != f && c->sus->act[block_stick_row[g]] && !block_dependent(c, grad, sr, block_stick_row[g], 1)) {
             return g;
         }
     }
@@ -1819,14 +1829,14 @@ static void block_law_slips(const block_ctx_t *c, const double *grad, int *rows,
         if (c->sus->slip[f] == 0.0 || !held) {
             continue;
         }
-        if (!block_dependent(c, grad, sr, -1)) {
+        if (!block_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             slip_own[f] = 1;
             rows[(*nr)++] = sr;
             continue;
         }
         for (g = 0; g < BLOCK_NF; ++g) {
-            if (slip_own[g] && !block_dependent(c, grad, sr, block_stick_row[g])) {
+            if (slip_own[g] && !block_dependent(c, grad, sr, block_stick_row[g], 1)) {
                 slip_ride[f] = g;
                 break;
             }
@@ -1881,7 +1891,7 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
         }
         land[f] = -1;
         sr = block_stick_row[f];
-        if (!block_dependent(c, grad, sr, -1)) {
+        if (!block_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
@@ -1889,7 +1899,7 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
         }
         for (g = 0; g < BLOCK_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
             if (g != f && c->sus->act[block_stick_row[g]]
-                && !block_dependent(c, grad, sr, block_stick_row[g])) {
+                && !block_dependent(c, grad, sr, block_stick_row[g], 1)) {
                 land[f] = g;
                 slip_ride[f] = g;
                 break;
@@ -1901,6 +1911,46 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
     }
     return 1;
 }
+
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int block_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[BLOCK_R_DIM * BLOCK_N] = {0.0}, w[BLOCK_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (block_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < BLOCK_N; ++i) {
+            w[i] = grad[r * BLOCK_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < BLOCK_N; ++i) {
+                d += basis[b * BLOCK_N + i] * w[i];
+            }
+            for (i = 0; i < BLOCK_N; ++i) {
+                w[i] -= d * basis[b * BLOCK_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < BLOCK_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * BLOCK_N + i] * grad[r * BLOCK_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= BLOCK_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < BLOCK_N; ++i) {
+            basis[nb * BLOCK_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -2021,7 +2071,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || block_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2344,9 +2394,9 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             }
         }
     }
-    for (r = 0; r < BLOCK_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            block_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -2365,7 +2415,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (block_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -2427,6 +2477,7 @@ static int block_plastic_entry(const block_ctx_t *c, const double *q, const doub
     int *slip_ride, int *land)
 {
     double tgt[BLOCK_R_DIM] = {0.0}, vel_m[BLOCK_N], vel_p[BLOCK_N];
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     int dropped[BLOCK_R_DIM], lowest[BLOCK_R_DIM] = {0}, k;
     int slip_own[BLOCK_NF_DIM];
     block_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -2435,8 +2486,12 @@ static int block_plastic_entry(const block_ctx_t *c, const double *q, const doub
         slip_ride, land)) {
         return 1;
     }
+    block_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            block_hold(c, grad, rows[k]);
+        }
     }
     *loss = block_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2737,7 +2792,7 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
             rate += grad[r * BLOCK_N + i] * v[i];
         }
         if (block_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            block_hold(c, grad, r);
         }
     }
     block_friction_modes(c, q, v, -1.0);

@@ -1179,6 +1179,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define ROUGH_DISK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define ROUGH_DISK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int rough_disk_row_contact[ROUGH_DISK_R_DIM] = { 0, -1, };
@@ -1187,7 +1188,6 @@ static const int rough_disk_row_constraint[ROUGH_DISK_R_DIM] = { -1, -1, };
 static const int rough_disk_row_stick[ROUGH_DISK_R_DIM] = { -1, 0, };
 static const int rough_disk_row_free[ROUGH_DISK_R_DIM] = { 0, 1, };
 #define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
-#define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 #define ROUGH_DISK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define ROUGH_DISK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
@@ -1256,6 +1256,57 @@ static void rough_disk_dirs(const rough_disk_ctx_t *c, const double *grad, doubl
 static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int rough_disk_dependent(const rough_disk_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N] = {0.0}, w[ROUGH_DISK_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= ROUGH_DISK_R; ++row) {
+        r = row < ROUGH_DISK_R ? row : sr; /* the active rows, then sr itself */
+        if (row < ROUGH_DISK_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && rough_disk_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            w[i] = grad[r * ROUGH_DISK_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < ROUGH_DISK_N; ++i) {
+                d += basis[b * ROUGH_DISK_N + i] * w[i];
+            }
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                w[i] -= d * basis[b * ROUGH_DISK_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < ROUGH_DISK_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * ROUGH_DISK_N + i] * grad[r * ROUGH_DISK_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == ROUGH_DISK_R) {
+            return nw <= ROUGH_DISK_DEP_EPS * ng;
+        }
+        if (nw > ROUGH_DISK_DEP_EPS * ng) {
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                basis[nb * ROUGH_DISK_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void rough_disk_hold(const rough_disk_ctx_t *c, const double *grad, int r)
+{
+    if (!rough_disk_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1530,47 +1581,6 @@ static double rough_disk_cone_margin(const rough_disk_ctx_t *c, int f, const dou
     return c->mu_f[f] * normal - fabs(forces[rough_disk_stick_row[f]]);
 }
 
-/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
- * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
-static int rough_disk_dependent(const rough_disk_ctx_t *c, const double *grad, int sr, int skip)
-{
-    double basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N], w[ROUGH_DISK_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= ROUGH_DISK_R; ++row) {
-        r = row < ROUGH_DISK_R ? row : sr; /* the active rows, then sr itself */
-        if (row < ROUGH_DISK_R && (!c->sus->act[r] || r == sr || r == skip)) {
-            continue;
-        }
-        for (i = 0; i < ROUGH_DISK_N; ++i) {
-            w[i] = grad[r * ROUGH_DISK_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < ROUGH_DISK_N; ++i) {
-                d += basis[b * ROUGH_DISK_N + i] * w[i];
-            }
-            for (i = 0; i < ROUGH_DISK_N; ++i) {
-                w[i] -= d * basis[b * ROUGH_DISK_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < ROUGH_DISK_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * ROUGH_DISK_N + i] * grad[r * ROUGH_DISK_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == ROUGH_DISK_R) {
-            return nw <= ROUGH_DISK_DEP_EPS * ng;
-        }
-        if (nw > ROUGH_DISK_DEP_EPS * ng) {
-            for (i = 0; i < ROUGH_DISK_N; ++i) {
-                basis[nb * ROUGH_DISK_N + i] = w[i] / nw;
-            }
-            ++nb;
-        }
-    }
-    return 0;
-}
-
 /* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
  * other rows hold it alone). A cone's row too (cone_split). */
@@ -1578,11 +1588,11 @@ static int rough_disk_owner(const rough_disk_ctx_t *c, int f, const double *grad
 {
     const int sr = rough_disk_stick_row[f];
     int g;
-    if (!rough_disk_dependent(c, grad, sr, -1)) {
+    if (!rough_disk_dependent(c, grad, sr, -1, 1)) {
         return -1;
     }
     for (g = 0; g < ROUGH_DISK_NF; ++g) {
-        if (g != f && c->sus->act[rough_disk_stick_row[g]] && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g])) {
+        if (g != f && c->sus->act[rough_disk_stick_row[g]] && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g], 1)) {
             return g;
         }
     }
@@ -1899,14 +1909,14 @@ static void rough_disk_law_slips(const rough_disk_ctx_t *c, const double *grad, 
         if (c->sus->slip[f] == 0.0 || !held) {
             continue;
         }
-        if (!rough_disk_dependent(c, grad, sr, -1)) {
+        if (!rough_disk_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             slip_own[f] = 1;
             rows[(*nr)++] = sr;
             continue;
         }
         for (g = 0; g < ROUGH_DISK_NF; ++g) {
-            if (slip_own[g] && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g])) {
+            if (slip_own[g] && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g], 1)) {
                 slip_ride[f] = g;
                 break;
             }
@@ -1961,7 +1971,7 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
         }
         land[f] = -1;
         sr = rough_disk_stick_row[f];
-        if (!rough_disk_dependent(c, grad, sr, -1)) {
+        if (!rough_disk_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
@@ -1969,7 +1979,7 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
         }
         for (g = 0; g < ROUGH_DISK_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
             if (g != f && c->sus->act[rough_disk_stick_row[g]]
-                && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g])) {
+                && !rough_disk_dependent(c, grad, sr, rough_disk_stick_row[g], 1)) {
                 land[f] = g;
                 slip_ride[f] = g;
                 break;
@@ -1981,6 +1991,46 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
     }
     return 1;
 }
+
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int rough_disk_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N] = {0.0}, w[ROUGH_DISK_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (rough_disk_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            w[i] = grad[r * ROUGH_DISK_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < ROUGH_DISK_N; ++i) {
+                d += basis[b * ROUGH_DISK_N + i] * w[i];
+            }
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                w[i] -= d * basis[b * ROUGH_DISK_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < ROUGH_DISK_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * ROUGH_DISK_N + i] * grad[r * ROUGH_DISK_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= ROUGH_DISK_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            basis[nb * ROUGH_DISK_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -2101,7 +2151,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || rough_disk_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2424,9 +2474,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             }
         }
     }
-    for (r = 0; r < ROUGH_DISK_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            rough_disk_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -2445,7 +2495,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (rough_disk_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -2507,6 +2557,7 @@ static int rough_disk_plastic_entry(const rough_disk_ctx_t *c, const double *q, 
     int *slip_ride, int *land)
 {
     double tgt[ROUGH_DISK_R_DIM] = {0.0}, vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N];
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     int dropped[ROUGH_DISK_R_DIM], lowest[ROUGH_DISK_R_DIM] = {0}, k;
     int slip_own[ROUGH_DISK_NF_DIM];
     rough_disk_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -2515,8 +2566,12 @@ static int rough_disk_plastic_entry(const rough_disk_ctx_t *c, const double *q, 
         slip_ride, land)) {
         return 1;
     }
+    rough_disk_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            rough_disk_hold(c, grad, rows[k]);
+        }
     }
     *loss = rough_disk_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2817,7 +2872,7 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
             rate += grad[r * ROUGH_DISK_N + i] * v[i];
         }
         if (rough_disk_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            rough_disk_hold(c, grad, r);
         }
     }
     rough_disk_friction_modes(c, q, v, -1.0);

@@ -1266,6 +1266,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -1274,7 +1275,6 @@ static const int spun_ball_row_constraint[SPUN_BALL_R_DIM] = { -1, -1, -1, };
 static const int spun_ball_row_stick[SPUN_BALL_R_DIM] = { -1, 0, 1, };
 static const int spun_ball_row_free[SPUN_BALL_R_DIM] = { 0, 1, 1, };
 #define SPUN_BALL_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
-#define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 #define SPUN_BALL_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define SPUN_BALL_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
@@ -1345,6 +1345,57 @@ static void spun_ball_dirs(const spun_ball_ctx_t *c, const double *grad, double 
 static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[SPUN_BALL_R_DIM * SPUN_BALL_N] = {0.0}, w[SPUN_BALL_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= SPUN_BALL_R; ++row) {
+        r = row < SPUN_BALL_R ? row : sr; /* the active rows, then sr itself */
+        if (row < SPUN_BALL_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && spun_ball_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            w[i] = grad[r * SPUN_BALL_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < SPUN_BALL_N; ++i) {
+                d += basis[b * SPUN_BALL_N + i] * w[i];
+            }
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                w[i] -= d * basis[b * SPUN_BALL_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < SPUN_BALL_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * SPUN_BALL_N + i] * grad[r * SPUN_BALL_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == SPUN_BALL_R) {
+            return nw <= SPUN_BALL_DEP_EPS * ng;
+        }
+        if (nw > SPUN_BALL_DEP_EPS * ng) {
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                basis[nb * SPUN_BALL_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void spun_ball_hold(const spun_ball_ctx_t *c, const double *grad, int r)
+{
+    if (!spun_ball_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1640,47 +1691,6 @@ static double spun_ball_cone_margin(const spun_ball_ctx_t *c, int f, const doubl
     return c->mu_f[f] * normal - fabs(forces[spun_ball_stick_row[f]]);
 }
 
-/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
- * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
-static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int sr, int skip)
-{
-    double basis[SPUN_BALL_R_DIM * SPUN_BALL_N], w[SPUN_BALL_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= SPUN_BALL_R; ++row) {
-        r = row < SPUN_BALL_R ? row : sr; /* the active rows, then sr itself */
-        if (row < SPUN_BALL_R && (!c->sus->act[r] || r == sr || r == skip)) {
-            continue;
-        }
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            w[i] = grad[r * SPUN_BALL_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < SPUN_BALL_N; ++i) {
-                d += basis[b * SPUN_BALL_N + i] * w[i];
-            }
-            for (i = 0; i < SPUN_BALL_N; ++i) {
-                w[i] -= d * basis[b * SPUN_BALL_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < SPUN_BALL_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * SPUN_BALL_N + i] * grad[r * SPUN_BALL_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == SPUN_BALL_R) {
-            return nw <= SPUN_BALL_DEP_EPS * ng;
-        }
-        if (nw > SPUN_BALL_DEP_EPS * ng) {
-            for (i = 0; i < SPUN_BALL_N; ++i) {
-                basis[nb * SPUN_BALL_N + i] = w[i] / nw;
-            }
-            ++nb;
-        }
-    }
-    return 0;
-}
-
 /* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
  * other rows hold it alone). A cone's row too (cone_split). */
@@ -1688,11 +1698,11 @@ static int spun_ball_owner(const spun_ball_ctx_t *c, int f, const double *grad)
 {
     const int sr = spun_ball_stick_row[f];
     int g;
-    if (!spun_ball_dependent(c, grad, sr, -1)) {
+    if (!spun_ball_dependent(c, grad, sr, -1, 1)) {
         return -1;
     }
     for (g = 0; g < SPUN_BALL_NF; ++g) {
-        if (g != f && c->sus->act[spun_ball_stick_row[g]] && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
+        if (g != f && c->sus->act[spun_ball_stick_row[g]] && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g], 1)) {
             return g;
         }
     }
@@ -1834,7 +1844,7 @@ static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, cons
                 d += grad[sr * SPUN_BALL_N + i] * u[i];
             }
             extra[sr] = 2.0 * d / tau;
-            if (spun_ball_dependent(c, grad, sr, -1)) {
+            if (spun_ball_dependent(c, grad, sr, -1, 1)) {
                 c->sus->ride[x] = x;
             } else {
                 c->sus->act[sr] = 1;
@@ -2536,9 +2546,9 @@ static int spun_ball_law_strict(const spun_ball_ctx_t *c, const int *rows, int n
 static int spun_ball_cone_joins(const spun_ball_ctx_t *c, const double *grad, int f)
 {
     const int sr = spun_ball_stick_row[f], sp = spun_ball_stick_row[spun_ball_partner[f]];
-    if (!spun_ball_dependent(c, grad, sr, -1)) {
+    if (!spun_ball_dependent(c, grad, sr, -1, 1)) {
         c->sus->act[sr] = 1;
-        if (!spun_ball_dependent(c, grad, sp, -1)) {
+        if (!spun_ball_dependent(c, grad, sp, -1, 1)) {
             c->sus->act[sp] = 1;
             return 1;
         }
@@ -2582,14 +2592,14 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
         if (c->sus->slip[f] == 0.0 || !held || spun_ball_partner[f] >= 0) {
             continue;
         }
-        if (!spun_ball_dependent(c, grad, sr, -1)) {
+        if (!spun_ball_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             slip_own[f] = 1;
             rows[(*nr)++] = sr;
             continue;
         }
         for (g = 0; g < SPUN_BALL_NF; ++g) {
-            if (slip_own[g] && spun_ball_partner[g] < 0 && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
+            if (slip_own[g] && spun_ball_partner[g] < 0 && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g], 1)) {
                 slip_ride[f] = g;
                 break;
             }
@@ -2659,7 +2669,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
             }
             continue;
         }
-        if (!spun_ball_dependent(c, grad, sr, -1)) {
+        if (!spun_ball_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
@@ -2667,7 +2677,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
         }
         for (g = 0; g < SPUN_BALL_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
             if (g != f && c->sus->act[spun_ball_stick_row[g]] && spun_ball_partner[g] < 0
-                && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g])) {
+                && !spun_ball_dependent(c, grad, sr, spun_ball_stick_row[g], 1)) {
                 land[f] = g;
                 slip_ride[f] = g;
                 break;
@@ -2679,6 +2689,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
     }
     return 1;
 }
+
 
 static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
     double *m1, double *m2); /* stepper_cone.c.j2 */
@@ -2758,6 +2769,45 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
  * cone (|Lam_t| <= mu_f Lam_n) or slips with Coulomb's sliding impulse against its tangential velocity after
  * (law_slide); its modes (stick, slip; its own first) come after all the one-tangent ones, in base 2, one cone
  * slipping at a time. A slipping cone that took no normal impulse is left out (slips on as before). */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int spun_ball_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[SPUN_BALL_R_DIM * SPUN_BALL_N] = {0.0}, w[SPUN_BALL_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (spun_ball_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            w[i] = grad[r * SPUN_BALL_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < SPUN_BALL_N; ++i) {
+                d += basis[b * SPUN_BALL_N + i] * w[i];
+            }
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                w[i] -= d * basis[b * SPUN_BALL_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < SPUN_BALL_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * SPUN_BALL_N + i] * grad[r * SPUN_BALL_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= SPUN_BALL_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            basis[nb * SPUN_BALL_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -2905,7 +2955,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || spun_ball_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             if (slide_c >= 0) {
@@ -3302,9 +3352,9 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             }
         }
     }
-    for (r = 0; r < SPUN_BALL_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            spun_ball_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -3323,7 +3373,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (spun_ball_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -3385,6 +3435,7 @@ static int spun_ball_plastic_entry(const spun_ball_ctx_t *c, const double *q, co
     int *slip_ride, int *land)
 {
     double tgt[SPUN_BALL_R_DIM] = {0.0}, vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N];
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     int dropped[SPUN_BALL_R_DIM], lowest[SPUN_BALL_R_DIM] = {0}, k;
     int slip_own[SPUN_BALL_NF_DIM];
     spun_ball_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -3393,8 +3444,12 @@ static int spun_ball_plastic_entry(const spun_ball_ctx_t *c, const double *q, co
         slip_ride, land)) {
         return 1;
     }
+    spun_ball_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            spun_ball_hold(c, grad, rows[k]);
+        }
     }
     *loss = spun_ball_loss(c, q, vel_m, vel_p);
     return 0;
@@ -3703,7 +3758,7 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
             rate += grad[r * SPUN_BALL_N + i] * v[i];
         }
         if (spun_ball_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            spun_ball_hold(c, grad, r);
         }
     }
     spun_ball_friction_modes(c, q, v, -1.0);

@@ -1374,6 +1374,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define STAR_FRICTION_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define STAR_FRICTION_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_friction_row_contact[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, -1, };
@@ -1382,7 +1383,6 @@ static const int star_friction_row_constraint[STAR_FRICTION_R_DIM] = { -1, -1, -
 static const int star_friction_row_stick[STAR_FRICTION_R_DIM] = { -1, -1, -1, -1, 0, };
 static const int star_friction_row_free[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, 1, };
 #define STAR_FRICTION_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
-#define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a stick row this close to the active rows' span is dependent */
 #define STAR_FRICTION_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define STAR_FRICTION_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
@@ -1460,6 +1460,57 @@ static void star_friction_dirs(const star_friction_ctx_t *c, const double *grad,
 static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int star_friction_dependent(const star_friction_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[STAR_FRICTION_R_DIM * STAR_FRICTION_N] = {0.0}, w[STAR_FRICTION_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= STAR_FRICTION_R; ++row) {
+        r = row < STAR_FRICTION_R ? row : sr; /* the active rows, then sr itself */
+        if (row < STAR_FRICTION_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && star_friction_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            w[i] = grad[r * STAR_FRICTION_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < STAR_FRICTION_N; ++i) {
+                d += basis[b * STAR_FRICTION_N + i] * w[i];
+            }
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                w[i] -= d * basis[b * STAR_FRICTION_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < STAR_FRICTION_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * STAR_FRICTION_N + i] * grad[r * STAR_FRICTION_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == STAR_FRICTION_R) {
+            return nw <= STAR_FRICTION_DEP_EPS * ng;
+        }
+        if (nw > STAR_FRICTION_DEP_EPS * ng) {
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                basis[nb * STAR_FRICTION_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void star_friction_hold(const star_friction_ctx_t *c, const double *grad, int r)
+{
+    if (!star_friction_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1734,47 +1785,6 @@ static double star_friction_cone_margin(const star_friction_ctx_t *c, int f, con
     return c->mu_f[f] * normal - fabs(forces[star_friction_stick_row[f]]);
 }
 
-/* SustainedSteps._dependent: is stick row sr's gradient in the span of the other active rows' (but row skip)?
- * Modified Gram-Schmidt over the active rows in index order, then sr's residual, relative to its length. */
-static int star_friction_dependent(const star_friction_ctx_t *c, const double *grad, int sr, int skip)
-{
-    double basis[STAR_FRICTION_R_DIM * STAR_FRICTION_N], w[STAR_FRICTION_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= STAR_FRICTION_R; ++row) {
-        r = row < STAR_FRICTION_R ? row : sr; /* the active rows, then sr itself */
-        if (row < STAR_FRICTION_R && (!c->sus->act[r] || r == sr || r == skip)) {
-            continue;
-        }
-        for (i = 0; i < STAR_FRICTION_N; ++i) {
-            w[i] = grad[r * STAR_FRICTION_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < STAR_FRICTION_N; ++i) {
-                d += basis[b * STAR_FRICTION_N + i] * w[i];
-            }
-            for (i = 0; i < STAR_FRICTION_N; ++i) {
-                w[i] -= d * basis[b * STAR_FRICTION_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < STAR_FRICTION_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * STAR_FRICTION_N + i] * grad[r * STAR_FRICTION_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == STAR_FRICTION_R) {
-            return nw <= STAR_FRICTION_DEP_EPS * ng;
-        }
-        if (nw > STAR_FRICTION_DEP_EPS * ng) {
-            for (i = 0; i < STAR_FRICTION_N; ++i) {
-                basis[nb * STAR_FRICTION_N + i] = w[i] / nw;
-            }
-            ++nb;
-        }
-    }
-    return 0;
-}
-
 /* SustainedSteps._owner: whose stick holds frictional contact f's tangent: -1 if its stick row is independent of
  * the active rows; else the first sticking contact g without whose stick row it is independent (f itself if the
  * other rows hold it alone). A cone's row too (cone_split). */
@@ -1782,11 +1792,11 @@ static int star_friction_owner(const star_friction_ctx_t *c, int f, const double
 {
     const int sr = star_friction_stick_row[f];
     int g;
-    if (!star_friction_dependent(c, grad, sr, -1)) {
+    if (!star_friction_dependent(c, grad, sr, -1, 1)) {
         return -1;
     }
     for (g = 0; g < STAR_FRICTION_NF; ++g) {
-        if (g != f && c->sus->act[star_friction_stick_row[g]] && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g])) {
+        if (g != f && c->sus->act[star_friction_stick_row[g]] && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g], 1)) {
             return g;
         }
     }
@@ -2103,14 +2113,14 @@ static void star_friction_law_slips(const star_friction_ctx_t *c, const double *
         if (c->sus->slip[f] == 0.0 || !held) {
             continue;
         }
-        if (!star_friction_dependent(c, grad, sr, -1)) {
+        if (!star_friction_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             slip_own[f] = 1;
             rows[(*nr)++] = sr;
             continue;
         }
         for (g = 0; g < STAR_FRICTION_NF; ++g) {
-            if (slip_own[g] && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g])) {
+            if (slip_own[g] && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g], 1)) {
                 slip_ride[f] = g;
                 break;
             }
@@ -2165,7 +2175,7 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
         }
         land[f] = -1;
         sr = star_friction_stick_row[f];
-        if (!star_friction_dependent(c, grad, sr, -1)) {
+        if (!star_friction_dependent(c, grad, sr, -1, 1)) {
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
@@ -2173,7 +2183,7 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
         }
         for (g = 0; g < STAR_FRICTION_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
             if (g != f && c->sus->act[star_friction_stick_row[g]]
-                && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g])) {
+                && !star_friction_dependent(c, grad, sr, star_friction_stick_row[g], 1)) {
                 land[f] = g;
                 slip_ride[f] = g;
                 break;
@@ -2185,6 +2195,46 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
     }
     return 1;
 }
+
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int star_friction_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[STAR_FRICTION_R_DIM * STAR_FRICTION_N] = {0.0}, w[STAR_FRICTION_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (star_friction_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            w[i] = grad[r * STAR_FRICTION_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < STAR_FRICTION_N; ++i) {
+                d += basis[b * STAR_FRICTION_N + i] * w[i];
+            }
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                w[i] -= d * basis[b * STAR_FRICTION_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < STAR_FRICTION_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * STAR_FRICTION_N + i] * grad[r * STAR_FRICTION_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= STAR_FRICTION_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            basis[nb * STAR_FRICTION_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -2305,7 +2355,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || star_friction_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2628,9 +2678,9 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             }
         }
     }
-    for (r = 0; r < STAR_FRICTION_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            star_friction_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -2649,7 +2699,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (star_friction_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -2711,6 +2761,7 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
     int *slip_ride, int *land)
 {
     double tgt[STAR_FRICTION_R_DIM] = {0.0}, vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N];
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     int dropped[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, k;
     int slip_own[STAR_FRICTION_NF_DIM];
     star_friction_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -2719,8 +2770,12 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
         slip_ride, land)) {
         return 1;
     }
+    star_friction_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            star_friction_hold(c, grad, rows[k]);
+        }
     }
     *loss = star_friction_loss(c, q, vel_m, vel_p);
     return 0;
@@ -3021,7 +3076,7 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
             rate += grad[r * STAR_FRICTION_N + i] * v[i];
         }
         if (star_friction_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            star_friction_hold(c, grad, r);
         }
     }
     star_friction_friction_modes(c, q, v, -1.0);

@@ -1456,6 +1456,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define DOUBLE_PENDULUM_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define DOUBLE_PENDULUM_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define DOUBLE_PENDULUM_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -1479,6 +1480,57 @@ static void double_pendulum_dirs(const double_pendulum_ctx_t *c, const double *g
 static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pendulum_seg_t *seg, int *crossed,
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
+ * residual, relative to its length. */
+static int double_pendulum_dependent(const double_pendulum_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N] = {0.0}, w[DOUBLE_PENDULUM_N], d, nw, ng;
+    int nb = 0, r, b, i, row;
+    for (row = 0; row <= DOUBLE_PENDULUM_R; ++row) {
+        r = row < DOUBLE_PENDULUM_R ? row : sr; /* the active rows, then sr itself */
+        if (row < DOUBLE_PENDULUM_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && double_pendulum_row_stick[r] >= 0))) {
+            continue;
+        }
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            w[i] = grad[r * DOUBLE_PENDULUM_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < DOUBLE_PENDULUM_N; ++i) {
+                d += basis[b * DOUBLE_PENDULUM_N + i] * w[i];
+            }
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                w[i] -= d * basis[b * DOUBLE_PENDULUM_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < DOUBLE_PENDULUM_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * DOUBLE_PENDULUM_N + i] * grad[r * DOUBLE_PENDULUM_N + i];
+        }
+        nw = sqrt(nw);
+        ng = sqrt(ng);
+        if (row == DOUBLE_PENDULUM_R) {
+            return nw <= DOUBLE_PENDULUM_DEP_EPS * ng;
+        }
+        if (nw > DOUBLE_PENDULUM_DEP_EPS * ng) {
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                basis[nb * DOUBLE_PENDULUM_N + i] = w[i] / nw;
+            }
+            ++nb;
+        }
+    }
+    return 0;
+}
+
+/* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
+ * fourth vertex landing on its face, statically indeterminate): it then rides at psi = 0 by the others. */
+static void double_pendulum_hold(const double_pendulum_ctx_t *c, const double *grad, int r)
+{
+    if (!double_pendulum_dependent(c, grad, r, -1, 0)) {
+        c->sus->act[r] = 1;
+    }
+}
 
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
@@ -1809,6 +1861,45 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
         4e-16, 200, s_out);
 }
 
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
+ * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
+ * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+static int double_pendulum_spanned(const double *grad, const int *rows, const int *tight, int nt)
+{
+    double basis[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N] = {0.0}, w[DOUBLE_PENDULUM_N], d, nw, ng;
+    int nb = 0, k, b, i, r;
+    for (k = 0; k < nt; ++k) {
+        r = rows[tight[k]];
+        if (double_pendulum_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            w[i] = grad[r * DOUBLE_PENDULUM_N + i];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (i = 0, d = 0.0; i < DOUBLE_PENDULUM_N; ++i) {
+                d += basis[b * DOUBLE_PENDULUM_N + i] * w[i];
+            }
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                w[i] -= d * basis[b * DOUBLE_PENDULUM_N + i];
+            }
+        }
+        for (i = 0, nw = 0.0, ng = 0.0; i < DOUBLE_PENDULUM_N; ++i) {
+            nw += w[i] * w[i];
+            ng += grad[r * DOUBLE_PENDULUM_N + i] * grad[r * DOUBLE_PENDULUM_N + i];
+        }
+        nw = sqrt(nw);
+        if (nw <= DOUBLE_PENDULUM_DEP_EPS * sqrt(ng)) {
+            return 1;
+        }
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            basis[nb * DOUBLE_PENDULUM_N + i] = w[i] / nw;
+        }
+        ++nb;
+    }
+    return 0;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -1898,7 +1989,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
                 }
                 lam[k] = 0.0;
             }
-            if (!valid) {
+            if (!valid || double_pendulum_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2079,9 +2170,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             }
         }
     }
-    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* pressed in and settling: held (its force may release it) */
-        if (plastic[r]) {
-            c->sus->act[r] = 1;
+    for (g = 0; g < n_group; ++g) { /* pressed in and settling: held (its force may release it) */
+        if (plastic[group[g]]) {
+            double_pendulum_hold(c, grad, group[g]);
         }
     }
     for (g = 0; g < n_group; ++g) { /* one record per contact, in the order its rows first appear */
@@ -2100,7 +2191,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (double_pendulum_row_contact[group[r]] == j) {
-                any = any || c->sus->act[group[r]];
+                any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
                 imp += lam[group[r]];
             }
         }
@@ -2149,6 +2240,7 @@ static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const d
     int *slip_ride, int *land)
 {
     double tgt[DOUBLE_PENDULUM_R_DIM] = {0.0}, vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N];
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     int dropped[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, k;
     int slip_own[DOUBLE_PENDULUM_NF_DIM];
     double_pendulum_touching(c, q, v, group, n_group, rows, n_rows, lowest);
@@ -2157,8 +2249,12 @@ static int double_pendulum_plastic_entry(const double_pendulum_ctx_t *c, const d
         slip_ride, land)) {
         return 1;
     }
+    double_pendulum_rows(q, v, c->par, psi, grad, curv);
     for (k = 0; k < *n_rows; ++k) { /* the touching row of each contact is held; another at a kink if it presses */
-        c->sus->act[rows[k]] = lowest[rows[k]] || !dropped[rows[k]];
+        c->sus->act[rows[k]] = 0;
+        if (lowest[rows[k]] || !dropped[rows[k]]) {
+            double_pendulum_hold(c, grad, rows[k]);
+        }
     }
     *loss = double_pendulum_loss(c, q, vel_m, vel_p);
     return 0;
@@ -2365,7 +2461,7 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
             rate += grad[r * DOUBLE_PENDULUM_N + i] * v[i];
         }
         if (double_pendulum_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            c->sus->act[r] = 1;
+            double_pendulum_hold(c, grad, r);
         }
     }
 }
