@@ -189,3 +189,19 @@ def test_a_rough_cube_sliding_on_its_face_brakes_straight_at_mu_g(backend):
     assert np.abs(res.p[:, [1, 3, 4, 5]]).max() < 1e-12  # no sideways speed, no turn, no tilt
     assert np.abs(res.q[after, 2] - A / 2).max() < 1e-12
     assert np.abs(res.contact_force[after[:-1]].sum(axis=1) - MASS * G).max() < 1e-9
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_cube_tumbling_into_gimbal_lock_ends_in_a_solver_error_with_its_run(backend):
+    """A drop that tips the cube onto a side face, pitch -> -pi/2: its Euler angles' mass matrix turns
+    singular. A ``SolverError`` at the step, with the run so far (on CasADi's path a singular numpy solve
+    escaped as a bare ``LinAlgError``, the run lost)."""
+    q0 = [0, 0, 1.0, 0.9989907735888744, -0.4134605295999375, 0.29593052194714975]
+    v0 = [0.7055089618264563, 0.18853120144105562, -0.45521789528887013]
+    v0 += [-2.397715845576448, -1.4381635990197914, 0.5018490951948866]
+    with pytest.raises(vcigen.SolverError) as err:
+        sim(backend).simulate(q0=q0, v0=v0, h=0.005, t_end=1.0)
+    res = err.value.result
+    assert err.value.step == res.t.size - 1 and err.value.phase == "sustained"
+    assert abs(res.q[-1, 4] + math.pi / 2) < 0.05  # at the singular pitch
+    assert res.impacts and all(i.step < err.value.step for i in res.impacts)

@@ -156,7 +156,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
             if tan is not None:
                 tan.begin(step, t)
             try:
-                q, p, e, v = self.step(step, t, h, q, p, v, impacts)
+                q, p, e, v = self._solved_step(step, t, h, q, p, v, impacts)
             except SolverError as err:  # keep what was computed: the run up to the last completed step
                 kept = [im for im in impacts if im.step < step]
                 err.result = _result(t0, h, step, Q, P, E, kept, n, time.perf_counter() - wall)
@@ -192,6 +192,22 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
     def contact_activity(self) -> np.ndarray:
         """Per contact: is any of its rows active (in sustained contact)?"""
         return held_contacts(self.k, self.act)
+
+    def _solved_step(self, step, t, h, q, p, v, impacts):
+        """:meth:`step`, a singular linear system in it (a mass matrix singular at the state: a coordinate
+        singularity of the model, Euler angles at gimbal lock) raised as the ``SolverError`` it is."""
+        try:
+            return self.step(step, t, h, q, p, v, impacts)
+        except np.linalg.LinAlgError as exc:
+            phase = "sustained" if self.act.any() else "smooth"
+            raise SolverError(
+                step,
+                t,
+                phase,
+                math.nan,
+                f"a linear system of the step is singular ({exc}): the mass matrix at this state (a "
+                "singularity of the coordinates, e.g. Euler angles at gimbal lock) or the rows held",
+            ) from exc
 
     def step(
         self,
