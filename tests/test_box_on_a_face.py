@@ -192,6 +192,24 @@ def test_a_rough_cube_sliding_on_its_face_brakes_straight_at_mu_g(backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("psi0", [0.0, 0.3])
+def test_a_rough_cube_sliding_on_its_face_stops_after_v2_over_2_mu_g(backend, psi0):
+    """MATH.md *Friction*'s block on a floor with the cube's three held cones (and the fourth vertex riding):
+    set down sliding at ``v`` it stops after ``v^2 / (2 mu g)`` at ``v / (mu g)`` (to O(h)) and rests there,
+    no turn. The three cones stop at one instant; before, the implicit aim near rest (one dependence's
+    split of their forces) aimed one across its sliding: it stuck while sliding and the step failed."""
+    v, mu, h = 0.5, 0.5, 0.005
+    res = sim(backend, True).simulate(q0=[0, 0, A / 2, psi0, 0, 0], v0=[v, 0, 0, 0, 0, 0], h=h, t_end=0.5)
+    t_stop = v / (mu * G)
+    moving = res.t[np.flatnonzero(np.abs(res.p[:, 0]) > 1e-12)]
+    assert abs(moving[-1] - t_stop) < h
+    assert abs(res.q[-1, 0] - v**2 / (2 * mu * G)) < v * h
+    assert np.abs(res.p[res.t > t_stop + h]).max() < 1e-12  # at rest
+    assert np.abs(res.p[:, [1, 3]]).max() < 1e-12 and np.abs(res.q[:, 3] - psi0).max() < 1e-12
+    assert np.abs(res.q[:, 2] - A / 2).max() < 1e-12
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_a_cube_tumbling_into_gimbal_lock_ends_in_a_solver_error_with_its_run(backend):
     """A drop that tips the cube onto a side face, pitch -> -pi/2: its Euler angles' mass matrix turns
     singular. A ``SolverError`` at the step, with the run so far (on CasADi's path a singular numpy solve

@@ -166,7 +166,9 @@ class FrictionModes:
         aim of two cones of one body does not depend on their order. When two or more cones slide slower than
         ``BRAKE tau`` times the rate friction alone changes their sliding (``mu_f N`` times the mean of
         ``grad t M^-1 grad t^T``) they are aimed implicitly together (:meth:`_cone_brake`): there the
-        explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable."""
+        explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable. Not where more
+        than one of their stick rows would ride (:meth:`_riding_rows`: a box on three cones): the best split
+        of :meth:`_cone_split` is one dependence's, and its forces aimed a cone across its sliding."""
         k = self.k
         _, grad, curv = k.rows(q, u)
         tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
@@ -194,12 +196,29 @@ class FrictionModes:
                 aims.append((f, p, -self._mu_f[f] * mid / norm))
             if math.hypot(*w) <= BRAKE * tau * brake:
                 slow.append((f, p))
-        if len(slow) >= 2:  # several cones near rest: implicit in the direction
+        if len(slow) >= 2 and self._riding_rows(slow, grad) <= 1:  # several cones near rest: implicit
             self._braked = True
             aims = [a for a in aims if (a[0], a[1]) not in slow] + self._cone_brake(slow, q, u, tau)
         for f, p, slip in aims:
             self._slip[[f, p]] = slip
         self._set_friction()
+
+    def _riding_rows(self, cones, grad) -> int:
+        """How many of the stick rows of ``cones`` would ride (depend on the active rows and those before
+        them) were they all held."""
+        act = self.act.copy()
+        out = 0
+        try:
+            for f, p in cones:
+                for x in (f, p):
+                    sr = self._stick_rows[x]
+                    if self._dependent(grad, sr):
+                        out += 1
+                    else:
+                        self.act[sr] = True
+        finally:
+            self.act = act
+        return out
 
     def _cone_brake(self, cones, q, u, tau: float):
         """Slip directions of ``cones`` near rest (``tau/2 |dw/dt| > |w|``): along the tangential forces that

@@ -1806,6 +1806,30 @@ static void spun_ball_sliding(int f, int p, const double *grad, const double *u,
     }
 }
 
+/* SustainedSteps._riding_rows: how many of the stick rows of the cones slow[f] would ride (depend on the active
+ * rows and on those before them) were they all held. */
+static int spun_ball_riding_rows(const spun_ball_ctx_t *c, const int *slow, const double *grad)
+{
+    int act0[SPUN_BALL_R_DIM], f, k, r, sr, out = 0;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        act0[r] = c->sus->act[r];
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        for (k = 0; k < 2 && slow[f]; ++k) {
+            sr = spun_ball_stick_row[k == 0 ? f : spun_ball_partner[f]];
+            if (spun_ball_dependent(c, grad, sr, -1, 1)) {
+                ++out;
+            } else {
+                c->sus->act[sr] = 1;
+            }
+        }
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        c->sus->act[r] = act0[r];
+    }
+    return out;
+}
+
 /* SustainedSteps._cone_brake: slip directions of the cones near rest (slow[f]): along the tangential forces that
  * would bring their sliding to rest at the segment's midpoint, their stick rows held with the active rows (a row
  * dependent on them rides, the split the best one, cone_split) at the velocity target d(grad t . u)/dt = -2 w/tau.
@@ -1887,7 +1911,8 @@ static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, cons
  * (q, u): the sliding velocity predicted at the segment's midpoint, w + tau/2 dw/dt (with the contact forces at
  * the start and the start's directions), normalised; the start's direction if the prediction turns back (a stop
  * in the segment) or if tau/2 |dw/dt| > |w| (near rest, breaking away). Every cone aimed from the same state; two
- * or more cones sliding slower than BRAKE tau times friction's own rate on them aimed implicitly (cone_brake). */
+ * or more cones sliding slower than BRAKE tau times friction's own rate on them aimed implicitly (cone_brake), where
+ * at most one of their stick rows would ride (riding_rows: the split of cone_split is one dependence's). */
 static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const double *q, const double *u, double tau)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
@@ -1961,7 +1986,7 @@ static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const
             ++n_slow;
         }
     }
-    if (n_slow >= 2) { /* several cones near rest: implicit in the direction */
+    if (n_slow >= 2 && spun_ball_riding_rows(c, slow, grad) <= 1) { /* several cones near rest: implicit */
         for (f = 0; f < SPUN_BALL_NF; ++f) {
             set[f] = slow[f] ? 0 : set[f];
         }
