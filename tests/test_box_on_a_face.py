@@ -2,10 +2,10 @@
 the fourth riding at ``phi = 0`` (MATH.md *Sustained contact*: several contacts active at once), on both
 backends, against closed forms.
 
-The box: a unit cube (mass 1, isotropic inertia ``I = 1/6``) in ZYX Euler angles ``(psi, theta, phi)``, its
-four lower vertices contacts with the floor, frictionless. On its face the four rows' gradients span three
-directions (``z``, ``theta``, ``phi``); holding the four made the held step's linear system singular (the
-run stopped with "Newton did not converge" at the landing).
+The box: ``examples/contact/cube_settles.py``'s unit cube (mass 1, isotropic inertia ``I = 1/6``) in ZYX
+Euler angles ``(psi, theta, phi)``, its four lower vertices contacts with the floor, frictionless (or rough).
+On its face the four rows' gradients span three directions (``z``, ``theta``, ``phi``); holding the four made
+the held step's linear system singular (the run stopped with "Newton did not converge" at the landing).
 
 * Set down on its face, sliding and spinning about ``z``: it stays on the face (every vertex at 0), ``x``,
   ``y`` move at their initial speeds and ``psi`` turns at its initial rate exactly (translations and the turn
@@ -20,68 +20,37 @@ run stopped with "Newton did not converge" at the landing).
 from __future__ import annotations
 
 import math
+import sys
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 import pytest
-import sympy as sp
 from hard_scenes import BACKENDS, G
 
 import vcigen
 
-A, MASS = 1.0, 1.0
-INERTIA = MASS * A**2 / 6
-BOTTOM = [(sx, sy) for sx in (1, -1) for sy in (1, -1)]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "contact"))
+import cube_settles  # noqa: E402 - the example's folder on the path first
 
-
-def _rotation(psi, theta, phi) -> sp.Matrix:
-    c, s = sp.cos, sp.sin
-    rz = sp.Matrix([[c(psi), -s(psi), 0], [s(psi), c(psi), 0], [0, 0, 1]])
-    ry = sp.Matrix([[c(theta), 0, s(theta)], [0, 1, 0], [-s(theta), 0, c(theta)]])
-    rx = sp.Matrix([[1, 0, 0], [0, c(phi), -s(phi)], [0, s(phi), c(phi)]])
-    return rz * ry * rx
-
-
-@cache
-def cube(rough: bool = False) -> vcigen.Model:
-    """The cube: ``q = (x, y, z, psi, theta, phi)``, contacts ``v0..v3`` its lower vertices' heights;
-    ``rough``: each with an isotropic cone ``mu`` (tangents: the vertex's ``x``, ``y``)."""
-    x, y, z, ps, th, ph = sp.symbols("x y z psi theta phi")
-    xd, yd, zd, psd, thd, phd = sp.symbols("xd yd zd psid thetad phid")
-    e, mu = sp.symbols("e mu")
-    omega2 = phd**2 + thd**2 + psd**2 - 2 * phd * psd * sp.sin(th)  # |omega|^2 in ZYX rates
-    rot = _rotation(ps, th, ph)
-    corners = [rot * sp.Matrix([sx * A / 2, sy * A / 2, -A / 2]) for sx, sy in BOTTOM]
-    contacts = {f"v{i}": z + c[2] for i, c in enumerate(corners)}
-    return vcigen.Model(
-        name="cube_face_rough" if rough else "cube_face",
-        q=[x, y, z, ps, th, ph],
-        qdot=[xd, yd, zd, psd, thd, phd],
-        lagrangian=MASS / 2 * (xd**2 + yd**2 + zd**2) + INERTIA / 2 * omega2 - MASS * G * z,
-        contacts=contacts,
-        params={e: 0.0, mu: 0.5} if rough else {e: 0.0},
-        restitution=dict.fromkeys(contacts, e),
-        friction={k: (mu, (x + c[0], y + c[1])) for k, c in zip(contacts, corners)} if rough else {},
-    )
+A, MASS, INERTIA = cube_settles.A, cube_settles.M, cube_settles.INERTIA
+E0 = {"e": 0.0}  # plastic landings (the example's e is 0.3)
+vertex_heights = cube_settles.heights
 
 
 @cache
 def sim(backend: str, rough: bool = False) -> vcigen.Simulator:
-    return vcigen.build(cube(rough), backend=backend)
-
-
-def vertex_heights(q: np.ndarray) -> np.ndarray:
-    """Every lower vertex's height along a run ``q`` (rows: steps), numerically."""
-    th, ph = q[:, 4], q[:, 5]
-    out = [-np.sin(th) * sx + np.cos(th) * np.sin(ph) * sy - np.cos(th) * np.cos(ph) for sx, sy in BOTTOM]
-    return q[:, 2:3] + np.array(out).T * A / 2
+    """The example's cube on its four lower vertices; ``rough``: each an isotropic cone, ``mu = 0.5``."""
+    return vcigen.build(cube_settles.model(mu=0.5 if rough else None), backend=backend)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_cube_on_its_face_slides_and_spins_with_exact_momenta(backend):
     vx, vy, spin, psi0 = 0.7, -0.4, 2.5, 0.3
     h, t_end = 0.01, 2.0
-    res = sim(backend).simulate(q0=[0, 0, A / 2, psi0, 0, 0], v0=[vx, vy, 0, spin, 0, 0], h=h, t_end=t_end)
+    res = sim(backend).simulate(
+        params=E0, q0=[0, 0, A / 2, psi0, 0, 0], v0=[vx, vy, 0, spin, 0, 0], h=h, t_end=t_end
+    )
     assert res.active.sum(axis=1).min() == 3 and res.active.sum(axis=1).max() == 3  # three held, one rides
     assert not res.impacts and len(res.liftoffs) == 0
     t = res.t
@@ -96,7 +65,9 @@ def test_a_cube_on_its_face_slides_and_spins_with_exact_momenta(backend):
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_cube_dropped_flat_lands_once_and_rests_with_m_g_on_the_floor(backend):
     drop, h = 0.3, 0.01
-    res = sim(backend).simulate(q0=[0, 0, A / 2 + drop, 0.2, 0, 0], v0=[0, 0, 0, 0, 0, 0], h=h, t_end=1.0)
+    res = sim(backend).simulate(
+        params=E0, q0=[0, 0, A / 2 + drop, 0.2, 0, 0], v0=[0, 0, 0, 0, 0, 0], h=h, t_end=1.0
+    )
     assert len(res.impacts) == 4 and {i.kind for i in res.impacts} == {"plastic"}
     t_land = math.sqrt(2 * drop / G)
     assert all(abs(i.t - t_land) < h for i in res.impacts)
@@ -111,7 +82,7 @@ def test_a_cube_dropped_flat_lands_once_and_rests_with_m_g_on_the_floor(backend)
 def test_a_tilted_cube_lands_on_an_edge_and_settles_on_its_face(backend):
     vx, vy = 0.6, 0.25
     q0 = [0, 0, 0.9, 0.4, 0.3, 0.0]
-    res = sim(backend).simulate(q0=q0, v0=[vx, vy, 0, 0, 0, 0], h=0.005, t_end=2.0)
+    res = sim(backend).simulate(params=E0, q0=q0, v0=[vx, vy, 0, 0, 0, 0], h=0.005, t_end=2.0)
     kinds = [(i.contact, i.kind) for i in res.impacts]
     assert kinds[:2] == [("v0", "plastic"), ("v1", "plastic")]  # the edge x_b = +a/2 first
     assert {c for c, _ in kinds[2:]} >= {"v2", "v3"}  # then the face
@@ -127,7 +98,7 @@ def test_a_tilted_cube_lands_on_an_edge_and_settles_on_its_face(backend):
 
 def test_both_backends_take_the_same_steps_onto_the_face():
     q0, v0 = [0, 0, 0.9, 0.4, 0.3, 0.1], [0.6, 0.25, -0.5, 1.0, 0.5, -0.3]
-    a, b = (sim(be).simulate(q0=q0, v0=v0, h=0.005, t_end=2.0) for be in ("casadi", "c"))
+    a, b = (sim(be).simulate(params=E0, q0=q0, v0=v0, h=0.005, t_end=2.0) for be in ("casadi", "c"))
     log = [[(i.contact, i.kind, i.step) for i in r.impacts] for r in (a, b)]
     assert log[0] == log[1]
     assert np.abs(a.q - b.q).max() < 1e-10 and np.abs(a.p - b.p).max() < 1e-10
@@ -144,7 +115,7 @@ def test_both_backends_split_a_flat_landing_alike(rough):
     independent normals on both backends (``_spanned``), so each vertex's impulse is the same; a solve on
     the four (singular to round-off) gave each backend its own split."""
     q0, v0 = [0, 0, 1.2, 0.3, 0, 0], [0.5, 0, -1, 0, 0, 0]  # lands at 0.289; rough: sliding on to t_end
-    a, b = (sim(be, rough).simulate(q0=q0, v0=v0, h=0.005, t_end=0.33) for be in ("casadi", "c"))
+    a, b = (sim(be, rough).simulate(params=E0, q0=q0, v0=v0, h=0.005, t_end=0.33) for be in ("casadi", "c"))
     log = [[(i.contact, i.kind, i.step) for i in r.impacts] for r in (a, b)]
     assert log[0] == log[1] and len(log[0]) == 4
     assert max(abs(i.impulse - j.impulse) for i, j in zip(a.impacts, b.impacts)) < 1e-9
@@ -159,7 +130,7 @@ def test_random_frictionless_cube_drops_rest_on_a_face(backend):
     for _ in range(12 if backend == "c" else 4):
         q0 = [0, 0, 1.0, rng.uniform(0, 3), *rng.uniform(-0.5, 0.5, 2)]
         v0 = [*rng.uniform(-2, 2, 2), rng.uniform(-2, 0.5), *rng.uniform(-3, 3, 3)]
-        res = sim(backend).simulate(q0=q0, v0=v0, h=0.005, t_end=3.0)
+        res = sim(backend).simulate(params=E0, q0=q0, v0=v0, h=0.005, t_end=3.0)
         assert vertex_heights(res.q).min() > -1e-9
         for imp in res.impacts:
             assert imp.energy_after <= imp.energy_before + 1e-9 * abs(imp.energy_before)
@@ -179,7 +150,7 @@ def test_a_rough_cube_sliding_on_its_face_brakes_straight_at_mu_g(backend):
     takes none, README *Known limits*.)"""
     drop, v, h = 0.3, 3.0, 0.005
     q0, v0 = [0, 0, A / 2 + drop, 0, 0, 0], [v, 0, 0, 0, 0, 0]
-    res = sim(backend, True).simulate(q0=q0, v0=v0, h=h, t_end=0.6)
+    res = sim(backend, True).simulate(params=E0, q0=q0, v0=v0, h=h, t_end=0.6)
     t_land = math.sqrt(2 * drop / G)
     assert len({i.t for i in res.impacts}) == 1 and abs(res.impacts[0].t - t_land) < h
     assert abs(sum(i.impulse for i in res.impacts) - MASS * G * res.impacts[0].t) < 1e-9
@@ -199,7 +170,9 @@ def test_a_rough_cube_sliding_on_its_face_stops_after_v2_over_2_mu_g(backend, ps
     no turn. The three cones stop at one instant; before, the implicit aim near rest (one dependence's
     split of their forces) aimed one across its sliding: it stuck while sliding and the step failed."""
     v, mu, h = 0.5, 0.5, 0.005
-    res = sim(backend, True).simulate(q0=[0, 0, A / 2, psi0, 0, 0], v0=[v, 0, 0, 0, 0, 0], h=h, t_end=0.5)
+    res = sim(backend, True).simulate(
+        params=E0, q0=[0, 0, A / 2, psi0, 0, 0], v0=[v, 0, 0, 0, 0, 0], h=h, t_end=0.5
+    )
     t_stop = v / (mu * G)
     moving = res.t[np.flatnonzero(np.abs(res.p[:, 0]) > 1e-12)]
     assert abs(moving[-1] - t_stop) < h
@@ -218,7 +191,7 @@ def test_a_cube_tumbling_into_gimbal_lock_ends_in_a_solver_error_with_its_run(ba
     v0 = [0.7055089618264563, 0.18853120144105562, -0.45521789528887013]
     v0 += [-2.397715845576448, -1.4381635990197914, 0.5018490951948866]
     with pytest.raises(vcigen.SolverError) as err:
-        sim(backend).simulate(q0=q0, v0=v0, h=0.005, t_end=1.0)
+        sim(backend).simulate(params=E0, q0=q0, v0=v0, h=0.005, t_end=1.0)
     res = err.value.result
     assert err.value.step == res.t.size - 1 and err.value.phase == "sustained"
     assert abs(res.q[-1, 4] + math.pi / 2) < 0.05  # at the singular pitch
