@@ -177,11 +177,15 @@ def test_a_rough_cube_sliding_on_its_face_brakes_straight_at_mu_g(backend):
     impulse ``m g t_land`` on a subset of the vertices (the law's first independent one, the same on both
     backends), then the cube, held on three vertices with the fourth riding, brakes along x at exactly
     ``mu g`` (the friction of the load, whatever its split) with no turn, no sideways speed and no tilt,
-    until it stops. (The landing itself takes no friction impulse: a cone whose rows depend on the others'
-    takes none, README *Known limits*.)"""
+    until it stops. The landing itself takes no friction impulse (README *Known limits*): of the four cones
+    landing, the first joins the law with its own rows, but its share of the normal impulse is 0, and the
+    other three depend on it and take none. That is said: ``stats["landing_friction_dropped"]`` counts them
+    and a ``RuntimeWarning`` names it."""
     drop, v, h = 0.3, 3.0, 0.005
     q0, v0 = [0, 0, A / 2 + drop, 0, 0, 0], [v, 0, 0, 0, 0, 0]
-    res = sim(backend, True).simulate(params=E0, q0=q0, v0=v0, h=h, t_end=0.6)
+    with pytest.warns(RuntimeWarning, match="3 landing contact"):
+        res = sim(backend, True).simulate(params=E0, q0=q0, v0=v0, h=h, t_end=0.6)
+    assert res.stats["landing_friction_dropped"] == 3
     t_land = math.sqrt(2 * drop / G)
     assert len({i.t for i in res.impacts}) == 1 and abs(res.impacts[0].t - t_land) < h
     assert abs(sum(i.impulse for i in res.impacts) - MASS * G * res.impacts[0].t) < 1e-9

@@ -264,6 +264,8 @@ class ImpulseLaw:
                 if pf >= 0:  # an isotropic cone: both rows independent
                     if self._cone_joins(grad, f):
                         out[f] = f
+                    else:
+                        self.friction_dropped += 1  # its friction left out: README, Known limits
                     continue
                 if not self._dependent(grad, sr):
                     self.act[sr] = True
@@ -274,6 +276,7 @@ class ImpulseLaw:
                     if not self._dependent(grad, sr, self._stick_rows[g]):
                         out[f] = g
                         break
+                self.friction_dropped += f not in out
         finally:
             self.act = act
         return out, grad

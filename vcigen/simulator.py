@@ -17,7 +17,7 @@ from .model import Model
 from .progress import Progress
 from .result import Result
 from .rules import Rule
-from .stepper import Stepper, Tolerances, warn_reflected
+from .stepper import Stepper, Tolerances, warn_friction_dropped, warn_reflected
 from .velocity import LegendreInverse
 from .work import friction_work, step_work
 
@@ -113,6 +113,7 @@ class Simulator:
                 raise
         self._finish(res, mu_f, par)
         warn_reflected(res.stats.get("grazing_reflected", 0))
+        warn_friction_dropped(res.stats.get("landing_friction_dropped", 0))
         return res
 
     def simulate_many(

@@ -105,6 +105,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
+        self.friction_dropped = 0  # landing contacts whose friction the impulse law left out (_law_lands)
         self._timed = bool(getattr(kernels, "timed", False))  # forces of time: kernels.at(t) per segment
         system = getattr(kernels, "system", None)
         self._forced = bool(system is not None and system.model.force)  # energy: the last segment's
@@ -185,6 +186,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats.update({f"impacts_{kind}": count for kind, count in self.kinds.items()})
         res.stats["liftoffs"] = len(self.liftoffs)
         res.stats["jump_fallbacks"] = self.fallbacks
+        res.stats["landing_friction_dropped"] = self.friction_dropped
         if tan is not None:
             tan.attach(res, step)
         return res
@@ -348,6 +350,18 @@ def warn_reflected(count: int, stacklevel: int = 2) -> None:
             f"{count} grazing impact(s) had no root mu > 0 of the energy balance (48a) and took the "
             "continuous elastic law instead (Tolerances.grazing = 'reflect'); E_d jumps there by the "
             "O(h^2) bias (see Impact.energy_before/energy_after)",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
+
+
+def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
+    """Say how many landing contacts took no friction impulse (``res.stats["landing_friction_dropped"]``)."""
+    if count:
+        warnings.warn(
+            f"{count} landing contact(s) took no friction impulse: their stick rows depend on the other "
+            "contacts' (a box landing flat on several rough vertices), so the landing's tangential impulse "
+            "is short (README, Known limits: Friction); the sustained friction after the landing is right",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

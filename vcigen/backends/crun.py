@@ -337,6 +337,7 @@ class CRun:
         stats.update(zip(_KIND_KEYS, self.sus.kinds))
         stats["liftoffs"] = liftoffs
         stats["jump_fallbacks"] = self.sus.fallbacks
+        stats["landing_friction_dropped"] = self.sus.friction_dropped
         return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:

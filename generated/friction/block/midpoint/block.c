@@ -1905,6 +1905,7 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
                 break;
             }
         }
+        c->sus->friction_dropped += land[f] < 0;
     }
     for (r = 0; r < BLOCK_R; ++r) {
         c->sus->act[r] = act[r];

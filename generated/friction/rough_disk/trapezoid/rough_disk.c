@@ -1985,6 +1985,7 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
                 break;
             }
         }
+        c->sus->friction_dropped += land[f] < 0;
     }
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         c->sus->act[r] = act[r];

@@ -2690,6 +2690,8 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
                 land[f] = f;
                 rows[(*nr)++] = sr;
                 rows[(*nr)++] = spun_ball_stick_row[pf];
+            } else {
+                ++c->sus->friction_dropped; /* its friction left out: README, Known limits */
             }
             continue;
         }
@@ -2707,6 +2709,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
                 break;
             }
         }
+        c->sus->friction_dropped += land[f] < 0;
     }
     for (r = 0; r < SPUN_BALL_R; ++r) {
         c->sus->act[r] = act[r];

@@ -2187,6 +2187,7 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
                 break;
             }
         }
+        c->sus->friction_dropped += land[f] < 0;
     }
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         c->sus->act[r] = act[r];
