@@ -13,7 +13,7 @@ import numpy as np
 
 from .cone_split import null_combination, split
 from .derive import KINK
-from .held_roots import BRAKE, DEP_EPS, EPS_LAM, LIFT_ITER, SLIDE_EPS, SLIDE_LEAVE, End, illinois
+from .held_roots import BRAKE, DEP_EPS, EPS_LAM, LIFT_ITER, SLIDE_EPS, SLIDE_LEAVE, End, illinois, span_add
 
 
 class FrictionModes:
@@ -89,21 +89,12 @@ class FrictionModes:
 
         Modified Gram-Schmidt over the active rows in index order (a row within ``DEP_EPS`` of the span so far
         adds nothing), then ``sr``'s residual against that basis, relative to its length."""
-        basis = []
+        basis: list = []
         stick = self.k.row_stick
         for r in np.flatnonzero(self.act):
-            if r in (sr, skip) or (not sticks and stick and stick[r] >= 0):
-                continue
-            w = grad[r].copy()
-            for b in basis:
-                w -= float(b @ w) * b
-            nw = float(np.linalg.norm(w))
-            if nw > DEP_EPS * float(np.linalg.norm(grad[r])):
-                basis.append(w / nw)
-        w = grad[sr].copy()
-        for b in basis:
-            w -= float(b @ w) * b
-        return float(np.linalg.norm(w)) <= DEP_EPS * float(np.linalg.norm(grad[sr]))
+            if not (r in (sr, skip) or (not sticks and stick and stick[r] >= 0)):
+                span_add(basis, grad[r])
+        return not span_add(basis, grad[sr])
 
     def _owner(self, f: int, grad) -> int:
         """Whose stick holds frictional contact ``f``'s tangent: ``-1`` if its stick row is independent of

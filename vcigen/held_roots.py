@@ -2,7 +2,7 @@
 :mod:`vcigen.held_impacts`): their tolerances, a constrained segment's end (:class:`End`) and the Illinois
 root finder that locates their events (a lift-off, a row crossed, a stop, a slide), whose steps
 (:func:`illinois_point`, :func:`illinois_update`) also locate the contact time (47) in
-:mod:`vcigen.impact_step`."""
+:mod:`vcigen.impact_step`; and the rows' dependence test (:func:`span_add`)."""
 
 from __future__ import annotations
 
@@ -21,6 +21,20 @@ SLIDE_LEAVE = (
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
+
+
+def span_add(basis: list, g) -> bool:
+    """Adds ``g``'s residual against the orthonormal ``basis`` (modified Gram-Schmidt), normalised, to it;
+    False, adding nothing, where that residual is within ``DEP_EPS`` of 0 relative to ``|g|``: ``g`` in their
+    span (the rows' dependence tests, :meth:`FrictionModes._dependent`, ``impulse_law._spanned``)."""
+    w = g.copy()
+    for b in basis:
+        w -= float(b @ w) * b
+    nw = float(np.linalg.norm(w))
+    if nw <= DEP_EPS * float(np.linalg.norm(g)):
+        return False
+    basis.append(w / nw)
+    return True
 
 
 def illinois_point(a: float, ga: float, b: float, gb: float) -> float:

@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_slide
-from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS
+from .held_roots import EPS_LAM, MAX_LAW_ROWS, span_add
 
 
 def _pooled(pools, lam) -> float:
@@ -23,18 +23,8 @@ def _spanned(g, tight, normal) -> bool:
     """Is a normal row among ``tight`` (indices of the law's rows ``g``) within ``DEP_EPS`` of the span of the
     normal rows before it (modified Gram-Schmidt)? Such a set of tight rows (a box's four vertices on a face)
     has no unique split of its impulse: the law takes a subset of them instead, the first independent one."""
-    basis: list[np.ndarray] = []
-    for i in tight:
-        if not normal[i]:
-            continue
-        w = g[i].copy()
-        for b in basis:
-            w -= float(b @ w) * b
-        nw = float(np.linalg.norm(w))
-        if nw <= DEP_EPS * float(np.linalg.norm(g[i])):
-            return True
-        basis.append(w / nw)
-    return False
+    basis: list = []
+    return any(not span_add(basis, g[i]) for i in tight if normal[i])
 
 
 class ImpulseLaw:

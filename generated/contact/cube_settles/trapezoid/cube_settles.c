@@ -1909,46 +1909,52 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
 
-/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
- * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
- * residual, relative to its length. */
-static int cube_settles_dependent(const cube_settles_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+/* held_roots.span_add: adds g's residual against the orthonormal basis[0..*nb) (modified Gram-Schmidt),
+ * normalised, to it; 0, adding nothing, where that residual is within DEP_EPS of 0 relative to |g| (g in
+ * their span: dependent, spanned). */
+static int cube_settles_span_add(double *basis, int *nb, const double *g)
 {
-    double basis[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N] = {0.0}, w[CUBE_SETTLES_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= CUBE_SETTLES_R; ++row) {
-        r = row < CUBE_SETTLES_R ? row : sr; /* the active rows, then sr itself */
-        if (row < CUBE_SETTLES_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && cube_settles_row_stick[r] >= 0))) {
-            continue;
+    double w[CUBE_SETTLES_N], d, nw = 0.0, ng = 0.0;
+    int b, i;
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        w[i] = g[i];
+    }
+    for (b = 0; b < *nb; ++b) {
+        for (i = 0, d = 0.0; i < CUBE_SETTLES_N; ++i) {
+            d += basis[b * CUBE_SETTLES_N + i] * w[i];
         }
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            w[i] = grad[r * CUBE_SETTLES_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < CUBE_SETTLES_N; ++i) {
-                d += basis[b * CUBE_SETTLES_N + i] * w[i];
-            }
-            for (i = 0; i < CUBE_SETTLES_N; ++i) {
-                w[i] -= d * basis[b * CUBE_SETTLES_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < CUBE_SETTLES_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * CUBE_SETTLES_N + i] * grad[r * CUBE_SETTLES_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == CUBE_SETTLES_R) {
-            return nw <= CUBE_SETTLES_DEP_EPS * ng;
-        }
-        if (nw > CUBE_SETTLES_DEP_EPS * ng) {
-            for (i = 0; i < CUBE_SETTLES_N; ++i) {
-                basis[nb * CUBE_SETTLES_N + i] = w[i] / nw;
-            }
-            ++nb;
+            w[i] -= d * basis[b * CUBE_SETTLES_N + i];
         }
     }
-    return 0;
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        nw += w[i] * w[i];
+        ng += g[i] * g[i];
+    }
+    nw = sqrt(nw);
+    if (nw <= CUBE_SETTLES_DEP_EPS * sqrt(ng)) {
+        return 0;
+    }
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        basis[*nb * CUBE_SETTLES_N + i] = w[i] / nw;
+    }
+    ++*nb;
+    return 1;
+}
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (span_add),
+ * then sr's residual, relative to its length. */
+static int cube_settles_dependent(const cube_settles_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[(CUBE_SETTLES_R_DIM + 1) * CUBE_SETTLES_N];
+    int nb = 0, r;
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        if (c->sus->act[r] && r != sr && r != skip && (sticks || cube_settles_row_stick[r] < 0)) {
+            cube_settles_span_add(basis, &nb, grad + r * CUBE_SETTLES_N);
+        }
+    }
+    return !cube_settles_span_add(basis, &nb, grad + sr * CUBE_SETTLES_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2290,40 +2296,17 @@ static int cube_settles_row_crossing(const cube_settles_ctx_t *c, const double *
 }
 
 /* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
- * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+ * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
+ * split of its impulse: the law takes a subset of them instead, the first independent one. */
 static int cube_settles_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
-    double basis[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N] = {0.0}, w[CUBE_SETTLES_N], d, nw, ng;
-    int nb = 0, k, b, i, r;
+    double basis[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight[k]];
-        if (cube_settles_row_stick[r] >= 0) {
-            continue;
-        }
-        for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            w[i] = grad[r * CUBE_SETTLES_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < CUBE_SETTLES_N; ++i) {
-                d += basis[b * CUBE_SETTLES_N + i] * w[i];
-            }
-            for (i = 0; i < CUBE_SETTLES_N; ++i) {
-                w[i] -= d * basis[b * CUBE_SETTLES_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < CUBE_SETTLES_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * CUBE_SETTLES_N + i] * grad[r * CUBE_SETTLES_N + i];
-        }
-        nw = sqrt(nw);
-        if (nw <= CUBE_SETTLES_DEP_EPS * sqrt(ng)) {
+        if (cube_settles_row_stick[r] < 0 && !cube_settles_span_add(basis, &nb, grad + r * CUBE_SETTLES_N)) {
             return 1;
         }
-        for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            basis[nb * CUBE_SETTLES_N + i] = w[i] / nw;
-        }
-        ++nb;
     }
     return 0;
 }

@@ -1356,46 +1356,52 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
 
-/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
- * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
- * residual, relative to its length. */
-static int pendulum_wall_dependent(const pendulum_wall_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+/* held_roots.span_add: adds g's residual against the orthonormal basis[0..*nb) (modified Gram-Schmidt),
+ * normalised, to it; 0, adding nothing, where that residual is within DEP_EPS of 0 relative to |g| (g in
+ * their span: dependent, spanned). */
+static int pendulum_wall_span_add(double *basis, int *nb, const double *g)
 {
-    double basis[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N] = {0.0}, w[PENDULUM_WALL_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= PENDULUM_WALL_R; ++row) {
-        r = row < PENDULUM_WALL_R ? row : sr; /* the active rows, then sr itself */
-        if (row < PENDULUM_WALL_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && pendulum_wall_row_stick[r] >= 0))) {
-            continue;
+    double w[PENDULUM_WALL_N], d, nw = 0.0, ng = 0.0;
+    int b, i;
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        w[i] = g[i];
+    }
+    for (b = 0; b < *nb; ++b) {
+        for (i = 0, d = 0.0; i < PENDULUM_WALL_N; ++i) {
+            d += basis[b * PENDULUM_WALL_N + i] * w[i];
         }
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            w[i] = grad[r * PENDULUM_WALL_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < PENDULUM_WALL_N; ++i) {
-                d += basis[b * PENDULUM_WALL_N + i] * w[i];
-            }
-            for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                w[i] -= d * basis[b * PENDULUM_WALL_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < PENDULUM_WALL_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * PENDULUM_WALL_N + i] * grad[r * PENDULUM_WALL_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == PENDULUM_WALL_R) {
-            return nw <= PENDULUM_WALL_DEP_EPS * ng;
-        }
-        if (nw > PENDULUM_WALL_DEP_EPS * ng) {
-            for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                basis[nb * PENDULUM_WALL_N + i] = w[i] / nw;
-            }
-            ++nb;
+            w[i] -= d * basis[b * PENDULUM_WALL_N + i];
         }
     }
-    return 0;
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        nw += w[i] * w[i];
+        ng += g[i] * g[i];
+    }
+    nw = sqrt(nw);
+    if (nw <= PENDULUM_WALL_DEP_EPS * sqrt(ng)) {
+        return 0;
+    }
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        basis[*nb * PENDULUM_WALL_N + i] = w[i] / nw;
+    }
+    ++*nb;
+    return 1;
+}
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (span_add),
+ * then sr's residual, relative to its length. */
+static int pendulum_wall_dependent(const pendulum_wall_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[(PENDULUM_WALL_R_DIM + 1) * PENDULUM_WALL_N];
+    int nb = 0, r;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        if (c->sus->act[r] && r != sr && r != skip && (sticks || pendulum_wall_row_stick[r] < 0)) {
+            pendulum_wall_span_add(basis, &nb, grad + r * PENDULUM_WALL_N);
+        }
+    }
+    return !pendulum_wall_span_add(basis, &nb, grad + sr * PENDULUM_WALL_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -1736,40 +1742,17 @@ static int pendulum_wall_row_crossing(const pendulum_wall_ctx_t *c, const double
 }
 
 /* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
- * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+ * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
+ * split of its impulse: the law takes a subset of them instead, the first independent one. */
 static int pendulum_wall_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
-    double basis[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N] = {0.0}, w[PENDULUM_WALL_N], d, nw, ng;
-    int nb = 0, k, b, i, r;
+    double basis[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight[k]];
-        if (pendulum_wall_row_stick[r] >= 0) {
-            continue;
-        }
-        for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            w[i] = grad[r * PENDULUM_WALL_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < PENDULUM_WALL_N; ++i) {
-                d += basis[b * PENDULUM_WALL_N + i] * w[i];
-            }
-            for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                w[i] -= d * basis[b * PENDULUM_WALL_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < PENDULUM_WALL_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * PENDULUM_WALL_N + i] * grad[r * PENDULUM_WALL_N + i];
-        }
-        nw = sqrt(nw);
-        if (nw <= PENDULUM_WALL_DEP_EPS * sqrt(ng)) {
+        if (pendulum_wall_row_stick[r] < 0 && !pendulum_wall_span_add(basis, &nb, grad + r * PENDULUM_WALL_N)) {
             return 1;
         }
-        for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            basis[nb * PENDULUM_WALL_N + i] = w[i] / nw;
-        }
-        ++nb;
     }
     return 0;
 }

@@ -1337,46 +1337,52 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
     double *s_hi, double *g_hi, double *q, double *p, double *e, double *v, double *phi, double *grad,
     double *rec, long *n_rec, double e_step_in);
 
-/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
- * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order, then sr's
- * residual, relative to its length. */
-static int ball_box_dependent(const ball_box_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+/* held_roots.span_add: adds g's residual against the orthonormal basis[0..*nb) (modified Gram-Schmidt),
+ * normalised, to it; 0, adding nothing, where that residual is within DEP_EPS of 0 relative to |g| (g in
+ * their span: dependent, spanned). */
+static int ball_box_span_add(double *basis, int *nb, const double *g)
 {
-    double basis[BALL_BOX_R_DIM * BALL_BOX_N] = {0.0}, w[BALL_BOX_N], d, nw, ng;
-    int nb = 0, r, b, i, row;
-    for (row = 0; row <= BALL_BOX_R; ++row) {
-        r = row < BALL_BOX_R ? row : sr; /* the active rows, then sr itself */
-        if (row < BALL_BOX_R && (!c->sus->act[r] || r == sr || r == skip || (!sticks && ball_box_row_stick[r] >= 0))) {
-            continue;
+    double w[BALL_BOX_N], d, nw = 0.0, ng = 0.0;
+    int b, i;
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        w[i] = g[i];
+    }
+    for (b = 0; b < *nb; ++b) {
+        for (i = 0, d = 0.0; i < BALL_BOX_N; ++i) {
+            d += basis[b * BALL_BOX_N + i] * w[i];
         }
         for (i = 0; i < BALL_BOX_N; ++i) {
-            w[i] = grad[r * BALL_BOX_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < BALL_BOX_N; ++i) {
-                d += basis[b * BALL_BOX_N + i] * w[i];
-            }
-            for (i = 0; i < BALL_BOX_N; ++i) {
-                w[i] -= d * basis[b * BALL_BOX_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < BALL_BOX_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * BALL_BOX_N + i] * grad[r * BALL_BOX_N + i];
-        }
-        nw = sqrt(nw);
-        ng = sqrt(ng);
-        if (row == BALL_BOX_R) {
-            return nw <= BALL_BOX_DEP_EPS * ng;
-        }
-        if (nw > BALL_BOX_DEP_EPS * ng) {
-            for (i = 0; i < BALL_BOX_N; ++i) {
-                basis[nb * BALL_BOX_N + i] = w[i] / nw;
-            }
-            ++nb;
+            w[i] -= d * basis[b * BALL_BOX_N + i];
         }
     }
-    return 0;
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        nw += w[i] * w[i];
+        ng += g[i] * g[i];
+    }
+    nw = sqrt(nw);
+    if (nw <= BALL_BOX_DEP_EPS * sqrt(ng)) {
+        return 0;
+    }
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        basis[*nb * BALL_BOX_N + i] = w[i] / nw;
+    }
+    ++*nb;
+    return 1;
+}
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (span_add),
+ * then sr's residual, relative to its length. */
+static int ball_box_dependent(const ball_box_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    double basis[(BALL_BOX_R_DIM + 1) * BALL_BOX_N];
+    int nb = 0, r;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        if (c->sus->act[r] && r != sr && r != skip && (sticks || ball_box_row_stick[r] < 0)) {
+            ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N);
+        }
+    }
+    return !ball_box_span_add(basis, &nb, grad + sr * BALL_BOX_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -1717,40 +1723,17 @@ static int ball_box_row_crossing(const ball_box_ctx_t *c, const double *q, const
 }
 
 /* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (modified Gram-Schmidt)? Such a set (a box's four vertices on a face)
- * has no unique split of its impulse: the law takes a subset of them instead, the first independent one. */
+ * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
+ * split of its impulse: the law takes a subset of them instead, the first independent one. */
 static int ball_box_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
-    double basis[BALL_BOX_R_DIM * BALL_BOX_N] = {0.0}, w[BALL_BOX_N], d, nw, ng;
-    int nb = 0, k, b, i, r;
+    double basis[BALL_BOX_R_DIM * BALL_BOX_N];
+    int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight[k]];
-        if (ball_box_row_stick[r] >= 0) {
-            continue;
-        }
-        for (i = 0; i < BALL_BOX_N; ++i) {
-            w[i] = grad[r * BALL_BOX_N + i];
-        }
-        for (b = 0; b < nb; ++b) {
-            for (i = 0, d = 0.0; i < BALL_BOX_N; ++i) {
-                d += basis[b * BALL_BOX_N + i] * w[i];
-            }
-            for (i = 0; i < BALL_BOX_N; ++i) {
-                w[i] -= d * basis[b * BALL_BOX_N + i];
-            }
-        }
-        for (i = 0, nw = 0.0, ng = 0.0; i < BALL_BOX_N; ++i) {
-            nw += w[i] * w[i];
-            ng += grad[r * BALL_BOX_N + i] * grad[r * BALL_BOX_N + i];
-        }
-        nw = sqrt(nw);
-        if (nw <= BALL_BOX_DEP_EPS * sqrt(ng)) {
+        if (ball_box_row_stick[r] < 0 && !ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N)) {
             return 1;
         }
-        for (i = 0; i < BALL_BOX_N; ++i) {
-            basis[nb * BALL_BOX_N + i] = w[i] / nw;
-        }
-        ++nb;
     }
     return 0;
 }
