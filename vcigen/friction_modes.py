@@ -158,8 +158,8 @@ class FrictionModes:
         ``BRAKE tau`` times the rate friction alone changes their sliding (``mu_f N`` times the mean of
         ``grad t M^-1 grad t^T``) they are aimed implicitly together (:meth:`_cone_brake`): there the
         explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable. Not where more
-        than one of their stick rows would ride (:meth:`_riding_rows`: a box on three cones): the best split
-        of :meth:`_cone_split` is one dependence's, and its forces aimed a cone across its sliding."""
+        than one of their stick rows would ride (a box on three cones): the best split of
+        :meth:`_cone_split` is one dependence's, and its forces aimed a cone across its sliding."""
         k = self.k
         _, grad, curv = k.rows(q, u)
         tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
@@ -187,29 +187,13 @@ class FrictionModes:
                 aims.append((f, p, -self._mu_f[f] * mid / norm))
             if math.hypot(*w) <= BRAKE * tau * brake:
                 slow.append((f, p))
-        if len(slow) >= 2 and self._riding_rows(slow, grad) <= 1:  # several cones near rest: implicit
+        braked = self._cone_brake(slow, q, u, tau) if len(slow) >= 2 else None
+        if braked is not None:  # several cones near rest: implicit in the direction
             self._braked = True
-            aims = [a for a in aims if (a[0], a[1]) not in slow] + self._cone_brake(slow, q, u, tau)
+            aims = [a for a in aims if (a[0], a[1]) not in slow] + braked
         for f, p, slip in aims:
             self._slip[[f, p]] = slip
         self._set_friction()
-
-    def _riding_rows(self, cones, grad) -> int:
-        """How many of the stick rows of ``cones`` would ride (depend on the active rows and those before
-        them) were they all held."""
-        act = self.act.copy()
-        out = 0
-        try:
-            for f, p in cones:
-                for x in (f, p):
-                    sr = self._stick_rows[x]
-                    if self._dependent(grad, sr):
-                        out += 1
-                    else:
-                        self.act[sr] = True
-        finally:
-            self.act = act
-        return out
 
     def _cone_brake(self, cones, q, u, tau: float):
         """Slip directions of ``cones`` near rest (``tau/2 |dw/dt| > |w|``): along the tangential forces that
@@ -218,7 +202,8 @@ class FrictionModes:
         :meth:`_cone_split`) at the velocity target ``d(grad tangent . u)/dt = -2 w / tau``. For a point (an
         isotropic mass) that is the direction of ``w + tau/2 dw/dt`` with Coulomb's force along it, solved
         for: implicit in the direction, where the explicit aim made the relative modes of two cones of one
-        body (the rod's yaw) unstable. ``[(f, p, slip)]``, none for a cone with no force."""
+        body (the rod's yaw) unstable. ``[(f, p, slip)]``, none for a cone with no force; None (nothing
+        changed) where more than one of their stick rows rides (:meth:`_cone_aim`: the explicit aim stays)."""
         k = self.k
         act, slip, ride = self.act.copy(), self._slip.copy(), list(self._ride)
         _, grad, curv = k.rows(q, u)
@@ -226,14 +211,20 @@ class FrictionModes:
             self._slip[[f, p]] = 0.0
         self._set_friction()
         target = curv.copy()
+        riding = 0
         for f, p in cones:
             for x in (f, p):
                 sr = self._stick_rows[x]
                 target[sr] += 2.0 * float(grad[sr] @ u) / tau
                 if self._dependent(grad, sr):
                     self._ride[x] = x
+                    riding += 1
                 else:
                     self.act[sr] = True
+        if riding > 1:
+            self.act, self._slip, self._ride = act, slip, ride
+            self._set_friction()
+            return None
         forces = self._forces(End(None, grad, target, k.dynamics(q, u)[0], k.legendre(q, u)[1]))
         out = []
         for f, p in cones:

@@ -79,6 +79,7 @@ class ImpulseLaw:
         free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
         normal = [not (k.row_stick and k.row_stick[r] >= 0) for r in rows]
         g = grad[rows]
+        dependent = _spanned(g, range(len(rows)), normal)  # only then may a set of tight rows be dependent
         w = g @ np.linalg.solve(mass, g.T)
         b = np.array([tgt[r] for r in rows]) - g @ vel
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
@@ -108,7 +109,7 @@ class ImpulseLaw:
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
                     continue
-                if _spanned(g, tight, normal):  # dependent normals: a subset of them carries the impulse
+                if dependent and _spanned(g, tight, normal):  # a subset of the dependent normals carries it
                     continue
                 if slide:
                     lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_, lam_eps)

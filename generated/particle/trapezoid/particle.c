@@ -1511,15 +1511,16 @@ static int particle_row_crossing(const particle_ctx_t *c, const double *q, const
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int particle_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[PARTICLE_R_DIM * PARTICLE_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (particle_row_stick[r] < 0 && !particle_span_add(basis, &nb, grad + r * PARTICLE_N)) {
             return 1;
         }
@@ -1549,8 +1550,9 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
     double w[PARTICLE_R_DIM * PARTICLE_R_DIM] = {0.0}, b[PARTICLE_R_DIM] = {0.0}, a[PARTICLE_R_DIM * PARTICLE_R_DIM];
     double ws[PARTICLE_R_DIM * PARTICLE_R_DIM] = {0.0};
     double lam[PARTICLE_R_DIM], sol[PARTICLE_R_DIM], lam_eps, vel_eps, gap;
-    int rows[PARTICLE_R_DIM], tight[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
+    int rows[PARTICLE_R_DIM], tight[PARTICLE_R_DIM] = {0}, piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
     int sliding[PARTICLE_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     particle_velocity(c, q, guess, p, vel_m);
     particle_legendre(q, vel_m, c->par, mom, mass);
@@ -1576,6 +1578,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
     if (nr > PARTICLE_MAX_LAW_ROWS) {
         return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = particle_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = particle_lu(PARTICLE_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < PARTICLE_N; ++i) {
@@ -1616,7 +1619,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || particle_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && particle_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1787,15 +1787,16 @@ static int star_row_crossing(const star_ctx_t *c, const double *q, const double 
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int star_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[STAR_R_DIM * STAR_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (star_row_stick[r] < 0 && !star_span_add(basis, &nb, grad + r * STAR_N)) {
             return 1;
         }
@@ -1825,8 +1826,9 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
     double w[STAR_R_DIM * STAR_R_DIM] = {0.0}, b[STAR_R_DIM] = {0.0}, a[STAR_R_DIM * STAR_R_DIM];
     double ws[STAR_R_DIM * STAR_R_DIM] = {0.0};
     double lam[STAR_R_DIM], sol[STAR_R_DIM], lam_eps, vel_eps, gap;
-    int rows[STAR_R_DIM], tight[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
+    int rows[STAR_R_DIM], tight[STAR_R_DIM] = {0}, piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
     int sliding[STAR_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     star_velocity(c, q, guess, p, vel_m);
     star_legendre(q, vel_m, c->par, mom, mass);
@@ -1852,6 +1854,7 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
     if (nr > STAR_MAX_LAW_ROWS) {
         return star_fail(c, STAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = star_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = star_lu(STAR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < STAR_N; ++i) {
@@ -1892,7 +1895,7 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || star_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && star_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1507,15 +1507,16 @@ static int ball_to_rest_row_crossing(const ball_to_rest_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int ball_to_rest_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (ball_to_rest_row_stick[r] < 0 && !ball_to_rest_span_add(basis, &nb, grad + r * BALL_TO_REST_N)) {
             return 1;
         }
@@ -1545,8 +1546,9 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
     double w[BALL_TO_REST_R_DIM * BALL_TO_REST_R_DIM] = {0.0}, b[BALL_TO_REST_R_DIM] = {0.0}, a[BALL_TO_REST_R_DIM * BALL_TO_REST_R_DIM];
     double ws[BALL_TO_REST_R_DIM * BALL_TO_REST_R_DIM] = {0.0};
     double lam[BALL_TO_REST_R_DIM], sol[BALL_TO_REST_R_DIM], lam_eps, vel_eps, gap;
-    int rows[BALL_TO_REST_R_DIM], tight[BALL_TO_REST_R_DIM], piv[BALL_TO_REST_R_DIM > BALL_TO_REST_N ? BALL_TO_REST_R_DIM : BALL_TO_REST_N];
+    int rows[BALL_TO_REST_R_DIM], tight[BALL_TO_REST_R_DIM] = {0}, piv[BALL_TO_REST_R_DIM > BALL_TO_REST_N ? BALL_TO_REST_R_DIM : BALL_TO_REST_N];
     int sliding[BALL_TO_REST_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     ball_to_rest_velocity(c, q, guess, p, vel_m);
     ball_to_rest_legendre(q, vel_m, c->par, mom, mass);
@@ -1572,6 +1574,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
     if (nr > BALL_TO_REST_MAX_LAW_ROWS) {
         return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = ball_to_rest_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = ball_to_rest_lu(BALL_TO_REST_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < BALL_TO_REST_N; ++i) {
@@ -1612,7 +1615,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || ball_to_rest_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && ball_to_rest_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

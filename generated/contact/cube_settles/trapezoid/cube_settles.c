@@ -2295,15 +2295,16 @@ static int cube_settles_row_crossing(const cube_settles_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int cube_settles_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (cube_settles_row_stick[r] < 0 && !cube_settles_span_add(basis, &nb, grad + r * CUBE_SETTLES_N)) {
             return 1;
         }
@@ -2333,8 +2334,9 @@ static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q
     double w[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM] = {0.0}, b[CUBE_SETTLES_R_DIM] = {0.0}, a[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM];
     double ws[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM] = {0.0};
     double lam[CUBE_SETTLES_R_DIM], sol[CUBE_SETTLES_R_DIM], lam_eps, vel_eps, gap;
-    int rows[CUBE_SETTLES_R_DIM], tight[CUBE_SETTLES_R_DIM], piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
+    int rows[CUBE_SETTLES_R_DIM], tight[CUBE_SETTLES_R_DIM] = {0}, piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
     int sliding[CUBE_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     cube_settles_velocity(c, q, guess, p, vel_m);
     cube_settles_legendre(q, vel_m, c->par, mom, mass);
@@ -2360,6 +2362,7 @@ static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q
     if (nr > CUBE_SETTLES_MAX_LAW_ROWS) {
         return cube_settles_fail(c, CUBE_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = cube_settles_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = cube_settles_lu(CUBE_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
@@ -2400,7 +2403,7 @@ static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || cube_settles_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && cube_settles_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1736,15 +1736,16 @@ static int pendulum_wall_row_crossing(const pendulum_wall_ctx_t *c, const double
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int pendulum_wall_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (pendulum_wall_row_stick[r] < 0 && !pendulum_wall_span_add(basis, &nb, grad + r * PENDULUM_WALL_N)) {
             return 1;
         }
@@ -1774,8 +1775,9 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
     double w[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM] = {0.0}, b[PENDULUM_WALL_R_DIM] = {0.0}, a[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM];
     double ws[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM] = {0.0};
     double lam[PENDULUM_WALL_R_DIM], sol[PENDULUM_WALL_R_DIM], lam_eps, vel_eps, gap;
-    int rows[PENDULUM_WALL_R_DIM], tight[PENDULUM_WALL_R_DIM], piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
+    int rows[PENDULUM_WALL_R_DIM], tight[PENDULUM_WALL_R_DIM] = {0}, piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
     int sliding[PENDULUM_WALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     pendulum_wall_velocity(c, q, guess, p, vel_m);
     pendulum_wall_legendre(q, vel_m, c->par, mom, mass);
@@ -1801,6 +1803,7 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
     if (nr > PENDULUM_WALL_MAX_LAW_ROWS) {
         return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = pendulum_wall_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = pendulum_wall_lu(PENDULUM_WALL_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
@@ -1841,7 +1844,7 @@ static int pendulum_wall_impulse_law(const pendulum_wall_ctx_t *c, const double 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || pendulum_wall_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && pendulum_wall_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

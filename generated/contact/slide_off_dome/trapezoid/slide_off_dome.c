@@ -1712,15 +1712,16 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int slide_off_dome_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (slide_off_dome_row_stick[r] < 0 && !slide_off_dome_span_add(basis, &nb, grad + r * SLIDE_OFF_DOME_N)) {
             return 1;
         }
@@ -1750,8 +1751,9 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
     double w[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM] = {0.0}, b[SLIDE_OFF_DOME_R_DIM] = {0.0}, a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM];
     double ws[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM] = {0.0};
     double lam[SLIDE_OFF_DOME_R_DIM], sol[SLIDE_OFF_DOME_R_DIM], lam_eps, vel_eps, gap;
-    int rows[SLIDE_OFF_DOME_R_DIM], tight[SLIDE_OFF_DOME_R_DIM], piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
+    int rows[SLIDE_OFF_DOME_R_DIM], tight[SLIDE_OFF_DOME_R_DIM] = {0}, piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
     int sliding[SLIDE_OFF_DOME_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     slide_off_dome_velocity(c, q, guess, p, vel_m);
     slide_off_dome_legendre(q, vel_m, c->par, mom, mass);
@@ -1777,6 +1779,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
     if (nr > SLIDE_OFF_DOME_MAX_LAW_ROWS) {
         return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = slide_off_dome_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
@@ -1817,7 +1820,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || slide_off_dome_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && slide_off_dome_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

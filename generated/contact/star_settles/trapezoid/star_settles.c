@@ -1790,15 +1790,16 @@ static int star_settles_row_crossing(const star_settles_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int star_settles_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (star_settles_row_stick[r] < 0 && !star_settles_span_add(basis, &nb, grad + r * STAR_SETTLES_N)) {
             return 1;
         }
@@ -1828,8 +1829,9 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
     double w[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM] = {0.0}, b[STAR_SETTLES_R_DIM] = {0.0}, a[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM];
     double ws[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM] = {0.0};
     double lam[STAR_SETTLES_R_DIM], sol[STAR_SETTLES_R_DIM], lam_eps, vel_eps, gap;
-    int rows[STAR_SETTLES_R_DIM], tight[STAR_SETTLES_R_DIM], piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
+    int rows[STAR_SETTLES_R_DIM], tight[STAR_SETTLES_R_DIM] = {0}, piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
     int sliding[STAR_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     star_settles_velocity(c, q, guess, p, vel_m);
     star_settles_legendre(q, vel_m, c->par, mom, mass);
@@ -1855,6 +1857,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
     if (nr > STAR_SETTLES_MAX_LAW_ROWS) {
         return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = star_settles_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = star_settles_lu(STAR_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < STAR_SETTLES_N; ++i) {
@@ -1895,7 +1898,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || star_settles_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && star_settles_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1330,15 +1330,16 @@ static int impact_oscillator_row_crossing(const impact_oscillator_ctx_t *c, cons
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int impact_oscillator_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (impact_oscillator_row_stick[r] < 0 && !impact_oscillator_span_add(basis, &nb, grad + r * IMPACT_OSCILLATOR_N)) {
             return 1;
         }
@@ -1368,8 +1369,9 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
     double w[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM] = {0.0}, b[IMPACT_OSCILLATOR_R_DIM] = {0.0}, a[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM];
     double ws[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM] = {0.0};
     double lam[IMPACT_OSCILLATOR_R_DIM], sol[IMPACT_OSCILLATOR_R_DIM], lam_eps, vel_eps, gap;
-    int rows[IMPACT_OSCILLATOR_R_DIM], tight[IMPACT_OSCILLATOR_R_DIM], piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
+    int rows[IMPACT_OSCILLATOR_R_DIM], tight[IMPACT_OSCILLATOR_R_DIM] = {0}, piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
     int sliding[IMPACT_OSCILLATOR_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     impact_oscillator_velocity(c, q, guess, p, vel_m);
     impact_oscillator_legendre(q, vel_m, c->par, mom, mass);
@@ -1395,6 +1397,7 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
     if (nr > IMPACT_OSCILLATOR_MAX_LAW_ROWS) {
         return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = impact_oscillator_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
@@ -1435,7 +1438,7 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || impact_oscillator_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && impact_oscillator_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1919,15 +1919,16 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
     return 1;
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int block_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[BLOCK_R_DIM * BLOCK_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (block_row_stick[r] < 0 && !block_span_add(basis, &nb, grad + r * BLOCK_N)) {
             return 1;
         }
@@ -1957,8 +1958,9 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     double w[BLOCK_R_DIM * BLOCK_R_DIM] = {0.0}, b[BLOCK_R_DIM] = {0.0}, a[BLOCK_R_DIM * BLOCK_R_DIM];
     double ws[BLOCK_R_DIM * BLOCK_R_DIM] = {0.0};
     double lam[BLOCK_R_DIM], sol[BLOCK_R_DIM], lam_eps, vel_eps, gap;
-    int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM], piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
+    int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM] = {0}, piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
     int sliding[BLOCK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     int cone_i[BLOCK_NF_DIM], cone_f[BLOCK_NF_DIM], cone_on[BLOCK_NF_DIM], strict_i[BLOCK_NF_DIM];
     int strict_f[BLOCK_NF_DIM], strict_o[BLOCK_NF_DIM], mode[BLOCK_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -1988,6 +1990,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     if (nr > BLOCK_MAX_LAW_ROWS) {
         return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = block_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = block_lu(BLOCK_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < BLOCK_N; ++i) {
@@ -2055,7 +2058,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || block_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && block_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

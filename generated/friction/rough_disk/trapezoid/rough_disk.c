@@ -1999,15 +1999,16 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
     return 1;
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int rough_disk_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (rough_disk_row_stick[r] < 0 && !rough_disk_span_add(basis, &nb, grad + r * ROUGH_DISK_N)) {
             return 1;
         }
@@ -2037,8 +2038,9 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     double w[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM] = {0.0}, b[ROUGH_DISK_R_DIM] = {0.0}, a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM];
     double ws[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM] = {0.0};
     double lam[ROUGH_DISK_R_DIM], sol[ROUGH_DISK_R_DIM], lam_eps, vel_eps, gap;
-    int rows[ROUGH_DISK_R_DIM], tight[ROUGH_DISK_R_DIM], piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
+    int rows[ROUGH_DISK_R_DIM], tight[ROUGH_DISK_R_DIM] = {0}, piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
     int sliding[ROUGH_DISK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     int cone_i[ROUGH_DISK_NF_DIM], cone_f[ROUGH_DISK_NF_DIM], cone_on[ROUGH_DISK_NF_DIM], strict_i[ROUGH_DISK_NF_DIM];
     int strict_f[ROUGH_DISK_NF_DIM], strict_o[ROUGH_DISK_NF_DIM], mode[ROUGH_DISK_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2068,6 +2070,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     if (nr > ROUGH_DISK_MAX_LAW_ROWS) {
         return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = rough_disk_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = rough_disk_lu(ROUGH_DISK_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < ROUGH_DISK_N; ++i) {
@@ -2135,7 +2138,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || rough_disk_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && rough_disk_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

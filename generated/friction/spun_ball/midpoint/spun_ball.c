@@ -1812,41 +1812,18 @@ static void spun_ball_sliding(int f, int p, const double *grad, const double *u,
     }
 }
 
-/* SustainedSteps._riding_rows: how many of the stick rows of the cones slow[f] would ride (depend on the active
- * rows and on those before them) were they all held. */
-static int spun_ball_riding_rows(const spun_ball_ctx_t *c, const int *slow, const double *grad)
-{
-    int act0[SPUN_BALL_R_DIM], f, k, r, sr, out = 0;
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        act0[r] = c->sus->act[r];
-    }
-    for (f = 0; f < SPUN_BALL_NF; ++f) {
-        for (k = 0; k < 2 && slow[f]; ++k) {
-            sr = spun_ball_stick_row[k == 0 ? f : spun_ball_partner[f]];
-            if (spun_ball_dependent(c, grad, sr, -1, 1)) {
-                ++out;
-            } else {
-                c->sus->act[sr] = 1;
-            }
-        }
-    }
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        c->sus->act[r] = act0[r];
-    }
-    return out;
-}
-
 /* SustainedSteps._cone_brake: slip directions of the cones near rest (slow[f]): along the tangential forces that
  * would bring their sliding to rest at the segment's midpoint, their stick rows held with the active rows (a row
  * dependent on them rides, the split the best one, cone_split) at the velocity target d(grad t . u)/dt = -2 w/tau.
- * Implicit in the direction. Out: set[f] and aims[f], aims[p] for each cone with a force. */
-static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, const double *q, const double *u,
+ * Implicit in the direction. Out: set[f] and aims[f], aims[p] for each cone with a force (the others' set[f] 0).
+ * Returns 0, nothing changed, where more than one of their stick rows rides (cone_aim: the explicit aim stays). */
+static int spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, const double *q, const double *u,
     double tau, int *set, double *aims)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double extra[SPUN_BALL_R_DIM], fr[SPUN_BALL_R_DIM], slip0[SPUN_BALL_NF], lam[2], nl, d;
     double margin, alpha, values[SPUN_BALL_NF], lams[2 * SPUN_BALL_NF], dirs[2 * SPUN_BALL_NF];
-    int act0[SPUN_BALL_R_DIM], ride0[SPUN_BALL_NF], cones[SPUN_BALL_NF], f, p, x, k, i, r, sr;
+    int act0[SPUN_BALL_R_DIM], ride0[SPUN_BALL_NF], cones[SPUN_BALL_NF], f, p, x, k, i, r, sr, riding = 0;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         act0[r] = c->sus->act[r];
         extra[r] = 0.0;
@@ -1875,16 +1852,20 @@ static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, cons
             extra[sr] = 2.0 * d / tau;
             if (spun_ball_dependent(c, grad, sr, -1, 1)) {
                 c->sus->ride[x] = x;
+                ++riding;
             } else {
                 c->sus->act[sr] = 1;
             }
         }
     }
-    spun_ball_forces_to(c, q, u, extra, fr);
-    for (f = 0; f < SPUN_BALL_NF; ++f) {
+    if (riding <= 1) {
+        spun_ball_forces_to(c, q, u, extra, fr);
+    }
+    for (f = 0; f < SPUN_BALL_NF && riding <= 1; ++f) {
         if (!slow[f]) {
             continue;
         }
+        set[f] = 0;
         p = spun_ball_partner[f];
         lam[0] = fr[spun_ball_stick_row[f]];
         lam[1] = fr[spun_ball_stick_row[p]];
@@ -1911,6 +1892,7 @@ static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, cons
         c->sus->ride[f] = ride0[f];
     }
     spun_ball_set_friction(c);
+    return riding <= 1;
 }
 
 /* SustainedSteps._cone_aim: the slip direction of each slipping cone (f, p) (aimed[f]) over a segment of tau from
@@ -1918,7 +1900,7 @@ static void spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, cons
  * the start and the start's directions), normalised; the start's direction if the prediction turns back (a stop
  * in the segment) or if tau/2 |dw/dt| > |w| (near rest, breaking away). Every cone aimed from the same state; two
  * or more cones sliding slower than BRAKE tau times friction's own rate on them aimed implicitly (cone_brake), where
- * at most one of their stick rows would ride (riding_rows: the split of cone_split is one dependence's). */
+ * at most one of their stick rows rides (the split of cone_split is one dependence's). */
 static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const double *q, const double *u, double tau)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
@@ -1992,11 +1974,7 @@ static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const
             ++n_slow;
         }
     }
-    if (n_slow >= 2 && spun_ball_riding_rows(c, slow, grad) <= 1) { /* several cones near rest: implicit */
-        for (f = 0; f < SPUN_BALL_NF; ++f) {
-            set[f] = slow[f] ? 0 : set[f];
-        }
-        spun_ball_cone_brake(c, slow, q, u, tau, set, aims);
+    if (n_slow >= 2 && spun_ball_cone_brake(c, slow, q, u, tau, set, aims)) { /* near rest: implicit */
     }
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         if (set[f]) {
@@ -2802,15 +2780,16 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
  * cone (|Lam_t| <= mu_f Lam_n) or slips with Coulomb's sliding impulse against its tangential velocity after
  * (law_slide); its modes (stick, slip; its own first) come after all the one-tangent ones, in base 2, one cone
  * slipping at a time. A slipping cone that took no normal impulse is left out (slips on as before). */
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int spun_ball_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[SPUN_BALL_R_DIM * SPUN_BALL_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (spun_ball_row_stick[r] < 0 && !spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N)) {
             return 1;
         }
@@ -2840,8 +2819,9 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     double w[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM] = {0.0}, b[SPUN_BALL_R_DIM] = {0.0}, a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double ws[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM] = {0.0};
     double lam[SPUN_BALL_R_DIM], sol[SPUN_BALL_R_DIM], lam_eps, vel_eps, gap;
-    int rows[SPUN_BALL_R_DIM], tight[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
+    int rows[SPUN_BALL_R_DIM], tight[SPUN_BALL_R_DIM] = {0}, piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
     int sliding[SPUN_BALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     int cone_i[SPUN_BALL_NF_DIM], cone_f[SPUN_BALL_NF_DIM], cone_on[SPUN_BALL_NF_DIM], strict_i[SPUN_BALL_NF_DIM];
     int strict_f[SPUN_BALL_NF_DIM], strict_o[SPUN_BALL_NF_DIM], mode[SPUN_BALL_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2873,6 +2853,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     if (nr > SPUN_BALL_MAX_LAW_ROWS) {
         return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = spun_ball_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = spun_ball_lu(SPUN_BALL_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < SPUN_BALL_N; ++i) {
@@ -2965,7 +2946,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || spun_ball_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && spun_ball_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             if (slide_c >= 0) {

@@ -2201,15 +2201,16 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
     return 1;
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int star_friction_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (star_friction_row_stick[r] < 0 && !star_friction_span_add(basis, &nb, grad + r * STAR_FRICTION_N)) {
             return 1;
         }
@@ -2239,8 +2240,9 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     double w[STAR_FRICTION_R_DIM * STAR_FRICTION_R_DIM] = {0.0}, b[STAR_FRICTION_R_DIM] = {0.0}, a[STAR_FRICTION_R_DIM * STAR_FRICTION_R_DIM];
     double ws[STAR_FRICTION_R_DIM * STAR_FRICTION_R_DIM] = {0.0};
     double lam[STAR_FRICTION_R_DIM], sol[STAR_FRICTION_R_DIM], lam_eps, vel_eps, gap;
-    int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM], piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
+    int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM] = {0}, piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
     int sliding[STAR_FRICTION_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], cone_on[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
     int strict_f[STAR_FRICTION_NF_DIM], strict_o[STAR_FRICTION_NF_DIM], mode[STAR_FRICTION_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2270,6 +2272,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     if (nr > STAR_FRICTION_MAX_LAW_ROWS) {
         return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = star_friction_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = star_friction_lu(STAR_FRICTION_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < STAR_FRICTION_N; ++i) {
@@ -2337,7 +2340,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || star_friction_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && star_friction_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1722,15 +1722,16 @@ static int ball_box_row_crossing(const ball_box_ctx_t *c, const double *q, const
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int ball_box_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[BALL_BOX_R_DIM * BALL_BOX_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (ball_box_row_stick[r] < 0 && !ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N)) {
             return 1;
         }
@@ -1760,8 +1761,9 @@ static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const 
     double w[BALL_BOX_R_DIM * BALL_BOX_R_DIM] = {0.0}, b[BALL_BOX_R_DIM] = {0.0}, a[BALL_BOX_R_DIM * BALL_BOX_R_DIM];
     double ws[BALL_BOX_R_DIM * BALL_BOX_R_DIM] = {0.0};
     double lam[BALL_BOX_R_DIM], sol[BALL_BOX_R_DIM], lam_eps, vel_eps, gap;
-    int rows[BALL_BOX_R_DIM], tight[BALL_BOX_R_DIM], piv[BALL_BOX_R_DIM > BALL_BOX_N ? BALL_BOX_R_DIM : BALL_BOX_N];
+    int rows[BALL_BOX_R_DIM], tight[BALL_BOX_R_DIM] = {0}, piv[BALL_BOX_R_DIM > BALL_BOX_N ? BALL_BOX_R_DIM : BALL_BOX_N];
     int sliding[BALL_BOX_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     ball_box_velocity(c, q, guess, p, vel_m);
     ball_box_legendre(q, vel_m, c->par, mom, mass);
@@ -1787,6 +1789,7 @@ static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const 
     if (nr > BALL_BOX_MAX_LAW_ROWS) {
         return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = ball_box_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = ball_box_lu(BALL_BOX_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < BALL_BOX_N; ++i) {
@@ -1827,7 +1830,7 @@ static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || ball_box_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && ball_box_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

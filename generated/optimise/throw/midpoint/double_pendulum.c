@@ -1867,15 +1867,16 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows) within DEP_EPS of
- * the span of the normal rows before it (span_add)? Such a set (a box's four vertices on a face) has no unique
- * split of its impulse: the law takes a subset of them instead, the first independent one. */
+/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
+ * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
+ * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one. */
 static int double_pendulum_spanned(const double *grad, const int *rows, const int *tight, int nt)
 {
     double basis[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
-        r = rows[tight[k]];
+        r = rows[tight ? tight[k] : k];
         if (double_pendulum_row_stick[r] < 0 && !double_pendulum_span_add(basis, &nb, grad + r * DOUBLE_PENDULUM_N)) {
             return 1;
         }
@@ -1905,8 +1906,9 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
     double w[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM] = {0.0}, b[DOUBLE_PENDULUM_R_DIM] = {0.0}, a[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM];
     double ws[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM] = {0.0};
     double lam[DOUBLE_PENDULUM_R_DIM], sol[DOUBLE_PENDULUM_R_DIM], lam_eps, vel_eps, gap;
-    int rows[DOUBLE_PENDULUM_R_DIM], tight[DOUBLE_PENDULUM_R_DIM], piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
+    int rows[DOUBLE_PENDULUM_R_DIM], tight[DOUBLE_PENDULUM_R_DIM] = {0}, piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
     int sliding[DOUBLE_PENDULUM_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
+    int dependent;
     long mask = 0;
     double_pendulum_velocity(c, q, guess, p, vel_m);
     double_pendulum_legendre(q, vel_m, c->par, mom, mass);
@@ -1932,6 +1934,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
     if (nr > DOUBLE_PENDULUM_MAX_LAW_ROWS) {
         return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
+    dependent = double_pendulum_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
     ok = double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
@@ -1972,7 +1975,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || double_pendulum_spanned(grad, rows, tight, nt)) { /* dependent normals: a subset carries it */
+            if (!valid || (dependent && double_pendulum_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
