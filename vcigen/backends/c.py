@@ -17,6 +17,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -87,13 +88,17 @@ def render(ctx: Mapping[str, Any], templates: Sequence[str] = tuple(TEMPLATES)) 
 
 
 def write(files: Mapping[str, str], out: str | Path) -> list[Path]:
-    """Write rendered files into ``out`` (created); returns the paths."""
+    """Write rendered files into ``out`` (created); returns the paths. Each file is written whole under a
+    temporary name and moved into place: a compiler reading it while another process builds the same sources
+    into the same cache directory (the workers of a sweep) never sees it cut short."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, text in files.items():
         path = out / name
-        path.write_text(text)
+        tmp = out / f".{name}.{os.getpid()}.{threading.get_ident()}"
+        tmp.write_text(text)
+        os.replace(tmp, path)
         paths.append(path)
     return paths
 
