@@ -15,6 +15,8 @@ the held step's linear system singular (the run stopped with "Newton did not con
 * Dropped tilted onto an edge with ``e = 0`` and horizontal speed: it rocks down onto its face and rests
   there; the horizontal momentum is exact throughout, no impact adds energy, never below the floor.
 * Random frictionless drops: no ``SolverError``, never below the floor, no impact adds energy.
+* Rough, sliding on the face: it brakes at ``mu g`` and stops after ``v^2 / (2 mu g)``; where the front's
+  load needs the riding vertex, the load passes to it (the pitch and roll balances of the floor's forces).
 """
 
 from __future__ import annotations
@@ -215,6 +217,34 @@ def test_a_rough_cube_sliding_on_its_face_stops_after_v2_over_2_mu_g(backend, ps
     assert np.abs(res.p[res.t > t_stop + h]).max() < 1e-12  # at rest
     assert np.abs(res.p[:, [1, 3]]).max() < 1e-12 and np.abs(res.q[:, 3] - psi0).max() < 1e-12
     assert np.abs(res.q[:, 2] - A / 2).max() < 1e-12
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("direction", [(-1.0, 0.0), (0.0, -1.0), (-1.0, -1.0), (-1.0, -0.3)])
+def test_a_rough_cube_whose_load_needs_the_riding_vertex_passes_it_there(backend, direction):
+    """Sliding on a rough floor the friction, ``a/2`` below the centre, loads the cube's front: the floor's
+    forces ``N_i`` at the vertices ``r_i`` balance the pitch, ``sum N_i r_i . d = mu m g a/2`` (``d`` the
+    sliding direction), and the roll, ``sum N_i r_i . d_perp = 0``. Held on v0, v1, v2 (v3 riding), sliding
+    towards v3's side that needs ``N_0 < 0``: at the start v0's force is negative and the load passes to v3,
+    the riding vertex on the other side of the held ones (``SustainedSteps._pass_load``); v0 rides on. No
+    lift-off, no impact, no tilt; it brakes at exactly ``mu g``. Before, v0 was released and v3 landed (a
+    lift-off, a plastic impact and a tilt of 1e-10), and where v0's force crossed 0 inside a step (a load
+    moving over the diagonal) v0 landed again at once, 64 times, and the step failed."""
+    v, mu, h = 2.0, 0.5, 0.005
+    d = np.array(direction) / math.hypot(*direction)
+    res = sim(backend, True).simulate(
+        params=E0, q0=[0, 0, A / 2, 0, 0, 0], v0=[*(v * d), 0, 0, 0, 0], h=h, t_end=0.3
+    )
+    assert res.stats["loads_passed"] == 1 and not res.liftoffs and not res.impacts
+    assert not res.active[-1, 0] and res.active[-1, 3]
+    speed = np.hypot(*res.p[:, :2].T) / MASS
+    assert np.abs(np.diff(speed) + mu * G * h).max() < 1e-12
+    assert np.abs(res.p[:, 2:]).max() < 1e-12 and np.abs(vertex_heights(res.q)).max() < 1e-12
+    corners = np.array(cube_settles.CORNERS) * A / 2
+    force = res.contact_force[1:-1]
+    assert np.abs(force.sum(axis=1) - MASS * G).max() < 1e-9
+    assert np.abs(force @ corners @ d - mu * MASS * G * A / 2).max() < 1e-9
+    assert np.abs(force @ corners @ [-d[1], d[0]]).max() < 1e-9
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

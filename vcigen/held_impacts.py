@@ -154,7 +154,7 @@ class HeldImpacts(ImpulseLaw):
         """Holds contact row ``r`` unless its gradient is in the span of the normal rows held (a box's fourth
         vertex landing on its face, statically indeterminate: held, the rows would be dependent): it then
         rides at ``phi = 0`` by the others, not held, with no force (a lift-off of one held passes the load
-        to it through an impact)."""
+        to it where it is on the other side, ``SustainedSteps._pass_load``)."""
         if not self._dependent(grad, r, sticks=False):
             self.act[r] = True
 

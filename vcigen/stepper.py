@@ -187,6 +187,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["liftoffs"] = len(self.liftoffs)
         res.stats["jump_fallbacks"] = self.fallbacks
         res.stats["landing_friction_dropped"] = self.friction_dropped
+        res.stats["loads_passed"] = self.passes
         if tan is not None:
             tan.attach(res, step)
         return res

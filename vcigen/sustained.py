@@ -32,7 +32,7 @@ import numpy as np
 from .errors import SolverError
 from .friction_modes import FrictionModes
 from .held_impacts import HeldImpacts
-from .held_roots import EPS_LAM, LIFT_ITER, ROOT_EPS, End, illinois
+from .held_roots import DEP_EPS, EPS_LAM, LIFT_ITER, ROOT_EPS, End, illinois, span_add
 from .impact_step import Seg
 from .result import KINDS
 
@@ -94,6 +94,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             k.set_friction(self._slip, self._ref, self._branch)
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
+        self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
         self._lam = np.zeros(k.r)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
         rule = k.system.rule
@@ -204,6 +205,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         plain = True  # no event, no change of friction mode so far: a held step the tangent goes through
         turn = -1  # the stick row that slid at this instant (a stop of it here turns it, _friction_switch)
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
+        passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
@@ -254,7 +256,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self._sw_lose()  # at the start: not located (a slide back at a stop: _sw_back)
                 plain = False
                 if events[r][0] == "lift":
-                    self._release(step, t_k, t, r)
+                    self._release(step, t_k, t, r, self._pass_load(q, self._velocity(q, v, p), r, passed))
+                    passed.add(r)
                 else:
                     kind = "turn" if events[r][0] == "stop" and r == turn else events[r][0]
                     before = self._sw_state()
@@ -294,8 +297,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self._book(lam + lam1)
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             turn = -1
+            passed = passed if s == 0.0 else set()
             if events[r0][0] == "lift":
-                self._release(step, t_k, t, r0)
+                self._release(step, t_k, t, r0, self._pass_load(q, self._velocity(q, v, p), r0, passed))
+                passed.add(r0)
                 continue
             if events[r0][0] in ("stop", "slide"):
                 before = self._sw_state()
@@ -482,13 +487,52 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self._held_seg = self._lift_seg = self._free_seg = None
             self._ev_done = True
 
-    def _release(self, step, t_k, t, r: int) -> None:
-        """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact."""
+    def _release(self, step, t_k, t, r: int, rider: int = -1) -> None:
+        """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact. With a
+        ``rider`` (:meth:`_pass_load`) that row is held in its place and nothing leaves: ``r`` rides on."""
         k = self.k
         self.act[r] = False
+        if rider >= 0:
+            self.act[rider] = True
+            self.passes += 1
+            self._sw_lose("load passed to a riding row")
+            return
         j = k.row_contact[r]
         if not any(self.act[i] for i in range(k.r) if k.row_contact[i] == j):
             self.liftoffs.append((float(t), k.contact_names[j]))
+
+    def _pass_load(self, q, u, r: int, barred) -> int:
+        """The riding row that takes held row ``r``'s load at its lift-off (its force below 0), or -1.
+
+        A riding row is a contact row not held at ``phi = 0`` whose gradient is in the span of the held
+        normal rows with ``r`` (:meth:`_hold`: a box's fourth vertex on its face). Where its expansion over
+        them takes ``r`` with a coefficient ``c_r < 0`` it is independent of the others, and held in ``r``'s
+        place its force is ``lambda_r / c_r >= 0`` (the same joint force on the body): the load crosses over
+        (a sliding box's load moving across its diagonal) and ``r`` rides. The first such in row order, none
+        of ``barred`` (rows that passed theirs at this instant: no passing back). Without it ``r``, its force
+        0 to round-off at the located lift-off and the rider never loaded, sinks and lands again at once.
+        The sign of ``c_r`` is that of ``grad psi_i`` along ``r``'s Gram-Schmidt direction against the other
+        held normal rows (``span_add``)."""
+        k = self.k
+        stick = k.row_stick
+        psi, grad, _ = k.rows(q, u)
+        basis: list = []
+        for j in np.flatnonzero(self.act):
+            if j != r and not (stick and stick[j] >= 0):
+                span_add(basis, grad[j])
+        if not span_add(basis, grad[r]):
+            return -1
+        for i in range(k.r):
+            if self.act[i] or i == r or i in barred or k.row_contact[i] < 0 or (stick and stick[i] >= 0):
+                continue
+            g = grad[i]
+            if abs(psi[i]) > self.tol.admissible or not float(basis[-1] @ g) < -DEP_EPS * float(
+                np.linalg.norm(g)
+            ):
+                continue
+            if not span_add(list(basis), g):  # it rides on them
+                return i
+        return -1
 
     def _book(self, impulses) -> None:
         """Add the constraint impulses of a segment (``Lam + Lam'``, per row) to the step's forces."""

@@ -338,6 +338,7 @@ class CRun:
         stats["liftoffs"] = liftoffs
         stats["jump_fallbacks"] = self.sus.fallbacks
         stats["landing_friction_dropped"] = self.sus.friction_dropped
+        stats["loads_passed"] = self.sus.passes
         return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:

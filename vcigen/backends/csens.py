@@ -10,7 +10,7 @@ breaks). A scene that never asks never builds it.
 
 :class:`SensRun` is a :class:`~vcigen.backends.crun.CRun` with the tangent's buffers: ``s`` (the current
 ``2n x K`` tangent, in/out of every call like ``q, p``), ``S`` (its rows, grown with ``Q``), ``W`` (one
-uint16 per grid step: the bits of :data:`SENS_REASONS` of why it is not covered) and ``lost``.
+uint32 per grid step: the bits of :data:`SENS_REASONS` of why it is not covered) and ``lost``.
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ SENS_REASONS: tuple[tuple[str, str], ...] = (
     ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
     ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
     ("FRICTION_SWITCH", "friction switch in a held step"),
+    ("LOAD_PASSED", "load passed to a riding row"),
 )
 BASE_ROUTINES = ("d_segment", "d_contacts", "d_legendre", "d_restitution", "d_smooth", "d_jump")
 
@@ -133,7 +134,7 @@ class SensRun(CRun):
         self.s = np.ascontiguousarray(s0, dtype=float).copy()
         self.S = np.empty((self.cap + 1, *self.s.shape))
         self.S[0] = self.s
-        self.W = np.zeros(max(self.cap, 1), dtype=np.uint16)
+        self.W = np.zeros(max(self.cap, 1), dtype=np.uint32)
         self.names = names
         self.job.s, self.job.lost = _addr(self.s), -1
 

@@ -1178,6 +1178,47 @@ static void particle_hold(const particle_ctx_t *c, const double *grad, int r)
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int particle_pass_load(const particle_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(PARTICLE_R_DIM + 1) * PARTICLE_N], trial[(PARTICLE_R_DIM + 1) * PARTICLE_N];
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    particle_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < PARTICLE_R; ++j) {
+        if (c->sus->act[j] && j != r && particle_row_stick[j] < 0) {
+            particle_span_add(basis, &nb, grad + j * PARTICLE_N);
+        }
+    }
+    if (!particle_span_add(basis, &nb, grad + r * PARTICLE_N)) {
+        return -1;
+    }
+    for (i = 0; i < PARTICLE_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || particle_row_contact[i] < 0 || particle_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < PARTICLE_N; ++j) {
+            along += basis[(nb - 1) * PARTICLE_N + j] * grad[i * PARTICLE_N + j];
+            ng += grad[i * PARTICLE_N + j] * grad[i * PARTICLE_N + j];
+        }
+        if (!(along < -PARTICLE_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * PARTICLE_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!particle_span_add(trial, &nt, grad + i * PARTICLE_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int particle_settles(const particle_ctx_t *c, double rate, double acc, double e)
@@ -1374,13 +1415,19 @@ static int particle_constrained(const particle_ctx_t *c, const double *q, const 
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void particle_release(const particle_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void particle_release(const particle_ctx_t *c, double t, int r, int rider)
 {
     particle_sustain_t *s = c->sus;
     const int j = particle_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < PARTICLE_R; ++i) {
         held = held || (s->act[i] && particle_row_contact[i] == j);
     }
@@ -1791,7 +1838,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
                 rate += grad[r * PARTICLE_N + i] * vel_p[i];
             }
             if (!particle_settles(c, rate, racc[r], 1.0)) {
-                particle_release(c, t, r);
+                particle_release(c, t, r, -1);
             }
         }
     }
@@ -1945,6 +1992,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
     int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         particle_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -1986,7 +2034,9 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            particle_release(c, t, start);
+            particle_velocity(c, q, vv, p, vel);
+            particle_release(c, t, start, particle_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         particle_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2034,8 +2084,13 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < PARTICLE_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            particle_release(c, t, r0);
+            particle_velocity(c, q, v, p, vel);
+            particle_release(c, t, r0, particle_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

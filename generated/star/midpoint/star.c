@@ -1459,6 +1459,47 @@ static void star_hold(const star_ctx_t *c, const double *grad, int r)
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int star_pass_load(const star_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(STAR_R_DIM + 1) * STAR_N], trial[(STAR_R_DIM + 1) * STAR_N];
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    star_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < STAR_R; ++j) {
+        if (c->sus->act[j] && j != r && star_row_stick[j] < 0) {
+            star_span_add(basis, &nb, grad + j * STAR_N);
+        }
+    }
+    if (!star_span_add(basis, &nb, grad + r * STAR_N)) {
+        return -1;
+    }
+    for (i = 0; i < STAR_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || star_row_contact[i] < 0 || star_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < STAR_N; ++j) {
+            along += basis[(nb - 1) * STAR_N + j] * grad[i * STAR_N + j];
+            ng += grad[i * STAR_N + j] * grad[i * STAR_N + j];
+        }
+        if (!(along < -STAR_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * STAR_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!star_span_add(trial, &nt, grad + i * STAR_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int star_settles(const star_ctx_t *c, double rate, double acc, double e)
@@ -1655,13 +1696,19 @@ static int star_constrained(const star_ctx_t *c, const double *q, const double *
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void star_release(const star_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void star_release(const star_ctx_t *c, double t, int r, int rider)
 {
     star_sustain_t *s = c->sus;
     const int j = star_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < STAR_R; ++i) {
         held = held || (s->act[i] && star_row_contact[i] == j);
     }
@@ -2072,7 +2119,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
                 rate += grad[r * STAR_N + i] * vel_p[i];
             }
             if (!star_settles(c, rate, racc[r], 1.0)) {
-                star_release(c, t, r);
+                star_release(c, t, r, -1);
             }
         }
     }
@@ -2226,6 +2273,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     double s_ev[STAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_N], f0[STAR_R_DIM];
     double f1[STAR_R_DIM], vel[STAR_N], f_eps;
     int ev[STAR_R_DIM], group[STAR_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[STAR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         star_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2267,7 +2315,9 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            star_release(c, t, start);
+            star_velocity(c, q, vv, p, vel);
+            star_release(c, t, start, star_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         star_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2315,8 +2365,13 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < STAR_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            star_release(c, t, r0);
+            star_velocity(c, q, v, p, vel);
+            star_release(c, t, r0, star_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

@@ -1184,6 +1184,47 @@ static void ball_to_rest_hold(const ball_to_rest_ctx_t *c, const double *grad, i
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int ball_to_rest_pass_load(const ball_to_rest_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(BALL_TO_REST_R_DIM + 1) * BALL_TO_REST_N], trial[(BALL_TO_REST_R_DIM + 1) * BALL_TO_REST_N];
+    double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    ball_to_rest_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < BALL_TO_REST_R; ++j) {
+        if (c->sus->act[j] && j != r && ball_to_rest_row_stick[j] < 0) {
+            ball_to_rest_span_add(basis, &nb, grad + j * BALL_TO_REST_N);
+        }
+    }
+    if (!ball_to_rest_span_add(basis, &nb, grad + r * BALL_TO_REST_N)) {
+        return -1;
+    }
+    for (i = 0; i < BALL_TO_REST_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || ball_to_rest_row_contact[i] < 0 || ball_to_rest_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < BALL_TO_REST_N; ++j) {
+            along += basis[(nb - 1) * BALL_TO_REST_N + j] * grad[i * BALL_TO_REST_N + j];
+            ng += grad[i * BALL_TO_REST_N + j] * grad[i * BALL_TO_REST_N + j];
+        }
+        if (!(along < -BALL_TO_REST_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * BALL_TO_REST_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!ball_to_rest_span_add(trial, &nt, grad + i * BALL_TO_REST_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int ball_to_rest_settles(const ball_to_rest_ctx_t *c, double rate, double acc, double e)
@@ -1380,13 +1421,19 @@ static int ball_to_rest_constrained(const ball_to_rest_ctx_t *c, const double *q
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void ball_to_rest_release(const ball_to_rest_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void ball_to_rest_release(const ball_to_rest_ctx_t *c, double t, int r, int rider)
 {
     ball_to_rest_sustain_t *s = c->sus;
     const int j = ball_to_rest_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < BALL_TO_REST_R; ++i) {
         held = held || (s->act[i] && ball_to_rest_row_contact[i] == j);
     }
@@ -1797,7 +1844,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
                 rate += grad[r * BALL_TO_REST_N + i] * vel_p[i];
             }
             if (!ball_to_rest_settles(c, rate, racc[r], 1.0)) {
-                ball_to_rest_release(c, t, r);
+                ball_to_rest_release(c, t, r, -1);
             }
         }
     }
@@ -1951,6 +1998,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     double s_ev[BALL_TO_REST_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_TO_REST_N], f0[BALL_TO_REST_R_DIM];
     double f1[BALL_TO_REST_R_DIM], vel[BALL_TO_REST_N], f_eps;
     int ev[BALL_TO_REST_R_DIM], group[BALL_TO_REST_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[BALL_TO_REST_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         ball_to_rest_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -1992,7 +2040,9 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            ball_to_rest_release(c, t, start);
+            ball_to_rest_velocity(c, q, vv, p, vel);
+            ball_to_rest_release(c, t, start, ball_to_rest_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         ball_to_rest_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2040,8 +2090,13 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < BALL_TO_REST_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            ball_to_rest_release(c, t, r0);
+            ball_to_rest_velocity(c, q, v, p, vel);
+            ball_to_rest_release(c, t, r0, ball_to_rest_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

@@ -1966,6 +1966,47 @@ static void cube_settles_hold(const cube_settles_ctx_t *c, const double *grad, i
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int cube_settles_pass_load(const cube_settles_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(CUBE_SETTLES_R_DIM + 1) * CUBE_SETTLES_N], trial[(CUBE_SETTLES_R_DIM + 1) * CUBE_SETTLES_N];
+    double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    cube_settles_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < CUBE_SETTLES_R; ++j) {
+        if (c->sus->act[j] && j != r && cube_settles_row_stick[j] < 0) {
+            cube_settles_span_add(basis, &nb, grad + j * CUBE_SETTLES_N);
+        }
+    }
+    if (!cube_settles_span_add(basis, &nb, grad + r * CUBE_SETTLES_N)) {
+        return -1;
+    }
+    for (i = 0; i < CUBE_SETTLES_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || cube_settles_row_contact[i] < 0 || cube_settles_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < CUBE_SETTLES_N; ++j) {
+            along += basis[(nb - 1) * CUBE_SETTLES_N + j] * grad[i * CUBE_SETTLES_N + j];
+            ng += grad[i * CUBE_SETTLES_N + j] * grad[i * CUBE_SETTLES_N + j];
+        }
+        if (!(along < -CUBE_SETTLES_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * CUBE_SETTLES_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!cube_settles_span_add(trial, &nt, grad + i * CUBE_SETTLES_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int cube_settles_settles(const cube_settles_ctx_t *c, double rate, double acc, double e)
@@ -2163,13 +2204,19 @@ static int cube_settles_constrained(const cube_settles_ctx_t *c, const double *q
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void cube_settles_release(const cube_settles_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void cube_settles_release(const cube_settles_ctx_t *c, double t, int r, int rider)
 {
     cube_settles_sustain_t *s = c->sus;
     const int j = cube_settles_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < CUBE_SETTLES_R; ++i) {
         held = held || (s->act[i] && cube_settles_row_contact[i] == j);
     }
@@ -2580,7 +2627,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
                 rate += grad[r * CUBE_SETTLES_N + i] * vel_p[i];
             }
             if (!cube_settles_settles(c, rate, racc[r], 1.0)) {
-                cube_settles_release(c, t, r);
+                cube_settles_release(c, t, r, -1);
             }
         }
     }
@@ -2734,6 +2781,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     double s_ev[CUBE_SETTLES_R_DIM] = {0.0}, e_seg, e_sub, s, u1[CUBE_SETTLES_N], f0[CUBE_SETTLES_R_DIM];
     double f1[CUBE_SETTLES_R_DIM], vel[CUBE_SETTLES_N], f_eps;
     int ev[CUBE_SETTLES_R_DIM], group[CUBE_SETTLES_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[CUBE_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         cube_settles_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2775,7 +2823,9 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            cube_settles_release(c, t, start);
+            cube_settles_velocity(c, q, vv, p, vel);
+            cube_settles_release(c, t, start, cube_settles_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         cube_settles_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2823,8 +2873,13 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < CUBE_SETTLES_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            cube_settles_release(c, t, r0);
+            cube_settles_velocity(c, q, v, p, vel);
+            cube_settles_release(c, t, r0, cube_settles_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

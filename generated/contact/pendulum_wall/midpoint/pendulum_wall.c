@@ -1408,6 +1408,47 @@ static void pendulum_wall_hold(const pendulum_wall_ctx_t *c, const double *grad,
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int pendulum_wall_pass_load(const pendulum_wall_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(PENDULUM_WALL_R_DIM + 1) * PENDULUM_WALL_N], trial[(PENDULUM_WALL_R_DIM + 1) * PENDULUM_WALL_N];
+    double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    pendulum_wall_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < PENDULUM_WALL_R; ++j) {
+        if (c->sus->act[j] && j != r && pendulum_wall_row_stick[j] < 0) {
+            pendulum_wall_span_add(basis, &nb, grad + j * PENDULUM_WALL_N);
+        }
+    }
+    if (!pendulum_wall_span_add(basis, &nb, grad + r * PENDULUM_WALL_N)) {
+        return -1;
+    }
+    for (i = 0; i < PENDULUM_WALL_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || pendulum_wall_row_contact[i] < 0 || pendulum_wall_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < PENDULUM_WALL_N; ++j) {
+            along += basis[(nb - 1) * PENDULUM_WALL_N + j] * grad[i * PENDULUM_WALL_N + j];
+            ng += grad[i * PENDULUM_WALL_N + j] * grad[i * PENDULUM_WALL_N + j];
+        }
+        if (!(along < -PENDULUM_WALL_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * PENDULUM_WALL_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!pendulum_wall_span_add(trial, &nt, grad + i * PENDULUM_WALL_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int pendulum_wall_settles(const pendulum_wall_ctx_t *c, double rate, double acc, double e)
@@ -1604,13 +1645,19 @@ static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double 
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void pendulum_wall_release(const pendulum_wall_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void pendulum_wall_release(const pendulum_wall_ctx_t *c, double t, int r, int rider)
 {
     pendulum_wall_sustain_t *s = c->sus;
     const int j = pendulum_wall_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < PENDULUM_WALL_R; ++i) {
         held = held || (s->act[i] && pendulum_wall_row_contact[i] == j);
     }
@@ -2021,7 +2068,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
                 rate += grad[r * PENDULUM_WALL_N + i] * vel_p[i];
             }
             if (!pendulum_wall_settles(c, rate, racc[r], 1.0)) {
-                pendulum_wall_release(c, t, r);
+                pendulum_wall_release(c, t, r, -1);
             }
         }
     }
@@ -2175,6 +2222,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     double s_ev[PENDULUM_WALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PENDULUM_WALL_N], f0[PENDULUM_WALL_R_DIM];
     double f1[PENDULUM_WALL_R_DIM], vel[PENDULUM_WALL_N], f_eps;
     int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         pendulum_wall_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2216,7 +2264,9 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            pendulum_wall_release(c, t, start);
+            pendulum_wall_velocity(c, q, vv, p, vel);
+            pendulum_wall_release(c, t, start, pendulum_wall_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         pendulum_wall_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2264,8 +2314,13 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < PENDULUM_WALL_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            pendulum_wall_release(c, t, r0);
+            pendulum_wall_velocity(c, q, v, p, vel);
+            pendulum_wall_release(c, t, r0, pendulum_wall_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

@@ -1379,6 +1379,47 @@ static void slide_off_dome_hold(const slide_off_dome_ctx_t *c, const double *gra
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int slide_off_dome_pass_load(const slide_off_dome_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(SLIDE_OFF_DOME_R_DIM + 1) * SLIDE_OFF_DOME_N], trial[(SLIDE_OFF_DOME_R_DIM + 1) * SLIDE_OFF_DOME_N];
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    slide_off_dome_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < SLIDE_OFF_DOME_R; ++j) {
+        if (c->sus->act[j] && j != r && slide_off_dome_row_stick[j] < 0) {
+            slide_off_dome_span_add(basis, &nb, grad + j * SLIDE_OFF_DOME_N);
+        }
+    }
+    if (!slide_off_dome_span_add(basis, &nb, grad + r * SLIDE_OFF_DOME_N)) {
+        return -1;
+    }
+    for (i = 0; i < SLIDE_OFF_DOME_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || slide_off_dome_row_contact[i] < 0 || slide_off_dome_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < SLIDE_OFF_DOME_N; ++j) {
+            along += basis[(nb - 1) * SLIDE_OFF_DOME_N + j] * grad[i * SLIDE_OFF_DOME_N + j];
+            ng += grad[i * SLIDE_OFF_DOME_N + j] * grad[i * SLIDE_OFF_DOME_N + j];
+        }
+        if (!(along < -SLIDE_OFF_DOME_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * SLIDE_OFF_DOME_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!slide_off_dome_span_add(trial, &nt, grad + i * SLIDE_OFF_DOME_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int slide_off_dome_settles(const slide_off_dome_ctx_t *c, double rate, double acc, double e)
@@ -1575,13 +1616,19 @@ static int slide_off_dome_constrained(const slide_off_dome_ctx_t *c, const doubl
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void slide_off_dome_release(const slide_off_dome_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void slide_off_dome_release(const slide_off_dome_ctx_t *c, double t, int r, int rider)
 {
     slide_off_dome_sustain_t *s = c->sus;
     const int j = slide_off_dome_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < SLIDE_OFF_DOME_R; ++i) {
         held = held || (s->act[i] && slide_off_dome_row_contact[i] == j);
     }
@@ -1992,7 +2039,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
                 rate += grad[r * SLIDE_OFF_DOME_N + i] * vel_p[i];
             }
             if (!slide_off_dome_settles(c, rate, racc[r], 1.0)) {
-                slide_off_dome_release(c, t, r);
+                slide_off_dome_release(c, t, r, -1);
             }
         }
     }
@@ -2146,6 +2193,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     double s_ev[SLIDE_OFF_DOME_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM];
     double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps;
     int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         slide_off_dome_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2187,7 +2235,9 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            slide_off_dome_release(c, t, start);
+            slide_off_dome_velocity(c, q, vv, p, vel);
+            slide_off_dome_release(c, t, start, slide_off_dome_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         slide_off_dome_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2235,8 +2285,13 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < SLIDE_OFF_DOME_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            slide_off_dome_release(c, t, r0);
+            slide_off_dome_velocity(c, q, v, p, vel);
+            slide_off_dome_release(c, t, r0, slide_off_dome_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

@@ -1460,6 +1460,47 @@ static void star_settles_hold(const star_settles_ctx_t *c, const double *grad, i
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int star_settles_pass_load(const star_settles_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(STAR_SETTLES_R_DIM + 1) * STAR_SETTLES_N], trial[(STAR_SETTLES_R_DIM + 1) * STAR_SETTLES_N];
+    double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    star_settles_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < STAR_SETTLES_R; ++j) {
+        if (c->sus->act[j] && j != r && star_settles_row_stick[j] < 0) {
+            star_settles_span_add(basis, &nb, grad + j * STAR_SETTLES_N);
+        }
+    }
+    if (!star_settles_span_add(basis, &nb, grad + r * STAR_SETTLES_N)) {
+        return -1;
+    }
+    for (i = 0; i < STAR_SETTLES_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || star_settles_row_contact[i] < 0 || star_settles_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < STAR_SETTLES_N; ++j) {
+            along += basis[(nb - 1) * STAR_SETTLES_N + j] * grad[i * STAR_SETTLES_N + j];
+            ng += grad[i * STAR_SETTLES_N + j] * grad[i * STAR_SETTLES_N + j];
+        }
+        if (!(along < -STAR_SETTLES_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * STAR_SETTLES_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!star_settles_span_add(trial, &nt, grad + i * STAR_SETTLES_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int star_settles_settles(const star_settles_ctx_t *c, double rate, double acc, double e)
@@ -1656,13 +1697,19 @@ static int star_settles_constrained(const star_settles_ctx_t *c, const double *q
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void star_settles_release(const star_settles_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void star_settles_release(const star_settles_ctx_t *c, double t, int r, int rider)
 {
     star_settles_sustain_t *s = c->sus;
     const int j = star_settles_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < STAR_SETTLES_R; ++i) {
         held = held || (s->act[i] && star_settles_row_contact[i] == j);
     }
@@ -2073,7 +2120,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
                 rate += grad[r * STAR_SETTLES_N + i] * vel_p[i];
             }
             if (!star_settles_settles(c, rate, racc[r], 1.0)) {
-                star_settles_release(c, t, r);
+                star_settles_release(c, t, r, -1);
             }
         }
     }
@@ -2227,6 +2274,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     double s_ev[STAR_SETTLES_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_SETTLES_N], f0[STAR_SETTLES_R_DIM];
     double f1[STAR_SETTLES_R_DIM], vel[STAR_SETTLES_N], f_eps;
     int ev[STAR_SETTLES_R_DIM], group[STAR_SETTLES_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[STAR_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         star_settles_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2268,7 +2316,9 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            star_settles_release(c, t, start);
+            star_settles_velocity(c, q, vv, p, vel);
+            star_settles_release(c, t, start, star_settles_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         star_settles_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2316,8 +2366,13 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < STAR_SETTLES_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            star_settles_release(c, t, r0);
+            star_settles_velocity(c, q, v, p, vel);
+            star_settles_release(c, t, r0, star_settles_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

@@ -1000,6 +1000,47 @@ static void impact_oscillator_hold(const impact_oscillator_ctx_t *c, const doubl
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int impact_oscillator_pass_load(const impact_oscillator_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(IMPACT_OSCILLATOR_R_DIM + 1) * IMPACT_OSCILLATOR_N], trial[(IMPACT_OSCILLATOR_R_DIM + 1) * IMPACT_OSCILLATOR_N];
+    double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    impact_oscillator_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < IMPACT_OSCILLATOR_R; ++j) {
+        if (c->sus->act[j] && j != r && impact_oscillator_row_stick[j] < 0) {
+            impact_oscillator_span_add(basis, &nb, grad + j * IMPACT_OSCILLATOR_N);
+        }
+    }
+    if (!impact_oscillator_span_add(basis, &nb, grad + r * IMPACT_OSCILLATOR_N)) {
+        return -1;
+    }
+    for (i = 0; i < IMPACT_OSCILLATOR_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || impact_oscillator_row_contact[i] < 0 || impact_oscillator_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < IMPACT_OSCILLATOR_N; ++j) {
+            along += basis[(nb - 1) * IMPACT_OSCILLATOR_N + j] * grad[i * IMPACT_OSCILLATOR_N + j];
+            ng += grad[i * IMPACT_OSCILLATOR_N + j] * grad[i * IMPACT_OSCILLATOR_N + j];
+        }
+        if (!(along < -IMPACT_OSCILLATOR_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * IMPACT_OSCILLATOR_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!impact_oscillator_span_add(trial, &nt, grad + i * IMPACT_OSCILLATOR_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int impact_oscillator_settles(const impact_oscillator_ctx_t *c, double rate, double acc, double e)
@@ -1196,13 +1237,19 @@ static int impact_oscillator_constrained(const impact_oscillator_ctx_t *c, const
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void impact_oscillator_release(const impact_oscillator_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void impact_oscillator_release(const impact_oscillator_ctx_t *c, double t, int r, int rider)
 {
     impact_oscillator_sustain_t *s = c->sus;
     const int j = impact_oscillator_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < IMPACT_OSCILLATOR_R; ++i) {
         held = held || (s->act[i] && impact_oscillator_row_contact[i] == j);
     }
@@ -1615,7 +1662,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
                 rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel_p[i];
             }
             if (!impact_oscillator_settles(c, rate, racc[r], 1.0)) {
-                impact_oscillator_release(c, t, r);
+                impact_oscillator_release(c, t, r, -1);
             }
         }
     }
@@ -1770,6 +1817,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     double s_ev[IMPACT_OSCILLATOR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM];
     double f1[IMPACT_OSCILLATOR_R_DIM], vel[IMPACT_OSCILLATOR_N], f_eps;
     int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         impact_oscillator_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -1811,7 +1859,9 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            impact_oscillator_release(c, t, start);
+            impact_oscillator_velocity(c, q, vv, p, vel);
+            impact_oscillator_release(c, t, start, impact_oscillator_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         impact_oscillator_rows(q1, vv, c->par, psi1, grad, curv);
@@ -1860,8 +1910,13 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < IMPACT_OSCILLATOR_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            impact_oscillator_release(c, t, r0);
+            impact_oscillator_velocity(c, q, v, p, vel);
+            impact_oscillator_release(c, t, r0, impact_oscillator_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

@@ -1234,6 +1234,47 @@ static void block_hold(const block_ctx_t *c, const double *grad, int r)
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int block_pass_load(const block_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(BLOCK_R_DIM + 1) * BLOCK_N], trial[(BLOCK_R_DIM + 1) * BLOCK_N];
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    block_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < BLOCK_R; ++j) {
+        if (c->sus->act[j] && j != r && block_row_stick[j] < 0) {
+            block_span_add(basis, &nb, grad + j * BLOCK_N);
+        }
+    }
+    if (!block_span_add(basis, &nb, grad + r * BLOCK_N)) {
+        return -1;
+    }
+    for (i = 0; i < BLOCK_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || block_row_contact[i] < 0 || block_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < BLOCK_N; ++j) {
+            along += basis[(nb - 1) * BLOCK_N + j] * grad[i * BLOCK_N + j];
+            ng += grad[i * BLOCK_N + j] * grad[i * BLOCK_N + j];
+        }
+        if (!(along < -BLOCK_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * BLOCK_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!block_span_add(trial, &nt, grad + i * BLOCK_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int block_settles(const block_ctx_t *c, double rate, double acc, double e)
@@ -1430,13 +1471,19 @@ static int block_constrained(const block_ctx_t *c, const double *q, const double
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void block_release(const block_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void block_release(const block_ctx_t *c, double t, int r, int rider)
 {
     block_sustain_t *s = c->sus;
     const int j = block_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < BLOCK_R; ++i) {
         held = held || (s->act[i] && block_row_contact[i] == j);
     }
@@ -2377,7 +2424,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
                 rate += grad[r * BLOCK_N + i] * vel_p[i];
             }
             if (!block_settles(c, rate, racc[r], 1.0)) {
-                block_release(c, t, r);
+                block_release(c, t, r, -1);
             }
         }
     }
@@ -2544,6 +2591,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps;
     int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         block_at(c, t);
@@ -2672,7 +2720,9 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 turn = kind == 4 ? start : -1;
                 continue;
             }
-            block_release(c, t, start);
+            block_velocity(c, q, vv, p, vel);
+            block_release(c, t, start, block_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         block_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2721,8 +2771,13 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < BLOCK_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            block_release(c, t, r0);
+            block_velocity(c, q, v, p, vel);
+            block_release(c, t, r0, block_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         if (ev[r0] >= 3) { /* a friction event: stick or slip from here */

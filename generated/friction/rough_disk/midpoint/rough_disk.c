@@ -1313,6 +1313,47 @@ static void rough_disk_hold(const rough_disk_ctx_t *c, const double *grad, int r
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int rough_disk_pass_load(const rough_disk_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(ROUGH_DISK_R_DIM + 1) * ROUGH_DISK_N], trial[(ROUGH_DISK_R_DIM + 1) * ROUGH_DISK_N];
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    rough_disk_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < ROUGH_DISK_R; ++j) {
+        if (c->sus->act[j] && j != r && rough_disk_row_stick[j] < 0) {
+            rough_disk_span_add(basis, &nb, grad + j * ROUGH_DISK_N);
+        }
+    }
+    if (!rough_disk_span_add(basis, &nb, grad + r * ROUGH_DISK_N)) {
+        return -1;
+    }
+    for (i = 0; i < ROUGH_DISK_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || rough_disk_row_contact[i] < 0 || rough_disk_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < ROUGH_DISK_N; ++j) {
+            along += basis[(nb - 1) * ROUGH_DISK_N + j] * grad[i * ROUGH_DISK_N + j];
+            ng += grad[i * ROUGH_DISK_N + j] * grad[i * ROUGH_DISK_N + j];
+        }
+        if (!(along < -ROUGH_DISK_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * ROUGH_DISK_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!rough_disk_span_add(trial, &nt, grad + i * ROUGH_DISK_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int rough_disk_settles(const rough_disk_ctx_t *c, double rate, double acc, double e)
@@ -1509,13 +1550,19 @@ static int rough_disk_constrained(const rough_disk_ctx_t *c, const double *q, co
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void rough_disk_release(const rough_disk_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void rough_disk_release(const rough_disk_ctx_t *c, double t, int r, int rider)
 {
     rough_disk_sustain_t *s = c->sus;
     const int j = rough_disk_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < ROUGH_DISK_R; ++i) {
         held = held || (s->act[i] && rough_disk_row_contact[i] == j);
     }
@@ -2456,7 +2503,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
                 rate += grad[r * ROUGH_DISK_N + i] * vel_p[i];
             }
             if (!rough_disk_settles(c, rate, racc[r], 1.0)) {
-                rough_disk_release(c, t, r);
+                rough_disk_release(c, t, r, -1);
             }
         }
     }
@@ -2623,6 +2670,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         rough_disk_at(c, t);
@@ -2751,7 +2799,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 turn = kind == 4 ? start : -1;
                 continue;
             }
-            rough_disk_release(c, t, start);
+            rough_disk_velocity(c, q, vv, p, vel);
+            rough_disk_release(c, t, start, rough_disk_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         rough_disk_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2800,8 +2850,13 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < ROUGH_DISK_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            rough_disk_release(c, t, r0);
+            rough_disk_velocity(c, q, v, p, vel);
+            rough_disk_release(c, t, r0, rough_disk_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         if (ev[r0] >= 3) { /* a friction event: stick or slip from here */

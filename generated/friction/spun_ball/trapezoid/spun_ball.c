@@ -1403,6 +1403,47 @@ static void spun_ball_hold(const spun_ball_ctx_t *c, const double *grad, int r)
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int spun_ball_pass_load(const spun_ball_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(SPUN_BALL_R_DIM + 1) * SPUN_BALL_N], trial[(SPUN_BALL_R_DIM + 1) * SPUN_BALL_N];
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < SPUN_BALL_R; ++j) {
+        if (c->sus->act[j] && j != r && spun_ball_row_stick[j] < 0) {
+            spun_ball_span_add(basis, &nb, grad + j * SPUN_BALL_N);
+        }
+    }
+    if (!spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N)) {
+        return -1;
+    }
+    for (i = 0; i < SPUN_BALL_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || spun_ball_row_contact[i] < 0 || spun_ball_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < SPUN_BALL_N; ++j) {
+            along += basis[(nb - 1) * SPUN_BALL_N + j] * grad[i * SPUN_BALL_N + j];
+            ng += grad[i * SPUN_BALL_N + j] * grad[i * SPUN_BALL_N + j];
+        }
+        if (!(along < -SPUN_BALL_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * SPUN_BALL_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!spun_ball_span_add(trial, &nt, grad + i * SPUN_BALL_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int spun_ball_settles(const spun_ball_ctx_t *c, double rate, double acc, double e)
@@ -1599,13 +1640,19 @@ static int spun_ball_constrained(const spun_ball_ctx_t *c, const double *q, cons
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void spun_ball_release(const spun_ball_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void spun_ball_release(const spun_ball_ctx_t *c, double t, int r, int rider)
 {
     spun_ball_sustain_t *s = c->sus;
     const int j = spun_ball_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < SPUN_BALL_R; ++i) {
         held = held || (s->act[i] && spun_ball_row_contact[i] == j);
     }
@@ -3340,7 +3387,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
                 rate += grad[r * SPUN_BALL_N + i] * vel_p[i];
             }
             if (!spun_ball_settles(c, rate, racc[r], 1.0)) {
-                spun_ball_release(c, t, r);
+                spun_ball_release(c, t, r, -1);
             }
         }
     }
@@ -3507,6 +3554,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         spun_ball_at(c, t);
@@ -3643,7 +3691,9 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 turn = kind == 4 ? start : -1;
                 continue;
             }
-            spun_ball_release(c, t, start);
+            spun_ball_velocity(c, q, vv, p, vel);
+            spun_ball_release(c, t, start, spun_ball_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         spun_ball_rows(q1, vv, c->par, psi1, grad, curv);
@@ -3692,8 +3742,13 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < SPUN_BALL_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            spun_ball_release(c, t, r0);
+            spun_ball_velocity(c, q, v, p, vel);
+            spun_ball_release(c, t, r0, spun_ball_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         if (ev[r0] >= 3) { /* a friction event: stick or slip from here */

@@ -1518,6 +1518,47 @@ static void star_friction_hold(const star_friction_ctx_t *c, const double *grad,
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int star_friction_pass_load(const star_friction_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(STAR_FRICTION_R_DIM + 1) * STAR_FRICTION_N], trial[(STAR_FRICTION_R_DIM + 1) * STAR_FRICTION_N];
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    star_friction_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < STAR_FRICTION_R; ++j) {
+        if (c->sus->act[j] && j != r && star_friction_row_stick[j] < 0) {
+            star_friction_span_add(basis, &nb, grad + j * STAR_FRICTION_N);
+        }
+    }
+    if (!star_friction_span_add(basis, &nb, grad + r * STAR_FRICTION_N)) {
+        return -1;
+    }
+    for (i = 0; i < STAR_FRICTION_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || star_friction_row_contact[i] < 0 || star_friction_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < STAR_FRICTION_N; ++j) {
+            along += basis[(nb - 1) * STAR_FRICTION_N + j] * grad[i * STAR_FRICTION_N + j];
+            ng += grad[i * STAR_FRICTION_N + j] * grad[i * STAR_FRICTION_N + j];
+        }
+        if (!(along < -STAR_FRICTION_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * STAR_FRICTION_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!star_friction_span_add(trial, &nt, grad + i * STAR_FRICTION_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int star_friction_settles(const star_friction_ctx_t *c, double rate, double acc, double e)
@@ -1714,13 +1755,19 @@ static int star_friction_constrained(const star_friction_ctx_t *c, const double 
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void star_friction_release(const star_friction_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void star_friction_release(const star_friction_ctx_t *c, double t, int r, int rider)
 {
     star_friction_sustain_t *s = c->sus;
     const int j = star_friction_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < STAR_FRICTION_R; ++i) {
         held = held || (s->act[i] && star_friction_row_contact[i] == j);
     }
@@ -2661,7 +2708,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
                 rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
             }
             if (!star_friction_settles(c, rate, racc[r], 1.0)) {
-                star_friction_release(c, t, r);
+                star_friction_release(c, t, r, -1);
             }
         }
     }
@@ -2828,6 +2875,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     double s_ev[STAR_FRICTION_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM];
     double f1[STAR_FRICTION_R_DIM], vel[STAR_FRICTION_N], f_eps;
     int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         star_friction_at(c, t);
@@ -2956,7 +3004,9 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 turn = kind == 4 ? start : -1;
                 continue;
             }
-            star_friction_release(c, t, start);
+            star_friction_velocity(c, q, vv, p, vel);
+            star_friction_release(c, t, start, star_friction_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         star_friction_rows(q1, vv, c->par, psi1, grad, curv);
@@ -3005,8 +3055,13 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < STAR_FRICTION_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            star_friction_release(c, t, r0);
+            star_friction_velocity(c, q, v, p, vel);
+            star_friction_release(c, t, r0, star_friction_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         if (ev[r0] >= 3) { /* a friction event: stick or slip from here */

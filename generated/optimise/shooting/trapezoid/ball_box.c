@@ -1394,6 +1394,47 @@ static void ball_box_hold(const ball_box_ctx_t *c, const double *grad, int r)
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int ball_box_pass_load(const ball_box_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(BALL_BOX_R_DIM + 1) * BALL_BOX_N], trial[(BALL_BOX_R_DIM + 1) * BALL_BOX_N];
+    double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    ball_box_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < BALL_BOX_R; ++j) {
+        if (c->sus->act[j] && j != r && ball_box_row_stick[j] < 0) {
+            ball_box_span_add(basis, &nb, grad + j * BALL_BOX_N);
+        }
+    }
+    if (!ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N)) {
+        return -1;
+    }
+    for (i = 0; i < BALL_BOX_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || ball_box_row_contact[i] < 0 || ball_box_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < BALL_BOX_N; ++j) {
+            along += basis[(nb - 1) * BALL_BOX_N + j] * grad[i * BALL_BOX_N + j];
+            ng += grad[i * BALL_BOX_N + j] * grad[i * BALL_BOX_N + j];
+        }
+        if (!(along < -BALL_BOX_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * BALL_BOX_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!ball_box_span_add(trial, &nt, grad + i * BALL_BOX_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int ball_box_settles(const ball_box_ctx_t *c, double rate, double acc, double e)
@@ -1590,13 +1631,19 @@ static int ball_box_constrained(const ball_box_ctx_t *c, const double *q, const 
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void ball_box_release(const ball_box_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void ball_box_release(const ball_box_ctx_t *c, double t, int r, int rider)
 {
     ball_box_sustain_t *s = c->sus;
     const int j = ball_box_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < BALL_BOX_R; ++i) {
         held = held || (s->act[i] && ball_box_row_contact[i] == j);
     }
@@ -2007,7 +2054,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
                 rate += grad[r * BALL_BOX_N + i] * vel_p[i];
             }
             if (!ball_box_settles(c, rate, racc[r], 1.0)) {
-                ball_box_release(c, t, r);
+                ball_box_release(c, t, r, -1);
             }
         }
     }
@@ -2161,6 +2208,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     double s_ev[BALL_BOX_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_BOX_N], f0[BALL_BOX_R_DIM];
     double f1[BALL_BOX_R_DIM], vel[BALL_BOX_N], f_eps;
     int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         ball_box_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2202,7 +2250,9 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            ball_box_release(c, t, start);
+            ball_box_velocity(c, q, vv, p, vel);
+            ball_box_release(c, t, start, ball_box_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         ball_box_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2250,8 +2300,13 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < BALL_BOX_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            ball_box_release(c, t, r0);
+            ball_box_velocity(c, q, v, p, vel);
+            ball_box_release(c, t, r0, ball_box_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;

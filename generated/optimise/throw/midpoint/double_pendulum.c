@@ -1538,6 +1538,47 @@ static void double_pendulum_hold(const double_pendulum_ctx_t *c, const double *g
     }
 }
 
+/* SustainedSteps._pass_load: the riding row that takes held row r's load at its lift-off (its force below 0), or -1:
+ * a contact row not held at phi = 0 whose gradient is in the span of the held normal rows with r, taking r with
+ * a coefficient c_r < 0 (held in r's place its force is lambda_r / c_r >= 0: the load crosses over, r rides); the
+ * first in row order, none barred (passed theirs at this instant). The sign of c_r: that of grad psi_i along r's
+ * Gram-Schmidt direction against the other held normal rows (span_add). */
+static int double_pendulum_pass_load(const double_pendulum_ctx_t *c, const double *q, const double *u, int r, const int *barred)
+{
+    double basis[(DOUBLE_PENDULUM_R_DIM + 1) * DOUBLE_PENDULUM_N], trial[(DOUBLE_PENDULUM_R_DIM + 1) * DOUBLE_PENDULUM_N];
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], along, ng;
+    int nb = 0, nt, i, j;
+    double_pendulum_rows(q, u, c->par, psi, grad, curv);
+    for (j = 0; j < DOUBLE_PENDULUM_R; ++j) {
+        if (c->sus->act[j] && j != r && double_pendulum_row_stick[j] < 0) {
+            double_pendulum_span_add(basis, &nb, grad + j * DOUBLE_PENDULUM_N);
+        }
+    }
+    if (!double_pendulum_span_add(basis, &nb, grad + r * DOUBLE_PENDULUM_N)) {
+        return -1;
+    }
+    for (i = 0; i < DOUBLE_PENDULUM_R; ++i) {
+        if (c->sus->act[i] || i == r || barred[i] || double_pendulum_row_contact[i] < 0 || double_pendulum_row_stick[i] >= 0
+            || fabs(psi[i]) > c->tol->admissible) {
+            continue;
+        }
+        for (j = 0, along = 0.0, ng = 0.0; j < DOUBLE_PENDULUM_N; ++j) {
+            along += basis[(nb - 1) * DOUBLE_PENDULUM_N + j] * grad[i * DOUBLE_PENDULUM_N + j];
+            ng += grad[i * DOUBLE_PENDULUM_N + j] * grad[i * DOUBLE_PENDULUM_N + j];
+        }
+        if (!(along < -DOUBLE_PENDULUM_DEP_EPS * sqrt(ng))) {
+            continue;
+        }
+        for (j = 0, nt = nb; j < nb * DOUBLE_PENDULUM_N; ++j) {
+            trial[j] = basis[j];
+        }
+        if (!double_pendulum_span_add(trial, &nt, grad + i * DOUBLE_PENDULUM_N)) { /* it rides on them */
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* SustainedSteps._settles: forces press the row in and the outgoing normal speed is below the jump's
  * resolution. */
 static int double_pendulum_settles(const double_pendulum_ctx_t *c, double rate, double acc, double e)
@@ -1735,13 +1776,19 @@ static int double_pendulum_constrained(const double_pendulum_ctx_t *c, const dou
     return 0;
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. */
-static void double_pendulum_release(const double_pendulum_ctx_t *c, double t, int r)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
+ * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
+static void double_pendulum_release(const double_pendulum_ctx_t *c, double t, int r, int rider)
 {
     double_pendulum_sustain_t *s = c->sus;
     const int j = double_pendulum_row_contact[r];
     int i, held = 0;
     s->act[r] = 0;
+    if (rider >= 0) {
+        s->act[rider] = 1;
+        ++s->passes;
+        return;
+    }
     for (i = 0; i < DOUBLE_PENDULUM_R; ++i) {
         held = held || (s->act[i] && double_pendulum_row_contact[i] == j);
     }
@@ -2152,7 +2199,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
                 rate += grad[r * DOUBLE_PENDULUM_N + i] * vel_p[i];
             }
             if (!double_pendulum_settles(c, rate, racc[r], 1.0)) {
-                double_pendulum_release(c, t, r);
+                double_pendulum_release(c, t, r, -1);
             }
         }
     }
@@ -2306,6 +2353,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
     double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
     int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     for (;;) {
         double_pendulum_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2347,7 +2395,9 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            double_pendulum_release(c, t, start);
+            double_pendulum_velocity(c, q, vv, p, vel);
+            double_pendulum_release(c, t, start, double_pendulum_pass_load(c, q, vel, start, passed));
+            passed[start] = 1;
             continue;
         }
         double_pendulum_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2395,8 +2445,13 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
+        for (r = 0; r < DOUBLE_PENDULUM_R && s != 0.0; ++r) {
+            passed[r] = 0;
+        }
         if (ev[r0] == 1) {
-            double_pendulum_release(c, t, r0);
+            double_pendulum_velocity(c, q, v, p, vel);
+            double_pendulum_release(c, t, r0, double_pendulum_pass_load(c, q, vel, r0, passed));
+            passed[r0] = 1;
             continue;
         }
         n_group = 0;
