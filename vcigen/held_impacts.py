@@ -92,8 +92,10 @@ class HeldImpacts(ImpulseLaw):
                 switched = True
         return switched, slid
 
-    def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before):
-        """An impact on rows ``group`` during sustained contact; returns the momentum after it."""
+    def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before, again=()):
+        """An impact on rows ``group`` during sustained contact; returns the momentum after it. A row of
+        ``again`` (met by an impact at this instant already: it left at a normal speed of 0 and sank again at
+        once, the forces pressing it in although the step's forces said otherwise) settles: held."""
         k = self.k
         self._at(t)
         rest = k.restitution()
@@ -105,7 +107,7 @@ class HeldImpacts(ImpulseLaw):
         for r in group:
             e = float(rest[k.row_contact[r]])
             rate = float(grad[r] @ vel)
-            if self.tol.grazing == "contact" and self._settles(rate, acc[r], e, h):
+            if self.tol.grazing == "contact" and (r in again or self._settles(rate, acc[r], e, h)):
                 plastic.append(r)
             else:
                 targets[r] = -e * rate

@@ -206,6 +206,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         turn = -1  # the stick row that slid at this instant (a stop of it here turns it, _friction_switch)
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
+        hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
@@ -297,7 +298,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self._book(lam + lam1)
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             turn = -1
-            passed = passed if s == 0.0 else set()
+            if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
+                passed, hit = set(), set()
             if events[r0][0] == "lift":
                 self._release(step, t_k, t, r0, self._pass_load(q, self._velocity(q, v, p), r0, passed))
                 passed.add(r0)
@@ -308,7 +310,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._sw_check(events[r0][0], r0, before)
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
-            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub)
+            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, hit & set(group))
+            hit |= set(group)
 
     def _free_rest(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
         """A free remainder of the grid step from ``(q, p)``: smooth (46), or the impact chain (47)-(79)."""

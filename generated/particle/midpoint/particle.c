@@ -1773,9 +1773,10 @@ static void particle_held_accel(const particle_ctx_t *c, const double *q, const 
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int particle_chain_impact(const particle_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[PARTICLE_M_DIM], vel[PARTICLE_N], lam_now[PARTICLE_R_DIM], acc[PARTICLE_N];
     double racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
@@ -1802,7 +1803,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
         for (i = 0; i < PARTICLE_N; ++i) {
             rate += grad[r * PARTICLE_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && particle_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || particle_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -1991,8 +1992,9 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double psi1[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
-    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[PARTICLE_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         particle_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2084,8 +2086,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < PARTICLE_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < PARTICLE_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             particle_velocity(c, q, v, p, vel);
@@ -2099,8 +2101,11 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
                 group[n_group++] = r;
             }
         }
-        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }

@@ -2008,9 +2008,10 @@ static void pendulum_wall_held_accel(const pendulum_wall_ctx_t *c, const double 
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[PENDULUM_WALL_M_DIM], vel[PENDULUM_WALL_N], lam_now[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N];
     double racc[PENDULUM_WALL_R_DIM], psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
@@ -2037,7 +2038,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             rate += grad[r * PENDULUM_WALL_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && pendulum_wall_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || pendulum_wall_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2226,8 +2227,9 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     double psi1[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     double s_ev[PENDULUM_WALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PENDULUM_WALL_N], f0[PENDULUM_WALL_R_DIM];
     double f1[PENDULUM_WALL_R_DIM], vel[PENDULUM_WALL_N], f_eps;
-    int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         pendulum_wall_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2319,8 +2321,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < PENDULUM_WALL_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < PENDULUM_WALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             pendulum_wall_velocity(c, q, v, p, vel);
@@ -2334,8 +2336,11 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
                 group[n_group++] = r;
             }
         }
-        if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }

@@ -1974,9 +1974,10 @@ static void slide_off_dome_held_accel(const slide_off_dome_ctx_t *c, const doubl
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[SLIDE_OFF_DOME_M_DIM], vel[SLIDE_OFF_DOME_N], lam_now[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N];
     double racc[SLIDE_OFF_DOME_R_DIM], psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
@@ -2003,7 +2004,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             rate += grad[r * SLIDE_OFF_DOME_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && slide_off_dome_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || slide_off_dome_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2192,8 +2193,9 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     double psi1[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double s_ev[SLIDE_OFF_DOME_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM];
     double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps;
-    int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         slide_off_dome_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2285,8 +2287,8 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < SLIDE_OFF_DOME_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < SLIDE_OFF_DOME_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             slide_off_dome_velocity(c, q, v, p, vel);
@@ -2300,8 +2302,11 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
                 group[n_group++] = r;
             }
         }
-        if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }

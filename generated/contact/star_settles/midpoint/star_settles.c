@@ -2055,9 +2055,10 @@ static void star_settles_held_accel(const star_settles_ctx_t *c, const double *q
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[STAR_SETTLES_M_DIM], vel[STAR_SETTLES_N], lam_now[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N];
     double racc[STAR_SETTLES_R_DIM], psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
@@ -2084,7 +2085,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             rate += grad[r * STAR_SETTLES_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && star_settles_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || star_settles_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2273,8 +2274,9 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     double psi1[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
     double s_ev[STAR_SETTLES_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_SETTLES_N], f0[STAR_SETTLES_R_DIM];
     double f1[STAR_SETTLES_R_DIM], vel[STAR_SETTLES_N], f_eps;
-    int ev[STAR_SETTLES_R_DIM], group[STAR_SETTLES_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[STAR_SETTLES_R_DIM], group[STAR_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[STAR_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[STAR_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         star_settles_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2366,8 +2368,8 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < STAR_SETTLES_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < STAR_SETTLES_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             star_settles_velocity(c, q, v, p, vel);
@@ -2381,8 +2383,11 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
                 group[n_group++] = r;
             }
         }
-        if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }

@@ -1597,9 +1597,10 @@ static void impact_oscillator_held_accel(const impact_oscillator_ctx_t *c, const
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[IMPACT_OSCILLATOR_M_DIM], vel[IMPACT_OSCILLATOR_N], lam_now[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N];
     double racc[IMPACT_OSCILLATOR_R_DIM], psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
@@ -1626,7 +1627,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && impact_oscillator_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || impact_oscillator_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -1816,8 +1817,9 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     double psi1[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     double s_ev[IMPACT_OSCILLATOR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM];
     double f1[IMPACT_OSCILLATOR_R_DIM], vel[IMPACT_OSCILLATOR_N], f_eps;
-    int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         impact_oscillator_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -1910,8 +1912,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < IMPACT_OSCILLATOR_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < IMPACT_OSCILLATOR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);
@@ -1925,8 +1927,11 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
                 group[n_group++] = r;
             }
         }
-        if (impact_oscillator_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (impact_oscillator_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }

@@ -2358,9 +2358,10 @@ static void block_landed(const block_ctx_t *c, const int *land, const int *slipp
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[BLOCK_M_DIM], vel[BLOCK_N], lam_now[BLOCK_R_DIM], acc[BLOCK_N];
     double racc[BLOCK_R_DIM], psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N];
@@ -2387,7 +2388,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         for (i = 0; i < BLOCK_N; ++i) {
             rate += grad[r * BLOCK_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && block_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || block_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2590,8 +2591,9 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double psi1[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps;
-    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         block_at(c, t);
@@ -2771,8 +2773,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < BLOCK_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < BLOCK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             block_velocity(c, q, v, p, vel);
@@ -2791,8 +2793,11 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 group[n_group++] = r;
             }
         }
-        if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }
@@ -3220,7 +3225,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec)) {
+            if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
             rc = block_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -2437,9 +2437,10 @@ static void rough_disk_landed(const rough_disk_ctx_t *c, const int *land, const 
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[ROUGH_DISK_M_DIM], vel[ROUGH_DISK_N], lam_now[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N];
     double racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
@@ -2466,7 +2467,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             rate += grad[r * ROUGH_DISK_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && rough_disk_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || rough_disk_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2669,8 +2670,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double psi1[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
-    int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         rough_disk_at(c, t);
@@ -2850,8 +2852,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < ROUGH_DISK_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < ROUGH_DISK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             rough_disk_velocity(c, q, v, p, vel);
@@ -2870,8 +2872,11 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 group[n_group++] = r;
             }
         }
-        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }
@@ -3299,7 +3304,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec)) {
+            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
             rc = rough_disk_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -3319,9 +3319,10 @@ static void spun_ball_landed(const spun_ball_ctx_t *c, const int *land, const in
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[SPUN_BALL_M_DIM], vel[SPUN_BALL_N], lam_now[SPUN_BALL_R_DIM], acc[SPUN_BALL_N];
     double racc[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
@@ -3349,7 +3350,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         for (i = 0; i < SPUN_BALL_N; ++i) {
             rate += grad[r * SPUN_BALL_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && spun_ball_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || spun_ball_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3553,8 +3554,9 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double psi1[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
-    int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         spun_ball_at(c, t);
@@ -3742,8 +3744,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < SPUN_BALL_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < SPUN_BALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             spun_ball_velocity(c, q, v, p, vel);
@@ -3762,8 +3764,11 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 group[n_group++] = r;
             }
         }
-        if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }
@@ -4439,7 +4444,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec)) {
+            if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
             rc = spun_ball_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

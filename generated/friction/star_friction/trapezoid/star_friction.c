@@ -2642,9 +2642,10 @@ static void star_friction_landed(const star_friction_ctx_t *c, const int *land, 
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int star_friction_chain_impact(const star_friction_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[STAR_FRICTION_M_DIM], vel[STAR_FRICTION_N], lam_now[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N];
     double racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
@@ -2671,7 +2672,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             rate += grad[r * STAR_FRICTION_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && star_friction_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || star_friction_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2874,8 +2875,9 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     double psi1[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double s_ev[STAR_FRICTION_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM];
     double f1[STAR_FRICTION_R_DIM], vel[STAR_FRICTION_N], f_eps;
-    int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         star_friction_at(c, t);
@@ -3055,8 +3057,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         t += s * tau;
         turn = -1;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < STAR_FRICTION_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < STAR_FRICTION_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             star_friction_velocity(c, q, v, p, vel);
@@ -3075,8 +3077,11 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 group[n_group++] = r;
             }
         }
-        if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }
@@ -3504,7 +3509,7 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (star_friction_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec)) {
+            if (star_friction_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
             rc = star_friction_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

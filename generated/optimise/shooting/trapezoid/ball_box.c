@@ -1989,9 +1989,10 @@ static void ball_box_held_accel(const ball_box_ctx_t *c, const double *q, const 
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[BALL_BOX_M_DIM], vel[BALL_BOX_N], lam_now[BALL_BOX_R_DIM], acc[BALL_BOX_N];
     double racc[BALL_BOX_R_DIM], psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N];
@@ -2018,7 +2019,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
         for (i = 0; i < BALL_BOX_N; ++i) {
             rate += grad[r * BALL_BOX_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ball_box_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || ball_box_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2207,8 +2208,9 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     double psi1[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
     double s_ev[BALL_BOX_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_BOX_N], f0[BALL_BOX_R_DIM];
     double f1[BALL_BOX_R_DIM], vel[BALL_BOX_N], f_eps;
-    int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[BALL_BOX_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         ball_box_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2300,8 +2302,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < BALL_BOX_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < BALL_BOX_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             ball_box_velocity(c, q, v, p, vel);
@@ -2315,8 +2317,11 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 group[n_group++] = r;
             }
         }
-        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }

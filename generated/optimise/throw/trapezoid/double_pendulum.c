@@ -2191,9 +2191,10 @@ static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const dou
 }
 
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
- * after it. */
+ * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
+ * speed of 0 and sank again at once) settles: held. */
 static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec)
+    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[DOUBLE_PENDULUM_M_DIM], vel[DOUBLE_PENDULUM_N], lam_now[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N];
     double racc[DOUBLE_PENDULUM_R_DIM], psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
@@ -2220,7 +2221,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             rate += grad[r * DOUBLE_PENDULUM_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && double_pendulum_settles(c, rate, racc[r], e)) {
+        if (c->tol->grazing_contact && ((again && again[r]) || double_pendulum_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2409,8 +2410,9 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double psi1[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
     double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
-    int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, r, r0, start, any, pulled, n_group;
+    int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
+    int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     for (;;) {
         double_pendulum_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2502,8 +2504,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         t += s * tau;
         tau = (1.0 - s) * tau;
-        for (r = 0; r < DOUBLE_PENDULUM_R && s != 0.0; ++r) {
-            passed[r] = 0;
+        for (r = 0; r < DOUBLE_PENDULUM_R && s > c->tol->simultaneous; ++r) { /* a later instant */
+            passed[r] = hit[r] = 0;
         }
         if (ev[r0] == 1) {
             double_pendulum_velocity(c, q, v, p, vel);
@@ -2517,8 +2519,11 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                 group[n_group++] = r;
             }
         }
-        if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec)) {
+        if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
             return 1;
+        }
+        for (g = 0; g < n_group; ++g) {
+            hit[group[g]] = 1;
         }
     }
 }
