@@ -414,6 +414,8 @@ class FrictionModes:
                                 break
                     frac = 0.0 if g0 <= 0.0 else illinois(sliding, g0, g1, 1e-14, 1e-13, LIFT_ITER, w, lo)
                     events[sr] = ("stop", frac)
+            elif sr in self._stuck_on:
+                continue  # sticking on at this instant, its force out of the cone (SustainedSteps._chain)
             elif self.act[sr] or (self._partner[f] >= 0 and self.act[self._stick_rows[self._partner[f]]]):
                 g1 = self._cone_margin(f, f1, end.grad)
                 if g1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))):

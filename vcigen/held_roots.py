@@ -21,6 +21,7 @@ SLIDE_LEAVE = (
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
+STICK_CYCLES = 2  # slides from rest of one contact at one instant, each stopped at once, before it sticks on
 
 
 def span_add(basis: list, g) -> bool:

@@ -188,6 +188,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["jump_fallbacks"] = self.fallbacks
         res.stats["landing_friction_dropped"] = self.friction_dropped
         res.stats["loads_passed"] = self.passes
+        res.stats["sticks_kept"] = self.sticks_kept
         if tan is not None:
             tan.attach(res, step)
         return res
@@ -363,6 +364,19 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
             f"{count} landing contact(s) took no friction impulse: their stick rows depend on the other "
             "contacts' (a box landing flat on several rough vertices), so the landing's tangential impulse "
             "is short (README, Known limits: Friction); the sustained friction after the landing is right",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
+
+
+def warn_sticks_kept(count: int, stacklevel: int = 2) -> None:
+    """Say how many stick <-> slip cycles at one instant were cut by sticking on
+    (``res.stats["sticks_kept"]``)."""
+    if count:
+        warnings.warn(
+            f"{count} time(s) a frictional contact cycled between stick and slip at one instant (its stick "
+            "force out of Coulomb's cone, its slide stopped at once) and was kept sticking for the rest of "
+            "that step, its friction above mu N there (README, Known limits: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

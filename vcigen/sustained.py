@@ -32,7 +32,7 @@ import numpy as np
 from .errors import SolverError
 from .friction_modes import FrictionModes
 from .held_impacts import HeldImpacts
-from .held_roots import DEP_EPS, EPS_LAM, LIFT_ITER, ROOT_EPS, End, illinois, span_add
+from .held_roots import DEP_EPS, EPS_LAM, LIFT_ITER, ROOT_EPS, STICK_CYCLES, End, illinois, span_add
 from .impact_step import Seg
 from .result import KINDS
 
@@ -95,6 +95,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
         self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
+        self.sticks_kept = 0  # stick <-> slip cycles at one instant cut by sticking on (_chain)
+        self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
         self._lam = np.zeros(k.r)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
         rule = k.system.rule
@@ -207,6 +209,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
+        slid: dict[int, int] = {}  # stick rows that slid from rest at this instant, how often
+        self._stuck_on.clear()
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
@@ -256,6 +260,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if events[r][0] in ("stop", "slide") and not self._sw_back(events[r][0]):
                     self._sw_lose()  # at the start: not located (a slide back at a stop: _sw_back)
                 plain = False
+                if events[r][0] == "slide" and slid.get(r, 0) >= STICK_CYCLES:
+                    self._stuck_on.add(r)  # stick <-> slip cycling at one instant: it sticks on (counted)
+                    self.sticks_kept += 1
+                    continue
+                slid[r] = slid.get(r, 0) + (events[r][0] == "slide")
                 if events[r][0] == "lift":
                     self._release(step, t_k, t, r, self._pass_load(q, self._velocity(q, v, p), r, passed))
                     passed.add(r)
@@ -299,7 +308,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
-                passed, hit = set(), set()
+                passed, hit, slid = set(), set(), {}
+                self._stuck_on.clear()
             if events[r0][0] == "lift":
                 self._release(step, t_k, t, r0, self._pass_load(q, self._velocity(q, v, p), r0, passed))
                 passed.add(r0)

@@ -339,6 +339,7 @@ class CRun:
         stats["jump_fallbacks"] = self.sus.fallbacks
         stats["landing_friction_dropped"] = self.sus.friction_dropped
         stats["loads_passed"] = self.sus.passes
+        stats["sticks_kept"] = self.sus.sticks_kept
         return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:

@@ -89,6 +89,7 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("fallbacks", ctypes.c_long),
             ("friction_dropped", ctypes.c_long),
             ("passes", ctypes.c_long),
+            ("sticks_kept", ctypes.c_long),
             ("events", ctypes.c_int),
             ("slip", ctypes.c_double * max(nf, 1)),
             ("ref", ctypes.c_double * max(nf, 1)),

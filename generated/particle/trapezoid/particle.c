@@ -1102,6 +1102,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define PARTICLE_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define PARTICLE_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define PARTICLE_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };

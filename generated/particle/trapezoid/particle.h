@@ -97,6 +97,7 @@ typedef struct {
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     long friction_dropped;             /* in/out: landing contacts whose friction was left out (law_lands) */
     long passes;                       /* in/out: lift-offs whose load a riding row took (pass_load) */
+    long sticks_kept;                  /* in/out: stick <-> slip cycles at one instant cut by sticking on (chain) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
     double slip[PARTICLE_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
     double ref[PARTICLE_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */

@@ -1878,6 +1878,7 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define CUBE_SETTLES_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define CUBE_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int cube_settles_row_contact[CUBE_SETTLES_R_DIM] = { 0, 1, 2, 3, };

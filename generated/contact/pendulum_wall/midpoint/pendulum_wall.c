@@ -1327,6 +1327,7 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define PENDULUM_WALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define PENDULUM_WALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define PENDULUM_WALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };

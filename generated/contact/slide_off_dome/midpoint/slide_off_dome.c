@@ -1298,6 +1298,7 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SLIDE_OFF_DOME_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define SLIDE_OFF_DOME_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define SLIDE_OFF_DOME_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int slide_off_dome_row_contact[SLIDE_OFF_DOME_R_DIM] = { 0, };

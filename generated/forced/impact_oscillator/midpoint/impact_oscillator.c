@@ -919,6 +919,7 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define IMPACT_OSCILLATOR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int impact_oscillator_row_contact[IMPACT_OSCILLATOR_R_DIM] = { 0, };

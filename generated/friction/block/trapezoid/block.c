@@ -1100,6 +1100,7 @@ static inline int block_held(const block_sustain_t *sus)
 #define BLOCK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define BLOCK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define BLOCK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define BLOCK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int block_row_contact[BLOCK_R_DIM] = { 0, -1, };
@@ -2594,6 +2595,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int slid[BLOCK_R_DIM] = {0}; /* stick rows that slid from rest at this instant, how often */
+    int stuck[BLOCK_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         block_at(c, t);
@@ -2687,8 +2690,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) {
-                /* sticking: does its force leave the cone inside the segment? */
+            } else if (!stuck[sr] && (c->sus->act[sr])) {
+                /* sticking (not sticking on at this instant, stuck): does its force leave the cone inside the segment? */
                 double psi0[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N], curv0[BLOCK_R_DIM];
                 block_rows(q1, u1, c->par, psi0, grad0, curv0);
                 g1 = block_cone_margin(c, i, f1, grad0);
@@ -2712,6 +2715,12 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (ev[start] == 4 && slid[start] >= BLOCK_STICK_CYCLES) { /* cycling: it sticks on */
+                stuck[start] = 1;
+                ++c->sus->sticks_kept;
+                continue;
+            }
+            slid[start] += ev[start] == 4;
             if (ev[start] >= 3) { /* stick <-> slip at one instant: counted, never a loop */
                 if (block_count_event(c)) {
                     return 1;
@@ -2775,6 +2784,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         tau = (1.0 - s) * tau;
         for (r = 0; r < BLOCK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
+            slid[r] = stuck[r] = 0;
         }
         if (ev[r0] == 1) {
             block_velocity(c, q, v, p, vel);

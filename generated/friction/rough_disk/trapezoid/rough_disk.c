@@ -1180,6 +1180,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define ROUGH_DISK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int rough_disk_row_contact[ROUGH_DISK_R_DIM] = { 0, -1, };
@@ -2674,6 +2675,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest at this instant, how often */
+    int stuck[ROUGH_DISK_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         rough_disk_at(c, t);
@@ -2767,8 +2770,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) {
-                /* sticking: does its force leave the cone inside the segment? */
+            } else if (!stuck[sr] && (c->sus->act[sr])) {
+                /* sticking (not sticking on at this instant, stuck): does its force leave the cone inside the segment? */
                 double psi0[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv0[ROUGH_DISK_R_DIM];
                 rough_disk_rows(q1, u1, c->par, psi0, grad0, curv0);
                 g1 = rough_disk_cone_margin(c, i, f1, grad0);
@@ -2792,6 +2795,12 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (ev[start] == 4 && slid[start] >= ROUGH_DISK_STICK_CYCLES) { /* cycling: it sticks on */
+                stuck[start] = 1;
+                ++c->sus->sticks_kept;
+                continue;
+            }
+            slid[start] += ev[start] == 4;
             if (ev[start] >= 3) { /* stick <-> slip at one instant: counted, never a loop */
                 if (rough_disk_count_event(c)) {
                     return 1;
@@ -2855,6 +2864,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         tau = (1.0 - s) * tau;
         for (r = 0; r < ROUGH_DISK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
+            slid[r] = stuck[r] = 0;
         }
         if (ev[r0] == 1) {
             rough_disk_velocity(c, q, v, p, vel);

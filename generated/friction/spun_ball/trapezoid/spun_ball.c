@@ -1267,6 +1267,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -3557,6 +3558,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int slid[SPUN_BALL_R_DIM] = {0}; /* stick rows that slid from rest at this instant, how often */
+    int stuck[SPUN_BALL_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         spun_ball_at(c, t);
@@ -3658,8 +3661,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr] || (spun_ball_partner[i] >= 0 && c->sus->act[spun_ball_stick_row[spun_ball_partner[i]]])) {
-                /* sticking: does its force leave the cone inside the segment? */
+            } else if (!stuck[sr] && (c->sus->act[sr] || (spun_ball_partner[i] >= 0 && c->sus->act[spun_ball_stick_row[spun_ball_partner[i]]]))) {
+                /* sticking (not sticking on at this instant, stuck): does its force leave the cone inside the segment? */
                 double psi0[SPUN_BALL_R_DIM], grad0[SPUN_BALL_R_DIM * SPUN_BALL_N], curv0[SPUN_BALL_R_DIM];
                 spun_ball_rows(q1, u1, c->par, psi0, grad0, curv0);
                 g1 = spun_ball_cone_margin(c, i, f1, grad0);
@@ -3683,6 +3686,12 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (ev[start] == 4 && slid[start] >= SPUN_BALL_STICK_CYCLES) { /* cycling: it sticks on */
+                stuck[start] = 1;
+                ++c->sus->sticks_kept;
+                continue;
+            }
+            slid[start] += ev[start] == 4;
             if (ev[start] >= 3) { /* stick <-> slip at one instant: counted, never a loop */
                 if (spun_ball_count_event(c)) {
                     return 1;
@@ -3746,6 +3755,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         tau = (1.0 - s) * tau;
         for (r = 0; r < SPUN_BALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
+            slid[r] = stuck[r] = 0;
         }
         if (ev[r0] == 1) {
             spun_ball_velocity(c, q, v, p, vel);

@@ -1375,6 +1375,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define STAR_FRICTION_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define STAR_FRICTION_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_friction_row_contact[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, -1, };
@@ -2878,6 +2879,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int slid[STAR_FRICTION_R_DIM] = {0}; /* stick rows that slid from rest at this instant, how often */
+    int stuck[STAR_FRICTION_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         star_friction_at(c, t);
@@ -2971,8 +2974,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     }
                     ev[sr] = 3;
                 }
-            } else if (c->sus->act[sr]) {
-                /* sticking: does its force leave the cone inside the segment? */
+            } else if (!stuck[sr] && (c->sus->act[sr])) {
+                /* sticking (not sticking on at this instant, stuck): does its force leave the cone inside the segment? */
                 double psi0[STAR_FRICTION_R_DIM], grad0[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv0[STAR_FRICTION_R_DIM];
                 star_friction_rows(q1, u1, c->par, psi0, grad0, curv0);
                 g1 = star_friction_cone_margin(c, i, f1, grad0);
@@ -2996,6 +2999,12 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (ev[start] == 4 && slid[start] >= STAR_FRICTION_STICK_CYCLES) { /* cycling: it sticks on */
+                stuck[start] = 1;
+                ++c->sus->sticks_kept;
+                continue;
+            }
+            slid[start] += ev[start] == 4;
             if (ev[start] >= 3) { /* stick <-> slip at one instant: counted, never a loop */
                 if (star_friction_count_event(c)) {
                     return 1;
@@ -3059,6 +3068,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         tau = (1.0 - s) * tau;
         for (r = 0; r < STAR_FRICTION_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
+            slid[r] = stuck[r] = 0;
         }
         if (ev[r0] == 1) {
             star_friction_velocity(c, q, v, p, vel);

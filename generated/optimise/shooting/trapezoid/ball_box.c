@@ -1313,6 +1313,7 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define BALL_BOX_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define BALL_BOX_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define BALL_BOX_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_box_row_contact[BALL_BOX_R_DIM] = { 0, 1, 2, 3, };

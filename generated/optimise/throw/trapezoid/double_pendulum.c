@@ -1514,6 +1514,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define DOUBLE_PENDULUM_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define DOUBLE_PENDULUM_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
+#define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
