@@ -61,7 +61,7 @@ class FrictionModes:
             if self._held_rows[f] and self._mu_f[f] > 0.0 and not self.act[sr] and self._slip[f] == 0.0:
                 self._freeze_branch(f, q)
                 sliding = float(k.rows(q, u)[1][sr] @ u)
-                if abs(sliding) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+                if abs(sliding) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))) or self._jammed:
                     self._stick(f, q, u)
                 else:
                     self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
@@ -136,7 +136,7 @@ class FrictionModes:
                 self._freeze_branch(f, q)
                 self._freeze_branch(p, q)
                 w = self._sliding(f, p, k.rows(q, u)[1], u)
-                if math.hypot(*w) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+                if math.hypot(*w) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))) or self._jammed:
                     self._stick(f, q, u)
                     self._stick(p, q, u)
                     continue

@@ -21,7 +21,8 @@ SLIDE_LEAVE = (
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
-STICK_CYCLES = 2  # slides from rest of one contact at one instant, each stopped at once, before it sticks on
+STICK_CYCLES = 2  # slides from rest of one stick row in a step, each stopped at once, before it sticks on
+JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the held contacts stick (a jam)
 
 
 def span_add(basis: list, g) -> bool:

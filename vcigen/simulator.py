@@ -114,7 +114,7 @@ class Simulator:
         self._finish(res, mu_f, par)
         warn_reflected(res.stats.get("grazing_reflected", 0))
         warn_friction_dropped(res.stats.get("landing_friction_dropped", 0))
-        warn_sticks_kept(res.stats.get("sticks_kept", 0))
+        warn_sticks_kept(res.stats.get("sticks_kept", 0), res.stats.get("jams", 0))
         return res
 
     def simulate_many(

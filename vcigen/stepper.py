@@ -189,6 +189,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["landing_friction_dropped"] = self.friction_dropped
         res.stats["loads_passed"] = self.passes
         res.stats["sticks_kept"] = self.sticks_kept
+        res.stats["jams"] = self.jams
         if tan is not None:
             tan.attach(res, step)
         return res
@@ -369,14 +370,22 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
         )
 
 
-def warn_sticks_kept(count: int, stacklevel: int = 2) -> None:
+def warn_sticks_kept(count: int, jams: int = 0, stacklevel: int = 2) -> None:
     """Say how many stick <-> slip cycles at one instant were cut by sticking on
-    (``res.stats["sticks_kept"]``)."""
+    (``res.stats["sticks_kept"]``) and how many lift-off <-> landing cycles by jamming (``"jams"``)."""
     if count:
         warnings.warn(
             f"{count} time(s) a frictional contact cycled between stick and slip at one instant (its stick "
             "force out of Coulomb's cone, its slide stopped at once) and was kept sticking for the rest of "
             "that step, its friction above mu N there (README, Known limits: Friction)",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
+    if jams:
+        warnings.warn(
+            f"{jams} time(s) a contact lifted off and landed again at one instant under sliding friction "
+            "(Painleve's inconsistency) and every held frictional contact was made to stick there, its "
+            "friction not bounded by mu N (README, Known limits: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

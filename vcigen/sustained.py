@@ -32,7 +32,17 @@ import numpy as np
 from .errors import SolverError
 from .friction_modes import FrictionModes
 from .held_impacts import HeldImpacts
-from .held_roots import DEP_EPS, EPS_LAM, LIFT_ITER, ROOT_EPS, STICK_CYCLES, End, illinois, span_add
+from .held_roots import (
+    DEP_EPS,
+    EPS_LAM,
+    JAM_CYCLES,
+    LIFT_ITER,
+    ROOT_EPS,
+    STICK_CYCLES,
+    End,
+    illinois,
+    span_add,
+)
 from .impact_step import Seg
 from .result import KINDS
 
@@ -97,6 +107,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
         self.sticks_kept = 0  # stick <-> slip cycles at one instant cut by sticking on (_chain)
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
+        self.jams = 0  # lift-off <-> landing cycles at one instant resolved by sticking (_jam)
+        self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
         self._lam = np.zeros(k.r)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
         rule = k.system.rule
@@ -209,8 +221,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
-        slid: dict[int, int] = {}  # stick rows that slid from rest at this instant, how often
+        slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
+        relands: dict[
+            int, int
+        ] = {}  # rows that lifted off (or passed their load) in this step: landings since
         self._stuck_on.clear()
+        self._jammed = False
         while True:
             self._at(t)
             if tau <= 1e-13 * h:
@@ -250,6 +266,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                         "lift",
                         self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
                     )
+            for r, (kind, s) in events.items():  # within the least sub-step (1e-13 h): at the start
+                events[r] = (kind, 0.0 if s * tau <= 1e-13 * h else s)
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
                 # a friction switch first: a stick force out of its cone says nothing of the normal force
                 # (sticking, it may pull; slipping, it presses), and a release there would land again at once
@@ -266,8 +284,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     continue
                 slid[r] = slid.get(r, 0) + (events[r][0] == "slide")
                 if events[r][0] == "lift":
-                    self._release(step, t_k, t, r, self._pass_load(q, self._velocity(q, v, p), r, passed))
+                    rider = self._pass_load(q, self._velocity(q, v, p), r, passed)
+                    self._release(step, t_k, t, r, rider)
                     passed.add(r)
+                    relands.setdefault(r, 0)
                 else:
                     kind = "turn" if events[r][0] == "stop" and r == turn else events[r][0]
                     before = self._sw_state()
@@ -308,11 +328,14 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             t, tau, guess = t + s * tau, (1.0 - s) * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
-                passed, hit, slid = set(), set(), {}
+                passed, hit = set(), set()
+                self._jammed = False
                 self._stuck_on.clear()
             if events[r0][0] == "lift":
-                self._release(step, t_k, t, r0, self._pass_load(q, self._velocity(q, v, p), r0, passed))
+                rider = self._pass_load(q, self._velocity(q, v, p), r0, passed)
+                self._release(step, t_k, t, r0, rider)
                 passed.add(r0)
+                relands.setdefault(r0, 0)
                 continue
             if events[r0][0] in ("stop", "slide"):
                 before = self._sw_state()
@@ -322,6 +345,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, hit & set(group))
             hit |= set(group)
+            for r in [r for r in group if r in relands and self.act[r]]:  # lifted off, landed again, held
+                relands[r] += 1
+                if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:
+                    self._jam(q, self._velocity(q, v, p))
 
     def _free_rest(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
         """A free remainder of the grid step from ``(q, p)``: smooth (46), or the impact chain (47)-(79)."""
@@ -514,6 +541,20 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         if not any(self.act[i] for i in range(k.r) if k.row_contact[i] == j):
             self.liftoffs.append((float(t), k.contact_names[j]))
 
+    def _jam(self, q, u) -> None:
+        """A row lifted off and landed again ``JAM_CYCLES`` times in one step (its force below 0 held, sinking
+        free: Painleve's inconsistency under sliding friction, high ``mu``): every held frictional contact
+        sticks from here (the tangential impact of its theory, the sliding stopped at once by the stick rows'
+        impulse, not bounded by the cones), counted in ``jams``."""
+        k = self.k
+        self.jams += 1
+        self._jammed = True
+        for f, j in enumerate(k.frictional):
+            held = any(self.act[r] and k.row_contact[r] == j for r in range(k.r))
+            if held and self._mu_f[f] > 0.0 and not self.act[self._stick_rows[f]] and self._ride[f] < 0:
+                self._stick(f, q, u)
+        self._set_friction()
+
     def _pass_load(self, q, u, r: int, barred) -> int:
         """The riding row that takes held row ``r``'s load at its lift-off (its force below 0), or -1.
 
@@ -573,7 +614,13 @@ class SustainedSteps(FrictionModes, HeldImpacts):
     # -- events inside a constrained segment -------------------------------------------
     def _sub_end(self, step, t_k, q, p, tau, s, guess):
         """The constrained sub-step map at fraction ``s``: ``(v, end, u_end)`` (the evaluations at its end and
-        the end velocity)."""
+        the end velocity). A sub-step no longer than the chain's least (``1e-13 h``: a root finder's point at
+        the segment's start) is its start, ``(guess, start, u)``: its solve, at ``tau ~ 1e-18``, had no
+        reliable Newton (NaN on CasADi's path)."""
+        if s * tau <= 1e-13 * self._h:
+            u = self._velocity(q, guess, p)
+            psi, grad, curv = self.k.rows(q, u)
+            return guess, End(psi, grad, curv, self.k.dynamics(q, u)[0], self.k.legendre(q, u)[1]), u
         v, *_, u1, end = self._constrained(step, t_k, q, p, s * tau, guess)
         return v, end, u1
 

@@ -340,6 +340,7 @@ class CRun:
         stats["landing_friction_dropped"] = self.sus.friction_dropped
         stats["loads_passed"] = self.sus.passes
         stats["sticks_kept"] = self.sus.sticks_kept
+        stats["jams"] = self.sus.jams
         return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:

@@ -1380,7 +1380,8 @@ static inline int star_held(const star_sustain_t *sus)
 #define STAR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define STAR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define STAR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define STAR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define STAR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define STAR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_row_contact[STAR_R_DIM] = { 0, 0, 0, 0, };
@@ -1758,11 +1759,21 @@ static void star_end_forces(const star_ctx_t *c, const double *q1, const double 
     star_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int star_sub_end(const star_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[STAR_R_DIM], lam1[STAR_R_DIM], p1[STAR_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < STAR_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        star_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return star_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -2279,6 +2290,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     int ev[STAR_R_DIM], group[STAR_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[STAR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         star_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2313,6 +2325,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
                     if (star_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2321,7 +2334,8 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             star_velocity(c, q, vv, p, vel);
-            star_release(c, t, start, star_pass_load(c, q, vel, start, passed));
+            rider = star_pass_load(c, q, vel, start, passed);
+            star_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -2375,7 +2389,8 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         }
         if (ev[r0] == 1) {
             star_velocity(c, q, v, p, vel);
-            star_release(c, t, r0, star_pass_load(c, q, vel, r0, passed));
+            rider = star_pass_load(c, q, vel, r0, passed);
+            star_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }

@@ -1885,7 +1885,8 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define CUBE_SETTLES_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define CUBE_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define CUBE_SETTLES_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int cube_settles_row_contact[CUBE_SETTLES_R_DIM] = { 0, 1, 2, 3, };
@@ -2264,11 +2265,21 @@ static void cube_settles_end_forces(const cube_settles_ctx_t *c, const double *q
     cube_settles_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int cube_settles_sub_end(const cube_settles_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[CUBE_SETTLES_R_DIM], lam1[CUBE_SETTLES_R_DIM], p1[CUBE_SETTLES_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        cube_settles_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return cube_settles_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -2785,6 +2796,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     int ev[CUBE_SETTLES_R_DIM], group[CUBE_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[CUBE_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[CUBE_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         cube_settles_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2819,6 +2831,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
                     if (cube_settles_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2827,7 +2840,8 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             cube_settles_velocity(c, q, vv, p, vel);
-            cube_settles_release(c, t, start, cube_settles_pass_load(c, q, vel, start, passed));
+            rider = cube_settles_pass_load(c, q, vel, start, passed);
+            cube_settles_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -2881,7 +2895,8 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         }
         if (ev[r0] == 1) {
             cube_settles_velocity(c, q, v, p, vel);
-            cube_settles_release(c, t, r0, cube_settles_pass_load(c, q, vel, r0, passed));
+            rider = cube_settles_pass_load(c, q, vel, r0, passed);
+            cube_settles_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }

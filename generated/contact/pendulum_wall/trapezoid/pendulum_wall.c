@@ -1332,7 +1332,8 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define PENDULUM_WALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define PENDULUM_WALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define PENDULUM_WALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define PENDULUM_WALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define PENDULUM_WALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };
@@ -1710,11 +1711,21 @@ static void pendulum_wall_end_forces(const pendulum_wall_ctx_t *c, const double 
     pendulum_wall_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int pendulum_wall_sub_end(const pendulum_wall_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[PENDULUM_WALL_R_DIM], lam1[PENDULUM_WALL_R_DIM], p1[PENDULUM_WALL_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        pendulum_wall_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return pendulum_wall_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -2231,6 +2242,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         pendulum_wall_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2265,6 +2277,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
                     if (pendulum_wall_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2273,7 +2286,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             pendulum_wall_velocity(c, q, vv, p, vel);
-            pendulum_wall_release(c, t, start, pendulum_wall_pass_load(c, q, vel, start, passed));
+            rider = pendulum_wall_pass_load(c, q, vel, start, passed);
+            pendulum_wall_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -2327,7 +2341,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         }
         if (ev[r0] == 1) {
             pendulum_wall_velocity(c, q, v, p, vel);
-            pendulum_wall_release(c, t, r0, pendulum_wall_pass_load(c, q, vel, r0, passed));
+            rider = pendulum_wall_pass_load(c, q, vel, r0, passed);
+            pendulum_wall_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }

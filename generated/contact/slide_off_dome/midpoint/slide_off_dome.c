@@ -1298,7 +1298,8 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SLIDE_OFF_DOME_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define SLIDE_OFF_DOME_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define SLIDE_OFF_DOME_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define SLIDE_OFF_DOME_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define SLIDE_OFF_DOME_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int slide_off_dome_row_contact[SLIDE_OFF_DOME_R_DIM] = { 0, };
@@ -1676,11 +1677,21 @@ static void slide_off_dome_end_forces(const slide_off_dome_ctx_t *c, const doubl
     slide_off_dome_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int slide_off_dome_sub_end(const slide_off_dome_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[SLIDE_OFF_DOME_R_DIM], lam1[SLIDE_OFF_DOME_R_DIM], p1[SLIDE_OFF_DOME_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        slide_off_dome_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return slide_off_dome_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -2197,6 +2208,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         slide_off_dome_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2231,6 +2243,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
                     if (slide_off_dome_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2239,7 +2252,8 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             slide_off_dome_velocity(c, q, vv, p, vel);
-            slide_off_dome_release(c, t, start, slide_off_dome_pass_load(c, q, vel, start, passed));
+            rider = slide_off_dome_pass_load(c, q, vel, start, passed);
+            slide_off_dome_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -2293,7 +2307,8 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         }
         if (ev[r0] == 1) {
             slide_off_dome_velocity(c, q, v, p, vel);
-            slide_off_dome_release(c, t, r0, slide_off_dome_pass_load(c, q, vel, r0, passed));
+            rider = slide_off_dome_pass_load(c, q, vel, r0, passed);
+            slide_off_dome_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }

@@ -919,7 +919,8 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define IMPACT_OSCILLATOR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define IMPACT_OSCILLATOR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int impact_oscillator_row_contact[IMPACT_OSCILLATOR_R_DIM] = { 0, };
@@ -1299,11 +1300,21 @@ static void impact_oscillator_end_forces(const impact_oscillator_ctx_t *c, const
     impact_oscillator_at(c, t0);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int impact_oscillator_sub_end(const impact_oscillator_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[IMPACT_OSCILLATOR_R_DIM], lam1[IMPACT_OSCILLATOR_R_DIM], p1[IMPACT_OSCILLATOR_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        impact_oscillator_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return impact_oscillator_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -1821,6 +1832,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         impact_oscillator_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -1855,6 +1867,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
                     if (impact_oscillator_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -1863,7 +1876,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             impact_oscillator_velocity(c, q, vv, p, vel);
-            impact_oscillator_release(c, t, start, impact_oscillator_pass_load(c, q, vel, start, passed));
+            rider = impact_oscillator_pass_load(c, q, vel, start, passed);
+            impact_oscillator_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -1918,7 +1932,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         }
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);
-            impact_oscillator_release(c, t, r0, impact_oscillator_pass_load(c, q, vel, r0, passed));
+            rider = impact_oscillator_pass_load(c, q, vel, r0, passed);
+            impact_oscillator_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }

@@ -95,7 +95,9 @@ typedef struct {
     long friction_dropped;             /* in/out: landing contacts whose friction was left out (law_lands) */
     long passes;                       /* in/out: lift-offs whose load a riding row took (pass_load) */
     long sticks_kept;                  /* in/out: stick <-> slip cycles at one instant cut by sticking on (chain) */
+    long jams;                         /* in/out: lift-off <-> landing cycles at one instant resolved by sticking (jam) */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
+    int jammed;                        /* at a jam in this instant: every held frictional contact sticks */
     double slip[BLOCK_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
     double ref[BLOCK_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
     double branch[BLOCK_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */

@@ -1180,7 +1180,8 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define ROUGH_DISK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define ROUGH_DISK_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int rough_disk_row_contact[ROUGH_DISK_R_DIM] = { 0, -1, };
@@ -1611,11 +1612,21 @@ static void rough_disk_end_forces(const rough_disk_ctx_t *c, const double *q1, c
     rough_disk_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int rough_disk_sub_end(const rough_disk_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[ROUGH_DISK_R_DIM], lam1[ROUGH_DISK_R_DIM], p1[ROUGH_DISK_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        rough_disk_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return rough_disk_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -1686,6 +1697,25 @@ static void rough_disk_stick(const rough_disk_ctx_t *c, int f, const double *q, 
     }
 }
 
+/* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
+ * Painleve's inconsistency under sliding friction): every held frictional contact sticks from here (the tangential
+ * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
+static void rough_disk_jam(const rough_disk_ctx_t *c, const double *q, const double *u)
+{
+    int f, r, held;
+    ++c->sus->jams;
+    c->sus->jammed = 1;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        for (r = 0, held = 0; r < ROUGH_DISK_R; ++r) {
+            held = held || (c->sus->act[r] && rough_disk_row_contact[r] == rough_disk_fric_contact[f]);
+        }
+        if (held && c->mu_f[f] > 0.0 && !c->sus->act[rough_disk_stick_row[f]] && c->sus->ride[f] < 0) {
+            rough_disk_stick(c, f, q, u);
+        }
+    }
+    rough_disk_set_friction(c);
+}
+
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
  * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
@@ -1727,7 +1757,7 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
             for (i = 0, sliding = 0.0; i < ROUGH_DISK_N; ++i) {
                 sliding += grad[sr * ROUGH_DISK_N + i] * u[i];
             }
-            if (fabs(sliding) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u))) {
+            if (fabs(sliding) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u)) || c->sus->jammed) {
                 rough_disk_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
@@ -2675,8 +2705,14 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest at this instant, how often */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
+    int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
     int stuck[ROUGH_DISK_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
+    int relands[ROUGH_DISK_R_DIM]; /* rows that lifted off (or passed their load) in this step: landings (-1: none) */
+    c->sus->jammed = 0;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        relands[r] = -1;
+    }
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         rough_disk_at(c, t);
@@ -2714,6 +2750,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     if (rough_disk_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2789,6 +2826,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             }
         }
         start = -1;
+        for (r = 0; r < ROUGH_DISK_R; ++r) { /* an event within the least sub-step (1e-13 h) is at the start */
+            s_ev[r] = ev[r] && s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r];
+        }
         for (r = 0; r < ROUGH_DISK_R; ++r) { /* a friction switch first (SustainedSteps._chain) */
             if (ev[r] && s_ev[r] == 0.0 && (start < 0 || (ev[r] >= 3 && ev[start] < 3))) {
                 start = r;
@@ -2812,8 +2852,10 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 continue;
             }
             rough_disk_velocity(c, q, vv, p, vel);
-            rough_disk_release(c, t, start, rough_disk_pass_load(c, q, vel, start, passed));
+            rider = rough_disk_pass_load(c, q, vel, start, passed);
+            rough_disk_release(c, t, start, rider);
             passed[start] = 1;
+            relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
         rough_disk_rows(q1, vv, c->par, psi1, grad, curv);
@@ -2864,12 +2906,15 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         tau = (1.0 - s) * tau;
         for (r = 0; r < ROUGH_DISK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
-            slid[r] = stuck[r] = 0;
+            stuck[r] = 0;
+            c->sus->jammed = 0;
         }
         if (ev[r0] == 1) {
             rough_disk_velocity(c, q, v, p, vel);
-            rough_disk_release(c, t, r0, rough_disk_pass_load(c, q, vel, r0, passed));
+            rider = rough_disk_pass_load(c, q, vel, r0, passed);
+            rough_disk_release(c, t, r0, rider);
             passed[r0] = 1;
+            relands[r0] = relands[r0] < 0 ? 0 : relands[r0];
             continue;
         }
         if (ev[r0] >= 3) { /* a friction event: stick or slip from here */
@@ -2888,6 +2933,11 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            r = group[g];
+            if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= ROUGH_DISK_JAM_CYCLES && !c->sus->jammed) {
+                rough_disk_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
+                rough_disk_jam(c, q, vel);
+            }
         }
     }
 }

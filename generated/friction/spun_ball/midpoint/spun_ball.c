@@ -1266,7 +1266,8 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define SPUN_BALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -1699,11 +1700,21 @@ static void spun_ball_end_forces(const spun_ball_ctx_t *c, const double *q1, con
     spun_ball_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int spun_ball_sub_end(const spun_ball_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[SPUN_BALL_R_DIM], lam1[SPUN_BALL_R_DIM], p1[SPUN_BALL_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        spun_ball_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return spun_ball_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -1795,6 +1806,25 @@ static void spun_ball_stick(const spun_ball_ctx_t *c, int f, const double *q, co
     }
 }
 
+/* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
+ * Painleve's inconsistency under sliding friction): every held frictional contact sticks from here (the tangential
+ * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
+static void spun_ball_jam(const spun_ball_ctx_t *c, const double *q, const double *u)
+{
+    int f, r, held;
+    ++c->sus->jams;
+    c->sus->jammed = 1;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        for (r = 0, held = 0; r < SPUN_BALL_R; ++r) {
+            held = held || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
+        }
+        if (held && c->mu_f[f] > 0.0 && !c->sus->act[spun_ball_stick_row[f]] && c->sus->ride[f] < 0) {
+            spun_ball_stick(c, f, q, u);
+        }
+    }
+    spun_ball_set_friction(c);
+}
+
 static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau);
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -1838,7 +1868,7 @@ static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, 
             for (i = 0, sliding = 0.0; i < SPUN_BALL_N; ++i) {
                 sliding += grad[sr * SPUN_BALL_N + i] * u[i];
             }
-            if (fabs(sliding) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u))) {
+            if (fabs(sliding) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u)) || c->sus->jammed) {
                 spun_ball_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
@@ -2063,7 +2093,7 @@ static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, cons
             spun_ball_rows(q, u, c->par, psi, grad, curv);
             spun_ball_sliding(f, p, grad, u, w);
             nw = hypot(w[0], w[1]);
-            if (nw <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u))) {
+            if (nw <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u)) || c->sus->jammed) {
                 spun_ball_stick(c, f, q, u);
                 spun_ball_stick(c, p, q, u);
                 continue;
@@ -3557,8 +3587,14 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int slid[SPUN_BALL_R_DIM] = {0}; /* stick rows that slid from rest at this instant, how often */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
+    int slid[SPUN_BALL_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
     int stuck[SPUN_BALL_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
+    int relands[SPUN_BALL_R_DIM]; /* rows that lifted off (or passed their load) in this step: landings (-1: none) */
+    c->sus->jammed = 0;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        relands[r] = -1;
+    }
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         spun_ball_at(c, t);
@@ -3596,6 +3632,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     if (spun_ball_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -3679,6 +3716,9 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             }
         }
         start = -1;
+        for (r = 0; r < SPUN_BALL_R; ++r) { /* an event within the least sub-step (1e-13 h) is at the start */
+            s_ev[r] = ev[r] && s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r];
+        }
         for (r = 0; r < SPUN_BALL_R; ++r) { /* a friction switch first (SustainedSteps._chain) */
             if (ev[r] && s_ev[r] == 0.0 && (start < 0 || (ev[r] >= 3 && ev[start] < 3))) {
                 start = r;
@@ -3702,8 +3742,10 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 continue;
             }
             spun_ball_velocity(c, q, vv, p, vel);
-            spun_ball_release(c, t, start, spun_ball_pass_load(c, q, vel, start, passed));
+            rider = spun_ball_pass_load(c, q, vel, start, passed);
+            spun_ball_release(c, t, start, rider);
             passed[start] = 1;
+            relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
         spun_ball_rows(q1, vv, c->par, psi1, grad, curv);
@@ -3754,12 +3796,15 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         tau = (1.0 - s) * tau;
         for (r = 0; r < SPUN_BALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
-            slid[r] = stuck[r] = 0;
+            stuck[r] = 0;
+            c->sus->jammed = 0;
         }
         if (ev[r0] == 1) {
             spun_ball_velocity(c, q, v, p, vel);
-            spun_ball_release(c, t, r0, spun_ball_pass_load(c, q, vel, r0, passed));
+            rider = spun_ball_pass_load(c, q, vel, r0, passed);
+            spun_ball_release(c, t, r0, rider);
             passed[r0] = 1;
+            relands[r0] = relands[r0] < 0 ? 0 : relands[r0];
             continue;
         }
         if (ev[r0] >= 3) { /* a friction event: stick or slip from here */
@@ -3778,6 +3823,11 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            r = group[g];
+            if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= SPUN_BALL_JAM_CYCLES && !c->sus->jammed) {
+                spun_ball_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
+                spun_ball_jam(c, q, vel);
+            }
         }
     }
 }

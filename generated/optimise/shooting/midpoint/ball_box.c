@@ -1310,7 +1310,8 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define BALL_BOX_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define BALL_BOX_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define BALL_BOX_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define BALL_BOX_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define BALL_BOX_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_box_row_contact[BALL_BOX_R_DIM] = { 0, 1, 2, 3, };
@@ -1688,11 +1689,21 @@ static void ball_box_end_forces(const ball_box_ctx_t *c, const double *q1, const
     ball_box_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int ball_box_sub_end(const ball_box_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[BALL_BOX_R_DIM], lam1[BALL_BOX_R_DIM], p1[BALL_BOX_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        ball_box_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return ball_box_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -2209,6 +2220,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_BOX_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         ball_box_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2243,6 +2255,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                     if (ball_box_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2251,7 +2264,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             ball_box_velocity(c, q, vv, p, vel);
-            ball_box_release(c, t, start, ball_box_pass_load(c, q, vel, start, passed));
+            rider = ball_box_pass_load(c, q, vel, start, passed);
+            ball_box_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -2305,7 +2319,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         if (ev[r0] == 1) {
             ball_box_velocity(c, q, v, p, vel);
-            ball_box_release(c, t, r0, ball_box_pass_load(c, q, vel, r0, passed));
+            rider = ball_box_pass_load(c, q, vel, r0, passed);
+            ball_box_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }

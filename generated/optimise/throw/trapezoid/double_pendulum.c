@@ -1514,7 +1514,8 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define DOUBLE_PENDULUM_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define DOUBLE_PENDULUM_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
-#define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest at one instant before it sticks on */
+#define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define DOUBLE_PENDULUM_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -1893,11 +1894,21 @@ static void double_pendulum_end_forces(const double_pendulum_ctx_t *c, const dou
     double_pendulum_contact_forces(c, q1, u1, f);
 }
 
-/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). */
+/* SustainedSteps._sub_end: the constrained sub-step map at fraction s: (v, q_end, u_end). A sub-step no longer than
+ * the chain's least (1e-13 h: a root finder's point at the segment's start) is its start, (guess, q, u). */
 static int double_pendulum_sub_end(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau, double s,
     const double *guess, double *v, double *q1, double *u1)
 {
     double lam[DOUBLE_PENDULUM_R_DIM], lam1[DOUBLE_PENDULUM_R_DIM], p1[DOUBLE_PENDULUM_N], e_seg;
+    int i;
+    if (s * tau <= 1e-13 * c->h) {
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            v[i] = guess[i];
+            q1[i] = q[i];
+        }
+        double_pendulum_velocity(c, q, guess, p, u1);
+        return 0;
+    }
     return double_pendulum_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
@@ -2414,6 +2425,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         double_pendulum_at(c, t);
         if (tau <= 1e-13 * c->h) {
@@ -2448,6 +2460,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                     if (double_pendulum_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
                         return 1;
                     }
+                    s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
                         start = r;
                     }
@@ -2456,7 +2469,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             double_pendulum_velocity(c, q, vv, p, vel);
-            double_pendulum_release(c, t, start, double_pendulum_pass_load(c, q, vel, start, passed));
+            rider = double_pendulum_pass_load(c, q, vel, start, passed);
+            double_pendulum_release(c, t, start, rider);
             passed[start] = 1;
             continue;
         }
@@ -2510,7 +2524,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         if (ev[r0] == 1) {
             double_pendulum_velocity(c, q, v, p, vel);
-            double_pendulum_release(c, t, r0, double_pendulum_pass_load(c, q, vel, r0, passed));
+            rider = double_pendulum_pass_load(c, q, vel, r0, passed);
+            double_pendulum_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
         }
