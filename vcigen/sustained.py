@@ -105,9 +105,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.liftoffs: list[tuple[float, str]] = []
         self.kinds = {kind: 0 for kind in KINDS}
         self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
-        self.sticks_kept = 0  # stick <-> slip cycles at one instant cut by sticking on (_chain)
+        self.sticks_kept = 0  # stick <-> slip cycles (STICK_CYCLES slides in a step) cut by sticking on
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
-        self.jams = 0  # lift-off <-> landing cycles at one instant resolved by sticking (_jam)
+        self.jams = 0  # lift-off <-> landing cycles (JAM_CYCLES in a step) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
         self._lam = np.zeros(k.r)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
@@ -222,9 +222,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
-        relands: dict[
-            int, int
-        ] = {}  # rows that lifted off (or passed their load) in this step: landings since
+        relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
         self._stuck_on.clear()
         self._jammed = False
         while True:
@@ -580,9 +578,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if self.act[i] or i == r or i in barred or k.row_contact[i] < 0 or (stick and stick[i] >= 0):
                 continue
             g = grad[i]
-            if abs(psi[i]) > self.tol.admissible or not float(basis[-1] @ g) < -DEP_EPS * float(
-                np.linalg.norm(g)
-            ):
+            along = float(basis[-1] @ g)  # the sign of c_r
+            if abs(psi[i]) > self.tol.admissible or not along < -DEP_EPS * float(np.linalg.norm(g)):
                 continue
             if not span_add(list(basis), g):  # it rides on them
                 return i

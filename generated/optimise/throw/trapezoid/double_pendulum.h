@@ -86,8 +86,8 @@ typedef struct {
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     long friction_dropped;             /* in/out: landing contacts whose friction was left out (law_lands) */
     long passes;                       /* in/out: lift-offs whose load a riding row took (pass_load) */
-    long sticks_kept;                  /* in/out: stick <-> slip cycles at one instant cut by sticking on (chain) */
-    long jams;                         /* in/out: lift-off <-> landing cycles at one instant resolved by sticking (jam) */
+    long sticks_kept;                  /* in/out: stick <-> slip cycles (STICK_CYCLES in a step) cut by sticking on */
+    long jams;                         /* in/out: lift-off <-> landing cycles (JAM_CYCLES in a step): jam */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
     int jammed;                        /* at a jam in this instant: every held frictional contact sticks */
     double slip[DOUBLE_PENDULUM_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
