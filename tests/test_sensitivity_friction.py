@@ -411,3 +411,45 @@ def test_cone_impact_is_covered(backend: str) -> None:
     k = res.impacts[0].step + 1
     assert np.abs(res.sensitivity[k:, 3:5, 3:5]).max() <= 1e-3
     assert np.abs(res.sensitivity[k:, 3:5, 3:5] - res.sensitivity[k, 3:5, 3:5]).max() <= 1e-12  # in flight
+
+
+@cache
+def puck_timed(backend: str) -> vcigen.Simulator:
+    """The puck on the level floor with a plastic landing (``e = 0``) and a vertical force of time ``c t``
+    (``c = 0.1``, far below ``g``): a cone under forces of time."""
+    x, y, z, xd, yd, zd, t = sp.symbols("x y z xd yd zd t")
+    g, mu, c = sp.symbols("g mu c")
+    model = vcigen.Model(
+        name="sf_puck_timed",
+        q=[x, y, z],
+        qdot=[xd, yd, zd],
+        lagrangian=(xd**2 + yd**2 + zd**2) / 2 - g * z,
+        contacts={"floor": z},
+        params={g: G, mu: 0.5, c: 0.1},
+        forces=[0, 0, c * t],
+        time=t,
+        friction={"floor": (mu, (x, y))},
+        restitution={"floor": 0},
+    )
+    return vcigen.build(model, backend=backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_cone_landing_under_a_force_of_time_breaks_as_a_plastic_impact(backend: str) -> None:
+    """The tangent does not carry a cone's held events under forces of time (``_events_tangent``: its slots
+    hold the time fixed), so the rest of the step after a cone's plastic landing is a break with its own
+    reason, ``"plastic impact"`` (``Stepper._tangent_held``, C ``WHY_PLASTIC_IMPACT``), at the landing's
+    step: finite before it, NaN from it (``sensitivity_lost``). Dropped from 0.1 sliding at (0.7, 0.2), it
+    lands at sqrt(2 h0/g) (the force of time shifts it by ~1e-5); the cone's impulse mu |p_z| = 0.70 leaves
+    0.028 of its 0.728, which mu g stops 5.7 ms later, inside the landing step (7.2 ms left): at rest from
+    there. The same on both backends. The untimed puck's landing is carried (no break)."""
+    res = puck_timed(backend).simulate(
+        [0.0, 0.0, 0.1], [0.7, 0.2, 0.0], H, t_end=T, sensitivities=True, progress=False
+    )
+    (landing,) = res.impacts
+    assert landing.kind == "plastic" and abs(landing.t - math.sqrt(2 * 0.1 / G)) < 1e-4
+    assert res.sensitivity_breaks == [(landing.step, "plastic impact")]
+    assert res.stats["sensitivity_lost"] == landing.step
+    assert np.isfinite(res.sensitivity[: landing.step + 1]).all()
+    assert np.isnan(res.sensitivity[landing.step + 1 :]).all()
+    assert np.abs(res.p[landing.step + 1 :, :2]).max() < 1e-12
