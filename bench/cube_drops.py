@@ -35,6 +35,17 @@ G, A = cube_settles.G, cube_settles.A
 TIPPED = 1.4  # |theta| or |phi| above this: on another face (pitch: near the angles' singularity)
 
 
+def scene(rng: np.random.Generator, rough: bool) -> tuple[list, list, dict]:
+    """One random drop: ``(q0, v0, params)`` from ``z = 1``, tilted up to 0.5 rad, ``e`` 0 in half the drops
+    (else in [0, 1]), rough: ``mu`` in [0, 1]."""
+    q0 = [0.0, 0.0, 1.0, rng.uniform(0, 3), *rng.uniform(-0.5, 0.5, 2)]
+    v0 = [*rng.uniform(-2, 2, 2), rng.uniform(-2, 0.5), *rng.uniform(-3, 3, 3)]
+    params = {"e": float(rng.choice([0.0, rng.uniform(0, 1)]))}
+    if rough:
+        params["mu"] = float(rng.uniform(0, 1))
+    return q0, v0, params
+
+
 def drops(sim: vcigen.Simulator, n: int, seed: int, rough: bool) -> str:
     rng = np.random.default_rng(seed)
     errors: Counter = Counter()
@@ -44,11 +55,7 @@ def drops(sim: vcigen.Simulator, n: int, seed: int, rough: bool) -> str:
     )  # runs whose cycles at one instant were cut (stats: loads_passed, sticks_kept, jams)
     start = time.perf_counter()
     for _ in range(n):
-        q0 = [0.0, 0.0, 1.0, rng.uniform(0, 3), *rng.uniform(-0.5, 0.5, 2)]
-        v0 = [*rng.uniform(-2, 2, 2), rng.uniform(-2, 0.5), *rng.uniform(-3, 3, 3)]
-        params = {"e": float(rng.choice([0.0, rng.uniform(0, 1)]))}
-        if rough:
-            params["mu"] = float(rng.uniform(0, 1))
+        q0, v0, params = scene(rng, rough)
         try:
             res = sim.simulate(q0=q0, v0=v0, h=0.005, t_end=3.0, params=params)
         except vcigen.SolverError as err:

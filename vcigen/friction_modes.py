@@ -13,7 +13,18 @@ import numpy as np
 
 from .cone_split import null_combination, split
 from .derive import KINK
-from .held_roots import BRAKE, DEP_EPS, EPS_LAM, LIFT_ITER, SLIDE_EPS, SLIDE_LEAVE, End, illinois, span_add
+from .held_roots import (
+    BRAKE,
+    DEP_EPS,
+    EPS_LAM,
+    EPS_LIFT,
+    LIFT_ITER,
+    SLIDE_EPS,
+    SLIDE_LEAVE,
+    End,
+    illinois,
+    span_add,
+)
 
 
 class FrictionModes:
@@ -418,7 +429,7 @@ class FrictionModes:
                 continue  # sticking on at this instant, its force out of the cone (SustainedSteps._chain)
             elif self.act[sr] or (self._partner[f] >= 0 and self.act[self._stick_rows[self._partner[f]]]):
                 g1 = self._cone_margin(f, f1, end.grad)
-                if g1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))):
+                if g1 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1)))):  # as a lift-off: round-off
                     g0 = self._cone_margin(f, self._contact_forces(q, vel0), k.rows(q, vel0)[1])
 
                     def margin(c, w, f=f):

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .held_roots import SLIDE_EPS
+from .held_roots import SLIDE_EPS, span_add
 from .impulse_law import ImpulseLaw
 from .result import Impact
 
@@ -124,7 +124,9 @@ class HeldImpacts(ImpulseLaw):
         if leaving:  # each stays unless it leaves below the resolution, pulled back by the rows held after
             landed = self._landed(lands, slipped, plastic, leaving)
             after = self._held_accel(q, vel_p, leaving, plastic + landed)
-            for r in leaving:
+            for r in leaving:  # one in the span of the rows held after rides on them: it stays (_rides_after)
+                if self._rides_after(grad, r, leaving, plastic):
+                    continue
                 if not self._settles(float(grad[r] @ vel_p), after[r], 1.0, h):
                     self._release(step, t_k, t, r)
         for r in plastic:  # pressed in and settling: held (its force, checked next, may release it)
@@ -159,6 +161,19 @@ class HeldImpacts(ImpulseLaw):
         to it where it is on the other side, ``SustainedSteps._pass_load``)."""
         if not self._dependent(grad, r, sticks=False):
             self.act[r] = True
+
+    def _rides_after(self, grad, r: int, off, on) -> bool:
+        """Is row ``r``'s gradient in the span of the normal rows held after an impact (the active ones but
+        ``off``, and ``on``; in row order)? An active row the impact pulls off is then carried by them (its
+        normal speed and ``d2 psi/dt2`` are theirs, 0 to round-off, whose sign would decide its settle
+        test): it stays held, and a row landing dependent on it rides instead (:meth:`_hold`; a box's four
+        vertices on a face). Its force, checked next, may pass its load on (``SustainedSteps._pass_load``)."""
+        stick = self.k.row_stick
+        basis: list = []
+        for i in range(self.k.r):
+            if i != r and (self.act[i] and i not in off or i in on) and not (stick and stick[i] >= 0):
+                span_add(basis, grad[i])
+        return not span_add(basis, grad[r])
 
     def _landed(self, lands, slipped, plastic, off) -> list[int]:
         """The stick rows of the contacts that landed and stuck in the impulse law (``lands``,

@@ -13,6 +13,11 @@ import numpy as np
 ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at the bracket ends|
 LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
+# A held row's force below -EPS_LIFT (1 + the largest held force) is a lift-off; above, round-off: a box
+# at rest on a face holds three vertices, one with a force 0 in exact arithmetic (the load on the diagonal
+# through the other two), whose round-off through the Delassus solve reached 6e-14 of the largest (CasADi;
+# 2.5e-16 in C).
+EPS_LIFT = 1e-12
 SLIDE_EPS = 1e-12  # a sliding velocity below this (relative to 1 + |u|) is 0: the contact sticks
 SLIDE_LEAVE = (
     1e-3,

@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .held_circle import Carry
-from .held_roots import EPS_LAM
+from .held_roots import EPS_LIFT
 
 HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
 
@@ -60,11 +60,11 @@ def one_row_clears(k, kc, row: int, act, p, q1, p1, energy: float, force: float,
                    phi_tol: float) -> bool:  # fmt: skip
     """The tests of a closed step on one row (:func:`closed_step`, ``vcigen.held_circle.circle_step``; C:
     ``<model>_held_closed_step``, ``<model>_held_circle_one``): the residual ``res`` within
-    ``residual (1 + |p|)``, no lift-off (``force`` not below ``-EPS_LAM (1 + |force|)`` on a contact row),
+    ``residual (1 + |p|)``, no lift-off (``force`` not below ``-EPS_LIFT (1 + |force|)`` on a contact row),
     no inactive row crossed, ``E_d``, the force, ``q1`` and ``p1`` finite."""
     if not abs(res) <= residual * (1.0 + float(np.max(np.abs(p)))):
         return False
-    if not k.row_bilateral[row] and force < -EPS_LAM * (1.0 + abs(force)):
+    if not k.row_bilateral[row] and force < -EPS_LIFT * (1.0 + abs(force)):
         return False  # a lift-off inside the step
     if k.r > 1:
         psi = k.held_rows(q1, kc)[0]
@@ -178,7 +178,7 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     f_a = apply_small(w, -(g1 @ acc + curv))
     forces = np.zeros(k.r)
     forces[rows] = f_a
-    f_eps = EPS_LAM * (1.0 + float(np.max(np.abs(forces))))
+    f_eps = EPS_LIFT * (1.0 + float(np.max(np.abs(forces))))
     unilateral = [r for r in rows if not k.row_bilateral[r]]
     if any(forces[r] < -f_eps for r in unilateral):
         return None  # a lift-off inside the step

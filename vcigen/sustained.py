@@ -35,6 +35,7 @@ from .held_impacts import HeldImpacts
 from .held_roots import (
     DEP_EPS,
     EPS_LAM,
+    EPS_LIFT,
     JAM_CYCLES,
     LIFT_ITER,
     ROOT_EPS,
@@ -256,7 +257,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             f1 = self._forces(end)
             if self._stick_rows:
                 self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
-            pulled = unilateral & (f1 < -EPS_LAM * (1.0 + float(np.max(np.abs(f1)))))
+            pulled = unilateral & (f1 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1)))))
             if pulled.any():
                 f0 = self._contact_forces(q, self._velocity(q, v, p))
                 for r in np.flatnonzero(pulled):

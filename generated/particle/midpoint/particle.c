@@ -1095,6 +1095,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define PARTICLE_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define PARTICLE_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define PARTICLE_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define PARTICLE_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define PARTICLE_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define PARTICLE_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1169,6 +1170,22 @@ static int particle_dependent(const particle_ctx_t *c, const double *grad, int s
         }
     }
     return !particle_span_add(basis, &nb, grad + sr * PARTICLE_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int particle_rides_after(const particle_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(PARTICLE_R_DIM + 1) * PARTICLE_N];
+    int nb = 0, i;
+    for (i = 0; i < PARTICLE_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && particle_row_stick[i] < 0) {
+            particle_span_add(basis, &nb, grad + i * PARTICLE_N);
+        }
+    }
+    return !particle_span_add(basis, &nb, grad + r * PARTICLE_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -1846,6 +1863,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             if (!leaving[r]) {
                 continue;
             }
+            if (particle_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < PARTICLE_N; ++i) {
                 rate += grad[r * PARTICLE_N + i] * vel_p[i];
@@ -2027,7 +2047,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             *e_step = e_seg;
         }
         particle_end_forces(c, q1, u1, tau, f1);
-        f_eps = PARTICLE_EPS_LAM * (1.0 + particle_norm_inf(PARTICLE_R, f1));
+        f_eps = PARTICLE_EPS_LIFT * (1.0 + particle_norm_inf(PARTICLE_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < PARTICLE_R; ++r) {
@@ -2448,7 +2468,7 @@ PARTICLE_HELD_INLINE int particle_held_step(const double *kh, double h, double r
         return 1;
     }
     if (PARTICLE_HELD_UNLIKELY(pull)) {
-        f_eps = PARTICLE_EPS_LAM * (1.0 + particle_held_norm(na, f));
+        f_eps = PARTICLE_EPS_LIFT * (1.0 + particle_held_norm(na, f));
         PARTICLE_HELD_UNROLL
         for (a = 0; a < PARTICLE_R_DIM && a < na; ++a) {
             if (!particle_row_free[rows[a]] && f[a] < -f_eps) {

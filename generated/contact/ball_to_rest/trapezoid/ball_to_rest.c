@@ -1101,6 +1101,7 @@ static inline int ball_to_rest_held(const ball_to_rest_sustain_t *sus)
 #define BALL_TO_REST_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define BALL_TO_REST_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define BALL_TO_REST_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define BALL_TO_REST_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define BALL_TO_REST_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define BALL_TO_REST_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BALL_TO_REST_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1175,6 +1176,22 @@ static int ball_to_rest_dependent(const ball_to_rest_ctx_t *c, const double *gra
         }
     }
     return !ball_to_rest_span_add(basis, &nb, grad + sr * BALL_TO_REST_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int ball_to_rest_rides_after(const ball_to_rest_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(BALL_TO_REST_R_DIM + 1) * BALL_TO_REST_N];
+    int nb = 0, i;
+    for (i = 0; i < BALL_TO_REST_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && ball_to_rest_row_stick[i] < 0) {
+            ball_to_rest_span_add(basis, &nb, grad + i * BALL_TO_REST_N);
+        }
+    }
+    return !ball_to_rest_span_add(basis, &nb, grad + r * BALL_TO_REST_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -1852,6 +1869,9 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
             if (!leaving[r]) {
                 continue;
             }
+            if (ball_to_rest_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < BALL_TO_REST_N; ++i) {
                 rate += grad[r * BALL_TO_REST_N + i] * vel_p[i];
@@ -2033,7 +2053,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
             *e_step = e_seg;
         }
         ball_to_rest_end_forces(c, q1, u1, tau, f1);
-        f_eps = BALL_TO_REST_EPS_LAM * (1.0 + ball_to_rest_norm_inf(BALL_TO_REST_R, f1));
+        f_eps = BALL_TO_REST_EPS_LIFT * (1.0 + ball_to_rest_norm_inf(BALL_TO_REST_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < BALL_TO_REST_R; ++r) {
@@ -2454,7 +2474,7 @@ BALL_TO_REST_HELD_INLINE int ball_to_rest_held_step(const double *kh, double h, 
         return 1;
     }
     if (BALL_TO_REST_HELD_UNLIKELY(pull)) {
-        f_eps = BALL_TO_REST_EPS_LAM * (1.0 + ball_to_rest_held_norm(na, f));
+        f_eps = BALL_TO_REST_EPS_LIFT * (1.0 + ball_to_rest_held_norm(na, f));
         BALL_TO_REST_HELD_UNROLL
         for (a = 0; a < BALL_TO_REST_R_DIM && a < na; ++a) {
             if (!ball_to_rest_row_free[rows[a]] && f[a] < -f_eps) {

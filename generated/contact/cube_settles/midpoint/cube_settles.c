@@ -1876,6 +1876,7 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define CUBE_SETTLES_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define CUBE_SETTLES_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define CUBE_SETTLES_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define CUBE_SETTLES_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define CUBE_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1950,6 +1951,22 @@ static int cube_settles_dependent(const cube_settles_ctx_t *c, const double *gra
         }
     }
     return !cube_settles_span_add(basis, &nb, grad + sr * CUBE_SETTLES_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int cube_settles_rides_after(const cube_settles_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(CUBE_SETTLES_R_DIM + 1) * CUBE_SETTLES_N];
+    int nb = 0, i;
+    for (i = 0; i < CUBE_SETTLES_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && cube_settles_row_stick[i] < 0) {
+            cube_settles_span_add(basis, &nb, grad + i * CUBE_SETTLES_N);
+        }
+    }
+    return !cube_settles_span_add(basis, &nb, grad + r * CUBE_SETTLES_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2628,6 +2645,9 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
             if (!leaving[r]) {
                 continue;
             }
+            if (cube_settles_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < CUBE_SETTLES_N; ++i) {
                 rate += grad[r * CUBE_SETTLES_N + i] * vel_p[i];
@@ -2809,7 +2829,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             *e_step = e_seg;
         }
         cube_settles_end_forces(c, q1, u1, tau, f1);
-        f_eps = CUBE_SETTLES_EPS_LAM * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_R, f1));
+        f_eps = CUBE_SETTLES_EPS_LIFT * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < CUBE_SETTLES_R; ++r) {

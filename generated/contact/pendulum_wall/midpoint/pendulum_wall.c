@@ -1325,6 +1325,7 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define PENDULUM_WALL_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define PENDULUM_WALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define PENDULUM_WALL_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define PENDULUM_WALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define PENDULUM_WALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define PENDULUM_WALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1399,6 +1400,22 @@ static int pendulum_wall_dependent(const pendulum_wall_ctx_t *c, const double *g
         }
     }
     return !pendulum_wall_span_add(basis, &nb, grad + sr * PENDULUM_WALL_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int pendulum_wall_rides_after(const pendulum_wall_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(PENDULUM_WALL_R_DIM + 1) * PENDULUM_WALL_N];
+    int nb = 0, i;
+    for (i = 0; i < PENDULUM_WALL_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && pendulum_wall_row_stick[i] < 0) {
+            pendulum_wall_span_add(basis, &nb, grad + i * PENDULUM_WALL_N);
+        }
+    }
+    return !pendulum_wall_span_add(basis, &nb, grad + r * PENDULUM_WALL_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2076,6 +2093,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             if (!leaving[r]) {
                 continue;
             }
+            if (pendulum_wall_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < PENDULUM_WALL_N; ++i) {
                 rate += grad[r * PENDULUM_WALL_N + i] * vel_p[i];
@@ -2257,7 +2277,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
             *e_step = e_seg;
         }
         pendulum_wall_end_forces(c, q1, u1, tau, f1);
-        f_eps = PENDULUM_WALL_EPS_LAM * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_R, f1));
+        f_eps = PENDULUM_WALL_EPS_LIFT * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
@@ -2538,7 +2558,7 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_closed_one(const double *kh, do
         return 1;
     }
     f = force[row];
-    if (PENDULUM_WALL_HELD_UNLIKELY(!pendulum_wall_row_free[row] && f < -PENDULUM_WALL_EPS_LAM * (1.0 + fabs(f)))) {
+    if (PENDULUM_WALL_HELD_UNLIKELY(!pendulum_wall_row_free[row] && f < -PENDULUM_WALL_EPS_LIFT * (1.0 + fabs(f)))) {
         return 1; /* a lift-off inside the step */
     }
     clear = 1;
@@ -2818,7 +2838,7 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_step(const double *kh, double h
         return 1;
     }
     if (PENDULUM_WALL_HELD_UNLIKELY(pull)) {
-        f_eps = PENDULUM_WALL_EPS_LAM * (1.0 + pendulum_wall_held_norm(na, f));
+        f_eps = PENDULUM_WALL_EPS_LIFT * (1.0 + pendulum_wall_held_norm(na, f));
         PENDULUM_WALL_HELD_UNROLL
         for (a = 0; a < PENDULUM_WALL_R_DIM && a < na; ++a) {
             if (!pendulum_wall_row_free[rows[a]] && f[a] < -f_eps) {
@@ -2867,7 +2887,7 @@ PENDULUM_WALL_HELD_INLINE int pendulum_wall_held_circle_one(const double *kh, do
     r0 = res[row];
     tot = er[row] + f + qr[row * 2] + pr[row * 2] + qr[row * 2 + 1] + pr[row * 2 + 1]; /* held.all_finite */
     clear = (slope[row] > 0.0) & (w[1] >= 0.0) & (isfinite(tot) != 0); /* B > 0, D >= 0 */
-    clear &= pendulum_wall_row_free[row] | !(f < -PENDULUM_WALL_EPS_LAM * (1.0 + fabs(f))); /* a lift-off */
+    clear &= pendulum_wall_row_free[row] | !(f < -PENDULUM_WALL_EPS_LIFT * (1.0 + fabs(f))); /* a lift-off */
     {
         double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], hess[PENDULUM_WALL_R_DIM * PENDULUM_WALL_NH_DIM];
         int r;

@@ -1301,6 +1301,7 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define SLIDE_OFF_DOME_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define SLIDE_OFF_DOME_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define SLIDE_OFF_DOME_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define SLIDE_OFF_DOME_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define SLIDE_OFF_DOME_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SLIDE_OFF_DOME_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1375,6 +1376,22 @@ static int slide_off_dome_dependent(const slide_off_dome_ctx_t *c, const double 
         }
     }
     return !slide_off_dome_span_add(basis, &nb, grad + sr * SLIDE_OFF_DOME_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int slide_off_dome_rides_after(const slide_off_dome_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(SLIDE_OFF_DOME_R_DIM + 1) * SLIDE_OFF_DOME_N];
+    int nb = 0, i;
+    for (i = 0; i < SLIDE_OFF_DOME_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && slide_off_dome_row_stick[i] < 0) {
+            slide_off_dome_span_add(basis, &nb, grad + i * SLIDE_OFF_DOME_N);
+        }
+    }
+    return !slide_off_dome_span_add(basis, &nb, grad + r * SLIDE_OFF_DOME_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2052,6 +2069,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             if (!leaving[r]) {
                 continue;
             }
+            if (slide_off_dome_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
                 rate += grad[r * SLIDE_OFF_DOME_N + i] * vel_p[i];
@@ -2233,7 +2253,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
             *e_step = e_seg;
         }
         slide_off_dome_end_forces(c, q1, u1, tau, f1);
-        f_eps = SLIDE_OFF_DOME_EPS_LAM * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, f1));
+        f_eps = SLIDE_OFF_DOME_EPS_LIFT * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
@@ -2514,7 +2534,7 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_closed_one(const double *kh, 
         return 1;
     }
     f = force[row];
-    if (SLIDE_OFF_DOME_HELD_UNLIKELY(!slide_off_dome_row_free[row] && f < -SLIDE_OFF_DOME_EPS_LAM * (1.0 + fabs(f)))) {
+    if (SLIDE_OFF_DOME_HELD_UNLIKELY(!slide_off_dome_row_free[row] && f < -SLIDE_OFF_DOME_EPS_LIFT * (1.0 + fabs(f)))) {
         return 1; /* a lift-off inside the step */
     }
     clear = 1;
@@ -2789,7 +2809,7 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_step(const double *kh, double
         return 1;
     }
     if (SLIDE_OFF_DOME_HELD_UNLIKELY(pull)) {
-        f_eps = SLIDE_OFF_DOME_EPS_LAM * (1.0 + slide_off_dome_held_norm(na, f));
+        f_eps = SLIDE_OFF_DOME_EPS_LIFT * (1.0 + slide_off_dome_held_norm(na, f));
         SLIDE_OFF_DOME_HELD_UNROLL
         for (a = 0; a < SLIDE_OFF_DOME_R_DIM && a < na; ++a) {
             if (!slide_off_dome_row_free[rows[a]] && f[a] < -f_eps) {
@@ -2838,7 +2858,7 @@ SLIDE_OFF_DOME_HELD_INLINE int slide_off_dome_held_circle_one(const double *kh, 
     r0 = res[row];
     tot = er[row] + f + qr[row * 2] + pr[row * 2] + qr[row * 2 + 1] + pr[row * 2 + 1]; /* held.all_finite */
     clear = (slope[row] > 0.0) & (w[1] >= 0.0) & (isfinite(tot) != 0); /* B > 0, D >= 0 */
-    clear &= slide_off_dome_row_free[row] | !(f < -SLIDE_OFF_DOME_EPS_LAM * (1.0 + fabs(f))); /* a lift-off */
+    clear &= slide_off_dome_row_free[row] | !(f < -SLIDE_OFF_DOME_EPS_LIFT * (1.0 + fabs(f))); /* a lift-off */
     (void)act;
     (void)phi_tol;
     if (SLIDE_OFF_DOME_HELD_UNLIKELY(!clear || !(fabs(r0) <= residual

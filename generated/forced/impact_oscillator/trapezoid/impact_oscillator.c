@@ -924,6 +924,7 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define IMPACT_OSCILLATOR_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define IMPACT_OSCILLATOR_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define IMPACT_OSCILLATOR_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define IMPACT_OSCILLATOR_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -998,6 +999,22 @@ static int impact_oscillator_dependent(const impact_oscillator_ctx_t *c, const d
         }
     }
     return !impact_oscillator_span_add(basis, &nb, grad + sr * IMPACT_OSCILLATOR_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int impact_oscillator_rides_after(const impact_oscillator_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(IMPACT_OSCILLATOR_R_DIM + 1) * IMPACT_OSCILLATOR_N];
+    int nb = 0, i;
+    for (i = 0; i < IMPACT_OSCILLATOR_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && impact_oscillator_row_stick[i] < 0) {
+            impact_oscillator_span_add(basis, &nb, grad + i * IMPACT_OSCILLATOR_N);
+        }
+    }
+    return !impact_oscillator_span_add(basis, &nb, grad + r * IMPACT_OSCILLATOR_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -1677,6 +1694,9 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             if (!leaving[r]) {
                 continue;
             }
+            if (impact_oscillator_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
                 rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel_p[i];
@@ -1859,7 +1879,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             *e_step = e_seg;
         }
         impact_oscillator_end_forces(c, q1, u1, tau, f1);
-        f_eps = IMPACT_OSCILLATOR_EPS_LAM * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, f1));
+        f_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {

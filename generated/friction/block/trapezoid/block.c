@@ -1098,6 +1098,7 @@ static inline int block_held(const block_sustain_t *sus)
 #define BLOCK_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define BLOCK_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define BLOCK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define BLOCK_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define BLOCK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define BLOCK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BLOCK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1225,6 +1226,22 @@ static int block_dependent(const block_ctx_t *c, const double *grad, int sr, int
         }
     }
     return !block_span_add(basis, &nb, grad + sr * BLOCK_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int block_rides_after(const block_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(BLOCK_R_DIM + 1) * BLOCK_N];
+    int nb = 0, i;
+    for (i = 0; i < BLOCK_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && block_row_stick[i] < 0) {
+            block_span_add(basis, &nb, grad + i * BLOCK_N);
+        }
+    }
+    return !block_span_add(basis, &nb, grad + r * BLOCK_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2451,6 +2468,9 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             if (!leaving[r]) {
                 continue;
             }
+            if (block_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < BLOCK_N; ++i) {
                 rate += grad[r * BLOCK_N + i] * vel_p[i];
@@ -2655,7 +2675,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             *e_step = e_seg;
         }
         block_end_forces(c, q1, u1, tau, f1);
-        f_eps = BLOCK_EPS_LAM * (1.0 + block_norm_inf(BLOCK_R, f1));
+        f_eps = BLOCK_EPS_LIFT * (1.0 + block_norm_inf(BLOCK_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < BLOCK_R; ++r) {

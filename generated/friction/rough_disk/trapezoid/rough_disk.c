@@ -1178,6 +1178,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define ROUGH_DISK_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define ROUGH_DISK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define ROUGH_DISK_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define ROUGH_DISK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1305,6 +1306,22 @@ static int rough_disk_dependent(const rough_disk_ctx_t *c, const double *grad, i
         }
     }
     return !rough_disk_span_add(basis, &nb, grad + sr * ROUGH_DISK_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int rough_disk_rides_after(const rough_disk_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(ROUGH_DISK_R_DIM + 1) * ROUGH_DISK_N];
+    int nb = 0, i;
+    for (i = 0; i < ROUGH_DISK_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && rough_disk_row_stick[i] < 0) {
+            rough_disk_span_add(basis, &nb, grad + i * ROUGH_DISK_N);
+        }
+    }
+    return !rough_disk_span_add(basis, &nb, grad + r * ROUGH_DISK_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2531,6 +2548,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             if (!leaving[r]) {
                 continue;
             }
+            if (rough_disk_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 rate += grad[r * ROUGH_DISK_N + i] * vel_p[i];
@@ -2735,7 +2755,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             *e_step = e_seg;
         }
         rough_disk_end_forces(c, q1, u1, tau, f1);
-        f_eps = ROUGH_DISK_EPS_LAM * (1.0 + rough_disk_norm_inf(ROUGH_DISK_R, f1));
+        f_eps = ROUGH_DISK_EPS_LIFT * (1.0 + rough_disk_norm_inf(ROUGH_DISK_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {

@@ -1265,6 +1265,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define SPUN_BALL_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define SPUN_BALL_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1394,6 +1395,22 @@ static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int
         }
     }
     return !spun_ball_span_add(basis, &nb, grad + sr * SPUN_BALL_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int spun_ball_rides_after(const spun_ball_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(SPUN_BALL_R_DIM + 1) * SPUN_BALL_N];
+    int nb = 0, i;
+    for (i = 0; i < SPUN_BALL_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && spun_ball_row_stick[i] < 0) {
+            spun_ball_span_add(basis, &nb, grad + i * SPUN_BALL_N);
+        }
+    }
+    return !spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -3414,6 +3431,9 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             if (!leaving[r]) {
                 continue;
             }
+            if (spun_ball_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 rate += grad[r * SPUN_BALL_N + i] * vel_p[i];
@@ -3618,7 +3638,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             *e_step = e_seg;
         }
         spun_ball_end_forces(c, q1, u1, tau, f1);
-        f_eps = SPUN_BALL_EPS_LAM * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, f1));
+        f_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < SPUN_BALL_R; ++r) {

@@ -1373,6 +1373,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define STAR_FRICTION_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define STAR_FRICTION_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define STAR_FRICTION_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define STAR_FRICTION_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define STAR_FRICTION_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1509,6 +1510,22 @@ static int star_friction_dependent(const star_friction_ctx_t *c, const double *g
         }
     }
     return !star_friction_span_add(basis, &nb, grad + sr * STAR_FRICTION_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int star_friction_rides_after(const star_friction_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(STAR_FRICTION_R_DIM + 1) * STAR_FRICTION_N];
+    int nb = 0, i;
+    for (i = 0; i < STAR_FRICTION_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && star_friction_row_stick[i] < 0) {
+            star_friction_span_add(basis, &nb, grad + i * STAR_FRICTION_N);
+        }
+    }
+    return !star_friction_span_add(basis, &nb, grad + r * STAR_FRICTION_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2735,6 +2752,9 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             if (!leaving[r]) {
                 continue;
             }
+            if (star_friction_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
@@ -2939,7 +2959,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             *e_step = e_seg;
         }
         star_friction_end_forces(c, q1, u1, tau, f1);
-        f_eps = STAR_FRICTION_EPS_LAM * (1.0 + star_friction_norm_inf(STAR_FRICTION_R, f1));
+        f_eps = STAR_FRICTION_EPS_LIFT * (1.0 + star_friction_norm_inf(STAR_FRICTION_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < STAR_FRICTION_R; ++r) {

@@ -1308,6 +1308,7 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define BALL_BOX_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define BALL_BOX_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define BALL_BOX_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define BALL_BOX_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define BALL_BOX_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BALL_BOX_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1382,6 +1383,22 @@ static int ball_box_dependent(const ball_box_ctx_t *c, const double *grad, int s
         }
     }
     return !ball_box_span_add(basis, &nb, grad + sr * BALL_BOX_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int ball_box_rides_after(const ball_box_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(BALL_BOX_R_DIM + 1) * BALL_BOX_N];
+    int nb = 0, i;
+    for (i = 0; i < BALL_BOX_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && ball_box_row_stick[i] < 0) {
+            ball_box_span_add(basis, &nb, grad + i * BALL_BOX_N);
+        }
+    }
+    return !ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2059,6 +2076,9 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
             if (!leaving[r]) {
                 continue;
             }
+            if (ball_box_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < BALL_BOX_N; ++i) {
                 rate += grad[r * BALL_BOX_N + i] * vel_p[i];
@@ -2240,7 +2260,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             *e_step = e_seg;
         }
         ball_box_end_forces(c, q1, u1, tau, f1);
-        f_eps = BALL_BOX_EPS_LAM * (1.0 + ball_box_norm_inf(BALL_BOX_R, f1));
+        f_eps = BALL_BOX_EPS_LIFT * (1.0 + ball_box_norm_inf(BALL_BOX_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < BALL_BOX_R; ++r) {
@@ -2670,7 +2690,7 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
         return 1;
     }
     if (BALL_BOX_HELD_UNLIKELY(pull)) {
-        f_eps = BALL_BOX_EPS_LAM * (1.0 + ball_box_held_norm(na, f));
+        f_eps = BALL_BOX_EPS_LIFT * (1.0 + ball_box_held_norm(na, f));
         BALL_BOX_HELD_UNROLL
         for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {
             if (!ball_box_row_free[rows[a]] && f[a] < -f_eps) {

@@ -1512,6 +1512,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_ROOT_EPS 1e-14 /* sustained.ROOT_EPS: |psi| at a located row crossing, relative */
 #define DOUBLE_PENDULUM_LIFT_ITER 60 /* sustained.LIFT_ITER: Illinois iterations locating a lift-off at most */
 #define DOUBLE_PENDULUM_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
+#define DOUBLE_PENDULUM_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define DOUBLE_PENDULUM_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
 #define DOUBLE_PENDULUM_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1586,6 +1587,22 @@ static int double_pendulum_dependent(const double_pendulum_ctx_t *c, const doubl
         }
     }
     return !double_pendulum_span_add(basis, &nb, grad + sr * DOUBLE_PENDULUM_N);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
+ * by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int double_pendulum_rides_after(const double_pendulum_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    double basis[(DOUBLE_PENDULUM_R_DIM + 1) * DOUBLE_PENDULUM_N];
+    int nb = 0, i;
+    for (i = 0; i < DOUBLE_PENDULUM_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && double_pendulum_row_stick[i] < 0) {
+            double_pendulum_span_add(basis, &nb, grad + i * DOUBLE_PENDULUM_N);
+        }
+    }
+    return !double_pendulum_span_add(basis, &nb, grad + r * DOUBLE_PENDULUM_N);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
@@ -2264,6 +2281,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             if (!leaving[r]) {
                 continue;
             }
+            if (double_pendulum_rides_after(c, grad, r, leaving, plastic)) {
+                continue; /* in the span of the rows held after: it stays, riding on them */
+            }
             rate = 0.0;
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
                 rate += grad[r * DOUBLE_PENDULUM_N + i] * vel_p[i];
@@ -2445,7 +2465,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             *e_step = e_seg;
         }
         double_pendulum_end_forces(c, q1, u1, tau, f1);
-        f_eps = DOUBLE_PENDULUM_EPS_LAM * (1.0 + double_pendulum_norm_inf(DOUBLE_PENDULUM_R, f1));
+        f_eps = DOUBLE_PENDULUM_EPS_LIFT * (1.0 + double_pendulum_norm_inf(DOUBLE_PENDULUM_R, f1));
         start = -1;
         pulled = 0;
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
