@@ -420,3 +420,27 @@ def test_rough_drops_keep_the_same_books_on_both_backends(drop):
     if drop == "left by an impact, carried by the landing":  # no lift-off where nothing left the floor
         landing = next(i.t for i in a.impacts if i.contact == "v3" and i.t > 0.8)
         assert not any(abs(t - landing) < 1e-9 for t, _ in a.liftoffs)
+
+
+def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order():
+    """Drop 55 of ``bench.cube_drops``' rough drops (seed 7) with the tangent, to t = 1.4: steps 275 and 276
+    break for several reasons (a simultaneous impact, friction switches, a load passed). C books a step's
+    reasons as bits (once each, in ``vcigen.result.BREAK_REASONS``' order); the Python tracker listed every
+    loss in the order it met them, twice for a reason met twice (11 entries against C's 7). Both now list
+    ``(step, reason)`` once each, in that order (``vcigen.result.ordered_breaks``), the same list."""
+    q0 = [0.0, 0.0, 1.0, 0.8227697381716228, 0.26469306339273124, 0.10809831945723636]
+    v0 = [-0.7488123738117278, 0.5156155178164608, -0.8632241989441596]
+    v0 += [2.174137594232687, -1.2423605850127457, 1.5463836189139286]
+    params = {"e": 0.6356741550698214, "mu": 0.7404286608102791}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # the landings' friction left out: counted, known
+        a, b = (
+            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=1.4, sensitivities=True)
+            for be in ("c", "casadi")
+        )
+    assert a.sensitivity_breaks == b.sensitivity_breaks
+    at = [why for k, why in b.sensitivity_breaks if k == 275]
+    assert at == ["simultaneous impact", "friction switch in a held step", "load passed to a riding row"]
+    order = [name for _, name in vcigen.result.BREAK_REASONS]
+    keys = [(k, order.index(why)) for k, why in b.sensitivity_breaks]
+    assert keys == sorted(set(keys))

@@ -11,7 +11,37 @@ import numpy as np
 
 from .impacts import KINDS, Impact, Impacts, ImpactTable
 
-__all__ = ["KINDS", "Impact", "ImpactTable", "Impacts", "Result"]
+__all__ = ["BREAK_REASONS", "KINDS", "Impact", "ImpactTable", "Impacts", "Result", "ordered_breaks"]
+
+# Why a grid step has no tangent (Result.sensitivity_breaks' reasons; vcigen.sensitivity), each with its C
+# macro <MODEL>_WHY_<macro> (the bits of the C variant's per-step W, in this order). Both backends list a
+# step's reasons once each, in this order (ordered_breaks).
+BREAK_REASONS: tuple[tuple[str, str], ...] = (
+    ("HELD_STEP", "held step (sustained contact)"),
+    ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
+    ("SINGULAR_LIFTOFF", "a singular Jacobian in the tangent of liftoff"),
+    ("SINGULAR_EVENT", "a singular Jacobian in the tangent of event"),
+    ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
+    ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
+    ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
+    ("PLASTIC_IMPACT", "plastic impact"),
+    ("SINGULAR_PLASTIC", "a singular Jacobian in the tangent of plastic"),
+    ("GRAZING_IMPACT", "grazing impact"),
+    ("SINGULAR_JUMP", "a singular Jacobian in the tangent of jump"),
+    ("RESTART", "restart (continuous law where (78) has no root)"),
+    ("SINGULAR_JUMP_END", "a singular Jacobian in the tangent of jump_end"),
+    ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
+    ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
+    ("FRICTION_SWITCH", "friction switch in a held step"),
+    ("LOAD_PASSED", "load passed to a riding row"),
+)
+_BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
+
+
+def ordered_breaks(breaks) -> list[tuple[int, str]]:
+    """``(step, reason)`` pairs once each, by step, a step's reasons in :data:`BREAK_REASONS`' order (the C
+    variant's bits; the Python tracker meets them in the stepper's order, some several times a step)."""
+    return sorted(set(breaks), key=lambda b: (b[0], _BREAK_ORDER.get(b[1], len(_BREAK_ORDER)), b[1]))
 
 
 @dataclass

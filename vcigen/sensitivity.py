@@ -81,6 +81,7 @@ import numpy as np
 
 from .backends.casadi import routine_to_function
 from .derive import DiscreteSystem
+from .result import ordered_breaks
 from .sensitivity_held import HeldTangents, _guarded
 from .sensitivity_switch import SwitchTangents
 from .tangents import tangent_routines
@@ -480,6 +481,6 @@ class Tracker(HeldTangents, SwitchTangents):
         """``res.sensitivity`` ``(N, 2n, K)``, its column names and breaks, ``stats["sensitivity_lost"]``."""
         res.sensitivity = self.S[: steps + 1].copy()
         res.sensitivity_names = self.tg.names()
-        res.sensitivity_breaks = list(self.breaks)
+        res.sensitivity_breaks = ordered_breaks(self.breaks)  # once each, in the C variant's order
         if self.lost is not None:
             res.stats["sensitivity_lost"] = self.lost

@@ -23,7 +23,7 @@ import sympy as sp
 
 from ..derive import DiscreteSystem
 from ..explicit import expanded
-from ..result import Result
+from ..result import BREAK_REASONS, Result
 from ..routines import Arg, Output, Routine
 from ..tangents import is_tangent
 from .crun import RESERVE_BYTES, CRun, Job, _addr, _cut, _grown
@@ -32,26 +32,8 @@ __all__ = ["SENS_REASONS", "SensJob", "SensRun", "is_tangent", "sens_routines", 
 SYMBOLIC_MAP = 3  # coordinates at most for the smooth step's tangent as one straight-line routine
 
 # Why a grid step has no tangent: (C macro <MODEL>_WHY_<macro>, Result.sensitivity_breaks reason), in the
-# order of the bits of W (within a step, the order the stepper meets them): vcigen.sensitivity's reasons.
-SENS_REASONS: tuple[tuple[str, str], ...] = (
-    ("HELD_STEP", "held step (sustained contact)"),
-    ("SINGULAR_HELD", "a singular Jacobian in the tangent of held"),
-    ("SINGULAR_LIFTOFF", "a singular Jacobian in the tangent of liftoff"),
-    ("SINGULAR_EVENT", "a singular Jacobian in the tangent of event"),
-    ("SIMULTANEOUS_IMPACT", "simultaneous impact"),
-    ("SINGULAR_CONTACT", "a singular Jacobian in the tangent of contact"),
-    ("FRICTION_AT_AN_IMPACT", "friction at an impact"),
-    ("PLASTIC_IMPACT", "plastic impact"),
-    ("SINGULAR_PLASTIC", "a singular Jacobian in the tangent of plastic"),
-    ("GRAZING_IMPACT", "grazing impact"),
-    ("SINGULAR_JUMP", "a singular Jacobian in the tangent of jump"),
-    ("RESTART", "restart (continuous law where (78) has no root)"),
-    ("SINGULAR_JUMP_END", "a singular Jacobian in the tangent of jump_end"),
-    ("A_PHASE_WITHOUT_A_TANGENT", "a phase without a tangent"),
-    ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
-    ("FRICTION_SWITCH", "friction switch in a held step"),
-    ("LOAD_PASSED", "load passed to a riding row"),
-)
+# order of the bits of W (vcigen.result.BREAK_REASONS, which the Python tracker's list is ordered by too).
+SENS_REASONS = BREAK_REASONS
 BASE_ROUTINES = ("d_segment", "d_contacts", "d_legendre", "d_restitution", "d_smooth", "d_jump")
 
 
