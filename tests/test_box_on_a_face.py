@@ -422,25 +422,46 @@ def test_rough_drops_keep_the_same_books_on_both_backends(drop):
         assert not any(abs(t - landing) < 1e-9 for t, _ in a.liftoffs)
 
 
-def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order():
-    """Drop 55 of ``bench.cube_drops``' rough drops (seed 7) with the tangent, to t = 1.4: steps 275 and 276
-    break for several reasons (a simultaneous impact, friction switches, a load passed). C books a step's
-    reasons as bits (once each, in ``vcigen.result.BREAK_REASONS``' order); the Python tracker listed every
-    loss in the order it met them, twice for a reason met twice (11 entries against C's 7). Both now list
-    ``(step, reason)`` once each, in that order (``vcigen.result.ordered_breaks``), the same list."""
-    q0 = [0.0, 0.0, 1.0, 0.8227697381716228, 0.26469306339273124, 0.10809831945723636]
-    v0 = [-0.7488123738117278, 0.5156155178164608, -0.8632241989441596]
-    v0 += [2.174137594232687, -1.2423605850127457, 1.5463836189139286]
-    params = {"e": 0.6356741550698214, "mu": 0.7404286608102791}
+TANGENT_DROPS = {  # bench.cube_drops' rough drops (seed 7) whose tangent breaks the backends listed apart
+    "several reasons a step": (  # drop 55, to t = 1.4: steps 275 and 276 break for three reasons each
+        [0.0, 0.0, 1.0, 0.8227697381716228, 0.26469306339273124, 0.10809831945723636],
+        [-0.7488123738117278, 0.5156155178164608, -0.8632241989441596]
+        + [2.174137594232687, -1.2423605850127457, 1.5463836189139286],
+        {"e": 0.6356741550698214, "mu": 0.7404286608102791},
+        1.4,
+    ),
+    "two vertices at once, rough": (  # drop 121, to t = 1.0: v1 and v3 at once at step 199, the tangent lost
+        [0.0, 0.0, 1.0, 1.97893839208021, 0.1730926247382314, -0.035675866244202714],
+        [-1.2455770034665234, -0.3884035952351428, -0.1373927290102186]
+        + [-1.8648863400697429, -2.459753926966519, -0.22330538211518824],
+        {"e": 0.2345213661200185, "mu": 0.800551085539732},
+        1.0,
+    ),
+}
+
+
+@pytest.mark.parametrize("drop", sorted(TANGENT_DROPS))
+def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order(drop):
+    """C books a step's reasons as bits (once each, in ``vcigen.result.BREAK_REASONS``' order); the Python
+    tracker listed every loss in the order it met them, twice for a reason met twice (drop 55: 11 entries
+    against C's 7). And an impact of several rough contacts at once in flight (``_rough_rest``) booked
+    ``"simultaneous impact"`` a second time in Python's impulse law after the tangent was lost (drop 121, step
+    199), where C's runs without the events' tangent. Both now list ``(step, reason)`` once each, in that
+    order (``vcigen.result.ordered_breaks``), the same list."""
+    q0, v0, params, t_end = TANGENT_DROPS[drop]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # the landings' friction left out: counted, known
         a, b = (
-            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=1.4, sensitivities=True)
+            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=t_end, sensitivities=True)
             for be in ("c", "casadi")
         )
     assert a.sensitivity_breaks == b.sensitivity_breaks
-    at = [why for k, why in b.sensitivity_breaks if k == 275]
-    assert at == ["simultaneous impact", "friction switch in a held step", "load passed to a riding row"]
     order = [name for _, name in vcigen.result.BREAK_REASONS]
     keys = [(k, order.index(why)) for k, why in b.sensitivity_breaks]
     assert keys == sorted(set(keys))
+    if drop == "several reasons a step":
+        at = [why for k, why in b.sensitivity_breaks if k == 275]
+        assert at == ["simultaneous impact", "friction switch in a held step", "load passed to a riding row"]
+    else:
+        assert [(i.step, i.contact) for i in a.impacts if i.step == 199] == [(199, "v1"), (199, "v3")]
+        assert not any(k == 199 for k, _ in b.sensitivity_breaks)

@@ -226,8 +226,14 @@ class HeldImpacts(ImpulseLaw):
         """An impact of the free chain on several contacts at once, one with friction (:meth:`_rough`), as an
         impact while held with none held (:meth:`_chain_impact`: Newton's law with each contact's restitution,
         Coulomb's cone on the frictional ones as they land, the rows that settle held), then the rest of the
-        step from it (:meth:`_chain`: held, or free)."""
-        p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before)
+        step from it (:meth:`_chain`: held, or free). The tangent broke at the contact (``"simultaneous
+        impact"``, ``Tracker.contact``); the impact itself runs without the events' tangent, as C's (its
+        ``hold`` is set after ``<model>_chain_impact``), so that it books no more breaks."""
+        tan, self._ev_tan = self._ev_tan, None
+        try:
+            p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before)
+        finally:
+            self._ev_tan = tan
         return self._chain(step, t_k, h, q, p, t, tau, v, impacts, e_step)
 
     def _touching(self, q, v, group_contacts) -> tuple[list[int], list[int]]:
