@@ -47,6 +47,24 @@ def sim(backend: str, rough: bool = False) -> vcigen.Simulator:
     return vcigen.build(cube_settles.model(mu=0.5 if rough else None), backend=backend)
 
 
+def rough_on_both(q0, v0, params, t_end: float = 3.0, **kw) -> tuple[vcigen.Result, vcigen.Result]:
+    """The rough cube from ``(q0, v0)`` at h = 0.005 to ``t_end`` in C and on CasADi (``kw``: simulate's),
+    the landings' friction left out unwarned (counted, known)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        a, b = (
+            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=t_end, **kw)
+            for be in ("c", "casadi")
+        )
+    return a, b
+
+
+def assert_same_liftoffs(a: vcigen.Result, b: vcigen.Result) -> None:
+    """The same contacts lift off in the same order, at times equal to 1e-9."""
+    assert [j for _, j in a.liftoffs] == [j for _, j in b.liftoffs]
+    assert max((abs(s - t) for (s, _), (t, _) in zip(a.liftoffs, b.liftoffs)), default=0.0) < 1e-9
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_cube_on_its_face_slides_and_spins_with_exact_momenta(backend):
     vx, vy, spin, psi0 = 0.7, -0.4, 2.5, 0.3
@@ -140,8 +158,8 @@ def test_both_backends_take_the_same_steps_onto_the_face():
     # vertices carry it, also once it rests on a diagonal (the third held vertex's force 0)
     total = [r.contact_force.sum(axis=1) for r in (a, b)]
     assert np.abs(total[0] - total[1]).max() < 1e-9
-    assert (a.active == b.active).all() and [j for _, j in a.liftoffs] == [j for _, j in b.liftoffs]
-    assert max((abs(s - t) for (s, _), (t, _) in zip(a.liftoffs, b.liftoffs)), default=0.0) < 1e-9
+    assert (a.active == b.active).all()
+    assert_same_liftoffs(a, b)
     assert np.abs(a.contact_force - b.contact_force).max() < 1e-9
 
 
@@ -314,11 +332,7 @@ def test_rough_drops_that_cycled_at_one_instant_run_to_rest_alike_on_both_backen
     t = 3 on both backends alike (the same impacts, ``q`` to 1e-8), never below the floor, no impact adding
     energy, at rest on a face at the end."""
     q0, v0, params = ROUGH_DROPS[drop]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # the landings' friction left out: counted, known
-        a, b = (
-            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=3.0) for be in ("c", "casadi")
-        )
+    a, b = rough_on_both(q0, v0, params)
     for res in (a, b):
         assert vertex_heights(res.q).min() > -1e-9
         assert all(i.energy_after <= i.energy_before + 1e-9 * abs(i.energy_before) for i in res.impacts)
@@ -401,16 +415,11 @@ def test_rough_drops_keep_the_same_books_on_both_backends(drop):
     lift-off (a slide) only below ``-EPS_LIFT`` of the largest (``held_roots.EPS_LIFT``). Both backends log
     the same impacts, lift-offs, held rows every step, passes, kept sticks and jams."""
     q0, v0, params = BOOKED_DROPS[drop]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # the landings' friction left out: counted, known
-        a, b = (
-            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=3.0) for be in ("c", "casadi")
-        )
+    a, b = rough_on_both(q0, v0, params)
     assert [(i.contact, i.kind, i.step) for i in a.impacts] == [
         (i.contact, i.kind, i.step) for i in b.impacts
     ]
-    assert [j for _, j in a.liftoffs] == [j for _, j in b.liftoffs]
-    assert max((abs(s - t) for (s, _), (t, _) in zip(a.liftoffs, b.liftoffs)), default=0.0) < 1e-9
+    assert_same_liftoffs(a, b)
     assert (a.active == b.active).all()
     for key in ("loads_passed", "sticks_kept", "jams"):
         assert a.stats[key] == b.stats[key], key
@@ -449,12 +458,7 @@ def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order(drop):
     199), where C's runs without the events' tangent. Both now list ``(step, reason)`` once each, in that
     order (``vcigen.result.ordered_breaks``), the same list."""
     q0, v0, params, t_end = TANGENT_DROPS[drop]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # the landings' friction left out: counted, known
-        a, b = (
-            sim(be, True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=t_end, sensitivities=True)
-            for be in ("c", "casadi")
-        )
+    a, b = rough_on_both(q0, v0, params, t_end, sensitivities=True)
     assert a.sensitivity_breaks == b.sensitivity_breaks
     order = [name for _, name in vcigen.result.BREAK_REASONS]
     keys = [(k, order.index(why)) for k, why in b.sensitivity_breaks]
