@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .cone_split import null_combination, split
+from .coupling import coupled_cones
 from .derive import KINK
 from .held_roots import (
     BRAKE,
@@ -167,8 +168,9 @@ class FrictionModes:
         from the same state (the start's directions of all, one evaluation of the contact forces), so that the
         aim of two cones of one body does not depend on their order. When two or more cones slide slower than
         ``BRAKE tau`` times the rate friction alone changes their sliding (``mu_f N`` times the mean of
-        ``grad t M^-1 grad t^T``) they are aimed implicitly together (:meth:`_cone_brake`): there the
-        explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable. Not where more
+        ``grad t M^-1 grad t^T``) and are linked to each other (one body, a constraint:
+        :func:`vcigen.coupling.coupled_cones`) they are aimed implicitly together (:meth:`_cone_brake`): there
+        the explicit aim made a body's relative modes (the yaw of a rod on two cones) unstable. Not where more
         than one of their stick rows would ride (a box on three cones): the best split of
         :meth:`_cone_split` is one dependence's, and its forces aimed a cone across its sliding."""
         k = self.k
@@ -198,6 +200,11 @@ class FrictionModes:
                 aims.append((f, p, -self._mu_f[f] * mid / norm))
             if math.hypot(*w) <= BRAKE * tau * brake:
                 slow.append((f, p))
+        if len(slow) >= 2:  # only cones linked to another (one body, a constraint): vcigen.coupling
+            rows = [x for f, p in slow for x in (self._stick_rows[f], self._stick_rows[p])]
+            g2 = grad[rows + [int(r) for r in np.flatnonzero(self.act)]]
+            linked = coupled_cones(g2 @ np.linalg.solve(mass, g2.T), len(slow))
+            slow = [cone for cone, on in zip(slow, linked) if on]
         braked = self._cone_brake(slow, q, u, tau) if len(slow) >= 2 else None
         if braked is not None:  # several cones near rest: implicit in the direction
             self._braked = True

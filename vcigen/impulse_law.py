@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_slide
-from .held_roots import EPS_LAM, MAX_LAW_ROWS, span_add
+from .held_roots import EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
 
 
 def _pooled(pools, lam) -> float:
@@ -51,14 +51,14 @@ class ImpulseLaw:
         :meth:`_law_slips`) sticks within its cone (``|Lam_t| <= mu_f Lam_n``, 2-norm) or slips with Coulomb's
         sliding impulse ``Lam_t = -mu_f Lam_n w+ / |w+|`` against its tangential velocity after ``w+``
         (:meth:`_law_slide`, a 1-D root); its modes come after all the one-tangent ones (stick then slip, a
-        slipping cone's slip first), one cone slipping at a time. A frictional contact that lands (a row
-        of its hit, none held: :meth:`_law_lands`) joins the same way, sticking first: with a stick row of its
-        own (a one-tangent contact's three modes, a cone's stick or slide), or in the cone of the contact
-        whose stick row carries its tangent (its normal impulse is that one's room too). Returns ``(p+, Lam,
-        vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no impulse (the caller
-        releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the slipping contacts
-        that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`), ``lands`` the landing
-        ones (their modes are set when they are held, ``_friction_modes``).
+        slipping cone's slip first), several slipping at once by block Gauss-Seidel. A frictional contact
+        that lands (a row of its hit, none held: :meth:`_law_lands`) joins the same way, sticking first: with
+        a stick row of its own (a one-tangent contact's three modes, a cone's stick or slide), or in the cone
+        of the contact whose stick row carries its tangent (its normal impulse is that one's room too).
+        Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no
+        impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
+        slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
+        ``lands`` the landing ones (their modes are set when they are held, ``_friction_modes``).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -93,11 +93,6 @@ class ImpulseLaw:
             # then the isotropic cones' (after all of those): 0 stick, 1 slip; each its own first
             upper = modes // 3 ** len(cones)
             slides = [(upper >> c & 1) ^ iso[4] for c, iso in enumerate(isos)]
-            if sum(slides) > 1:
-                out = out or (
-                    f"impulse law: {sum(slides)} isotropic cones slipping at once at an impact while held"
-                )
-                continue
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
             for (i, pools), mode in zip(cones, slips_):
                 for normals, mu in pools if mode else ():
@@ -112,7 +107,8 @@ class ImpulseLaw:
                 if dependent and _spanned(g, tight, normal):  # a subset of the dependent normals carries it
                     continue
                 if slide:
-                    lam = self._law_slide(slide[0], w, ws, b, tight, cones, slips_, lam_eps)
+                    lam, why = self._law_slide(slide, w, ws, b, tight, cones, slips_, lam_eps)
+                    out = out or why
                     if lam is None:
                         continue
                 else:
@@ -324,38 +320,71 @@ class ImpulseLaw:
             orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
         return cones, strict, orders, isos
 
-    def _law_slide(self, iso, w, ws, b, tight, cones, slips_, lam_eps):
+    def _law_slide(self, slide, w, ws, b, tight, cones, slips_, lam_eps):
         """The impulses of the impulse law (:meth:`_impulse_law`) on the tight rows ``tight`` with the
-        isotropic cone ``iso = (i, o, normals, mu_f, on, f)`` slipping: Coulomb's sliding impulse, its
-        tangential impulse ``m`` against its tangential velocity after (:func:`vcigen.friction.cone_slide`);
-        None if it would stick (or the rows are singular, or a tangent is fixed by them: ``H`` singular). The
-        law is affine in ``m`` (the tight rows' impulses, the one-tangent slipping rows' edges): its value at
-        ``m = 0`` and its two columns give the cone's normal impulse ``a - b.m`` (``a`` within ``lam_eps`` of
-        0: none, ``m = 0``) and the tangential velocity after ``g + H m``, one solve with three right-hand
-        sides."""
-        i, o, normals, mu, _, _ = iso
-        n = len(b)
-        lams = np.zeros((3, n))  # the law at m = 0, then its columns in m1, m2
+        isotropic cones ``slide`` (each ``(i, o, normals, mu_f, on, f)``) slipping: Coulomb's sliding impulse,
+        each cone's tangential impulse ``m_c`` against its tangential velocity after
+        (:func:`vcigen.friction.cone_slide`). The law is affine in ``m`` (the tight rows' impulses, the
+        one-tangent slipping rows' edges): its value at ``m = 0`` and its columns give each cone's normal
+        impulse ``a_c - b_c.m`` (``a_c`` within ``lam_eps`` of 0: none, ``m_c = 0``) and tangential velocity
+        after ``g_c + H_c m``, one solve with ``1 + 2 K`` right-hand sides. One cone: its 1-D root. Several
+        (two pucks, one landing while the other slides): block Gauss-Seidel, each cone's root with the
+        others' ``m`` fixed, a cone whose stick is inside its cone taking the stick for that sweep, until no
+        ``m`` moves by ``SLIDE_TOL (1 + max |m|)`` (cones not coupled by the law: the second sweep repeats
+        the first). Returns ``(lam, "")``; ``(None, "")`` if a cone sticks at the end (or the rows are
+        singular, or a tangent is fixed by them: ``H`` singular), ``(None, why)`` if the sweeps do not
+        settle in ``SLIDE_SWEEPS``."""
+        n, nc = len(b), len(slide)
+        cols = [x for iso in slide for x in iso[:2]]  # each cone's two stick rows, in order
+        lams = np.zeros((1 + 2 * nc, n))  # the law at m = 0, then its columns in m
         if tight:
-            rhs = np.column_stack([b[tight], -w[tight, i], -w[tight, o]])
+            rhs = np.column_stack([b[tight], *(-w[tight, x] for x in cols)])
             try:
                 lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T
             except np.linalg.LinAlgError:
-                return None
-        lams[1, i] = lams[2, o] = 1.0
+                return None, ""
+        for x, col in enumerate(cols):
+            lams[1 + x, col] = 1.0
         for lam in lams:
             for (c, pools), mode in zip(cones, slips_):
                 if mode:
                     lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
         gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
-        a = float(np.sum(lams[0, normals]))
-        a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
-        bn = (-float(np.sum(lams[1, normals])), -float(np.sum(lams[2, normals])))
-        g = (float(gaps[0, i] - b[i]), float(gaps[0, o] - b[o]))
-        m = cone_slide(g, (gaps[1, i], gaps[2, i], gaps[1, o], gaps[2, o]), bn, mu, a)
-        if m is None:
-            return None
-        return lams[0] + m[0] * lams[1] + m[1] * lams[2]
+        m = [0.0] * (2 * nc)
+        for _ in range(SLIDE_SWEEPS):
+            moved, stuck = 0.0, False
+            for c, (i, o, normals, mu, _, _) in enumerate(slide):
+                a = float(np.sum(lams[0, normals]))
+                g = [float(gaps[0, i] - b[i]), float(gaps[0, o] - b[o])]
+                for x in range(2 * nc):  # the other cones' impulses, fixed
+                    if x // 2 != c:
+                        a += float(np.sum(lams[1 + x, normals])) * m[x]
+                        g[0] += float(gaps[1 + x, i]) * m[x]
+                        g[1] += float(gaps[1 + x, o]) * m[x]
+                a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
+                bn = (-float(np.sum(lams[1 + 2 * c, normals])), -float(np.sum(lams[2 + 2 * c, normals])))
+                h = (gaps[1 + 2 * c, i], gaps[2 + 2 * c, i], gaps[1 + 2 * c, o], gaps[2 + 2 * c, o])
+                mc = cone_slide(g, h, bn, mu, a)
+                if mc is None:
+                    det = h[0] * h[3] - h[1] * h[2]
+                    if nc == 1 or not det > 0.0:
+                        return None, ""
+                    mc, stuck = (-(h[3] * g[0] - h[1] * g[1]) / det, -(h[0] * g[1] - h[2] * g[0]) / det), True
+                moved = max(moved, abs(mc[0] - m[2 * c]), abs(mc[1] - m[2 * c + 1]))
+                m[2 * c], m[2 * c + 1] = mc
+            if nc == 1 or moved <= SLIDE_TOL * (1.0 + max(abs(x) for x in m)):
+                break
+        else:
+            return None, (
+                f"impulse law: {nc} isotropic cones slipping at once did not settle in {SLIDE_SWEEPS} sweeps "
+                "at an impact while held"
+            )
+        if stuck:
+            return None, ""
+        lam = lams[0].copy()
+        for x in range(2 * nc):
+            lam = lam + m[x] * lams[1 + x]
+        return lam, ""
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
         """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's

@@ -1267,6 +1267,8 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SPUN_BALL_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
+#define SPUN_BALL_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define SPUN_BALL_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define SPUN_BALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
@@ -1991,11 +1993,52 @@ static int spun_ball_cone_brake(const spun_ball_ctx_t *c, const int *slow, const
     return riding <= 1;
 }
 
+/* coupling.coupled_cones' find: the root of node i, halving the path. */
+static int spun_ball_root_of(int *root, int i)
+{
+    while (root[i] != i) {
+        root[i] = root[root[i]];
+        i = root[i];
+    }
+    return i;
+}
+
+/* coupling.coupled_cones: for w = G M^-1 G^T (n x n), G the two stick rows of each of n_cones cones (in order) then
+ * the active rows, whether each cone is linked to another through nonzero entries of w (union-find on its
+ * pattern, a cone's two rows one node): only those near rest are braked together (cone_aim). */
+static void spun_ball_coupled_cones(const double *w, int n, int n_cones, int *linked)
+{
+    int root[2 * SPUN_BALL_NF + SPUN_BALL_R_DIM], top[SPUN_BALL_NF], i, j, count;
+    for (i = 0; i < n; ++i) {
+        root[i] = i;
+    }
+    for (i = 0; i < n_cones; ++i) {
+        root[spun_ball_root_of(root, 2 * i + 1)] = spun_ball_root_of(root, 2 * i);
+    }
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            if (w[i * n + j] != 0.0 || w[j * n + i] != 0.0) {
+                root[spun_ball_root_of(root, j)] = spun_ball_root_of(root, i);
+            }
+        }
+    }
+    for (i = 0; i < n_cones; ++i) {
+        top[i] = spun_ball_root_of(root, 2 * i);
+    }
+    for (i = 0; i < n_cones; ++i) {
+        for (j = 0, count = 0; j < n_cones; ++j) {
+            count += top[j] == top[i];
+        }
+        linked[i] = count > 1;
+    }
+}
+
 /* SustainedSteps._cone_aim: the slip direction of each slipping cone (f, p) (aimed[f]) over a segment of tau from
  * (q, u): the sliding velocity predicted at the segment's midpoint, w + tau/2 dw/dt (with the contact forces at
  * the start and the start's directions), normalised; the start's direction if the prediction turns back (a stop
  * in the segment) or if tau/2 |dw/dt| > |w| (near rest, breaking away). Every cone aimed from the same state; two
- * or more cones sliding slower than BRAKE tau times friction's own rate on them aimed implicitly (cone_brake), where
+ * or more cones sliding slower than BRAKE tau times friction's own rate on them and linked to each other (one body,
+ * a constraint: coupled_cones) aimed implicitly (cone_brake), where
  * at most one of their stick rows rides (the split of cone_split is one dependence's). */
 static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const double *q, const double *u, double tau)
 {
@@ -2068,6 +2111,47 @@ static void spun_ball_cone_aim(const spun_ball_ctx_t *c, const int *aimed, const
         if (hypot(w[0], w[1]) <= SPUN_BALL_BRAKE * tau * brake) {
             slow[f] = 1;
             ++n_slow;
+        }
+    }
+    if (n_slow >= 2) { /* only cones linked to another (one body, a constraint): coupled_cones */
+        double gs[(2 * SPUN_BALL_NF + SPUN_BALL_R_DIM) * SPUN_BALL_N], wc[(2 * SPUN_BALL_NF + SPUN_BALL_R_DIM) * (2 * SPUN_BALL_NF + SPUN_BALL_R_DIM)];
+        int idx[SPUN_BALL_NF], linked[SPUN_BALL_NF], ng = 0, nc = 0, a, b;
+        for (f = 0; f < SPUN_BALL_NF; ++f) {
+            if (slow[f]) {
+                idx[nc++] = f;
+                for (k = 0; k < 2; ++k) {
+                    r = spun_ball_stick_row[k == 0 ? f : spun_ball_partner[f]];
+                    for (i = 0; i < SPUN_BALL_N; ++i) {
+                        gs[ng * SPUN_BALL_N + i] = grad[r * SPUN_BALL_N + i];
+                    }
+                    ++ng;
+                }
+            }
+        }
+        for (r = 0; r < SPUN_BALL_R; ++r) {
+            if (c->sus->act[r]) {
+                for (i = 0; i < SPUN_BALL_N; ++i) {
+                    gs[ng * SPUN_BALL_N + i] = grad[r * SPUN_BALL_N + i];
+                }
+                ++ng;
+            }
+        }
+        for (a = 0; a < ng; ++a) {
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                col[i] = gs[a * SPUN_BALL_N + i];
+            }
+            spun_ball_lu_solve(SPUN_BALL_N, mass, piv, col);
+            for (b = 0; b < ng; ++b) {
+                wc[b * ng + a] = 0.0;
+                for (i = 0; i < SPUN_BALL_N; ++i) {
+                    wc[b * ng + a] += gs[b * SPUN_BALL_N + i] * col[i];
+                }
+            }
+        }
+        spun_ball_coupled_cones(wc, ng, nc, linked);
+        for (k = 0, n_slow = 0; k < nc; ++k) {
+            slow[idx[k]] = linked[k];
+            n_slow += linked[k];
         }
     }
     if (n_slow >= 2 && spun_ball_cone_brake(c, slow, q, u, tau, set, aims)) { /* near rest: implicit */
@@ -2802,21 +2886,26 @@ static int spun_ball_cone_slide(const double *g, const double *h, const double *
     double *m1, double *m2); /* stepper_cone.c.j2 */
 
 /* SustainedSteps._law_slide: the impulses lam (per index in rows) of the impulse law on the tight rows tight[0..nt)
- * with the isotropic cone of first tangent f (stick rows at i, o in rows) slipping: Coulomb's sliding impulse, its
- * tangential impulse m against its tangential velocity after (cone_slide); 0 if it would stick (or the rows are
- * singular, or a tangent is fixed by them: H singular). The law is affine in m (the tight rows' impulses, the
- * one-tangent slipping rows' edges, mode): its value at m = 0 and its two columns give the cone's normal impulse
- * a - b.m (a within lam_eps of 0: none, m = 0) and the tangential velocity after g + H m, one LU with three
- * right-hand sides. */
+ * with the isotropic cones sl_f[0..n_sl) (first tangents; stick rows at sl_i, sl_o in rows) slipping: Coulomb's
+ * sliding impulse, each cone's tangential impulse m_c against its tangential velocity after (cone_slide). The law
+ * is affine in m (the tight rows' impulses, the one-tangent slipping rows' edges, mode): its value at m = 0 and
+ * its columns give each cone's normal impulse a_c - b_c.m (a_c within lam_eps of 0: none, m_c = 0) and tangential
+ * velocity after g_c + H_c m, one LU with 1 + 2 n_sl right-hand sides. One cone: its 1-D root. Several: block
+ * Gauss-Seidel, each cone's root with the others' m fixed, a cone whose stick is inside its cone taking the stick
+ * for that sweep, until no m moves by SLIDE_TOL (1 + max |m|). 1 and lam; 0 if a cone sticks at the end (or the
+ * rows are singular, or a tangent is fixed by them: H singular); -1 if the sweeps do not settle in SLIDE_SWEEPS. */
 static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, const int *rows, int nr,
     const double *w, const double *ws, const double *b, const int *tight, int nt, const int *cone_i,
-    const int *cone_f, const int *mode, int n_cones, int i, int o, int f, double lam_eps, double *lam)
+    const int *cone_f, const int *mode, int n_cones, const int *sl_i, const int *sl_o, const int *sl_f, int n_sl,
+    double lam_eps, double *lam)
 {
-    double lams[3 * SPUN_BALL_R_DIM], gaps[3 * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
-    double sol[SPUN_BALL_R_DIM], g[2], h[4], bn[2], an, m1, m2;
-    int piv[SPUN_BALL_R_DIM], j, k, l, x;
-    for (k = 0; k < 3 * nr; ++k) {
-        lams[k] = 0.0; /* the law at m = 0, then its columns in m1, m2 */
+    enum { L_DIM = 1 + SPUN_BALL_NF_DIM };
+    double lams[L_DIM * SPUN_BALL_R_DIM], gaps[L_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
+    double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], g[2], h[4], bn[2], an, m1, m2, det, moved, big;
+    int piv[SPUN_BALL_R_DIM], j, k, l, x, s, sweep, stuck = 0;
+    const int nl = 1 + 2 * n_sl;
+    for (k = 0; k < nl * nr; ++k) {
+        lams[k] = 0.0; /* the law at m = 0, then its columns in m */
     }
     if (nt > 0) {
         for (k = 0; k < nt; ++k) {
@@ -2827,9 +2916,9 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
         if (!spun_ball_lu(nt, a, piv)) {
             return 0;
         }
-        for (j = 0; j < 3; ++j) {
+        for (j = 0; j < nl; ++j) {
             for (k = 0; k < nt; ++k) {
-                sol[k] = j == 0 ? b[tight[k]] : -w[tight[k] * nr + (j == 1 ? i : o)];
+                sol[k] = j == 0 ? b[tight[k]] : -w[tight[k] * nr + (j % 2 ? sl_i[(j - 1) / 2] : sl_o[(j - 1) / 2])];
             }
             spun_ball_lu_solve(nt, a, piv, sol);
             for (k = 0; k < nt; ++k) {
@@ -2837,9 +2926,13 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
             }
         }
     }
-    lams[nr + i] = 1.0;
-    lams[2 * nr + o] = 1.0;
-    for (j = 0; j < 3; ++j) {
+    for (s = 0; s < n_sl; ++s) {
+        lams[(1 + 2 * s) * nr + sl_i[s]] = 1.0;
+        lams[(2 + 2 * s) * nr + sl_o[s]] = 1.0;
+        m[2 * s] = 0.0;
+        m[2 * s + 1] = 0.0;
+    }
+    for (j = 0; j < nl; ++j) {
         for (x = 0; x < n_cones; ++x) {
             if (mode[x]) {
                 lams[j * nr + cone_i[x]] = (mode[x] == 1 ? -1.0 : 1.0)
@@ -2853,29 +2946,68 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
             }
         }
     }
-    an = spun_ball_law_normal(rows, nr, lams, f);
-    an = an > lam_eps ? an : 0.0; /* no normal impulse (to round-off): no friction impulse */
-    bn[0] = -spun_ball_law_normal(rows, nr, lams + nr, f);
-    bn[1] = -spun_ball_law_normal(rows, nr, lams + 2 * nr, f);
-    g[0] = gaps[i] - b[i];
-    g[1] = gaps[o] - b[o];
-    h[0] = gaps[nr + i];
-    h[1] = gaps[2 * nr + i];
-    h[2] = gaps[nr + o];
-    h[3] = gaps[2 * nr + o];
-    if (!spun_ball_cone_slide(g, h, bn, c->mu_f[f], an, &m1, &m2)) {
+    for (sweep = 0; sweep < SPUN_BALL_SLIDE_SWEEPS; ++sweep) {
+        moved = 0.0;
+        stuck = 0;
+        for (s = 0; s < n_sl; ++s) {
+            const int i = sl_i[s], o = sl_o[s];
+            an = spun_ball_law_normal(rows, nr, lams, sl_f[s]);
+            g[0] = gaps[i] - b[i];
+            g[1] = gaps[o] - b[o];
+            for (x = 0; x < 2 * n_sl; ++x) { /* the other cones' impulses, fixed */
+                if (x / 2 != s) {
+                    an += spun_ball_law_normal(rows, nr, lams + (1 + x) * nr, sl_f[s]) * m[x];
+                    g[0] += gaps[(1 + x) * nr + i] * m[x];
+                    g[1] += gaps[(1 + x) * nr + o] * m[x];
+                }
+            }
+            an = an > lam_eps ? an : 0.0; /* no normal impulse (to round-off): no friction impulse */
+            bn[0] = -spun_ball_law_normal(rows, nr, lams + (1 + 2 * s) * nr, sl_f[s]);
+            bn[1] = -spun_ball_law_normal(rows, nr, lams + (2 + 2 * s) * nr, sl_f[s]);
+            h[0] = gaps[(1 + 2 * s) * nr + i];
+            h[1] = gaps[(2 + 2 * s) * nr + i];
+            h[2] = gaps[(1 + 2 * s) * nr + o];
+            h[3] = gaps[(2 + 2 * s) * nr + o];
+            if (!spun_ball_cone_slide(g, h, bn, c->mu_f[sl_f[s]], an, &m1, &m2)) {
+                det = h[0] * h[3] - h[1] * h[2];
+                if (n_sl == 1 || !(det > 0.0)) {
+                    return 0;
+                }
+                m1 = -(h[3] * g[0] - h[1] * g[1]) / det; /* its stick, inside its cone: for this sweep */
+                m2 = -(h[0] * g[1] - h[2] * g[0]) / det;
+                stuck = 1;
+            }
+            moved = fmax(moved, fmax(fabs(m1 - m[2 * s]), fabs(m2 - m[2 * s + 1])));
+            m[2 * s] = m1;
+            m[2 * s + 1] = m2;
+        }
+        big = 0.0;
+        for (x = 0; x < 2 * n_sl; ++x) {
+            big = fmax(big, fabs(m[x]));
+        }
+        if (n_sl == 1 || moved <= SPUN_BALL_SLIDE_TOL * (1.0 + big)) {
+            break;
+        }
+    }
+    if (sweep == SPUN_BALL_SLIDE_SWEEPS) {
+        return -1;
+    }
+    if (stuck) {
         return 0;
     }
     for (k = 0; k < nr; ++k) {
-        lam[k] = lams[k] + m1 * lams[nr + k] + m2 * lams[2 * nr + k];
+        lam[k] = lams[k];
+        for (x = 0; x < 2 * n_sl; ++x) {
+            lam[k] += m[x] * lams[(1 + x) * nr + k];
+        }
     }
     return 1;
 }
 
 /* With isotropic cones: one held with both tangents (sticking, or slipping and joined, law_slips) sticks within its
  * cone (|Lam_t| <= mu_f Lam_n) or slips with Coulomb's sliding impulse against its tangential velocity after
- * (law_slide); its modes (stick, slip; its own first) come after all the one-tangent ones, in base 2, one cone
- * slipping at a time. A slipping cone that took no normal impulse is left out (slips on as before). */
+ * (law_slide); its modes (stick, slip; its own first) come after all the one-tangent ones, in base 2, several
+ * slipping at once by block Gauss-Seidel. A slipping cone that took no normal impulse is left out (slips on as before). */
 /* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
  * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
  * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
@@ -2924,7 +3056,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     double slope, gaps[SPUN_BALL_R_DIM];
     int digits, g, pg;
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
-    int slide_on[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_slide, slide_c;
+    int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
+    int n_iso = 0, n_base, n_slide, settled;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
     spun_ball_legendre(q, vel_m, c->par, mom, mass);
@@ -2982,21 +3115,13 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         n_slide = 0; /* the isotropic cones' digits, after all the one-tangent ones': 0 stick, 1 slip, own first */
-        slide_c = -1;
         for (i = 0; i < n_iso; ++i) {
             slide_on[i] = ((modes / n_base) >> i & 1) ^ iso_on[i];
             if (slide_on[i]) {
-                ++n_slide;
-                slide_c = i;
+                sl_i[n_slide] = iso_i[i];
+                sl_o[n_slide] = iso_o[i];
+                sl_f[n_slide++] = iso_f[i];
             }
-        }
-        if (n_slide > 1) {
-            if (!out) {
-                spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: %d isotropic cones slipping at "
-                    "once at an impact while held", n_slide);
-                out = 1;
-            }
-            continue;
         }
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
             ws[k] = w[k];
@@ -3026,9 +3151,9 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
             }
         }
-        if (slide_c >= 0) {
-            sliding[iso_i[slide_c]] = 1;
-            sliding[iso_o[slide_c]] = 1;
+        for (i = 0; i < n_slide; ++i) {
+            sliding[sl_i[i]] = 1;
+            sliding[sl_o[i]] = 1;
         }
         for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
             int valid = 1;
@@ -3045,9 +3170,16 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             if (!valid || (dependent && spun_ball_spanned(grad, rows, tight, nt))) { /* a subset carries it */
                 continue;
             }
-            if (slide_c >= 0) {
-                if (!spun_ball_law_slide(c, slip_ride, rows, nr, w, ws, b, tight, nt, cone_i, cone_f, mode, n_cones,
-                    iso_i[slide_c], iso_o[slide_c], iso_f[slide_c], lam_eps, lam)) {
+            if (n_slide > 0) {
+                settled = spun_ball_law_slide(c, slip_ride, rows, nr, w, ws, b, tight, nt, cone_i, cone_f, mode,
+                    n_cones, sl_i, sl_o, sl_f, n_slide, lam_eps, lam);
+                if (settled < 0 && !out) {
+                    spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: %d isotropic cones slipping "
+                        "at once did not settle in %d sweeps at an impact while held", n_slide,
+                        SPUN_BALL_SLIDE_SWEEPS);
+                    out = 1;
+                }
+                if (settled <= 0) {
                     continue;
                 }
             } else {
