@@ -201,21 +201,24 @@ def test_a_rough_cube_sliding_on_its_face_brakes_straight_at_mu_g(backend):
     impulse ``m g t_land`` on a subset of the vertices (the law's first independent one, the same on both
     backends), then the cube, held on three vertices with the fourth riding, brakes along x at exactly
     ``mu g`` (the friction of the load, whatever its split) with no turn, no sideways speed and no tilt,
-    until it stops. The landing itself takes no friction impulse (README *Known limits*): of the four cones
-    landing, the first joins the law with its own rows, but its share of the normal impulse is 0, and the
-    other three depend on it and take none. That is said: ``stats["landing_friction_dropped"]`` counts them
-    and a ``RuntimeWarning`` names it."""
+    until it stops. The landing takes Coulomb's friction impulse ``mu m g t_land`` (since stop 32: the
+    three cones whose stick rows depend on the first's join the law *loose*, sliding; before they took
+    none, ``stats["landing_friction_dropped"] == 3`` and a warning, and the cube kept its speed through the
+    landing): its speed at every grid point after the landing is ``v - mu g t`` (as if braked from t = 0:
+    the landing's impulse is the braking the fall's normal impulse carries) to 1e-12, nothing dropped, no
+    warning."""
     drop, v, h = 0.3, 3.0, 0.005
     q0, v0 = [0, 0, A / 2 + drop, 0, 0, 0], [v, 0, 0, 0, 0, 0]
-    with pytest.warns(RuntimeWarning, match="3 landing contact"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         res = sim(backend, True).simulate(params=E0, q0=q0, v0=v0, h=h, t_end=0.6)
-    assert res.stats["landing_friction_dropped"] == 3
+    assert res.stats["landing_friction_dropped"] == 0
     t_land = math.sqrt(2 * drop / G)
     assert len({i.t for i in res.impacts}) == 1 and abs(res.impacts[0].t - t_land) < h
     assert abs(sum(i.impulse for i in res.impacts) - MASS * G * res.impacts[0].t) < 1e-9
-    after = np.flatnonzero(res.t > t_land + h)
+    after = np.flatnonzero(res.t > t_land)
     u = res.p[after, 0] / MASS
-    assert np.abs(np.diff(u) + 0.5 * G * h).max() < 1e-12 and u[-1] > 0  # sliding on at the end
+    assert np.abs(u - (v - 0.5 * G * res.t[after])).max() < 1e-12 and u[-1] > 0  # sliding on at the end
     assert np.abs(res.p[:, [1, 3, 4, 5]]).max() < 1e-12  # no sideways speed, no turn, no tilt
     assert np.abs(res.q[after, 2] - A / 2).max() < 1e-12
     assert np.abs(res.contact_force[after[:-1]].sum(axis=1) - MASS * G).max() < 1e-9
@@ -289,8 +292,8 @@ ROUGH_DROPS = {  # bench.cube_drops' rough drops (seed 7) that ended in "more th
             1.3311772400082704,
             -0.45019135072049643,
             -1.877139680755687,
-            -0.391119525,
-            2.303535,
+            -0.39111952574046693,  # full precision since stop 32: with 6 digits its books differ (README)
+            2.30353478833288,
         ],
         {"e": 0.0, "mu": 0.7108815531965337},
     ),
@@ -329,8 +332,9 @@ def test_rough_drops_that_cycled_at_one_instant_run_to_rest_alike_on_both_backen
     landed again ``JAM_CYCLES`` times in a step, every held contact sticks, ``_jam``: ``stats["jams"]``,
     warned); a cone's stop whose root was located ~1e-16 of a step in, its sub-step solved at ``tau ~
     1e-18`` (NaN on CasADi's path; now within ``1e-13 h`` an event is at the segment's start). Each runs to
-    t = 3 on both backends alike (the same impacts, ``q`` to 1e-8), never below the floor, no impact adding
-    energy, at rest on a face at the end."""
+    t = 3 on both backends alike (the same impacts, ``q`` to 1e-8, the same books), never below the floor,
+    no impact adding energy, at rest on a face at the end. Since stop 32 (landings take Coulomb's friction on
+    loose cones) two of them take other paths: the kept stick is now the stop's drop's, the jam drop 23's."""
     q0, v0, params = ROUGH_DROPS[drop]
     a, b = rough_on_both(q0, v0, params)
     for res in (a, b):
@@ -343,26 +347,25 @@ def test_rough_drops_that_cycled_at_one_instant_run_to_rest_alike_on_both_backen
     assert np.abs(a.q - b.q).max() < 1e-8
     assert a.stats["sticks_kept"] == b.stats["sticks_kept"]
     assert a.stats["jams"] == b.stats["jams"]
-    if drop != "lifted off and landed at once":  # its books differ at t = 1.205 (README: stop 31's books)
-        assert a.stats["loads_passed"] == b.stats["loads_passed"]
-        assert [j for _, j in a.liftoffs] == [j for _, j in b.liftoffs]
-    if drop == "stick and slip at once":
+    assert a.stats["loads_passed"] == b.stats["loads_passed"]
+    assert [j for _, j in a.liftoffs] == [j for _, j in b.liftoffs]
+    if drop == "a stop at the start":  # ran (a sub-step of ~1e-18 solved: NaN); since stop 32 keeps a stick
         assert a.stats["sticks_kept"] >= 1
         with pytest.warns(RuntimeWarning, match="kept sticking"):
             sim("c", True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=3.0)
-    elif drop == "lifted off and landed at once":
-        assert a.stats["jams"] >= 1
-        with pytest.warns(RuntimeWarning, match="made to stick"):
-            sim("c", True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=3.0)
-    elif drop == "a stop at the start":
-        pass  # ran (a sub-step of ~1e-18 was solved: NaN)
-    elif drop == "met again at once":  # the vertex met twice at one instant: a rebound of 0, then held
+    elif drop == "met again at once":  # the vertex met twice at one instant, then held; since stop 32 a jam
         twice = [
             (i.kind, j.kind) for i, j in zip(a.impacts, a.impacts[1:]) if (i.contact, i.t) == (j.contact, j.t)
         ]
-        assert ("restitution", "plastic") in twice
-    else:
+        assert twice and twice[0][1] == "plastic"
+        assert a.stats["jams"] >= 1
+        with pytest.warns(RuntimeWarning, match="made to stick"):
+            sim("c", True).simulate(params=params, q0=q0, v0=v0, h=0.005, t_end=3.0)
+    elif drop == "load crossing its diagonal":
         assert a.stats["loads_passed"] >= 1 and b.stats["loads_passed"] >= 1
+    # "stick and slip at once", "lifted off and landed at once": since stop 32 their landings take friction
+    # (loose cones) and their paths no longer keep a stick or jam; the kept stick and the jam are exercised
+    # above
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -432,19 +435,20 @@ def test_rough_drops_keep_the_same_books_on_both_backends(drop):
 
 
 TANGENT_DROPS = {  # bench.cube_drops' rough drops (seed 7) whose tangent breaks the backends listed apart
-    "several reasons a step": (  # drop 55, to t = 1.4: steps 275 and 276 break for three reasons each
-        [0.0, 0.0, 1.0, 0.8227697381716228, 0.26469306339273124, 0.10809831945723636],
-        [-0.7488123738117278, 0.5156155178164608, -0.8632241989441596]
-        + [2.174137594232687, -1.2423605850127457, 1.5463836189139286],
-        {"e": 0.6356741550698214, "mu": 0.7404286608102791},
-        1.4,
+    # (drops 55 and 121 before stop 32, whose landings, now with Coulomb's friction, no longer meet it)
+    "several reasons a step": (  # drop 40, to t = 1.5: step 283 breaks for three reasons
+        [0.0, 0.0, 1.0, 1.3998634629583342, 0.25545708999785166, 0.0036557984726849346],
+        [-0.6478697172721448, 1.307275755477693, -1.047593514667743]
+        + [2.068374604046931, 1.7114424161922717, -0.31626705737451166],
+        {"e": 0.7128909397298278, "mu": 0.3897984038818372},
+        1.5,
     ),
-    "two vertices at once, rough": (  # drop 121, to t = 1.0: v1 and v3 at once at step 199, the tangent lost
-        [0.0, 0.0, 1.0, 1.97893839208021, 0.1730926247382314, -0.035675866244202714],
-        [-1.2455770034665234, -0.3884035952351428, -0.1373927290102186]
-        + [-1.8648863400697429, -2.459753926966519, -0.22330538211518824],
-        {"e": 0.2345213661200185, "mu": 0.800551085539732},
-        1.0,
+    "two vertices at once, rough": (  # drop 96, to t = 1.5: v0 and v2 at once in flight at step 294
+        [0.0, 0.0, 1.0, 0.8678441053291835, 0.3948150582847101, -0.41724084294990627],
+        [-1.5240277794597898, 1.0000487234055022, -0.8770542435890822]
+        + [-2.1152199620274126, 0.08060427395685021, -1.2181852580691717],
+        {"e": 0.5493152834658936, "mu": 0.8568393595310215},
+        1.5,
     ),
 }
 
@@ -455,7 +459,8 @@ def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order(drop):
     tracker listed every loss in the order it met them, twice for a reason met twice (drop 55: 11 entries
     against C's 7). And an impact of several rough contacts at once in flight (``_rough_rest``) booked
     ``"simultaneous impact"`` a second time in Python's impulse law after the tangent was lost (drop 121, step
-    199), where C's runs without the events' tangent. Both now list ``(step, reason)`` once each, in that
+    199), where C's runs without the events' tangent. (Since stop 32 drops 40 and 96 stand for 55 and 121.)
+    Both now list ``(step, reason)`` once each, in that
     order (``vcigen.result.ordered_breaks``), the same list."""
     q0, v0, params, t_end = TANGENT_DROPS[drop]
     a, b = rough_on_both(q0, v0, params, t_end, sensitivities=True)
@@ -464,8 +469,9 @@ def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order(drop):
     keys = [(k, order.index(why)) for k, why in b.sensitivity_breaks]
     assert keys == sorted(set(keys))
     if drop == "several reasons a step":
-        at = [why for k, why in b.sensitivity_breaks if k == 275]
+        at = [why for k, why in b.sensitivity_breaks if k == 283]
         assert at == ["simultaneous impact", "friction switch in a held step", "load passed to a riding row"]
     else:
-        assert [(i.step, i.contact) for i in a.impacts if i.step == 199] == [(199, "v1"), (199, "v3")]
-        assert not any(k == 199 for k, _ in b.sensitivity_breaks)
+        assert [(i.step, i.contact) for i in a.impacts if i.step == 294] == [(294, "v0"), (294, "v2")]
+        assert not a.active[293].any() and any(k < 294 for k, _ in b.sensitivity_breaks)
+        assert not any(k == 294 for k, _ in b.sensitivity_breaks)

@@ -40,6 +40,7 @@ import pytest
 import sympy as sp
 from hard_scenes import BACKENDS, G
 from scipy.integrate import solve_ivp
+from scipy.optimize import fsolve
 
 import vcigen
 
@@ -123,9 +124,9 @@ def test_rod_spinning_on_two_cones_decays_at_6_mu_g_over_l(backend):
     assert errs[0] < 2e-5 and errs[1] < errs[0] / 3.5, errs
 
 
-def coulomb_rod(v0, w0):
-    """scipy's Coulomb ODE of the rod sliding on its two ends (module docstring) from (0, 0, PHI0) to the
-    first instant an end stops: ``(solution, t_stop)``."""
+def coulomb_rod(v0, w0, start=(0.0, 0.0, PHI0)):
+    """scipy's Coulomb ODE of the rod sliding on its two ends (module docstring) from ``start`` (x, y, phi) to
+    the first instant an end stops: ``(solution, t_stop)``."""
     normal = MASS * G / 2
 
     def ends(s):
@@ -147,7 +148,7 @@ def coulomb_rod(v0, w0):
         stop.terminal, stop.direction = True, -1
         events.append(stop)
     sol = solve_ivp(
-        rhs, (0, 2), [0, 0, PHI0, *v0, w0], "DOP853", rtol=1e-13, atol=1e-13, events=events, dense_output=True
+        rhs, (0, 2), [*start, *v0, w0], "DOP853", rtol=1e-13, atol=1e-13, events=events, dense_output=True
     )
     return sol, float(sol.t[-1])
 
@@ -166,6 +167,55 @@ def test_rod_sliding_and_spinning_on_two_cones_against_scipy(backend):
         assert np.max(np.abs(res.p[res.t > t_stop + 0.05])) < 1e-12
         assert np.max(np.abs(res.q[-1, [0, 1, 3]] - sol.y[:3, -1])) < 4 * errs[-1]
         assert np.all(res.friction_work <= 0.0)
+    assert errs[0] < 4e-4 and errs[1] < errs[0] / 3.5, errs
+
+
+def coulomb_landing(v, w, phi, normal):
+    """The rod landing flat (plastic) while sliding at ``v`` and spinning at ``w``: each end's normal impulse
+    ``normal``, its tangential impulse ``-mu normal u+ / |u+|`` against its sliding after ``u+ = v+ + w+ e_z x
+    r_e``; ``(v+, w+)`` by ``scipy.optimize.fsolve`` (the momenta of the translation and the spin)."""
+    arm = LENGTH / 2 * np.array([math.cos(phi), math.sin(phi)])
+
+    def law(z):
+        vp, wp = z[:2], z[2]
+        out = MASS * (vp - v)
+        turn = INERTIA * (wp - w)
+        for sgn in (-1, 1):
+            r = sgn * arm
+            u = vp + wp * np.array([-r[1], r[0]])
+            f = -MU * normal * u / np.linalg.norm(u)
+            out = out - f
+            turn -= r[0] * f[1] - r[1] * f[0]
+        return [*out, turn]
+
+    z = fsolve(law, [*v, w], xtol=1e-13)
+    assert np.abs(law(z)).max() < 1e-13
+    return z[:2], float(z[2])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_rod_landing_flat_while_sliding_and_spinning_takes_coulombs_impulse(backend):
+    """Dropped flat from z = 0.2 (``e = 0``) sliding at (1, 0.3) and spinning at 2: both ends land at ``t_l =
+    sqrt(2 z / g)``, each with the normal impulse ``m g t_l / 2``. The second end's stick rows depend on the
+    first's (the rod has three tangential freedoms for four stick rows): before stop 32 it took no friction
+    at the landing (``landing_friction_dropped``), now it joins the law loose and both ends slide
+    (Coulomb's impulse on two coupled cones, block Gauss-Seidel). Against an independent reference: the
+    landing's impulse by :func:`coulomb_landing`, then scipy's Coulomb ODE from the landing until an end
+    stops; the path after the landing at second order (h = 0.01, 0.005), nothing dropped."""
+    z0, v0, w0 = 0.2, np.array([1.0, 0.3]), 2.0
+    t_land = math.sqrt(2 * z0 / G)
+    vp, wp = coulomb_landing(v0, w0, PHI0 + w0 * t_land, MASS * G * t_land / 2)
+    sol, t_stop = coulomb_rod(vp, wp, (*(v0 * t_land), PHI0 + w0 * t_land))
+    errs = []
+    for h in (0.01, 0.005):
+        res = sim(backend).simulate(
+            q0=[0, 0, z0, PHI0, 0], v0=[*v0, 0, w0, 0], h=h, t_end=t_land + t_stop, params={"e": 0.0}
+        )
+        assert res.stats["landing_friction_dropped"] == 0 and abs(res.impacts[0].t - t_land) < 1e-12
+        after = (res.t > t_land) & (res.t <= t_land + t_stop)
+        ref = sol.sol(res.t[after] - t_land)[:3].T
+        errs.append(float(np.max(np.abs(res.q[after][:, [0, 1, 3]] - ref))))
+    print(f"{backend}: rod landing flat, sliding and spinning: path after it vs scipy {errs}")
     assert errs[0] < 4e-4 and errs[1] < errs[0] / 3.5, errs
 
 

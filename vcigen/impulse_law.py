@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_slide
-from .held_roots import EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
+from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
 
 
 def _pooled(pools, lam) -> float:
@@ -54,7 +54,8 @@ class ImpulseLaw:
         slipping cone's slip first), several slipping at once by block Gauss-Seidel. A frictional contact
         that lands (a row of its hit, none held: :meth:`_law_lands`) joins the same way, sticking first: with
         a stick row of its own (a one-tangent contact's three modes, a cone's stick or slide), or in the cone
-        of the contact whose stick row carries its tangent (its normal impulse is that one's room too).
+        of the contact whose stick row carries its tangent (its normal impulse is that one's room too); a
+        cone with a dependent stick row joins loose, sliding first, else left out (no friction impulse).
         Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no
         impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
         slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
@@ -68,8 +69,8 @@ class ImpulseLaw:
         slips = self._law_slips(grad, rows)
         for f, _ in slips:  # a cone's two stick rows, its first tangent's first
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
-        lands, grad = self._law_lands(q, vel, rows, grad)
-        for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own
+        lands, loose, grad = self._law_lands(q, vel, rows, grad)
+        for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own (or loose)
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
         if len(rows) > MAX_LAW_ROWS:
             raise SolverError(
@@ -85,7 +86,7 @@ class ImpulseLaw:
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
         vel_eps = EPS_LAM * (1.0 + float(np.max(np.abs(vel))))
         n = len(rows)
-        cones, strict, orders, isos = self._law_cones(rows, slips, lands)
+        cones, strict, orders, isos = self._law_cones(rows, slips, lands, loose)
         out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
         for modes in range(3 ** len(cones) * 2 ** len(isos)):
             # 0 stick, 1 Lam_t = -mu Lam_n, 2 +; each cone's digits in its order (its own mode first)
@@ -100,6 +101,9 @@ class ImpulseLaw:
             sliding = {i for (i, _), mode in zip(cones, slips_) if mode}
             slide = [iso for iso, on in zip(isos, slides) if on]
             sliding |= {x for iso in slide for x in iso[:2]}
+            # a loose landing cone not sliding: left out (no friction impulse; rows not tight, not checked)
+            left = {x for iso, on in zip(isos, slides) if not on and iso[5] in loose for x in iso[:2]}
+            sliding |= left
             for mask in range((1 << n) - 1, -1, -1):
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
@@ -107,7 +111,7 @@ class ImpulseLaw:
                 if dependent and _spanned(g, tight, normal):  # a subset of the dependent normals carries it
                     continue
                 if slide:
-                    lam, why = self._law_slide(slide, w, ws, b, tight, cones, slips_, lam_eps)
+                    lam, why = self._law_slide(slide, w, ws, b, tight, cones, slips_, lam_eps, loose)
                     out = out or why
                     if lam is None:
                         continue
@@ -158,7 +162,11 @@ class ImpulseLaw:
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
-        slipped = [rows[i] for i in sorted(sliding)]
+        slipped = [rows[i] for i in sorted(sliding - left)]
+        for iso in isos:
+            if iso[0] in left:  # a loose landing cone left out: README, Known limits
+                del lands[iso[5]]
+                self.friction_dropped += 1
         for (i, o, _, _, on, f), slid in zip(isos, slides):
             if on and slid and lam[i] == 0.0 and lam[o] == 0.0:  # no normal impulse: it slips on as before
                 slips = [s for s in slips if s[0] != f]
@@ -215,19 +223,24 @@ class ImpulseLaw:
             self.act[sr] = False
         return False
 
-    def _law_lands(self, q, vel, rows, grad) -> tuple[dict[int, int], np.ndarray]:
+    def _law_lands(self, q, vel, rows, grad) -> tuple[dict[int, int], set[int], np.ndarray]:
         """The frictional contacts landing in the impulse law on ``rows`` (a row of their contact among them,
         none held) whose friction joins it (MATH.md *Friction*: Coulomb's impulse at an impact): ``{f:
         owner}``, ``owner = f`` for one whose stick row (an isotropic cone: both) is independent of ``rows``
         and of the stick rows of those before it (it joins the law), else the one-tangent contact whose stick
         row carries its tangent (held and sticking, slipping and joined, or landing before it; a box landing
-        flat, two vertices). One whose stick row depends on the normal rows alone takes none, as does a cone
-        with a dependent row. Their branches are frozen where they land (:meth:`_freeze_branch`); with any
-        landing, ``grad`` (the rows' gradients at ``(q, vel)``) is taken anew. Returns ``(lands, grad)``."""
+        flat, two vertices). One whose stick row depends on the normal rows alone takes none. An isotropic
+        cone with a dependent row (a box landing flat on four rough vertices: the body has three tangential
+        freedoms for eight stick rows) joins *loose* (``loose``, ``owner = f``): it may slide (Coulomb's
+        sliding impulse needs no row held) or, where it would stick, is left out (:meth:`_impulse_law`), while
+        the law has room for its rows (``MAX_LAW_ROWS``). Their branches are frozen where they land
+        (:meth:`_freeze_branch`); with any landing, ``grad`` (the rows' gradients at ``(q, vel)``) is taken
+        anew. Returns ``(lands, loose, grad)``."""
         k = self.k
         out: dict[int, int] = {}
+        loose: set[int] = set()
         if not self._stick_rows:
-            return out, grad
+            return out, loose, grad
         held = {k.row_contact[r] for r in np.flatnonzero(self.act)}
         hit = {k.row_contact[r] for r in rows} - held
         landing = [
@@ -236,7 +249,7 @@ class ImpulseLaw:
             if j in hit and self._mu_f[f] > 0.0 and not 0 <= self._partner[f] < f
         ]
         if not landing:
-            return out, grad
+            return out, loose, grad
         for f in landing:
             for x in (f, self._partner[f]):
                 if x >= 0:
@@ -246,11 +259,14 @@ class ImpulseLaw:
         try:
             self.act[rows] = True
             owners = [g for g, sg in enumerate(self._stick_rows) if self.act[sg] and self._partner[g] < 0]
+            room = MAX_LAW_ROWS - len(rows)
             for f in landing:
                 sr, pf = self._stick_rows[f], self._partner[f]
-                if pf >= 0:  # an isotropic cone: both rows independent
-                    if self._cone_joins(grad, f):
+                if pf >= 0:  # an isotropic cone: both rows independent, or loose
+                    if self._cone_joins(grad, f) or room >= 2:
+                        loose.update(() if self.act[sr] else (f,))
                         out[f] = f
+                        room -= 2
                     else:
                         self.friction_dropped += 1  # its friction left out: README, Known limits
                     continue
@@ -258,6 +274,7 @@ class ImpulseLaw:
                     self.act[sr] = True
                     out[f] = f
                     owners.append(f)
+                    room -= 1
                     continue
                 for g in sorted(owners):  # held and sticking or slipping and joined, or landing before
                     if not self._dependent(grad, sr, self._stick_rows[g]):
@@ -266,9 +283,9 @@ class ImpulseLaw:
                 self.friction_dropped += f not in out
         finally:
             self.act = act
-        return out, grad
+        return out, loose, grad
 
-    def _law_cones(self, rows, slips=(), lands=None):
+    def _law_cones(self, rows, slips=(), lands=None, loose=()):
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each
         one-tangent contact ``f`` sticking with its own row (``i`` its index in ``rows``), ``pools`` the
         ``(normals, mu_f)`` whose normal impulses give its room: its own contact's normal rows (indices in
@@ -277,7 +294,8 @@ class ImpulseLaw:
         index order; ``[(i, normals, mu_f, -1)]`` of the isotropic cones with
         one tangent held, which may only stick; ``isos``: ``[(i, o, normals, mu_f, on, f)]`` of those with
         both held (``i``, ``o`` their indices, ``f`` the first tangent, ``on`` 1 if slipping and joined by
-        :meth:`_law_slips`), which stick or slip (:meth:`_law_slide`). A cone coupled to others by a dependent
+        :meth:`_law_slips` or landing loose, ``loose``), which stick or slip (:meth:`_law_slide`; a loose
+        one slides or is left out). A cone coupled to others by a dependent
         stick (:meth:`_cone_split`) is not checked. Then the slipping one-tangent contacts ``slips``, pooled
         the same way. ``orders``: each one-tangent cone's modes in the order tried, its own first (stick ``(0,
         1, 2)``; slipping against ``+`` sliding ``(1, 0, 2)``, against ``-`` ``(2, 0, 1)``)."""
@@ -299,7 +317,8 @@ class ImpulseLaw:
                 if max(both) >= 0 and not riders and self._ride[f] < 0 and self._ride[pf] < 0:
                     i, o = (both[0], both[1]) if both[0] >= 0 else (both[1], -1)
                     if o >= 0:  # both tangents held: stick or slip (on the slipping ones, below)
-                        isos.append((i, o, normals(f), float(self._mu_f[f]), int(f in slipping), f))
+                        on = int(f in slipping or f in loose)  # a loose landing cone: its slide first
+                        isos.append((i, o, normals(f), float(self._mu_f[f]), on, f))
                     else:
                         strict.append((i, normals(f), float(self._mu_f[f]), o))
             elif sr in rows and f not in slipping:
@@ -320,7 +339,7 @@ class ImpulseLaw:
             orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
         return cones, strict, orders, isos
 
-    def _law_slide(self, slide, w, ws, b, tight, cones, slips_, lam_eps):
+    def _law_slide(self, slide, w, ws, b, tight, cones, slips_, lam_eps, loose=()):
         """The impulses of the impulse law (:meth:`_impulse_law`) on the tight rows ``tight`` with the
         isotropic cones ``slide`` (each ``(i, o, normals, mu_f, on, f)``) slipping: Coulomb's sliding impulse,
         each cone's tangential impulse ``m_c`` against its tangential velocity after
@@ -332,8 +351,10 @@ class ImpulseLaw:
         others' ``m`` fixed, a cone whose stick is inside its cone taking the stick for that sweep, until no
         ``m`` moves by ``SLIDE_TOL (1 + max |m|)`` (cones not coupled by the law: the second sweep repeats
         the first). Returns ``(lam, "")``; ``(None, "")`` if a cone sticks at the end (or the rows are
-        singular, or a tangent is fixed by them: ``H`` singular), ``(None, why)`` if the sweeps do not
-        settle in ``SLIDE_SWEEPS``."""
+        singular, or a tangent is fixed by them: ``H`` singular; a loose landing cone, ``loose``, whose
+        ``det H`` is within ``DEP_EPS`` of 0 against its own rows' ``(w_ii + w_oo)^2``: its sliding is fixed
+        by the tight rows, a held cone sticking on the body, and ``H`` is round-off),
+        ``(None, why)`` if the sweeps do not settle in ``SLIDE_SWEEPS``."""
         n, nc = len(b), len(slide)
         cols = [x for iso in slide for x in iso[:2]]  # each cone's two stick rows, in order
         lams = np.zeros((1 + 2 * nc, n))  # the law at m = 0, then its columns in m
@@ -351,6 +372,13 @@ class ImpulseLaw:
                     lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
         gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
         m = [0.0] * (2 * nc)
+        for c, iso in enumerate(slide):  # a loose cone whose sliding the tight rows fix: it cannot slide
+            i, o, x = iso[0], iso[1], 1 + 2 * c
+            h = (gaps[x, i], gaps[x + 1, i], gaps[x, o], gaps[x + 1, o])
+            own = w[i, i] + w[o, o]  # H's scale without the tight rows
+            det = h[0] * h[3] - h[1] * h[2]
+            if iso[5] in loose and not (det > DEP_EPS * own * own and h[0] + h[3] > 0.0):
+                return None, ""
         for _ in range(SLIDE_SWEEPS):
             moved, stuck = 0.0, False
             for c, (i, o, normals, mu, _, _) in enumerate(slide):

@@ -363,8 +363,9 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
     if count:
         warnings.warn(
             f"{count} landing contact(s) took no friction impulse: their stick rows depend on the other "
-            "contacts' (a box landing flat on several rough vertices), so the landing's tangential impulse "
-            "is short (README, Known limits: Friction); the sustained friction after the landing is right",
+            "contacts' and they would stick (a box landing on rough vertices without sliding; sliding ones "
+            "take Coulomb's impulse), so the landing's tangential impulse may be short (README, Known "
+            "limits: Friction); the sustained friction after the landing is right",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

@@ -314,7 +314,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self._count_event(step, t_k)
             act0 = self.act.copy()
             q_s, p_s, tau_s = q, p, tau
-            v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
+            if s * tau <= 1e-13 * h:  # within the least sub-step: the event at the segment's start (_sub_end)
+                lam, e_sub, lam1, u1 = np.zeros(k.r), e_seg, np.zeros(k.r), self._velocity(q, v, p)
+                self._seg_inner = lam1, np.zeros(k.r * self._stages)
+            else:
+                v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
             if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)

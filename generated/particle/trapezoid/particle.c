@@ -2118,7 +2118,18 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         if (particle_count_event(c)) {
             return 1;
         }
-        if (particle_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < PARTICLE_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < PARTICLE_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            particle_velocity(c, q, vv, p, u1);
+        } else if (particle_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         particle_book(c, lam, lam1);

@@ -2394,7 +2394,18 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (star_count_event(c)) {
             return 1;
         }
-        if (star_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < STAR_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < STAR_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            star_velocity(c, q, vv, p, u1);
+        } else if (star_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         star_book(c, lam, lam1);

@@ -2895,7 +2895,18 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         if (cube_settles_count_event(c)) {
             return 1;
         }
-        if (cube_settles_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < CUBE_SETTLES_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            cube_settles_velocity(c, q, vv, p, u1);
+        } else if (cube_settles_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         cube_settles_book(c, lam, lam1);

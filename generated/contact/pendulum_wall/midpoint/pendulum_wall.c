@@ -2343,7 +2343,18 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         if (pendulum_wall_count_event(c)) {
             return 1;
         }
-        if (pendulum_wall_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < PENDULUM_WALL_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            pendulum_wall_velocity(c, q, vv, p, u1);
+        } else if (pendulum_wall_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         pendulum_wall_book(c, lam, lam1);

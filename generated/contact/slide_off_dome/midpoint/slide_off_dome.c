@@ -2314,7 +2314,18 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         if (slide_off_dome_count_event(c)) {
             return 1;
         }
-        if (slide_off_dome_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            slide_off_dome_velocity(c, q, vv, p, u1);
+        } else if (slide_off_dome_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         slide_off_dome_book(c, lam, lam1);

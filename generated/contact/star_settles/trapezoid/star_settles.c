@@ -2397,7 +2397,18 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         if (star_settles_count_event(c)) {
             return 1;
         }
-        if (star_settles_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < STAR_SETTLES_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < STAR_SETTLES_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            star_settles_velocity(c, q, vv, p, u1);
+        } else if (star_settles_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         star_settles_book(c, lam, lam1);

@@ -1938,7 +1938,18 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         if (impact_oscillator_count_event(c)) {
             return 1;
         }
-        if (impact_oscillator_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            impact_oscillator_velocity(c, q, vv, p, u1);
+        } else if (impact_oscillator_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         *e_step = e_sub; /* forces: the step's energy is its last segment's */

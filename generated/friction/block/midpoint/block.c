@@ -1837,7 +1837,7 @@ static int block_row_crossing(const block_ctx_t *c, const double *q, const doubl
  * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
  * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). */
 static void block_law_cones(const block_ctx_t *c, const int *rows, int nr, const int *slip_own,
-    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+    const int *loose, int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
 {
     int f, k, ia, ib;
     *n_cones = *n_strict = 0;
@@ -1867,6 +1867,7 @@ static void block_law_cones(const block_ctx_t *c, const int *rows, int nr, const
         }
     }
     (void)c;
+    (void)loose;
     (void)strict_i;
     (void)strict_f;
     (void)strict_o;
@@ -1953,15 +1954,17 @@ static void block_law_slips(const block_ctx_t *c, const double *grad, int *rows,
 /* SustainedSteps._law_lands: the frictional contacts landing in the impulse law on rows[0..nr) (a row of their
  * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row is independent of the rows and of the stick rows of those before it (appended to rows), else
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
- * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
- * is then taken anew at q, vel). */
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
+ * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). */
 static int block_law_lands(const block_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose)
 {
     double psi[BLOCK_R_DIM], curv[BLOCK_R_DIM];
     int act[BLOCK_R_DIM], hit[BLOCK_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    int room = BLOCK_MAX_LAW_ROWS - *nr;
     for (f = 0; f < BLOCK_NF; ++f) {
         land[f] = -1;
+        loose[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (block_row_contact[rows[k]] >= 0) {
@@ -1998,6 +2001,7 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
+            --room;
             continue;
         }
         for (g = 0; g < BLOCK_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
@@ -2058,6 +2062,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM] = {0}, piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
     int sliding[BLOCK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent;
+    int loose[BLOCK_NF_DIM];
     int cone_i[BLOCK_NF_DIM], cone_f[BLOCK_NF_DIM], cone_on[BLOCK_NF_DIM], strict_i[BLOCK_NF_DIM];
     int strict_f[BLOCK_NF_DIM], strict_o[BLOCK_NF_DIM], mode[BLOCK_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2083,7 +2088,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
         }
     }
     block_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    block_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
+    block_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
     if (nr > BLOCK_MAX_LAW_ROWS) {
         return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2109,7 +2114,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
             }
         }
     }
-    block_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
+    block_law_cones(c, rows, nr, slip_own, loose, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
@@ -2835,7 +2840,18 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         if (block_count_event(c)) {
             return 1;
         }
-        if (block_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < BLOCK_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < BLOCK_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            block_velocity(c, q, vv, p, u1);
+        } else if (block_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         block_book(c, lam, lam1);

@@ -1916,7 +1916,7 @@ static int rough_disk_row_crossing(const rough_disk_ctx_t *c, const double *q, c
  * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
  * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). */
 static void rough_disk_law_cones(const rough_disk_ctx_t *c, const int *rows, int nr, const int *slip_own,
-    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+    const int *loose, int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
 {
     int f, k, ia, ib;
     *n_cones = *n_strict = 0;
@@ -1946,6 +1946,7 @@ static void rough_disk_law_cones(const rough_disk_ctx_t *c, const int *rows, int
         }
     }
     (void)c;
+    (void)loose;
     (void)strict_i;
     (void)strict_f;
     (void)strict_o;
@@ -2032,15 +2033,17 @@ static void rough_disk_law_slips(const rough_disk_ctx_t *c, const double *grad, 
 /* SustainedSteps._law_lands: the frictional contacts landing in the impulse law on rows[0..nr) (a row of their
  * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row is independent of the rows and of the stick rows of those before it (appended to rows), else
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
- * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
- * is then taken anew at q, vel). */
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
+ * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). */
 static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose)
 {
     double psi[ROUGH_DISK_R_DIM], curv[ROUGH_DISK_R_DIM];
     int act[ROUGH_DISK_R_DIM], hit[ROUGH_DISK_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    int room = ROUGH_DISK_MAX_LAW_ROWS - *nr;
     for (f = 0; f < ROUGH_DISK_NF; ++f) {
         land[f] = -1;
+        loose[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (rough_disk_row_contact[rows[k]] >= 0) {
@@ -2077,6 +2080,7 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
+            --room;
             continue;
         }
         for (g = 0; g < ROUGH_DISK_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
@@ -2137,6 +2141,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     int rows[ROUGH_DISK_R_DIM], tight[ROUGH_DISK_R_DIM] = {0}, piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
     int sliding[ROUGH_DISK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent;
+    int loose[ROUGH_DISK_NF_DIM];
     int cone_i[ROUGH_DISK_NF_DIM], cone_f[ROUGH_DISK_NF_DIM], cone_on[ROUGH_DISK_NF_DIM], strict_i[ROUGH_DISK_NF_DIM];
     int strict_f[ROUGH_DISK_NF_DIM], strict_o[ROUGH_DISK_NF_DIM], mode[ROUGH_DISK_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2162,7 +2167,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
         }
     }
     rough_disk_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    rough_disk_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
+    rough_disk_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
     if (nr > ROUGH_DISK_MAX_LAW_ROWS) {
         return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2188,7 +2193,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
             }
         }
     }
-    rough_disk_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
+    rough_disk_law_cones(c, rows, nr, slip_own, loose, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
@@ -2914,7 +2919,18 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         if (rough_disk_count_event(c)) {
             return 1;
         }
-        if (rough_disk_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < ROUGH_DISK_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            rough_disk_velocity(c, q, vv, p, u1);
+        } else if (rough_disk_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         rough_disk_book(c, lam, lam1);

@@ -2604,9 +2604,10 @@ static int spun_ball_cone_stop(const spun_ball_ctx_t *c, int f, int p, const dou
  * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
  * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). Of the isotropic
  * cones only those with one tangent held (strict_o = -1) may only stick: those with both (iso_i, iso_o: their
- * indices, iso_f: the first tangent, iso_on: 1 if it slipped before and joined, law_slips) stick or slip. */
+ * indices, iso_f: the first tangent, iso_on: 1 if it slipped before and joined, law_slips, or lands loose, law_lands)
+ * stick or slip (a loose one slides or is left out). */
 static void spun_ball_law_cones(const spun_ball_ctx_t *c, const int *rows, int nr, const int *slip_own,
-    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict,
+    const int *loose, int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict,
     int *iso_i, int *iso_o, int *iso_f, int *iso_on, int *n_iso)
 {
     int f, k, ia, ib;
@@ -2641,7 +2642,7 @@ static void spun_ball_law_cones(const spun_ball_ctx_t *c, const int *rows, int n
                 if (ia >= 0 && ib >= 0) { /* both tangents held: stick or slip (the slipping ones first) */
                     iso_i[*n_iso] = ia;
                     iso_o[*n_iso] = ib;
-                    iso_on[*n_iso] = slip_own[f] != 0;
+                    iso_on[*n_iso] = slip_own[f] != 0 || loose[f]; /* a loose landing cone: its slide first */
                     iso_f[(*n_iso)++] = f;
                 } else {
                     strict_i[*n_strict] = ia >= 0 ? ia : ib;
@@ -2667,6 +2668,7 @@ static void spun_ball_law_cones(const spun_ball_ctx_t *c, const int *rows, int n
         }
     }
     (void)c;
+    (void)loose;
     (void)strict_i;
     (void)strict_f;
     (void)strict_o;
@@ -2802,17 +2804,20 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
  * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row (an isotropic
  * cone: both) is independent of the rows and of the stick rows of those before it (appended to rows), else
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
- * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone, a cone
- * with a dependent row). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
- * is then taken anew at q, vel). */
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). An
+ * isotropic cone with a dependent row joins loose (loose[f] = 1, land[f] = f) while the law has room for its rows
+ * (MAX_LAW_ROWS): it slides or, where it would stick, is left out (impulse_law). Their branches are frozen
+ * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). */
 static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose)
 {
     double psi[SPUN_BALL_R_DIM], curv[SPUN_BALL_R_DIM];
     int act[SPUN_BALL_R_DIM], hit[SPUN_BALL_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    int room = SPUN_BALL_MAX_LAW_ROWS - *nr;
     int pf;
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         land[f] = -1;
+        loose[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (spun_ball_row_contact[rows[k]] >= 0) {
@@ -2849,11 +2854,13 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
         land[f] = -1;
         sr = spun_ball_stick_row[f];
         pf = spun_ball_partner[f];
-        if (pf >= 0) { /* an isotropic cone: both rows independent */
-            if (spun_ball_cone_joins(c, grad, f)) {
+        if (pf >= 0) { /* an isotropic cone: both rows independent, or loose */
+            if (spun_ball_cone_joins(c, grad, f) || room >= 2) {
+                loose[f] = !c->sus->act[sr];
                 land[f] = f;
                 rows[(*nr)++] = sr;
                 rows[(*nr)++] = spun_ball_stick_row[pf];
+                room -= 2;
             } else {
                 ++c->sus->friction_dropped; /* its friction left out: README, Known limits */
             }
@@ -2863,6 +2870,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
+            --room;
             continue;
         }
         for (g = 0; g < SPUN_BALL_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
@@ -2893,15 +2901,17 @@ static int spun_ball_cone_slide(const double *g, const double *h, const double *
  * velocity after g_c + H_c m, one LU with 1 + 2 n_sl right-hand sides. One cone: its 1-D root. Several: block
  * Gauss-Seidel, each cone's root with the others' m fixed, a cone whose stick is inside its cone taking the stick
  * for that sweep, until no m moves by SLIDE_TOL (1 + max |m|). 1 and lam; 0 if a cone sticks at the end (or the
- * rows are singular, or a tangent is fixed by them: H singular); -1 if the sweeps do not settle in SLIDE_SWEEPS. */
+ * rows are singular, or a tangent is fixed by them: H singular; a loose landing cone, loose[f], whose det H is
+ * within DEP_EPS of 0 against its own rows' (w_ii + w_oo)^2: its sliding fixed by the tight rows, H round-off); -1
+ * if the sweeps do not settle in SLIDE_SWEEPS. */
 static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, const int *rows, int nr,
     const double *w, const double *ws, const double *b, const int *tight, int nt, const int *cone_i,
     const int *cone_f, const int *mode, int n_cones, const int *sl_i, const int *sl_o, const int *sl_f, int n_sl,
-    double lam_eps, double *lam)
+    const int *loose, double lam_eps, double *lam)
 {
     enum { L_DIM = 1 + SPUN_BALL_NF_DIM };
     double lams[L_DIM * SPUN_BALL_R_DIM], gaps[L_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
-    double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], g[2], h[4], bn[2], an, m1, m2, det, moved, big;
+    double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], g[2], h[4], bn[2], an, m1, m2, det, moved, big, own;
     int piv[SPUN_BALL_R_DIM], j, k, l, x, s, sweep, stuck = 0;
     const int nl = 1 + 2 * n_sl;
     for (k = 0; k < nl * nr; ++k) {
@@ -2944,6 +2954,16 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
             for (l = 0; l < nr; ++l) {
                 gaps[j * nr + k] += w[k * nr + l] * lams[j * nr + l];
             }
+        }
+    }
+    for (s = 0; s < n_sl; ++s) { /* a loose cone whose sliding the tight rows fix: it cannot slide */
+        h[0] = gaps[(1 + 2 * s) * nr + sl_i[s]];
+        h[1] = gaps[(2 + 2 * s) * nr + sl_i[s]];
+        h[2] = gaps[(1 + 2 * s) * nr + sl_o[s]];
+        h[3] = gaps[(2 + 2 * s) * nr + sl_o[s]];
+        own = w[sl_i[s] * nr + sl_i[s]] + w[sl_o[s] * nr + sl_o[s]]; /* H's scale without the tight rows */
+        if (loose[sl_f[s]] && !(h[0] * h[3] - h[1] * h[2] > SPUN_BALL_DEP_EPS * own * own && h[0] + h[3] > 0.0)) {
+            return 0;
         }
     }
     for (sweep = 0; sweep < SPUN_BALL_SLIDE_SWEEPS; ++sweep) {
@@ -3050,6 +3070,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int rows[SPUN_BALL_R_DIM], tight[SPUN_BALL_R_DIM] = {0}, piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
     int sliding[SPUN_BALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent;
+    int loose[SPUN_BALL_NF_DIM];
     int cone_i[SPUN_BALL_NF_DIM], cone_f[SPUN_BALL_NF_DIM], cone_on[SPUN_BALL_NF_DIM], strict_i[SPUN_BALL_NF_DIM];
     int strict_f[SPUN_BALL_NF_DIM], strict_o[SPUN_BALL_NF_DIM], mode[SPUN_BALL_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -3057,6 +3078,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int digits, g, pg;
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
+    int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
     int n_iso = 0, n_base, n_slide, settled;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
@@ -3078,7 +3100,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         }
     }
     spun_ball_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    spun_ball_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
+    spun_ball_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
     if (nr > SPUN_BALL_MAX_LAW_ROWS) {
         return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -3104,7 +3126,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             }
         }
     }
-    spun_ball_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
+    spun_ball_law_cones(c, rows, nr, slip_own, loose, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
         &n_strict, iso_i, iso_o, iso_f, iso_on, &n_iso);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
@@ -3155,6 +3177,15 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             sliding[sl_i[i]] = 1;
             sliding[sl_o[i]] = 1;
         }
+        for (k = 0; k < nr; ++k) {
+            left[k] = 0;
+        }
+        for (i = 0; i < n_iso; ++i) { /* a loose landing cone not sliding: left out, its rows neither tight nor checked */
+            if (!slide_on[i] && loose[iso_f[i]]) {
+                left[iso_i[i]] = sliding[iso_i[i]] = 1;
+                left[iso_o[i]] = sliding[iso_o[i]] = 1;
+            }
+        }
         for (mask = (1L << nr) - 1; mask >= 0 && !found; --mask) {
             int valid = 1;
             nt = 0;
@@ -3172,7 +3203,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             }
             if (n_slide > 0) {
                 settled = spun_ball_law_slide(c, slip_ride, rows, nr, w, ws, b, tight, nt, cone_i, cone_f, mode,
-                    n_cones, sl_i, sl_o, sl_f, n_slide, lam_eps, lam);
+                    n_cones, sl_i, sl_o, sl_f, n_slide, loose, lam_eps, lam);
                 if (settled < 0 && !out) {
                     spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: %d isotropic cones slipping "
                         "at once did not settle in %d sweeps at an impact while held", n_slide,
@@ -3243,7 +3274,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 for (k = 0; k < nr; ++k) {
                     lam_full[rows[k]] = lam[k];
                     dropped[rows[k]] = !(mask >> k & 1) && !sliding[k];
-                    slipped[rows[k]] = sliding[k];
+                    slipped[rows[k]] = sliding[k] && !left[k];
                 }
             }
         }
@@ -3251,6 +3282,12 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     if (!found) {
         return out ? 1 : spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
             "contacts (dependent normals?)", nr);
+    }
+    for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: README, Known limits */
+        if (left[iso_i[i]]) {
+            land[iso_f[i]] = -1;
+            ++c->sus->friction_dropped;
+        }
     }
     for (i = 0; i < n_iso; ++i) { /* a slipping cone with no normal impulse: it slips on as before */
         if (iso_on[i] && slide_on[i] && lam[iso_i[i]] == 0.0 && lam[iso_o[i]] == 0.0) {
@@ -3936,7 +3973,18 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         if (spun_ball_count_event(c)) {
             return 1;
         }
-        if (spun_ball_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < SPUN_BALL_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            spun_ball_velocity(c, q, vv, p, u1);
+        } else if (spun_ball_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         spun_ball_book(c, lam, lam1);

@@ -2121,7 +2121,7 @@ static int star_friction_row_crossing(const star_friction_ctx_t *c, const double
  * that joined (slip_own, law_slips), pooled the same way (slip_ride). cone_on: the mode tried first, its own (0
  * stick; a slipping contact's edge against its slip, 1 Lam_t = -mu Lam_n or 2 +mu Lam_n). */
 static void star_friction_law_cones(const star_friction_ctx_t *c, const int *rows, int nr, const int *slip_own,
-    int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
+    const int *loose, int *cone_i, int *cone_f, int *cone_on, int *n_cones, int *strict_i, int *strict_f, int *strict_o, int *n_strict)
 {
     int f, k, ia, ib;
     *n_cones = *n_strict = 0;
@@ -2151,6 +2151,7 @@ static void star_friction_law_cones(const star_friction_ctx_t *c, const int *row
         }
     }
     (void)c;
+    (void)loose;
     (void)strict_i;
     (void)strict_f;
     (void)strict_o;
@@ -2237,15 +2238,17 @@ static void star_friction_law_slips(const star_friction_ctx_t *c, const double *
 /* SustainedSteps._law_lands: the frictional contacts landing in the impulse law on rows[0..nr) (a row of their
  * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row is independent of the rows and of the stick rows of those before it (appended to rows), else
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
- * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen where they land (freeze_branch). 1 if any lands (grad
- * is then taken anew at q, vel). */
+ * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
+ * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). */
 static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose)
 {
     double psi[STAR_FRICTION_R_DIM], curv[STAR_FRICTION_R_DIM];
     int act[STAR_FRICTION_R_DIM], hit[STAR_FRICTION_M_DIM] = {0}, f, g, k, r, sr, any = 0;
+    int room = STAR_FRICTION_MAX_LAW_ROWS - *nr;
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
         land[f] = -1;
+        loose[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (star_friction_row_contact[rows[k]] >= 0) {
@@ -2282,6 +2285,7 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
             c->sus->act[sr] = 1;
             land[f] = f;
             rows[(*nr)++] = sr;
+            --room;
             continue;
         }
         for (g = 0; g < STAR_FRICTION_NF; ++g) { /* held and sticking or slipping and joined, or landing before */
@@ -2342,6 +2346,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM] = {0}, piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
     int sliding[STAR_FRICTION_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent;
+    int loose[STAR_FRICTION_NF_DIM];
     int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], cone_on[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
     int strict_f[STAR_FRICTION_NF_DIM], strict_o[STAR_FRICTION_NF_DIM], mode[STAR_FRICTION_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2367,7 +2372,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
         }
     }
     star_friction_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    star_friction_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land);
+    star_friction_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
     if (nr > STAR_FRICTION_MAX_LAW_ROWS) {
         return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
@@ -2393,7 +2398,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
             }
         }
     }
-    star_friction_law_cones(c, rows, nr, slip_own, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
+    star_friction_law_cones(c, rows, nr, slip_own, loose, cone_i, cone_f, cone_on, &n_cones, strict_i, strict_f, strict_o,
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
@@ -3119,7 +3124,18 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         if (star_friction_count_event(c)) {
             return 1;
         }
-        if (star_friction_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < STAR_FRICTION_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            star_friction_velocity(c, q, vv, p, u1);
+        } else if (star_friction_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         star_friction_book(c, lam, lam1);

@@ -2329,7 +2329,18 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         if (ball_box_count_event(c)) {
             return 1;
         }
-        if (ball_box_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < BALL_BOX_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < BALL_BOX_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            ball_box_velocity(c, q, vv, p, u1);
+        } else if (ball_box_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         ball_box_book(c, lam, lam1);

@@ -2474,7 +2474,18 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         if (double_pendulum_count_event(c)) {
             return 1;
         }
-        if (double_pendulum_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                v[i] = vv[i];
+                q1[i] = q[i];
+                p1[i] = p[i];
+            }
+            for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+                lam[r] = lam1[r] = 0.0;
+            }
+            e_sub = e_seg;
+            double_pendulum_velocity(c, q, vv, p, u1);
+        } else if (double_pendulum_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
         double_pendulum_book(c, lam, lam1);
