@@ -309,6 +309,13 @@ ROUGH_DROPS = {  # bench.cube_drops' rough drops (seed 7) that ended in "more th
         + [1.2816023764588103, -1.771568109427199, 1.3848432813384761],
         {"e": 0.27868336357380596, "mu": 0.8598881606135453},
     ),
+    "an impact at the start": (  # drop 124 (stop 32): an impact within 1e-13 h of a held segment's start,
+        # solved as a RATTLE sub-step of tau ~ 1e-30: C's Newton stalled ("Newton did not converge", t = 1.97)
+        [0.0, 0.0, 1.0, 0.6534760408559119, 0.007895428719797204, -0.4074813177574568],
+        [-0.42883505112340625, 1.801406260612572, -1.7851992469570013]
+        + [1.546336670562468, 2.192604940001127, 0.05367710679788873],
+        {"e": 0.7976106870279717, "mu": 0.35335436336997306},
+    ),
     "a stop at the start": (  # drop 30: a cone's stop located ~1e-16 of a step in: NaN on CasADi's Newton
         [0.0, 0.0, 1.0, 2.986084978286991, 0.38869930670833275, 0.41632393497340303],
         [-1.013697879705445, -0.42355898110012813, -1.4320512477166165]
@@ -320,21 +327,23 @@ ROUGH_DROPS = {  # bench.cube_drops' rough drops (seed 7) that ended in "more th
 
 @pytest.mark.parametrize("drop", sorted(ROUGH_DROPS))
 def test_rough_drops_that_cycled_at_one_instant_run_to_rest_alike_on_both_backends(drop):
-    """Five random rough drops that cycled at one instant until "more than 64 impacts and lift-offs in one
-    step": a held vertex whose force crossed 0 while the load moved across the diagonal (released, it sank
-    and landed again at once: now the load passes to the riding vertex, ``_pass_load``); a vertex an impact
-    while held left at a normal speed of 0 (``e = 0``) that sank again at once under the step's forces (now,
-    met again at that instant, it settles: held, ``_chain_impact``'s ``again``); a cube pivoting on one
-    vertex, the others sliding, whose sticking vertex's force left its cone while its slide stopped at once
-    (now, after ``STICK_CYCLES`` such slides in a step, it sticks on for the rest of the step: counted in
-    ``stats["sticks_kept"]`` and warned); a cube at ``mu = 0.86`` whose vertex, held, needs a
-    negative force under the sliding friction and, released, sinks at once (Painleve's inconsistency: now,
-    landed again ``JAM_CYCLES`` times in a step, every held contact sticks, ``_jam``: ``stats["jams"]``,
-    warned); a cone's stop whose root was located ~1e-16 of a step in, its sub-step solved at ``tau ~
-    1e-18`` (NaN on CasADi's path; now within ``1e-13 h`` an event is at the segment's start). Each runs to
-    t = 3 on both backends alike (the same impacts, ``q`` to 1e-8, the same books), never below the floor,
-    no impact adding energy, at rest on a face at the end. Since stop 32 (landings take Coulomb's friction on
-    loose cones) two of them take other paths: the kept stick is now the stop's drop's, the jam drop 23's."""
+    """Random rough drops that cycled at one instant until "more than 64 impacts and lift-offs in one step"
+    (five), or failed at one (one): a held vertex whose force crossed 0 while the load moved across the
+    diagonal (released, it sank and landed again at once: now the load passes to the riding vertex,
+    ``_pass_load``); a vertex an impact while held left at a normal speed of 0 (``e = 0``) that sank again at
+    once under the step's forces (now, met again at that instant, it settles: held, ``_chain_impact``'s
+    ``again``); a cube pivoting on one vertex, the others sliding, whose sticking vertex's force left its cone
+    while its slide stopped at once (now, after ``STICK_CYCLES`` such slides in a step, it sticks on for the
+    rest of the step: counted in ``stats["sticks_kept"]`` and warned); a cube at ``mu = 0.86`` whose vertex,
+    held, needs a negative force under the sliding friction and, released, sinks at once (Painleve's
+    inconsistency: now, landed again ``JAM_CYCLES`` times in a step, every held contact sticks, ``_jam``:
+    ``stats["jams"]``, warned); a cone's stop whose root was located ~1e-16 of a step in, its sub-step solved
+    at ``tau ~ 1e-18`` (NaN on CasADi's path; now within ``1e-13 h`` an event is at the segment's start); an
+    impact found within ``1e-13 h`` of a held segment's start, solved at ``tau ~ 1e-30`` (C's Newton stalled;
+    now it is at the start, stop 32). Each runs to t = 3 on both backends alike (the same impacts, ``q`` to
+    1e-8, the same books), never below the floor, no impact adding energy, at rest on a face at the end. Since
+    stop 32 (landings take Coulomb's friction on loose cones) two of them take other paths: the kept stick is
+    now the stop's drop's, the jam drop 23's."""
     q0, v0, params = ROUGH_DROPS[drop]
     a, b = rough_on_both(q0, v0, params)
     for res in (a, b):
