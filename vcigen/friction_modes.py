@@ -83,12 +83,16 @@ class FrictionModes:
     def _friction_mode(self) -> tuple:
         """The friction mode: the rows held, the slots (slips, references, branches) and dependent sticks; a
         slipping cone's slips as 1 (its direction is aimed anew every segment, within the mode)."""
-        slip = self._slip.copy()
+        slots = (*self._mode_slips(self._slip).tolist(), *self._ref.tolist(), *self._branch.tolist())
+        return (*self.act.tolist(), *slots, *self._ride)
+
+    def _mode_slips(self, slip: np.ndarray) -> np.ndarray:
+        """The slips ``slip`` as the friction mode reads them: a slipping cone's as 1 (C ``mode_slip``)."""
+        slip = slip.copy()
         for f, p in self._cones():
             if slip[f] or slip[p]:
                 slip[[f, p]] = 1.0
-        slots = (*slip.tolist(), *self._ref.tolist(), *self._branch.tolist())
-        return (*self.act.tolist(), *slots, *self._ride)
+        return slip
 
     def _friction_acts(self) -> bool:
         """Whether a frictional contact slips or holds its stick row."""

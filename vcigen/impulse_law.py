@@ -263,8 +263,10 @@ class ImpulseLaw:
             for f in landing:
                 sr, pf = self._stick_rows[f], self._partner[f]
                 if pf >= 0:  # an isotropic cone: both rows independent, or loose
-                    if self._cone_joins(grad, f) or room >= 2:
-                        loose.update(() if self.act[sr] else (f,))
+                    joins = self._cone_joins(grad, f)
+                    if joins or room >= 2:
+                        if not joins:
+                            loose.add(f)
                         out[f] = f
                         room -= 2
                     else:

@@ -401,19 +401,15 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         contacts let go (no row of theirs held any more: their friction ends with their normal force) or held
         anew (slipping or sticking from the impact that put them in contact), each at an event whose time the
         tangent has. Anything else (stick <-> slip, the sliding turned, a contact on another face) is a
-        switch. A slipping cone's direction is aimed anew at every segment's start, within the mode
-        (:meth:`_friction_mode`): its slips count as 1."""
+        switch. A slipping cone's direction is aimed anew at every segment's start, within the mode: its slips
+        count as 1 (:meth:`_mode_slips`)."""
         act, slip, ref, branch, ride, held = before
-
-        def mode_slip(slips, f: int) -> float:
-            pf = self._partner[f]
-            return 1.0 if pf >= 0 and (slips[f] or slips[pf]) else float(slips[f])
-
+        slip, slip_now = self._mode_slips(slip), self._mode_slips(self._slip)
         for f, sr in enumerate(self._stick_rows):
             if not self._held_rows[f] or not held[f]:
                 continue  # let go, or held anew
-            now = (self._held_rows[f], self.act[sr], mode_slip(self._slip, f), self._ref[f], self._ride[f])
-            if (held[f], act[sr], mode_slip(slip, f), ref[f], ride[f]) != now:
+            now = (self._held_rows[f], self.act[sr], slip_now[f], self._ref[f], self._ride[f])
+            if (held[f], act[sr], slip[f], ref[f], ride[f]) != now:
                 return False
             if any(branch[b] != self._branch[b] for b in self._branch_of[f]):
                 return False
