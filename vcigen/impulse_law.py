@@ -374,27 +374,26 @@ class ImpulseLaw:
                     lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
         gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
         m = [0.0] * (2 * nc)
-        for c, iso in enumerate(slide):  # a loose cone whose sliding the tight rows fix: it cannot slide
-            i, o, x = iso[0], iso[1], 1 + 2 * c
-            h = (gaps[x, i], gaps[x + 1, i], gaps[x, o], gaps[x + 1, o])
-            own = w[i, i] + w[o, o]  # H's scale without the tight rows
-            det = h[0] * h[3] - h[1] * h[2]
-            if iso[5] in loose and not (det > DEP_EPS * own * own and h[0] + h[3] > 0.0):
-                return None, ""
+        hs, normal = [], []  # each cone's H, and its normal impulse at m = 0 and per column of m (fixed)
+        for c, (i, o, normals, _, _, f) in enumerate(slide):
+            x = 1 + 2 * c
+            hs.append((gaps[x, i], gaps[x + 1, i], gaps[x, o], gaps[x + 1, o]))
+            normal.append([float(np.sum(lams[y, normals])) for y in range(1 + 2 * nc)])
+            own, h = w[i, i] + w[o, o], hs[-1]  # H's scale without the tight rows
+            if f in loose and not (h[0] * h[3] - h[1] * h[2] > DEP_EPS * own * own and h[0] + h[3] > 0.0):
+                return None, ""  # a loose cone whose sliding the tight rows fix: it cannot slide
         for _ in range(SLIDE_SWEEPS):
             moved, stuck = 0.0, False
-            for c, (i, o, normals, mu, _, _) in enumerate(slide):
-                a = float(np.sum(lams[0, normals]))
+            for c, (i, o, _, mu, _, _) in enumerate(slide):
+                a, h = normal[c][0], hs[c]
                 g = [float(gaps[0, i] - b[i]), float(gaps[0, o] - b[o])]
                 for x in range(2 * nc):  # the other cones' impulses, fixed
                     if x // 2 != c:
-                        a += float(np.sum(lams[1 + x, normals])) * m[x]
+                        a += normal[c][1 + x] * m[x]
                         g[0] += float(gaps[1 + x, i]) * m[x]
                         g[1] += float(gaps[1 + x, o]) * m[x]
                 a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
-                bn = (-float(np.sum(lams[1 + 2 * c, normals])), -float(np.sum(lams[2 + 2 * c, normals])))
-                h = (gaps[1 + 2 * c, i], gaps[2 + 2 * c, i], gaps[1 + 2 * c, o], gaps[2 + 2 * c, o])
-                mc = cone_slide(g, h, bn, mu, a)
+                mc = cone_slide(g, h, (-normal[c][1 + 2 * c], -normal[c][2 + 2 * c]), mu, a)
                 if mc is None:
                     det = h[0] * h[3] - h[1] * h[2]
                     if nc == 1 or not det > 0.0:

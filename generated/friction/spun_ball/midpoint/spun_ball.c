@@ -2910,7 +2910,9 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
 {
     enum { L_DIM = 1 + SPUN_BALL_NF_DIM };
     double lams[L_DIM * SPUN_BALL_R_DIM], gaps[L_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
-    double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], g[2], h[4], bn[2], an, m1, m2, det, moved, big, own;
+    double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], hs[2 * SPUN_BALL_NF_DIM] = {0.0};
+    double normal[L_DIM * SPUN_BALL_NF_DIM] = {0.0};
+    double g[2], bn[2], *h, an, m1, m2, det, moved, big, own;
     int piv[SPUN_BALL_R_DIM], j, k, l, x, s, sweep, stuck = 0;
     const int nl = 1 + 2 * n_sl;
     for (k = 0; k < nl * nr; ++k) {
@@ -2955,14 +2957,18 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
             }
         }
     }
-    for (s = 0; s < n_sl; ++s) { /* a loose cone whose sliding the tight rows fix: it cannot slide */
+    for (s = 0; s < n_sl; ++s) { /* each cone's H, and its normal impulse at m = 0 and per column of m (fixed) */
+        h = hs + 4 * s;
         h[0] = gaps[(1 + 2 * s) * nr + sl_i[s]];
         h[1] = gaps[(2 + 2 * s) * nr + sl_i[s]];
         h[2] = gaps[(1 + 2 * s) * nr + sl_o[s]];
         h[3] = gaps[(2 + 2 * s) * nr + sl_o[s]];
+        for (j = 0; j < nl; ++j) {
+            normal[s * nl + j] = spun_ball_law_normal(rows, nr, lams + j * nr, sl_f[s]);
+        }
         own = w[sl_i[s] * nr + sl_i[s]] + w[sl_o[s] * nr + sl_o[s]]; /* H's scale without the tight rows */
         if (loose[sl_f[s]] && !(h[0] * h[3] - h[1] * h[2] > SPUN_BALL_DEP_EPS * own * own && h[0] + h[3] > 0.0)) {
-            return 0;
+            return 0; /* a loose cone whose sliding the tight rows fix: it cannot slide */
         }
     }
     for (sweep = 0; sweep < SPUN_BALL_SLIDE_SWEEPS; ++sweep) {
@@ -2970,23 +2976,20 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
         stuck = 0;
         for (s = 0; s < n_sl; ++s) {
             const int i = sl_i[s], o = sl_o[s];
-            an = spun_ball_law_normal(rows, nr, lams, sl_f[s]);
+            h = hs + 4 * s;
+            an = normal[s * nl];
             g[0] = gaps[i] - b[i];
             g[1] = gaps[o] - b[o];
             for (x = 0; x < 2 * n_sl; ++x) { /* the other cones' impulses, fixed */
                 if (x / 2 != s) {
-                    an += spun_ball_law_normal(rows, nr, lams + (1 + x) * nr, sl_f[s]) * m[x];
+                    an += normal[s * nl + 1 + x] * m[x];
                     g[0] += gaps[(1 + x) * nr + i] * m[x];
                     g[1] += gaps[(1 + x) * nr + o] * m[x];
                 }
             }
             an = an > lam_eps ? an : 0.0; /* no normal impulse (to round-off): no friction impulse */
-            bn[0] = -spun_ball_law_normal(rows, nr, lams + (1 + 2 * s) * nr, sl_f[s]);
-            bn[1] = -spun_ball_law_normal(rows, nr, lams + (2 + 2 * s) * nr, sl_f[s]);
-            h[0] = gaps[(1 + 2 * s) * nr + i];
-            h[1] = gaps[(2 + 2 * s) * nr + i];
-            h[2] = gaps[(1 + 2 * s) * nr + o];
-            h[3] = gaps[(2 + 2 * s) * nr + o];
+            bn[0] = -normal[s * nl + 1 + 2 * s];
+            bn[1] = -normal[s * nl + 2 + 2 * s];
             if (!spun_ball_cone_slide(g, h, bn, c->mu_f[sl_f[s]], an, &m1, &m2)) {
                 det = h[0] * h[3] - h[1] * h[2];
                 if (n_sl == 1 || !(det > 0.0)) {
