@@ -220,6 +220,62 @@ def test_rod_landing_flat_while_sliding_and_spinning_takes_coulombs_impulse(back
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_rod_landing_flat_slowly_sticks_on_both_ends(backend):
+    """Dropped flat from z = 0.2 (``e = 0``) sliding slowly at (0.2, 0.1), no spin: both ends land at ``t_l``
+    with the normal impulse ``m v_n / 2`` each (``v_n = g t_l``). Both sticking stops the rod; the impulse
+    that does it, ``-m v``, can be split between the ends along the rod at will (the second end's stick rows
+    depend on the first's), and Coulomb's law holds if some split fits both cones: the equal one does,
+    ``m |v| / 2 <= mu m v_n / 2``. So the rod is at rest from the landing on, where it landed. Before stop 33
+    the second end took no friction (``landing_friction_dropped``); now the law sticks both ends on the least
+    split of their impulses (``stats["least_splits"]``), here the equal one."""
+    z0, v0 = 0.2, np.array([0.2, 0.1])
+    t_land = math.sqrt(2 * z0 / G)
+    assert np.linalg.norm(v0) < MU * G * t_land  # the equal split fits the cones
+    res = sim(backend).simulate(
+        q0=[0, 0, z0, PHI0, 0], v0=[*v0, 0, 0, 0], h=0.01, t_end=0.5, params={"e": 0.0}
+    )
+    assert res.stats["landing_friction_dropped"] == 0 and res.stats["least_splits"] >= 1
+    assert abs(res.impacts[0].t - t_land) < 1e-12
+    after = res.t > t_land
+    assert np.abs(res.q[after] - [*(v0 * t_land), 0, PHI0, 0]).max() < 1e-12
+    assert np.abs(res.p[after]).max() < 1e-12
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_rod_landing_flat_on_a_resting_end_pivots_about_it(backend):
+    """Dropped flat from z = 0.05 (``e = 0``) turning at ``w0 = 2`` about the vertical through end a, which
+    lands at rest: end a sticks, end b can only slide across the rod (the rows of a's stick fix b's sliding
+    but along one line: ``friction.line_slide``) and takes Coulomb's impulse ``-mu N_b`` across it, ``N_a =
+    N_b = m v_n / 2``. The yaw about a, ``(I + m l^2 / 4) (w+ - w0) = -mu N_b l``, gives ``w+ = w0 - 3 mu
+    v_n / (2 l)``; a's impulse, ``mu N_b / 2`` across the rod, fits its cone. Then the rod pivots on a under
+    b's friction ``mu m g / 2``: ``phi'' = -3 mu g / (2 l)`` (a's force fits its cone while ``w^2 <= sqrt(3)
+    mu g / (2 l)``), the centre at ``a + (l/2) (cos phi, sin phi)``. Before stop 33 b took no friction at
+    the landing. The path after the landing against the closed form at second order (h = 0.01, 0.005)."""
+    z0, w0 = 0.05, 2.0
+    t_land = math.sqrt(2 * z0 / G)
+    phi_l = PHI0 + w0 * t_land
+    vc = w0 * LENGTH / 2 * np.array([-math.sin(phi_l), math.cos(phi_l)])  # end a at rest when it lands
+    end_a = vc * t_land - LENGTH / 2 * np.array([math.cos(phi_l), math.sin(phi_l)])
+    wp = w0 - 3 * MU * G * t_land / (2 * LENGTH)
+    acc = -3 * MU * G / (2 * LENGTH)
+    assert wp > 0 and wp**2 <= math.sqrt(3) * MU * G / (2 * LENGTH)  # b slides, a sticks throughout
+    t_stop = -wp / acc
+    errs = []
+    for h in (0.01, 0.005):
+        res = sim(backend).simulate(
+            q0=[0, 0, z0, PHI0, 0], v0=[*vc, 0, w0, 0], h=h, t_end=t_land + 0.9 * t_stop, params={"e": 0.0}
+        )
+        assert res.stats["landing_friction_dropped"] == 0 and abs(res.impacts[0].t - t_land) < 1e-12
+        after = res.t > t_land
+        s = res.t[after] - t_land
+        phi = phi_l + wp * s + acc * s**2 / 2
+        ref = np.column_stack([end_a[0] + LENGTH / 2 * np.cos(phi), end_a[1] + LENGTH / 2 * np.sin(phi), phi])
+        errs.append(float(np.max(np.abs(res.q[after][:, [0, 1, 3]] - ref))))
+    print(f"{backend}: rod landing on a resting end, pivoting: path after it vs closed form {errs}")
+    assert errs[0] < 1e-5 and errs[1] < errs[0] / 3.5, errs
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_rod_at_rest_on_two_cones_stays(backend):
     """Set down at rest: it stays put (no singular step), each end m g / 2, friction idle."""
     res = sim(backend).simulate(q0=[0.2, -0.1, 0, PHI0, 0], v0=[0] * 5, h=0.01, t_end=1.0)

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from .held_roots import illinois_point, illinois_update
+from .held_roots import DEP_EPS, illinois_point, illinois_update
 
 
 def impact_law(vel: np.ndarray, mass: np.ndarray, n: np.ndarray, t: np.ndarray, mu_f: float, e: float):
@@ -258,6 +258,37 @@ def cone_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
     if f_hi < 0.0:
         return None
     return tangential(_illinois_up(room, lo, hi, f_lo, f_hi))
+
+
+def line_slide(g, h, b, mu_f: float, a: float) -> tuple[float, float] | None:
+    """:func:`cone_slide` where ``H`` has rank 1 (``H = kappa u u^T``, a loose landing cone in
+    ``ImpulseLaw._law_slide``): the law's other rows fix the cone's tangential velocity but along ``u`` (a box
+    landing on two rough vertices, one sticking: the other can only turn about it), so it slides along ``u``
+    with Coulomb's sliding impulse ``m = -mu_f N s u``, ``s = sign(u.g)``, ``N = a - b.m = a / (1 - mu_f s
+    b.u)``; the impulse across ``u`` is the other rows' (two contacts' impulses along the line through them
+    act alike). ``u``: ``H``'s larger column, normalised. ``0`` where ``a <= 0``; None where it sticks along
+    ``u`` (``s u.g <= mu_f N kappa``, ``kappa = u.H u``) or ``g`` has a part across ``u`` beyond ``DEP_EPS
+    |g|``."""
+    if not (mu_f > 0.0 and a > 0.0):
+        return 0.0, 0.0
+    col = (h[0], h[2]) if math.hypot(h[0], h[2]) >= math.hypot(h[1], h[3]) else (h[1], h[3])
+    norm = math.hypot(col[0], col[1])
+    if not norm > 0.0:
+        return None
+    u = (col[0] / norm, col[1] / norm)
+    kappa = u[0] * (h[0] * u[0] + h[1] * u[1]) + u[1] * (h[2] * u[0] + h[3] * u[1])
+    gu = u[0] * g[0] + u[1] * g[1]
+    across = math.hypot(g[0] - gu * u[0], g[1] - gu * u[1])
+    if across > DEP_EPS * math.hypot(g[0], g[1]) or gu == 0.0 or not kappa > 0.0:
+        return None
+    s = math.copysign(1.0, gu)
+    d = 1.0 - mu_f * s * (b[0] * u[0] + b[1] * u[1])
+    if not d > 0.0:
+        return None
+    n = a / d
+    if s * gu <= mu_f * n * kappa:
+        return None  # it sticks along u
+    return -mu_f * n * s * u[0], -mu_f * n * s * u[1]
 
 
 def cone_law_tangent(scalars, dscalars: np.ndarray, mu_f: float, dmu_f, e: float, de):

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from .errors import SolverError
-from .friction import cone_slide
+from .friction import cone_slide, line_slide
 from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
 
 
@@ -25,6 +25,37 @@ def _spanned(g, tight, normal) -> bool:
     has no unique split of its impulse: the law takes a subset of them instead, the first independent one."""
     basis: list = []
     return any(not span_add(basis, g[i]) for i in tight if normal[i])
+
+
+def _least_split(g, w, b, tight) -> np.ndarray | None:
+    """The impulses of the tight rows ``T`` (indices of the law's rows ``g``, ``w = g M^-1 g^T``) at their
+    targets (``w Lam = b`` on ``T``) where their gradients are dependent (a loose landing cone sticking: a box
+    landing flat on four rough vertices): the velocity after is unique, the impulses are not (``G_T^T Lam``
+    is), and Coulomb's law asks for a split inside every cone. The least one, ``min |Lam|``: ``Lam = G_T G_I^T
+    z``, ``I`` an independent subset of ``T`` (modified Gram-Schmidt), ``(A^T A) z = G_I G_I^T Lam_I``, ``A =
+    G_T G_I^T``, ``Lam_I`` the impulses with ``I`` alone; a sufficient test of the cones (another split may
+    fit where this one does not). None where singular; the caller checks ``T``'s targets (consistency)."""
+    basis: list = []
+    ind = [i for i in tight if span_add(basis, g[i])]
+    lam = np.zeros(len(b))
+    try:
+        lam_i = np.linalg.solve(w[np.ix_(ind, ind)], b[ind])
+        a = g[tight] @ g[ind].T
+        lam[tight] = a @ np.linalg.solve(a.T @ a, g[ind] @ g[ind].T @ lam_i)
+    except np.linalg.LinAlgError:
+        return None
+    return lam
+
+
+def _gains(lam, b, gap, tgts) -> bool:
+    """Does the law's impulse ``lam`` raise the kinetic energy? ``dT = lam . (u- + u+) / 2``, ``u- = targets -
+    b`` the rows' velocities before, ``u+ = targets + gap`` after (a function of ``G^T lam`` alone, whatever
+    the split), above ``EPS_LAM`` of ``sum |lam| (|u-| + |u+|)``. Newton's restitution with a stick can
+    (the normal and tangential rows coupled through the body); the law takes no loose cone's stick that does
+    (:meth:`ImpulseLaw._impulse_law`)."""
+    before, after = tgts - b, tgts + gap
+    gain = float(lam @ (before + after)) / 2.0
+    return gain > EPS_LAM * float(np.abs(lam) @ (np.abs(before) + np.abs(after)))
 
 
 class ImpulseLaw:
@@ -55,7 +86,11 @@ class ImpulseLaw:
         that lands (a row of its hit, none held: :meth:`_law_lands`) joins the same way, sticking first: with
         a stick row of its own (a one-tangent contact's three modes, a cone's stick or slide), or in the cone
         of the contact whose stick row carries its tangent (its normal impulse is that one's room too); a
-        cone with a dependent stick row joins loose, sliding first, else left out (no friction impulse).
+        cone with a dependent stick row joins loose: sliding first (along a line where the law's other rows
+        fix its sliding but along one, :func:`vcigen.friction.line_slide`), then sticking (its impulses split
+        the least way where its rows are dependent, :func:`_least_split`; not where the stick adds kinetic
+        energy, :func:`_gains`), else left out (no friction impulse), the modes without a loose cone left
+        out first.
         Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no
         impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
         slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
@@ -77,6 +112,7 @@ class ImpulseLaw:
                 step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
             )
         tgt = {r: 0.0 for r in rows} | dict(targets)
+        tgts = np.array([tgt[r] for r in rows])
         free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
         normal = [not (k.row_stick and k.row_stick[r] >= 0) for r in rows]
         g = grad[rows]
@@ -88,12 +124,23 @@ class ImpulseLaw:
         n = len(rows)
         cones, strict, orders, isos = self._law_cones(rows, slips, lands, loose)
         out = ""  # a strict stick row's impulse out of its cone (the error if nothing else solves the law)
-        for modes in range(3 ** len(cones) * 2 ** len(isos)):
+        base = 3 ** len(cones)
+        plain = base * 2 ** len(isos)  # the modes with no loose cone left out, then those with one
+        radix = [3 if iso[5] in loose else 2 for iso in isos]
+        for modes in range(plain + base * math.prod(radix)):
+            at = modes - plain if modes >= plain else modes
             # 0 stick, 1 Lam_t = -mu Lam_n, 2 +; each cone's digits in its order (its own mode first)
-            slips_ = [orders[c][(modes // 3**c) % 3] for c in range(len(cones))]
-            # then the isotropic cones' (after all of those): 0 stick, 1 slip; each its own first
-            upper = modes // 3 ** len(cones)
-            slides = [(upper >> c & 1) ^ iso[4] for c, iso in enumerate(isos)]
+            slips_ = [orders[c][(at // 3**c) % 3] for c in range(len(cones))]
+            # then the isotropic cones' (after all of those): 0 stick, 1 slip, each its own first; a loose
+            # landing cone: 0 slide, 1 stick (its rows dependent: the least split, _least_split), 2 left out
+            upper, digits = at // base, []
+            for r_ in radix if modes >= plain else [2] * len(isos):
+                upper, d = divmod(upper, r_)
+                digits.append(d)
+            if modes >= plain and 2 not in digits:
+                continue  # tried in the first pass
+            slides = [int(d == 0) if iso[5] in loose else d ^ iso[4] for d, iso in zip(digits, isos)]
+            joint = any(d == 1 and iso[5] in loose for d, iso in zip(digits, isos))
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
             for (i, pools), mode in zip(cones, slips_):
                 for normals, mu in pools if mode else ():
@@ -102,18 +149,25 @@ class ImpulseLaw:
             slide = [iso for iso, on in zip(isos, slides) if on]
             sliding |= {x for iso in slide for x in iso[:2]}
             # a loose landing cone not sliding: left out (no friction impulse; rows not tight, not checked)
-            left = {x for iso, on in zip(isos, slides) if not on and iso[5] in loose for x in iso[:2]}
+            left = {x for iso, d in zip(isos, digits) if d == 2 and iso[5] in loose for x in iso[:2]}
             sliding |= left
             for mask in range((1 << n) - 1, -1, -1):
                 tight = [i for i in range(n) if mask >> i & 1]
                 if any(not free[i] and (not mask >> i & 1) != (i in sliding) for i in range(n)):
                     continue
-                if dependent and _spanned(g, tight, normal):  # a subset of the dependent normals carries it
+                # a subset of the dependent normals carries it; with a loose cone sticking, all rows may
+                least = joint and _spanned(g, tight, [True] * n)
+                if dependent and not joint and _spanned(g, tight, normal) or least and (slide or any(slips_)):
                     continue
+                line = False  # a loose cone slid along a line (line_slide)
                 if slide:
-                    lam, why = self._law_slide(slide, w, ws, b, tight, cones, slips_, lam_eps, loose)
+                    lam, why, line = self._law_slide(slide, w, ws, b, tight, cones, slips_, lam_eps, loose)
                     out = out or why
                     if lam is None:
+                        continue
+                elif least:
+                    lam = _least_split(g, w, b, tight)
+                    if lam is None or any(abs(x) > vel_eps for x in (w @ lam - b)[tight]):
                         continue
                 else:
                     lam = np.zeros(n)
@@ -144,6 +198,8 @@ class ImpulseLaw:
                 if inside and strict:
                     why = self._law_strict(strict, rows, lam, lam_eps)
                     out, inside = out or why, not why
+                if inside and joint and _gains(lam, b, gap, tgts):  # a loose cone's stick adding energy
+                    inside = False
                 if inside:
                     break
             else:
@@ -159,6 +215,9 @@ class ImpulseLaw:
                 math.nan,
                 f"impulse law: no solution on {n} contacts (dependent normals?)",
             )
+        self.least_splits += least
+        # the tangent does not carry a least split or a slide along a line (_law_tangent)
+        self._law_why = "friction at an impact" if least or line else ""
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
@@ -352,11 +411,13 @@ class ImpulseLaw:
         (two pucks, one landing while the other slides): block Gauss-Seidel, each cone's root with the
         others' ``m`` fixed, a cone whose stick is inside its cone taking the stick for that sweep, until no
         ``m`` moves by ``SLIDE_TOL (1 + max |m|)`` (cones not coupled by the law: the second sweep repeats
-        the first). Returns ``(lam, "")``; ``(None, "")`` if a cone sticks at the end (or the rows are
-        singular, or a tangent is fixed by them: ``H`` singular; a loose landing cone, ``loose``, whose
-        ``det H`` is within ``DEP_EPS`` of 0 against its own rows' ``(w_ii + w_oo)^2``: its sliding is fixed
-        by the tight rows, a held cone sticking on the body, and ``H`` is round-off),
-        ``(None, why)`` if the sweeps do not settle in ``SLIDE_SWEEPS``."""
+        the first). A loose landing cone, ``loose``, whose ``det H`` is within ``DEP_EPS`` of 0 against its
+        own rows' ``(w_ii + w_oo)^2`` has its sliding fixed by the tight rows but along one line
+        (:func:`vcigen.friction.line_slide`, ``tr H`` above ``DEP_EPS (w_ii + w_oo)``) or wholly (a held cone
+        sticking on the body: it cannot slide). Returns ``(lam, "", line)``, ``line`` whether a cone slid
+        along a line; ``(None, "", False)`` if a cone sticks at the end (or the rows are singular, or a
+        tangent is fixed by them: ``H`` singular), ``(None, why, False)`` if the sweeps do not settle in
+        ``SLIDE_SWEEPS``."""
         n, nc = len(b), len(slide)
         cols = [x for iso in slide for x in iso[:2]]  # each cone's two stick rows, in order
         lams = np.zeros((1 + 2 * nc, n))  # the law at m = 0, then its columns in m
@@ -365,7 +426,7 @@ class ImpulseLaw:
             try:
                 lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T
             except np.linalg.LinAlgError:
-                return None, ""
+                return None, "", False
         for x, col in enumerate(cols):
             lams[1 + x, col] = 1.0
         for lam in lams:
@@ -374,6 +435,7 @@ class ImpulseLaw:
                     lam[c] = (-1.0 if mode == 1 else 1.0) * _pooled(pools, lam)
         gaps = lams @ w.T  # their velocities: g_r.qdot+ (less b at m = 0)
         m = [0.0] * (2 * nc)
+        lines: set[int] = set()
         hs, normal = [], []  # each cone's H, and its normal impulse at m = 0 and per column of m (fixed)
         for c, (i, o, normals, _, _, f) in enumerate(slide):
             x = 1 + 2 * c
@@ -381,7 +443,9 @@ class ImpulseLaw:
             normal.append([float(np.sum(lams[y, normals])) for y in range(1 + 2 * nc)])
             own, h = w[i, i] + w[o, o], hs[-1]  # H's scale without the tight rows
             if f in loose and not (h[0] * h[3] - h[1] * h[2] > DEP_EPS * own * own and h[0] + h[3] > 0.0):
-                return None, ""  # a loose cone whose sliding the tight rows fix: it cannot slide
+                if not h[0] + h[3] > DEP_EPS * own:
+                    return None, "", False  # a loose cone whose sliding the tight rows fix: it cannot slide
+                lines.add(c)  # fixed but along one line: it slides along it (line_slide)
         for _ in range(SLIDE_SWEEPS):
             moved, stuck = 0.0, False
             for c, (i, o, _, mu, _, _) in enumerate(slide):
@@ -393,27 +457,32 @@ class ImpulseLaw:
                         g[0] += float(gaps[1 + x, i]) * m[x]
                         g[1] += float(gaps[1 + x, o]) * m[x]
                 a = a if a > lam_eps else 0.0  # no normal impulse (to round-off): no friction impulse
-                mc = cone_slide(g, h, (-normal[c][1 + 2 * c], -normal[c][2 + 2 * c]), mu, a)
+                slide_ = line_slide if c in lines else cone_slide
+                mc = slide_(g, h, (-normal[c][1 + 2 * c], -normal[c][2 + 2 * c]), mu, a)
                 if mc is None:
                     det = h[0] * h[3] - h[1] * h[2]
                     if nc == 1 or not det > 0.0:
-                        return None, ""
+                        return None, "", False
                     mc, stuck = (-(h[3] * g[0] - h[1] * g[1]) / det, -(h[0] * g[1] - h[2] * g[0]) / det), True
                 moved = max(moved, abs(mc[0] - m[2 * c]), abs(mc[1] - m[2 * c + 1]))
                 m[2 * c], m[2 * c + 1] = mc
             if nc == 1 or moved <= SLIDE_TOL * (1.0 + max(abs(x) for x in m)):
                 break
         else:
-            return None, (
-                f"impulse law: {nc} isotropic cones slipping at once did not settle in {SLIDE_SWEEPS} sweeps "
-                "at an impact while held"
+            return (
+                None,
+                (
+                    f"impulse law: {nc} isotropic cones slipping at once did not settle in {SLIDE_SWEEPS} "
+                    "sweeps at an impact while held"
+                ),
+                False,
             )
         if stuck:
-            return None, ""
+            return None, "", False
         lam = lams[0].copy()
         for x in range(2 * nc):
             lam = lam + m[x] * lams[1 + x]
-        return lam, ""
+        return lam, "", bool(lines)
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
         """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's
@@ -467,7 +536,7 @@ class ImpulseLaw:
             skip.add(so)
             along[k.frictional[g]] = (so, sgn, k.frictional[g])
         tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
-        return tight, [along.get(k.row_contact[r]) for r in tight], ""
+        return tight, [along.get(k.row_contact[r]) for r in tight], self._law_why
 
     def _cone_along(self, along: dict, skip: set, lam, o: int, g: int) -> None:
         """:meth:`_law_tangent` for the cone ``o`` (its first tangent) of contact ``g``'s that slid in the

@@ -106,6 +106,8 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
         self.friction_dropped = 0  # landing contacts whose friction the impulse law left out (_law_lands)
+        self.least_splits = 0  # impulse laws whose stick rows were dependent: the least split (_least_split)
+        self._law_why = ""  # why the tangent does not carry the last impulse law (ImpulseLaw._law_tangent)
         self._timed = bool(getattr(kernels, "timed", False))  # forces of time: kernels.at(t) per segment
         system = getattr(kernels, "system", None)
         self._forced = bool(system is not None and system.model.force)  # energy: the last segment's
@@ -187,6 +189,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["liftoffs"] = len(self.liftoffs)
         res.stats["jump_fallbacks"] = self.fallbacks
         res.stats["landing_friction_dropped"] = self.friction_dropped
+        res.stats["least_splits"] = self.least_splits
         res.stats["loads_passed"] = self.passes
         res.stats["sticks_kept"] = self.sticks_kept
         res.stats["jams"] = self.jams
@@ -363,8 +366,9 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
     if count:
         warnings.warn(
             f"{count} landing contact(s) took no friction impulse: their stick rows depend on the other "
-            "contacts' and they would stick (a box landing on rough vertices without sliding; sliding ones "
-            "take Coulomb's impulse), so the landing's tangential impulse may be short (README, Known "
+            "contacts' and neither a slide nor a stick on the least split of the impulses solved the law "
+            "(a box landing on rough vertices; sliding ones take Coulomb's impulse, sticking ones where "
+            "that split fits the cones), so the landing's tangential impulse may be short (README, Known "
             "limits: Friction); the sustained friction after the landing is right",
             RuntimeWarning,
             stacklevel=stacklevel + 1,

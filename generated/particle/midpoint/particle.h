@@ -96,11 +96,13 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     long friction_dropped;             /* in/out: landing contacts whose friction was left out (law_lands) */
+    long least_splits;                 /* in/out: impulse laws whose stick rows were dependent (least_split) */
     long passes;                       /* in/out: lift-offs whose load a riding row took (pass_load) */
     long sticks_kept;                  /* in/out: stick <-> slip cycles (STICK_CYCLES in a step) cut by sticking on */
     long jams;                         /* in/out: lift-off <-> landing cycles (JAM_CYCLES in a step): jam */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
     int jammed;                        /* at a jam in this instant: every held frictional contact sticks */
+    int law_why;                       /* the last impulse law took a least split or a slide along a line */
     double slip[PARTICLE_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
     double ref[PARTICLE_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
     double branch[PARTICLE_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */

@@ -1098,7 +1098,7 @@ static inline int ball_to_rest_held(const ball_to_rest_sustain_t *sus)
 #define BALL_TO_REST_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define BALL_TO_REST_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define BALL_TO_REST_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define BALL_TO_REST_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define BALL_TO_REST_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define BALL_TO_REST_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define BALL_TO_REST_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BALL_TO_REST_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1585,17 +1585,17 @@ static int ball_to_rest_row_crossing(const ball_to_rest_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
- * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
- * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
- * independent one. */
-static int ball_to_rest_spanned(const double *grad, const int *rows, const int *tight, int nt)
+/* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
+ * all of rows[0..nt)) within DEP_EPS of the span of the rows before it (span_add)? Such a set of normals (a box's
+ * four vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one (but where a loose landing cone sticks: least_split). */
+static int ball_to_rest_spanned(const double *grad, const int *rows, const int *tight, int nt, int all)
 {
     double basis[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight ? tight[k] : k];
-        if (ball_to_rest_row_stick[r] < 0 && !ball_to_rest_span_add(basis, &nb, grad + r * BALL_TO_REST_N)) {
+        if ((all || ball_to_rest_row_stick[r] < 0) && !ball_to_rest_span_add(basis, &nb, grad + r * BALL_TO_REST_N)) {
             return 1;
         }
     }
@@ -1652,7 +1652,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
     if (nr > BALL_TO_REST_MAX_LAW_ROWS) {
         return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = ball_to_rest_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
+    dependent = ball_to_rest_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
     ok = ball_to_rest_lu(BALL_TO_REST_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < BALL_TO_REST_N; ++i) {
@@ -1693,7 +1693,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && ball_to_rest_spanned(grad, rows, tight, nt))) { /* a subset carries it */
+            if (!valid || (dependent && ball_to_rest_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

@@ -1298,7 +1298,7 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SLIDE_OFF_DOME_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define SLIDE_OFF_DOME_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define SLIDE_OFF_DOME_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define SLIDE_OFF_DOME_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define SLIDE_OFF_DOME_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define SLIDE_OFF_DOME_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SLIDE_OFF_DOME_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1785,17 +1785,17 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
- * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
- * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
- * independent one. */
-static int slide_off_dome_spanned(const double *grad, const int *rows, const int *tight, int nt)
+/* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
+ * all of rows[0..nt)) within DEP_EPS of the span of the rows before it (span_add)? Such a set of normals (a box's
+ * four vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one (but where a loose landing cone sticks: least_split). */
+static int slide_off_dome_spanned(const double *grad, const int *rows, const int *tight, int nt, int all)
 {
     double basis[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight ? tight[k] : k];
-        if (slide_off_dome_row_stick[r] < 0 && !slide_off_dome_span_add(basis, &nb, grad + r * SLIDE_OFF_DOME_N)) {
+        if ((all || slide_off_dome_row_stick[r] < 0) && !slide_off_dome_span_add(basis, &nb, grad + r * SLIDE_OFF_DOME_N)) {
             return 1;
         }
     }
@@ -1852,7 +1852,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
     if (nr > SLIDE_OFF_DOME_MAX_LAW_ROWS) {
         return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = slide_off_dome_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
+    dependent = slide_off_dome_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
     ok = slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
@@ -1893,7 +1893,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && slide_off_dome_spanned(grad, rows, tight, nt))) { /* a subset carries it */
+            if (!valid || (dependent && slide_off_dome_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

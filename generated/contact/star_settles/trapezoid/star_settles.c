@@ -1381,7 +1381,7 @@ static inline int star_settles_held(const star_settles_sustain_t *sus)
 #define STAR_SETTLES_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define STAR_SETTLES_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define STAR_SETTLES_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define STAR_SETTLES_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define STAR_SETTLES_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define STAR_SETTLES_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define STAR_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define STAR_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1868,17 +1868,17 @@ static int star_settles_row_crossing(const star_settles_ctx_t *c, const double *
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
- * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
- * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
- * independent one. */
-static int star_settles_spanned(const double *grad, const int *rows, const int *tight, int nt)
+/* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
+ * all of rows[0..nt)) within DEP_EPS of the span of the rows before it (span_add)? Such a set of normals (a box's
+ * four vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one (but where a loose landing cone sticks: least_split). */
+static int star_settles_spanned(const double *grad, const int *rows, const int *tight, int nt, int all)
 {
     double basis[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight ? tight[k] : k];
-        if (star_settles_row_stick[r] < 0 && !star_settles_span_add(basis, &nb, grad + r * STAR_SETTLES_N)) {
+        if ((all || star_settles_row_stick[r] < 0) && !star_settles_span_add(basis, &nb, grad + r * STAR_SETTLES_N)) {
             return 1;
         }
     }
@@ -1935,7 +1935,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
     if (nr > STAR_SETTLES_MAX_LAW_ROWS) {
         return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = star_settles_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
+    dependent = star_settles_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
     ok = star_settles_lu(STAR_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < STAR_SETTLES_N; ++i) {
@@ -1976,7 +1976,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && star_settles_spanned(grad, rows, tight, nt))) { /* a subset carries it */
+            if (!valid || (dependent && star_settles_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

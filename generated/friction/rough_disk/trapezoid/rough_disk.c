@@ -1180,7 +1180,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define ROUGH_DISK_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define ROUGH_DISK_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define ROUGH_DISK_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define ROUGH_DISK_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define ROUGH_DISK_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -2100,17 +2100,17 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
     return 1;
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
- * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
- * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
- * independent one. */
-static int rough_disk_spanned(const double *grad, const int *rows, const int *tight, int nt)
+/* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
+ * all of rows[0..nt)) within DEP_EPS of the span of the rows before it (span_add)? Such a set of normals (a box's
+ * four vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one (but where a loose landing cone sticks: least_split). */
+static int rough_disk_spanned(const double *grad, const int *rows, const int *tight, int nt, int all)
 {
     double basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight ? tight[k] : k];
-        if (rough_disk_row_stick[r] < 0 && !rough_disk_span_add(basis, &nb, grad + r * ROUGH_DISK_N)) {
+        if ((all || rough_disk_row_stick[r] < 0) && !rough_disk_span_add(basis, &nb, grad + r * ROUGH_DISK_N)) {
             return 1;
         }
     }
@@ -2172,7 +2172,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     if (nr > ROUGH_DISK_MAX_LAW_ROWS) {
         return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = rough_disk_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
+    dependent = rough_disk_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
     ok = rough_disk_lu(ROUGH_DISK_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < ROUGH_DISK_N; ++i) {
@@ -2240,7 +2240,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && rough_disk_spanned(grad, rows, tight, nt))) { /* a subset carries it */
+            if (!valid || (dependent && rough_disk_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {

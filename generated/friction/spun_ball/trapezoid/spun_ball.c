@@ -1267,7 +1267,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SPUN_BALL_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define SPUN_BALL_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define SPUN_BALL_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define SPUN_BALL_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -2893,6 +2893,52 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
 static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
     double *m1, double *m2); /* stepper_cone.c.j2 */
 
+/* friction.line_slide: cone_slide where H has rank 1 (H = kappa u u^T, a loose landing cone in law_slide): the law's
+ * other rows fix its sliding but along u (H's larger column, normalised), so it slides along u with Coulomb's sliding
+ * impulse m = -mu_f N s u, s = sign(u.g), N = a - b.m = a / (1 - mu_f s b.u). 1 and m; m = 0 if a <= 0; 0 where it
+ * sticks along u (s u.g <= mu_f N kappa, kappa = u.H u) or g has a part across u beyond DEP_EPS |g|. */
+static int spun_ball_line_slide(const double *g, const double *h, const double *b, double mf, double a,
+    double *m1, double *m2)
+{
+    double u[2], norm, kappa, gu, s, d, n;
+    *m1 = 0.0;
+    *m2 = 0.0;
+    if (!(mf > 0.0 && a > 0.0)) {
+        return 1;
+    }
+    if (hypot(h[0], h[2]) >= hypot(h[1], h[3])) {
+        u[0] = h[0];
+        u[1] = h[2];
+    } else {
+        u[0] = h[1];
+        u[1] = h[3];
+    }
+    norm = hypot(u[0], u[1]);
+    if (!(norm > 0.0)) {
+        return 0;
+    }
+    u[0] /= norm;
+    u[1] /= norm;
+    kappa = u[0] * (h[0] * u[0] + h[1] * u[1]) + u[1] * (h[2] * u[0] + h[3] * u[1]);
+    gu = u[0] * g[0] + u[1] * g[1];
+    if (hypot(g[0] - gu * u[0], g[1] - gu * u[1]) > SPUN_BALL_DEP_EPS * hypot(g[0], g[1]) || gu == 0.0
+        || !(kappa > 0.0)) {
+        return 0;
+    }
+    s = gu > 0.0 ? 1.0 : -1.0;
+    d = 1.0 - mf * s * (b[0] * u[0] + b[1] * u[1]);
+    if (!(d > 0.0)) {
+        return 0;
+    }
+    n = a / d;
+    if (s * gu <= mf * n * kappa) {
+        return 0; /* it sticks along u */
+    }
+    *m1 = -mf * n * s * u[0];
+    *m2 = -mf * n * s * u[1];
+    return 1;
+}
+
 /* SustainedSteps._law_slide: the impulses lam (per index in rows) of the impulse law on the tight rows tight[0..nt)
  * with the isotropic cones sl_f[0..n_sl) (first tangents; stick rows at sl_i, sl_o in rows) slipping: Coulomb's
  * sliding impulse, each cone's tangential impulse m_c against its tangential velocity after (cone_slide). The law
@@ -2900,10 +2946,11 @@ static int spun_ball_cone_slide(const double *g, const double *h, const double *
  * its columns give each cone's normal impulse a_c - b_c.m (a_c within lam_eps of 0: none, m_c = 0) and tangential
  * velocity after g_c + H_c m, one LU with 1 + 2 n_sl right-hand sides. One cone: its 1-D root. Several: block
  * Gauss-Seidel, each cone's root with the others' m fixed, a cone whose stick is inside its cone taking the stick
- * for that sweep, until no m moves by SLIDE_TOL (1 + max |m|). 1 and lam; 0 if a cone sticks at the end (or the
- * rows are singular, or a tangent is fixed by them: H singular; a loose landing cone, loose[f], whose det H is
- * within DEP_EPS of 0 against its own rows' (w_ii + w_oo)^2: its sliding fixed by the tight rows, H round-off); -1
- * if the sweeps do not settle in SLIDE_SWEEPS. */
+ * for that sweep, until no m moves by SLIDE_TOL (1 + max |m|). A loose landing cone, loose[f], whose det H is within
+ * DEP_EPS of 0 against its own rows' (w_ii + w_oo)^2 has its sliding fixed by the tight rows but along one line
+ * (line_slide, tr H above DEP_EPS (w_ii + w_oo)) or wholly (it cannot slide). 1 and lam (2: a cone slid along a
+ * line); 0 if a cone sticks at the end (or the rows are singular, or a tangent is fixed by them: H singular); -1 if
+ * the sweeps do not settle in SLIDE_SWEEPS. */
 static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, const int *rows, int nr,
     const double *w, const double *ws, const double *b, const int *tight, int nt, const int *cone_i,
     const int *cone_f, const int *mode, int n_cones, const int *sl_i, const int *sl_o, const int *sl_f, int n_sl,
@@ -2914,7 +2961,7 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
     double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], hs[2 * SPUN_BALL_NF_DIM] = {0.0};
     double normal[L_DIM * SPUN_BALL_NF_DIM] = {0.0};
     double g[2], bn[2], *h, an, m1, m2, det, moved, big, own;
-    int piv[SPUN_BALL_R_DIM], j, k, l, x, s, sweep, stuck = 0;
+    int piv[SPUN_BALL_R_DIM], line[SPUN_BALL_NF_DIM] = {0}, j, k, l, x, s, sweep, stuck = 0, lines = 0;
     const int nl = 1 + 2 * n_sl;
     for (k = 0; k < nl * nr; ++k) {
         lams[k] = 0.0; /* the law at m = 0, then its columns in m */
@@ -2969,7 +3016,10 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
         }
         own = w[sl_i[s] * nr + sl_i[s]] + w[sl_o[s] * nr + sl_o[s]]; /* H's scale without the tight rows */
         if (loose[sl_f[s]] && !(h[0] * h[3] - h[1] * h[2] > SPUN_BALL_DEP_EPS * own * own && h[0] + h[3] > 0.0)) {
-            return 0; /* a loose cone whose sliding the tight rows fix: it cannot slide */
+            if (!(h[0] + h[3] > SPUN_BALL_DEP_EPS * own)) {
+                return 0; /* a loose cone whose sliding the tight rows fix: it cannot slide */
+            }
+            line[s] = lines = 1; /* fixed but along one line: it slides along it (line_slide) */
         }
     }
     for (sweep = 0; sweep < SPUN_BALL_SLIDE_SWEEPS; ++sweep) {
@@ -2991,7 +3041,8 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
             an = an > lam_eps ? an : 0.0; /* no normal impulse (to round-off): no friction impulse */
             bn[0] = -normal[s * nl + 1 + 2 * s];
             bn[1] = -normal[s * nl + 2 + 2 * s];
-            if (!spun_ball_cone_slide(g, h, bn, c->mu_f[sl_f[s]], an, &m1, &m2)) {
+            if (!(line[s] ? spun_ball_line_slide(g, h, bn, c->mu_f[sl_f[s]], an, &m1, &m2)
+                    : spun_ball_cone_slide(g, h, bn, c->mu_f[sl_f[s]], an, &m1, &m2))) {
                 det = h[0] * h[3] - h[1] * h[2];
                 if (n_sl == 1 || !(det > 0.0)) {
                     return 0;
@@ -3024,28 +3075,91 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
             lam[k] += m[x] * lams[(1 + x) * nr + k];
         }
     }
-    return 1;
+    return lines ? 2 : 1;
 }
 
 /* With isotropic cones: one held with both tangents (sticking, or slipping and joined, law_slips) sticks within its
  * cone (|Lam_t| <= mu_f Lam_n) or slips with Coulomb's sliding impulse against its tangential velocity after
  * (law_slide); its modes (stick, slip; its own first) come after all the one-tangent ones, in base 2, several
  * slipping at once by block Gauss-Seidel. A slipping cone that took no normal impulse is left out (slips on as before). */
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
- * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
- * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
- * independent one. */
-static int spun_ball_spanned(const double *grad, const int *rows, const int *tight, int nt)
+/* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
+ * all of rows[0..nt)) within DEP_EPS of the span of the rows before it (span_add)? Such a set of normals (a box's
+ * four vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one (but where a loose landing cone sticks: least_split). */
+static int spun_ball_spanned(const double *grad, const int *rows, const int *tight, int nt, int all)
 {
     double basis[SPUN_BALL_R_DIM * SPUN_BALL_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight ? tight[k] : k];
-        if (spun_ball_row_stick[r] < 0 && !spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N)) {
+        if ((all || spun_ball_row_stick[r] < 0) && !spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N)) {
             return 1;
         }
     }
     return 0;
+}
+
+/* impulse_law._least_split: the impulses lam (per index in rows) of the tight rows T = tight[0..nt) at their targets
+ * (w Lam = b on T) where their gradients are dependent (a loose landing cone sticking): the least split, min |Lam|:
+ * Lam = G_T G_I^T z, I an independent subset of T (span_add), (A^T A) z = G_I G_I^T Lam_I, A = G_T G_I^T, Lam_I the
+ * impulses with I alone. 0 where singular; the caller checks T's targets (consistency). */
+static int spun_ball_least_split(const double *grad, const int *rows, int nr, const double *w, const double *b,
+    const int *tight, int nt, double *lam)
+{
+    double basis[SPUN_BALL_R_DIM * SPUN_BALL_N], wi[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
+    double ata[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
+    double sol[SPUN_BALL_R_DIM], z[SPUN_BALL_R_DIM], s;
+    int ind[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], ni = 0, nb = 0, k, l, x, i;
+    for (k = 0; k < nt; ++k) {
+        if (spun_ball_span_add(basis, &nb, grad + rows[tight[k]] * SPUN_BALL_N)) {
+            ind[ni++] = tight[k];
+        }
+    }
+    for (k = 0; k < ni; ++k) {
+        sol[k] = b[ind[k]];
+        for (l = 0; l < ni; ++l) {
+            wi[k * ni + l] = w[ind[k] * nr + ind[l]];
+        }
+    }
+    if (!spun_ball_lu(ni, wi, piv)) {
+        return 0;
+    }
+    spun_ball_lu_solve(ni, wi, piv, sol); /* Lam_I */
+    for (k = 0; k < nt; ++k) { /* A = G_T G_I^T */
+        for (l = 0; l < ni; ++l) {
+            for (i = 0, s = 0.0; i < SPUN_BALL_N; ++i) {
+                s += grad[rows[tight[k]] * SPUN_BALL_N + i] * grad[rows[ind[l]] * SPUN_BALL_N + i];
+            }
+            a[k * ni + l] = s;
+        }
+    }
+    for (k = 0; k < ni; ++k) { /* A^T A and G_I G_I^T Lam_I */
+        for (l = 0; l < ni; ++l) {
+            for (x = 0, s = 0.0; x < nt; ++x) {
+                s += a[x * ni + k] * a[x * ni + l];
+            }
+            ata[k * ni + l] = s;
+        }
+        for (l = 0, z[k] = 0.0; l < ni; ++l) {
+            for (i = 0, s = 0.0; i < SPUN_BALL_N; ++i) {
+                s += grad[rows[ind[k]] * SPUN_BALL_N + i] * grad[rows[ind[l]] * SPUN_BALL_N + i];
+            }
+            z[k] += s * sol[l];
+        }
+    }
+    if (!spun_ball_lu(ni, ata, piv)) {
+        return 0;
+    }
+    spun_ball_lu_solve(ni, ata, piv, z);
+    for (k = 0; k < nr; ++k) {
+        lam[k] = 0.0;
+    }
+    for (k = 0; k < nt; ++k) {
+        for (l = 0; l < ni; ++l) {
+            lam[tight[k]] += a[k * ni + l] * z[l];
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
@@ -3082,7 +3196,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
     int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
-    int n_iso = 0, n_base, n_slide, settled;
+    int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0;
+    int moded, at, left_out;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
     spun_ball_legendre(q, vel_m, c->par, mom, mass);
@@ -3107,7 +3222,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     if (nr > SPUN_BALL_MAX_LAW_ROWS) {
         return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = spun_ball_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
+    dependent = spun_ball_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
     ok = spun_ball_lu(SPUN_BALL_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < SPUN_BALL_N; ++i) {
@@ -3134,19 +3249,31 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
     }
-    n_base = n_modes;
+    n_base = n_modes; /* the modes with no loose cone left out (n_plain), then those with one */
+    n_plain = n_base;
     for (k = 0; k < n_iso; ++k) {
-        n_modes *= 2;
+        n_plain *= 2;
+        n_modes *= loose[iso_f[k]] ? 3 : 2;
     }
+    n_modes += n_plain;
     for (modes = 0; modes < n_modes && !found; ++modes) {
-        n_slide = 0; /* the isotropic cones' digits, after all the one-tangent ones': 0 stick, 1 slip, own first */
-        for (i = 0; i < n_iso; ++i) {
-            slide_on[i] = ((modes / n_base) >> i & 1) ^ iso_on[i];
+        at = modes >= n_plain ? modes - n_plain : modes;
+        n_slide = 0; /* the isotropic cones' digits, after all the one-tangent ones': 0 stick, 1 slip, own first; */
+        joint = 0; /* a loose landing cone's: 0 slide, 1 stick (its rows dependent: least_split), 2 left out */
+        for (i = 0, upper = at / n_base, left_out = 0; i < n_iso; ++i) {
+            iso_d[i] = upper % (loose[iso_f[i]] && modes >= n_plain ? 3 : 2);
+            upper /= loose[iso_f[i]] && modes >= n_plain ? 3 : 2;
+            slide_on[i] = loose[iso_f[i]] ? iso_d[i] == 0 : iso_d[i] ^ iso_on[i];
+            joint = joint || (loose[iso_f[i]] && iso_d[i] == 1);
+            left_out = left_out || iso_d[i] == 2;
             if (slide_on[i]) {
                 sl_i[n_slide] = iso_i[i];
                 sl_o[n_slide] = iso_o[i];
                 sl_f[n_slide++] = iso_f[i];
             }
+        }
+        if (modes >= n_plain && !left_out) {
+            continue; /* tried in the first pass */
         }
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
             ws[k] = w[k];
@@ -3154,7 +3281,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         for (k = 0; k < nr; ++k) {
             sliding[k] = 0;
         }
-        for (i = 0, digits = modes; i < n_cones; ++i, digits /= 3) {
+        for (i = 0, digits = at; i < n_cones; ++i, digits /= 3) {
             mode[i] = digits % 3; /* 0 stick, 1 slip with Lam_t = -mu Lam_n, 2 with +mu Lam_n: its own first */
             mode[i] = !cone_on[i] ? mode[i] : (mode[i] == 0 ? cone_on[i] : (mode[i] == 1 ? 0 : 3 - cone_on[i]));
             if (!mode[i]) {
@@ -3183,8 +3310,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         for (k = 0; k < nr; ++k) {
             left[k] = 0;
         }
-        for (i = 0; i < n_iso; ++i) { /* a loose landing cone not sliding: left out, its rows neither tight nor checked */
-            if (!slide_on[i] && loose[iso_f[i]]) {
+        for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: its rows neither tight nor checked */
+            if (loose[iso_f[i]] && iso_d[i] == 2) {
                 left[iso_i[i]] = sliding[iso_i[i]] = 1;
                 left[iso_o[i]] = sliding[iso_o[i]] = 1;
             }
@@ -3201,7 +3328,14 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && spun_ball_spanned(grad, rows, tight, nt))) { /* a subset carries it */
+            /* a subset of the dependent normals carries it; with a loose cone sticking, all rows may */
+            for (i = 0, moded = 0; i < n_cones; ++i) {
+                moded = moded || mode[i];
+            }
+            least = joint && spun_ball_spanned(grad, rows, tight, nt, 1);
+            line = 0;
+            if (!valid || (dependent && !joint && spun_ball_spanned(grad, rows, tight, nt, 0))
+                || (least && (n_slide > 0 || moded))) {
                 continue;
             }
             if (n_slide > 0) {
@@ -3214,6 +3348,20 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                     out = 1;
                 }
                 if (settled <= 0) {
+                    continue;
+                }
+                line = settled == 2;
+            } else if (least) {
+                if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, lam)) {
+                    continue;
+                }
+                for (k = 0; k < nt && valid; ++k) { /* the targets of the tight rows met (consistent) */
+                    for (l = 0, gap = -b[tight[k]]; l < nr; ++l) {
+                        gap += w[tight[k] * nr + l] * lam[l];
+                    }
+                    valid = fabs(gap) <= vel_eps;
+                }
+                if (!valid) {
                     continue;
                 }
             } else {
@@ -3272,6 +3420,16 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 out = out || why;
                 valid = !why;
             }
+            if (valid && joint) { /* impulse_law._gains: a loose cone's stick adding kinetic energy */
+                double gain = 0.0, scale = 0.0, before, after;
+                for (k = 0; k < nr; ++k) {
+                    before = tgt[rows[k]] - b[k];
+                    after = tgt[rows[k]] + gaps[k];
+                    gain += lam[k] * (before + after);
+                    scale += fabs(lam[k]) * (fabs(before) + fabs(after));
+                }
+                valid = !(gain / 2.0 > SPUN_BALL_EPS_LAM * scale);
+            }
             if (valid) {
                 found = 1;
                 for (k = 0; k < nr; ++k) {
@@ -3286,6 +3444,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         return out ? 1 : spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: no solution on %d "
             "contacts (dependent normals?)", nr);
     }
+    c->sus->least_splits += least;
+    c->sus->law_why = least || line; /* the tangent does not carry a least split or a slide along a line */
     for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: README, Known limits */
         if (left[iso_i[i]]) {
             land[iso_f[i]] = -1;
@@ -3581,7 +3741,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         return 1;
     }
     why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land);
-    if (why) { /* stick <-> slip (a mode change), or a cone's sliding impulse: no tangent */
+    why = why ? why : 2 * c->sus->law_why; /* a least split or a slide along a line: friction at an impact */
+    if (why) { /* stick <-> slip (a mode change), a cone's sliding impulse, a least split: no tangent */
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = spun_ball_loss(c, q, vel_m, vel_p);

@@ -1514,7 +1514,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define DOUBLE_PENDULUM_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define DOUBLE_PENDULUM_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define DOUBLE_PENDULUM_SLIDE_SWEEPS 50 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define DOUBLE_PENDULUM_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define DOUBLE_PENDULUM_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define DOUBLE_PENDULUM_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -2002,17 +2002,17 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
         4e-16, 200, s_out);
 }
 
-/* impulse_law._spanned: is a normal row among the tight ones (tight[0..nt), indices of rows; NULL: all of
- * rows[0..nt)) within DEP_EPS of the span of the normal rows before it (span_add)? Such a set (a box's four
- * vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
- * independent one. */
-static int double_pendulum_spanned(const double *grad, const int *rows, const int *tight, int nt)
+/* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
+ * all of rows[0..nt)) within DEP_EPS of the span of the rows before it (span_add)? Such a set of normals (a box's
+ * four vertices on a face) has no unique split of its impulse: the law takes a subset of them instead, the first
+ * independent one (but where a loose landing cone sticks: least_split). */
+static int double_pendulum_spanned(const double *grad, const int *rows, const int *tight, int nt, int all)
 {
     double basis[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     int nb = 0, k, r;
     for (k = 0; k < nt; ++k) {
         r = rows[tight ? tight[k] : k];
-        if (double_pendulum_row_stick[r] < 0 && !double_pendulum_span_add(basis, &nb, grad + r * DOUBLE_PENDULUM_N)) {
+        if ((all || double_pendulum_row_stick[r] < 0) && !double_pendulum_span_add(basis, &nb, grad + r * DOUBLE_PENDULUM_N)) {
             return 1;
         }
     }
@@ -2069,7 +2069,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
     if (nr > DOUBLE_PENDULUM_MAX_LAW_ROWS) {
         return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = double_pendulum_spanned(grad, rows, NULL, nr); /* only then may a set of tight rows be dependent */
+    dependent = double_pendulum_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
     ok = double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
@@ -2110,7 +2110,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && double_pendulum_spanned(grad, rows, tight, nt))) { /* a subset carries it */
+            if (!valid || (dependent && double_pendulum_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
