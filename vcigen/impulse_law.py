@@ -27,14 +27,20 @@ def _spanned(g, tight, normal) -> bool:
     return any(not span_add(basis, g[i]) for i in tight if normal[i])
 
 
-def _least_split(g, w, b, tight) -> np.ndarray | None:
+def _least_split(g, w, b, tight, s=None) -> np.ndarray | None:
     """The impulses of the tight rows ``T`` (indices of the law's rows ``g``, ``w = g M^-1 g^T``) at their
     targets (``w Lam = b`` on ``T``) where their gradients are dependent (a loose landing cone sticking: a box
     landing flat on four rough vertices): the velocity after is unique, the impulses are not (``G_T^T Lam``
     is), and Coulomb's law asks for a split inside every cone. The least one, ``min |Lam|``: ``Lam = G_T G_I^T
     z``, ``I`` an independent subset of ``T`` (modified Gram-Schmidt), ``(A^T A) z = G_I G_I^T Lam_I``, ``A =
     G_T G_I^T``, ``Lam_I`` the impulses with ``I`` alone; a sufficient test of the cones (another split may
-    fit where this one does not). None where singular; the caller checks ``T``'s targets (consistency)."""
+    fit where this one does not). With weights ``s`` the least ``sum (Lam_i / s_i)^2`` instead (the rows
+    scaled by ``s``: :meth:`ImpulseLaw._impulse_law` weights each cone's stick rows by the square root of its
+    room ``mu_f N`` in the first split, so the second splits along the loads). None where singular; the caller
+    checks ``T``'s targets (consistency)."""
+    if s is not None:
+        lam = _least_split(g * s[:, None], w * np.outer(s, s), b * s, tight)
+        return None if lam is None else lam * s
     basis: list = []
     ind = [i for i in tight if span_add(basis, g[i])]
     lam = np.zeros(len(b))
@@ -167,6 +173,14 @@ class ImpulseLaw:
                         continue
                 elif least:
                     lam = _least_split(g, w, b, tight)
+                    if lam is not None and any(
+                        math.hypot(float(lam[i]), float(lam[o])) > mu * float(np.sum(lam[nm])) + lam_eps
+                        for i, o, nm, mu, _, _ in isos
+                    ):  # a cone left: again, each cone's rows weighted by its room (a split along the loads)
+                        s = np.ones(n)
+                        for i, o, nm, mu, _, _ in isos:
+                            s[[i, o]] = math.sqrt(max(mu * float(np.sum(lam[nm])), 0.0))
+                        lam = _least_split(g, w, b, tight, s)
                     if lam is None or any(abs(x) > vel_eps for x in (w @ lam - b)[tight]):
                         continue
                 else:

@@ -3102,23 +3102,30 @@ static int spun_ball_spanned(const double *grad, const int *rows, const int *tig
 /* impulse_law._least_split: the impulses lam (per index in rows) of the tight rows T = tight[0..nt) at their targets
  * (w Lam = b on T) where their gradients are dependent (a loose landing cone sticking): the least split, min |Lam|:
  * Lam = G_T G_I^T z, I an independent subset of T (span_add), (A^T A) z = G_I G_I^T Lam_I, A = G_T G_I^T, Lam_I the
- * impulses with I alone. 0 where singular; the caller checks T's targets (consistency). */
+ * impulses with I alone. With weights sc (not NULL) the least sum (Lam_i / sc_i)^2 instead: the rows scaled by sc
+ * (impulse_law weights each cone's stick rows by the square root of its room mu_f N in the first split). 0 where
+ * singular; the caller checks T's targets (consistency). */
 static int spun_ball_least_split(const double *grad, const int *rows, int nr, const double *w, const double *b,
-    const int *tight, int nt, double *lam)
+    const int *tight, int nt, const double *sc, double *lam)
 {
     double basis[SPUN_BALL_R_DIM * SPUN_BALL_N], wi[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double ata[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
-    double sol[SPUN_BALL_R_DIM], z[SPUN_BALL_R_DIM], s;
+    double sol[SPUN_BALL_R_DIM], z[SPUN_BALL_R_DIM], g[SPUN_BALL_R_DIM * SPUN_BALL_N], s;
     int ind[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], ni = 0, nb = 0, k, l, x, i;
+    for (k = 0; k < nr; ++k) { /* the rows' gradients, scaled */
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            g[k * SPUN_BALL_N + i] = (sc ? sc[k] : 1.0) * grad[rows[k] * SPUN_BALL_N + i];
+        }
+    }
     for (k = 0; k < nt; ++k) {
-        if (spun_ball_span_add(basis, &nb, grad + rows[tight[k]] * SPUN_BALL_N)) {
+        if (spun_ball_span_add(basis, &nb, g + tight[k] * SPUN_BALL_N)) {
             ind[ni++] = tight[k];
         }
     }
     for (k = 0; k < ni; ++k) {
-        sol[k] = b[ind[k]];
+        sol[k] = (sc ? sc[ind[k]] : 1.0) * b[ind[k]];
         for (l = 0; l < ni; ++l) {
-            wi[k * ni + l] = w[ind[k] * nr + ind[l]];
+            wi[k * ni + l] = w[ind[k] * nr + ind[l]] * (sc ? sc[ind[k]] * sc[ind[l]] : 1.0);
         }
     }
     if (!spun_ball_lu(ni, wi, piv)) {
@@ -3128,7 +3135,7 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
     for (k = 0; k < nt; ++k) { /* A = G_T G_I^T */
         for (l = 0; l < ni; ++l) {
             for (i = 0, s = 0.0; i < SPUN_BALL_N; ++i) {
-                s += grad[rows[tight[k]] * SPUN_BALL_N + i] * grad[rows[ind[l]] * SPUN_BALL_N + i];
+                s += g[tight[k] * SPUN_BALL_N + i] * g[ind[l] * SPUN_BALL_N + i];
             }
             a[k * ni + l] = s;
         }
@@ -3142,7 +3149,7 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
         }
         for (l = 0, z[k] = 0.0; l < ni; ++l) {
             for (i = 0, s = 0.0; i < SPUN_BALL_N; ++i) {
-                s += grad[rows[ind[k]] * SPUN_BALL_N + i] * grad[rows[ind[l]] * SPUN_BALL_N + i];
+                s += g[ind[k] * SPUN_BALL_N + i] * g[ind[l] * SPUN_BALL_N + i];
             }
             z[k] += s * sol[l];
         }
@@ -3158,6 +3165,7 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
         for (l = 0; l < ni; ++l) {
             lam[tight[k]] += a[k * ni + l] * z[l];
         }
+        lam[tight[k]] *= sc ? sc[tight[k]] : 1.0;
     }
     return 1;
 }
@@ -3352,8 +3360,25 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
                 line = settled == 2;
             } else if (least) {
-                if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, lam)) {
+                if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, NULL, lam)) {
                     continue;
+                }
+                for (i = 0, l = 0; i < n_iso; ++i) { /* a cone left: again, each cone's rows weighted by its room */
+                    l = l || hypot(lam[iso_i[i]], lam[iso_o[i]])
+                        > c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]) + lam_eps;
+                }
+                if (l) {
+                    double sc[SPUN_BALL_R_DIM];
+                    for (k = 0; k < nr; ++k) {
+                        sc[k] = 1.0;
+                    }
+                    for (i = 0; i < n_iso; ++i) {
+                        sc[iso_i[i]] = sc[iso_o[i]] = sqrt(fmax(c->mu_f[iso_f[i]]
+                            * spun_ball_law_normal(rows, nr, lam, iso_f[i]), 0.0));
+                    }
+                    if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, sc, lam)) {
+                        continue;
+                    }
                 }
                 for (k = 0; k < nt && valid; ++k) { /* the targets of the tight rows met (consistent) */
                     for (l = 0, gap = -b[tight[k]]; l < nr; ++l) {
