@@ -1,16 +1,18 @@
-"""The pure parts of the impulse law's loose landing cones (MATH.md *Friction*, stop 33), against NumPy's
-independent references: the least split of a dependent set of tight rows (``impulse_law._least_split``)
-is the minimum-norm solution of ``W_TT Lam = b_T`` (``numpy.linalg.lstsq``); Coulomb's slide along a line
-(``friction.line_slide``) is against the velocity after and on the cone's edge; the energy test
-(``impulse_law._gains``) is the kinetic energy's change."""
+"""Pure parts of the impulse law while held (MATH.md *Friction*), against independent references: the least
+split of a dependent set of tight rows (``impulse_law._least_split``, stop 33) is the minimum-norm solution
+of ``W_TT Lam = b_T`` (``numpy.linalg.lstsq``); Coulomb's slide along a line (``friction.line_slide``) is
+against the velocity after and on the cone's edge; the energy test (``impulse_law._gains``) is the kinetic
+energy's change; cones slipping at once (``ImpulseLaw._law_slide``'s block Gauss-Seidel, stop 32) end each on
+its cone's edge against its sliding after, and sweeps that do not settle say so."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from vcigen import impulse_law
 from vcigen.friction import line_slide
-from vcigen.impulse_law import _gains, _least_split
+from vcigen.impulse_law import ImpulseLaw, _gains, _least_split
 
 
 def dependent_rows(rng: np.random.Generator, n: int = 5, r: int = 8, rank: int = 4) -> np.ndarray:
@@ -65,3 +67,27 @@ def test_the_energy_test_is_the_kinetic_energys_change():
         b = tgts - g @ vel
         gap = w @ lam - b
         assert _gains(lam, b, gap, tgts) == (change > 0)
+
+
+@pytest.mark.parametrize("seed", [1, 6, 8, 14, 15, 18])
+def test_cones_slipping_at_once_end_on_their_edges_against_their_sliding(seed, monkeypatch):
+    """Two isotropic cones (stick rows 2, 3 and 4, 5) coupled through random rows, their normal rows 0 and 1
+    tight and plastic: after the sweeps each cone's tangential impulse is ``mu`` times its normal impulse and
+    points against its tangential velocity after (Coulomb's sliding), the normal rows at rest. With one sweep
+    allowed they cannot settle (the second sweep is the one that shows no move): ``(None, why)``."""
+    rng = np.random.default_rng(seed)
+    g = rng.normal(size=(6, 6))
+    w = g @ g.T
+    b = -g @ (3 * rng.normal(size=6))  # the rows' velocities before, negated (targets 0)
+    slide = [(2, 3, [0], 0.3, 1, 0), (4, 5, [1], 0.3, 1, 2)]
+    lam, why, line = ImpulseLaw._law_slide(None, slide, w, w, b, [0, 1], [], [], 1e-14)
+    assert lam is not None and why == "" and not line
+    gap = w @ lam - b  # the velocities after
+    assert np.abs(gap[:2]).max() < 1e-13
+    for i, o, normals, mu, _, _ in slide:
+        m, after = np.array([lam[i], lam[o]]), np.array([gap[i], gap[o]])
+        assert abs(np.linalg.norm(m) - mu * lam[normals[0]]) < 1e-12 * (1 + np.linalg.norm(m))
+        assert m @ after / (np.linalg.norm(m) * np.linalg.norm(after)) < -1 + 1e-12
+    monkeypatch.setattr(impulse_law, "SLIDE_SWEEPS", 1)
+    lam, why, _ = ImpulseLaw._law_slide(None, slide, w, w, b, [0, 1], [], [], 1e-14)
+    assert lam is None and "did not settle in 1 sweeps" in why
