@@ -3204,7 +3204,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
     int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
     int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0;
-    int moded, at, left_out;
+    int moded, at, left_out, outside;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
     spun_ball_legendre(q, vel_m, c->par, mom, mass);
@@ -3362,11 +3362,11 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, NULL, lam)) {
                     continue;
                 }
-                for (i = 0, l = 0; i < n_iso; ++i) { /* a cone left: again, each cone's rows weighted by its room */
-                    l = l || hypot(lam[iso_i[i]], lam[iso_o[i]])
+                for (i = 0, outside = 0; i < n_iso; ++i) { /* a cone left: again, each cone weighted by its room */
+                    outside = outside || hypot(lam[iso_i[i]], lam[iso_o[i]])
                         > c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]) + lam_eps;
                 }
-                if (l) {
+                if (outside) {
                     double sc[SPUN_BALL_R_DIM];
                     for (k = 0; k < nr; ++k) {
                         sc[k] = 1.0;
