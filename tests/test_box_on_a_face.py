@@ -523,6 +523,14 @@ TANGENT_DROPS = {  # bench.cube_drops' rough drops (seed 7) whose tangent breaks
         1.5,
         187,
     ),
+    "a least split": (  # drop 30 ("a stop at the start"), to t = 1: a landing on the least split at step 147
+        [0.0, 0.0, 1.0, 2.986084978286991, 0.38869930670833275, 0.41632393497340303],
+        [-1.013697879705445, -0.42355898110012813, -1.4320512477166165]
+        + [-2.250561706934006, -2.8018564520055858, 0.020018687918441636],
+        {"e": 0.0, "mu": 0.8604756804576209},
+        1.0,
+        147,
+    ),
     "two vertices at once, rough": (  # drop 121, to t = 1.5: v0 and v1 at once in flight at step 248
         [0.0, 0.0, 1.0, 1.97893839208021, 0.1730926247382314, -0.035675866244202714],
         [-1.2455770034665234, -0.3884035952351428, -0.1373927290102186]
@@ -552,6 +560,9 @@ def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order(drop):
     if drop == "several reasons a step":
         at = [why for k, why in b.sensitivity_breaks if k == step]
         assert at == ["simultaneous impact", "friction switch in a held step", "load passed to a riding row"]
+    elif drop == "a least split":  # the tangent does not carry a least split (stop 33): a break there
+        assert a.stats["least_splits"] == b.stats["least_splits"] >= 1
+        assert (step, "friction at an impact") in b.sensitivity_breaks
     else:
         assert [(i.step, i.contact) for i in a.impacts if i.step == step] == [(step, "v0"), (step, "v1")]
         assert not a.active[step - 1].any() and any(k < step for k, _ in b.sensitivity_breaks)
