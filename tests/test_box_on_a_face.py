@@ -252,17 +252,32 @@ def test_a_rough_cube_landing_flat_slowly_stops_dead(backend, v):
     assert np.abs(res.q[after] - [v * t_land, 0, A / 2, 0, 0, 0]).max() < 1e-12
 
 
-def test_a_loose_cones_stick_adding_energy_is_not_taken():
-    """Drop 93 of ``bench.cube_drops``' rough drops (seed 7; ``e = 0.94``, ``mu = 0.95``): vertices landing
-    with restitution while others are held. Newton's restitution with a stick can raise the kinetic energy
-    (the normal and tangential rows coupled through the body): with the loose cones' stick first taken as
-    it came, its impacts gained up to 3.8e-4 of the energy. The law takes no loose cone's stick that adds
-    energy (``impulse_law._gains``, C the same test): no impact of the drop adds energy on either backend,
-    and both log the same impacts."""
-    q0 = [0.0, 0.0, 1.0, 1.5490200603340452, 0.373198407791995, -0.031364020041826146]
-    v0 = [-0.1404290057887998, -0.8612814806994029, 0.2984290827061127]
-    v0 += [-1.1023811956224647, 1.1716276357805064, -0.5438823794512033]
-    a, b = rough_on_both(q0, v0, {"e": 0.9354241317181773, "mu": 0.9479593669328659})
+ENERGY_DROPS = {  # rough drops whose landings with restitution gained energy through a loose cone's friction
+    "a stick": (  # seed 7, drop 93: up to 3.8e-4 with the loose cones' stick taken as it came (stop 33)
+        [0.0, 0.0, 1.0, 1.5490200603340452, 0.373198407791995, -0.031364020041826146],
+        [-0.1404290057887998, -0.8612814806994029, 0.2984290827061127]
+        + [-1.1023811956224647, 1.1716276357805064, -0.5438823794512033],
+        {"e": 0.9354241317181773, "mu": 0.9479593669328659},
+    ),
+    "a slide": (  # seed 9, drop 673: 2.0e-2 at t = 2.136 with a loose cone's slide (stop 32's, till stop 33)
+        [0.0, 0.0, 1.0, 1.3973799421131012, -0.4792620305298063, 0.165259552159153],
+        [1.9417341020204986, 0.05486909366238368, -1.2047049916496702]
+        + [1.9407784155392704, 2.4430083416706214, 0.6782551747555532],
+        {"e": 0.9453857427257301, "mu": 0.5691528068286068},
+    ),
+}
+
+
+@pytest.mark.parametrize("drop", sorted(ENERGY_DROPS))
+def test_a_loose_cones_friction_adding_energy_is_not_taken(drop):
+    """Vertices landing with restitution (``e > 0.9``) while others are held. Newton's restitution with a
+    stick can raise the kinetic energy (the normal and tangential rows coupled through the body), and so can
+    a slide (its impulse moves the normal velocity, which Newton's law then sets anew): the drops gained up
+    to 3.8e-4 and 2.0e-2 of the energy at an impact. The law takes no loose cone's friction that adds energy
+    (``impulse_law._gains``, C the same test): no impact of the drop adds energy on either backend, and both
+    log the same impacts."""
+    q0, v0, params = ENERGY_DROPS[drop]
+    a, b = rough_on_both(q0, v0, params)
     for res in (a, b):
         assert len(res.impacts) > 10
         assert all(i.energy_after <= i.energy_before + 1e-12 * abs(i.energy_before) for i in res.impacts)

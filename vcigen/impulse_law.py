@@ -57,8 +57,9 @@ def _gains(lam, b, gap, tgts) -> bool:
     """Does the law's impulse ``lam`` raise the kinetic energy? ``dT = lam . (u- + u+) / 2``, ``u- = targets -
     b`` the rows' velocities before, ``u+ = targets + gap`` after (a function of ``G^T lam`` alone, whatever
     the split), above ``EPS_LAM`` of ``sum |lam| (|u-| + |u+|)``. Newton's restitution with a stick can
-    (the normal and tangential rows coupled through the body); the law takes no loose cone's stick that does
-    (:meth:`ImpulseLaw._impulse_law`)."""
+    (the normal and tangential rows coupled through the body), and so can a slide (the sliding impulse moves
+    the normal velocity, which the normal impulse then sets anew); the law takes no loose cone's friction that
+    does (:meth:`ImpulseLaw._impulse_law`)."""
     before, after = tgts - b, tgts + gap
     gain = float(lam @ (before + after)) / 2.0
     return gain > EPS_LAM * float(np.abs(lam) @ (np.abs(before) + np.abs(after)))
@@ -94,9 +95,9 @@ class ImpulseLaw:
         of the contact whose stick row carries its tangent (its normal impulse is that one's room too); a
         cone with a dependent stick row joins loose: sliding first (along a line where the law's other rows
         fix its sliding but along one, :func:`vcigen.friction.line_slide`), then sticking (its impulses split
-        the least way where its rows are dependent, :func:`_least_split`; not where the stick adds kinetic
-        energy, :func:`_gains`), else left out (no friction impulse), the modes without a loose cone left
-        out first.
+        the least way where its rows are dependent, :func:`_least_split`), else left out (no friction
+        impulse), the modes without a loose cone left out first; not a slide or stick of a loose cone that
+        adds kinetic energy (:func:`_gains`).
         Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no
         impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
         slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
@@ -147,6 +148,7 @@ class ImpulseLaw:
                 continue  # tried in the first pass
             slides = [int(d == 0) if iso[5] in loose else d ^ iso[4] for d, iso in zip(digits, isos)]
             joint = any(d == 1 and iso[5] in loose for d, iso in zip(digits, isos))
+            rough = any(d < 2 and iso[5] in loose for d, iso in zip(digits, isos))  # a loose cone's friction
             ws = w.copy()  # the columns of the slipping contacts' normal rows: g_n -+ mu g_t
             for (i, pools), mode in zip(cones, slips_):
                 for normals, mu in pools if mode else ():
@@ -212,7 +214,7 @@ class ImpulseLaw:
                 if inside and strict:
                     why = self._law_strict(strict, rows, lam, lam_eps)
                     out, inside = out or why, not why
-                if inside and joint and _gains(lam, b, gap, tgts):  # a loose cone's stick adding energy
+                if inside and rough and _gains(lam, b, gap, tgts):  # a loose cone's friction adding energy
                     inside = False
                 if inside:
                     break

@@ -3204,7 +3204,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
     int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
     int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0;
-    int moded, at, left_out, outside;
+    int moded, at, left_out, outside, rough = 0;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
     spun_ball_legendre(q, vel_m, c->par, mom, mass);
@@ -3266,12 +3266,13 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     for (modes = 0; modes < n_modes && !found; ++modes) {
         at = modes >= n_plain ? modes - n_plain : modes;
         n_slide = 0; /* the isotropic cones' digits, after all the one-tangent ones': 0 stick, 1 slip, own first; */
-        joint = 0; /* a loose landing cone's: 0 slide, 1 stick (its rows dependent: least_split), 2 left out */
+        joint = rough = 0; /* a loose landing cone's: 0 slide, 1 stick (rows dependent: least_split), 2 left out */
         for (i = 0, upper = at / n_base, left_out = 0; i < n_iso; ++i) {
             iso_d[i] = upper % (loose[iso_f[i]] && modes >= n_plain ? 3 : 2);
             upper /= loose[iso_f[i]] && modes >= n_plain ? 3 : 2;
             slide_on[i] = loose[iso_f[i]] ? iso_d[i] == 0 : iso_d[i] ^ iso_on[i];
             joint = joint || (loose[iso_f[i]] && iso_d[i] == 1);
+            rough = rough || (loose[iso_f[i]] && iso_d[i] < 2); /* a loose cone's friction */
             left_out = left_out || iso_d[i] == 2;
             if (slide_on[i]) {
                 sl_i[n_slide] = iso_i[i];
@@ -3444,7 +3445,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 out = out || why;
                 valid = !why;
             }
-            if (valid && joint) { /* impulse_law._gains: a loose cone's stick adding kinetic energy */
+            if (valid && rough) { /* impulse_law._gains: a loose cone's friction adding kinetic energy */
                 double gain = 0.0, scale = 0.0, before, after;
                 for (k = 0; k < nr; ++k) {
                     before = tgt[rows[k]] - b[k];
