@@ -113,13 +113,11 @@ class HeldImpacts(ImpulseLaw):
                 targets[r] = -e * rate
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands = law
-        why = self._slip_at_impact(q, vel_p, slipped, slips, lands)
-        tangent = self._law_tangent(lam, slipped, slips, lands)
-        why = why or tangent[2]
+        why = self._slip_at_impact(q, vel_p, slipped, slips, lands) or self._law_why  # (_law_tangent's)
         if why:  # stick <-> slip at the impact (a mode change), a cone's sliding impulse, a least split
             self._sw_lose(why)
         else:  # the contacts slipping on or landing: their sliding impulse in Tracker.impulse
-            self._ev_impulse(q, v, p, lam, targets, group, tangent)
+            self._ev_impulse(q, v, p, lam, targets, group, self._law_tangent(lam, slipped, slips, lands))
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
         leaving = [r for r in dropped if self.act[r] and r not in group]  # active rows the impact pulls off

@@ -175,15 +175,14 @@ class ImpulseLaw:
                         continue
                 elif least:
                     lam = _least_split(g, w, b, tight)
-                    if lam is not None and any(
-                        math.hypot(float(lam[i]), float(lam[o])) > mu * float(np.sum(lam[nm])) + lam_eps
-                        for i, o, nm, mu, _, _ in isos
-                    ):  # a cone left: again, each cone's rows weighted by its room (a split along the loads)
-                        s = np.ones(n)
-                        for i, o, nm, mu, _, _ in isos:
-                            s[[i, o]] = math.sqrt(max(mu * float(np.sum(lam[nm])), 0.0))
+                    rooms = [] if lam is None else [_pooled([(nm, mu)], lam) for _, _, nm, mu, _, _ in isos]
+                    pairs = [(float(lam[iso[0]]), float(lam[iso[1]]), room) for iso, room in zip(isos, rooms)]
+                    if any(math.hypot(x, y) > room + lam_eps for x, y, room in pairs):
+                        s = np.ones(n)  # a cone left: again, each cone's rows weighted by its room
+                        for (i, o, *_), room in zip(isos, rooms):
+                            s[[i, o]] = math.sqrt(max(room, 0.0))
                         lam = _least_split(g, w, b, tight, s)
-                    if lam is None or any(abs(x) > vel_eps for x in (w @ lam - b)[tight]):
+                    if lam is None:
                         continue
                 else:
                     lam = np.zeros(n)
@@ -199,6 +198,7 @@ class ImpulseLaw:
                 if not (
                     all(lam[i] >= -lam_eps or not free[i] for i in tight)
                     and all(gap[i] >= -vel_eps for i in range(n) if not mask >> i & 1 and i not in sliding)
+                    and not (least and any(abs(gap[i]) > vel_eps for i in tight))  # its targets consistent
                 ):
                     continue
                 inside = True

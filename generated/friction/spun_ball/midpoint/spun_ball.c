@@ -3199,6 +3199,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int strict_f[SPUN_BALL_NF_DIM], strict_o[SPUN_BALL_NF_DIM], mode[SPUN_BALL_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
     double slope, gaps[SPUN_BALL_R_DIM];
+    double room[SPUN_BALL_NF_DIM]; /* each isotropic cone's mu_f N in the least split */
     int digits, g, pg;
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
@@ -3311,6 +3312,9 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
             }
         }
+        for (i = 0, moded = 0; i < n_cones; ++i) { /* a one-tangent cone slipping in this mode */
+            moded = moded || mode[i];
+        }
         for (i = 0; i < n_slide; ++i) {
             sliding[sl_i[i]] = 1;
             sliding[sl_o[i]] = 1;
@@ -3337,10 +3341,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 lam[k] = 0.0;
             }
             /* a subset of the dependent normals carries it; with a loose cone sticking, all rows may */
-            for (i = 0, moded = 0; i < n_cones; ++i) {
-                moded = moded || mode[i];
-            }
-            least = joint && spun_ball_spanned(grad, rows, tight, nt, 1);
+            least = valid && joint && spun_ball_spanned(grad, rows, tight, nt, 1);
             line = 0;
             if (!valid || (dependent && !joint && spun_ball_spanned(grad, rows, tight, nt, 0))
                 || (least && (n_slide > 0 || moded))) {
@@ -3364,8 +3365,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                     continue;
                 }
                 for (i = 0, outside = 0; i < n_iso; ++i) { /* a cone left: again, each cone weighted by its room */
-                    outside = outside || hypot(lam[iso_i[i]], lam[iso_o[i]])
-                        > c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]) + lam_eps;
+                    room[i] = c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]);
+                    outside = outside || hypot(lam[iso_i[i]], lam[iso_o[i]]) > room[i] + lam_eps;
                 }
                 if (outside) {
                     double sc[SPUN_BALL_R_DIM];
@@ -3373,21 +3374,11 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                         sc[k] = 1.0;
                     }
                     for (i = 0; i < n_iso; ++i) {
-                        sc[iso_i[i]] = sc[iso_o[i]] = sqrt(fmax(c->mu_f[iso_f[i]]
-                            * spun_ball_law_normal(rows, nr, lam, iso_f[i]), 0.0));
+                        sc[iso_i[i]] = sc[iso_o[i]] = sqrt(fmax(room[i], 0.0));
                     }
                     if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, sc, lam)) {
                         continue;
                     }
-                }
-                for (k = 0; k < nt && valid; ++k) { /* the targets of the tight rows met (consistent) */
-                    for (l = 0, gap = -b[tight[k]]; l < nr; ++l) {
-                        gap += w[tight[k] * nr + l] * lam[l];
-                    }
-                    valid = fabs(gap) <= vel_eps;
-                }
-                if (!valid) {
-                    continue;
                 }
             } else {
             for (k = 0; k < nt; ++k) {
@@ -3424,6 +3415,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 gaps[k] = gap;
                 if (!(mask >> k & 1) && !sliding[k]) {
                     valid = valid && gap >= -vel_eps;
+                } else if (least && mask >> k & 1) {
+                    valid = valid && fabs(gap) <= vel_eps; /* the least split's targets met (consistent) */
                 }
             }
             for (i = 0; i < n_cones && valid; ++i) {
