@@ -28,6 +28,8 @@ Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
 * ``ellipse``, hand-written: ``bench/handwritten/ellipse.c``, the same held step written for this row alone
   (the fewest operations we could write, the next line's start one multiply-add after the root), timed in the
   same loop and checked against the generated run (q, p to 1e-9): the practical limit of the generated loop;
+  and ``bench/handwritten/ellipse_poly.c`` (stop 34), the same with the next step's quadratic formed as
+  polynomials in the root (a shorter chain to the next ``sqrt``), alike;
 * ``valley``: a particle in the parabola ``y >= x^2 / 2``, from ``(0.8, 0.32)`` at rest, through its vertex:
   a quadric's closed step whose ``Hess F`` is not definite (its root divides by ``B + sqrt(D)``); free: from
   ``(0, 1e6)``.
@@ -127,12 +129,12 @@ RUNS = [  # name, model, h, steps, held (q0, v0, params), free (q0, v0, params)
 ]
 
 
-def handwritten_ellipse():
-    """``run(q0, p0, h, steps) -> (seconds of CPU time, Q, P)`` over ``bench/handwritten/ellipse.c`` (r = 1,
+def handwritten_ellipse(source: str = "ellipse.c"):
+    """``run(q0, p0, h, steps) -> (seconds of CPU time, Q, P)`` over ``bench/handwritten/<source>`` (r = 1,
     the ``ellipse`` scene's row), compiled with the shipped flags."""
-    out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / "libhw_ellipse.so"
+    out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / f"libhw_{Path(source).stem}.so"
     flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared"]
-    subprocess.run(["cc", *flags, "-o", str(out), str(HERE / "handwritten" / "ellipse.c"), "-lm"], check=True)
+    subprocess.run(["cc", *flags, "-o", str(out), str(HERE / "handwritten" / source), "-lm"], check=True)
     f = ctypes.CDLL(str(out)).hw_ellipse_run
     f.restype = ctypes.c_long
     f.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_double] * 3 + [ctypes.c_long] + [ctypes.c_void_p] * 4
@@ -160,7 +162,8 @@ def main(argv: list[str] | None = None) -> int:
     keep_heap()
     sims = {name: vcigen.build(model(), backend="c") for name, model, *_ in runs}
     clocks = {name: cpu_clock(sim) for name, sim in sims.items()}
-    hand = handwritten_ellipse() if "ellipse" in sims else None
+    hands = {"hand": "ellipse.c", "poly": "ellipse_poly.c"} if "ellipse" in sims else {}
+    hands = {key: handwritten_ellipse(source) for key, source in hands.items()}
     best = {}
     for _ in range(a.repeats):
         for name, _, h, steps, held, free in runs:
@@ -171,20 +174,21 @@ def main(argv: list[str] | None = None) -> int:
                 ok = res.active.all() if kind == "held" else not res.active.any()
                 assert ok and res.t.size == steps + 1, (name, h, kind)
                 best[name, h, kind] = min(best.get((name, h, kind), math.inf), spent / steps * 1e9)
-                if name == "ellipse" and kind == "held" and hand is not None:  # the hand-written step, alike
-                    spent, Q, P = hand(q0, v0, h, steps)
+                for key, hand in hands.items() if name == "ellipse" and kind == "held" else ():
+                    spent, Q, P = hand(q0, v0, h, steps)  # the hand-written steps, alike
                     assert np.abs(Q - res.q[1:]).max() < 1e-9 and np.abs(P - res.p[1:]).max() < 1e-9
-                    best[name, h, "hand"] = min(best.get((name, h, "hand"), math.inf), spent / steps * 1e9)
+                    best[name, h, key] = min(best.get((name, h, key), math.inf), spent / steps * 1e9)
     print(f"{'scene':<7} {'h':>7} {'held ns':>8} {'free ns':>8} {'ratio':>6}   (CPU time of the C loop)")
     for name, _, h, *_ in runs:
         held_ns, free_ns = best[name, h, "held"], best[name, h, "free"]
         print(f"{name:<7} {h:>7.0e} {held_ns:>8.1f} {free_ns:>8.1f} {held_ns / free_ns:>6.2f}")
-        if (name, h, "hand") in best:
-            hand_ns = best[name, h, "hand"]
-            print(
-                f"{'  hand':<7} {h:>7.0e} {hand_ns:>8.1f} {free_ns:>8.1f} {hand_ns / free_ns:>6.2f}"
-                f"   (bench/handwritten/ellipse.c; generated / hand-written {held_ns / hand_ns:.2f})"
-            )
+        for key, source in (("hand", "ellipse.c"), ("poly", "ellipse_poly.c")):
+            if (name, h, key) in best:
+                hand_ns = best[name, h, key]
+                print(
+                    f"{'  ' + key:<7} {h:>7.0e} {hand_ns:>8.1f} {free_ns:>8.1f} {hand_ns / free_ns:>6.2f}"
+                    f"   (bench/handwritten/{source}; generated / hand-written {held_ns / hand_ns:.2f})"
+                )
     return 0
 
 

@@ -3,7 +3,8 @@ split of a dependent set of tight rows (``impulse_law._least_split``, stop 33) i
 of ``W_TT Lam = b_T`` (``numpy.linalg.lstsq``); Coulomb's slide along a line (``friction.line_slide``) is
 against the velocity after and on the cone's edge; the energy test (``impulse_law._gains``) is the kinetic
 energy's change; cones slipping at once (``ImpulseLaw._law_slide``'s block Gauss-Seidel, stop 32) end each on
-its cone's edge against its sliding after, and sweeps that do not settle say so."""
+its cone's edge against its sliding after, and sweeps that do not settle say so; a cone sliding while the
+tight rows are dependent (stop 34) takes the least split of the rest (``lstsq``)."""
 
 from __future__ import annotations
 
@@ -91,3 +92,29 @@ def test_cones_slipping_at_once_end_on_their_edges_against_their_sliding(seed, m
     monkeypatch.setattr(impulse_law, "SLIDE_SWEEPS", 1)
     lam, why, _ = ImpulseLaw._law_slide(None, slide, w, w, b, [0, 1], [], [], 1e-14)
     assert lam is None and "did not settle in 1 sweeps" in why
+
+
+@pytest.mark.parametrize("seed", [0, 1, 3, 4, 5])
+def test_a_cone_sliding_beside_dependent_tight_rows_takes_the_least_split_of_the_rest(seed):
+    """A loose landing cone sliding (stick rows 5, 6, its normal row 0) while the tight rows 0-4 are dependent
+    (a box landing flat, one vertex sliding, the others sticking): their impulses are not unique, so
+    ``_law_slide`` takes each column's least split (``least``: the rows' gradients, stop 34). The tight rows
+    meet their targets, the cone slides on its edge against its velocity after, and the tight rows' impulses
+    are the minimum-norm solution of ``W_TT Lam_T = b_T - W_Tc m`` (``lstsq``), ``m`` the cone's impulse."""
+    rng = np.random.default_rng(seed)
+    g = rng.normal(size=(7, 6))
+    g[4] = rng.normal(size=4) @ g[:4]  # the tight rows 0-4 span four directions
+    a = rng.normal(size=(6, 6))
+    w = g @ np.linalg.solve(a @ a.T + 6 * np.eye(6), g.T)
+    b = -g @ (3 * rng.normal(size=6))  # the rows' velocities before, negated (targets 0): consistent
+    tight, slide, mu = [0, 1, 2, 3, 4], [(5, 6, [0], 0.3, 1, 0)], 0.3
+    lam, why, line = ImpulseLaw._law_slide(None, slide, w, w, b, tight, [], [], 1e-14, (), g)
+    assert lam is not None and why == "" and not line
+    gap = w @ lam - b  # the velocities after
+    assert np.abs(gap[tight]).max() < 1e-11 * np.abs(b).max()
+    m, after = lam[[5, 6]], gap[[5, 6]]
+    assert lam[0] > 0 and abs(np.linalg.norm(m) - mu * lam[0]) < 1e-12 * np.linalg.norm(m)
+    assert m @ after / (np.linalg.norm(m) * np.linalg.norm(after)) < -1 + 1e-12
+    ref = np.linalg.lstsq(w[np.ix_(tight, tight)], b[tight] - w[np.ix_(tight, [5, 6])] @ m, rcond=None)[0]
+    bound = 1e-14 * np.linalg.cond(g[tight] @ g[:4].T) ** 2
+    assert np.abs(lam[tight] - ref).max() < bound * np.abs(ref).max()

@@ -95,9 +95,9 @@ class ImpulseLaw:
         of the contact whose stick row carries its tangent (its normal impulse is that one's room too); a
         cone with a dependent stick row joins loose: sliding first (along a line where the law's other rows
         fix its sliding but along one, :func:`vcigen.friction.line_slide`), then sticking (its impulses split
-        the least way where its rows are dependent, :func:`_least_split`), else left out (no friction
-        impulse), the modes without a loose cone left out first; not a slide or stick of a loose cone that
-        adds kinetic energy (:func:`_gains`).
+        the least way where its rows are dependent, :func:`_least_split`, also beside a sliding one), else
+        left out (no friction impulse), the modes without a loose cone left out first; not a slide or stick
+        of a loose cone that adds kinetic energy (:func:`_gains`).
         Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no
         impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
         slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
@@ -165,11 +165,13 @@ class ImpulseLaw:
                     continue
                 # a subset of the dependent normals carries it; with a loose cone sticking, all rows may
                 least = joint and _spanned(g, tight, [True] * n)
-                if dependent and not joint and _spanned(g, tight, normal) or least and (slide or any(slips_)):
+                if dependent and not joint and _spanned(g, tight, normal) or least and any(slips_):
                     continue
                 line = False  # a loose cone slid along a line (line_slide)
                 if slide:
-                    lam, why, line = self._law_slide(slide, w, ws, b, tight, cones, slips_, lam_eps, loose)
+                    lam, why, line = self._law_slide(
+                        slide, w, ws, b, tight, cones, slips_, lam_eps, loose, g if least else None
+                    )
                     out = out or why
                     if lam is None:
                         continue
@@ -416,7 +418,7 @@ class ImpulseLaw:
             orders.append((1, 0, 2) if self._slip[f] < 0 else (2, 0, 1))
         return cones, strict, orders, isos
 
-    def _law_slide(self, slide, w, ws, b, tight, cones, slips_, lam_eps, loose=()):
+    def _law_slide(self, slide, w, ws, b, tight, cones, slips_, lam_eps, loose=(), least=None):
         """The impulses of the impulse law (:meth:`_impulse_law`) on the tight rows ``tight`` with the
         isotropic cones ``slide`` (each ``(i, o, normals, mu_f, on, f)``) slipping: Coulomb's sliding impulse,
         each cone's tangential impulse ``m_c`` against its tangential velocity after
@@ -433,16 +435,28 @@ class ImpulseLaw:
         sticking on the body: it cannot slide). Returns ``(lam, "", line)``, ``line`` whether a cone slid
         along a line; ``(None, "", False)`` if a cone sticks at the end (or the rows are singular, or a
         tangent is fixed by them: ``H`` singular), ``(None, why, False)`` if the sweeps do not settle in
-        ``SLIDE_SWEEPS``."""
+        ``SLIDE_SWEEPS``. ``least``: the rows' gradients where the tight rows are dependent (a loose cone
+        sliding while others stick: a box landing flat, one vertex sliding): each of the ``1 + 2 K``
+        right-hand sides takes its least split (:func:`_least_split`; each lies in the tight rows' range, so
+        the law stays affine in ``m``), not a solve."""
         n, nc = len(b), len(slide)
         cols = [x for iso in slide for x in iso[:2]]  # each cone's two stick rows, in order
         lams = np.zeros((1 + 2 * nc, n))  # the law at m = 0, then its columns in m
         if tight:
             rhs = np.column_stack([b[tight], *(-w[tight, x] for x in cols)])
-            try:
-                lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T
-            except np.linalg.LinAlgError:
-                return None, "", False
+            if least is not None:  # dependent tight rows (a loose cone sticking): each column's least split
+                for y in range(rhs.shape[1]):
+                    col = np.zeros(n)
+                    col[tight] = rhs[:, y]
+                    split = _least_split(least, w, col, tight)
+                    if split is None:
+                        return None, "", False
+                    lams[y] = split
+            else:
+                try:
+                    lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T
+                except np.linalg.LinAlgError:
+                    return None, "", False
         for x, col in enumerate(cols):
             lams[1 + x, col] = 1.0
         for lam in lams:

@@ -2892,6 +2892,8 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
 
 static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
     double *m1, double *m2); /* stepper_cone.c.j2 */
+static int spun_ball_least_split(const double *grad, const int *rows, int nr, const double *w, const double *b,
+    const int *tight, int nt, const double *sc, double *lam); /* below */
 
 /* friction.line_slide: cone_slide where H has rank 1 (H = kappa u u^T, a loose landing cone in law_slide): the law's
  * other rows fix its sliding but along u (H's larger column, normalised), so it slides along u with Coulomb's sliding
@@ -2950,11 +2952,12 @@ static int spun_ball_line_slide(const double *g, const double *h, const double *
  * DEP_EPS of 0 against its own rows' (w_ii + w_oo)^2 has its sliding fixed by the tight rows but along one line
  * (line_slide, tr H above DEP_EPS (w_ii + w_oo)) or wholly (it cannot slide). 1 and lam (2: a cone slid along a
  * line); 0 if a cone sticks at the end (or the rows are singular, or a tangent is fixed by them: H singular); -1 if
- * the sweeps do not settle in SLIDE_SWEEPS. */
+ * the sweeps do not settle in SLIDE_SWEEPS. least (not NULL: the rows' gradients) where the tight rows are
+ * dependent (a loose cone sliding while others stick): each right-hand side's least split (least_split), not an LU. */
 static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, const int *rows, int nr,
     const double *w, const double *ws, const double *b, const int *tight, int nt, const int *cone_i,
     const int *cone_f, const int *mode, int n_cones, const int *sl_i, const int *sl_o, const int *sl_f, int n_sl,
-    const int *loose, double lam_eps, double *lam)
+    const int *loose, double lam_eps, const double *least, double *lam)
 {
     enum { L_DIM = 1 + SPUN_BALL_NF_DIM };
     double lams[L_DIM * SPUN_BALL_R_DIM], gaps[L_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
@@ -2966,7 +2969,19 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
     for (k = 0; k < nl * nr; ++k) {
         lams[k] = 0.0; /* the law at m = 0, then its columns in m */
     }
-    if (nt > 0) {
+    if (nt > 0 && least) { /* dependent tight rows (a loose cone sticking): each column's least split */
+        for (j = 0; j < nl; ++j) {
+            for (k = 0; k < nr; ++k) {
+                sol[k] = 0.0;
+            }
+            for (k = 0; k < nt; ++k) {
+                sol[tight[k]] = j == 0 ? b[tight[k]] : -w[tight[k] * nr + (j % 2 ? sl_i[(j - 1) / 2] : sl_o[(j - 1) / 2])];
+            }
+            if (!spun_ball_least_split(least, rows, nr, w, sol, tight, nt, NULL, lams + j * nr)) {
+                return 0;
+            }
+        }
+    } else if (nt > 0) {
         for (k = 0; k < nt; ++k) {
             for (l = 0; l < nt; ++l) {
                 a[k * nt + l] = ws[tight[k] * nr + tight[l]];
@@ -3345,12 +3360,12 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             least = valid && joint && spun_ball_spanned(grad, rows, tight, nt, 1);
             line = 0;
             if (!valid || (dependent && !joint && spun_ball_spanned(grad, rows, tight, nt, 0))
-                || (least && (n_slide > 0 || moded))) {
+                || (least && moded)) {
                 continue;
             }
             if (n_slide > 0) {
                 settled = spun_ball_law_slide(c, slip_ride, rows, nr, w, ws, b, tight, nt, cone_i, cone_f, mode,
-                    n_cones, sl_i, sl_o, sl_f, n_slide, loose, lam_eps, lam);
+                    n_cones, sl_i, sl_o, sl_f, n_slide, loose, lam_eps, least ? grad : NULL, lam);
                 if (settled < 0 && !out) {
                     spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: %d isotropic cones slipping "
                         "at once did not settle in %d sweeps at an impact while held", n_slide,
