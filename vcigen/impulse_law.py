@@ -167,7 +167,7 @@ class ImpulseLaw:
                 least = joint and _spanned(g, tight, [True] * n)
                 if dependent and not joint and _spanned(g, tight, normal) or least and any(slips_):
                     continue
-                line = False  # a loose cone slid along a line (line_slide)
+                line = weighted = False  # a loose cone slid along a line (line_slide); a second split
                 if slide:
                     lam, why, line = self._law_slide(
                         slide, w, ws, b, tight, cones, slips_, lam_eps, loose, g if least else None
@@ -179,7 +179,8 @@ class ImpulseLaw:
                     lam = _least_split(g, w, b, tight)
                     rooms = [] if lam is None else [_pooled([(nm, mu)], lam) for _, _, nm, mu, _, _ in isos]
                     pairs = [(float(lam[iso[0]]), float(lam[iso[1]]), room) for iso, room in zip(isos, rooms)]
-                    if any(math.hypot(x, y) > room + lam_eps for x, y, room in pairs):
+                    weighted = any(math.hypot(x, y) > room + lam_eps for x, y, room in pairs)
+                    if weighted:
                         s = np.ones(n)  # a cone left: again, each cone's rows weighted by its room
                         for (i, o, *_), room in zip(isos, rooms):
                             s[[i, o]] = math.sqrt(max(room, 0.0))
@@ -234,8 +235,9 @@ class ImpulseLaw:
                 f"impulse law: no solution on {n} contacts (dependent normals?)",
             )
         self.least_splits += least
-        # the tangent does not carry a least split or a slide along a line (_law_tangent)
-        self._law_why = "friction at an impact" if least or line else ""
+        # the tangent carries a plain least split (sensitivity_held._least_tangent), not a second one, one
+        # beside a slide or a slide along a line (_law_tangent)
+        self._law_why = "friction at an impact" if least and (slide or weighted) or line else ""
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]

@@ -17,6 +17,34 @@ import functools
 import numpy as np
 
 from .held_roots import SLIDE_EPS
+from .impulse_law import _least_split, _spanned
+
+
+def _split(grad, w, b) -> np.ndarray:
+    """The least split ``W^+ b`` of the impulse on all the rows ``grad`` (dependent: a box's four cones
+    sticking flat on a floor; ``b`` in ``W``'s range), :func:`vcigen.impulse_law._least_split`."""
+    lam = _least_split(grad, w, b, list(range(len(b))))
+    if lam is None:
+        raise np.linalg.LinAlgError("least split: singular")
+    return lam
+
+
+def _least_tangent(grad, w, y, dg, dy, lam, rhs) -> np.ndarray:
+    """``dLam`` of a least split ``Lam = W^+ b`` (``HeldTangents._impulse`` on dependent rows; ``W = G M^-1
+    G^T`` of constant rank, the rows dependent on the body whatever its state): ``dLam = W^+ (db - dW Lam) + P
+    dW^T W^+ Lam``, ``P = I - W^+ W`` the projector onto ``W``'s null space (the derivative of a
+    pseudo-inverse of constant rank, Golub and Pereyra 1973, with ``b`` in ``W``'s range); ``rhs = db - dW
+    Lam`` (``na, K``), ``dW_ce = y_e.dg_c + g_c.dy_e``. Each ``W^+`` is a least split of a right-hand side in
+    ``W``'s range."""
+    na = len(lam)
+    u = _split(grad, w, lam)
+    dwt_u = [sum((y[:, c] @ dg[e] + grad[e] @ dy[c]) * u[e] for e in range(na)) for c in range(na)]
+    dwt_u = np.array(dwt_u)  # (na, K): dW^T W^+ Lam
+    out = np.empty_like(rhs)
+    for j in range(rhs.shape[1]):
+        z = dwt_u[:, j]
+        out[:, j] = _split(grad, w, rhs[:, j]) + z - _split(grad, w, w @ z)
+    return out
 
 
 def _guarded(hook, name: str | None = None):
@@ -246,7 +274,9 @@ class HeldTangents:
         de = self.tg.get("d_restitution")(par)[0] @ dpar if rest is not None else None
         coef = np.array([1.0 + (float(rest[j]) if j >= 0 else 0.0) for j in contact])
         w = grad @ y
-        lam = np.linalg.solve(w, -coef * (grad @ vel))
+        slid = slides is not None and any(s is not None for s in slides)
+        least = not slid and _spanned(grad, range(len(tight)), [True] * len(tight))  # a least split
+        lam = _split(grad, w, -coef * (grad @ vel)) if least else np.linalg.solve(w, -coef * (grad @ vel))
         db = -coef[:, None] * np.array([vel @ dg[c] + grad[c] @ dvel for c in range(len(tight))])
         for c, j in enumerate(contact):  # a restitution target moves with e
             if j >= 0:
@@ -262,6 +292,8 @@ class HeldTangents:
                                             db - dw_lam, ddirs, mu, rows, dgrad)  # fmt: skip
             if dlam is None:
                 return
+        elif least:
+            dlam = _least_tangent(grad, w, y, dg, dy, lam, db - dw_lam)
         else:
             dlam = np.linalg.solve(w, db - dw_lam)
         self.dp = self.dp + sum(ddirs[c] * lam[c] + np.outer(dirs[c], dlam[c]) for c in range(len(tight)))

@@ -3220,7 +3220,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
     int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
-    int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0;
+    int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0,
+        weighted = 0;
     int moded, at, left_out, outside, rough = 0;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
@@ -3358,7 +3359,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             }
             /* a subset of the dependent normals carries it; with a loose cone sticking, all rows may */
             least = valid && joint && spun_ball_spanned(grad, rows, tight, nt, 1);
-            line = 0;
+            line = weighted = 0;
             if (!valid || (dependent && !joint && spun_ball_spanned(grad, rows, tight, nt, 0))
                 || (least && moded)) {
                 continue;
@@ -3384,6 +3385,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                     room[i] = c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]);
                     outside = outside || hypot(lam[iso_i[i]], lam[iso_o[i]]) > room[i] + lam_eps;
                 }
+                weighted = outside;
                 if (outside) {
                     double sc[SPUN_BALL_R_DIM];
                     for (k = 0; k < nr; ++k) {
@@ -3479,7 +3481,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             "contacts (dependent normals?)", nr);
     }
     c->sus->least_splits += least;
-    c->sus->law_why = least || line; /* the tangent does not carry a least split or a slide along a line */
+    /* the tangent carries a plain least split (sens_least), not a second one, one beside a slide or a slide along a line */
+    c->sus->law_why = (least && (n_slide > 0 || weighted)) || line;
     for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: README, Known limits */
         if (left[iso_i[i]]) {
             land[iso_f[i]] = -1;
@@ -3775,7 +3778,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         return 1;
     }
     why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land);
-    why = why ? why : 2 * c->sus->law_why; /* a least split or a slide along a line: friction at an impact */
+    why = why ? why : 2 * c->sus->law_why; /* a least split not carried or a line slide: friction at an impact */
     if (why) { /* stick <-> slip (a mode change), a cone's sliding impulse, a least split: no tangent */
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }

@@ -102,7 +102,7 @@ typedef struct {
     long jams;                         /* in/out: lift-off <-> landing cycles (JAM_CYCLES in a step): jam */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
     int jammed;                        /* at a jam in this instant: every held frictional contact sticks */
-    int law_why;                       /* the last impulse law took a least split or a slide along a line */
+    int law_why;                       /* the last impulse law took a second or sliding least split or a line slide */
     double slip[BALL_BOX_NF_DIM];  /* per frictional contact: -mu_f s while it slips (s: sliding direction) */
     double ref[BALL_BOX_NF_DIM];   /* per frictional contact: its tangent's value while it sticks */
     double branch[BALL_BOX_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
