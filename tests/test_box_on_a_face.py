@@ -611,7 +611,9 @@ def test_both_backends_list_a_steps_tangent_breaks_once_each_in_one_order(drop):
     if drop == "several reasons a step":
         at = [why for k, why in b.sensitivity_breaks if k == step]
         assert at == ["simultaneous impact", "friction switch in a held step", "load passed to a riding row"]
-    elif drop == "a least split":  # stop 34: the tangent carries a plain least split; two vertices land at once
+    elif (
+        drop == "a least split"
+    ):  # stop 34: the tangent carries a plain least split; two vertices land at once
         assert a.stats["least_splits"] == b.stats["least_splits"] >= 1
         assert [why for k, why in b.sensitivity_breaks if k == step] == ["simultaneous impact"]
     else:

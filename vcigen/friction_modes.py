@@ -24,7 +24,7 @@ from .held_roots import (
     SLIDE_LEAVE,
     End,
     illinois,
-    span_add,
+    in_span,
 )
 
 
@@ -105,12 +105,9 @@ class FrictionModes:
 
         Modified Gram-Schmidt over the active rows in index order (a row within ``DEP_EPS`` of the span so far
         adds nothing), then ``sr``'s residual against that basis, relative to its length."""
-        basis: list = []
         stick = self.k.row_stick
-        for r in np.flatnonzero(self.act):
-            if not (r in (sr, skip) or (not sticks and stick and stick[r] >= 0)):
-                span_add(basis, grad[r])
-        return not span_add(basis, grad[sr])
+        rows = [r for r in np.flatnonzero(self.act) if r not in (sr, skip)]
+        return in_span(grad, [r for r in rows if sticks or not (stick and stick[r] >= 0)], sr)
 
     def _owner(self, f: int, grad) -> int:
         """Whose stick holds frictional contact ``f``'s tangent: ``-1`` if its stick row is independent of

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .held_roots import SLIDE_EPS, span_add
+from .held_roots import SLIDE_EPS, in_span
 from .impulse_law import ImpulseLaw
 from .result import Impact
 
@@ -169,11 +169,12 @@ class HeldImpacts(ImpulseLaw):
         test): it stays held, and a row landing dependent on it rides instead (:meth:`_hold`; a box's four
         vertices on a face). Its force, checked next, may pass its load on (``SustainedSteps._pass_load``)."""
         stick = self.k.row_stick
-        basis: list = []
-        for i in range(self.k.r):
-            if i != r and (self.act[i] and i not in off or i in on) and not (stick and stick[i] >= 0):
-                span_add(basis, grad[i])
-        return not span_add(basis, grad[r])
+        rows = [
+            i
+            for i in range(self.k.r)
+            if i != r and (self.act[i] and i not in off or i in on) and not (stick and stick[i] >= 0)
+        ]
+        return in_span(grad, rows, r)
 
     def _landed(self, lands, slipped, plastic, off) -> list[int]:
         """The stick rows of the contacts that landed and stuck in the impulse law (``lands``,

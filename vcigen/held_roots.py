@@ -37,7 +37,7 @@ JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the h
 def span_add(basis: list, g) -> bool:
     """Adds ``g``'s residual against the orthonormal ``basis`` (modified Gram-Schmidt), normalised, to it;
     False, adding nothing, where that residual is within ``DEP_EPS`` of 0 relative to ``|g|``: ``g`` in their
-    span (the rows' dependence tests, :meth:`FrictionModes._dependent`, ``impulse_law._spanned``)."""
+    span (the rows' dependence tests, :func:`in_span`, ``impulse_law._spanned``)."""
     w = g.copy()
     for b in basis:
         w -= float(b @ w) * b
@@ -46,6 +46,16 @@ def span_add(basis: list, g) -> bool:
         return False
     basis.append(w / nw)
     return True
+
+
+def in_span(grad, rows, r: int) -> bool:
+    """Is row ``r``'s gradient within ``DEP_EPS`` of the span of the rows ``rows`` (modified Gram-Schmidt
+    over them in the order given, :func:`span_add`)? :meth:`FrictionModes._dependent` and
+    :meth:`HeldImpacts._rides_after` (C ``dependent``, ``rides_after``)."""
+    basis: list = []
+    for i in rows:
+        span_add(basis, grad[i])
+    return not span_add(basis, grad[r])
 
 
 def illinois_point(a: float, ga: float, b: float, gb: float) -> float:

@@ -1384,35 +1384,45 @@ static int spun_ball_span_add(double *basis, int *nb, const double *g)
     return 1;
 }
 
-/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
- * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (span_add),
- * then sr's residual, relative to its length. */
-static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int sr, int skip, int sticks)
-{
-    double basis[(SPUN_BALL_R_DIM + 1) * SPUN_BALL_N];
-    int nb = 0, r;
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        if (c->sus->act[r] && r != sr && r != skip && (sticks || spun_ball_row_stick[r] < 0)) {
-            spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N);
-        }
-    }
-    return !spun_ball_span_add(basis, &nb, grad + sr * SPUN_BALL_N);
-}
-
-/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
- * by them (its normal speed and acceleration are theirs, 0 to round-off). */
-static int spun_ball_rides_after(const spun_ball_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+/* held_roots.in_span: is row r's gradient within DEP_EPS of the span of the rows rows[0..n) (modified Gram-Schmidt
+ * over them in that order, span_add)? dependent and rides_after. */
+static int spun_ball_in_span(const double *grad, const int *rows, int n, int r)
 {
     double basis[(SPUN_BALL_R_DIM + 1) * SPUN_BALL_N];
     int nb = 0, i;
-    for (i = 0; i < SPUN_BALL_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && spun_ball_row_stick[i] < 0) {
-            spun_ball_span_add(basis, &nb, grad + i * SPUN_BALL_N);
-        }
+    for (i = 0; i < n; ++i) {
+        spun_ball_span_add(basis, &nb, grad + rows[i] * SPUN_BALL_N);
     }
     return !spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N);
+}
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (in_span), then sr's
+ * residual, relative to its length. */
+static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    int rows[SPUN_BALL_R_DIM], n = 0, r;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        if (c->sus->act[r] && r != sr && r != skip && (sticks || spun_ball_row_stick[r] < 0)) {
+            rows[n++] = r;
+        }
+    }
+    return spun_ball_in_span(grad, rows, n, sr);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
+ * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int spun_ball_rides_after(const spun_ball_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    int rows[SPUN_BALL_R_DIM], n = 0, i;
+    for (i = 0; i < SPUN_BALL_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && spun_ball_row_stick[i] < 0) {
+            rows[n++] = i;
+        }
+    }
+    return spun_ball_in_span(grad, rows, n, r);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's

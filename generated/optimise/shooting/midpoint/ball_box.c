@@ -1372,35 +1372,45 @@ static int ball_box_span_add(double *basis, int *nb, const double *g)
     return 1;
 }
 
-/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
- * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (span_add),
- * then sr's residual, relative to its length. */
-static int ball_box_dependent(const ball_box_ctx_t *c, const double *grad, int sr, int skip, int sticks)
-{
-    double basis[(BALL_BOX_R_DIM + 1) * BALL_BOX_N];
-    int nb = 0, r;
-    for (r = 0; r < BALL_BOX_R; ++r) {
-        if (c->sus->act[r] && r != sr && r != skip && (sticks || ball_box_row_stick[r] < 0)) {
-            ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N);
-        }
-    }
-    return !ball_box_span_add(basis, &nb, grad + sr * BALL_BOX_N);
-}
-
-/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order)? An active row the impact pulls off then stays, carried
- * by them (its normal speed and acceleration are theirs, 0 to round-off). */
-static int ball_box_rides_after(const ball_box_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+/* held_roots.in_span: is row r's gradient within DEP_EPS of the span of the rows rows[0..n) (modified Gram-Schmidt
+ * over them in that order, span_add)? dependent and rides_after. */
+static int ball_box_in_span(const double *grad, const int *rows, int n, int r)
 {
     double basis[(BALL_BOX_R_DIM + 1) * BALL_BOX_N];
     int nb = 0, i;
-    for (i = 0; i < BALL_BOX_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && ball_box_row_stick[i] < 0) {
-            ball_box_span_add(basis, &nb, grad + i * BALL_BOX_N);
-        }
+    for (i = 0; i < n; ++i) {
+        ball_box_span_add(basis, &nb, grad + rows[i] * BALL_BOX_N);
     }
     return !ball_box_span_add(basis, &nb, grad + r * BALL_BOX_N);
+}
+
+/* SustainedSteps._dependent: is row sr's gradient in the span of the other active rows' (but row skip; the
+ * normal rows alone if not sticks)? Modified Gram-Schmidt over the active rows in index order (in_span), then sr's
+ * residual, relative to its length. */
+static int ball_box_dependent(const ball_box_ctx_t *c, const double *grad, int sr, int skip, int sticks)
+{
+    int rows[BALL_BOX_R_DIM], n = 0, r;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        if (c->sus->act[r] && r != sr && r != skip && (sticks || ball_box_row_stick[r] < 0)) {
+            rows[n++] = r;
+        }
+    }
+    return ball_box_in_span(grad, rows, n, sr);
+}
+
+/* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
+ * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
+ * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+static int ball_box_rides_after(const ball_box_ctx_t *c, const double *grad, int r, const int *leaving,
+    const int *plastic)
+{
+    int rows[BALL_BOX_R_DIM], n = 0, i;
+    for (i = 0; i < BALL_BOX_R; ++i) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && ball_box_row_stick[i] < 0) {
+            rows[n++] = i;
+        }
+    }
+    return ball_box_in_span(grad, rows, n, r);
 }
 
 /* HeldImpacts._hold: holds contact row r unless its gradient is in the span of the normal rows held (a box's
