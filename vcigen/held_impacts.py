@@ -112,8 +112,8 @@ class HeldImpacts(ImpulseLaw):
             else:
                 targets[r] = -e * rate
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
-        p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands = law
-        why = self._slip_at_impact(q, vel_p, slipped, slips, lands) or self._law_why  # (_law_tangent's)
+        p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands, law_why = law
+        why = self._slip_at_impact(q, vel_p, slipped, slips, lands) or law_why
         if why:  # stick <-> slip at the impact (a mode change), a cone's sliding impulse, a least split
             self._sw_lose(why)
         else:  # the contacts slipping on or landing: their sliding impulse in Tracker.impulse
@@ -257,10 +257,10 @@ class HeldImpacts(ImpulseLaw):
         k = self.k
         rows, lowest = self._touching(q, v, group_contacts)
         # no row is held here (the free impact chain runs with none): friction only where they land
-        p_plus, lam, vel_m, vel_p, dropped, slipped, _, lands = self._impulse_law(
+        p_plus, lam, vel_m, vel_p, dropped, slipped, _, lands, law_why = self._impulse_law(
             step, t_k, q, p, v, rows, {}
         )
-        tight, slides, why = self._law_tangent(lam, slipped, (), lands)
+        tight, slides, why = self._law_tangent(lam, slipped, (), lands, law_why)
         order = [tight.index(r) for r in rows if r in tight]
         order += [i for i, r in enumerate(tight) if r not in rows]
         law = ([tight[i] for i in order], [slides[i] for i in order], why)

@@ -98,10 +98,12 @@ class ImpulseLaw:
         the least way where its rows are dependent, :func:`_least_split`, also beside a sliding one), else
         left out (no friction impulse), the modes without a loose cone left out first; not a slide or stick
         of a loose cone that adds kinetic energy (:func:`_gains`).
-        Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands)``, ``dropped`` the rows left with no
-        impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips`` the
-        slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
-        ``lands`` the landing ones (their modes are set when they are held, ``_friction_modes``).
+        Returns ``(p+, Lam, vel-, vel+, dropped, slipped, slips, lands, why)``, ``dropped`` the rows left with
+        no impulse (the caller releases the active ones), ``slipped`` the stick rows that slipped, ``slips``
+        the slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
+        ``lands`` the landing ones (their modes are set when they are held, ``_friction_modes``), ``why``
+        why the tangent does not carry the law (``"friction at an impact"``: a landing cone's second split,
+        its least split beside a slide, a slide along a line; else ``""``; :meth:`_law_tangent`).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -237,7 +239,7 @@ class ImpulseLaw:
         self.least_splits += least
         # the tangent carries a plain least split (sensitivity_held._least_tangent), not a second one, one
         # beside a slide or a slide along a line (_law_tangent)
-        self._law_why = "friction at an impact" if least and (slide or weighted) or line else ""
+        why = "friction at an impact" if least and (slide or weighted) or line else ""
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
@@ -251,7 +253,7 @@ class ImpulseLaw:
                 slips = [s for s in slips if s[0] != f]
                 slipped = [r for r in slipped if r not in (rows[i], rows[o])]
         p_plus = p + grad.T @ lam_full
-        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips, lands
+        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips, lands, why
 
     def _law_slips(self, grad, rows) -> list[tuple[int, list[int]]]:
         """The one-tangent contacts held and slipping whose friction joins the impulse law on ``rows``
@@ -532,7 +534,7 @@ class ImpulseLaw:
                 )
         return ""
 
-    def _law_tangent(self, lam, slipped, slips, lands):
+    def _law_tangent(self, lam, slipped, slips, lands, why: str = ""):
         """The impulse law (:meth:`_impulse_law`) as the tangent takes it (``Tracker._impulse``): ``(tight,
         slides, why)``, ``tight`` the rows with an impulse but the stick rows of the one-tangent contacts
         sliding through it (their impulse follows from their normal rows'), ``slides`` per row of ``tight``
@@ -541,8 +543,8 @@ class ImpulseLaw:
         (``slips``, the sign of their slip) and the landing ones (``lands``) whose owner slid on an edge (the
         sign of its impulse); ``(t1, t2, w_hat, j)`` for a normal row of an isotropic cone that slid, landing
         or slipping on through it without riders: ``-mu_j N w_hat`` on its stick rows ``t1, t2`` (``w_hat``
-        its direction: the tangent turns it with the sliding after, ``Tracker._cone_slides``). ``why``:
-        ``""`` (kept for the readers' shape)."""
+        its direction: the tangent turns it with the sliding after, ``Tracker._cone_slides``). ``why``: the
+        law's own (:meth:`_impulse_law`), passed through."""
         k = self.k
         along = {}
         skip = set()
@@ -568,7 +570,7 @@ class ImpulseLaw:
             skip.add(so)
             along[k.frictional[g]] = (so, sgn, k.frictional[g])
         tight = [int(r) for r in np.flatnonzero(lam) if int(r) not in skip]
-        return tight, [along.get(k.row_contact[r]) for r in tight], self._law_why
+        return tight, [along.get(k.row_contact[r]) for r in tight], why
 
     def _cone_along(self, along: dict, skip: set, lam, o: int, g: int) -> None:
         """:meth:`_law_tangent` for the cone ``o`` (its first tangent) of contact ``g``'s that slid in the

@@ -107,7 +107,6 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
         self.friction_dropped = 0  # landing contacts whose friction the impulse law left out (_law_lands)
         self.least_splits = 0  # impulse laws whose stick rows were dependent: the least split (_least_split)
-        self._law_why = ""  # why the tangent does not carry the last impulse law (ImpulseLaw._law_tangent)
         self._timed = bool(getattr(kernels, "timed", False))  # forces of time: kernels.at(t) per segment
         system = getattr(kernels, "system", None)
         self._forced = bool(system is not None and system.model.force)  # energy: the last segment's
