@@ -13,7 +13,8 @@ cone, so the margin of the coupled cones is
 ``F_c`` the stick forces of cone ``c``'s two rows, ``d_c`` the null combination on them and ``N_c`` its
 normal force: the stick holds while ``m >= 0``. Each term is concave in ``alpha``, so their minimum is; its
 maximiser lies between the terms' own maximisers ``-F_c . d_c / |d_c|^2`` and is found by bisection on the
-sign of the least term's slope (:func:`split`), to the last bit after ``SPLIT_ITER`` halvings. Exact when
+sign of the least term's slope (:func:`split`), to the last bit: at most ``SPLIT_ITER`` halvings, ending
+where the bracket no longer moves (every later halving would leave it so). Exact when
 ``n`` has no part on the normal rows (a flat floor); a normal part is not shifted.
 
 Pure NumPy; ``templates/sustained_cone_split.c.j2`` has the same functions (``null_combination``, ``split``).
@@ -60,16 +61,21 @@ def split(caps, forces, dirs) -> tuple[float, float, list[float]]:
             lo, hi = min(lo, a), max(hi, a)
     if lo > hi:
         lo = hi = 0.0
-    for _ in range(SPLIT_ITER):
+    for _ in range(SPLIT_ITER):  # until the bracket stops moving (then every later halving is the same)
         mid = 0.5 * (lo + hi)
         least, slope = math.inf, 0.0
-        for cap, force, d in zip(caps, forces, dirs):
-            value, s = _term(cap, force, d, mid)
-            if value < least:
-                least, slope = value, s
+        for cap, force, d in zip(caps, forces, dirs):  # _term, inline (the slope of the least term only)
+            x, y = force[0] + mid * d[0], force[1] + mid * d[1]
+            norm = math.hypot(x, y)
+            if cap - norm < least:
+                least, slope = cap - norm, (-(d[0] * x + d[1] * y) / norm if norm > 0.0 else 0.0)
         if slope > 0.0:
+            if mid == lo:
+                break
             lo = mid
         else:
+            if mid == hi:
+                break
             hi = mid
     alpha = 0.5 * (lo + hi)
     values = [_term(cap, force, d, alpha)[0] for cap, force, d in zip(caps, forces, dirs)]

@@ -2294,8 +2294,14 @@ static double spun_ball_split(int nc, const double *caps, const double *forces, 
             }
         }
         if (slope > 0.0) {
+            if (mid == lo) {
+                break; /* the bracket no longer moves: every later halving would leave it so */
+            }
             lo = mid;
         } else {
+            if (mid == hi) {
+                break;
+            }
             hi = mid;
         }
     }
