@@ -6,6 +6,7 @@ root finder that locates their events (a lift-off, a row crossed, a stop, a slid
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -41,8 +42,8 @@ def span_add(basis: list, g) -> bool:
     w = g.copy()
     for b in basis:
         w -= float(b @ w) * b
-    nw = float(np.linalg.norm(w))
-    if nw <= DEP_EPS * float(np.linalg.norm(g)):
+    nw = math.sqrt(float(w @ w))  # numpy.linalg.norm's own sum, without its overhead
+    if nw <= DEP_EPS * math.sqrt(float(g @ g)):
         return False
     basis.append(w / nw)
     return True
