@@ -36,14 +36,15 @@ def _least_split(g, w, b, tight, s=None) -> np.ndarray | None:
     G_T G_I^T``, ``Lam_I`` the impulses with ``I`` alone; a sufficient test of the cones (another split may
     fit where this one does not). With weights ``s`` the least ``sum (Lam_i / s_i)^2`` instead (the rows
     scaled by ``s``: :meth:`ImpulseLaw._impulse_law` weights each cone's stick rows by the square root of its
-    room ``mu_f N`` in the first split, so the second splits along the loads). None where singular; the caller
-    checks ``T``'s targets (consistency)."""
+    room ``mu_f N`` in the first split, so the second splits along the loads). ``b`` one right-hand side or a
+    column of them (``(n, k)``: one factorisation for all). None where singular; the caller checks ``T``'s
+    targets (consistency)."""
     if s is not None:
         lam = _least_split(g * s[:, None], w * np.outer(s, s), b * s, tight)
         return None if lam is None else lam * s
     basis: list = []
     ind = [i for i in tight if span_add(basis, g[i])]
-    lam = np.zeros(len(b))
+    lam = np.zeros(b.shape)
     try:
         lam_i = np.linalg.solve(w[np.ix_(ind, ind)], b[ind])
         a = g[tight] @ g[ind].T
@@ -449,13 +450,12 @@ class ImpulseLaw:
         if tight:
             rhs = np.column_stack([b[tight], *(-w[tight, x] for x in cols)])
             if least is not None:  # dependent tight rows (a loose cone sticking): each column's least split
-                for y in range(rhs.shape[1]):
-                    col = np.zeros(n)
-                    col[tight] = rhs[:, y]
-                    split = _least_split(least, w, col, tight)
-                    if split is None:
-                        return None, "", False
-                    lams[y] = split
+                cols_b = np.zeros((n, rhs.shape[1]))
+                cols_b[tight] = rhs
+                split = _least_split(least, w, cols_b, tight)
+                if split is None:
+                    return None, "", False
+                lams[:] = split.T
             else:
                 try:
                     lams[:, tight] = np.linalg.solve(ws[np.ix_(tight, tight)], rhs).T

@@ -22,7 +22,8 @@ from .impulse_law import _least_split, _spanned
 
 def _split(grad, w, b) -> np.ndarray:
     """The least split ``W^+ b`` of the impulse on all the rows ``grad`` (dependent: a box's four cones
-    sticking flat on a floor; ``b`` in ``W``'s range), :func:`vcigen.impulse_law._least_split`."""
+    sticking flat on a floor; ``b`` in ``W``'s range, one or a column of them),
+    :func:`vcigen.impulse_law._least_split`."""
     lam = _least_split(grad, w, b, list(range(len(b))))
     if lam is None:
         raise np.linalg.LinAlgError("least split: singular")
@@ -38,13 +39,8 @@ def _least_tangent(grad, w, y, dg, dy, lam, rhs) -> np.ndarray:
     ``W``'s range."""
     na = len(lam)
     u = _split(grad, w, lam)
-    dwt_u = [sum((y[:, c] @ dg[e] + grad[e] @ dy[c]) * u[e] for e in range(na)) for c in range(na)]
-    dwt_u = np.array(dwt_u)  # (na, K): dW^T W^+ Lam
-    out = np.empty_like(rhs)
-    for j in range(rhs.shape[1]):
-        z = dwt_u[:, j]
-        out[:, j] = _split(grad, w, rhs[:, j]) + z - _split(grad, w, w @ z)
-    return out
+    z = np.array([sum((y[:, c] @ dg[e] + grad[e] @ dy[c]) * u[e] for e in range(na)) for c in range(na)])
+    return _split(grad, w, rhs) + z - _split(grad, w, w @ z)  # z (na, K): dW^T W^+ Lam
 
 
 def _guarded(hook, name: str | None = None):

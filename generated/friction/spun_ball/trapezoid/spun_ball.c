@@ -2909,7 +2909,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
 static int spun_ball_cone_slide(const double *g, const double *h, const double *b, double mf, double a,
     double *m1, double *m2); /* stepper_cone.c.j2 */
 static int spun_ball_least_split(const double *grad, const int *rows, int nr, const double *w, const double *b,
-    const int *tight, int nt, const double *sc, double *lam); /* below */
+    int ncol, const int *tight, int nt, const double *sc, double *lam); /* below */
 
 /* friction.line_slide: cone_slide where H has rank 1 (H = kappa u u^T, a loose landing cone in law_slide): the law's
  * other rows fix its sliding but along u (H's larger column, normalised), so it slides along u with Coulomb's sliding
@@ -2969,7 +2969,7 @@ static int spun_ball_line_slide(const double *g, const double *h, const double *
  * (line_slide, tr H above DEP_EPS (w_ii + w_oo)) or wholly (it cannot slide). 1 and lam (2: a cone slid along a
  * line); 0 if a cone sticks at the end (or the rows are singular, or a tangent is fixed by them: H singular); -1 if
  * the sweeps do not settle in SLIDE_SWEEPS. least (not NULL: the rows' gradients) where the tight rows are
- * dependent (a loose cone sliding while others stick): each right-hand side's least split (least_split), not an LU. */
+ * dependent (a loose cone sliding while others stick): the right-hand sides' least splits (least_split), not an LU. */
 static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, const int *rows, int nr,
     const double *w, const double *ws, const double *b, const int *tight, int nt, const int *cone_i,
     const int *cone_f, const int *mode, int n_cones, const int *sl_i, const int *sl_o, const int *sl_f, int n_sl,
@@ -2977,6 +2977,7 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
 {
     enum { L_DIM = 1 + SPUN_BALL_NF_DIM };
     double lams[L_DIM * SPUN_BALL_R_DIM], gaps[L_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
+    double rhs[L_DIM * SPUN_BALL_R_DIM];
     double sol[SPUN_BALL_R_DIM], m[SPUN_BALL_NF_DIM], hs[2 * SPUN_BALL_NF_DIM] = {0.0};
     double normal[L_DIM * SPUN_BALL_NF_DIM] = {0.0};
     double g[2], bn[2], *h, an, m1, m2, det, moved, big, own;
@@ -2987,15 +2988,12 @@ static int spun_ball_law_slide(const spun_ball_ctx_t *c, const int *slip_ride, c
     }
     if (nt > 0 && least) { /* dependent tight rows (a loose cone sticking): each column's least split */
         for (j = 0; j < nl; ++j) {
-            for (k = 0; k < nr; ++k) {
-                sol[k] = 0.0;
+            for (k = 0; k < nt; ++k) { /* the right-hand sides, column j at j * nr */
+                rhs[j * nr + tight[k]] = j == 0 ? b[tight[k]] : -w[tight[k] * nr + (j % 2 ? sl_i[(j - 1) / 2] : sl_o[(j - 1) / 2])];
             }
-            for (k = 0; k < nt; ++k) {
-                sol[tight[k]] = j == 0 ? b[tight[k]] : -w[tight[k] * nr + (j % 2 ? sl_i[(j - 1) / 2] : sl_o[(j - 1) / 2])];
-            }
-            if (!spun_ball_least_split(least, rows, nr, w, sol, tight, nt, NULL, lams + j * nr)) {
-                return 0;
-            }
+        }
+        if (!spun_ball_least_split(least, rows, nr, w, rhs, nl, tight, nt, NULL, lams)) {
+            return 0;
         }
     } else if (nt > 0) {
         for (k = 0; k < nt; ++k) {
@@ -3134,15 +3132,17 @@ static int spun_ball_spanned(const double *grad, const int *rows, const int *tig
  * (w Lam = b on T) where their gradients are dependent (a loose landing cone sticking): the least split, min |Lam|:
  * Lam = G_T G_I^T z, I an independent subset of T (span_add), (A^T A) z = G_I G_I^T Lam_I, A = G_T G_I^T, Lam_I the
  * impulses with I alone. With weights sc (not NULL) the least sum (Lam_i / sc_i)^2 instead: the rows scaled by sc
- * (impulse_law weights each cone's stick rows by the square root of its room mu_f N in the first split). 0 where
- * singular; the caller checks T's targets (consistency). */
+ * (impulse_law weights each cone's stick rows by the square root of its room mu_f N in the first split). b and lam
+ * hold ncol right-hand sides and their splits, column j at j * nr (one factorisation for all). 0 where singular;
+ * the caller checks T's targets (consistency). */
 static int spun_ball_least_split(const double *grad, const int *rows, int nr, const double *w, const double *b,
-    const int *tight, int nt, const double *sc, double *lam)
+    int ncol, const int *tight, int nt, const double *sc, double *lam)
 {
     double basis[SPUN_BALL_R_DIM * SPUN_BALL_N], wi[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double ata[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
+    double gig[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double sol[SPUN_BALL_R_DIM], z[SPUN_BALL_R_DIM], g[SPUN_BALL_R_DIM * SPUN_BALL_N], s;
-    int ind[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], ni = 0, nb = 0, k, l, x, i;
+    int ind[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], pa[SPUN_BALL_R_DIM], ni = 0, nb = 0, j, k, l, x, i;
     for (k = 0; k < nr; ++k) { /* the rows' gradients, scaled */
         for (i = 0; i < SPUN_BALL_N; ++i) {
             g[k * SPUN_BALL_N + i] = (sc ? sc[k] : 1.0) * grad[rows[k] * SPUN_BALL_N + i];
@@ -3154,15 +3154,10 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
         }
     }
     for (k = 0; k < ni; ++k) {
-        sol[k] = (sc ? sc[ind[k]] : 1.0) * b[ind[k]];
         for (l = 0; l < ni; ++l) {
             wi[k * ni + l] = w[ind[k] * nr + ind[l]] * (sc ? sc[ind[k]] * sc[ind[l]] : 1.0);
         }
     }
-    if (!spun_ball_lu(ni, wi, piv)) {
-        return 0;
-    }
-    spun_ball_lu_solve(ni, wi, piv, sol); /* Lam_I */
     for (k = 0; k < nt; ++k) { /* A = G_T G_I^T */
         for (l = 0; l < ni; ++l) {
             for (i = 0, s = 0.0; i < SPUN_BALL_N; ++i) {
@@ -3171,32 +3166,43 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
             a[k * ni + l] = s;
         }
     }
-    for (k = 0; k < ni; ++k) { /* A^T A and G_I G_I^T Lam_I */
+    for (k = 0; k < ni; ++k) { /* A^T A and G_I G_I^T */
         for (l = 0; l < ni; ++l) {
             for (x = 0, s = 0.0; x < nt; ++x) {
                 s += a[x * ni + k] * a[x * ni + l];
             }
             ata[k * ni + l] = s;
-        }
-        for (l = 0, z[k] = 0.0; l < ni; ++l) {
             for (i = 0, s = 0.0; i < SPUN_BALL_N; ++i) {
                 s += g[ind[k] * SPUN_BALL_N + i] * g[ind[l] * SPUN_BALL_N + i];
             }
-            z[k] += s * sol[l];
+            gig[k * ni + l] = s;
         }
     }
-    if (!spun_ball_lu(ni, ata, piv)) {
+    if (!spun_ball_lu(ni, wi, piv) || !spun_ball_lu(ni, ata, pa)) {
         return 0;
     }
-    spun_ball_lu_solve(ni, ata, piv, z);
-    for (k = 0; k < nr; ++k) {
-        lam[k] = 0.0;
-    }
-    for (k = 0; k < nt; ++k) {
-        for (l = 0; l < ni; ++l) {
-            lam[tight[k]] += a[k * ni + l] * z[l];
+    for (j = 0; j < ncol; ++j) {
+        const double *bj = b + j * nr;
+        double *lj = lam + j * nr;
+        for (k = 0; k < ni; ++k) {
+            sol[k] = (sc ? sc[ind[k]] : 1.0) * bj[ind[k]];
         }
-        lam[tight[k]] *= sc ? sc[tight[k]] : 1.0;
+        spun_ball_lu_solve(ni, wi, piv, sol); /* Lam_I */
+        for (k = 0; k < ni; ++k) {
+            for (l = 0, z[k] = 0.0; l < ni; ++l) {
+                z[k] += gig[k * ni + l] * sol[l];
+            }
+        }
+        spun_ball_lu_solve(ni, ata, pa, z);
+        for (k = 0; k < nr; ++k) {
+            lj[k] = 0.0;
+        }
+        for (k = 0; k < nt; ++k) {
+            for (l = 0; l < ni; ++l) {
+                lj[tight[k]] += a[k * ni + l] * z[l];
+            }
+            lj[tight[k]] *= sc ? sc[tight[k]] : 1.0;
+        }
     }
     return 1;
 }
@@ -3394,7 +3400,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
                 line = settled == 2;
             } else if (least) {
-                if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, NULL, lam)) {
+                if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, NULL, lam)) {
                     continue;
                 }
                 for (i = 0, outside = 0; i < n_iso; ++i) { /* a cone left: again, each cone weighted by its room */
@@ -3410,7 +3416,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                     for (i = 0; i < n_iso; ++i) {
                         sc[iso_i[i]] = sc[iso_o[i]] = sqrt(fmax(room[i], 0.0));
                     }
-                    if (!spun_ball_least_split(grad, rows, nr, w, b, tight, nt, sc, lam)) {
+                    if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, sc, lam)) {
                         continue;
                     }
                 }
