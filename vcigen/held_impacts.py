@@ -114,7 +114,7 @@ class HeldImpacts(ImpulseLaw):
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands, law_why = law
         why = self._slip_at_impact(q, vel_p, slipped, slips, lands) or law_why
-        if why:  # stick <-> slip at the impact (a mode change), a cone's sliding impulse, a least split
+        if why:  # stick <-> slip at the impact (a mode change), a cone's sliding impulse, a split not carried
             self._sw_lose(why)
         else:  # the contacts slipping on or landing: their sliding impulse in Tracker.impulse
             self._ev_impulse(q, v, p, lam, targets, group, self._law_tangent(lam, slipped, slips, lands))

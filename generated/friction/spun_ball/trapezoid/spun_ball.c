@@ -3801,7 +3801,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     }
     why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land);
     why = why ? why : 2 * c->sus->law_why; /* a least split not carried or a line slide: friction at an impact */
-    if (why) { /* stick <-> slip (a mode change), a cone's sliding impulse, a least split: no tangent */
+    if (why) { /* stick <-> slip (a mode change), a cone's sliding impulse, a split not carried: no tangent */
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = spun_ball_loss(c, q, vel_m, vel_p);
