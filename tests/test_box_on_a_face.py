@@ -195,6 +195,31 @@ def test_random_frictionless_cube_drops_rest_on_a_face(backend):
         assert np.abs(res.p[-1, [2, 4, 5]]).max() < 1e-9
 
 
+def test_a_vertex_that_crosses_back_at_once_after_a_grazing_impact_is_held_alike_on_both_backends():
+    """Frictionless drop 988 of ``python -m bench.cube_drops --seed 21`` (``e = 0``). At step 31 vertex v2
+    takes a grazing impact (the continuous law leaves it no normal speed) and crosses back at once. The (78)
+    sub-solves that look for it leaving took another root there, whose ``phi`` is not this path's: in C a
+    bracket ended 1.2e-8 deep and the run stopped ("no sign change of phi_v2"), while CasADi took the root at
+    the segment's start. Now ``_leave`` (C ``leave``) sees ``phi_v2`` below ``-phi`` at its first fraction and
+    the impact restarts by the continuous law. Both backends run to t = 3, log v2 grazing then plastic at one
+    time and the same impacts after, agree to 1e-9, stay above the floor, add no energy at an impact and end
+    at rest on the face."""
+    q0 = [0.0, 0.0, 1.0, 1.6389064567424714, 0.025262809178760892, 0.18246718551249597]
+    v0 = [-1.3398377399813683, 1.0114322845485364, -0.7246497700805112]
+    v0 += [2.4229773512771997, -2.7708696094874226, -2.86003007486737]
+    a, b = (sim(be).simulate(params=E0, q0=q0, v0=v0, h=0.005, t_end=3.0) for be in ("c", "casadi"))
+    for res in (a, b):
+        first = [(i.step, i.contact, i.kind) for i in res.impacts[:2]]
+        assert first == [(31, "v2", "grazing"), (31, "v2", "plastic")]
+        assert res.impacts[0].t == res.impacts[1].t
+        assert vertex_heights(res.q).min() > -1e-9
+        assert all(i.energy_after <= i.energy_before + 1e-9 * abs(i.energy_before) for i in res.impacts)
+        assert np.abs(vertex_heights(res.q[-1:])).max() < 1e-9 and np.abs(res.p[-1, [2, 4, 5]]).max() < 1e-9
+    logs = [[(i.step, i.contact, i.kind) for i in res.impacts] for res in (a, b)]
+    assert logs[0] == logs[1]
+    assert np.abs(a.q - b.q).max() < 1e-9
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_rough_cube_sliding_on_its_face_brakes_straight_at_mu_g(backend):
     """Coulomb's cone on the four vertices (mu = 0.5): landing flat while sliding, the floor takes the normal
