@@ -12,6 +12,8 @@ import numpy as np
 from .errors import SolverError
 from .friction import cone_slide, line_slide
 from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
+from .law_split import fit
+from .law_split import least_split as _least_split
 
 
 def _pooled(pools, lam) -> float:
@@ -25,33 +27,6 @@ def _spanned(g, tight, normal) -> bool:
     has no unique split of its impulse: the law takes a subset of them instead, the first independent one."""
     basis: list = []
     return any(not span_add(basis, g[i]) for i in tight if normal[i])
-
-
-def _least_split(g, w, b, tight, s=None) -> np.ndarray | None:
-    """The impulses of the tight rows ``T`` (indices of the law's rows ``g``, ``w = g M^-1 g^T``) at their
-    targets (``w Lam = b`` on ``T``) where their gradients are dependent (a loose landing cone sticking: a box
-    landing flat on four rough vertices): the velocity after is unique, the impulses are not (``G_T^T Lam``
-    is), and Coulomb's law asks for a split inside every cone. The least one, ``min |Lam|``: ``Lam = G_T G_I^T
-    z``, ``I`` an independent subset of ``T`` (modified Gram-Schmidt), ``(A^T A) z = G_I G_I^T Lam_I``, ``A =
-    G_T G_I^T``, ``Lam_I`` the impulses with ``I`` alone; a sufficient test of the cones (another split may
-    fit where this one does not). With weights ``s`` the least ``sum (Lam_i / s_i)^2`` instead (the rows
-    scaled by ``s``: :meth:`ImpulseLaw._impulse_law` weights each cone's stick rows by the square root of its
-    room ``mu_f N`` in the first split, so the second splits along the loads). ``b`` one right-hand side or a
-    column of them (``(n, k)``: one factorisation for all). None where singular; the caller checks ``T``'s
-    targets (consistency)."""
-    if s is not None:
-        lam = _least_split(g * s[:, None], w * np.outer(s, s), b * s, tight)
-        return None if lam is None else lam * s
-    basis: list = []
-    ind = [i for i in tight if span_add(basis, g[i])]
-    lam = np.zeros(b.shape)
-    try:
-        lam_i = np.linalg.solve(w[np.ix_(ind, ind)], b[ind])
-        a = g[tight] @ g[ind].T
-        lam[tight] = a @ np.linalg.solve(a.T @ a, g[ind] @ g[ind].T @ lam_i)
-    except np.linalg.LinAlgError:
-        return None
-    return lam
 
 
 def _gains(lam, b, gap, tgts) -> bool:
@@ -171,23 +146,18 @@ class ImpulseLaw:
                 if dependent and not joint and _spanned(g, tight, normal) or least and any(slips_):
                     continue
                 line = weighted = False  # a loose cone slid along a line (line_slide); a second split
-                if slide:
+                # a sliding cone none of whose normal rows is tight takes no normal impulse, so no friction
+                # impulse: not slid (its rows neither tight nor checked), so that the rest may split (fit)
+                slide_t = [iso for iso in slide if any(mask >> x & 1 for x in iso[2])]
+                if slide_t:
                     lam, why, line = self._law_slide(
-                        slide, w, ws, b, tight, cones, slips_, lam_eps, loose, g if least else None
+                        slide_t, w, ws, b, tight, cones, slips_, lam_eps, loose, g if least else None
                     )
                     out = out or why
                     if lam is None:
                         continue
                 elif least:
-                    lam = _least_split(g, w, b, tight)
-                    rooms = [] if lam is None else [_pooled([(nm, mu)], lam) for _, _, nm, mu, _, _ in isos]
-                    pairs = [(float(lam[iso[0]]), float(lam[iso[1]]), room) for iso, room in zip(isos, rooms)]
-                    weighted = any(math.hypot(x, y) > room + lam_eps for x, y, room in pairs)
-                    if weighted:
-                        s = np.ones(n)  # a cone left: again, each cone's rows weighted by its room
-                        for (i, o, *_), room in zip(isos, rooms):
-                            s[[i, o]] = math.sqrt(max(room, 0.0))
-                        lam = _least_split(g, w, b, tight, s)
+                    lam, weighted = self._law_least(g, w, b, tight, isos, slides, free, cones, lam_eps)
                     if lam is None:
                         continue
                 else:
@@ -240,7 +210,7 @@ class ImpulseLaw:
         self.least_splits += least
         # the tangent carries a plain least split (sensitivity_held._least_tangent), not a second one, one
         # beside a slide or a slide along a line (_law_tangent)
-        why = "friction at an impact" if least and (slide or weighted) or line else ""
+        why = "friction at an impact" if least and (slide_t or weighted) or line else ""
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
@@ -517,6 +487,36 @@ class ImpulseLaw:
         for x in range(2 * nc):
             lam = lam + m[x] * lams[1 + x]
         return lam, "", bool(lines)
+
+    @staticmethod
+    def _law_least(g, w, b, tight, isos, slides, free, cones, lam_eps) -> tuple[np.ndarray | None, bool]:
+        """The impulses of the impulse law (:meth:`_impulse_law`) on the dependent tight rows ``tight``, the
+        isotropic cones sticking but those in ``slides`` (their normal rows not tight: no impulse): the least
+        split (:func:`vcigen.law_split.least_split`); where it leaves a cone, a second one, each cone's stick
+        rows weighted by the square root of its room; where that leaves one too, a split inside the cones
+        found from it (:func:`vcigen.law_split.fit`; cones with one normal row each, no one-tangent cone in
+        the law). Returns ``(lam, weighted)``, ``weighted`` whether the split is not the least one (the
+        tangent does not carry it), ``lam`` None where singular."""
+        lam = _least_split(g, w, b, tight)
+        if lam is None:
+            return None, False
+        rooms = [_pooled([(nm, mu)], lam) for _, _, nm, mu, _, _ in isos]
+        pairs = [(float(lam[iso[0]]), float(lam[iso[1]]), room) for iso, room in zip(isos, rooms)]
+        if not any(math.hypot(x, y) > room + lam_eps for x, y, room in pairs):
+            return lam, False
+        s = np.ones(len(b))  # a cone left: again, each cone's rows weighted by its room
+        for (i, o, *_), room in zip(isos, rooms):
+            s[[i, o]] = math.sqrt(max(room, 0.0))
+        lam = _least_split(g, w, b, tight, s)
+        sticks = [iso for iso, on in zip(isos, slides) if not on]
+        if lam is None or cones or any(len(iso[2]) != 1 for iso in sticks):
+            return lam, True
+        if any(math.hypot(lam[i], lam[o]) > mu * lam[nm[0]] + lam_eps for i, o, nm, mu, _, _ in sticks):
+            blocks = [(nm[0], i, o, mu) for i, o, nm, mu, _, _ in sticks]
+            inner = {x for block in blocks for x in block[:3]}
+            fitted = fit(g, lam, tight, blocks, [i for i in tight if free[i] and i not in inner], lam_eps)
+            lam = lam if fitted is None else fitted
+        return lam, True
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
         """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's

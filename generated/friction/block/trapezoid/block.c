@@ -1128,6 +1128,8 @@ static const int block_row_free[BLOCK_R_DIM] = { 0, 1, };
 #define BLOCK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define BLOCK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define BLOCK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define BLOCK_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
+#define BLOCK_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int block_fric_contact[BLOCK_NF] = { 0, };
 static const int block_stick_row[BLOCK_NF] = { 1, };

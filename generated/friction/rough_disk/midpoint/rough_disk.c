@@ -1207,6 +1207,8 @@ static const int rough_disk_row_free[ROUGH_DISK_R_DIM] = { 0, 1, };
 #define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define ROUGH_DISK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define ROUGH_DISK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define ROUGH_DISK_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
+#define ROUGH_DISK_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int rough_disk_fric_contact[ROUGH_DISK_NF] = { 0, };
 static const int rough_disk_stick_row[ROUGH_DISK_NF] = { 1, };

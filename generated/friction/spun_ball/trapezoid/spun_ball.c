@@ -1295,6 +1295,8 @@ static const int spun_ball_row_free[SPUN_BALL_R_DIM] = { 0, 1, 1, };
 #define SPUN_BALL_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define SPUN_BALL_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define SPUN_BALL_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define SPUN_BALL_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
+#define SPUN_BALL_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int spun_ball_fric_contact[SPUN_BALL_NF] = { 0, 0, };
 static const int spun_ball_stick_row[SPUN_BALL_NF] = { 1, 2, };
@@ -3141,10 +3143,12 @@ static int spun_ball_spanned(const double *grad, const int *rows, const int *tig
     return 0;
 }
 
-/* impulse_law._least_split: the impulses lam (per index in rows) of the tight rows T = tight[0..nt) at their targets
+/* law_split.least_split: the impulses lam (per index in rows) of the tight rows T = tight[0..nt) at their targets
  * (w Lam = b on T) where their gradients are dependent (a loose landing cone sticking): the least split, min |Lam|:
  * Lam = G_T G_I^T z, I an independent subset of T (span_add), (A^T A) z = G_I G_I^T Lam_I, A = G_T G_I^T, Lam_I the
- * impulses with I alone. With weights sc (not NULL) the least sum (Lam_i / sc_i)^2 instead: the rows scaled by sc
+ * impulses with I alone; then once more on the targets' residual b_I - w_IT Lam_T (one step of iterative refinement:
+ * the normal equations cost cond(A)^2 of round-off, and the caller checks the targets to EPS_LAM). With weights sc
+ * (not NULL) the least sum (Lam_i / sc_i)^2 instead: the rows scaled by sc
  * (impulse_law weights each cone's stick rows by the square root of its room mu_f N in the first split). b and lam
  * hold ncol right-hand sides and their splits, column j at j * nr (one factorisation for all). 0 where singular;
  * the caller checks T's targets (consistency). */
@@ -3155,7 +3159,8 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
     double ata[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double gig[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double sol[SPUN_BALL_R_DIM], z[SPUN_BALL_R_DIM], g[SPUN_BALL_R_DIM * SPUN_BALL_N], s;
-    int ind[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], pa[SPUN_BALL_R_DIM], ni = 0, nb = 0, j, k, l, x, i;
+    double res[SPUN_BALL_R_DIM], ls[SPUN_BALL_R_DIM];
+    int ind[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], pa[SPUN_BALL_R_DIM], ni = 0, nb = 0, j, k, l, x, i, pass;
     for (k = 0; k < nr; ++k) { /* the rows' gradients, scaled */
         for (i = 0; i < SPUN_BALL_N; ++i) {
             g[k * SPUN_BALL_N + i] = (sc ? sc[k] : 1.0) * grad[rows[k] * SPUN_BALL_N + i];
@@ -3198,24 +3203,222 @@ static int spun_ball_least_split(const double *grad, const int *rows, int nr, co
         const double *bj = b + j * nr;
         double *lj = lam + j * nr;
         for (k = 0; k < ni; ++k) {
-            sol[k] = (sc ? sc[ind[k]] : 1.0) * bj[ind[k]];
+            res[k] = (sc ? sc[ind[k]] : 1.0) * bj[ind[k]]; /* the (scaled) targets of I */
         }
-        spun_ball_lu_solve(ni, wi, piv, sol); /* Lam_I */
-        for (k = 0; k < ni; ++k) {
-            for (l = 0, z[k] = 0.0; l < ni; ++l) {
-                z[k] += gig[k * ni + l] * sol[l];
+        for (k = 0; k < nt; ++k) {
+            ls[k] = 0.0;
+        }
+        for (pass = 0; pass < 2; ++pass) { /* the split, then once more on the targets' residual (refinement) */
+            for (k = 0; k < ni; ++k) {
+                sol[k] = res[k];
+            }
+            spun_ball_lu_solve(ni, wi, piv, sol); /* Lam_I */
+            for (k = 0; k < ni; ++k) {
+                for (l = 0, z[k] = 0.0; l < ni; ++l) {
+                    z[k] += gig[k * ni + l] * sol[l];
+                }
+            }
+            spun_ball_lu_solve(ni, ata, pa, z);
+            for (k = 0; k < nt; ++k) {
+                for (l = 0, s = 0.0; l < ni; ++l) {
+                    s += a[k * ni + l] * z[l];
+                }
+                ls[k] += s;
+            }
+            for (k = 0; k < ni && pass == 0; ++k) { /* b_I - w_IT Lam_T, scaled */
+                for (x = 0, s = 0.0; x < nt; ++x) {
+                    s += w[ind[k] * nr + tight[x]] * (sc ? sc[ind[k]] * sc[tight[x]] : 1.0) * ls[x];
+                }
+                res[k] -= s;
             }
         }
-        spun_ball_lu_solve(ni, ata, pa, z);
         for (k = 0; k < nr; ++k) {
             lj[k] = 0.0;
         }
         for (k = 0; k < nt; ++k) {
-            for (l = 0; l < ni; ++l) {
-                lj[tight[k]] += a[k * ni + l] * z[l];
-            }
-            lj[tight[k]] *= sc ? sc[tight[k]] : 1.0;
+            lj[tight[k]] = ls[k] * (sc ? sc[tight[k]] : 1.0);
         }
+    }
+    return 1;
+}
+
+/* law_split.fit: from lam (a split of the tight rows' impulses, per index in rows), one with the same G_T^T Lam_T
+ * inside the nb cones (normal row bn (-1: not tight, its impulse 0), stick rows bi, bo, mu_f bmu: |(Lam_i, Lam_o)|
+ * <= mu_f Lam_n to eps) and >= -eps on the other tight rows of one sign: alternating projections between the affine
+ * set (lam_T plus a point's part orthogonal to G_T's columns, Gram-Schmidt twice) and the cones (narrowed by
+ * FIT_SHRINK) and half-lines, each sweep ending on the affine set. Returns 1 with lam changed where one is found
+ * within FIT_SWEEPS, else 0 (lam as it was). */
+static int spun_ball_cone_fit(const double *grad, const int *rows, int nr, const int *tight, int nt, const int *bn,
+    const int *bi, const int *bo, const double *bmu, int nb, double eps, double *lam)
+{
+    double basis[SPUN_BALL_N * SPUN_BALL_R_DIM], v[SPUN_BALL_R_DIM], x0[SPUN_BALL_R_DIM + 1];
+    double x[SPUN_BALL_R_DIM + 1], y[SPUN_BALL_R_DIM + 1], d, t, m, f, col;
+    int pos[SPUN_BALL_R_DIM], pn[SPUN_BALL_NF_DIM], pi[SPUN_BALL_NF_DIM], po[SPUN_BALL_NF_DIM];
+    int half[SPUN_BALL_R_DIM], nh = 0, ns = 0, i, k, l, pass, sweep, inside, inner;
+    for (k = 0; k < nr; ++k) {
+        pos[k] = -1;
+    }
+    for (k = 0; k < nt; ++k) {
+        pos[tight[k]] = k;
+    }
+    for (i = 0; i < nb; ++i) {
+        if (pos[bi[i]] < 0 || pos[bo[i]] < 0) {
+            return 0;
+        }
+        pn[i] = bn[i] >= 0 && pos[bn[i]] >= 0 ? pos[bn[i]] : nt; /* nt: a normal impulse of 0 */
+        pi[i] = pos[bi[i]];
+        po[i] = pos[bo[i]];
+    }
+    for (k = 0; k < nt; ++k) { /* the other tight rows of one sign: half-lines */
+        for (i = 0, inner = 0; i < nb; ++i) {
+            inner = inner || tight[k] == bn[i] || tight[k] == bi[i] || tight[k] == bo[i];
+        }
+        if (!spun_ball_row_free[rows[tight[k]]] && !inner) {
+            half[nh++] = k;
+        }
+    }
+    for (l = 0; l < SPUN_BALL_N; ++l) { /* range(G_T): its columns, Gram-Schmidt twice */
+        for (k = 0, col = 0.0; k < nt; ++k) {
+            v[k] = grad[rows[tight[k]] * SPUN_BALL_N + l];
+            col += v[k] * v[k];
+        }
+        for (pass = 0; pass < 2; ++pass) {
+            for (i = 0; i < ns; ++i) {
+                for (k = 0, d = 0.0; k < nt; ++k) {
+                    d += basis[i * SPUN_BALL_R_DIM + k] * v[k];
+                }
+                for (k = 0; k < nt; ++k) {
+                    v[k] -= d * basis[i * SPUN_BALL_R_DIM + k];
+                }
+            }
+        }
+        for (k = 0, d = 0.0; k < nt; ++k) {
+            d += v[k] * v[k];
+        }
+        d = sqrt(d);
+        if (d > SPUN_BALL_DEP_EPS * sqrt(col)) {
+            for (k = 0; k < nt; ++k) {
+                basis[ns * SPUN_BALL_R_DIM + k] = v[k] / d;
+            }
+            ++ns;
+        }
+    }
+    for (k = 0; k < nt; ++k) {
+        x0[k] = x[k] = lam[tight[k]];
+    }
+    x0[nt] = x[nt] = 0.0;
+    for (sweep = 0; sweep < SPUN_BALL_FIT_SWEEPS; ++sweep) {
+        for (i = 0, inside = 1; i < nb; ++i) {
+            inside = inside && hypot(x[pi[i]], x[po[i]]) <= bmu[i] * x[pn[i]] + eps;
+        }
+        for (i = 0; i < nh; ++i) {
+            inside = inside && x[half[i]] >= -eps;
+        }
+        if (inside) {
+            for (k = 0; k < nt; ++k) {
+                lam[tight[k]] = x[k];
+            }
+            return 1;
+        }
+        for (k = 0; k <= nt; ++k) {
+            y[k] = x[k];
+        }
+        for (i = 0; i < nb; ++i) {
+            m = bmu[i] * (1.0 - SPUN_BALL_FIT_SHRINK);
+            t = hypot(y[pi[i]], y[po[i]]);
+            if (t <= m * y[pn[i]]) {
+                continue;
+            }
+            if (m * t <= -y[pn[i]]) { /* in the polar cone: to the apex */
+                y[pn[i]] = y[pi[i]] = y[po[i]] = 0.0;
+                continue;
+            }
+            d = (y[pn[i]] + m * t) / (1.0 + m * m); /* onto the cone's edge */
+            f = m * d / t;
+            y[pn[i]] = d;
+            y[pi[i]] *= f;
+            y[po[i]] *= f;
+        }
+        for (i = 0; i < nh; ++i) {
+            y[half[i]] = fmax(y[half[i]], 0.0);
+        }
+        for (k = 0; k < nt; ++k) {
+            v[k] = y[k] - x0[k];
+        }
+        for (i = 0; i < ns; ++i) {
+            for (k = 0, d = 0.0; k < nt; ++k) {
+                d += basis[i * SPUN_BALL_R_DIM + k] * v[k];
+            }
+            for (k = 0; k < nt; ++k) {
+                v[k] -= d * basis[i * SPUN_BALL_R_DIM + k];
+            }
+        }
+        for (k = 0; k < nt; ++k) {
+            x[k] = x0[k] + v[k];
+        }
+        x[nt] = 0.0;
+    }
+    return 0;
+}
+
+/* ImpulseLaw._law_least: the impulses lam of the impulse law on the dependent tight rows tight[0..nt), the isotropic
+ * cones sticking but those with slide_on (their normal rows not tight: no impulse): the least split (least_split);
+ * where it leaves a cone, a second one, each cone's stick rows weighted by the square root of its room; where that
+ * leaves one too, a split inside the cones found from it (cone_fit; cones with one normal row each, no one-tangent
+ * cone in the law, n_cones = 0). *weighted: the split is not the least one (the tangent does not carry it).
+ * Returns 0 where singular. */
+static int spun_ball_law_least(const spun_ball_ctx_t *c, const double *grad, const int *rows, int nr,
+    const double *w, const double *b, const int *tight, int nt, const int *iso_i, const int *iso_o, const int *iso_f,
+    const int *slide_on, int n_iso, int n_cones, double lam_eps, double *lam, int *weighted)
+{
+    double room[SPUN_BALL_NF_DIM], sc[SPUN_BALL_R_DIM], bmu[SPUN_BALL_NF_DIM];
+    int bn[SPUN_BALL_NF_DIM], bi[SPUN_BALL_NF_DIM], bo[SPUN_BALL_NF_DIM], nb = 0, i, k, count, outside = 0;
+    *weighted = 0;
+    if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, NULL, lam)) {
+        return 0;
+    }
+    for (i = 0; i < n_iso; ++i) {
+        room[i] = c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]);
+        outside = outside || hypot(lam[iso_i[i]], lam[iso_o[i]]) > room[i] + lam_eps;
+    }
+    if (!outside) {
+        return 1;
+    }
+    *weighted = 1;
+    for (k = 0; k < nr; ++k) { /* a cone left: again, each cone's rows weighted by its room */
+        sc[k] = 1.0;
+    }
+    for (i = 0; i < n_iso; ++i) {
+        sc[iso_i[i]] = sc[iso_o[i]] = sqrt(fmax(room[i], 0.0));
+    }
+    if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, sc, lam)) {
+        return 0;
+    }
+    if (n_cones > 0) {
+        return 1;
+    }
+    for (i = 0; i < n_iso; ++i) { /* the sticking cones, each with its one normal row */
+        if (slide_on[i]) {
+            continue;
+        }
+        for (k = 0, count = 0; k < nr; ++k) {
+            if (spun_ball_row_contact[rows[k]] == spun_ball_fric_contact[iso_f[i]]) {
+                bn[nb] = k;
+                ++count;
+            }
+        }
+        if (count != 1) {
+            return 1;
+        }
+        bi[nb] = iso_i[i];
+        bo[nb] = iso_o[i];
+        bmu[nb++] = c->mu_f[iso_f[i]];
+    }
+    for (i = 0, outside = 0; i < nb; ++i) {
+        outside = outside || hypot(lam[bi[i]], lam[bo[i]]) > bmu[i] * lam[bn[i]] + lam_eps;
+    }
+    if (outside) {
+        spun_ball_cone_fit(grad, rows, nr, tight, nt, bn, bi, bo, bmu, nb, lam_eps, lam);
     }
     return 1;
 }
@@ -3250,14 +3453,14 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int strict_f[SPUN_BALL_NF_DIM], strict_o[SPUN_BALL_NF_DIM], mode[SPUN_BALL_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
     double slope, gaps[SPUN_BALL_R_DIM];
-    double room[SPUN_BALL_NF_DIM]; /* each isotropic cone's mu_f N in the least split */
     int digits, g, pg;
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
+    int st_i[SPUN_BALL_NF_DIM], st_o[SPUN_BALL_NF_DIM], st_f[SPUN_BALL_NF_DIM], n_st = 0;
     int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
     int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0,
         weighted = 0;
-    int moded, at, left_out, outside, rough = 0;
+    int moded, at, left_out, pressed, rough = 0;
     long mask = 0;
     spun_ball_velocity(c, q, guess, p, vel_m);
     spun_ball_legendre(q, vel_m, c->par, mom, mass);
@@ -3399,12 +3602,25 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 || (least && moded)) {
                 continue;
             }
-            if (n_slide > 0) {
+            /* a sliding cone none of whose normal rows is tight takes no normal impulse, so no friction impulse:
+             * not slid (its rows neither tight nor checked), so that the rest may split (law_least) */
+            for (i = 0, n_st = 0; i < n_slide; ++i) {
+                for (k = 0, pressed = 0; k < nr; ++k) {
+                    pressed = pressed
+                        || ((mask >> k & 1) && spun_ball_row_contact[rows[k]] == spun_ball_fric_contact[sl_f[i]]);
+                }
+                if (pressed) {
+                    st_i[n_st] = sl_i[i];
+                    st_o[n_st] = sl_o[i];
+                    st_f[n_st++] = sl_f[i];
+                }
+            }
+            if (n_st > 0) {
                 settled = spun_ball_law_slide(c, slip_ride, rows, nr, w, ws, b, tight, nt, cone_i, cone_f, mode,
-                    n_cones, sl_i, sl_o, sl_f, n_slide, loose, lam_eps, least ? grad : NULL, lam);
+                    n_cones, st_i, st_o, st_f, n_st, loose, lam_eps, least ? grad : NULL, lam);
                 if (settled < 0 && !out) {
                     spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law: %d isotropic cones slipping "
-                        "at once did not settle in %d sweeps at an impact while held", n_slide,
+                        "at once did not settle in %d sweeps at an impact while held", n_st,
                         SPUN_BALL_SLIDE_SWEEPS);
                     out = 1;
                 }
@@ -3413,25 +3629,9 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 }
                 line = settled == 2;
             } else if (least) {
-                if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, NULL, lam)) {
+                if (!spun_ball_law_least(c, grad, rows, nr, w, b, tight, nt, iso_i, iso_o, iso_f, slide_on, n_iso,
+                        n_cones, lam_eps, lam, &weighted)) {
                     continue;
-                }
-                for (i = 0, outside = 0; i < n_iso; ++i) { /* a cone left: again, each cone weighted by its room */
-                    room[i] = c->mu_f[iso_f[i]] * spun_ball_law_normal(rows, nr, lam, iso_f[i]);
-                    outside = outside || hypot(lam[iso_i[i]], lam[iso_o[i]]) > room[i] + lam_eps;
-                }
-                weighted = outside;
-                if (outside) {
-                    double sc[SPUN_BALL_R_DIM];
-                    for (k = 0; k < nr; ++k) {
-                        sc[k] = 1.0;
-                    }
-                    for (i = 0; i < n_iso; ++i) {
-                        sc[iso_i[i]] = sc[iso_o[i]] = sqrt(fmax(room[i], 0.0));
-                    }
-                    if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, sc, lam)) {
-                        continue;
-                    }
                 }
             } else {
             for (k = 0; k < nt; ++k) {
@@ -3517,7 +3717,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     }
     c->sus->least_splits += least;
     /* the tangent carries a plain least split (sens_least), not a second one, one beside a slide or a slide along a line */
-    c->sus->law_why = (least && (n_slide > 0 || weighted)) || line;
+    c->sus->law_why = (least && (n_st > 0 || weighted)) || line;
     for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: README, Known limits */
         if (left[iso_i[i]]) {
             land[iso_f[i]] = -1;

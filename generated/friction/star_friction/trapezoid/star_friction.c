@@ -1403,6 +1403,8 @@ static const int star_friction_row_free[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, 1, 
 #define STAR_FRICTION_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define STAR_FRICTION_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define STAR_FRICTION_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define STAR_FRICTION_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
+#define STAR_FRICTION_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int star_friction_fric_contact[STAR_FRICTION_NF] = { 0, };
 static const int star_friction_stick_row[STAR_FRICTION_NF] = { 4, };
