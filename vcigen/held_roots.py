@@ -27,7 +27,7 @@ SLIDE_LEAVE = (
 MAX_LAW_ROWS = 12  # rows one impulse law may involve (its complementarity problem is solved by enumeration)
 # Isotropic cones slipping at once in one impulse law: block Gauss-Seidel sweeps (each cone's 1-D root with
 # the others' impulses fixed) until no tangential impulse moves by more than SLIDE_TOL (1 + max |m|)
-SLIDE_SWEEPS = 5000  # a box landing flat, four cones sliding: ~200; two sliding on an edge: ~1000
+SLIDE_SWEEPS = 500  # four cones of a box landing flat and sliding, coupled through it: ~200
 SLIDE_TOL = 1e-14
 BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are aimed implicitly
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent

@@ -12,6 +12,7 @@ import numpy as np
 from .errors import SolverError
 from .friction import cone_slide, line_slide
 from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
+from .law_pgs import pgs
 from .law_split import fit
 from .law_split import least_split as _least_split
 
@@ -112,7 +113,12 @@ class ImpulseLaw:
         base = 3 ** len(cones)
         plain = base * 2 ** len(isos)  # the modes with no loose cone left out, then those with one
         radix = [3 if iso[5] in loose else 2 for iso in isos]
+        solved = None  # the projected Gauss-Seidel's solution (_law_pgs), where the modes found none first
         for modes in range(plain + base * math.prod(radix)):
+            if modes == plain and loose:  # before a landing cone is left out: the whole problem at once
+                solved = self._law_pgs(w, b, tgts, free, isos, cones, strict, lam_eps, vel_eps)
+                if solved is not None:
+                    break
             at = modes - plain if modes >= plain else modes
             # 0 stick, 1 Lam_t = -mu Lam_n, 2 +; each cone's digits in its order (its own mode first)
             slips_ = [orders[c][(at // 3**c) % 3] for c in range(len(cones))]
@@ -207,10 +213,15 @@ class ImpulseLaw:
                 math.nan,
                 f"impulse law: no solution on {n} contacts (dependent normals?)",
             )
+        if solved is not None:
+            lam, tight_set, sliding = solved
+            mask = sum(1 << i for i in tight_set)
+            slides = [int(iso[0] in sliding) for iso in isos]
+            left, least, weighted, line, slide_t = set(), False, True, False, []
         self.least_splits += least
         # the tangent carries a plain least split (sensitivity_held._least_tangent), not a second one, one
-        # beside a slide or a slide along a line (_law_tangent)
-        why = "friction at an impact" if least and (slide_t or weighted) or line else ""
+        # beside a slide or a slide along a line (_law_tangent), nor the projected Gauss-Seidel's
+        why = "friction at an impact" if least and (slide_t or weighted) or line or solved is not None else ""
         lam_full = np.zeros(k.r)
         lam_full[rows] = lam
         dropped = [r for i, r in enumerate(rows) if not mask >> i & 1 and i not in sliding]
@@ -517,6 +528,46 @@ class ImpulseLaw:
             fitted = fit(g, lam, tight, blocks, [i for i in tight if free[i] and i not in inner], lam_eps)
             lam = lam if fitted is None else fitted
         return lam, True
+
+    @staticmethod
+    def _law_pgs(w, b, tgts, free, isos, cones, strict, lam_eps, vel_eps):
+        """The law's complementarity problem by projected block Gauss-Seidel (:func:`vcigen.law_pgs.pgs`),
+        where every frictional contact of the law is an isotropic cone with one normal row (no one-tangent
+        cone, no strict one): ``(lam, tight, sliding)`` where its result meets the law's conditions (each
+        normal row's impulse >= 0 and its velocity at its target where it pushes, above it where not; each
+        cone sticking inside it or sliding on its edge against its velocity after; the other rows at their
+        targets; no kinetic energy added, :func:`_gains`) to ``100 EPS_LAM``; else None."""
+        if cones or strict or any(len(iso[2]) != 1 for iso in isos):
+            return None
+        blocks = [(iso[2][0], iso[0], iso[1], iso[3]) for iso in isos]
+        inner = {x for block in blocks for x in block[:3]}
+        normals = [i for i in range(len(b)) if free[i] and i not in inner]
+        equal = [i for i in range(len(b)) if not free[i] and i not in inner]
+        lam = pgs(w, b, blocks, normals, equal)
+        if lam is None:
+            return None
+        gap = w @ lam - b
+        tl, tv = 100.0 * lam_eps, 100.0 * vel_eps
+        tight, sliding = [], set()
+        for i in [*normals, *(n for n, *_ in blocks)]:
+            if lam[i] < -tl or gap[i] < -tv or (lam[i] > tl and gap[i] > tv):
+                return None
+            tight += [i] if gap[i] <= tv else []
+        if any(abs(gap[i]) > tv for i in equal):
+            return None
+        tight += equal
+        for n, i, o, mu in blocks:
+            room, t, u = mu * lam[n], math.hypot(lam[i], lam[o]), math.hypot(gap[i], gap[o])
+            against = lam[i] * gap[i] + lam[o] * gap[o] <= -(1.0 - 1e-9) * t * u
+            if u <= tv and t <= room + tl:
+                tight += [i, o]  # sticking
+            elif abs(t - room) <= tl and against:
+                sliding |= {i, o}  # on its edge, against its sliding after (none: no normal impulse)
+            else:
+                return None
+        if _gains(lam, b, gap, tgts):
+            return None
+        return lam, sorted(tight), sliding
 
     def _law_strict(self, strict, rows, lam, lam_eps) -> str:
         """The first held isotropic cone (:meth:`_law_cones`) whose stick impulse leaves its cone: the error's

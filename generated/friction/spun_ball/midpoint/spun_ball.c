@@ -1279,7 +1279,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define SPUN_BALL_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define SPUN_BALL_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define SPUN_BALL_SLIDE_SWEEPS 5000 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define SPUN_BALL_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define SPUN_BALL_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1296,6 +1296,8 @@ static const int spun_ball_row_free[SPUN_BALL_R_DIM] = { 0, 1, 1, };
 #define SPUN_BALL_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 #define SPUN_BALL_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
 #define SPUN_BALL_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
+#define SPUN_BALL_PGS_SWEEPS 5000 /* law_pgs.PGS_SWEEPS: projected Gauss-Seidel sweeps of the impulse law */
+#define SPUN_BALL_PGS_TOL 1e-15 /* law_pgs.PGS_TOL: its impulses settled (relative to 1 + max |Lam|) */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int spun_ball_fric_contact[SPUN_BALL_NF] = { 0, 0, };
 static const int spun_ball_stick_row[SPUN_BALL_NF] = { 1, 2, };
@@ -3422,6 +3424,156 @@ static int spun_ball_law_least(const spun_ball_ctx_t *c, const double *grad, con
     return 1;
 }
 
+/* law_pgs.pgs and ImpulseLaw._law_pgs: the impulse law's complementarity problem by projected block Gauss-Seidel,
+ * where every frictional contact of the law is an isotropic cone with one normal row (n_cones = n_strict = 0): each
+ * cone's block (its normal row, its two stick rows) solved exactly with the others' impulses fixed (sticking inside
+ * it, none where its normal impulse would be <= 0, else Coulomb's sliding impulse: cone_slide on the Schur
+ * complement on its stick rows), then the other rows of one sign (projected) and the rest (at their targets), from
+ * 0, until no impulse moves by PGS_TOL (1 + max |Lam|) in PGS_SWEEPS. Returns 1 with lam, tight and sliding (per
+ * index in rows) where the result meets the law's conditions to 100 EPS_LAM (each normal row's impulse >= 0 and
+ * its velocity at its target where it pushes, above it where not; each cone sticking inside it or sliding on its
+ * edge against its velocity after; the other rows at their targets; no kinetic energy added, impulse_law._gains);
+ * else 0. */
+static int spun_ball_law_pgs(const spun_ball_ctx_t *c, const int *rows, int nr, const double *w, const double *b,
+    const double *tgt, const int *iso_i, const int *iso_o, const int *iso_f, int n_iso, double lam_eps,
+    double vel_eps, double *lam, int *tight, int *sliding)
+{
+    double wc[9], a3[9], r[3], st[3], bn2[2], g2[2], h4[4], gap[SPUN_BALL_R_DIM], m1, m2, an, s1, s2, moved, x;
+    double tl = 100.0 * lam_eps, tv = 100.0 * vel_eps, room, t, u, gain = 0.0, scale = 0.0, before, after, big;
+    int bn[SPUN_BALL_NF_DIM], inner[SPUN_BALL_R_DIM], ix[3], piv[3], i, k, l, sweep, count, pass, settled = 0;
+    for (k = 0; k < nr; ++k) {
+        inner[k] = 0;
+        lam[k] = 0.0;
+        tight[k] = 0;
+        sliding[k] = 0;
+    }
+    for (i = 0; i < n_iso; ++i) { /* each cone's one normal row */
+        for (k = 0, count = 0; k < nr; ++k) {
+            if (spun_ball_row_contact[rows[k]] == spun_ball_fric_contact[iso_f[i]]) {
+                bn[i] = k;
+                ++count;
+            }
+        }
+        if (count != 1) {
+            return 0;
+        }
+        inner[bn[i]] = inner[iso_i[i]] = inner[iso_o[i]] = 1;
+    }
+    for (sweep = 0; sweep < SPUN_BALL_PGS_SWEEPS && !settled; ++sweep) {
+        moved = 0.0;
+        for (i = 0; i < n_iso; ++i) {
+            ix[0] = bn[i];
+            ix[1] = iso_i[i];
+            ix[2] = iso_o[i];
+            for (k = 0; k < 3; ++k) {
+                for (l = 0; l < 3; ++l) {
+                    wc[k * 3 + l] = a3[k * 3 + l] = w[ix[k] * nr + ix[l]];
+                }
+            }
+            for (k = 0; k < 3; ++k) { /* its rows' g.qdot+ - target with its own impulses 0 */
+                for (l = 0, s1 = 0.0; l < nr; ++l) {
+                    s1 += w[ix[k] * nr + l] * lam[l];
+                }
+                for (l = 0, s2 = 0.0; l < 3; ++l) {
+                    s2 += wc[k * 3 + l] * lam[ix[l]];
+                }
+                r[k] = s1 - s2 - b[ix[k]];
+                st[k] = -r[k];
+            }
+            if (!spun_ball_lu(3, a3, piv)) {
+                return 0;
+            }
+            spun_ball_lu_solve(3, a3, piv, st);
+            if (!(st[0] >= 0.0 && hypot(st[1], st[2]) <= c->mu_f[iso_f[i]] * st[0])) { /* not a stick */
+                an = -r[0] / wc[0];
+                if (!(an > 0.0)) {
+                    st[0] = st[1] = st[2] = 0.0;
+                } else {
+                    bn2[0] = wc[1] / wc[0];
+                    bn2[1] = wc[2] / wc[0];
+                    g2[0] = r[1] + wc[3] * an;
+                    g2[1] = r[2] + wc[6] * an;
+                    h4[0] = wc[4] - wc[3] * bn2[0];
+                    h4[1] = wc[5] - wc[3] * bn2[1];
+                    h4[2] = wc[7] - wc[6] * bn2[0];
+                    h4[3] = wc[8] - wc[6] * bn2[1];
+                    if (!spun_ball_cone_slide(g2, h4, bn2, c->mu_f[iso_f[i]], an, &m1, &m2)) {
+                        return 0;
+                    }
+                    st[0] = an - (bn2[0] * m1 + bn2[1] * m2);
+                    st[1] = m1;
+                    st[2] = m2;
+                }
+            }
+            for (k = 0; k < 3; ++k) {
+                moved = fmax(moved, fabs(st[k] - lam[ix[k]]));
+                lam[ix[k]] = st[k];
+            }
+        }
+        for (pass = 0; pass < 2; ++pass) { /* the other rows of one sign (projected), then the rest */
+            for (k = 0; k < nr; ++k) {
+                if (inner[k] || (spun_ball_row_free[rows[k]] != 0) != (pass == 1)) {
+                    continue;
+                }
+                for (l = 0, s1 = 0.0; l < nr; ++l) {
+                    s1 += w[k * nr + l] * lam[l];
+                }
+                x = lam[k] - (s1 - b[k]) / w[k * nr + k];
+                x = pass == 0 && x < 0.0 ? 0.0 : x;
+                moved = fmax(moved, fabs(x - lam[k]));
+                lam[k] = x;
+            }
+        }
+        for (k = 0, big = 0.0; k < nr; ++k) {
+            big = fmax(big, fabs(lam[k]));
+        }
+        settled = moved <= SPUN_BALL_PGS_TOL * (1.0 + big);
+    }
+    if (!settled) {
+        return 0;
+    }
+    for (k = 0; k < nr; ++k) { /* the law's conditions */
+        for (l = 0, s1 = 0.0; l < nr; ++l) {
+            s1 += w[k * nr + l] * lam[l];
+        }
+        gap[k] = s1 - b[k];
+    }
+    for (k = 0; k < nr; ++k) {
+        if (spun_ball_row_free[rows[k]] && !inner[k]) { /* at its target */
+            if (fabs(gap[k]) > tv) {
+                return 0;
+            }
+            tight[k] = 1;
+        } else if (!spun_ball_row_free[rows[k]]) { /* of one sign (a cone's normal row too) */
+            if (lam[k] < -tl || gap[k] < -tv || (lam[k] > tl && gap[k] > tv)) {
+                return 0;
+            }
+            tight[k] = gap[k] <= tv;
+        }
+    }
+    for (i = 0; i < n_iso; ++i) {
+        room = c->mu_f[iso_f[i]] * lam[bn[i]];
+        t = hypot(lam[iso_i[i]], lam[iso_o[i]]);
+        u = hypot(gap[iso_i[i]], gap[iso_o[i]]);
+        if (u <= tv && t <= room + tl) { /* sticking */
+            tight[iso_i[i]] = tight[iso_o[i]] = 1;
+        } else if (fabs(t - room) <= tl
+            && lam[iso_i[i]] * gap[iso_i[i]] + lam[iso_o[i]] * gap[iso_o[i]] <= -(1.0 - 1e-9) * t * u) {
+            sliding[iso_i[i]] = sliding[iso_o[i]] = 1; /* on its edge, against its sliding after */
+        } else {
+            return 0;
+        }
+    }
+    for (k = 0; k < nr; ++k) { /* impulse_law._gains */
+        before = tgt[rows[k]] - b[k];
+        after = tgt[rows[k]] + gap[k];
+        gain += lam[k] * (before + after);
+        scale += fabs(lam[k]) * (fabs(before) + fabs(after));
+    }
+    return !(gain / 2.0 > SPUN_BALL_EPS_LAM * scale);
+}
+
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -3456,6 +3608,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     int iso_i[SPUN_BALL_NF_DIM], iso_o[SPUN_BALL_NF_DIM], iso_f[SPUN_BALL_NF_DIM], iso_on[SPUN_BALL_NF_DIM];
     int slide_on[SPUN_BALL_NF_DIM], sl_i[SPUN_BALL_NF_DIM], sl_o[SPUN_BALL_NF_DIM], sl_f[SPUN_BALL_NF_DIM];
     int st_i[SPUN_BALL_NF_DIM], st_o[SPUN_BALL_NF_DIM], st_f[SPUN_BALL_NF_DIM], n_st = 0;
+    int pg_tight[SPUN_BALL_R_DIM], pg_sliding[SPUN_BALL_R_DIM], pgs = 0, any_loose = 0; /* law_pgs */
     int left[SPUN_BALL_R_DIM] = {0}; /* the rows of loose landing cones left out (no friction impulse) */
     int iso_d[SPUN_BALL_NF_DIM], n_iso = 0, n_base, n_plain, n_slide, settled, upper, joint = 0, least = 0, line = 0,
         weighted = 0;
@@ -3518,7 +3671,27 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
         n_modes *= loose[iso_f[k]] ? 3 : 2;
     }
     n_modes += n_plain;
+    for (k = 0; k < SPUN_BALL_NF; ++k) {
+        any_loose = any_loose || loose[k];
+    }
     for (modes = 0; modes < n_modes && !found; ++modes) {
+        if (modes == n_plain && any_loose && n_cones == 0 && n_strict == 0
+            && spun_ball_law_pgs(c, rows, nr, w, b, tgt, iso_i, iso_o, iso_f, n_iso, lam_eps, vel_eps, lam, pg_tight,
+                pg_sliding)) { /* before a landing cone is left out: the whole problem at once */
+            pgs = found = 1;
+            for (k = 0; k < nr; ++k) {
+                lam_full[rows[k]] = lam[k];
+                dropped[rows[k]] = !pg_tight[k] && !pg_sliding[k];
+                slipped[rows[k]] = pg_sliding[k];
+                left[k] = 0;
+            }
+            for (i = 0; i < n_iso; ++i) {
+                slide_on[i] = pg_sliding[iso_i[i]];
+            }
+            least = line = n_st = 0;
+            weighted = 1;
+            break;
+        }
         at = modes >= n_plain ? modes - n_plain : modes;
         n_slide = 0; /* the isotropic cones' digits, after all the one-tangent ones': 0 stick, 1 slip, own first; */
         joint = rough = 0; /* a loose landing cone's: 0 slide, 1 stick (rows dependent: least_split), 2 left out */
@@ -3716,7 +3889,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     }
     c->sus->least_splits += least;
     /* the tangent carries a plain least split (sens_least), not a second one, one beside a slide or a slide along a line */
-    c->sus->law_why = (least && (n_st > 0 || weighted)) || line;
+    c->sus->law_why = (least && (n_st > 0 || weighted)) || line || pgs;
     for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: README, Known limits */
         if (left[iso_i[i]]) {
             land[iso_f[i]] = -1;

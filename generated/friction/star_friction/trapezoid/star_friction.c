@@ -1388,7 +1388,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_EPS_LAM 1e-14 /* sustained.EPS_LAM: |Lam| below this (relative to 1 + |p|) is zero */
 #define STAR_FRICTION_EPS_LIFT 1e-12 /* held_roots.EPS_LIFT: a held force below -EPS_LIFT (1 + max |f|) lifts off */
 #define STAR_FRICTION_MAX_LAW_ROWS 12 /* sustained.MAX_LAW_ROWS: rows one impulse law may involve */
-#define STAR_FRICTION_SLIDE_SWEEPS 5000 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
+#define STAR_FRICTION_SLIDE_SWEEPS 500 /* held_roots.SLIDE_SWEEPS: Gauss-Seidel sweeps of cones slipping at once */
 #define STAR_FRICTION_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define STAR_FRICTION_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
@@ -1405,6 +1405,8 @@ static const int star_friction_row_free[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, 1, 
 #define STAR_FRICTION_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 #define STAR_FRICTION_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
 #define STAR_FRICTION_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
+#define STAR_FRICTION_PGS_SWEEPS 5000 /* law_pgs.PGS_SWEEPS: projected Gauss-Seidel sweeps of the impulse law */
+#define STAR_FRICTION_PGS_TOL 1e-15 /* law_pgs.PGS_TOL: its impulses settled (relative to 1 + max |Lam|) */
 /* Each frictional contact's contact and stick row (vcigen.rows). */
 static const int star_friction_fric_contact[STAR_FRICTION_NF] = { 0, };
 static const int star_friction_stick_row[STAR_FRICTION_NF] = { 4, };
