@@ -33,6 +33,7 @@ from .errors import SolverError
 from .friction_modes import FrictionModes
 from .held_impacts import HeldImpacts
 from .held_roots import (
+    BOUNCE_CYCLES,
     DEP_EPS,
     EPS_LAM,
     EPS_LIFT,
@@ -224,6 +225,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
+        bounces: dict[int, int] = {}  # impacts of each row in this step's chain (BOUNCE_CYCLES: then held)
         self._stuck_on.clear()
         self._jammed = False
         while True:
@@ -346,8 +348,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._sw_check(events[r0][0], r0, before)
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
-            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, hit & set(group))
+            again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
+            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again)
             hit |= set(group)
+            for r in group:
+                bounces[r] = bounces.get(r, 0) + 1
             for r in [r for r in group if r in relands and self.act[r]]:  # lifted off, landed again, held
                 relands[r] += 1
                 if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:

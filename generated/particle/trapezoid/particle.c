@@ -1120,6 +1120,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define PARTICLE_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define PARTICLE_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define PARTICLE_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
@@ -2057,6 +2058,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PARTICLE_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[PARTICLE_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[PARTICLE_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         particle_at(c, t);
@@ -2178,11 +2181,15 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
                 group[n_group++] = r;
             }
         }
-        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < PARTICLE_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= PARTICLE_BOUNCE_CYCLES;
+        }
+        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }

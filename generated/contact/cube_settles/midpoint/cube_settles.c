@@ -1896,6 +1896,7 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define CUBE_SETTLES_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define CUBE_SETTLES_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int cube_settles_row_contact[CUBE_SETTLES_R_DIM] = { 0, 1, 2, 3, };
@@ -2834,6 +2835,8 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     int ev[CUBE_SETTLES_R_DIM], group[CUBE_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[CUBE_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[CUBE_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[CUBE_SETTLES_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[CUBE_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         cube_settles_at(c, t);
@@ -2955,11 +2958,15 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
                 group[n_group++] = r;
             }
         }
-        if (cube_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < CUBE_SETTLES_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= CUBE_SETTLES_BOUNCE_CYCLES;
+        }
+        if (cube_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }

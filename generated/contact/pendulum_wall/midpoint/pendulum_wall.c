@@ -1345,6 +1345,7 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define PENDULUM_WALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define PENDULUM_WALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define PENDULUM_WALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };
@@ -2282,6 +2283,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[PENDULUM_WALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[PENDULUM_WALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         pendulum_wall_at(c, t);
@@ -2403,11 +2406,15 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
                 group[n_group++] = r;
             }
         }
-        if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < PENDULUM_WALL_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= PENDULUM_WALL_BOUNCE_CYCLES;
+        }
+        if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }

@@ -1397,6 +1397,7 @@ static inline int star_settles_held(const star_settles_sustain_t *sus)
 #define STAR_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define STAR_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define STAR_SETTLES_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define STAR_SETTLES_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_settles_row_contact[STAR_SETTLES_R_DIM] = { 0, 0, 0, 0, };
@@ -2334,6 +2335,8 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     int ev[STAR_SETTLES_R_DIM], group[STAR_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[STAR_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[STAR_SETTLES_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[STAR_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         star_settles_at(c, t);
@@ -2455,11 +2458,15 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
                 group[n_group++] = r;
             }
         }
-        if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < STAR_SETTLES_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= STAR_SETTLES_BOUNCE_CYCLES;
+        }
+        if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }

@@ -937,6 +937,7 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define IMPACT_OSCILLATOR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define IMPACT_OSCILLATOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int impact_oscillator_row_contact[IMPACT_OSCILLATOR_R_DIM] = { 0, };
@@ -1877,6 +1878,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[IMPACT_OSCILLATOR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         impact_oscillator_at(c, t);
@@ -1999,11 +2002,15 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
                 group[n_group++] = r;
             }
         }
-        if (impact_oscillator_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= IMPACT_OSCILLATOR_BOUNCE_CYCLES;
+        }
+        if (impact_oscillator_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }

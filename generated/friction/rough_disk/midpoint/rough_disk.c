@@ -1197,6 +1197,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define ROUGH_DISK_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define ROUGH_DISK_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int rough_disk_row_contact[ROUGH_DISK_R_DIM] = { 0, -1, };
@@ -2758,6 +2759,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[ROUGH_DISK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
     int stuck[ROUGH_DISK_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
@@ -2992,11 +2995,15 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 group[n_group++] = r;
             }
         }
-        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < ROUGH_DISK_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= ROUGH_DISK_BOUNCE_CYCLES;
+        }
+        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= ROUGH_DISK_JAM_CYCLES && !c->sus->jammed) {
                 rough_disk_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */

@@ -1285,6 +1285,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define SPUN_BALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define SPUN_BALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -4386,6 +4387,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[SPUN_BALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[SPUN_BALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int slid[SPUN_BALL_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
     int stuck[SPUN_BALL_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
@@ -4628,11 +4631,15 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 group[n_group++] = r;
             }
         }
-        if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < SPUN_BALL_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= SPUN_BALL_BOUNCE_CYCLES;
+        }
+        if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= SPUN_BALL_JAM_CYCLES && !c->sus->jammed) {
                 spun_ball_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */

@@ -1391,6 +1391,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define STAR_FRICTION_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define STAR_FRICTION_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define STAR_FRICTION_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_friction_row_contact[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, -1, };
@@ -2961,6 +2962,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[STAR_FRICTION_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[STAR_FRICTION_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int slid[STAR_FRICTION_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
     int stuck[STAR_FRICTION_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
@@ -3195,11 +3198,15 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 group[n_group++] = r;
             }
         }
-        if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < STAR_FRICTION_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= STAR_FRICTION_BOUNCE_CYCLES;
+        }
+        if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= STAR_FRICTION_JAM_CYCLES && !c->sus->jammed) {
                 star_friction_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */

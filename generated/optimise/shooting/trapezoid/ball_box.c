@@ -1331,6 +1331,7 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BALL_BOX_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define BALL_BOX_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define BALL_BOX_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_box_row_contact[BALL_BOX_R_DIM] = { 0, 1, 2, 3, };
@@ -2268,6 +2269,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_BOX_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[BALL_BOX_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[BALL_BOX_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         ball_box_at(c, t);
@@ -2389,11 +2392,15 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 group[n_group++] = r;
             }
         }
-        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < BALL_BOX_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= BALL_BOX_BOUNCE_CYCLES;
+        }
+        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }

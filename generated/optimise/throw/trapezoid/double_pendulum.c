@@ -1532,6 +1532,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define DOUBLE_PENDULUM_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define DOUBLE_PENDULUM_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -2470,6 +2471,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group;
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int bounces[DOUBLE_PENDULUM_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int again[DOUBLE_PENDULUM_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         double_pendulum_at(c, t);
@@ -2591,11 +2594,15 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                 group[n_group++] = r;
             }
         }
-        if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit)) {
+        for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
+            again[r] = hit[r] || bounces[r] >= DOUBLE_PENDULUM_BOUNCE_CYCLES;
+        }
+        if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
+            ++bounces[group[g]];
         }
     }
 }
