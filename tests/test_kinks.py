@@ -33,3 +33,20 @@ def test_min_contact_box_corner_symmetric():
     assert res.n_impacts == 1
     np.testing.assert_allclose(res.p[-1], [1.0, 1.0], atol=1e-12)
     np.testing.assert_allclose(res.q[-1], [0.5, 0.5], atol=1e-12)
+
+
+@pytest.mark.parametrize("backend", ["casadi", "c"])
+def test_the_elastic_stars_next_vertex_right_after_an_impact_is_its_own_impact(backend):
+    """The paper's star (``examples/star.py``'s run) from its state at t = 437.675 on CasADi: after an impact
+    its next vertex (the same contact, another branch of eq. 81's ``Abs``) crosses within the first 1e-3 of
+    the segment. Stop 35's first rule for a contact crossing back at once (ffcd6a9) restarted that impact by
+    the continuous law whatever the impact; here the restarts repeated until "more than 64 impacts in one
+    step" (``make demo`` stopped at t = 437.705). The rule now holds only after an impact that left no normal
+    speed (``e = 0``); the elastic star takes each vertex's impact as before: elastic, ``E_d`` kept to 1e-12,
+    no continuous-law fallback."""
+    q0 = [-875.3499999993517, 0.7296517411073138, 65.83513659411634]
+    v0 = [-2.0, -7.415333416321096, 4.556252984208833]
+    res = simulator("star", "trapezoid", backend).simulate(q0=q0, v0=v0, h=0.005, t_end=0.3)
+    assert len(res.impacts) >= 2 and all(i.kind == "elastic" for i in res.impacts)
+    assert res.stats["jump_fallbacks"] == 0
+    assert all(abs(i.energy_after - i.energy_before) <= 1e-12 * abs(i.energy_before) for i in res.impacts)

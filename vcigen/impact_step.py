@@ -356,10 +356,9 @@ class ImpactSteps:
         lo, phi_lo = 0.0, k.contacts(seg.q)[0][j]
         if not first and j == seg.contact:  # leaving the contact just hit: step off the trivial root
             lo, phi_lo = self._leave(seg, j)
-            if phi_lo < 0.0 and self.tol.grazing == "contact" and k.r > 0:
+            if phi_lo < 0.0:  # crossed back at once after an impact that left it no normal speed: a restart
                 back = f"phi_{k.contact_names[j]} crossed back at once after its impact"
                 raise SolverError(step, t_k, phase, abs(phi_lo), back)
-            phi_lo = max(phi_lo, 0.0)  # without sustained contact the root at the start stands (as before)
         s0 = lo + (hi - lo) * float(np.clip(phi_lo / (phi_lo - g_hi), 0.0, 1.0))
         if first and k.explicit_path:  # the position is explicit in s: a safeguarded scalar root
             x, res = k.solve(name, self._path_root(seg, j, s0, hi), *self._args(seg))
@@ -429,18 +428,19 @@ class ImpactSteps:
 
     def _leave(self, seg: Seg, j: int):
         """After an impact on ``j``: ``(s, phi_j)`` at a small fraction ``s`` where ``phi_j > 0`` again,
-        else ``(0, 0)``; ``(0, phi_j < 0)`` where ``phi_j`` is already below ``-phi`` at the largest
-        fraction: ``j`` crossed back at once (a grazing impact that left it with no normal speed, ``e = 0``),
-        and the sub-solves at smaller fractions may take another root of (78), whose ``phi_j`` is not this
-        path's (a bracket on it ended 1e-8 deep and the run stopped: frictionless cube drop 988 of seed 21).
-        The caller (:meth:`_contact_root`) then raises, which :meth:`_impact_step` takes as (78) unsolvable:
-        a restart (without sustained contact, ``Tolerances.grazing`` not ``"contact"``, the root at the
-        start stands)."""
+        else ``(0, 0)``. After an impact with no outgoing normal speed (``seg.rest == 0``; sustained contact,
+        ``Tolerances.grazing == "contact"``), ``(0, phi_j < 0)`` where ``phi_j`` is already below ``-phi`` at
+        the largest fraction: ``j`` crossed back at once, and the sub-solves at smaller fractions may take
+        another root of (78), whose ``phi_j`` is not this path's (a bracket on it ended 1e-8 deep and the run
+        stopped: frictionless cube drop 988 of seed 21). The caller (:meth:`_contact_root`) then raises,
+        which :meth:`_impact_step` takes as (78) unsolvable: a restart. Elsewhere (an elastic star's next
+        vertex, the same contact) the smaller fractions are tried as before."""
+        back = seg.rest == 0.0 and self.tol.grazing == "contact" and self.k.r > 0
         for s in (1e-3, 1e-6, 1e-9):
             _, phi = self._sub_solve(seg, s, seg.x)
             if phi[j] > self.tol.phi:
                 return s, float(phi[j])
-            if phi[j] < -self.tol.phi and s == 1e-3:
+            if back and phi[j] < -self.tol.phi and s == 1e-3:
                 return 0.0, float(phi[j])
         return 0.0, 0.0
 

@@ -1006,10 +1006,10 @@ static void pendulum_wall_sub_solve(const pendulum_wall_ctx_t *c, const pendulum
     pendulum_wall_phi(q_end, c->par, phi);
 }
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0); (0, phi_j < 0) where
- * phi_j is below -phi at the largest fraction already (j crossed back at once; smaller fractions may take another
- * root of (78)): contact_root then fails, which impact_step takes as (78) unsolvable (a restart; without sustained
- * contact, Tolerances.grazing not "contact", the root at the start stands). */
+/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+ * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
+ * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
+ * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
 static void pendulum_wall_leave(const pendulum_wall_ctx_t *c, const pendulum_wall_seg_t *seg, int j, double *lo,
     double *phi_lo)
 {
@@ -1023,7 +1023,7 @@ static void pendulum_wall_leave(const pendulum_wall_ctx_t *c, const pendulum_wal
             *phi_lo = phi[j];
             return;
         }
-        if (phi[j] < -c->tol->phi && k == 0) {
+        if (phi[j] < -c->tol->phi && k == 0 && seg->rest == 0.0 && c->tol->grazing_contact) {
             *lo = 0.0;
             *phi_lo = phi[j];
             return;
@@ -1237,11 +1237,10 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         pendulum_wall_leave(c, seg, j, &lo, &phi_lo);
-        if (phi_lo < 0.0 && c->tol->grazing_contact) {
+        if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return pendulum_wall_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 pendulum_wall_contact_names[j]);
         }
-        phi_lo = phi_lo < 0.0 ? 0.0 : phi_lo; /* no restart here: the root at the start stands (as before) */
     }
     ratio = phi_lo / (phi_lo - g_hi);
     ratio = ratio < 0.0 ? 0.0 : (ratio > 1.0 ? 1.0 : ratio);

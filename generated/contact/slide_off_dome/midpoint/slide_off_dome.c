@@ -972,10 +972,10 @@ static void slide_off_dome_sub_solve(const slide_off_dome_ctx_t *c, const slide_
     slide_off_dome_phi(q_end, c->par, phi);
 }
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0); (0, phi_j < 0) where
- * phi_j is below -phi at the largest fraction already (j crossed back at once; smaller fractions may take another
- * root of (78)): contact_root then fails, which impact_step takes as (78) unsolvable (a restart; without sustained
- * contact, Tolerances.grazing not "contact", the root at the start stands). */
+/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+ * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
+ * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
+ * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
 static void slide_off_dome_leave(const slide_off_dome_ctx_t *c, const slide_off_dome_seg_t *seg, int j, double *lo,
     double *phi_lo)
 {
@@ -989,7 +989,7 @@ static void slide_off_dome_leave(const slide_off_dome_ctx_t *c, const slide_off_
             *phi_lo = phi[j];
             return;
         }
-        if (phi[j] < -c->tol->phi && k == 0) {
+        if (phi[j] < -c->tol->phi && k == 0 && seg->rest == 0.0 && c->tol->grazing_contact) {
             *lo = 0.0;
             *phi_lo = phi[j];
             return;
@@ -1203,11 +1203,10 @@ static int slide_off_dome_contact_root(const slide_off_dome_ctx_t *c, const slid
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         slide_off_dome_leave(c, seg, j, &lo, &phi_lo);
-        if (phi_lo < 0.0 && c->tol->grazing_contact) {
+        if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return slide_off_dome_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 slide_off_dome_contact_names[j]);
         }
-        phi_lo = phi_lo < 0.0 ? 0.0 : phi_lo; /* no restart here: the root at the start stands (as before) */
     }
     ratio = phi_lo / (phi_lo - g_hi);
     ratio = ratio < 0.0 ? 0.0 : (ratio > 1.0 ? 1.0 : ratio);

@@ -636,10 +636,10 @@ static void impact_oscillator_sub_solve(const impact_oscillator_ctx_t *c, const 
     impact_oscillator_phi(q_end, c->par, phi);
 }
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0); (0, phi_j < 0) where
- * phi_j is below -phi at the largest fraction already (j crossed back at once; smaller fractions may take another
- * root of (78)): contact_root then fails, which impact_step takes as (78) unsolvable (a restart; without sustained
- * contact, Tolerances.grazing not "contact", the root at the start stands). */
+/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+ * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
+ * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
+ * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
 static void impact_oscillator_leave(const impact_oscillator_ctx_t *c, const impact_oscillator_seg_t *seg, int j, double *lo,
     double *phi_lo)
 {
@@ -653,7 +653,7 @@ static void impact_oscillator_leave(const impact_oscillator_ctx_t *c, const impa
             *phi_lo = phi[j];
             return;
         }
-        if (phi[j] < -c->tol->phi && k == 0) {
+        if (phi[j] < -c->tol->phi && k == 0 && seg->rest == 0.0 && c->tol->grazing_contact) {
             *lo = 0.0;
             *phi_lo = phi[j];
             return;
@@ -829,11 +829,10 @@ static int impact_oscillator_contact_root(const impact_oscillator_ctx_t *c, cons
     phi_lo = phi[j];
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         impact_oscillator_leave(c, seg, j, &lo, &phi_lo);
-        if (phi_lo < 0.0 && c->tol->grazing_contact) {
+        if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return impact_oscillator_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 impact_oscillator_contact_names[j]);
         }
-        phi_lo = phi_lo < 0.0 ? 0.0 : phi_lo; /* no restart here: the root at the start stands (as before) */
     }
     ratio = phi_lo / (phi_lo - g_hi);
     ratio = ratio < 0.0 ? 0.0 : (ratio > 1.0 ? 1.0 : ratio);
