@@ -3425,6 +3425,22 @@ static int spun_ball_law_least(const spun_ball_ctx_t *c, const double *grad, con
     return 1;
 }
 
+/* impulse_law._gains: does the impulse lam (per index in rows; gap: g_r.qdot+ - target_r) add kinetic energy, above
+ * EPS_LAM of sum |lam| (|u-| + |u+|)? */
+static int spun_ball_law_gains(const int *rows, int nr, const double *tgt, const double *b, const double *gap,
+    const double *lam)
+{
+    double gain = 0.0, scale = 0.0, before, after;
+    int k;
+    for (k = 0; k < nr; ++k) {
+        before = tgt[rows[k]] - b[k];
+        after = tgt[rows[k]] + gap[k];
+        gain += lam[k] * (before + after);
+        scale += fabs(lam[k]) * (fabs(before) + fabs(after));
+    }
+    return gain / 2.0 > SPUN_BALL_EPS_LAM * scale;
+}
+
 /* law_pgs.pgs and ImpulseLaw._law_pgs: the impulse law's complementarity problem by projected block Gauss-Seidel,
  * where every frictional contact of the law is an isotropic cone with one normal row (n_cones = n_strict = 0): each
  * cone's block (its normal row, its two stick rows) solved exactly with the others' impulses fixed (sticking inside
@@ -3440,7 +3456,7 @@ static int spun_ball_law_pgs(const spun_ball_ctx_t *c, const int *rows, int nr, 
     double vel_eps, double *lam, int *tight, int *sliding)
 {
     double wc[9], a3[9], r[3], st[3], bn2[2], g2[2], h4[4], gap[SPUN_BALL_R_DIM], m1, m2, an, s1, s2, moved, x;
-    double tl = 100.0 * lam_eps, tv = 100.0 * vel_eps, room, t, u, gain = 0.0, scale = 0.0, before, after, big;
+    double tl = 100.0 * lam_eps, tv = 100.0 * vel_eps, room, t, u, big;
     int bn[SPUN_BALL_NF_DIM], inner[SPUN_BALL_R_DIM], ix[3], piv[3], i, k, l, sweep, count, pass, settled = 0;
     for (k = 0; k < nr; ++k) {
         inner[k] = 0;
@@ -3565,13 +3581,7 @@ static int spun_ball_law_pgs(const spun_ball_ctx_t *c, const int *rows, int nr, 
             return 0;
         }
     }
-    for (k = 0; k < nr; ++k) { /* impulse_law._gains */
-        before = tgt[rows[k]] - b[k];
-        after = tgt[rows[k]] + gap[k];
-        gain += lam[k] * (before + after);
-        scale += fabs(lam[k]) * (fabs(before) + fabs(after));
-    }
-    return !(gain / 2.0 > SPUN_BALL_EPS_LAM * scale);
+    return !spun_ball_law_gains(rows, nr, tgt, b, gap, lam);
 }
 
 
@@ -3864,15 +3874,8 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
                 out = out || why;
                 valid = !why;
             }
-            if (valid && rough) { /* impulse_law._gains: a loose cone's friction adding kinetic energy */
-                double gain = 0.0, scale = 0.0, before, after;
-                for (k = 0; k < nr; ++k) {
-                    before = tgt[rows[k]] - b[k];
-                    after = tgt[rows[k]] + gaps[k];
-                    gain += lam[k] * (before + after);
-                    scale += fabs(lam[k]) * (fabs(before) + fabs(after));
-                }
-                valid = !(gain / 2.0 > SPUN_BALL_EPS_LAM * scale);
+            if (valid && rough) { /* a loose cone's friction adding kinetic energy */
+                valid = !spun_ball_law_gains(rows, nr, tgt, b, gaps, lam);
             }
             if (valid) {
                 found = 1;
