@@ -33,9 +33,7 @@ BRAKE = 2.0  # cones sliding slower than BRAKE tau (friction's rate on them) are
 DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active rows' gradients is dependent
 STICK_CYCLES = 2  # slides from rest of one stick row in a step, each stopped at once, before it sticks on
 JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the held contacts stick (a jam)
-BOUNCE_CYCLES = (
-    4  # impacts of one row in the held chain of a step before the next holds it (Zeno: a few a step)
-)
+BOUNCE_CYCLES = 4  # impacts of one row in a step's held chain before the next holds it (Zeno: a few)
 
 
 def span_add(basis: list, g) -> bool:

@@ -30,6 +30,15 @@ def _spanned(g, tight, normal) -> bool:
     return any(not span_add(basis, g[i]) for i in tight if normal[i])
 
 
+def _cone_blocks(isos) -> list[tuple[int, int, int, float]] | None:
+    """Each isotropic cone of ``isos`` (:meth:`ImpulseLaw._law_cones`) as ``(n, i, o, mu)``: its one normal
+    row and its two stick rows (indices in the law's rows); None where one has several normal rows (C
+    ``law_one_normal``)."""
+    if any(len(iso[2]) != 1 for iso in isos):
+        return None
+    return [(iso[2][0], iso[0], iso[1], iso[3]) for iso in isos]
+
+
 def _gains(lam, b, gap, tgts) -> bool:
     """Does the law's impulse ``lam`` raise the kinetic energy? ``dT = lam . (u- + u+) / 2``, ``u- = targets -
     b`` the rows' velocities before, ``u+ = targets + gap`` after (a function of ``G^T lam`` alone, whatever
@@ -519,11 +528,10 @@ class ImpulseLaw:
         for (i, o, *_), room in zip(isos, rooms):
             s[[i, o]] = math.sqrt(max(room, 0.0))
         lam = _least_split(g, w, b, tight, s)
-        sticks = [iso for iso, on in zip(isos, slides) if not on]
-        if lam is None or cones or any(len(iso[2]) != 1 for iso in sticks):
+        blocks = _cone_blocks([iso for iso, on in zip(isos, slides) if not on])
+        if lam is None or cones or blocks is None:
             return lam, True
-        if any(math.hypot(lam[i], lam[o]) > mu * lam[nm[0]] + lam_eps for i, o, nm, mu, _, _ in sticks):
-            blocks = [(nm[0], i, o, mu) for i, o, nm, mu, _, _ in sticks]
+        if any(math.hypot(lam[i], lam[o]) > mu * lam[n] + lam_eps for n, i, o, mu in blocks):
             inner = {x for block in blocks for x in block[:3]}
             fitted = fit(g, lam, tight, blocks, [i for i in tight if free[i] and i not in inner], lam_eps)
             lam = lam if fitted is None else fitted
@@ -537,9 +545,9 @@ class ImpulseLaw:
         normal row's impulse >= 0 and its velocity at its target where it pushes, above it where not; each
         cone sticking inside it or sliding on its edge against its velocity after; the other rows at their
         targets; no kinetic energy added, :func:`_gains`) to ``100 EPS_LAM``; else None."""
-        if cones or strict or any(len(iso[2]) != 1 for iso in isos):
+        blocks = _cone_blocks(isos)
+        if cones or strict or blocks is None:
             return None
-        blocks = [(iso[2][0], iso[0], iso[1], iso[3]) for iso in isos]
         inner = {x for block in blocks for x in block[:3]}
         normals = [i for i in range(len(b)) if free[i] and i not in inner]
         equal = [i for i in range(len(b)) if not free[i] and i not in inner]

@@ -3362,6 +3362,20 @@ static int spun_ball_cone_fit(const double *grad, const int *rows, int nr, const
     return 0;
 }
 
+/* The one normal row (index in rows) of isotropic cone f in the law's rows, or -1 where it has none or several
+ * (ImpulseLaw._law_least, _law_pgs: len(iso[2]) == 1). */
+static int spun_ball_law_one_normal(const int *rows, int nr, int f)
+{
+    int k, n = -1, count = 0;
+    for (k = 0; k < nr; ++k) {
+        if (spun_ball_row_contact[rows[k]] == spun_ball_fric_contact[f]) {
+            n = k;
+            ++count;
+        }
+    }
+    return count == 1 ? n : -1;
+}
+
 /* ImpulseLaw._law_least: the impulses lam of the impulse law on the dependent tight rows tight[0..nt), the isotropic
  * cones sticking but those with slide_on (their normal rows not tight: no impulse): the least split (least_split);
  * where it leaves a cone, a second one, each cone's stick rows weighted by the square root of its room; where that
@@ -3373,7 +3387,7 @@ static int spun_ball_law_least(const spun_ball_ctx_t *c, const double *grad, con
     const int *slide_on, int n_iso, int n_cones, double lam_eps, double *lam, int *weighted)
 {
     double room[SPUN_BALL_NF_DIM], sc[SPUN_BALL_R_DIM], bmu[SPUN_BALL_NF_DIM];
-    int bn[SPUN_BALL_NF_DIM], bi[SPUN_BALL_NF_DIM], bo[SPUN_BALL_NF_DIM], nb = 0, i, k, count, outside = 0;
+    int bn[SPUN_BALL_NF_DIM], bi[SPUN_BALL_NF_DIM], bo[SPUN_BALL_NF_DIM], nb = 0, i, k, outside = 0;
     *weighted = 0;
     if (!spun_ball_least_split(grad, rows, nr, w, b, 1, tight, nt, NULL, lam)) {
         return 0;
@@ -3402,13 +3416,8 @@ static int spun_ball_law_least(const spun_ball_ctx_t *c, const double *grad, con
         if (slide_on[i]) {
             continue;
         }
-        for (k = 0, count = 0; k < nr; ++k) {
-            if (spun_ball_row_contact[rows[k]] == spun_ball_fric_contact[iso_f[i]]) {
-                bn[nb] = k;
-                ++count;
-            }
-        }
-        if (count != 1) {
+        bn[nb] = spun_ball_law_one_normal(rows, nr, iso_f[i]);
+        if (bn[nb] < 0) {
             return 1;
         }
         bi[nb] = iso_i[i];
@@ -3456,7 +3465,7 @@ static int spun_ball_law_pgs(const spun_ball_ctx_t *c, const int *rows, int nr, 
 {
     double wc[9], a3[9], r[3], st[3], bn2[2], g2[2], h4[4], gap[SPUN_BALL_R_DIM], m1, m2, an, s1, s2, moved, x;
     double tl = 100.0 * lam_eps, tv = 100.0 * vel_eps, room, t, u, big;
-    int bn[SPUN_BALL_NF_DIM], inner[SPUN_BALL_R_DIM], ix[3], piv[3], i, k, l, sweep, count, pass, settled = 0;
+    int bn[SPUN_BALL_NF_DIM], inner[SPUN_BALL_R_DIM], ix[3], piv[3], i, k, l, sweep, pass, settled = 0;
     for (k = 0; k < nr; ++k) {
         inner[k] = 0;
         lam[k] = 0.0;
@@ -3464,13 +3473,8 @@ static int spun_ball_law_pgs(const spun_ball_ctx_t *c, const int *rows, int nr, 
         sliding[k] = 0;
     }
     for (i = 0; i < n_iso; ++i) { /* each cone's one normal row */
-        for (k = 0, count = 0; k < nr; ++k) {
-            if (spun_ball_row_contact[rows[k]] == spun_ball_fric_contact[iso_f[i]]) {
-                bn[i] = k;
-                ++count;
-            }
-        }
-        if (count != 1) {
+        bn[i] = spun_ball_law_one_normal(rows, nr, iso_f[i]);
+        if (bn[i] < 0) {
             return 0;
         }
         inner[bn[i]] = inner[iso_i[i]] = inner[iso_o[i]] = 1;
