@@ -47,13 +47,14 @@ def scene(rng: np.random.Generator, rough: bool) -> tuple[list, list, dict]:
     return q0, v0, params
 
 
+CUTS = ("loads_passed", "sticks_kept", "jams", "restitution_reduced")
+
+
 def drops(sim: vcigen.Simulator, n: int, seed: int, rough: bool) -> str:
     rng = np.random.default_rng(seed)
     errors: Counter = Counter()
     low, rise, rest, most, ok, dropped = 0.0, 0.0, 0, 0, 0, []
-    cut: Counter = (
-        Counter()
-    )  # runs whose cycles at one instant were cut (stats: loads_passed, sticks_kept, jams)
+    cut: Counter = Counter()  # runs with each of CUTS: cycles at one instant cut, restitution reduced
     start = time.perf_counter()
     for drop in range(n):
         q0, v0, params = scene(rng, rough)
@@ -68,7 +69,7 @@ def drops(sim: vcigen.Simulator, n: int, seed: int, rough: bool) -> str:
             continue
         ok += 1
         dropped += [drop] if res.stats["landing_friction_dropped"] > 0 else []
-        cut.update(key for key in ("loads_passed", "sticks_kept", "jams") if res.stats[key])
+        cut.update(key for key in CUTS if res.stats[key])
         heights = cube_settles.heights(res.q)
         low = min(low, float(heights.min()))
         rise = max([rise] + [(i.energy_after - i.energy_before) / abs(i.energy_before) for i in res.impacts])
@@ -83,9 +84,7 @@ def drops(sim: vcigen.Simulator, n: int, seed: int, rough: bool) -> str:
     if rough:
         listed = ", ".join(map(str, dropped[:20])) + (", ..." if len(dropped) > 20 else "")
         lines[0] += f"; runs with a landing's friction left out: {len(dropped)} (drops {listed})"
-    lines[0] += "; runs with " + ", ".join(
-        f"{key} > 0: {cut[key]}" for key in ("loads_passed", "sticks_kept", "jams")
-    )
+    lines[0] += "; runs with " + ", ".join(f"{key} > 0: {cut[key]}" for key in CUTS)
     lines += [f"  x{count}: {why}" for why, count in errors.most_common()]
     return "\n".join(lines)
 

@@ -1,5 +1,9 @@
 """Kinks of phi (Abs, Min, Max): the normal-cone centre at a kink (eq. 86)."""
 
+import sys
+from functools import cache
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -50,3 +54,32 @@ def test_the_elastic_stars_next_vertex_right_after_an_impact_is_its_own_impact(b
     assert len(res.impacts) >= 2 and all(i.kind == "elastic" for i in res.impacts)
     assert res.stats["jump_fallbacks"] == 0
     assert all(abs(i.energy_after - i.energy_before) <= 1e-12 * abs(i.energy_before) for i in res.impacts)
+
+
+@pytest.mark.parametrize("backend", ["casadi", "c"])
+@pytest.mark.parametrize("spin", [4.0, 5.0])
+def test_a_star_flat_on_a_face_and_spinning_bounces_off_its_one_vertex_going_in(backend, spin):
+    """``examples/contact/star_settles.py``'s star (``e = 0.5``) started flat on a face (``theta = 0``, a
+    kink of eq. 81: two vertices touch) spinning at ``w``: one vertex goes in at ``w L/2``, the other out.
+    Newton's law on that vertex at ``r = (-L/2, -L/2)``: impulse ``P = (1 + e) w L/2 / (1/m + (L/2)^2/I)``,
+    then ``vy = P/m``, ``w+ = w - (L/2) P/I``. Before stop 36 the jump (48) took the normal cone's centre
+    (86), whose normal speed (the mean of the two vertices', 0) made the impact plastic at ``w = 4``, and at
+    ``w = 5`` (the vertex pulled off: not pressed in) found the root ``mu = g h/2`` again and again: "more
+    than 64 impacts in one step"."""
+    sim = _star_settles(backend)
+    m, g, half, inertia, e, h = 1.0, 9.81, 0.5, 29 / 192, 0.5, 0.005
+    res = sim.simulate(q0=[0.0, 0.5, 0.0], v0=[0.0, 0.0, spin], h=h, t_end=0.2, params={"e": e})
+    first = res.impacts[0]
+    assert (first.step, first.t, first.kind) == (0, 0.0, "restitution")
+    impulse = (1 + e) * spin * half / (1 / m + half**2 / inertia)
+    assert res.p[1, 1] / m == pytest.approx(impulse / m - g * h, abs=1e-12)
+    assert res.p[1, 2] / inertia == pytest.approx(spin - half * impulse / inertia, abs=1e-12)
+    assert res.p[1, 0] == 0.0 and len(res.impacts) == 1
+
+
+@cache
+def _star_settles(backend: str) -> vcigen.Simulator:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "contact"))
+    import star_settles
+
+    return vcigen.build(star_settles.model(), backend=backend)

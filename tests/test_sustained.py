@@ -18,6 +18,7 @@ import pytest
 import sympy as sp
 from hard_scenes import BACKENDS, G, min_phi, parabola, simulator
 from scipy.integrate import solve_ivp
+from scipy.special import ellipk
 from test_hard_cases import GRAZING
 
 import vcigen
@@ -458,3 +459,27 @@ def test_sliding_round_a_frictionless_bowl_keeps_e_d_bounded_without_drift(backe
     assert coarse.active.all()
     assert np.ptp(coarse.energy) / ptp == pytest.approx(4.0, rel=0.1)
     assert _bowl_force_error(coarse) / force_error == pytest.approx(4.0, rel=0.1)
+
+
+@pytest.mark.parametrize("y0", [0.0, 1e-10])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_released_at_rest_on_the_bowls_rim_it_swings_as_a_pendulum_through_a_right_angle(backend, y0):
+    """Released at rest at the rim of the unit bowl, ``(1, y0)``: the wall is vertical there and gravity
+    along it (``phi'' = 0``, not pressed in), but the free fall leaves the bowl at fourth order, so it is held
+    from the start and slides as a pendulum of amplitude pi/2: at the bottom at ``T/4 = sqrt(r/g) K(1/2)``
+    (``K`` of parameter ``m = 1/2``), past it again at ``3T/4`` after the other rim, never released, no
+    impact; the times to O(h^2). Before stop 36 the start was not held and the free step crossed the wall at
+    once, again and again: "more than 64 impacts in one step" at step 0 (CasADi at ``y0 = 0``, C at
+    ``1e-10``, on ``r - |q|``)."""
+    quarter = math.sqrt(1 / G) * float(ellipk(0.5))
+    errs = []
+    for h in (0.004, 0.002):
+        res = sim("bowl", backend).simulate([1.0, y0], [0.0, 0.0], h, t_end=3 * quarter + 0.05)
+        assert res.active[:, 0].all() and not res.impacts and not res.liftoffs
+        x = res.q[:, 0]
+        down = np.flatnonzero((x[:-1] > 0) & (x[1:] <= 0))[0]
+        up = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))[0]
+        t_down = res.t[down] + h * x[down] / (x[down] - x[down + 1])
+        t_up = res.t[up] - h * x[up] / (x[up + 1] - x[up])
+        errs.append(max(abs(t_down - quarter), abs(t_up - 3 * quarter)))
+    assert errs[0] < 5e-5 and errs[0] / errs[1] == pytest.approx(4.0, rel=0.05), errs

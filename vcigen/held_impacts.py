@@ -9,8 +9,9 @@ import math
 
 import numpy as np
 
-from .held_roots import SLIDE_EPS, in_span
-from .impulse_law import ImpulseLaw
+from .errors import SolverError
+from .held_roots import RESTITUTION_BISECTIONS, SLIDE_EPS, in_span
+from .impulse_law import ImpulseLaw, law_gains
 from .result import Impact
 
 
@@ -111,9 +112,15 @@ class HeldImpacts(ImpulseLaw):
                 plastic.append(r)
             else:
                 targets[r] = -e * rate
+        counts = self.least_splits, self.friction_dropped
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
+        reduced = bool(targets) and bool(self._stick_rows) and self._law_raises(q, law)
+        if reduced:  # Newton's restitution with Coulomb's friction raising the kinetic energy
+            cut = self._reduced_restitution(step, t_k, q, p, v, group, targets, plastic, counts)
+            law, targets, plastic = cut
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands, law_why = law
         why = self._slip_at_impact(q, vel_p, slipped, slips, lands) or law_why
+        why = why or ("friction at an impact" if reduced else "")  # its fraction depends on the state
         if why:  # stick <-> slip at the impact (a mode change), a cone's sliding impulse, a split not carried
             self._sw_lose(why)
         else:  # the contacts slipping on or landing: their sliding impulse in Tracker.impulse
@@ -153,6 +160,35 @@ class HeldImpacts(ImpulseLaw):
                 kind,
             )
         return p_plus
+
+    def _law_raises(self, q, law) -> bool:
+        """Does the impulse law's result ``law`` (:meth:`_impulse_law`) raise the kinetic energy
+        (:func:`vcigen.impulse_law.law_gains`, on the rows at ``q`` as the law left their branches)?"""
+        return law_gains(self.k.rows(q, law[2])[1], law[1], law[2], law[3])
+
+    def _reduced_restitution(self, step, t_k, q, p, v, group, targets, plastic, counts):
+        """An impact whose Newton's restitution with Coulomb's friction raises the kinetic energy (a body
+        rocking onto a second vertex beside a held one; MATH.md *Friction*: energy never rises): the largest
+        fraction ``s`` of its targets whose law does not, by ``RESTITUTION_BISECTIONS`` bisections of ``[0,
+        1]`` (counted, ``res.stats["restitution_reduced"]``; README, Known limits: Friction); ``s = 0`` is the
+        plastic law, which cannot raise it, and holds the rows it stopped. ``counts``: the law's counters
+        before it (each trial is taken from them). Returns ``(law, targets, plastic)``."""
+        self.restitution_reduced += 1
+        lo, hi = 0.0, 1.0
+        for _ in range(RESTITUTION_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            self.least_splits, self.friction_dropped = counts
+            try:
+                trial = self._impulse_law(step, t_k, q, p, v, group, {r: mid * x for r, x in targets.items()})
+                lo, hi = (lo, mid) if self._law_raises(q, trial) else (mid, hi)
+            except SolverError:
+                hi = mid
+        self.least_splits, self.friction_dropped = counts
+        scaled = {r: lo * x for r, x in targets.items()} if lo > 0.0 else {}
+        law = self._impulse_law(step, t_k, q, p, v, group, scaled)
+        if not scaled:  # plastic: held, those it stopped
+            plastic = [r for r in group if r in plastic or law[1][r] > 0.0]
+        return law, scaled, plastic
 
     def _hold(self, grad, r: int) -> None:
         """Holds contact row ``r`` unless its gradient is in the span of the normal rows held (a box's fourth
@@ -223,13 +259,32 @@ class HeldImpacts(ImpulseLaw):
         rough = {k.frictional[f] for f in range(len(self._stick_rows)) if self._mu_f[f] > 0.0}
         return self.tol.grazing == "contact" and bool(rough & set(group))
 
+    def _kinked(self, q, v, p, j: int) -> bool:
+        """Does an impact of the free chain on contact ``j`` meet it at a kink whose touching rows
+        (:meth:`_touching`) move at different normal speeds, one of them in (a square flat on a face and
+        spinning: one vertex goes in, the other out)? The normal cone's centre (86) sees their mean speed, and
+        the jump (48) along it a wrong impact (none, or a plastic one); the impulse law on the rows
+        (:meth:`_rough_rest`) takes each vertex's Newton's law. Rows at one speed (a square dropped flat)
+        keep (86)."""
+        k = self.k
+        if self.tol.grazing != "contact" or sum(c == j for c in k.row_contact) < 2:
+            return False
+        rows = self._touching(q, v, [j])[0]
+        if len(rows) < 2:
+            return False
+        vel = self._velocity(q, v, p)
+        rates = k.rows(q, vel)[1][rows] @ vel
+        spread = float(rates.max() - rates.min())
+        return bool(rates.min() < 0.0 and spread > 1e-9 * (1.0 + float(np.abs(rates).max())))
+
     def _rough_rest(self, step, t_k, h, q, p, t, tau, v, rows, impacts, e_before, e_step):
-        """An impact of the free chain on several contacts at once, one with friction (:meth:`_rough`), as an
-        impact while held with none held (:meth:`_chain_impact`: Newton's law with each contact's restitution,
-        Coulomb's cone on the frictional ones as they land, the rows that settle held), then the rest of the
-        step from it (:meth:`_chain`: held, or free). The tangent broke at the contact (``"simultaneous
-        impact"``, ``Tracker.contact``); the impact itself runs without the events' tangent, as C's (its
-        ``hold`` is set after ``<model>_chain_impact``), so that it books no more breaks."""
+        """An impact of the free chain on several contacts at once, one with friction (:meth:`_rough`), or on
+        a kink's rows moving apart (:meth:`_kinked`), as an impact while held with none held
+        (:meth:`_chain_impact`: Newton's law with each contact's restitution, Coulomb's cone on the frictional
+        ones as they land, the rows that settle held), then the rest of the step from it (:meth:`_chain`:
+        held, or free). The tangent broke at the contact (``"simultaneous impact"``, ``Tracker.contact``; at
+        a kink, here); the impact itself runs without the events' tangent, as C's (its ``hold`` is set after
+        ``<model>_chain_impact``), so that it books no more breaks."""
         tan, self._ev_tan = self._ev_tan, None
         try:
             p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before)

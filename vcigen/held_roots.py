@@ -34,6 +34,7 @@ DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active ro
 STICK_CYCLES = 2  # slides from rest of one stick row in a step, each stopped at once, before it sticks on
 JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the held contacts stick (a jam)
 BOUNCE_CYCLES = 4  # impacts of one row in a step's held chain before the next holds it (Zeno: a few)
+RESTITUTION_BISECTIONS = 30  # halvings of the restitution kept where friction would raise the energy
 
 
 def span_add(basis: list, g) -> bool:

@@ -90,8 +90,11 @@ class ImpactSteps:
             t_c = seg.t + tau_c
             nrm, weights = self._normal(q_c, v_c, p_minus_c, group)
             seg = Seg(q=q_c, t=t_c, tau=seg.tau - tau_c, p_in=p_minus_c, e_in=e_in, nrm=nrm, contact=j, x=x)
-            if len(group) > 1 and self._rough(group):  # several contacts at once, one with friction: no (86)
+            kink = len(group) == 1 and self._kinked(q_c, v_c, p_minus_c, group[0])
+            if len(group) > 1 and self._rough(group) or kink:  # one with friction, or a kink's rows: no (86)
                 self._count_event(step, t_k)  # the tangent broke at the contact (simultaneous impact)
+                if kink and self._tan is not None:
+                    self._tan.lose("simultaneous impact")
                 rest = (step, t_k, h, q_c, p_minus_c, t_c, seg.tau, v_c, self._touching(q_c, v_c, group)[0])
                 return self._tangent_held(
                     q_c, p_minus_c, seg.tau, True, self._rough_rest, *rest, impacts, e_in, e_step

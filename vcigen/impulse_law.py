@@ -51,6 +51,16 @@ def _gains(lam, b, gap, tgts) -> bool:
     return gain > EPS_LAM * float(np.abs(lam) @ (np.abs(before) + np.abs(after)))
 
 
+def law_gains(grad, lam, vel_m, vel_p) -> bool:
+    """Does an impulse law's result (``Lam`` per row, velocities ``vel_m`` before and ``vel_p`` after) raise
+    the kinetic energy? ``dT = Lam . G (qdot- + qdot+) / 2`` over all rows, above ``EPS_LAM`` of ``sum |Lam|
+    (|u-| + |u+|)`` (:func:`_gains` on the whole law). Newton's restitution with Coulomb's friction can
+    (``SustainedSteps._chain_impact`` then takes the impact plastic); without friction it cannot."""
+    before, after = grad @ vel_m, grad @ vel_p
+    gain = float(lam @ (before + after)) / 2.0
+    return gain > EPS_LAM * float(np.abs(lam) @ (np.abs(before) + np.abs(after)))
+
+
 class ImpulseLaw:
     """The impulse law while rows are held (a base of :class:`vcigen.held_impacts.HeldImpacts`)."""
 

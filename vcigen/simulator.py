@@ -17,7 +17,14 @@ from .model import Model
 from .progress import Progress
 from .result import Result
 from .rules import Rule
-from .stepper import Stepper, Tolerances, warn_friction_dropped, warn_reflected, warn_sticks_kept
+from .stepper import (
+    Stepper,
+    Tolerances,
+    warn_friction_dropped,
+    warn_reflected,
+    warn_restitution_reduced,
+    warn_sticks_kept,
+)
 from .velocity import LegendreInverse
 from .work import friction_work, step_work
 
@@ -114,6 +121,7 @@ class Simulator:
         self._finish(res, mu_f, par)
         warn_reflected(res.stats.get("grazing_reflected", 0))
         warn_friction_dropped(res.stats.get("landing_friction_dropped", 0))
+        warn_restitution_reduced(res.stats.get("restitution_reduced", 0))
         warn_sticks_kept(res.stats.get("sticks_kept", 0), res.stats.get("jams", 0))
         return res
 

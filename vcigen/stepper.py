@@ -106,6 +106,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
         self.friction_dropped = 0  # landing contacts whose friction the impulse law left out (_law_lands)
+        self.restitution_reduced = 0  # impacts whose restitution was cut: with friction it raised the energy
         self.least_splits = 0  # impulse laws whose stick rows were dependent: the least split (_least_split)
         self._timed = bool(getattr(kernels, "timed", False))  # forces of time: kernels.at(t) per segment
         system = getattr(kernels, "system", None)
@@ -188,6 +189,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["liftoffs"] = len(self.liftoffs)
         res.stats["jump_fallbacks"] = self.fallbacks
         res.stats["landing_friction_dropped"] = self.friction_dropped
+        res.stats["restitution_reduced"] = self.restitution_reduced
         res.stats["least_splits"] = self.least_splits
         res.stats["loads_passed"] = self.passes
         res.stats["sticks_kept"] = self.sticks_kept
@@ -369,6 +371,20 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
             "(a box landing on rough vertices; sliding ones take Coulomb's impulse, sticking ones where "
             "that split fits the cones), so the landing's tangential impulse may be short (README, Known "
             "limits: Friction); the sustained friction after the landing is right",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
+
+
+def warn_restitution_reduced(count: int, stacklevel: int = 2) -> None:
+    """Say at how many impacts the restitution was reduced because Newton's restitution with Coulomb's
+    friction would have raised the kinetic energy (``res.stats["restitution_reduced"]``)."""
+    if count:
+        warnings.warn(
+            f"{count} impact(s) with friction took less restitution than their coefficient (the largest "
+            "fraction that adds no kinetic energy; none: plastic): Newton's restitution with Coulomb's "
+            "friction would have raised the kinetic energy there (a body rocking onto a second contact, a "
+            "spinning one landing), which the law refuses (README, Known limits: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

@@ -123,7 +123,14 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # whether cones were aimed implicitly in this step (_cone_brake)
 
     def _start_sustained(self, q0, v0, h: float) -> None:
-        """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in."""
+        """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in, or at
+        rest where the free path curves into them within the step (to second order: released at rest on a
+        bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall leaves the bowl at fourth
+        order; not held, it crossed the wall again and again at once). A rough contact (Coulomb's cone,
+        ``mu_f > 0``) moving in faster than ``Tolerances.admissible / h`` is not held: it takes its impact at
+        the start, with friction (held at once, the first held step would take its normal speed as a force,
+        and the friction with it); a frictionless one is held (the map stays smooth in ``v0`` for the
+        tangent)."""
         k = self.k
         self._init_sustained()
         if not k.r or self.tol.grazing != "contact":
@@ -131,10 +138,16 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         psi, grad, _ = k.rows(q0, v0)
         acc = self._accel(q0, v0, np.zeros(k.r))
         rates, accs = grad @ v0, self._row_accel(q0, v0, acc)
+        ahead = k.rows(q0 + h * v0 + 0.5 * h * h * acc, v0)[0]  # the free path's end, to second order
         for r in range(k.r):
             if k.row_bilateral[r] or k.row_stick[r] >= 0 or abs(psi[r]) > self.tol.admissible:
                 continue
-            if self._settles(rates[r], accs[r], 1.0, h):  # at rest to the resolution of the jump
+            at_rest = self._settles(rates[r], accs[r], 1.0, h) or (  # or curving in ahead of the free path
+                abs(rates[r]) <= self.tol.admissible / h and ahead[r] < -self.tol.phi
+            )
+            if at_rest and not (
+                rates[r] < -self.tol.admissible / h and self._rough([k.row_contact[r]])
+            ):  # at rest; a rough one moving in takes its (plastic) impact, with friction, at t = 0 first
                 self._hold(grad, r)
         self._friction_modes(q0, v0)
         self._held = bool(self.act.any())

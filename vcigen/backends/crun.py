@@ -338,6 +338,7 @@ class CRun:
         stats["liftoffs"] = liftoffs
         stats["jump_fallbacks"] = self.sus.fallbacks
         stats["landing_friction_dropped"] = self.sus.friction_dropped
+        stats["restitution_reduced"] = self.sus.restitution_reduced
         stats["least_splits"] = self.sus.least_splits
         stats["loads_passed"] = self.sus.passes
         stats["sticks_kept"] = self.sus.sticks_kept

@@ -88,6 +88,7 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("kinds", ctypes.c_long * 4),
             ("fallbacks", ctypes.c_long),
             ("friction_dropped", ctypes.c_long),
+            ("restitution_reduced", ctypes.c_long),
             ("least_splits", ctypes.c_long),
             ("passes", ctypes.c_long),
             ("sticks_kept", ctypes.c_long),

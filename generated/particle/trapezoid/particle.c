@@ -1120,6 +1120,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define PARTICLE_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define PARTICLE_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define PARTICLE_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
@@ -1967,6 +1968,38 @@ static void particle_touching(const particle_ctx_t *c, const double *q, const do
     }
 }
 
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int particle_kinked(const particle_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double vel[PARTICLE_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[PARTICLE_R_DIM], lowest[PARTICLE_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < PARTICLE_R; ++k) {
+        own += particle_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    particle_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    particle_velocity(c, q, v, p, vel);
+    particle_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < PARTICLE_N; ++i) {
+            rate += grad[rows[k] * PARTICLE_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
+}
+
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
  * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
  * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
@@ -2197,6 +2230,7 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
 {
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double zero[PARTICLE_R_DIM] = {0.0}, acc[PARTICLE_N], racc[PARTICLE_R_DIM], rate;
+    double q_t[PARTICLE_N], ahead[PARTICLE_R_DIM], grad_t[PARTICLE_R_DIM * PARTICLE_N], curv_t[PARTICLE_R_DIM];
     int i, r;
     for (r = 0; r < PARTICLE_R; ++r) {
         c->sus->act[r] = particle_row_constraint[r] >= 0;
@@ -2220,6 +2254,10 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
     particle_rows(q, v, c->par, psi, grad, curv);
     particle_accel(c, q, v, zero, acc);
     particle_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < PARTICLE_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    particle_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < PARTICLE_R; ++r) {
         if (particle_row_constraint[r] >= 0 || particle_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -2228,8 +2266,9 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
         for (i = 0; i < PARTICLE_N; ++i) {
             rate += grad[r * PARTICLE_N + i] * v[i];
         }
-        if (particle_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            particle_hold(c, grad, r);
+        if ((particle_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
+            particle_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
 }
@@ -2917,6 +2956,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
     particle_seg_t next;
     double rest[PARTICLE_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     particle_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -2999,6 +3039,29 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             next.x[i] = x_best[i];
         }
         *seg = next;
+        kink = n_group == 1 && particle_kinked(c, next.q, v_c, p_c, group[0]);
+        if (kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+            int rows[PARTICLE_R_DIM] = {0}, lowest[PARTICLE_R_DIM] = {0}, n_rows = 0;
+            if (particle_count_event(c)) {
+                return 1;
+            }
+            particle_touching(c, seg->q, v_c, group, n_group, rows, &n_rows, lowest);
+            for (i = 0; i < PARTICLE_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = seg->p_in[i];
+                v[i] = v_c[i];
+            }
+            if (particle_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+                return 1;
+            }
+            rc = particle_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            particle_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
         /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
          * loss of (39) with restitution; seg->e_in becomes the energy after). */
         elastic = 1;

@@ -96,6 +96,7 @@ typedef struct {
     long kinds[4];                     /* in/out: impacts elastic, restitution, plastic, grazing */
     long fallbacks;                    /* in/out: impacts re-resolved by the continuous law (no (78) root) */
     long friction_dropped;             /* in/out: landing contacts whose friction was left out (law_lands) */
+    long restitution_reduced;          /* in/out: impacts whose restitution was cut (with friction it raised energy) */
     long least_splits;                 /* in/out: impulse laws whose stick rows were dependent (least_split) */
     long passes;                       /* in/out: lift-offs whose load a riding row took (pass_load) */
     long sticks_kept;                  /* in/out: stick <-> slip cycles (STICK_CYCLES in a step) cut by sticking on */

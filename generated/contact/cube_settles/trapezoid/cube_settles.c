@@ -1903,6 +1903,7 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define CUBE_SETTLES_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define CUBE_SETTLES_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define CUBE_SETTLES_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int cube_settles_row_contact[CUBE_SETTLES_R_DIM] = { 0, 1, 2, 3, };
@@ -2751,6 +2752,38 @@ static void cube_settles_touching(const cube_settles_ctx_t *c, const double *q, 
     }
 }
 
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int cube_settles_kinked(const cube_settles_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
+    double vel[CUBE_SETTLES_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[CUBE_SETTLES_R_DIM], lowest[CUBE_SETTLES_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < CUBE_SETTLES_R; ++k) {
+        own += cube_settles_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    cube_settles_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    cube_settles_velocity(c, q, v, p, vel);
+    cube_settles_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            rate += grad[rows[k] * CUBE_SETTLES_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
+}
+
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
  * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
  * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
@@ -2981,6 +3014,7 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
 {
     double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
     double zero[CUBE_SETTLES_R_DIM] = {0.0}, acc[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], rate;
+    double q_t[CUBE_SETTLES_N], ahead[CUBE_SETTLES_R_DIM], grad_t[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv_t[CUBE_SETTLES_R_DIM];
     int i, r;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         c->sus->act[r] = cube_settles_row_constraint[r] >= 0;
@@ -3004,6 +3038,10 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
     cube_settles_rows(q, v, c->par, psi, grad, curv);
     cube_settles_accel(c, q, v, zero, acc);
     cube_settles_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < CUBE_SETTLES_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    cube_settles_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         if (cube_settles_row_constraint[r] >= 0 || cube_settles_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -3012,8 +3050,9 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             rate += grad[r * CUBE_SETTLES_N + i] * v[i];
         }
-        if (cube_settles_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            cube_settles_hold(c, grad, r);
+        if ((cube_settles_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
+            cube_settles_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
 }
@@ -3197,6 +3236,7 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
     cube_settles_seg_t next;
     double rest[CUBE_SETTLES_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[CUBE_SETTLES_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     cube_settles_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -3279,6 +3319,29 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
             next.x[i] = x_best[i];
         }
         *seg = next;
+        kink = n_group == 1 && cube_settles_kinked(c, next.q, v_c, p_c, group[0]);
+        if (kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+            int rows[CUBE_SETTLES_R_DIM] = {0}, lowest[CUBE_SETTLES_R_DIM] = {0}, n_rows = 0;
+            if (cube_settles_count_event(c)) {
+                return 1;
+            }
+            cube_settles_touching(c, seg->q, v_c, group, n_group, rows, &n_rows, lowest);
+            for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = seg->p_in[i];
+                v[i] = v_c[i];
+            }
+            if (cube_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+                return 1;
+            }
+            rc = cube_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            cube_settles_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
         /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
          * loss of (39) with restitution; seg->e_in becomes the energy after). */
         elastic = 1;

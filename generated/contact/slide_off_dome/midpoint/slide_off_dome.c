@@ -1316,6 +1316,7 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define SLIDE_OFF_DOME_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define SLIDE_OFF_DOME_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define SLIDE_OFF_DOME_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int slide_off_dome_row_contact[SLIDE_OFF_DOME_R_DIM] = { 0, };
@@ -2163,6 +2164,38 @@ static void slide_off_dome_touching(const slide_off_dome_ctx_t *c, const double 
     }
 }
 
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int slide_off_dome_kinked(const slide_off_dome_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
+    double vel[SLIDE_OFF_DOME_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[SLIDE_OFF_DOME_R_DIM], lowest[SLIDE_OFF_DOME_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < SLIDE_OFF_DOME_R; ++k) {
+        own += slide_off_dome_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    slide_off_dome_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    slide_off_dome_velocity(c, q, v, p, vel);
+    slide_off_dome_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            rate += grad[rows[k] * SLIDE_OFF_DOME_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
+}
+
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
  * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
  * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
@@ -2393,6 +2426,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
 {
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double zero[SLIDE_OFF_DOME_R_DIM] = {0.0}, acc[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], rate;
+    double q_t[SLIDE_OFF_DOME_N], ahead[SLIDE_OFF_DOME_R_DIM], grad_t[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv_t[SLIDE_OFF_DOME_R_DIM];
     int i, r;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         c->sus->act[r] = slide_off_dome_row_constraint[r] >= 0;
@@ -2416,6 +2450,10 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
     slide_off_dome_rows(q, v, c->par, psi, grad, curv);
     slide_off_dome_accel(c, q, v, zero, acc);
     slide_off_dome_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    slide_off_dome_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         if (slide_off_dome_row_constraint[r] >= 0 || slide_off_dome_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -2424,8 +2462,9 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             rate += grad[r * SLIDE_OFF_DOME_N + i] * v[i];
         }
-        if (slide_off_dome_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            slide_off_dome_hold(c, grad, r);
+        if ((slide_off_dome_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
+            slide_off_dome_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
 }
@@ -3462,6 +3501,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
     slide_off_dome_seg_t next;
     double rest[SLIDE_OFF_DOME_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[SLIDE_OFF_DOME_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     slide_off_dome_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -3544,6 +3584,29 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
             next.x[i] = x_best[i];
         }
         *seg = next;
+        kink = n_group == 1 && slide_off_dome_kinked(c, next.q, v_c, p_c, group[0]);
+        if (kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+            int rows[SLIDE_OFF_DOME_R_DIM] = {0}, lowest[SLIDE_OFF_DOME_R_DIM] = {0}, n_rows = 0;
+            if (slide_off_dome_count_event(c)) {
+                return 1;
+            }
+            slide_off_dome_touching(c, seg->q, v_c, group, n_group, rows, &n_rows, lowest);
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = seg->p_in[i];
+                v[i] = v_c[i];
+            }
+            if (slide_off_dome_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+                return 1;
+            }
+            rc = slide_off_dome_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            slide_off_dome_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
         /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
          * loss of (39) with restitution; seg->e_in becomes the energy after). */
         elastic = 1;

@@ -1118,6 +1118,7 @@ static inline int block_held(const block_sustain_t *sus)
 #define BLOCK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define BLOCK_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define BLOCK_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define BLOCK_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int block_row_contact[BLOCK_R_DIM] = { 0, -1, };
@@ -2439,6 +2440,73 @@ static void block_landed(const block_ctx_t *c, const int *land, const int *slipp
     }
 }
 
+/* impulse_law.law_gains: does an impulse law's result (Lam per row, velocities before and after) raise the kinetic
+ * energy? dT = Lam . G (qdot- + qdot+) / 2 over all rows, above EPS_LAM of sum |Lam| (|u-| + |u+|). */
+static int block_law_gains_all(const block_ctx_t *c, const double *q, const double *lam,
+    const double *vel_m, const double *vel_p)
+{
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
+    double before, after, gain = 0.0, scale = 0.0;
+    int r, i;
+    block_rows(q, vel_m, c->par, psi, grad, curv);
+    for (r = 0; r < BLOCK_R; ++r) {
+        before = 0.0;
+        after = 0.0;
+        for (i = 0; i < BLOCK_N; ++i) {
+            before += grad[r * BLOCK_N + i] * vel_m[i];
+            after += grad[r * BLOCK_N + i] * vel_p[i];
+        }
+        gain += lam[r] * (before + after);
+        scale += fabs(lam[r]) * (fabs(before) + fabs(after));
+    }
+    return gain / 2.0 > BLOCK_EPS_LAM * scale;
+}
+
+/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+ * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
+ * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
+ * outputs as impulse_law's; 1 if the last solve failed. */
+static int block_reduced_restitution(const block_ctx_t *c, const double *q, const double *p,
+    const double *v, const int *group, int n_group, double *tgt, int *plastic, const long *counts, double *p_plus,
+    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    double full[BLOCK_R_DIM], trial[BLOCK_R_DIM], lo = 0.0, hi = 1.0, mid;
+    int k, g;
+    ++c->sus->restitution_reduced;
+    for (k = 0; k < BLOCK_R; ++k) { /* every row's target (0 off the group), as the law reads them */
+        full[k] = tgt[k];
+        trial[k] = tgt[k];
+    }
+    for (k = 0; k < BLOCK_RESTITUTION_BISECTIONS; ++k) {
+        mid = 0.5 * (lo + hi);
+        c->sus->least_splits = counts[0];
+        c->sus->friction_dropped = counts[1];
+        for (g = 0; g < n_group; ++g) {
+            trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
+        }
+        if (block_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+                slip_own, slip_ride, land) || block_law_gains_all(c, q, lam, vel_m, vel_p)) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    for (g = 0; g < n_group; ++g) {
+        tgt[group[g]] = lo > 0.0 && !plastic[group[g]] ? lo * full[group[g]] : 0.0;
+    }
+    if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+            slip_ride, land)) {
+        return 1;
+    }
+    for (g = 0; g < n_group && !(lo > 0.0); ++g) { /* plastic: held, those it stopped */
+        plastic[group[g]] = plastic[group[g]] || lam[group[g]] > 0.0;
+    }
+    return 0;
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held. */
@@ -2451,6 +2519,8 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
     int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
+    long counts[2];
+    int reduced, why;
     block_at(c, t);
     block_restitution(c->par, rest);
     block_velocity(c, q, v, p, vel);
@@ -2476,11 +2546,24 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             tgt[r] = -e * rate;
         }
     }
+    counts[0] = c->sus->least_splits;
+    counts[1] = c->sus->friction_dropped;
     if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
     }
-    if (block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land)) { /* stick <-> slip: no tangent */
+    for (g = 0, any = 0; g < n_group; ++g) {
+        any = any || !plastic[group[g]];
+    }
+    reduced = any && block_law_gains_all(c, q, lam, vel_m, vel_p);
+    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+        if (block_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
+                vel_p, dropped, slipped, slip_own, slip_ride, land)) {
+            return 1;
+        }
+    }
+    why = block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land) ? 1 : 2 * reduced;
+    if (why) { /* stick <-> slip, or a restitution reduced: no tangent */
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = block_loss(c, q, vel_m, vel_p);
@@ -2574,6 +2657,38 @@ static void block_touching(const block_ctx_t *c, const double *q, const double *
             }
         }
     }
+}
+
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int block_kinked(const block_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
+    double vel[BLOCK_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[BLOCK_R_DIM], lowest[BLOCK_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < BLOCK_R; ++k) {
+        own += block_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    block_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    block_velocity(c, q, v, p, vel);
+    block_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < BLOCK_N; ++i) {
+            rate += grad[rows[k] * BLOCK_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
 }
 
 /* SustainedSteps._rough: does an impact of the free chain on the contacts group take the impulse law with Coulomb's
@@ -2937,6 +3052,7 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double zero[BLOCK_R_DIM] = {0.0}, acc[BLOCK_N], racc[BLOCK_R_DIM], rate;
+    double q_t[BLOCK_N], ahead[BLOCK_R_DIM], grad_t[BLOCK_R_DIM * BLOCK_N], curv_t[BLOCK_R_DIM];
     int i, r;
     for (r = 0; r < BLOCK_R; ++r) {
         c->sus->act[r] = block_row_constraint[r] >= 0;
@@ -2961,6 +3077,10 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
     block_rows(q, v, c->par, psi, grad, curv);
     block_accel(c, q, v, zero, acc);
     block_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < BLOCK_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    block_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < BLOCK_R; ++r) {
         if (block_row_constraint[r] >= 0 || block_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -2969,8 +3089,10 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
         for (i = 0; i < BLOCK_N; ++i) {
             rate += grad[r * BLOCK_N + i] * v[i];
         }
-        if (block_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            block_hold(c, grad, r);
+        if ((block_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
+            && !(rate < -c->tol->admissible / c->h && block_rough(c, &block_row_contact[r], 1))) {
+            block_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
     block_friction_modes(c, q, v, -1.0);
@@ -3260,6 +3382,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
     block_seg_t next;
     double rest[BLOCK_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[BLOCK_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     block_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -3342,10 +3465,11 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
             next.x[i] = x_best[i];
         }
         *seg = next;
-        if (n_group > 1 && block_rough(c, group, n_group)) {
-            /* several contacts at once, one with friction (SustainedSteps._rough_rest): an impact while held with none
-             * held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of the step (chain); the
-             * tangent broke at the contact (simultaneous impact) */
+        kink = n_group == 1 && block_kinked(c, next.q, v_c, p_c, group[0]);
+        if ((n_group > 1 && block_rough(c, group, n_group)) || kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
             int rows[BLOCK_R_DIM] = {0}, lowest[BLOCK_R_DIM] = {0}, n_rows = 0;
             if (block_count_event(c)) {
                 return 1;

@@ -1284,6 +1284,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define SPUN_BALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define SPUN_BALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define SPUN_BALL_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -4149,6 +4150,73 @@ static void spun_ball_landed(const spun_ball_ctx_t *c, const int *land, const in
     }
 }
 
+/* impulse_law.law_gains: does an impulse law's result (Lam per row, velocities before and after) raise the kinetic
+ * energy? dT = Lam . G (qdot- + qdot+) / 2 over all rows, above EPS_LAM of sum |Lam| (|u-| + |u+|). */
+static int spun_ball_law_gains_all(const spun_ball_ctx_t *c, const double *q, const double *lam,
+    const double *vel_m, const double *vel_p)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double before, after, gain = 0.0, scale = 0.0;
+    int r, i;
+    spun_ball_rows(q, vel_m, c->par, psi, grad, curv);
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        before = 0.0;
+        after = 0.0;
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            before += grad[r * SPUN_BALL_N + i] * vel_m[i];
+            after += grad[r * SPUN_BALL_N + i] * vel_p[i];
+        }
+        gain += lam[r] * (before + after);
+        scale += fabs(lam[r]) * (fabs(before) + fabs(after));
+    }
+    return gain / 2.0 > SPUN_BALL_EPS_LAM * scale;
+}
+
+/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+ * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
+ * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
+ * outputs as impulse_law's; 1 if the last solve failed. */
+static int spun_ball_reduced_restitution(const spun_ball_ctx_t *c, const double *q, const double *p,
+    const double *v, const int *group, int n_group, double *tgt, int *plastic, const long *counts, double *p_plus,
+    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    double full[SPUN_BALL_R_DIM], trial[SPUN_BALL_R_DIM], lo = 0.0, hi = 1.0, mid;
+    int k, g;
+    ++c->sus->restitution_reduced;
+    for (k = 0; k < SPUN_BALL_R; ++k) { /* every row's target (0 off the group), as the law reads them */
+        full[k] = tgt[k];
+        trial[k] = tgt[k];
+    }
+    for (k = 0; k < SPUN_BALL_RESTITUTION_BISECTIONS; ++k) {
+        mid = 0.5 * (lo + hi);
+        c->sus->least_splits = counts[0];
+        c->sus->friction_dropped = counts[1];
+        for (g = 0; g < n_group; ++g) {
+            trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
+        }
+        if (spun_ball_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+                slip_own, slip_ride, land) || spun_ball_law_gains_all(c, q, lam, vel_m, vel_p)) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    for (g = 0; g < n_group; ++g) {
+        tgt[group[g]] = lo > 0.0 && !plastic[group[g]] ? lo * full[group[g]] : 0.0;
+    }
+    if (spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+            slip_ride, land)) {
+        return 1;
+    }
+    for (g = 0; g < n_group && !(lo > 0.0); ++g) { /* plastic: held, those it stopped */
+        plastic[group[g]] = plastic[group[g]] || lam[group[g]] > 0.0;
+    }
+    return 0;
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held. */
@@ -4161,7 +4229,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
-    int why;
+    long counts[2];
+    int reduced, why;
     spun_ball_at(c, t);
     spun_ball_restitution(c->par, rest);
     spun_ball_velocity(c, q, v, p, vel);
@@ -4187,12 +4256,25 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             tgt[r] = -e * rate;
         }
     }
+    counts[0] = c->sus->least_splits;
+    counts[1] = c->sus->friction_dropped;
     if (spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
     }
+    for (g = 0, any = 0; g < n_group; ++g) {
+        any = any || !plastic[group[g]];
+    }
+    reduced = any && spun_ball_law_gains_all(c, q, lam, vel_m, vel_p);
+    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+        if (spun_ball_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
+                vel_p, dropped, slipped, slip_own, slip_ride, land)) {
+            return 1;
+        }
+    }
     why = spun_ball_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land);
     why = why ? why : 2 * c->sus->law_why; /* a least split not carried or a line slide: friction at an impact */
+    why = why ? why : 2 * reduced; /* a restitution reduced: its fraction depends on the state */
     if (why) { /* stick <-> slip (a mode change), a cone's sliding impulse, a split not carried: no tangent */
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
@@ -4287,6 +4369,38 @@ static void spun_ball_touching(const spun_ball_ctx_t *c, const double *q, const 
             }
         }
     }
+}
+
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int spun_ball_kinked(const spun_ball_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double vel[SPUN_BALL_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[SPUN_BALL_R_DIM], lowest[SPUN_BALL_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < SPUN_BALL_R; ++k) {
+        own += spun_ball_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    spun_ball_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    spun_ball_velocity(c, q, v, p, vel);
+    spun_ball_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            rate += grad[rows[k] * SPUN_BALL_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
 }
 
 /* SustainedSteps._rough: does an impact of the free chain on the contacts group take the impulse law with Coulomb's
@@ -4658,6 +4772,7 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double zero[SPUN_BALL_R_DIM] = {0.0}, acc[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], rate;
+    double q_t[SPUN_BALL_N], ahead[SPUN_BALL_R_DIM], grad_t[SPUN_BALL_R_DIM * SPUN_BALL_N], curv_t[SPUN_BALL_R_DIM];
     int i, r;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         c->sus->act[r] = spun_ball_row_constraint[r] >= 0;
@@ -4682,6 +4797,10 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
     spun_ball_rows(q, v, c->par, psi, grad, curv);
     spun_ball_accel(c, q, v, zero, acc);
     spun_ball_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < SPUN_BALL_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    spun_ball_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < SPUN_BALL_R; ++r) {
         if (spun_ball_row_constraint[r] >= 0 || spun_ball_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -4690,8 +4809,10 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
         for (i = 0; i < SPUN_BALL_N; ++i) {
             rate += grad[r * SPUN_BALL_N + i] * v[i];
         }
-        if (spun_ball_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            spun_ball_hold(c, grad, r);
+        if ((spun_ball_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
+            && !(rate < -c->tol->admissible / c->h && spun_ball_rough(c, &spun_ball_row_contact[r], 1))) {
+            spun_ball_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
     spun_ball_friction_modes(c, q, v, -1.0);
@@ -5229,6 +5350,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
     spun_ball_seg_t next;
     double rest[SPUN_BALL_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[SPUN_BALL_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     spun_ball_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -5311,10 +5433,11 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
             next.x[i] = x_best[i];
         }
         *seg = next;
-        if (n_group > 1 && spun_ball_rough(c, group, n_group)) {
-            /* several contacts at once, one with friction (SustainedSteps._rough_rest): an impact while held with none
-             * held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of the step (chain); the
-             * tangent broke at the contact (simultaneous impact) */
+        kink = n_group == 1 && spun_ball_kinked(c, next.q, v_c, p_c, group[0]);
+        if ((n_group > 1 && spun_ball_rough(c, group, n_group)) || kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
             int rows[SPUN_BALL_R_DIM] = {0}, lowest[SPUN_BALL_R_DIM] = {0}, n_rows = 0;
             if (spun_ball_count_event(c)) {
                 return 1;

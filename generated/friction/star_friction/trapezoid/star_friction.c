@@ -1393,6 +1393,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define STAR_FRICTION_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define STAR_FRICTION_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define STAR_FRICTION_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_friction_row_contact[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, -1, };
@@ -2723,6 +2724,73 @@ static void star_friction_landed(const star_friction_ctx_t *c, const int *land, 
     }
 }
 
+/* impulse_law.law_gains: does an impulse law's result (Lam per row, velocities before and after) raise the kinetic
+ * energy? dT = Lam . G (qdot- + qdot+) / 2 over all rows, above EPS_LAM of sum |Lam| (|u-| + |u+|). */
+static int star_friction_law_gains_all(const star_friction_ctx_t *c, const double *q, const double *lam,
+    const double *vel_m, const double *vel_p)
+{
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double before, after, gain = 0.0, scale = 0.0;
+    int r, i;
+    star_friction_rows(q, vel_m, c->par, psi, grad, curv);
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        before = 0.0;
+        after = 0.0;
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            before += grad[r * STAR_FRICTION_N + i] * vel_m[i];
+            after += grad[r * STAR_FRICTION_N + i] * vel_p[i];
+        }
+        gain += lam[r] * (before + after);
+        scale += fabs(lam[r]) * (fabs(before) + fabs(after));
+    }
+    return gain / 2.0 > STAR_FRICTION_EPS_LAM * scale;
+}
+
+/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+ * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
+ * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
+ * outputs as impulse_law's; 1 if the last solve failed. */
+static int star_friction_reduced_restitution(const star_friction_ctx_t *c, const double *q, const double *p,
+    const double *v, const int *group, int n_group, double *tgt, int *plastic, const long *counts, double *p_plus,
+    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    double full[STAR_FRICTION_R_DIM], trial[STAR_FRICTION_R_DIM], lo = 0.0, hi = 1.0, mid;
+    int k, g;
+    ++c->sus->restitution_reduced;
+    for (k = 0; k < STAR_FRICTION_R; ++k) { /* every row's target (0 off the group), as the law reads them */
+        full[k] = tgt[k];
+        trial[k] = tgt[k];
+    }
+    for (k = 0; k < STAR_FRICTION_RESTITUTION_BISECTIONS; ++k) {
+        mid = 0.5 * (lo + hi);
+        c->sus->least_splits = counts[0];
+        c->sus->friction_dropped = counts[1];
+        for (g = 0; g < n_group; ++g) {
+            trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
+        }
+        if (star_friction_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+                slip_own, slip_ride, land) || star_friction_law_gains_all(c, q, lam, vel_m, vel_p)) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    for (g = 0; g < n_group; ++g) {
+        tgt[group[g]] = lo > 0.0 && !plastic[group[g]] ? lo * full[group[g]] : 0.0;
+    }
+    if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
+            slip_ride, land)) {
+        return 1;
+    }
+    for (g = 0; g < n_group && !(lo > 0.0); ++g) { /* plastic: held, those it stopped */
+        plastic[group[g]] = plastic[group[g]] || lam[group[g]] > 0.0;
+    }
+    return 0;
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held. */
@@ -2735,6 +2803,8 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
     int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], leaving[STAR_FRICTION_R_DIM];
+    long counts[2];
+    int reduced, why;
     star_friction_at(c, t);
     star_friction_restitution(c->par, rest);
     star_friction_velocity(c, q, v, p, vel);
@@ -2760,11 +2830,24 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             tgt[r] = -e * rate;
         }
     }
+    counts[0] = c->sus->least_splits;
+    counts[1] = c->sus->friction_dropped;
     if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
     }
-    if (star_friction_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land)) { /* stick <-> slip: no tangent */
+    for (g = 0, any = 0; g < n_group; ++g) {
+        any = any || !plastic[group[g]];
+    }
+    reduced = any && star_friction_law_gains_all(c, q, lam, vel_m, vel_p);
+    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+        if (star_friction_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
+                vel_p, dropped, slipped, slip_own, slip_ride, land)) {
+            return 1;
+        }
+    }
+    why = star_friction_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land) ? 1 : 2 * reduced;
+    if (why) { /* stick <-> slip, or a restitution reduced: no tangent */
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = star_friction_loss(c, q, vel_m, vel_p);
@@ -2858,6 +2941,38 @@ static void star_friction_touching(const star_friction_ctx_t *c, const double *q
             }
         }
     }
+}
+
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int star_friction_kinked(const star_friction_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double vel[STAR_FRICTION_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[STAR_FRICTION_R_DIM], lowest[STAR_FRICTION_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < STAR_FRICTION_R; ++k) {
+        own += star_friction_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    star_friction_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    star_friction_velocity(c, q, v, p, vel);
+    star_friction_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            rate += grad[rows[k] * STAR_FRICTION_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
 }
 
 /* SustainedSteps._rough: does an impact of the free chain on the contacts group take the impulse law with Coulomb's
@@ -3221,6 +3336,7 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double zero[STAR_FRICTION_R_DIM] = {0.0}, acc[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], rate;
+    double q_t[STAR_FRICTION_N], ahead[STAR_FRICTION_R_DIM], grad_t[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv_t[STAR_FRICTION_R_DIM];
     int i, r;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         c->sus->act[r] = star_friction_row_constraint[r] >= 0;
@@ -3245,6 +3361,10 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
     star_friction_rows(q, v, c->par, psi, grad, curv);
     star_friction_accel(c, q, v, zero, acc);
     star_friction_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < STAR_FRICTION_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    star_friction_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         if (star_friction_row_constraint[r] >= 0 || star_friction_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -3253,8 +3373,10 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             rate += grad[r * STAR_FRICTION_N + i] * v[i];
         }
-        if (star_friction_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            star_friction_hold(c, grad, r);
+        if ((star_friction_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
+            && !(rate < -c->tol->admissible / c->h && star_friction_rough(c, &star_friction_row_contact[r], 1))) {
+            star_friction_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
     star_friction_friction_modes(c, q, v, -1.0);
@@ -3544,6 +3666,7 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
     star_friction_seg_t next;
     double rest[STAR_FRICTION_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[STAR_FRICTION_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     star_friction_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -3626,10 +3749,11 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
             next.x[i] = x_best[i];
         }
         *seg = next;
-        if (n_group > 1 && star_friction_rough(c, group, n_group)) {
-            /* several contacts at once, one with friction (SustainedSteps._rough_rest): an impact while held with none
-             * held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of the step (chain); the
-             * tangent broke at the contact (simultaneous impact) */
+        kink = n_group == 1 && star_friction_kinked(c, next.q, v_c, p_c, group[0]);
+        if ((n_group > 1 && star_friction_rough(c, group, n_group)) || kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
             int rows[STAR_FRICTION_R_DIM] = {0}, lowest[STAR_FRICTION_R_DIM] = {0}, n_rows = 0;
             if (star_friction_count_event(c)) {
                 return 1;

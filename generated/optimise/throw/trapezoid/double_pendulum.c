@@ -1532,6 +1532,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
 #define DOUBLE_PENDULUM_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define DOUBLE_PENDULUM_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
+#define DOUBLE_PENDULUM_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -2380,6 +2381,38 @@ static void double_pendulum_touching(const double_pendulum_ctx_t *c, const doubl
     }
 }
 
+/* SustainedSteps._kinked: does an impact of the free chain on contact j meet it at a kink whose touching rows move at
+ * different normal speeds, one of them in (a square flat on a face and spinning)? Then the impulse law on the rows
+ * takes it (rough_rest), not the jump (48) along the normal cone's centre (86); rows at one speed keep (86). */
+static int double_pendulum_kinked(const double_pendulum_ctx_t *c, const double *q, const double *v, const double *p, int j)
+{
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
+    double vel[DOUBLE_PENDULUM_N], rate, lo = INFINITY, hi = -INFINITY, big = 0.0;
+    int rows[DOUBLE_PENDULUM_R_DIM], lowest[DOUBLE_PENDULUM_R_DIM] = {0}, n_rows = 0, k, i, own = 0;
+    for (k = 0; k < DOUBLE_PENDULUM_R; ++k) {
+        own += double_pendulum_row_contact[k] == j;
+    }
+    if (!c->tol->grazing_contact || own < 2) {
+        return 0;
+    }
+    double_pendulum_touching(c, q, v, &j, 1, rows, &n_rows, lowest);
+    if (n_rows < 2) {
+        return 0;
+    }
+    double_pendulum_velocity(c, q, v, p, vel);
+    double_pendulum_rows(q, vel, c->par, psi, grad, curv);
+    for (k = 0; k < n_rows; ++k) {
+        rate = 0.0;
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            rate += grad[rows[k] * DOUBLE_PENDULUM_N + i] * vel[i];
+        }
+        lo = rate < lo ? rate : lo;
+        hi = rate > hi ? rate : hi;
+        big = fabs(rate) > big ? fabs(rate) : big;
+    }
+    return lo < 0.0 && hi - lo > 1e-9 * (1.0 + big);
+}
+
 /* SustainedSteps._plastic_entry: a plastic impact on the contacts group at q; their touching rows become
  * active; Coulomb's cone on the frictional ones (law_lands). Out: p+, Lam per row, the kinetic energy lost, the
  * rows involved, and for the tangent (sens_plastic) the stick rows that slipped and the landing contacts. */
@@ -2610,6 +2643,7 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
 {
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double zero[DOUBLE_PENDULUM_R_DIM] = {0.0}, acc[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], rate;
+    double q_t[DOUBLE_PENDULUM_N], ahead[DOUBLE_PENDULUM_R_DIM], grad_t[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv_t[DOUBLE_PENDULUM_R_DIM];
     int i, r;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         c->sus->act[r] = double_pendulum_row_constraint[r] >= 0;
@@ -2633,6 +2667,10 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
     double_pendulum_rows(q, v, c->par, psi, grad, curv);
     double_pendulum_accel(c, q, v, zero, acc);
     double_pendulum_row_accel(c, q, v, acc, racc);
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) { /* the free path's end, to second order */
+        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
+    }
+    double_pendulum_rows(q_t, v, c->par, ahead, grad_t, curv_t);
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         if (double_pendulum_row_constraint[r] >= 0 || double_pendulum_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
             continue;
@@ -2641,8 +2679,9 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             rate += grad[r * DOUBLE_PENDULUM_N + i] * v[i];
         }
-        if (double_pendulum_settles(c, rate, racc[r], 1.0)) { /* at rest to the resolution of the jump */
-            double_pendulum_hold(c, grad, r);
+        if ((double_pendulum_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
+                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
+            double_pendulum_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
         }
     }
 }
@@ -2826,6 +2865,7 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
     double_pendulum_seg_t next;
     double rest[DOUBLE_PENDULUM_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[DOUBLE_PENDULUM_M_DIM], n_group, elastic, kind, rc, restarted;
+    int kink;
     double_pendulum_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -2908,6 +2948,29 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
             next.x[i] = x_best[i];
         }
         *seg = next;
+        kink = n_group == 1 && double_pendulum_kinked(c, next.q, v_c, p_c, group[0]);
+        if (kink) {
+            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
+             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
+             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+            int rows[DOUBLE_PENDULUM_R_DIM] = {0}, lowest[DOUBLE_PENDULUM_R_DIM] = {0}, n_rows = 0;
+            if (double_pendulum_count_event(c)) {
+                return 1;
+            }
+            double_pendulum_touching(c, seg->q, v_c, group, n_group, rows, &n_rows, lowest);
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                q[i] = seg->q[i];
+                p[i] = seg->p_in[i];
+                v[i] = v_c[i];
+            }
+            if (double_pendulum_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+                return 1;
+            }
+            rc = double_pendulum_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
+            double_pendulum_contacts(q, par, phi, grad);
+            *e = e_step;
+            return rc;
+        }
         /* Jump (48): tangential momentum kept, the normal one jumps by mu grad phi; energy kept (less the
          * loss of (39) with restitution; seg->e_in becomes the energy after). */
         elastic = 1;
