@@ -57,24 +57,28 @@ def test_the_elastic_stars_next_vertex_right_after_an_impact_is_its_own_impact(b
 
 
 @pytest.mark.parametrize("backend", ["casadi", "c"])
-@pytest.mark.parametrize("spin", [4.0, 5.0])
-def test_a_star_flat_on_a_face_and_spinning_bounces_off_its_one_vertex_going_in(backend, spin):
+@pytest.mark.parametrize("spin, theta0", [(4.0, 0.0), (5.0, 0.0), (1.0, 1e-9)])
+def test_a_star_flat_on_a_face_and_spinning_bounces_off_its_one_vertex_going_in(backend, spin, theta0):
     """``examples/contact/star_settles.py``'s star (``e = 0.5``) started flat on a face (``theta = 0``, a
     kink of eq. 81: two vertices touch) spinning at ``w``: one vertex goes in at ``w L/2``, the other out.
     Newton's law on that vertex at ``r = (-L/2, -L/2)``: impulse ``P = (1 + e) w L/2 / (1/m + (L/2)^2/I)``,
     then ``vy = P/m``, ``w+ = w - (L/2) P/I``. Before stop 36 the jump (48) took the normal cone's centre
     (86), whose normal speed (the mean of the two vertices', 0) made the impact plastic at ``w = 4``, and at
     ``w = 5`` (the vertex pulled off: not pressed in) found the root ``mu = g h/2`` again and again: "more
-    than 64 impacts in one step"."""
+    than 64 impacts in one step". At ``theta0 = 1e-9`` the star starts 5e-10 below the floor (within
+    ``Tolerances.admissible``), off the kink, one vertex moving in: the contact time's root lies before the
+    step, where the root search found no sign change ("contact time solve failed" at step 0); it is the
+    impact at t = 0, by the jump (48) on that vertex's branch, whose rebound is Newton's to O(g h)."""
     sim = _star_settles(backend)
     m, g, half, inertia, e, h = 1.0, 9.81, 0.5, 29 / 192, 0.5, 0.005
-    res = sim.simulate(q0=[0.0, 0.5, 0.0], v0=[0.0, 0.0, spin], h=h, t_end=0.2, params={"e": e})
+    res = sim.simulate(q0=[0.0, 0.5, theta0], v0=[0.0, 0.0, spin], h=h, t_end=0.2, params={"e": e})
     first = res.impacts[0]
     assert (first.step, first.t, first.kind) == (0, 0.0, "restitution")
     impulse = (1 + e) * spin * half / (1 / m + half**2 / inertia)
-    assert res.p[1, 1] / m == pytest.approx(impulse / m - g * h, abs=1e-12)
-    assert res.p[1, 2] / inertia == pytest.approx(spin - half * impulse / inertia, abs=1e-12)
-    assert res.p[1, 0] == 0.0 and len(res.impacts) == 1
+    tol = 1e-12 if theta0 == 0.0 else 0.1 * g * h  # Newton's law on the rows; else the jump (48)
+    assert res.p[1, 1] / m == pytest.approx(impulse / m - g * h, abs=tol)
+    assert res.p[1, 2] / inertia == pytest.approx(spin - half * impulse / inertia, abs=tol)
+    assert res.p[1, 0] == 0.0 and all(im.step > 1 for im in res.impacts[1:])  # one impact, then flight
 
 
 @cache

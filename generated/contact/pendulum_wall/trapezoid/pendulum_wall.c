@@ -1235,6 +1235,12 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
     pendulum_wall_at(c, seg->t);
     pendulum_wall_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
+    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+        pendulum_wall_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
+        x[nx - 1] = 0.0;
+        *s_out = 0.0;
+        return 0;
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         pendulum_wall_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */

@@ -1284,6 +1284,12 @@ static int star_settles_contact_root(const star_settles_ctx_t *c, const star_set
     star_settles_at(c, seg->t);
     star_settles_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
+    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+        star_settles_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
+        x[nx - 1] = 0.0;
+        *s_out = 0.0;
+        return 0;
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         star_settles_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
