@@ -74,7 +74,23 @@ def bowl() -> vcigen.Model:
     )
 
 
-MAKERS = {"rod": rod, "floor_wall": floor_wall, "bowl": bowl}
+def rod_wall() -> vcigen.Model:
+    """A unit bob on a unit rod (bilateral, Cartesian), a wall ``x >= a`` (restitution e) by its bottom."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    a, e = sp.symbols("a e")
+    return vcigen.Model(
+        name="rod_wall",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - G * y,
+        contacts={"wall": x - a},
+        constraints={"rod": x**2 + y**2 - 1},
+        params={a: 0.3, e: 0.16},
+        restitution={"wall": e},
+    )
+
+
+MAKERS = {"rod": rod, "floor_wall": floor_wall, "bowl": bowl, "rod_wall": rod_wall}
 
 
 @cache
@@ -483,3 +499,18 @@ def test_released_at_rest_on_the_bowls_rim_it_swings_as_a_pendulum_through_a_rig
         t_up = res.t[up] - h * x[up] / (x[up + 1] - x[up])
         errs.append(max(abs(t_down - quarter), abs(t_up - 3 * quarter)))
     assert errs[0] < 5e-5 and errs[0] / errs[1] == pytest.approx(4.0, rel=0.05), errs
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pendulum_started_at_rest_against_its_wall_rests_there_with_the_static_force(backend):
+    """The bob at rest on the wall ``x = 0.3`` beside its bottom: only the rod's reaction presses it in (the
+    free acceleration is vertical, along the wall). Held from the start, it stays, the wall pushing with the
+    statics' ``g tan(theta)``, ``sin(theta) = 0.3``, and ``E_d`` constant. Before stop 36 the start judged
+    the wall by the free acceleration alone (not pressed in): the first step crossed it and logged 1 (C) or
+    4 (CasADi) restitution impacts of ~1e-8 and a plastic one, ``E_d[0]`` 1.4e-4 below the rest."""
+    q0 = [0.3, -math.sqrt(1 - 0.09)]
+    res = sim("rod_wall", backend).simulate(q0, [0.0, 0.0], 0.01, t_end=1.0)
+    assert not res.impacts and not res.liftoffs and res.active[:, 0].all()
+    assert np.abs(res.q - q0).max() < 1e-12
+    np.testing.assert_allclose(res.contact_force[:, 0], G * 0.3 / math.sqrt(0.91), rtol=0, atol=1e-9)
+    assert np.ptp(res.energy) < 1e-12

@@ -123,7 +123,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # whether cones were aimed implicitly in this step (_cone_brake)
 
     def _start_sustained(self, q0, v0, h: float) -> None:
-        """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in, or at
+        """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in (under
+        the bilateral rows' forces: a pendulum at rest against a wall is pressed in by its rod alone), or at
         rest where the free path curves into them within the step (to second order: released at rest on a
         bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall leaves the bowl at fourth
         order; not held, it crossed the wall again and again at once). A rough contact (Coulomb's cone,
@@ -136,7 +137,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         if not k.r or self.tol.grazing != "contact":
             return
         psi, grad, _ = k.rows(q0, v0)
-        acc = self._accel(q0, v0, np.zeros(k.r))
+        acc = self._accel(q0, v0, self._contact_forces(q0, v0))  # under the bilateral rows' forces
         rates, accs = grad @ v0, self._row_accel(q0, v0, acc)
         ahead = k.rows(q0 + h * v0 + 0.5 * h * h * acc, v0)[0]  # the free path's end, to second order
         for r in range(k.r):

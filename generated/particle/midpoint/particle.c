@@ -2230,7 +2230,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
 static void particle_start_sustained(const particle_ctx_t *c, const double *q, const double *v)
 {
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
-    double zero[PARTICLE_R_DIM] = {0.0}, acc[PARTICLE_N], racc[PARTICLE_R_DIM], rate;
+    double lam0[PARTICLE_R_DIM], acc[PARTICLE_N], racc[PARTICLE_R_DIM], rate;
     double q_t[PARTICLE_N], ahead[PARTICLE_R_DIM], grad_t[PARTICLE_R_DIM * PARTICLE_N], curv_t[PARTICLE_R_DIM];
     int i, r;
     for (r = 0; r < PARTICLE_R; ++r) {
@@ -2253,7 +2253,8 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
         return;
     }
     particle_rows(q, v, c->par, psi, grad, curv);
-    particle_accel(c, q, v, zero, acc);
+    particle_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    particle_accel(c, q, v, lam0, acc);
     particle_row_accel(c, q, v, acc, racc);
     for (i = 0; i < PARTICLE_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -2511,7 +2511,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
 static void star_start_sustained(const star_ctx_t *c, const double *q, const double *v)
 {
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
-    double zero[STAR_R_DIM] = {0.0}, acc[STAR_N], racc[STAR_R_DIM], rate;
+    double lam0[STAR_R_DIM], acc[STAR_N], racc[STAR_R_DIM], rate;
     double q_t[STAR_N], ahead[STAR_R_DIM], grad_t[STAR_R_DIM * STAR_N], curv_t[STAR_R_DIM];
     int i, r;
     for (r = 0; r < STAR_R; ++r) {
@@ -2534,7 +2534,8 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
         return;
     }
     star_rows(q, v, c->par, psi, grad, curv);
-    star_accel(c, q, v, zero, acc);
+    star_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    star_accel(c, q, v, lam0, acc);
     star_row_accel(c, q, v, acc, racc);
     for (i = 0; i < STAR_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -2236,7 +2236,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
 static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const double *q, const double *v)
 {
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
-    double zero[BALL_TO_REST_R_DIM] = {0.0}, acc[BALL_TO_REST_N], racc[BALL_TO_REST_R_DIM], rate;
+    double lam0[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N], racc[BALL_TO_REST_R_DIM], rate;
     double q_t[BALL_TO_REST_N], ahead[BALL_TO_REST_R_DIM], grad_t[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv_t[BALL_TO_REST_R_DIM];
     int i, r;
     for (r = 0; r < BALL_TO_REST_R; ++r) {
@@ -2259,7 +2259,8 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
         return;
     }
     ball_to_rest_rows(q, v, c->par, psi, grad, curv);
-    ball_to_rest_accel(c, q, v, zero, acc);
+    ball_to_rest_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    ball_to_rest_accel(c, q, v, lam0, acc);
     ball_to_rest_row_accel(c, q, v, acc, racc);
     for (i = 0; i < BALL_TO_REST_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

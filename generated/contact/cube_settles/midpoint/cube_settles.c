@@ -3012,7 +3012,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
 static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const double *q, const double *v)
 {
     double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
-    double zero[CUBE_SETTLES_R_DIM] = {0.0}, acc[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], rate;
+    double lam0[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], rate;
     double q_t[CUBE_SETTLES_N], ahead[CUBE_SETTLES_R_DIM], grad_t[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv_t[CUBE_SETTLES_R_DIM];
     int i, r;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
@@ -3035,7 +3035,8 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
         return;
     }
     cube_settles_rows(q, v, c->par, psi, grad, curv);
-    cube_settles_accel(c, q, v, zero, acc);
+    cube_settles_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    cube_settles_accel(c, q, v, lam0, acc);
     cube_settles_row_accel(c, q, v, acc, racc);
     for (i = 0; i < CUBE_SETTLES_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -2460,7 +2460,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
 static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const double *q, const double *v)
 {
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
-    double zero[PENDULUM_WALL_R_DIM] = {0.0}, acc[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM], rate;
+    double lam0[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM], rate;
     double q_t[PENDULUM_WALL_N], ahead[PENDULUM_WALL_R_DIM], grad_t[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv_t[PENDULUM_WALL_R_DIM];
     int i, r;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
@@ -2483,7 +2483,8 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
         return;
     }
     pendulum_wall_rows(q, v, c->par, psi, grad, curv);
-    pendulum_wall_accel(c, q, v, zero, acc);
+    pendulum_wall_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    pendulum_wall_accel(c, q, v, lam0, acc);
     pendulum_wall_row_accel(c, q, v, acc, racc);
     for (i = 0; i < PENDULUM_WALL_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

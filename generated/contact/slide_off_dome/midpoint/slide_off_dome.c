@@ -2431,7 +2431,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
 static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const double *q, const double *v)
 {
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
-    double zero[SLIDE_OFF_DOME_R_DIM] = {0.0}, acc[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], rate;
+    double lam0[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], rate;
     double q_t[SLIDE_OFF_DOME_N], ahead[SLIDE_OFF_DOME_R_DIM], grad_t[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv_t[SLIDE_OFF_DOME_R_DIM];
     int i, r;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
@@ -2454,7 +2454,8 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         return;
     }
     slide_off_dome_rows(q, v, c->par, psi, grad, curv);
-    slide_off_dome_accel(c, q, v, zero, acc);
+    slide_off_dome_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    slide_off_dome_accel(c, q, v, lam0, acc);
     slide_off_dome_row_accel(c, q, v, acc, racc);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

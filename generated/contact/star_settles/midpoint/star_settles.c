@@ -2512,7 +2512,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
 static void star_settles_start_sustained(const star_settles_ctx_t *c, const double *q, const double *v)
 {
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
-    double zero[STAR_SETTLES_R_DIM] = {0.0}, acc[STAR_SETTLES_N], racc[STAR_SETTLES_R_DIM], rate;
+    double lam0[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N], racc[STAR_SETTLES_R_DIM], rate;
     double q_t[STAR_SETTLES_N], ahead[STAR_SETTLES_R_DIM], grad_t[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv_t[STAR_SETTLES_R_DIM];
     int i, r;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
@@ -2535,7 +2535,8 @@ static void star_settles_start_sustained(const star_settles_ctx_t *c, const doub
         return;
     }
     star_settles_rows(q, v, c->par, psi, grad, curv);
-    star_settles_accel(c, q, v, zero, acc);
+    star_settles_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    star_settles_accel(c, q, v, lam0, acc);
     star_settles_row_accel(c, q, v, acc, racc);
     for (i = 0; i < STAR_SETTLES_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -2056,7 +2056,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
 static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, const double *q, const double *v)
 {
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
-    double zero[IMPACT_OSCILLATOR_R_DIM] = {0.0}, acc[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], rate;
+    double lam0[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], rate;
     double q_t[IMPACT_OSCILLATOR_N], ahead[IMPACT_OSCILLATOR_R_DIM], grad_t[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv_t[IMPACT_OSCILLATOR_R_DIM];
     int i, r;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
@@ -2079,7 +2079,8 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
         return;
     }
     impact_oscillator_rows(q, v, c->par, psi, grad, curv);
-    impact_oscillator_accel(c, q, v, zero, acc);
+    impact_oscillator_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    impact_oscillator_accel(c, q, v, lam0, acc);
     impact_oscillator_row_accel(c, q, v, acc, racc);
     for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

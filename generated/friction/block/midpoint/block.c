@@ -3057,7 +3057,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
 static void block_start_sustained(const block_ctx_t *c, const double *q, const double *v)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
-    double zero[BLOCK_R_DIM] = {0.0}, acc[BLOCK_N], racc[BLOCK_R_DIM], rate;
+    double lam0[BLOCK_R_DIM], acc[BLOCK_N], racc[BLOCK_R_DIM], rate;
     double q_t[BLOCK_N], ahead[BLOCK_R_DIM], grad_t[BLOCK_R_DIM * BLOCK_N], curv_t[BLOCK_R_DIM];
     int i, r;
     for (r = 0; r < BLOCK_R; ++r) {
@@ -3081,7 +3081,8 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
         return;
     }
     block_rows(q, v, c->par, psi, grad, curv);
-    block_accel(c, q, v, zero, acc);
+    block_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    block_accel(c, q, v, lam0, acc);
     block_row_accel(c, q, v, acc, racc);
     for (i = 0; i < BLOCK_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -3136,7 +3136,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
 static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *q, const double *v)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
-    double zero[ROUGH_DISK_R_DIM] = {0.0}, acc[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], rate;
+    double lam0[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], rate;
     double q_t[ROUGH_DISK_N], ahead[ROUGH_DISK_R_DIM], grad_t[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv_t[ROUGH_DISK_R_DIM];
     int i, r;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
@@ -3160,7 +3160,8 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
         return;
     }
     rough_disk_rows(q, v, c->par, psi, grad, curv);
-    rough_disk_accel(c, q, v, zero, acc);
+    rough_disk_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    rough_disk_accel(c, q, v, lam0, acc);
     rough_disk_row_accel(c, q, v, acc, racc);
     for (i = 0; i < ROUGH_DISK_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -4778,7 +4778,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
 static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q, const double *v)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
-    double zero[SPUN_BALL_R_DIM] = {0.0}, acc[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], rate;
+    double lam0[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], rate;
     double q_t[SPUN_BALL_N], ahead[SPUN_BALL_R_DIM], grad_t[SPUN_BALL_R_DIM * SPUN_BALL_N], curv_t[SPUN_BALL_R_DIM];
     int i, r;
     for (r = 0; r < SPUN_BALL_R; ++r) {
@@ -4802,7 +4802,8 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
         return;
     }
     spun_ball_rows(q, v, c->par, psi, grad, curv);
-    spun_ball_accel(c, q, v, zero, acc);
+    spun_ball_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    spun_ball_accel(c, q, v, lam0, acc);
     spun_ball_row_accel(c, q, v, acc, racc);
     for (i = 0; i < SPUN_BALL_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -3339,7 +3339,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
 static void star_friction_start_sustained(const star_friction_ctx_t *c, const double *q, const double *v)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
-    double zero[STAR_FRICTION_R_DIM] = {0.0}, acc[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], rate;
+    double lam0[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], rate;
     double q_t[STAR_FRICTION_N], ahead[STAR_FRICTION_R_DIM], grad_t[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv_t[STAR_FRICTION_R_DIM];
     int i, r;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
@@ -3363,7 +3363,8 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
         return;
     }
     star_friction_rows(q, v, c->par, psi, grad, curv);
-    star_friction_accel(c, q, v, zero, acc);
+    star_friction_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    star_friction_accel(c, q, v, lam0, acc);
     star_friction_row_accel(c, q, v, acc, racc);
     for (i = 0; i < STAR_FRICTION_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

@@ -2443,7 +2443,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
 static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, const double *v)
 {
     double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
-    double zero[BALL_BOX_R_DIM] = {0.0}, acc[BALL_BOX_N], racc[BALL_BOX_R_DIM], rate;
+    double lam0[BALL_BOX_R_DIM], acc[BALL_BOX_N], racc[BALL_BOX_R_DIM], rate;
     double q_t[BALL_BOX_N], ahead[BALL_BOX_R_DIM], grad_t[BALL_BOX_R_DIM * BALL_BOX_N], curv_t[BALL_BOX_R_DIM];
     int i, r;
     for (r = 0; r < BALL_BOX_R; ++r) {
@@ -2466,7 +2466,8 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
         return;
     }
     ball_box_rows(q, v, c->par, psi, grad, curv);
-    ball_box_accel(c, q, v, zero, acc);
+    ball_box_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    ball_box_accel(c, q, v, lam0, acc);
     ball_box_row_accel(c, q, v, acc, racc);
     for (i = 0; i < BALL_BOX_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];

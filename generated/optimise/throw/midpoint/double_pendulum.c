@@ -2591,7 +2591,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
 static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, const double *q, const double *v)
 {
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
-    double zero[DOUBLE_PENDULUM_R_DIM] = {0.0}, acc[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], rate;
+    double lam0[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], rate;
     double q_t[DOUBLE_PENDULUM_N], ahead[DOUBLE_PENDULUM_R_DIM], grad_t[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv_t[DOUBLE_PENDULUM_R_DIM];
     int i, r;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
@@ -2614,7 +2614,8 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
         return;
     }
     double_pendulum_rows(q, v, c->par, psi, grad, curv);
-    double_pendulum_accel(c, q, v, zero, acc);
+    double_pendulum_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
+    double_pendulum_accel(c, q, v, lam0, acc);
     double_pendulum_row_accel(c, q, v, acc, racc);
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) { /* the free path's end, to second order */
         q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
