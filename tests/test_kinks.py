@@ -87,3 +87,15 @@ def _star_settles(backend: str) -> vcigen.Simulator:
     import star_settles
 
     return vcigen.build(star_settles.model(), backend=backend)
+
+
+@pytest.mark.parametrize("backend", ["casadi", "c"])
+def test_the_tangent_breaks_at_a_kinks_impulse_law(backend):
+    """The spinning star's impact at its kink (the test above) takes the impulse law on its two vertex
+    rows, which the tangent does not carry: ``sensitivities=True`` reports the break there, ``"simultaneous
+    impact"`` (NaN from there), on both backends alike."""
+    res = _star_settles(backend).simulate(
+        q0=[0.0, 0.5, 0.0], v0=[0.0, 0.0, 4.0], h=0.005, t_end=0.1, params={"e": 0.5}, sensitivities=True
+    )
+    assert res.sensitivity_breaks[0] == (0, "simultaneous impact")
+    assert np.isnan(res.sensitivity[-1]).all()
