@@ -56,9 +56,8 @@ def law_gains(grad, lam, vel_m, vel_p) -> bool:
     the kinetic energy? ``dT = Lam . G (qdot- + qdot+) / 2`` over all rows, above ``EPS_LAM`` of ``sum |Lam|
     (|u-| + |u+|)`` (:func:`_gains` on the whole law). Newton's restitution with Coulomb's friction can
     (``SustainedSteps._chain_impact`` then takes the impact plastic); without friction it cannot."""
-    before, after = grad @ vel_m, grad @ vel_p
-    gain = float(lam @ (before + after)) / 2.0
-    return gain > EPS_LAM * float(np.abs(lam) @ (np.abs(before) + np.abs(after)))
+    before = grad @ vel_m
+    return _gains(lam, -before, grad @ vel_p, np.zeros_like(before))  # targets 0: u- = -b, u+ = gap
 
 
 class ImpulseLaw:
