@@ -123,8 +123,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # whether cones were aimed implicitly in this step (_cone_brake)
 
     def _start_sustained(self, q0, v0, h: float) -> None:
-        """Active rows at the start: bilateral constraints, and contacts touched at rest and pressed in (under
-        the bilateral rows' forces: a pendulum at rest against a wall is pressed in by its rod alone), or at
+        """Active rows at the start: bilateral constraints, and contacts touched at rest (``|rate| <=
+        Tolerances.admissible / h``) and pressed in under the bilateral rows' forces (a pendulum at rest
+        against a wall is pressed in by its rod alone), or moving below the jump's resolution and pressed in
+        by the free motion (moving into the corner a bilateral row makes with the contact is an impact), or at
         rest where the free path curves into them within the step (to second order: released at rest on a
         bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall leaves the bowl at fourth
         order; not held, it crossed the wall again and again at once). A rough contact (Coulomb's cone,
@@ -139,16 +141,19 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         psi, grad, _ = k.rows(q0, v0)
         acc = self._accel(q0, v0, self._contact_forces(q0, v0))  # under the bilateral rows' forces
         rates, accs = grad @ v0, self._row_accel(q0, v0, acc)
+        frees = self._row_accel(q0, v0, self._accel(q0, v0, np.zeros(k.r)))
         ahead = k.rows(q0 + h * v0 + 0.5 * h * h * acc, v0)[0]  # the free path's end, to second order
+        still = self.tol.admissible / h
         for r in range(k.r):
             if k.row_bilateral[r] or k.row_stick[r] >= 0 or abs(psi[r]) > self.tol.admissible:
                 continue
-            at_rest = self._settles(rates[r], accs[r], 1.0, h) or (  # or curving in ahead of the free path
-                abs(rates[r]) <= self.tol.admissible / h and ahead[r] < -self.tol.phi
-            )
-            if at_rest and not (
-                rates[r] < -self.tol.admissible / h and self._rough([k.row_contact[r]])
-            ):  # at rest; a rough one moving in takes its (plastic) impact, with friction, at t = 0 first
+            if abs(rates[r]) <= still:  # at rest: pressed in, or curving in ahead of the free path
+                held = self._settles(rates[r], accs[r], 1.0, h) or ahead[r] < -self.tol.phi
+            else:  # moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner)
+                held = self._settles(rates[r], frees[r], 1.0, h) and not (
+                    rates[r] < -still and self._rough([k.row_contact[r]])
+                )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first
+            if held:
                 self._hold(grad, r)
         self._friction_modes(q0, v0)
         self._held = bool(self.act.any())

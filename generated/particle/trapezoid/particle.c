@@ -2235,9 +2235,10 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
 static void particle_start_sustained(const particle_ctx_t *c, const double *q, const double *v)
 {
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
-    double lam0[PARTICLE_R_DIM], acc[PARTICLE_N], racc[PARTICLE_R_DIM], rate;
+    double lam0[PARTICLE_R_DIM], acc[PARTICLE_N], racc[PARTICLE_R_DIM], frees[PARTICLE_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[PARTICLE_N], ahead[PARTICLE_R_DIM], grad_t[PARTICLE_R_DIM * PARTICLE_N], curv_t[PARTICLE_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < PARTICLE_R; ++r) {
         c->sus->act[r] = particle_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2258,6 +2259,11 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
         return;
     }
     particle_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    particle_accel(c, q, v, lam0, acc); /* the free motion's */
+    particle_row_accel(c, q, v, acc, frees);
     particle_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     particle_accel(c, q, v, lam0, acc);
     particle_row_accel(c, q, v, acc, racc);
@@ -2273,9 +2279,13 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
         for (i = 0; i < PARTICLE_N; ++i) {
             rate += grad[r * PARTICLE_N + i] * v[i];
         }
-        if ((particle_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            particle_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = particle_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = particle_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            particle_hold(c, grad, r);
         }
     }
 }

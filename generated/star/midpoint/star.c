@@ -2511,9 +2511,10 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
 static void star_start_sustained(const star_ctx_t *c, const double *q, const double *v)
 {
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
-    double lam0[STAR_R_DIM], acc[STAR_N], racc[STAR_R_DIM], rate;
+    double lam0[STAR_R_DIM], acc[STAR_N], racc[STAR_R_DIM], frees[STAR_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[STAR_N], ahead[STAR_R_DIM], grad_t[STAR_R_DIM * STAR_N], curv_t[STAR_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < STAR_R; ++r) {
         c->sus->act[r] = star_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2534,6 +2535,11 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
         return;
     }
     star_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < STAR_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    star_accel(c, q, v, lam0, acc); /* the free motion's */
+    star_row_accel(c, q, v, acc, frees);
     star_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     star_accel(c, q, v, lam0, acc);
     star_row_accel(c, q, v, acc, racc);
@@ -2549,9 +2555,13 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
         for (i = 0; i < STAR_N; ++i) {
             rate += grad[r * STAR_N + i] * v[i];
         }
-        if ((star_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            star_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = star_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = star_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            star_hold(c, grad, r);
         }
     }
 }

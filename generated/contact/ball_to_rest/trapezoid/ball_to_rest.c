@@ -2236,9 +2236,10 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
 static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const double *q, const double *v)
 {
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
-    double lam0[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N], racc[BALL_TO_REST_R_DIM], rate;
+    double lam0[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N], racc[BALL_TO_REST_R_DIM], frees[BALL_TO_REST_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[BALL_TO_REST_N], ahead[BALL_TO_REST_R_DIM], grad_t[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv_t[BALL_TO_REST_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < BALL_TO_REST_R; ++r) {
         c->sus->act[r] = ball_to_rest_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2259,6 +2260,11 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
         return;
     }
     ball_to_rest_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < BALL_TO_REST_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    ball_to_rest_accel(c, q, v, lam0, acc); /* the free motion's */
+    ball_to_rest_row_accel(c, q, v, acc, frees);
     ball_to_rest_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     ball_to_rest_accel(c, q, v, lam0, acc);
     ball_to_rest_row_accel(c, q, v, acc, racc);
@@ -2274,9 +2280,13 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
         for (i = 0; i < BALL_TO_REST_N; ++i) {
             rate += grad[r * BALL_TO_REST_N + i] * v[i];
         }
-        if ((ball_to_rest_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            ball_to_rest_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = ball_to_rest_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = ball_to_rest_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            ball_to_rest_hold(c, grad, r);
         }
     }
 }

@@ -3012,9 +3012,10 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
 static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const double *q, const double *v)
 {
     double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
-    double lam0[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], rate;
+    double lam0[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], frees[CUBE_SETTLES_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[CUBE_SETTLES_N], ahead[CUBE_SETTLES_R_DIM], grad_t[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv_t[CUBE_SETTLES_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         c->sus->act[r] = cube_settles_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -3035,6 +3036,11 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
         return;
     }
     cube_settles_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    cube_settles_accel(c, q, v, lam0, acc); /* the free motion's */
+    cube_settles_row_accel(c, q, v, acc, frees);
     cube_settles_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     cube_settles_accel(c, q, v, lam0, acc);
     cube_settles_row_accel(c, q, v, acc, racc);
@@ -3050,9 +3056,13 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             rate += grad[r * CUBE_SETTLES_N + i] * v[i];
         }
-        if ((cube_settles_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            cube_settles_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = cube_settles_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = cube_settles_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            cube_settles_hold(c, grad, r);
         }
     }
 }

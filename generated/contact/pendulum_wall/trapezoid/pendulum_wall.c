@@ -2465,9 +2465,10 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
 static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const double *q, const double *v)
 {
     double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
-    double lam0[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM], rate;
+    double lam0[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM], frees[PENDULUM_WALL_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[PENDULUM_WALL_N], ahead[PENDULUM_WALL_R_DIM], grad_t[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv_t[PENDULUM_WALL_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         c->sus->act[r] = pendulum_wall_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2488,6 +2489,11 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
         return;
     }
     pendulum_wall_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    pendulum_wall_accel(c, q, v, lam0, acc); /* the free motion's */
+    pendulum_wall_row_accel(c, q, v, acc, frees);
     pendulum_wall_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     pendulum_wall_accel(c, q, v, lam0, acc);
     pendulum_wall_row_accel(c, q, v, acc, racc);
@@ -2503,9 +2509,13 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             rate += grad[r * PENDULUM_WALL_N + i] * v[i];
         }
-        if ((pendulum_wall_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            pendulum_wall_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = pendulum_wall_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = pendulum_wall_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            pendulum_wall_hold(c, grad, r);
         }
     }
 }

@@ -2431,9 +2431,10 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
 static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const double *q, const double *v)
 {
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
-    double lam0[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], rate;
+    double lam0[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], frees[SLIDE_OFF_DOME_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[SLIDE_OFF_DOME_N], ahead[SLIDE_OFF_DOME_R_DIM], grad_t[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv_t[SLIDE_OFF_DOME_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         c->sus->act[r] = slide_off_dome_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2454,6 +2455,11 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         return;
     }
     slide_off_dome_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    slide_off_dome_accel(c, q, v, lam0, acc); /* the free motion's */
+    slide_off_dome_row_accel(c, q, v, acc, frees);
     slide_off_dome_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     slide_off_dome_accel(c, q, v, lam0, acc);
     slide_off_dome_row_accel(c, q, v, acc, racc);
@@ -2469,9 +2475,13 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             rate += grad[r * SLIDE_OFF_DOME_N + i] * v[i];
         }
-        if ((slide_off_dome_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            slide_off_dome_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = slide_off_dome_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = slide_off_dome_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            slide_off_dome_hold(c, grad, r);
         }
     }
 }

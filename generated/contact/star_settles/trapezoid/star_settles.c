@@ -2514,9 +2514,10 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
 static void star_settles_start_sustained(const star_settles_ctx_t *c, const double *q, const double *v)
 {
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
-    double lam0[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N], racc[STAR_SETTLES_R_DIM], rate;
+    double lam0[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N], racc[STAR_SETTLES_R_DIM], frees[STAR_SETTLES_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[STAR_SETTLES_N], ahead[STAR_SETTLES_R_DIM], grad_t[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv_t[STAR_SETTLES_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         c->sus->act[r] = star_settles_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2537,6 +2538,11 @@ static void star_settles_start_sustained(const star_settles_ctx_t *c, const doub
         return;
     }
     star_settles_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < STAR_SETTLES_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    star_settles_accel(c, q, v, lam0, acc); /* the free motion's */
+    star_settles_row_accel(c, q, v, acc, frees);
     star_settles_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     star_settles_accel(c, q, v, lam0, acc);
     star_settles_row_accel(c, q, v, acc, racc);
@@ -2552,9 +2558,13 @@ static void star_settles_start_sustained(const star_settles_ctx_t *c, const doub
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             rate += grad[r * STAR_SETTLES_N + i] * v[i];
         }
-        if ((star_settles_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            star_settles_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = star_settles_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = star_settles_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            star_settles_hold(c, grad, r);
         }
     }
 }

@@ -2056,9 +2056,10 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
 static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, const double *q, const double *v)
 {
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
-    double lam0[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], rate;
+    double lam0[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], frees[IMPACT_OSCILLATOR_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[IMPACT_OSCILLATOR_N], ahead[IMPACT_OSCILLATOR_R_DIM], grad_t[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv_t[IMPACT_OSCILLATOR_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         c->sus->act[r] = impact_oscillator_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2079,6 +2080,11 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
         return;
     }
     impact_oscillator_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    impact_oscillator_accel(c, q, v, lam0, acc); /* the free motion's */
+    impact_oscillator_row_accel(c, q, v, acc, frees);
     impact_oscillator_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     impact_oscillator_accel(c, q, v, lam0, acc);
     impact_oscillator_row_accel(c, q, v, acc, racc);
@@ -2094,9 +2100,13 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             rate += grad[r * IMPACT_OSCILLATOR_N + i] * v[i];
         }
-        if ((impact_oscillator_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            impact_oscillator_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = impact_oscillator_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = impact_oscillator_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            impact_oscillator_hold(c, grad, r);
         }
     }
 }

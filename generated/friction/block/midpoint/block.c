@@ -3057,9 +3057,10 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
 static void block_start_sustained(const block_ctx_t *c, const double *q, const double *v)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
-    double lam0[BLOCK_R_DIM], acc[BLOCK_N], racc[BLOCK_R_DIM], rate;
+    double lam0[BLOCK_R_DIM], acc[BLOCK_N], racc[BLOCK_R_DIM], frees[BLOCK_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[BLOCK_N], ahead[BLOCK_R_DIM], grad_t[BLOCK_R_DIM * BLOCK_N], curv_t[BLOCK_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < BLOCK_R; ++r) {
         c->sus->act[r] = block_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -3081,6 +3082,11 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
         return;
     }
     block_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < BLOCK_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    block_accel(c, q, v, lam0, acc); /* the free motion's */
+    block_row_accel(c, q, v, acc, frees);
     block_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     block_accel(c, q, v, lam0, acc);
     block_row_accel(c, q, v, acc, racc);
@@ -3096,10 +3102,14 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
         for (i = 0; i < BLOCK_N; ++i) {
             rate += grad[r * BLOCK_N + i] * v[i];
         }
-        if ((block_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
-            && !(rate < -c->tol->admissible / c->h && block_rough(c, &block_row_contact[r], 1))) {
-            block_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = block_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = block_settles(c, rate, frees[r], 1.0)
+                && !(rate < -still && block_rough(c, &block_row_contact[r], 1));
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            block_hold(c, grad, r);
         }
     }
     block_friction_modes(c, q, v, -1.0);

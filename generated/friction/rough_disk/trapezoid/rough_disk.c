@@ -3137,9 +3137,10 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
 static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *q, const double *v)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
-    double lam0[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], rate;
+    double lam0[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], frees[ROUGH_DISK_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[ROUGH_DISK_N], ahead[ROUGH_DISK_R_DIM], grad_t[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv_t[ROUGH_DISK_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         c->sus->act[r] = rough_disk_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -3161,6 +3162,11 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
         return;
     }
     rough_disk_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    rough_disk_accel(c, q, v, lam0, acc); /* the free motion's */
+    rough_disk_row_accel(c, q, v, acc, frees);
     rough_disk_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     rough_disk_accel(c, q, v, lam0, acc);
     rough_disk_row_accel(c, q, v, acc, racc);
@@ -3176,10 +3182,14 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             rate += grad[r * ROUGH_DISK_N + i] * v[i];
         }
-        if ((rough_disk_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
-            && !(rate < -c->tol->admissible / c->h && rough_disk_rough(c, &rough_disk_row_contact[r], 1))) {
-            rough_disk_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = rough_disk_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = rough_disk_settles(c, rate, frees[r], 1.0)
+                && !(rate < -still && rough_disk_rough(c, &rough_disk_row_contact[r], 1));
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            rough_disk_hold(c, grad, r);
         }
     }
     rough_disk_friction_modes(c, q, v, -1.0);

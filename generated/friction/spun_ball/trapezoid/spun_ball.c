@@ -4778,9 +4778,10 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
 static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q, const double *v)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
-    double lam0[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], rate;
+    double lam0[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], frees[SPUN_BALL_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[SPUN_BALL_N], ahead[SPUN_BALL_R_DIM], grad_t[SPUN_BALL_R_DIM * SPUN_BALL_N], curv_t[SPUN_BALL_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         c->sus->act[r] = spun_ball_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -4802,6 +4803,11 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
         return;
     }
     spun_ball_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    spun_ball_accel(c, q, v, lam0, acc); /* the free motion's */
+    spun_ball_row_accel(c, q, v, acc, frees);
     spun_ball_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     spun_ball_accel(c, q, v, lam0, acc);
     spun_ball_row_accel(c, q, v, acc, racc);
@@ -4817,10 +4823,14 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
         for (i = 0; i < SPUN_BALL_N; ++i) {
             rate += grad[r * SPUN_BALL_N + i] * v[i];
         }
-        if ((spun_ball_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
-            && !(rate < -c->tol->admissible / c->h && spun_ball_rough(c, &spun_ball_row_contact[r], 1))) {
-            spun_ball_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = spun_ball_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = spun_ball_settles(c, rate, frees[r], 1.0)
+                && !(rate < -still && spun_ball_rough(c, &spun_ball_row_contact[r], 1));
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            spun_ball_hold(c, grad, r);
         }
     }
     spun_ball_friction_modes(c, q, v, -1.0);

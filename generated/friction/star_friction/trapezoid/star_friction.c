@@ -3341,9 +3341,10 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
 static void star_friction_start_sustained(const star_friction_ctx_t *c, const double *q, const double *v)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
-    double lam0[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], rate;
+    double lam0[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], frees[STAR_FRICTION_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[STAR_FRICTION_N], ahead[STAR_FRICTION_R_DIM], grad_t[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv_t[STAR_FRICTION_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         c->sus->act[r] = star_friction_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -3365,6 +3366,11 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
         return;
     }
     star_friction_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    star_friction_accel(c, q, v, lam0, acc); /* the free motion's */
+    star_friction_row_accel(c, q, v, acc, frees);
     star_friction_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     star_friction_accel(c, q, v, lam0, acc);
     star_friction_row_accel(c, q, v, acc, racc);
@@ -3380,10 +3386,14 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             rate += grad[r * STAR_FRICTION_N + i] * v[i];
         }
-        if ((star_friction_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))
-            && !(rate < -c->tol->admissible / c->h && star_friction_rough(c, &star_friction_row_contact[r], 1))) {
-            star_friction_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = star_friction_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = star_friction_settles(c, rate, frees[r], 1.0)
+                && !(rate < -still && star_friction_rough(c, &star_friction_row_contact[r], 1));
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            star_friction_hold(c, grad, r);
         }
     }
     star_friction_friction_modes(c, q, v, -1.0);

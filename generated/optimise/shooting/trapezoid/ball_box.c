@@ -2446,9 +2446,10 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
 static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, const double *v)
 {
     double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
-    double lam0[BALL_BOX_R_DIM], acc[BALL_BOX_N], racc[BALL_BOX_R_DIM], rate;
+    double lam0[BALL_BOX_R_DIM], acc[BALL_BOX_N], racc[BALL_BOX_R_DIM], frees[BALL_BOX_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[BALL_BOX_N], ahead[BALL_BOX_R_DIM], grad_t[BALL_BOX_R_DIM * BALL_BOX_N], curv_t[BALL_BOX_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < BALL_BOX_R; ++r) {
         c->sus->act[r] = ball_box_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2469,6 +2470,11 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
         return;
     }
     ball_box_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    ball_box_accel(c, q, v, lam0, acc); /* the free motion's */
+    ball_box_row_accel(c, q, v, acc, frees);
     ball_box_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     ball_box_accel(c, q, v, lam0, acc);
     ball_box_row_accel(c, q, v, acc, racc);
@@ -2484,9 +2490,13 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
         for (i = 0; i < BALL_BOX_N; ++i) {
             rate += grad[r * BALL_BOX_N + i] * v[i];
         }
-        if ((ball_box_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            ball_box_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = ball_box_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = ball_box_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            ball_box_hold(c, grad, r);
         }
     }
 }

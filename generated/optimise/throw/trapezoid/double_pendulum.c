@@ -2648,9 +2648,10 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
 static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, const double *q, const double *v)
 {
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
-    double lam0[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], rate;
+    double lam0[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], frees[DOUBLE_PENDULUM_R_DIM], rate;
+    const double still = c->tol->admissible / c->h;
     double q_t[DOUBLE_PENDULUM_N], ahead[DOUBLE_PENDULUM_R_DIM], grad_t[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv_t[DOUBLE_PENDULUM_R_DIM];
-    int i, r;
+    int i, r, held;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         c->sus->act[r] = double_pendulum_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2671,6 +2672,11 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
         return;
     }
     double_pendulum_rows(q, v, c->par, psi, grad, curv);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        lam0[r] = 0.0;
+    }
+    double_pendulum_accel(c, q, v, lam0, acc); /* the free motion's */
+    double_pendulum_row_accel(c, q, v, acc, frees);
     double_pendulum_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
     double_pendulum_accel(c, q, v, lam0, acc);
     double_pendulum_row_accel(c, q, v, acc, racc);
@@ -2686,9 +2692,13 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             rate += grad[r * DOUBLE_PENDULUM_N + i] * v[i];
         }
-        if ((double_pendulum_settles(c, rate, racc[r], 1.0) /* or curving in ahead of the free path */
-                || (fabs(rate) <= c->tol->admissible / c->h && ahead[r] < -c->tol->phi))) {
-            double_pendulum_hold(c, grad, r); /* at rest; a rough one moving in takes its (plastic) impact first */
+        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+            held = double_pendulum_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+            held = double_pendulum_settles(c, rate, frees[r], 1.0);
+        }
+        if (held) { /* a rough one moving in takes its (plastic) impact first */
+            double_pendulum_hold(c, grad, r);
         }
     }
 }
