@@ -514,3 +514,19 @@ def test_a_pendulum_started_at_rest_against_its_wall_rests_there_with_the_static
     assert np.abs(res.q - q0).max() < 1e-12
     np.testing.assert_allclose(res.contact_force[:, 0], G * 0.3 / math.sqrt(0.91), rtol=0, atol=1e-9)
     assert np.ptp(res.energy) < 1e-12
+
+
+@pytest.mark.parametrize("h", [0.1, 0.05])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pendulum_at_rest_in_the_corner_of_its_rod_and_a_wall_stays_with_the_static_forces(backend, h):
+    """The bob at rest on the wall ``x = -0.999`` just above the pivot (``y = sqrt(1 - 0.999^2)``): gravity
+    pulls it down the circle into the wall, 2.6 degrees from the rod's direction, and the statics give the
+    wall's force ``g |x| / y`` = 219 (the rod pushing). Held from the start, its first step's Newton starts
+    from the forces that hold it (``_start_sustained``). Before stop 37 it started from 0, and C's Newton did
+    not converge at ``h = 0.1`` ("sustained solve failed" at step 0); CasADi's did."""
+    y0 = math.sqrt(1 - 0.999**2)
+    res = sim("rod_wall", backend).simulate([-0.999, y0], [0.0, 0.0], h, t_end=1.0, params={"a": -0.999})
+    assert not res.impacts and not res.liftoffs and res.active[:, 0].all()
+    assert np.abs(res.q - [-0.999, y0]).max() < 1e-11
+    np.testing.assert_allclose(res.contact_force[:, 0], G * 0.999 / y0, rtol=1e-9, atol=0)
+    assert np.ptp(res.energy) < 1e-10

@@ -55,7 +55,7 @@ def law_gains(grad, lam, vel_m, vel_p) -> bool:
     """Does an impulse law's result (``Lam`` per row, velocities ``vel_m`` before and ``vel_p`` after) raise
     the kinetic energy? ``dT = Lam . G (qdot- + qdot+) / 2`` over all rows, above ``EPS_LAM`` of ``sum |Lam|
     (|u-| + |u+|)`` (:func:`_gains` on the whole law). Newton's restitution with Coulomb's friction can
-    (``SustainedSteps._chain_impact`` then takes the impact plastic); without friction it cannot."""
+    (``HeldImpacts._reduced_restitution`` then takes less restitution); without friction it cannot."""
     before = grad @ vel_m
     return _gains(lam, -before, grad @ vel_p, np.zeros_like(before))  # targets 0: u- = -b, u+ = gap
 

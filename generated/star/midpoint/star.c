@@ -1559,7 +1559,8 @@ static int star_settles(const star_ctx_t *c, double rate, double acc, double e)
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void star_start_sustained(const star_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2563,6 +2564,10 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             star_hold(c, grad, r);
         }
+    }
+    star_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < STAR_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

@@ -1279,7 +1279,8 @@ static int ball_to_rest_settles(const ball_to_rest_ctx_t *c, double rate, double
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2283,6 +2284,10 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             ball_to_rest_hold(c, grad, r);
         }
+    }
+    ball_to_rest_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < BALL_TO_REST_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

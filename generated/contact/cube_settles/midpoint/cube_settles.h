@@ -148,7 +148,8 @@ int cube_settles_solve(int id, double *x, const double *args, const double *par,
  * lift-offs to sus; stops early once max_impacts (< 0: no limit) impacts are logged or a buffer might
  * overflow. Returns 0, or 1 with err filled. */
 /* The rows held at the start (q, v): bilateral constraints, and contacts touched at rest with forces pressing
- * in (vcigen.sustained.SustainedSteps._start_sustained); fills sus->act and clears sus->lam. */
+ * in (vcigen.sustained.SustainedSteps._start_sustained); fills sus->act, and sus->lam with the forces
+ * holding those rows at (q, v) (the first held step's Newton start). */
 void cube_settles_start(const double *par, const cube_settles_tol_t *tol, double h, const double *q, const double *v,
     cube_settles_sustain_t *sus);
 int cube_settles_run(const double *par, const cube_settles_tol_t *tol, double h, double t0, long step0,

@@ -2066,7 +2066,8 @@ static int cube_settles_settles(const cube_settles_ctx_t *c, double rate, double
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -3071,6 +3072,10 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             cube_settles_hold(c, grad, r);
         }
+    }
+    cube_settles_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

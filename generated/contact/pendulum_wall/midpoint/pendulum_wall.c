@@ -1508,7 +1508,8 @@ static int pendulum_wall_settles(const pendulum_wall_ctx_t *c, double rate, doub
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2512,6 +2513,10 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             pendulum_wall_hold(c, grad, r);
         }
+    }
+    pendulum_wall_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

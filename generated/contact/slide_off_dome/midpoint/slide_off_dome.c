@@ -1479,7 +1479,8 @@ static int slide_off_dome_settles(const slide_off_dome_ctx_t *c, double rate, do
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2483,6 +2484,10 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             slide_off_dome_hold(c, grad, r);
         }
+    }
+    slide_off_dome_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

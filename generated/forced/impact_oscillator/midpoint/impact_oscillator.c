@@ -1100,7 +1100,8 @@ static int impact_oscillator_settles(const impact_oscillator_ctx_t *c, double ra
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2108,6 +2109,10 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             impact_oscillator_hold(c, grad, r);
         }
+    }
+    impact_oscillator_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

@@ -154,7 +154,8 @@ int impact_oscillator_solve(int id, double *x, const double *args, const double 
  * lift-offs to sus; stops early once max_impacts (< 0: no limit) impacts are logged or a buffer might
  * overflow. Returns 0, or 1 with err filled. */
 /* The rows held at the start (q, v): bilateral constraints, and contacts touched at rest with forces pressing
- * in (vcigen.sustained.SustainedSteps._start_sustained); fills sus->act and clears sus->lam. */
+ * in (vcigen.sustained.SustainedSteps._start_sustained); fills sus->act, and sus->lam with the forces
+ * holding those rows at (q, v) (the first held step's Newton start). */
 void impact_oscillator_start(const double *par, const impact_oscillator_tol_t *tol, double h, const double *q, const double *v,
     impact_oscillator_sustain_t *sus);
 int impact_oscillator_run(const double *par, const impact_oscillator_tol_t *tol, double h, double t0, long step0,

@@ -1507,7 +1507,8 @@ static int spun_ball_settles(const spun_ball_ctx_t *c, double rate, double acc, 
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -3152,6 +3153,22 @@ static int spun_ball_spanned(const double *grad, const int *rows, const int *tig
     return 0;
 }
 
+/* impulse_law._gains: does the impulse lam (per index in rows; gap: g_r.qdot+ - target_r) add kinetic energy, above
+ * EPS_LAM of sum |lam| (|u-| + |u+|)? */
+static int spun_ball_law_gains(const int *rows, int nr, const double *tgt, const double *b, const double *gap,
+    const double *lam)
+{
+    double gain = 0.0, scale = 0.0, before, after;
+    int k;
+    for (k = 0; k < nr; ++k) {
+        before = tgt[rows[k]] - b[k];
+        after = tgt[rows[k]] + gap[k];
+        gain += lam[k] * (before + after);
+        scale += fabs(lam[k]) * (fabs(before) + fabs(after));
+    }
+    return gain / 2.0 > SPUN_BALL_EPS_LAM * scale;
+}
+
 /* law_split.least_split: the impulses lam (per index in rows) of the tight rows T = tight[0..nt) at their targets
  * (w Lam = b on T) where their gradients are dependent (a loose landing cone sticking): the least split, min |Lam|:
  * Lam = G_T G_I^T z, I an independent subset of T (span_add), (A^T A) z = G_I G_I^T Lam_I, A = G_T G_I^T, Lam_I the
@@ -3439,22 +3456,6 @@ static int spun_ball_law_least(const spun_ball_ctx_t *c, const double *grad, con
         spun_ball_cone_fit(grad, rows, nr, tight, nt, bn, bi, bo, bmu, nb, lam_eps, lam);
     }
     return 1;
-}
-
-/* impulse_law._gains: does the impulse lam (per index in rows; gap: g_r.qdot+ - target_r) add kinetic energy, above
- * EPS_LAM of sum |lam| (|u-| + |u+|)? */
-static int spun_ball_law_gains(const int *rows, int nr, const double *tgt, const double *b, const double *gap,
-    const double *lam)
-{
-    double gain = 0.0, scale = 0.0, before, after;
-    int k;
-    for (k = 0; k < nr; ++k) {
-        before = tgt[rows[k]] - b[k];
-        after = tgt[rows[k]] + gap[k];
-        gain += lam[k] * (before + after);
-        scale += fabs(lam[k]) * (fabs(before) + fabs(after));
-    }
-    return gain / 2.0 > SPUN_BALL_EPS_LAM * scale;
 }
 
 /* law_pgs.pgs and ImpulseLaw._law_pgs: the impulse law's complementarity problem by projected block Gauss-Seidel,
@@ -4158,25 +4159,25 @@ static void spun_ball_landed(const spun_ball_ctx_t *c, const int *land, const in
 }
 
 /* impulse_law.law_gains: does an impulse law's result (Lam per row, velocities before and after) raise the kinetic
- * energy? dT = Lam . G (qdot- + qdot+) / 2 over all rows, above EPS_LAM of sum |Lam| (|u-| + |u+|). */
+ * energy? law_gains over all rows with targets 0 (u- = G qdot-, u+ = G qdot+). */
 static int spun_ball_law_gains_all(const spun_ball_ctx_t *c, const double *q, const double *lam,
     const double *vel_m, const double *vel_p)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
-    double before, after, gain = 0.0, scale = 0.0;
-    int r, i;
+    double zero[SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM], after[SPUN_BALL_R_DIM];
+    int rows[SPUN_BALL_R_DIM], r, i;
     spun_ball_rows(q, vel_m, c->par, psi, grad, curv);
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        before = 0.0;
-        after = 0.0;
+    for (r = 0; r < SPUN_BALL_R; ++r) { /* targets 0: u- = -b, u+ = gap */
+        rows[r] = r;
+        zero[r] = 0.0;
+        b[r] = 0.0;
+        after[r] = 0.0;
         for (i = 0; i < SPUN_BALL_N; ++i) {
-            before += grad[r * SPUN_BALL_N + i] * vel_m[i];
-            after += grad[r * SPUN_BALL_N + i] * vel_p[i];
+            b[r] -= grad[r * SPUN_BALL_N + i] * vel_m[i];
+            after[r] += grad[r * SPUN_BALL_N + i] * vel_p[i];
         }
-        gain += lam[r] * (before + after);
-        scale += fabs(lam[r]) * (fabs(before) + fabs(after));
     }
-    return gain / 2.0 > SPUN_BALL_EPS_LAM * scale;
+    return spun_ball_law_gains(rows, SPUN_BALL_R, zero, b, after, lam);
 }
 
 /* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
@@ -4834,6 +4835,10 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
         }
     }
     spun_ball_friction_modes(c, q, v, -1.0);
+    spun_ball_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
+    }
 }
 
 

@@ -1622,7 +1622,8 @@ static int star_friction_settles(const star_friction_ctx_t *c, double rate, doub
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void star_friction_start_sustained(const star_friction_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2355,6 +2356,22 @@ static int star_friction_spanned(const double *grad, const int *rows, const int 
     return 0;
 }
 
+/* impulse_law._gains: does the impulse lam (per index in rows; gap: g_r.qdot+ - target_r) add kinetic energy, above
+ * EPS_LAM of sum |lam| (|u-| + |u+|)? */
+static int star_friction_law_gains(const int *rows, int nr, const double *tgt, const double *b, const double *gap,
+    const double *lam)
+{
+    double gain = 0.0, scale = 0.0, before, after;
+    int k;
+    for (k = 0; k < nr; ++k) {
+        before = tgt[rows[k]] - b[k];
+        after = tgt[rows[k]] + gap[k];
+        gain += lam[k] * (before + after);
+        scale += fabs(lam[k]) * (fabs(before) + fabs(after));
+    }
+    return gain / 2.0 > STAR_FRICTION_EPS_LAM * scale;
+}
+
 /* SustainedSteps._impulse_law: Newton's law on the active rows and the rows hit (target outgoing g_r.qdot: tgt[r],
  * 0 where plastic), with Coulomb's cone on the held stick rows: the complementarity problem Lam >= 0,
  * g_r.qdot+ >= target_r, one of the two tight for every row (bilateral rows: equality); a held stick row of a
@@ -2731,25 +2748,25 @@ static void star_friction_landed(const star_friction_ctx_t *c, const int *land, 
 }
 
 /* impulse_law.law_gains: does an impulse law's result (Lam per row, velocities before and after) raise the kinetic
- * energy? dT = Lam . G (qdot- + qdot+) / 2 over all rows, above EPS_LAM of sum |Lam| (|u-| + |u+|). */
+ * energy? law_gains over all rows with targets 0 (u- = G qdot-, u+ = G qdot+). */
 static int star_friction_law_gains_all(const star_friction_ctx_t *c, const double *q, const double *lam,
     const double *vel_m, const double *vel_p)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
-    double before, after, gain = 0.0, scale = 0.0;
-    int r, i;
+    double zero[STAR_FRICTION_R_DIM], b[STAR_FRICTION_R_DIM], after[STAR_FRICTION_R_DIM];
+    int rows[STAR_FRICTION_R_DIM], r, i;
     star_friction_rows(q, vel_m, c->par, psi, grad, curv);
-    for (r = 0; r < STAR_FRICTION_R; ++r) {
-        before = 0.0;
-        after = 0.0;
+    for (r = 0; r < STAR_FRICTION_R; ++r) { /* targets 0: u- = -b, u+ = gap */
+        rows[r] = r;
+        zero[r] = 0.0;
+        b[r] = 0.0;
+        after[r] = 0.0;
         for (i = 0; i < STAR_FRICTION_N; ++i) {
-            before += grad[r * STAR_FRICTION_N + i] * vel_m[i];
-            after += grad[r * STAR_FRICTION_N + i] * vel_p[i];
+            b[r] -= grad[r * STAR_FRICTION_N + i] * vel_m[i];
+            after[r] += grad[r * STAR_FRICTION_N + i] * vel_p[i];
         }
-        gain += lam[r] * (before + after);
-        scale += fabs(lam[r]) * (fabs(before) + fabs(after));
     }
-    return gain / 2.0 > STAR_FRICTION_EPS_LAM * scale;
+    return star_friction_law_gains(rows, STAR_FRICTION_R, zero, b, after, lam);
 }
 
 /* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
@@ -3397,6 +3414,10 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
         }
     }
     star_friction_friction_modes(c, q, v, -1.0);
+    star_friction_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
+    }
 }
 
 

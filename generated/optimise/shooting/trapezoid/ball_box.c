@@ -1494,7 +1494,8 @@ static int ball_box_settles(const ball_box_ctx_t *c, double rate, double acc, do
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2498,6 +2499,10 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             ball_box_hold(c, grad, r);
         }
+    }
+    ball_box_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 

@@ -1638,7 +1638,8 @@ static int double_pendulum_settles(const double_pendulum_ctx_t *c, double rate, 
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in. */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
+ * sus->lam: the forces holding them (the first held step's Newton start). */
 static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2643,6 +2644,10 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
         if (held) { /* a rough one moving in takes its (plastic) impact first */
             double_pendulum_hold(c, grad, r);
         }
+    }
+    double_pendulum_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        c->sus->lam[r] = c->sus->act[r] && isfinite(lam0[r]) ? lam0[r] * c->h / 2.0 : 0.0;
     }
 }
 
