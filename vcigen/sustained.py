@@ -126,7 +126,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         """Active rows at the start: bilateral constraints, and contacts touched at rest (``|rate| <=
         Tolerances.admissible / h``) and pressed in under the bilateral rows' forces (a pendulum at rest
         against a wall is pressed in by its rod alone), or moving below the jump's resolution and pressed in
-        by the free motion (moving into the corner a bilateral row makes with the contact is an impact), or at
+        by the free motion (moving into the corner a bilateral row makes with the contact is an impact; moving
+        out, only where the free path comes back within the step: held, the first step pulled it back), or at
         rest where the free path curves into them within the step (to second order: released at rest on a
         bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall leaves the bowl at fourth
         order; not held, it crossed the wall again and again at once). A rough contact (Coulomb's cone,
@@ -152,9 +153,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if abs(rates[r]) <= still:  # at rest: pressed in, or curving in ahead of the free path
                 held = self._settles(rates[r], accs[r], 1.0, h) or ahead[r] < -self.tol.phi
             else:  # moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner)
-                held = self._settles(rates[r], frees[r], 1.0, h) and not (
-                    rates[r] < -still and self._rough([k.row_contact[r]])
-                )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first
+                held = (
+                    self._settles(rates[r], frees[r], 1.0, h)
+                    and not (rates[r] < -still and self._rough([k.row_contact[r]]))
+                    and (rates[r] < 0.0 or ahead[r] < -self.tol.phi)
+                )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first; one
+                # moving out is held only where the free path comes back within the step
             if held:
                 self._hold(grad, r)
         self._friction_modes(q0, v0)

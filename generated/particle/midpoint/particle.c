@@ -2278,9 +2278,11 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = particle_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = particle_settles(c, rate, frees[r], 1.0);
+            held = particle_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             particle_hold(c, grad, r);
         }
     }

@@ -2284,9 +2284,11 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = ball_to_rest_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = ball_to_rest_settles(c, rate, frees[r], 1.0);
+            held = ball_to_rest_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             ball_to_rest_hold(c, grad, r);
         }
     }

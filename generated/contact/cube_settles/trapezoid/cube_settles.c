@@ -3067,9 +3067,11 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = cube_settles_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = cube_settles_settles(c, rate, frees[r], 1.0);
+            held = cube_settles_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             cube_settles_hold(c, grad, r);
         }
     }

@@ -2513,9 +2513,11 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = pendulum_wall_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = pendulum_wall_settles(c, rate, frees[r], 1.0);
+            held = pendulum_wall_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             pendulum_wall_hold(c, grad, r);
         }
     }

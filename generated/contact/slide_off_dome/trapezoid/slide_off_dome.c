@@ -2484,9 +2484,11 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = slide_off_dome_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = slide_off_dome_settles(c, rate, frees[r], 1.0);
+            held = slide_off_dome_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             slide_off_dome_hold(c, grad, r);
         }
     }

@@ -2111,9 +2111,11 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = impact_oscillator_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = impact_oscillator_settles(c, rate, frees[r], 1.0);
+            held = impact_oscillator_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             impact_oscillator_hold(c, grad, r);
         }
     }

@@ -3123,9 +3123,11 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
             held = block_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = block_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && block_rough(c, &block_row_contact[r], 1));
+                && !(rate < -still && block_rough(c, &block_row_contact[r], 1))
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             block_hold(c, grad, r);
         }
     }

@@ -3203,9 +3203,11 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
             held = rough_disk_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = rough_disk_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && rough_disk_rough(c, &rough_disk_row_contact[r], 1));
+                && !(rate < -still && rough_disk_rough(c, &rough_disk_row_contact[r], 1))
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             rough_disk_hold(c, grad, r);
         }
     }

@@ -4828,9 +4828,11 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
             held = spun_ball_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = spun_ball_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && spun_ball_rough(c, &spun_ball_row_contact[r], 1));
+                && !(rate < -still && spun_ball_rough(c, &spun_ball_row_contact[r], 1))
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             spun_ball_hold(c, grad, r);
         }
     }

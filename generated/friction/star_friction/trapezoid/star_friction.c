@@ -3407,9 +3407,11 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
             held = star_friction_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = star_friction_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && star_friction_rough(c, &star_friction_row_contact[r], 1));
+                && !(rate < -still && star_friction_rough(c, &star_friction_row_contact[r], 1))
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             star_friction_hold(c, grad, r);
         }
     }

@@ -2696,9 +2696,11 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
         if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
             held = double_pendulum_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = double_pendulum_settles(c, rate, frees[r], 1.0);
+            held = double_pendulum_settles(c, rate, frees[r], 1.0)
+                && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first */
+        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
+                     * where the free path comes back within the step */
             double_pendulum_hold(c, grad, r);
         }
     }
