@@ -392,7 +392,8 @@ def warn_restitution_reduced(count: int, stacklevel: int = 2) -> None:
 
 def warn_sticks_kept(count: int, jams: int = 0, stacklevel: int = 2) -> None:
     """Say how many stick <-> slip cycles at one instant were cut by sticking on
-    (``res.stats["sticks_kept"]``) and how many lift-off <-> landing cycles by jamming (``"jams"``)."""
+    (``res.stats["sticks_kept"]``) and how many Painleve jams (``"jams"``: a lift-off <-> landing cycle, or a
+    slide past Painleve's boundary, ``SustainedSteps._painleve``)."""
     if count:
         warnings.warn(
             f"{count} time(s) a frictional contact cycled between stick and slip at one instant (its stick "
@@ -403,9 +404,10 @@ def warn_sticks_kept(count: int, jams: int = 0, stacklevel: int = 2) -> None:
         )
     if jams:
         warnings.warn(
-            f"{jams} time(s) a contact lifted off and landed again at one instant under sliding friction "
-            "(Painleve's inconsistency) and every held frictional contact was made to stick there, its "
-            "friction not bounded by mu N (README, Known limits: Friction)",
+            f"{jams} time(s) a contact under sliding friction met Painleve's inconsistency (it lifted off "
+            "and landed again at one instant, or slid past the boundary where the force holding it grows "
+            "without bound) and every held frictional contact was made to stick there, its friction not "
+            "bounded by mu N (README, Known limits: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

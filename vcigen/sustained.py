@@ -109,7 +109,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
         self.sticks_kept = 0  # stick <-> slip cycles (STICK_CYCLES slides in a step) cut by sticking on
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
-        self.jams = 0  # lift-off <-> landing cycles (JAM_CYCLES in a step) resolved by sticking (_jam)
+        self.jams = 0  # Painleve jams (JAM_CYCLES lift-offs in a step, _painleve) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
         self._lam = np.zeros(k.r)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
@@ -131,10 +131,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         rest where the free path curves into them within the step (to second order: released at rest on a
         bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall leaves the bowl at fourth
         order; not held, it crossed the wall again and again at once). A rough contact (Coulomb's cone,
-        ``mu_f > 0``) moving in faster than ``Tolerances.admissible / h`` is not held: it takes its impact at
-        the start, with friction (held at once, the first held step would take its normal speed as a force,
-        and the friction with it); a frictionless one is held (the map stays smooth in ``v0`` for the
-        tangent). The first held step's Newton starts from the forces holding the rows at ``(q0, v0)``
+        ``mu_f > 0``) moving faster than ``Tolerances.admissible / h`` is not held: moving in, it takes its
+        impact at the start, with friction (held at once, the first held step would take its normal speed as
+        a force, and the friction with it); moving out, it flies and lands as an impact (held, the first step
+        pulled it back, and a pulling normal force reverses sliding friction: a rough star spun on a face
+        gained energy 1400-fold in one step); a frictionless one is held (the map stays smooth in ``v0`` for
+        the tangent). The first held step's Newton starts from the forces holding the rows at ``(q0, v0)``
         (:meth:`_contact_forces`): from 0, C's did not converge on a bob at rest in the corner of its rod and
         a wall 2.6 degrees apart at ``h = 0.1``, where the wall pushes with 22 ``m g``."""
         k = self.k
@@ -155,10 +157,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             else:  # moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner)
                 held = (
                     self._settles(rates[r], frees[r], 1.0, h)
-                    and not (rates[r] < -still and self._rough([k.row_contact[r]]))
+                    and not self._rough([k.row_contact[r]])
                     and (rates[r] < 0.0 or ahead[r] < -self.tol.phi)
-                )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first; one
-                # moving out is held only where the free path comes back within the step
+                )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first, one
+                # moving out flies; a frictionless one moving out is held only where its free path comes back
             if held:
                 self._hold(grad, r)
         self._friction_modes(q0, v0)
@@ -281,6 +283,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self._ev_event(*self._lift_seg, "lift")
                 self._lift_seg = None
             v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)
+            if self._slip.size and self._slip.any() and not self._jammed and self._painleve(end):
+                self._jam(q, self._velocity(q, guess, p))  # the tangential impact, at the segment's start
+                self._fswitch = self._fswitch or plain
+                self._sw_lose()
+                plain = False
+                continue
             e_step = e_seg if (e_step is None or self._forced) else e_step
             unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool) & (np.asarray(k.row_stick) < 0)
             events = {}
@@ -581,7 +589,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
 
     def _jam(self, q, u) -> None:
         """A row lifted off and landed again ``JAM_CYCLES`` times in one step (its force below 0 held, sinking
-        free: Painleve's inconsistency under sliding friction, high ``mu``): every held frictional contact
+        free: Painleve's inconsistency under sliding friction, high ``mu``), or a held slipping contact past
+        Painleve's boundary at a segment's end (:meth:`_painleve`): every held frictional contact
         sticks from here (the tangential impact of its theory, the sliding stopped at once by the stick rows'
         impulse, not bounded by the cones), counted in ``jams``."""
         k = self.k
@@ -592,6 +601,24 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if held and self._mu_f[f] > 0.0 and not self.act[self._stick_rows[f]] and self._ride[f] < 0:
                 self._stick(f, q, u)
         self._set_friction()
+
+    def _painleve(self, end: End) -> bool:
+        """Is a held contact slipping past Painleve's boundary at a segment's end: one of its held normal rows
+        ``r`` with ``grad_r . M^-1 d_r <= 0`` (``d_r``: its force direction with the sliding friction,
+        :meth:`_dirs`)? There the normal force that holds the row grows without bound as the boundary nears,
+        and the segment's root lies beyond it (a rough star tipping as it slides on a vertex, ``mu = 1.38``:
+        the end impulse -67, the speeds 93 m/s after one step). The chain then takes the tangential impact of
+        the theory instead (:meth:`_jam`, at the segment's start)."""
+        k = self.k
+        dirs = self._dirs(end.grad)
+        for f, j in enumerate(k.frictional):
+            if not self._slip[f]:
+                continue
+            for r in range(k.r):
+                if self.act[r] and k.row_contact[r] == j and k.row_stick[r] < 0 and not k.row_bilateral[r]:
+                    if float(end.grad[r] @ np.linalg.solve(end.mass, dirs[r])) <= 0.0:
+                        return True
+        return False
 
     def _pass_load(self, q, u, r: int, barred) -> int:
         """The riding row that takes held row ``r``'s load at its lift-off (its force below 0), or -1.

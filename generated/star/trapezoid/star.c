@@ -1289,6 +1289,10 @@ static int star_contact_root(const star_ctx_t *c, const star_seg_t *seg, int j, 
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        star_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         star_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -2564,8 +2568,8 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
             held = star_settles(c, rate, frees[r], 1.0)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             star_hold(c, grad, r);
         }
     }

@@ -1012,6 +1012,10 @@ static int ball_to_rest_contact_root(const ball_to_rest_ctx_t *c, const ball_to_
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        ball_to_rest_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         ball_to_rest_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -2287,8 +2291,8 @@ static void ball_to_rest_start_sustained(const ball_to_rest_ctx_t *c, const doub
             held = ball_to_rest_settles(c, rate, frees[r], 1.0)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             ball_to_rest_hold(c, grad, r);
         }
     }

@@ -1799,6 +1799,10 @@ static int cube_settles_contact_root(const cube_settles_ctx_t *c, const cube_set
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        cube_settles_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         cube_settles_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -3070,8 +3074,8 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
             held = cube_settles_settles(c, rate, frees[r], 1.0)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             cube_settles_hold(c, grad, r);
         }
     }

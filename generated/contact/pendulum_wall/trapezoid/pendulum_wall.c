@@ -1241,6 +1241,10 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        pendulum_wall_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         pendulum_wall_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -2516,8 +2520,8 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
             held = pendulum_wall_settles(c, rate, frees[r], 1.0)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             pendulum_wall_hold(c, grad, r);
         }
     }

@@ -1212,6 +1212,10 @@ static int slide_off_dome_contact_root(const slide_off_dome_ctx_t *c, const slid
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        slide_off_dome_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         slide_off_dome_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -2487,8 +2491,8 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
             held = slide_off_dome_settles(c, rate, frees[r], 1.0)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             slide_off_dome_hold(c, grad, r);
         }
     }

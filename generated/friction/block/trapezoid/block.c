@@ -1009,6 +1009,10 @@ static int block_contact_root(const block_ctx_t *c, const block_seg_t *seg, int 
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        block_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         block_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -1672,7 +1676,8 @@ static void block_stick(const block_ctx_t *c, int f, const double *q, const doub
 }
 
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
- * Painleve's inconsistency under sliding friction): every held frictional contact sticks from here (the tangential
+ * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
+ * every held frictional contact sticks from here (the tangential
  * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
 static void block_jam(const block_ctx_t *c, const double *q, const double *u)
 {
@@ -1688,6 +1693,45 @@ static void block_jam(const block_ctx_t *c, const double *q, const double *u)
         }
     }
     block_set_friction(c);
+}
+
+/* SustainedSteps._painleve: is a held contact slipping past Painleve's boundary at a segment's end (q1, u1): one of
+ * its held normal rows r with grad_r . M^-1 d_r <= 0 (d_r its force direction with the sliding friction, dirs)?
+ * The normal force holding it grows without bound as the boundary nears, the segment's root lies beyond it; the
+ * chain takes the tangential impact (jam) at the segment's start instead. */
+static int block_painleve(const block_ctx_t *c, const double *q1, const double *u1)
+{
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
+    double dirs[BLOCK_R_DIM * BLOCK_N], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N];
+    double d[BLOCK_N], a;
+    int piv[BLOCK_N], f, r, i;
+    block_rows(q1, u1, c->par, psi, grad, curv);
+    block_legendre(q1, u1, c->par, mom, mass);
+    block_dirs(c, grad, dirs);
+    if (!block_lu(BLOCK_N, mass, piv)) {
+        return 0;
+    }
+    for (f = 0; f < BLOCK_NF; ++f) {
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (r = 0; r < BLOCK_R; ++r) {
+            if (!c->sus->act[r] || block_row_free[r] || block_row_contact[r] != block_fric_contact[f]) {
+                continue;
+            }
+            for (i = 0; i < BLOCK_N; ++i) {
+                d[i] = dirs[r * BLOCK_N + i];
+            }
+            block_lu_solve(BLOCK_N, mass, piv, d);
+            for (i = 0, a = 0.0; i < BLOCK_N; ++i) {
+                a += grad[r * BLOCK_N + i] * d[i];
+            }
+            if (a <= 0.0) {
+                return 1;
+            }
+        }
+    }
+    return 0;
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -2845,6 +2889,12 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         if (block_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
+        if (!c->sus->jammed && block_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
+                                                                   * impact (jam) at the segment's start */
+            block_velocity(c, q, v, p, vel);
+            block_jam(c, q, vel);
+            continue;
+        }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
@@ -3123,11 +3173,11 @@ static void block_start_sustained(const block_ctx_t *c, const double *q, const d
             held = block_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = block_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && block_rough(c, &block_row_contact[r], 1))
+                && !block_rough(c, &block_row_contact[r], 1)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             block_hold(c, grad, r);
         }
     }

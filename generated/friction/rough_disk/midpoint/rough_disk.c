@@ -1088,6 +1088,10 @@ static int rough_disk_contact_root(const rough_disk_ctx_t *c, const rough_disk_s
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        rough_disk_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         rough_disk_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -1751,7 +1755,8 @@ static void rough_disk_stick(const rough_disk_ctx_t *c, int f, const double *q, 
 }
 
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
- * Painleve's inconsistency under sliding friction): every held frictional contact sticks from here (the tangential
+ * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
+ * every held frictional contact sticks from here (the tangential
  * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
 static void rough_disk_jam(const rough_disk_ctx_t *c, const double *q, const double *u)
 {
@@ -1767,6 +1772,45 @@ static void rough_disk_jam(const rough_disk_ctx_t *c, const double *q, const dou
         }
     }
     rough_disk_set_friction(c);
+}
+
+/* SustainedSteps._painleve: is a held contact slipping past Painleve's boundary at a segment's end (q1, u1): one of
+ * its held normal rows r with grad_r . M^-1 d_r <= 0 (d_r its force direction with the sliding friction, dirs)?
+ * The normal force holding it grows without bound as the boundary nears, the segment's root lies beyond it; the
+ * chain takes the tangential impact (jam) at the segment's start instead. */
+static int rough_disk_painleve(const rough_disk_ctx_t *c, const double *q1, const double *u1)
+{
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N];
+    double d[ROUGH_DISK_N], a;
+    int piv[ROUGH_DISK_N], f, r, i;
+    rough_disk_rows(q1, u1, c->par, psi, grad, curv);
+    rough_disk_legendre(q1, u1, c->par, mom, mass);
+    rough_disk_dirs(c, grad, dirs);
+    if (!rough_disk_lu(ROUGH_DISK_N, mass, piv)) {
+        return 0;
+    }
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (r = 0; r < ROUGH_DISK_R; ++r) {
+            if (!c->sus->act[r] || rough_disk_row_free[r] || rough_disk_row_contact[r] != rough_disk_fric_contact[f]) {
+                continue;
+            }
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                d[i] = dirs[r * ROUGH_DISK_N + i];
+            }
+            rough_disk_lu_solve(ROUGH_DISK_N, mass, piv, d);
+            for (i = 0, a = 0.0; i < ROUGH_DISK_N; ++i) {
+                a += grad[r * ROUGH_DISK_N + i] * d[i];
+            }
+            if (a <= 0.0) {
+                return 1;
+            }
+        }
+    }
+    return 0;
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -2924,6 +2968,12 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         if (rough_disk_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
+        if (!c->sus->jammed && rough_disk_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
+                                                                   * impact (jam) at the segment's start */
+            rough_disk_velocity(c, q, v, p, vel);
+            rough_disk_jam(c, q, vel);
+            continue;
+        }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
@@ -3202,11 +3252,11 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
             held = rough_disk_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = rough_disk_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && rough_disk_rough(c, &rough_disk_row_contact[r], 1))
+                && !rough_disk_rough(c, &rough_disk_row_contact[r], 1)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             rough_disk_hold(c, grad, r);
         }
     }

@@ -1175,6 +1175,10 @@ static int spun_ball_contact_root(const spun_ball_ctx_t *c, const spun_ball_seg_
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        spun_ball_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         spun_ball_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -1861,7 +1865,8 @@ static void spun_ball_stick(const spun_ball_ctx_t *c, int f, const double *q, co
 }
 
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
- * Painleve's inconsistency under sliding friction): every held frictional contact sticks from here (the tangential
+ * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
+ * every held frictional contact sticks from here (the tangential
  * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
 static void spun_ball_jam(const spun_ball_ctx_t *c, const double *q, const double *u)
 {
@@ -1877,6 +1882,45 @@ static void spun_ball_jam(const spun_ball_ctx_t *c, const double *q, const doubl
         }
     }
     spun_ball_set_friction(c);
+}
+
+/* SustainedSteps._painleve: is a held contact slipping past Painleve's boundary at a segment's end (q1, u1): one of
+ * its held normal rows r with grad_r . M^-1 d_r <= 0 (d_r its force direction with the sliding friction, dirs)?
+ * The normal force holding it grows without bound as the boundary nears, the segment's root lies beyond it; the
+ * chain takes the tangential impact (jam) at the segment's start instead. */
+static int spun_ball_painleve(const spun_ball_ctx_t *c, const double *q1, const double *u1)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double dirs[SPUN_BALL_R_DIM * SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N];
+    double d[SPUN_BALL_N], a;
+    int piv[SPUN_BALL_N], f, r, i;
+    spun_ball_rows(q1, u1, c->par, psi, grad, curv);
+    spun_ball_legendre(q1, u1, c->par, mom, mass);
+    spun_ball_dirs(c, grad, dirs);
+    if (!spun_ball_lu(SPUN_BALL_N, mass, piv)) {
+        return 0;
+    }
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (r = 0; r < SPUN_BALL_R; ++r) {
+            if (!c->sus->act[r] || spun_ball_row_free[r] || spun_ball_row_contact[r] != spun_ball_fric_contact[f]) {
+                continue;
+            }
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                d[i] = dirs[r * SPUN_BALL_N + i];
+            }
+            spun_ball_lu_solve(SPUN_BALL_N, mass, piv, d);
+            for (i = 0, a = 0.0; i < SPUN_BALL_N; ++i) {
+                a += grad[r * SPUN_BALL_N + i] * d[i];
+            }
+            if (a <= 0.0) {
+                return 1;
+            }
+        }
+    }
+    return 0;
 }
 
 static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau);
@@ -4541,6 +4585,12 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         if (spun_ball_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
+        if (!c->sus->jammed && spun_ball_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
+                                                                   * impact (jam) at the segment's start */
+            spun_ball_velocity(c, q, v, p, vel);
+            spun_ball_jam(c, q, vel);
+            continue;
+        }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
@@ -4827,11 +4877,11 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
             held = spun_ball_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = spun_ball_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && spun_ball_rough(c, &spun_ball_row_contact[r], 1))
+                && !spun_ball_rough(c, &spun_ball_row_contact[r], 1)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             spun_ball_hold(c, grad, r);
         }
     }

@@ -1282,6 +1282,10 @@ static int star_friction_contact_root(const star_friction_ctx_t *c, const star_f
         *s_out = 0.0;
         return 0;
     }
+    if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
+                                           * off the trivial root at s = 0 to the landing, if it leaves */
+        star_friction_leave(c, seg, j, &lo, &phi_lo);
+    }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
         star_friction_leave(c, seg, j, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
@@ -1954,7 +1958,8 @@ static void star_friction_stick(const star_friction_ctx_t *c, int f, const doubl
 }
 
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
- * Painleve's inconsistency under sliding friction): every held frictional contact sticks from here (the tangential
+ * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
+ * every held frictional contact sticks from here (the tangential
  * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
 static void star_friction_jam(const star_friction_ctx_t *c, const double *q, const double *u)
 {
@@ -1970,6 +1975,45 @@ static void star_friction_jam(const star_friction_ctx_t *c, const double *q, con
         }
     }
     star_friction_set_friction(c);
+}
+
+/* SustainedSteps._painleve: is a held contact slipping past Painleve's boundary at a segment's end (q1, u1): one of
+ * its held normal rows r with grad_r . M^-1 d_r <= 0 (d_r its force direction with the sliding friction, dirs)?
+ * The normal force holding it grows without bound as the boundary nears, the segment's root lies beyond it; the
+ * chain takes the tangential impact (jam) at the segment's start instead. */
+static int star_friction_painleve(const star_friction_ctx_t *c, const double *q1, const double *u1)
+{
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double dirs[STAR_FRICTION_R_DIM * STAR_FRICTION_N], mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N];
+    double d[STAR_FRICTION_N], a;
+    int piv[STAR_FRICTION_N], f, r, i;
+    star_friction_rows(q1, u1, c->par, psi, grad, curv);
+    star_friction_legendre(q1, u1, c->par, mom, mass);
+    star_friction_dirs(c, grad, dirs);
+    if (!star_friction_lu(STAR_FRICTION_N, mass, piv)) {
+        return 0;
+    }
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (r = 0; r < STAR_FRICTION_R; ++r) {
+            if (!c->sus->act[r] || star_friction_row_free[r] || star_friction_row_contact[r] != star_friction_fric_contact[f]) {
+                continue;
+            }
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                d[i] = dirs[r * STAR_FRICTION_N + i];
+            }
+            star_friction_lu_solve(STAR_FRICTION_N, mass, piv, d);
+            for (i = 0, a = 0.0; i < STAR_FRICTION_N; ++i) {
+                a += grad[r * STAR_FRICTION_N + i] * d[i];
+            }
+            if (a <= 0.0) {
+                return 1;
+            }
+        }
+    }
+    return 0;
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
@@ -3127,6 +3171,12 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         if (star_friction_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
+        if (!c->sus->jammed && star_friction_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
+                                                                   * impact (jam) at the segment's start */
+            star_friction_velocity(c, q, v, p, vel);
+            star_friction_jam(c, q, vel);
+            continue;
+        }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
         }
@@ -3405,11 +3455,11 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
             held = star_friction_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
         } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
             held = star_friction_settles(c, rate, frees[r], 1.0)
-                && !(rate < -still && star_friction_rough(c, &star_friction_row_contact[r], 1))
+                && !star_friction_rough(c, &star_friction_row_contact[r], 1)
                 && (rate < 0.0 || ahead[r] < -c->tol->phi);
         }
-        if (held) { /* a rough one moving in takes its (plastic) impact first; one moving out is held only
-                     * where the free path comes back within the step */
+        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                     * frictionless one moving out is held only where the free path comes back within the step */
             star_friction_hold(c, grad, r);
         }
     }
