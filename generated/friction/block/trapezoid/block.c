@@ -1704,7 +1704,13 @@ static int block_painleve(const block_ctx_t *c, const double *q1, const double *
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double dirs[BLOCK_R_DIM * BLOCK_N], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N];
     double d[BLOCK_N], a;
-    int piv[BLOCK_N], f, r, i;
+    int piv[BLOCK_N], f, r, i, slips = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+        return 0;
+    }
     block_rows(q1, u1, c->par, psi, grad, curv);
     block_legendre(q1, u1, c->par, mom, mass);
     block_dirs(c, grad, dirs);

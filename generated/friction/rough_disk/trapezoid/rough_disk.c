@@ -1784,7 +1784,13 @@ static int rough_disk_painleve(const rough_disk_ctx_t *c, const double *q1, cons
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N];
     double d[ROUGH_DISK_N], a;
-    int piv[ROUGH_DISK_N], f, r, i;
+    int piv[ROUGH_DISK_N], f, r, i, slips = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+        return 0;
+    }
     rough_disk_rows(q1, u1, c->par, psi, grad, curv);
     rough_disk_legendre(q1, u1, c->par, mom, mass);
     rough_disk_dirs(c, grad, dirs);

@@ -1893,7 +1893,13 @@ static int spun_ball_painleve(const spun_ball_ctx_t *c, const double *q1, const 
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double dirs[SPUN_BALL_R_DIM * SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N];
     double d[SPUN_BALL_N], a;
-    int piv[SPUN_BALL_N], f, r, i;
+    int piv[SPUN_BALL_N], f, r, i, slips = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+        return 0;
+    }
     spun_ball_rows(q1, u1, c->par, psi, grad, curv);
     spun_ball_legendre(q1, u1, c->par, mom, mass);
     spun_ball_dirs(c, grad, dirs);

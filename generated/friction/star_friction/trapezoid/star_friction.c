@@ -1988,7 +1988,13 @@ static int star_friction_painleve(const star_friction_ctx_t *c, const double *q1
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double dirs[STAR_FRICTION_R_DIM * STAR_FRICTION_N], mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N];
     double d[STAR_FRICTION_N], a;
-    int piv[STAR_FRICTION_N], f, r, i;
+    int piv[STAR_FRICTION_N], f, r, i, slips = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+        return 0;
+    }
     star_friction_rows(q1, u1, c->par, psi, grad, curv);
     star_friction_legendre(q1, u1, c->par, mom, mass);
     star_friction_dirs(c, grad, dirs);
