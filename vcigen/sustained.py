@@ -283,7 +283,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self._ev_event(*self._lift_seg, "lift")
                 self._lift_seg = None
             v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)
-            if self._slip.size and self._slip.any() and not self._jammed and self._painleve(end):
+            if self._slip.any() and not self._jammed and self._painleve(end):
                 self._jam(q, self._velocity(q, guess, p))  # the tangential impact, at the segment's start
                 self._fswitch = self._fswitch or plain
                 self._sw_lose()
