@@ -376,6 +376,23 @@ ROUGH_FACE_STARTS = {
         1.3785988886466385,
         0.23426306411603814,
     ),
+    "nudged 3e-10 above a face": (  # the second vertex held off by 7e-10, its offset taken as a velocity
+        # over a sub-step of 1e-13 s at the slide's stop: 3579 m/s, then whole turns a step (_onto_rows)
+        [0.0, 0.500000000320771, 1.5707963274364385],
+        [0.0, 0.0, 5.7643953651243034e-05],
+        0.05,
+        2.99,
+        0.8785496458188559,
+        0.0,
+    ),
+    "spun 1e-10 above a face, e = 0.97": (  # before: 9 turns a step on both backends
+        [0.0, 0.5000000000946162, -1.570796326984129],
+        [0.0, 0.0, -0.28028817823737584],
+        0.05,
+        1.6,
+        0.4383104478553619,
+        0.9686157073889972,
+    ),
 }
 
 

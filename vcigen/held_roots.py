@@ -35,6 +35,7 @@ STICK_CYCLES = 2  # slides from rest of one stick row in a step, each stopped at
 JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the held contacts stick (a jam)
 BOUNCE_CYCLES = 4  # impacts of one row in a step's held chain before the next holds it (Zeno: a few)
 RESTITUTION_BISECTIONS = 30  # halvings of the restitution kept where friction would raise the energy
+ONTO_ITER = 2  # Gauss-Newton steps moving a segment's start onto its rows (SustainedSteps._onto_rows)
 
 
 def span_add(basis: list, g) -> bool:

@@ -34,6 +34,7 @@ BREAK_REASONS: tuple[tuple[str, str], ...] = (
     ("NONFINITE_TANGENT", "a non-finite tangent (singular Jacobian)"),
     ("FRICTION_SWITCH", "friction switch in a held step"),
     ("LOAD_PASSED", "load passed to a riding row"),
+    ("ONTO_ROWS", "start moved onto the held rows"),
 )
 _BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
 

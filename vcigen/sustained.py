@@ -39,6 +39,7 @@ from .held_roots import (
     EPS_LIFT,
     JAM_CYCLES,
     LIFT_ITER,
+    ONTO_ITER,
     ROOT_EPS,
     STICK_CYCLES,
     End,
@@ -112,6 +113,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.jams = 0  # Painleve jams (JAM_CYCLES lift-offs in a step, _painleve) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
         self._lam = np.zeros(k.r)
+        self._on_rows = np.zeros(k.r, dtype=bool)  # the active rows the state was last put on (_onto_rows)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
         rule = k.system.rule
         self._stages, self._inner_ratio, self._lam_rate = rule.stages, rule.inner_ratio, rule.lam_rate
@@ -211,6 +213,35 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         out[rows] = np.linalg.solve(g @ minv[:, 1:], -(g @ minv[:, 0] + curv[rows]))
         return out
 
+    def _onto_rows(self, q, guess, p):
+        """``q`` moved onto the active rows where one held since the last call is off by more than
+        ``Tolerances.phi`` (a start touching within ``Tolerances.admissible``, a face's second vertex): the
+        least move in ``M``'s norm, ``ONTO_ITER`` Gauss-Newton steps ``dq = -M^-1 G^T (G M^-1 G^T)^-1 psi``;
+        else (or where the rows are dependent) ``None``. Held, a segment takes the rows' offset ``d`` into its
+        velocity as ``d / tau``: a sub-step cut at an event near its start ran at 1e3 m/s, its friction with
+        it, and the next segment's Newton, started there, took a root a whole turn of the star away (fuzzed
+        rough stars started 1e-10 off a face, a whole turn a step from then on)."""
+        k = self.k
+        new = self.act & ~self._on_rows
+        self._on_rows = self.act.copy()
+        if not new.any():
+            return None
+        u = self._velocity(q, guess, p)
+        psi = k.rows(q, u)[0]
+        if float(np.max(np.abs(psi[new]))) <= self.tol.phi:
+            return None
+        rows = np.flatnonzero(self.act)
+        mass = k.legendre(q, u)[1]
+        for _ in range(ONTO_ITER):
+            psi, grad, _ = k.rows(q, u)
+            g = grad[rows]
+            minv_g = np.linalg.solve(mass, g.T)
+            try:
+                q = q - minv_g @ np.linalg.solve(g @ minv_g, psi[rows])
+            except np.linalg.LinAlgError:
+                return None
+        return q
+
     def _contact_accel(self, q, u, nrm, group, weights) -> float:
         """``d2 phi/dt2`` along the impulse direction ``nrm`` of a free impact on ``group``."""
         rhs, curv = self.k.dynamics(q, u)
@@ -278,6 +309,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 plain = plain and same and not self._braked
             if not self.act.any():
                 return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
+            moved = self._onto_rows(q, guess, p)
+            if moved is not None:  # a move, not a segment: the tangent has no derivative of it
+                q = moved
+                self._sw_lose("start moved onto the held rows")
+                plain = False
             if not plain:  # a constrained segment after an event: no lift-off then a free rest
                 if self._lift_seg is not None:  # the lift-off is one event of several (Tracker.event)
                     self._ev_event(*self._lift_seg, "lift")

@@ -1131,6 +1131,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define PARTICLE_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define PARTICLE_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define PARTICLE_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
@@ -1394,6 +1395,75 @@ static void particle_forces_to(const particle_ctx_t *c, const double *q, const d
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int particle_onto_rows(const particle_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double u[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_g[PARTICLE_R_DIM * PARTICLE_N];
+    double a[PARTICLE_R_DIM * PARTICLE_R_DIM], b[PARTICLE_R_DIM], off = 0.0;
+    int rows[PARTICLE_R_DIM], fresh[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    particle_velocity(c, q, v, p, u);
+    particle_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    particle_legendre(q, u, c->par, mom, mass);
+    if (!particle_lu(PARTICLE_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < PARTICLE_ONTO_ITER; ++it) {
+        int pa[PARTICLE_R_DIM];
+        if (it > 0) {
+            particle_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < PARTICLE_N; ++i) {
+                minv_g[k * PARTICLE_N + i] = grad[rows[k] * PARTICLE_N + i];
+            }
+            particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < PARTICLE_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
+                }
+            }
+        }
+        if (!particle_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        particle_lu_solve(nr, a, pa, b);
+        for (i = 0; i < PARTICLE_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * PARTICLE_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2116,6 +2186,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         if (!any) {
             return particle_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (particle_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (particle_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2247,6 +2319,7 @@ static void particle_start_sustained(const particle_ctx_t *c, const double *q, c
     for (r = 0; r < PARTICLE_R; ++r) {
         c->sus->act[r] = particle_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < PARTICLE_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

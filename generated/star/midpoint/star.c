@@ -1407,6 +1407,7 @@ static inline int star_held(const star_sustain_t *sus)
 #define STAR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define STAR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define STAR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define STAR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_row_contact[STAR_R_DIM] = { 0, 0, 0, 0, };
@@ -1670,6 +1671,75 @@ static void star_forces_to(const star_ctx_t *c, const double *q, const double *u
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int star_onto_rows(const star_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double u[STAR_N], mom[STAR_N], mass[STAR_N * STAR_N], minv_g[STAR_R_DIM * STAR_N];
+    double a[STAR_R_DIM * STAR_R_DIM], b[STAR_R_DIM], off = 0.0;
+    int rows[STAR_R_DIM], fresh[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < STAR_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    star_velocity(c, q, v, p, u);
+    star_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < STAR_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    star_legendre(q, u, c->par, mom, mass);
+    if (!star_lu(STAR_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < STAR_ONTO_ITER; ++it) {
+        int pa[STAR_R_DIM];
+        if (it > 0) {
+            star_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < STAR_N; ++i) {
+                minv_g[k * STAR_N + i] = grad[rows[k] * STAR_N + i];
+            }
+            star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < STAR_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
+                }
+            }
+        }
+        if (!star_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        star_lu_solve(nr, a, pa, b);
+        for (i = 0; i < STAR_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * STAR_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2392,6 +2462,8 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (!any) {
             return star_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (star_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (star_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2523,6 +2595,7 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
     for (r = 0; r < STAR_R; ++r) {
         c->sus->act[r] = star_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < STAR_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

@@ -109,6 +109,7 @@ typedef struct {
     double branch[BALL_TO_REST_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[BALL_TO_REST_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[BALL_TO_REST_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
+    int on_rows[BALL_TO_REST_R_DIM];   /* the active rows the state was last put on (onto_rows) */
 } ball_to_rest_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -98,6 +98,7 @@ typedef struct {
     double branch[CUBE_SETTLES_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[CUBE_SETTLES_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[CUBE_SETTLES_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
+    int on_rows[CUBE_SETTLES_R_DIM];   /* the active rows the state was last put on (onto_rows) */
 } cube_settles_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

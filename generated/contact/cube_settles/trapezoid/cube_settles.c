@@ -1914,6 +1914,7 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define CUBE_SETTLES_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define CUBE_SETTLES_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define CUBE_SETTLES_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int cube_settles_row_contact[CUBE_SETTLES_R_DIM] = { 0, 1, 2, 3, };
@@ -2177,6 +2178,75 @@ static void cube_settles_forces_to(const cube_settles_ctx_t *c, const double *q,
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int cube_settles_onto_rows(const cube_settles_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
+    double u[CUBE_SETTLES_N], mom[CUBE_SETTLES_N], mass[CUBE_SETTLES_N * CUBE_SETTLES_N], minv_g[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    double a[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM], b[CUBE_SETTLES_R_DIM], off = 0.0;
+    int rows[CUBE_SETTLES_R_DIM], fresh[CUBE_SETTLES_R_DIM], piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    cube_settles_velocity(c, q, v, p, u);
+    cube_settles_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    cube_settles_legendre(q, u, c->par, mom, mass);
+    if (!cube_settles_lu(CUBE_SETTLES_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < CUBE_SETTLES_ONTO_ITER; ++it) {
+        int pa[CUBE_SETTLES_R_DIM];
+        if (it > 0) {
+            cube_settles_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                minv_g[k * CUBE_SETTLES_N + i] = grad[rows[k] * CUBE_SETTLES_N + i];
+            }
+            cube_settles_lu_solve(CUBE_SETTLES_N, mass, piv, minv_g + k * CUBE_SETTLES_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * CUBE_SETTLES_N + i] * minv_g[l * CUBE_SETTLES_N + i];
+                }
+            }
+        }
+        if (!cube_settles_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        cube_settles_lu_solve(nr, a, pa, b);
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * CUBE_SETTLES_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2900,6 +2970,8 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         if (!any) {
             return cube_settles_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (cube_settles_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (cube_settles_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -3031,6 +3103,7 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         c->sus->act[r] = cube_settles_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < CUBE_SETTLES_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

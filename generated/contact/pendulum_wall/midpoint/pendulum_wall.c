@@ -1356,6 +1356,7 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define PENDULUM_WALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define PENDULUM_WALL_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define PENDULUM_WALL_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };
@@ -1619,6 +1620,75 @@ static void pendulum_wall_forces_to(const pendulum_wall_ctx_t *c, const double *
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int pendulum_wall_onto_rows(const pendulum_wall_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
+    double u[PENDULUM_WALL_N], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    double a[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM], b[PENDULUM_WALL_R_DIM], off = 0.0;
+    int rows[PENDULUM_WALL_R_DIM], fresh[PENDULUM_WALL_R_DIM], piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    pendulum_wall_velocity(c, q, v, p, u);
+    pendulum_wall_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    pendulum_wall_legendre(q, u, c->par, mom, mass);
+    if (!pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < PENDULUM_WALL_ONTO_ITER; ++it) {
+        int pa[PENDULUM_WALL_R_DIM];
+        if (it > 0) {
+            pendulum_wall_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                minv_g[k * PENDULUM_WALL_N + i] = grad[rows[k] * PENDULUM_WALL_N + i];
+            }
+            pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_g + k * PENDULUM_WALL_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * PENDULUM_WALL_N + i] * minv_g[l * PENDULUM_WALL_N + i];
+                }
+            }
+        }
+        if (!pendulum_wall_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        pendulum_wall_lu_solve(nr, a, pa, b);
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * PENDULUM_WALL_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2341,6 +2411,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         if (!any) {
             return pendulum_wall_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (pendulum_wall_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (pendulum_wall_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2472,6 +2544,7 @@ static void pendulum_wall_start_sustained(const pendulum_wall_ctx_t *c, const do
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         c->sus->act[r] = pendulum_wall_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < PENDULUM_WALL_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

@@ -1332,6 +1332,7 @@ static inline int slide_off_dome_held(const slide_off_dome_sustain_t *sus)
 #define SLIDE_OFF_DOME_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define SLIDE_OFF_DOME_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define SLIDE_OFF_DOME_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define SLIDE_OFF_DOME_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int slide_off_dome_row_contact[SLIDE_OFF_DOME_R_DIM] = { 0, };
@@ -1595,6 +1596,75 @@ static void slide_off_dome_forces_to(const slide_off_dome_ctx_t *c, const double
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int slide_off_dome_onto_rows(const slide_off_dome_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
+    double u[SLIDE_OFF_DOME_N], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    double a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM], b[SLIDE_OFF_DOME_R_DIM], off = 0.0;
+    int rows[SLIDE_OFF_DOME_R_DIM], fresh[SLIDE_OFF_DOME_R_DIM], piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    slide_off_dome_velocity(c, q, v, p, u);
+    slide_off_dome_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    slide_off_dome_legendre(q, u, c->par, mom, mass);
+    if (!slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < SLIDE_OFF_DOME_ONTO_ITER; ++it) {
+        int pa[SLIDE_OFF_DOME_R_DIM];
+        if (it > 0) {
+            slide_off_dome_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                minv_g[k * SLIDE_OFF_DOME_N + i] = grad[rows[k] * SLIDE_OFF_DOME_N + i];
+            }
+            slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_g + k * SLIDE_OFF_DOME_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * SLIDE_OFF_DOME_N + i] * minv_g[l * SLIDE_OFF_DOME_N + i];
+                }
+            }
+        }
+        if (!slide_off_dome_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        slide_off_dome_lu_solve(nr, a, pa, b);
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * SLIDE_OFF_DOME_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2317,6 +2387,8 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         if (!any) {
             return slide_off_dome_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (slide_off_dome_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (slide_off_dome_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2448,6 +2520,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         c->sus->act[r] = slide_off_dome_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < SLIDE_OFF_DOME_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

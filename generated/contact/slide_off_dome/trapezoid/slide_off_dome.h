@@ -115,6 +115,7 @@ typedef struct {
     double branch[SLIDE_OFF_DOME_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[SLIDE_OFF_DOME_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[SLIDE_OFF_DOME_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
+    int on_rows[SLIDE_OFF_DOME_R_DIM];   /* the active rows the state was last put on (onto_rows) */
 } slide_off_dome_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -948,6 +948,7 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define IMPACT_OSCILLATOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define IMPACT_OSCILLATOR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define IMPACT_OSCILLATOR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int impact_oscillator_row_contact[IMPACT_OSCILLATOR_R_DIM] = { 0, };
@@ -1211,6 +1212,75 @@ static void impact_oscillator_forces_to(const impact_oscillator_ctx_t *c, const 
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int impact_oscillator_onto_rows(const impact_oscillator_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
+    double u[IMPACT_OSCILLATOR_N], mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
+    double a[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM], b[IMPACT_OSCILLATOR_R_DIM], off = 0.0;
+    int rows[IMPACT_OSCILLATOR_R_DIM], fresh[IMPACT_OSCILLATOR_R_DIM], piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    impact_oscillator_velocity(c, q, v, p, u);
+    impact_oscillator_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    impact_oscillator_legendre(q, u, c->par, mom, mass);
+    if (!impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < IMPACT_OSCILLATOR_ONTO_ITER; ++it) {
+        int pa[IMPACT_OSCILLATOR_R_DIM];
+        if (it > 0) {
+            impact_oscillator_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                minv_g[k * IMPACT_OSCILLATOR_N + i] = grad[rows[k] * IMPACT_OSCILLATOR_N + i];
+            }
+            impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, mass, piv, minv_g + k * IMPACT_OSCILLATOR_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * IMPACT_OSCILLATOR_N + i] * minv_g[l * IMPACT_OSCILLATOR_N + i];
+                }
+            }
+        }
+        if (!impact_oscillator_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        impact_oscillator_lu_solve(nr, a, pa, b);
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * IMPACT_OSCILLATOR_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1936,6 +2006,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         if (!any) {
             return impact_oscillator_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (impact_oscillator_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (impact_oscillator_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2068,6 +2140,7 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         c->sus->act[r] = impact_oscillator_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < IMPACT_OSCILLATOR_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

@@ -1208,6 +1208,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define ROUGH_DISK_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define ROUGH_DISK_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define ROUGH_DISK_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int rough_disk_row_contact[ROUGH_DISK_R_DIM] = { 0, -1, };
@@ -1528,6 +1529,75 @@ static void rough_disk_forces_to(const rough_disk_ctx_t *c, const double *q, con
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int rough_disk_onto_rows(const rough_disk_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double u[ROUGH_DISK_N], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N], minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    double a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM], b[ROUGH_DISK_R_DIM], off = 0.0;
+    int rows[ROUGH_DISK_R_DIM], fresh[ROUGH_DISK_R_DIM], piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    rough_disk_velocity(c, q, v, p, u);
+    rough_disk_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    rough_disk_legendre(q, u, c->par, mom, mass);
+    if (!rough_disk_lu(ROUGH_DISK_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < ROUGH_DISK_ONTO_ITER; ++it) {
+        int pa[ROUGH_DISK_R_DIM];
+        if (it > 0) {
+            rough_disk_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                minv_g[k * ROUGH_DISK_N + i] = grad[rows[k] * ROUGH_DISK_N + i];
+            }
+            rough_disk_lu_solve(ROUGH_DISK_N, mass, piv, minv_g + k * ROUGH_DISK_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < ROUGH_DISK_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * ROUGH_DISK_N + i] * minv_g[l * ROUGH_DISK_N + i];
+                }
+            }
+        }
+        if (!rough_disk_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        rough_disk_lu_solve(nr, a, pa, b);
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * ROUGH_DISK_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2971,6 +3041,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         if (!any) {
             return rough_disk_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (rough_disk_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (rough_disk_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -3216,6 +3288,7 @@ static void rough_disk_start_sustained(const rough_disk_ctx_t *c, const double *
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         c->sus->act[r] = rough_disk_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < ROUGH_DISK_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

@@ -106,6 +106,7 @@ typedef struct {
     double branch[ROUGH_DISK_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[ROUGH_DISK_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[ROUGH_DISK_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
+    int on_rows[ROUGH_DISK_R_DIM];   /* the active rows the state was last put on (onto_rows) */
 } rough_disk_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -1296,6 +1296,7 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define SPUN_BALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define SPUN_BALL_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define SPUN_BALL_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -1618,6 +1619,75 @@ static void spun_ball_forces_to(const spun_ball_ctx_t *c, const double *q, const
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int spun_ball_onto_rows(const spun_ball_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double u[SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], minv_g[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    double a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM], off = 0.0;
+    int rows[SPUN_BALL_R_DIM], fresh[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    spun_ball_velocity(c, q, v, p, u);
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    spun_ball_legendre(q, u, c->par, mom, mass);
+    if (!spun_ball_lu(SPUN_BALL_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < SPUN_BALL_ONTO_ITER; ++it) {
+        int pa[SPUN_BALL_R_DIM];
+        if (it > 0) {
+            spun_ball_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                minv_g[k * SPUN_BALL_N + i] = grad[rows[k] * SPUN_BALL_N + i];
+            }
+            spun_ball_lu_solve(SPUN_BALL_N, mass, piv, minv_g + k * SPUN_BALL_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < SPUN_BALL_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * SPUN_BALL_N + i] * minv_g[l * SPUN_BALL_N + i];
+                }
+            }
+        }
+        if (!spun_ball_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        spun_ball_lu_solve(nr, a, pa, b);
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * SPUN_BALL_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -4589,6 +4659,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         if (!any) {
             return spun_ball_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (spun_ball_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (spun_ball_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -4842,6 +4914,7 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
     for (r = 0; r < SPUN_BALL_R; ++r) {
         c->sus->act[r] = spun_ball_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < SPUN_BALL_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

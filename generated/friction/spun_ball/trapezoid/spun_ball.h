@@ -106,6 +106,7 @@ typedef struct {
     double branch[SPUN_BALL_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[SPUN_BALL_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[SPUN_BALL_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
+    int on_rows[SPUN_BALL_R_DIM];   /* the active rows the state was last put on (onto_rows) */
 } spun_ball_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

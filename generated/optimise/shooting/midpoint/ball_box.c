@@ -1339,6 +1339,7 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define BALL_BOX_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define BALL_BOX_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define BALL_BOX_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_box_row_contact[BALL_BOX_R_DIM] = { 0, 1, 2, 3, };
@@ -1602,6 +1603,75 @@ static void ball_box_forces_to(const ball_box_ctx_t *c, const double *q, const d
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int ball_box_onto_rows(const ball_box_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
+    double u[BALL_BOX_N], mom[BALL_BOX_N], mass[BALL_BOX_N * BALL_BOX_N], minv_g[BALL_BOX_R_DIM * BALL_BOX_N];
+    double a[BALL_BOX_R_DIM * BALL_BOX_R_DIM], b[BALL_BOX_R_DIM], off = 0.0;
+    int rows[BALL_BOX_R_DIM], fresh[BALL_BOX_R_DIM], piv[BALL_BOX_R_DIM > BALL_BOX_N ? BALL_BOX_R_DIM : BALL_BOX_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    ball_box_velocity(c, q, v, p, u);
+    ball_box_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    ball_box_legendre(q, u, c->par, mom, mass);
+    if (!ball_box_lu(BALL_BOX_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < BALL_BOX_ONTO_ITER; ++it) {
+        int pa[BALL_BOX_R_DIM];
+        if (it > 0) {
+            ball_box_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < BALL_BOX_N; ++i) {
+                minv_g[k * BALL_BOX_N + i] = grad[rows[k] * BALL_BOX_N + i];
+            }
+            ball_box_lu_solve(BALL_BOX_N, mass, piv, minv_g + k * BALL_BOX_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < BALL_BOX_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * BALL_BOX_N + i] * minv_g[l * BALL_BOX_N + i];
+                }
+            }
+        }
+        if (!ball_box_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        ball_box_lu_solve(nr, a, pa, b);
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * BALL_BOX_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2324,6 +2394,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         if (!any) {
             return ball_box_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (ball_box_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (ball_box_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2455,6 +2527,7 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
     for (r = 0; r < BALL_BOX_R; ++r) {
         c->sus->act[r] = ball_box_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < BALL_BOX_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;

@@ -98,6 +98,7 @@ typedef struct {
     double branch[DOUBLE_PENDULUM_NB_DIM]; /* the signs of the frictional tangents' sign() atoms, frozen while held */
     unsigned long held_rows[DOUBLE_PENDULUM_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[DOUBLE_PENDULUM_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
+    int on_rows[DOUBLE_PENDULUM_R_DIM];   /* the active rows the state was last put on (onto_rows) */
 } double_pendulum_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -1543,6 +1543,7 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define DOUBLE_PENDULUM_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define DOUBLE_PENDULUM_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
+#define DOUBLE_PENDULUM_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -1806,6 +1807,75 @@ static void double_pendulum_forces_to(const double_pendulum_ctx_t *c, const doub
     for (k = 0; k < nr; ++k) {
         out[rows[k]] = b[k];
     }
+}
+
+/* SustainedSteps._onto_rows: q (in/out) moved onto the active rows where one held since the last call is off by
+ * more than Tolerances.phi (a start touching within Tolerances.admissible, a face's second vertex): the least move
+ * in M's norm, ONTO_ITER Gauss-Newton steps dq = -M^-1 G^T (G M^-1 G^T)^-1 psi (v, p: the velocity's guess and the
+ * momentum). Returns 1 if q moved, 0 if not (nothing held anew, within phi, or the rows dependent). Held, a segment
+ * takes the rows' offset d into its velocity as d / tau: a sub-step cut at an event near its start ran at 1e3 m/s
+ * and the next segment's Newton, started there, took a root a whole turn of the star away. */
+static int double_pendulum_onto_rows(const double_pendulum_ctx_t *c, double *q, const double *v, const double *p)
+{
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
+    double u[DOUBLE_PENDULUM_N], mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
+    double a[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM], b[DOUBLE_PENDULUM_R_DIM], off = 0.0;
+    int rows[DOUBLE_PENDULUM_R_DIM], fresh[DOUBLE_PENDULUM_R_DIM], piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
+    int nr = 0, any = 0, it, i, k, l, r;
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
+        any = any || fresh[r];
+        c->sus->on_rows[r] = c->sus->act[r];
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    double_pendulum_velocity(c, q, v, p, u);
+    double_pendulum_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        off = fresh[r] && fabs(psi[r]) > off ? fabs(psi[r]) : off;
+    }
+    if (!(off > c->tol->phi)) {
+        return 0;
+    }
+    double_pendulum_legendre(q, u, c->par, mom, mass);
+    if (!double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv)) {
+        return 0;
+    }
+    for (it = 0; it < DOUBLE_PENDULUM_ONTO_ITER; ++it) {
+        int pa[DOUBLE_PENDULUM_R_DIM];
+        if (it > 0) {
+            double_pendulum_rows(q, u, c->par, psi, grad, curv);
+        }
+        for (k = 0; k < nr; ++k) {
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                minv_g[k * DOUBLE_PENDULUM_N + i] = grad[rows[k] * DOUBLE_PENDULUM_N + i];
+            }
+            double_pendulum_lu_solve(DOUBLE_PENDULUM_N, mass, piv, minv_g + k * DOUBLE_PENDULUM_N);
+        }
+        for (k = 0; k < nr; ++k) {
+            b[k] = psi[rows[k]];
+            for (l = 0; l < nr; ++l) {
+                a[k * nr + l] = 0.0;
+                for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                    a[k * nr + l] += grad[rows[k] * DOUBLE_PENDULUM_N + i] * minv_g[l * DOUBLE_PENDULUM_N + i];
+                }
+            }
+        }
+        if (!double_pendulum_lu(nr, a, pa)) {
+            return it > 0;
+        }
+        double_pendulum_lu_solve(nr, a, pa, b);
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            for (k = 0; k < nr; ++k) {
+                q[i] -= minv_g[k * DOUBLE_PENDULUM_N + i] * b[k];
+            }
+        }
+    }
+    return 1;
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2529,6 +2599,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         if (!any) {
             return double_pendulum_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
         }
+        if (double_pendulum_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
+        }
         if (double_pendulum_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
             return 1;
         }
@@ -2660,6 +2732,7 @@ static void double_pendulum_start_sustained(const double_pendulum_ctx_t *c, cons
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         c->sus->act[r] = double_pendulum_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
+        c->sus->on_rows[r] = 0;
     }
     for (i = 0; i < DOUBLE_PENDULUM_NF_DIM; ++i) {
         c->sus->slip[i] = 0.0;
