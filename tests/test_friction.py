@@ -414,3 +414,25 @@ def test_a_rough_star_started_on_a_face_never_gains_energy_and_rests_on_a_face(b
     assert np.max(np.abs(res.v[-1])) < 1e-9 and abs(res.q[-1, 1] - 0.5) < 1e-9
     face = res.q[-1, 2] / (math.pi / 2)
     assert abs(face - round(face)) < 1e-9 and abs(res.q[-1, 2]) < 4.0  # on a face, no runaway angle
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_star_sliding_on_a_vertex_at_mu_5_stops_at_once_in_halved_segments(backend):
+    """The star sliding on one vertex at ``mu = 5`` and ``h = 0.1``, near Painleve's boundary: the normal
+    force that holds the vertex is ~13 ``m g`` and friction stops the slide within a millisecond. The held
+    segment over the whole step took a root that turned the star 20 rad with a pulling normal force
+    (``E_d`` 294, silently, on C; a ``SolverError`` on CasADi); halved (``SustainedSteps._split_segment``,
+    counted in ``stats["halvings"]``) the slide stops in the first step: the vertex's sliding velocity is 0
+    from then on, the mechanical energy never rises above its start, the star never dips below the floor and
+    it ends at rest on a face."""
+    q0, v0 = [0.0, 0.705982416146709, -0.8417987638567883], [-0.5721091117472317, 0.0, 0.0]
+    res = star_friction_sim(backend).simulate(q0, v0, h=0.1, t_end=2.0, params={"mu": 5.0, "e": 0.413})
+    assert res.stats["halvings"] >= 1
+    theta = res.q[:, 2]
+    sliding = res.v[:, 0] + 0.5 * (np.cos(theta) - np.sin(theta)) * res.v[:, 2]  # the vertex's x-velocity
+    assert abs(sliding[0] - v0[0]) < 1e-15 and np.max(np.abs(sliding[1:4])) < 1e-12
+    energy = 0.5 * (res.v[:, 0] ** 2 + res.v[:, 1] ** 2 + 29 / 192 * res.v[:, 2] ** 2) + G * res.q[:, 1]
+    assert np.max(energy - energy[0]) <= 1e-12
+    height = res.q[:, 1] - 0.5 * (np.abs(np.sin(theta)) + np.abs(np.cos(theta)))
+    assert height.min() > -1e-12
+    assert np.max(np.abs(res.v[-1])) < 1e-9 and abs(res.q[-1, 1] - 0.5) < 1e-12 and abs(theta[-1]) < 1e-9

@@ -35,6 +35,7 @@ BREAK_REASONS: tuple[tuple[str, str], ...] = (
     ("FRICTION_SWITCH", "friction switch in a held step"),
     ("LOAD_PASSED", "load passed to a riding row"),
     ("ONTO_ROWS", "start moved onto the held rows"),
+    ("HALVED", "held segment halved"),
 )
 _BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
 

@@ -194,6 +194,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["loads_passed"] = self.passes
         res.stats["sticks_kept"] = self.sticks_kept
         res.stats["jams"] = self.jams
+        res.stats["halvings"] = self.halvings
         if tan is not None:
             tan.attach(res, step)
         return res

@@ -41,6 +41,8 @@ from .held_roots import (
     LIFT_ITER,
     ONTO_ITER,
     ROOT_EPS,
+    SPLITS,
+    SPURIOUS,
     STICK_CYCLES,
     End,
     illinois,
@@ -112,6 +114,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
         self.jams = 0  # Painleve jams (JAM_CYCLES lift-offs in a step, _painleve) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
+        self.halvings = 0  # held segments halved (_split_segment: their Newton failed or root was spurious)
         self._lam = np.zeros(k.r)
         self._on_rows = np.zeros(k.r, dtype=bool)  # the active rows the state was last put on (_onto_rows)
         # a rule with internal points holds them too (derive.held_internal_points), each with its multipliers
@@ -213,6 +216,51 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         out[rows] = np.linalg.solve(g @ minv[:, 1:], -(g @ minv[:, 0] + curv[rows]))
         return out
 
+    def _split_segment(self, step, t_k, q, p, tau, guess):
+        """The chain's constrained segment from ``(q, p)`` over ``tau`` (:meth:`_constrained`); where its
+        Newton fails or its root is spurious (:meth:`_spurious`), over ``tau / 2``, ``tau / 4``, ...
+        (``SPLITS`` halvings at most), each from the velocity of ``p``: ``(the length taken, the halvings,
+        the segment)``. None holding: the last one's ``SolverError``, or one naming its spurious root. A rough
+        star sliding on a vertex at ``mu = 5`` near Painleve's boundary, its slide stopping within a
+        millisecond, took over ``h = 0.1`` a root that turned it 20 rad with a pulling normal force."""
+        halved = 0
+        while True:
+            try:
+                seg = self._constrained(step, t_k, q, p, tau, guess)
+            except SolverError:
+                if halved == SPLITS:
+                    raise
+                seg = None
+            if seg is not None:
+                ratio = self._spurious(q, p, tau, seg[0], guess)
+                if ratio is None:
+                    return tau, halved, seg
+                if halved == SPLITS:
+                    raise SolverError(
+                        step,
+                        t_k,
+                        "sustained",
+                        0.0,
+                        f"a held segment's root is spurious: the kinetic energy of its velocity is "
+                        f"{ratio:.3g} times its start's and the forces' over it, after {SPLITS} halvings; "
+                        "reduce h",
+                    )
+            halved += 1
+            tau *= 0.5
+            guess = self._velocity(q, guess, p)
+
+    def _spurious(self, q, p, tau: float, v, guess) -> float | None:
+        """``T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2)`` where it exceeds ``SPURIOUS`` (``u0`` the velocity
+        of ``p``, ``T`` the kinetic energy): a segment velocity no start and no applied force over ``tau``
+        gives (the rows' forces do no work, friction takes energy); else ``None``."""
+        k = self.k
+        u0 = self._velocity(q, guess, p)
+        mass = k.legendre(q, u0)[1]
+        rhs = k.dynamics(q, u0)[0]
+        budget = 0.5 * float(u0 @ mass @ u0) + 0.5 * tau * tau * float(rhs @ np.linalg.solve(mass, rhs))
+        kinetic = 0.5 * float(v @ mass @ v)
+        return kinetic / budget if kinetic > SPURIOUS * budget + 1e-24 else None
+
     def _onto_rows(self, q, guess, p):
         """``q`` moved onto the active rows where one held since the last call is off by more than
         ``Tolerances.phi`` (a start touching within ``Tolerances.admissible``, a face's second vertex): the
@@ -289,14 +337,15 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         bounces: dict[int, int] = {}  # impacts of each row in this step's chain (BOUNCE_CYCLES: then held)
         self._stuck_on.clear()
         self._jammed = False
+        rest = tau  # the time left of the grid step; tau: the segment's (less where _split_segment halved it)
         while True:
             self._at(t)
-            if tau <= 1e-13 * h:
+            if rest <= 1e-13 * h:
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
                 mode = self._friction_mode()
                 before = self._friction_state() if self._ev_tan is not None else None  # the events' tangent's
-                self._friction_modes(q, self._velocity(q, guess, p), tau)
+                self._friction_modes(q, self._velocity(q, guess, p), rest)
                 # a switch (stick, slip, released, another face) or a cone's slip aimed anew: no tangent
                 same = mode == self._friction_mode()
                 if not same and before is not None and not self._no_switch(before):  # let go, held anew: none
@@ -308,7 +357,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._fswitch = self._fswitch or (plain and not same)  # what stops the tangent
                 plain = plain and same and not self._braked
             if not self.act.any():
-                return self._free_rest(step, t_k, h, q, p, t, tau, guess, impacts, e_step)
+                return self._free_rest(step, t_k, h, q, p, t, rest, guess, impacts, e_step)
             moved = self._onto_rows(q, guess, p)
             if moved is not None:  # a move, not a segment: the tangent has no derivative of it
                 q = moved
@@ -318,7 +367,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if self._lift_seg is not None:  # the lift-off is one event of several (Tracker.event)
                     self._ev_event(*self._lift_seg, "lift")
                 self._lift_seg = None
-            v, lam, q1, _, e_seg, lam1, p1, u1, end = self._constrained(step, t_k, q, p, tau, guess)
+            tau, halved, seg = self._split_segment(step, t_k, q, p, rest, guess)
+            v, lam, q1, _, e_seg, lam1, p1, u1, end = seg
+            self.halvings += halved
+            if halved:  # not a segment of the step's map: the tangent has none
+                self._sw_lose("held segment halved")
+                plain = False
             if self._slip.any() and not self._jammed and self._painleve(end):
                 self._jam(q, self._velocity(q, guess, p))  # the tangential impact, at the segment's start
                 self._fswitch = self._fswitch or plain
@@ -372,6 +426,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
             if not events and not cross.any():
+                if tau < rest:  # a halved segment: the rest of the step next
+                    self._book(lam + lam1)
+                    self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
+                    t, rest, q, p, guess = t + tau, rest - tau, q1, p1, v
+                    continue
                 if plain and self._record_held:  # the tangent of the step (Stepper.step, Tracker.held)
                     self._held_seg = (v, lam, *self._seg_inner, u1, self.act.copy())
                 elif self._ev_tan is not None:  # the constrained rest after events (Tracker.held, entry)
@@ -402,7 +461,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
             self._book(lam + lam1)
-            t, tau, guess = t + s * tau, (1.0 - s) * tau, v
+            t, rest, guess = t + s * tau, (1.0 - s) * tau if tau == rest else rest - s * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
                 passed, hit = set(), set()

@@ -343,6 +343,7 @@ class CRun:
         stats["loads_passed"] = self.sus.passes
         stats["sticks_kept"] = self.sus.sticks_kept
         stats["jams"] = self.sus.jams
+        stats["halvings"] = self.sus.halvings
         return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:

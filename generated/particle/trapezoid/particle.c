@@ -1132,6 +1132,8 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define PARTICLE_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define PARTICLE_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
+#define PARTICLE_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose Newton fails or root is spurious */
+#define PARTICLE_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int particle_row_contact[PARTICLE_R_DIM] = { 0, };
@@ -1544,6 +1546,74 @@ static int particle_constrained(const particle_ctx_t *c, const double *q, const 
         }
     }
     return 0;
+}
+
+/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
+ * forces do no work, friction takes energy); else 0. */
+static double particle_spurious(const particle_ctx_t *c, const double *q, const double *p, double tau,
+    const double *v, const double *guess)
+{
+    double u0[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], rhs[PARTICLE_N];
+    double ccurv[PARTICLE_M_DIM], w[PARTICLE_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    int piv[PARTICLE_N], i, j;
+    particle_velocity(c, q, guess, p, u0);
+    particle_legendre(q, u0, c->par, mom, mass);
+    particle_dynamics(q, u0, c->par, rhs, ccurv);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        for (j = 0; j < PARTICLE_N; ++j) {
+            start += u0[i] * mass[i * PARTICLE_N + j] * u0[j];
+            kinetic += v[i] * mass[i * PARTICLE_N + j] * v[j];
+        }
+        w[i] = rhs[i];
+    }
+    if (!particle_lu(PARTICLE_N, mass, piv)) {
+        return 0.0;
+    }
+    particle_lu_solve(PARTICLE_N, mass, piv, w);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        work += rhs[i] * w[i];
+    }
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    return kinetic > PARTICLE_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
+}
+
+/* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
+ * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
+ * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
+ * one's Newton failure, or its spurious root. */
+static int particle_split_segment(const particle_ctx_t *c, const double *q, const double *p, double *tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
+    int *halved)
+{
+    double g[PARTICLE_N], u0[PARTICLE_N], ratio;
+    int i;
+    for (i = 0; i < PARTICLE_N; ++i) {
+        g[i] = guess[i];
+    }
+    *halved = 0;
+    for (;;) {
+        if (!particle_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
+            ratio = particle_spurious(c, q, p, *tau, v, g);
+            if (ratio == 0.0) {
+                return 0;
+            }
+            if (*halved == PARTICLE_SPLITS) {
+                return particle_fail(c, PARTICLE_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                    ratio, PARTICLE_SPLITS);
+            }
+        } else if (*halved == PARTICLE_SPLITS) {
+            return 1;
+        }
+        ++*halved;
+        *tau *= 0.5;
+        particle_velocity(c, q, g, p, u0);
+        for (i = 0; i < PARTICLE_N; ++i) {
+            g[i] = u0[i];
+        }
+    }
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
@@ -2168,7 +2238,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double psi1[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
-    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group;
+    double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PARTICLE_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[PARTICLE_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2176,7 +2247,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         particle_at(c, t);
-        if (tau <= 1e-13 * c->h) {
+        if (rest <= 1e-13 * c->h) {
             return 0;
         }
         any = 0;
@@ -2184,12 +2255,16 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             any = any || c->sus->act[r];
         }
         if (!any) {
-            return particle_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+            return particle_free_rest(c, q, p, t, rest, v, e_step, rec, n_rec);
         }
         if (particle_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        if (particle_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+        tau = rest;
+        if (particle_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
             return 1;
+        }
+        c->sus->halvings += halved;
+        if (halved) { /* not a segment of the step's map: the tangent has none */
         }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
@@ -2228,6 +2303,20 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         any = 0;
         for (r = 0; r < PARTICLE_R; ++r) {
             any = any || ev[r] || (!c->sus->act[r] && particle_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+        }
+        if (!any && tau < rest) { /* a halved segment: the rest of the step next */
+            particle_book(c, lam, lam1);
+            for (r = 0; r < PARTICLE_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < PARTICLE_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            t += tau;
+            rest -= tau;
+            continue;
         }
         if (!any) {
             particle_book(c, lam, lam1);
@@ -2279,7 +2368,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             p[i] = p1[i];
         }
         t += s * tau;
-        tau = (1.0 - s) * tau;
+        rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < PARTICLE_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
         }

@@ -1362,6 +1362,8 @@ static inline int pendulum_wall_held(const pendulum_wall_sustain_t *sus)
 #define PENDULUM_WALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define PENDULUM_WALL_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define PENDULUM_WALL_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
+#define PENDULUM_WALL_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose Newton fails or root is spurious */
+#define PENDULUM_WALL_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int pendulum_wall_row_contact[PENDULUM_WALL_R_DIM] = { 0, -1, };
@@ -1774,6 +1776,74 @@ static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double 
         }
     }
     return 0;
+}
+
+/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
+ * forces do no work, friction takes energy); else 0. */
+static double pendulum_wall_spurious(const pendulum_wall_ctx_t *c, const double *q, const double *p, double tau,
+    const double *v, const double *guess)
+{
+    double u0[PENDULUM_WALL_N], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], rhs[PENDULUM_WALL_N];
+    double ccurv[PENDULUM_WALL_M_DIM], w[PENDULUM_WALL_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    int piv[PENDULUM_WALL_N], i, j;
+    pendulum_wall_velocity(c, q, guess, p, u0);
+    pendulum_wall_legendre(q, u0, c->par, mom, mass);
+    pendulum_wall_dynamics(q, u0, c->par, rhs, ccurv);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        for (j = 0; j < PENDULUM_WALL_N; ++j) {
+            start += u0[i] * mass[i * PENDULUM_WALL_N + j] * u0[j];
+            kinetic += v[i] * mass[i * PENDULUM_WALL_N + j] * v[j];
+        }
+        w[i] = rhs[i];
+    }
+    if (!pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
+        return 0.0;
+    }
+    pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, w);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        work += rhs[i] * w[i];
+    }
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    return kinetic > PENDULUM_WALL_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
+}
+
+/* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
+ * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
+ * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
+ * one's Newton failure, or its spurious root. */
+static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const double *q, const double *p, double *tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
+    int *halved)
+{
+    double g[PENDULUM_WALL_N], u0[PENDULUM_WALL_N], ratio;
+    int i;
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        g[i] = guess[i];
+    }
+    *halved = 0;
+    for (;;) {
+        if (!pendulum_wall_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
+            ratio = pendulum_wall_spurious(c, q, p, *tau, v, g);
+            if (ratio == 0.0) {
+                return 0;
+            }
+            if (*halved == PENDULUM_WALL_SPLITS) {
+                return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                    ratio, PENDULUM_WALL_SPLITS);
+            }
+        } else if (*halved == PENDULUM_WALL_SPLITS) {
+            return 1;
+        }
+        ++*halved;
+        *tau *= 0.5;
+        pendulum_wall_velocity(c, q, g, p, u0);
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            g[i] = u0[i];
+        }
+    }
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
@@ -2398,7 +2468,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     double psi1[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     double s_ev[PENDULUM_WALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PENDULUM_WALL_N], f0[PENDULUM_WALL_R_DIM];
     double f1[PENDULUM_WALL_R_DIM], vel[PENDULUM_WALL_N], f_eps;
-    int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
+    double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[PENDULUM_WALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2406,7 +2477,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         pendulum_wall_at(c, t);
-        if (tau <= 1e-13 * c->h) {
+        if (rest <= 1e-13 * c->h) {
             return 0;
         }
         any = 0;
@@ -2414,12 +2485,16 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
             any = any || c->sus->act[r];
         }
         if (!any) {
-            return pendulum_wall_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+            return pendulum_wall_free_rest(c, q, p, t, rest, v, e_step, rec, n_rec);
         }
         if (pendulum_wall_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        if (pendulum_wall_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+        tau = rest;
+        if (pendulum_wall_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
             return 1;
+        }
+        c->sus->halvings += halved;
+        if (halved) { /* not a segment of the step's map: the tangent has none */
         }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
@@ -2458,6 +2533,20 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         any = 0;
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
             any = any || ev[r] || (!c->sus->act[r] && pendulum_wall_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+        }
+        if (!any && tau < rest) { /* a halved segment: the rest of the step next */
+            pendulum_wall_book(c, lam, lam1);
+            for (r = 0; r < PENDULUM_WALL_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            t += tau;
+            rest -= tau;
+            continue;
         }
         if (!any) {
             pendulum_wall_book(c, lam, lam1);
@@ -2509,7 +2598,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
             p[i] = p1[i];
         }
         t += s * tau;
-        tau = (1.0 - s) * tau;
+        rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < PENDULUM_WALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
         }

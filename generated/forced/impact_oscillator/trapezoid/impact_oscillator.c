@@ -956,6 +956,8 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define IMPACT_OSCILLATOR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define IMPACT_OSCILLATOR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
+#define IMPACT_OSCILLATOR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose Newton fails or root is spurious */
+#define IMPACT_OSCILLATOR_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int impact_oscillator_row_contact[IMPACT_OSCILLATOR_R_DIM] = { 0, };
@@ -1368,6 +1370,74 @@ static int impact_oscillator_constrained(const impact_oscillator_ctx_t *c, const
         }
     }
     return 0;
+}
+
+/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
+ * forces do no work, friction takes energy); else 0. */
+static double impact_oscillator_spurious(const impact_oscillator_ctx_t *c, const double *q, const double *p, double tau,
+    const double *v, const double *guess)
+{
+    double u0[IMPACT_OSCILLATOR_N], mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], rhs[IMPACT_OSCILLATOR_N];
+    double ccurv[IMPACT_OSCILLATOR_M_DIM], w[IMPACT_OSCILLATOR_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    int piv[IMPACT_OSCILLATOR_N], i, j;
+    impact_oscillator_velocity(c, q, guess, p, u0);
+    impact_oscillator_legendre(q, u0, c->par, mom, mass);
+    impact_oscillator_dynamics(q, u0, c->par, rhs, ccurv);
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        for (j = 0; j < IMPACT_OSCILLATOR_N; ++j) {
+            start += u0[i] * mass[i * IMPACT_OSCILLATOR_N + j] * u0[j];
+            kinetic += v[i] * mass[i * IMPACT_OSCILLATOR_N + j] * v[j];
+        }
+        w[i] = rhs[i];
+    }
+    if (!impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv)) {
+        return 0.0;
+    }
+    impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, mass, piv, w);
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        work += rhs[i] * w[i];
+    }
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    return kinetic > IMPACT_OSCILLATOR_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
+}
+
+/* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
+ * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
+ * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
+ * one's Newton failure, or its spurious root. */
+static int impact_oscillator_split_segment(const impact_oscillator_ctx_t *c, const double *q, const double *p, double *tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
+    int *halved)
+{
+    double g[IMPACT_OSCILLATOR_N], u0[IMPACT_OSCILLATOR_N], ratio;
+    int i;
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        g[i] = guess[i];
+    }
+    *halved = 0;
+    for (;;) {
+        if (!impact_oscillator_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
+            ratio = impact_oscillator_spurious(c, q, p, *tau, v, g);
+            if (ratio == 0.0) {
+                return 0;
+            }
+            if (*halved == IMPACT_OSCILLATOR_SPLITS) {
+                return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                    ratio, IMPACT_OSCILLATOR_SPLITS);
+            }
+        } else if (*halved == IMPACT_OSCILLATOR_SPLITS) {
+            return 1;
+        }
+        ++*halved;
+        *tau *= 0.5;
+        impact_oscillator_velocity(c, q, g, p, u0);
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            g[i] = u0[i];
+        }
+    }
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
@@ -1995,7 +2065,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     double psi1[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     double s_ev[IMPACT_OSCILLATOR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM];
     double f1[IMPACT_OSCILLATOR_R_DIM], vel[IMPACT_OSCILLATOR_N], f_eps;
-    int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group;
+    double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[IMPACT_OSCILLATOR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2003,7 +2074,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         impact_oscillator_at(c, t);
-        if (tau <= 1e-13 * c->h) {
+        if (rest <= 1e-13 * c->h) {
             return 0;
         }
         any = 0;
@@ -2011,12 +2082,16 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             any = any || c->sus->act[r];
         }
         if (!any) {
-            return impact_oscillator_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+            return impact_oscillator_free_rest(c, q, p, t, rest, v, e_step, rec, n_rec);
         }
         if (impact_oscillator_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        if (impact_oscillator_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+        tau = rest;
+        if (impact_oscillator_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
             return 1;
+        }
+        c->sus->halvings += halved;
+        if (halved) { /* not a segment of the step's map: the tangent has none */
         }
         if (1) {
             *e_step = e_seg;
@@ -2055,6 +2130,20 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         any = 0;
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
             any = any || ev[r] || (!c->sus->act[r] && impact_oscillator_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+        }
+        if (!any && tau < rest) { /* a halved segment: the rest of the step next */
+            impact_oscillator_book(c, lam, lam1);
+            for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            t += tau;
+            rest -= tau;
+            continue;
         }
         if (!any) {
             impact_oscillator_book(c, lam, lam1);
@@ -2107,7 +2196,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             p[i] = p1[i];
         }
         t += s * tau;
-        tau = (1.0 - s) * tau;
+        rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < IMPACT_OSCILLATOR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
         }

@@ -1130,6 +1130,8 @@ static inline int block_held(const block_sustain_t *sus)
 #define BLOCK_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define BLOCK_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define BLOCK_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
+#define BLOCK_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose Newton fails or root is spurious */
+#define BLOCK_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int block_row_contact[BLOCK_R_DIM] = { 0, -1, };
@@ -1599,6 +1601,74 @@ static int block_constrained(const block_ctx_t *c, const double *q, const double
         }
     }
     return 0;
+}
+
+/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
+ * forces do no work, friction takes energy); else 0. */
+static double block_spurious(const block_ctx_t *c, const double *q, const double *p, double tau,
+    const double *v, const double *guess)
+{
+    double u0[BLOCK_N], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N], rhs[BLOCK_N];
+    double ccurv[BLOCK_M_DIM], w[BLOCK_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    int piv[BLOCK_N], i, j;
+    block_velocity(c, q, guess, p, u0);
+    block_legendre(q, u0, c->par, mom, mass);
+    block_dynamics(q, u0, c->par, rhs, ccurv);
+    for (i = 0; i < BLOCK_N; ++i) {
+        for (j = 0; j < BLOCK_N; ++j) {
+            start += u0[i] * mass[i * BLOCK_N + j] * u0[j];
+            kinetic += v[i] * mass[i * BLOCK_N + j] * v[j];
+        }
+        w[i] = rhs[i];
+    }
+    if (!block_lu(BLOCK_N, mass, piv)) {
+        return 0.0;
+    }
+    block_lu_solve(BLOCK_N, mass, piv, w);
+    for (i = 0; i < BLOCK_N; ++i) {
+        work += rhs[i] * w[i];
+    }
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    return kinetic > BLOCK_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
+}
+
+/* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
+ * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
+ * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
+ * one's Newton failure, or its spurious root. */
+static int block_split_segment(const block_ctx_t *c, const double *q, const double *p, double *tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
+    int *halved)
+{
+    double g[BLOCK_N], u0[BLOCK_N], ratio;
+    int i;
+    for (i = 0; i < BLOCK_N; ++i) {
+        g[i] = guess[i];
+    }
+    *halved = 0;
+    for (;;) {
+        if (!block_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
+            ratio = block_spurious(c, q, p, *tau, v, g);
+            if (ratio == 0.0) {
+                return 0;
+            }
+            if (*halved == BLOCK_SPLITS) {
+                return block_fail(c, BLOCK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                    ratio, BLOCK_SPLITS);
+            }
+        } else if (*halved == BLOCK_SPLITS) {
+            return 1;
+        }
+        ++*halved;
+        *tau *= 0.5;
+        block_velocity(c, q, g, p, u0);
+        for (i = 0; i < BLOCK_N; ++i) {
+            g[i] = u0[i];
+        }
+    }
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
@@ -2934,7 +3004,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double psi1[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps;
-    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group;
+    double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[BLOCK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2950,22 +3021,26 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         block_at(c, t);
-        if (tau <= 1e-13 * c->h) {
+        if (rest <= 1e-13 * c->h) {
             return 0;
         }
         block_velocity(c, q, v, p, vel);
-        block_friction_modes(c, q, vel, tau);
+        block_friction_modes(c, q, vel, rest);
         any = 0;
         for (r = 0; r < BLOCK_R; ++r) {
             any = any || c->sus->act[r];
         }
         if (!any) {
-            return block_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+            return block_free_rest(c, q, p, t, rest, v, e_step, rec, n_rec);
         }
         if (block_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        if (block_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+        tau = rest;
+        if (block_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
             return 1;
+        }
+        c->sus->halvings += halved;
+        if (halved) { /* not a segment of the step's map: the tangent has none */
         }
         if (!c->sus->jammed && block_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
                                                                    * impact (jam) at the segment's start */
@@ -3105,6 +3180,20 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         for (r = 0; r < BLOCK_R; ++r) {
             any = any || ev[r] || (!c->sus->act[r] && block_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
+        if (!any && tau < rest) { /* a halved segment: the rest of the step next */
+            block_book(c, lam, lam1);
+            for (r = 0; r < BLOCK_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < BLOCK_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            t += tau;
+            rest -= tau;
+            continue;
+        }
         if (!any) {
             block_book(c, lam, lam1);
             for (r = 0; r < BLOCK_R; ++r) {
@@ -3156,7 +3245,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         }
         t += s * tau;
         turn = -1;
-        tau = (1.0 - s) * tau;
+        rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < BLOCK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
             stuck[r] = 0;

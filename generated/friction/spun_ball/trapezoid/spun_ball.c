@@ -1297,6 +1297,8 @@ static inline int spun_ball_held(const spun_ball_sustain_t *sus)
 #define SPUN_BALL_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define SPUN_BALL_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define SPUN_BALL_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
+#define SPUN_BALL_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose Newton fails or root is spurious */
+#define SPUN_BALL_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int spun_ball_row_contact[SPUN_BALL_R_DIM] = { 0, -1, -1, };
@@ -1768,6 +1770,74 @@ static int spun_ball_constrained(const spun_ball_ctx_t *c, const double *q, cons
         }
     }
     return 0;
+}
+
+/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
+ * forces do no work, friction takes energy); else 0. */
+static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, const double *p, double tau,
+    const double *v, const double *guess)
+{
+    double u0[SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], rhs[SPUN_BALL_N];
+    double ccurv[SPUN_BALL_M_DIM], w[SPUN_BALL_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    int piv[SPUN_BALL_N], i, j;
+    spun_ball_velocity(c, q, guess, p, u0);
+    spun_ball_legendre(q, u0, c->par, mom, mass);
+    spun_ball_dynamics(q, u0, c->par, rhs, ccurv);
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        for (j = 0; j < SPUN_BALL_N; ++j) {
+            start += u0[i] * mass[i * SPUN_BALL_N + j] * u0[j];
+            kinetic += v[i] * mass[i * SPUN_BALL_N + j] * v[j];
+        }
+        w[i] = rhs[i];
+    }
+    if (!spun_ball_lu(SPUN_BALL_N, mass, piv)) {
+        return 0.0;
+    }
+    spun_ball_lu_solve(SPUN_BALL_N, mass, piv, w);
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        work += rhs[i] * w[i];
+    }
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    return kinetic > SPUN_BALL_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
+}
+
+/* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
+ * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
+ * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
+ * one's Newton failure, or its spurious root. */
+static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, const double *p, double *tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
+    int *halved)
+{
+    double g[SPUN_BALL_N], u0[SPUN_BALL_N], ratio;
+    int i;
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        g[i] = guess[i];
+    }
+    *halved = 0;
+    for (;;) {
+        if (!spun_ball_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
+            ratio = spun_ball_spurious(c, q, p, *tau, v, g);
+            if (ratio == 0.0) {
+                return 0;
+            }
+            if (*halved == SPUN_BALL_SPLITS) {
+                return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                    ratio, SPUN_BALL_SPLITS);
+            }
+        } else if (*halved == SPUN_BALL_SPLITS) {
+            return 1;
+        }
+        ++*halved;
+        *tau *= 0.5;
+        spun_ball_velocity(c, q, g, p, u0);
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            g[i] = u0[i];
+        }
+    }
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
@@ -4631,7 +4701,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double psi1[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
-    int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group;
+    double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[SPUN_BALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -4647,22 +4718,26 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int turn = -1, kind; /* the stick row that slid at this instant (a stop of it here turns it, friction_switch) */
     for (;;) {
         spun_ball_at(c, t);
-        if (tau <= 1e-13 * c->h) {
+        if (rest <= 1e-13 * c->h) {
             return 0;
         }
         spun_ball_velocity(c, q, v, p, vel);
-        spun_ball_friction_modes(c, q, vel, tau);
+        spun_ball_friction_modes(c, q, vel, rest);
         any = 0;
         for (r = 0; r < SPUN_BALL_R; ++r) {
             any = any || c->sus->act[r];
         }
         if (!any) {
-            return spun_ball_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+            return spun_ball_free_rest(c, q, p, t, rest, v, e_step, rec, n_rec);
         }
         if (spun_ball_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        if (spun_ball_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+        tau = rest;
+        if (spun_ball_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
             return 1;
+        }
+        c->sus->halvings += halved;
+        if (halved) { /* not a segment of the step's map: the tangent has none */
         }
         if (!c->sus->jammed && spun_ball_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
                                                                    * impact (jam) at the segment's start */
@@ -4810,6 +4885,20 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         for (r = 0; r < SPUN_BALL_R; ++r) {
             any = any || ev[r] || (!c->sus->act[r] && spun_ball_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
+        if (!any && tau < rest) { /* a halved segment: the rest of the step next */
+            spun_ball_book(c, lam, lam1);
+            for (r = 0; r < SPUN_BALL_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            t += tau;
+            rest -= tau;
+            continue;
+        }
         if (!any) {
             spun_ball_book(c, lam, lam1);
             for (r = 0; r < SPUN_BALL_R; ++r) {
@@ -4861,7 +4950,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         }
         t += s * tau;
         turn = -1;
-        tau = (1.0 - s) * tau;
+        rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < SPUN_BALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
             stuck[r] = 0;

@@ -1544,6 +1544,8 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define DOUBLE_PENDULUM_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define DOUBLE_PENDULUM_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
+#define DOUBLE_PENDULUM_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose Newton fails or root is spurious */
+#define DOUBLE_PENDULUM_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -1957,6 +1959,74 @@ static int double_pendulum_constrained(const double_pendulum_ctx_t *c, const dou
         }
     }
     return 0;
+}
+
+/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
+ * forces do no work, friction takes energy); else 0. */
+static double double_pendulum_spurious(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau,
+    const double *v, const double *guess)
+{
+    double u0[DOUBLE_PENDULUM_N], mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], rhs[DOUBLE_PENDULUM_N];
+    double ccurv[DOUBLE_PENDULUM_M_DIM], w[DOUBLE_PENDULUM_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    int piv[DOUBLE_PENDULUM_N], i, j;
+    double_pendulum_velocity(c, q, guess, p, u0);
+    double_pendulum_legendre(q, u0, c->par, mom, mass);
+    double_pendulum_dynamics(q, u0, c->par, rhs, ccurv);
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        for (j = 0; j < DOUBLE_PENDULUM_N; ++j) {
+            start += u0[i] * mass[i * DOUBLE_PENDULUM_N + j] * u0[j];
+            kinetic += v[i] * mass[i * DOUBLE_PENDULUM_N + j] * v[j];
+        }
+        w[i] = rhs[i];
+    }
+    if (!double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv)) {
+        return 0.0;
+    }
+    double_pendulum_lu_solve(DOUBLE_PENDULUM_N, mass, piv, w);
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        work += rhs[i] * w[i];
+    }
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    return kinetic > DOUBLE_PENDULUM_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
+}
+
+/* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
+ * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
+ * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
+ * one's Newton failure, or its spurious root. */
+static int double_pendulum_split_segment(const double_pendulum_ctx_t *c, const double *q, const double *p, double *tau,
+    const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
+    int *halved)
+{
+    double g[DOUBLE_PENDULUM_N], u0[DOUBLE_PENDULUM_N], ratio;
+    int i;
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        g[i] = guess[i];
+    }
+    *halved = 0;
+    for (;;) {
+        if (!double_pendulum_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
+            ratio = double_pendulum_spurious(c, q, p, *tau, v, g);
+            if (ratio == 0.0) {
+                return 0;
+            }
+            if (*halved == DOUBLE_PENDULUM_SPLITS) {
+                return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                    ratio, DOUBLE_PENDULUM_SPLITS);
+            }
+        } else if (*halved == DOUBLE_PENDULUM_SPLITS) {
+            return 1;
+        }
+        ++*halved;
+        *tau *= 0.5;
+        double_pendulum_velocity(c, q, g, p, u0);
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            g[i] = u0[i];
+        }
+    }
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
@@ -2581,7 +2651,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double psi1[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
     double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
-    int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group;
+    double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[DOUBLE_PENDULUM_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2589,7 +2660,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         double_pendulum_at(c, t);
-        if (tau <= 1e-13 * c->h) {
+        if (rest <= 1e-13 * c->h) {
             return 0;
         }
         any = 0;
@@ -2597,12 +2668,16 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             any = any || c->sus->act[r];
         }
         if (!any) {
-            return double_pendulum_free_rest(c, q, p, t, tau, v, e_step, rec, n_rec);
+            return double_pendulum_free_rest(c, q, p, t, rest, v, e_step, rec, n_rec);
         }
         if (double_pendulum_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        if (double_pendulum_constrained(c, q, p, tau, v, vv, lam, q1, &e_seg, lam1, p1, u1)) {
+        tau = rest;
+        if (double_pendulum_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
             return 1;
+        }
+        c->sus->halvings += halved;
+        if (halved) { /* not a segment of the step's map: the tangent has none */
         }
         if (!isfinite(*e_step)) {
             *e_step = e_seg;
@@ -2641,6 +2716,20 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         any = 0;
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
             any = any || ev[r] || (!c->sus->act[r] && double_pendulum_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+        }
+        if (!any && tau < rest) { /* a halved segment: the rest of the step next */
+            double_pendulum_book(c, lam, lam1);
+            for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+                c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
+            }
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                q[i] = q1[i];
+                p[i] = p1[i];
+                v[i] = vv[i];
+            }
+            t += tau;
+            rest -= tau;
+            continue;
         }
         if (!any) {
             double_pendulum_book(c, lam, lam1);
@@ -2692,7 +2781,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             p[i] = p1[i];
         }
         t += s * tau;
-        tau = (1.0 - s) * tau;
+        rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < DOUBLE_PENDULUM_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = 0;
         }
