@@ -260,7 +260,10 @@ def closed_routines(
             dirs["w"][r, i] = -grad[i] / w0
         dirs["s"][r] = sum((g.xreplace(zero) * b[i] for i, g in enumerate(grad)), sp.S.Zero)
         at = r * n
-        big_b = sum((m_.symbols[at + i] * a[i] for i in range(n)), s_.symbols[r])
+        # grad F(0) . b: 0 for a quadric centred at the origin, whose B then adds nothing to the chain (an add
+        # of +0.0 the compiler must keep: it turns -0.0 into +0.0)
+        s0 = s_.symbols[r] if dirs["s"][r] != 0 else sp.S.Zero
+        big_b = sum((m_.symbols[at + i] * a[i] for i in range(n)), s0)
         big_c = f.xreplace(dict(zip(q.symbols, a)))
         two_a = 2 * a0 if cf.fixed else a2_.symbols[r]  # 2 A: a run constant, or the step's start's
         # in nu = 2 A Lam: nu^2 + 2 B nu + 4 A C = 0, D = B^2 - 4 A C

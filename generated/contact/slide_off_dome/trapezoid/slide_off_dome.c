@@ -511,11 +511,12 @@ static inline void slide_off_dome_held_root_dir(const double *q, const double *k
 /* The closed held step's root on each closed row (held.closed_forms): v0, a, nu, B, D. */
 static inline void slide_off_dome_held_root(const double *q0, const double *p0, const double *m, const double *s, const double *a2, const double *k, double *v0, double *a, double *nu, double *slope, double *disc)
 {
+    (void)s;
     (void)a2;
     const double t0 = k[1] + p0[1];
     const double t1 = k[15]*p0[0] + q0[0];
     const double t2 = k[15]*t0 + q0[1];
-    const double t3 = m[0]*t1 + m[1]*t2 + s[0];
+    const double t3 = m[0]*t1 + m[1]*t2;
     const double t4 = k[17]*(k[16] + ((t1)*(t1)) + ((t2)*(t2))) + ((t3)*(t3));
     v0[0] = k[0]*p0[0];
     v0[1] = k[0]*t0;
