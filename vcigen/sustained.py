@@ -232,10 +232,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     raise
                 seg = None
             if seg is not None:
-                ratio = self._spurious(q, p, tau, seg[0], guess)
+                ratio = self._spurious(q, p, tau, seg, guess)
                 if ratio is None:
                     return tau, halved, seg
                 if halved == SPLITS:
+                    if self._reverses(q, p, seg, guess):  # its slide stops inside: the chain keeps that part
+                        return tau, halved, seg
                     raise SolverError(
                         step,
                         t_k,
@@ -249,17 +251,34 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             tau *= 0.5
             guess = self._velocity(q, guess, p)
 
-    def _spurious(self, q, p, tau: float, v, guess) -> float | None:
-        """``T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2)`` where it exceeds ``SPURIOUS`` (``u0`` the velocity
-        of ``p``, ``T`` the kinetic energy): a segment velocity no start and no applied force over ``tau``
-        gives (the rows' forces do no work, friction takes energy); else ``None``."""
+    def _spurious(self, q, p, tau: float, seg, guess) -> float | None:
+        """``T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2)`` of the segment ``seg`` (:meth:`_constrained`'s)
+        where it exceeds ``SPURIOUS`` (``u0`` the velocity of ``p``, ``T`` the kinetic energy): a velocity no
+        start and no applied force over ``tau`` gives (the rows' forces do no work, friction takes energy);
+        else ``None``."""
         k = self.k
+        v = seg[0]
         u0 = self._velocity(q, guess, p)
         mass = k.legendre(q, u0)[1]
         rhs = k.dynamics(q, u0)[0]
         budget = 0.5 * float(u0 @ mass @ u0) + 0.5 * tau * tau * float(rhs @ np.linalg.solve(mass, rhs))
         kinetic = 0.5 * float(v @ mass @ v)
         return kinetic / budget if kinetic > SPURIOUS * budget + 1e-24 else None
+
+    def _reverses(self, q, p, seg, guess) -> bool:
+        """Does the segment ``seg`` reverse a slide (a slipping contact's sliding velocity of opposite signs
+        at its ends)? Its last halving, spurious, is then kept: the chain stops the slide inside it
+        (:meth:`_friction_events`) and drops the rest, where the friction pushed. A star on a corner at ``mu
+        = 5`` whose slide at 3e-4 stops at once gained 885-fold over ``h = 0.005`` and still 1.5e4-fold over
+        ``h / 64``; the stop, located, is within 1e-7 s."""
+        if not self._slip.any():
+            return False
+        u0, u1, end = self._velocity(q, guess, p), seg[7], seg[8]
+        grad = self.k.rows(q, u0)[1]
+        return any(
+            self._slip[f] and float(grad[sr] @ u0) * float(end.grad[sr] @ u1) < 0.0
+            for f, sr in enumerate(self._stick_rows)
+        )
 
     def _onto_rows(self, q, guess, p):
         """``q`` moved onto the active rows where one held since the last call is off by more than

@@ -1805,6 +1805,21 @@ static double pendulum_wall_spurious(const pendulum_wall_ctx_t *c, const double 
     return kinetic > PENDULUM_WALL_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
+/* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
+ * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
+ * inside it (its friction events) and drops the rest, where the friction pushed. */
+static int pendulum_wall_reverses(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *guess,
+    const double *q1, const double *u1)
+{
+    (void)c;
+    (void)q;
+    (void)p;
+    (void)guess;
+    (void)q1;
+    (void)u1;
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
  * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
@@ -1824,6 +1839,9 @@ static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const doubl
             ratio = pendulum_wall_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
                 return 0;
+            }
+            if (*halved == PENDULUM_WALL_SPLITS && pendulum_wall_reverses(c, q, p, g, q1, u1)) {
+                return 0; /* its slide stops inside: the chain keeps that part */
             }
             if (*halved == PENDULUM_WALL_SPLITS) {
                 return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "

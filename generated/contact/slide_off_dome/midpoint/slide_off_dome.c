@@ -1776,6 +1776,21 @@ static double slide_off_dome_spurious(const slide_off_dome_ctx_t *c, const doubl
     return kinetic > SLIDE_OFF_DOME_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
+/* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
+ * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
+ * inside it (its friction events) and drops the rest, where the friction pushed. */
+static int slide_off_dome_reverses(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *guess,
+    const double *q1, const double *u1)
+{
+    (void)c;
+    (void)q;
+    (void)p;
+    (void)guess;
+    (void)q1;
+    (void)u1;
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
  * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
@@ -1795,6 +1810,9 @@ static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const dou
             ratio = slide_off_dome_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
                 return 0;
+            }
+            if (*halved == SLIDE_OFF_DOME_SPLITS && slide_off_dome_reverses(c, q, p, g, q1, u1)) {
+                return 0; /* its slide stops inside: the chain keeps that part */
             }
             if (*halved == SLIDE_OFF_DOME_SPLITS) {
                 return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "

@@ -1634,6 +1634,40 @@ static double block_spurious(const block_ctx_t *c, const double *q, const double
     return kinetic > BLOCK_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
+/* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
+ * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
+ * inside it (its friction events) and drops the rest, where the friction pushed. */
+static int block_reverses(const block_ctx_t *c, const double *q, const double *p, const double *guess,
+    const double *q1, const double *u1)
+{
+    double u0[BLOCK_N], psi[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N];
+    double grad1[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], s0, s1;
+    int f, i, slips = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) {
+        return 0;
+    }
+    block_velocity(c, q, guess, p, u0);
+    block_rows(q, u0, c->par, psi, grad0, curv);
+    block_rows(q1, u1, c->par, psi, grad1, curv);
+    for (f = 0; f < BLOCK_NF; ++f) {
+        const int sr = block_stick_row[f];
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (i = 0, s0 = 0.0, s1 = 0.0; i < BLOCK_N; ++i) {
+            s0 += grad0[sr * BLOCK_N + i] * u0[i];
+            s1 += grad1[sr * BLOCK_N + i] * u1[i];
+        }
+        if (s0 * s1 < 0.0) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
  * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
@@ -1653,6 +1687,9 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
             ratio = block_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
                 return 0;
+            }
+            if (*halved == BLOCK_SPLITS && block_reverses(c, q, p, g, q1, u1)) {
+                return 0; /* its slide stops inside: the chain keeps that part */
             }
             if (*halved == BLOCK_SPLITS) {
                 return block_fail(c, BLOCK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "

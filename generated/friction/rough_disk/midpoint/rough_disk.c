@@ -1713,6 +1713,40 @@ static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, co
     return kinetic > ROUGH_DISK_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
+/* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
+ * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
+ * inside it (its friction events) and drops the rest, where the friction pushed. */
+static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
+    const double *q1, const double *u1)
+{
+    double u0[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    double grad1[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], s0, s1;
+    int f, i, slips = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) {
+        return 0;
+    }
+    rough_disk_velocity(c, q, guess, p, u0);
+    rough_disk_rows(q, u0, c->par, psi, grad0, curv);
+    rough_disk_rows(q1, u1, c->par, psi, grad1, curv);
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        const int sr = rough_disk_stick_row[f];
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (i = 0, s0 = 0.0, s1 = 0.0; i < ROUGH_DISK_N; ++i) {
+            s0 += grad0[sr * ROUGH_DISK_N + i] * u0[i];
+            s1 += grad1[sr * ROUGH_DISK_N + i] * u1[i];
+        }
+        if (s0 * s1 < 0.0) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
  * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
@@ -1732,6 +1766,9 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
             ratio = rough_disk_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
                 return 0;
+            }
+            if (*halved == ROUGH_DISK_SPLITS && rough_disk_reverses(c, q, p, g, q1, u1)) {
+                return 0; /* its slide stops inside: the chain keeps that part */
             }
             if (*halved == ROUGH_DISK_SPLITS) {
                 return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "

@@ -1802,6 +1802,40 @@ static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, cons
     return kinetic > SPUN_BALL_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
+/* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
+ * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
+ * inside it (its friction events) and drops the rest, where the friction pushed. */
+static int spun_ball_reverses(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
+    const double *q1, const double *u1)
+{
+    double u0[SPUN_BALL_N], psi[SPUN_BALL_R_DIM], grad0[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    double grad1[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], s0, s1;
+    int f, i, slips = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    if (!slips) {
+        return 0;
+    }
+    spun_ball_velocity(c, q, guess, p, u0);
+    spun_ball_rows(q, u0, c->par, psi, grad0, curv);
+    spun_ball_rows(q1, u1, c->par, psi, grad1, curv);
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        const int sr = spun_ball_stick_row[f];
+        if (c->sus->slip[f] == 0.0) {
+            continue;
+        }
+        for (i = 0, s0 = 0.0, s1 = 0.0; i < SPUN_BALL_N; ++i) {
+            s0 += grad0[sr * SPUN_BALL_N + i] * u0[i];
+            s1 += grad1[sr * SPUN_BALL_N + i] * u1[i];
+        }
+        if (s0 * s1 < 0.0) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
  * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
@@ -1821,6 +1855,9 @@ static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, co
             ratio = spun_ball_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
                 return 0;
+            }
+            if (*halved == SPUN_BALL_SPLITS && spun_ball_reverses(c, q, p, g, q1, u1)) {
+                return 0; /* its slide stops inside: the chain keeps that part */
             }
             if (*halved == SPUN_BALL_SPLITS) {
                 return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "

