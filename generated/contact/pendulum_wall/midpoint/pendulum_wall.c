@@ -1820,10 +1820,18 @@ static int pendulum_wall_reverses(const pendulum_wall_ctx_t *c, const double *q,
     return 0;
 }
 
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int pendulum_wall_slips(const pendulum_wall_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
- * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
- * one's Newton failure, or its spurious root. */
+ * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
+ * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
+ * failure, or its spurious root. */
 static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1848,7 +1856,7 @@ static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const doubl
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, PENDULUM_WALL_SPLITS);
             }
-        } else if (*halved == PENDULUM_WALL_SPLITS) {
+        } else if (*halved == PENDULUM_WALL_SPLITS || !pendulum_wall_slips(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         ++*halved;

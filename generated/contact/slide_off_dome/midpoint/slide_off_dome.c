@@ -1791,10 +1791,18 @@ static int slide_off_dome_reverses(const slide_off_dome_ctx_t *c, const double *
     return 0;
 }
 
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int slide_off_dome_slips(const slide_off_dome_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
- * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
- * one's Newton failure, or its spurious root. */
+ * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
+ * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
+ * failure, or its spurious root. */
 static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1819,7 +1827,7 @@ static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const dou
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, SLIDE_OFF_DOME_SPLITS);
             }
-        } else if (*halved == SLIDE_OFF_DOME_SPLITS) {
+        } else if (*halved == SLIDE_OFF_DOME_SPLITS || !slide_off_dome_slips(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         ++*halved;

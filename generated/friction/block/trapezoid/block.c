@@ -1668,10 +1668,21 @@ static int block_reverses(const block_ctx_t *c, const double *q, const double *p
     return 0;
 }
 
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int block_slips(const block_ctx_t *c)
+{
+    int f, slips = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    return slips;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
- * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
- * one's Newton failure, or its spurious root. */
+ * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
+ * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
+ * failure, or its spurious root. */
 static int block_split_segment(const block_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1696,7 +1707,7 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, BLOCK_SPLITS);
             }
-        } else if (*halved == BLOCK_SPLITS) {
+        } else if (*halved == BLOCK_SPLITS || !block_slips(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         ++*halved;

@@ -1748,10 +1748,21 @@ static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const
     return 0;
 }
 
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int rough_disk_slips(const rough_disk_ctx_t *c)
+{
+    int f, slips = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    return slips;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
- * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
- * one's Newton failure, or its spurious root. */
+ * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
+ * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
+ * failure, or its spurious root. */
 static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1776,7 +1787,7 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, ROUGH_DISK_SPLITS);
             }
-        } else if (*halved == ROUGH_DISK_SPLITS) {
+        } else if (*halved == ROUGH_DISK_SPLITS || !rough_disk_slips(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         ++*halved;

@@ -1802,10 +1802,18 @@ static int ball_box_reverses(const ball_box_ctx_t *c, const double *q, const dou
     return 0;
 }
 
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int ball_box_slips(const ball_box_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * Newton fails or its root is spurious (spurious), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the
- * velocity of p. *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last
- * one's Newton failure, or its spurious root. */
+ * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
+ * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
+ * failure, or its spurious root. */
 static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1830,7 +1838,7 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, BALL_BOX_SPLITS);
             }
-        } else if (*halved == BALL_BOX_SPLITS) {
+        } else if (*halved == BALL_BOX_SPLITS || !ball_box_slips(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         ++*halved;
