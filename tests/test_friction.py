@@ -424,11 +424,14 @@ def test_a_star_sliding_on_a_vertex_at_mu_5_stops_at_once_in_halved_segments(bac
     (``E_d`` 294, silently, on C; a ``SolverError`` on CasADi); halved (``SustainedSteps._split_segment``,
     counted in ``stats["halvings"]``) the slide stops in the first step: the vertex's sliding velocity is 0
     from then on, the mechanical energy never rises above its start, the star never dips below the floor and
-    it ends at rest on a face."""
+    it ends at rest on a face: the one whose right vertex is the vertex that stuck, where it stuck (the slide
+    before the stop, ``v0^2 / (2 mu N / m)``, is 2.5e-4). Before, C ended at rest 0.45 m from there."""
     q0, v0 = [0.0, 0.705982416146709, -0.8417987638567883], [-0.5721091117472317, 0.0, 0.0]
     res = star_friction_sim(backend).simulate(q0, v0, h=0.1, t_end=2.0, params={"mu": 5.0, "e": 0.413})
-    assert res.stats["halvings"] >= 1
     theta = res.q[:, 2]
+    stuck = q0[0] + 0.5 * (math.cos(q0[2]) + math.sin(q0[2]))  # the vertex's x at the start
+    assert abs(res.q[-1, 0] - (stuck - 0.5)) < 1e-3
+    assert res.stats["halvings"] >= 1
     sliding = res.v[:, 0] + 0.5 * (np.cos(theta) - np.sin(theta)) * res.v[:, 2]  # the vertex's x-velocity
     assert abs(sliding[0] - v0[0]) < 1e-15 and np.max(np.abs(sliding[1:4])) < 1e-12
     energy = 0.5 * (res.v[:, 0] ** 2 + res.v[:, 1] ** 2 + 29 / 192 * res.v[:, 2] ** 2) + G * res.q[:, 1]

@@ -302,15 +302,16 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             return None
         rows = np.flatnonzero(self.act)
         mass = k.legendre(q, u)[1]
+        moved = None  # q after the last step that could be taken (C returns whether one was)
         for _ in range(ONTO_ITER):
             psi, grad, _ = k.rows(q, u)
             g = grad[rows]
-            minv_g = np.linalg.solve(mass, g.T)
             try:
-                q = q - minv_g @ np.linalg.solve(g @ minv_g, psi[rows])
+                minv_g = np.linalg.solve(mass, g.T)
+                q = moved = q - minv_g @ np.linalg.solve(g @ minv_g, psi[rows])
             except np.linalg.LinAlgError:
-                return None
-        return q
+                break
+        return moved
 
     def _contact_accel(self, q, u, nrm, group, weights) -> float:
         """``d2 phi/dt2`` along the impulse direction ``nrm`` of a free impact on ``group``."""
