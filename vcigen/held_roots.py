@@ -36,9 +36,10 @@ JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the h
 BOUNCE_CYCLES = 4  # impacts of one row in a step's held chain before the next holds it (Zeno: a few)
 RESTITUTION_BISECTIONS = 30  # halvings of the restitution kept where friction would raise the energy
 ONTO_ITER = 2  # Gauss-Newton steps moving a segment's start onto its rows (SustainedSteps._onto_rows)
-# A held segment whose Newton fails, or whose root is spurious (the kinetic energy of its velocity above
-# SPURIOUS times its start's plus what the forces give over it: a root far from the motion), is halved, SPLITS
-# times at most (SustainedSteps._split_segment); the suite's held segments stay below 1.2 of that sum
+# A held segment whose root is spurious (the kinetic energy of its velocity above
+# SPURIOUS times its start's plus what the forces give over it: a root far from the motion), or whose Newton
+# fails while a contact slips, is halved, SPLITS times at most (SustainedSteps._split_segment); the CasADi
+# held-contact tests' segments stay below 1.2 of that sum
 SPLITS = 6
 SPURIOUS = 16.0
 
