@@ -1136,6 +1136,13 @@ static const int particle_row_constraint[PARTICLE_R_DIM] = { -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int particle_row_stick[PARTICLE_R_DIM] = { -1, };
 static const int particle_row_free[PARTICLE_R_DIM] = { 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int particle_slips(const particle_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1586,13 +1593,6 @@ static int particle_reverses(const particle_ctx_t *c, const double *q, const dou
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int particle_slips(const particle_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

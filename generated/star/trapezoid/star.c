@@ -1419,6 +1419,13 @@ static const int star_row_constraint[STAR_R_DIM] = { -1, -1, -1, -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int star_row_stick[STAR_R_DIM] = { -1, -1, -1, -1, };
 static const int star_row_free[STAR_R_DIM] = { 0, 0, 0, 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int star_slips(const star_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1869,13 +1876,6 @@ static int star_reverses(const star_ctx_t *c, const double *q, const double *p, 
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int star_slips(const star_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

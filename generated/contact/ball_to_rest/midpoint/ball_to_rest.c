@@ -1137,6 +1137,13 @@ static const int ball_to_rest_row_constraint[BALL_TO_REST_R_DIM] = { -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int ball_to_rest_row_stick[BALL_TO_REST_R_DIM] = { -1, };
 static const int ball_to_rest_row_free[BALL_TO_REST_R_DIM] = { 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int ball_to_rest_slips(const ball_to_rest_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1587,13 +1594,6 @@ static int ball_to_rest_reverses(const ball_to_rest_ctx_t *c, const double *q, c
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int ball_to_rest_slips(const ball_to_rest_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

@@ -1924,6 +1924,13 @@ static const int cube_settles_row_constraint[CUBE_SETTLES_R_DIM] = { -1, -1, -1,
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int cube_settles_row_stick[CUBE_SETTLES_R_DIM] = { -1, -1, -1, -1, };
 static const int cube_settles_row_free[CUBE_SETTLES_R_DIM] = { 0, 0, 0, 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int cube_settles_slips(const cube_settles_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -2375,13 +2382,6 @@ static int cube_settles_reverses(const cube_settles_ctx_t *c, const double *q, c
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int cube_settles_slips(const cube_settles_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

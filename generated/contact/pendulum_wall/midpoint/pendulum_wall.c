@@ -1367,6 +1367,13 @@ static const int pendulum_wall_row_constraint[PENDULUM_WALL_R_DIM] = { -1, 0, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int pendulum_wall_row_stick[PENDULUM_WALL_R_DIM] = { -1, -1, };
 static const int pendulum_wall_row_free[PENDULUM_WALL_R_DIM] = { 0, 1, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int pendulum_wall_slips(const pendulum_wall_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1817,13 +1824,6 @@ static int pendulum_wall_reverses(const pendulum_wall_ctx_t *c, const double *q,
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int pendulum_wall_slips(const pendulum_wall_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

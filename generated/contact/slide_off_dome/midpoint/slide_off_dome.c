@@ -1338,6 +1338,13 @@ static const int slide_off_dome_row_constraint[SLIDE_OFF_DOME_R_DIM] = { -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int slide_off_dome_row_stick[SLIDE_OFF_DOME_R_DIM] = { -1, };
 static const int slide_off_dome_row_free[SLIDE_OFF_DOME_R_DIM] = { 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int slide_off_dome_slips(const slide_off_dome_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1788,13 +1795,6 @@ static int slide_off_dome_reverses(const slide_off_dome_ctx_t *c, const double *
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int slide_off_dome_slips(const slide_off_dome_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

@@ -1420,6 +1420,13 @@ static const int star_settles_row_constraint[STAR_SETTLES_R_DIM] = { -1, -1, -1,
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int star_settles_row_stick[STAR_SETTLES_R_DIM] = { -1, -1, -1, -1, };
 static const int star_settles_row_free[STAR_SETTLES_R_DIM] = { 0, 0, 0, 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int star_settles_slips(const star_settles_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1870,13 +1877,6 @@ static int star_settles_reverses(const star_settles_ctx_t *c, const double *q, c
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int star_settles_slips(const star_settles_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

@@ -958,6 +958,13 @@ static const int impact_oscillator_row_constraint[IMPACT_OSCILLATOR_R_DIM] = { -
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int impact_oscillator_row_stick[IMPACT_OSCILLATOR_R_DIM] = { -1, };
 static const int impact_oscillator_row_free[IMPACT_OSCILLATOR_R_DIM] = { 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int impact_oscillator_slips(const impact_oscillator_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1408,13 +1415,6 @@ static int impact_oscillator_reverses(const impact_oscillator_ctx_t *c, const do
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int impact_oscillator_slips(const impact_oscillator_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

@@ -1139,6 +1139,16 @@ static const int block_row_constraint[BLOCK_R_DIM] = { -1, -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int block_row_stick[BLOCK_R_DIM] = { -1, 0, };
 static const int block_row_free[BLOCK_R_DIM] = { 0, 1, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int block_slips(const block_ctx_t *c)
+{
+    int f, slips = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    return slips;
+}
+
 #define BLOCK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define BLOCK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define BLOCK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
@@ -1642,11 +1652,8 @@ static int block_reverses(const block_ctx_t *c, const double *q, const double *p
 {
     double u0[BLOCK_N], psi[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N];
     double grad1[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], s0, s1;
-    int f, i, slips = 0;
-    for (f = 0; f < BLOCK_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) {
+    int f, i;
+    if (!block_slips(c)) {
         return 0;
     }
     block_velocity(c, q, guess, p, u0);
@@ -1666,16 +1673,6 @@ static int block_reverses(const block_ctx_t *c, const double *q, const double *p
         }
     }
     return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int block_slips(const block_ctx_t *c)
-{
-    int f, slips = 0;
-    for (f = 0; f < BLOCK_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    return slips;
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
@@ -1892,11 +1889,8 @@ static int block_painleve(const block_ctx_t *c, const double *q1, const double *
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double dirs[BLOCK_R_DIM * BLOCK_N], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N];
     double d[BLOCK_N], a;
-    int piv[BLOCK_N], f, r, i, slips = 0;
-    for (f = 0; f < BLOCK_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+    int piv[BLOCK_N], f, r, i;
+    if (!block_slips(c)) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
         return 0;
     }
     block_rows(q1, u1, c->par, psi, grad, curv);

@@ -1219,6 +1219,16 @@ static const int rough_disk_row_constraint[ROUGH_DISK_R_DIM] = { -1, -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int rough_disk_row_stick[ROUGH_DISK_R_DIM] = { -1, 0, };
 static const int rough_disk_row_free[ROUGH_DISK_R_DIM] = { 0, 1, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int rough_disk_slips(const rough_disk_ctx_t *c)
+{
+    int f, slips = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    return slips;
+}
+
 #define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define ROUGH_DISK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define ROUGH_DISK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
@@ -1722,11 +1732,8 @@ static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const
 {
     double u0[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double grad1[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], s0, s1;
-    int f, i, slips = 0;
-    for (f = 0; f < ROUGH_DISK_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) {
+    int f, i;
+    if (!rough_disk_slips(c)) {
         return 0;
     }
     rough_disk_velocity(c, q, guess, p, u0);
@@ -1746,16 +1753,6 @@ static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const
         }
     }
     return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int rough_disk_slips(const rough_disk_ctx_t *c)
-{
-    int f, slips = 0;
-    for (f = 0; f < ROUGH_DISK_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    return slips;
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
@@ -1972,11 +1969,8 @@ static int rough_disk_painleve(const rough_disk_ctx_t *c, const double *q1, cons
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N];
     double d[ROUGH_DISK_N], a;
-    int piv[ROUGH_DISK_N], f, r, i, slips = 0;
-    for (f = 0; f < ROUGH_DISK_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+    int piv[ROUGH_DISK_N], f, r, i;
+    if (!rough_disk_slips(c)) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
         return 0;
     }
     rough_disk_rows(q1, u1, c->par, psi, grad, curv);

@@ -1305,6 +1305,16 @@ static const int spun_ball_row_constraint[SPUN_BALL_R_DIM] = { -1, -1, -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int spun_ball_row_stick[SPUN_BALL_R_DIM] = { -1, 0, 1, };
 static const int spun_ball_row_free[SPUN_BALL_R_DIM] = { 0, 1, 1, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int spun_ball_slips(const spun_ball_ctx_t *c)
+{
+    int f, slips = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    return slips;
+}
+
 #define SPUN_BALL_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define SPUN_BALL_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define SPUN_BALL_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
@@ -1810,11 +1820,8 @@ static int spun_ball_reverses(const spun_ball_ctx_t *c, const double *q, const d
 {
     double u0[SPUN_BALL_N], psi[SPUN_BALL_R_DIM], grad0[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double grad1[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], s0, s1;
-    int f, i, slips = 0;
-    for (f = 0; f < SPUN_BALL_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) {
+    int f, i;
+    if (!spun_ball_slips(c)) {
         return 0;
     }
     spun_ball_velocity(c, q, guess, p, u0);
@@ -1834,16 +1841,6 @@ static int spun_ball_reverses(const spun_ball_ctx_t *c, const double *q, const d
         }
     }
     return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int spun_ball_slips(const spun_ball_ctx_t *c)
-{
-    int f, slips = 0;
-    for (f = 0; f < SPUN_BALL_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    return slips;
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
@@ -2081,11 +2078,8 @@ static int spun_ball_painleve(const spun_ball_ctx_t *c, const double *q1, const 
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double dirs[SPUN_BALL_R_DIM * SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N];
     double d[SPUN_BALL_N], a;
-    int piv[SPUN_BALL_N], f, r, i, slips = 0;
-    for (f = 0; f < SPUN_BALL_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+    int piv[SPUN_BALL_N], f, r, i;
+    if (!spun_ball_slips(c)) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
         return 0;
     }
     spun_ball_rows(q1, u1, c->par, psi, grad, curv);

@@ -1414,6 +1414,16 @@ static const int star_friction_row_constraint[STAR_FRICTION_R_DIM] = { -1, -1, -
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int star_friction_row_stick[STAR_FRICTION_R_DIM] = { -1, -1, -1, -1, 0, };
 static const int star_friction_row_free[STAR_FRICTION_R_DIM] = { 0, 0, 0, 0, 1, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int star_friction_slips(const star_friction_ctx_t *c)
+{
+    int f, slips = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        slips = slips || c->sus->slip[f] != 0.0;
+    }
+    return slips;
+}
+
 #define STAR_FRICTION_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define STAR_FRICTION_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define STAR_FRICTION_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
@@ -1926,11 +1936,8 @@ static int star_friction_reverses(const star_friction_ctx_t *c, const double *q,
 {
     double u0[STAR_FRICTION_N], psi[STAR_FRICTION_R_DIM], grad0[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double grad1[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], s0, s1;
-    int f, i, slips = 0;
-    for (f = 0; f < STAR_FRICTION_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) {
+    int f, i;
+    if (!star_friction_slips(c)) {
         return 0;
     }
     star_friction_velocity(c, q, guess, p, u0);
@@ -1950,16 +1957,6 @@ static int star_friction_reverses(const star_friction_ctx_t *c, const double *q,
         }
     }
     return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int star_friction_slips(const star_friction_ctx_t *c)
-{
-    int f, slips = 0;
-    for (f = 0; f < STAR_FRICTION_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    return slips;
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
@@ -2176,11 +2173,8 @@ static int star_friction_painleve(const star_friction_ctx_t *c, const double *q1
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double dirs[STAR_FRICTION_R_DIM * STAR_FRICTION_N], mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N];
     double d[STAR_FRICTION_N], a;
-    int piv[STAR_FRICTION_N], f, r, i, slips = 0;
-    for (f = 0; f < STAR_FRICTION_NF; ++f) {
-        slips = slips || c->sus->slip[f] != 0.0;
-    }
-    if (!slips) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
+    int piv[STAR_FRICTION_N], f, r, i;
+    if (!star_friction_slips(c)) { /* as SustainedSteps._chain's test of _slip before it: no evaluation on a segment without one */
         return 0;
     }
     star_friction_rows(q1, u1, c->par, psi, grad, curv);

@@ -1349,6 +1349,13 @@ static const int ball_box_row_constraint[BALL_BOX_R_DIM] = { -1, -1, -1, -1, };
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int ball_box_row_stick[BALL_BOX_R_DIM] = { -1, -1, -1, -1, };
 static const int ball_box_row_free[BALL_BOX_R_DIM] = { 0, 0, 0, 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int ball_box_slips(const ball_box_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -1799,13 +1806,6 @@ static int ball_box_reverses(const ball_box_ctx_t *c, const double *q, const dou
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int ball_box_slips(const ball_box_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 

@@ -1553,6 +1553,13 @@ static const int double_pendulum_row_constraint[DOUBLE_PENDULUM_R_DIM] = { -1, }
 /* Row r's frictional contact if it is a stick row (-1 otherwise), and whether its multiplier is free in sign. */
 static const int double_pendulum_row_stick[DOUBLE_PENDULUM_R_DIM] = { -1, };
 static const int double_pendulum_row_free[DOUBLE_PENDULUM_R_DIM] = { 0, };
+/* Does a frictional contact slip (SustainedSteps._slip.any())? */
+static int double_pendulum_slips(const double_pendulum_ctx_t *c)
+{
+    (void)c;
+    return 0;
+}
+
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -2004,13 +2011,6 @@ static int double_pendulum_reverses(const double_pendulum_ctx_t *c, const double
     (void)guess;
     (void)q1;
     (void)u1;
-    return 0;
-}
-
-/* Does a frictional contact slip (SustainedSteps._slip.any())? */
-static int double_pendulum_slips(const double_pendulum_ctx_t *c)
-{
-    (void)c;
     return 0;
 }
 
