@@ -29,7 +29,9 @@ Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
   (the fewest operations we could write, the next line's start one multiply-add after the root), timed in the
   same loop and checked against the generated run (q, p to 1e-9): the practical limit of the generated loop;
   and ``bench/handwritten/ellipse_poly.c`` (stop 34), the same with the next step's quadratic formed as
-  polynomials in the root (a shorter chain to the next ``sqrt``), alike;
+  polynomials in the root (a shorter chain to the next ``sqrt``), alike; and
+  ``bench/handwritten/ellipse_chain.c`` (stop 39), that form's state's chain alone (no projection, force,
+  ``E_d`` or tests; its ``Q`` checked, its ``P`` is ``p+``): a floor for any held step with that chain;
 * ``valley``: a particle in the parabola ``y >= x^2 / 2``, from ``(0.8, 0.32)`` at rest, through its vertex:
   a quadric's closed step whose ``Hess F`` is not definite (its root divides by ``B + sqrt(D)``); free: from
   ``(0, 1e6)``.
@@ -162,8 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     keep_heap()
     sims = {name: vcigen.build(model(), backend="c") for name, model, *_ in runs}
     clocks = {name: cpu_clock(sim) for name, sim in sims.items()}
-    hands = {"hand": "ellipse.c", "poly": "ellipse_poly.c"} if "ellipse" in sims else {}
-    hands = {key: handwritten_ellipse(source) for key, source in hands.items()}
+    hands = {"hand": "ellipse.c", "poly": "ellipse_poly.c", "chain": "ellipse_chain.c"}
+    hands = {key: handwritten_ellipse(source) for key, source in hands.items()} if "ellipse" in sims else {}
     best = {}
     for _ in range(a.repeats):
         for name, _, h, steps, held, free in runs:
@@ -176,13 +178,14 @@ def main(argv: list[str] | None = None) -> int:
                 best[name, h, kind] = min(best.get((name, h, kind), math.inf), spent / steps * 1e9)
                 for key, hand in hands.items() if name == "ellipse" and kind == "held" else ():
                     spent, Q, P = hand(q0, v0, h, steps)  # the hand-written steps, alike
-                    assert np.abs(Q - res.q[1:]).max() < 1e-9 and np.abs(P - res.p[1:]).max() < 1e-9
+                    assert np.abs(Q - res.q[1:]).max() < 1e-9  # the chain alone: P is p+, not p
+                    assert key == "chain" or np.abs(P - res.p[1:]).max() < 1e-9
                     best[name, h, key] = min(best.get((name, h, key), math.inf), spent / steps * 1e9)
     print(f"{'scene':<7} {'h':>7} {'held ns':>8} {'free ns':>8} {'ratio':>6}   (CPU time of the C loop)")
     for name, _, h, *_ in runs:
         held_ns, free_ns = best[name, h, "held"], best[name, h, "free"]
         print(f"{name:<7} {h:>7.0e} {held_ns:>8.1f} {free_ns:>8.1f} {held_ns / free_ns:>6.2f}")
-        for key, source in (("hand", "ellipse.c"), ("poly", "ellipse_poly.c")):
+        for key, source in (("hand", "ellipse.c"), ("poly", "ellipse_poly.c"), ("chain", "ellipse_chain.c")):
             if (name, h, key) in best:
                 hand_ns = best[name, h, key]
                 print(

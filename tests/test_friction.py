@@ -439,3 +439,69 @@ def test_a_star_sliding_on_a_vertex_at_mu_5_stops_at_once_in_halved_segments(bac
     height = res.q[:, 1] - 0.5 * (np.abs(np.sin(theta)) + np.abs(np.cos(theta)))
     assert height.min() > -1e-12
     assert np.max(np.abs(res.v[-1])) < 1e-9 and abs(res.q[-1, 1] - 0.5) < 1e-12 and abs(theta[-1]) < 1e-9
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_root_pulling_the_vertex_near_painleves_boundary_is_halved(backend):
+    """A fuzzed star on a corner sliding at 0.57 m/s, ``mu = 1.27``, ``h = 0.1``: its ``grad psi . M^-1 d``
+    is 0.03 of a frictionless 1.4, so the normal force that holds the vertex is large and the slide stops
+    within milliseconds. The held segment over the whole step took (C) a root with a pulling normal impulse,
+    -10.3 over the step, under which friction pushed: the energy rose from 6.66 to 10.17 and the star came to
+    rest 0.45 m from where the vertex stuck. Its kinetic energy, 6.6 times the start's and gravity's over the
+    step, passed ``SPURIOUS = 16``; at 4 (twice the exact motion's bound, ``held_roots.SPURIOUS``) it is
+    halved, and the star rests on the face whose left vertex is the vertex that stuck, where it stuck."""
+    q0, v0 = [0.0, 0.6623708357471315, -1.1430146372190804], [-0.5728183844874453, 0.0, 0.0]
+    params = {"mu": 1.2656135223973537, "e": 0.3758}
+    res = star_friction_sim(backend).simulate(q0, v0, h=0.1, t_end=2.0, params=params)
+    theta = res.q[:, 2]
+    stuck = q0[0] + 0.5 * (math.cos(q0[2]) + math.sin(q0[2]))  # the sliding vertex's x at the start
+    assert abs(res.q[-1, 0] - (stuck + 0.5)) < 1e-3
+    assert res.stats["halvings"] >= 1
+    sliding = res.v[:, 0] - 0.5 * (np.sin(theta) - np.cos(theta)) * res.v[:, 2]  # the vertex's x-velocity
+    assert abs(sliding[0] - v0[0]) < 1e-15 and np.max(np.abs(sliding[1:4])) < 1e-12
+    assert np.all(res.contact_force[:4, 0] > 0.0)
+    energy = 0.5 * (res.v[:, 0] ** 2 + res.v[:, 1] ** 2 + 29 / 192 * res.v[:, 2] ** 2) + G * res.q[:, 1]
+    assert np.max(energy - energy[0]) <= 1e-12
+    height = res.q[:, 1] - 0.5 * (np.abs(np.sin(theta)) + np.abs(np.cos(theta)))
+    assert height.min() > -1e-12
+    assert np.max(np.abs(res.v[-1])) < 1e-9 and abs(res.q[-1, 1] - 0.5) < 1e-12
+    assert abs(theta[-1] + math.pi / 2) < 1e-9
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_star_sliding_on_a_corner_past_painleves_boundary_pivots_on_it(backend):
+    """A fuzzed star on a corner sliding at 2.39 m/s, ``mu = 1.33``: its ``grad psi . M^-1 d`` is -0.10 at
+    the start, past Painleve's boundary (held, the vertex's normal force would pull). The theory's tangential
+    impact stops the vertex at once (``SustainedSteps._jam``), and the star pivots on it: the angular momentum
+    about the vertex is kept, ``omega+ = m d x v / (I + m |d|^2)``, then the pivot's pendulum (scipy, 1e-12).
+    At ``h = 0.05`` the first segment's end was back inside the boundary, so only the start was past it: the
+    held root pulled (impulse -0.88) and CasADi's search for the slide's stop met the pole of the end's
+    projection ("sustained solve failed" at step 0). Now the start is checked too, and the grid ``q`` meets
+    the pivot to O(h^2)."""
+    from scipy.integrate import solve_ivp
+
+    q0, v0 = [0.0, 0.6379539242490385, -2.8021403895218184], [-2.3882399612071383, 0.0, 0.0]
+    c, s = math.cos(q0[2]), math.sin(q0[2])
+    d = (0.5 * (s - c), -0.5 * (s + c))  # the centre from the lowest vertex, (0.5, 0.5) in the body
+    mass = 29 / 192 + d[0] ** 2 + d[1] ** 2  # about the vertex
+    arm, phi0 = math.hypot(*d), math.atan2(d[1], d[0])
+    pivot = solve_ivp(
+        lambda t, y: [y[1], -G * arm * math.cos(y[0]) / mass],
+        (0.0, 0.1),
+        [phi0, -d[1] * v0[0] / mass],
+        rtol=1e-12,
+        atol=1e-12,
+        dense_output=True,
+    )
+    errors, params = [], {"mu": 1.3339, "e": 0.03}
+    for h in (0.05, 0.025):
+        with pytest.warns(RuntimeWarning, match="Painleve"):
+            res = star_friction_sim(backend).simulate(q0, v0, h=h, t_end=0.1, params=params)
+        assert res.stats["jams"] == 1 and res.active[:, 0].all()
+        theta = res.q[:, 2]
+        sliding = res.v[:, 0] - 0.5 * (np.sin(theta) + np.cos(theta)) * res.v[:, 2]  # the vertex's x-velocity
+        assert np.max(np.abs(sliding[1:])) < 1e-12
+        phi = pivot.sol(res.t)[0]
+        exact = np.column_stack([q0[0] - d[0] + arm * np.cos(phi), arm * np.sin(phi), q0[2] + phi - phi0])
+        errors.append(np.max(np.abs(res.q - exact)))
+    assert errors[0] < 1e-3 and 3.5 < errors[0] / errors[1] < 4.5  # second order

@@ -536,6 +536,48 @@ def test_a_start_on_the_bowl_moving_away_from_it_flies_free_where_its_path_does_
     np.testing.assert_allclose(res.q[before], parabola(q0, v0, res.t[before]), rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pendulum_swung_across_the_corner_of_its_rod_and_a_wall_stops_there(backend):
+    """The bob on its rod swung down into the wall ``x = -0.99``, which cuts the circle's arc of 0.28 rad
+    about ``(-1, 0)``: at ``h = 0.1`` a held step (only the rod held) ended past the corner, on the wall's
+    side again (``x >= -0.99``), so its end's test saw nothing and the bob passed through the wall,
+    silently (from the corner at 3 m/s, both backends; from 0.1 rad above at 0.5 m/s on CasADi; C raised
+    there). A held step whose inactive row ends within its reach is left to the chain
+    (``held_step.idle_near``), which tests the row for a dip as free flight does (``_row_dips``): the bob
+    meets the wall when the pendulum does (scipy, event located, 1e-12), to second order, and stops in the
+    corner (``e = 0``: its only motions there are away from the wall)."""
+    from scipy.integrate import solve_ivp
+
+    d = 0.99
+    corner = math.atan2(math.sqrt(1 - d**2), -d)
+    a = corner - 0.1  # 0.1 rad above the corner, swinging down into it at 0.5 m/s
+    hit = lambda t, y: math.cos(y[0]) + d  # noqa: E731
+    hit.terminal = True
+    exact = solve_ivp(
+        lambda t, y: [y[1], -G * math.cos(y[0])], (0, 2), [a, 0.5], events=hit, rtol=1e-12, atol=1e-12
+    )
+    starts = {  # from above, and from the corner itself at 3 m/s
+        "above": ([math.cos(a), math.sin(a)], [-0.5 * math.sin(a), 0.5 * math.cos(a)]),
+        "corner": ([-d, math.sqrt(1 - d**2)], [-3 * math.sqrt(1 - d**2), -3 * d]),
+    }
+    errors = []
+    for name, (q0, v0) in starts.items():
+        for h in (0.1, 0.05) if name == "above" else (0.1,):
+            res = sim("rod_wall", backend).simulate(q0, v0, h, t_end=0.5, params={"a": -d, "e": 0.0})
+            assert res.impacts and (res.q[:, 0] + d).min() > -1e-12
+            assert res.q[:, 1].min() >= math.sqrt(1 - d**2) - 1e-12  # never past the corner
+            assert (
+                np.abs(res.q[-1] - [-d, math.sqrt(1 - d**2)]).max() < 1e-12
+                and np.abs(res.v[-1]).max() < 1e-12
+            )
+            assert res.active[-1, 0]
+            if name == "above":
+                errors.append(abs(res.impacts[0].t - exact.t_events[0][0]))
+            else:
+                assert res.impacts[0].t < 1e-12  # at the start (located to the root finder's 1e-14)
+    assert errors[0] < 1e-4 and errors[0] / errors[1] > 3.5  # at least second order
+
+
 @pytest.mark.parametrize("h", [0.1, 0.05])
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_pendulum_at_rest_in_the_corner_of_its_rod_and_a_wall_stays_with_the_static_forces(backend, h):

@@ -28,8 +28,10 @@ multipliers of the active rows ``A``:
   same ``W``; ``curv_r = u1 . Hess psi_r(q1) . u1``.
 
 One evaluation of the rows at ``q1`` (``held_rows``: values, gradients, Hessians) serves the
-Newton test, the projection, the forces, the crossing test of the inactive rows, and the next
-step's ``G0``. Every subexpression of ``(h, par)`` alone is hoisted into run constants
+Newton test, the projection, the forces, the crossing test of the inactive rows and their reach
+(:func:`vcigen.held_step.idle_near`: one ending within twice the step's move of 0 leaves the step to
+the chain, which tests it for a dip inside), and the next step's ``G0``. Every subexpression of
+``(h, par)`` alone is hoisted into run constants
 (``held_consts``). A step whose end shows an event (a force turning negative, an inactive row
 crossed), whose solve does not converge or whose state is not finite is not taken: the general
 chain (:mod:`vcigen.sustained`) takes it from the same start. The C loop (``<model>_held_glide``

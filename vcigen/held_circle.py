@@ -255,7 +255,7 @@ def circle_step(k, q, p, w, row: int, act, h: float, residual: float, phi_tol: f
     imp, energy, force, res = (x[row] for x in k.held_circle_end(q, p, q1, p1, [pt, s], kc))
     v = (q1 - q) / h
     if not one_row_clears(
-        k, kc, row, act, p, q1, p1, float(energy), float(force), float(res), residual, phi_tol
+        k, kc, row, act, q, p, q1, p1, float(energy), float(force), float(res), residual, phi_tol
     ):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)

@@ -36,12 +36,20 @@ JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the h
 BOUNCE_CYCLES = 4  # impacts of one row in a step's held chain before the next holds it (Zeno: a few)
 RESTITUTION_BISECTIONS = 30  # halvings of the restitution kept where friction would raise the energy
 ONTO_ITER = 2  # Gauss-Newton steps moving a segment's start onto its rows (SustainedSteps._onto_rows)
-# A held segment whose root is spurious (the kinetic energy of its velocity above
-# SPURIOUS times its start's plus what the forces give over it: a root far from the motion), or whose Newton
-# fails while a contact slips, is halved, SPLITS times at most (SustainedSteps._split_segment); the CasADi
-# held-contact tests' segments stay below 1.2 of that sum
+# A held segment whose root is spurious (the kinetic energy of its velocity above SPURIOUS times its
+# start's plus what the forces give over it: a root far from the motion), or whose Newton fails while a
+# contact slips, is halved, SPLITS times at most (SustainedSteps._split_segment). SPURIOUS = 4 is twice the
+# bound of the exact motion under a constant force F with workless or dissipative rows and a constant M:
+# T' <= F . u <= |F|_{M^-1} sqrt(2 T), so sqrt(T) <= sqrt(T0) + a / sqrt(2), a = tau |F|_{M^-1}, and
+# T <= 2 T0 + a^2 = 2 (T0 + a^2/2), for the segment's mean velocity too (T is convex). The CasADi
+# held-contact tests' segments stay below 1.2; a rough star's root with a pulling normal impulse near
+# Painleve's boundary reached 6.6 (16 before stop 39)
 SPLITS = 6
-SPURIOUS = 16.0
+SPURIOUS = 4.0
+# A held grid step (vcigen.held_step) is not taken where an inactive row ends within REACH times the step's
+# move of 0 (psi_r(q1) < REACH |grad psi_r(q1)| |q1 - q|): a dip below 0 inside the step is possible there
+# (a rod's bob across the corner its circle cuts off a wall), and the chain tests for it (_row_dips)
+REACH = 2.0
 
 
 def span_add(basis: list, g) -> bool:
@@ -86,15 +94,24 @@ def illinois_update(a: float, ga: float, b: float, gb: float, side: int, c: floa
 
 
 def illinois(
-    value, ga: float, gb: float, tiny: float, width: float, iters: int, guess, lo: float = 0.0
+    value,
+    ga: float,
+    gb: float,
+    tiny: float,
+    width: float,
+    iters: int,
+    guess,
+    lo: float = 0.0,
+    hi: float = 1.0,
 ) -> float:
-    """Illinois regula falsi for the root of ``value`` on ``[lo, 1]`` (``value(lo) = ga >= 0 > gb = g(1)``).
+    """Illinois regula falsi for the root of ``value`` on ``[lo, hi]`` (``value(lo) = ga >= 0 > gb =
+    g(hi)``).
 
     ``value(s, guess) -> (g(s), guess')`` evaluates the sub-step map at ``s`` from a warm guess. Returns
     the first ``s`` with ``|g(s)| <= tiny``, or else, once the bracket is narrower than ``width`` (or after
     ``iters`` evaluations), its end where ``g < 0``.
     """
-    a, b, side, v = lo, 1.0, 0, guess
+    a, b, side, v = lo, hi, 0, guess
     for _ in range(iters):
         c = illinois_point(a, ga, b, gb)
         gc, v = value(c, v)
@@ -104,6 +121,14 @@ def illinois(
         if b - a <= width:
             break
     return b
+
+
+def hermite_min(g0: float, g1: float, d0: float, d1: float) -> tuple[float, float]:
+    """Minimum over ``[0, 1]`` of the cubic with ends ``g0, g1`` and slopes ``d0, d1``."""
+    c = np.array([2 * g0 - 2 * g1 + d0 + d1, -3 * g0 + 3 * g1 - 2 * d0 - d1, d0, g0])
+    crit = [r.real for r in np.roots(np.polyder(c)) if abs(r.imag) < 1e-12 and 0 < r.real < 1]
+    s = min((0.0, 1.0, *crit), key=lambda x: np.polyval(c, x))
+    return float(s), float(np.polyval(c, s))
 
 
 class End(NamedTuple):

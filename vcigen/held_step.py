@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .held_circle import Carry
-from .held_roots import EPS_LIFT
+from .held_roots import EPS_LIFT, REACH
 
 HELD_ITER = 8  # Newton iterations of the held step at most (then the general chain takes the step)
 
@@ -56,21 +56,44 @@ def all_finite(energy: float, forces: np.ndarray, q1: np.ndarray, p1: np.ndarray
     return bool(np.isfinite(total))
 
 
-def one_row_clears(k, kc, row: int, act, p, q1, p1, energy: float, force: float, res: float, residual: float,
-                   phi_tol: float) -> bool:  # fmt: skip
+def one_row_clears(k, kc, row: int, act, q, p, q1, p1, energy: float, force: float, res: float,
+                   residual: float, phi_tol: float) -> bool:  # fmt: skip
     """The tests of a closed step on one row (:func:`closed_step`, ``vcigen.held_circle.circle_step``; C:
     ``<model>_held_closed_step``, ``<model>_held_circle_one``): the residual ``res`` within
     ``residual (1 + |p|)``, no lift-off (``force`` not below ``-EPS_LIFT (1 + |force|)`` on a contact row),
-    no inactive row crossed, ``E_d``, the force, ``q1`` and ``p1`` finite."""
+    no inactive row crossed or within the step's reach (:func:`idle_near`), ``E_d``, the force, ``q1`` and
+    ``p1`` finite."""
     if not abs(res) <= residual * (1.0 + float(np.max(np.abs(p)))):
         return False
     if not k.row_bilateral[row] and force < -EPS_LIFT * (1.0 + abs(force)):
         return False  # a lift-off inside the step
     if k.r > 1:
-        psi = k.held_rows(q1, kc)[0]
+        psi, grad, _ = k.held_rows(q1, kc)
         if any(psi[r] < -phi_tol for r in range(k.r) if not act[r]):
             return False  # an inactive row crossed
+        if idle_near(k, act, q, q1, psi, grad):
+            return False  # an inactive row within the step's reach: the chain tests it for a dip
     return all_finite(energy, [force], q1, p1)
+
+
+def idle_near(k, act, q, q1, psi, grad) -> bool:
+    """Does an inactive contact row end within ``REACH`` times the step's move of 0: ``psi_r(q1)^2 < REACH^2
+    |grad psi_r(q1)|^2 |q1 - q|^2``? Both ends admissible, the row may dip below 0 inside the step (a rod's
+    bob across the corner its circle cuts off a wall: 0 at the start, 0.0045 at the end, the step's move
+    0.16); the chain takes the step then and tests for a dip (``SustainedSteps._row_dips``). Sums in the C
+    loop's order."""
+    dq2 = 0.0
+    for i in range(k.n):
+        dq2 += (q1[i] - q[i]) * (q1[i] - q[i])
+    for r in range(k.r):
+        if act[r] or k.row_stick[r] >= 0:
+            continue
+        g2 = 0.0
+        for i in range(k.n):
+            g2 += grad[r, i] * grad[r, i]
+        if psi[r] * psi[r] < REACH * REACH * g2 * dq2:
+            return True
+    return False
 
 
 class Held(NamedTuple):
@@ -111,7 +134,7 @@ def closed_carried(k, q, p, w, row: int, act, h: float, residual: float, phi_tol
     p1, lam1_r, force, res = k.held_root_end(q1, p_plus, y, w_, iw, kc)
     p1 = p1[row]
     if not one_row_clears(
-        k, kc, row, act, p, q1, p1, float(energy), float(force[row]), float(res[row]), residual, phi_tol
+        k, kc, row, act, q, p, q1, p1, float(energy), float(force[row]), float(res[row]), residual, phi_tol
     ):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)
@@ -185,6 +208,8 @@ def held_step(k, q, p, lam_in, act, h: float, residual: float, phi_tol: float) -
     idle = [r for r in range(k.r) if not act[r]]
     if any(psi[r] < -phi_tol for r in idle):
         return None  # an inactive row crossed
+    if idle_near(k, act, q, q1, psi, grad):
+        return None  # an inactive row within the step's reach: the chain tests it for a dip
     if not all_finite(float(energy), f_a, q1, p1):
         return None
     lam, lam1 = np.zeros(k.r), np.zeros(k.r)

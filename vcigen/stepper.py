@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from .errors import NONFINITE, SolverError
+from .held_roots import hermite_min
 from .held_step import HeldSteps
 from .impact_step import ImpactSteps, Seg
 from .progress import Progress
@@ -316,7 +317,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         for j in np.flatnonzero((phi1 >= -tol.phi) & (d0 < 0) & (d1 > 0)):
             if j == seg.contact:
                 continue
-            s_min, g_min = _hermite_min(phi0[j], phi1[j], d0[j], d1[j])
+            s_min, g_min = hermite_min(phi0[j], phi1[j], d0[j], d1[j])
             if g_min < tol.dip * (abs(d0[j]) + abs(d1[j])):
                 hit = self._sample_dip(seg, int(j), s_min)
                 if hit is not None:
@@ -435,14 +436,6 @@ def _result(t0: float, h: float, steps: int, Q, P, E, impacts: list[Impact], n: 
         h,
         stats,
     )
-
-
-def _hermite_min(g0: float, g1: float, d0: float, d1: float) -> tuple[float, float]:
-    """Minimum over ``[0, 1]`` of the cubic with ends ``g0, g1`` and slopes ``d0, d1``."""
-    c = np.array([2 * g0 - 2 * g1 + d0 + d1, -3 * g0 + 3 * g1 - 2 * d0 - d1, d0, g0])
-    crit = [r.real for r in np.roots(np.polyder(c)) if abs(r.imag) < 1e-12 and 0 < r.real < 1]
-    s = min((0.0, 1.0, *crit), key=lambda x: np.polyval(c, x))
-    return float(s), float(np.polyval(c, s))
 
 
 def _grow(a: np.ndarray, rows: int) -> np.ndarray:

@@ -45,6 +45,7 @@ from .held_roots import (
     SPURIOUS,
     STICK_CYCLES,
     End,
+    hermite_min,
     illinois,
     span_add,
 )
@@ -390,14 +391,19 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if self._lift_seg is not None:  # the lift-off is one event of several (Tracker.event)
                     self._ev_event(*self._lift_seg, "lift")
                 self._lift_seg = None
-            tau, halved, seg = self._split_segment(step, t_k, q, p, rest, guess)
-            v, lam, q1, _, e_seg, lam1, p1, u1, end = seg
-            self.halvings += halved
-            if halved:  # not a segment of the step's map: the tangent has none
-                self._sw_lose("held segment halved")
-                plain = False
-            if self._slip.any() and not self._jammed and self._painleve(end):
-                self._jam(q, self._velocity(q, guess, p))  # the tangential impact, at the segment's start
+            u0 = self._velocity(q, guess, p)
+            slips = self._slip.any() and not self._jammed  # past Painleve's boundary at the start: no segment
+            past = slips and self._painleve(k.rows(q, u0)[1], k.legendre(q, u0)[1])
+            if not past:
+                tau, halved, seg = self._split_segment(step, t_k, q, p, rest, guess)
+                v, lam, q1, _, e_seg, lam1, p1, u1, end = seg
+                self.halvings += halved
+                if halved:  # not a segment of the step's map: the tangent has none
+                    self._sw_lose("held segment halved")
+                    plain = False
+                past = slips and self._painleve(end.grad, end.mass)
+            if past:
+                self._jam(q, u0)  # the tangential impact, at the segment's start
                 self._fswitch = self._fswitch or plain
                 self._sw_lose()
                 plain = False
@@ -448,7 +454,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 continue
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
-            if not events and not cross.any():
+            dips = self._row_dips(step, t_k, q, p, tau, v, u1, end, cross)
+            if not events and not cross.any() and not dips:
                 if tau < rest:  # a halved segment: the rest of the step next
                     self._book(lam + lam1)
                     self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
@@ -465,6 +472,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 return q1, p1, e_step, v
             for r in np.flatnonzero(cross):
                 events[int(r)] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, int(r), psi1[r]))
+            for r, (s_hi, g_hi) in dips.items():  # both ends admissible, below 0 inside: located before s_hi
+                events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g_hi, s_hi))
             r0 = min(events, key=lambda r: (events[r][1], r))
             s = events[r0][1]
             self._count_event(step, t_k)
@@ -720,21 +729,24 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._stick(f, q, u)
         self._set_friction()
 
-    def _painleve(self, end: End) -> bool:
-        """Is a held contact slipping past Painleve's boundary at a segment's end: one of its held normal rows
-        ``r`` with ``grad_r . M^-1 d_r <= 0`` (``d_r``: its force direction with the sliding friction,
-        :meth:`_dirs`)? There the normal force that holds the row grows without bound as the boundary nears,
-        and the segment's root lies beyond it (a rough star tipping as it slides on a vertex, ``mu = 1.38``:
-        the end impulse -67, the speeds 93 m/s after one step). The chain then takes the tangential impact of
-        the theory instead (:meth:`_jam`, at the segment's start)."""
+    def _painleve(self, grad, mass) -> bool:
+        """Is a held contact slipping past Painleve's boundary at a segment's start or end (the rows'
+        gradients ``grad`` and the mass ``mass`` there): one of its held normal rows ``r`` with ``grad_r .
+        M^-1 d_r <= 0`` (``d_r``: its force direction with the sliding friction, :meth:`_dirs`)? There the
+        normal force that holds the row grows without bound as the boundary nears, and the segment's root
+        lies beyond it (a rough star tipping as it slides on a vertex, ``mu = 1.38``: the end impulse -67,
+        the speeds 93 m/s after one step); from a start past it, the root holds the row by a pulling impulse
+        (a rough star sliding on a corner at 2.4 m/s, ``mu = 1.33``: -0.88 over ``h = 0.05``, its stop's
+        search then met the pole of the end's projection). The chain then takes the tangential impact of the
+        theory instead (:meth:`_jam`, at the segment's start)."""
         k = self.k
-        dirs = self._dirs(end.grad)
+        dirs = self._dirs(grad)
         for f, j in enumerate(k.frictional):
             if not self._slip[f]:
                 continue
             for r in range(k.r):
                 if self.act[r] and k.row_contact[r] == j and k.row_stick[r] < 0 and not k.row_bilateral[r]:
-                    if float(end.grad[r] @ np.linalg.solve(end.mass, dirs[r])) <= 0.0:
+                    if float(grad[r] @ np.linalg.solve(mass, dirs[r])) <= 0.0:
                         return True
         return False
 
@@ -823,15 +835,48 @@ class SustainedSteps(FrictionModes, HeldImpacts):
 
         return illinois(force, ga, gb, EPS_LAM * (1.0 + abs(ga) + abs(gb)), 1e-12, LIFT_ITER, guess)
 
-    def _row_crossing(self, step, t_k, q, p, tau, guess, r, g1) -> float:
-        """Fraction where inactive row ``r`` reaches 0 along the constrained sub-step map (Illinois)."""
+    def _row_crossing(self, step, t_k, q, p, tau, guess, r, g1, s_hi: float = 1.0) -> float:
+        """Fraction where inactive row ``r`` reaches 0 along the constrained sub-step map (Illinois) on ``[0,
+        s_hi]`` (``g1 < 0`` its value at ``s_hi``)."""
         ga, gb = max(float(self.k.rows(q, guess)[0][r]), 0.0), float(g1)
 
         def height(c, v):
             v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
             return float(end.psi[r]), v
 
-        return illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess)
+        return illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess, hi=s_hi)
+
+    def _row_dips(self, step, t_k, q, p, tau, v, u1, end, cross) -> dict[int, tuple[float, float]]:
+        """Inactive contact rows admissible at both ends of the segment that dip below 0 inside it (a rod's
+        bob across the corner its circle cuts off a wall at ``h = 0.1``: it ended past the corner, on the
+        wall's side again): ``{r: (s, psi_r < 0 at s)}``, as free flight's (``Stepper._crossings``): the
+        cubic through the ends' values and slopes ``d = tau grad psi . u`` flags a dip, and the sub-step map
+        is sampled there and at ``Tolerances.bracket_samples`` points (a dip within
+        ``Tolerances.admissible`` is none). A row moving in at its start by less than ``admissible`` over the
+        segment (``d0 >= -admissible``) is not tested: after an impact that left it at a normal speed of 0
+        the sign of ``d0`` is round-off's, and C and CasADi parted on a rough star whose second face vertex
+        then sank 4.9e-4 under the rotation (a dip the cubic misses, as free flight's does)."""
+        k, tol = self.k, self.tol
+        idle = ~self.act & ~cross & (np.asarray(k.row_stick) < 0) & (end.psi >= -tol.phi)
+        d1 = tau * (end.grad @ u1)
+        if not (idle & (d1 > 0.0)).any():
+            return {}
+        u0 = self._velocity(q, v, p)
+        psi0, grad0, _ = k.rows(q, u0)
+        d0 = tau * (grad0 @ u0)
+        out, inner = {}, self._seg_inner  # the segment's, for its tangent: the samples' solves overwrite it
+        for r in np.flatnonzero(idle & (d0 < -tol.admissible) & (d1 > 0.0)):
+            s_min, g_min = hermite_min(float(psi0[r]), float(end.psi[r]), float(d0[r]), float(d1[r]))
+            if g_min < tol.dip * (abs(d0[r]) + abs(d1[r])):
+                for s in (s_min, *np.linspace(0.0, 1.0, tol.bracket_samples + 2)[1:-1]):
+                    psi_s = (
+                        self._sub_end(step, t_k, q, p, tau, float(s), v)[1].psi[r] if 0.0 < s < 1.0 else 0.0
+                    )
+                    if psi_s < -tol.admissible:
+                        out[int(r)] = (float(s), float(psi_s))
+                        break
+        self._seg_inner = inner
+        return out
 
 
 def held_contacts(kernels, act) -> np.ndarray:

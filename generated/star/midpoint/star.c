@@ -1409,7 +1409,8 @@ static inline int star_held(const star_sustain_t *sus)
 #define STAR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define STAR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define STAR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
-#define STAR_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
+#define STAR_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define STAR_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int star_row_contact[STAR_R_DIM] = { 0, 0, 0, 0, };
@@ -1995,19 +1996,19 @@ static int star_sub_end(const star_ctx_t *c, const double *q, const double *p, d
     return star_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
- * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int star_illinois(const star_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double tau, const double *guess, double lo, double hi, double ga, double gb, double tiny, double width, int iters,
     double *s_out)
 {
     double v[STAR_N], vn[STAR_N], q1[STAR_N], u1[STAR_N], f[STAR_R_DIM];
-    double grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], a = lo, b = 1.0, cc, gc;
+    double grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], a = lo, b = hi, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < STAR_N; ++i) {
         v[i] = guess[i];
@@ -2050,20 +2051,86 @@ static int star_liftoff_fraction(const star_ctx_t *c, const double *q, const dou
         *s_out = 0.0;
         return 0;
     }
-    return star_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, STAR_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return star_illinois(c, r, 0, q, p, tau, guess, 0.0, 1.0, f0, f1, STAR_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, STAR_LIFT_ITER, s_out);
 }
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
- * map (illinois). */
+ * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). */
 static int star_row_crossing(const star_ctx_t *c, const double *q, const double *p, double tau,
-    const double *guess, int r, double g1, double *s_out)
+    const double *guess, int r, double g1, double s_hi, double *s_out)
 {
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], ga;
     star_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return star_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, STAR_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return star_illinois(c, r, 1, q, p, tau, guess, 0.0, s_hi, ga, g1, STAR_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
+}
+
+/* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
+ * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
+ * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
+ * d = tau grad psi . u flags a dip, and the sub-step map is sampled there and at bracket_samples points (a dip
+ * within admissible is none); a row whose d0 is above -admissible is not tested (its sign may be round-off's).
+ * Returns 1 if a sub-step's solve failed. */
+static int star_row_dips(const star_ctx_t *c, const double *q, const double *p, double tau,
+    const double *vv, const double *u1, const double *psi1, const double *grad1, int *dip, double *s_dip,
+    double *g_dip)
+{
+    double u0[STAR_N], psi0[STAR_R_DIM], grad0[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double d1[STAR_R_DIM], vs[STAR_N], qs[STAR_N], us[STAR_N], psis[STAR_R_DIM];
+    double grads[STAR_R_DIM * STAR_N], d0, s, s_min, g_min;
+    int r, i, k, any = 0;
+
+    for (r = 0; r < STAR_R; ++r) {
+        dip[r] = 0;
+        d1[r] = 0.0;
+        if (!c->sus->act[r] && star_row_stick[r] < 0 && psi1[r] >= -c->tol->phi) {
+            for (i = 0; i < STAR_N; ++i) {
+                d1[r] += grad1[r * STAR_N + i] * u1[i];
+            }
+            d1[r] *= tau;
+            any = any || d1[r] > 0.0;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    star_velocity(c, q, vv, p, u0);
+    star_rows(q, u0, c->par, psi0, grad0, curv);
+    for (r = 0; r < STAR_R; ++r) {
+        if (c->sus->act[r] || star_row_stick[r] >= 0 || !(psi1[r] >= -c->tol->phi) || !(d1[r] > 0.0)) {
+            continue;
+        }
+        for (i = 0, d0 = 0.0; i < STAR_N; ++i) {
+            d0 += grad0[r * STAR_N + i] * u0[i];
+        }
+        d0 *= tau;
+        if (!(d0 < -c->tol->admissible)) { /* moving in by more than admissible: d0's sign not round-off's */
+            continue;
+        }
+        star_hermite_min(psi0[r], psi1[r], d0, d1[r], &s_min, &g_min);
+        if (!(g_min < c->tol->dip * (fabs(d0) + fabs(d1[r])))) {
+            continue;
+        }
+        for (k = 0; k <= c->tol->bracket_samples; ++k) {
+            s = k == 0 ? s_min : (double)k * (1.0 / (c->tol->bracket_samples + 1));
+            if (!(0.0 < s && s < 1.0)) {
+                continue;
+            }
+            if (star_sub_end(c, q, p, tau, s, vv, vs, qs, us)) {
+                return 1;
+            }
+            star_rows(qs, us, c->par, psis, grads, curv);
+            if (psis[r] < -c->tol->admissible) {
+                dip[r] = 1;
+                s_dip[r] = s;
+                g_dip[r] = psis[r];
+                break;
+            }
+        }
+    }
+    return 0;
 }
 
 /* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
@@ -2541,7 +2608,9 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     double s_ev[STAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_N], f0[STAR_R_DIM];
     double f1[STAR_R_DIM], vel[STAR_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    double s_dip[STAR_R_DIM], g_dip[STAR_R_DIM];
     int ev[STAR_R_DIM], group[STAR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int dip[STAR_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[STAR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2602,9 +2671,12 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
             continue;
         }
         star_rows(q1, vv, c->par, psi1, grad, curv);
+        if (star_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
+            return 1;
+        }
         any = 0;
         for (r = 0; r < STAR_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && star_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || dip[r] || (!c->sus->act[r] && star_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
             star_book(c, lam, lam1);
@@ -2634,7 +2706,12 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         }
         for (r = 0; r < STAR_R; ++r) {
             if (!c->sus->act[r] && star_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (star_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
+                if (star_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
+                    return 1;
+                }
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                if (star_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
                     return 1;
                 }
                 ev[r] = 2;
@@ -2791,6 +2868,30 @@ static void star_start_sustained(const star_ctx_t *c, const double *q, const dou
 #define STAR_HELD_INLINE static inline
 #endif
 
+/* held_step.idle_near: does an inactive contact row end within REACH times the step's move of 0: psi_r(q1)^2 <
+ * REACH^2 |grad psi_r(q1)|^2 |q1 - q|^2 (psi, grad at q1)? Both ends admissible, the row may dip below 0 inside the
+ * step; the general chain takes it then and tests for a dip (row_dips). */
+STAR_HELD_INLINE int star_idle_near(const int *act, const double *q, const double *q1, const double *psi,
+    const double *grad)
+{
+    double dq2 = 0.0, g2;
+    int r, i, near = 0;
+    for (i = 0; i < STAR_N; ++i) {
+        dq2 += (q1[i] - q[i]) * (q1[i] - q[i]);
+    }
+    STAR_HELD_UNROLL
+    for (r = 0; r < STAR_R; ++r) {
+        if (act[r] || star_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0, g2 = 0.0; i < STAR_N; ++i) {
+            g2 += grad[r * STAR_N + i] * grad[r * STAR_N + i];
+        }
+        near |= psi[r] * psi[r] < STAR_REACH * STAR_REACH * g2 * dq2;
+    }
+    return near;
+}
+
 /* held_constant_gradients: 1 where d psi_r / d q_i (at r * N + i) does not depend on q */
 static const unsigned char star_held_gconst[STAR_R_DIM * STAR_N] = { 1, 1, 0, 1, 1, 0, 1, 1, 0, 1, 1, 0 };
 
@@ -2848,13 +2949,13 @@ STAR_HELD_INLINE double star_held_norm(int na, const double *d)
 }
 
 /* One evaluation of the Newton of held.held_step (its loop body up to the convergence test): v = v0 + J^-1 G0^T x,
- * q1 = q + h v, the rows at q1 (psi, hess: every row's; g1: the active rows' gradients, na x N in the order of
- * rows) and d = psi_A; returns |d|_inf. */
+ * q1 = q + h v, the rows at q1 (psi, grad, hess: every row's; g1: the active rows' gradients, na x N in the order
+ * of rows) and d = psi_A; returns |d|_inf. */
 STAR_HELD_INLINE double star_held_eval(const double *kh, double h, const int *rows, int na,
     const double *q, const double *v0, const double *jinv, const double *g0, const double *x, double *v, double *q1,
-    double *psi, double *hess, double *d, double *g1)
+    double *psi, double *grad, double *hess, double *d, double *g1)
 {
-    double gl[STAR_N], grad[STAR_R_DIM * STAR_N];
+    double gl[STAR_N];
     int a;
     gl[0] = -0.0; /* -0.0 + y is y: the compiler drops the add */
     gl[1] = -0.0; /* -0.0 + y is y: the compiler drops the add */
@@ -2882,7 +2983,7 @@ STAR_HELD_INLINE double star_held_eval(const double *kh, double h, const int *ro
 
 /* The Newton iterate of held.held_step and what its last evaluation gave. */
 typedef struct {
-    double x[STAR_R_DIM], v[STAR_N], q1[STAR_N], psi[STAR_R_DIM];
+    double x[STAR_R_DIM], v[STAR_N], q1[STAR_N], psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N];
     double hess[STAR_R_DIM * STAR_NH_DIM], d[STAR_R_DIM], g1[STAR_R_DIM * STAR_N], res;
     double q[STAR_N], p[STAR_N], g0[STAR_R_DIM * STAR_N]; /* in: the step's start (copies: the
                                                  caller's arrays stay in registers) */
@@ -2915,8 +3016,8 @@ STAR_HELD_COLD static void star_held_newton(const double *kh, double h, const in
         for (a = 0; a < na; ++a) {
             st->x[a] -= st->d[a];
         }
-        st->res = star_held_eval(kh, h, rows, na, q, v0, jinv, g0, st->x, st->v, st->q1, st->psi, st->hess,
-            st->d, st->g1);
+        st->res = star_held_eval(kh, h, rows, na, q, v0, jinv, g0, st->x, st->v, st->q1, st->psi,
+            st->grad, st->hess, st->d, st->g1);
         if (st->res <= 1e-13 || it == STAR_HELD_ITER || st->res != st->res) {
             return;
         }
@@ -2934,7 +3035,7 @@ STAR_HELD_INLINE int star_held_step(const double *kh, double h, double residual,
     double *lam1, double *q1, double *p1, double *v, double *e, double *g1)
 {
     double v0[STAR_N], jinv[STAR_N], gl[STAR_N], pp[STAR_N], acc[STAR_N];
-    double minv[STAR_N], u1[STAR_N], psi[STAR_R_DIM];
+    double minv[STAR_N], u1[STAR_N], psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N];
     double hess[STAR_R_DIM * STAR_NH_DIM], x[STAR_R_DIM] = {0.0}, d[STAR_R_DIM] = {0.0};
     double w[STAR_R_DIM * STAR_R_DIM];
     double l1[STAR_R_DIM], f[STAR_R_DIM], res, f_eps, curv, sum;
@@ -2946,7 +3047,7 @@ STAR_HELD_INLINE int star_held_step(const double *kh, double h, double residual,
     }
     /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
      * needed: the previous multipliers mostly solve it) in <model>_held_newton */
-    res = star_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    res = star_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, grad, hess, d, g1);
     if (STAR_HELD_UNLIKELY(!(res <= 1e-13) && res == res && STAR_HELD_ITER > 0)) {
         star_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         STAR_HELD_UNROLL
@@ -2989,6 +3090,10 @@ STAR_HELD_INLINE int star_held_step(const double *kh, double h, double residual,
         for (r = 0; r < STAR_R; ++r) {
             psi[r] = st.psi[r];
         }
+        for (a = 0; a < STAR_R * STAR_N; ++a) { /* every row's: idle_near reads the inactive rows' */
+            grad[a] = st.grad[a];
+        }
+
         STAR_HELD_UNROLL
         for (a = 0; a < STAR_R_DIM && a < na; ++a) { /* the active rows' Hessians: the others' are not read */
             hess[rows[a] * STAR_NH_DIM + 0] = st.hess[rows[a] * STAR_NH_DIM + 0];
@@ -3062,6 +3167,8 @@ STAR_HELD_INLINE int star_held_step(const double *kh, double h, double residual,
     for (r = 0; r < STAR_R; ++r) {
         clear &= act[r] | (star_row_stick[r] >= 0) | !(psi[r] < -phi_tol); /* a row crossed */
     }
+    clear &= !star_idle_near(act, q, q1, psi, grad); /* or within the step's reach: a dip? (row_dips) */
+
     pull = 0;
     STAR_HELD_UNROLL
     for (a = 0; a < STAR_R_DIM && a < na; ++a) {

@@ -1211,7 +1211,8 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define ROUGH_DISK_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define ROUGH_DISK_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
-#define ROUGH_DISK_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
+#define ROUGH_DISK_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define ROUGH_DISK_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int rough_disk_row_contact[ROUGH_DISK_R_DIM] = { 0, -1, };
@@ -1960,10 +1961,11 @@ static void rough_disk_jam(const rough_disk_ctx_t *c, const double *q, const dou
     rough_disk_set_friction(c);
 }
 
-/* SustainedSteps._painleve: is a held contact slipping past Painleve's boundary at a segment's end (q1, u1): one of
- * its held normal rows r with grad_r . M^-1 d_r <= 0 (d_r its force direction with the sliding friction, dirs)?
- * The normal force holding it grows without bound as the boundary nears, the segment's root lies beyond it; the
- * chain takes the tangential impact (jam) at the segment's start instead. */
+/* SustainedSteps._painleve: is a held contact slipping past Painleve's boundary at a segment's start or end (q1,
+ * u1): one of its held normal rows r with grad_r . M^-1 d_r <= 0 (d_r its force direction with the sliding
+ * friction, dirs)? The normal force holding it grows without bound as the boundary nears, the segment's root lies
+ * beyond it (from a start past it, the root holds the row by a pulling impulse); the chain takes the tangential
+ * impact (jam) at the segment's start instead. */
 static int rough_disk_painleve(const rough_disk_ctx_t *c, const double *q1, const double *u1)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
@@ -2093,19 +2095,19 @@ static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int 
     rough_disk_set_friction(c);
 }
 
-/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
- * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int rough_disk_illinois(const rough_disk_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double tau, const double *guess, double lo, double hi, double ga, double gb, double tiny, double width, int iters,
     double *s_out)
 {
     double v[ROUGH_DISK_N], vn[ROUGH_DISK_N], q1[ROUGH_DISK_N], u1[ROUGH_DISK_N], f[ROUGH_DISK_R_DIM];
-    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], a = lo, b = 1.0, cc, gc;
+    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], a = lo, b = hi, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         v[i] = guess[i];
@@ -2160,20 +2162,86 @@ static int rough_disk_liftoff_fraction(const rough_disk_ctx_t *c, const double *
         *s_out = 0.0;
         return 0;
     }
-    return rough_disk_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, ROUGH_DISK_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return rough_disk_illinois(c, r, 0, q, p, tau, guess, 0.0, 1.0, f0, f1, ROUGH_DISK_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, ROUGH_DISK_LIFT_ITER, s_out);
 }
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
- * map (illinois). */
+ * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). */
 static int rough_disk_row_crossing(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
-    const double *guess, int r, double g1, double *s_out)
+    const double *guess, int r, double g1, double s_hi, double *s_out)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], ga;
     rough_disk_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return rough_disk_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, ROUGH_DISK_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return rough_disk_illinois(c, r, 1, q, p, tau, guess, 0.0, s_hi, ga, g1, ROUGH_DISK_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
+}
+
+/* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
+ * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
+ * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
+ * d = tau grad psi . u flags a dip, and the sub-step map is sampled there and at bracket_samples points (a dip
+ * within admissible is none); a row whose d0 is above -admissible is not tested (its sign may be round-off's).
+ * Returns 1 if a sub-step's solve failed. */
+static int rough_disk_row_dips(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
+    const double *vv, const double *u1, const double *psi1, const double *grad1, int *dip, double *s_dip,
+    double *g_dip)
+{
+    double u0[ROUGH_DISK_N], psi0[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double d1[ROUGH_DISK_R_DIM], vs[ROUGH_DISK_N], qs[ROUGH_DISK_N], us[ROUGH_DISK_N], psis[ROUGH_DISK_R_DIM];
+    double grads[ROUGH_DISK_R_DIM * ROUGH_DISK_N], d0, s, s_min, g_min;
+    int r, i, k, any = 0;
+
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        dip[r] = 0;
+        d1[r] = 0.0;
+        if (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] >= -c->tol->phi) {
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                d1[r] += grad1[r * ROUGH_DISK_N + i] * u1[i];
+            }
+            d1[r] *= tau;
+            any = any || d1[r] > 0.0;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    rough_disk_velocity(c, q, vv, p, u0);
+    rough_disk_rows(q, u0, c->par, psi0, grad0, curv);
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        if (c->sus->act[r] || rough_disk_row_stick[r] >= 0 || !(psi1[r] >= -c->tol->phi) || !(d1[r] > 0.0)) {
+            continue;
+        }
+        for (i = 0, d0 = 0.0; i < ROUGH_DISK_N; ++i) {
+            d0 += grad0[r * ROUGH_DISK_N + i] * u0[i];
+        }
+        d0 *= tau;
+        if (!(d0 < -c->tol->admissible)) { /* moving in by more than admissible: d0's sign not round-off's */
+            continue;
+        }
+        rough_disk_hermite_min(psi0[r], psi1[r], d0, d1[r], &s_min, &g_min);
+        if (!(g_min < c->tol->dip * (fabs(d0) + fabs(d1[r])))) {
+            continue;
+        }
+        for (k = 0; k <= c->tol->bracket_samples; ++k) {
+            s = k == 0 ? s_min : (double)k * (1.0 / (c->tol->bracket_samples + 1));
+            if (!(0.0 < s && s < 1.0)) {
+                continue;
+            }
+            if (rough_disk_sub_end(c, q, p, tau, s, vv, vs, qs, us)) {
+                return 1;
+            }
+            rough_disk_rows(qs, us, c->par, psis, grads, curv);
+            if (psis[r] < -c->tol->admissible) {
+                dip[r] = 1;
+                s_dip[r] = s;
+                g_dip[r] = psis[r];
+                break;
+            }
+        }
+    }
+    return 0;
 }
 
 /* SustainedSteps._law_cones: the held stick rows of the impulse law on rows[0..nr) with Coulomb's cone: of each
@@ -3127,12 +3195,15 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    double s_dip[ROUGH_DISK_R_DIM], g_dip[ROUGH_DISK_R_DIM];
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int dip[ROUGH_DISK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[ROUGH_DISK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
+    int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
     int stuck[ROUGH_DISK_R_DIM] = {0}; /* stick rows held on at this instant, their force out of the cone */
     int relands[ROUGH_DISK_R_DIM]; /* rows that lifted off (or passed their load) in this step: landings (-1: none) */
@@ -3157,16 +3228,19 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         }
         if (rough_disk_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        tau = rest;
-        if (rough_disk_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
-            return 1;
+        rough_disk_velocity(c, q, v, p, vel);
+        past = !c->sus->jammed && rough_disk_painleve(c, q, vel); /* past Painleve's boundary at the start: no segment */
+        if (!past) {
+            tau = rest;
+            if (rough_disk_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
+                return 1;
+            }
+            c->sus->halvings += halved;
+            if (halved) { /* not a segment of the step's map: the tangent has none */
+            }
+            past = !c->sus->jammed && rough_disk_painleve(c, q1, u1);
         }
-        c->sus->halvings += halved;
-        if (halved) { /* not a segment of the step's map: the tangent has none */
-        }
-        if (!c->sus->jammed && rough_disk_painleve(c, q1, u1)) { /* past Painleve's boundary: the tangential
-                                                                   * impact (jam) at the segment's start */
-            rough_disk_velocity(c, q, v, p, vel);
+        if (past) { /* past Painleve's boundary at the segment's start or end: the tangential impact (jam) at its start */
             rough_disk_jam(c, q, vel);
             continue;
         }
@@ -3240,7 +3314,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                             }
                         }
                     }
-                    if (g0 > 0.0 && rough_disk_illinois(c, sr, 2, q, p, tau, vv, lo, g0, g1, 1e-14, 1e-13,
+                    if (g0 > 0.0 && rough_disk_illinois(c, sr, 2, q, p, tau, vv, lo, 1.0, g0, g1, 1e-14, 1e-13,
                             ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -3256,7 +3330,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
                     g0 = rough_disk_cone_margin(c, i, f0, grad0);
                     s_ev[sr] = 0.0;
-                    if (!(g0 < 0.0) && rough_disk_illinois(c, sr, 3, q, p, tau, vv, 0.0, g0, g1,
+                    if (!(g0 < 0.0) && rough_disk_illinois(c, sr, 3, q, p, tau, vv, 0.0, 1.0, g0, g1,
                             ROUGH_DISK_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
                         return 1;
                     }
@@ -3298,9 +3372,12 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             continue;
         }
         rough_disk_rows(q1, vv, c->par, psi1, grad, curv);
+        if (rough_disk_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
+            return 1;
+        }
         any = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || dip[r] || (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
             rough_disk_book(c, lam, lam1);
@@ -3330,7 +3407,12 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         }
         for (r = 0; r < ROUGH_DISK_R; ++r) {
             if (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (rough_disk_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
+                if (rough_disk_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
+                    return 1;
+                }
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                if (rough_disk_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
                     return 1;
                 }
                 ev[r] = 2;

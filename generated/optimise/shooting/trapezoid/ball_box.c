@@ -1344,7 +1344,8 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define BALL_BOX_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define BALL_BOX_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
-#define BALL_BOX_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
+#define BALL_BOX_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define BALL_BOX_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int ball_box_row_contact[BALL_BOX_R_DIM] = { 0, 1, 2, 3, };
@@ -1930,19 +1931,19 @@ static int ball_box_sub_end(const ball_box_ctx_t *c, const double *q, const doub
     return ball_box_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
- * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int ball_box_illinois(const ball_box_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double tau, const double *guess, double lo, double hi, double ga, double gb, double tiny, double width, int iters,
     double *s_out)
 {
     double v[BALL_BOX_N], vn[BALL_BOX_N], q1[BALL_BOX_N], u1[BALL_BOX_N], f[BALL_BOX_R_DIM];
-    double grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], a = lo, b = 1.0, cc, gc;
+    double grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], a = lo, b = hi, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < BALL_BOX_N; ++i) {
         v[i] = guess[i];
@@ -1985,20 +1986,86 @@ static int ball_box_liftoff_fraction(const ball_box_ctx_t *c, const double *q, c
         *s_out = 0.0;
         return 0;
     }
-    return ball_box_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, BALL_BOX_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return ball_box_illinois(c, r, 0, q, p, tau, guess, 0.0, 1.0, f0, f1, BALL_BOX_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, BALL_BOX_LIFT_ITER, s_out);
 }
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
- * map (illinois). */
+ * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). */
 static int ball_box_row_crossing(const ball_box_ctx_t *c, const double *q, const double *p, double tau,
-    const double *guess, int r, double g1, double *s_out)
+    const double *guess, int r, double g1, double s_hi, double *s_out)
 {
     double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], ga;
     ball_box_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return ball_box_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, BALL_BOX_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return ball_box_illinois(c, r, 1, q, p, tau, guess, 0.0, s_hi, ga, g1, BALL_BOX_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
+}
+
+/* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
+ * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
+ * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
+ * d = tau grad psi . u flags a dip, and the sub-step map is sampled there and at bracket_samples points (a dip
+ * within admissible is none); a row whose d0 is above -admissible is not tested (its sign may be round-off's).
+ * Returns 1 if a sub-step's solve failed. */
+static int ball_box_row_dips(const ball_box_ctx_t *c, const double *q, const double *p, double tau,
+    const double *vv, const double *u1, const double *psi1, const double *grad1, int *dip, double *s_dip,
+    double *g_dip)
+{
+    double u0[BALL_BOX_N], psi0[BALL_BOX_R_DIM], grad0[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
+    double d1[BALL_BOX_R_DIM], vs[BALL_BOX_N], qs[BALL_BOX_N], us[BALL_BOX_N], psis[BALL_BOX_R_DIM];
+    double grads[BALL_BOX_R_DIM * BALL_BOX_N], d0, s, s_min, g_min;
+    int r, i, k, any = 0;
+
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        dip[r] = 0;
+        d1[r] = 0.0;
+        if (!c->sus->act[r] && ball_box_row_stick[r] < 0 && psi1[r] >= -c->tol->phi) {
+            for (i = 0; i < BALL_BOX_N; ++i) {
+                d1[r] += grad1[r * BALL_BOX_N + i] * u1[i];
+            }
+            d1[r] *= tau;
+            any = any || d1[r] > 0.0;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    ball_box_velocity(c, q, vv, p, u0);
+    ball_box_rows(q, u0, c->par, psi0, grad0, curv);
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        if (c->sus->act[r] || ball_box_row_stick[r] >= 0 || !(psi1[r] >= -c->tol->phi) || !(d1[r] > 0.0)) {
+            continue;
+        }
+        for (i = 0, d0 = 0.0; i < BALL_BOX_N; ++i) {
+            d0 += grad0[r * BALL_BOX_N + i] * u0[i];
+        }
+        d0 *= tau;
+        if (!(d0 < -c->tol->admissible)) { /* moving in by more than admissible: d0's sign not round-off's */
+            continue;
+        }
+        ball_box_hermite_min(psi0[r], psi1[r], d0, d1[r], &s_min, &g_min);
+        if (!(g_min < c->tol->dip * (fabs(d0) + fabs(d1[r])))) {
+            continue;
+        }
+        for (k = 0; k <= c->tol->bracket_samples; ++k) {
+            s = k == 0 ? s_min : (double)k * (1.0 / (c->tol->bracket_samples + 1));
+            if (!(0.0 < s && s < 1.0)) {
+                continue;
+            }
+            if (ball_box_sub_end(c, q, p, tau, s, vv, vs, qs, us)) {
+                return 1;
+            }
+            ball_box_rows(qs, us, c->par, psis, grads, curv);
+            if (psis[r] < -c->tol->admissible) {
+                dip[r] = 1;
+                s_dip[r] = s;
+                g_dip[r] = psis[r];
+                break;
+            }
+        }
+    }
+    return 0;
 }
 
 /* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
@@ -2476,7 +2543,9 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     double s_ev[BALL_BOX_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_BOX_N], f0[BALL_BOX_R_DIM];
     double f1[BALL_BOX_R_DIM], vel[BALL_BOX_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    double s_dip[BALL_BOX_R_DIM], g_dip[BALL_BOX_R_DIM];
     int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int dip[BALL_BOX_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_BOX_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[BALL_BOX_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2537,9 +2606,12 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             continue;
         }
         ball_box_rows(q1, vv, c->par, psi1, grad, curv);
+        if (ball_box_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
+            return 1;
+        }
         any = 0;
         for (r = 0; r < BALL_BOX_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && ball_box_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || dip[r] || (!c->sus->act[r] && ball_box_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
             ball_box_book(c, lam, lam1);
@@ -2569,7 +2641,12 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         for (r = 0; r < BALL_BOX_R; ++r) {
             if (!c->sus->act[r] && ball_box_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (ball_box_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
+                if (ball_box_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
+                    return 1;
+                }
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                if (ball_box_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
                     return 1;
                 }
                 ev[r] = 2;
@@ -2726,6 +2803,30 @@ static void ball_box_start_sustained(const ball_box_ctx_t *c, const double *q, c
 #define BALL_BOX_HELD_INLINE static inline
 #endif
 
+/* held_step.idle_near: does an inactive contact row end within REACH times the step's move of 0: psi_r(q1)^2 <
+ * REACH^2 |grad psi_r(q1)|^2 |q1 - q|^2 (psi, grad at q1)? Both ends admissible, the row may dip below 0 inside the
+ * step; the general chain takes it then and tests for a dip (row_dips). */
+BALL_BOX_HELD_INLINE int ball_box_idle_near(const int *act, const double *q, const double *q1, const double *psi,
+    const double *grad)
+{
+    double dq2 = 0.0, g2;
+    int r, i, near = 0;
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        dq2 += (q1[i] - q[i]) * (q1[i] - q[i]);
+    }
+    BALL_BOX_HELD_UNROLL
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        if (act[r] || ball_box_row_stick[r] >= 0) {
+            continue;
+        }
+        for (i = 0, g2 = 0.0; i < BALL_BOX_N; ++i) {
+            g2 += grad[r * BALL_BOX_N + i] * grad[r * BALL_BOX_N + i];
+        }
+        near |= psi[r] * psi[r] < BALL_BOX_REACH * BALL_BOX_REACH * g2 * dq2;
+    }
+    return near;
+}
+
 /* held_constant_gradients: 1 where d psi_r / d q_i (at r * N + i) does not depend on q */
 static const unsigned char ball_box_held_gconst[BALL_BOX_R_DIM * BALL_BOX_N] = { 1, 1, 1, 1, 1, 1, 1, 1 };
 
@@ -2783,13 +2884,13 @@ BALL_BOX_HELD_INLINE double ball_box_held_norm(int na, const double *d)
 }
 
 /* One evaluation of the Newton of held.held_step (its loop body up to the convergence test): v = v0 + J^-1 G0^T x,
- * q1 = q + h v, the rows at q1 (psi, hess: every row's; g1: the active rows' gradients, na x N in the order of
- * rows) and d = psi_A; returns |d|_inf. */
+ * q1 = q + h v, the rows at q1 (psi, grad, hess: every row's; g1: the active rows' gradients, na x N in the order
+ * of rows) and d = psi_A; returns |d|_inf. */
 BALL_BOX_HELD_INLINE double ball_box_held_eval(const double *kh, double h, const int *rows, int na,
     const double *q, const double *v0, const double *jinv, const double *g0, const double *x, double *v, double *q1,
-    double *psi, double *hess, double *d, double *g1)
+    double *psi, double *grad, double *hess, double *d, double *g1)
 {
-    double gl[BALL_BOX_N], grad[BALL_BOX_R_DIM * BALL_BOX_N];
+    double gl[BALL_BOX_N];
     int a;
     gl[0] = -0.0; /* -0.0 + y is y: the compiler drops the add */
     gl[1] = -0.0; /* -0.0 + y is y: the compiler drops the add */
@@ -2814,7 +2915,7 @@ BALL_BOX_HELD_INLINE double ball_box_held_eval(const double *kh, double h, const
 
 /* The Newton iterate of held.held_step and what its last evaluation gave. */
 typedef struct {
-    double x[BALL_BOX_R_DIM], v[BALL_BOX_N], q1[BALL_BOX_N], psi[BALL_BOX_R_DIM];
+    double x[BALL_BOX_R_DIM], v[BALL_BOX_N], q1[BALL_BOX_N], psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N];
     double hess[BALL_BOX_R_DIM * BALL_BOX_NH_DIM], d[BALL_BOX_R_DIM], g1[BALL_BOX_R_DIM * BALL_BOX_N], res;
     double q[BALL_BOX_N], p[BALL_BOX_N], g0[BALL_BOX_R_DIM * BALL_BOX_N]; /* in: the step's start (copies: the
                                                  caller's arrays stay in registers) */
@@ -2847,8 +2948,8 @@ BALL_BOX_HELD_COLD static void ball_box_held_newton(const double *kh, double h, 
         for (a = 0; a < na; ++a) {
             st->x[a] -= st->d[a];
         }
-        st->res = ball_box_held_eval(kh, h, rows, na, q, v0, jinv, g0, st->x, st->v, st->q1, st->psi, st->hess,
-            st->d, st->g1);
+        st->res = ball_box_held_eval(kh, h, rows, na, q, v0, jinv, g0, st->x, st->v, st->q1, st->psi,
+            st->grad, st->hess, st->d, st->g1);
         if (st->res <= 1e-13 || it == BALL_BOX_HELD_ITER || st->res != st->res) {
             return;
         }
@@ -2866,7 +2967,7 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     double *lam1, double *q1, double *p1, double *v, double *e, double *g1)
 {
     double v0[BALL_BOX_N], jinv[BALL_BOX_N], gl[BALL_BOX_N], pp[BALL_BOX_N], acc[BALL_BOX_N];
-    double minv[BALL_BOX_N], u1[BALL_BOX_N], psi[BALL_BOX_R_DIM];
+    double minv[BALL_BOX_N], u1[BALL_BOX_N], psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N];
     double hess[BALL_BOX_R_DIM * BALL_BOX_NH_DIM], x[BALL_BOX_R_DIM] = {0.0}, d[BALL_BOX_R_DIM] = {0.0};
     double w[BALL_BOX_R_DIM * BALL_BOX_R_DIM];
     double l1[BALL_BOX_R_DIM], f[BALL_BOX_R_DIM], res, f_eps, curv, sum;
@@ -2878,7 +2979,7 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     }
     /* Newton on psi_A(q + h v(Lam)) = 0, v = v0 + J^-1 G0^T Lam: its first evaluation here, the rest (rarely
      * needed: the previous multipliers mostly solve it) in <model>_held_newton */
-    res = ball_box_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, hess, d, g1);
+    res = ball_box_held_eval(kh, h, rows, na, q, v0, jinv, g0, x, v, q1, psi, grad, hess, d, g1);
     if (BALL_BOX_HELD_UNLIKELY(!(res <= 1e-13) && res == res && BALL_BOX_HELD_ITER > 0)) {
         ball_box_held_newton_t st; /* copies in and out by constant indices: the step's arrays stay in registers */
         BALL_BOX_HELD_UNROLL
@@ -2915,6 +3016,10 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
         for (r = 0; r < BALL_BOX_R; ++r) {
             psi[r] = st.psi[r];
         }
+        for (a = 0; a < BALL_BOX_R * BALL_BOX_N; ++a) { /* every row's: idle_near reads the inactive rows' */
+            grad[a] = st.grad[a];
+        }
+
         BALL_BOX_HELD_UNROLL
         for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) { /* the active rows' Hessians: the others' are not read */
         }
@@ -2981,6 +3086,8 @@ BALL_BOX_HELD_INLINE int ball_box_held_step(const double *kh, double h, double r
     for (r = 0; r < BALL_BOX_R; ++r) {
         clear &= act[r] | (ball_box_row_stick[r] >= 0) | !(psi[r] < -phi_tol); /* a row crossed */
     }
+    clear &= !ball_box_idle_near(act, q, q1, psi, grad); /* or within the step's reach: a dip? (row_dips) */
+
     pull = 0;
     BALL_BOX_HELD_UNROLL
     for (a = 0; a < BALL_BOX_R_DIM && a < na; ++a) {

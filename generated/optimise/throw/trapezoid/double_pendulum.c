@@ -1545,7 +1545,8 @@ static inline int double_pendulum_held(const double_pendulum_sustain_t *sus)
 #define DOUBLE_PENDULUM_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define DOUBLE_PENDULUM_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define DOUBLE_PENDULUM_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
-#define DOUBLE_PENDULUM_SPURIOUS 16.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
+#define DOUBLE_PENDULUM_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define DOUBLE_PENDULUM_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
 static const int double_pendulum_row_contact[DOUBLE_PENDULUM_R_DIM] = { 0, };
@@ -2132,19 +2133,19 @@ static int double_pendulum_sub_end(const double_pendulum_ctx_t *c, const double 
     return double_pendulum_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
-/* sustained._illinois: Illinois regula falsi on [lo, 1] for the root of row r's value along the constrained
- * sub-step map (value(lo) = ga >= 0 > gb = value(1)): its height psi_r (height = 1) or its force (contact_forces,
+/* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
+ * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
  * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
  * narrower than width (or after iters evaluations), its end where value < 0. */
 static int double_pendulum_illinois(const double_pendulum_ctx_t *c, int r, int height, const double *q, const double *p,
-    double tau, const double *guess, double lo, double ga, double gb, double tiny, double width, int iters,
+    double tau, const double *guess, double lo, double hi, double ga, double gb, double tiny, double width, int iters,
     double *s_out)
 {
     double v[DOUBLE_PENDULUM_N], vn[DOUBLE_PENDULUM_N], q1[DOUBLE_PENDULUM_N], u1[DOUBLE_PENDULUM_N], f[DOUBLE_PENDULUM_R_DIM];
-    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], a = lo, b = 1.0, cc, gc;
+    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], a = lo, b = hi, cc, gc;
     int i, it, side = 0;
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         v[i] = guess[i];
@@ -2187,20 +2188,86 @@ static int double_pendulum_liftoff_fraction(const double_pendulum_ctx_t *c, cons
         *s_out = 0.0;
         return 0;
     }
-    return double_pendulum_illinois(c, r, 0, q, p, tau, guess, 0.0, f0, f1, DOUBLE_PENDULUM_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
+    return double_pendulum_illinois(c, r, 0, q, p, tau, guess, 0.0, 1.0, f0, f1, DOUBLE_PENDULUM_EPS_LAM * (1.0 + fabs(f0) + fabs(f1)),
         1e-12, DOUBLE_PENDULUM_LIFT_ITER, s_out);
 }
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
- * map (illinois). */
+ * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). */
 static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau,
-    const double *guess, int r, double g1, double *s_out)
+    const double *guess, int r, double g1, double s_hi, double *s_out)
 {
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], ga;
     double_pendulum_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return double_pendulum_illinois(c, r, 1, q, p, tau, guess, 0.0, ga, g1, DOUBLE_PENDULUM_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    return double_pendulum_illinois(c, r, 1, q, p, tau, guess, 0.0, s_hi, ga, g1, DOUBLE_PENDULUM_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
+}
+
+/* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
+ * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
+ * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
+ * d = tau grad psi . u flags a dip, and the sub-step map is sampled there and at bracket_samples points (a dip
+ * within admissible is none); a row whose d0 is above -admissible is not tested (its sign may be round-off's).
+ * Returns 1 if a sub-step's solve failed. */
+static int double_pendulum_row_dips(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau,
+    const double *vv, const double *u1, const double *psi1, const double *grad1, int *dip, double *s_dip,
+    double *g_dip)
+{
+    double u0[DOUBLE_PENDULUM_N], psi0[DOUBLE_PENDULUM_R_DIM], grad0[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
+    double d1[DOUBLE_PENDULUM_R_DIM], vs[DOUBLE_PENDULUM_N], qs[DOUBLE_PENDULUM_N], us[DOUBLE_PENDULUM_N], psis[DOUBLE_PENDULUM_R_DIM];
+    double grads[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], d0, s, s_min, g_min;
+    int r, i, k, any = 0;
+
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        dip[r] = 0;
+        d1[r] = 0.0;
+        if (!c->sus->act[r] && double_pendulum_row_stick[r] < 0 && psi1[r] >= -c->tol->phi) {
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                d1[r] += grad1[r * DOUBLE_PENDULUM_N + i] * u1[i];
+            }
+            d1[r] *= tau;
+            any = any || d1[r] > 0.0;
+        }
+    }
+    if (!any) {
+        return 0;
+    }
+    double_pendulum_velocity(c, q, vv, p, u0);
+    double_pendulum_rows(q, u0, c->par, psi0, grad0, curv);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        if (c->sus->act[r] || double_pendulum_row_stick[r] >= 0 || !(psi1[r] >= -c->tol->phi) || !(d1[r] > 0.0)) {
+            continue;
+        }
+        for (i = 0, d0 = 0.0; i < DOUBLE_PENDULUM_N; ++i) {
+            d0 += grad0[r * DOUBLE_PENDULUM_N + i] * u0[i];
+        }
+        d0 *= tau;
+        if (!(d0 < -c->tol->admissible)) { /* moving in by more than admissible: d0's sign not round-off's */
+            continue;
+        }
+        double_pendulum_hermite_min(psi0[r], psi1[r], d0, d1[r], &s_min, &g_min);
+        if (!(g_min < c->tol->dip * (fabs(d0) + fabs(d1[r])))) {
+            continue;
+        }
+        for (k = 0; k <= c->tol->bracket_samples; ++k) {
+            s = k == 0 ? s_min : (double)k * (1.0 / (c->tol->bracket_samples + 1));
+            if (!(0.0 < s && s < 1.0)) {
+                continue;
+            }
+            if (double_pendulum_sub_end(c, q, p, tau, s, vv, vs, qs, us)) {
+                return 1;
+            }
+            double_pendulum_rows(qs, us, c->par, psis, grads, curv);
+            if (psis[r] < -c->tol->admissible) {
+                dip[r] = 1;
+                s_dip[r] = s;
+                g_dip[r] = psis[r];
+                break;
+            }
+        }
+    }
+    return 0;
 }
 
 /* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
@@ -2678,7 +2745,9 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
     double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
+    double s_dip[DOUBLE_PENDULUM_R_DIM], g_dip[DOUBLE_PENDULUM_R_DIM];
     int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int dip[DOUBLE_PENDULUM_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int bounces[DOUBLE_PENDULUM_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
@@ -2739,9 +2808,12 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             continue;
         }
         double_pendulum_rows(q1, vv, c->par, psi1, grad, curv);
+        if (double_pendulum_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
+            return 1;
+        }
         any = 0;
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-            any = any || ev[r] || (!c->sus->act[r] && double_pendulum_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
+            any = any || ev[r] || dip[r] || (!c->sus->act[r] && double_pendulum_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
             double_pendulum_book(c, lam, lam1);
@@ -2771,7 +2843,12 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
             if (!c->sus->act[r] && double_pendulum_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (double_pendulum_row_crossing(c, q, p, tau, vv, r, psi1[r], &s_ev[r])) {
+                if (double_pendulum_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
+                    return 1;
+                }
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                if (double_pendulum_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
                     return 1;
                 }
                 ev[r] = 2;
