@@ -391,8 +391,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if self._lift_seg is not None:  # the lift-off is one event of several (Tracker.event)
                     self._ev_event(*self._lift_seg, "lift")
                 self._lift_seg = None
-            u0 = self._velocity(q, guess, p)
             slips = self._slip.any() and not self._jammed  # past Painleve's boundary at the start: no segment
+            u0 = self._velocity(q, guess, p) if slips else None  # the jam's (past only where slipping)
             past = slips and self._painleve(k.rows(q, u0)[1], k.legendre(q, u0)[1])
             if not past:
                 tau, halved, seg = self._split_segment(step, t_k, q, p, rest, guess)
