@@ -3148,8 +3148,11 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         }
         if (block_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        block_velocity(c, q, v, p, vel);
-        past = !c->sus->jammed && block_painleve(c, q, vel); /* past Painleve's boundary at the start: no segment */
+        past = !c->sus->jammed && block_slips(c); /* past Painleve's boundary at the start: no segment */
+        if (past) { /* the jam's velocity (past only where a contact slips) */
+            block_velocity(c, q, v, p, vel);
+            past = block_painleve(c, q, vel);
+        }
         if (!past) {
             tau = rest;
             if (block_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {

@@ -3227,8 +3227,11 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         }
         if (rough_disk_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        rough_disk_velocity(c, q, v, p, vel);
-        past = !c->sus->jammed && rough_disk_painleve(c, q, vel); /* past Painleve's boundary at the start: no segment */
+        past = !c->sus->jammed && rough_disk_slips(c); /* past Painleve's boundary at the start: no segment */
+        if (past) { /* the jam's velocity (past only where a contact slips) */
+            rough_disk_velocity(c, q, v, p, vel);
+            past = rough_disk_painleve(c, q, vel);
+        }
         if (!past) {
             tau = rest;
             if (rough_disk_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {

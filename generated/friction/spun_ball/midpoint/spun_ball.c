@@ -4844,8 +4844,11 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         }
         if (spun_ball_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        spun_ball_velocity(c, q, v, p, vel);
-        past = !c->sus->jammed && spun_ball_painleve(c, q, vel); /* past Painleve's boundary at the start: no segment */
+        past = !c->sus->jammed && spun_ball_slips(c); /* past Painleve's boundary at the start: no segment */
+        if (past) { /* the jam's velocity (past only where a contact slips) */
+            spun_ball_velocity(c, q, v, p, vel);
+            past = spun_ball_painleve(c, q, vel);
+        }
         if (!past) {
             tau = rest;
             if (spun_ball_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {

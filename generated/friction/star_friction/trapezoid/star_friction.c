@@ -3432,8 +3432,11 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         }
         if (star_friction_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        star_friction_velocity(c, q, v, p, vel);
-        past = !c->sus->jammed && star_friction_painleve(c, q, vel); /* past Painleve's boundary at the start: no segment */
+        past = !c->sus->jammed && star_friction_slips(c); /* past Painleve's boundary at the start: no segment */
+        if (past) { /* the jam's velocity (past only where a contact slips) */
+            star_friction_velocity(c, q, v, p, vel);
+            past = star_friction_painleve(c, q, vel);
+        }
         if (!past) {
             tau = rest;
             if (star_friction_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
