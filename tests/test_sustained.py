@@ -578,6 +578,32 @@ def test_a_pendulum_swung_across_the_corner_of_its_rod_and_a_wall_stops_there(ba
     assert errors[0] < 1e-4 and errors[0] / errors[1] > 3.5  # at least second order
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pendulum_swung_into_the_narrow_corner_of_its_rod_and_a_wall_stays_in_it(backend):
+    """The wall ``x = -0.999`` meets the rod's circle 2.6 degrees from the rod's direction: held on both rows
+    (``e = 0``), the bob is pinned, and the two rows also meet at the mirror corner below, 0.089 away. At ``h
+    = 0.1`` the segment after the plastic impact started its Newton from the velocity before it (1.35 m/s
+    down the wall) and took that corner, with a wall pulling at -14.5: CasADi's bob went on below, through
+    the wall, silently (from 0.1 rad above at 0.3 m/s); C raised "sustained solve failed" (0.2, 0.3 and
+    0.5 m/s). The chain now starts from the velocity after an impact (0 here): the bob meets the wall when
+    the pendulum does (scipy, event located, 1e-12) and stays in the corner."""
+    d = 0.999
+    yc = math.sqrt(1 - d**2)
+    a = math.atan2(yc, -d) - 0.1
+    hit = lambda t, y: math.cos(y[0]) + d  # noqa: E731
+    hit.terminal = True
+    for speed in (0.2, 0.3, 0.5):
+        exact = solve_ivp(
+            lambda t, y: [y[1], -G * math.cos(y[0])], (0, 2), [a, speed], events=hit, rtol=1e-12, atol=1e-12
+        ).t_events[0][0]
+        q0, v0 = [math.cos(a), math.sin(a)], [-speed * math.sin(a), speed * math.cos(a)]
+        res = sim("rod_wall", backend).simulate(q0, v0, 0.1, t_end=1.0, params={"a": -d, "e": 0.0})
+        assert abs(res.impacts[0].t - exact) < 1e-4
+        assert (res.q[:, 0] + d).min() > -1e-12 and res.q[:, 1].min() > yc - 1e-11  # never past the corner
+        assert np.abs(res.q[-1] - [-d, yc]).max() < 1e-11 and np.abs(res.v[-1]).max() < 1e-12
+        assert res.active[-1, 0]
+
+
 @pytest.mark.parametrize("h", [0.1, 0.05])
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_pendulum_at_rest_in_the_corner_of_its_rod_and_a_wall_stays_with_the_static_forces(backend, h):

@@ -290,7 +290,7 @@ class HeldImpacts(ImpulseLaw):
             p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before)
         finally:
             self._ev_tan = tan
-        return self._chain(step, t_k, h, q, p, t, tau, v, impacts, e_step)
+        return self._chain(step, t_k, h, q, p, t, tau, self._velocity(q, v, p), impacts, e_step)
 
     def _touching(self, q, v, group_contacts) -> tuple[list[int], list[int]]:
         """The rows of the contacts ``group_contacts`` at ``q`` that touch: each contact's lowest row and

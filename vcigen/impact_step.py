@@ -132,7 +132,7 @@ class ImpactSteps:
                     p_plus,
                     t_c,
                     seg.tau,
-                    v_c,
+                    self._velocity(q_c, v_c, p_plus),  # the chain's first guess: the velocity after it
                     impacts,
                     e_step,
                 )

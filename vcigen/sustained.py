@@ -513,6 +513,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
             again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again)
+            guess = self._velocity(q, v, p)  # the next segment's Newton from the velocity after the impact
             hit |= set(group)
             for r in group:
                 bounces[r] = bounces.get(r, 0) + 1

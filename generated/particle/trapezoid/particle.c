@@ -2494,6 +2494,10 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        particle_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < PARTICLE_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3352,6 +3356,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             if (particle_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            particle_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = particle_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             particle_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3390,8 +3395,8 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             for (i = 0; i < PARTICLE_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            particle_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = particle_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             particle_contacts(q, par, phi, grad);
             *e = e_step;

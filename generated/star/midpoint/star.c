@@ -2770,6 +2770,10 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (star_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        star_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < STAR_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3737,6 +3741,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             if (star_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            star_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             star_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3775,8 +3780,8 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             for (i = 0; i < STAR_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            star_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             star_contacts(q, par, phi, grad);
             *e = e_step;

@@ -2490,6 +2490,10 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         if (ball_to_rest_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        ball_to_rest_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < BALL_TO_REST_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3348,6 +3352,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
             if (ball_to_rest_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            ball_to_rest_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_to_rest_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             ball_to_rest_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3386,8 +3391,8 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
             for (i = 0; i < BALL_TO_REST_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            ball_to_rest_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_to_rest_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             ball_to_rest_contacts(q, par, phi, grad);
             *e = e_step;

@@ -3278,6 +3278,10 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         if (cube_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        cube_settles_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3630,6 +3634,7 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
             if (cube_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            cube_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = cube_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             cube_settles_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3668,8 +3673,8 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
             for (i = 0; i < CUBE_SETTLES_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            cube_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = cube_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             cube_settles_contacts(q, par, phi, grad);
             *e = e_step;

@@ -2725,6 +2725,10 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        pendulum_wall_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3986,6 +3990,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
             if (pendulum_wall_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            pendulum_wall_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = pendulum_wall_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             pendulum_wall_contacts(q, par, phi, grad);
             *e = e_step;
@@ -4024,8 +4029,8 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
             for (i = 0; i < PENDULUM_WALL_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            pendulum_wall_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = pendulum_wall_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             pendulum_wall_contacts(q, par, phi, grad);
             *e = e_step;

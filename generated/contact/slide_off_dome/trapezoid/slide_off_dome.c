@@ -2696,6 +2696,10 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        slide_off_dome_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3903,6 +3907,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
             if (slide_off_dome_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            slide_off_dome_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = slide_off_dome_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             slide_off_dome_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3941,8 +3946,8 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            slide_off_dome_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = slide_off_dome_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             slide_off_dome_contacts(q, par, phi, grad);
             *e = e_step;

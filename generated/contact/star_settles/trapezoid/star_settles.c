@@ -2773,6 +2773,10 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        star_settles_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < STAR_SETTLES_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3740,6 +3744,7 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
             if (star_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            star_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             star_settles_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3778,8 +3783,8 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
             for (i = 0; i < STAR_SETTLES_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            star_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             star_settles_contacts(q, par, phi, grad);
             *e = e_step;

@@ -2322,6 +2322,10 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         if (impact_oscillator_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        impact_oscillator_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -2674,6 +2678,7 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
             if (impact_oscillator_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            impact_oscillator_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = impact_oscillator_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             impact_oscillator_contacts(q, par, phi, grad);
             *e = e_step;
@@ -2712,8 +2717,8 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
             for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            impact_oscillator_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = impact_oscillator_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             impact_oscillator_contacts(q, par, phi, grad);
             *e = e_step;

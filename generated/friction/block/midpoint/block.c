@@ -3403,6 +3403,10 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        block_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < BLOCK_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3868,6 +3872,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
             if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            block_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = block_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             block_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3906,8 +3911,8 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
             for (i = 0; i < BLOCK_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            block_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = block_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             block_contacts(q, par, phi, grad);
             *e = e_step;

@@ -3483,6 +3483,10 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        rough_disk_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3948,6 +3952,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
             if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            rough_disk_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = rough_disk_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             rough_disk_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3986,8 +3991,8 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            rough_disk_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = rough_disk_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             rough_disk_contacts(q, par, phi, grad);
             *e = e_step;

@@ -5107,6 +5107,10 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        spun_ball_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -5820,6 +5824,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
             if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            spun_ball_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = spun_ball_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             spun_ball_contacts(q, par, phi, grad);
             *e = e_step;
@@ -5858,8 +5863,8 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            spun_ball_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = spun_ball_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             spun_ball_contacts(q, par, phi, grad);
             *e = e_step;

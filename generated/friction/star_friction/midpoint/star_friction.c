@@ -3685,6 +3685,10 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        star_friction_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -4150,6 +4154,7 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
             if (star_friction_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            star_friction_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_friction_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             star_friction_contacts(q, par, phi, grad);
             *e = e_step;
@@ -4188,8 +4193,8 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            star_friction_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_friction_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             star_friction_contacts(q, par, phi, grad);
             *e = e_step;

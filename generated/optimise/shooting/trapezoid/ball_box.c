@@ -2705,6 +2705,10 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        ball_box_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3656,6 +3660,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
             if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            ball_box_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_box_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             ball_box_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3694,8 +3699,8 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
             for (i = 0; i < BALL_BOX_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            ball_box_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_box_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             ball_box_contacts(q, par, phi, grad);
             *e = e_step;

@@ -2850,6 +2850,10 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
             return 1;
         }
+        double_pendulum_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            v[i] = vel[i];
+        }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
             ++bounces[group[g]];
@@ -3202,6 +3206,7 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
             if (double_pendulum_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
                 return 1;
             }
+            double_pendulum_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = double_pendulum_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             double_pendulum_contacts(q, par, phi, grad);
             *e = e_step;
@@ -3240,8 +3245,8 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
                 q[i] = seg->q[i];
                 p[i] = p_plus[i];
-                v[i] = v_c[i];
             }
+            double_pendulum_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = double_pendulum_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
             double_pendulum_contacts(q, par, phi, grad);
             *e = e_step;
