@@ -2082,7 +2082,8 @@ static void particle_held_accel(const particle_ctx_t *c, const double *q, const 
 static int particle_chain_impact(const particle_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[PARTICLE_M_DIM], vel[PARTICLE_N], lam_now[PARTICLE_R_DIM], acc[PARTICLE_N];
+    double rest[PARTICLE_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[PARTICLE_N], lam_now[PARTICLE_R_DIM], acc[PARTICLE_N];
     double racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;

@@ -2360,7 +2360,8 @@ static void star_held_accel(const star_ctx_t *c, const double *q, const double *
 static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[STAR_M_DIM], vel[STAR_N], lam_now[STAR_R_DIM], acc[STAR_N];
+    double rest[STAR_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[STAR_N], lam_now[STAR_R_DIM], acc[STAR_N];
     double racc[STAR_R_DIM], psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N];
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;

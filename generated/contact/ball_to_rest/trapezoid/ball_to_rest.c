@@ -2083,7 +2083,8 @@ static void ball_to_rest_held_accel(const ball_to_rest_ctx_t *c, const double *q
 static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[BALL_TO_REST_M_DIM], vel[BALL_TO_REST_N], lam_now[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N];
+    double rest[BALL_TO_REST_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[BALL_TO_REST_N], lam_now[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N];
     double racc[BALL_TO_REST_R_DIM], psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp;

@@ -2859,7 +2859,8 @@ static void cube_settles_held_accel(const cube_settles_ctx_t *c, const double *q
 static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[CUBE_SETTLES_M_DIM], vel[CUBE_SETTLES_N], lam_now[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N];
+    double rest[CUBE_SETTLES_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[CUBE_SETTLES_N], lam_now[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N];
     double racc[CUBE_SETTLES_R_DIM], psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     double curv[CUBE_SETTLES_R_DIM], tgt[CUBE_SETTLES_R_DIM], p_plus[CUBE_SETTLES_N] = {0.0}, lam[CUBE_SETTLES_R_DIM];
     double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp;

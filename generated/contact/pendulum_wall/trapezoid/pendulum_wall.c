@@ -2313,7 +2313,8 @@ static void pendulum_wall_held_accel(const pendulum_wall_ctx_t *c, const double 
 static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[PENDULUM_WALL_M_DIM], vel[PENDULUM_WALL_N], lam_now[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N];
+    double rest[PENDULUM_WALL_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[PENDULUM_WALL_N], lam_now[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N];
     double racc[PENDULUM_WALL_R_DIM], psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;

@@ -2284,7 +2284,8 @@ static void slide_off_dome_held_accel(const slide_off_dome_ctx_t *c, const doubl
 static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[SLIDE_OFF_DOME_M_DIM], vel[SLIDE_OFF_DOME_N], lam_now[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N];
+    double rest[SLIDE_OFF_DOME_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[SLIDE_OFF_DOME_N], lam_now[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N];
     double racc[SLIDE_OFF_DOME_R_DIM], psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;

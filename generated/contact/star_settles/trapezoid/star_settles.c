@@ -2361,7 +2361,8 @@ static void star_settles_held_accel(const star_settles_ctx_t *c, const double *q
 static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[STAR_SETTLES_M_DIM], vel[STAR_SETTLES_N], lam_now[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N];
+    double rest[STAR_SETTLES_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[STAR_SETTLES_N], lam_now[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N];
     double racc[STAR_SETTLES_R_DIM], psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     double curv[STAR_SETTLES_R_DIM], tgt[STAR_SETTLES_R_DIM], p_plus[STAR_SETTLES_N] = {0.0}, lam[STAR_SETTLES_R_DIM];
     double vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N], rate, e, loss, imp;

@@ -1901,7 +1901,8 @@ static void impact_oscillator_held_accel(const impact_oscillator_ctx_t *c, const
 static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[IMPACT_OSCILLATOR_M_DIM], vel[IMPACT_OSCILLATOR_N], lam_now[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N];
+    double rest[IMPACT_OSCILLATOR_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[IMPACT_OSCILLATOR_N], lam_now[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N];
     double racc[IMPACT_OSCILLATOR_R_DIM], psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double curv[IMPACT_OSCILLATOR_R_DIM], tgt[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N] = {0.0}, lam[IMPACT_OSCILLATOR_R_DIM];
     double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp;

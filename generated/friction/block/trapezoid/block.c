@@ -2836,7 +2836,8 @@ static int block_reduced_restitution(const block_ctx_t *c, const double *q, cons
 static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[BLOCK_M_DIM], vel[BLOCK_N], lam_now[BLOCK_R_DIM], acc[BLOCK_N];
+    double rest[BLOCK_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[BLOCK_N], lam_now[BLOCK_R_DIM], acc[BLOCK_N];
     double racc[BLOCK_R_DIM], psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N];
     double curv[BLOCK_R_DIM], tgt[BLOCK_R_DIM], p_plus[BLOCK_N] = {0.0}, lam[BLOCK_R_DIM];
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;

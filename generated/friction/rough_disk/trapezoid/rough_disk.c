@@ -2916,7 +2916,8 @@ static int rough_disk_reduced_restitution(const rough_disk_ctx_t *c, const doubl
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[ROUGH_DISK_M_DIM], vel[ROUGH_DISK_N], lam_now[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N];
+    double rest[ROUGH_DISK_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[ROUGH_DISK_N], lam_now[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N];
     double racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp;

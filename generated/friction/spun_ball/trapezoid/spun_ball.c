@@ -4531,7 +4531,8 @@ static int spun_ball_reduced_restitution(const spun_ball_ctx_t *c, const double 
 static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[SPUN_BALL_M_DIM], vel[SPUN_BALL_N], lam_now[SPUN_BALL_R_DIM], acc[SPUN_BALL_N];
+    double rest[SPUN_BALL_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[SPUN_BALL_N], lam_now[SPUN_BALL_R_DIM], acc[SPUN_BALL_N];
     double racc[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double curv[SPUN_BALL_R_DIM], tgt[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N] = {0.0}, lam[SPUN_BALL_R_DIM];
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;

@@ -3120,7 +3120,8 @@ static int star_friction_reduced_restitution(const star_friction_ctx_t *c, const
 static int star_friction_chain_impact(const star_friction_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[STAR_FRICTION_M_DIM], vel[STAR_FRICTION_N], lam_now[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N];
+    double rest[STAR_FRICTION_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[STAR_FRICTION_N], lam_now[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N];
     double racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double curv[STAR_FRICTION_R_DIM], tgt[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N] = {0.0}, lam[STAR_FRICTION_R_DIM];
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;

@@ -2290,7 +2290,8 @@ static void ball_box_held_accel(const ball_box_ctx_t *c, const double *q, const 
 static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[BALL_BOX_M_DIM], vel[BALL_BOX_N], lam_now[BALL_BOX_R_DIM], acc[BALL_BOX_N];
+    double rest[BALL_BOX_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[BALL_BOX_N], lam_now[BALL_BOX_R_DIM], acc[BALL_BOX_N];
     double racc[BALL_BOX_R_DIM], psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N];
     double curv[BALL_BOX_R_DIM], tgt[BALL_BOX_R_DIM], p_plus[BALL_BOX_N] = {0.0}, lam[BALL_BOX_R_DIM];
     double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp;

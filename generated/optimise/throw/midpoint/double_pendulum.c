@@ -2438,7 +2438,8 @@ static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const dou
 static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
-    double rest[DOUBLE_PENDULUM_M_DIM], vel[DOUBLE_PENDULUM_N], lam_now[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N];
+    double rest[DOUBLE_PENDULUM_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
+    double vel[DOUBLE_PENDULUM_N], lam_now[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N];
     double racc[DOUBLE_PENDULUM_R_DIM], psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp;
