@@ -19,6 +19,7 @@ import pytest
 import sympy as sp
 import test_sensitivity as ts
 
+import vcigen
 from vcigen.backends.c import LIBRARY_TEMPLATES, render
 from vcigen.backends.ccontext import held_sets, render_context
 from vcigen.backends.cheld_map import HeldMap, _settled_on_states, held_map, held_maps
@@ -167,3 +168,40 @@ def test_the_held_glide_calls_the_fused_map() -> None:
     assert "_sens_held_step(c, q, p, h, v, lam, lam1, u1, S, W, s);" in src
     plain = render_context(sys_)
     assert plain["held_maps"] == [] and not any(r["name"].startswith("sens_held_") for r in plain["routines"])
+
+
+def _shaft() -> vcigen.Model:
+    """A unit mass in 1-D between a floor ``y >= 0`` and a ceiling ``y <= 1`` (restitution ``e``)."""
+    y, yd, e = sp.symbols("y yd e")
+    return vcigen.Model(
+        name="shaft",
+        q=[y],
+        qdot=[yd],
+        lagrangian=yd**2 / 2 - 9.81 * y,
+        contacts={"floor": y, "ceiling": 1 - y},
+        params={e: 0.5},
+        restitution={"floor": e, "ceiling": e},
+    )
+
+
+def test_a_set_that_is_singular_everywhere_maps_to_nan_and_builds() -> None:
+    """Both rows of the 1-D shaft held at once (never a state: the floor and the ceiling apart): its ``F`` is
+    singular for every state, so its map is NaN (the caller's numeric path), where SymPy's elimination gave
+    ``zoo`` and the C did not compile ("'zoo' undeclared"). The C run with sensitivities then bounces to rest
+    on the floor (from the ceiling first) with the tangent CasADi's gives (the same breaks)."""
+    sys_ = derive(_shaft(), "trapezoid", sensitivities=True)
+    both = next(st for st in held_sets(sys_.r) if len(st["rows"]) == 2)
+    m = held_map(sys_, tuple(both["rows"]), both["key"])
+    values = [*m.phi.outputs[0].expr, *m.map.outputs[0].expr]
+    assert not any(e.has(sp.zoo, sp.oo, -sp.oo) for e in values) and any(e.has(sp.nan) for e in values)
+    runs = {
+        b: vcigen.build(_shaft(), backend=b).simulate([0.5], [4.0], 0.01, t_end=3.0, sensitivities=True)
+        for b in ("c", "casadi")
+    }
+    c, k = runs["c"], runs["casadi"]
+    assert c.active[-1, 0] and np.abs(c.q[-1]).max() < 1e-12 and c.impacts[-1].kind == "plastic"
+    assert {i.contact for i in c.impacts} == {"floor", "ceiling"}
+    assert c.sensitivity_breaks == k.sensitivity_breaks
+    finite = np.isfinite(k.sensitivity)
+    assert finite.any() and np.array_equal(finite, np.isfinite(c.sensitivity))
+    np.testing.assert_allclose(c.sensitivity[finite], k.sensitivity[finite], rtol=0, atol=1e-9)

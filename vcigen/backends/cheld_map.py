@@ -169,6 +169,9 @@ def held_map(system: DiscreteSystem, active: tuple[int, ...], key: int) -> HeldM
     phi = _settled(dq1.col_join(dp1), [*atom.exprs.values(), h, *par.symbols])
     state = [*q.symbols, *p.symbols, h, *v.symbols, *lam.symbols, *lam1.symbols, *u1.symbols, *par.symbols]
     phi = _settled_on_states(phi, {a: e for e, a in atom.exprs.items()}, state)
+    # a set whose F is singular for every state (two rows of one coordinate, a floor and a ceiling in 1-D):
+    # NaN, which sends the caller to the numeric path, not SymPy's infinities (C has no zoo)
+    phi = phi.applyfunc(lambda e: sp.nan if e.has(sp.zoo, sp.oo, -sp.oo, sp.nan) else e)
     used = set().union(*(e.free_symbols for e in phi))
     atoms = [(e, a) for e, a in atom.exprs.items() if a in used]  # the partials Phi reads
     syms = tuple(a for _, a in atoms)
