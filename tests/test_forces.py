@@ -242,3 +242,39 @@ def test_forced_scene_is_never_explicit():
     system = derive(driven_oscillator())
     assert system.timed and not system.structure.explicit_grid and not system.structure.explicit_path
     assert system.routines["smooth"].inputs[-1].symbols[-1].name == "t"
+
+
+def shaker() -> vcigen.Model:
+    """A unit ball on a floor pushed up by ``0.5 cos 3t``: a force of time and no parameter of its own, so
+    time is the kernels' only parameter slot."""
+    y, yd, t = sp.symbols("y yd t")
+    return vcigen.Model(
+        name="shaker",
+        q=[y],
+        qdot=[yd],
+        lagrangian=yd**2 / 2 - G * y,
+        contacts={"floor": y},
+        forces=[0.5 * sp.cos(3 * t)],
+        time=t,
+        restitution={"floor": 0.5},
+    )
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_ball_resting_under_a_force_of_time_alone_feels_the_floor_push_back(backend):
+    """Dropped from 0.5 with ``e = 0.5``, the ball bounces to rest (held from the Zeno point) and the floor
+    then pushes with ``g - 0.5 cos 3t`` over each step (at its midpoint, to O(h^2)). Before stop 40 CasADi
+    raised a bare RuntimeError from ``vertcat`` here (the segment's time slot, ``par[:-1]``, empty), and so
+    did ``casadi_functions``."""
+    errors = []
+    for h in (0.01, 0.005):
+        res = vcigen.build(shaker(), backend=backend).simulate([0.5], [0.0], h, t_end=3.0)
+        late = res.t[:-1] >= 1.5
+        assert (
+            res.impacts[-1].kind == "plastic" and res.impacts[-1].t < 1.0 and res.active[:-1][late, 0].all()
+        )
+        assert np.abs(res.q[:-1][late]).max() < 1e-12
+        mid = res.t[:-1][late] + h / 2
+        errors.append(np.abs(res.contact_force[late, 0] - (G - 0.5 * np.cos(3 * mid))).max())
+    assert errors[0] < 1e-4 and errors[0] / errors[1] > 3.8  # 5.6e-5, 1.4e-5
+    assert {"step", "impact_floor"} <= set(vcigen.casadi_functions(shaker()))

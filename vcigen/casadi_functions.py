@@ -46,7 +46,7 @@ from collections.abc import Mapping
 import casadi as ca
 import numpy as np
 
-from .backends.casadi import NEWTON_OPTIONS, routine_to_function
+from .backends.casadi import NEWTON_OPTIONS, later, routine_to_function
 from .derive import DiscreteSystem, derive
 from .model import Model
 from .rules import Rule
@@ -158,7 +158,7 @@ class _Phases:
 
     def timed(self, par, dt):
         """``par`` of a segment starting ``dt`` later (forces of time: the last slot is the start time)."""
-        return ca.vertcat(par[:-1], par[-1] + dt) if self.system.timed else par
+        return later(par, dt) if self.system.timed else par
 
     def step(self) -> ca.Function:
         q, p, h, par = self.inputs()

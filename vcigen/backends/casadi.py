@@ -38,6 +38,14 @@ NEWTON_OPTIONS = {
 }
 
 
+def later(par, dt):
+    """``par`` of a segment starting ``dt`` later (forces of time: the last slot is its start time); a sum,
+    not ``vertcat(par[:-1], ...)``, whose empty slice CasADi cannot stack where time is the only slot."""
+    unit = ca.DM.zeros(par.shape[0], 1)
+    unit[-1] = 1.0
+    return par + dt * unit
+
+
 def routine_to_function(r: Routine) -> ca.Function:
     """One SX Function per routine: named inputs and outputs, CSE kept."""
     ins = [ca.SX.sym(a.name, a.size) for a in r.inputs]
@@ -216,7 +224,7 @@ class CasadiKernels(ParameterSlots):
         u1 = y[:n]
         psi, grad, curv = self.functions["rows"](q1, u1, par)
         # the forces at the segment's end, at its time (the last parameter slot: the time it starts)
-        par_end = ca.vertcat(par[:-1], par[-1] + tau) if self.timed else par
+        par_end = later(par, tau) if self.timed else par
         rhs, _ = self.functions["dynamics"](q1, u1, par_end)
         _, mass = self.functions["legendre"](q1, u1, par)
         flat = ca.vertcat(x, res, p_plus, e_seg, y, res1, psi, ca.vec(grad.T), curv, rhs, ca.vec(mass.T))
