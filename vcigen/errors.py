@@ -8,6 +8,17 @@ NONFINITE = (
     "non-finite state (an overflow, or a NaN from the model at these parameters); "
     "check the parameters and the initial state, or reduce h"
 )
+# A Newton that missed its residual test (Stepper._check, C <model>_check)
+NOT_CONVERGED = (
+    "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
+)
+# Added to a held segment's failed Newton (the sustained phase, both backends): RATTLE has no root where the
+# step moves a point farther than its rows' curvature allows; on a rod of length l (m = 1, no force)
+# |q + tau (p + 2 Lam q)|^2 = (1 + 2 tau Lam)^2 l^2 + tau^2 |p|^2 = l^2 needs tau |p| <= l
+HELD_NO_ROOT = (
+    "; a held step has no root where it moves a point farther than its rows' curvature allows "
+    "(on a rod of length l: where tau |v| >= l)"
+)
 
 
 class SolverError(RuntimeError):

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .errors import SolverError
+from .errors import HELD_NO_ROOT, NOT_CONVERGED, SolverError
 from .friction import cone_law, impact_law
 from .held_roots import illinois_point, illinois_update
 from .result import Impact
@@ -499,14 +499,8 @@ class ImpactSteps:
 
     def _check(self, res, p, step, t, phase, e=math.nan) -> None:
         if not (res <= self._scale(p, e)):
-            raise SolverError(
-                step,
-                t,
-                phase,
-                float(res),
-                "Newton did not converge; reduce h or check "
-                "that the Lagrangian is regular along the trajectory",
-            )
+            why = NOT_CONVERGED + (HELD_NO_ROOT if phase == "sustained" else "")
+            raise SolverError(step, t, phase, float(res), why)
 
 
 def unheld_note(system) -> str:
