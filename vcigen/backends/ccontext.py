@@ -18,7 +18,7 @@ import sympy as sp
 
 from .. import __version__
 from ..derive import KINK, WHOLE, DiscreteSystem
-from ..errors import HELD_NO_ROOT, NONFINITE, PHASES
+from ..errors import HELD_NO_ROOT, NONFINITE, NOT_CONVERGED, PHASES
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import SQRT_POWERS, held_routines
 from ..impact_step import unheld_note
@@ -353,6 +353,7 @@ def render_context(
             {"index": k, "name": ph, "macro": ph.upper().replace(" ", "_")} for k, ph in enumerate(PHASES)
         ],
         "nonfinite": NONFINITE,
+        "not_converged": NOT_CONVERGED,
         "held_no_root": HELD_NO_ROOT,
         "tol": _tol_context(tol or Tolerances()),
         "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],

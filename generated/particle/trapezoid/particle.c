@@ -567,6 +567,7 @@ static void particle_newton(particle_fun f, const double *const *arg, int n, dou
 #define PARTICLE_N1 (PARTICLE_N + 1)
 #define PARTICLE_W PARTICLE_IMPACT_WIDTH
 #define PARTICLE_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define PARTICLE_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define PARTICLE_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -633,8 +634,8 @@ static inline int particle_check(const particle_ctx_t *c, double res, const doub
     if (res <= particle_scale(c, p, e)) {
         return 0;
     }
-    return particle_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == PARTICLE_PHASE_SUSTAINED ? PARTICLE_HELD_NO_ROOT : "");
+    return particle_fail(c, phase, res, "%s%s", PARTICLE_NOT_CONVERGED,
+        phase == PARTICLE_PHASE_SUSTAINED ? PARTICLE_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -845,6 +845,7 @@ static void star_newton(star_fun f, const double *const *arg, int n, double *x, 
 #define STAR_N1 (STAR_N + 1)
 #define STAR_W STAR_IMPACT_WIDTH
 #define STAR_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define STAR_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define STAR_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -911,8 +912,8 @@ static inline int star_check(const star_ctx_t *c, double res, const double *p, d
     if (res <= star_scale(c, p, e)) {
         return 0;
     }
-    return star_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == STAR_PHASE_SUSTAINED ? STAR_HELD_NO_ROOT : "");
+    return star_fail(c, phase, res, "%s%s", STAR_NOT_CONVERGED,
+        phase == STAR_PHASE_SUSTAINED ? STAR_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

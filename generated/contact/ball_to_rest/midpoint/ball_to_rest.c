@@ -563,6 +563,7 @@ static void ball_to_rest_newton(ball_to_rest_fun f, const double *const *arg, in
 #define BALL_TO_REST_N1 (BALL_TO_REST_N + 1)
 #define BALL_TO_REST_W BALL_TO_REST_IMPACT_WIDTH
 #define BALL_TO_REST_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define BALL_TO_REST_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define BALL_TO_REST_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -629,8 +630,8 @@ static inline int ball_to_rest_check(const ball_to_rest_ctx_t *c, double res, co
     if (res <= ball_to_rest_scale(c, p, e)) {
         return 0;
     }
-    return ball_to_rest_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == BALL_TO_REST_PHASE_SUSTAINED ? BALL_TO_REST_HELD_NO_ROOT : "");
+    return ball_to_rest_fail(c, phase, res, "%s%s", BALL_TO_REST_NOT_CONVERGED,
+        phase == BALL_TO_REST_PHASE_SUSTAINED ? BALL_TO_REST_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

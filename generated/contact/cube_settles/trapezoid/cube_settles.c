@@ -1353,6 +1353,7 @@ static inline void cube_settles_newton_smooth(const double *p0, const double *k,
 #define CUBE_SETTLES_N1 (CUBE_SETTLES_N + 1)
 #define CUBE_SETTLES_W CUBE_SETTLES_IMPACT_WIDTH
 #define CUBE_SETTLES_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define CUBE_SETTLES_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define CUBE_SETTLES_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* What a smooth grid step hands to the next (the implicit grid step): the invariants of (46) at q_k+1
@@ -1434,8 +1435,8 @@ static inline int cube_settles_check(const cube_settles_ctx_t *c, double res, co
     if (res <= cube_settles_scale(c, p, e)) {
         return 0;
     }
-    return cube_settles_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == CUBE_SETTLES_PHASE_SUSTAINED ? CUBE_SETTLES_HELD_NO_ROOT : "");
+    return cube_settles_fail(c, phase, res, "%s%s", CUBE_SETTLES_NOT_CONVERGED,
+        phase == CUBE_SETTLES_PHASE_SUSTAINED ? CUBE_SETTLES_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -798,6 +798,7 @@ static void pendulum_wall_newton(pendulum_wall_fun f, const double *const *arg, 
 #define PENDULUM_WALL_N1 (PENDULUM_WALL_N + 1)
 #define PENDULUM_WALL_W PENDULUM_WALL_IMPACT_WIDTH
 #define PENDULUM_WALL_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define PENDULUM_WALL_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define PENDULUM_WALL_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -864,8 +865,8 @@ static inline int pendulum_wall_check(const pendulum_wall_ctx_t *c, double res, 
     if (res <= pendulum_wall_scale(c, p, e)) {
         return 0;
     }
-    return pendulum_wall_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == PENDULUM_WALL_PHASE_SUSTAINED ? PENDULUM_WALL_HELD_NO_ROOT : "");
+    return pendulum_wall_fail(c, phase, res, "%s%s", PENDULUM_WALL_NOT_CONVERGED,
+        phase == PENDULUM_WALL_PHASE_SUSTAINED ? PENDULUM_WALL_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -764,6 +764,7 @@ static void slide_off_dome_newton(slide_off_dome_fun f, const double *const *arg
 #define SLIDE_OFF_DOME_N1 (SLIDE_OFF_DOME_N + 1)
 #define SLIDE_OFF_DOME_W SLIDE_OFF_DOME_IMPACT_WIDTH
 #define SLIDE_OFF_DOME_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define SLIDE_OFF_DOME_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define SLIDE_OFF_DOME_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -830,8 +831,8 @@ static inline int slide_off_dome_check(const slide_off_dome_ctx_t *c, double res
     if (res <= slide_off_dome_scale(c, p, e)) {
         return 0;
     }
-    return slide_off_dome_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == SLIDE_OFF_DOME_PHASE_SUSTAINED ? SLIDE_OFF_DOME_HELD_NO_ROOT : "");
+    return slide_off_dome_fail(c, phase, res, "%s%s", SLIDE_OFF_DOME_NOT_CONVERGED,
+        phase == SLIDE_OFF_DOME_PHASE_SUSTAINED ? SLIDE_OFF_DOME_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -844,6 +844,7 @@ static void star_settles_newton(star_settles_fun f, const double *const *arg, in
 #define STAR_SETTLES_N1 (STAR_SETTLES_N + 1)
 #define STAR_SETTLES_W STAR_SETTLES_IMPACT_WIDTH
 #define STAR_SETTLES_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define STAR_SETTLES_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define STAR_SETTLES_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -910,8 +911,8 @@ static inline int star_settles_check(const star_settles_ctx_t *c, double res, co
     if (res <= star_settles_scale(c, p, e)) {
         return 0;
     }
-    return star_settles_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == STAR_SETTLES_PHASE_SUSTAINED ? STAR_SETTLES_HELD_NO_ROOT : "");
+    return star_settles_fail(c, phase, res, "%s%s", STAR_SETTLES_NOT_CONVERGED,
+        phase == STAR_SETTLES_PHASE_SUSTAINED ? STAR_SETTLES_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

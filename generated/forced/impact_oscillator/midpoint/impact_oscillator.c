@@ -429,6 +429,7 @@ static double impact_oscillator_start_energy(const double *q0, const double *v, 
 #define IMPACT_OSCILLATOR_N1 (IMPACT_OSCILLATOR_N + 1)
 #define IMPACT_OSCILLATOR_W IMPACT_OSCILLATOR_IMPACT_WIDTH
 #define IMPACT_OSCILLATOR_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define IMPACT_OSCILLATOR_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define IMPACT_OSCILLATOR_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -494,8 +495,8 @@ static inline int impact_oscillator_check(const impact_oscillator_ctx_t *c, doub
     if (res <= impact_oscillator_scale(c, p, e)) {
         return 0;
     }
-    return impact_oscillator_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == IMPACT_OSCILLATOR_PHASE_SUSTAINED ? IMPACT_OSCILLATOR_HELD_NO_ROOT : "");
+    return impact_oscillator_fail(c, phase, res, "%s%s", IMPACT_OSCILLATOR_NOT_CONVERGED,
+        phase == IMPACT_OSCILLATOR_PHASE_SUSTAINED ? IMPACT_OSCILLATOR_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

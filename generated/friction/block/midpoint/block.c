@@ -564,6 +564,7 @@ static void block_newton(block_fun f, const double *const *arg, int n, double *x
 #define BLOCK_N1 (BLOCK_N + 1)
 #define BLOCK_W BLOCK_IMPACT_WIDTH
 #define BLOCK_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define BLOCK_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define BLOCK_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -631,8 +632,8 @@ static inline int block_check(const block_ctx_t *c, double res, const double *p,
     if (res <= block_scale(c, p, e)) {
         return 0;
     }
-    return block_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == BLOCK_PHASE_SUSTAINED ? BLOCK_HELD_NO_ROOT : "");
+    return block_fail(c, phase, res, "%s%s", BLOCK_NOT_CONVERGED,
+        phase == BLOCK_PHASE_SUSTAINED ? BLOCK_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -644,6 +644,7 @@ static void rough_disk_newton(rough_disk_fun f, const double *const *arg, int n,
 #define ROUGH_DISK_N1 (ROUGH_DISK_N + 1)
 #define ROUGH_DISK_W ROUGH_DISK_IMPACT_WIDTH
 #define ROUGH_DISK_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define ROUGH_DISK_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define ROUGH_DISK_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -711,8 +712,8 @@ static inline int rough_disk_check(const rough_disk_ctx_t *c, double res, const 
     if (res <= rough_disk_scale(c, p, e)) {
         return 0;
     }
-    return rough_disk_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == ROUGH_DISK_PHASE_SUSTAINED ? ROUGH_DISK_HELD_NO_ROOT : "");
+    return rough_disk_fail(c, phase, res, "%s%s", ROUGH_DISK_NOT_CONVERGED,
+        phase == ROUGH_DISK_PHASE_SUSTAINED ? ROUGH_DISK_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

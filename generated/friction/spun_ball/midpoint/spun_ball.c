@@ -730,6 +730,7 @@ static void spun_ball_newton(spun_ball_fun f, const double *const *arg, int n, d
 #define SPUN_BALL_N1 (SPUN_BALL_N + 1)
 #define SPUN_BALL_W SPUN_BALL_IMPACT_WIDTH
 #define SPUN_BALL_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define SPUN_BALL_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define SPUN_BALL_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -797,8 +798,8 @@ static inline int spun_ball_check(const spun_ball_ctx_t *c, double res, const do
     if (res <= spun_ball_scale(c, p, e)) {
         return 0;
     }
-    return spun_ball_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == SPUN_BALL_PHASE_SUSTAINED ? SPUN_BALL_HELD_NO_ROOT : "");
+    return spun_ball_fail(c, phase, res, "%s%s", SPUN_BALL_NOT_CONVERGED,
+        phase == SPUN_BALL_PHASE_SUSTAINED ? SPUN_BALL_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

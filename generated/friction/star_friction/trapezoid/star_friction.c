@@ -839,6 +839,7 @@ static void star_friction_newton(star_friction_fun f, const double *const *arg, 
 #define STAR_FRICTION_N1 (STAR_FRICTION_N + 1)
 #define STAR_FRICTION_W STAR_FRICTION_IMPACT_WIDTH
 #define STAR_FRICTION_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define STAR_FRICTION_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define STAR_FRICTION_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -906,8 +907,8 @@ static inline int star_friction_check(const star_friction_ctx_t *c, double res, 
     if (res <= star_friction_scale(c, p, e)) {
         return 0;
     }
-    return star_friction_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == STAR_FRICTION_PHASE_SUSTAINED ? STAR_FRICTION_HELD_NO_ROOT : "");
+    return star_friction_fail(c, phase, res, "%s%s", STAR_FRICTION_NOT_CONVERGED,
+        phase == STAR_FRICTION_PHASE_SUSTAINED ? STAR_FRICTION_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -769,6 +769,7 @@ static void ball_box_newton(ball_box_fun f, const double *const *arg, int n, dou
 #define BALL_BOX_N1 (BALL_BOX_N + 1)
 #define BALL_BOX_W BALL_BOX_IMPACT_WIDTH
 #define BALL_BOX_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define BALL_BOX_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define BALL_BOX_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
@@ -841,8 +842,8 @@ static inline int ball_box_check(const ball_box_ctx_t *c, double res, const doub
     if (res <= ball_box_scale(c, p, e)) {
         return 0;
     }
-    return ball_box_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == BALL_BOX_PHASE_SUSTAINED ? BALL_BOX_HELD_NO_ROOT : "");
+    return ball_box_fail(c, phase, res, "%s%s", BALL_BOX_NOT_CONVERGED,
+        phase == BALL_BOX_PHASE_SUSTAINED ? BALL_BOX_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

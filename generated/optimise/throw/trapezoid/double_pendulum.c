@@ -988,6 +988,7 @@ static inline void double_pendulum_newton_smooth(const double *p0, const double 
 #define DOUBLE_PENDULUM_N1 (DOUBLE_PENDULUM_N + 1)
 #define DOUBLE_PENDULUM_W DOUBLE_PENDULUM_IMPACT_WIDTH
 #define DOUBLE_PENDULUM_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
+#define DOUBLE_PENDULUM_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define DOUBLE_PENDULUM_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
 
 /* What a smooth grid step hands to the next (the implicit grid step): the invariants of (46) at q_k+1
@@ -1063,8 +1064,8 @@ static inline int double_pendulum_check(const double_pendulum_ctx_t *c, double r
     if (res <= double_pendulum_scale(c, p, e)) {
         return 0;
     }
-    return double_pendulum_fail(c, phase, res, "Newton did not converge; reduce h or check that the Lagrangian "
-        "is regular along the trajectory%s", phase == DOUBLE_PENDULUM_PHASE_SUSTAINED ? DOUBLE_PENDULUM_HELD_NO_ROOT : "");
+    return double_pendulum_fail(c, phase, res, "%s%s", DOUBLE_PENDULUM_NOT_CONVERGED,
+        phase == DOUBLE_PENDULUM_PHASE_SUSTAINED ? DOUBLE_PENDULUM_HELD_NO_ROOT : "");
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */
