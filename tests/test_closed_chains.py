@@ -2,17 +2,19 @@
 
 A double pendulum as two bobs on two rods (an open chain) and a parallelogram four-bar linkage as two
 bobs on three bars between two fixed pivots (a closed chain: four coordinates, three constraints, one
-degree of freedom). Their references are scipy's (1e-12) on the angles: the double pendulum's own
-equations, and for the parallelogram the pendulum of mass 2 that both bobs ride (the coupler stays
-level, so each bob is at ``(cos θ, sin θ)`` from its pivot), reflected at the floor. Before stop 40 a
-model of two or more constraints and no contact did not compile in C (``-Werror=maybe-uninitialized``
-on ``<model>_chain_impact``'s restitutions, of which it has none).
+degree of freedom; ``examples/contact/four_bar.py``'s model). Their references are scipy's (1e-12) on
+the angles: the double pendulum's own equations, and for the parallelogram the pendulum of mass 2 that
+both bobs ride (the coupler stays level, so each bob is at ``(cos θ, sin θ)`` from its pivot), reflected
+at the floor. Before stop 40 a model of two or more constraints and no contact did not compile in C
+(``-Werror=maybe-uninitialized`` on ``<model>_chain_impact``'s restitutions, of which it has none).
 """
 
 from __future__ import annotations
 
 import math
+import sys
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,7 +24,10 @@ from scipy.integrate import solve_ivp
 
 import vcigen
 
-FLOOR = -0.9  # the floor under the four-bar's first bob: y_b >= FLOOR
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "contact"))
+import four_bar as example  # noqa: E402 - examples/contact/four_bar.py: its model, floor y_b >= FLOOR, e
+
+FLOOR = example.FLOOR
 
 
 def double_pendulum() -> vcigen.Model:
@@ -37,29 +42,9 @@ def double_pendulum() -> vcigen.Model:
     )
 
 
-def four_bar() -> vcigen.Model:
-    """Unit bobs B, C on bars |AB| = 1, |BC| = 2, |CD| = 1 between pivots A = (0, 0) and D = (2, 0); B
-    lands on the floor ``y_b = FLOOR`` with restitution ``e``."""
-    xb, yb, xc, yc, ub, vb, uc, vc, e = sp.symbols("xb yb xc yc ub vb uc vc e")
-    return vcigen.Model(
-        name="four_bar",
-        q=[xb, yb, xc, yc],
-        qdot=[ub, vb, uc, vc],
-        lagrangian=(ub**2 + vb**2 + uc**2 + vc**2) / 2 - G * (yb + yc),
-        contacts={"floor": yb - FLOOR},
-        constraints={
-            "ab": xb**2 + yb**2 - 1,
-            "bc": (xc - xb) ** 2 + (yc - yb) ** 2 - 4,
-            "cd": (xc - 2) ** 2 + yc**2 - 1,
-        },
-        params={e: 1.0},
-        restitution={"floor": e},
-    )
-
-
 @cache
 def sim(name: str, backend: str) -> vcigen.Simulator:
-    return vcigen.build({"double": double_pendulum, "four_bar": four_bar}[name](), backend=backend)
+    return vcigen.build({"double": double_pendulum, "four_bar": example.model}[name](), backend=backend)
 
 
 def _angles(t, y):
@@ -130,7 +115,9 @@ def test_a_parallelogram_four_bar_swings_as_its_pendulum_off_an_elastic_floor(ba
         t0, y0 = sol.t_events[0][0], [sol.y_events[0][0][0], -sol.y_events[0][0][1]]
     errors = []
     for h in (0.01, 0.005):
-        res = sim("four_bar", backend).simulate(*_four_bar_start(theta0, omega0), h, t_end=t_end)
+        res = sim("four_bar", backend).simulate(
+            *_four_bar_start(theta0, omega0), h, t_end=t_end, params={"e": 1.0}
+        )
         assert len(res.impacts) == len(pieces) - 1 == 4
         exact = np.array([next(f(t)[0] for a, b, f in pieces if a <= t <= b) for t in res.t])
         errors.append(np.abs(np.arctan2(res.q[:, 1], res.q[:, 0]) - exact).max())
