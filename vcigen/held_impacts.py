@@ -113,9 +113,11 @@ class HeldImpacts(ImpulseLaw):
             else:
                 targets[r] = -e * rate
         counts = self.least_splits, self.friction_dropped
+        state = self.act.copy(), list(self._ride), self.riders_cut  # before the law (its cut riders)
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
         reduced = bool(targets) and bool(self._stick_rows) and self._law_raises(q, law)
         if reduced:  # Newton's restitution with Coulomb's friction raising the kinetic energy
+            self.act, self._ride, self.riders_cut = state
             cut = self._reduced_restitution(step, t_k, q, p, v, group, targets, plastic, counts)
             law, targets, plastic = cut
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands, law_why = law
@@ -175,15 +177,18 @@ class HeldImpacts(ImpulseLaw):
         before it (each trial is taken from them). Returns ``(law, targets, plastic)``."""
         self.restitution_reduced += 1
         lo, hi = 0.0, 1.0
+        state = self.act.copy(), list(self._ride), self.riders_cut  # a trial's cut rider (_impulse_law)
         for _ in range(RESTITUTION_BISECTIONS):
             mid = 0.5 * (lo + hi)
             self.least_splits, self.friction_dropped = counts
+            self.act, self._ride, self.riders_cut = state[0].copy(), list(state[1]), state[2]
             try:
                 trial = self._impulse_law(step, t_k, q, p, v, group, {r: mid * x for r, x in targets.items()})
                 lo, hi = (lo, mid) if self._law_raises(q, trial) else (mid, hi)
             except SolverError:
                 hi = mid
         self.least_splits, self.friction_dropped = counts
+        self.act, self._ride, self.riders_cut = state
         scaled = {r: lo * x for r, x in targets.items()} if lo > 0.0 else {}
         law = self._impulse_law(step, t_k, q, p, v, group, scaled)
         if not scaled:  # plastic: held, those it stopped

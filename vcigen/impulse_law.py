@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_slide, line_slide
-from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, span_add
+from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, in_span, span_add
 from .law_pgs import pgs
 from .law_split import fit
 from .law_split import least_split as _least_split
@@ -64,6 +64,55 @@ class ImpulseLaw:
     """The impulse law while rows are held (a base of :class:`vcigen.held_impacts.HeldImpacts`)."""
 
     def _impulse_law(self, step, t_k, q, p, guess, hit, targets):
+        """:meth:`_law_once`, and again where its solution cut a dependent stick from its owner
+        (:meth:`_cut_riders`: two disks side by side on a rough floor, the first riding on the second's stick
+        row through the row between them, which the impact leaves with no impulse). The rider's friction was
+        pooled into its owner's cone, which no longer holds its tangent: the law is solved anew with the
+        rider's stick row its own (its cone its own contact's), every set of tight rows that is dependent
+        (stick rows too) left out, and taken if it has a solution (counted, ``res.stats["riders_cut"]``;
+        the tangent stops there, ``why``); else the first solution stands."""
+        before = self.least_splits, self.friction_dropped
+        law = self._law_once(step, t_k, q, p, guess, hit, targets)
+        cut = self._cut_riders(q, law, hit)
+        if not cut:
+            return law
+        act, ride = self.act.copy(), list(self._ride)
+        counts = self.least_splits, self.friction_dropped
+        self.least_splits, self.friction_dropped = before  # the law taken counts
+        for g in cut:
+            self._ride[g] = -1
+            self.act[self._stick_rows[g]] = True
+        try:
+            again = self._law_once(step, t_k, q, p, guess, hit, targets, every=True)
+        except SolverError:
+            self.act, self._ride = act, ride
+            self.least_splits, self.friction_dropped = counts
+            return law
+        self.riders_cut += 1
+        return (*again[:8], again[8] or "friction at an impact")
+
+    def _cut_riders(self, q, law, hit) -> list[int]:
+        """The one-tangent dependent sticks (``_ride[g] = f``, ``f`` a one-tangent contact sticking through
+        the law) pressed after the law ``law`` (:meth:`_law_once`: a normal row of theirs kept) whose stick
+        row is no longer in the span of the rows it keeps (active or hit, neither dropped nor slipped)."""
+        k = self.k
+        dropped, slipped = set(law[4]), set(law[5])
+        kept = [r for r in range(k.r) if (self.act[r] or r in hit) and r not in dropped and r not in slipped]
+        cut = []
+        grad = None
+        for g, f in enumerate(self._ride):
+            if f < 0 or f == g or self._partner[g] >= 0 or self._partner[f] >= 0:
+                continue
+            if self._stick_rows[f] not in kept:
+                continue
+            if not any(k.row_contact[r] == k.frictional[g] for r in kept):
+                continue
+            grad = k.rows(q, law[2])[1] if grad is None else grad
+            if not in_span(grad, kept, self._stick_rows[g]):
+                cut.append(g)
+        return cut
+
+    def _law_once(self, step, t_k, q, p, guess, hit, targets, every: bool = False):
         """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with
         Coulomb's cone on the held stick rows (MATH.md *Friction*).
 
@@ -98,7 +147,8 @@ class ImpulseLaw:
         the slipping contacts that joined (the caller sets their contacts' modes, :meth:`_slip_at_impact`),
         ``lands`` the landing ones (their modes are set when they are held, ``_friction_modes``), ``why``
         why the tangent does not carry the law (``"friction at an impact"``: a landing cone's second split,
-        its least split beside a slide, a slide along a line; else ``""``; :meth:`_law_tangent`).
+        its least split beside a slide, a slide along a line; else ``""``; :meth:`_law_tangent`). ``every``:
+        a set of tight rows may not be dependent at all, stick rows too (:meth:`_impulse_law`'s second try).
         """
         k = self.k
         vel = self._velocity(q, guess, p)
@@ -120,7 +170,8 @@ class ImpulseLaw:
         free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
         normal = [not (k.row_stick and k.row_stick[r] >= 0) for r in rows]
         g = grad[rows]
-        dependent = _spanned(g, range(len(rows)), normal)  # only then may a set of tight rows be dependent
+        spans = [True] * len(rows) if every else normal  # the rows a set of tight rows may not have dependent
+        dependent = _spanned(g, range(len(rows)), spans)  # only then may a set of tight rows be dependent
         w = g @ np.linalg.solve(mass, g.T)
         b = np.array([tgt[r] for r in rows]) - g @ vel
         lam_eps = EPS_LAM * (1.0 + float(np.max(np.abs(p))))
@@ -167,7 +218,7 @@ class ImpulseLaw:
                     continue
                 # a subset of the dependent normals carries it; with a loose cone sticking, all rows may
                 least = joint and _spanned(g, tight, [True] * n)
-                if dependent and not joint and _spanned(g, tight, normal) or least and any(slips_):
+                if dependent and not joint and _spanned(g, tight, spans) or least and any(slips_):
                     continue
                 line = weighted = False  # a loose cone slid along a line (line_slide); a second split
                 # a sliding cone none of whose normal rows is tight takes no normal impulse, so no friction

@@ -109,6 +109,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self.friction_dropped = 0  # landing contacts whose friction the impulse law left out (_law_lands)
         self.restitution_reduced = 0  # impacts whose restitution was cut: with friction it raised the energy
         self.least_splits = 0  # impulse laws whose stick rows were dependent: the least split (_least_split)
+        self.riders_cut = 0  # impulse laws solved anew, a dependent stick cut from its owner (_cut_riders)
         self._timed = bool(getattr(kernels, "timed", False))  # forces of time: kernels.at(t) per segment
         system = getattr(kernels, "system", None)
         self._forced = bool(system is not None and system.model.force)  # energy: the last segment's
@@ -196,6 +197,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["sticks_kept"] = self.sticks_kept
         res.stats["jams"] = self.jams
         res.stats["halvings"] = self.halvings
+        res.stats["riders_cut"] = self.riders_cut
         if tan is not None:
             tan.attach(res, step)
         return res

@@ -344,6 +344,7 @@ class CRun:
         stats["sticks_kept"] = self.sus.sticks_kept
         stats["jams"] = self.sus.jams
         stats["halvings"] = self.sus.halvings
+        stats["riders_cut"] = self.sus.riders_cut
         return stats
 
     def error(self, t0: float, h: float, wall: float) -> SolverError:

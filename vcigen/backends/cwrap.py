@@ -94,6 +94,7 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("sticks_kept", ctypes.c_long),
             ("jams", ctypes.c_long),
             ("halvings", ctypes.c_long),
+            ("riders_cut", ctypes.c_long),
             ("events", ctypes.c_int),
             ("jammed", ctypes.c_int),
             ("law_why", ctypes.c_int),

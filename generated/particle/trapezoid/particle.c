@@ -1888,10 +1888,11 @@ static int particle_spanned(const double *grad, const int *rows, const int *tigh
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int particle_impulse_law(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int particle_law_once(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_g[PARTICLE_R_DIM * PARTICLE_N];
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
@@ -1926,7 +1927,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
     if (nr > PARTICLE_MAX_LAW_ROWS) {
         return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = particle_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = particle_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = particle_lu(PARTICLE_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < PARTICLE_N; ++i) {
@@ -1967,7 +1968,7 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && particle_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && particle_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2021,6 +2022,15 @@ static int particle_impulse_law(const particle_ctx_t *c, const double *q, const 
     }
     particle_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* ImpulseLaw._impulse_law: law_once (no friction, no dependent sticks). */
+static int particle_impulse_law(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    return particle_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -2665,10 +2665,11 @@ static int cube_settles_spanned(const double *grad, const int *rows, const int *
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int cube_settles_law_once(const cube_settles_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[CUBE_SETTLES_N], mass[CUBE_SETTLES_N * CUBE_SETTLES_N], minv_g[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
@@ -2703,7 +2704,7 @@ static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q
     if (nr > CUBE_SETTLES_MAX_LAW_ROWS) {
         return cube_settles_fail(c, CUBE_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = cube_settles_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = cube_settles_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = cube_settles_lu(CUBE_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
@@ -2744,7 +2745,7 @@ static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && cube_settles_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && cube_settles_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2798,6 +2799,15 @@ static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q
     }
     cube_settles_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* ImpulseLaw._impulse_law: law_once (no friction, no dependent sticks). */
+static int cube_settles_impulse_law(const cube_settles_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    return cube_settles_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -2384,10 +2384,11 @@ static int four_bar_spanned(const double *grad, const int *rows, const int *tigh
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int four_bar_impulse_law(const four_bar_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int four_bar_law_once(const four_bar_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[FOUR_BAR_N], mass[FOUR_BAR_N * FOUR_BAR_N], minv_g[FOUR_BAR_R_DIM * FOUR_BAR_N];
     double psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
@@ -2422,7 +2423,7 @@ static int four_bar_impulse_law(const four_bar_ctx_t *c, const double *q, const 
     if (nr > FOUR_BAR_MAX_LAW_ROWS) {
         return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = four_bar_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = four_bar_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = four_bar_lu(FOUR_BAR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < FOUR_BAR_N; ++i) {
@@ -2463,7 +2464,7 @@ static int four_bar_impulse_law(const four_bar_ctx_t *c, const double *q, const 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && four_bar_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && four_bar_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2517,6 +2518,15 @@ static int four_bar_impulse_law(const four_bar_ctx_t *c, const double *q, const 
     }
     four_bar_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* ImpulseLaw._impulse_law: law_once (no friction, no dependent sticks). */
+static int four_bar_impulse_law(const four_bar_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    return four_bar_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

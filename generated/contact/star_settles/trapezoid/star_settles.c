@@ -2167,10 +2167,11 @@ static int star_settles_spanned(const double *grad, const int *rows, const int *
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int star_settles_law_once(const star_settles_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N], minv_g[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
@@ -2205,7 +2206,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
     if (nr > STAR_SETTLES_MAX_LAW_ROWS) {
         return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = star_settles_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = star_settles_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = star_settles_lu(STAR_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < STAR_SETTLES_N; ++i) {
@@ -2246,7 +2247,7 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && star_settles_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && star_settles_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2300,6 +2301,15 @@ static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q
     }
     star_settles_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* ImpulseLaw._impulse_law: law_once (no friction, no dependent sticks). */
+static int star_settles_impulse_law(const star_settles_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    return star_settles_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

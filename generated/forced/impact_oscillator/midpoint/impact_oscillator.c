@@ -1707,10 +1707,11 @@ static int impact_oscillator_spanned(const double *grad, const int *rows, const 
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
@@ -1745,7 +1746,7 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
     if (nr > IMPACT_OSCILLATOR_MAX_LAW_ROWS) {
         return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = impact_oscillator_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = impact_oscillator_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
@@ -1786,7 +1787,7 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && impact_oscillator_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && impact_oscillator_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -1840,6 +1841,15 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
     }
     impact_oscillator_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* ImpulseLaw._impulse_law: law_once (no friction, no dependent sticks). */
+static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    return impact_oscillator_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

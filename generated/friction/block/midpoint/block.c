@@ -2402,10 +2402,11 @@ static int block_law_gains(const int *rows, int nr, const double *tgt, const dou
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int block_impulse_law(const block_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int block_law_once(const block_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[BLOCK_N], mass[BLOCK_N * BLOCK_N], minv_g[BLOCK_R_DIM * BLOCK_N];
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
@@ -2445,7 +2446,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     if (nr > BLOCK_MAX_LAW_ROWS) {
         return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = block_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = block_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = block_lu(BLOCK_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < BLOCK_N; ++i) {
@@ -2513,7 +2514,7 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && block_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && block_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2580,6 +2581,106 @@ static int block_impulse_law(const block_ctx_t *c, const double *q, const double
     }
     block_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* Sets the rows held and the dependent sticks' owners (impulse_law: those before its second try). */
+static void block_law_state(const block_ctx_t *c, const int *act, const int *ride)
+{
+    int k;
+    for (k = 0; k < BLOCK_R; ++k) {
+        c->sus->act[k] = act[k];
+    }
+    for (k = 0; k < BLOCK_NF; ++k) {
+        c->sus->ride[k] = ride[k];
+    }
+}
+
+/* ImpulseLaw._cut_riders: the one-tangent dependent sticks (ride[g] = f, f a one-tangent contact sticking through
+ * the law) pressed after it (a normal row of theirs kept) whose stick row is no longer in the span of the rows it
+ * keeps (active or hit, neither dropped nor slipped): cut[g] = 1. Returns how many. */
+static int block_cut_riders(const block_ctx_t *c, const double *q, const double *vel_m, const int *hit,
+    int n_hit, const int *dropped, const int *slipped, int *cut)
+{
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
+    int kept[BLOCK_R_DIM], on[BLOCK_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    for (r = 0; r < BLOCK_R; ++r) {
+        on[r] = c->sus->act[r];
+    }
+    for (k = 0; k < n_hit; ++k) {
+        on[hit[k]] = 1;
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        if (on[r] && !dropped[r] && !slipped[r]) {
+            kept[n_kept++] = r;
+        }
+    }
+    for (g = 0; g < BLOCK_NF; ++g) {
+        f = c->sus->ride[g];
+        cut[g] = 0;
+        if (f < 0 || f == g) {
+            continue;
+        }
+        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
+            r = r || kept[k] == block_stick_row[f];
+            pressed = pressed || block_row_contact[kept[k]] == block_fric_contact[g];
+        }
+        if (!r || !pressed) {
+            continue;
+        }
+        if (!graded) {
+            block_rows(q, vel_m, c->par, psi, grad, curv);
+            graded = 1;
+        }
+        if (!block_in_span(grad, kept, n_kept, block_stick_row[g])) {
+            cut[g] = 1;
+            ++n_cut;
+        }
+    }
+    return n_cut;
+}
+
+/* ImpulseLaw._impulse_law: law_once, and again where its solution cut a dependent stick from its owner (cut_riders:
+ * two disks side by side on a rough floor, the first riding on the second's stick row through the row between
+ * them, which the impact leaves with no impulse): solved anew with the rider's stick row its own, every set of
+ * tight rows that is dependent (stick rows too) left out, and taken if it has a solution (counted, riders_cut; the
+ * tangent stops there, law_why); else the first solution stands. */
+static int block_impulse_law(const block_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    int cut[BLOCK_NF_DIM], act[BLOCK_R_DIM], ride[BLOCK_NF_DIM], g, r;
+    const long counts[2] = {c->sus->least_splits, c->sus->friction_dropped}; /* the law taken counts */
+    if (block_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+            slip_own, slip_ride, land, 0)) {
+        return 1;
+    }
+    c->sus->law_why = 0;
+    if (!block_cut_riders(c, q, vel_m, hit, n_hit, dropped, slipped, cut)) {
+        return 0;
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        act[r] = c->sus->act[r];
+    }
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    for (g = 0; g < BLOCK_NF; ++g) {
+        ride[g] = c->sus->ride[g];
+        if (cut[g]) {
+            c->sus->ride[g] = -1;
+            c->sus->act[block_stick_row[g]] = 1;
+        }
+    }
+    if (!block_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+            slip_own, slip_ride, land, 1)) {
+        ++c->sus->riders_cut;
+        c->sus->law_why = 1;
+        return 0;
+    }
+    block_law_state(c, act, ride); /* no solution: the first stands */
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    return block_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* The sliding velocity grad t_f . u of frictional contact f (grad: all rows at q). */
@@ -2797,16 +2898,24 @@ static int block_reduced_restitution(const block_ctx_t *c, const double *q, cons
     double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double full[BLOCK_R_DIM], trial[BLOCK_R_DIM], lo = 0.0, hi = 1.0, mid;
-    int k, g;
+    int k, g, act[BLOCK_R_DIM], ride[BLOCK_NF_DIM];
     ++c->sus->restitution_reduced;
     for (k = 0; k < BLOCK_R; ++k) { /* every row's target (0 off the group), as the law reads them */
         full[k] = tgt[k];
         trial[k] = tgt[k];
     }
+    for (k = 0; k < BLOCK_R; ++k) { /* a trial's cut rider (impulse_law) is not the state's */
+        act[k] = c->sus->act[k];
+    }
+    for (g = 0; g < BLOCK_NF; ++g) {
+        ride[g] = c->sus->ride[g];
+    }
     for (k = 0; k < BLOCK_RESTITUTION_BISECTIONS; ++k) {
         mid = 0.5 * (lo + hi);
         c->sus->least_splits = counts[0];
         c->sus->friction_dropped = counts[1];
+        c->sus->riders_cut = counts[2];
+        block_law_state(c, act, ride);
         for (g = 0; g < n_group; ++g) {
             trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
         }
@@ -2819,6 +2928,8 @@ static int block_reduced_restitution(const block_ctx_t *c, const double *q, cons
     }
     c->sus->least_splits = counts[0];
     c->sus->friction_dropped = counts[1];
+    c->sus->riders_cut = counts[2];
+    block_law_state(c, act, ride);
     for (g = 0; g < n_group; ++g) {
         tgt[group[g]] = lo > 0.0 && !plastic[group[g]] ? lo * full[group[g]] : 0.0;
     }
@@ -2845,8 +2956,8 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
     int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
-    long counts[2];
-    int reduced, why;
+    long counts[3];
+    int reduced, why, act[BLOCK_R_DIM], ride[BLOCK_NF_DIM];
     block_at(c, t);
     block_restitution(c->par, rest);
     block_velocity(c, q, v, p, vel);
@@ -2874,6 +2985,13 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     }
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
+    counts[2] = c->sus->riders_cut;
+    for (r = 0; r < BLOCK_R; ++r) { /* before the law (its cut riders) */
+        act[r] = c->sus->act[r];
+    }
+    for (g = 0; g < BLOCK_NF; ++g) {
+        ride[g] = c->sus->ride[g];
+    }
     if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
@@ -2883,12 +3001,14 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     }
     reduced = any && block_law_gains_all(c, q, lam, vel_m, vel_p);
     if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+        block_law_state(c, act, ride);
+        c->sus->riders_cut = counts[2];
         if (block_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land)) {
             return 1;
         }
     }
-    why = block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land) ? 1 : 2 * reduced;
+    why = block_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land) ? 1 : 2 * (reduced || c->sus->law_why);
     if (why) { /* stick <-> slip, or a restitution reduced: no tangent */
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }

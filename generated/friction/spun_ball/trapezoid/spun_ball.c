@@ -3911,10 +3911,11 @@ static int spun_ball_law_pgs(const spun_ball_ctx_t *c, const int *rows, int nr, 
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], minv_g[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
@@ -3962,7 +3963,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     if (nr > SPUN_BALL_MAX_LAW_ROWS) {
         return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = spun_ball_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = spun_ball_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = spun_ball_lu(SPUN_BALL_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < SPUN_BALL_N; ++i) {
@@ -4095,7 +4096,7 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
             /* a subset of the dependent normals carries it; with a loose cone sticking, all rows may */
             least = valid && joint && spun_ball_spanned(grad, rows, tight, nt, 1);
             line = weighted = 0;
-            if (!valid || (dependent && !joint && spun_ball_spanned(grad, rows, tight, nt, 0))
+            if (!valid || (dependent && !joint && spun_ball_spanned(grad, rows, tight, nt, every))
                 || (least && moded)) {
                 continue;
             }
@@ -4229,6 +4230,105 @@ static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, cons
     }
     spun_ball_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* Sets the rows held and the dependent sticks' owners (impulse_law: those before its second try). */
+static void spun_ball_law_state(const spun_ball_ctx_t *c, const int *act, const int *ride)
+{
+    int k;
+    for (k = 0; k < SPUN_BALL_R; ++k) {
+        c->sus->act[k] = act[k];
+    }
+    for (k = 0; k < SPUN_BALL_NF; ++k) {
+        c->sus->ride[k] = ride[k];
+    }
+}
+
+/* ImpulseLaw._cut_riders: the one-tangent dependent sticks (ride[g] = f, f a one-tangent contact sticking through
+ * the law) pressed after it (a normal row of theirs kept) whose stick row is no longer in the span of the rows it
+ * keeps (active or hit, neither dropped nor slipped): cut[g] = 1. Returns how many. */
+static int spun_ball_cut_riders(const spun_ball_ctx_t *c, const double *q, const double *vel_m, const int *hit,
+    int n_hit, const int *dropped, const int *slipped, int *cut)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    int kept[SPUN_BALL_R_DIM], on[SPUN_BALL_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        on[r] = c->sus->act[r];
+    }
+    for (k = 0; k < n_hit; ++k) {
+        on[hit[k]] = 1;
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        if (on[r] && !dropped[r] && !slipped[r]) {
+            kept[n_kept++] = r;
+        }
+    }
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        f = c->sus->ride[g];
+        cut[g] = 0;
+        if (f < 0 || f == g || spun_ball_partner[g] >= 0 || spun_ball_partner[f] >= 0) {
+            continue;
+        }
+        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
+            r = r || kept[k] == spun_ball_stick_row[f];
+            pressed = pressed || spun_ball_row_contact[kept[k]] == spun_ball_fric_contact[g];
+        }
+        if (!r || !pressed) {
+            continue;
+        }
+        if (!graded) {
+            spun_ball_rows(q, vel_m, c->par, psi, grad, curv);
+            graded = 1;
+        }
+        if (!spun_ball_in_span(grad, kept, n_kept, spun_ball_stick_row[g])) {
+            cut[g] = 1;
+            ++n_cut;
+        }
+    }
+    return n_cut;
+}
+
+/* ImpulseLaw._impulse_law: law_once, and again where its solution cut a dependent stick from its owner (cut_riders:
+ * two disks side by side on a rough floor, the first riding on the second's stick row through the row between
+ * them, which the impact leaves with no impulse): solved anew with the rider's stick row its own, every set of
+ * tight rows that is dependent (stick rows too) left out, and taken if it has a solution (counted, riders_cut; the
+ * tangent stops there, law_why); else the first solution stands. */
+static int spun_ball_impulse_law(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    int cut[SPUN_BALL_NF_DIM], act[SPUN_BALL_R_DIM], ride[SPUN_BALL_NF_DIM], g, r;
+    const long counts[2] = {c->sus->least_splits, c->sus->friction_dropped}; /* the law taken counts */
+    if (spun_ball_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+            slip_own, slip_ride, land, 0)) {
+        return 1;
+    }
+    if (!spun_ball_cut_riders(c, q, vel_m, hit, n_hit, dropped, slipped, cut)) {
+        return 0;
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        act[r] = c->sus->act[r];
+    }
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        ride[g] = c->sus->ride[g];
+        if (cut[g]) {
+            c->sus->ride[g] = -1;
+            c->sus->act[spun_ball_stick_row[g]] = 1;
+        }
+    }
+    if (!spun_ball_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+            slip_own, slip_ride, land, 1)) {
+        ++c->sus->riders_cut;
+        c->sus->law_why = 1;
+        return 0;
+    }
+    spun_ball_law_state(c, act, ride); /* no solution: the first stands */
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    return spun_ball_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* The sliding velocity grad t_f . u of frictional contact f (grad: all rows at q). */
@@ -4492,16 +4592,24 @@ static int spun_ball_reduced_restitution(const spun_ball_ctx_t *c, const double 
     double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     double full[SPUN_BALL_R_DIM], trial[SPUN_BALL_R_DIM], lo = 0.0, hi = 1.0, mid;
-    int k, g;
+    int k, g, act[SPUN_BALL_R_DIM], ride[SPUN_BALL_NF_DIM];
     ++c->sus->restitution_reduced;
     for (k = 0; k < SPUN_BALL_R; ++k) { /* every row's target (0 off the group), as the law reads them */
         full[k] = tgt[k];
         trial[k] = tgt[k];
     }
+    for (k = 0; k < SPUN_BALL_R; ++k) { /* a trial's cut rider (impulse_law) is not the state's */
+        act[k] = c->sus->act[k];
+    }
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        ride[g] = c->sus->ride[g];
+    }
     for (k = 0; k < SPUN_BALL_RESTITUTION_BISECTIONS; ++k) {
         mid = 0.5 * (lo + hi);
         c->sus->least_splits = counts[0];
         c->sus->friction_dropped = counts[1];
+        c->sus->riders_cut = counts[2];
+        spun_ball_law_state(c, act, ride);
         for (g = 0; g < n_group; ++g) {
             trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
         }
@@ -4514,6 +4622,8 @@ static int spun_ball_reduced_restitution(const spun_ball_ctx_t *c, const double 
     }
     c->sus->least_splits = counts[0];
     c->sus->friction_dropped = counts[1];
+    c->sus->riders_cut = counts[2];
+    spun_ball_law_state(c, act, ride);
     for (g = 0; g < n_group; ++g) {
         tgt[group[g]] = lo > 0.0 && !plastic[group[g]] ? lo * full[group[g]] : 0.0;
     }
@@ -4540,8 +4650,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
-    long counts[2];
-    int reduced, why;
+    long counts[3];
+    int reduced, why, act[SPUN_BALL_R_DIM], ride[SPUN_BALL_NF_DIM];
     spun_ball_at(c, t);
     spun_ball_restitution(c->par, rest);
     spun_ball_velocity(c, q, v, p, vel);
@@ -4569,6 +4679,13 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     }
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
+    counts[2] = c->sus->riders_cut;
+    for (r = 0; r < SPUN_BALL_R; ++r) { /* before the law (its cut riders) */
+        act[r] = c->sus->act[r];
+    }
+    for (g = 0; g < SPUN_BALL_NF; ++g) {
+        ride[g] = c->sus->ride[g];
+    }
     if (spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
@@ -4578,6 +4695,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     }
     reduced = any && spun_ball_law_gains_all(c, q, lam, vel_m, vel_p);
     if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+        spun_ball_law_state(c, act, ride);
+        c->sus->riders_cut = counts[2];
         if (spun_ball_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land)) {
             return 1;

@@ -2099,10 +2099,11 @@ static int ball_box_spanned(const double *grad, const int *rows, const int *tigh
  * trying the friction modes in base 3 (each cone's own first: all sticking, the slipping slipping on), each over
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
- * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too). */
-static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const double *p, const double *guess,
+ * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+static int ball_box_law_once(const ball_box_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
 {
     double mom[BALL_BOX_N], mass[BALL_BOX_N * BALL_BOX_N], minv_g[BALL_BOX_R_DIM * BALL_BOX_N];
     double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
@@ -2137,7 +2138,7 @@ static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const 
     if (nr > BALL_BOX_MAX_LAW_ROWS) {
         return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
-    dependent = ball_box_spanned(grad, rows, NULL, nr, 0); /* only then may a set of tight rows be dependent */
+    dependent = ball_box_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = ball_box_lu(BALL_BOX_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
         for (i = 0; i < BALL_BOX_N; ++i) {
@@ -2178,7 +2179,7 @@ static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const 
                 }
                 lam[k] = 0.0;
             }
-            if (!valid || (dependent && ball_box_spanned(grad, rows, tight, nt, 0))) { /* a subset carries it */
+            if (!valid || (dependent && ball_box_spanned(grad, rows, tight, nt, every))) { /* a subset carries it */
                 continue;
             }
             for (k = 0; k < nt; ++k) {
@@ -2232,6 +2233,15 @@ static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const 
     }
     ball_box_velocity(c, q, vel_m, p_plus, vel_p);
     return 0;
+}
+
+/* ImpulseLaw._impulse_law: law_once (no friction, no dependent sticks). */
+static int ball_box_impulse_law(const ball_box_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+{
+    return ball_box_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

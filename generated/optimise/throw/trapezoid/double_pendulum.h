@@ -91,6 +91,7 @@ typedef struct {
     long sticks_kept;                  /* in/out: stick <-> slip cycles (STICK_CYCLES in a step) cut by sticking on */
     long jams;                         /* in/out: Painleve jams (JAM_CYCLES lift-offs in a step, painleve) */
     long halvings;                     /* in/out: held segments halved (split_segment: Newton failed, root spurious) */
+    long riders_cut;                   /* in/out: impulse laws solved anew, a dependent stick cut from its owner */
     int events;                        /* impacts and lift-offs of sustained contact in this step */
     int jammed;                        /* at a jam in this instant: every held frictional contact sticks */
     int law_why;                       /* the last impulse law took a second or sliding least split or a line slide */

@@ -1,0 +1,272 @@
+"""Bodies resting on bodies (issue 9, items 1 and 7), both backends, against closed forms and scipy.
+
+Disks of radius ``R`` as particles in the plane (or on a line), each pair a contact ``|q_j - q_i| - 2R``, the
+floor ``y - R``: a stack of three on a line comes to rest with each contact carrying the weight above it; a
+disk set on top of another slides off it (the lower one free on a frictionless floor) and leaves it where the
+contact force vanishes, at scipy's time on the reduced equations (event located, 1e-12) to O(h^2); three disks
+in a pyramid rest on a rough floor with the forces of statics, and on a frictionless one the top disk pushes
+the others apart and leaves both at once, at scipy's time to O(h^2). A ball landing on one of two disks side
+by side on a rough floor, the first pushed against the second so that the second's friction rides on the
+first's stick row (a dependent stick): the impact leaves the row between them with no impulse, and the struck
+disk sticks or slides by its own cone (Coulomb's law at the impact, closed form; before stop 41 it slid with
+no friction).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+import pytest
+import sympy as sp
+from hard_scenes import BACKENDS, G
+from scipy.integrate import solve_ivp
+
+import vcigen
+
+R = 0.5
+
+
+def _pair(q, i: int, j: int):
+    return sp.sqrt((q[2 * j] - q[2 * i]) ** 2 + (q[2 * j + 1] - q[2 * i + 1]) ** 2) - 2 * R
+
+
+def line_stack() -> vcigen.Model:
+    """Three disks of masses 1, 1.5 and 2 on a vertical line (heights ``y_i``), ``e = 0.5`` everywhere."""
+    ys, vs = sp.symbols("y0:3"), sp.symbols("v0:3")
+    masses = (1.0, 1.5, 2.0)
+    contacts = {"floor": ys[0] - R, "pair1": ys[1] - ys[0] - 2 * R, "pair2": ys[2] - ys[1] - 2 * R}
+    return vcigen.Model(
+        name="line_stack",
+        q=list(ys),
+        qdot=list(vs),
+        lagrangian=sum(m * v**2 / 2 - m * G * y for m, v, y in zip(masses, vs, ys)),
+        contacts=contacts,
+        restitution={name: 0.5 for name in contacts},
+    )
+
+
+def two_disks() -> vcigen.Model:
+    """Two unit disks on a frictionless floor, the second free to rest on the first."""
+    q, v = sp.symbols("x1 y1 x2 y2"), sp.symbols("a1 b1 a2 b2")
+    contacts = {"floor1": q[1] - R, "floor2": q[3] - R, "pair": _pair(q, 0, 1)}
+    return vcigen.Model(
+        name="two_disks",
+        q=list(q),
+        qdot=list(v),
+        lagrangian=sum(x**2 for x in v) / 2 - G * (q[1] + q[3]),
+        contacts=contacts,
+        restitution={name: 0.5 for name in contacts},
+    )
+
+
+def pyramid() -> vcigen.Model:
+    """Three unit disks, two on the floor and one above them; ``mu`` on the floor (a parameter)."""
+    q, v = sp.symbols("x1 y1 x2 y2 x3 y3"), sp.symbols("a1 b1 a2 b2 a3 b3")
+    mu = sp.Symbol("mu", nonnegative=True)
+    contacts = {
+        "f1": q[1] - R,
+        "f2": q[3] - R,
+        "f3": q[5] - R,
+        "p12": _pair(q, 0, 1),
+        "p13": _pair(q, 0, 2),
+        "p23": _pair(q, 1, 2),
+    }
+    return vcigen.Model(
+        name="pyramid",
+        q=list(q),
+        qdot=list(v),
+        lagrangian=sum(x**2 for x in v) / 2 - G * (q[1] + q[3] + q[5]),
+        contacts=contacts,
+        params={mu: 0.5},
+        restitution={name: 0.3 for name in contacts},
+        friction={"f1": (mu, q[0]), "f2": (mu, q[2]), "f3": (mu, q[4])},
+    )
+
+
+BALL_MASS, MU, E_BALL = 0.2, 0.5, 0.5
+
+
+def pushed_pair() -> vcigen.Model:
+    """Two unit disks side by side on a rough floor (``MU``), the first pushed against the second by a force
+    2, and a ball (a point of mass ``BALL_MASS``) that lands on the second with ``E_BALL``."""
+    q, v = sp.symbols("x1 y1 x2 y2 x3 y3"), sp.symbols("a1 b1 a2 b2 a3 b3")
+    ball = sp.sqrt((q[4] - q[2]) ** 2 + (q[5] - q[3]) ** 2) - R
+    return vcigen.Model(
+        name="pushed_pair",
+        q=list(q),
+        qdot=list(v),
+        lagrangian=(v[0] ** 2 + v[1] ** 2 + v[2] ** 2 + v[3] ** 2 + BALL_MASS * (v[4] ** 2 + v[5] ** 2)) / 2
+        - G * (q[1] + q[3] + BALL_MASS * q[5]),
+        contacts={"f1": q[1] - R, "f2": q[3] - R, "p12": _pair(q, 0, 1), "ball": ball},
+        restitution={"f1": 0.0, "f2": 0.0, "p12": 0.0, "ball": E_BALL},
+        friction={"f1": (MU, q[0]), "f2": (MU, q[2])},
+        forces=[2.0, 0, 0, 0, 0, 0],
+    )
+
+
+@cache
+def sim(name: str, backend: str) -> vcigen.Simulator:
+    models = {"line": line_stack, "two": two_disks, "pyramid": pyramid, "pushed": pushed_pair}
+    return vcigen.build(models[name](), backend=backend)
+
+
+def _gaps(q: np.ndarray, pairs, floors) -> np.ndarray:
+    out = [q[:, 2 * i + 1] - R for i in floors]
+    out += [np.hypot(q[:, 2 * j] - q[:, 2 * i], q[:, 2 * j + 1] - q[:, 2 * i + 1]) - 2 * R for i, j in pairs]
+    return np.column_stack(out)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_stack_of_three_comes_to_rest_carrying_the_weights_above(backend):
+    """Dropped with gaps of 0.3 between them, the three bounce (``e = 0.5``) and settle: all rows held, at
+    rest, each contact's force the weight above it (``(4.5, 3.5, 2) g``), no row below 0, every impact losing
+    energy."""
+    res = sim("line", backend).simulate(q0=[0.8, 2.1, 3.4], v0=[0.0] * 3, h=0.01, t_end=6.0)
+    q = res.q
+    gaps = np.column_stack([q[:, 0] - R, q[:, 1] - q[:, 0] - 2 * R, q[:, 2] - q[:, 1] - 2 * R])
+    assert gaps.min() > -1e-12
+    assert res.active[-1].all()
+    assert np.abs(res.p[-1]).max() < 1e-12
+    np.testing.assert_allclose(res.contact_force[-1], np.array([4.5, 3.5, 2.0]) * G, rtol=1e-9)
+    assert res.stats["impacts_plastic"] >= 1 and res.stats["impacts_restitution"] >= 5
+    # a cascade through the stack: the most in one step (6 at t = 0.433), at distinct instants
+    for step in {i.step for i in res.impacts}:
+        times = [i.t for i in res.impacts if i.step == step]
+        assert len(times) <= 8 and np.all(np.diff(times) > 0)
+    for imp in res.impacts:
+        assert imp.energy_after < imp.energy_before
+
+
+def _disk_off_disk(offset: float) -> float:
+    """The time the upper of two unit disks (lower one free on a frictionless floor, both at rest, the upper
+    ``offset`` to the right on top) leaves the lower: scipy on the angle ``θ`` of the line between their
+    centres (total horizontal momentum 0: ``L = R² θ'² (1 + sin² θ) - 2 g R cos θ``), the contact force ``∝
+    cos θ θ'' - sin θ θ'²`` falling to 0."""
+    t, th, w = sp.Symbol("t"), sp.Symbol("th"), sp.Symbol("w")
+    f = sp.Function("f")(t)
+    lag = R**2 * f.diff(t) ** 2 * (1 + sp.sin(f) ** 2) - 2 * G * R * sp.cos(f)
+    euler = sp.diff(lag.diff(f.diff(t)), t) - lag.diff(f)
+    acc = sp.solve(euler, f.diff(t, 2))[0].subs(f.diff(t), w).subs(f, th)
+    accel = sp.lambdify((th, w), acc)
+    force = sp.lambdify((th, w), sp.cos(th) * acc - sp.sin(th) * w**2)
+
+    def event(_, s):
+        return force(s[0], s[1])
+
+    event.terminal, event.direction = True, -1
+    start = [math.asin(offset / (2 * R)), 0.0]
+    sol = solve_ivp(lambda _, s: [s[1], accel(*s)], (0, 5), start, events=event, rtol=1e-12, atol=1e-12)
+    return float(sol.t_events[0][0])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("offset", [0.01, 0.2])
+def test_a_disk_slides_off_a_disk_that_slides_away_at_the_exact_time_to_second_order(backend, offset):
+    """The upper disk leaves the lower (``pair`` released) at scipy's time to O(h²); the horizontal momentum
+    is 0 throughout (``x1 + x2`` constant to round-off, through the later impacts too), no row below 0."""
+    exact = _disk_off_disk(offset)
+    start = [0.0, R, offset, R + math.sqrt(4 * R * R - offset * offset)]
+    errors = []
+    for h in (0.01, 0.005):
+        res = sim("two", backend).simulate(q0=start, v0=[0.0] * 4, h=h, t_end=3.0)
+        released = [t for t, name in res.liftoffs if name == "pair"]
+        errors.append(abs(released[0] - exact))
+        np.testing.assert_allclose(res.q[:, 0] + res.q[:, 2], offset, rtol=0, atol=1e-12)
+        assert _gaps(res.q, [(0, 1)], [0, 1]).min() > -1e-12
+        assert len(res.impacts) >= 3  # it lands, and they meet again
+    assert errors[0] < 5e-5
+    assert 3.5 < errors[0] / errors[1] < 4.5
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pyramid_on_a_rough_floor_rests_with_the_forces_of_statics(backend):
+    """The top disk dropped 0.05 onto two touching ones (``mu = 0.5``): at rest, the floor carries ``3 g / 2``
+    under each lower disk, the top none; the top's two contacts each ``g / (2 cos β)``, ``β`` their angle from
+    the vertical at the end; the lower disks' own contact none."""
+    start = [-R, R, R, R, 0.0, R + math.sqrt(3) * R + 0.05]
+    res = sim("pyramid", backend).simulate(q0=start, v0=[0.0] * 6, h=0.01, t_end=3.0, params={"mu": 0.5})
+    q = res.q[-1]
+    assert np.abs(res.p[-1]).max() < 1e-12
+    assert _gaps(res.q, [(0, 1), (0, 2), (1, 2)], [0, 1, 2]).min() > -1e-12
+    cos_b = (q[5] - q[1]) / (2 * R)
+    want = [1.5 * G, 1.5 * G, 0.0, 0.0, G / (2 * cos_b), G / (2 * cos_b)]
+    np.testing.assert_allclose(res.contact_force[-1], want, rtol=1e-9, atol=1e-9)
+    assert res.active[-1].tolist() == [True, True, False, False, True, True]
+
+
+def _pyramid_release() -> float:
+    """When the top of a symmetric pyramid of three unit disks on a frictionless floor (the lower ones
+    touching, all at rest) leaves both: scipy on the angle ``θ`` of each lower-to-top line (``L = 2 R² θ'² (2
+    cos² θ + sin² θ) - 2 g R cos θ``), the lower disks' acceleration ``∝ cos θ θ'' - sin θ θ'²`` falling to 0.
+    """
+    t, th, w = sp.Symbol("t"), sp.Symbol("th"), sp.Symbol("w")
+    f = sp.Function("f")(t)
+    lag = 2 * R**2 * f.diff(t) ** 2 * (2 * sp.cos(f) ** 2 + sp.sin(f) ** 2) - 2 * G * R * sp.cos(f)
+    euler = sp.diff(lag.diff(f.diff(t)), t) - lag.diff(f)
+    acc = sp.solve(euler, f.diff(t, 2))[0].subs(f.diff(t), w).subs(f, th)
+    accel = sp.lambdify((th, w), acc)
+    force = sp.lambdify((th, w), sp.cos(th) * acc - sp.sin(th) * w**2)
+
+    def event(_, s):
+        return force(s[0], s[1])
+
+    event.terminal, event.direction = True, -1
+    sol = solve_ivp(
+        lambda _, s: [s[1], accel(*s)], (0, 5), [math.pi / 6, 0.0], events=event, rtol=1e-12, atol=1e-12
+    )
+    return float(sol.t_events[0][0])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pyramid_on_a_frictionless_floor_lets_its_top_go_from_both_at_once(backend):
+    """The top pushes the lower disks apart and leaves both (``p13``, ``p23`` released at one instant) at
+    scipy's time to O(h²); the motion stays symmetric (``x1 = -x2``, ``x3 = 0``) and no row goes below 0."""
+    exact = _pyramid_release()
+    start = [-R, R, R, R, 0.0, R + math.sqrt(3) * R]
+    errors = []
+    for h in (0.01, 0.005):
+        res = sim("pyramid", backend).simulate(q0=start, v0=[0.0] * 6, h=h, t_end=0.8, params={"mu": 0.0})
+        released = {name: t for t, name in res.liftoffs}
+        assert released["p13"] == released["p23"]
+        errors.append(abs(released["p13"] - exact))
+        np.testing.assert_allclose(res.q[:, 0], -res.q[:, 2], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(res.q[:, 4], 0.0, rtol=0, atol=1e-12)
+        assert _gaps(res.q, [(0, 1), (0, 2), (1, 2)], [0, 1, 2]).min() > -1e-12
+    assert errors[0] < 1e-5
+    assert 3.5 < errors[0] / errors[1] < 4.5
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("alpha", [0.35, 0.6])
+def test_a_disk_struck_beside_its_neighbour_keeps_its_own_friction(backend, alpha):
+    """The ball falls from 1 m above the second disk's centre, ``α`` left of its top (``n = (-sin α, cos
+    α)``). Pushed against it, the first disk holds the second's tangent through the row between them (the
+    second a dependent stick riding on the first's stick row); the impulse pushes the second away from the
+    first, the row between them takes none (``res.stats["riders_cut"]``), and the second disk's own cone
+    decides (Coulomb's law at the impact, the floor plastic). ``tan α < μ`` (0.35): it sticks; both disks stay
+    where they are (exactly) and the ball leaves with ``v - (1 + e) (v.n) n``. ``tan α > μ`` (0.6): it slides
+    with ``u = P (sin α - μ cos α)``, ``P = -(1 + e) v.n / (1 / m_b + sin α (sin α - μ cos α))``, braked by
+    ``μ g`` after, and the ball leaves with ``v + P n / m_b``. Before stop 41 the second disk slid with no
+    friction (0.43 m/s for 0.126 at ``α = 0.6``; 9.5 mm where it should stick)."""
+    h, drop = 0.01, 1.0
+    start = [0.0, R, 2 * R, R, 2 * R - R * math.sin(alpha), R + drop]
+    res = sim("pushed", backend).simulate(q0=start, v0=[0.0] * 6, h=h, t_end=0.6)
+    assert [(i.contact, i.kind) for i in res.impacts] == [("ball", "restitution")]
+    imp = res.impacts[0]
+    v = np.array([0.0, -math.sqrt(2 * G * (drop - R * math.cos(alpha)))])
+    n = np.array([-math.sin(alpha), math.cos(alpha)])
+    k = imp.step + 1  # the grid point after the impact
+    np.testing.assert_allclose(res.q[:, 0], 0.0, atol=1e-15)  # the first disk: its own cone holds it
+    if math.tan(alpha) < MU:
+        np.testing.assert_allclose(res.q[:, 2], 2 * R, atol=1e-15)
+        ball = v - (1 + E_BALL) * (v @ n) * n
+    else:
+        lean = math.sin(alpha) - MU * math.cos(alpha)
+        push = -(1 + E_BALL) * (v @ n) / (1 / BALL_MASS + math.sin(alpha) * lean)
+        slide = push * lean
+        assert abs(res.p[k, 2] - (slide - MU * G * (res.t[k] - imp.t))) < 1e-12
+        ball = v + push * n / BALL_MASS
+    assert abs(res.p[k + 1, 4] / BALL_MASS - ball[0]) < 1e-12  # its horizontal momentum in flight
+    assert res.stats["riders_cut"] == 1
