@@ -15,7 +15,9 @@ no friction).
 from __future__ import annotations
 
 import math
+import sys
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,7 +27,10 @@ from scipy.integrate import solve_ivp
 
 import vcigen
 
-R = 0.5
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "contact"))
+import pyramid as example  # noqa: E402 - examples/contact/pyramid.py: its model (e = 0.3, mu a parameter)
+
+R = example.R
 
 
 def _pair(q, i: int, j: int):
@@ -61,30 +66,6 @@ def two_disks() -> vcigen.Model:
     )
 
 
-def pyramid() -> vcigen.Model:
-    """Three unit disks, two on the floor and one above them; ``mu`` on the floor (a parameter)."""
-    q, v = sp.symbols("x1 y1 x2 y2 x3 y3"), sp.symbols("a1 b1 a2 b2 a3 b3")
-    mu = sp.Symbol("mu", nonnegative=True)
-    contacts = {
-        "f1": q[1] - R,
-        "f2": q[3] - R,
-        "f3": q[5] - R,
-        "p12": _pair(q, 0, 1),
-        "p13": _pair(q, 0, 2),
-        "p23": _pair(q, 1, 2),
-    }
-    return vcigen.Model(
-        name="pyramid",
-        q=list(q),
-        qdot=list(v),
-        lagrangian=sum(x**2 for x in v) / 2 - G * (q[1] + q[3] + q[5]),
-        contacts=contacts,
-        params={mu: 0.5},
-        restitution={name: 0.3 for name in contacts},
-        friction={"f1": (mu, q[0]), "f2": (mu, q[2]), "f3": (mu, q[4])},
-    )
-
-
 BALL_MASS, MU, E_BALL = 0.2, 0.5, 0.5
 
 
@@ -108,7 +89,7 @@ def pushed_pair() -> vcigen.Model:
 
 @cache
 def sim(name: str, backend: str) -> vcigen.Simulator:
-    models = {"line": line_stack, "two": two_disks, "pyramid": pyramid, "pushed": pushed_pair}
+    models = {"line": line_stack, "two": two_disks, "pyramid": example.model, "pushed": pushed_pair}
     return vcigen.build(models[name](), backend=backend)
 
 
@@ -196,34 +177,11 @@ def test_a_pyramid_on_a_rough_floor_rests_with_the_forces_of_statics(backend):
     assert res.active[-1].tolist() == [True, True, False, False, True, True]
 
 
-def _pyramid_release() -> float:
-    """When the top of a symmetric pyramid of three unit disks on a frictionless floor (the lower ones
-    touching, all at rest) leaves both: scipy on the angle ``θ`` of each lower-to-top line (``L = 2 R² θ'² (2
-    cos² θ + sin² θ) - 2 g R cos θ``), the lower disks' acceleration ``∝ cos θ θ'' - sin θ θ'²`` falling to 0.
-    """
-    t, th, w = sp.Symbol("t"), sp.Symbol("th"), sp.Symbol("w")
-    f = sp.Function("f")(t)
-    lag = 2 * R**2 * f.diff(t) ** 2 * (2 * sp.cos(f) ** 2 + sp.sin(f) ** 2) - 2 * G * R * sp.cos(f)
-    euler = sp.diff(lag.diff(f.diff(t)), t) - lag.diff(f)
-    acc = sp.solve(euler, f.diff(t, 2))[0].subs(f.diff(t), w).subs(f, th)
-    accel = sp.lambdify((th, w), acc)
-    force = sp.lambdify((th, w), sp.cos(th) * acc - sp.sin(th) * w**2)
-
-    def event(_, s):
-        return force(s[0], s[1])
-
-    event.terminal, event.direction = True, -1
-    sol = solve_ivp(
-        lambda _, s: [s[1], accel(*s)], (0, 5), [math.pi / 6, 0.0], events=event, rtol=1e-12, atol=1e-12
-    )
-    return float(sol.t_events[0][0])
-
-
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_pyramid_on_a_frictionless_floor_lets_its_top_go_from_both_at_once(backend):
     """The top pushes the lower disks apart and leaves both (``p13``, ``p23`` released at one instant) at
     scipy's time to O(h²); the motion stays symmetric (``x1 = -x2``, ``x3 = 0``) and no row goes below 0."""
-    exact = _pyramid_release()
+    exact = example.release_time()
     start = [-R, R, R, R, 0.0, R + math.sqrt(3) * R]
     errors = []
     for h in (0.01, 0.005):
