@@ -87,9 +87,39 @@ def pushed_pair() -> vcigen.Model:
     )
 
 
+def tetra_pile() -> vcigen.Model:
+    """Four unit balls of radius ``R`` in space (``x_i``, ``y_i``, ``z_i``), each on the floor ``z - R`` with
+    an isotropic cone (``mu`` a parameter), each pair a contact; ``e = 0.3`` everywhere."""
+    q, v = sp.symbols("x1:5 y1:5 z1:5"), sp.symbols("u1:5 v1:5 w1:5")
+    x, y, z = q[0:4], q[4:8], q[8:12]
+    mu = sp.Symbol("mu", nonnegative=True)
+    contacts = {f"f{i + 1}": z[i] - R for i in range(4)}
+    for i in range(4):
+        for j in range(i + 1, 4):
+            contacts[f"p{i + 1}{j + 1}"] = (
+                sp.sqrt((x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2 + (z[j] - z[i]) ** 2) - 2 * R
+            )
+    return vcigen.Model(
+        name="tetra_pile",
+        q=list(q),
+        qdot=list(v),
+        lagrangian=sum(a**2 for a in v) / 2 - G * sum(z),
+        contacts=contacts,
+        params={mu: 0.5},
+        restitution={name: 0.3 for name in contacts},
+        friction={f"f{i + 1}": (mu, [x[i], y[i]]) for i in range(4)},
+    )
+
+
 @cache
 def sim(name: str, backend: str) -> vcigen.Simulator:
-    models = {"line": line_stack, "two": two_disks, "pyramid": example.model, "pushed": pushed_pair}
+    models = {
+        "line": line_stack,
+        "two": two_disks,
+        "pyramid": example.model,
+        "pushed": pushed_pair,
+        "tetra": tetra_pile,
+    }
     return vcigen.build(models[name](), backend=backend)
 
 
@@ -228,3 +258,77 @@ def test_a_disk_struck_beside_its_neighbour_keeps_its_own_friction(backend, alph
         ball = v + push * n / BALL_MASS
     assert abs(res.p[k + 1, 4] / BALL_MASS - ball[0]) < 1e-12  # its horizontal momentum in flight
     assert res.stats["riders_cut"] == 1
+
+
+RC = 2 * R / math.sqrt(3)  # the lower balls' centres from the axis: touching, an equilateral triangle
+
+
+def _tetra_start(lift: float) -> list[float]:
+    """The lower balls touching on the floor around the z axis, the fourth on top of them, ``lift`` above."""
+    angles = [math.pi / 2 + k * 2 * math.pi / 3 for k in range(3)]
+    top = R + math.sqrt(4 * R * R - RC * RC) + lift
+    return (
+        [RC * math.cos(a) for a in angles]
+        + [0.0]
+        + [RC * math.sin(a) for a in angles]
+        + [0.0]
+        + [R] * 3
+        + [top]
+    )
+
+
+def _tetra_release() -> float:
+    """When the top ball of the pile (at rest, frictionless floor) leaves all three: scipy on the angle ``β``
+    of each lower-to-top line from the vertical (``L = β'² (6 R² cos² β + 2 R² sin² β) - 2 g R cos β``), the
+    lower balls' radial acceleration ``∝ cos β β'' - sin β β'²`` falling to 0 (1e-12)."""
+    t, th, w = sp.Symbol("t"), sp.Symbol("th"), sp.Symbol("w")
+    f = sp.Function("f")(t)
+    lag = f.diff(t) ** 2 * (6 * R**2 * sp.cos(f) ** 2 + 2 * R**2 * sp.sin(f) ** 2) - 2 * G * R * sp.cos(f)
+    euler = sp.diff(lag.diff(f.diff(t)), t) - lag.diff(f)
+    acc = sp.solve(euler, f.diff(t, 2))[0].subs(f.diff(t), w).subs(f, th)
+    accel = sp.lambdify((th, w), acc)
+    force = sp.lambdify((th, w), sp.cos(th) * acc - sp.sin(th) * w**2)
+
+    def event(_, s):
+        return force(s[0], s[1])
+
+    event.terminal, event.direction = True, -1
+    start = [math.asin(RC / (2 * R)), 0.0]
+    sol = solve_ivp(lambda _, s: [s[1], accel(*s)], (0, 5), start, events=event, rtol=1e-12, atol=1e-12)
+    return float(sol.t_events[0][0])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pile_of_four_balls_rests_on_a_rough_floor_with_the_forces_of_statics(backend):
+    """In space, isotropic cones on the floor (``mu = 0.5``): the top ball dropped 0.05 onto three touching
+    ones settles; the floor carries ``4 g / 3`` under each lower ball, the top's three contacts ``g / (3 cos
+    β)`` each, ``β`` their angle from the vertical at the end; the lower balls' own contacts and the top's
+    floor none."""
+    res = sim("tetra", backend).simulate(q0=_tetra_start(0.05), v0=[0.0] * 12, h=0.005, t_end=2.0)
+    q = res.q[-1]
+    assert np.abs(res.p[-1]).max() < 1e-12
+    cos_b = (q[11] - q[8]) / (2 * R)
+    want = [4 * G / 3] * 3 + [0.0] * 3 + [G / (3 * cos_b), 0.0] + [G / (3 * cos_b)] * 2  # f4, p12, p13: 0
+    names = list(res.contact_names)
+    assert names[:4] == ["f1", "f2", "f3", "f4"] and names[6] == "p14" and names[8:] == ["p24", "p34"]
+    np.testing.assert_allclose(res.contact_force[-1], want, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pile_of_four_balls_on_a_frictionless_floor_lets_its_top_go_from_all_three_at_once(backend):
+    """The top pushes the lower balls apart and leaves all three at one instant (their lift-offs, each row's
+    own root, within 1e-12), at scipy's time to O(h²); the motion keeps its symmetry (``Σ x_i = 0``, the top
+    on the axis) to round-off."""
+    exact = _tetra_release()
+    errors = []
+    for h in (0.01, 0.005):
+        res = sim("tetra", backend).simulate(
+            q0=_tetra_start(0.0), v0=[0.0] * 12, h=h, t_end=0.8, params={"mu": 0.0}
+        )
+        released = {name: t for t, name in res.liftoffs}
+        assert max(released[p] for p in ("p14", "p24", "p34")) - min(released.values()) < 1e-12
+        errors.append(abs(released["p14"] - exact))
+        assert np.abs(res.q[:, 0:4].sum(axis=1)).max() < 1e-14
+        assert np.abs(res.q[:, [3, 7]]).max() < 1e-14
+    assert errors[0] < 1e-5
+    assert 3.5 < errors[0] / errors[1] < 4.5
