@@ -111,6 +111,29 @@ def tetra_pile() -> vcigen.Model:
     )
 
 
+def pushed_balls() -> vcigen.Model:
+    """:func:`pushed_pair` in space: two unit balls side by side along ``x`` on a rough floor (isotropic
+    cones, ``MU``), the first pushed against the second by a force 2 along ``x``, and a ball (a point of mass
+    ``BALL_MASS``) that lands on the second with ``E_BALL``."""
+    q, v = sp.symbols("x1 y1 z1 x2 y2 z2 x3 y3 z3"), sp.symbols("u1 v1 w1 u2 v2 w2 u3 v3 w3")
+
+    def apart(i: int, j: int):
+        return sp.sqrt(sum((q[3 * j + c] - q[3 * i + c]) ** 2 for c in range(3)))
+
+    return vcigen.Model(
+        name="pushed_balls",
+        q=list(q),
+        qdot=list(v),
+        lagrangian=sum(a**2 for a in v[:6]) / 2
+        + BALL_MASS * sum(a**2 for a in v[6:]) / 2
+        - G * (q[2] + q[5] + BALL_MASS * q[8]),
+        contacts={"f1": q[2] - R, "f2": q[5] - R, "p12": apart(0, 1) - 2 * R, "ball": apart(1, 2) - R},
+        restitution={"f1": 0.0, "f2": 0.0, "p12": 0.0, "ball": E_BALL},
+        friction={"f1": (MU, [q[0], q[1]]), "f2": (MU, [q[3], q[4]])},
+        forces=[2.0] + [0] * 8,
+    )
+
+
 @cache
 def sim(name: str, backend: str) -> vcigen.Simulator:
     models = {
@@ -119,6 +142,7 @@ def sim(name: str, backend: str) -> vcigen.Simulator:
         "pyramid": example.model,
         "pushed": pushed_pair,
         "tetra": tetra_pile,
+        "pushed3": pushed_balls,
     }
     return vcigen.build(models[name](), backend=backend)
 
@@ -257,6 +281,41 @@ def test_a_disk_struck_beside_its_neighbour_keeps_its_own_friction(backend, alph
         assert abs(res.p[k, 2] - (slide - MU * G * (res.t[k] - imp.t))) < 1e-12
         ball = v + push * n / BALL_MASS
     assert abs(res.p[k + 1, 4] / BALL_MASS - ball[0]) < 1e-12  # its horizontal momentum in flight
+    assert res.stats["riders_cut"] == 1
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize(("alpha", "phi"), [(0.35, 1.2), (0.6, 0.7)])
+def test_a_ball_struck_beside_its_neighbour_keeps_its_own_cone(backend, alpha, phi):
+    """:func:`test_a_disk_struck_beside_its_neighbour_keeps_its_own_friction` in space, with isotropic cones:
+    the ball lands ``α`` from the second ball's top, turned ``φ`` about the vertical from the side of the
+    first (``n = (-sin α cos φ, sin α sin φ, cos α)``), so that the push has a component across the line
+    between them. ``tan α < μ``: the second ball sticks and the ball leaves with ``v - (1 + e) (v.n) n``;
+    ``tan α > μ``: it slides along the push's horizontal direction with Coulomb's sliding impulse (the same
+    closed form as in the plane). Before stop 41 its cone rode on the first ball's rows and the impact
+    left it none: it took a frictionless impulse (the ball left at -1.5227 m/s for -1.5585 at ``α = 0.35, φ
+    = 0``), then stopped at once where its cone stuck again, its momentum lost."""
+    h, drop = 0.01, 1.0
+    n = np.array([-math.sin(alpha) * math.cos(phi), math.sin(alpha) * math.sin(phi), math.cos(alpha)])
+    start = [0.0, 0.0, R, 2 * R, 0.0, R, 2 * R + R * n[0], R * n[1], R + drop]
+    res = sim("pushed3", backend).simulate(q0=start, v0=[0.0] * 9, h=h, t_end=0.6)
+    assert [(i.contact, i.kind) for i in res.impacts] == [("ball", "restitution")]
+    imp = res.impacts[0]
+    v = np.array([0.0, 0.0, -math.sqrt(2 * G * (drop - R * math.cos(alpha)))])
+    k = imp.step + 1
+    np.testing.assert_allclose(res.q[:, 0:2], 0.0, atol=1e-15)
+    if math.tan(alpha) < MU:
+        np.testing.assert_allclose(res.q[:, 3:5], [[2 * R, 0.0]] * len(res.t), atol=1e-15)
+        ball = v - (1 + E_BALL) * (v @ n) * n
+    else:
+        lean = math.sin(alpha) - MU * math.cos(alpha)
+        push = -(1 + E_BALL) * (v @ n) / (1 / BALL_MASS + math.sin(alpha) * lean)
+        along = -n[:2] / math.hypot(*n[:2])
+        np.testing.assert_allclose(
+            res.p[k, 3:5], (push * lean - MU * G * (res.t[k] - imp.t)) * along, atol=1e-12
+        )
+        ball = v + push * n / BALL_MASS
+    np.testing.assert_allclose(res.p[k + 1, 6:8] / BALL_MASS, ball[:2], rtol=0, atol=1e-12)
     assert res.stats["riders_cut"] == 1
 
 

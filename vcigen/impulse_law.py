@@ -92,16 +92,17 @@ class ImpulseLaw:
         return (*again[:8], again[8] or "friction at an impact")
 
     def _cut_riders(self, q, law, hit) -> list[int]:
-        """The one-tangent dependent sticks (``_ride[g] = f``, ``f`` a one-tangent contact sticking through
-        the law) pressed after the law ``law`` (:meth:`_law_once`: a normal row of theirs kept) whose stick
-        row is no longer in the span of the rows it keeps (active or hit, neither dropped nor slipped)."""
+        """The dependent sticks (``_ride[g] = f``: a one-tangent contact or a cone's tangent, ``f``'s stick
+        row kept by the law) pressed after the law ``law`` (:meth:`_law_once`: a normal row of theirs kept)
+        whose stick row is no longer in the span of the rows it keeps (active or hit, neither dropped nor
+        slipped)."""
         k = self.k
         dropped, slipped = set(law[4]), set(law[5])
         kept = [r for r in range(k.r) if (self.act[r] or r in hit) and r not in dropped and r not in slipped]
         cut = []
         grad = None
         for g, f in enumerate(self._ride):
-            if f < 0 or f == g or self._partner[g] >= 0 or self._partner[f] >= 0:
+            if f < 0 or f == g:
                 continue
             if self._stick_rows[f] not in kept:
                 continue

@@ -4243,9 +4243,9 @@ static void spun_ball_law_state(const spun_ball_ctx_t *c, const int *act, const 
     }
 }
 
-/* ImpulseLaw._cut_riders: the one-tangent dependent sticks (ride[g] = f, f a one-tangent contact sticking through
- * the law) pressed after it (a normal row of theirs kept) whose stick row is no longer in the span of the rows it
- * keeps (active or hit, neither dropped nor slipped): cut[g] = 1. Returns how many. */
+/* ImpulseLaw._cut_riders: the dependent sticks (ride[g] = f: a one-tangent contact or a cone's tangent, f's stick
+ * row kept by the law) pressed after it (a normal row of theirs kept) whose stick row is no longer in the span of
+ * the rows it keeps (active or hit, neither dropped nor slipped): cut[g] = 1. Returns how many. */
 static int spun_ball_cut_riders(const spun_ball_ctx_t *c, const double *q, const double *vel_m, const int *hit,
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
@@ -4265,7 +4265,7 @@ static int spun_ball_cut_riders(const spun_ball_ctx_t *c, const double *q, const
     for (g = 0; g < SPUN_BALL_NF; ++g) {
         f = c->sus->ride[g];
         cut[g] = 0;
-        if (f < 0 || f == g || spun_ball_partner[g] >= 0 || spun_ball_partner[f] >= 0) {
+        if (f < 0 || f == g) {
             continue;
         }
         for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {

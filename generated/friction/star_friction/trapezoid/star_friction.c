@@ -2879,9 +2879,9 @@ static void star_friction_law_state(const star_friction_ctx_t *c, const int *act
     }
 }
 
-/* ImpulseLaw._cut_riders: the one-tangent dependent sticks (ride[g] = f, f a one-tangent contact sticking through
- * the law) pressed after it (a normal row of theirs kept) whose stick row is no longer in the span of the rows it
- * keeps (active or hit, neither dropped nor slipped): cut[g] = 1. Returns how many. */
+/* ImpulseLaw._cut_riders: the dependent sticks (ride[g] = f: a one-tangent contact or a cone's tangent, f's stick
+ * row kept by the law) pressed after it (a normal row of theirs kept) whose stick row is no longer in the span of
+ * the rows it keeps (active or hit, neither dropped nor slipped): cut[g] = 1. Returns how many. */
 static int star_friction_cut_riders(const star_friction_ctx_t *c, const double *q, const double *vel_m, const int *hit,
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
