@@ -391,3 +391,30 @@ def test_a_pile_of_four_balls_on_a_frictionless_floor_lets_its_top_go_from_all_t
         assert np.abs(res.q[:, [3, 7]]).max() < 1e-14
     assert errors[0] < 1e-5
     assert 3.5 < errors[0] / errors[1] < 4.5
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pile_whose_six_contacts_meet_at_once_takes_one_law_on_fifteen_rows(backend):
+    """The pile at rest on a rough floor (``mu = 1``), the lower balls given 0.3 m/s towards the axis: at ``t
+    = 0`` all six ball contacts meet at once beside the three floors held and their cones' six stick rows,
+    fifteen rows, more than the enumeration takes (``MAX_LAW_ROWS = 12``): the law is solved by projected
+    Gauss-Seidel (cones only, ``ImpulseLaw._law_pgs``). The run keeps the pile's three-fold symmetry (``Σ x_i
+    = Σ y_i = 0`` over the lower balls, the top on the axis) to 1e-13, no impact adds energy and no row goes
+    below 0. Before stop 41 it ended at step 0: "impulse law on 15 contacts at once"."""
+    q0 = _tetra_start(0.0)
+    inward = [-0.3 * c / RC for c in q0[0:3]], [-0.3 * c / RC for c in q0[4:7]]
+    v0 = inward[0] + [0.0] + inward[1] + [0.0] * 5
+    res = sim("tetra", backend).simulate(q0=q0, v0=v0, h=0.005, t_end=1.0, params={"mu": 1.0})
+    first = sorted(i.contact for i in res.impacts if i.t < 1e-12)
+    assert first == ["p12", "p13", "p14", "p23", "p24", "p34"]
+    assert np.abs(res.q[:, 0:3].sum(axis=1)).max() < 1e-13 and np.abs(res.q[:, 4:7].sum(axis=1)).max() < 1e-13
+    assert np.abs(res.q[:, [3, 7]]).max() < 1e-13
+    assert all(i.energy_after <= i.energy_before for i in res.impacts)
+    z, (x, y) = res.q[:, 8:12], (res.q[:, 0:4], res.q[:, 4:8])
+    apart = [
+        np.sqrt((x[:, j] - x[:, i]) ** 2 + (y[:, j] - y[:, i]) ** 2 + (z[:, j] - z[:, i]) ** 2) - 2 * R
+        for i in range(4)
+        for j in range(i + 1, 4)
+    ]
+    assert min((z - R).min(), np.min(apart)) > -1e-12
+    assert np.abs(res.p[-1]).max() < 1e-12  # at rest

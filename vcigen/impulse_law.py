@@ -162,10 +162,7 @@ class ImpulseLaw:
         lands, loose, grad = self._law_lands(q, vel, rows, grad)
         for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own (or loose)
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
-        if len(rows) > MAX_LAW_ROWS:
-            raise SolverError(
-                step, t_k, "sustained", math.nan, f"impulse law on {len(rows)} contacts at once"
-            )
+        crowded = len(rows) > MAX_LAW_ROWS  # too many to enumerate: the projected Gauss-Seidel alone, below
         tgt = {r: 0.0 for r in rows} | dict(targets)
         tgts = np.array([tgt[r] for r in rows])
         free = [not (k.row_bilateral[r] or (k.row_stick and k.row_stick[r] >= 0)) for r in rows]
@@ -184,7 +181,11 @@ class ImpulseLaw:
         plain = base * 2 ** len(isos)  # the modes with no loose cone left out, then those with one
         radix = [3 if iso[5] in loose else 2 for iso in isos]
         solved = None  # the projected Gauss-Seidel's solution (_law_pgs), where the modes found none first
-        for modes in range(plain + base * math.prod(radix)):
+        if crowded:  # a pile of balls touching at once: cones alone (_law_pgs), else too many rows
+            solved = self._law_pgs(w, b, tgts, free, isos, cones, strict, lam_eps, vel_eps)
+            if solved is None:
+                raise SolverError(step, t_k, "sustained", math.nan, f"impulse law on {n} contacts at once")
+        for modes in range(0 if crowded else plain + base * math.prod(radix)):
             if modes == plain and loose:  # before a landing cone is left out: the whole problem at once
                 solved = self._law_pgs(w, b, tgts, free, isos, cones, strict, lam_eps, vel_eps)
                 if solved is not None:
@@ -274,15 +275,16 @@ class ImpulseLaw:
                 continue
             break
         else:
-            if out:
+            if out and not crowded:
                 raise SolverError(step, t_k, "sustained", math.nan, out)
-            raise SolverError(
-                step,
-                t_k,
-                "sustained",
-                math.nan,
-                f"impulse law: no solution on {n} contacts (dependent normals?)",
-            )
+            if not crowded:  # (crowded: solved above)
+                raise SolverError(
+                    step,
+                    t_k,
+                    "sustained",
+                    math.nan,
+                    f"impulse law: no solution on {n} contacts (dependent normals?)",
+                )
         if solved is not None:
             lam, tight_set, sliding = solved
             mask = sum(1 << i for i in tight_set)

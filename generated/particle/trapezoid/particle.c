@@ -1901,7 +1901,7 @@ static int particle_law_once(const particle_ctx_t *c, const double *q, const dou
     double lam[PARTICLE_R_DIM], sol[PARTICLE_R_DIM], lam_eps, vel_eps, gap;
     int rows[PARTICLE_R_DIM], tight[PARTICLE_R_DIM] = {0}, piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
     int sliding[PARTICLE_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     particle_velocity(c, q, guess, p, vel_m);
     particle_legendre(q, vel_m, c->par, mom, mass);
@@ -1924,9 +1924,7 @@ static int particle_law_once(const particle_ctx_t *c, const double *q, const dou
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > PARTICLE_MAX_LAW_ROWS) {
-        return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > PARTICLE_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = particle_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = particle_lu(PARTICLE_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -1948,6 +1946,9 @@ static int particle_law_once(const particle_ctx_t *c, const double *q, const dou
                 w[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return particle_fail(c, PARTICLE_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

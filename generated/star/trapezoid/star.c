@@ -2179,7 +2179,7 @@ static int star_law_once(const star_ctx_t *c, const double *q, const double *p, 
     double lam[STAR_R_DIM], sol[STAR_R_DIM], lam_eps, vel_eps, gap;
     int rows[STAR_R_DIM], tight[STAR_R_DIM] = {0}, piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
     int sliding[STAR_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     star_velocity(c, q, guess, p, vel_m);
     star_legendre(q, vel_m, c->par, mom, mass);
@@ -2202,9 +2202,7 @@ static int star_law_once(const star_ctx_t *c, const double *q, const double *p, 
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > STAR_MAX_LAW_ROWS) {
-        return star_fail(c, STAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > STAR_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = star_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = star_lu(STAR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2226,6 +2224,9 @@ static int star_law_once(const star_ctx_t *c, const double *q, const double *p, 
                 w[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return star_fail(c, STAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

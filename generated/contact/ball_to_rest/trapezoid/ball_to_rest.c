@@ -1902,7 +1902,7 @@ static int ball_to_rest_law_once(const ball_to_rest_ctx_t *c, const double *q, c
     double lam[BALL_TO_REST_R_DIM], sol[BALL_TO_REST_R_DIM], lam_eps, vel_eps, gap;
     int rows[BALL_TO_REST_R_DIM], tight[BALL_TO_REST_R_DIM] = {0}, piv[BALL_TO_REST_R_DIM > BALL_TO_REST_N ? BALL_TO_REST_R_DIM : BALL_TO_REST_N];
     int sliding[BALL_TO_REST_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     ball_to_rest_velocity(c, q, guess, p, vel_m);
     ball_to_rest_legendre(q, vel_m, c->par, mom, mass);
@@ -1925,9 +1925,7 @@ static int ball_to_rest_law_once(const ball_to_rest_ctx_t *c, const double *q, c
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > BALL_TO_REST_MAX_LAW_ROWS) {
-        return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > BALL_TO_REST_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = ball_to_rest_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = ball_to_rest_lu(BALL_TO_REST_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -1949,6 +1947,9 @@ static int ball_to_rest_law_once(const ball_to_rest_ctx_t *c, const double *q, c
                 w[k * nr + l] += grad[rows[k] * BALL_TO_REST_N + i] * minv_g[l * BALL_TO_REST_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

@@ -2678,7 +2678,7 @@ static int cube_settles_law_once(const cube_settles_ctx_t *c, const double *q, c
     double lam[CUBE_SETTLES_R_DIM], sol[CUBE_SETTLES_R_DIM], lam_eps, vel_eps, gap;
     int rows[CUBE_SETTLES_R_DIM], tight[CUBE_SETTLES_R_DIM] = {0}, piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
     int sliding[CUBE_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     cube_settles_velocity(c, q, guess, p, vel_m);
     cube_settles_legendre(q, vel_m, c->par, mom, mass);
@@ -2701,9 +2701,7 @@ static int cube_settles_law_once(const cube_settles_ctx_t *c, const double *q, c
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > CUBE_SETTLES_MAX_LAW_ROWS) {
-        return cube_settles_fail(c, CUBE_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > CUBE_SETTLES_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = cube_settles_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = cube_settles_lu(CUBE_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2725,6 +2723,9 @@ static int cube_settles_law_once(const cube_settles_ctx_t *c, const double *q, c
                 w[k * nr + l] += grad[rows[k] * CUBE_SETTLES_N + i] * minv_g[l * CUBE_SETTLES_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return cube_settles_fail(c, CUBE_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

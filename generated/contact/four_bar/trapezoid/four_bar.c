@@ -2397,7 +2397,7 @@ static int four_bar_law_once(const four_bar_ctx_t *c, const double *q, const dou
     double lam[FOUR_BAR_R_DIM], sol[FOUR_BAR_R_DIM], lam_eps, vel_eps, gap;
     int rows[FOUR_BAR_R_DIM], tight[FOUR_BAR_R_DIM] = {0}, piv[FOUR_BAR_R_DIM > FOUR_BAR_N ? FOUR_BAR_R_DIM : FOUR_BAR_N];
     int sliding[FOUR_BAR_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     four_bar_velocity(c, q, guess, p, vel_m);
     four_bar_legendre(q, vel_m, c->par, mom, mass);
@@ -2420,9 +2420,7 @@ static int four_bar_law_once(const four_bar_ctx_t *c, const double *q, const dou
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > FOUR_BAR_MAX_LAW_ROWS) {
-        return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > FOUR_BAR_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = four_bar_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = four_bar_lu(FOUR_BAR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2444,6 +2442,9 @@ static int four_bar_law_once(const four_bar_ctx_t *c, const double *q, const dou
                 w[k * nr + l] += grad[rows[k] * FOUR_BAR_N + i] * minv_g[l * FOUR_BAR_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

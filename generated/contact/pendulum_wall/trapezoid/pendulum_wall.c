@@ -2132,7 +2132,7 @@ static int pendulum_wall_law_once(const pendulum_wall_ctx_t *c, const double *q,
     double lam[PENDULUM_WALL_R_DIM], sol[PENDULUM_WALL_R_DIM], lam_eps, vel_eps, gap;
     int rows[PENDULUM_WALL_R_DIM], tight[PENDULUM_WALL_R_DIM] = {0}, piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
     int sliding[PENDULUM_WALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     pendulum_wall_velocity(c, q, guess, p, vel_m);
     pendulum_wall_legendre(q, vel_m, c->par, mom, mass);
@@ -2155,9 +2155,7 @@ static int pendulum_wall_law_once(const pendulum_wall_ctx_t *c, const double *q,
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > PENDULUM_WALL_MAX_LAW_ROWS) {
-        return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > PENDULUM_WALL_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = pendulum_wall_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = pendulum_wall_lu(PENDULUM_WALL_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2179,6 +2177,9 @@ static int pendulum_wall_law_once(const pendulum_wall_ctx_t *c, const double *q,
                 w[k * nr + l] += grad[rows[k] * PENDULUM_WALL_N + i] * minv_g[l * PENDULUM_WALL_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

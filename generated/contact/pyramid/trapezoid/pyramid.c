@@ -3267,7 +3267,7 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
     double lam[PYRAMID_R_DIM], sol[PYRAMID_R_DIM], lam_eps, vel_eps, gap;
     int rows[PYRAMID_R_DIM], tight[PYRAMID_R_DIM] = {0}, piv[PYRAMID_R_DIM > PYRAMID_N ? PYRAMID_R_DIM : PYRAMID_N];
     int sliding[PYRAMID_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     int loose[PYRAMID_NF_DIM];
     int cone_i[PYRAMID_NF_DIM], cone_f[PYRAMID_NF_DIM], cone_on[PYRAMID_NF_DIM], strict_i[PYRAMID_NF_DIM];
     int strict_f[PYRAMID_NF_DIM], strict_o[PYRAMID_NF_DIM], mode[PYRAMID_NF_DIM] = {0};
@@ -3295,9 +3295,7 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
     }
     pyramid_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     pyramid_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
-    if (nr > PYRAMID_MAX_LAW_ROWS) {
-        return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > PYRAMID_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = pyramid_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = pyramid_lu(PYRAMID_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -3324,6 +3322,9 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

@@ -2098,7 +2098,7 @@ static int slide_off_dome_law_once(const slide_off_dome_ctx_t *c, const double *
     double lam[SLIDE_OFF_DOME_R_DIM], sol[SLIDE_OFF_DOME_R_DIM], lam_eps, vel_eps, gap;
     int rows[SLIDE_OFF_DOME_R_DIM], tight[SLIDE_OFF_DOME_R_DIM] = {0}, piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
     int sliding[SLIDE_OFF_DOME_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     slide_off_dome_velocity(c, q, guess, p, vel_m);
     slide_off_dome_legendre(q, vel_m, c->par, mom, mass);
@@ -2121,9 +2121,7 @@ static int slide_off_dome_law_once(const slide_off_dome_ctx_t *c, const double *
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > SLIDE_OFF_DOME_MAX_LAW_ROWS) {
-        return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > SLIDE_OFF_DOME_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = slide_off_dome_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2145,6 +2143,9 @@ static int slide_off_dome_law_once(const slide_off_dome_ctx_t *c, const double *
                 w[k * nr + l] += grad[rows[k] * SLIDE_OFF_DOME_N + i] * minv_g[l * SLIDE_OFF_DOME_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

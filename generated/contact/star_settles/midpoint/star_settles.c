@@ -2178,7 +2178,7 @@ static int star_settles_law_once(const star_settles_ctx_t *c, const double *q, c
     double lam[STAR_SETTLES_R_DIM], sol[STAR_SETTLES_R_DIM], lam_eps, vel_eps, gap;
     int rows[STAR_SETTLES_R_DIM], tight[STAR_SETTLES_R_DIM] = {0}, piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
     int sliding[STAR_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     star_settles_velocity(c, q, guess, p, vel_m);
     star_settles_legendre(q, vel_m, c->par, mom, mass);
@@ -2201,9 +2201,7 @@ static int star_settles_law_once(const star_settles_ctx_t *c, const double *q, c
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > STAR_SETTLES_MAX_LAW_ROWS) {
-        return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > STAR_SETTLES_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = star_settles_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = star_settles_lu(STAR_SETTLES_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2225,6 +2223,9 @@ static int star_settles_law_once(const star_settles_ctx_t *c, const double *q, c
                 w[k * nr + l] += grad[rows[k] * STAR_SETTLES_N + i] * minv_g[l * STAR_SETTLES_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

@@ -1727,7 +1727,7 @@ static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const do
     double lam[IMPACT_OSCILLATOR_R_DIM], sol[IMPACT_OSCILLATOR_R_DIM], lam_eps, vel_eps, gap;
     int rows[IMPACT_OSCILLATOR_R_DIM], tight[IMPACT_OSCILLATOR_R_DIM] = {0}, piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
     int sliding[IMPACT_OSCILLATOR_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     impact_oscillator_velocity(c, q, guess, p, vel_m);
     impact_oscillator_legendre(q, vel_m, c->par, mom, mass);
@@ -1750,9 +1750,7 @@ static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const do
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > IMPACT_OSCILLATOR_MAX_LAW_ROWS) {
-        return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > IMPACT_OSCILLATOR_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = impact_oscillator_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -1774,6 +1772,9 @@ static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const do
                 w[k * nr + l] += grad[rows[k] * IMPACT_OSCILLATOR_N + i] * minv_g[l * IMPACT_OSCILLATOR_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

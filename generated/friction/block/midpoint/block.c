@@ -2415,7 +2415,7 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
     double lam[BLOCK_R_DIM], sol[BLOCK_R_DIM], lam_eps, vel_eps, gap;
     int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM] = {0}, piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
     int sliding[BLOCK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     int loose[BLOCK_NF_DIM];
     int cone_i[BLOCK_NF_DIM], cone_f[BLOCK_NF_DIM], cone_on[BLOCK_NF_DIM], strict_i[BLOCK_NF_DIM];
     int strict_f[BLOCK_NF_DIM], strict_o[BLOCK_NF_DIM], mode[BLOCK_NF_DIM] = {0};
@@ -2443,9 +2443,7 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
     }
     block_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     block_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
-    if (nr > BLOCK_MAX_LAW_ROWS) {
-        return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > BLOCK_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = block_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = block_lu(BLOCK_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2472,6 +2470,9 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return block_fail(c, BLOCK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

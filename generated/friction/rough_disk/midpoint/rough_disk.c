@@ -2494,7 +2494,7 @@ static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const
     double lam[ROUGH_DISK_R_DIM], sol[ROUGH_DISK_R_DIM], lam_eps, vel_eps, gap;
     int rows[ROUGH_DISK_R_DIM], tight[ROUGH_DISK_R_DIM] = {0}, piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
     int sliding[ROUGH_DISK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     int loose[ROUGH_DISK_NF_DIM];
     int cone_i[ROUGH_DISK_NF_DIM], cone_f[ROUGH_DISK_NF_DIM], cone_on[ROUGH_DISK_NF_DIM], strict_i[ROUGH_DISK_NF_DIM];
     int strict_f[ROUGH_DISK_NF_DIM], strict_o[ROUGH_DISK_NF_DIM], mode[ROUGH_DISK_NF_DIM] = {0};
@@ -2522,9 +2522,7 @@ static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const
     }
     rough_disk_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     rough_disk_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
-    if (nr > ROUGH_DISK_MAX_LAW_ROWS) {
-        return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > ROUGH_DISK_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = rough_disk_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = rough_disk_lu(ROUGH_DISK_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2551,6 +2549,9 @@ static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

@@ -3924,7 +3924,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
     double lam[SPUN_BALL_R_DIM], sol[SPUN_BALL_R_DIM], lam_eps, vel_eps, gap;
     int rows[SPUN_BALL_R_DIM], tight[SPUN_BALL_R_DIM] = {0}, piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
     int sliding[SPUN_BALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     int loose[SPUN_BALL_NF_DIM];
     int cone_i[SPUN_BALL_NF_DIM], cone_f[SPUN_BALL_NF_DIM], cone_on[SPUN_BALL_NF_DIM], strict_i[SPUN_BALL_NF_DIM];
     int strict_f[SPUN_BALL_NF_DIM], strict_o[SPUN_BALL_NF_DIM], mode[SPUN_BALL_NF_DIM] = {0};
@@ -3960,9 +3960,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
     }
     spun_ball_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     spun_ball_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
-    if (nr > SPUN_BALL_MAX_LAW_ROWS) {
-        return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > SPUN_BALL_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = spun_ball_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = spun_ball_lu(SPUN_BALL_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -3999,6 +3997,26 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
     n_modes += n_plain;
     for (k = 0; k < SPUN_BALL_NF; ++k) {
         any_loose = any_loose || loose[k];
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        if (n_cones == 0 && n_strict == 0
+            && spun_ball_law_pgs(c, rows, nr, w, b, tgt, iso_i, iso_o, iso_f, n_iso, lam_eps, vel_eps, lam, pg_tight,
+                pg_sliding)) {
+            pgs = found = 1;
+            for (k = 0; k < nr; ++k) {
+                lam_full[rows[k]] = lam[k];
+                dropped[rows[k]] = !pg_tight[k] && !pg_sliding[k];
+                slipped[rows[k]] = pg_sliding[k];
+                left[k] = 0;
+            }
+            for (i = 0; i < n_iso; ++i) {
+                slide_on[i] = pg_sliding[iso_i[i]];
+            }
+            least = line = n_st = 0;
+            weighted = 1;
+        } else {
+            return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
+        }
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         if (modes == n_plain && any_loose && n_cones == 0 && n_strict == 0

@@ -2699,7 +2699,7 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
     double lam[STAR_FRICTION_R_DIM], sol[STAR_FRICTION_R_DIM], lam_eps, vel_eps, gap;
     int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM] = {0}, piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
     int sliding[STAR_FRICTION_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     int loose[STAR_FRICTION_NF_DIM];
     int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], cone_on[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
     int strict_f[STAR_FRICTION_NF_DIM], strict_o[STAR_FRICTION_NF_DIM], mode[STAR_FRICTION_NF_DIM] = {0};
@@ -2727,9 +2727,7 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
     }
     star_friction_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
     star_friction_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
-    if (nr > STAR_FRICTION_MAX_LAW_ROWS) {
-        return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > STAR_FRICTION_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = star_friction_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = star_friction_lu(STAR_FRICTION_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2756,6 +2754,9 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
         &n_strict);
     for (k = 0; k < n_cones; ++k) {
         n_modes *= 3;
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

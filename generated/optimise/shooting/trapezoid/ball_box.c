@@ -2112,7 +2112,7 @@ static int ball_box_law_once(const ball_box_ctx_t *c, const double *q, const dou
     double lam[BALL_BOX_R_DIM], sol[BALL_BOX_R_DIM], lam_eps, vel_eps, gap;
     int rows[BALL_BOX_R_DIM], tight[BALL_BOX_R_DIM] = {0}, piv[BALL_BOX_R_DIM > BALL_BOX_N ? BALL_BOX_R_DIM : BALL_BOX_N];
     int sliding[BALL_BOX_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     ball_box_velocity(c, q, guess, p, vel_m);
     ball_box_legendre(q, vel_m, c->par, mom, mass);
@@ -2135,9 +2135,7 @@ static int ball_box_law_once(const ball_box_ctx_t *c, const double *q, const dou
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > BALL_BOX_MAX_LAW_ROWS) {
-        return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > BALL_BOX_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = ball_box_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = ball_box_lu(BALL_BOX_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2159,6 +2157,9 @@ static int ball_box_law_once(const ball_box_ctx_t *c, const double *q, const dou
                 w[k * nr + l] += grad[rows[k] * BALL_BOX_N + i] * minv_g[l * BALL_BOX_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */

@@ -2314,7 +2314,7 @@ static int double_pendulum_law_once(const double_pendulum_ctx_t *c, const double
     double lam[DOUBLE_PENDULUM_R_DIM], sol[DOUBLE_PENDULUM_R_DIM], lam_eps, vel_eps, gap;
     int rows[DOUBLE_PENDULUM_R_DIM], tight[DOUBLE_PENDULUM_R_DIM] = {0}, piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
     int sliding[DOUBLE_PENDULUM_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
-    int dependent;
+    int dependent, crowded;
     long mask = 0;
     double_pendulum_velocity(c, q, guess, p, vel_m);
     double_pendulum_legendre(q, vel_m, c->par, mom, mass);
@@ -2337,9 +2337,7 @@ static int double_pendulum_law_once(const double_pendulum_ctx_t *c, const double
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
-    if (nr > DOUBLE_PENDULUM_MAX_LAW_ROWS) {
-        return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
-    }
+    crowded = nr > DOUBLE_PENDULUM_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = double_pendulum_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv);
     for (k = 0; k < nr; ++k) { /* M^-1 grad psi_r, the Delassus matrix w and b = target - g.qdot- */
@@ -2361,6 +2359,9 @@ static int double_pendulum_law_once(const double_pendulum_ctx_t *c, const double
                 w[k * nr + l] += grad[rows[k] * DOUBLE_PENDULUM_N + i] * minv_g[l * DOUBLE_PENDULUM_N + i];
             }
         }
+    }
+    if (crowded) { /* a pile of balls touching at once: cones alone (law_pgs), else too many rows */
+        return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, NAN, "impulse law on %d contacts at once", nr);
     }
     for (modes = 0; modes < n_modes && !found; ++modes) {
         for (k = 0; k < nr * nr; ++k) { /* the columns of the slipping contacts' normal rows: g_n -+ mu g_t */
