@@ -134,6 +134,37 @@ def pushed_balls() -> vcigen.Model:
     )
 
 
+HALF_W, HALF_H = 0.5, 0.25  # the boxes' half sides
+
+
+def two_boxes() -> vcigen.Model:
+    """Two unit boxes (``(x, y, θ)`` each; half sides ``HALF_W x HALF_H``, inertia ``(w² + h²) / 12``): the
+    lower one's bottom vertices on a rough floor, the upper one's bottom vertices on the lower one's top face
+    (the distance along its normal, friction along it); ``e = 0.3`` and ``mu = 0.6`` everywhere."""
+    x1, y1, t1, x2, y2, t2 = q = sp.symbols("x1 y1 t1 x2 y2 t2")
+    v = sp.symbols("u1 v1 w1 u2 v2 w2")
+    contacts, friction = {}, {}
+    for side, cx in (("l", -HALF_W), ("r", HALF_W)):
+        low = (x1 + cx * sp.cos(t1) + HALF_H * sp.sin(t1), y1 + cx * sp.sin(t1) - HALF_H * sp.cos(t1))
+        contacts["f" + side], friction["f" + side] = low[1], (0.6, low[0])
+        dx = x2 + cx * sp.cos(t2) + HALF_H * sp.sin(t2) - x1
+        dy = y2 + cx * sp.sin(t2) - HALF_H * sp.cos(t2) - y1
+        contacts["s" + side] = -dx * sp.sin(t1) + dy * sp.cos(t1) - HALF_H
+        friction["s" + side] = (0.6, dx * sp.cos(t1) + dy * sp.sin(t1))
+    inertia = (HALF_W**2 + HALF_H**2) / 3
+    return vcigen.Model(
+        name="two_boxes",
+        q=list(q),
+        qdot=list(v),
+        lagrangian=(v[0] ** 2 + v[1] ** 2 + v[3] ** 2 + v[4] ** 2) / 2
+        + inertia * (v[2] ** 2 + v[5] ** 2) / 2
+        - G * (y1 + y2),
+        contacts=contacts,
+        restitution={name: 0.3 for name in contacts},
+        friction=friction,
+    )
+
+
 @cache
 def sim(name: str, backend: str) -> vcigen.Simulator:
     models = {
@@ -143,6 +174,7 @@ def sim(name: str, backend: str) -> vcigen.Simulator:
         "pushed": pushed_pair,
         "tetra": tetra_pile,
         "pushed3": pushed_balls,
+        "boxes": two_boxes,
     }
     return vcigen.build(models[name](), backend=backend)
 
@@ -418,3 +450,31 @@ def test_a_pile_whose_six_contacts_meet_at_once_takes_one_law_on_fifteen_rows(ba
     ]
     assert min((z - R).min(), np.min(apart)) > -1e-12
     assert np.abs(res.p[-1]).max() < 1e-12  # at rest
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_box_dropped_tilted_onto_a_box_rests_with_the_forces_of_statics(backend):
+    """The upper box dropped from 0.05 above the lower one, 0.1 to the side and tilted by 0.1: it bounces and
+    rocks to rest on the lower one's face, both on their faces (``θ = 0``). The floor carries ``2 m g`` split
+    by the moments about the lower box's centre, ``f_r - f_l = m g d / a`` (``d = x2 - x1``, ``a`` the half
+    width); the upper box's two vertices ``m g / 2`` each; both boxes at rest, no row below 0."""
+    tilt = 0.1
+    start = [0.0, HALF_H, 0.0, 0.1, 3 * HALF_H + 0.05 + HALF_W * math.sin(tilt), tilt]
+    res = sim("boxes", backend).simulate(q0=start, v0=[0.0] * 6, h=0.005, t_end=3.0)
+    q = res.q[-1]
+    assert np.abs(res.p[-1]).max() < 1e-12 and abs(q[2]) < 1e-12 and abs(q[5]) < 1e-12
+    assert res.active[-1].all() and len(res.impacts) >= 3
+    d = q[3] - q[0]
+    force = dict(zip(res.contact_names, res.contact_force[-1]))
+    assert force["fl"] == pytest.approx(G - G * d / (2 * HALF_W), rel=1e-9)
+    assert force["fr"] == pytest.approx(G + G * d / (2 * HALF_W), rel=1e-9)
+    assert force["sl"] == pytest.approx(G / 2, rel=1e-9) and force["sr"] == pytest.approx(G / 2, rel=1e-9)
+    gaps = []
+    for k in range(res.t.size):
+        x1, y1, t1, x2, y2, t2 = res.q[k]
+        for cx in (-HALF_W, HALF_W):
+            gaps.append(y1 + cx * math.sin(t1) - HALF_H * math.cos(t1))
+            dx = x2 + cx * math.cos(t2) + HALF_H * math.sin(t2) - x1
+            dy = y2 + cx * math.sin(t2) - HALF_H * math.cos(t2) - y1
+            gaps.append(-dx * math.sin(t1) + dy * math.cos(t1) - HALF_H)
+    assert min(gaps) > -1e-12
