@@ -149,7 +149,9 @@ class ImpulseLaw:
         ``lands`` the landing ones (their modes are set when they are held, ``_friction_modes``), ``why``
         why the tangent does not carry the law (``"friction at an impact"``: a landing cone's second split,
         its least split beside a slide, a slide along a line; else ``""``; :meth:`_law_tangent`). ``every``:
-        a set of tight rows may not be dependent at all, stick rows too (:meth:`_impulse_law`'s second try).
+        a set of tight rows may not be dependent at all, stick rows too (:meth:`_impulse_law`'s second try). A
+        law of more than ``MAX_LAW_ROWS`` rows is not enumerated: :meth:`_law_pgs` alone (its frictional
+        contacts all isotropic cones), else a ``SolverError`` ("impulse law on N contacts at once").
         """
         k = self.k
         vel = self._velocity(q, guess, p)

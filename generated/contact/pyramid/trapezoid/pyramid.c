@@ -3455,7 +3455,7 @@ static int pyramid_cut_riders(const pyramid_ctx_t *c, const double *q, const dou
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
     double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
-    int kept[PYRAMID_R_DIM], on[PYRAMID_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    int kept[PYRAMID_R_DIM], on[PYRAMID_R_DIM], n_kept = 0, r, g, f, k, owned, pressed, n_cut = 0, graded = 0;
     for (r = 0; r < PYRAMID_R; ++r) {
         on[r] = c->sus->act[r];
     }
@@ -3473,11 +3473,11 @@ static int pyramid_cut_riders(const pyramid_ctx_t *c, const double *q, const dou
         if (f < 0 || f == g) {
             continue;
         }
-        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
-            r = r || kept[k] == pyramid_stick_row[f];
+        for (k = 0, owned = 0, pressed = 0; k < n_kept; ++k) { /* its owner's stick row kept; a normal row of its own */
+            owned = owned || kept[k] == pyramid_stick_row[f];
             pressed = pressed || pyramid_row_contact[kept[k]] == pyramid_fric_contact[g];
         }
-        if (!r || !pressed) {
+        if (!owned || !pressed) {
             continue;
         }
         if (!graded) {

@@ -2603,7 +2603,7 @@ static int block_cut_riders(const block_ctx_t *c, const double *q, const double 
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
-    int kept[BLOCK_R_DIM], on[BLOCK_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    int kept[BLOCK_R_DIM], on[BLOCK_R_DIM], n_kept = 0, r, g, f, k, owned, pressed, n_cut = 0, graded = 0;
     for (r = 0; r < BLOCK_R; ++r) {
         on[r] = c->sus->act[r];
     }
@@ -2621,11 +2621,11 @@ static int block_cut_riders(const block_ctx_t *c, const double *q, const double 
         if (f < 0 || f == g) {
             continue;
         }
-        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
-            r = r || kept[k] == block_stick_row[f];
+        for (k = 0, owned = 0, pressed = 0; k < n_kept; ++k) { /* its owner's stick row kept; a normal row of its own */
+            owned = owned || kept[k] == block_stick_row[f];
             pressed = pressed || block_row_contact[kept[k]] == block_fric_contact[g];
         }
-        if (!r || !pressed) {
+        if (!owned || !pressed) {
             continue;
         }
         if (!graded) {

@@ -2682,7 +2682,7 @@ static int rough_disk_cut_riders(const rough_disk_ctx_t *c, const double *q, con
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
-    int kept[ROUGH_DISK_R_DIM], on[ROUGH_DISK_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    int kept[ROUGH_DISK_R_DIM], on[ROUGH_DISK_R_DIM], n_kept = 0, r, g, f, k, owned, pressed, n_cut = 0, graded = 0;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         on[r] = c->sus->act[r];
     }
@@ -2700,11 +2700,11 @@ static int rough_disk_cut_riders(const rough_disk_ctx_t *c, const double *q, con
         if (f < 0 || f == g) {
             continue;
         }
-        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
-            r = r || kept[k] == rough_disk_stick_row[f];
+        for (k = 0, owned = 0, pressed = 0; k < n_kept; ++k) { /* its owner's stick row kept; a normal row of its own */
+            owned = owned || kept[k] == rough_disk_stick_row[f];
             pressed = pressed || rough_disk_row_contact[kept[k]] == rough_disk_fric_contact[g];
         }
-        if (!r || !pressed) {
+        if (!owned || !pressed) {
             continue;
         }
         if (!graded) {

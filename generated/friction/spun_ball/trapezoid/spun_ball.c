@@ -4269,7 +4269,7 @@ static int spun_ball_cut_riders(const spun_ball_ctx_t *c, const double *q, const
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
-    int kept[SPUN_BALL_R_DIM], on[SPUN_BALL_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    int kept[SPUN_BALL_R_DIM], on[SPUN_BALL_R_DIM], n_kept = 0, r, g, f, k, owned, pressed, n_cut = 0, graded = 0;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         on[r] = c->sus->act[r];
     }
@@ -4287,11 +4287,11 @@ static int spun_ball_cut_riders(const spun_ball_ctx_t *c, const double *q, const
         if (f < 0 || f == g) {
             continue;
         }
-        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
-            r = r || kept[k] == spun_ball_stick_row[f];
+        for (k = 0, owned = 0, pressed = 0; k < n_kept; ++k) { /* its owner's stick row kept; a normal row of its own */
+            owned = owned || kept[k] == spun_ball_stick_row[f];
             pressed = pressed || spun_ball_row_contact[kept[k]] == spun_ball_fric_contact[g];
         }
-        if (!r || !pressed) {
+        if (!owned || !pressed) {
             continue;
         }
         if (!graded) {

@@ -2887,7 +2887,7 @@ static int star_friction_cut_riders(const star_friction_ctx_t *c, const double *
     int n_hit, const int *dropped, const int *slipped, int *cut)
 {
     double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
-    int kept[STAR_FRICTION_R_DIM], on[STAR_FRICTION_R_DIM], n_kept = 0, r, g, f, k, pressed, n_cut = 0, graded = 0;
+    int kept[STAR_FRICTION_R_DIM], on[STAR_FRICTION_R_DIM], n_kept = 0, r, g, f, k, owned, pressed, n_cut = 0, graded = 0;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         on[r] = c->sus->act[r];
     }
@@ -2905,11 +2905,11 @@ static int star_friction_cut_riders(const star_friction_ctx_t *c, const double *
         if (f < 0 || f == g) {
             continue;
         }
-        for (k = 0, pressed = 0, r = 0; k < n_kept; ++k) {
-            r = r || kept[k] == star_friction_stick_row[f];
+        for (k = 0, owned = 0, pressed = 0; k < n_kept; ++k) { /* its owner's stick row kept; a normal row of its own */
+            owned = owned || kept[k] == star_friction_stick_row[f];
             pressed = pressed || star_friction_row_contact[kept[k]] == star_friction_fric_contact[g];
         }
-        if (!r || !pressed) {
+        if (!owned || !pressed) {
             continue;
         }
         if (!graded) {
