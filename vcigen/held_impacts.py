@@ -113,12 +113,11 @@ class HeldImpacts(ImpulseLaw):
             else:
                 targets[r] = -e * rate
         counts = self.least_splits, self.friction_dropped
-        state = self.act.copy(), list(self._ride), self.riders_cut  # before the law (its cut riders)
+        state = self._law_state()  # before the law (its cut riders)
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
         reduced = bool(targets) and bool(self._stick_rows) and self._law_raises(q, law)
         if reduced:  # Newton's restitution with Coulomb's friction raising the kinetic energy
-            self.act, self._ride, self.riders_cut = state
-            cut = self._reduced_restitution(step, t_k, q, p, v, group, targets, plastic, counts)
+            cut = self._reduced_restitution(step, t_k, q, p, v, group, targets, plastic, counts, state)
             law, targets, plastic = cut
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands, law_why = law
         why = self._slip_at_impact(q, vel_p, slipped, slips, lands) or law_why
@@ -168,27 +167,27 @@ class HeldImpacts(ImpulseLaw):
         (:func:`vcigen.impulse_law.law_gains`, on the rows at ``q`` as the law left their branches)?"""
         return law_gains(self.k.rows(q, law[2])[1], law[1], law[2], law[3])
 
-    def _reduced_restitution(self, step, t_k, q, p, v, group, targets, plastic, counts):
+    def _reduced_restitution(self, step, t_k, q, p, v, group, targets, plastic, counts, state):
         """An impact whose Newton's restitution with Coulomb's friction raises the kinetic energy (a body
         rocking onto a second vertex beside a held one; MATH.md *Friction*: energy never rises): the largest
         fraction ``s`` of its targets whose law does not, by ``RESTITUTION_BISECTIONS`` bisections of ``[0,
         1]`` (counted, ``res.stats["restitution_reduced"]``; README, Known limits: Friction); ``s = 0`` is the
         plastic law, which cannot raise it, and holds the rows it stopped. ``counts``: the law's counters
-        before it (each trial is taken from them). Returns ``(law, targets, plastic)``."""
+        before it, ``state`` its :meth:`_law_state` (each trial is taken from them). Returns ``(law, targets,
+        plastic)``."""
         self.restitution_reduced += 1
         lo, hi = 0.0, 1.0
-        state = self.act.copy(), list(self._ride), self.riders_cut  # a trial's cut rider (_impulse_law)
         for _ in range(RESTITUTION_BISECTIONS):
             mid = 0.5 * (lo + hi)
             self.least_splits, self.friction_dropped = counts
-            self.act, self._ride, self.riders_cut = state[0].copy(), list(state[1]), state[2]
+            self._set_law_state(state)  # a trial's cut rider (_impulse_law) is not kept
             try:
                 trial = self._impulse_law(step, t_k, q, p, v, group, {r: mid * x for r, x in targets.items()})
                 lo, hi = (lo, mid) if self._law_raises(q, trial) else (mid, hi)
             except SolverError:
                 hi = mid
         self.least_splits, self.friction_dropped = counts
-        self.act, self._ride, self.riders_cut = state
+        self._set_law_state(state)
         scaled = {r: lo * x for r, x in targets.items()} if lo > 0.0 else {}
         law = self._impulse_law(step, t_k, q, p, v, group, scaled)
         if not scaled:  # plastic: held, those it stopped

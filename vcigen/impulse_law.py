@@ -76,7 +76,7 @@ class ImpulseLaw:
         cut = self._cut_riders(q, law, hit)
         if not cut:
             return law
-        act, ride = self.act.copy(), list(self._ride)
+        state = self._law_state()
         counts = self.least_splits, self.friction_dropped
         self.least_splits, self.friction_dropped = before  # the law taken counts
         for g in cut:
@@ -85,11 +85,19 @@ class ImpulseLaw:
         try:
             again = self._law_once(step, t_k, q, p, guess, hit, targets, every=True)
         except SolverError:
-            self.act, self._ride = act, ride
+            self._set_law_state(state)
             self.least_splits, self.friction_dropped = counts
             return law
         self.riders_cut += 1
         return (*again[:8], again[8] or "friction at an impact")
+
+    def _law_state(self) -> tuple:
+        """What a law's second try (:meth:`_impulse_law`) changes: the rows held, the dependent sticks' owners
+        and ``riders_cut``; :meth:`_set_law_state` puts it back (a trial of ``_reduced_restitution`` too)."""
+        return self.act.copy(), list(self._ride), self.riders_cut
+
+    def _set_law_state(self, state: tuple) -> None:
+        self.act, self._ride, self.riders_cut = state[0].copy(), list(state[1]), state[2]
 
     def _cut_riders(self, q, law, hit) -> list[int]:
         """The dependent sticks (``_ride[g] = f``: a one-tangent contact or a cone's tangent, ``f``'s stick
@@ -277,16 +285,9 @@ class ImpulseLaw:
                 continue
             break
         else:
-            if out and not crowded:
-                raise SolverError(step, t_k, "sustained", math.nan, out)
             if not crowded:  # (crowded: solved above)
-                raise SolverError(
-                    step,
-                    t_k,
-                    "sustained",
-                    math.nan,
-                    f"impulse law: no solution on {n} contacts (dependent normals?)",
-                )
+                why = out or f"impulse law: no solution on {n} contacts (dependent normals?)"
+                raise SolverError(step, t_k, "sustained", math.nan, why)
         if solved is not None:
             lam, tight_set, sliding = solved
             mask = sum(1 << i for i in tight_set)

@@ -2663,7 +2663,20 @@ static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const
     return 0;
 }
 
-/* Sets the rows held and the dependent sticks' owners (impulse_law: those before its second try). */
+/* ImpulseLaw._law_state: copies the rows held and the dependent sticks' owners (what impulse_law's second try
+ * changes; law_state puts them back). */
+static void rough_disk_law_save(const rough_disk_ctx_t *c, int *act, int *ride)
+{
+    int k;
+    for (k = 0; k < ROUGH_DISK_R; ++k) {
+        act[k] = c->sus->act[k];
+    }
+    for (k = 0; k < ROUGH_DISK_NF; ++k) {
+        ride[k] = c->sus->ride[k];
+    }
+}
+
+/* ImpulseLaw._set_law_state: sets the rows held and the dependent sticks' owners (law_save's). */
 static void rough_disk_law_state(const rough_disk_ctx_t *c, const int *act, const int *ride)
 {
     int k;
@@ -2728,7 +2741,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
-    int cut[ROUGH_DISK_NF_DIM], act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM], g, r;
+    int cut[ROUGH_DISK_NF_DIM], act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM], g;
     const long counts[2] = {c->sus->least_splits, c->sus->friction_dropped}; /* the law taken counts */
     if (rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
             slip_own, slip_ride, land, 0)) {
@@ -2738,13 +2751,10 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     if (!rough_disk_cut_riders(c, q, vel_m, hit, n_hit, dropped, slipped, cut)) {
         return 0;
     }
-    for (r = 0; r < ROUGH_DISK_R; ++r) {
-        act[r] = c->sus->act[r];
-    }
+    rough_disk_law_save(c, act, ride);
     c->sus->least_splits = counts[0];
     c->sus->friction_dropped = counts[1];
     for (g = 0; g < ROUGH_DISK_NF; ++g) {
-        ride[g] = c->sus->ride[g];
         if (cut[g]) {
             c->sus->ride[g] = -1;
             c->sus->act[rough_disk_stick_row[g]] = 1;
@@ -2975,27 +2985,22 @@ static int rough_disk_law_gains_all(const rough_disk_ctx_t *c, const double *q, 
  * outputs as impulse_law's; 1 if the last solve failed. */
 static int rough_disk_reduced_restitution(const rough_disk_ctx_t *c, const double *q, const double *p,
     const double *v, const int *group, int n_group, double *tgt, int *plastic, const long *counts, double *p_plus,
-    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land,
+    const int *act, const int *ride)
 {
     double full[ROUGH_DISK_R_DIM], trial[ROUGH_DISK_R_DIM], lo = 0.0, hi = 1.0, mid;
-    int k, g, act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM];
+    int k, g;
     ++c->sus->restitution_reduced;
     for (k = 0; k < ROUGH_DISK_R; ++k) { /* every row's target (0 off the group), as the law reads them */
         full[k] = tgt[k];
         trial[k] = tgt[k];
-    }
-    for (k = 0; k < ROUGH_DISK_R; ++k) { /* a trial's cut rider (impulse_law) is not the state's */
-        act[k] = c->sus->act[k];
-    }
-    for (g = 0; g < ROUGH_DISK_NF; ++g) {
-        ride[g] = c->sus->ride[g];
     }
     for (k = 0; k < ROUGH_DISK_RESTITUTION_BISECTIONS; ++k) {
         mid = 0.5 * (lo + hi);
         c->sus->least_splits = counts[0];
         c->sus->friction_dropped = counts[1];
         c->sus->riders_cut = counts[2];
-        rough_disk_law_state(c, act, ride);
+        rough_disk_law_state(c, act, ride); /* a trial's cut rider (impulse_law) is not kept */
         for (g = 0; g < n_group; ++g) {
             trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
         }
@@ -3066,12 +3071,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
     counts[2] = c->sus->riders_cut;
-    for (r = 0; r < ROUGH_DISK_R; ++r) { /* before the law (its cut riders) */
-        act[r] = c->sus->act[r];
-    }
-    for (g = 0; g < ROUGH_DISK_NF; ++g) {
-        ride[g] = c->sus->ride[g];
-    }
+    rough_disk_law_save(c, act, ride); /* before the law (its cut riders) */
     if (rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
@@ -3081,10 +3081,8 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     }
     reduced = any && rough_disk_law_gains_all(c, q, lam, vel_m, vel_p);
     if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
-        rough_disk_law_state(c, act, ride);
-        c->sus->riders_cut = counts[2];
         if (rough_disk_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
-                vel_p, dropped, slipped, slip_own, slip_ride, land)) {
+                vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;
         }
     }

@@ -2866,7 +2866,20 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
     return 0;
 }
 
-/* Sets the rows held and the dependent sticks' owners (impulse_law: those before its second try). */
+/* ImpulseLaw._law_state: copies the rows held and the dependent sticks' owners (what impulse_law's second try
+ * changes; law_state puts them back). */
+static void star_friction_law_save(const star_friction_ctx_t *c, int *act, int *ride)
+{
+    int k;
+    for (k = 0; k < STAR_FRICTION_R; ++k) {
+        act[k] = c->sus->act[k];
+    }
+    for (k = 0; k < STAR_FRICTION_NF; ++k) {
+        ride[k] = c->sus->ride[k];
+    }
+}
+
+/* ImpulseLaw._set_law_state: sets the rows held and the dependent sticks' owners (law_save's). */
 static void star_friction_law_state(const star_friction_ctx_t *c, const int *act, const int *ride)
 {
     int k;
@@ -2931,7 +2944,7 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
-    int cut[STAR_FRICTION_NF_DIM], act[STAR_FRICTION_R_DIM], ride[STAR_FRICTION_NF_DIM], g, r;
+    int cut[STAR_FRICTION_NF_DIM], act[STAR_FRICTION_R_DIM], ride[STAR_FRICTION_NF_DIM], g;
     const long counts[2] = {c->sus->least_splits, c->sus->friction_dropped}; /* the law taken counts */
     if (star_friction_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
             slip_own, slip_ride, land, 0)) {
@@ -2941,13 +2954,10 @@ static int star_friction_impulse_law(const star_friction_ctx_t *c, const double 
     if (!star_friction_cut_riders(c, q, vel_m, hit, n_hit, dropped, slipped, cut)) {
         return 0;
     }
-    for (r = 0; r < STAR_FRICTION_R; ++r) {
-        act[r] = c->sus->act[r];
-    }
+    star_friction_law_save(c, act, ride);
     c->sus->least_splits = counts[0];
     c->sus->friction_dropped = counts[1];
     for (g = 0; g < STAR_FRICTION_NF; ++g) {
-        ride[g] = c->sus->ride[g];
         if (cut[g]) {
             c->sus->ride[g] = -1;
             c->sus->act[star_friction_stick_row[g]] = 1;
@@ -3178,27 +3188,22 @@ static int star_friction_law_gains_all(const star_friction_ctx_t *c, const doubl
  * outputs as impulse_law's; 1 if the last solve failed. */
 static int star_friction_reduced_restitution(const star_friction_ctx_t *c, const double *q, const double *p,
     const double *v, const int *group, int n_group, double *tgt, int *plastic, const long *counts, double *p_plus,
-    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
+    double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land,
+    const int *act, const int *ride)
 {
     double full[STAR_FRICTION_R_DIM], trial[STAR_FRICTION_R_DIM], lo = 0.0, hi = 1.0, mid;
-    int k, g, act[STAR_FRICTION_R_DIM], ride[STAR_FRICTION_NF_DIM];
+    int k, g;
     ++c->sus->restitution_reduced;
     for (k = 0; k < STAR_FRICTION_R; ++k) { /* every row's target (0 off the group), as the law reads them */
         full[k] = tgt[k];
         trial[k] = tgt[k];
-    }
-    for (k = 0; k < STAR_FRICTION_R; ++k) { /* a trial's cut rider (impulse_law) is not the state's */
-        act[k] = c->sus->act[k];
-    }
-    for (g = 0; g < STAR_FRICTION_NF; ++g) {
-        ride[g] = c->sus->ride[g];
     }
     for (k = 0; k < STAR_FRICTION_RESTITUTION_BISECTIONS; ++k) {
         mid = 0.5 * (lo + hi);
         c->sus->least_splits = counts[0];
         c->sus->friction_dropped = counts[1];
         c->sus->riders_cut = counts[2];
-        star_friction_law_state(c, act, ride);
+        star_friction_law_state(c, act, ride); /* a trial's cut rider (impulse_law) is not kept */
         for (g = 0; g < n_group; ++g) {
             trial[group[g]] = plastic[group[g]] ? 0.0 : mid * full[group[g]];
         }
@@ -3269,12 +3274,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
     counts[2] = c->sus->riders_cut;
-    for (r = 0; r < STAR_FRICTION_R; ++r) { /* before the law (its cut riders) */
-        act[r] = c->sus->act[r];
-    }
-    for (g = 0; g < STAR_FRICTION_NF; ++g) {
-        ride[g] = c->sus->ride[g];
-    }
+    star_friction_law_save(c, act, ride); /* before the law (its cut riders) */
     if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
@@ -3284,10 +3284,8 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     }
     reduced = any && star_friction_law_gains_all(c, q, lam, vel_m, vel_p);
     if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
-        star_friction_law_state(c, act, ride);
-        c->sus->riders_cut = counts[2];
         if (star_friction_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
-                vel_p, dropped, slipped, slip_own, slip_ride, land)) {
+                vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;
         }
     }
