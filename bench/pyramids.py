@@ -52,46 +52,57 @@ def divergence(a: vcigen.Result, b: vcigen.Result) -> list[float | None]:
     return [float(a.t[np.argmax(apart > th)]) if (apart > th).any() else None for th in (1e-12, 1e-9, 1e-6)]
 
 
+def fuzz(model: vcigen.Model, draw, gap, t_end: float, draws: int, seed: int, outside=None) -> dict:
+    """``draws`` runs of ``model`` from ``draw(rng)`` (seed ``seed``) on both backends to ``t_end``: each draw
+    that ends in an error, goes below a row by more than 1e-9 (``gap(q)``: the lowest row over the run),
+    ``outside(results)`` (out of the model) or whose backends end apart is printed; returns the tallies
+    (``errors``, ``below``, ``cuts`` per backend; ``outside``, ``apart``)."""
+    warnings.simplefilter("ignore")  # the counted warnings (friction kept sticking, ...) are in res.stats
+    sims = {b: vcigen.build(model, backend=b) for b in ("c", "casadi")}
+    rng = np.random.default_rng(seed)
+    tally: dict = {key: dict.fromkeys(sims, 0) for key in ("errors", "below", "cuts")}
+    tally |= {"outside": 0, "apart": 0}
+    for k in range(draws):
+        d = draw(rng)
+        res, why = {}, []
+        for b, sim in sims.items():
+            try:
+                res[b] = sim.simulate(**d, t_end=t_end, progress=False)
+            except vcigen.SolverError as err:
+                res[b] = err.result
+                tally["errors"][b] += 1
+                why.append(f"{b}: {err}")
+            low = gap(res[b].q)
+            if low < -1e-9:
+                tally["below"][b] += 1
+                why.append(f"{b}: a gap of {low:.2e}")
+            tally["cuts"][b] += int(res[b].stats.get("riders_cut", 0))
+        if outside is not None and outside(res):
+            tally["outside"] += 1
+            why.append("out of the model")
+        c, k_ = res["c"], res["casadi"]
+        dq = float(np.abs(c.q[-1] - k_.q[-1]).max()) if c.t.size == k_.t.size else float("inf")
+        if dq > 1e-6 or len(c.impacts) != len(k_.impacts):
+            tally["apart"] += 1
+            why.append(f"apart by {dq:.2e}, impacts {len(c.impacts)} / {len(k_.impacts)}")
+            why.append("first apart by 1e-12, 1e-9, 1e-6 at t = " + str(divergence(c, k_)))
+        if why:
+            print(f"draw {k} {d}:\n  " + "\n  ".join(why), flush=True)
+    return tally
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--draws", type=int, default=600)
     ap.add_argument("--seed", type=int, default=2)
     ap.add_argument("--t-end", type=float, default=3.0)
     a = ap.parse_args()
-    warnings.simplefilter("ignore")  # the counted warnings (friction kept sticking, ...) are in res.stats
-    sims = {b: vcigen.build(pyramid.model(), backend=b) for b in ("c", "casadi")}
-    rng = np.random.default_rng(a.seed)
-    errors = {b: 0 for b in sims}
-    below = {b: 0 for b in sims}
-    cuts = {b: 0 for b in sims}
-    apart = 0
-    for k in range(a.draws):
-        d = draw(rng)
-        res, why = {}, []
-        for b, sim in sims.items():
-            try:
-                res[b] = sim.simulate(**d, t_end=a.t_end, progress=False)
-            except vcigen.SolverError as err:
-                res[b] = err.result
-                errors[b] += 1
-                why.append(f"{b}: {err}")
-            low = float(pyramid.gaps(res[b].q).min())
-            if low < -1e-9:
-                below[b] += 1
-                why.append(f"{b}: a gap of {low:.2e}")
-            cuts[b] += int(res[b].stats.get("riders_cut", 0))
-        c, k_ = res["c"], res["casadi"]
-        dq = float(np.abs(c.q[-1] - k_.q[-1]).max()) if c.t.size == k_.t.size else float("inf")
-        if dq > 1e-6 or len(c.impacts) != len(k_.impacts):
-            apart += 1
-            why.append(f"apart by {dq:.2e}, impacts {len(c.impacts)} / {len(k_.impacts)}")
-            why.append("first apart by 1e-12, 1e-9, 1e-6 at t = " + str(divergence(c, k_)))
-        if why:
-            print(f"draw {k} {d}:\n  " + "\n  ".join(why), flush=True)
+    t = fuzz(pyramid.model(), draw, lambda q: float(pyramid.gaps(q).min()), a.t_end, a.draws, a.seed)
+    errors, below, cuts = t["errors"], t["below"], t["cuts"]
     print(
         f"{a.draws} draws (seed {a.seed}): errors C {errors['c']}, CasADi {errors['casadi']}; below a row by "
-        f"more than 1e-9: C {below['c']}, CasADi {below['casadi']}; backends apart: {apart}; riders cut: C "
-        f"{cuts['c']}, CasADi {cuts['casadi']}"
+        f"more than 1e-9: C {below['c']}, CasADi {below['casadi']}; backends apart: {t['apart']}; riders "
+        f"cut: C {cuts['c']}, CasADi {cuts['casadi']}"
     )
 
 

@@ -206,14 +206,13 @@ def test_a_stack_of_three_comes_to_rest_carrying_the_weights_above(backend):
         assert imp.energy_after < imp.energy_before
 
 
-def _disk_off_disk(offset: float) -> float:
-    """The time the upper of two unit disks (lower one free on a frictionless floor, both at rest, the upper
-    ``offset`` to the right on top) leaves the lower: scipy on the angle ``θ`` of the line between their
-    centres (total horizontal momentum 0: ``L = R² θ'² (1 + sin² θ) - 2 g R cos θ``), the contact force ``∝
-    cos θ θ'' - sin θ θ'²`` falling to 0."""
+def _leaves(inertia, theta0: float) -> float:
+    """scipy (event located, 1e-12) on one angle ``θ`` from the vertical, from rest at ``θ0``, with ``L = θ'²
+    inertia(θ) - 2 g R cos θ``: when the lower body's acceleration, ``∝ cos θ θ'' - sin θ θ'²`` (the contact
+    force's), falls to 0."""
     t, th, w = sp.Symbol("t"), sp.Symbol("th"), sp.Symbol("w")
     f = sp.Function("f")(t)
-    lag = R**2 * f.diff(t) ** 2 * (1 + sp.sin(f) ** 2) - 2 * G * R * sp.cos(f)
+    lag = f.diff(t) ** 2 * inertia(f) - 2 * G * R * sp.cos(f)
     euler = sp.diff(lag.diff(f.diff(t)), t) - lag.diff(f)
     acc = sp.solve(euler, f.diff(t, 2))[0].subs(f.diff(t), w).subs(f, th)
     accel = sp.lambdify((th, w), acc)
@@ -223,9 +222,17 @@ def _disk_off_disk(offset: float) -> float:
         return force(s[0], s[1])
 
     event.terminal, event.direction = True, -1
-    start = [math.asin(offset / (2 * R)), 0.0]
-    sol = solve_ivp(lambda _, s: [s[1], accel(*s)], (0, 5), start, events=event, rtol=1e-12, atol=1e-12)
+    sol = solve_ivp(
+        lambda _, s: [s[1], accel(*s)], (0, 5), [theta0, 0.0], events=event, rtol=1e-12, atol=1e-12
+    )
     return float(sol.t_events[0][0])
+
+
+def _disk_off_disk(offset: float) -> float:
+    """The time the upper of two unit disks (lower one free on a frictionless floor, both at rest, the upper
+    ``offset`` to the right on top) leaves the lower: :func:`_leaves` on the angle of the line between their
+    centres (total horizontal momentum 0: ``L = R² θ'² (1 + sin² θ) - 2 g R cos θ``)."""
+    return _leaves(lambda f: R**2 * (1 + sp.sin(f) ** 2), math.asin(offset / (2 * R)))
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -369,24 +376,9 @@ def _tetra_start(lift: float) -> list[float]:
 
 
 def _tetra_release() -> float:
-    """When the top ball of the pile (at rest, frictionless floor) leaves all three: scipy on the angle ``β``
-    of each lower-to-top line from the vertical (``L = β'² (6 R² cos² β + 2 R² sin² β) - 2 g R cos β``), the
-    lower balls' radial acceleration ``∝ cos β β'' - sin β β'²`` falling to 0 (1e-12)."""
-    t, th, w = sp.Symbol("t"), sp.Symbol("th"), sp.Symbol("w")
-    f = sp.Function("f")(t)
-    lag = f.diff(t) ** 2 * (6 * R**2 * sp.cos(f) ** 2 + 2 * R**2 * sp.sin(f) ** 2) - 2 * G * R * sp.cos(f)
-    euler = sp.diff(lag.diff(f.diff(t)), t) - lag.diff(f)
-    acc = sp.solve(euler, f.diff(t, 2))[0].subs(f.diff(t), w).subs(f, th)
-    accel = sp.lambdify((th, w), acc)
-    force = sp.lambdify((th, w), sp.cos(th) * acc - sp.sin(th) * w**2)
-
-    def event(_, s):
-        return force(s[0], s[1])
-
-    event.terminal, event.direction = True, -1
-    start = [math.asin(RC / (2 * R)), 0.0]
-    sol = solve_ivp(lambda _, s: [s[1], accel(*s)], (0, 5), start, events=event, rtol=1e-12, atol=1e-12)
-    return float(sol.t_events[0][0])
+    """When the top ball of the pile (at rest, frictionless floor) leaves all three: :func:`_leaves` on the
+    angle ``β`` of each lower-to-top line (``L = β'² (6 R² cos² β + 2 R² sin² β) - 2 g R cos β``)."""
+    return _leaves(lambda f: 6 * R**2 * sp.cos(f) ** 2 + 2 * R**2 * sp.sin(f) ** 2, math.asin(RC / (2 * R)))
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
