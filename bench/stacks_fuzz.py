@@ -32,7 +32,7 @@ import numpy as np
 from bench.pyramids import fuzz
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_stacks import HALF_H, HALF_W, R, _tetra_start, tetra_pile, two_boxes  # noqa: E402
+from test_stacks import HALF_H, HALF_W, R, _tetra_start, box_gap, tetra_pile, two_boxes  # noqa: E402
 
 
 def pile_draw(rng: np.random.Generator) -> dict:
@@ -77,20 +77,9 @@ def boxes_draw(rng: np.random.Generator) -> dict:
     return {"q0": q0, "v0": v0, "h": h}
 
 
-def boxes_gap(q: np.ndarray) -> float:
-    low = math.inf
-    for x1, y1, t1, x2, y2, t2 in q:
-        for cx in (-HALF_W, HALF_W):
-            low = min(low, y1 + cx * math.sin(t1) - HALF_H * math.cos(t1))
-            dx = x2 + cx * math.cos(t2) + HALF_H * math.sin(t2) - x1
-            dy = y2 + cx * math.sin(t2) - HALF_H * math.cos(t2) - y1
-            low = min(low, -dx * math.sin(t1) + dy * math.cos(t1) - HALF_H)
-    return low
-
-
 SCENES = {
     "pile": (tetra_pile, pile_draw, pile_gap, 2.0),
-    "boxes": (two_boxes, boxes_draw, boxes_gap, 3.0),
+    "boxes": (two_boxes, boxes_draw, box_gap, 3.0),
 }
 
 

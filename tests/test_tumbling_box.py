@@ -65,6 +65,22 @@ def tumble() -> vcigen.Model:
     )
 
 
+# Drop 138 of ``bench.tumbling`` (seed 7), which parted the backends by 8.4e-5 at t = 3: at t = 2.9648 a
+# restitution impact on v2 beside v1 held and sticking leaves v1 moving out at 0.043, below the resolution, so
+# it stays held; v2 sinks again at once (again: plastic). C located that crossing 1.8e-13 h in, and the
+# sub-step's hold stopped v1 (v2's impulse 0.0128); CasADi's was within the least sub-step (1e-13 h), with no
+# sub-step, v1 moving on (v2's impulse 0). Both now take that start as the sub-step's limit (rattle_project:
+# HeldImpacts._held_limit, C held_limit). Drops 178 and 238 logged such an impulse apart the same way.
+KEPT = {
+    "kept_moving": (
+        -1.3954412147301123,
+        [-0.7843000353935374, 0.5213818356968012, -1.2581841375487244],
+        0.3231888628795335,
+        0.6363015699459732,
+    ),
+}
+
+
 @cache
 def simulator(backend: str) -> vcigen.Simulator:
     return vcigen.build(tumble(), backend=backend)
@@ -72,7 +88,7 @@ def simulator(backend: str) -> vcigen.Simulator:
 
 @cache
 def run(case: str, backend: str) -> vcigen.Result:
-    th0, v0, e, mu = CASES[case]
+    th0, v0, e, mu = (CASES | KEPT)[case]
     sim = simulator(backend)
     return sim.simulate([0.0, 1.0, th0], v0, H, t_end=T_END, params={"e": e, "mu": mu}, progress=False)
 
@@ -104,7 +120,7 @@ def test_the_box_comes_down_without_an_error(case: str, backend: str) -> None:
 
 
 @pytest.mark.skipif(c_backend_problem() is not None, reason=str(c_backend_problem()))
-@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("case", sorted(CASES | KEPT))
 def test_c_equals_casadi(case: str) -> None:
     """The C run is the CasADi one: the same impacts (step, contact, kind) and lift-offs, states to 1e-9."""
     a, b = run(case, "casadi"), run(case, "c")

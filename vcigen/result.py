@@ -36,6 +36,7 @@ BREAK_REASONS: tuple[tuple[str, str], ...] = (
     ("LOAD_PASSED", "load passed to a riding row"),
     ("ONTO_ROWS", "start moved onto the held rows"),
     ("HALVED", "held segment halved"),
+    ("PROJECTED", "held rows projected at an event's start"),
 )
 _BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
 

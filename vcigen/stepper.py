@@ -331,7 +331,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         for s in (s_min, *np.linspace(0.0, 1.0, self.tol.bracket_samples + 2)[1:-1]):
             if not 0.0 < s < 1.0:
                 continue
-            _, phi = self._sub_solve(seg, float(s), seg.x)
+            _, phi, _ = self._sub_solve(seg, float(s), seg.x)
             if phi[j] < -self.tol.admissible:  # a dip within the admissibility tolerance is no impact
                 return float(s), float(phi[j])
         return None

@@ -482,6 +482,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if s * tau <= 1e-13 * h:  # within the least sub-step: the event at the segment's start (_sub_end)
                 lam, e_sub, lam1, u1 = np.zeros(k.r), e_seg, np.zeros(k.r), self._velocity(q, v, p)
                 self._seg_inner = lam1, np.zeros(k.r * self._stages)
+                limit = self._held_limit(step, t_k, q, p, v)  # held rows an impact left moving: projected
+                if limit is not None:
+                    lam1, p, u1 = limit
             else:
                 v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
             if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
@@ -838,14 +841,27 @@ class SustainedSteps(FrictionModes, HeldImpacts):
 
     def _row_crossing(self, step, t_k, q, p, tau, guess, r, g1, s_hi: float = 1.0) -> float:
         """Fraction where inactive row ``r`` reaches 0 along the constrained sub-step map (Illinois) on ``[0,
-        s_hi]`` (``g1 < 0`` its value at ``s_hi``)."""
-        ga, gb = max(float(self.k.rows(q, guess)[0][r]), 0.0), float(g1)
+        s_hi]`` (``g1 < 0`` its value at ``s_hi``).
+
+        A row on the contact at the start (``|psi_r| <= Tolerances.phi``: an impact on it at this instant, or
+        its lift-off) is bracketed from the first of ``1e-3, 1e-6, 1e-9`` (times ``s_hi``) where it is above
+        ``phi``, as free flight's :meth:`_leave`: the root at the start is the one it leaves. With ``psi_r``
+        1e-19 above 0 there, the secant's first point (1e-16) took it: box on box draw 94's bounce was met
+        again at once and held, where C, whose ``psi_r`` was below 0, bounced on."""
+        psi0 = float(self.k.rows(q, guess)[0][r])
+        lo, ga, gb = 0.0, max(psi0, 0.0), float(g1)
 
         def height(c, v):
             v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
             return float(end.psi[r]), v
 
-        return illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess, hi=s_hi)
+        if abs(psi0) <= self.tol.phi:
+            for s in (1e-3, 1e-6, 1e-9):
+                g, _ = height(s * s_hi, guess)
+                if g > self.tol.phi:
+                    lo, ga = s * s_hi, g
+                    break
+        return illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess, lo=lo, hi=s_hi)
 
     def _row_dips(self, step, t_k, q, p, tau, v, u1, end, cross) -> dict[int, tuple[float, float]]:
         """Inactive contact rows admissible at both ends of the segment that dip below 0 inside it (a rod's

@@ -827,12 +827,13 @@ static void rough_disk_seg_args(const rough_disk_seg_t *seg, const double *tau, 
     }
 }
 
-/* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end. */
-static void rough_disk_sub_solve(const rough_disk_ctx_t *c, const rough_disk_seg_t *seg, double s,
+/* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+static double rough_disk_sub_solve(const rough_disk_ctx_t *c, const rough_disk_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
     const double tau = s * seg->tau;
-    double q_end[ROUGH_DISK_N];
+    double q_end[ROUGH_DISK_N], res = 0.0;
     int i;
     rough_disk_at(c, seg->t);
     if (seg->contact < 0) {
@@ -842,7 +843,6 @@ static void rough_disk_sub_solve(const rough_disk_ctx_t *c, const rough_disk_seg
         rough_disk_solve_smooth(seg->q, seg->p_in, tau, c->par, x);
     } else {
         const double *arg[6];
-        double res;
         for (i = 0; i < ROUGH_DISK_N1; ++i) {
             x[i] = guess[i];
         }
@@ -853,6 +853,7 @@ static void rough_disk_sub_solve(const rough_disk_ctx_t *c, const rough_disk_seg
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
     }
     rough_disk_phi(q_end, c->par, phi);
+    return res;
 }
 
 /* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
@@ -972,28 +973,31 @@ static int rough_disk_crossings(const rough_disk_ctx_t *c, const rough_disk_seg_
     return count;
 }
 
-/* Stepper._bracketed_root: Illinois regula falsi on g(s) = phi_j(q(s)) over [a, b], then a Newton polish. */
+/* Stepper._bracketed_root: Illinois regula falsi on g(s) = phi_j(q(s)) over [a, b], then a Newton polish. Where the
+ * polish leaves a bracket that has closed, its end is the root, with the larger of its |phi_j| and its jump's
+ * residual (an unconverged sub-solve where (48) has no root at that duration is no root of (78)). */
 static int rough_disk_bracketed_root(const rough_disk_ctx_t *c, const rough_disk_seg_t *seg, int j,
     int phase, double a, double ga, double b, double gb, double *x, double *s, double *res)
 {
     const int first = seg->contact < 0;
     const int nx = first ? ROUGH_DISK_N1 : ROUGH_DISK_N + 2;
     const double *arg[6];
-    double gc, cc, phi_b = gb, xb[ROUGH_DISK_NX_MAX], xc[ROUGH_DISK_NX_MAX], phi[ROUGH_DISK_M_DIM];
+    double gc, cc, res_b, res_c, phi_b = gb, xb[ROUGH_DISK_NX_MAX], xc[ROUGH_DISK_NX_MAX], phi[ROUGH_DISK_M_DIM];
     int i, it, side = 0;
-    rough_disk_sub_solve(c, seg, b, seg->x, xb, phi);
+    res_b = rough_disk_sub_solve(c, seg, b, seg->x, xb, phi);
     if (!(ga >= -c->tol->phi && gb < 0)) {
         return rough_disk_fail(c, phase, fabs(gb), "no sign change of phi_%s on [%.3g, 1] (phi = %.3e, %.3e)",
             rough_disk_contact_names[j], a, ga, gb);
     }
     for (it = 0; it < 200; ++it) {
         cc = rough_disk_illinois_point(a, ga, b, gb);
-        rough_disk_sub_solve(c, seg, cc, xb, xc, phi);
+        res_c = rough_disk_sub_solve(c, seg, cc, xb, xc, phi);
         gc = phi[j];
         if (gc == 0) { /* cc is a root (Stepper._bracketed_root) */
             b = cc;
             gb = gc;
             phi_b = gc;
+            res_b = res_c;
             for (i = 0; i < nx - 1; ++i) {
                 xb[i] = xc[i];
             }
@@ -1002,6 +1006,7 @@ static int rough_disk_bracketed_root(const rough_disk_ctx_t *c, const rough_disk
         rough_disk_illinois_update(&a, &ga, &b, &gb, &side, cc, gc);
         if (gc < 0) {
             phi_b = gc;
+            res_b = res_c;
             for (i = 0; i < nx - 1; ++i) {
                 xb[i] = xc[i];
             }
@@ -1022,7 +1027,7 @@ static int rough_disk_bracketed_root(const rough_disk_ctx_t *c, const rough_disk
             x[i] = xb[i];
         }
         x[nx - 1] = b;
-        *res = fabs(phi_b);
+        *res = res_b <= fabs(phi_b) ? fabs(phi_b) : res_b; /* a NaN residual stays NaN */
     } else if (!(a - 1e-12 <= x[nx - 1] && x[nx - 1] <= b + 1e-12)) {
         return rough_disk_fail(c, phase, *res, "Newton polish of the contact on '%s' left the bracket "
             "[%.17g, %.17g]", rough_disk_contact_names[j], a, b);
@@ -1695,6 +1700,63 @@ static int rough_disk_constrained(const rough_disk_ctx_t *c, const double *q, co
     return 0;
 }
 
+/* HeldImpacts._held_limit: an event within the chain's least sub-step (1e-13 h) is at the segment's start, with no
+ * sub-step taken; where an impact at this instant left held rows moving (rates above 1e-12 (1 + |u|)), the start is
+ * the limit of that sub-step as its length goes to 0: rattle_project at q, the held rows' rates made 0 by impulses
+ * Lam' (lam1), p1 = p + dirs^T Lam', u1 its velocity; else lam1, p1, u1 are left as they are. Returns 1 if the
+ * projection's solve fails. */
+static int rough_disk_held_limit(const rough_disk_ctx_t *c, const double *q, const double *p, const double *v,
+    double *lam1, double *p1, double *u1)
+{
+    double y[ROUGH_DISK_NX_MAX], act[ROUGH_DISK_R_DIM], u[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM];
+    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    double umax = 0.0, rate, res;
+    const double *arg[4];
+    int i, r, moving = 0;
+    rough_disk_velocity(c, q, v, p, u);
+    rough_disk_rows(q, u, c->par, psi, grad, curv);
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        umax = fabs(u[i]) > umax ? fabs(u[i]) : umax;
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        for (i = 0, rate = 0.0; i < ROUGH_DISK_N; ++i) {
+            rate += grad[r * ROUGH_DISK_N + i] * u[i];
+        }
+        moving = moving || (c->sus->act[r] && fabs(rate) > 1e-12 * (1.0 + umax));
+    }
+    if (!moving) {
+        return 0;
+    }
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        y[i] = u[i];
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        act[r] = c->sus->act[r] ? 1.0 : 0.0;
+        y[ROUGH_DISK_N + r] = 0.0;
+    }
+    arg[0] = q;
+    arg[1] = p;
+    arg[2] = act;
+    arg[3] = c->par;
+    rough_disk_newton(rough_disk_fn_rattle_project, arg, ROUGH_DISK_N + ROUGH_DISK_R, y, &res);
+    if (rough_disk_check(c, res, p, NAN, ROUGH_DISK_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    rough_disk_rows(q, y, c->par, psi, grad, curv);
+    rough_disk_dirs(c, grad, dirs);
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        p1[i] = p[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[ROUGH_DISK_N + r] : 0.0;
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            p1[i] += dirs[r * ROUGH_DISK_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
  * forces do no work, friction takes energy); else 0. */
@@ -2168,14 +2230,30 @@ static int rough_disk_liftoff_fraction(const rough_disk_ctx_t *c, const double *
 }
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
- * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). */
+ * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). A row on the contact at the start (|psi_r| <= phi: an
+ * impact on it at this instant, or its lift-off) is bracketed from the first of 1e-3, 1e-6, 1e-9 (times s_hi)
+ * where it is above phi, as free flight's leave: the root at the start is the one it leaves. */
 static int rough_disk_row_crossing(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, int r, double g1, double s_hi, double *s_out)
 {
-    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], ga;
+    static const double fractions[3] = {1e-3, 1e-6, 1e-9};
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], ga, lo = 0.0;
+    double vn[ROUGH_DISK_N], q1[ROUGH_DISK_N], u1[ROUGH_DISK_N], psis[ROUGH_DISK_R_DIM];
+    int k;
     rough_disk_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
-    return rough_disk_illinois(c, r, 1, q, p, tau, guess, 0.0, s_hi, ga, g1, ROUGH_DISK_ROOT_EPS * (ga > -g1 ? ga : -g1),
+    for (k = 0; fabs(psi[r]) <= c->tol->phi && k < 3; ++k) {
+        if (rough_disk_sub_end(c, q, p, tau, fractions[k] * s_hi, guess, vn, q1, u1)) {
+            return 1;
+        }
+        rough_disk_rows(q1, vn, c->par, psis, grad, curv);
+        if (psis[r] > c->tol->phi) {
+            lo = fractions[k] * s_hi;
+            ga = psis[r];
+            break;
+        }
+    }
+    return rough_disk_illinois(c, r, 1, q, p, tau, guess, lo, s_hi, ga, g1, ROUGH_DISK_ROOT_EPS * (ga > -g1 ? ga : -g1),
         4e-16, 200, s_out);
 }
 
@@ -3563,6 +3641,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             }
             e_sub = e_seg;
             rough_disk_velocity(c, q, vv, p, u1);
+            if (rough_disk_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
+                return 1;
+            }
         } else if (rough_disk_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
