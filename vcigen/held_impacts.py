@@ -132,10 +132,14 @@ class HeldImpacts(ImpulseLaw):
         if leaving:  # each stays unless it leaves below the resolution, pulled back by the rows held after
             landed = self._landed(lands, slipped, plastic, leaving)
             after = self._held_accel(q, vel_p, leaving, plastic + landed)
+            cut = self.riders_cut > state[2]  # the law cut a rider: its stick row is its own now
             for r in leaving:  # one in the span of the rows held after rides on them: it stays (_rides_after)
                 if self._rides_after(grad, r, leaving, plastic):
                     continue
-                if not self._settles(float(grad[r] @ vel_p), after[r], 1.0, h):
+                # after a cut, one in the span of the rows held after with their stick rows leaves: held, the
+                # rows would be dependent (pyramid draw 297, p12 held at a force of 0: the held step failed)
+                carried = cut and self._rides_after(grad, r, leaving, plastic, sticks=True)
+                if carried or not self._settles(float(grad[r] @ vel_p), after[r], 1.0, h):
                     self._release(step, t_k, t, r)
         for r in plastic:  # pressed in and settling: held (its force, checked next, may release it)
             self._hold(grad, r)
@@ -223,17 +227,20 @@ class HeldImpacts(ImpulseLaw):
         if not self._dependent(grad, r, sticks=False):
             self.act[r] = True
 
-    def _rides_after(self, grad, r: int, off, on) -> bool:
+    def _rides_after(self, grad, r: int, off, on, sticks: bool = False) -> bool:
         """Is row ``r``'s gradient in the span of the normal rows held after an impact (the active ones but
-        ``off``, and ``on``; in row order)? An active row the impact pulls off is then carried by them (its
-        normal speed and ``d2 psi/dt2`` are theirs, 0 to round-off, whose sign would decide its settle
-        test): it stays held, and a row landing dependent on it rides instead (:meth:`_hold`; a box's four
-        vertices on a face). Its force, checked next, may pass its load on (``SustainedSteps._pass_load``)."""
+        ``off``, and ``on``; in row order; with ``sticks`` their stick rows too)? An active row the impact
+        pulls off is then carried by them (its normal speed and ``d2 psi/dt2`` are theirs, 0 to round-off,
+        whose sign would decide its settle test): it stays held, and a row landing dependent on it rides
+        instead (:meth:`_hold`; a box's four vertices on a face). Its force, checked next, may pass its load
+        on (``SustainedSteps._pass_load``)."""
         stick = self.k.row_stick
         rows = [
             i
             for i in range(self.k.r)
-            if i != r and (self.act[i] and i not in off or i in on) and not (stick and stick[i] >= 0)
+            if i != r
+            and (self.act[i] and i not in off or i in on)
+            and (sticks or not (stick and stick[i] >= 0))
         ]
         return in_span(grad, rows, r)
 

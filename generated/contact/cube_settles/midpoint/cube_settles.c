@@ -2009,14 +2009,15 @@ static int cube_settles_dependent(const cube_settles_ctx_t *c, const double *gra
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int cube_settles_rides_after(const cube_settles_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[CUBE_SETTLES_R_DIM], n = 0, i;
     for (i = 0; i < CUBE_SETTLES_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && cube_settles_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || cube_settles_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -3007,7 +3008,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
             if (!leaving[r]) {
                 continue;
             }
-            if (cube_settles_rides_after(c, grad, r, leaving, plastic)) {
+            if (cube_settles_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;

@@ -1464,14 +1464,15 @@ static int pendulum_wall_dependent(const pendulum_wall_ctx_t *c, const double *g
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int pendulum_wall_rides_after(const pendulum_wall_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[PENDULUM_WALL_R_DIM], n = 0, i;
     for (i = 0; i < PENDULUM_WALL_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && pendulum_wall_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || pendulum_wall_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -2461,7 +2462,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             if (!leaving[r]) {
                 continue;
             }
-            if (pendulum_wall_rides_after(c, grad, r, leaving, plastic)) {
+            if (pendulum_wall_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;

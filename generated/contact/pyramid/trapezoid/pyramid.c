@@ -2133,14 +2133,15 @@ static int pyramid_dependent(const pyramid_ctx_t *c, const double *grad, int sr,
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int pyramid_rides_after(const pyramid_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[PYRAMID_R_DIM], n = 0, i;
     for (i = 0; i < PYRAMID_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && pyramid_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || pyramid_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -3960,14 +3961,16 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
             if (!leaving[r]) {
                 continue;
             }
-            if (pyramid_rides_after(c, grad, r, leaving, plastic)) {
+            if (pyramid_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;
             for (i = 0; i < PYRAMID_N; ++i) {
                 rate += grad[r * PYRAMID_N + i] * vel_p[i];
             }
-            if (!pyramid_settles(c, rate, racc[r], 1.0)) {
+            /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
+            if ((c->sus->riders_cut > counts[2] && pyramid_rides_after(c, grad, r, leaving, plastic, 1))
+                || !pyramid_settles(c, rate, racc[r], 1.0)) {
                 pyramid_release(c, t, r, -1);
             }
         }

@@ -1435,14 +1435,15 @@ static int slide_off_dome_dependent(const slide_off_dome_ctx_t *c, const double 
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int slide_off_dome_rides_after(const slide_off_dome_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[SLIDE_OFF_DOME_R_DIM], n = 0, i;
     for (i = 0; i < SLIDE_OFF_DOME_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && slide_off_dome_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || slide_off_dome_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -2432,7 +2433,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             if (!leaving[r]) {
                 continue;
             }
-            if (slide_off_dome_rides_after(c, grad, r, leaving, plastic)) {
+            if (slide_off_dome_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;

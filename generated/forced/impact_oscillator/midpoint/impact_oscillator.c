@@ -1050,14 +1050,15 @@ static int impact_oscillator_dependent(const impact_oscillator_ctx_t *c, const d
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int impact_oscillator_rides_after(const impact_oscillator_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[IMPACT_OSCILLATOR_R_DIM], n = 0, i;
     for (i = 0; i < IMPACT_OSCILLATOR_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && impact_oscillator_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || impact_oscillator_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -2049,7 +2050,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             if (!leaving[r]) {
                 continue;
             }
-            if (impact_oscillator_rides_after(c, grad, r, leaving, plastic)) {
+            if (impact_oscillator_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;

@@ -1291,14 +1291,15 @@ static int block_dependent(const block_ctx_t *c, const double *grad, int sr, int
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int block_rides_after(const block_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[BLOCK_R_DIM], n = 0, i;
     for (i = 0; i < BLOCK_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && block_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || block_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -3108,14 +3109,16 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             if (!leaving[r]) {
                 continue;
             }
-            if (block_rides_after(c, grad, r, leaving, plastic)) {
+            if (block_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;
             for (i = 0; i < BLOCK_N; ++i) {
                 rate += grad[r * BLOCK_N + i] * vel_p[i];
             }
-            if (!block_settles(c, rate, racc[r], 1.0)) {
+            /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
+            if ((c->sus->riders_cut > counts[2] && block_rides_after(c, grad, r, leaving, plastic, 1))
+                || !block_settles(c, rate, racc[r], 1.0)) {
                 block_release(c, t, r, -1);
             }
         }

@@ -1371,14 +1371,15 @@ static int rough_disk_dependent(const rough_disk_ctx_t *c, const double *grad, i
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int rough_disk_rides_after(const rough_disk_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[ROUGH_DISK_R_DIM], n = 0, i;
     for (i = 0; i < ROUGH_DISK_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && rough_disk_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || rough_disk_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -3188,14 +3189,16 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             if (!leaving[r]) {
                 continue;
             }
-            if (rough_disk_rides_after(c, grad, r, leaving, plastic)) {
+            if (rough_disk_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 rate += grad[r * ROUGH_DISK_N + i] * vel_p[i];
             }
-            if (!rough_disk_settles(c, rate, racc[r], 1.0)) {
+            /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
+            if ((c->sus->riders_cut > counts[2] && rough_disk_rides_after(c, grad, r, leaving, plastic, 1))
+                || !rough_disk_settles(c, rate, racc[r], 1.0)) {
                 rough_disk_release(c, t, r, -1);
             }
         }

@@ -1459,14 +1459,15 @@ static int spun_ball_dependent(const spun_ball_ctx_t *c, const double *grad, int
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int spun_ball_rides_after(const spun_ball_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[SPUN_BALL_R_DIM], n = 0, i;
     for (i = 0; i < SPUN_BALL_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && spun_ball_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || spun_ball_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -4820,14 +4821,16 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             if (!leaving[r]) {
                 continue;
             }
-            if (spun_ball_rides_after(c, grad, r, leaving, plastic)) {
+            if (spun_ball_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 rate += grad[r * SPUN_BALL_N + i] * vel_p[i];
             }
-            if (!spun_ball_settles(c, rate, racc[r], 1.0)) {
+            /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
+            if ((c->sus->riders_cut > counts[2] && spun_ball_rides_after(c, grad, r, leaving, plastic, 1))
+                || !spun_ball_settles(c, rate, racc[r], 1.0)) {
                 spun_ball_release(c, t, r, -1);
             }
         }

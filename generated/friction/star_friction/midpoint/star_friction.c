@@ -1573,14 +1573,15 @@ static int star_friction_dependent(const star_friction_ctx_t *c, const double *g
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int star_friction_rides_after(const star_friction_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[STAR_FRICTION_R_DIM], n = 0, i;
     for (i = 0; i < STAR_FRICTION_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && star_friction_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || star_friction_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -3390,14 +3391,16 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             if (!leaving[r]) {
                 continue;
             }
-            if (star_friction_rides_after(c, grad, r, leaving, plastic)) {
+            if (star_friction_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
             }
-            if (!star_friction_settles(c, rate, racc[r], 1.0)) {
+            /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
+            if ((c->sus->riders_cut > counts[2] && star_friction_rides_after(c, grad, r, leaving, plastic, 1))
+                || !star_friction_settles(c, rate, racc[r], 1.0)) {
                 star_friction_release(c, t, r, -1);
             }
         }

@@ -1444,14 +1444,15 @@ static int ball_box_dependent(const ball_box_ctx_t *c, const double *grad, int s
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int ball_box_rides_after(const ball_box_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[BALL_BOX_R_DIM], n = 0, i;
     for (i = 0; i < BALL_BOX_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && ball_box_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || ball_box_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -2441,7 +2442,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
             if (!leaving[r]) {
                 continue;
             }
-            if (ball_box_rides_after(c, grad, r, leaving, plastic)) {
+            if (ball_box_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;

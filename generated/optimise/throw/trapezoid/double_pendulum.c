@@ -1645,14 +1645,15 @@ static int double_pendulum_dependent(const double_pendulum_ctx_t *c, const doubl
 }
 
 /* HeldImpacts._rides_after: is row r's gradient in the span of the normal rows held after an impact (the active
- * ones but those leaving, and those plastic; in row order, in_span)? An active row the impact pulls off then
- * stays, carried by them (its normal speed and acceleration are theirs, 0 to round-off). */
+ * ones but those leaving, and those plastic; in row order, in_span; with sticks their stick rows too)? An active
+ * row the impact pulls off then stays, carried by them (its normal speed and acceleration are theirs, 0 to
+ * round-off). */
 static int double_pendulum_rides_after(const double_pendulum_ctx_t *c, const double *grad, int r, const int *leaving,
-    const int *plastic)
+    const int *plastic, int sticks)
 {
     int rows[DOUBLE_PENDULUM_R_DIM], n = 0, i;
     for (i = 0; i < DOUBLE_PENDULUM_R; ++i) {
-        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && double_pendulum_row_stick[i] < 0) {
+        if (i != r && ((c->sus->act[i] && !leaving[i]) || plastic[i]) && (sticks || double_pendulum_row_stick[i] < 0)) {
             rows[n++] = i;
         }
     }
@@ -2643,7 +2644,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             if (!leaving[r]) {
                 continue;
             }
-            if (double_pendulum_rides_after(c, grad, r, leaving, plastic)) {
+            if (double_pendulum_rides_after(c, grad, r, leaving, plastic, 0)) {
                 continue; /* in the span of the rows held after: it stays, riding on them */
             }
             rate = 0.0;
