@@ -17,7 +17,8 @@ The models of ``tests/test_stacks.py``:
 Printed as ``bench.pyramids`` prints: each draw that ends in an error, goes below a row by more than 1e-9 or
 whose backends end apart (more than 1e-6, or other impact counts; with the times they first part by 1e-12,
 1e-9 and 1e-6), then the tallies. Stop 41: pile seed 2, 300 draws: 0 errors (3 before the crowded laws), 3
-apart; boxes seed 1, 150 draws: 0 errors, 1 out of the model, 11 apart.
+apart; boxes seed 1, 150 draws: 0 errors, 1 out of the model, 11 apart. Stop 42: pile 2 apart (185 and 205,
+mirror images); boxes 0 apart (an unconverged bracket end, a bounce's next crossing found at the bounce).
 """
 
 from __future__ import annotations

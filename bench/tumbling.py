@@ -1,6 +1,11 @@
 """A rigid box tumbling onto a rough floor, random drops; and a tall block rocking on a rough corner.
 
     .venv/bin/python -m bench.tumbling [--drops 200] [--seed 7] [--backend c casadi]
+    .venv/bin/python -m bench.tumbling --agree [--drops 300] [--seed 7]
+
+``--agree`` runs each drop on both backends and prints those that end in an error, below the floor or apart
+(more than 1e-6, or other impact counts; ``bench.pyramids.fuzz``). Stop 42: 300 drops of seed 7, 0 apart (3
+before: drop 138 8.4e-5 apart at t = 3, drops 178 and 238 on other impact logs).
 
 * **Drops** (the model of ``tests/test_tumbling_box.py``: a box with half sides 0.5 x 0.25, four vertex
   contacts with restitution ``e`` and Coulomb friction ``mu``): thrown from ``y = 1`` with ``theta0`` in
@@ -33,18 +38,23 @@ from test_tumbling_box import lowest_vertex, tumble  # noqa: E402
 ROCK_A, ROCK_B = 0.5, 0.2
 
 
+def drop(rng: np.random.Generator) -> dict:
+    """One random drop: ``simulate``'s arguments (the draws in the order every seed's drops were made)."""
+    th0 = rng.uniform(-math.pi, math.pi)
+    v0 = [rng.uniform(-2, 2), rng.uniform(-1, 1), rng.uniform(-5, 5)]
+    e, mu = rng.uniform(0, 1), rng.uniform(0, 1)
+    return {"q0": [0.0, 1.0, th0], "v0": v0, "h": 0.005, "params": {"e": e, "mu": mu}}
+
+
 def drops(backend: str, n: int, seed: int) -> None:
     sim = vcigen.build(tumble(), backend=backend)
     rng = np.random.default_rng(seed)
     fails, most, low = [], 0, math.inf
     for k in range(n):
-        th0 = rng.uniform(-math.pi, math.pi)
-        v0 = [rng.uniform(-2, 2), rng.uniform(-1, 1), rng.uniform(-5, 5)]
-        e, mu = rng.uniform(0, 1), rng.uniform(0, 1)
+        d = drop(rng)
+        th0, v0, e, mu = d["q0"][2], d["v0"], d["params"]["e"], d["params"]["mu"]
         try:
-            res = sim.simulate(
-                [0.0, 1.0, th0], v0, 0.005, t_end=3.0, params={"e": e, "mu": mu}, progress=False
-            )
+            res = sim.simulate(**d, t_end=3.0, progress=False)
         except vcigen.SolverError as err:
             fails.append(k)
             print(f"  drop {k}: theta0 {th0!r}, v0 {v0}, e {e!r}, mu {mu!r}: {err}")
@@ -99,7 +109,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--drops", type=int, default=200)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--backend", nargs="+", default=["c", "casadi"])
+    ap.add_argument(
+        "--agree",
+        action="store_true",
+        help="run each drop on both backends and print those that end apart (bench.pyramids.fuzz) instead",
+    )
     args = ap.parse_args(argv)
+    if args.agree:
+        from bench.pyramids import fuzz
+
+        t = fuzz(tumble(), drop, lambda q: float(lowest_vertex(q).min()), 3.0, args.drops, args.seed)
+        errors, below = t["errors"], t["below"]
+        print(
+            f"{args.drops} drops (seed {args.seed}): errors C {errors['c']}, CasADi {errors['casadi']}; "
+            f"below the floor by 1e-9: C {below['c']}, CasADi {below['casadi']}; apart: {t['apart']}"
+        )
+        return 0
     for backend in args.backend:
         drops(backend, args.drops, args.seed)
         rocking(backend)
