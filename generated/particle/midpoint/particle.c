@@ -1500,14 +1500,46 @@ static double particle_contact_accel(const particle_ctx_t *c, const double *q, c
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int particle_project(const particle_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], res;
+    double dirs[PARTICLE_R_DIM * PARTICLE_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    particle_newton(particle_fn_rattle_project, arg, PARTICLE_N + PARTICLE_R, y, &res);
+    if (particle_check(c, res, pp, NAN, PARTICLE_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    particle_rows(q1, y, c->par, psi, grad, curv);
+    particle_dirs(c, grad, dirs);
+    for (i = 0; i < PARTICLE_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[PARTICLE_N + r] : 0.0;
+        for (i = 0; i < PARTICLE_N; ++i) {
+            p1[i] += dirs[r * PARTICLE_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int particle_constrained(const particle_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[PARTICLE_NX_MAX], y[PARTICLE_NX_MAX], act[PARTICLE_R_DIM], pm[PARTICLE_N], pp[PARTICLE_N];
-    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], res;
-    double dirs[PARTICLE_R_DIM * PARTICLE_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < PARTICLE_N; ++i) {
@@ -1536,25 +1568,8 @@ static int particle_constrained(const particle_ctx_t *c, const double *q, const 
         y[PARTICLE_N + r] = 0.0;
     }
     particle_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    particle_newton(particle_fn_rattle_project, arg, PARTICLE_N + PARTICLE_R, y, &res);
-    if (particle_check(c, res, pp, NAN, PARTICLE_PHASE_SUSTAINED)) {
+    if (particle_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    particle_rows(q1, y, c->par, psi, grad, curv);
-    particle_dirs(c, grad, dirs);
-    for (i = 0; i < PARTICLE_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < PARTICLE_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[PARTICLE_N + r] : 0.0;
-        for (i = 0; i < PARTICLE_N; ++i) {
-            p1[i] += dirs[r * PARTICLE_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1568,9 +1583,7 @@ static int particle_held_limit(const particle_ctx_t *c, const double *q, const d
     double *lam1, double *p1, double *u1)
 {
     double y[PARTICLE_NX_MAX], act[PARTICLE_R_DIM], u[PARTICLE_N], psi[PARTICLE_R_DIM];
-    double grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], dirs[PARTICLE_R_DIM * PARTICLE_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     particle_velocity(c, q, v, p, u);
     particle_rows(q, u, c->par, psi, grad, curv);
@@ -1593,25 +1606,8 @@ static int particle_held_limit(const particle_ctx_t *c, const double *q, const d
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[PARTICLE_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    particle_newton(particle_fn_rattle_project, arg, PARTICLE_N + PARTICLE_R, y, &res);
-    if (particle_check(c, res, p, NAN, PARTICLE_PHASE_SUSTAINED)) {
+    if (particle_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    particle_rows(q, y, c->par, psi, grad, curv);
-    particle_dirs(c, grad, dirs);
-    for (i = 0; i < PARTICLE_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < PARTICLE_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[PARTICLE_N + r] : 0.0;
-        for (i = 0; i < PARTICLE_N; ++i) {
-            p1[i] += dirs[r * PARTICLE_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -1781,14 +1781,46 @@ static double star_contact_accel(const star_ctx_t *c, const double *q, const dou
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int star_project(const star_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], res;
+    double dirs[STAR_R_DIM * STAR_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    star_newton(star_fn_rattle_project, arg, STAR_N + STAR_R, y, &res);
+    if (star_check(c, res, pp, NAN, STAR_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    star_rows(q1, y, c->par, psi, grad, curv);
+    star_dirs(c, grad, dirs);
+    for (i = 0; i < STAR_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < STAR_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[STAR_N + r] : 0.0;
+        for (i = 0; i < STAR_N; ++i) {
+            p1[i] += dirs[r * STAR_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int star_constrained(const star_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[STAR_NX_MAX], y[STAR_NX_MAX], act[STAR_R_DIM], pm[STAR_N], pp[STAR_N];
-    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], res;
-    double dirs[STAR_R_DIM * STAR_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < STAR_N; ++i) {
@@ -1817,25 +1849,8 @@ static int star_constrained(const star_ctx_t *c, const double *q, const double *
         y[STAR_N + r] = 0.0;
     }
     star_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    star_newton(star_fn_rattle_project, arg, STAR_N + STAR_R, y, &res);
-    if (star_check(c, res, pp, NAN, STAR_PHASE_SUSTAINED)) {
+    if (star_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    star_rows(q1, y, c->par, psi, grad, curv);
-    star_dirs(c, grad, dirs);
-    for (i = 0; i < STAR_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < STAR_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[STAR_N + r] : 0.0;
-        for (i = 0; i < STAR_N; ++i) {
-            p1[i] += dirs[r * STAR_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1849,9 +1864,7 @@ static int star_held_limit(const star_ctx_t *c, const double *q, const double *p
     double *lam1, double *p1, double *u1)
 {
     double y[STAR_NX_MAX], act[STAR_R_DIM], u[STAR_N], psi[STAR_R_DIM];
-    double grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], dirs[STAR_R_DIM * STAR_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     star_velocity(c, q, v, p, u);
     star_rows(q, u, c->par, psi, grad, curv);
@@ -1874,25 +1887,8 @@ static int star_held_limit(const star_ctx_t *c, const double *q, const double *p
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[STAR_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    star_newton(star_fn_rattle_project, arg, STAR_N + STAR_R, y, &res);
-    if (star_check(c, res, p, NAN, STAR_PHASE_SUSTAINED)) {
+    if (star_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    star_rows(q, y, c->par, psi, grad, curv);
-    star_dirs(c, grad, dirs);
-    for (i = 0; i < STAR_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < STAR_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[STAR_N + r] : 0.0;
-        for (i = 0; i < STAR_N; ++i) {
-            p1[i] += dirs[r * STAR_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -2289,14 +2289,46 @@ static double cube_settles_contact_accel(const cube_settles_ctx_t *c, const doub
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int cube_settles_project(const cube_settles_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM], res;
+    double dirs[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    cube_settles_newton(cube_settles_fn_rattle_project, arg, CUBE_SETTLES_N + CUBE_SETTLES_R, y, &res);
+    if (cube_settles_check(c, res, pp, NAN, CUBE_SETTLES_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    cube_settles_rows(q1, y, c->par, psi, grad, curv);
+    cube_settles_dirs(c, grad, dirs);
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[CUBE_SETTLES_N + r] : 0.0;
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            p1[i] += dirs[r * CUBE_SETTLES_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int cube_settles_constrained(const cube_settles_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[CUBE_SETTLES_NX_MAX], y[CUBE_SETTLES_NX_MAX], act[CUBE_SETTLES_R_DIM], pm[CUBE_SETTLES_N], pp[CUBE_SETTLES_N];
-    double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM], res;
-    double dirs[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < CUBE_SETTLES_N; ++i) {
@@ -2325,25 +2357,8 @@ static int cube_settles_constrained(const cube_settles_ctx_t *c, const double *q
         y[CUBE_SETTLES_N + r] = 0.0;
     }
     cube_settles_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    cube_settles_newton(cube_settles_fn_rattle_project, arg, CUBE_SETTLES_N + CUBE_SETTLES_R, y, &res);
-    if (cube_settles_check(c, res, pp, NAN, CUBE_SETTLES_PHASE_SUSTAINED)) {
+    if (cube_settles_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    cube_settles_rows(q1, y, c->par, psi, grad, curv);
-    cube_settles_dirs(c, grad, dirs);
-    for (i = 0; i < CUBE_SETTLES_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < CUBE_SETTLES_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[CUBE_SETTLES_N + r] : 0.0;
-        for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            p1[i] += dirs[r * CUBE_SETTLES_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -2357,9 +2372,7 @@ static int cube_settles_held_limit(const cube_settles_ctx_t *c, const double *q,
     double *lam1, double *p1, double *u1)
 {
     double y[CUBE_SETTLES_NX_MAX], act[CUBE_SETTLES_R_DIM], u[CUBE_SETTLES_N], psi[CUBE_SETTLES_R_DIM];
-    double grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM], dirs[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     cube_settles_velocity(c, q, v, p, u);
     cube_settles_rows(q, u, c->par, psi, grad, curv);
@@ -2382,25 +2395,8 @@ static int cube_settles_held_limit(const cube_settles_ctx_t *c, const double *q,
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[CUBE_SETTLES_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    cube_settles_newton(cube_settles_fn_rattle_project, arg, CUBE_SETTLES_N + CUBE_SETTLES_R, y, &res);
-    if (cube_settles_check(c, res, p, NAN, CUBE_SETTLES_PHASE_SUSTAINED)) {
+    if (cube_settles_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    cube_settles_rows(q, y, c->par, psi, grad, curv);
-    cube_settles_dirs(c, grad, dirs);
-    for (i = 0; i < CUBE_SETTLES_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < CUBE_SETTLES_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[CUBE_SETTLES_N + r] : 0.0;
-        for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            p1[i] += dirs[r * CUBE_SETTLES_N + i] * lam1[r];
-        }
     }
     return 0;
 }

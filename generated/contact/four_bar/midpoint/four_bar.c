@@ -2001,14 +2001,46 @@ static double four_bar_contact_accel(const four_bar_ctx_t *c, const double *q, c
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int four_bar_project(const four_bar_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM], res;
+    double dirs[FOUR_BAR_R_DIM * FOUR_BAR_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    four_bar_newton(four_bar_fn_rattle_project, arg, FOUR_BAR_N + FOUR_BAR_R, y, &res);
+    if (four_bar_check(c, res, pp, NAN, FOUR_BAR_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    four_bar_rows(q1, y, c->par, psi, grad, curv);
+    four_bar_dirs(c, grad, dirs);
+    for (i = 0; i < FOUR_BAR_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[FOUR_BAR_N + r] : 0.0;
+        for (i = 0; i < FOUR_BAR_N; ++i) {
+            p1[i] += dirs[r * FOUR_BAR_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int four_bar_constrained(const four_bar_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[FOUR_BAR_NX_MAX], y[FOUR_BAR_NX_MAX], act[FOUR_BAR_R_DIM], pm[FOUR_BAR_N], pp[FOUR_BAR_N];
-    double psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM], res;
-    double dirs[FOUR_BAR_R_DIM * FOUR_BAR_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < FOUR_BAR_N; ++i) {
@@ -2037,25 +2069,8 @@ static int four_bar_constrained(const four_bar_ctx_t *c, const double *q, const 
         y[FOUR_BAR_N + r] = 0.0;
     }
     four_bar_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    four_bar_newton(four_bar_fn_rattle_project, arg, FOUR_BAR_N + FOUR_BAR_R, y, &res);
-    if (four_bar_check(c, res, pp, NAN, FOUR_BAR_PHASE_SUSTAINED)) {
+    if (four_bar_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    four_bar_rows(q1, y, c->par, psi, grad, curv);
-    four_bar_dirs(c, grad, dirs);
-    for (i = 0; i < FOUR_BAR_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < FOUR_BAR_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[FOUR_BAR_N + r] : 0.0;
-        for (i = 0; i < FOUR_BAR_N; ++i) {
-            p1[i] += dirs[r * FOUR_BAR_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -2069,9 +2084,7 @@ static int four_bar_held_limit(const four_bar_ctx_t *c, const double *q, const d
     double *lam1, double *p1, double *u1)
 {
     double y[FOUR_BAR_NX_MAX], act[FOUR_BAR_R_DIM], u[FOUR_BAR_N], psi[FOUR_BAR_R_DIM];
-    double grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM], dirs[FOUR_BAR_R_DIM * FOUR_BAR_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     four_bar_velocity(c, q, v, p, u);
     four_bar_rows(q, u, c->par, psi, grad, curv);
@@ -2094,25 +2107,8 @@ static int four_bar_held_limit(const four_bar_ctx_t *c, const double *q, const d
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[FOUR_BAR_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    four_bar_newton(four_bar_fn_rattle_project, arg, FOUR_BAR_N + FOUR_BAR_R, y, &res);
-    if (four_bar_check(c, res, p, NAN, FOUR_BAR_PHASE_SUSTAINED)) {
+    if (four_bar_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    four_bar_rows(q, y, c->par, psi, grad, curv);
-    four_bar_dirs(c, grad, dirs);
-    for (i = 0; i < FOUR_BAR_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < FOUR_BAR_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[FOUR_BAR_N + r] : 0.0;
-        for (i = 0; i < FOUR_BAR_N; ++i) {
-            p1[i] += dirs[r * FOUR_BAR_N + i] * lam1[r];
-        }
     }
     return 0;
 }

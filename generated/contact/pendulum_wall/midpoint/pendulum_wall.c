@@ -1731,14 +1731,46 @@ static double pendulum_wall_contact_accel(const pendulum_wall_ctx_t *c, const do
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int pendulum_wall_project(const pendulum_wall_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], res;
+    double dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    pendulum_wall_newton(pendulum_wall_fn_rattle_project, arg, PENDULUM_WALL_N + PENDULUM_WALL_R, y, &res);
+    if (pendulum_wall_check(c, res, pp, NAN, PENDULUM_WALL_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    pendulum_wall_rows(q1, y, c->par, psi, grad, curv);
+    pendulum_wall_dirs(c, grad, dirs);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[PENDULUM_WALL_N + r] : 0.0;
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            p1[i] += dirs[r * PENDULUM_WALL_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[PENDULUM_WALL_NX_MAX], y[PENDULUM_WALL_NX_MAX], act[PENDULUM_WALL_R_DIM], pm[PENDULUM_WALL_N], pp[PENDULUM_WALL_N];
-    double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], res;
-    double dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
@@ -1767,25 +1799,8 @@ static int pendulum_wall_constrained(const pendulum_wall_ctx_t *c, const double 
         y[PENDULUM_WALL_N + r] = 0.0;
     }
     pendulum_wall_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    pendulum_wall_newton(pendulum_wall_fn_rattle_project, arg, PENDULUM_WALL_N + PENDULUM_WALL_R, y, &res);
-    if (pendulum_wall_check(c, res, pp, NAN, PENDULUM_WALL_PHASE_SUSTAINED)) {
+    if (pendulum_wall_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    pendulum_wall_rows(q1, y, c->par, psi, grad, curv);
-    pendulum_wall_dirs(c, grad, dirs);
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < PENDULUM_WALL_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[PENDULUM_WALL_N + r] : 0.0;
-        for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            p1[i] += dirs[r * PENDULUM_WALL_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1799,9 +1814,7 @@ static int pendulum_wall_held_limit(const pendulum_wall_ctx_t *c, const double *
     double *lam1, double *p1, double *u1)
 {
     double y[PENDULUM_WALL_NX_MAX], act[PENDULUM_WALL_R_DIM], u[PENDULUM_WALL_N], psi[PENDULUM_WALL_R_DIM];
-    double grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     pendulum_wall_velocity(c, q, v, p, u);
     pendulum_wall_rows(q, u, c->par, psi, grad, curv);
@@ -1824,25 +1837,8 @@ static int pendulum_wall_held_limit(const pendulum_wall_ctx_t *c, const double *
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[PENDULUM_WALL_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    pendulum_wall_newton(pendulum_wall_fn_rattle_project, arg, PENDULUM_WALL_N + PENDULUM_WALL_R, y, &res);
-    if (pendulum_wall_check(c, res, p, NAN, PENDULUM_WALL_PHASE_SUSTAINED)) {
+    if (pendulum_wall_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    pendulum_wall_rows(q, y, c->par, psi, grad, curv);
-    pendulum_wall_dirs(c, grad, dirs);
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < PENDULUM_WALL_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[PENDULUM_WALL_N + r] : 0.0;
-        for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            p1[i] += dirs[r * PENDULUM_WALL_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -2405,14 +2405,46 @@ static double pyramid_contact_accel(const pyramid_ctx_t *c, const double *q, con
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int pyramid_project(const pyramid_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM], res;
+    double dirs[PYRAMID_R_DIM * PYRAMID_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    pyramid_newton(pyramid_fn_rattle_project, arg, PYRAMID_N + PYRAMID_R, y, &res);
+    if (pyramid_check(c, res, pp, NAN, PYRAMID_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    pyramid_rows(q1, y, c->par, psi, grad, curv);
+    pyramid_dirs(c, grad, dirs);
+    for (i = 0; i < PYRAMID_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < PYRAMID_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[PYRAMID_N + r] : 0.0;
+        for (i = 0; i < PYRAMID_N; ++i) {
+            p1[i] += dirs[r * PYRAMID_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int pyramid_constrained(const pyramid_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[PYRAMID_NX_MAX], y[PYRAMID_NX_MAX], act[PYRAMID_R_DIM], pm[PYRAMID_N], pp[PYRAMID_N];
-    double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM], res;
-    double dirs[PYRAMID_R_DIM * PYRAMID_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < PYRAMID_N; ++i) {
@@ -2441,25 +2473,8 @@ static int pyramid_constrained(const pyramid_ctx_t *c, const double *q, const do
         y[PYRAMID_N + r] = 0.0;
     }
     pyramid_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    pyramid_newton(pyramid_fn_rattle_project, arg, PYRAMID_N + PYRAMID_R, y, &res);
-    if (pyramid_check(c, res, pp, NAN, PYRAMID_PHASE_SUSTAINED)) {
+    if (pyramid_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    pyramid_rows(q1, y, c->par, psi, grad, curv);
-    pyramid_dirs(c, grad, dirs);
-    for (i = 0; i < PYRAMID_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < PYRAMID_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[PYRAMID_N + r] : 0.0;
-        for (i = 0; i < PYRAMID_N; ++i) {
-            p1[i] += dirs[r * PYRAMID_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -2473,9 +2488,7 @@ static int pyramid_held_limit(const pyramid_ctx_t *c, const double *q, const dou
     double *lam1, double *p1, double *u1)
 {
     double y[PYRAMID_NX_MAX], act[PYRAMID_R_DIM], u[PYRAMID_N], psi[PYRAMID_R_DIM];
-    double grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM], dirs[PYRAMID_R_DIM * PYRAMID_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     pyramid_velocity(c, q, v, p, u);
     pyramid_rows(q, u, c->par, psi, grad, curv);
@@ -2498,25 +2511,8 @@ static int pyramid_held_limit(const pyramid_ctx_t *c, const double *q, const dou
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[PYRAMID_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    pyramid_newton(pyramid_fn_rattle_project, arg, PYRAMID_N + PYRAMID_R, y, &res);
-    if (pyramid_check(c, res, p, NAN, PYRAMID_PHASE_SUSTAINED)) {
+    if (pyramid_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    pyramid_rows(q, y, c->par, psi, grad, curv);
-    pyramid_dirs(c, grad, dirs);
-    for (i = 0; i < PYRAMID_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < PYRAMID_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[PYRAMID_N + r] : 0.0;
-        for (i = 0; i < PYRAMID_N; ++i) {
-            p1[i] += dirs[r * PYRAMID_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -1702,14 +1702,46 @@ static double slide_off_dome_contact_accel(const slide_off_dome_ctx_t *c, const 
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int slide_off_dome_project(const slide_off_dome_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM], res;
+    double dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    slide_off_dome_newton(slide_off_dome_fn_rattle_project, arg, SLIDE_OFF_DOME_N + SLIDE_OFF_DOME_R, y, &res);
+    if (slide_off_dome_check(c, res, pp, NAN, SLIDE_OFF_DOME_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    slide_off_dome_rows(q1, y, c->par, psi, grad, curv);
+    slide_off_dome_dirs(c, grad, dirs);
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[SLIDE_OFF_DOME_N + r] : 0.0;
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            p1[i] += dirs[r * SLIDE_OFF_DOME_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int slide_off_dome_constrained(const slide_off_dome_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[SLIDE_OFF_DOME_NX_MAX], y[SLIDE_OFF_DOME_NX_MAX], act[SLIDE_OFF_DOME_R_DIM], pm[SLIDE_OFF_DOME_N], pp[SLIDE_OFF_DOME_N];
-    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM], res;
-    double dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
@@ -1738,25 +1770,8 @@ static int slide_off_dome_constrained(const slide_off_dome_ctx_t *c, const doubl
         y[SLIDE_OFF_DOME_N + r] = 0.0;
     }
     slide_off_dome_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    slide_off_dome_newton(slide_off_dome_fn_rattle_project, arg, SLIDE_OFF_DOME_N + SLIDE_OFF_DOME_R, y, &res);
-    if (slide_off_dome_check(c, res, pp, NAN, SLIDE_OFF_DOME_PHASE_SUSTAINED)) {
+    if (slide_off_dome_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    slide_off_dome_rows(q1, y, c->par, psi, grad, curv);
-    slide_off_dome_dirs(c, grad, dirs);
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[SLIDE_OFF_DOME_N + r] : 0.0;
-        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            p1[i] += dirs[r * SLIDE_OFF_DOME_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1770,9 +1785,7 @@ static int slide_off_dome_held_limit(const slide_off_dome_ctx_t *c, const double
     double *lam1, double *p1, double *u1)
 {
     double y[SLIDE_OFF_DOME_NX_MAX], act[SLIDE_OFF_DOME_R_DIM], u[SLIDE_OFF_DOME_N], psi[SLIDE_OFF_DOME_R_DIM];
-    double grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM], dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     slide_off_dome_velocity(c, q, v, p, u);
     slide_off_dome_rows(q, u, c->par, psi, grad, curv);
@@ -1795,25 +1808,8 @@ static int slide_off_dome_held_limit(const slide_off_dome_ctx_t *c, const double
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[SLIDE_OFF_DOME_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    slide_off_dome_newton(slide_off_dome_fn_rattle_project, arg, SLIDE_OFF_DOME_N + SLIDE_OFF_DOME_R, y, &res);
-    if (slide_off_dome_check(c, res, p, NAN, SLIDE_OFF_DOME_PHASE_SUSTAINED)) {
+    if (slide_off_dome_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    slide_off_dome_rows(q, y, c->par, psi, grad, curv);
-    slide_off_dome_dirs(c, grad, dirs);
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[SLIDE_OFF_DOME_N + r] : 0.0;
-        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            p1[i] += dirs[r * SLIDE_OFF_DOME_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -1782,14 +1782,46 @@ static double star_settles_contact_accel(const star_settles_ctx_t *c, const doub
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int star_settles_project(const star_settles_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM], res;
+    double dirs[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    star_settles_newton(star_settles_fn_rattle_project, arg, STAR_SETTLES_N + STAR_SETTLES_R, y, &res);
+    if (star_settles_check(c, res, pp, NAN, STAR_SETTLES_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    star_settles_rows(q1, y, c->par, psi, grad, curv);
+    star_settles_dirs(c, grad, dirs);
+    for (i = 0; i < STAR_SETTLES_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < STAR_SETTLES_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[STAR_SETTLES_N + r] : 0.0;
+        for (i = 0; i < STAR_SETTLES_N; ++i) {
+            p1[i] += dirs[r * STAR_SETTLES_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int star_settles_constrained(const star_settles_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[STAR_SETTLES_NX_MAX], y[STAR_SETTLES_NX_MAX], act[STAR_SETTLES_R_DIM], pm[STAR_SETTLES_N], pp[STAR_SETTLES_N];
-    double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM], res;
-    double dirs[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < STAR_SETTLES_N; ++i) {
@@ -1818,25 +1850,8 @@ static int star_settles_constrained(const star_settles_ctx_t *c, const double *q
         y[STAR_SETTLES_N + r] = 0.0;
     }
     star_settles_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    star_settles_newton(star_settles_fn_rattle_project, arg, STAR_SETTLES_N + STAR_SETTLES_R, y, &res);
-    if (star_settles_check(c, res, pp, NAN, STAR_SETTLES_PHASE_SUSTAINED)) {
+    if (star_settles_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    star_settles_rows(q1, y, c->par, psi, grad, curv);
-    star_settles_dirs(c, grad, dirs);
-    for (i = 0; i < STAR_SETTLES_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < STAR_SETTLES_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[STAR_SETTLES_N + r] : 0.0;
-        for (i = 0; i < STAR_SETTLES_N; ++i) {
-            p1[i] += dirs[r * STAR_SETTLES_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1850,9 +1865,7 @@ static int star_settles_held_limit(const star_settles_ctx_t *c, const double *q,
     double *lam1, double *p1, double *u1)
 {
     double y[STAR_SETTLES_NX_MAX], act[STAR_SETTLES_R_DIM], u[STAR_SETTLES_N], psi[STAR_SETTLES_R_DIM];
-    double grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM], dirs[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     star_settles_velocity(c, q, v, p, u);
     star_settles_rows(q, u, c->par, psi, grad, curv);
@@ -1875,25 +1888,8 @@ static int star_settles_held_limit(const star_settles_ctx_t *c, const double *q,
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[STAR_SETTLES_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    star_settles_newton(star_settles_fn_rattle_project, arg, STAR_SETTLES_N + STAR_SETTLES_R, y, &res);
-    if (star_settles_check(c, res, p, NAN, STAR_SETTLES_PHASE_SUSTAINED)) {
+    if (star_settles_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    star_settles_rows(q, y, c->par, psi, grad, curv);
-    star_settles_dirs(c, grad, dirs);
-    for (i = 0; i < STAR_SETTLES_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < STAR_SETTLES_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[STAR_SETTLES_N + r] : 0.0;
-        for (i = 0; i < STAR_SETTLES_N; ++i) {
-            p1[i] += dirs[r * STAR_SETTLES_N + i] * lam1[r];
-        }
     }
     return 0;
 }

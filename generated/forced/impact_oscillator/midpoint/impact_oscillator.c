@@ -1322,14 +1322,46 @@ static double impact_oscillator_contact_accel(const impact_oscillator_ctx_t *c, 
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int impact_oscillator_project(const impact_oscillator_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM], res;
+    double dirs[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    impact_oscillator_newton(impact_oscillator_fn_rattle_project, arg, IMPACT_OSCILLATOR_N + IMPACT_OSCILLATOR_R, y, &res);
+    if (impact_oscillator_check(c, res, pp, NAN, IMPACT_OSCILLATOR_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    impact_oscillator_rows(q1, y, c->par, psi, grad, curv);
+    impact_oscillator_dirs(c, grad, dirs);
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[IMPACT_OSCILLATOR_N + r] : 0.0;
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            p1[i] += dirs[r * IMPACT_OSCILLATOR_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int impact_oscillator_constrained(const impact_oscillator_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[IMPACT_OSCILLATOR_NX_MAX], y[IMPACT_OSCILLATOR_NX_MAX], act[IMPACT_OSCILLATOR_R_DIM], pm[IMPACT_OSCILLATOR_N], pp[IMPACT_OSCILLATOR_N];
-    double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM], res;
-    double dirs[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
@@ -1358,25 +1390,8 @@ static int impact_oscillator_constrained(const impact_oscillator_ctx_t *c, const
         y[IMPACT_OSCILLATOR_N + r] = 0.0;
     }
     impact_oscillator_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    impact_oscillator_newton(impact_oscillator_fn_rattle_project, arg, IMPACT_OSCILLATOR_N + IMPACT_OSCILLATOR_R, y, &res);
-    if (impact_oscillator_check(c, res, pp, NAN, IMPACT_OSCILLATOR_PHASE_SUSTAINED)) {
+    if (impact_oscillator_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    impact_oscillator_rows(q1, y, c->par, psi, grad, curv);
-    impact_oscillator_dirs(c, grad, dirs);
-    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[IMPACT_OSCILLATOR_N + r] : 0.0;
-        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-            p1[i] += dirs[r * IMPACT_OSCILLATOR_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1390,9 +1405,7 @@ static int impact_oscillator_held_limit(const impact_oscillator_ctx_t *c, const 
     double *lam1, double *p1, double *u1)
 {
     double y[IMPACT_OSCILLATOR_NX_MAX], act[IMPACT_OSCILLATOR_R_DIM], u[IMPACT_OSCILLATOR_N], psi[IMPACT_OSCILLATOR_R_DIM];
-    double grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM], dirs[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     impact_oscillator_velocity(c, q, v, p, u);
     impact_oscillator_rows(q, u, c->par, psi, grad, curv);
@@ -1415,25 +1428,8 @@ static int impact_oscillator_held_limit(const impact_oscillator_ctx_t *c, const 
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[IMPACT_OSCILLATOR_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    impact_oscillator_newton(impact_oscillator_fn_rattle_project, arg, IMPACT_OSCILLATOR_N + IMPACT_OSCILLATOR_R, y, &res);
-    if (impact_oscillator_check(c, res, p, NAN, IMPACT_OSCILLATOR_PHASE_SUSTAINED)) {
+    if (impact_oscillator_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    impact_oscillator_rows(q, y, c->par, psi, grad, curv);
-    impact_oscillator_dirs(c, grad, dirs);
-    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[IMPACT_OSCILLATOR_N + r] : 0.0;
-        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-            p1[i] += dirs[r * IMPACT_OSCILLATOR_N + i] * lam1[r];
-        }
     }
     return 0;
 }

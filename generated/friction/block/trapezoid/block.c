@@ -1563,14 +1563,46 @@ static double block_contact_accel(const block_ctx_t *c, const double *q, const d
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int block_project(const block_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], res;
+    double dirs[BLOCK_R_DIM * BLOCK_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    block_newton(block_fn_rattle_project, arg, BLOCK_N + BLOCK_R, y, &res);
+    if (block_check(c, res, pp, NAN, BLOCK_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    block_rows(q1, y, c->par, psi, grad, curv);
+    block_dirs(c, grad, dirs);
+    for (i = 0; i < BLOCK_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[BLOCK_N + r] : 0.0;
+        for (i = 0; i < BLOCK_N; ++i) {
+            p1[i] += dirs[r * BLOCK_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int block_constrained(const block_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[BLOCK_NX_MAX], y[BLOCK_NX_MAX], act[BLOCK_R_DIM], pm[BLOCK_N], pp[BLOCK_N];
-    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], res;
-    double dirs[BLOCK_R_DIM * BLOCK_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < BLOCK_N; ++i) {
@@ -1599,25 +1631,8 @@ static int block_constrained(const block_ctx_t *c, const double *q, const double
         y[BLOCK_N + r] = 0.0;
     }
     block_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    block_newton(block_fn_rattle_project, arg, BLOCK_N + BLOCK_R, y, &res);
-    if (block_check(c, res, pp, NAN, BLOCK_PHASE_SUSTAINED)) {
+    if (block_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    block_rows(q1, y, c->par, psi, grad, curv);
-    block_dirs(c, grad, dirs);
-    for (i = 0; i < BLOCK_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < BLOCK_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[BLOCK_N + r] : 0.0;
-        for (i = 0; i < BLOCK_N; ++i) {
-            p1[i] += dirs[r * BLOCK_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1631,9 +1646,7 @@ static int block_held_limit(const block_ctx_t *c, const double *q, const double 
     double *lam1, double *p1, double *u1)
 {
     double y[BLOCK_NX_MAX], act[BLOCK_R_DIM], u[BLOCK_N], psi[BLOCK_R_DIM];
-    double grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], dirs[BLOCK_R_DIM * BLOCK_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     block_velocity(c, q, v, p, u);
     block_rows(q, u, c->par, psi, grad, curv);
@@ -1656,25 +1669,8 @@ static int block_held_limit(const block_ctx_t *c, const double *q, const double 
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[BLOCK_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    block_newton(block_fn_rattle_project, arg, BLOCK_N + BLOCK_R, y, &res);
-    if (block_check(c, res, p, NAN, BLOCK_PHASE_SUSTAINED)) {
+    if (block_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    block_rows(q, y, c->par, psi, grad, curv);
-    block_dirs(c, grad, dirs);
-    for (i = 0; i < BLOCK_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < BLOCK_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[BLOCK_N + r] : 0.0;
-        for (i = 0; i < BLOCK_N; ++i) {
-            p1[i] += dirs[r * BLOCK_N + i] * lam1[r];
-        }
     }
     return 0;
 }

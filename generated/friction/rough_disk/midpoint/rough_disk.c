@@ -1642,14 +1642,46 @@ static double rough_disk_contact_accel(const rough_disk_ctx_t *c, const double *
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int rough_disk_project(const rough_disk_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], res;
+    double dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    rough_disk_newton(rough_disk_fn_rattle_project, arg, ROUGH_DISK_N + ROUGH_DISK_R, y, &res);
+    if (rough_disk_check(c, res, pp, NAN, ROUGH_DISK_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    rough_disk_rows(q1, y, c->par, psi, grad, curv);
+    rough_disk_dirs(c, grad, dirs);
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[ROUGH_DISK_N + r] : 0.0;
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            p1[i] += dirs[r * ROUGH_DISK_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int rough_disk_constrained(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[ROUGH_DISK_NX_MAX], y[ROUGH_DISK_NX_MAX], act[ROUGH_DISK_R_DIM], pm[ROUGH_DISK_N], pp[ROUGH_DISK_N];
-    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], res;
-    double dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < ROUGH_DISK_N; ++i) {
@@ -1678,25 +1710,8 @@ static int rough_disk_constrained(const rough_disk_ctx_t *c, const double *q, co
         y[ROUGH_DISK_N + r] = 0.0;
     }
     rough_disk_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    rough_disk_newton(rough_disk_fn_rattle_project, arg, ROUGH_DISK_N + ROUGH_DISK_R, y, &res);
-    if (rough_disk_check(c, res, pp, NAN, ROUGH_DISK_PHASE_SUSTAINED)) {
+    if (rough_disk_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    rough_disk_rows(q1, y, c->par, psi, grad, curv);
-    rough_disk_dirs(c, grad, dirs);
-    for (i = 0; i < ROUGH_DISK_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < ROUGH_DISK_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[ROUGH_DISK_N + r] : 0.0;
-        for (i = 0; i < ROUGH_DISK_N; ++i) {
-            p1[i] += dirs[r * ROUGH_DISK_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1710,9 +1725,7 @@ static int rough_disk_held_limit(const rough_disk_ctx_t *c, const double *q, con
     double *lam1, double *p1, double *u1)
 {
     double y[ROUGH_DISK_NX_MAX], act[ROUGH_DISK_R_DIM], u[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM];
-    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     rough_disk_velocity(c, q, v, p, u);
     rough_disk_rows(q, u, c->par, psi, grad, curv);
@@ -1735,25 +1748,8 @@ static int rough_disk_held_limit(const rough_disk_ctx_t *c, const double *q, con
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[ROUGH_DISK_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    rough_disk_newton(rough_disk_fn_rattle_project, arg, ROUGH_DISK_N + ROUGH_DISK_R, y, &res);
-    if (rough_disk_check(c, res, p, NAN, ROUGH_DISK_PHASE_SUSTAINED)) {
+    if (rough_disk_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    rough_disk_rows(q, y, c->par, psi, grad, curv);
-    rough_disk_dirs(c, grad, dirs);
-    for (i = 0; i < ROUGH_DISK_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < ROUGH_DISK_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[ROUGH_DISK_N + r] : 0.0;
-        for (i = 0; i < ROUGH_DISK_N; ++i) {
-            p1[i] += dirs[r * ROUGH_DISK_N + i] * lam1[r];
-        }
     }
     return 0;
 }

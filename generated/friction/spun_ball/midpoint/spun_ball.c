@@ -1731,14 +1731,46 @@ static double spun_ball_contact_accel(const spun_ball_ctx_t *c, const double *q,
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int spun_ball_project(const spun_ball_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], res;
+    double dirs[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    spun_ball_newton(spun_ball_fn_rattle_project, arg, SPUN_BALL_N + SPUN_BALL_R, y, &res);
+    if (spun_ball_check(c, res, pp, NAN, SPUN_BALL_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    spun_ball_rows(q1, y, c->par, psi, grad, curv);
+    spun_ball_dirs(c, grad, dirs);
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[SPUN_BALL_N + r] : 0.0;
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            p1[i] += dirs[r * SPUN_BALL_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int spun_ball_constrained(const spun_ball_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[SPUN_BALL_NX_MAX], y[SPUN_BALL_NX_MAX], act[SPUN_BALL_R_DIM], pm[SPUN_BALL_N], pp[SPUN_BALL_N];
-    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], res;
-    double dirs[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < SPUN_BALL_N; ++i) {
@@ -1767,25 +1799,8 @@ static int spun_ball_constrained(const spun_ball_ctx_t *c, const double *q, cons
         y[SPUN_BALL_N + r] = 0.0;
     }
     spun_ball_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    spun_ball_newton(spun_ball_fn_rattle_project, arg, SPUN_BALL_N + SPUN_BALL_R, y, &res);
-    if (spun_ball_check(c, res, pp, NAN, SPUN_BALL_PHASE_SUSTAINED)) {
+    if (spun_ball_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    spun_ball_rows(q1, y, c->par, psi, grad, curv);
-    spun_ball_dirs(c, grad, dirs);
-    for (i = 0; i < SPUN_BALL_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[SPUN_BALL_N + r] : 0.0;
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            p1[i] += dirs[r * SPUN_BALL_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1799,9 +1814,7 @@ static int spun_ball_held_limit(const spun_ball_ctx_t *c, const double *q, const
     double *lam1, double *p1, double *u1)
 {
     double y[SPUN_BALL_NX_MAX], act[SPUN_BALL_R_DIM], u[SPUN_BALL_N], psi[SPUN_BALL_R_DIM];
-    double grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], dirs[SPUN_BALL_R_DIM * SPUN_BALL_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     spun_ball_velocity(c, q, v, p, u);
     spun_ball_rows(q, u, c->par, psi, grad, curv);
@@ -1824,25 +1837,8 @@ static int spun_ball_held_limit(const spun_ball_ctx_t *c, const double *q, const
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[SPUN_BALL_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    spun_ball_newton(spun_ball_fn_rattle_project, arg, SPUN_BALL_N + SPUN_BALL_R, y, &res);
-    if (spun_ball_check(c, res, p, NAN, SPUN_BALL_PHASE_SUSTAINED)) {
+    if (spun_ball_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    spun_ball_rows(q, y, c->par, psi, grad, curv);
-    spun_ball_dirs(c, grad, dirs);
-    for (i = 0; i < SPUN_BALL_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[SPUN_BALL_N + r] : 0.0;
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            p1[i] += dirs[r * SPUN_BALL_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -1845,14 +1845,46 @@ static double star_friction_contact_accel(const star_friction_ctx_t *c, const do
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int star_friction_project(const star_friction_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], res;
+    double dirs[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    star_friction_newton(star_friction_fn_rattle_project, arg, STAR_FRICTION_N + STAR_FRICTION_R, y, &res);
+    if (star_friction_check(c, res, pp, NAN, STAR_FRICTION_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    star_friction_rows(q1, y, c->par, psi, grad, curv);
+    star_friction_dirs(c, grad, dirs);
+    for (i = 0; i < STAR_FRICTION_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[STAR_FRICTION_N + r] : 0.0;
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            p1[i] += dirs[r * STAR_FRICTION_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int star_friction_constrained(const star_friction_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[STAR_FRICTION_NX_MAX], y[STAR_FRICTION_NX_MAX], act[STAR_FRICTION_R_DIM], pm[STAR_FRICTION_N], pp[STAR_FRICTION_N];
-    double psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], res;
-    double dirs[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < STAR_FRICTION_N; ++i) {
@@ -1881,25 +1913,8 @@ static int star_friction_constrained(const star_friction_ctx_t *c, const double 
         y[STAR_FRICTION_N + r] = 0.0;
     }
     star_friction_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    star_friction_newton(star_friction_fn_rattle_project, arg, STAR_FRICTION_N + STAR_FRICTION_R, y, &res);
-    if (star_friction_check(c, res, pp, NAN, STAR_FRICTION_PHASE_SUSTAINED)) {
+    if (star_friction_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    star_friction_rows(q1, y, c->par, psi, grad, curv);
-    star_friction_dirs(c, grad, dirs);
-    for (i = 0; i < STAR_FRICTION_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < STAR_FRICTION_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[STAR_FRICTION_N + r] : 0.0;
-        for (i = 0; i < STAR_FRICTION_N; ++i) {
-            p1[i] += dirs[r * STAR_FRICTION_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1913,9 +1928,7 @@ static int star_friction_held_limit(const star_friction_ctx_t *c, const double *
     double *lam1, double *p1, double *u1)
 {
     double y[STAR_FRICTION_NX_MAX], act[STAR_FRICTION_R_DIM], u[STAR_FRICTION_N], psi[STAR_FRICTION_R_DIM];
-    double grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], dirs[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     star_friction_velocity(c, q, v, p, u);
     star_friction_rows(q, u, c->par, psi, grad, curv);
@@ -1938,25 +1951,8 @@ static int star_friction_held_limit(const star_friction_ctx_t *c, const double *
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[STAR_FRICTION_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    star_friction_newton(star_friction_fn_rattle_project, arg, STAR_FRICTION_N + STAR_FRICTION_R, y, &res);
-    if (star_friction_check(c, res, p, NAN, STAR_FRICTION_PHASE_SUSTAINED)) {
+    if (star_friction_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    star_friction_rows(q, y, c->par, psi, grad, curv);
-    star_friction_dirs(c, grad, dirs);
-    for (i = 0; i < STAR_FRICTION_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < STAR_FRICTION_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[STAR_FRICTION_N + r] : 0.0;
-        for (i = 0; i < STAR_FRICTION_N; ++i) {
-            p1[i] += dirs[r * STAR_FRICTION_N + i] * lam1[r];
-        }
     }
     return 0;
 }

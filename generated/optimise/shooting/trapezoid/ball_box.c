@@ -1716,14 +1716,46 @@ static double ball_box_contact_accel(const ball_box_ctx_t *c, const double *q, c
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int ball_box_project(const ball_box_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], res;
+    double dirs[BALL_BOX_R_DIM * BALL_BOX_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    ball_box_newton(ball_box_fn_rattle_project, arg, BALL_BOX_N + BALL_BOX_R, y, &res);
+    if (ball_box_check(c, res, pp, NAN, BALL_BOX_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    ball_box_rows(q1, y, c->par, psi, grad, curv);
+    ball_box_dirs(c, grad, dirs);
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[BALL_BOX_N + r] : 0.0;
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            p1[i] += dirs[r * BALL_BOX_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int ball_box_constrained(const ball_box_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[BALL_BOX_NX_MAX], y[BALL_BOX_NX_MAX], act[BALL_BOX_R_DIM], pm[BALL_BOX_N], pp[BALL_BOX_N];
-    double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], res;
-    double dirs[BALL_BOX_R_DIM * BALL_BOX_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < BALL_BOX_N; ++i) {
@@ -1752,25 +1784,8 @@ static int ball_box_constrained(const ball_box_ctx_t *c, const double *q, const 
         y[BALL_BOX_N + r] = 0.0;
     }
     ball_box_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    ball_box_newton(ball_box_fn_rattle_project, arg, BALL_BOX_N + BALL_BOX_R, y, &res);
-    if (ball_box_check(c, res, pp, NAN, BALL_BOX_PHASE_SUSTAINED)) {
+    if (ball_box_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    ball_box_rows(q1, y, c->par, psi, grad, curv);
-    ball_box_dirs(c, grad, dirs);
-    for (i = 0; i < BALL_BOX_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < BALL_BOX_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[BALL_BOX_N + r] : 0.0;
-        for (i = 0; i < BALL_BOX_N; ++i) {
-            p1[i] += dirs[r * BALL_BOX_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1784,9 +1799,7 @@ static int ball_box_held_limit(const ball_box_ctx_t *c, const double *q, const d
     double *lam1, double *p1, double *u1)
 {
     double y[BALL_BOX_NX_MAX], act[BALL_BOX_R_DIM], u[BALL_BOX_N], psi[BALL_BOX_R_DIM];
-    double grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], dirs[BALL_BOX_R_DIM * BALL_BOX_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     ball_box_velocity(c, q, v, p, u);
     ball_box_rows(q, u, c->par, psi, grad, curv);
@@ -1809,25 +1822,8 @@ static int ball_box_held_limit(const ball_box_ctx_t *c, const double *q, const d
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[BALL_BOX_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    ball_box_newton(ball_box_fn_rattle_project, arg, BALL_BOX_N + BALL_BOX_R, y, &res);
-    if (ball_box_check(c, res, p, NAN, BALL_BOX_PHASE_SUSTAINED)) {
+    if (ball_box_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    ball_box_rows(q, y, c->par, psi, grad, curv);
-    ball_box_dirs(c, grad, dirs);
-    for (i = 0; i < BALL_BOX_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < BALL_BOX_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[BALL_BOX_N + r] : 0.0;
-        for (i = 0; i < BALL_BOX_N; ++i) {
-            p1[i] += dirs[r * BALL_BOX_N + i] * lam1[r];
-        }
     }
     return 0;
 }

@@ -1918,14 +1918,46 @@ static double double_pendulum_contact_accel(const double_pendulum_ctx_t *c, cons
     return out;
 }
 
+/* The projection rattle_project at q1 of pp onto the active rows (act) from y = (u, Lam') (overwritten): Lam' (lam1,
+ * 0 off the active rows), p1 = pp + dirs^T Lam' and u1 its velocity (SustainedSteps._constrained's end,
+ * HeldImpacts._held_limit). Returns 1 if its solve fails. */
+static int double_pendulum_project(const double_pendulum_ctx_t *c, const double *q1, const double *pp, const double *act,
+    double *y, double *lam1, double *p1, double *u1)
+{
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], res;
+    double dirs[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
+    const double *arg[4];
+    int i, r;
+    arg[0] = q1;
+    arg[1] = pp;
+    arg[2] = act;
+    arg[3] = c->par;
+    double_pendulum_newton(double_pendulum_fn_rattle_project, arg, DOUBLE_PENDULUM_N + DOUBLE_PENDULUM_R, y, &res);
+    if (double_pendulum_check(c, res, pp, NAN, DOUBLE_PENDULUM_PHASE_SUSTAINED)) {
+        return 1;
+    }
+    double_pendulum_rows(q1, y, c->par, psi, grad, curv);
+    double_pendulum_dirs(c, grad, dirs);
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        p1[i] = pp[i];
+        u1[i] = y[i];
+    }
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        lam1[r] = c->sus->act[r] ? y[DOUBLE_PENDULUM_N + r] : 0.0;
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            p1[i] += dirs[r * DOUBLE_PENDULUM_N + i] * lam1[r];
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._constrained: one constrained segment (RATTLE) from (q, p) over tau, guess v;
  * (v, Lam, q1, E_d, Lam', p1, u1), u1 the velocity of p1. Returns 1 with err filled if a solve fails. */
 static int double_pendulum_constrained(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1)
 {
     double x[DOUBLE_PENDULUM_NX_MAX], y[DOUBLE_PENDULUM_NX_MAX], act[DOUBLE_PENDULUM_R_DIM], pm[DOUBLE_PENDULUM_N], pp[DOUBLE_PENDULUM_N];
-    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], res;
-    double dirs[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
+    double res;
     const double *arg[5];
     int i, r;
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
@@ -1954,25 +1986,8 @@ static int double_pendulum_constrained(const double_pendulum_ctx_t *c, const dou
         y[DOUBLE_PENDULUM_N + r] = 0.0;
     }
     double_pendulum_segment(q, v, &tau, c->par, pm, pp, e_seg);
-    arg[0] = q1;
-    arg[1] = pp;
-    arg[2] = act;
-    arg[3] = c->par;
-    double_pendulum_newton(double_pendulum_fn_rattle_project, arg, DOUBLE_PENDULUM_N + DOUBLE_PENDULUM_R, y, &res);
-    if (double_pendulum_check(c, res, pp, NAN, DOUBLE_PENDULUM_PHASE_SUSTAINED)) {
+    if (double_pendulum_project(c, q1, pp, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    double_pendulum_rows(q1, y, c->par, psi, grad, curv);
-    double_pendulum_dirs(c, grad, dirs);
-    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-        p1[i] = pp[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[DOUBLE_PENDULUM_N + r] : 0.0;
-        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-            p1[i] += dirs[r * DOUBLE_PENDULUM_N + i] * lam1[r];
-        }
     }
     return 0;
 }
@@ -1986,9 +2001,7 @@ static int double_pendulum_held_limit(const double_pendulum_ctx_t *c, const doub
     double *lam1, double *p1, double *u1)
 {
     double y[DOUBLE_PENDULUM_NX_MAX], act[DOUBLE_PENDULUM_R_DIM], u[DOUBLE_PENDULUM_N], psi[DOUBLE_PENDULUM_R_DIM];
-    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], dirs[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
-    double umax = 0.0, rate, res;
-    const double *arg[4];
+    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM], umax = 0.0, rate;
     int i, r, moving = 0;
     double_pendulum_velocity(c, q, v, p, u);
     double_pendulum_rows(q, u, c->par, psi, grad, curv);
@@ -2011,25 +2024,8 @@ static int double_pendulum_held_limit(const double_pendulum_ctx_t *c, const doub
         act[r] = c->sus->act[r] ? 1.0 : 0.0;
         y[DOUBLE_PENDULUM_N + r] = 0.0;
     }
-    arg[0] = q;
-    arg[1] = p;
-    arg[2] = act;
-    arg[3] = c->par;
-    double_pendulum_newton(double_pendulum_fn_rattle_project, arg, DOUBLE_PENDULUM_N + DOUBLE_PENDULUM_R, y, &res);
-    if (double_pendulum_check(c, res, p, NAN, DOUBLE_PENDULUM_PHASE_SUSTAINED)) {
+    if (double_pendulum_project(c, q, p, act, y, lam1, p1, u1)) {
         return 1;
-    }
-    double_pendulum_rows(q, y, c->par, psi, grad, curv);
-    double_pendulum_dirs(c, grad, dirs);
-    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-        p1[i] = p[i];
-        u1[i] = y[i];
-    }
-    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-        lam1[r] = c->sus->act[r] ? y[DOUBLE_PENDULUM_N + r] : 0.0;
-        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-            p1[i] += dirs[r * DOUBLE_PENDULUM_N + i] * lam1[r];
-        }
     }
     return 0;
 }
