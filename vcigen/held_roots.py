@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 ROOT_EPS = 1e-14  # a row crossing is located where |psi| <= ROOT_EPS max|psi at the bracket ends|
+LEAVE_FRACTIONS = (1e-3, 1e-6, 1e-9)  # where a row just hit is sought above it (_leave, _row_crossing)
 LIFT_ITER = 60  # Illinois iterations locating a lift-off at most
 EPS_LAM = 1e-14  # |Lam| below this (relative to 1 + |p|) is zero: no release for round-off
 # A held row's force below -EPS_LIFT (1 + the largest held force) is a lift-off; above, round-off: a box

@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import HELD_NO_ROOT, NOT_CONVERGED, SolverError
 from .friction import cone_law, impact_law
-from .held_roots import illinois_point, illinois_update
+from .held_roots import LEAVE_FRACTIONS, illinois_point, illinois_update
 from .result import Impact
 
 
@@ -445,7 +445,7 @@ class ImpactSteps:
         which :meth:`_impact_step` takes as (78) unsolvable: a restart. Elsewhere (an elastic star's next
         vertex, the same contact) the smaller fractions are tried as before."""
         back = seg.rest == 0.0 and self.tol.grazing == "contact" and self.k.r > 0
-        for s in (1e-3, 1e-6, 1e-9):
+        for s in LEAVE_FRACTIONS:
             _, phi, _ = self._sub_solve(seg, s, seg.x)
             if phi[j] > self.tol.phi:
                 return s, float(phi[j])

@@ -38,6 +38,7 @@ from .held_roots import (
     EPS_LAM,
     EPS_LIFT,
     JAM_CYCLES,
+    LEAVE_FRACTIONS,
     LIFT_ITER,
     ONTO_ITER,
     ROOT_EPS,
@@ -844,7 +845,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         s_hi]`` (``g1 < 0`` its value at ``s_hi``).
 
         A row on the contact at the start (``|psi_r| <= Tolerances.phi``: an impact on it at this instant, or
-        its lift-off) is bracketed from the first of ``1e-3, 1e-6, 1e-9`` (times ``s_hi``) where it is above
+        its lift-off) is bracketed from the first of ``LEAVE_FRACTIONS`` (times ``s_hi``) where it is above
         ``phi``, as free flight's :meth:`_leave`: the root at the start is the one it leaves. With ``psi_r``
         1e-19 above 0 there, the secant's first point (1e-16) took it: box on box draw 94's bounce was met
         again at once and held, where C, whose ``psi_r`` was below 0, bounced on."""
@@ -856,7 +857,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             return float(end.psi[r]), v
 
         if abs(psi0) <= self.tol.phi:
-            for s in (1e-3, 1e-6, 1e-9):
+            for s in LEAVE_FRACTIONS:
                 g, _ = height(s * s_hi, guess)
                 if g > self.tol.phi:
                     lo, ga = s * s_hi, g

@@ -779,6 +779,9 @@ static double particle_sub_solve(const particle_ctx_t *c, const particle_seg_t *
     return res;
 }
 
+/* held_roots.LEAVE_FRACTIONS: where a row just hit is sought above its contact (leave, row_crossing). */
+static const double particle_leave_fractions[3] = {1e-3, 1e-6, 1e-9};
+
 /* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
  * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
  * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
@@ -786,13 +789,12 @@ static double particle_sub_solve(const particle_ctx_t *c, const particle_seg_t *
 static void particle_leave(const particle_ctx_t *c, const particle_seg_t *seg, int j, double *lo,
     double *phi_lo)
 {
-    static const double fractions[3] = {1e-3, 1e-6, 1e-9};
     double x[PARTICLE_NX_MAX], phi[PARTICLE_M_DIM];
     int k;
     for (k = 0; k < 3; ++k) {
-        particle_sub_solve(c, seg, fractions[k], seg->x, x, phi);
+        particle_sub_solve(c, seg, particle_leave_fractions[k], seg->x, x, phi);
         if (phi[j] > c->tol->phi) {
-            *lo = fractions[k];
+            *lo = particle_leave_fractions[k];
             *phi_lo = phi[j];
             return;
         }
@@ -1842,24 +1844,23 @@ static int particle_liftoff_fraction(const particle_ctx_t *c, const double *q, c
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
  * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). A row on the contact at the start (|psi_r| <= phi: an
- * impact on it at this instant, or its lift-off) is bracketed from the first of 1e-3, 1e-6, 1e-9 (times s_hi)
+ * impact on it at this instant, or its lift-off) is bracketed from the first of leave_fractions (times s_hi)
  * where it is above phi, as free flight's leave: the root at the start is the one it leaves. */
 static int particle_row_crossing(const particle_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, int r, double g1, double s_hi, double *s_out)
 {
-    static const double fractions[3] = {1e-3, 1e-6, 1e-9};
     double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM], ga, lo = 0.0;
     double vn[PARTICLE_N], q1[PARTICLE_N], u1[PARTICLE_N], psis[PARTICLE_R_DIM];
     int k;
     particle_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
     for (k = 0; fabs(psi[r]) <= c->tol->phi && k < 3; ++k) {
-        if (particle_sub_end(c, q, p, tau, fractions[k] * s_hi, guess, vn, q1, u1)) {
+        if (particle_sub_end(c, q, p, tau, particle_leave_fractions[k] * s_hi, guess, vn, q1, u1)) {
             return 1;
         }
         particle_rows(q1, vn, c->par, psis, grad, curv);
         if (psis[r] > c->tol->phi) {
-            lo = fractions[k] * s_hi;
+            lo = particle_leave_fractions[k] * s_hi;
             ga = psis[r];
             break;
         }

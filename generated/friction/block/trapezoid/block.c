@@ -777,6 +777,9 @@ static double block_sub_solve(const block_ctx_t *c, const block_seg_t *seg, doub
     return res;
 }
 
+/* held_roots.LEAVE_FRACTIONS: where a row just hit is sought above its contact (leave, row_crossing). */
+static const double block_leave_fractions[3] = {1e-3, 1e-6, 1e-9};
+
 /* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
  * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
  * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
@@ -784,13 +787,12 @@ static double block_sub_solve(const block_ctx_t *c, const block_seg_t *seg, doub
 static void block_leave(const block_ctx_t *c, const block_seg_t *seg, int j, double *lo,
     double *phi_lo)
 {
-    static const double fractions[3] = {1e-3, 1e-6, 1e-9};
     double x[BLOCK_NX_MAX], phi[BLOCK_M_DIM];
     int k;
     for (k = 0; k < 3; ++k) {
-        block_sub_solve(c, seg, fractions[k], seg->x, x, phi);
+        block_sub_solve(c, seg, block_leave_fractions[k], seg->x, x, phi);
         if (phi[j] > c->tol->phi) {
-            *lo = fractions[k];
+            *lo = block_leave_fractions[k];
             *phi_lo = phi[j];
             return;
         }
@@ -2149,24 +2151,23 @@ static int block_liftoff_fraction(const block_ctx_t *c, const double *q, const d
 
 /* SustainedSteps._row_crossing: the fraction where inactive row r reaches 0 along the constrained sub-step
  * map (illinois) on [0, s_hi] (g1 < 0 its value at s_hi). A row on the contact at the start (|psi_r| <= phi: an
- * impact on it at this instant, or its lift-off) is bracketed from the first of 1e-3, 1e-6, 1e-9 (times s_hi)
+ * impact on it at this instant, or its lift-off) is bracketed from the first of leave_fractions (times s_hi)
  * where it is above phi, as free flight's leave: the root at the start is the one it leaves. */
 static int block_row_crossing(const block_ctx_t *c, const double *q, const double *p, double tau,
     const double *guess, int r, double g1, double s_hi, double *s_out)
 {
-    static const double fractions[3] = {1e-3, 1e-6, 1e-9};
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], ga, lo = 0.0;
     double vn[BLOCK_N], q1[BLOCK_N], u1[BLOCK_N], psis[BLOCK_R_DIM];
     int k;
     block_rows(q, guess, c->par, psi, grad, curv);
     ga = psi[r] > 0.0 ? psi[r] : 0.0;
     for (k = 0; fabs(psi[r]) <= c->tol->phi && k < 3; ++k) {
-        if (block_sub_end(c, q, p, tau, fractions[k] * s_hi, guess, vn, q1, u1)) {
+        if (block_sub_end(c, q, p, tau, block_leave_fractions[k] * s_hi, guess, vn, q1, u1)) {
             return 1;
         }
         block_rows(q1, vn, c->par, psis, grad, curv);
         if (psis[r] > c->tol->phi) {
-            lo = fractions[k] * s_hi;
+            lo = block_leave_fractions[k] * s_hi;
             ga = psis[r];
             break;
         }
