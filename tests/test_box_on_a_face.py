@@ -420,13 +420,15 @@ def test_a_landing_no_mode_solves_keeps_its_friction_by_projected_gauss_seidel(d
 
 def test_a_vertex_that_bounces_again_and_again_in_one_held_step_is_held_on_both_backends():
     """Seed 12's rough drop 993 of ``bench.cube_drops`` (``e = 0.75``): at step 390 vertex v1, pulled off
-    the floor by the forces, crosses it again and again inside the held chain at normal speeds of ~2e-8,
+    the floor by the forces, crossed it again and again inside the held chain at normal speeds of ~2e-8,
     taking Newton's restitution each time. In C the crossings fell 2^-20 of the segment apart (later
     instants, so ``again`` did not hold it) and the run stopped ("more than 64 impacts and lift-offs in one
-    step"); on CasADi two fell within ``Tolerances.simultaneous`` and the second held it. Now a row met
-    ``BOUNCE_CYCLES`` (4) times in a step's chain is held at the next (MATH.md: Zeno ends in sustained contact
-    after a few impacts a step). Both backends run to t = 3 with the same impacts and at most 5 of one row in
-    a step, ``q`` within 1e-9, no impact adding energy, above the floor."""
+    step"); on CasADi two fell within ``Tolerances.simultaneous`` and the second held it. Stop 37 held a row
+    met ``BOUNCE_CYCLES`` (4) times in a step's chain at the next (five of v1 at step 390 on both). Since stop
+    43 the settle test reads the forces of the rows held at the impact's state, not those of the step before
+    (``HeldImpacts._chain_impact``), and v1 settles at its landing: no row is met more than twice in a step.
+    Both backends run to t = 3 with the same impacts, ``q`` within 1e-9, no impact adding energy, above the
+    floor (``BOUNCE_CYCLES``: ``tests/test_closed_chains.py``, a bob bouncing below any resolution)."""
     q0 = [0.0, 0.0, 1.0, 2.246210427158185, -0.30538814108425805, 0.05466304033805924]
     v0 = [-1.1771673959335458, -1.1661607672941599, -0.6240170186093534]
     v0 += [2.3373948775928515, 2.459157283364666, -2.1340191685504197]
@@ -434,7 +436,7 @@ def test_a_vertex_that_bounces_again_and_again_in_one_held_step_is_held_on_both_
     for res in (a, b):
         assert res.t[-1] == pytest.approx(3.0)
         per_row_step = Counter((i.step, i.contact) for i in res.impacts)
-        assert max(per_row_step.values()) <= 5 and per_row_step[(390, "v1")] == 5
+        assert max(per_row_step.values()) <= 2
         assert all(i.energy_after <= i.energy_before + 1e-12 * abs(i.energy_before) for i in res.impacts)
         assert vertex_heights(res.q).min() > -1e-9
     logs = [[(i.contact, i.kind, i.step) for i in res.impacts] for res in (a, b)]

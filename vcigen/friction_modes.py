@@ -51,8 +51,12 @@ class FrictionModes:
         """Stick or slip for each frictional contact at ``(q, u)``: off when it is not held; on entering
         sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
         A dependent stick (:meth:`_stick`) is checked anew: released if its contact's rows changed or its
-        stick row is independent now. Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a
-        segment of ``tau``."""
+        stick row is independent now. A contact slipping at a sliding of 0 (to round-off) whose stick row
+        depends on the active rows stops (:meth:`_stick`: it rides): its sliding is theirs, 0 over the
+        segment, and no stop event sees it change sign (pyramid draw 1 of ``bench.pyramids --seed 2``: the
+        second lower disk, held to the first, stuck, by the row between them after an impact, slipped on at
+        rest in C, its kinetic friction pressing the disks together, and stopped on CasADi, by round-off).
+        Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a segment of ``tau``."""
         k = self.k
         if not self._stick_rows:
             return
@@ -77,6 +81,12 @@ class FrictionModes:
                     self._stick(f, q, u)
                 else:
                     self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
+            elif self._slip[f]:  # slipping where the rows held carry its tangent, at a sliding of 0: it stops
+                grad_f = k.rows(q, u)[1]
+                sliding = float(grad_f[sr] @ u)
+                still = abs(sliding) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
+                if still and self._owner(f, grad_f) >= 0:
+                    self._stick(f, q, u)
         self._cone_modes(q, u, tau)
         self._set_friction()
 

@@ -94,15 +94,17 @@ class HeldImpacts(ImpulseLaw):
         return switched, slid
 
     def _chain_impact(self, step, t_k, h, q, p, v, t, group, impacts, e_before, again=()):
-        """An impact on rows ``group`` during sustained contact; returns the momentum after it. A row of
-        ``again`` (met by an impact at this instant already: it left at a normal speed of 0 and sank again at
-        once, the forces pressing it in although the step's forces said otherwise) settles: held."""
+        """An impact on rows ``group`` during sustained contact; returns the momentum after it. A row hit
+        settles (plastic, held) where the forces of the rows held at ``(q, vel)`` press it in and its outgoing
+        normal speed is below the resolution (:meth:`_settles`), or where it is in ``again`` (met by an impact
+        at this instant already: it left at a normal speed of 0 and sank again at once)."""
         k = self.k
         self._at(t)
         rest = k.restitution()
         vel = self._velocity(q, v, p)
-        lam_now = np.where(self.act, self._lam, 0.0) * self._lam_rate / self._h
-        acc = self._row_accel(q, vel, self._accel(q, vel, lam_now))
+        # pressed in by the forces of the rows held at this state, not the step's (an impact before it in the
+        # chain changed them: a double pendulum's bob stopped on the floor by e = 0, the rods pulling it in)
+        acc = self._held_accel(q, vel, (), ())
         grad = k.rows(q, vel)[1]
         targets, plastic = {}, []
         for r in group:

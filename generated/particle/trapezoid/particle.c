@@ -2172,22 +2172,22 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[PARTICLE_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[PARTICLE_N], lam_now[PARTICLE_R_DIM], acc[PARTICLE_N];
-    double racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N];
+    double vel[PARTICLE_N], racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM];
+    double grad[PARTICLE_R_DIM * PARTICLE_N];
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
+    int none[PARTICLE_R_DIM] = {0};
     int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], leaving[PARTICLE_R_DIM];
     particle_at(c, t);
     particle_restitution(c->par, rest);
     particle_velocity(c, q, v, p, vel);
     for (r = 0; r < PARTICLE_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    particle_accel(c, q, vel, lam_now, acc);
-    particle_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    particle_held_accel(c, q, vel, none, none, racc);
     particle_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

@@ -2448,22 +2448,22 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[STAR_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[STAR_N], lam_now[STAR_R_DIM], acc[STAR_N];
-    double racc[STAR_R_DIM], psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N];
+    double vel[STAR_N], racc[STAR_R_DIM], psi[STAR_R_DIM];
+    double grad[STAR_R_DIM * STAR_N];
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
+    int none[STAR_R_DIM] = {0};
     int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], leaving[STAR_R_DIM];
     star_at(c, t);
     star_restitution(c->par, rest);
     star_velocity(c, q, v, p, vel);
     for (r = 0; r < STAR_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    star_accel(c, q, vel, lam_now, acc);
-    star_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    star_held_accel(c, q, vel, none, none, racc);
     star_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

@@ -2168,22 +2168,22 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[BALL_TO_REST_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[BALL_TO_REST_N], lam_now[BALL_TO_REST_R_DIM], acc[BALL_TO_REST_N];
-    double racc[BALL_TO_REST_R_DIM], psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
+    double vel[BALL_TO_REST_N], racc[BALL_TO_REST_R_DIM], psi[BALL_TO_REST_R_DIM];
+    double grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp;
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
+    int none[BALL_TO_REST_R_DIM] = {0};
     int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM], leaving[BALL_TO_REST_R_DIM];
     ball_to_rest_at(c, t);
     ball_to_rest_restitution(c->par, rest);
     ball_to_rest_velocity(c, q, v, p, vel);
     for (r = 0; r < BALL_TO_REST_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    ball_to_rest_accel(c, q, vel, lam_now, acc);
-    ball_to_rest_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    ball_to_rest_held_accel(c, q, vel, none, none, racc);
     ball_to_rest_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

@@ -2956,22 +2956,22 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[CUBE_SETTLES_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[CUBE_SETTLES_N], lam_now[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N];
-    double racc[CUBE_SETTLES_R_DIM], psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    double vel[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], psi[CUBE_SETTLES_R_DIM];
+    double grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     double curv[CUBE_SETTLES_R_DIM], tgt[CUBE_SETTLES_R_DIM], p_plus[CUBE_SETTLES_N] = {0.0}, lam[CUBE_SETTLES_R_DIM];
     double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp;
     int plastic[CUBE_SETTLES_R_DIM], dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], i, g, r, j, any, done;
+    int none[CUBE_SETTLES_R_DIM] = {0};
     int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], leaving[CUBE_SETTLES_R_DIM];
     cube_settles_at(c, t);
     cube_settles_restitution(c->par, rest);
     cube_settles_velocity(c, q, v, p, vel);
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    cube_settles_accel(c, q, vel, lam_now, acc);
-    cube_settles_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    cube_settles_held_accel(c, q, vel, none, none, racc);
     cube_settles_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

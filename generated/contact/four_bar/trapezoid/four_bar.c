@@ -2668,22 +2668,22 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[FOUR_BAR_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[FOUR_BAR_N], lam_now[FOUR_BAR_R_DIM], acc[FOUR_BAR_N];
-    double racc[FOUR_BAR_R_DIM], psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N];
+    double vel[FOUR_BAR_N], racc[FOUR_BAR_R_DIM], psi[FOUR_BAR_R_DIM];
+    double grad[FOUR_BAR_R_DIM * FOUR_BAR_N];
     double curv[FOUR_BAR_R_DIM], tgt[FOUR_BAR_R_DIM], p_plus[FOUR_BAR_N] = {0.0}, lam[FOUR_BAR_R_DIM];
     double vel_m[FOUR_BAR_N], vel_p[FOUR_BAR_N], rate, e, loss, imp;
     int plastic[FOUR_BAR_R_DIM], dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], i, g, r, j, any, done;
+    int none[FOUR_BAR_R_DIM] = {0};
     int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], leaving[FOUR_BAR_R_DIM];
     four_bar_at(c, t);
     four_bar_restitution(c->par, rest);
     four_bar_velocity(c, q, v, p, vel);
     for (r = 0; r < FOUR_BAR_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    four_bar_accel(c, q, vel, lam_now, acc);
-    four_bar_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    four_bar_held_accel(c, q, vel, none, none, racc);
     four_bar_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

@@ -2398,22 +2398,22 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[PENDULUM_WALL_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[PENDULUM_WALL_N], lam_now[PENDULUM_WALL_R_DIM], acc[PENDULUM_WALL_N];
-    double racc[PENDULUM_WALL_R_DIM], psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
+    double vel[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM], psi[PENDULUM_WALL_R_DIM];
+    double grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
+    int none[PENDULUM_WALL_R_DIM] = {0};
     int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
     pendulum_wall_velocity(c, q, v, p, vel);
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    pendulum_wall_accel(c, q, vel, lam_now, acc);
-    pendulum_wall_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    pendulum_wall_held_accel(c, q, vel, none, none, racc);
     pendulum_wall_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

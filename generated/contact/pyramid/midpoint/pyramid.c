@@ -2840,7 +2840,8 @@ static int pyramid_painleve(const pyramid_ctx_t *c, const double *q1, const doub
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void pyramid_friction_modes(const pyramid_ctx_t *c, const double *q, const double *u, double tau)
 {
@@ -2884,6 +2885,15 @@ static void pyramid_friction_modes(const pyramid_ctx_t *c, const double *q, cons
                 pyramid_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
+            }
+        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
+            pyramid_rows(q, u, c->par, psi, grad, curv);
+            for (i = 0, sliding = 0.0; i < PYRAMID_N; ++i) {
+                sliding += grad[sr * PYRAMID_N + i] * u[i];
+            }
+            if (fabs(sliding) <= PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, u))
+                && pyramid_owner(c, f, grad) >= 0) {
+                pyramid_stick(c, f, q, u);
             }
         }
     }
@@ -3884,11 +3894,12 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[PYRAMID_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[PYRAMID_N], lam_now[PYRAMID_R_DIM], acc[PYRAMID_N];
-    double racc[PYRAMID_R_DIM], psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N];
+    double vel[PYRAMID_N], racc[PYRAMID_R_DIM], psi[PYRAMID_R_DIM];
+    double grad[PYRAMID_R_DIM * PYRAMID_N];
     double curv[PYRAMID_R_DIM], tgt[PYRAMID_R_DIM], p_plus[PYRAMID_N] = {0.0}, lam[PYRAMID_R_DIM];
     double vel_m[PYRAMID_N], vel_p[PYRAMID_N], rate, e, loss, imp;
     int plastic[PYRAMID_R_DIM], dropped[PYRAMID_R_DIM], slipped[PYRAMID_R_DIM], i, g, r, j, any, done;
+    int none[PYRAMID_R_DIM] = {0};
     int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], leaving[PYRAMID_R_DIM];
     long counts[3];
     int reduced, why, act[PYRAMID_R_DIM], ride[PYRAMID_NF_DIM];
@@ -3896,12 +3907,11 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     pyramid_restitution(c->par, rest);
     pyramid_velocity(c, q, v, p, vel);
     for (r = 0; r < PYRAMID_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    pyramid_accel(c, q, vel, lam_now, acc);
-    pyramid_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    pyramid_held_accel(c, q, vel, none, none, racc);
     pyramid_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

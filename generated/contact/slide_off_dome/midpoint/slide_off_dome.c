@@ -2369,22 +2369,22 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[SLIDE_OFF_DOME_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[SLIDE_OFF_DOME_N], lam_now[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N];
-    double racc[SLIDE_OFF_DOME_R_DIM], psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
+    double vel[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], psi[SLIDE_OFF_DOME_R_DIM];
+    double grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
+    int none[SLIDE_OFF_DOME_R_DIM] = {0};
     int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], leaving[SLIDE_OFF_DOME_R_DIM];
     slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
     slide_off_dome_velocity(c, q, v, p, vel);
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    slide_off_dome_accel(c, q, vel, lam_now, acc);
-    slide_off_dome_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    slide_off_dome_held_accel(c, q, vel, none, none, racc);
     slide_off_dome_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

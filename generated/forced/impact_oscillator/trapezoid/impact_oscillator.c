@@ -1998,22 +1998,22 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[IMPACT_OSCILLATOR_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[IMPACT_OSCILLATOR_N], lam_now[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N];
-    double racc[IMPACT_OSCILLATOR_R_DIM], psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
+    double vel[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], psi[IMPACT_OSCILLATOR_R_DIM];
+    double grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double curv[IMPACT_OSCILLATOR_R_DIM], tgt[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N] = {0.0}, lam[IMPACT_OSCILLATOR_R_DIM];
     double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp;
     int plastic[IMPACT_OSCILLATOR_R_DIM], dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], i, g, r, j, any, done;
+    int none[IMPACT_OSCILLATOR_R_DIM] = {0};
     int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], leaving[IMPACT_OSCILLATOR_R_DIM];
     impact_oscillator_at(c, t);
     impact_oscillator_restitution(c->par, rest);
     impact_oscillator_velocity(c, q, v, p, vel);
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    impact_oscillator_accel(c, q, vel, lam_now, acc);
-    impact_oscillator_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    impact_oscillator_held_accel(c, q, vel, none, none, racc);
     impact_oscillator_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

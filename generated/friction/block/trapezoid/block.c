@@ -1988,7 +1988,8 @@ static int block_painleve(const block_ctx_t *c, const double *q1, const double *
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void block_friction_modes(const block_ctx_t *c, const double *q, const double *u, double tau)
 {
@@ -2032,6 +2033,15 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
                 block_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
+            }
+        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
+            block_rows(q, u, c->par, psi, grad, curv);
+            for (i = 0, sliding = 0.0; i < BLOCK_N; ++i) {
+                sliding += grad[sr * BLOCK_N + i] * u[i];
+            }
+            if (fabs(sliding) <= BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, u))
+                && block_owner(c, f, grad) >= 0) {
+                block_stick(c, f, q, u);
             }
         }
     }
@@ -3032,11 +3042,12 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[BLOCK_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[BLOCK_N], lam_now[BLOCK_R_DIM], acc[BLOCK_N];
-    double racc[BLOCK_R_DIM], psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N];
+    double vel[BLOCK_N], racc[BLOCK_R_DIM], psi[BLOCK_R_DIM];
+    double grad[BLOCK_R_DIM * BLOCK_N];
     double curv[BLOCK_R_DIM], tgt[BLOCK_R_DIM], p_plus[BLOCK_N] = {0.0}, lam[BLOCK_R_DIM];
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp;
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
+    int none[BLOCK_R_DIM] = {0};
     int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
     long counts[3];
     int reduced, why, act[BLOCK_R_DIM], ride[BLOCK_NF_DIM];
@@ -3044,12 +3055,11 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     block_restitution(c->par, rest);
     block_velocity(c, q, v, p, vel);
     for (r = 0; r < BLOCK_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    block_accel(c, q, vel, lam_now, acc);
-    block_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    block_held_accel(c, q, vel, none, none, racc);
     block_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

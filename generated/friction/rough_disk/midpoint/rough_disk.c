@@ -2067,7 +2067,8 @@ static int rough_disk_painleve(const rough_disk_ctx_t *c, const double *q1, cons
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q, const double *u, double tau)
 {
@@ -2111,6 +2112,15 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
                 rough_disk_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
+            }
+        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
+            rough_disk_rows(q, u, c->par, psi, grad, curv);
+            for (i = 0, sliding = 0.0; i < ROUGH_DISK_N; ++i) {
+                sliding += grad[sr * ROUGH_DISK_N + i] * u[i];
+            }
+            if (fabs(sliding) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u))
+                && rough_disk_owner(c, f, grad) >= 0) {
+                rough_disk_stick(c, f, q, u);
             }
         }
     }
@@ -3111,11 +3121,12 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[ROUGH_DISK_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[ROUGH_DISK_N], lam_now[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N];
-    double racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    double vel[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM];
+    double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp;
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
+    int none[ROUGH_DISK_R_DIM] = {0};
     int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     long counts[3];
     int reduced, why, act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM];
@@ -3123,12 +3134,11 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     rough_disk_restitution(c->par, rest);
     rough_disk_velocity(c, q, v, p, vel);
     for (r = 0; r < ROUGH_DISK_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    rough_disk_accel(c, q, vel, lam_now, acc);
-    rough_disk_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    rough_disk_held_accel(c, q, vel, none, none, racc);
     rough_disk_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

@@ -2179,7 +2179,8 @@ static int spun_ball_painleve(const spun_ball_ctx_t *c, const double *q1, const 
 static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau);
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau)
 {
@@ -2223,6 +2224,15 @@ static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, 
                 spun_ball_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
+            }
+        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
+            spun_ball_rows(q, u, c->par, psi, grad, curv);
+            for (i = 0, sliding = 0.0; i < SPUN_BALL_N; ++i) {
+                sliding += grad[sr * SPUN_BALL_N + i] * u[i];
+            }
+            if (fabs(sliding) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u))
+                && spun_ball_owner(c, f, grad) >= 0) {
+                spun_ball_stick(c, f, q, u);
             }
         }
     }
@@ -4742,11 +4752,12 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[SPUN_BALL_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[SPUN_BALL_N], lam_now[SPUN_BALL_R_DIM], acc[SPUN_BALL_N];
-    double racc[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    double vel[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM];
+    double grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double curv[SPUN_BALL_R_DIM], tgt[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N] = {0.0}, lam[SPUN_BALL_R_DIM];
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
+    int none[SPUN_BALL_R_DIM] = {0};
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     long counts[3];
     int reduced, why, act[SPUN_BALL_R_DIM], ride[SPUN_BALL_NF_DIM];
@@ -4754,12 +4765,11 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     spun_ball_restitution(c->par, rest);
     spun_ball_velocity(c, q, v, p, vel);
     for (r = 0; r < SPUN_BALL_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    spun_ball_accel(c, q, vel, lam_now, acc);
-    spun_ball_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    spun_ball_held_accel(c, q, vel, none, none, racc);
     spun_ball_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

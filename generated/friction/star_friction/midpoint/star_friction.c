@@ -2270,7 +2270,8 @@ static int star_friction_painleve(const star_friction_ctx_t *c, const double *q1
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void star_friction_friction_modes(const star_friction_ctx_t *c, const double *q, const double *u, double tau)
 {
@@ -2314,6 +2315,15 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
                 star_friction_stick(c, f, q, u);
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
+            }
+        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
+            star_friction_rows(q, u, c->par, psi, grad, curv);
+            for (i = 0, sliding = 0.0; i < STAR_FRICTION_N; ++i) {
+                sliding += grad[sr * STAR_FRICTION_N + i] * u[i];
+            }
+            if (fabs(sliding) <= STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, u))
+                && star_friction_owner(c, f, grad) >= 0) {
+                star_friction_stick(c, f, q, u);
             }
         }
     }
@@ -3314,11 +3324,12 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[STAR_FRICTION_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[STAR_FRICTION_N], lam_now[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N];
-    double racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
+    double vel[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM];
+    double grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double curv[STAR_FRICTION_R_DIM], tgt[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N] = {0.0}, lam[STAR_FRICTION_R_DIM];
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
+    int none[STAR_FRICTION_R_DIM] = {0};
     int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], leaving[STAR_FRICTION_R_DIM];
     long counts[3];
     int reduced, why, act[STAR_FRICTION_R_DIM], ride[STAR_FRICTION_NF_DIM];
@@ -3326,12 +3337,11 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     star_friction_restitution(c->par, rest);
     star_friction_velocity(c, q, v, p, vel);
     for (r = 0; r < STAR_FRICTION_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    star_friction_accel(c, q, vel, lam_now, acc);
-    star_friction_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    star_friction_held_accel(c, q, vel, none, none, racc);
     star_friction_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

@@ -2383,22 +2383,22 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[BALL_BOX_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[BALL_BOX_N], lam_now[BALL_BOX_R_DIM], acc[BALL_BOX_N];
-    double racc[BALL_BOX_R_DIM], psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N];
+    double vel[BALL_BOX_N], racc[BALL_BOX_R_DIM], psi[BALL_BOX_R_DIM];
+    double grad[BALL_BOX_R_DIM * BALL_BOX_N];
     double curv[BALL_BOX_R_DIM], tgt[BALL_BOX_R_DIM], p_plus[BALL_BOX_N] = {0.0}, lam[BALL_BOX_R_DIM];
     double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp;
     int plastic[BALL_BOX_R_DIM], dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], i, g, r, j, any, done;
+    int none[BALL_BOX_R_DIM] = {0};
     int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], land[BALL_BOX_NF_DIM], leaving[BALL_BOX_R_DIM];
     ball_box_at(c, t);
     ball_box_restitution(c->par, rest);
     ball_box_velocity(c, q, v, p, vel);
     for (r = 0; r < BALL_BOX_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    ball_box_accel(c, q, vel, lam_now, acc);
-    ball_box_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    ball_box_held_accel(c, q, vel, none, none, racc);
     ball_box_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];

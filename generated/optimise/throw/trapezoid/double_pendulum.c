@@ -2585,22 +2585,22 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
     double rest[DOUBLE_PENDULUM_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
-    double vel[DOUBLE_PENDULUM_N], lam_now[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N];
-    double racc[DOUBLE_PENDULUM_R_DIM], psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
+    double vel[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], psi[DOUBLE_PENDULUM_R_DIM];
+    double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp;
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
+    int none[DOUBLE_PENDULUM_R_DIM] = {0};
     int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
     double_pendulum_restitution(c->par, rest);
     double_pendulum_velocity(c, q, v, p, vel);
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-        lam_now[r] = c->sus->act[r] ? c->sus->lam[r] * 2.0 / c->h : 0.0;
         tgt[r] = 0.0;
         plastic[r] = 0;
     }
-    double_pendulum_accel(c, q, vel, lam_now, acc);
-    double_pendulum_row_accel(c, q, vel, acc, racc);
+    /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
+    double_pendulum_held_accel(c, q, vel, none, none, racc);
     double_pendulum_rows(q, vel, c->par, psi, grad, curv);
     for (g = 0; g < n_group; ++g) {
         r = group[g];
