@@ -199,6 +199,16 @@ def test_a_bob_bouncing_below_any_resolution_is_held_after_four_bounces_in_a_ste
     assert np.abs(default.q[-1] - res.q[-1]).max() < 0.1 * h
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_held_step_that_cannot_keep_both_rods_names_them(backend):
+    """At ``h = 0.6`` the double pendulum's first held step moves the bobs farther than the rods allow: the
+    ``SolverError`` at step 0 names the rows held, in row order, the same on both backends."""
+    with pytest.raises(vcigen.SolverError, match="sustained solve failed") as err:
+        sim("double_floor", backend).simulate(_bobs(-0.8, -2.0, 0.0, 0.0)[0], [0.0] * 4, 0.6, t_end=5.0)
+    assert err.value.step == 0 and err.value.phase == "sustained"
+    assert str(err.value).endswith(vcigen.errors.HELD_NO_ROOT + vcigen.errors.HELD_ROWS + "rod1, rod2")
+
+
 def _pendulum(t, y):
     """The four-bar's angle: a pendulum of mass 2 on the bars' unit length."""
     return [y[1], -G * math.cos(y[0])]

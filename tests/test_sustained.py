@@ -608,13 +608,15 @@ def test_a_pendulum_swung_into_the_narrow_corner_of_its_rod_and_a_wall_stays_in_
 def test_a_held_step_that_moves_the_bob_farther_than_its_rod_has_no_root_and_says_so(backend):
     """RATTLE on the unit rod: ``|q + tau (p + 2 Lam q)|^2 = (1 + 2 tau Lam)^2 + tau^2 |p|^2`` is 1 only where
     ``tau |p| <= 1``. At the bottom at 9.5 m/s and ``h = 0.1`` the pendulum runs (its rod kept); at 10.5 m/s
-    the first held step has no root, and the error says why (``errors.HELD_NO_ROOT``), not only "reduce h"."""
+    the first held step has no root, and the error says why (``errors.HELD_NO_ROOT``), not only "reduce h",
+    and names the row held (``errors.HELD_ROWS``; since stop 43)."""
     s = sim("rod_wall", backend)
     res = s.simulate([0.0, -1.0], [9.5, 0.0], 0.1, t_end=1.0, params={"a": -5.0})
     assert np.abs(res.q[:, 0] ** 2 + res.q[:, 1] ** 2 - 1).max() < 1e-12
     with pytest.raises(vcigen.SolverError, match="sustained solve failed") as err:
         s.simulate([0.0, -1.0], [10.5, 0.0], 0.1, t_end=1.0, params={"a": -5.0})
-    assert err.value.step == 0 and str(err.value).endswith(vcigen.errors.HELD_NO_ROOT)
+    assert err.value.step == 0
+    assert str(err.value).endswith(vcigen.errors.HELD_NO_ROOT + vcigen.errors.HELD_ROWS + "rod")
 
 
 @pytest.mark.parametrize("h", [0.1, 0.05])

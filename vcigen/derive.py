@@ -672,6 +672,7 @@ def set_rows(kernels, system: DiscreteSystem) -> None:
     kernels.row_constraint = rows.constraint if rows else ()
     kernels.row_bilateral = rows.bilateral if rows else ()
     kernels.row_stick = rows.sticks if rows else ()  # frictional contact of a stick row, -1 otherwise
+    kernels.row_names = rows.names if rows else ()  # "floor", "floor[+-]", a constraint's, "floor/stick"
     kernels.frictional = rows.frictional if rows else ()  # contact index of each frictional contact
     kernels.friction_slot = len(system.model.defaults)  # par[slot:]: nf slips, nf refs, the branch signs
     kernels.branch_count = tuple(len(b) for b in rows.branches) if rows else ()

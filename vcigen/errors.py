@@ -19,6 +19,8 @@ HELD_NO_ROOT = (
     "; a held step has no root where it moves a point farther than its rows' curvature allows "
     "(on a rod of length l: where tau |v| >= l)"
 )
+HELD_ROWS = "; held: "  # then the held rows' names (Rows.names), ", " between them: a held step's failure
+REASON_LEN = 512  # the C error's reason buffer (<model>_error_t.reason), NUL included
 
 
 class SolverError(RuntimeError):

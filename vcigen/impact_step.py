@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .errors import HELD_NO_ROOT, NOT_CONVERGED, SolverError
+from .errors import HELD_NO_ROOT, HELD_ROWS, NOT_CONVERGED, SolverError
 from .friction import cone_law, impact_law
 from .held_roots import LEAVE_FRACTIONS, illinois_point, illinois_update
 from .result import Impact
@@ -507,8 +507,14 @@ class ImpactSteps:
 
     def _check(self, res, p, step, t, phase, e=math.nan) -> None:
         if not (res <= self._scale(p, e)):
-            why = NOT_CONVERGED + (HELD_NO_ROOT if phase == "sustained" else "")
+            why = NOT_CONVERGED + (HELD_NO_ROOT + self._held_names() if phase == "sustained" else "")
             raise SolverError(step, t, phase, float(res), why)
+
+    def _held_names(self) -> str:
+        """``"; held: rod, floor[+-]"``: the rows held, by name (``Rows.names``), for a held step's error."""
+        act = getattr(self, "act", None)
+        held = [self.k.row_names[r] for r in np.flatnonzero(act)] if act is not None else []
+        return HELD_ROWS + ", ".join(held) if held else ""
 
 
 def unheld_note(system) -> str:

@@ -18,7 +18,7 @@ import sympy as sp
 
 from .. import __version__
 from ..derive import KINK, WHOLE, DiscreteSystem
-from ..errors import HELD_NO_ROOT, NONFINITE, NOT_CONVERGED, PHASES
+from ..errors import HELD_NO_ROOT, HELD_ROWS, NONFINITE, NOT_CONVERGED, PHASES, REASON_LEN
 from ..explicit import grid_routines, jump_quadratic, path_routines
 from ..held import SQRT_POWERS, held_routines
 from ..impact_step import unheld_note
@@ -345,6 +345,7 @@ def render_context(
         "held_acols": [i for i in structure.held_columns if held[4].output("acc").expr[i] != 0],
         "coordinates": list(model.coordinate_names),
         "contacts": [{"index": j, "name": c} for j, c in enumerate(system.contact_names)],
+        "row_names": list(system.rows.names) if system.rows else [],
         "params": [
             {"index": k, "name": s.name, "default": repr(float(v))}
             for k, (s, v) in enumerate(model.defaults.items())
@@ -355,6 +356,8 @@ def render_context(
         "nonfinite": NONFINITE,
         "not_converged": NOT_CONVERGED,
         "held_no_root": HELD_NO_ROOT,
+        "held_rows": HELD_ROWS,
+        "reason_len": REASON_LEN,
         "tol": _tol_context(tol or Tolerances()),
         "jump_restarts": [c_number(float(f)) for f in (tol or Tolerances()).jump_restarts],
         "newton": {k: repr(v) for k, v in newton_options(system).items()} | {"settled": repr(SETTLED)},

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..derive import DiscreteSystem, set_rows
-from ..errors import SolverError
+from ..errors import REASON_LEN, SolverError
 from ..held_step import Held
 from ..progress import Progress
 from ..result import Result
@@ -67,7 +67,7 @@ class _Err(ctypes.Structure):
         ("time", ctypes.c_double),
         ("phase", ctypes.c_int),
         ("residual", ctypes.c_double),
-        ("reason", ctypes.c_char * 256),
+        ("reason", ctypes.c_char * REASON_LEN),
         ("reflected", ctypes.c_long),
     ]
 

@@ -24,6 +24,9 @@ const char *const particle_coordinate_names[] = {
 const char *const particle_contact_names[] = {
     "floor",
     0};
+const char *const particle_row_names[] = {
+    "floor",
+    0};
 const char *const particle_param_names[] = {
     "m",
     "g",
@@ -569,6 +572,7 @@ static void particle_newton(particle_fun f, const double *const *arg, int n, dou
 #define PARTICLE_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define PARTICLE_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define PARTICLE_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define PARTICLE_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -628,14 +632,33 @@ static inline double particle_scale(const particle_ctx_t *c, const double *p, do
     return c->tol->residual * (1.0 + particle_norm_inf(PARTICLE_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void particle_held_names(const particle_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < PARTICLE_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? PARTICLE_HELD_ROWS : ", ",
+                particle_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int particle_check(const particle_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= particle_scale(c, p, e)) {
         return 0;
     }
-    return particle_fail(c, phase, res, "%s%s", PARTICLE_NOT_CONVERGED,
-        phase == PARTICLE_PHASE_SUSTAINED ? PARTICLE_HELD_NO_ROOT : "");
+    if (phase != PARTICLE_PHASE_SUSTAINED) {
+        return particle_fail(c, phase, res, "%s", PARTICLE_NOT_CONVERGED);
+    }
+    particle_held_names(c, held, sizeof held);
+    return particle_fail(c, phase, res, "%s%s%s", PARTICLE_NOT_CONVERGED, PARTICLE_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -120,12 +120,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } star_error_t;
 
 extern const char *const star_coordinate_names[];
 extern const char *const star_contact_names[];
+extern const char *const star_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const star_param_names[];
 extern const double star_param_defaults[];
 extern const char *const star_phase_names[];

@@ -120,12 +120,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } ball_to_rest_error_t;
 
 extern const char *const ball_to_rest_coordinate_names[];
 extern const char *const ball_to_rest_contact_names[];
+extern const char *const ball_to_rest_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const ball_to_rest_param_names[];
 extern const double ball_to_rest_param_defaults[];
 extern const char *const ball_to_rest_phase_names[];

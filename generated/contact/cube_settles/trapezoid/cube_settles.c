@@ -29,6 +29,12 @@ const char *const cube_settles_contact_names[] = {
     "v2",
     "v3",
     0};
+const char *const cube_settles_row_names[] = {
+    "v0",
+    "v1",
+    "v2",
+    "v3",
+    0};
 const char *const cube_settles_param_names[] = {
     "e",
     0};
@@ -1355,6 +1361,7 @@ static inline void cube_settles_newton_smooth(const double *p0, const double *k,
 #define CUBE_SETTLES_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define CUBE_SETTLES_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define CUBE_SETTLES_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define CUBE_SETTLES_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* What a smooth grid step hands to the next (the implicit grid step): the invariants of (46) at q_k+1
  * and the slopes of phi there, valid after a smooth step of the run (ok), not after an impact. */
@@ -1429,14 +1436,33 @@ static inline double cube_settles_scale(const cube_settles_ctx_t *c, const doubl
     return c->tol->residual * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void cube_settles_held_names(const cube_settles_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < CUBE_SETTLES_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? CUBE_SETTLES_HELD_ROWS : ", ",
+                cube_settles_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int cube_settles_check(const cube_settles_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= cube_settles_scale(c, p, e)) {
         return 0;
     }
-    return cube_settles_fail(c, phase, res, "%s%s", CUBE_SETTLES_NOT_CONVERGED,
-        phase == CUBE_SETTLES_PHASE_SUSTAINED ? CUBE_SETTLES_HELD_NO_ROOT : "");
+    if (phase != CUBE_SETTLES_PHASE_SUSTAINED) {
+        return cube_settles_fail(c, phase, res, "%s", CUBE_SETTLES_NOT_CONVERGED);
+    }
+    cube_settles_held_names(c, held, sizeof held);
+    return cube_settles_fail(c, phase, res, "%s%s%s", CUBE_SETTLES_NOT_CONVERGED, CUBE_SETTLES_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -26,6 +26,12 @@ const char *const four_bar_coordinate_names[] = {
 const char *const four_bar_contact_names[] = {
     "floor",
     0};
+const char *const four_bar_row_names[] = {
+    "floor",
+    "ab",
+    "bc",
+    "cd",
+    0};
 const char *const four_bar_param_names[] = {
     "e",
     0};
@@ -1065,6 +1071,7 @@ static void four_bar_newton(four_bar_fun f, const double *const *arg, int n, dou
 #define FOUR_BAR_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define FOUR_BAR_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define FOUR_BAR_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define FOUR_BAR_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -1124,14 +1131,33 @@ static inline double four_bar_scale(const four_bar_ctx_t *c, const double *p, do
     return c->tol->residual * (1.0 + four_bar_norm_inf(FOUR_BAR_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void four_bar_held_names(const four_bar_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < FOUR_BAR_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? FOUR_BAR_HELD_ROWS : ", ",
+                four_bar_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int four_bar_check(const four_bar_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= four_bar_scale(c, p, e)) {
         return 0;
     }
-    return four_bar_fail(c, phase, res, "%s%s", FOUR_BAR_NOT_CONVERGED,
-        phase == FOUR_BAR_PHASE_SUSTAINED ? FOUR_BAR_HELD_NO_ROOT : "");
+    if (phase != FOUR_BAR_PHASE_SUSTAINED) {
+        return four_bar_fail(c, phase, res, "%s", FOUR_BAR_NOT_CONVERGED);
+    }
+    four_bar_held_names(c, held, sizeof held);
+    return four_bar_fail(c, phase, res, "%s%s%s", FOUR_BAR_NOT_CONVERGED, FOUR_BAR_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -124,12 +124,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } four_bar_error_t;
 
 extern const char *const four_bar_coordinate_names[];
 extern const char *const four_bar_contact_names[];
+extern const char *const four_bar_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const four_bar_param_names[];
 extern const double four_bar_param_defaults[];
 extern const char *const four_bar_phase_names[];

@@ -24,6 +24,10 @@ const char *const pendulum_wall_coordinate_names[] = {
 const char *const pendulum_wall_contact_names[] = {
     "wall",
     0};
+const char *const pendulum_wall_row_names[] = {
+    "wall",
+    "rod",
+    0};
 const char *const pendulum_wall_param_names[] = {
     "m",
     "g",
@@ -795,6 +799,7 @@ static void pendulum_wall_newton(pendulum_wall_fun f, const double *const *arg, 
 #define PENDULUM_WALL_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define PENDULUM_WALL_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define PENDULUM_WALL_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define PENDULUM_WALL_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -854,14 +859,33 @@ static inline double pendulum_wall_scale(const pendulum_wall_ctx_t *c, const dou
     return c->tol->residual * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void pendulum_wall_held_names(const pendulum_wall_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < PENDULUM_WALL_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? PENDULUM_WALL_HELD_ROWS : ", ",
+                pendulum_wall_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int pendulum_wall_check(const pendulum_wall_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= pendulum_wall_scale(c, p, e)) {
         return 0;
     }
-    return pendulum_wall_fail(c, phase, res, "%s%s", PENDULUM_WALL_NOT_CONVERGED,
-        phase == PENDULUM_WALL_PHASE_SUSTAINED ? PENDULUM_WALL_HELD_NO_ROOT : "");
+    if (phase != PENDULUM_WALL_PHASE_SUSTAINED) {
+        return pendulum_wall_fail(c, phase, res, "%s", PENDULUM_WALL_NOT_CONVERGED);
+    }
+    pendulum_wall_held_names(c, held, sizeof held);
+    return pendulum_wall_fail(c, phase, res, "%s%s%s", PENDULUM_WALL_NOT_CONVERGED, PENDULUM_WALL_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -33,6 +33,17 @@ const char *const pyramid_contact_names[] = {
     "p13",
     "p23",
     0};
+const char *const pyramid_row_names[] = {
+    "f1",
+    "f2",
+    "f3",
+    "p12",
+    "p13",
+    "p23",
+    "f1/stick",
+    "f2/stick",
+    "f3/stick",
+    0};
 const char *const pyramid_param_names[] = {
     "mu",
     "e",
@@ -1393,6 +1404,7 @@ static void pyramid_newton(pyramid_fun f, const double *const *arg, int n, doubl
 #define PYRAMID_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define PYRAMID_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define PYRAMID_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define PYRAMID_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -1463,14 +1475,33 @@ static inline double pyramid_scale(const pyramid_ctx_t *c, const double *p, doub
     return c->tol->residual * (1.0 + pyramid_norm_inf(PYRAMID_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void pyramid_held_names(const pyramid_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < PYRAMID_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? PYRAMID_HELD_ROWS : ", ",
+                pyramid_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int pyramid_check(const pyramid_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= pyramid_scale(c, p, e)) {
         return 0;
     }
-    return pyramid_fail(c, phase, res, "%s%s", PYRAMID_NOT_CONVERGED,
-        phase == PYRAMID_PHASE_SUSTAINED ? PYRAMID_HELD_NO_ROOT : "");
+    if (phase != PYRAMID_PHASE_SUSTAINED) {
+        return pyramid_fail(c, phase, res, "%s", PYRAMID_NOT_CONVERGED);
+    }
+    pyramid_held_names(c, held, sizeof held);
+    return pyramid_fail(c, phase, res, "%s%s%s", PYRAMID_NOT_CONVERGED, PYRAMID_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -24,6 +24,9 @@ const char *const slide_off_dome_coordinate_names[] = {
 const char *const slide_off_dome_contact_names[] = {
     "dome",
     0};
+const char *const slide_off_dome_row_names[] = {
+    "dome",
+    0};
 const char *const slide_off_dome_param_names[] = {
     "m",
     "g",
@@ -766,6 +769,7 @@ static void slide_off_dome_newton(slide_off_dome_fun f, const double *const *arg
 #define SLIDE_OFF_DOME_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define SLIDE_OFF_DOME_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define SLIDE_OFF_DOME_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define SLIDE_OFF_DOME_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -825,14 +829,33 @@ static inline double slide_off_dome_scale(const slide_off_dome_ctx_t *c, const d
     return c->tol->residual * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void slide_off_dome_held_names(const slide_off_dome_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < SLIDE_OFF_DOME_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? SLIDE_OFF_DOME_HELD_ROWS : ", ",
+                slide_off_dome_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int slide_off_dome_check(const slide_off_dome_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= slide_off_dome_scale(c, p, e)) {
         return 0;
     }
-    return slide_off_dome_fail(c, phase, res, "%s%s", SLIDE_OFF_DOME_NOT_CONVERGED,
-        phase == SLIDE_OFF_DOME_PHASE_SUSTAINED ? SLIDE_OFF_DOME_HELD_NO_ROOT : "");
+    if (phase != SLIDE_OFF_DOME_PHASE_SUSTAINED) {
+        return slide_off_dome_fail(c, phase, res, "%s", SLIDE_OFF_DOME_NOT_CONVERGED);
+    }
+    slide_off_dome_held_names(c, held, sizeof held);
+    return slide_off_dome_fail(c, phase, res, "%s%s%s", SLIDE_OFF_DOME_NOT_CONVERGED, SLIDE_OFF_DOME_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -126,12 +126,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } slide_off_dome_error_t;
 
 extern const char *const slide_off_dome_coordinate_names[];
 extern const char *const slide_off_dome_contact_names[];
+extern const char *const slide_off_dome_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const slide_off_dome_param_names[];
 extern const double slide_off_dome_param_defaults[];
 extern const char *const slide_off_dome_phase_names[];

@@ -120,12 +120,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } star_settles_error_t;
 
 extern const char *const star_settles_coordinate_names[];
 extern const char *const star_settles_contact_names[];
+extern const char *const star_settles_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const star_settles_param_names[];
 extern const double star_settles_param_defaults[];
 extern const char *const star_settles_phase_names[];

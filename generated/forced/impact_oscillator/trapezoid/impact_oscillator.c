@@ -21,6 +21,9 @@ const char *const impact_oscillator_coordinate_names[] = {
 const char *const impact_oscillator_contact_names[] = {
     "stop",
     0};
+const char *const impact_oscillator_row_names[] = {
+    "stop",
+    0};
 const char *const impact_oscillator_param_names[] = {
     "c",
     "k",
@@ -438,6 +441,7 @@ static double impact_oscillator_start_energy(const double *q0, const double *v, 
 #define IMPACT_OSCILLATOR_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define IMPACT_OSCILLATOR_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define IMPACT_OSCILLATOR_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define IMPACT_OSCILLATOR_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -496,14 +500,33 @@ static inline double impact_oscillator_scale(const impact_oscillator_ctx_t *c, c
     return c->tol->residual * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void impact_oscillator_held_names(const impact_oscillator_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < IMPACT_OSCILLATOR_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? IMPACT_OSCILLATOR_HELD_ROWS : ", ",
+                impact_oscillator_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int impact_oscillator_check(const impact_oscillator_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= impact_oscillator_scale(c, p, e)) {
         return 0;
     }
-    return impact_oscillator_fail(c, phase, res, "%s%s", IMPACT_OSCILLATOR_NOT_CONVERGED,
-        phase == IMPACT_OSCILLATOR_PHASE_SUSTAINED ? IMPACT_OSCILLATOR_HELD_NO_ROOT : "");
+    if (phase != IMPACT_OSCILLATOR_PHASE_SUSTAINED) {
+        return impact_oscillator_fail(c, phase, res, "%s", IMPACT_OSCILLATOR_NOT_CONVERGED);
+    }
+    impact_oscillator_held_names(c, held, sizeof held);
+    return impact_oscillator_fail(c, phase, res, "%s%s%s", IMPACT_OSCILLATOR_NOT_CONVERGED, IMPACT_OSCILLATOR_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -111,12 +111,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } impact_oscillator_error_t;
 
 extern const char *const impact_oscillator_coordinate_names[];
 extern const char *const impact_oscillator_contact_names[];
+extern const char *const impact_oscillator_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const impact_oscillator_param_names[];
 extern const double impact_oscillator_param_defaults[];
 extern const char *const impact_oscillator_phase_names[];

@@ -24,6 +24,10 @@ const char *const block_coordinate_names[] = {
 const char *const block_contact_names[] = {
     "floor",
     0};
+const char *const block_row_names[] = {
+    "floor",
+    "floor/stick",
+    0};
 const char *const block_param_names[] = {
     "g",
     "mu",
@@ -566,6 +570,7 @@ static void block_newton(block_fun f, const double *const *arg, int n, double *x
 #define BLOCK_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define BLOCK_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define BLOCK_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define BLOCK_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -626,14 +631,33 @@ static inline double block_scale(const block_ctx_t *c, const double *p, double e
     return c->tol->residual * (1.0 + block_norm_inf(BLOCK_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void block_held_names(const block_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < BLOCK_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? BLOCK_HELD_ROWS : ", ",
+                block_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int block_check(const block_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= block_scale(c, p, e)) {
         return 0;
     }
-    return block_fail(c, phase, res, "%s%s", BLOCK_NOT_CONVERGED,
-        phase == BLOCK_PHASE_SUSTAINED ? BLOCK_HELD_NO_ROOT : "");
+    if (phase != BLOCK_PHASE_SUSTAINED) {
+        return block_fail(c, phase, res, "%s", BLOCK_NOT_CONVERGED);
+    }
+    block_held_names(c, held, sizeof held);
+    return block_fail(c, phase, res, "%s%s%s", BLOCK_NOT_CONVERGED, BLOCK_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -117,12 +117,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } rough_disk_error_t;
 
 extern const char *const rough_disk_coordinate_names[];
 extern const char *const rough_disk_contact_names[];
+extern const char *const rough_disk_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const rough_disk_param_names[];
 extern const double rough_disk_param_defaults[];
 extern const char *const rough_disk_phase_names[];

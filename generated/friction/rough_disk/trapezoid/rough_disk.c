@@ -25,6 +25,10 @@ const char *const rough_disk_coordinate_names[] = {
 const char *const rough_disk_contact_names[] = {
     "floor",
     0};
+const char *const rough_disk_row_names[] = {
+    "floor",
+    "floor/stick",
+    0};
 const char *const rough_disk_param_names[] = {
     "m",
     "I",
@@ -646,6 +650,7 @@ static void rough_disk_newton(rough_disk_fun f, const double *const *arg, int n,
 #define ROUGH_DISK_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define ROUGH_DISK_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define ROUGH_DISK_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define ROUGH_DISK_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -706,14 +711,33 @@ static inline double rough_disk_scale(const rough_disk_ctx_t *c, const double *p
     return c->tol->residual * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void rough_disk_held_names(const rough_disk_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < ROUGH_DISK_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? ROUGH_DISK_HELD_ROWS : ", ",
+                rough_disk_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int rough_disk_check(const rough_disk_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= rough_disk_scale(c, p, e)) {
         return 0;
     }
-    return rough_disk_fail(c, phase, res, "%s%s", ROUGH_DISK_NOT_CONVERGED,
-        phase == ROUGH_DISK_PHASE_SUSTAINED ? ROUGH_DISK_HELD_NO_ROOT : "");
+    if (phase != ROUGH_DISK_PHASE_SUSTAINED) {
+        return rough_disk_fail(c, phase, res, "%s", ROUGH_DISK_NOT_CONVERGED);
+    }
+    rough_disk_held_names(c, held, sizeof held);
+    return rough_disk_fail(c, phase, res, "%s%s%s", ROUGH_DISK_NOT_CONVERGED, ROUGH_DISK_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -27,6 +27,11 @@ const char *const spun_ball_coordinate_names[] = {
 const char *const spun_ball_contact_names[] = {
     "floor",
     0};
+const char *const spun_ball_row_names[] = {
+    "floor",
+    "floor/stick",
+    "floor/stick2",
+    0};
 const char *const spun_ball_param_names[] = {
     "m",
     "I",
@@ -733,6 +738,7 @@ static void spun_ball_newton(spun_ball_fun f, const double *const *arg, int n, d
 #define SPUN_BALL_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define SPUN_BALL_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define SPUN_BALL_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define SPUN_BALL_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -793,14 +799,33 @@ static inline double spun_ball_scale(const spun_ball_ctx_t *c, const double *p, 
     return c->tol->residual * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void spun_ball_held_names(const spun_ball_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < SPUN_BALL_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? SPUN_BALL_HELD_ROWS : ", ",
+                spun_ball_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int spun_ball_check(const spun_ball_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= spun_ball_scale(c, p, e)) {
         return 0;
     }
-    return spun_ball_fail(c, phase, res, "%s%s", SPUN_BALL_NOT_CONVERGED,
-        phase == SPUN_BALL_PHASE_SUSTAINED ? SPUN_BALL_HELD_NO_ROOT : "");
+    if (phase != SPUN_BALL_PHASE_SUSTAINED) {
+        return spun_ball_fail(c, phase, res, "%s", SPUN_BALL_NOT_CONVERGED);
+    }
+    spun_ball_held_names(c, held, sizeof held);
+    return spun_ball_fail(c, phase, res, "%s%s%s", SPUN_BALL_NOT_CONVERGED, SPUN_BALL_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -117,12 +117,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } spun_ball_error_t;
 
 extern const char *const spun_ball_coordinate_names[];
 extern const char *const spun_ball_contact_names[];
+extern const char *const spun_ball_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const spun_ball_param_names[];
 extern const double spun_ball_param_defaults[];
 extern const char *const spun_ball_phase_names[];

@@ -25,6 +25,13 @@ const char *const star_friction_coordinate_names[] = {
 const char *const star_friction_contact_names[] = {
     "floor",
     0};
+const char *const star_friction_row_names[] = {
+    "floor[++]",
+    "floor[+-]",
+    "floor[-+]",
+    "floor[--]",
+    "floor/stick",
+    0};
 const char *const star_friction_param_names[] = {
     "m",
     "g",
@@ -841,6 +848,7 @@ static void star_friction_newton(star_friction_fun f, const double *const *arg, 
 #define STAR_FRICTION_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define STAR_FRICTION_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define STAR_FRICTION_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define STAR_FRICTION_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -901,14 +909,33 @@ static inline double star_friction_scale(const star_friction_ctx_t *c, const dou
     return c->tol->residual * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void star_friction_held_names(const star_friction_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < STAR_FRICTION_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? STAR_FRICTION_HELD_ROWS : ", ",
+                star_friction_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int star_friction_check(const star_friction_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= star_friction_scale(c, p, e)) {
         return 0;
     }
-    return star_friction_fail(c, phase, res, "%s%s", STAR_FRICTION_NOT_CONVERGED,
-        phase == STAR_FRICTION_PHASE_SUSTAINED ? STAR_FRICTION_HELD_NO_ROOT : "");
+    if (phase != STAR_FRICTION_PHASE_SUSTAINED) {
+        return star_friction_fail(c, phase, res, "%s", STAR_FRICTION_NOT_CONVERGED);
+    }
+    star_friction_held_names(c, held, sizeof held);
+    return star_friction_fail(c, phase, res, "%s%s%s", STAR_FRICTION_NOT_CONVERGED, STAR_FRICTION_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

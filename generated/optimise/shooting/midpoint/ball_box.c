@@ -27,6 +27,12 @@ const char *const ball_box_contact_names[] = {
     "bottom",
     "top",
     0};
+const char *const ball_box_row_names[] = {
+    "left",
+    "right",
+    "bottom",
+    "top",
+    0};
 const char *const ball_box_param_names[] = {
     "g",
     0};
@@ -768,6 +774,7 @@ static void ball_box_newton(ball_box_fun f, const double *const *arg, int n, dou
 #define BALL_BOX_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define BALL_BOX_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define BALL_BOX_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define BALL_BOX_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* One run's fixed data and the grid step being taken (Stepper + its step/t_k arguments). */
 typedef struct {
@@ -833,14 +840,33 @@ static inline double ball_box_scale(const ball_box_ctx_t *c, const double *p, do
     return c->tol->residual * (1.0 + ball_box_norm_inf(BALL_BOX_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void ball_box_held_names(const ball_box_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < BALL_BOX_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? BALL_BOX_HELD_ROWS : ", ",
+                ball_box_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int ball_box_check(const ball_box_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= ball_box_scale(c, p, e)) {
         return 0;
     }
-    return ball_box_fail(c, phase, res, "%s%s", BALL_BOX_NOT_CONVERGED,
-        phase == BALL_BOX_PHASE_SUSTAINED ? BALL_BOX_HELD_NO_ROOT : "");
+    if (phase != BALL_BOX_PHASE_SUSTAINED) {
+        return ball_box_fail(c, phase, res, "%s", BALL_BOX_NOT_CONVERGED);
+    }
+    ball_box_held_names(c, held, sizeof held);
+    return ball_box_fail(c, phase, res, "%s%s%s", BALL_BOX_NOT_CONVERGED, BALL_BOX_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -120,12 +120,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } ball_box_error_t;
 
 extern const char *const ball_box_coordinate_names[];
 extern const char *const ball_box_contact_names[];
+extern const char *const ball_box_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const ball_box_param_names[];
 extern const double ball_box_param_defaults[];
 extern const char *const ball_box_phase_names[];

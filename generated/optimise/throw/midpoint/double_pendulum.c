@@ -22,6 +22,9 @@ const char *const double_pendulum_coordinate_names[] = {
 const char *const double_pendulum_contact_names[] = {
     "wall",
     0};
+const char *const double_pendulum_row_names[] = {
+    "wall",
+    0};
 const char *const double_pendulum_param_names[] = {
     "m1",
     "m2",
@@ -933,6 +936,7 @@ static inline void double_pendulum_newton_smooth(const double *p0, const double 
 #define DOUBLE_PENDULUM_NONFINITE "non-finite state (an overflow, or a NaN from the model at these parameters); check the parameters and the initial state, or reduce h"
 #define DOUBLE_PENDULUM_NOT_CONVERGED "Newton did not converge; reduce h or check that the Lagrangian is regular along the trajectory"
 #define DOUBLE_PENDULUM_HELD_NO_ROOT "; a held step has no root where it moves a point farther than its rows' curvature allows (on a rod of length l: where tau |v| >= l)" /* errors.HELD_NO_ROOT: with a held segment's failed Newton */
+#define DOUBLE_PENDULUM_HELD_ROWS "; held: " /* errors.HELD_ROWS: then the rows held, by name */
 
 /* What a smooth grid step hands to the next (the implicit grid step): the invariants of (46) at q_k+1
  * and the slopes of phi there, valid after a smooth step of the run (ok), not after an impact. */
@@ -1001,14 +1005,33 @@ static inline double double_pendulum_scale(const double_pendulum_ctx_t *c, const
     return c->tol->residual * (1.0 + double_pendulum_norm_inf(DOUBLE_PENDULUM_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
+/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
+static void double_pendulum_held_names(const double_pendulum_ctx_t *c, char *out, size_t size)
+{
+    size_t used = 0;
+    int r, first = 1;
+    out[0] = 0;
+    for (r = 0; r < DOUBLE_PENDULUM_R && used < size; ++r) {
+        if (c->sus->act[r]) {
+            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? DOUBLE_PENDULUM_HELD_ROWS : ", ",
+                double_pendulum_row_names[r]);
+            first = 0;
+        }
+    }
+}
+
 /* Stepper._check. */
 static inline int double_pendulum_check(const double_pendulum_ctx_t *c, double res, const double *p, double e, int phase)
 {
+    char held[512];
     if (res <= double_pendulum_scale(c, p, e)) {
         return 0;
     }
-    return double_pendulum_fail(c, phase, res, "%s%s", DOUBLE_PENDULUM_NOT_CONVERGED,
-        phase == DOUBLE_PENDULUM_PHASE_SUSTAINED ? DOUBLE_PENDULUM_HELD_NO_ROOT : "");
+    if (phase != DOUBLE_PENDULUM_PHASE_SUSTAINED) {
+        return double_pendulum_fail(c, phase, res, "%s", DOUBLE_PENDULUM_NOT_CONVERGED);
+    }
+    double_pendulum_held_names(c, held, sizeof held);
+    return double_pendulum_fail(c, phase, res, "%s%s%s", DOUBLE_PENDULUM_NOT_CONVERGED, DOUBLE_PENDULUM_HELD_NO_ROOT, held);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

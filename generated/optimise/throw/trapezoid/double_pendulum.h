@@ -109,12 +109,13 @@ typedef struct {
     double time;
     int phase;
     double residual;
-    char reason[256];
+    char reason[512]; /* errors.REASON_LEN */
     long reflected; /* grazing impacts that took the continuous law in this call (not an error) */
 } double_pendulum_error_t;
 
 extern const char *const double_pendulum_coordinate_names[];
 extern const char *const double_pendulum_contact_names[];
+extern const char *const double_pendulum_row_names[]; /* Rows.names: a held step's error names the rows held */
 extern const char *const double_pendulum_param_names[];
 extern const double double_pendulum_param_defaults[];
 extern const char *const double_pendulum_phase_names[];
