@@ -632,33 +632,35 @@ static inline double particle_scale(const particle_ctx_t *c, const double *p, do
     return c->tol->residual * (1.0 + particle_norm_inf(PARTICLE_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void particle_held_names(const particle_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int particle_fail_held(const particle_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < PARTICLE_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < PARTICLE_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? PARTICLE_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? PARTICLE_HELD_ROWS : ", ",
                 particle_row_names[r]);
             first = 0;
         }
     }
+    return particle_fail(c, PARTICLE_PHASE_SUSTAINED, res, "%s%s%s", PARTICLE_NOT_CONVERGED,
+        PARTICLE_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int particle_check(const particle_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= particle_scale(c, p, e)) {
         return 0;
     }
-    if (phase != PARTICLE_PHASE_SUSTAINED) {
-        return particle_fail(c, phase, res, "%s", PARTICLE_NOT_CONVERGED);
+    if (phase == PARTICLE_PHASE_SUSTAINED) {
+        return particle_fail_held(c, res);
     }
-    particle_held_names(c, held, sizeof held);
-    return particle_fail(c, phase, res, "%s%s%s", PARTICLE_NOT_CONVERGED, PARTICLE_HELD_NO_ROOT, held);
+    return particle_fail(c, phase, res, "%s", PARTICLE_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -911,33 +911,35 @@ static inline double star_scale(const star_ctx_t *c, const double *p, double e)
     return c->tol->residual * (1.0 + star_norm_inf(STAR_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void star_held_names(const star_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int star_fail_held(const star_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < STAR_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < STAR_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? STAR_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? STAR_HELD_ROWS : ", ",
                 star_row_names[r]);
             first = 0;
         }
     }
+    return star_fail(c, STAR_PHASE_SUSTAINED, res, "%s%s%s", STAR_NOT_CONVERGED,
+        STAR_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int star_check(const star_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= star_scale(c, p, e)) {
         return 0;
     }
-    if (phase != STAR_PHASE_SUSTAINED) {
-        return star_fail(c, phase, res, "%s", STAR_NOT_CONVERGED);
+    if (phase == STAR_PHASE_SUSTAINED) {
+        return star_fail_held(c, res);
     }
-    star_held_names(c, held, sizeof held);
-    return star_fail(c, phase, res, "%s%s%s", STAR_NOT_CONVERGED, STAR_HELD_NO_ROOT, held);
+    return star_fail(c, phase, res, "%s", STAR_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -628,33 +628,35 @@ static inline double ball_to_rest_scale(const ball_to_rest_ctx_t *c, const doubl
     return c->tol->residual * (1.0 + ball_to_rest_norm_inf(BALL_TO_REST_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void ball_to_rest_held_names(const ball_to_rest_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int ball_to_rest_fail_held(const ball_to_rest_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < BALL_TO_REST_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < BALL_TO_REST_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? BALL_TO_REST_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? BALL_TO_REST_HELD_ROWS : ", ",
                 ball_to_rest_row_names[r]);
             first = 0;
         }
     }
+    return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, res, "%s%s%s", BALL_TO_REST_NOT_CONVERGED,
+        BALL_TO_REST_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int ball_to_rest_check(const ball_to_rest_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= ball_to_rest_scale(c, p, e)) {
         return 0;
     }
-    if (phase != BALL_TO_REST_PHASE_SUSTAINED) {
-        return ball_to_rest_fail(c, phase, res, "%s", BALL_TO_REST_NOT_CONVERGED);
+    if (phase == BALL_TO_REST_PHASE_SUSTAINED) {
+        return ball_to_rest_fail_held(c, res);
     }
-    ball_to_rest_held_names(c, held, sizeof held);
-    return ball_to_rest_fail(c, phase, res, "%s%s%s", BALL_TO_REST_NOT_CONVERGED, BALL_TO_REST_HELD_NO_ROOT, held);
+    return ball_to_rest_fail(c, phase, res, "%s", BALL_TO_REST_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

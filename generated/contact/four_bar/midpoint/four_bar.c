@@ -1131,33 +1131,35 @@ static inline double four_bar_scale(const four_bar_ctx_t *c, const double *p, do
     return c->tol->residual * (1.0 + four_bar_norm_inf(FOUR_BAR_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void four_bar_held_names(const four_bar_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int four_bar_fail_held(const four_bar_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < FOUR_BAR_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < FOUR_BAR_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? FOUR_BAR_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? FOUR_BAR_HELD_ROWS : ", ",
                 four_bar_row_names[r]);
             first = 0;
         }
     }
+    return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, res, "%s%s%s", FOUR_BAR_NOT_CONVERGED,
+        FOUR_BAR_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int four_bar_check(const four_bar_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= four_bar_scale(c, p, e)) {
         return 0;
     }
-    if (phase != FOUR_BAR_PHASE_SUSTAINED) {
-        return four_bar_fail(c, phase, res, "%s", FOUR_BAR_NOT_CONVERGED);
+    if (phase == FOUR_BAR_PHASE_SUSTAINED) {
+        return four_bar_fail_held(c, res);
     }
-    four_bar_held_names(c, held, sizeof held);
-    return four_bar_fail(c, phase, res, "%s%s%s", FOUR_BAR_NOT_CONVERGED, FOUR_BAR_HELD_NO_ROOT, held);
+    return four_bar_fail(c, phase, res, "%s", FOUR_BAR_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -864,33 +864,35 @@ static inline double pendulum_wall_scale(const pendulum_wall_ctx_t *c, const dou
     return c->tol->residual * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void pendulum_wall_held_names(const pendulum_wall_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int pendulum_wall_fail_held(const pendulum_wall_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < PENDULUM_WALL_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < PENDULUM_WALL_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? PENDULUM_WALL_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? PENDULUM_WALL_HELD_ROWS : ", ",
                 pendulum_wall_row_names[r]);
             first = 0;
         }
     }
+    return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, res, "%s%s%s", PENDULUM_WALL_NOT_CONVERGED,
+        PENDULUM_WALL_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int pendulum_wall_check(const pendulum_wall_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= pendulum_wall_scale(c, p, e)) {
         return 0;
     }
-    if (phase != PENDULUM_WALL_PHASE_SUSTAINED) {
-        return pendulum_wall_fail(c, phase, res, "%s", PENDULUM_WALL_NOT_CONVERGED);
+    if (phase == PENDULUM_WALL_PHASE_SUSTAINED) {
+        return pendulum_wall_fail_held(c, res);
     }
-    pendulum_wall_held_names(c, held, sizeof held);
-    return pendulum_wall_fail(c, phase, res, "%s%s%s", PENDULUM_WALL_NOT_CONVERGED, PENDULUM_WALL_HELD_NO_ROOT, held);
+    return pendulum_wall_fail(c, phase, res, "%s", PENDULUM_WALL_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

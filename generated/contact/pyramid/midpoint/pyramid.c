@@ -1475,33 +1475,35 @@ static inline double pyramid_scale(const pyramid_ctx_t *c, const double *p, doub
     return c->tol->residual * (1.0 + pyramid_norm_inf(PYRAMID_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void pyramid_held_names(const pyramid_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int pyramid_fail_held(const pyramid_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < PYRAMID_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < PYRAMID_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? PYRAMID_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? PYRAMID_HELD_ROWS : ", ",
                 pyramid_row_names[r]);
             first = 0;
         }
     }
+    return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, res, "%s%s%s", PYRAMID_NOT_CONVERGED,
+        PYRAMID_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int pyramid_check(const pyramid_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= pyramid_scale(c, p, e)) {
         return 0;
     }
-    if (phase != PYRAMID_PHASE_SUSTAINED) {
-        return pyramid_fail(c, phase, res, "%s", PYRAMID_NOT_CONVERGED);
+    if (phase == PYRAMID_PHASE_SUSTAINED) {
+        return pyramid_fail_held(c, res);
     }
-    pyramid_held_names(c, held, sizeof held);
-    return pyramid_fail(c, phase, res, "%s%s%s", PYRAMID_NOT_CONVERGED, PYRAMID_HELD_NO_ROOT, held);
+    return pyramid_fail(c, phase, res, "%s", PYRAMID_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -829,33 +829,35 @@ static inline double slide_off_dome_scale(const slide_off_dome_ctx_t *c, const d
     return c->tol->residual * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void slide_off_dome_held_names(const slide_off_dome_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int slide_off_dome_fail_held(const slide_off_dome_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < SLIDE_OFF_DOME_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < SLIDE_OFF_DOME_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? SLIDE_OFF_DOME_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? SLIDE_OFF_DOME_HELD_ROWS : ", ",
                 slide_off_dome_row_names[r]);
             first = 0;
         }
     }
+    return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, res, "%s%s%s", SLIDE_OFF_DOME_NOT_CONVERGED,
+        SLIDE_OFF_DOME_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int slide_off_dome_check(const slide_off_dome_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= slide_off_dome_scale(c, p, e)) {
         return 0;
     }
-    if (phase != SLIDE_OFF_DOME_PHASE_SUSTAINED) {
-        return slide_off_dome_fail(c, phase, res, "%s", SLIDE_OFF_DOME_NOT_CONVERGED);
+    if (phase == SLIDE_OFF_DOME_PHASE_SUSTAINED) {
+        return slide_off_dome_fail_held(c, res);
     }
-    slide_off_dome_held_names(c, held, sizeof held);
-    return slide_off_dome_fail(c, phase, res, "%s%s%s", SLIDE_OFF_DOME_NOT_CONVERGED, SLIDE_OFF_DOME_HELD_NO_ROOT, held);
+    return slide_off_dome_fail(c, phase, res, "%s", SLIDE_OFF_DOME_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

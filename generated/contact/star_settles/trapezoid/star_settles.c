@@ -914,33 +914,35 @@ static inline double star_settles_scale(const star_settles_ctx_t *c, const doubl
     return c->tol->residual * (1.0 + star_settles_norm_inf(STAR_SETTLES_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void star_settles_held_names(const star_settles_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int star_settles_fail_held(const star_settles_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < STAR_SETTLES_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < STAR_SETTLES_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? STAR_SETTLES_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? STAR_SETTLES_HELD_ROWS : ", ",
                 star_settles_row_names[r]);
             first = 0;
         }
     }
+    return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, res, "%s%s%s", STAR_SETTLES_NOT_CONVERGED,
+        STAR_SETTLES_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int star_settles_check(const star_settles_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= star_settles_scale(c, p, e)) {
         return 0;
     }
-    if (phase != STAR_SETTLES_PHASE_SUSTAINED) {
-        return star_settles_fail(c, phase, res, "%s", STAR_SETTLES_NOT_CONVERGED);
+    if (phase == STAR_SETTLES_PHASE_SUSTAINED) {
+        return star_settles_fail_held(c, res);
     }
-    star_settles_held_names(c, held, sizeof held);
-    return star_settles_fail(c, phase, res, "%s%s%s", STAR_SETTLES_NOT_CONVERGED, STAR_SETTLES_HELD_NO_ROOT, held);
+    return star_settles_fail(c, phase, res, "%s", STAR_SETTLES_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

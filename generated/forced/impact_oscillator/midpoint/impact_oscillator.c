@@ -493,33 +493,35 @@ static inline double impact_oscillator_scale(const impact_oscillator_ctx_t *c, c
     return c->tol->residual * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void impact_oscillator_held_names(const impact_oscillator_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int impact_oscillator_fail_held(const impact_oscillator_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < IMPACT_OSCILLATOR_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < IMPACT_OSCILLATOR_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? IMPACT_OSCILLATOR_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? IMPACT_OSCILLATOR_HELD_ROWS : ", ",
                 impact_oscillator_row_names[r]);
             first = 0;
         }
     }
+    return impact_oscillator_fail(c, IMPACT_OSCILLATOR_PHASE_SUSTAINED, res, "%s%s%s", IMPACT_OSCILLATOR_NOT_CONVERGED,
+        IMPACT_OSCILLATOR_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int impact_oscillator_check(const impact_oscillator_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= impact_oscillator_scale(c, p, e)) {
         return 0;
     }
-    if (phase != IMPACT_OSCILLATOR_PHASE_SUSTAINED) {
-        return impact_oscillator_fail(c, phase, res, "%s", IMPACT_OSCILLATOR_NOT_CONVERGED);
+    if (phase == IMPACT_OSCILLATOR_PHASE_SUSTAINED) {
+        return impact_oscillator_fail_held(c, res);
     }
-    impact_oscillator_held_names(c, held, sizeof held);
-    return impact_oscillator_fail(c, phase, res, "%s%s%s", IMPACT_OSCILLATOR_NOT_CONVERGED, IMPACT_OSCILLATOR_HELD_NO_ROOT, held);
+    return impact_oscillator_fail(c, phase, res, "%s", IMPACT_OSCILLATOR_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

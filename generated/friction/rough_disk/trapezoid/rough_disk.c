@@ -711,33 +711,35 @@ static inline double rough_disk_scale(const rough_disk_ctx_t *c, const double *p
     return c->tol->residual * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void rough_disk_held_names(const rough_disk_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int rough_disk_fail_held(const rough_disk_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < ROUGH_DISK_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < ROUGH_DISK_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? ROUGH_DISK_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? ROUGH_DISK_HELD_ROWS : ", ",
                 rough_disk_row_names[r]);
             first = 0;
         }
     }
+    return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, res, "%s%s%s", ROUGH_DISK_NOT_CONVERGED,
+        ROUGH_DISK_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int rough_disk_check(const rough_disk_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= rough_disk_scale(c, p, e)) {
         return 0;
     }
-    if (phase != ROUGH_DISK_PHASE_SUSTAINED) {
-        return rough_disk_fail(c, phase, res, "%s", ROUGH_DISK_NOT_CONVERGED);
+    if (phase == ROUGH_DISK_PHASE_SUSTAINED) {
+        return rough_disk_fail_held(c, res);
     }
-    rough_disk_held_names(c, held, sizeof held);
-    return rough_disk_fail(c, phase, res, "%s%s%s", ROUGH_DISK_NOT_CONVERGED, ROUGH_DISK_HELD_NO_ROOT, held);
+    return rough_disk_fail(c, phase, res, "%s", ROUGH_DISK_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

@@ -799,33 +799,35 @@ static inline double spun_ball_scale(const spun_ball_ctx_t *c, const double *p, 
     return c->tol->residual * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void spun_ball_held_names(const spun_ball_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int spun_ball_fail_held(const spun_ball_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < SPUN_BALL_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < SPUN_BALL_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? SPUN_BALL_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? SPUN_BALL_HELD_ROWS : ", ",
                 spun_ball_row_names[r]);
             first = 0;
         }
     }
+    return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, res, "%s%s%s", SPUN_BALL_NOT_CONVERGED,
+        SPUN_BALL_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int spun_ball_check(const spun_ball_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= spun_ball_scale(c, p, e)) {
         return 0;
     }
-    if (phase != SPUN_BALL_PHASE_SUSTAINED) {
-        return spun_ball_fail(c, phase, res, "%s", SPUN_BALL_NOT_CONVERGED);
+    if (phase == SPUN_BALL_PHASE_SUSTAINED) {
+        return spun_ball_fail_held(c, res);
     }
-    spun_ball_held_names(c, held, sizeof held);
-    return spun_ball_fail(c, phase, res, "%s%s%s", SPUN_BALL_NOT_CONVERGED, SPUN_BALL_HELD_NO_ROOT, held);
+    return spun_ball_fail(c, phase, res, "%s", SPUN_BALL_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */

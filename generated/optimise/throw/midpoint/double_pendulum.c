@@ -1005,33 +1005,35 @@ static inline double double_pendulum_scale(const double_pendulum_ctx_t *c, const
     return c->tol->residual * (1.0 + double_pendulum_norm_inf(DOUBLE_PENDULUM_N, p) + (isfinite(e) ? fabs(e) : 0.0));
 }
 
-/* ImpactSteps._held_names: "; held: " and the names of the rows held (Rows.names) into out, or "" where none is. */
-static void double_pendulum_held_names(const double_pendulum_ctx_t *c, char *out, size_t size)
+/* ImpactSteps._held_names: a held step's failure, its reason ending "; held: " and the names of the rows held
+ * (Rows.names, in row order). Out of line: the buffer stays off the inline check's frame. */
+static int double_pendulum_fail_held(const double_pendulum_ctx_t *c, double res)
 {
+    char held[512];
     size_t used = 0;
     int r, first = 1;
-    out[0] = 0;
-    for (r = 0; r < DOUBLE_PENDULUM_R && used < size; ++r) {
+    held[0] = 0;
+    for (r = 0; r < DOUBLE_PENDULUM_R && used < sizeof held; ++r) {
         if (c->sus->act[r]) {
-            used += (size_t)snprintf(out + used, size - used, "%s%s", first ? DOUBLE_PENDULUM_HELD_ROWS : ", ",
+            used += (size_t)snprintf(held + used, sizeof held - used, "%s%s", first ? DOUBLE_PENDULUM_HELD_ROWS : ", ",
                 double_pendulum_row_names[r]);
             first = 0;
         }
     }
+    return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, res, "%s%s%s", DOUBLE_PENDULUM_NOT_CONVERGED,
+        DOUBLE_PENDULUM_HELD_NO_ROOT, held);
 }
 
 /* Stepper._check. */
 static inline int double_pendulum_check(const double_pendulum_ctx_t *c, double res, const double *p, double e, int phase)
 {
-    char held[512];
     if (res <= double_pendulum_scale(c, p, e)) {
         return 0;
     }
-    if (phase != DOUBLE_PENDULUM_PHASE_SUSTAINED) {
-        return double_pendulum_fail(c, phase, res, "%s", DOUBLE_PENDULUM_NOT_CONVERGED);
+    if (phase == DOUBLE_PENDULUM_PHASE_SUSTAINED) {
+        return double_pendulum_fail_held(c, res);
     }
-    double_pendulum_held_names(c, held, sizeof held);
-    return double_pendulum_fail(c, phase, res, "%s%s%s", DOUBLE_PENDULUM_NOT_CONVERGED, DOUBLE_PENDULUM_HELD_NO_ROOT, held);
+    return double_pendulum_fail(c, phase, res, "%s", DOUBLE_PENDULUM_NOT_CONVERGED);
 }
 
 /* Smooth residual (46) over duration tau, solved for v (in: the guess). */
