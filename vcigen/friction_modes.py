@@ -81,11 +81,10 @@ class FrictionModes:
                     self._stick(f, q, u)
                 else:
                     self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)
-            elif self._slip[f]:  # slipping where the rows held carry its tangent, at a sliding of 0: it stops
-                grad_f = k.rows(q, u)[1]
-                sliding = float(grad_f[sr] @ u)
-                still = abs(sliding) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u))))
-                if still and self._owner(f, grad_f) >= 0:
+            elif self._slip[f] and abs(float(grad[sr] @ u)) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(u)))):
+                # slipping at a sliding of 0 (its tangent frozen when it began to slip: grad's row is its
+                # own); where the rows held carry that tangent (the rows anew: branches frozen above) it stops
+                if self._owner(f, k.rows(q, u)[1]) >= 0:
                     self._stick(f, q, u)
         self._cone_modes(q, u, tau)
         self._set_friction()

@@ -284,7 +284,7 @@ def render_context(
         "ns": system.stages,  # internal unknowns of a segment (internal points): the Newton hides them
         "stages": system.rule.stages,  # internal points (held with their own multipliers when sustained)
         "inner_ratio": repr(system.rule.inner_ratio),  # Lam_m's Newton start per Lam (SustainedSteps)
-        "lam_rate": repr(system.rule.lam_rate),  # Lam's force rate times h (SustainedSteps._chain_impact)
+        "lam_rate": repr(system.rule.lam_rate),  # Lam's force rate times h (the first held step's guess)
         "unheld": unheld_note(system),  # what a jump error adds under such a rule (Stepper._unheld)
         "m": system.m,
         "r": system.r,

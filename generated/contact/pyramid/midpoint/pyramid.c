@@ -2919,14 +2919,15 @@ static void pyramid_friction_modes(const pyramid_ctx_t *c, const double *q, cons
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
             }
-        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
-            pyramid_rows(q, u, c->par, psi, grad, curv);
+        } else if (c->sus->slip[f] != 0.0) { /* slipping: its tangent frozen when it began, grad's row is its own */
             for (i = 0, sliding = 0.0; i < PYRAMID_N; ++i) {
                 sliding += grad[sr * PYRAMID_N + i] * u[i];
             }
-            if (fabs(sliding) <= PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, u))
-                && pyramid_owner(c, f, grad) >= 0) {
-                pyramid_stick(c, f, q, u);
+            if (fabs(sliding) <= PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, u))) {
+                pyramid_rows(q, u, c->par, psi, grad, curv); /* at a sliding of 0: the rows anew, for owner */
+                if (pyramid_owner(c, f, grad) >= 0) { /* the rows held carry its tangent: it stops */
+                    pyramid_stick(c, f, q, u);
+                }
             }
         }
     }

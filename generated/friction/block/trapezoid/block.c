@@ -2060,14 +2060,15 @@ static void block_friction_modes(const block_ctx_t *c, const double *q, const do
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
             }
-        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
-            block_rows(q, u, c->par, psi, grad, curv);
+        } else if (c->sus->slip[f] != 0.0) { /* slipping: its tangent frozen when it began, grad's row is its own */
             for (i = 0, sliding = 0.0; i < BLOCK_N; ++i) {
                 sliding += grad[sr * BLOCK_N + i] * u[i];
             }
-            if (fabs(sliding) <= BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, u))
-                && block_owner(c, f, grad) >= 0) {
-                block_stick(c, f, q, u);
+            if (fabs(sliding) <= BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, u))) {
+                block_rows(q, u, c->par, psi, grad, curv); /* at a sliding of 0: the rows anew, for owner */
+                if (block_owner(c, f, grad) >= 0) { /* the rows held carry its tangent: it stops */
+                    block_stick(c, f, q, u);
+                }
             }
         }
     }

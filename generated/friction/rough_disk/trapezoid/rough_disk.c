@@ -2140,14 +2140,15 @@ static void rough_disk_friction_modes(const rough_disk_ctx_t *c, const double *q
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
             }
-        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
-            rough_disk_rows(q, u, c->par, psi, grad, curv);
+        } else if (c->sus->slip[f] != 0.0) { /* slipping: its tangent frozen when it began, grad's row is its own */
             for (i = 0, sliding = 0.0; i < ROUGH_DISK_N; ++i) {
                 sliding += grad[sr * ROUGH_DISK_N + i] * u[i];
             }
-            if (fabs(sliding) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u))
-                && rough_disk_owner(c, f, grad) >= 0) {
-                rough_disk_stick(c, f, q, u);
+            if (fabs(sliding) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u))) {
+                rough_disk_rows(q, u, c->par, psi, grad, curv); /* at a sliding of 0: the rows anew, for owner */
+                if (rough_disk_owner(c, f, grad) >= 0) { /* the rows held carry its tangent: it stops */
+                    rough_disk_stick(c, f, q, u);
+                }
             }
         }
     }

@@ -2253,14 +2253,15 @@ static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, 
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
             }
-        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
-            spun_ball_rows(q, u, c->par, psi, grad, curv);
+        } else if (c->sus->slip[f] != 0.0) { /* slipping: its tangent frozen when it began, grad's row is its own */
             for (i = 0, sliding = 0.0; i < SPUN_BALL_N; ++i) {
                 sliding += grad[sr * SPUN_BALL_N + i] * u[i];
             }
-            if (fabs(sliding) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u))
-                && spun_ball_owner(c, f, grad) >= 0) {
-                spun_ball_stick(c, f, q, u);
+            if (fabs(sliding) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u))) {
+                spun_ball_rows(q, u, c->par, psi, grad, curv); /* at a sliding of 0: the rows anew, for owner */
+                if (spun_ball_owner(c, f, grad) >= 0) { /* the rows held carry its tangent: it stops */
+                    spun_ball_stick(c, f, q, u);
+                }
             }
         }
     }

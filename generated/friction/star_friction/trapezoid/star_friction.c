@@ -2347,14 +2347,15 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
             } else {
                 c->sus->slip[f] = -mf * (sliding > 0.0 ? 1.0 : -1.0);
             }
-        } else if (c->sus->slip[f] != 0.0) { /* slipping where the rows held carry its tangent, at a sliding of 0 */
-            star_friction_rows(q, u, c->par, psi, grad, curv);
+        } else if (c->sus->slip[f] != 0.0) { /* slipping: its tangent frozen when it began, grad's row is its own */
             for (i = 0, sliding = 0.0; i < STAR_FRICTION_N; ++i) {
                 sliding += grad[sr * STAR_FRICTION_N + i] * u[i];
             }
-            if (fabs(sliding) <= STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, u))
-                && star_friction_owner(c, f, grad) >= 0) {
-                star_friction_stick(c, f, q, u);
+            if (fabs(sliding) <= STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, u))) {
+                star_friction_rows(q, u, c->par, psi, grad, curv); /* at a sliding of 0: the rows anew, for owner */
+                if (star_friction_owner(c, f, grad) >= 0) { /* the rows held carry its tangent: it stops */
+                    star_friction_stick(c, f, q, u);
+                }
             }
         }
     }
