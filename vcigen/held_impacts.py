@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from .errors import SolverError
-from .held_roots import RESTITUTION_BISECTIONS, SLIDE_EPS, in_span
+from .held_roots import RESTITUTION_BISECTIONS, SLIDE_EPS, in_span, span_add
 from .impulse_law import ImpulseLaw, law_gains
 from .result import Impact
 
@@ -268,7 +268,11 @@ class HeldImpacts(ImpulseLaw):
     def _held_accel(self, q, u, off, on) -> np.ndarray:
         """Every row's ``d2 psi/dt2`` at ``(q, u)`` under the forces of the rows held after an impact (the
         active ones but ``off``, and ``on``): how a row the impact pulls off is pulled back (a held row's own
-        force would cancel it)."""
+        force would cancel it). Of rows that are dependent, those independent of the rows before them in row
+        order (:func:`span_add`): the rows' accelerations are unique, their forces are not. A rough cube
+        landing on an edge with both its vertices' cones stuck (their tangents along the edge coincide) gave
+        an LU of the singular Delassus matrix forces of 1e13 and the far vertices a free fall (-9.81 for
+        3 g / 4: held where C let them go; ``BOOKED_DROPS``, stop 44)."""
         k = self.k
         act = self.act.copy()
         self.act[list(off)] = False
@@ -276,6 +280,11 @@ class HeldImpacts(ImpulseLaw):
         held = {k.row_contact[r] for r in np.flatnonzero(self.act) if k.row_contact[r] >= 0}
         for r in np.flatnonzero(self.act):  # a contact no longer held keeps no stick row
             if k.row_stick and k.row_stick[r] >= 0 and k.frictional[k.row_stick[r]] not in held:
+                self.act[r] = False
+        basis: list = []  # a row in the span of those before it holds nothing: their accelerations are its
+        grad = k.rows(q, u)[1]
+        for r in np.flatnonzero(self.act):
+            if not span_add(basis, grad[r]):
                 self.act[r] = False
         try:
             lam = self._contact_forces(q, u)

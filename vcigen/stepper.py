@@ -195,6 +195,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["least_splits"] = self.least_splits
         res.stats["loads_passed"] = self.passes
         res.stats["sticks_kept"] = self.sticks_kept
+        res.stats["lifts_kept"] = self.lifts_kept
         res.stats["jams"] = self.jams
         res.stats["halvings"] = self.halvings
         res.stats["riders_cut"] = self.riders_cut

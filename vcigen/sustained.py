@@ -113,6 +113,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.kinds = {kind: 0 for kind in KINDS}
         self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
         self.sticks_kept = 0  # stick <-> slip cycles (STICK_CYCLES slides in a step) cut by sticking on
+        self.lifts_kept = 0  # lift-off <-> landing cycles at one instant cut by holding the row on (_chain)
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
         self.jams = 0  # Painleve jams (JAM_CYCLES lift-offs in a step, _painleve) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
@@ -357,6 +358,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
+        kept: set[int] = set()  # rows lifted off and met again at this instant, pulled once more: held on
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
         bounces: dict[int, int] = {}  # impacts of each row in this step's chain (BOUNCE_CYCLES: then held)
@@ -416,6 +418,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if self._stick_rows:
                 self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
             pulled = unilateral & (f1 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1)))))
+            pulled[list(kept)] = False
             if pulled.any():
                 f0 = self._contact_forces(q, self._velocity(q, v, p))
                 for r in np.flatnonzero(pulled):
@@ -440,7 +443,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self.sticks_kept += 1
                     continue
                 slid[r] = slid.get(r, 0) + (events[r][0] == "slide")
-                if events[r][0] == "lift":
+                if events[r][0] == "lift" and r in passed and r in hit:
+                    # lift-off <-> landing at one instant (pulled held, falling in free: its force 0 to
+                    # the method's order): held on to the next instant (counted)
+                    kept.add(r)
+                    self.lifts_kept += 1
+                elif events[r][0] == "lift":
                     rider = self._pass_load(q, self._velocity(q, v, p), r, passed)
                     self._release(step, t_k, t, r, rider)
                     passed.add(r)
@@ -500,7 +508,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             t, rest, guess = t + s * tau, (1.0 - s) * tau if tau == rest else rest - s * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
-                passed, hit = set(), set()
+                passed, hit, kept = set(), set(), set()
                 self._jammed = False
                 self._stuck_on.clear()
             if events[r0][0] == "lift":

@@ -342,6 +342,7 @@ class CRun:
         stats["least_splits"] = self.sus.least_splits
         stats["loads_passed"] = self.sus.passes
         stats["sticks_kept"] = self.sus.sticks_kept
+        stats["lifts_kept"] = self.sus.lifts_kept
         stats["jams"] = self.sus.jams
         stats["halvings"] = self.sus.halvings
         stats["riders_cut"] = self.sus.riders_cut

@@ -92,6 +92,7 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("least_splits", ctypes.c_long),
             ("passes", ctypes.c_long),
             ("sticks_kept", ctypes.c_long),
+            ("lifts_kept", ctypes.c_long),
             ("jams", ctypes.c_long),
             ("halvings", ctypes.c_long),
             ("riders_cut", ctypes.c_long),

@@ -1220,8 +1220,8 @@ static double cube_settles_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void cube_settles_newton(cube_settles_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[CUBE_SETTLES_NX_MAX], jac[CUBE_SETTLES_NX_MAX * CUBE_SETTLES_NX_MAX];
-    double rt[CUBE_SETTLES_NX_MAX], jact[CUBE_SETTLES_NX_MAX * CUBE_SETTLES_NX_MAX];
+    double r[CUBE_SETTLES_NX_MAX] = {0.0}, jac[CUBE_SETTLES_NX_MAX * CUBE_SETTLES_NX_MAX];
+    double rt[CUBE_SETTLES_NX_MAX] = {0.0}, jact[CUBE_SETTLES_NX_MAX * CUBE_SETTLES_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[CUBE_SETTLES_NX_MAX], xt[CUBE_SETTLES_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -2779,7 +2779,7 @@ static int cube_settles_law_once(const cube_settles_ctx_t *c, const double *q, c
     double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
     double w[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM] = {0.0}, b[CUBE_SETTLES_R_DIM] = {0.0}, a[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM];
     double ws[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM] = {0.0};
-    double lam[CUBE_SETTLES_R_DIM], sol[CUBE_SETTLES_R_DIM], lam_eps, vel_eps, gap;
+    double lam[CUBE_SETTLES_R_DIM] = {0.0}, sol[CUBE_SETTLES_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[CUBE_SETTLES_R_DIM], tight[CUBE_SETTLES_R_DIM] = {0}, piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
     int sliding[CUBE_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -2952,15 +2952,23 @@ static void cube_settles_log(const cube_settles_ctx_t *c, double *rec, long *n_r
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void cube_settles_held_accel(const cube_settles_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N];
-    int act[CUBE_SETTLES_R_DIM], r;
+    double lam[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N], psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    double curv[CUBE_SETTLES_R_DIM], basis[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
+    int act[CUBE_SETTLES_R_DIM], r, nb = 0;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    cube_settles_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        if (c->sus->act[r] && !cube_settles_span_add(basis, &nb, grad + r * CUBE_SETTLES_N)) {
+            c->sus->act[r] = 0;
+        }
     }
     cube_settles_contact_forces(c, q, u, lam);
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
@@ -3232,6 +3240,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     int dip[CUBE_SETTLES_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[CUBE_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[CUBE_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[CUBE_SETTLES_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[CUBE_SETTLES_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[CUBE_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3264,7 +3273,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         start = -1;
         pulled = 0;
         for (r = 0; r < CUBE_SETTLES_R; ++r) {
-            ev[r] = c->sus->act[r] && !cube_settles_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !cube_settles_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3283,6 +3292,11 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             cube_settles_velocity(c, q, vv, p, vel);
             rider = cube_settles_pass_load(c, q, vel, start, passed);
             cube_settles_release(c, t, start, rider);
@@ -3371,7 +3385,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < CUBE_SETTLES_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
         }
         if (ev[r0] == 1) {
             cube_settles_velocity(c, q, v, p, vel);

@@ -1339,8 +1339,8 @@ static double pyramid_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void pyramid_newton(pyramid_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[PYRAMID_NX_MAX], jac[PYRAMID_NX_MAX * PYRAMID_NX_MAX];
-    double rt[PYRAMID_NX_MAX], jact[PYRAMID_NX_MAX * PYRAMID_NX_MAX];
+    double r[PYRAMID_NX_MAX] = {0.0}, jac[PYRAMID_NX_MAX * PYRAMID_NX_MAX];
+    double rt[PYRAMID_NX_MAX] = {0.0}, jact[PYRAMID_NX_MAX * PYRAMID_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[PYRAMID_NX_MAX], xt[PYRAMID_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -3384,7 +3384,7 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
     double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
     double w[PYRAMID_R_DIM * PYRAMID_R_DIM] = {0.0}, b[PYRAMID_R_DIM] = {0.0}, a[PYRAMID_R_DIM * PYRAMID_R_DIM];
     double ws[PYRAMID_R_DIM * PYRAMID_R_DIM] = {0.0};
-    double lam[PYRAMID_R_DIM], sol[PYRAMID_R_DIM], lam_eps, vel_eps, gap;
+    double lam[PYRAMID_R_DIM] = {0.0}, sol[PYRAMID_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[PYRAMID_R_DIM], tight[PYRAMID_R_DIM] = {0}, piv[PYRAMID_R_DIM > PYRAMID_N ? PYRAMID_R_DIM : PYRAMID_N];
     int sliding[PYRAMID_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -3795,12 +3795,14 @@ static void pyramid_log(const pyramid_ctx_t *c, double *rec, long *n_rec, double
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void pyramid_held_accel(const pyramid_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[PYRAMID_R_DIM], acc[PYRAMID_N];
-    int act[PYRAMID_R_DIM], r;
+    double lam[PYRAMID_R_DIM], acc[PYRAMID_N], psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N];
+    double curv[PYRAMID_R_DIM], basis[PYRAMID_R_DIM * PYRAMID_N];
+    int act[PYRAMID_R_DIM], r, nb = 0;
     for (r = 0; r < PYRAMID_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
@@ -3812,6 +3814,12 @@ static void pyramid_held_accel(const pyramid_ctx_t *c, const double *q, const do
                 held = held || (c->sus->act[i] && pyramid_row_contact[i] == pyramid_fric_contact[pyramid_row_stick[r]]);
             }
             c->sus->act[r] = held;
+        }
+    }
+    pyramid_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < PYRAMID_R; ++r) {
+        if (c->sus->act[r] && !pyramid_span_add(basis, &nb, grad + r * PYRAMID_N)) {
+            c->sus->act[r] = 0;
         }
     }
     pyramid_contact_forces(c, q, u, lam);
@@ -4216,6 +4224,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int dip[PYRAMID_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PYRAMID_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PYRAMID_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[PYRAMID_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[PYRAMID_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[PYRAMID_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -4271,7 +4280,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         start = -1;
         pulled = 0;
         for (r = 0; r < PYRAMID_R; ++r) {
-            ev[r] = c->sus->act[r] && !pyramid_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !pyramid_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -4383,6 +4392,11 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 turn = kind == 4 ? start : -1;
                 continue;
             }
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             pyramid_velocity(c, q, vv, p, vel);
             rider = pyramid_pass_load(c, q, vel, start, passed);
             pyramid_release(c, t, start, rider);
@@ -4473,7 +4487,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < PYRAMID_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
@@ -5225,55 +5239,116 @@ static long pyramid_first_bad(long n, const double *Q, const double *P, const do
  * while each step clears the pre-test of Stepper.step: its end is admissible and its slopes do not
  * flag a dip (d0 < 0 < d1). Writes rows 0 .. of Q, P, E, adds E_d to *sum_e and returns the number
  * of steps taken (n, or the step that needs the general step). Out of line and with its state in
- * locals, so that the loop keeps it in registers. */
+ * locals, so that the loop keeps it in registers; its loops over the coordinates and rows written out
+ * (at -O2 GCC keeps an array indexed in a loop in memory: a free step of a particle in three coordinates
+ * took 3.5 times as long, bench/held_curved.py's sphere). */
 PYRAMID_HOT static long pyramid_glide(const double *k, double h, double phi_min, long n, double *q_io,
     double *p_io, double *v_io, double *d_io, double *Q, double *P, double *E, double *sum_e)
 {
-    double q[PYRAMID_N], p[PYRAMID_N], v[PYRAMID_N], d[PYRAMID_M_DIM], sum = 0.0;
+    double q[PYRAMID_N], p[PYRAMID_N], v[PYRAMID_N], d[PYRAMID_M], sum = 0.0;
     long s;
-    int i, j;
-    for (i = 0; i < PYRAMID_N; ++i) {
-        q[i] = q_io[i];
-        p[i] = p_io[i];
-        v[i] = v_io[i];
-    }
-    for (j = 0; j < PYRAMID_M; ++j) {
-        d[j] = d_io[j];
-    }
+    q[0] = q_io[0];
+    p[0] = p_io[0];
+    v[0] = v_io[0];
+    q[1] = q_io[1];
+    p[1] = p_io[1];
+    v[1] = v_io[1];
+    q[2] = q_io[2];
+    p[2] = p_io[2];
+    v[2] = v_io[2];
+    q[3] = q_io[3];
+    p[3] = p_io[3];
+    v[3] = v_io[3];
+    q[4] = q_io[4];
+    p[4] = p_io[4];
+    v[4] = v_io[4];
+    q[5] = q_io[5];
+    p[5] = p_io[5];
+    v[5] = v_io[5];
+    d[0] = d_io[0];
+    d[1] = d_io[1];
+    d[2] = d_io[2];
+    d[3] = d_io[3];
+    d[4] = d_io[4];
+    d[5] = d_io[5];
     for (s = 0; s < n; ++s) {
         double q1[PYRAMID_N], p1[PYRAMID_N], e1, phi1[PYRAMID_M_DIM], d1[PYRAMID_M_DIM];
         int clear = 1;
         pyramid_grid_step(q, p, k, v, p1, &e1);
-        for (i = 0; i < PYRAMID_N; ++i) {
-            q1[i] = q[i] + h * v[i];
-        }
+        q1[0] = q[0] + h * v[0];
+        q1[1] = q[1] + h * v[1];
+        q1[2] = q[2] + h * v[2];
+        q1[3] = q[3] + h * v[3];
+        q1[4] = q[4] + h * v[4];
+        q1[5] = q[5] + h * v[5];
         pyramid_grid_end(q1, p1, k, phi1, d1);
-        for (j = 0; j < PYRAMID_M; ++j) { /* without branches: one test per step */
-            clear &= !(phi1[j] < phi_min) & !((d[j] < 0) & (d1[j] > 0));
-        }
+        /* without branches: one test per step */
+        clear &= !(phi1[0] < phi_min) & !((d[0] < 0) & (d1[0] > 0));
+        clear &= !(phi1[1] < phi_min) & !((d[1] < 0) & (d1[1] > 0));
+        clear &= !(phi1[2] < phi_min) & !((d[2] < 0) & (d1[2] > 0));
+        clear &= !(phi1[3] < phi_min) & !((d[3] < 0) & (d1[3] > 0));
+        clear &= !(phi1[4] < phi_min) & !((d[4] < 0) & (d1[4] > 0));
+        clear &= !(phi1[5] < phi_min) & !((d[5] < 0) & (d1[5] > 0));
         if (!clear) {
             break;
         }
-        for (i = 0; i < PYRAMID_N; ++i) {
-            q[i] = q1[i];
-            p[i] = p1[i];
-            Q[s * PYRAMID_N + i] = q1[i];
-            P[s * PYRAMID_N + i] = p1[i];
-        }
-        for (j = 0; j < PYRAMID_M; ++j) {
-            d[j] = d1[j];
-        }
+        q[0] = q1[0];
+        p[0] = p1[0];
+        Q[s * PYRAMID_N + 0] = q1[0];
+        P[s * PYRAMID_N + 0] = p1[0];
+        q[1] = q1[1];
+        p[1] = p1[1];
+        Q[s * PYRAMID_N + 1] = q1[1];
+        P[s * PYRAMID_N + 1] = p1[1];
+        q[2] = q1[2];
+        p[2] = p1[2];
+        Q[s * PYRAMID_N + 2] = q1[2];
+        P[s * PYRAMID_N + 2] = p1[2];
+        q[3] = q1[3];
+        p[3] = p1[3];
+        Q[s * PYRAMID_N + 3] = q1[3];
+        P[s * PYRAMID_N + 3] = p1[3];
+        q[4] = q1[4];
+        p[4] = p1[4];
+        Q[s * PYRAMID_N + 4] = q1[4];
+        P[s * PYRAMID_N + 4] = p1[4];
+        q[5] = q1[5];
+        p[5] = p1[5];
+        Q[s * PYRAMID_N + 5] = q1[5];
+        P[s * PYRAMID_N + 5] = p1[5];
+        d[0] = d1[0];
+        d[1] = d1[1];
+        d[2] = d1[2];
+        d[3] = d1[3];
+        d[4] = d1[4];
+        d[5] = d1[5];
         E[s] = e1;
         sum += e1;
     }
-    for (i = 0; i < PYRAMID_N; ++i) {
-        q_io[i] = q[i];
-        p_io[i] = p[i];
-        v_io[i] = v[i];
-    }
-    for (j = 0; j < PYRAMID_M; ++j) {
-        d_io[j] = d[j];
-    }
+    q_io[0] = q[0];
+    p_io[0] = p[0];
+    v_io[0] = v[0];
+    q_io[1] = q[1];
+    p_io[1] = p[1];
+    v_io[1] = v[1];
+    q_io[2] = q[2];
+    p_io[2] = p[2];
+    v_io[2] = v[2];
+    q_io[3] = q[3];
+    p_io[3] = p[3];
+    v_io[3] = v[3];
+    q_io[4] = q[4];
+    p_io[4] = p[4];
+    v_io[4] = v[4];
+    q_io[5] = q[5];
+    p_io[5] = p[5];
+    v_io[5] = v[5];
+    d_io[0] = d[0];
+    d_io[1] = d[1];
+    d_io[2] = d[2];
+    d_io[3] = d[3];
+    d_io[4] = d[4];
+    d_io[5] = d[5];
     *sum_e += sum;
     return s;
 }

@@ -787,8 +787,8 @@ static double star_settles_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void star_settles_newton(star_settles_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[STAR_SETTLES_NX_MAX], jac[STAR_SETTLES_NX_MAX * STAR_SETTLES_NX_MAX];
-    double rt[STAR_SETTLES_NX_MAX], jact[STAR_SETTLES_NX_MAX * STAR_SETTLES_NX_MAX];
+    double r[STAR_SETTLES_NX_MAX] = {0.0}, jac[STAR_SETTLES_NX_MAX * STAR_SETTLES_NX_MAX];
+    double rt[STAR_SETTLES_NX_MAX] = {0.0}, jact[STAR_SETTLES_NX_MAX * STAR_SETTLES_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[STAR_SETTLES_NX_MAX], xt[STAR_SETTLES_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -2279,7 +2279,7 @@ static int star_settles_law_once(const star_settles_ctx_t *c, const double *q, c
     double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
     double w[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM] = {0.0}, b[STAR_SETTLES_R_DIM] = {0.0}, a[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM];
     double ws[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM] = {0.0};
-    double lam[STAR_SETTLES_R_DIM], sol[STAR_SETTLES_R_DIM], lam_eps, vel_eps, gap;
+    double lam[STAR_SETTLES_R_DIM] = {0.0}, sol[STAR_SETTLES_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[STAR_SETTLES_R_DIM], tight[STAR_SETTLES_R_DIM] = {0}, piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
     int sliding[STAR_SETTLES_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -2452,15 +2452,23 @@ static void star_settles_log(const star_settles_ctx_t *c, double *rec, long *n_r
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void star_settles_held_accel(const star_settles_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N];
-    int act[STAR_SETTLES_R_DIM], r;
+    double lam[STAR_SETTLES_R_DIM], acc[STAR_SETTLES_N], psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
+    double curv[STAR_SETTLES_R_DIM], basis[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
+    int act[STAR_SETTLES_R_DIM], r, nb = 0;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    star_settles_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < STAR_SETTLES_R; ++r) {
+        if (c->sus->act[r] && !star_settles_span_add(basis, &nb, grad + r * STAR_SETTLES_N)) {
+            c->sus->act[r] = 0;
+        }
     }
     star_settles_contact_forces(c, q, u, lam);
     for (r = 0; r < STAR_SETTLES_R; ++r) {
@@ -2732,6 +2740,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     int dip[STAR_SETTLES_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[STAR_SETTLES_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[STAR_SETTLES_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[STAR_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2764,7 +2773,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         start = -1;
         pulled = 0;
         for (r = 0; r < STAR_SETTLES_R; ++r) {
-            ev[r] = c->sus->act[r] && !star_settles_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_settles_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2783,6 +2792,11 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             star_settles_velocity(c, q, vv, p, vel);
             rider = star_settles_pass_load(c, q, vel, start, passed);
             star_settles_release(c, t, start, rider);
@@ -2871,7 +2885,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < STAR_SETTLES_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
         }
         if (ev[r0] == 1) {
             star_settles_velocity(c, q, v, p, vel);
@@ -4117,55 +4131,63 @@ static long star_settles_first_bad(long n, const double *Q, const double *P, con
  * while each step clears the pre-test of Stepper.step: its end is admissible and its slopes do not
  * flag a dip (d0 < 0 < d1). Writes rows 0 .. of Q, P, E, adds E_d to *sum_e and returns the number
  * of steps taken (n, or the step that needs the general step). Out of line and with its state in
- * locals, so that the loop keeps it in registers. */
+ * locals, so that the loop keeps it in registers; its loops over the coordinates and rows written out
+ * (at -O2 GCC keeps an array indexed in a loop in memory: a free step of a particle in three coordinates
+ * took 3.5 times as long, bench/held_curved.py's sphere). */
 STAR_SETTLES_HOT static long star_settles_glide(const double *k, double h, double phi_min, long n, double *q_io,
     double *p_io, double *v_io, double *d_io, double *Q, double *P, double *E, double *sum_e)
 {
-    double q[STAR_SETTLES_N], p[STAR_SETTLES_N], v[STAR_SETTLES_N], d[STAR_SETTLES_M_DIM], sum = 0.0;
+    double q[STAR_SETTLES_N], p[STAR_SETTLES_N], v[STAR_SETTLES_N], d[STAR_SETTLES_M], sum = 0.0;
     long s;
-    int i, j;
-    for (i = 0; i < STAR_SETTLES_N; ++i) {
-        q[i] = q_io[i];
-        p[i] = p_io[i];
-        v[i] = v_io[i];
-    }
-    for (j = 0; j < STAR_SETTLES_M; ++j) {
-        d[j] = d_io[j];
-    }
+    q[0] = q_io[0];
+    p[0] = p_io[0];
+    v[0] = v_io[0];
+    q[1] = q_io[1];
+    p[1] = p_io[1];
+    v[1] = v_io[1];
+    q[2] = q_io[2];
+    p[2] = p_io[2];
+    v[2] = v_io[2];
+    d[0] = d_io[0];
     for (s = 0; s < n; ++s) {
         double q1[STAR_SETTLES_N], p1[STAR_SETTLES_N], e1, phi1[STAR_SETTLES_M_DIM], d1[STAR_SETTLES_M_DIM];
         int clear = 1;
         star_settles_grid_step(q, p, k, v, p1, &e1);
-        for (i = 0; i < STAR_SETTLES_N; ++i) {
-            q1[i] = q[i] + h * v[i];
-        }
+        q1[0] = q[0] + h * v[0];
+        q1[1] = q[1] + h * v[1];
+        q1[2] = q[2] + h * v[2];
         star_settles_grid_end(q1, p1, k, phi1, d1);
-        for (j = 0; j < STAR_SETTLES_M; ++j) { /* without branches: one test per step */
-            clear &= !(phi1[j] < phi_min) & !((d[j] < 0) & (d1[j] > 0));
-        }
+        /* without branches: one test per step */
+        clear &= !(phi1[0] < phi_min) & !((d[0] < 0) & (d1[0] > 0));
         if (!clear) {
             break;
         }
-        for (i = 0; i < STAR_SETTLES_N; ++i) {
-            q[i] = q1[i];
-            p[i] = p1[i];
-            Q[s * STAR_SETTLES_N + i] = q1[i];
-            P[s * STAR_SETTLES_N + i] = p1[i];
-        }
-        for (j = 0; j < STAR_SETTLES_M; ++j) {
-            d[j] = d1[j];
-        }
+        q[0] = q1[0];
+        p[0] = p1[0];
+        Q[s * STAR_SETTLES_N + 0] = q1[0];
+        P[s * STAR_SETTLES_N + 0] = p1[0];
+        q[1] = q1[1];
+        p[1] = p1[1];
+        Q[s * STAR_SETTLES_N + 1] = q1[1];
+        P[s * STAR_SETTLES_N + 1] = p1[1];
+        q[2] = q1[2];
+        p[2] = p1[2];
+        Q[s * STAR_SETTLES_N + 2] = q1[2];
+        P[s * STAR_SETTLES_N + 2] = p1[2];
+        d[0] = d1[0];
         E[s] = e1;
         sum += e1;
     }
-    for (i = 0; i < STAR_SETTLES_N; ++i) {
-        q_io[i] = q[i];
-        p_io[i] = p[i];
-        v_io[i] = v[i];
-    }
-    for (j = 0; j < STAR_SETTLES_M; ++j) {
-        d_io[j] = d[j];
-    }
+    q_io[0] = q[0];
+    p_io[0] = p[0];
+    v_io[0] = v[0];
+    q_io[1] = q[1];
+    p_io[1] = p[1];
+    v_io[1] = v[1];
+    q_io[2] = q[2];
+    p_io[2] = p[2];
+    v_io[2] = v[2];
+    d_io[0] = d[0];
     *sum_e += sum;
     return s;
 }

@@ -354,8 +354,8 @@ static double impact_oscillator_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void impact_oscillator_newton(impact_oscillator_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[IMPACT_OSCILLATOR_NX_MAX], jac[IMPACT_OSCILLATOR_NX_MAX * IMPACT_OSCILLATOR_NX_MAX];
-    double rt[IMPACT_OSCILLATOR_NX_MAX], jact[IMPACT_OSCILLATOR_NX_MAX * IMPACT_OSCILLATOR_NX_MAX];
+    double r[IMPACT_OSCILLATOR_NX_MAX] = {0.0}, jac[IMPACT_OSCILLATOR_NX_MAX * IMPACT_OSCILLATOR_NX_MAX];
+    double rt[IMPACT_OSCILLATOR_NX_MAX] = {0.0}, jact[IMPACT_OSCILLATOR_NX_MAX * IMPACT_OSCILLATOR_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[IMPACT_OSCILLATOR_NX_MAX], xt[IMPACT_OSCILLATOR_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -1818,7 +1818,7 @@ static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const do
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     double w[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM] = {0.0}, b[IMPACT_OSCILLATOR_R_DIM] = {0.0}, a[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM];
     double ws[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM] = {0.0};
-    double lam[IMPACT_OSCILLATOR_R_DIM], sol[IMPACT_OSCILLATOR_R_DIM], lam_eps, vel_eps, gap;
+    double lam[IMPACT_OSCILLATOR_R_DIM] = {0.0}, sol[IMPACT_OSCILLATOR_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[IMPACT_OSCILLATOR_R_DIM], tight[IMPACT_OSCILLATOR_R_DIM] = {0}, piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
     int sliding[IMPACT_OSCILLATOR_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -1991,15 +1991,23 @@ static void impact_oscillator_log(const impact_oscillator_ctx_t *c, double *rec,
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void impact_oscillator_held_accel(const impact_oscillator_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N];
-    int act[IMPACT_OSCILLATOR_R_DIM], r;
+    double lam[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N], psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
+    double curv[IMPACT_OSCILLATOR_R_DIM], basis[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
+    int act[IMPACT_OSCILLATOR_R_DIM], r, nb = 0;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    impact_oscillator_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        if (c->sus->act[r] && !impact_oscillator_span_add(basis, &nb, grad + r * IMPACT_OSCILLATOR_N)) {
+            c->sus->act[r] = 0;
+        }
     }
     impact_oscillator_contact_forces(c, q, u, lam);
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
@@ -2272,6 +2280,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int dip[IMPACT_OSCILLATOR_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[IMPACT_OSCILLATOR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2304,7 +2313,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         start = -1;
         pulled = 0;
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-            ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2323,6 +2332,11 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             impact_oscillator_velocity(c, q, vv, p, vel);
             rider = impact_oscillator_pass_load(c, q, vel, start, passed);
             impact_oscillator_release(c, t, start, rider);
@@ -2412,7 +2426,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < IMPACT_OSCILLATOR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
         }
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);

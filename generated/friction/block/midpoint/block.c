@@ -505,8 +505,8 @@ static double block_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void block_newton(block_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[BLOCK_NX_MAX], jac[BLOCK_NX_MAX * BLOCK_NX_MAX];
-    double rt[BLOCK_NX_MAX], jact[BLOCK_NX_MAX * BLOCK_NX_MAX];
+    double r[BLOCK_NX_MAX] = {0.0}, jac[BLOCK_NX_MAX * BLOCK_NX_MAX];
+    double rt[BLOCK_NX_MAX] = {0.0}, jact[BLOCK_NX_MAX * BLOCK_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[BLOCK_NX_MAX], xt[BLOCK_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -2525,7 +2525,7 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
     double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double w[BLOCK_R_DIM * BLOCK_R_DIM] = {0.0}, b[BLOCK_R_DIM] = {0.0}, a[BLOCK_R_DIM * BLOCK_R_DIM];
     double ws[BLOCK_R_DIM * BLOCK_R_DIM] = {0.0};
-    double lam[BLOCK_R_DIM], sol[BLOCK_R_DIM], lam_eps, vel_eps, gap;
+    double lam[BLOCK_R_DIM] = {0.0}, sol[BLOCK_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM] = {0}, piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
     int sliding[BLOCK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -2936,12 +2936,14 @@ static void block_log(const block_ctx_t *c, double *rec, long *n_rec, double t, 
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void block_held_accel(const block_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[BLOCK_R_DIM], acc[BLOCK_N];
-    int act[BLOCK_R_DIM], r;
+    double lam[BLOCK_R_DIM], acc[BLOCK_N], psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N];
+    double curv[BLOCK_R_DIM], basis[BLOCK_R_DIM * BLOCK_N];
+    int act[BLOCK_R_DIM], r, nb = 0;
     for (r = 0; r < BLOCK_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
@@ -2953,6 +2955,12 @@ static void block_held_accel(const block_ctx_t *c, const double *q, const double
                 held = held || (c->sus->act[i] && block_row_contact[i] == block_fric_contact[block_row_stick[r]]);
             }
             c->sus->act[r] = held;
+        }
+    }
+    block_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < BLOCK_R; ++r) {
+        if (c->sus->act[r] && !block_span_add(basis, &nb, grad + r * BLOCK_N)) {
+            c->sus->act[r] = 0;
         }
     }
     block_contact_forces(c, q, u, lam);
@@ -3357,6 +3365,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int dip[BLOCK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[BLOCK_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[BLOCK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[BLOCK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3412,7 +3421,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         start = -1;
         pulled = 0;
         for (r = 0; r < BLOCK_R; ++r) {
-            ev[r] = c->sus->act[r] && !block_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !block_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3524,6 +3533,11 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 turn = kind == 4 ? start : -1;
                 continue;
             }
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             block_velocity(c, q, vv, p, vel);
             rider = block_pass_load(c, q, vel, start, passed);
             block_release(c, t, start, rider);
@@ -3614,7 +3628,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < BLOCK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
@@ -4366,55 +4380,52 @@ static long block_first_bad(long n, const double *Q, const double *P, const doub
  * while each step clears the pre-test of Stepper.step: its end is admissible and its slopes do not
  * flag a dip (d0 < 0 < d1). Writes rows 0 .. of Q, P, E, adds E_d to *sum_e and returns the number
  * of steps taken (n, or the step that needs the general step). Out of line and with its state in
- * locals, so that the loop keeps it in registers. */
+ * locals, so that the loop keeps it in registers; its loops over the coordinates and rows written out
+ * (at -O2 GCC keeps an array indexed in a loop in memory: a free step of a particle in three coordinates
+ * took 3.5 times as long, bench/held_curved.py's sphere). */
 BLOCK_HOT static long block_glide(const double *k, double h, double phi_min, long n, double *q_io,
     double *p_io, double *v_io, double *d_io, double *Q, double *P, double *E, double *sum_e)
 {
-    double q[BLOCK_N], p[BLOCK_N], v[BLOCK_N], d[BLOCK_M_DIM], sum = 0.0;
+    double q[BLOCK_N], p[BLOCK_N], v[BLOCK_N], d[BLOCK_M], sum = 0.0;
     long s;
-    int i, j;
-    for (i = 0; i < BLOCK_N; ++i) {
-        q[i] = q_io[i];
-        p[i] = p_io[i];
-        v[i] = v_io[i];
-    }
-    for (j = 0; j < BLOCK_M; ++j) {
-        d[j] = d_io[j];
-    }
+    q[0] = q_io[0];
+    p[0] = p_io[0];
+    v[0] = v_io[0];
+    q[1] = q_io[1];
+    p[1] = p_io[1];
+    v[1] = v_io[1];
+    d[0] = d_io[0];
     for (s = 0; s < n; ++s) {
         double q1[BLOCK_N], p1[BLOCK_N], e1, phi1[BLOCK_M_DIM], d1[BLOCK_M_DIM];
         int clear = 1;
         block_grid_step(q, p, k, v, p1, &e1);
-        for (i = 0; i < BLOCK_N; ++i) {
-            q1[i] = q[i] + h * v[i];
-        }
+        q1[0] = q[0] + h * v[0];
+        q1[1] = q[1] + h * v[1];
         block_grid_end(q1, p1, k, phi1, d1);
-        for (j = 0; j < BLOCK_M; ++j) { /* without branches: one test per step */
-            clear &= !(phi1[j] < phi_min) & !((d[j] < 0) & (d1[j] > 0));
-        }
+        /* without branches: one test per step */
+        clear &= !(phi1[0] < phi_min) & !((d[0] < 0) & (d1[0] > 0));
         if (!clear) {
             break;
         }
-        for (i = 0; i < BLOCK_N; ++i) {
-            q[i] = q1[i];
-            p[i] = p1[i];
-            Q[s * BLOCK_N + i] = q1[i];
-            P[s * BLOCK_N + i] = p1[i];
-        }
-        for (j = 0; j < BLOCK_M; ++j) {
-            d[j] = d1[j];
-        }
+        q[0] = q1[0];
+        p[0] = p1[0];
+        Q[s * BLOCK_N + 0] = q1[0];
+        P[s * BLOCK_N + 0] = p1[0];
+        q[1] = q1[1];
+        p[1] = p1[1];
+        Q[s * BLOCK_N + 1] = q1[1];
+        P[s * BLOCK_N + 1] = p1[1];
+        d[0] = d1[0];
         E[s] = e1;
         sum += e1;
     }
-    for (i = 0; i < BLOCK_N; ++i) {
-        q_io[i] = q[i];
-        p_io[i] = p[i];
-        v_io[i] = v[i];
-    }
-    for (j = 0; j < BLOCK_M; ++j) {
-        d_io[j] = d[j];
-    }
+    q_io[0] = q[0];
+    p_io[0] = p[0];
+    v_io[0] = v[0];
+    q_io[1] = q[1];
+    p_io[1] = p[1];
+    v_io[1] = v[1];
+    d_io[0] = d[0];
     *sum_e += sum;
     return s;
 }

@@ -584,8 +584,8 @@ static double rough_disk_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void rough_disk_newton(rough_disk_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[ROUGH_DISK_NX_MAX], jac[ROUGH_DISK_NX_MAX * ROUGH_DISK_NX_MAX];
-    double rt[ROUGH_DISK_NX_MAX], jact[ROUGH_DISK_NX_MAX * ROUGH_DISK_NX_MAX];
+    double r[ROUGH_DISK_NX_MAX] = {0.0}, jac[ROUGH_DISK_NX_MAX * ROUGH_DISK_NX_MAX];
+    double rt[ROUGH_DISK_NX_MAX] = {0.0}, jact[ROUGH_DISK_NX_MAX * ROUGH_DISK_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[ROUGH_DISK_NX_MAX], xt[ROUGH_DISK_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -2604,7 +2604,7 @@ static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double w[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM] = {0.0}, b[ROUGH_DISK_R_DIM] = {0.0}, a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM];
     double ws[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM] = {0.0};
-    double lam[ROUGH_DISK_R_DIM], sol[ROUGH_DISK_R_DIM], lam_eps, vel_eps, gap;
+    double lam[ROUGH_DISK_R_DIM] = {0.0}, sol[ROUGH_DISK_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[ROUGH_DISK_R_DIM], tight[ROUGH_DISK_R_DIM] = {0}, piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
     int sliding[ROUGH_DISK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -3015,12 +3015,14 @@ static void rough_disk_log(const rough_disk_ctx_t *c, double *rec, long *n_rec, 
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void rough_disk_held_accel(const rough_disk_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N];
-    int act[ROUGH_DISK_R_DIM], r;
+    double lam[ROUGH_DISK_R_DIM], acc[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    double curv[ROUGH_DISK_R_DIM], basis[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
+    int act[ROUGH_DISK_R_DIM], r, nb = 0;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
@@ -3032,6 +3034,12 @@ static void rough_disk_held_accel(const rough_disk_ctx_t *c, const double *q, co
                 held = held || (c->sus->act[i] && rough_disk_row_contact[i] == rough_disk_fric_contact[rough_disk_row_stick[r]]);
             }
             c->sus->act[r] = held;
+        }
+    }
+    rough_disk_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        if (c->sus->act[r] && !rough_disk_span_add(basis, &nb, grad + r * ROUGH_DISK_N)) {
+            c->sus->act[r] = 0;
         }
     }
     rough_disk_contact_forces(c, q, u, lam);
@@ -3436,6 +3444,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int dip[ROUGH_DISK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[ROUGH_DISK_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[ROUGH_DISK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3491,7 +3500,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         start = -1;
         pulled = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {
-            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3603,6 +3612,11 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 turn = kind == 4 ? start : -1;
                 continue;
             }
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             rough_disk_velocity(c, q, vv, p, vel);
             rider = rough_disk_pass_load(c, q, vel, start, passed);
             rough_disk_release(c, t, start, rider);
@@ -3693,7 +3707,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < ROUGH_DISK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
@@ -4445,55 +4459,63 @@ static long rough_disk_first_bad(long n, const double *Q, const double *P, const
  * while each step clears the pre-test of Stepper.step: its end is admissible and its slopes do not
  * flag a dip (d0 < 0 < d1). Writes rows 0 .. of Q, P, E, adds E_d to *sum_e and returns the number
  * of steps taken (n, or the step that needs the general step). Out of line and with its state in
- * locals, so that the loop keeps it in registers. */
+ * locals, so that the loop keeps it in registers; its loops over the coordinates and rows written out
+ * (at -O2 GCC keeps an array indexed in a loop in memory: a free step of a particle in three coordinates
+ * took 3.5 times as long, bench/held_curved.py's sphere). */
 ROUGH_DISK_HOT static long rough_disk_glide(const double *k, double h, double phi_min, long n, double *q_io,
     double *p_io, double *v_io, double *d_io, double *Q, double *P, double *E, double *sum_e)
 {
-    double q[ROUGH_DISK_N], p[ROUGH_DISK_N], v[ROUGH_DISK_N], d[ROUGH_DISK_M_DIM], sum = 0.0;
+    double q[ROUGH_DISK_N], p[ROUGH_DISK_N], v[ROUGH_DISK_N], d[ROUGH_DISK_M], sum = 0.0;
     long s;
-    int i, j;
-    for (i = 0; i < ROUGH_DISK_N; ++i) {
-        q[i] = q_io[i];
-        p[i] = p_io[i];
-        v[i] = v_io[i];
-    }
-    for (j = 0; j < ROUGH_DISK_M; ++j) {
-        d[j] = d_io[j];
-    }
+    q[0] = q_io[0];
+    p[0] = p_io[0];
+    v[0] = v_io[0];
+    q[1] = q_io[1];
+    p[1] = p_io[1];
+    v[1] = v_io[1];
+    q[2] = q_io[2];
+    p[2] = p_io[2];
+    v[2] = v_io[2];
+    d[0] = d_io[0];
     for (s = 0; s < n; ++s) {
         double q1[ROUGH_DISK_N], p1[ROUGH_DISK_N], e1, phi1[ROUGH_DISK_M_DIM], d1[ROUGH_DISK_M_DIM];
         int clear = 1;
         rough_disk_grid_step(q, p, k, v, p1, &e1);
-        for (i = 0; i < ROUGH_DISK_N; ++i) {
-            q1[i] = q[i] + h * v[i];
-        }
+        q1[0] = q[0] + h * v[0];
+        q1[1] = q[1] + h * v[1];
+        q1[2] = q[2] + h * v[2];
         rough_disk_grid_end(q1, p1, k, phi1, d1);
-        for (j = 0; j < ROUGH_DISK_M; ++j) { /* without branches: one test per step */
-            clear &= !(phi1[j] < phi_min) & !((d[j] < 0) & (d1[j] > 0));
-        }
+        /* without branches: one test per step */
+        clear &= !(phi1[0] < phi_min) & !((d[0] < 0) & (d1[0] > 0));
         if (!clear) {
             break;
         }
-        for (i = 0; i < ROUGH_DISK_N; ++i) {
-            q[i] = q1[i];
-            p[i] = p1[i];
-            Q[s * ROUGH_DISK_N + i] = q1[i];
-            P[s * ROUGH_DISK_N + i] = p1[i];
-        }
-        for (j = 0; j < ROUGH_DISK_M; ++j) {
-            d[j] = d1[j];
-        }
+        q[0] = q1[0];
+        p[0] = p1[0];
+        Q[s * ROUGH_DISK_N + 0] = q1[0];
+        P[s * ROUGH_DISK_N + 0] = p1[0];
+        q[1] = q1[1];
+        p[1] = p1[1];
+        Q[s * ROUGH_DISK_N + 1] = q1[1];
+        P[s * ROUGH_DISK_N + 1] = p1[1];
+        q[2] = q1[2];
+        p[2] = p1[2];
+        Q[s * ROUGH_DISK_N + 2] = q1[2];
+        P[s * ROUGH_DISK_N + 2] = p1[2];
+        d[0] = d1[0];
         E[s] = e1;
         sum += e1;
     }
-    for (i = 0; i < ROUGH_DISK_N; ++i) {
-        q_io[i] = q[i];
-        p_io[i] = p[i];
-        v_io[i] = v[i];
-    }
-    for (j = 0; j < ROUGH_DISK_M; ++j) {
-        d_io[j] = d[j];
-    }
+    q_io[0] = q[0];
+    p_io[0] = p[0];
+    v_io[0] = v[0];
+    q_io[1] = q[1];
+    p_io[1] = p[1];
+    v_io[1] = v[1];
+    q_io[2] = q[2];
+    p_io[2] = p[2];
+    v_io[2] = v[2];
+    d_io[0] = d[0];
     *sum_e += sum;
     return s;
 }

@@ -672,8 +672,8 @@ static double spun_ball_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void spun_ball_newton(spun_ball_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[SPUN_BALL_NX_MAX], jac[SPUN_BALL_NX_MAX * SPUN_BALL_NX_MAX];
-    double rt[SPUN_BALL_NX_MAX], jact[SPUN_BALL_NX_MAX * SPUN_BALL_NX_MAX];
+    double r[SPUN_BALL_NX_MAX] = {0.0}, jac[SPUN_BALL_NX_MAX * SPUN_BALL_NX_MAX];
+    double rt[SPUN_BALL_NX_MAX] = {0.0}, jact[SPUN_BALL_NX_MAX * SPUN_BALL_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[SPUN_BALL_NX_MAX], xt[SPUN_BALL_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -4034,7 +4034,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
     double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double w[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM] = {0.0}, b[SPUN_BALL_R_DIM] = {0.0}, a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM];
     double ws[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM] = {0.0};
-    double lam[SPUN_BALL_R_DIM], sol[SPUN_BALL_R_DIM], lam_eps, vel_eps, gap;
+    double lam[SPUN_BALL_R_DIM] = {0.0}, sol[SPUN_BALL_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[SPUN_BALL_R_DIM], tight[SPUN_BALL_R_DIM] = {0}, piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
     int sliding[SPUN_BALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -4643,12 +4643,14 @@ static void spun_ball_log(const spun_ball_ctx_t *c, double *rec, long *n_rec, do
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void spun_ball_held_accel(const spun_ball_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[SPUN_BALL_R_DIM], acc[SPUN_BALL_N];
-    int act[SPUN_BALL_R_DIM], r;
+    double lam[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    double curv[SPUN_BALL_R_DIM], basis[SPUN_BALL_R_DIM * SPUN_BALL_N];
+    int act[SPUN_BALL_R_DIM], r, nb = 0;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
@@ -4660,6 +4662,12 @@ static void spun_ball_held_accel(const spun_ball_ctx_t *c, const double *q, cons
                 held = held || (c->sus->act[i] && spun_ball_row_contact[i] == spun_ball_fric_contact[spun_ball_row_stick[r]]);
             }
             c->sus->act[r] = held;
+        }
+    }
+    spun_ball_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        if (c->sus->act[r] && !spun_ball_span_add(basis, &nb, grad + r * SPUN_BALL_N)) {
+            c->sus->act[r] = 0;
         }
     }
     spun_ball_contact_forces(c, q, u, lam);
@@ -5070,6 +5078,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int dip[SPUN_BALL_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[SPUN_BALL_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[SPUN_BALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[SPUN_BALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -5125,7 +5134,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         start = -1;
         pulled = 0;
         for (r = 0; r < SPUN_BALL_R; ++r) {
-            ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -5245,6 +5254,11 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 turn = kind == 4 ? start : -1;
                 continue;
             }
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             spun_ball_velocity(c, q, vv, p, vel);
             rider = spun_ball_pass_load(c, q, vel, start, passed);
             spun_ball_release(c, t, start, rider);
@@ -5335,7 +5349,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < SPUN_BALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
@@ -6335,55 +6349,85 @@ static long spun_ball_first_bad(long n, const double *Q, const double *P, const 
  * while each step clears the pre-test of Stepper.step: its end is admissible and its slopes do not
  * flag a dip (d0 < 0 < d1). Writes rows 0 .. of Q, P, E, adds E_d to *sum_e and returns the number
  * of steps taken (n, or the step that needs the general step). Out of line and with its state in
- * locals, so that the loop keeps it in registers. */
+ * locals, so that the loop keeps it in registers; its loops over the coordinates and rows written out
+ * (at -O2 GCC keeps an array indexed in a loop in memory: a free step of a particle in three coordinates
+ * took 3.5 times as long, bench/held_curved.py's sphere). */
 SPUN_BALL_HOT static long spun_ball_glide(const double *k, double h, double phi_min, long n, double *q_io,
     double *p_io, double *v_io, double *d_io, double *Q, double *P, double *E, double *sum_e)
 {
-    double q[SPUN_BALL_N], p[SPUN_BALL_N], v[SPUN_BALL_N], d[SPUN_BALL_M_DIM], sum = 0.0;
+    double q[SPUN_BALL_N], p[SPUN_BALL_N], v[SPUN_BALL_N], d[SPUN_BALL_M], sum = 0.0;
     long s;
-    int i, j;
-    for (i = 0; i < SPUN_BALL_N; ++i) {
-        q[i] = q_io[i];
-        p[i] = p_io[i];
-        v[i] = v_io[i];
-    }
-    for (j = 0; j < SPUN_BALL_M; ++j) {
-        d[j] = d_io[j];
-    }
+    q[0] = q_io[0];
+    p[0] = p_io[0];
+    v[0] = v_io[0];
+    q[1] = q_io[1];
+    p[1] = p_io[1];
+    v[1] = v_io[1];
+    q[2] = q_io[2];
+    p[2] = p_io[2];
+    v[2] = v_io[2];
+    q[3] = q_io[3];
+    p[3] = p_io[3];
+    v[3] = v_io[3];
+    q[4] = q_io[4];
+    p[4] = p_io[4];
+    v[4] = v_io[4];
+    d[0] = d_io[0];
     for (s = 0; s < n; ++s) {
         double q1[SPUN_BALL_N], p1[SPUN_BALL_N], e1, phi1[SPUN_BALL_M_DIM], d1[SPUN_BALL_M_DIM];
         int clear = 1;
         spun_ball_grid_step(q, p, k, v, p1, &e1);
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            q1[i] = q[i] + h * v[i];
-        }
+        q1[0] = q[0] + h * v[0];
+        q1[1] = q[1] + h * v[1];
+        q1[2] = q[2] + h * v[2];
+        q1[3] = q[3] + h * v[3];
+        q1[4] = q[4] + h * v[4];
         spun_ball_grid_end(q1, p1, k, phi1, d1);
-        for (j = 0; j < SPUN_BALL_M; ++j) { /* without branches: one test per step */
-            clear &= !(phi1[j] < phi_min) & !((d[j] < 0) & (d1[j] > 0));
-        }
+        /* without branches: one test per step */
+        clear &= !(phi1[0] < phi_min) & !((d[0] < 0) & (d1[0] > 0));
         if (!clear) {
             break;
         }
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            q[i] = q1[i];
-            p[i] = p1[i];
-            Q[s * SPUN_BALL_N + i] = q1[i];
-            P[s * SPUN_BALL_N + i] = p1[i];
-        }
-        for (j = 0; j < SPUN_BALL_M; ++j) {
-            d[j] = d1[j];
-        }
+        q[0] = q1[0];
+        p[0] = p1[0];
+        Q[s * SPUN_BALL_N + 0] = q1[0];
+        P[s * SPUN_BALL_N + 0] = p1[0];
+        q[1] = q1[1];
+        p[1] = p1[1];
+        Q[s * SPUN_BALL_N + 1] = q1[1];
+        P[s * SPUN_BALL_N + 1] = p1[1];
+        q[2] = q1[2];
+        p[2] = p1[2];
+        Q[s * SPUN_BALL_N + 2] = q1[2];
+        P[s * SPUN_BALL_N + 2] = p1[2];
+        q[3] = q1[3];
+        p[3] = p1[3];
+        Q[s * SPUN_BALL_N + 3] = q1[3];
+        P[s * SPUN_BALL_N + 3] = p1[3];
+        q[4] = q1[4];
+        p[4] = p1[4];
+        Q[s * SPUN_BALL_N + 4] = q1[4];
+        P[s * SPUN_BALL_N + 4] = p1[4];
+        d[0] = d1[0];
         E[s] = e1;
         sum += e1;
     }
-    for (i = 0; i < SPUN_BALL_N; ++i) {
-        q_io[i] = q[i];
-        p_io[i] = p[i];
-        v_io[i] = v[i];
-    }
-    for (j = 0; j < SPUN_BALL_M; ++j) {
-        d_io[j] = d[j];
-    }
+    q_io[0] = q[0];
+    p_io[0] = p[0];
+    v_io[0] = v[0];
+    q_io[1] = q[1];
+    p_io[1] = p[1];
+    v_io[1] = v[1];
+    q_io[2] = q[2];
+    p_io[2] = p[2];
+    v_io[2] = v[2];
+    q_io[3] = q[3];
+    p_io[3] = p[3];
+    v_io[3] = v[3];
+    q_io[4] = q[4];
+    p_io[4] = p[4];
+    v_io[4] = v[4];
+    d_io[0] = d[0];
     *sum_e += sum;
     return s;
 }

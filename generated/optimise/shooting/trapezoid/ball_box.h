@@ -100,6 +100,7 @@ typedef struct {
     long least_splits;                 /* in/out: impulse laws whose stick rows were dependent (least_split) */
     long passes;                       /* in/out: lift-offs whose load a riding row took (pass_load) */
     long sticks_kept;                  /* in/out: stick <-> slip cycles (STICK_CYCLES in a step) cut by sticking on */
+    long lifts_kept;                   /* in/out: lift-off <-> landing cycles at one instant cut by holding on */
     long jams;                         /* in/out: Painleve jams (JAM_CYCLES lift-offs in a step, painleve) */
     long halvings;                     /* in/out: held segments halved (split_segment: Newton failed, root spurious) */
     long riders_cut;                   /* in/out: impulse laws solved anew, a dependent stick cut from its owner */

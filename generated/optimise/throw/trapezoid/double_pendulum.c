@@ -856,8 +856,8 @@ static double double_pendulum_norm_inf(int n, const double *r)
  * times) while it does not reduce |f|, then taken in full; near the root every step is a full one. *resnorm = |f(x)|_inf. */
 static void double_pendulum_newton(double_pendulum_fun f, const double *const *arg, int n, double *x, double *resnorm)
 {
-    double r[DOUBLE_PENDULUM_NX_MAX], jac[DOUBLE_PENDULUM_NX_MAX * DOUBLE_PENDULUM_NX_MAX];
-    double rt[DOUBLE_PENDULUM_NX_MAX], jact[DOUBLE_PENDULUM_NX_MAX * DOUBLE_PENDULUM_NX_MAX];
+    double r[DOUBLE_PENDULUM_NX_MAX] = {0.0}, jac[DOUBLE_PENDULUM_NX_MAX * DOUBLE_PENDULUM_NX_MAX];
+    double rt[DOUBLE_PENDULUM_NX_MAX] = {0.0}, jact[DOUBLE_PENDULUM_NX_MAX * DOUBLE_PENDULUM_NX_MAX]; /* {0}: -O3 cannot see f fill r, rt */
     double dx[DOUBLE_PENDULUM_NX_MAX], xt[DOUBLE_PENDULUM_NX_MAX];
     double *const out[2] = {r, jac};
     double *const outt[2] = {rt, jact};
@@ -2412,7 +2412,7 @@ static int double_pendulum_law_once(const double_pendulum_ctx_t *c, const double
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double w[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM] = {0.0}, b[DOUBLE_PENDULUM_R_DIM] = {0.0}, a[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM];
     double ws[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM] = {0.0};
-    double lam[DOUBLE_PENDULUM_R_DIM], sol[DOUBLE_PENDULUM_R_DIM], lam_eps, vel_eps, gap;
+    double lam[DOUBLE_PENDULUM_R_DIM] = {0.0}, sol[DOUBLE_PENDULUM_R_DIM], lam_eps, vel_eps, gap; /* {0}: for -O3 (a false warning) */
     int rows[DOUBLE_PENDULUM_R_DIM], tight[DOUBLE_PENDULUM_R_DIM] = {0}, piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
     int sliding[DOUBLE_PENDULUM_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
@@ -2585,15 +2585,23 @@ static void double_pendulum_log(const double_pendulum_ctx_t *c, double *rec, lon
 }
 
 /* HeldImpacts._held_accel: every row's d2 psi/dt2 (racc) at (q, u) under the forces of the rows held after an
- * impact: the active ones but off, and on. */
+ * impact: the active ones but off, and on; of rows that are dependent, those independent of the rows before them
+ * (span_add): the accelerations are unique, the forces are not (an LU of the singular Delassus matrix: round-off). */
 static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const double *q, const double *u, const int *off,
     const int *on, double *racc)
 {
-    double lam[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N];
-    int act[DOUBLE_PENDULUM_R_DIM], r;
+    double lam[DOUBLE_PENDULUM_R_DIM], acc[DOUBLE_PENDULUM_N], psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
+    double curv[DOUBLE_PENDULUM_R_DIM], basis[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
+    int act[DOUBLE_PENDULUM_R_DIM], r, nb = 0;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         act[r] = c->sus->act[r];
         c->sus->act[r] = (act[r] && !off[r]) || on[r];
+    }
+    double_pendulum_rows(q, u, c->par, psi, grad, curv); /* a row in the span of those before it holds nothing */
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        if (c->sus->act[r] && !double_pendulum_span_add(basis, &nb, grad + r * DOUBLE_PENDULUM_N)) {
+            c->sus->act[r] = 0;
+        }
     }
     double_pendulum_contact_forces(c, q, u, lam);
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
@@ -2865,6 +2873,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int dip[DOUBLE_PENDULUM_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
+    int kept[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
     int bounces[DOUBLE_PENDULUM_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[DOUBLE_PENDULUM_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2897,7 +2906,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         start = -1;
         pulled = 0;
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-            ev[r] = c->sus->act[r] && !double_pendulum_row_free[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !double_pendulum_row_free[r] && !kept[r] && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2916,6 +2925,11 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
+            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+                kept[start] = 1;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             double_pendulum_velocity(c, q, vv, p, vel);
             rider = double_pendulum_pass_load(c, q, vel, start, passed);
             double_pendulum_release(c, t, start, rider);
@@ -3004,7 +3018,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < DOUBLE_PENDULUM_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = 0;
+            passed[r] = hit[r] = kept[r] = 0;
         }
         if (ev[r0] == 1) {
             double_pendulum_velocity(c, q, v, p, vel);
