@@ -39,6 +39,7 @@ from .held_roots import (
     EPS_LIFT,
     JAM_CYCLES,
     LEAVE_FRACTIONS,
+    LIFT_CYCLES,
     LIFT_ITER,
     ONTO_ITER,
     ROOT_EPS,
@@ -358,7 +359,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
-        kept: set[int] = set()  # rows lifted off and met again at this instant, pulled once more: held on
+        pulls: dict[int, int] = {}  # rows lifted off and met again at this instant: pulls again since
+        kept: set[int] = set()  # of those, pulled LIFT_CYCLES times: held on to the next instant
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
         bounces: dict[int, int] = {}  # impacts of each row in this step's chain (BOUNCE_CYCLES: then held)
@@ -444,8 +446,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     continue
                 slid[r] = slid.get(r, 0) + (events[r][0] == "slide")
                 if events[r][0] == "lift" and r in passed and r in hit:
-                    # lift-off <-> landing at one instant (pulled held, falling in free: its force 0 to
-                    # the method's order): held on to the next instant (counted)
+                    pulls[r] = pulls.get(r, 0) + 1
+                if events[r][0] == "lift" and pulls.get(r, 0) >= LIFT_CYCLES:
+                    # lift-off <-> landing cycling at one instant (pulled held, falling in free: its force 0
+                    # to the method's order): held on to the next instant (counted)
                     kept.add(r)
                     self.lifts_kept += 1
                 elif events[r][0] == "lift":
@@ -508,7 +512,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             t, rest, guess = t + s * tau, (1.0 - s) * tau if tau == rest else rest - s * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
-                passed, hit, kept = set(), set(), set()
+                passed, hit, kept, pulls = set(), set(), set(), {}
                 self._jammed = False
                 self._stuck_on.clear()
             if events[r0][0] == "lift":

@@ -1158,6 +1158,7 @@ static inline int ball_to_rest_held(const ball_to_rest_sustain_t *sus)
 #define BALL_TO_REST_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define BALL_TO_REST_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BALL_TO_REST_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define BALL_TO_REST_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define BALL_TO_REST_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define BALL_TO_REST_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define BALL_TO_REST_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
@@ -2456,7 +2457,8 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     int dip[BALL_TO_REST_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BALL_TO_REST_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_TO_REST_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int kept[BALL_TO_REST_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
+    int pulls[BALL_TO_REST_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
+    int kept[BALL_TO_REST_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
     int bounces[BALL_TO_REST_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[BALL_TO_REST_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2508,7 +2510,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+            if (passed[start] && hit[start] && ++pulls[start] >= BALL_TO_REST_LIFT_CYCLES) { /* cycling: held on */
                 kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
@@ -2601,7 +2603,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < BALL_TO_REST_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = 0;
+            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             ball_to_rest_velocity(c, q, v, p, vel);

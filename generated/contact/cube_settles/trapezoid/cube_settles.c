@@ -1948,6 +1948,7 @@ static inline int cube_settles_held(const cube_settles_sustain_t *sus)
 #define CUBE_SETTLES_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define CUBE_SETTLES_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define CUBE_SETTLES_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define CUBE_SETTLES_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define CUBE_SETTLES_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define CUBE_SETTLES_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define CUBE_SETTLES_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
@@ -3247,7 +3248,8 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     int dip[CUBE_SETTLES_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[CUBE_SETTLES_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[CUBE_SETTLES_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int kept[CUBE_SETTLES_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
+    int pulls[CUBE_SETTLES_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
+    int kept[CUBE_SETTLES_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
     int bounces[CUBE_SETTLES_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[CUBE_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3299,7 +3301,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+            if (passed[start] && hit[start] && ++pulls[start] >= CUBE_SETTLES_LIFT_CYCLES) { /* cycling: held on */
                 kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
@@ -3392,7 +3394,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < CUBE_SETTLES_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = 0;
+            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             cube_settles_velocity(c, q, v, p, vel);

@@ -2010,6 +2010,7 @@ static inline int pyramid_held(const pyramid_sustain_t *sus)
 #define PYRAMID_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define PYRAMID_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define PYRAMID_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define PYRAMID_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define PYRAMID_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define PYRAMID_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define PYRAMID_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
@@ -4224,7 +4225,8 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int dip[PYRAMID_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PYRAMID_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PYRAMID_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int kept[PYRAMID_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
+    int pulls[PYRAMID_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
+    int kept[PYRAMID_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
     int bounces[PYRAMID_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[PYRAMID_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -4392,7 +4394,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 turn = kind == 4 ? start : -1;
                 continue;
             }
-            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+            if (passed[start] && hit[start] && ++pulls[start] >= PYRAMID_LIFT_CYCLES) { /* cycling: held on */
                 kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
@@ -4487,7 +4489,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < PYRAMID_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = 0;
+            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }

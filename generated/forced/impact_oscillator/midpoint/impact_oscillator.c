@@ -979,6 +979,7 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define IMPACT_OSCILLATOR_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define IMPACT_OSCILLATOR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define IMPACT_OSCILLATOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define IMPACT_OSCILLATOR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
@@ -2280,7 +2281,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int dip[IMPACT_OSCILLATOR_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int kept[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
+    int pulls[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
+    int kept[IMPACT_OSCILLATOR_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
     int bounces[IMPACT_OSCILLATOR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2332,7 +2334,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             }
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
-            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+            if (passed[start] && hit[start] && ++pulls[start] >= IMPACT_OSCILLATOR_LIFT_CYCLES) { /* cycling: held on */
                 kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
@@ -2426,7 +2428,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < IMPACT_OSCILLATOR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = 0;
+            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);

@@ -1240,6 +1240,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define ROUGH_DISK_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define ROUGH_DISK_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define ROUGH_DISK_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define ROUGH_DISK_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
 #define ROUGH_DISK_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define ROUGH_DISK_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
@@ -3444,7 +3445,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int dip[ROUGH_DISK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int kept[ROUGH_DISK_R_DIM] = {0}; /* rows lifted off and met again at this instant, pulled once more: held on */
+    int pulls[ROUGH_DISK_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
+    int kept[ROUGH_DISK_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
     int bounces[ROUGH_DISK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3612,7 +3614,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 turn = kind == 4 ? start : -1;
                 continue;
             }
-            if (passed[start] && hit[start]) { /* lift-off <-> landing at one instant: held on (counted) */
+            if (passed[start] && hit[start] && ++pulls[start] >= ROUGH_DISK_LIFT_CYCLES) { /* cycling: held on */
                 kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
@@ -3707,7 +3709,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < ROUGH_DISK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = 0;
+            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
