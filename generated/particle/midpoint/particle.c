@@ -2451,7 +2451,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[PARTICLE_R_DIM], g_dip[PARTICLE_R_DIM];
+    double s_dip[PARTICLE_R_DIM] = {0.0}, g_dip[PARTICLE_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[PARTICLE_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

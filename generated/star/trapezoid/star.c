@@ -2737,7 +2737,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     double s_ev[STAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_N], f0[STAR_R_DIM];
     double f1[STAR_R_DIM], vel[STAR_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[STAR_R_DIM], g_dip[STAR_R_DIM];
+    double s_dip[STAR_R_DIM] = {0.0}, g_dip[STAR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[STAR_R_DIM], group[STAR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[STAR_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

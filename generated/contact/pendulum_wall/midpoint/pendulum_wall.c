@@ -2683,7 +2683,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     double s_ev[PENDULUM_WALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PENDULUM_WALL_N], f0[PENDULUM_WALL_R_DIM];
     double f1[PENDULUM_WALL_R_DIM], vel[PENDULUM_WALL_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[PENDULUM_WALL_R_DIM], g_dip[PENDULUM_WALL_R_DIM];
+    double s_dip[PENDULUM_WALL_R_DIM] = {0.0}, g_dip[PENDULUM_WALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[PENDULUM_WALL_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -4220,7 +4220,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     double s_ev[PYRAMID_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PYRAMID_N], f0[PYRAMID_R_DIM];
     double f1[PYRAMID_R_DIM], vel[PYRAMID_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[PYRAMID_R_DIM], g_dip[PYRAMID_R_DIM];
+    double s_dip[PYRAMID_R_DIM] = {0.0}, g_dip[PYRAMID_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PYRAMID_R_DIM], group[PYRAMID_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[PYRAMID_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PYRAMID_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -2658,7 +2658,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     double s_ev[SLIDE_OFF_DOME_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM];
     double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[SLIDE_OFF_DOME_R_DIM], g_dip[SLIDE_OFF_DOME_R_DIM];
+    double s_dip[SLIDE_OFF_DOME_R_DIM] = {0.0}, g_dip[SLIDE_OFF_DOME_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[SLIDE_OFF_DOME_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -2283,7 +2283,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     double s_ev[IMPACT_OSCILLATOR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM];
     double f1[IMPACT_OSCILLATOR_R_DIM], vel[IMPACT_OSCILLATOR_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[IMPACT_OSCILLATOR_R_DIM], g_dip[IMPACT_OSCILLATOR_R_DIM];
+    double s_dip[IMPACT_OSCILLATOR_R_DIM] = {0.0}, g_dip[IMPACT_OSCILLATOR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[IMPACT_OSCILLATOR_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -3361,7 +3361,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[BLOCK_R_DIM], g_dip[BLOCK_R_DIM];
+    double s_dip[BLOCK_R_DIM] = {0.0}, g_dip[BLOCK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[BLOCK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -3440,7 +3440,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[ROUGH_DISK_R_DIM], g_dip[ROUGH_DISK_R_DIM];
+    double s_dip[ROUGH_DISK_R_DIM] = {0.0}, g_dip[ROUGH_DISK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[ROUGH_DISK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -5075,7 +5075,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[SPUN_BALL_R_DIM], g_dip[SPUN_BALL_R_DIM];
+    double s_dip[SPUN_BALL_R_DIM] = {0.0}, g_dip[SPUN_BALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[SPUN_BALL_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -3648,7 +3648,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     double s_ev[STAR_FRICTION_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM];
     double f1[STAR_FRICTION_R_DIM], vel[STAR_FRICTION_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[STAR_FRICTION_R_DIM], g_dip[STAR_FRICTION_R_DIM];
+    double s_dip[STAR_FRICTION_R_DIM] = {0.0}, g_dip[STAR_FRICTION_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[STAR_FRICTION_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */

@@ -2812,7 +2812,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
     double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
-    double s_dip[DOUBLE_PENDULUM_R_DIM], g_dip[DOUBLE_PENDULUM_R_DIM];
+    double s_dip[DOUBLE_PENDULUM_R_DIM] = {0.0}, g_dip[DOUBLE_PENDULUM_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
     int dip[DOUBLE_PENDULUM_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
