@@ -281,7 +281,7 @@ class HeldImpacts(ImpulseLaw):
         for r in np.flatnonzero(self.act):  # a contact no longer held keeps no stick row
             if k.row_stick and k.row_stick[r] >= 0 and k.frictional[k.row_stick[r]] not in held:
                 self.act[r] = False
-        basis: list = []  # a row in the span of those before it holds nothing: their accelerations are its
+        basis: list = []  # a row in the span of the rows before it is left out: the rows' accelerations stay
         grad = k.rows(q, u)[1]
         for r in np.flatnonzero(self.act):
             if not span_add(basis, grad[r]):
