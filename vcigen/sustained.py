@@ -359,8 +359,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self._braked = False  # cones aimed implicitly near rest (_cone_brake): no tangent
         passed: set[int] = set()  # rows that passed their load at this instant (_pass_load): none passes back
         hit: set[int] = set()  # rows an impact while held met at this instant (_chain_impact: again, held)
-        pulls: dict[int, int] = {}  # rows lifted off and met again at this instant: pulls again since
-        kept: set[int] = set()  # of those, pulled LIFT_CYCLES times: held on to the next instant
+        pulls: dict[int, int] = {}  # rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+        # held on to the next instant)
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
         bounces: dict[int, int] = {}  # impacts of each row in this step's chain (BOUNCE_CYCLES: then held)
@@ -420,7 +420,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             if self._stick_rows:
                 self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
             pulled = unilateral & (f1 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1)))))
-            pulled[list(kept)] = False
+            pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
             if pulled.any():
                 f0 = self._contact_forces(q, self._velocity(q, v, p))
                 for r in np.flatnonzero(pulled):
@@ -450,7 +450,6 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if events[r][0] == "lift" and pulls.get(r, 0) >= LIFT_CYCLES:
                     # lift-off <-> landing cycling at one instant (pulled held, falling in free: its force 0
                     # to the method's order): held on to the next instant (counted)
-                    kept.add(r)
                     self.lifts_kept += 1
                 elif events[r][0] == "lift":
                     rider = self._pass_load(q, self._velocity(q, v, p), r, passed)
@@ -512,7 +511,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             t, rest, guess = t + s * tau, (1.0 - s) * tau if tau == rest else rest - s * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
-                passed, hit, kept, pulls = set(), set(), set(), {}
+                passed, hit, pulls = set(), set(), {}
                 self._jammed = False
                 self._stuck_on.clear()
             if events[r0][0] == "lift":

@@ -2461,8 +2461,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     int dip[PARTICLE_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PARTICLE_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[PARTICLE_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[PARTICLE_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[PARTICLE_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[PARTICLE_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[PARTICLE_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2495,7 +2495,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         start = -1;
         pulled = 0;
         for (r = 0; r < PARTICLE_R; ++r) {
-            ev[r] = c->sus->act[r] && !particle_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !particle_row_free[r] && pulls[r] < PARTICLE_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2515,7 +2515,6 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= PARTICLE_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -2607,7 +2606,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < PARTICLE_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             particle_velocity(c, q, v, p, vel);

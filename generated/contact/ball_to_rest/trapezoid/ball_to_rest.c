@@ -2462,8 +2462,8 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     int dip[BALL_TO_REST_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BALL_TO_REST_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_TO_REST_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[BALL_TO_REST_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[BALL_TO_REST_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[BALL_TO_REST_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[BALL_TO_REST_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[BALL_TO_REST_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2496,7 +2496,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         start = -1;
         pulled = 0;
         for (r = 0; r < BALL_TO_REST_R; ++r) {
-            ev[r] = c->sus->act[r] && !ball_to_rest_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !ball_to_rest_row_free[r] && pulls[r] < BALL_TO_REST_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2516,7 +2516,6 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= BALL_TO_REST_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -2608,7 +2607,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < BALL_TO_REST_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             ball_to_rest_velocity(c, q, v, p, vel);

@@ -2693,8 +2693,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int dip[PENDULUM_WALL_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[PENDULUM_WALL_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[PENDULUM_WALL_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[PENDULUM_WALL_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[PENDULUM_WALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[PENDULUM_WALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2727,7 +2727,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         start = -1;
         pulled = 0;
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
-            ev[r] = c->sus->act[r] && !pendulum_wall_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !pendulum_wall_row_free[r] && pulls[r] < PENDULUM_WALL_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2747,7 +2747,6 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= PENDULUM_WALL_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -2839,7 +2838,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < PENDULUM_WALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             pendulum_wall_velocity(c, q, v, p, vel);

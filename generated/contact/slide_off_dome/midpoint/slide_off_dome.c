@@ -2658,8 +2658,8 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     int dip[SLIDE_OFF_DOME_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[SLIDE_OFF_DOME_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[SLIDE_OFF_DOME_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[SLIDE_OFF_DOME_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2692,7 +2692,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         start = -1;
         pulled = 0;
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            ev[r] = c->sus->act[r] && !slide_off_dome_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !slide_off_dome_row_free[r] && pulls[r] < SLIDE_OFF_DOME_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2712,7 +2712,6 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= SLIDE_OFF_DOME_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -2804,7 +2803,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < SLIDE_OFF_DOME_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             slide_off_dome_velocity(c, q, v, p, vel);

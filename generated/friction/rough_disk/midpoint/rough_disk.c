@@ -3445,8 +3445,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int dip[ROUGH_DISK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[ROUGH_DISK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[ROUGH_DISK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[ROUGH_DISK_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[ROUGH_DISK_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[ROUGH_DISK_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[ROUGH_DISK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3502,7 +3502,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         start = -1;
         pulled = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {
-            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && pulls[r] < ROUGH_DISK_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3615,7 +3615,6 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 continue;
             }
             if (passed[start] && hit[start] && ++pulls[start] >= ROUGH_DISK_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -3709,7 +3708,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < ROUGH_DISK_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }

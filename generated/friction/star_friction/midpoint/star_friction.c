@@ -3651,8 +3651,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int dip[STAR_FRICTION_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[STAR_FRICTION_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[STAR_FRICTION_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[STAR_FRICTION_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[STAR_FRICTION_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[STAR_FRICTION_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -3708,7 +3708,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         start = -1;
         pulled = 0;
         for (r = 0; r < STAR_FRICTION_R; ++r) {
-            ev[r] = c->sus->act[r] && !star_friction_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_friction_row_free[r] && pulls[r] < STAR_FRICTION_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3821,7 +3821,6 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 continue;
             }
             if (passed[start] && hit[start] && ++pulls[start] >= STAR_FRICTION_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -3915,7 +3914,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         turn = -1;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < STAR_FRICTION_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
         }

@@ -2672,8 +2672,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     int dip[BALL_BOX_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_BOX_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[BALL_BOX_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[BALL_BOX_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[BALL_BOX_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[BALL_BOX_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[BALL_BOX_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2706,7 +2706,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         start = -1;
         pulled = 0;
         for (r = 0; r < BALL_BOX_R; ++r) {
-            ev[r] = c->sus->act[r] && !ball_box_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !ball_box_row_free[r] && pulls[r] < BALL_BOX_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2726,7 +2726,6 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= BALL_BOX_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -2818,7 +2817,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < BALL_BOX_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             ball_box_velocity(c, q, v, p, vel);

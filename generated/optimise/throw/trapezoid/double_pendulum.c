@@ -2874,8 +2874,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int dip[DOUBLE_PENDULUM_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
-    int pulls[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls again since */
-    int kept[DOUBLE_PENDULUM_R_DIM] = {0}; /* of those, pulled LIFT_CYCLES times: held on to the next instant */
+    int pulls[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
+                                         * held on to the next instant) */
     int bounces[DOUBLE_PENDULUM_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
     int again[DOUBLE_PENDULUM_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2908,7 +2908,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         start = -1;
         pulled = 0;
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-            ev[r] = c->sus->act[r] && !double_pendulum_row_free[r] && !kept[r] && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !double_pendulum_row_free[r] && pulls[r] < DOUBLE_PENDULUM_LIFT_CYCLES && f1[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2928,7 +2928,6 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= DOUBLE_PENDULUM_LIFT_CYCLES) { /* cycling: held on */
-                kept[start] = 1;
                 ++c->sus->lifts_kept;
                 continue;
             }
@@ -3020,7 +3019,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         t += s * tau;
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < DOUBLE_PENDULUM_R && s > c->tol->simultaneous; ++r) { /* a later instant */
-            passed[r] = hit[r] = kept[r] = pulls[r] = 0;
+            passed[r] = hit[r] = pulls[r] = 0;
         }
         if (ev[r0] == 1) {
             double_pendulum_velocity(c, q, v, p, vel);
