@@ -19,17 +19,22 @@ Newton with its line start.
 Other curved rows, 1e5 steps at h = 1e-3 (free: far from the row, ``r = 1e9``):
 
 * ``sphere``: the bowl in three coordinates (``r - |q|``, released at ``(0.6, 0, -0.8)`` with ``v0 = (0, 0.5,
-  0)``): the closed step (``held.closed_forms``; a rotation needs the plane);
+  0)``): the closed step (``held.closed_forms``; the generated rotation is the plane's); and
+  ``bench/handwritten/sphere_rot.c`` (stop 45), its held step written by hand as a rotation in three
+  coordinates (``q1 = s q + h w``, ``w`` and ``|w|^2`` carried as polynomials in the root, one multiply-add
+  from one ``sqrt`` to the next), checked against the generated run (q, p and the impulse to 1e-9): at the
+  shipped flags it is as slow as the generated closed step (~350 instructions a step: without FMA and
+  three-operand forms the three coordinates' arithmetic, not the chain, bounds it), so it is not generated;
 * ``spring``: the bowl under a spring to its centre besides gravity (stiffness 3): a rotation (the force is
   affine in ``q``; stop 23, before it the closed step: 3.0-3.3x);
 * ``ellipse``: ``r - sqrt(x^2 / 4 + y^2)`` from ``(1.2, -0.8)`` at rest: a quadric's closed step
   (``held.closed_forms``, not ``fixed``: ``A`` and the projection's ``W`` vary on the row, ``Hess F``
   definite), ``<model>_held_closed_loop``; before stop 24 the held Newton (9-10x);
-* ``ellipse``, hand-written: ``bench/handwritten/ellipse.c``, the same held step written for this row alone
-  (the fewest operations we could write, the next line's start one multiply-add after the root), timed in the
-  same loop and checked against the generated run (q, p to 1e-9): the practical limit of the generated loop;
-  and ``bench/handwritten/ellipse_poly.c`` (stop 34), the same with the next step's quadratic formed as
-  polynomials in the root (a shorter chain to the next ``sqrt``), alike; and
+* ``ellipse``, hand-written (``HANDS``): ``bench/handwritten/ellipse.c``, the same held step written for
+  this row alone (the fewest operations we could write, the next line's start one multiply-add after the
+  root), timed in the same loop and checked against the generated run (q, p to 1e-9): the practical limit of
+  the generated loop; and ``bench/handwritten/ellipse_poly.c`` (stop 34), the same with the next step's
+  quadratic formed as polynomials in the root (a shorter chain to the next ``sqrt``), alike; and
   ``bench/handwritten/ellipse_chain.c`` (stop 39), that form's state's chain alone (no projection, force,
   ``E_d`` or tests; its ``Q`` checked, its ``P`` is ``p+``): a floor for any held step with that chain;
 * ``valley``: a particle in the parabola ``y >= x^2 / 2``, from ``(0.8, 0.32)`` at rest, through its vertex:
@@ -131,26 +136,36 @@ RUNS = [  # name, model, h, steps, held (q0, v0, params), free (q0, v0, params)
 ]
 
 
-def handwritten_ellipse(source: str = "ellipse.c"):
-    """``run(q0, p0, h, steps) -> (seconds of CPU time, Q, P)`` over ``bench/handwritten/<source>`` (r = 1,
-    the ``ellipse`` scene's row), compiled with the shipped flags."""
+def handwritten(source: str = "ellipse.c"):
+    """``run(q0, p0, h, steps) -> (seconds of CPU time, Q, P, F)`` over ``bench/handwritten/<source>`` (r = 1,
+    the row of its scene: ``ellipse*.c`` the ``ellipse``'s, ``sphere*.c`` the ``sphere``'s), compiled with the
+    shipped flags."""
+    stem = Path(source).stem.split("_")[0]
+    dim = 3 if stem == "sphere" else 2
     out = Path(tempfile.mkdtemp(prefix="vcigen-hw-")) / f"libhw_{Path(source).stem}.so"
     flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared"]
     subprocess.run(["cc", *flags, "-o", str(out), str(HERE / "handwritten" / source), "-lm"], check=True)
-    f = ctypes.CDLL(str(out)).hw_ellipse_run
+    f = getattr(ctypes.CDLL(str(out)), f"hw_{stem}_run")
     f.restype = ctypes.c_long
     f.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_double] * 3 + [ctypes.c_long] + [ctypes.c_void_p] * 4
 
     def run(q0, p0, h: float, steps: int):
         q0, p0 = np.array(q0, float), np.array(p0, float)
-        Q, P, E, F = np.empty((steps, 2)), np.empty((steps, 2)), np.empty(steps), np.empty(steps)
+        Q, P, E, F = np.empty((steps, dim)), np.empty((steps, dim)), np.empty(steps), np.empty(steps)
         t = time.thread_time()
         done = f(q0.ctypes.data, p0.ctypes.data, h, 1.0, G, steps, *(a.ctypes.data for a in (Q, P, E, F)))
         spent = time.thread_time() - t
-        assert done == steps, ("hand-written ellipse stopped at", done)
-        return spent, Q, P
+        assert done == steps, (f"hand-written {source} stopped at", done)
+        return spent, Q, P, F
 
     return run
+
+
+# per scene, the hand-written steps timed beside it: label -> source (bench/handwritten/)
+HANDS = {
+    "ellipse": {"hand": "ellipse.c", "poly": "ellipse_poly.c", "chain": "ellipse_chain.c"},
+    "sphere": {"rot": "sphere_rot.c"},
+}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -164,8 +179,9 @@ def main(argv: list[str] | None = None) -> int:
     keep_heap()
     sims = {name: vcigen.build(model(), backend="c") for name, model, *_ in runs}
     clocks = {name: cpu_clock(sim) for name, sim in sims.items()}
-    hands = {"hand": "ellipse.c", "poly": "ellipse_poly.c", "chain": "ellipse_chain.c"}
-    hands = {key: handwritten_ellipse(source) for key, source in hands.items()} if "ellipse" in sims else {}
+    hands = {
+        name: {key: handwritten(src) for key, src in HANDS[name].items()} for name in HANDS if name in sims
+    }
     best = {}
     for _ in range(a.repeats):
         for name, _, h, steps, held, free in runs:
@@ -176,16 +192,18 @@ def main(argv: list[str] | None = None) -> int:
                 ok = res.active.all() if kind == "held" else not res.active.any()
                 assert ok and res.t.size == steps + 1, (name, h, kind)
                 best[name, h, kind] = min(best.get((name, h, kind), math.inf), spent / steps * 1e9)
-                for key, hand in hands.items() if name == "ellipse" and kind == "held" else ():
-                    spent, Q, P = hand(q0, v0, h, steps)  # the hand-written steps, alike
+                for key, hand in hands.get(name, {}).items() if kind == "held" else ():
+                    spent, Q, P, F = hand(q0, v0, h, steps)  # the hand-written steps, alike
                     assert np.abs(Q - res.q[1:]).max() < 1e-9  # the chain alone: P is p+, not p
                     assert key == "chain" or np.abs(P - res.p[1:]).max() < 1e-9
+                    # the sphere's F is res.contact_force (the ellipse's: on grad F / 2)
+                    assert name != "sphere" or np.abs(F - res.contact_force[:, 0]).max() < 1e-9
                     best[name, h, key] = min(best.get((name, h, key), math.inf), spent / steps * 1e9)
     print(f"{'scene':<7} {'h':>7} {'held ns':>8} {'free ns':>8} {'ratio':>6}   (CPU time of the C loop)")
     for name, _, h, *_ in runs:
         held_ns, free_ns = best[name, h, "held"], best[name, h, "free"]
         print(f"{name:<7} {h:>7.0e} {held_ns:>8.1f} {free_ns:>8.1f} {held_ns / free_ns:>6.2f}")
-        for key, source in (("hand", "ellipse.c"), ("poly", "ellipse_poly.c"), ("chain", "ellipse_chain.c")):
+        for key, source in HANDS.get(name, {}).items():
             if (name, h, key) in best:
                 hand_ns = best[name, h, key]
                 print(
