@@ -374,8 +374,8 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
             f"{count} landing contact(s) took no friction impulse: their stick rows depend on the other "
             "contacts' and neither a slide nor a stick on the least split of the impulses solved the law "
             "(a box landing on rough vertices; sliding ones take Coulomb's impulse, sticking ones where "
-            "that split fits the cones), so the landing's tangential impulse may be short (README, Known "
-            "limits: Friction); the sustained friction after the landing is right",
+            "that split fits the cones), so the landing's tangential impulse may be short (docs/limits.md: "
+            "Friction); the sustained friction after the landing is right",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )
@@ -389,7 +389,7 @@ def warn_restitution_reduced(count: int, stacklevel: int = 2) -> None:
             f"{count} impact(s) with friction took less restitution than their coefficient (the largest "
             "fraction that adds no kinetic energy; none: plastic): Newton's restitution with Coulomb's "
             "friction would have raised the kinetic energy there (a body rocking onto a second contact, a "
-            "spinning one landing), which the law refuses (README, Known limits: Friction)",
+            "spinning one landing), which the law refuses (docs/limits.md: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )
@@ -403,7 +403,7 @@ def warn_sticks_kept(count: int, jams: int = 0, stacklevel: int = 2) -> None:
         warnings.warn(
             f"{count} time(s) a frictional contact cycled between stick and slip at one instant (its stick "
             "force out of Coulomb's cone, its slide stopped at once) and was kept sticking for the rest of "
-            "that step, its friction above mu N there (README, Known limits: Friction)",
+            "that step, its friction above mu N there (docs/limits.md: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )
@@ -412,7 +412,7 @@ def warn_sticks_kept(count: int, jams: int = 0, stacklevel: int = 2) -> None:
             f"{jams} time(s) a contact under sliding friction met Painleve's inconsistency (it lifted off "
             "and landed again at one instant, or slid past the boundary where the force holding it grows "
             "without bound) and every held frictional contact was made to stick there, its friction not "
-            "bounded by mu N (README, Known limits: Friction)",
+            "bounded by mu N (docs/limits.md: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )
