@@ -252,10 +252,24 @@ def test_sensitivities_leave_the_run_unchanged(scene: str, backend: str) -> None
     assert on.sensitivity_names == expect and on.sensitivity.shape == (on.t.size, 2 * n, len(expect))
 
 
-def test_simulate_many_refuses_sensitivities() -> None:
-    sim = simulator("box", "casadi")
-    with pytest.raises(ValueError, match="not supported"):
-        sim.simulate_many([[0.5, 0.5]], [[1.0, 0.0]], 0.01, t_end=0.1, sensitivities=True)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_simulate_many_with_sensitivities_is_simulate_per_run(backend: str) -> None:
+    """``simulate_many(..., sensitivities=True)``: each run's tangent (and the rest of its result) is the one
+    ``simulate(..., sensitivities=True)`` gives, parameters per run included; bad input names its run."""
+    sim = simulator("box_lossy", backend)
+    _, q0, v0, h, t_end, params = SCENES["box_lossy"]
+    q0s = [q0, [0.45, 0.3], [0.7, 0.55]]
+    v0s = [v0, [-1.7, 2.2], [0.4, -3.0]]
+    per_run = [params, {**params, "e": 0.3}, None]
+    many = sim.simulate_many(q0s, v0s, h, t_end=t_end, params=per_run, progress=False, sensitivities=True)
+    for q, v, par, res in zip(q0s, v0s, per_run, many):
+        one = sim.simulate(q, v, h, t_end=t_end, params=par, progress=False, sensitivities=True)
+        assert res.n_impacts >= 1 and res.impacts == one.impacts
+        assert np.array_equal(res.q, one.q) and np.array_equal(res.sensitivity, one.sensitivity)
+        assert res.sensitivity_names == one.sensitivity_names and np.isfinite(res.sensitivity).all()
+    assert not np.array_equal(many[0].sensitivity[-1], many[1].sensitivity[-1])
+    with pytest.raises(ValueError, match="run 1:"):
+        sim.simulate_many([q0, [0.5, -0.2]], [v0, v0], h, t_end=t_end, sensitivities=True)
 
 
 @pytest.mark.parametrize("scene", ["box_lossy", "star", "walls", "driven"])

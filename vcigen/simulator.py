@@ -148,17 +148,20 @@ class Simulator:
         run ``i``'s place); with ``errors="return"`` the list holds the error in place of the result.
         Bad input (any run's) raises ``ValueError`` naming the run before anything runs. ``threads``: the
         C backend splits the runs over that many threads (results identical); the CasADi backend runs
-        them one after another.
+        them one after another. ``sensitivities``: each run with its tangent, as ``simulate(...,
+        sensitivities=True)``; the runs then go one after another on both backends (each one call of the C
+        tangent loop; ``threads`` is not used).
         """
-        if sensitivities:
-            raise ValueError("simulate_many(..., sensitivities=True) is not supported; call simulate per run")
         if errors not in ERROR_MODES:
             raise ValueError(f"errors = {errors!r}; use one of {list(ERROR_MODES)}")
         if int(threads) != threads or threads < 1:
             raise ValueError(f"threads = {threads!r} must be a whole number >= 1")
         h = self._validate(h, t_end, n_impacts, t0)
         starts = self._starts(*self._many_starts(q0s, v0s, params), t0)
-        out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
+        if sensitivities:
+            out = self._each_run(starts, h, t_end, n_impacts, t0, progress, sensitivities=True)
+        else:
+            out = self._run_many(starts, h, t_end, n_impacts, t0, progress, int(threads))
         return _many_outcome(out, errors)
 
     def _starts(self, q: np.ndarray, v: np.ndarray, per_run: list, t0: float) -> ManyStarts:
@@ -184,12 +187,18 @@ class Simulator:
 
     def _run_many(self, starts, h, t_end, n_impacts, t0, progress, threads) -> list[Result | SolverError]:
         """One ``simulate`` per run, after one another (the Python stepper)."""
+        return self._each_run(starts, h, t_end, n_impacts, t0, progress)
+
+    def _each_run(
+        self, starts, h, t_end, n_impacts, t0, progress, sensitivities: bool = False
+    ) -> list[Result | SolverError]:
+        """One ``simulate`` per run, after one another, each failed run's ``SolverError`` in its place."""
         out: list[Result | SolverError] = []
         with Progress(len(starts), f"simulate_many {self.model.name}", enabled=progress) as bar:
             for i, st in enumerate(starts):
                 try:
                     out.append(
-                        self.simulate(st.q0, st.v0, h, t_end, n_impacts, st.params, t0, progress=False)
+                        self.simulate(st.q0, st.v0, h, t_end, n_impacts, st.params, t0, False, sensitivities)
                     )
                 except SolverError as err:
                     out.append(err)
