@@ -33,6 +33,7 @@ import pytest
 from hard_scenes import BACKENDS, G
 
 import vcigen
+from vcigen.held_roots import SPLITS
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "contact"))
 import cube_settles  # noqa: E402 - the example's folder on the path first
@@ -744,6 +745,30 @@ def test_rough_drops_keep_the_same_books_on_both_backends(drop):
                 k = int(np.searchsorted(res.t, t, side="right"))
                 again = any(i.contact == j and t < i.t <= res.t[k] for i in res.impacts)
                 assert again or heights[k, int(j[1])] > 1e-9, (t, j)
+
+
+def test_a_slide_from_rest_whose_last_halving_reverses_it_is_kept_alike_on_both_backends():
+    """Rough drop 39 of ``python -m bench.cube_books --seed 5`` (``mu = 0.87``, ``e = 0``). At t = 1.0646 the
+    cube lands its last edge with three stick rows held, two of them nearly dependent (the x rows of v0 and
+    v2, apart by a yaw of 0.026 rad: the Delassus matrix's condition 3.2e4). Their exact forces at rest, 162
+    and -167, break both cones; the next held segment's root is spurious at all ``SPLITS`` halvings.
+    Whether its slide reverses (the last halving kept) or not (a ``SolverError``) was decided by the sign of a
+    start sliding of 0 to round-off: C kept it, CasADi raised. A slide from rest now slides against its
+    friction, ``-sign(slip)`` (``SustainedSteps._reverses``, C ``reverses``): both keep it, run to t = 3 with
+    the same impacts, lift-offs and held rows, never below the floor, and rest on a face."""
+    q0 = [0.0, 0.0, 1.0, 2.3245754305472874, 0.1010122972762102, 0.0429474002445166]
+    v0 = [0.0800680623269221, -1.588796176457917, -0.5776421347807033]
+    v0 += [2.9341880085062524, 1.3748228995816678, -0.2005516805112233]
+    a, b = rough_on_both(q0, v0, {"e": 0.0, "mu": 0.8697824905235113})
+    assert a.stats["halvings"] == b.stats["halvings"] >= SPLITS  # the segment halved to the last
+    assert [(i.contact, i.kind, i.step) for i in a.impacts] == [
+        (i.contact, i.kind, i.step) for i in b.impacts
+    ]
+    assert_same_liftoffs(a, b)
+    assert (a.active == b.active).all() and np.abs(a.q - b.q).max() < 1e-10
+    for res in (a, b):
+        assert res.t[-1] == pytest.approx(3.0) and vertex_heights(res.q).min() > -1e-9
+        assert np.abs(vertex_heights(res.q[-1:])).max() < 1e-9 and np.abs(res.p[-1]).max() < 1e-9
 
 
 TANGENT_DROPS = {  # bench.cube_drops' rough drops (seed 7) whose tangent breaks the backends listed apart

@@ -43,6 +43,7 @@ from .held_roots import (
     LIFT_ITER,
     ONTO_ITER,
     ROOT_EPS,
+    SLIDE_EPS,
     SPLITS,
     SPURIOUS,
     STICK_CYCLES,
@@ -277,15 +278,22 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         at its ends)? Its last halving, spurious, is then kept: the chain stops the slide inside it
         (:meth:`_friction_events`) and drops the rest, where the friction pushed. A star on a corner at ``mu
         = 5`` whose slide at 3e-4 stops at once gained 885-fold over ``h = 0.005`` and still 1.5e4-fold over
-        ``h / 64``; the stop, located, is within 1e-7 s."""
+        ``h / 64``; the stop, located, is within 1e-7 s. A slide from rest (its start sliding within
+        ``SLIDE_EPS``, whose sign is round-off's) slides against its friction, ``-sign(slip)``: a rough cube
+        whose cones a large internal stick force broke at rest kept the last halving in C and raised on
+        CasADi by that sign (``bench.cube_books --seed 5``, drop 39)."""
         if not self._slip.any():
             return False
         u0, u1, end = self._velocity(q, guess, p), seg[7], seg[8]
         grad = self.k.rows(q, u0)[1]
-        return any(
-            self._slip[f] and float(grad[sr] @ u0) * float(end.grad[sr] @ u1) < 0.0
-            for f, sr in enumerate(self._stick_rows)
-        )
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(u0))))
+        for f, sr in enumerate(self._stick_rows):
+            if self._slip[f]:
+                s0 = float(grad[sr] @ u0)
+                s0 = -self._slip[f] if abs(s0) <= tiny else s0
+                if s0 * float(end.grad[sr] @ u1) < 0.0:
+                    return True
+        return False
 
     def _onto_rows(self, q, guess, p):
         """``q`` moved onto the active rows where one held since the last call is off by more than

@@ -1678,7 +1678,8 @@ static double particle_spurious(const particle_ctx_t *c, const double *q, const 
 
 /* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
  * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
- * inside it (its friction events) and drops the rest, where the friction pushed. */
+ * inside it (its friction events) and drops the rest, where the friction pushed. A slide from rest (its start
+ * sliding within SLIDE_EPS: round-off's sign) slides against its friction, -sign(slip). */
 static int particle_reverses(const particle_ctx_t *c, const double *q, const double *p, const double *guess,
     const double *q1, const double *u1)
 {

@@ -2586,12 +2586,13 @@ static double pyramid_spurious(const pyramid_ctx_t *c, const double *q, const do
 
 /* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
  * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
- * inside it (its friction events) and drops the rest, where the friction pushed. */
+ * inside it (its friction events) and drops the rest, where the friction pushed. A slide from rest (its start
+ * sliding within SLIDE_EPS: round-off's sign) slides against its friction, -sign(slip). */
 static int pyramid_reverses(const pyramid_ctx_t *c, const double *q, const double *p, const double *guess,
     const double *q1, const double *u1)
 {
     double u0[PYRAMID_N], psi[PYRAMID_R_DIM], grad0[PYRAMID_R_DIM * PYRAMID_N];
-    double grad1[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM], s0, s1;
+    double grad1[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM], s0, s1, tiny;
     int f, i;
     if (!pyramid_slips(c)) {
         return 0;
@@ -2599,6 +2600,7 @@ static int pyramid_reverses(const pyramid_ctx_t *c, const double *q, const doubl
     pyramid_velocity(c, q, guess, p, u0);
     pyramid_rows(q, u0, c->par, psi, grad0, curv);
     pyramid_rows(q1, u1, c->par, psi, grad1, curv);
+    tiny = PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, u0));
     for (f = 0; f < PYRAMID_NF; ++f) {
         const int sr = pyramid_stick_row[f];
         if (c->sus->slip[f] == 0.0) {
@@ -2607,6 +2609,9 @@ static int pyramid_reverses(const pyramid_ctx_t *c, const double *q, const doubl
         for (i = 0, s0 = 0.0, s1 = 0.0; i < PYRAMID_N; ++i) {
             s0 += grad0[sr * PYRAMID_N + i] * u0[i];
             s1 += grad1[sr * PYRAMID_N + i] * u1[i];
+        }
+        if (fabs(s0) <= tiny) {
+            s0 = -c->sus->slip[f];
         }
         if (s0 * s1 < 0.0) {
             return 1;

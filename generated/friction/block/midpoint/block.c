@@ -1737,12 +1737,13 @@ static double block_spurious(const block_ctx_t *c, const double *q, const double
 
 /* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
  * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
- * inside it (its friction events) and drops the rest, where the friction pushed. */
+ * inside it (its friction events) and drops the rest, where the friction pushed. A slide from rest (its start
+ * sliding within SLIDE_EPS: round-off's sign) slides against its friction, -sign(slip). */
 static int block_reverses(const block_ctx_t *c, const double *q, const double *p, const double *guess,
     const double *q1, const double *u1)
 {
     double u0[BLOCK_N], psi[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N];
-    double grad1[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], s0, s1;
+    double grad1[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM], s0, s1, tiny;
     int f, i;
     if (!block_slips(c)) {
         return 0;
@@ -1750,6 +1751,7 @@ static int block_reverses(const block_ctx_t *c, const double *q, const double *p
     block_velocity(c, q, guess, p, u0);
     block_rows(q, u0, c->par, psi, grad0, curv);
     block_rows(q1, u1, c->par, psi, grad1, curv);
+    tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, u0));
     for (f = 0; f < BLOCK_NF; ++f) {
         const int sr = block_stick_row[f];
         if (c->sus->slip[f] == 0.0) {
@@ -1758,6 +1760,9 @@ static int block_reverses(const block_ctx_t *c, const double *q, const double *p
         for (i = 0, s0 = 0.0, s1 = 0.0; i < BLOCK_N; ++i) {
             s0 += grad0[sr * BLOCK_N + i] * u0[i];
             s1 += grad1[sr * BLOCK_N + i] * u1[i];
+        }
+        if (fabs(s0) <= tiny) {
+            s0 = -c->sus->slip[f];
         }
         if (s0 * s1 < 0.0) {
             return 1;

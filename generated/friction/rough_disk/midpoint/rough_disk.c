@@ -1816,12 +1816,13 @@ static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, co
 
 /* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
  * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
- * inside it (its friction events) and drops the rest, where the friction pushed. */
+ * inside it (its friction events) and drops the rest, where the friction pushed. A slide from rest (its start
+ * sliding within SLIDE_EPS: round-off's sign) slides against its friction, -sign(slip). */
 static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
     const double *q1, const double *u1)
 {
     double u0[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
-    double grad1[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], s0, s1;
+    double grad1[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM], s0, s1, tiny;
     int f, i;
     if (!rough_disk_slips(c)) {
         return 0;
@@ -1829,6 +1830,7 @@ static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const
     rough_disk_velocity(c, q, guess, p, u0);
     rough_disk_rows(q, u0, c->par, psi, grad0, curv);
     rough_disk_rows(q1, u1, c->par, psi, grad1, curv);
+    tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, u0));
     for (f = 0; f < ROUGH_DISK_NF; ++f) {
         const int sr = rough_disk_stick_row[f];
         if (c->sus->slip[f] == 0.0) {
@@ -1837,6 +1839,9 @@ static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const
         for (i = 0, s0 = 0.0, s1 = 0.0; i < ROUGH_DISK_N; ++i) {
             s0 += grad0[sr * ROUGH_DISK_N + i] * u0[i];
             s1 += grad1[sr * ROUGH_DISK_N + i] * u1[i];
+        }
+        if (fabs(s0) <= tiny) {
+            s0 = -c->sus->slip[f];
         }
         if (s0 * s1 < 0.0) {
             return 1;

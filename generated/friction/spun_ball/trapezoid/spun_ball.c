@@ -1907,12 +1907,13 @@ static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, cons
 
 /* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
  * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
- * inside it (its friction events) and drops the rest, where the friction pushed. */
+ * inside it (its friction events) and drops the rest, where the friction pushed. A slide from rest (its start
+ * sliding within SLIDE_EPS: round-off's sign) slides against its friction, -sign(slip). */
 static int spun_ball_reverses(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
     const double *q1, const double *u1)
 {
     double u0[SPUN_BALL_N], psi[SPUN_BALL_R_DIM], grad0[SPUN_BALL_R_DIM * SPUN_BALL_N];
-    double grad1[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], s0, s1;
+    double grad1[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], s0, s1, tiny;
     int f, i;
     if (!spun_ball_slips(c)) {
         return 0;
@@ -1920,6 +1921,7 @@ static int spun_ball_reverses(const spun_ball_ctx_t *c, const double *q, const d
     spun_ball_velocity(c, q, guess, p, u0);
     spun_ball_rows(q, u0, c->par, psi, grad0, curv);
     spun_ball_rows(q1, u1, c->par, psi, grad1, curv);
+    tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, u0));
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         const int sr = spun_ball_stick_row[f];
         if (c->sus->slip[f] == 0.0) {
@@ -1928,6 +1930,9 @@ static int spun_ball_reverses(const spun_ball_ctx_t *c, const double *q, const d
         for (i = 0, s0 = 0.0, s1 = 0.0; i < SPUN_BALL_N; ++i) {
             s0 += grad0[sr * SPUN_BALL_N + i] * u0[i];
             s1 += grad1[sr * SPUN_BALL_N + i] * u1[i];
+        }
+        if (fabs(s0) <= tiny) {
+            s0 = -c->sus->slip[f];
         }
         if (s0 * s1 < 0.0) {
             return 1;

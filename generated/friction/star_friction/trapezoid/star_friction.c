@@ -2024,12 +2024,13 @@ static double star_friction_spurious(const star_friction_ctx_t *c, const double 
 
 /* SustainedSteps._reverses: does the segment (ending at q1, u1) reverse a slide (a slipping contact's sliding
  * velocity of opposite signs at its ends)? Its last halving, spurious, is then kept: the chain stops the slide
- * inside it (its friction events) and drops the rest, where the friction pushed. */
+ * inside it (its friction events) and drops the rest, where the friction pushed. A slide from rest (its start
+ * sliding within SLIDE_EPS: round-off's sign) slides against its friction, -sign(slip). */
 static int star_friction_reverses(const star_friction_ctx_t *c, const double *q, const double *p, const double *guess,
     const double *q1, const double *u1)
 {
     double u0[STAR_FRICTION_N], psi[STAR_FRICTION_R_DIM], grad0[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
-    double grad1[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], s0, s1;
+    double grad1[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM], s0, s1, tiny;
     int f, i;
     if (!star_friction_slips(c)) {
         return 0;
@@ -2037,6 +2038,7 @@ static int star_friction_reverses(const star_friction_ctx_t *c, const double *q,
     star_friction_velocity(c, q, guess, p, u0);
     star_friction_rows(q, u0, c->par, psi, grad0, curv);
     star_friction_rows(q1, u1, c->par, psi, grad1, curv);
+    tiny = STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, u0));
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
         const int sr = star_friction_stick_row[f];
         if (c->sus->slip[f] == 0.0) {
@@ -2045,6 +2047,9 @@ static int star_friction_reverses(const star_friction_ctx_t *c, const double *q,
         for (i = 0, s0 = 0.0, s1 = 0.0; i < STAR_FRICTION_N; ++i) {
             s0 += grad0[sr * STAR_FRICTION_N + i] * u0[i];
             s1 += grad1[sr * STAR_FRICTION_N + i] * u1[i];
+        }
+        if (fabs(s0) <= tiny) {
+            s0 = -c->sus->slip[f];
         }
         if (s0 * s1 < 0.0) {
             return 1;
