@@ -13,15 +13,20 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
 
 
+def _unfenced(path: Path) -> str:
+    """The page without its fenced code blocks (a ``# comment`` there is no heading, ``f(q)[i](x)`` no
+    link)."""
+    return re.sub(r"^```.*?^```", "", path.read_text(encoding="utf-8"), flags=re.S | re.M)
+
+
 def _prose(path: Path) -> str:
-    """The page without its fenced code blocks and inline code (``f(q)[i](x)`` is not a link)."""
-    text = re.sub(r"^```.*?^```", "", path.read_text(encoding="utf-8"), flags=re.S | re.M)
-    return re.sub(r"`[^`\n]*`", "", text)
+    """The page without its fenced code blocks and inline code."""
+    return re.sub(r"`[^`\n]*`", "", _unfenced(path))
 
 
 def _anchors(path: Path) -> set[str]:
     """GitHub's anchors of a page: each heading's slug, and every ``<a id="...">``."""
-    text = re.sub(r"^```.*?^```", "", path.read_text(encoding="utf-8"), flags=re.S | re.M)
+    text = _unfenced(path)
     slugs = set(re.findall(r'<a id="([^"]+)"', text))
     for title in re.findall(r"^#{1,6} (.+)$", text, flags=re.M):
         slug = re.sub(r"[^\w\- ]", "", title.strip().lower().replace("`", "")).replace(" ", "-")
