@@ -12,6 +12,7 @@ import subprocess
 from pathlib import Path
 
 import jinja2
+import numpy as np
 import pytest
 import sympy as sp
 
@@ -172,6 +173,61 @@ def test_half_integer_powers_print_with_sqrt_only_where_asked() -> None:
 
     assert SQRT_POWERS == {"held_rows"} and "pow(" not in text(ctx["held_rows"])  # the Hessian has |q|^-3
     assert any("pow(" in text(r) for name, r in ctx.items() if name != "held_rows")  # elsewhere as before
+
+
+NAMED_CONSTANTS = [
+    sp.sqrt(2),
+    1 / sp.sqrt(2),
+    sp.pi / 4,
+    sp.pi / 2,
+    1 / sp.pi,
+    2 / sp.pi,
+    sp.log(2),
+    1 / sp.log(2),
+    sp.log(10),
+    sp.E,
+    2 / sp.sqrt(sp.pi),
+]
+
+
+def test_named_constants_print_as_c99_expressions_not_posix_macros() -> None:
+    """SymPy's C printer writes sqrt(2), pi/4, log(2), ... as ``M_SQRT2``, ``M_PI_4``, ``M_LN2``: POSIX,
+    undeclared under ``-std=c99``. The printer writes the expressions they stand for."""
+    from vcigen.backends.cprinter import ArrayC99Printer
+
+    X = sp.Symbol("x")
+    printer = ArrayC99Printer({X: "q[0]"})
+    for c in NAMED_CONSTANTS:
+        text = printer.doprint(c * X)
+        assert "M_" not in text, (c, text)
+        assert float(eval(text.replace("q[0]", "1.0"), {"sqrt": np.sqrt, "log": np.log})) == pytest.approx(
+            float(c)
+        )
+
+
+@needs_cc
+def test_a_model_with_named_constants_compiles_and_takes_casadis_steps() -> None:
+    """A particle on a 45-degree rough incline written with ``sqrt(2)`` (its friction tangent), in a
+    potential with the other named constants: it did not compile (``M_SQRT1_2`` undeclared); it now takes
+    CasADi's steps."""
+    X, Y, XD, YD = sp.symbols("x y xd yd")
+    k = sum(NAMED_CONSTANTS) / 10
+    model = vcigen.Model(
+        name="cg_constants",
+        q=[X, Y],
+        qdot=[XD, YD],
+        lagrangian=(XD**2 + YD**2) / 2 - 9.81 * Y - k * (X - sp.sqrt(2) / 2) ** 2 / 2,
+        contacts={"incline": (Y - X) / sp.sqrt(2)},
+        restitution={"incline": sp.log(2)},
+        friction={"incline": (1 / sp.pi, (X + Y) / sp.sqrt(2))},
+    )
+    runs = [
+        vcigen.build(model, backend=b).simulate(q0=[0.0, 0.5], v0=[1.0, 0.0], h=0.01, t_end=2.0)
+        for b in ("c", "casadi")
+    ]
+    assert len(runs[0].impacts) > 1 and runs[0].active[-1].any()  # it lands, bounces, and slides held
+    assert [(i.kind, i.step) for i in runs[0].impacts] == [(i.kind, i.step) for i in runs[1].impacts]
+    assert np.abs(runs[0].q - runs[1].q).max() < 1e-10
 
 
 def test_templates_are_strict() -> None:

@@ -27,6 +27,10 @@ class ArrayC99Printer(C99CodePrinter):
         self, names: Mapping[sp.Symbol, str], sqrt_powers: bool = False, inverse_powers: bool = False
     ) -> None:
         super().__init__({"strict": False})
+        # SymPy prints sqrt(2), pi/4, log(2), ... as M_SQRT2, M_PI_4, M_LN2: POSIX, not C99, undeclared under
+        # -std=c99. Printed as the expressions they stand for (a model's friction tangent (x - y)/sqrt(2) did
+        # not compile).
+        self.math_macros = {}
         self._names = dict(names)
         self._sqrt_powers = sqrt_powers
         self._inverse_powers = inverse_powers
