@@ -15,8 +15,11 @@ from functools import cache
 import numpy as np
 import pytest
 import sympy as sp
+import test_rough_ladder
+import test_sustained_closed_forms
 
 import vcigen
+from bench import groove_drops
 from vcigen.stepper import Stepper
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -90,11 +93,24 @@ SCENES = {  # name: (model, q0, v0, h, t_end)
     "star": (_star, [0.0, 3.5, 0.0], [-2.0, 0.0, 5.0], 0.005, 9.0),
     "pendulum": (_pendulum, [float(np.sin(1.0)), -float(np.cos(1.0))], [0.0, 0.0], 0.01, 4.0),
     "floor_wall": (_floor_wall, [0.0037, 0.0], [1.0, 0.0], 0.01, 2.5),
+    # a ladder at rest against a smooth wall: both ends held from the start, the wall released
+    "ladder": (
+        test_sustained_closed_forms.ladder,
+        [np.sin(0.3) / 2, np.cos(0.3) / 2, 0.3],
+        [0.0] * 3,
+        0.01,
+        0.6,
+    ),
+    # against a rough wall past its friction angle: the wall's stick rides on the floor's, their split breaks
+    "rough_ladder": (test_rough_ladder.model, [np.sin(0.6) / 2, np.cos(0.6) / 2, 0.6], [0.0] * 3, 0.01, 1.2),
+    # a rough V-groove: a stick row held on one wall made dependent by the other's landing at the vertex
+    "groove": (groove_drops.model, [0.3, 1.0], [0.0, 0.0], 0.01, 2.0),
 }
 # The star is chaotic: round-off differences between CasADi's SX and the printed C grow at every
 # impact (tests/test_c_agreement.py); over its impacts to rest they stay far below 1e-6 in the
 # state, and the event sequence (kinds, steps, the face it rests on) is the same.
 TOL = {"ball": 1e-9, "dome": 1e-9, "star": 1e-6, "pendulum": 1e-9, "floor_wall": 1e-9}
+TOL |= {"ladder": 1e-9, "rough_ladder": 1e-9, "groove": 1e-9}
 
 
 @cache
@@ -143,6 +159,11 @@ def test_each_scene_exercises_what_it_is_for() -> None:
     assert np.all(np.abs(run("pendulum", "c").constraint_force) > 0) and run("pendulum", "c").n_impacts >= 2
     fw = run("floor_wall", "c")
     assert fw.active[:, 0].all() and any(i.contact == "wall" for i in fw.impacts)
+    ladder, rough = run("ladder", "c"), run("rough_ladder", "c")
+    assert ladder.active[0].all() and not ladder.impacts and [j for _, j in ladder.liftoffs] == ["wall"]
+    assert rough.active[0].all() and rough.q[-1, 2] > 0.7 and [j for _, j in rough.liftoffs][:1] == ["wall"]
+    groove = run("groove", "c")
+    assert groove.active[-1].all() and groove.stats["impacts_plastic"] >= 1
 
 
 @pytest.mark.parametrize("name", ["star", "dome", "pendulum"])

@@ -25,6 +25,7 @@ import jinja2
 import numpy as np
 import pytest
 import sympy as sp
+import test_rough_ladder as rl
 import test_sensitivity as ts
 import test_sensitivity_friction as tf
 import test_sensitivity_friction_events as fe
@@ -88,6 +89,12 @@ CASES = {
     "incline_disk": (tf.incline_disk, "trapezoid", _args([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], 0.01, 0.5)),
     # the isotropic cone (two tangents) and a force of time
     "puck_timed": (fe.puck_timed, "trapezoid", _args([0.0, 0.0, 0.0], [0.5, 0.0, 0.0], 0.01, 0.5)),
+    # two one-tangent contacts, one riding on the other's stick: their split (a ladder sliding off its stand)
+    "rough_ladder": (
+        rl.model,
+        "trapezoid",
+        _args([math.sin(1.0) / 2, math.cos(1.0) / 2, 1.0], [0.0, 0.0, 0.0], 0.01, 0.5, {"mu": 0.3}),
+    ),
     # no rows; seven rows and four coordinates
     "free": (free_oscillator, "trapezoid", _args([1.0], [0.0], 0.01, 1.0)),
     "heptagon": (heptagon, "trapezoid", _args([0.0, 0.0, 0.5, 0.5], [1.0, 0.3, 0.0, 0.0], 0.01, 2.0)),

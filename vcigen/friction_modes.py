@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .cone_split import null_combination, split
+from .cone_split import null_combination, split, split_line
 from .coupling import coupled_cones
 from .derive import KINK
 from .held_roots import (
@@ -51,12 +51,16 @@ class FrictionModes:
         """Stick or slip for each frictional contact at ``(q, u)``: off when it is not held; on entering
         sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it.
         A dependent stick (:meth:`_stick`) is checked anew: released if its contact's rows changed or its
-        stick row is independent now. A contact slipping at a sliding of 0 (to round-off) whose stick row
-        depends on the active rows stops (:meth:`_stick`: it rides): its sliding is theirs, 0 over the
-        segment, and no stop event sees it change sign (pyramid draw 1 of ``bench.pyramids --seed 2``: the
-        second lower disk, held to the first, stuck, by the row between them after an impact, slipped on at
-        rest in C, its kinetic friction pressing the disks together, and stopped on CasADi, by round-off).
-        Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a segment of ``tau``."""
+        stick row is independent now. A held stick row that a row held since has made dependent rides from
+        here (:meth:`_owner`), as one that stuck dependent: a particle sticking on one wall of a V-groove
+        meets the other at the vertex, whose normal row is in the span of the first wall's two rows, and the
+        held step's rows were dependent (``bench.groove_drops``: 133 of 200 drops raised). A contact slipping
+        at a sliding of 0 (to round-off) whose stick row depends on the active rows stops (:meth:`_stick`: it
+        rides): its sliding is theirs, 0 over the segment, and no stop event sees it change sign (pyramid draw
+        1 of ``bench.pyramids --seed 2``: the second lower disk, held to the first, stuck, by the row between
+        them after an impact, slipped on at rest in C, its kinetic friction pressing the disks together, and
+        stopped on CasADi, by round-off). Cones (two tangents) by :meth:`_cone_modes`, aiming their slip for a
+        segment of ``tau``."""
         k = self.k
         if not self._stick_rows:
             return
@@ -67,6 +71,10 @@ class FrictionModes:
                 self.act[sr], self._slip[f], self._ride[f] = False, 0.0, -1  # off, or another vertex or face
             self._held_rows[f] = mask
         grad = k.rows(q, u)[1]
+        for f, sr in enumerate(self._stick_rows):
+            if self.act[sr] and self._dependent(grad, sr):  # a row held since is in its span: it rides
+                self._ride[f] = self._owner(f, grad)
+                self.act[sr] = False
         for f in range(len(self._stick_rows)):
             if self._ride[f] >= 0:
                 self._ride[f] = self._owner(f, grad)
@@ -333,6 +341,64 @@ class FrictionModes:
                 best = (margin, alpha, values, cones, lams, dirs)
         return best
 
+    def _stick_split(self, f: int, forces, grad):
+        """The contacts coupled with one-tangent contact ``f`` by the dependent sticks it carries (``_ride[g]
+        = f``) and their best split along the line of each one's null combination
+        (:func:`vcigen.cone_split.split_line`): ``(margin, alpha, values, contacts, stick forces, null
+        combinations)``, the least margin over those sticks; None if ``f`` carries none or a cone is coupled.
+        A contact is coupled where the null combination is on its stick row or its normal rows: one with
+        friction keeps its force in its cone with its normal force shifted, ``mu_c (N_c + alpha sum n_r) -
+        |F_c + alpha n_t|``; one without keeps ``N_c + alpha sum n_r >= 0``. A part of ``n`` within
+        ``DEP_EPS`` of 0 is round-off's, none (a rod level on a floor: 1e-35 on its normal rows, whose cap's
+        zero at 1e35 left the bisection far from the split)."""
+        k, rows = self.k, self._stick_rows
+        best = None
+        for g, owner in enumerate(self._ride):
+            if owner != f or g == f or self._partner[g] >= 0:
+                continue
+            n = null_combination(grad, self.act, rows[g])
+            contacts, caps, slopes, lams, dirs = [], [], [], [], []
+            for j in range(k.m):
+                own = [r for r in range(k.r) if k.row_contact[r] == j]
+                fr = [c for c, jc in enumerate(k.frictional) if jc == j]
+                d = float(n[rows[fr[0]]]) if fr else 0.0
+                shift = sum(float(n[r]) for r in own)
+                d, shift = (0.0 if abs(x) <= DEP_EPS else x for x in (d, shift))  # round-off's: none
+                if d == 0.0 and shift == 0.0:
+                    continue
+                if fr and self._partner[fr[0]] >= 0:
+                    return None  # a cone coupled: pooled (_cone_margin)
+                mu_c = self._mu_f[fr[0]] if fr and self._mu_f[fr[0]] > 0.0 else 1.0
+                fric = bool(fr) and self._mu_f[fr[0]] > 0.0
+                contacts.append(fr[0] if fric else -1)
+                caps.append(mu_c * sum(float(forces[r]) for r in own))
+                slopes.append(mu_c * shift)
+                lams.append(float(forces[rows[fr[0]]]) if fric else 0.0)
+                dirs.append(d if fric else 0.0)
+            if not caps:
+                continue
+            margin, alpha, values = split_line(caps, slopes, lams, dirs)
+            if best is None or margin < best[0]:
+                best = (margin, alpha, values, contacts, lams, dirs)
+        return best
+
+    def _stick_split_slide(self, joint, q, u) -> None:
+        """A stick split's stick breaks (:meth:`_stick_split`): the contacts with friction at the edge of
+        their cone in the best split (within ``DEP_EPS`` of the least margin) slip the way their split force
+        pushes, ``slip = mu_c sign(F_c + alpha d_c)``; the others stick on, a stick row that no longer depends
+        on the rest held by its own again."""
+        margin, alpha, values, contacts, lams, dirs = joint
+        for c, value, lam, d in zip(contacts, values, lams, dirs):
+            if c >= 0 and value <= margin + DEP_EPS * (1.0 + abs(value)):
+                self.act[self._stick_rows[c]] = False
+                self._ride[c] = -1
+                self._slip[c] = -self._mu_f[c] if lam + alpha * d < 0.0 else self._mu_f[c]
+        grad = self.k.rows(q, u)[1]
+        for g in range(len(self._stick_rows)):
+            if self._partner[g] < 0 and self._ride[g] >= 0:
+                self._ride[g] = self._owner(g, grad)
+                self.act[self._stick_rows[g]] = self._ride[g] < 0
+
     def _split_slide(self, joint, q, u) -> None:
         """The coupled cones' stick breaks: those at the edge of their cone in the best split (within
         ``DEP_EPS`` of the least margin) slip along their split force, ``s = -lambda_c / |lambda_c|``; the
@@ -392,10 +458,10 @@ class FrictionModes:
         (:meth:`_cone_split`)."""
         k = self.k
         j = k.frictional[f]
-        if self._partner[f] >= 0:
-            joint = self._cone_split(f, forces, grad)
-            if joint is not None:
-                return joint[0]
+        split = self._cone_split if self._partner[f] >= 0 else self._stick_split
+        joint = split(f, forces, grad)
+        if joint is not None:
+            return joint[0]
         normal = sum(forces[r] for r in range(k.r) if k.row_contact[r] == j)
         for g, owner in enumerate(self._ride):  # the dependent sticks it carries: their cones are room too
             if owner == f and g != f and self._partner[g] < 0:
@@ -475,6 +541,8 @@ class FrictionModes:
             self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)  # an impact turned it: slip that way
         elif kind == "stop":
             self._stick(f, q, u)
+        elif (joint := self._stick_split(f, self._contact_forces(q, u), self.k.rows(q, u)[1])) is not None:
+            self._stick_split_slide(joint, q, u)
         else:
             lam = self._contact_forces(q, u)[sr]
             self.act[sr] = False

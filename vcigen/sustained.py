@@ -134,45 +134,55 @@ class SustainedSteps(FrictionModes, HeldImpacts):
 
     def _start_sustained(self, q0, v0, h: float) -> None:
         """Active rows at the start: bilateral constraints, and contacts touched at rest (``|rate| <=
-        Tolerances.admissible / h``) and pressed in under the bilateral rows' forces (a pendulum at rest
-        against a wall is pressed in by its rod alone), or moving below the jump's resolution and pressed in
-        by the free motion (moving into the corner a bilateral row makes with the contact is an impact; moving
-        out, only where the free path comes back within the step: held, the first step pulled it back), or at
-        rest where the free path curves into them within the step (to second order: released at rest on a
-        bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall leaves the bowl at fourth
-        order; not held, it crossed the wall again and again at once). A rough contact (Coulomb's cone,
-        ``mu_f > 0``) moving faster than ``Tolerances.admissible / h`` is not held: moving in, it takes its
-        impact at the start, with friction (held at once, the first held step would take its normal speed as
-        a force, and the friction with it); moving out, it flies and lands as an impact (held, the first step
-        pulled it back, and a pulling normal force reverses sliding friction: a rough star spun on a face
-        gained energy 1400-fold in one step); a frictionless one is held (the map stays smooth in ``v0`` for
-        the tangent). The first held step's Newton starts from the forces holding the rows at ``(q0, v0)``
-        (:meth:`_contact_forces`): from 0, C's did not converge on a bob at rest in the corner of its rod and
-        a wall 2.6 degrees apart at ``h = 0.1``, where the wall pushes with 22 ``m g``."""
+        Tolerances.admissible / h``) and pressed in under the forces of the bilateral rows and of the rows
+        held so far, tested again till none is added (a pendulum at rest against a wall is pressed in by its
+        rod alone, a ladder at rest against a wall by the floor's force: tested once, under the bilateral
+        rows' forces alone, its wall took a plastic impact of 2.5e-9 at t = 1.2e-9), or moving below the
+        jump's resolution and pressed in by the free motion (moving into the corner a bilateral row makes with
+        the contact is an impact; moving out, only where the free path comes back within the step: held, the
+        first step pulled it back), or at rest where the free path curves into them within the step (to second
+        order: released at rest on a bowl's rim, where the wall is vertical and ``phi'' = 0``, the free fall
+        leaves the bowl at fourth order; not held, it crossed the wall again and again at once). A rough
+        contact (Coulomb's cone, ``mu_f > 0``) moving faster than ``Tolerances.admissible / h`` is not held:
+        moving in, it takes its impact at the start, with friction (held at once, the first held step would
+        take its normal speed as a force, and the friction with it); moving out, it flies and lands as an
+        impact (held, the first step pulled it back, and a pulling normal force reverses sliding friction: a
+        rough star spun on a face gained energy 1400-fold in one step); a frictionless one is held (the map
+        stays smooth in ``v0`` for the tangent). The first held step's Newton starts from the forces holding
+        the rows at ``(q0, v0)`` (:meth:`_contact_forces`): from 0, C's did not converge on a bob at rest in
+        the corner of its rod and a wall 2.6 degrees apart at ``h = 0.1``, where the wall pushes with 22 ``m
+        g``."""
         k = self.k
         self._init_sustained()
         if not k.r or self.tol.grazing != "contact":
             return
         psi, grad, _ = k.rows(q0, v0)
-        acc = self._accel(q0, v0, self._contact_forces(q0, v0))  # under the bilateral rows' forces
-        rates, accs = grad @ v0, self._row_accel(q0, v0, acc)
+        rates = grad @ v0
         frees = self._row_accel(q0, v0, self._accel(q0, v0, np.zeros(k.r)))
-        ahead = k.rows(q0 + h * v0 + 0.5 * h * h * acc, v0)[0]  # the free path's end, to second order
         still = self.tol.admissible / h
-        for r in range(k.r):
-            if k.row_bilateral[r] or k.row_stick[r] >= 0 or abs(psi[r]) > self.tol.admissible:
-                continue
-            if abs(rates[r]) <= still:  # at rest: pressed in, or curving in ahead of the free path
-                held = self._settles(rates[r], accs[r], 1.0, h) or ahead[r] < -self.tol.phi
-            else:  # moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner)
-                held = (
-                    self._settles(rates[r], frees[r], 1.0, h)
-                    and not self._rough([k.row_contact[r]])
-                    and (rates[r] < 0.0 or ahead[r] < -self.tol.phi)
-                )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first, one
-                # moving out flies; a frictionless one moving out is held only where its free path comes back
-            if held:
-                self._hold(grad, r)
+        added = True
+        while added:  # again under the forces of the rows held so far, till none is added
+            acc = self._accel(q0, v0, self._contact_forces(q0, v0))  # first: under the bilateral rows' forces
+            accs = self._row_accel(q0, v0, acc)
+            ahead = k.rows(q0 + h * v0 + 0.5 * h * h * acc, v0)[0]  # the free path's end, to second order
+            added = False
+            for r in range(k.r):
+                skip = self.act[r] or k.row_bilateral[r] or k.row_stick[r] >= 0
+                if skip or abs(psi[r]) > self.tol.admissible:
+                    continue
+                if abs(rates[r]) <= still:  # at rest: pressed in, or curving in ahead of the free path
+                    held = self._settles(rates[r], accs[r], 1.0, h) or ahead[r] < -self.tol.phi
+                else:  # moving: pressed in by the free motion (a bilateral row's reaction alone: a corner)
+                    held = (
+                        self._settles(rates[r], frees[r], 1.0, h)
+                        and not self._rough([k.row_contact[r]])
+                        and (rates[r] < 0.0 or ahead[r] < -self.tol.phi)
+                    )  # a rough one moving in takes its (plastic) impact, with friction, at t = 0 first, one
+                    # moving out flies; a frictionless one moving out is held only where its free path comes
+                    # back
+                if held:
+                    self._hold(grad, r)
+                    added = added or bool(self.act[r])
         self._friction_modes(q0, v0)
         self._held = bool(self.act.any())
         if self._held:  # the first held step's Newton starts from the forces holding the rows at (q0, v0)

@@ -323,6 +323,13 @@ def render_context(
         "cone": "friction_cone" in system.routines,
         "cone_contact": [int(len(model.tangents_of.get(c, ())) == 2) for c in system.contact_names],
         "partner": list(system.rows.partner) if system.rows and system.rows.partner else [],
+        # two one-tangent frictional contacts or more: one may ride on another's stick (stick_split)
+        "stick_split": sum(
+            1
+            for f in range(len(system.rows.frictional) if system.rows else 0)
+            if not (system.rows.partner and system.rows.partner[f] >= 0)
+        )
+        >= 2,
         "nk": grid[0].outputs[0].size if grid else 0,
         "nks_dim": max(1, implicit[0].outputs[0].size) if implicit else 1,
         "held": bool(held),

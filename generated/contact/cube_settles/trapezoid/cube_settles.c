@@ -2120,8 +2120,8 @@ static int cube_settles_settles(const cube_settles_ctx_t *c, double rate, double
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -3432,7 +3432,7 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
     double lam0[CUBE_SETTLES_R_DIM], acc[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], frees[CUBE_SETTLES_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[CUBE_SETTLES_N], ahead[CUBE_SETTLES_R_DIM], grad_t[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv_t[CUBE_SETTLES_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         c->sus->act[r] = cube_settles_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -3459,30 +3459,35 @@ static void cube_settles_start_sustained(const cube_settles_ctx_t *c, const doub
     }
     cube_settles_accel(c, q, v, lam0, acc); /* the free motion's */
     cube_settles_row_accel(c, q, v, acc, frees);
-    cube_settles_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    cube_settles_accel(c, q, v, lam0, acc);
-    cube_settles_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < CUBE_SETTLES_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    cube_settles_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < CUBE_SETTLES_R; ++r) {
-        if (cube_settles_row_constraint[r] >= 0 || cube_settles_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        cube_settles_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        cube_settles_accel(c, q, v, lam0, acc);
+        cube_settles_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < CUBE_SETTLES_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            rate += grad[r * CUBE_SETTLES_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = cube_settles_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = cube_settles_settles(c, rate, frees[r], 1.0)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            cube_settles_hold(c, grad, r);
+        cube_settles_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < CUBE_SETTLES_R; ++r) {
+            if (c->sus->act[r] || cube_settles_row_constraint[r] >= 0 || cube_settles_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                rate += grad[r * CUBE_SETTLES_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = cube_settles_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = cube_settles_settles(c, rate, frees[r], 1.0)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                cube_settles_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     cube_settles_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */

@@ -1833,8 +1833,8 @@ static int four_bar_settles(const four_bar_ctx_t *c, double rate, double acc, do
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void four_bar_start_sustained(const four_bar_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -3144,7 +3144,7 @@ static void four_bar_start_sustained(const four_bar_ctx_t *c, const double *q, c
     double lam0[FOUR_BAR_R_DIM], acc[FOUR_BAR_N], racc[FOUR_BAR_R_DIM], frees[FOUR_BAR_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[FOUR_BAR_N], ahead[FOUR_BAR_R_DIM], grad_t[FOUR_BAR_R_DIM * FOUR_BAR_N], curv_t[FOUR_BAR_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < FOUR_BAR_R; ++r) {
         c->sus->act[r] = four_bar_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -3171,30 +3171,35 @@ static void four_bar_start_sustained(const four_bar_ctx_t *c, const double *q, c
     }
     four_bar_accel(c, q, v, lam0, acc); /* the free motion's */
     four_bar_row_accel(c, q, v, acc, frees);
-    four_bar_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    four_bar_accel(c, q, v, lam0, acc);
-    four_bar_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < FOUR_BAR_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    four_bar_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < FOUR_BAR_R; ++r) {
-        if (four_bar_row_constraint[r] >= 0 || four_bar_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        four_bar_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        four_bar_accel(c, q, v, lam0, acc);
+        four_bar_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < FOUR_BAR_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < FOUR_BAR_N; ++i) {
-            rate += grad[r * FOUR_BAR_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = four_bar_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = four_bar_settles(c, rate, frees[r], 1.0)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            four_bar_hold(c, grad, r);
+        four_bar_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < FOUR_BAR_R; ++r) {
+            if (c->sus->act[r] || four_bar_row_constraint[r] >= 0 || four_bar_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < FOUR_BAR_N; ++i) {
+                rate += grad[r * FOUR_BAR_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = four_bar_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = four_bar_settles(c, rate, frees[r], 1.0)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                four_bar_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     four_bar_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */

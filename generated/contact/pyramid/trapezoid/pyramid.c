@@ -2038,6 +2038,7 @@ static int pyramid_slips(const pyramid_ctx_t *c)
 #define PYRAMID_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define PYRAMID_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define PYRAMID_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define PYRAMID_LINE_WIDEN 60 /* cone_split.LINE_WIDEN: doublings of a line split's bracket */
 #define PYRAMID_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
 #define PYRAMID_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 #define PYRAMID_PGS_SWEEPS 5000 /* law_pgs.PGS_SWEEPS: projected Gauss-Seidel sweeps of the impulse law */
@@ -2242,8 +2243,8 @@ static int pyramid_settles(const pyramid_ctx_t *c, double rate, double acc, doub
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void pyramid_start_sustained(const pyramid_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2738,6 +2739,9 @@ static int pyramid_sub_end(const pyramid_ctx_t *c, const double *q, const double
     return pyramid_constrained(c, q, p, s * tau, guess, v, lam, q1, &e_seg, lam1, p1, u1);
 }
 
+static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
+    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs);
+
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
  * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
  * margin of their best split (cone_split). */
@@ -2745,7 +2749,12 @@ static double pyramid_cone_margin(const pyramid_ctx_t *c, int f, const double *f
 {
     double normal = 0.0, other;
     int r, g;
-    (void)grad;
+    double l_margin, l_alpha, l_values[PYRAMID_M_DIM], l_lams[PYRAMID_M_DIM], l_dirs[PYRAMID_M_DIM];
+    int l_contacts[PYRAMID_M_DIM];
+    if (pyramid_stick_split(c, f, forces, grad, &l_margin, &l_alpha, l_values,
+            l_contacts, l_lams, l_dirs)) {
+        return l_margin;
+    }
     for (r = 0; r < PYRAMID_R; ++r) {
         if (pyramid_row_contact[r] == pyramid_fric_contact[f]) {
             normal += forces[r];
@@ -2781,6 +2790,221 @@ static int pyramid_owner(const pyramid_ctx_t *c, int f, const double *grad)
     }
     return f;
 }
+
+/* cone_split.null_combination: n over every row with sum_r n_r grad_r = 0: -1 on row (a dependent stick row), on
+ * the active rows the coefficients of grad[row] in their gradients (normal equations), 0 elsewhere. 0 if singular. */
+static int pyramid_null_combination(const pyramid_ctx_t *c, const double *grad, int row, double *n)
+{
+    double a[PYRAMID_R_DIM * PYRAMID_R_DIM], b[PYRAMID_R_DIM];
+    int rows[PYRAMID_R_DIM], piv[PYRAMID_R_DIM], nr = 0, i, j, l;
+    for (i = 0; i < PYRAMID_R; ++i) {
+        n[i] = 0.0;
+        if (c->sus->act[i]) {
+            rows[nr++] = i;
+        }
+    }
+    for (i = 0; i < nr; ++i) {
+        for (j = 0; j < nr; ++j) {
+            for (l = 0, a[i * nr + j] = 0.0; l < PYRAMID_N; ++l) {
+                a[i * nr + j] += grad[rows[i] * PYRAMID_N + l] * grad[rows[j] * PYRAMID_N + l];
+            }
+        }
+        for (l = 0, b[i] = 0.0; l < PYRAMID_N; ++l) {
+            b[i] += grad[rows[i] * PYRAMID_N + l] * grad[row * PYRAMID_N + l];
+        }
+    }
+    if (nr > 0 && !pyramid_lu(nr, a, piv)) {
+        return 0;
+    }
+    if (nr > 0) {
+        pyramid_lu_solve(nr, a, piv, b);
+    }
+    for (i = 0; i < nr; ++i) {
+        n[rows[i]] = b[i];
+    }
+    n[row] = -1.0;
+    return 1;
+}
+
+/* cone_split._line_least: the least term caps_c + alpha slopes_c - |forces_c + alpha dirs_c| at alpha and its
+ * slope. */
+static double pyramid_line_least(int nc, const double *caps, const double *slopes, const double *forces,
+    const double *dirs, double alpha, double *slope)
+{
+    double least = HUGE_VAL, x, v;
+    int i;
+    *slope = 0.0;
+    for (i = 0; i < nc; ++i) {
+        x = forces[i] + alpha * dirs[i];
+        v = caps[i] + alpha * slopes[i] - fabs(x);
+        if (v < least) {
+            least = v;
+            *slope = slopes[i] - (x > 0.0 ? dirs[i] : x < 0.0 ? -dirs[i] : 0.0);
+        }
+    }
+    return least;
+}
+
+/* cone_split.split_line: max over alpha of min_c (caps_c + alpha slopes_c - |forces_c + alpha dirs_c|) over nc
+ * one-tangent contacts: the margin, alpha and each term at alpha. Bisection on the least term's slope over a bracket
+ * of the terms' kinks -F_c / d_c and the zeros of the caps that move, -caps_c / slopes_c, widened (its width
+ * doubled, LINE_WIDEN times at most) while the minimum still rises past an end. */
+static double pyramid_split_line(int nc, const double *caps, const double *slopes, const double *forces,
+    const double *dirs, double *alpha, double *values)
+{
+    double lo = HUGE_VAL, hi = -HUGE_VAL, width, mid, s, least, a;
+    int i, it;
+    for (i = 0; i < nc; ++i) {
+        if (dirs[i] != 0.0) {
+            a = -forces[i] / dirs[i];
+            lo = a < lo ? a : lo;
+            hi = a > hi ? a : hi;
+        }
+    }
+    for (i = 0; i < nc; ++i) {
+        if (slopes[i] != 0.0) {
+            a = -caps[i] / slopes[i];
+            lo = a < lo ? a : lo;
+            hi = a > hi ? a : hi;
+        }
+    }
+    if (lo > hi) {
+        lo = hi = 0.0;
+    }
+    width = hi - lo > 1.0 ? hi - lo : 1.0;
+    for (i = 0; i < nc; ++i) {
+        width = fabs(forces[i]) > width ? fabs(forces[i]) : width;
+        width = fabs(caps[i]) > width ? fabs(caps[i]) : width;
+    }
+    for (it = 0; it < PYRAMID_LINE_WIDEN; ++it) {
+        pyramid_line_least(nc, caps, slopes, forces, dirs, hi, &s);
+        if (s <= 0.0) {
+            break;
+        }
+        hi += width;
+        width *= 2.0;
+    }
+    for (it = 0; it < PYRAMID_LINE_WIDEN; ++it) {
+        pyramid_line_least(nc, caps, slopes, forces, dirs, lo, &s);
+        if (s >= 0.0) {
+            break;
+        }
+        lo -= width;
+        width *= 2.0;
+    }
+    for (it = 0; it < PYRAMID_SPLIT_ITER; ++it) { /* until the bracket stops moving */
+        mid = 0.5 * (lo + hi);
+        pyramid_line_least(nc, caps, slopes, forces, dirs, mid, &s);
+        if (s > 0.0) {
+            if (mid == lo) {
+                break;
+            }
+            lo = mid;
+        } else {
+            if (mid == hi) {
+                break;
+            }
+            hi = mid;
+        }
+    }
+    *alpha = 0.5 * (lo + hi);
+    least = HUGE_VAL;
+    for (i = 0; i < nc; ++i) {
+        values[i] = caps[i] + *alpha * slopes[i] - fabs(forces[i] + *alpha * dirs[i]);
+        least = values[i] < least ? values[i] : least;
+    }
+    return least;
+}
+
+/* SustainedSteps._stick_split: the contacts coupled with one-tangent contact f by the dependent sticks it carries
+ * (ride[g] = f) and their best split along the line of each one's null combination (split_line): 1 and the least
+ * margin over those sticks, with its alpha, each term, each coupled contact (its frictional index, -1 without
+ * friction), stick force and null combination on it; 0 if f carries none or a cone is coupled. A contact with
+ * friction keeps mu_c (N_c + alpha sum n_r) - |F_c + alpha n_t|, one without N_c + alpha sum n_r >= 0. */
+static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
+    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs)
+{
+    double n[PYRAMID_R_DIM], caps[PYRAMID_M_DIM], slopes[PYRAMID_M_DIM], ls[PYRAMID_M_DIM];
+    double ds[PYRAMID_M_DIM], vs[PYRAMID_M_DIM], m, a, d, shift, normal, mu_c;
+    int g, j, r, fr, nc, cs[PYRAMID_M_DIM], found = 0, i;
+    for (g = 0; g < PYRAMID_NF; ++g) {
+        if (c->sus->ride[g] != f || g == f) {
+            continue;
+        }
+        if (!pyramid_null_combination(c, grad, pyramid_stick_row[g], n)) {
+            continue;
+        }
+        for (j = 0, nc = 0; j < PYRAMID_M; ++j) {
+            for (fr = 0; fr < PYRAMID_NF && pyramid_fric_contact[fr] != j; ++fr) {
+            }
+            fr = fr < PYRAMID_NF ? fr : -1;
+            d = fr >= 0 ? n[pyramid_stick_row[fr]] : 0.0;
+            for (r = 0, shift = 0.0, normal = 0.0; r < PYRAMID_R; ++r) {
+                if (pyramid_row_contact[r] == j) {
+                    shift += n[r];
+                    normal += forces[r];
+                }
+            }
+            d = fabs(d) <= PYRAMID_DEP_EPS ? 0.0 : d; /* round-off's: none */
+            shift = fabs(shift) <= PYRAMID_DEP_EPS ? 0.0 : shift;
+            if (d == 0.0 && shift == 0.0) {
+                continue;
+            }
+            if (fr >= 0 && !(c->mu_f[fr] > 0.0)) {
+                fr = -1;
+            }
+            mu_c = fr >= 0 ? c->mu_f[fr] : 1.0;
+            cs[nc] = fr;
+            caps[nc] = mu_c * normal;
+            slopes[nc] = mu_c * shift;
+            ls[nc] = fr >= 0 ? forces[pyramid_stick_row[fr]] : 0.0;
+            ds[nc] = fr >= 0 ? d : 0.0;
+            ++nc;
+        }
+        if (nc == 0) {
+            continue;
+        }
+        m = pyramid_split_line(nc, caps, slopes, ls, ds, &a, vs);
+        if (!found || m < *margin) {
+            found = 1;
+            *margin = m;
+            *alpha = a;
+            for (i = 0; i < PYRAMID_M; ++i) {
+                values[i] = i < nc ? vs[i] : 0.0;
+                contacts[i] = i < nc ? cs[i] : -2;
+                lams[i] = i < nc ? ls[i] : 0.0;
+                dirs[i] = i < nc ? ds[i] : 0.0;
+            }
+        }
+    }
+    return found;
+}
+
+/* SustainedSteps._stick_split_slide: a stick split's stick breaks (stick_split): the contacts with friction at the
+ * edge of their cone in the best split (within DEP_EPS of the least margin) slip the way their split force pushes, slip = mu_c sign(F_c +
+ * alpha d_c); the others stick on, a stick row that no longer depends on the rest held by its own again. */
+static void pyramid_stick_split_slide(const pyramid_ctx_t *c, double margin, double alpha, const double *values,
+    const int *contacts, const double *lams, const double *dirs, const double *q, const double *u)
+{
+    double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
+    int i, g, fc;
+    for (i = 0; i < PYRAMID_M && contacts[i] > -2; ++i) {
+        fc = contacts[i];
+        if (fc >= 0 && values[i] <= margin + PYRAMID_DEP_EPS * (1.0 + fabs(values[i]))) {
+            c->sus->act[pyramid_stick_row[fc]] = 0;
+            c->sus->ride[fc] = -1;
+            c->sus->slip[fc] = lams[i] + alpha * dirs[i] < 0.0 ? -c->mu_f[fc] : c->mu_f[fc];
+        }
+    }
+    pyramid_rows(q, u, c->par, psi, grad, curv);
+    for (g = 0; g < PYRAMID_NF; ++g) {
+        if (c->sus->ride[g] >= 0) {
+            c->sus->ride[g] = pyramid_owner(c, g, grad);
+            c->sus->act[pyramid_stick_row[g]] = c->sus->ride[g] < 0;
+        }
+    }
+}
+
 
 /* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
  * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
@@ -2879,7 +3103,8 @@ static int pyramid_painleve(const pyramid_ctx_t *c, const double *q1, const doub
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; a held
+ * stick row that a row held since has made dependent rides (owner); one
  * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void pyramid_friction_modes(const pyramid_ctx_t *c, const double *q, const double *u, double tau)
@@ -2903,6 +3128,13 @@ static void pyramid_friction_modes(const pyramid_ctx_t *c, const double *q, cons
         c->sus->held_rows[f] = mask;
     }
     pyramid_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < PYRAMID_NF; ++f) { /* a row held since is in its span: it rides */
+        sr = pyramid_stick_row[f];
+        if (c->sus->act[sr] && pyramid_dependent(c, grad, sr, -1, 1)) {
+            c->sus->ride[f] = pyramid_owner(c, f, grad);
+            c->sus->act[sr] = 0;
+        }
+    }
     for (f = 0; f < PYRAMID_NF; ++f) {
         if (c->sus->ride[f] >= 0) {
             c->sus->ride[f] = pyramid_owner(c, f, grad);
@@ -2948,6 +3180,8 @@ static void pyramid_friction_switch(const pyramid_ctx_t *c, int kind, int sr, co
 {
     double fr[PYRAMID_R_DIM], psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N];
     double curv[PYRAMID_R_DIM], sliding = 0.0, along;
+    double margin, alpha, values[PYRAMID_M_DIM], lams[PYRAMID_M_DIM], dirs[PYRAMID_M_DIM];
+    int contacts[PYRAMID_M_DIM];
     const int f = pyramid_row_stick[sr];
     int i, g;
     if (kind == 5) {
@@ -2965,6 +3199,11 @@ static void pyramid_friction_switch(const pyramid_ctx_t *c, int kind, int sr, co
         pyramid_stick(c, f, q, u);
     } else {
         pyramid_contact_forces(c, q, u, fr);
+        if (pyramid_stick_split(c, f, fr, grad, &margin, &alpha, values, contacts, lams, dirs)) {
+            pyramid_stick_split_slide(c, margin, alpha, values, contacts, lams, dirs, q, u);
+            pyramid_set_friction(c);
+            return;
+        }
         c->sus->act[sr] = 0;
         c->sus->slip[f] = -c->mu_f[f] * (-fr[sr] >= 0.0 ? 1.0 : -1.0);
         for (g = 0; g < PYRAMID_NF; ++g) { /* its dependent sticks slide with it, the same way */
@@ -4544,7 +4783,7 @@ static void pyramid_start_sustained(const pyramid_ctx_t *c, const double *q, con
     double lam0[PYRAMID_R_DIM], acc[PYRAMID_N], racc[PYRAMID_R_DIM], frees[PYRAMID_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[PYRAMID_N], ahead[PYRAMID_R_DIM], grad_t[PYRAMID_R_DIM * PYRAMID_N], curv_t[PYRAMID_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < PYRAMID_R; ++r) {
         c->sus->act[r] = pyramid_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -4572,31 +4811,36 @@ static void pyramid_start_sustained(const pyramid_ctx_t *c, const double *q, con
     }
     pyramid_accel(c, q, v, lam0, acc); /* the free motion's */
     pyramid_row_accel(c, q, v, acc, frees);
-    pyramid_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    pyramid_accel(c, q, v, lam0, acc);
-    pyramid_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < PYRAMID_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    pyramid_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < PYRAMID_R; ++r) {
-        if (pyramid_row_constraint[r] >= 0 || pyramid_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        pyramid_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        pyramid_accel(c, q, v, lam0, acc);
+        pyramid_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < PYRAMID_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < PYRAMID_N; ++i) {
-            rate += grad[r * PYRAMID_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = pyramid_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = pyramid_settles(c, rate, frees[r], 1.0)
-                && !pyramid_rough(c, &pyramid_row_contact[r], 1)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            pyramid_hold(c, grad, r);
+        pyramid_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < PYRAMID_R; ++r) {
+            if (c->sus->act[r] || pyramid_row_constraint[r] >= 0 || pyramid_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < PYRAMID_N; ++i) {
+                rate += grad[r * PYRAMID_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = pyramid_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = pyramid_settles(c, rate, frees[r], 1.0)
+                    && !pyramid_rough(c, &pyramid_row_contact[r], 1)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                pyramid_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     pyramid_friction_modes(c, q, v, -1.0);

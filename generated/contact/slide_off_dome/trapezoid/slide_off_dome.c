@@ -1536,8 +1536,8 @@ static int slide_off_dome_settles(const slide_off_dome_ctx_t *c, double rate, do
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2847,7 +2847,7 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
     double lam0[SLIDE_OFF_DOME_R_DIM], acc[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], frees[SLIDE_OFF_DOME_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[SLIDE_OFF_DOME_N], ahead[SLIDE_OFF_DOME_R_DIM], grad_t[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv_t[SLIDE_OFF_DOME_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         c->sus->act[r] = slide_off_dome_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2874,30 +2874,35 @@ static void slide_off_dome_start_sustained(const slide_off_dome_ctx_t *c, const 
     }
     slide_off_dome_accel(c, q, v, lam0, acc); /* the free motion's */
     slide_off_dome_row_accel(c, q, v, acc, frees);
-    slide_off_dome_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    slide_off_dome_accel(c, q, v, lam0, acc);
-    slide_off_dome_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    slide_off_dome_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        if (slide_off_dome_row_constraint[r] >= 0 || slide_off_dome_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        slide_off_dome_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        slide_off_dome_accel(c, q, v, lam0, acc);
+        slide_off_dome_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            rate += grad[r * SLIDE_OFF_DOME_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = slide_off_dome_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = slide_off_dome_settles(c, rate, frees[r], 1.0)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            slide_off_dome_hold(c, grad, r);
+        slide_off_dome_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+            if (c->sus->act[r] || slide_off_dome_row_constraint[r] >= 0 || slide_off_dome_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                rate += grad[r * SLIDE_OFF_DOME_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = slide_off_dome_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = slide_off_dome_settles(c, rate, frees[r], 1.0)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                slide_off_dome_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     slide_off_dome_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */

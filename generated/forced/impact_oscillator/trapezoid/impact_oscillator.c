@@ -1158,8 +1158,8 @@ static int impact_oscillator_settles(const impact_oscillator_ctx_t *c, double ra
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2473,7 +2473,7 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
     double lam0[IMPACT_OSCILLATOR_R_DIM], acc[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], frees[IMPACT_OSCILLATOR_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[IMPACT_OSCILLATOR_N], ahead[IMPACT_OSCILLATOR_R_DIM], grad_t[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv_t[IMPACT_OSCILLATOR_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         c->sus->act[r] = impact_oscillator_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -2500,30 +2500,35 @@ static void impact_oscillator_start_sustained(const impact_oscillator_ctx_t *c, 
     }
     impact_oscillator_accel(c, q, v, lam0, acc); /* the free motion's */
     impact_oscillator_row_accel(c, q, v, acc, frees);
-    impact_oscillator_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    impact_oscillator_accel(c, q, v, lam0, acc);
-    impact_oscillator_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    impact_oscillator_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        if (impact_oscillator_row_constraint[r] >= 0 || impact_oscillator_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        impact_oscillator_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        impact_oscillator_accel(c, q, v, lam0, acc);
+        impact_oscillator_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-            rate += grad[r * IMPACT_OSCILLATOR_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = impact_oscillator_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = impact_oscillator_settles(c, rate, frees[r], 1.0)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            impact_oscillator_hold(c, grad, r);
+        impact_oscillator_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+            if (c->sus->act[r] || impact_oscillator_row_constraint[r] >= 0 || impact_oscillator_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                rate += grad[r * IMPACT_OSCILLATOR_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = impact_oscillator_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = impact_oscillator_settles(c, rate, frees[r], 1.0)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                impact_oscillator_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     impact_oscillator_contact_forces(c, q, v, lam0); /* the first held step's Newton starts from them */

@@ -1357,6 +1357,7 @@ static int spun_ball_slips(const spun_ball_ctx_t *c)
 #define SPUN_BALL_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define SPUN_BALL_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define SPUN_BALL_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define SPUN_BALL_LINE_WIDEN 60 /* cone_split.LINE_WIDEN: doublings of a line split's bracket */
 #define SPUN_BALL_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
 #define SPUN_BALL_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 #define SPUN_BALL_PGS_SWEEPS 5000 /* law_pgs.PGS_SWEEPS: projected Gauss-Seidel sweeps of the impulse law */
@@ -1563,8 +1564,8 @@ static int spun_ball_settles(const spun_ball_ctx_t *c, double rate, double acc, 
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2114,6 +2115,43 @@ static int spun_ball_owner(const spun_ball_ctx_t *c, int f, const double *grad)
     return f;
 }
 
+/* cone_split.null_combination: n over every row with sum_r n_r grad_r = 0: -1 on row (a dependent stick row), on
+ * the active rows the coefficients of grad[row] in their gradients (normal equations), 0 elsewhere. 0 if singular. */
+static int spun_ball_null_combination(const spun_ball_ctx_t *c, const double *grad, int row, double *n)
+{
+    double a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM];
+    int rows[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], nr = 0, i, j, l;
+    for (i = 0; i < SPUN_BALL_R; ++i) {
+        n[i] = 0.0;
+        if (c->sus->act[i]) {
+            rows[nr++] = i;
+        }
+    }
+    for (i = 0; i < nr; ++i) {
+        for (j = 0; j < nr; ++j) {
+            for (l = 0, a[i * nr + j] = 0.0; l < SPUN_BALL_N; ++l) {
+                a[i * nr + j] += grad[rows[i] * SPUN_BALL_N + l] * grad[rows[j] * SPUN_BALL_N + l];
+            }
+        }
+        for (l = 0, b[i] = 0.0; l < SPUN_BALL_N; ++l) {
+            b[i] += grad[rows[i] * SPUN_BALL_N + l] * grad[row * SPUN_BALL_N + l];
+        }
+    }
+    if (nr > 0 && !spun_ball_lu(nr, a, piv)) {
+        return 0;
+    }
+    if (nr > 0) {
+        spun_ball_lu_solve(nr, a, piv, b);
+    }
+    for (i = 0; i < nr; ++i) {
+        n[rows[i]] = b[i];
+    }
+    n[row] = -1.0;
+    return 1;
+}
+
+
+
 /* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
  * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
  * its owner's stick row). Then any other one-tangent contact still slipping at a sliding velocity of 0 (to
@@ -2213,7 +2251,8 @@ static int spun_ball_painleve(const spun_ball_ctx_t *c, const double *q1, const 
 static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau);
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; a held
+ * stick row that a row held since has made dependent rides (owner); one
  * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, const double *u, double tau)
@@ -2237,6 +2276,13 @@ static void spun_ball_friction_modes(const spun_ball_ctx_t *c, const double *q, 
         c->sus->held_rows[f] = mask;
     }
     spun_ball_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < SPUN_BALL_NF; ++f) { /* a row held since is in its span: it rides */
+        sr = spun_ball_stick_row[f];
+        if (c->sus->act[sr] && spun_ball_dependent(c, grad, sr, -1, 1)) {
+            c->sus->ride[f] = spun_ball_owner(c, f, grad);
+            c->sus->act[sr] = 0;
+        }
+    }
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         if (c->sus->ride[f] >= 0) {
             c->sus->ride[f] = spun_ball_owner(c, f, grad);
@@ -2584,41 +2630,6 @@ static void spun_ball_cone_modes(const spun_ball_ctx_t *c, const double *q, cons
     if (tau >= 0.0 && any) {
         spun_ball_cone_aim(c, aimed, q, u, tau);
     }
-}
-
-/* cone_split.null_combination: n over every row with sum_r n_r grad_r = 0: -1 on row (a dependent stick row), on
- * the active rows the coefficients of grad[row] in their gradients (normal equations), 0 elsewhere. 0 if singular. */
-static int spun_ball_null_combination(const spun_ball_ctx_t *c, const double *grad, int row, double *n)
-{
-    double a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM];
-    int rows[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM], nr = 0, i, j, l;
-    for (i = 0; i < SPUN_BALL_R; ++i) {
-        n[i] = 0.0;
-        if (c->sus->act[i]) {
-            rows[nr++] = i;
-        }
-    }
-    for (i = 0; i < nr; ++i) {
-        for (j = 0; j < nr; ++j) {
-            for (l = 0, a[i * nr + j] = 0.0; l < SPUN_BALL_N; ++l) {
-                a[i * nr + j] += grad[rows[i] * SPUN_BALL_N + l] * grad[rows[j] * SPUN_BALL_N + l];
-            }
-        }
-        for (l = 0, b[i] = 0.0; l < SPUN_BALL_N; ++l) {
-            b[i] += grad[rows[i] * SPUN_BALL_N + l] * grad[row * SPUN_BALL_N + l];
-        }
-    }
-    if (nr > 0 && !spun_ball_lu(nr, a, piv)) {
-        return 0;
-    }
-    if (nr > 0) {
-        spun_ball_lu_solve(nr, a, piv, b);
-    }
-    for (i = 0; i < nr; ++i) {
-        n[rows[i]] = b[i];
-    }
-    n[row] = -1.0;
-    return 1;
 }
 
 /* cone_split._term: cap - |F + alpha d| and its slope in alpha (0 where F + alpha d = 0). */
@@ -5407,7 +5418,7 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
     double lam0[SPUN_BALL_R_DIM], acc[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], frees[SPUN_BALL_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[SPUN_BALL_N], ahead[SPUN_BALL_R_DIM], grad_t[SPUN_BALL_R_DIM * SPUN_BALL_N], curv_t[SPUN_BALL_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         c->sus->act[r] = spun_ball_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -5435,31 +5446,36 @@ static void spun_ball_start_sustained(const spun_ball_ctx_t *c, const double *q,
     }
     spun_ball_accel(c, q, v, lam0, acc); /* the free motion's */
     spun_ball_row_accel(c, q, v, acc, frees);
-    spun_ball_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    spun_ball_accel(c, q, v, lam0, acc);
-    spun_ball_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < SPUN_BALL_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    spun_ball_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        if (spun_ball_row_constraint[r] >= 0 || spun_ball_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        spun_ball_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        spun_ball_accel(c, q, v, lam0, acc);
+        spun_ball_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < SPUN_BALL_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            rate += grad[r * SPUN_BALL_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = spun_ball_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = spun_ball_settles(c, rate, frees[r], 1.0)
-                && !spun_ball_rough(c, &spun_ball_row_contact[r], 1)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            spun_ball_hold(c, grad, r);
+        spun_ball_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < SPUN_BALL_R; ++r) {
+            if (c->sus->act[r] || spun_ball_row_constraint[r] >= 0 || spun_ball_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                rate += grad[r * SPUN_BALL_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = spun_ball_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = spun_ball_settles(c, rate, frees[r], 1.0)
+                    && !spun_ball_rough(c, &spun_ball_row_contact[r], 1)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                spun_ball_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     spun_ball_friction_modes(c, q, v, -1.0);

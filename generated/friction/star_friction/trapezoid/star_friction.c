@@ -1467,6 +1467,7 @@ static int star_friction_slips(const star_friction_ctx_t *c)
 #define STAR_FRICTION_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
 #define STAR_FRICTION_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define STAR_FRICTION_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
+#define STAR_FRICTION_LINE_WIDEN 60 /* cone_split.LINE_WIDEN: doublings of a line split's bracket */
 #define STAR_FRICTION_FIT_SWEEPS 400 /* law_split.FIT_SWEEPS: alternating projections of a split into the cones */
 #define STAR_FRICTION_FIT_SHRINK 1e-6 /* law_split.FIT_SHRINK: the cones narrowed by this in the projections */
 #define STAR_FRICTION_PGS_SWEEPS 5000 /* law_pgs.PGS_SWEEPS: projected Gauss-Seidel sweeps of the impulse law */
@@ -1680,8 +1681,8 @@ static int star_friction_settles(const star_friction_ctx_t *c, double rate, doub
 }
 
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
- * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in;
- * sus->lam: the forces holding them (the first held step's Newton start). */
+ * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
+ * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
 static void star_friction_start_sustained(const star_friction_ctx_t *c, const double *q, const double *v);
 
 /* SustainedSteps._accel: qddot from M qddot = rhs + sum lam_r grad psi_r (lam: force per unit time). */
@@ -2210,6 +2211,7 @@ static int star_friction_owner(const star_friction_ctx_t *c, int f, const double
     return f;
 }
 
+
 /* SustainedSteps._stick: frictional contact f sticks where its tangent is now (on the branch its mode was set on);
  * with no row of its own if its stick row depends on the active rows (owner: its tangential force is carried by
  * its owner's stick row). Then any other one-tangent contact still slipping at a sliding velocity of 0 (to
@@ -2307,7 +2309,8 @@ static int star_friction_painleve(const star_friction_ctx_t *c, const double *q1
 }
 
 /* SustainedSteps._friction_modes: stick or slip for each frictional contact at (q, u): off when it is not held;
- * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; one
+ * on entering sustained contact it sticks if its sliding velocity is 0 (to round-off), else slips against it; a held
+ * stick row that a row held since has made dependent rides (owner); one
  * slipping at a sliding of 0 whose stick row depends on the active rows stops (stick: it rides, its sliding theirs).
  * Cones (two tangents) by cone_modes, aiming their slip for a segment of tau (tau < 0: not). */
 static void star_friction_friction_modes(const star_friction_ctx_t *c, const double *q, const double *u, double tau)
@@ -2331,6 +2334,13 @@ static void star_friction_friction_modes(const star_friction_ctx_t *c, const dou
         c->sus->held_rows[f] = mask;
     }
     star_friction_rows(q, u, c->par, psi, grad, curv);
+    for (f = 0; f < STAR_FRICTION_NF; ++f) { /* a row held since is in its span: it rides */
+        sr = star_friction_stick_row[f];
+        if (c->sus->act[sr] && star_friction_dependent(c, grad, sr, -1, 1)) {
+            c->sus->ride[f] = star_friction_owner(c, f, grad);
+            c->sus->act[sr] = 0;
+        }
+    }
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
         if (c->sus->ride[f] >= 0) {
             c->sus->ride[f] = star_friction_owner(c, f, grad);
@@ -3972,7 +3982,7 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
     double lam0[STAR_FRICTION_R_DIM], acc[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], frees[STAR_FRICTION_R_DIM], rate;
     const double still = c->tol->admissible / c->h;
     double q_t[STAR_FRICTION_N], ahead[STAR_FRICTION_R_DIM], grad_t[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv_t[STAR_FRICTION_R_DIM];
-    int i, r, held;
+    int i, r, held, added;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         c->sus->act[r] = star_friction_row_constraint[r] >= 0;
         c->sus->lam[r] = 0.0;
@@ -4000,31 +4010,36 @@ static void star_friction_start_sustained(const star_friction_ctx_t *c, const do
     }
     star_friction_accel(c, q, v, lam0, acc); /* the free motion's */
     star_friction_row_accel(c, q, v, acc, frees);
-    star_friction_contact_forces(c, q, v, lam0); /* under the bilateral rows' forces */
-    star_friction_accel(c, q, v, lam0, acc);
-    star_friction_row_accel(c, q, v, acc, racc);
-    for (i = 0; i < STAR_FRICTION_N; ++i) { /* the free path's end, to second order */
-        q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
-    }
-    star_friction_rows(q_t, v, c->par, ahead, grad_t, curv_t);
-    for (r = 0; r < STAR_FRICTION_R; ++r) {
-        if (star_friction_row_constraint[r] >= 0 || star_friction_row_stick[r] >= 0 || fabs(psi[r]) > c->tol->admissible) {
-            continue;
+    for (added = 1; added;) { /* again under the forces of the rows held so far, till none is added */
+        star_friction_contact_forces(c, q, v, lam0); /* first: under the bilateral rows' forces */
+        star_friction_accel(c, q, v, lam0, acc);
+        star_friction_row_accel(c, q, v, acc, racc);
+        for (i = 0; i < STAR_FRICTION_N; ++i) { /* the free path's end, to second order */
+            q_t[i] = q[i] + c->h * v[i] + 0.5 * c->h * c->h * acc[i];
         }
-        rate = 0.0;
-        for (i = 0; i < STAR_FRICTION_N; ++i) {
-            rate += grad[r * STAR_FRICTION_N + i] * v[i];
-        }
-        if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
-            held = star_friction_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
-        } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
-            held = star_friction_settles(c, rate, frees[r], 1.0)
-                && !star_friction_rough(c, &star_friction_row_contact[r], 1)
-                && (rate < 0.0 || ahead[r] < -c->tol->phi);
-        }
-        if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
-                     * frictionless one moving out is held only where the free path comes back within the step */
-            star_friction_hold(c, grad, r);
+        star_friction_rows(q_t, v, c->par, ahead, grad_t, curv_t);
+        added = 0;
+        for (r = 0; r < STAR_FRICTION_R; ++r) {
+            if (c->sus->act[r] || star_friction_row_constraint[r] >= 0 || star_friction_row_stick[r] >= 0
+                || fabs(psi[r]) > c->tol->admissible) {
+                continue;
+            }
+            rate = 0.0;
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                rate += grad[r * STAR_FRICTION_N + i] * v[i];
+            }
+            if (fabs(rate) <= still) { /* at rest: pressed in, or curving in ahead of the free path */
+                held = star_friction_settles(c, rate, racc[r], 1.0) || ahead[r] < -c->tol->phi;
+            } else { /* moving: pressed in by the free motion (a bilateral row's reaction alone makes a corner) */
+                held = star_friction_settles(c, rate, frees[r], 1.0)
+                    && !star_friction_rough(c, &star_friction_row_contact[r], 1)
+                    && (rate < 0.0 || ahead[r] < -c->tol->phi);
+            }
+            if (held) { /* a rough one moving in takes its (plastic) impact first, one moving out flies; a
+                         * frictionless one moving out is held only where the free path comes back within the step */
+                star_friction_hold(c, grad, r);
+                added = added || c->sus->act[r];
+            }
         }
     }
     star_friction_friction_modes(c, q, v, -1.0);
