@@ -83,7 +83,8 @@ def drops(sim: vcigen.Simulator, n: int, seed: int, rough: bool) -> str:
     ]
     if rough:
         listed = ", ".join(map(str, dropped[:20])) + (", ..." if len(dropped) > 20 else "")
-        lines[0] += f"; runs with a landing's friction left out: {len(dropped)} (drops {listed})"
+        lines[0] += f"; runs with a landing's friction left out: {len(dropped)}"
+        lines[0] += f" (drops {listed})" if dropped else ""
     lines[0] += "; runs with " + ", ".join(f"{key} > 0: {cut[key]}" for key in CUTS)
     lines += [f"  x{count}: {why}" for why, count in errors.most_common()]
     return "\n".join(lines)

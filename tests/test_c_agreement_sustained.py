@@ -15,6 +15,7 @@ from functools import cache
 import numpy as np
 import pytest
 import sympy as sp
+import test_ramp_to_floor
 import test_rough_ladder
 import test_sustained_closed_forms
 
@@ -105,12 +106,14 @@ SCENES = {  # name: (model, q0, v0, h, t_end)
     "rough_ladder": (test_rough_ladder.model, [np.sin(0.6) / 2, np.cos(0.6) / 2, 0.6], [0.0] * 3, 0.01, 1.2),
     # a rough V-groove: a stick row held on one wall made dependent by the other's landing at the vertex
     "groove": (groove_drops.model, [0.3, 1.0], [0.0, 0.0], 0.01, 2.0),
+    # off a rough ramp onto a rough floor: the landing's law solved again without the ramp's leaving rows
+    "ramp": (test_ramp_to_floor.model, [-np.cos(0.5), np.sin(0.5)], [0.0, 0.0], 0.01, 1.5),
 }
 # The star is chaotic: round-off differences between CasADi's SX and the printed C grow at every
 # impact (tests/test_c_agreement.py); over its impacts to rest they stay far below 1e-6 in the
 # state, and the event sequence (kinds, steps, the face it rests on) is the same.
 TOL = {"ball": 1e-9, "dome": 1e-9, "star": 1e-6, "pendulum": 1e-9, "floor_wall": 1e-9}
-TOL |= {"ladder": 1e-9, "rough_ladder": 1e-9, "groove": 1e-9}
+TOL |= {"ladder": 1e-9, "rough_ladder": 1e-9, "groove": 1e-9, "ramp": 1e-9}
 
 
 @cache
@@ -164,6 +167,8 @@ def test_each_scene_exercises_what_it_is_for() -> None:
     assert rough.active[0].all() and rough.q[-1, 2] > 0.7 and [j for _, j in rough.liftoffs][:1] == ["wall"]
     groove = run("groove", "c")
     assert groove.active[-1].all() and groove.stats["impacts_plastic"] >= 1
+    ramp = run("ramp", "c")
+    assert [j for _, j in ramp.liftoffs] == ["ramp"] and ramp.stats["landing_friction_dropped"] == 0
 
 
 @pytest.mark.parametrize("name", ["star", "dome", "pendulum"])

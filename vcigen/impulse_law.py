@@ -70,9 +70,11 @@ class ImpulseLaw:
         pooled into its owner's cone, which no longer holds its tangent: the law is solved anew with the
         rider's stick row its own (its cone its own contact's), every set of tight rows that is dependent
         (stick rows too) left out, and taken if it has a solution (counted, ``res.stats["riders_cut"]``;
-        the tangent stops there, ``why``); else the first solution stands."""
+        the tangent stops there, ``why``); else the first solution stands. First, where the law left a
+        landing contact's friction out and active rows leave in it, :meth:`_law_leaving`."""
         before = self.least_splits, self.friction_dropped
         law = self._law_once(step, t_k, q, p, guess, hit, targets)
+        law, leave = self._law_leaving(step, t_k, q, p, guess, hit, targets, law, before)
         cut = self._cut_riders(q, law, hit)
         if not cut:
             return law
@@ -83,13 +85,44 @@ class ImpulseLaw:
             self._ride[g] = -1
             self.act[self._stick_rows[g]] = True
         try:
-            again = self._law_once(step, t_k, q, p, guess, hit, targets, every=True)
+            again = self._law_once(step, t_k, q, p, guess, hit, targets, every=True, leave=leave)
         except SolverError:
             self._set_law_state(state)
             self.least_splits, self.friction_dropped = counts
             return law
         self.riders_cut += 1
         return (*again[:8], again[8] or "friction at an impact")
+
+    def _law_leaving(self, step, t_k, q, p, guess, hit, targets, law, before) -> tuple:
+        """The law ``law`` (:meth:`_law_once`), or the law solved anew where it left a landing contact's
+        friction out and active rows leave in it (no impulse): a block sliding down a rough ramp onto a rough
+        floor lands on the floor at the foot of the ramp, whose row is then held; the floor's stick row is in
+        the span of the two normal rows, so its friction was left out, though the ramp's row takes no impulse
+        and leaves. The landing stick rows are tested anew against the rows but those leaving and the stick
+        rows of their contacts (:meth:`_law_lands`' ``leave``: the ramp's stick row carried the floor's
+        friction along the ramp), every set of tight rows that is dependent left out, and the new
+        solution taken where it exists, the leaving rows still leave in it, and it leaves less friction out
+        (the tangent stops there, ``why``); else the first stands. ``before``: the counts before the law.
+        Returns ``(law, leave)``, ``leave`` the rows left out of the dependence tests (for a second try)."""
+        k = self.k
+        leaving = [r for r in law[4] if self.act[r] and not (k.row_stick and k.row_stick[r] >= 0)]
+        if self.friction_dropped == before[1] or not leaving:
+            return law, ()
+        stay = {k.row_contact[r] for r in range(k.r) if (self.act[r] or r in hit) and r not in law[4]}
+        gone = {k.row_contact[r] for r in leaving} - stay  # the contacts none of whose rows stays
+        leave = leaving + [self._stick_rows[f] for f, j in enumerate(k.frictional) if j in gone]
+        state = self._law_state()
+        counts = self.least_splits, self.friction_dropped
+        self.least_splits, self.friction_dropped = before  # the law taken counts
+        try:
+            again = self._law_once(step, t_k, q, p, guess, hit, targets, every=True, leave=leave)
+        except SolverError:
+            again = None
+        if again is None or not set(leaving) <= set(again[4]) or self.friction_dropped >= counts[1]:
+            self._set_law_state(state)
+            self.least_splits, self.friction_dropped = counts
+            return law, ()
+        return (*again[:8], again[8] or "friction at an impact"), leave
 
     def _law_state(self) -> tuple:
         """What a law's second try (:meth:`_impulse_law`) changes: the rows held, the dependent sticks' owners
@@ -121,7 +154,7 @@ class ImpulseLaw:
                 cut.append(g)
         return cut
 
-    def _law_once(self, step, t_k, q, p, guess, hit, targets, every: bool = False):
+    def _law_once(self, step, t_k, q, p, guess, hit, targets, every: bool = False, leave=()):
         """Newton's law on the active rows and the rows ``hit`` (targets: outgoing ``g_r.qdot``), with
         Coulomb's cone on the held stick rows (MATH.md *Friction*).
 
@@ -157,7 +190,8 @@ class ImpulseLaw:
         ``lands`` the landing ones (their modes are set when they are held, ``_friction_modes``), ``why``
         why the tangent does not carry the law (``"friction at an impact"``: a landing cone's second split,
         its least split beside a slide, a slide along a line; else ``""``; :meth:`_law_tangent`). ``every``:
-        a set of tight rows may not be dependent at all, stick rows too (:meth:`_impulse_law`'s second try). A
+        a set of tight rows may not be dependent at all, stick rows too (:meth:`_impulse_law`'s second try);
+        ``leave``: rows the landing stick rows are not tested against (:meth:`_law_leaving`). A
         law of more than ``MAX_LAW_ROWS`` rows is not enumerated: :meth:`_law_pgs` alone (its frictional
         contacts all isotropic cones), else a ``SolverError`` ("impulse law on N contacts at once").
         """
@@ -169,7 +203,7 @@ class ImpulseLaw:
         slips = self._law_slips(grad, rows)
         for f, _ in slips:  # a cone's two stick rows, its first tangent's first
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
-        lands, loose, grad = self._law_lands(q, vel, rows, grad)
+        lands, loose, grad = self._law_lands(q, vel, rows, grad, leave)
         for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own (or loose)
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
         crowded = len(rows) > MAX_LAW_ROWS  # too many to enumerate: the projected Gauss-Seidel alone, below
@@ -361,7 +395,7 @@ class ImpulseLaw:
             self.act[sr] = False
         return False
 
-    def _law_lands(self, q, vel, rows, grad) -> tuple[dict[int, int], set[int], np.ndarray]:
+    def _law_lands(self, q, vel, rows, grad, leave=()) -> tuple[dict[int, int], set[int], np.ndarray]:
         """The frictional contacts landing in the impulse law on ``rows`` (a row of their contact among them,
         none held) whose friction joins it (MATH.md *Friction*: Coulomb's impulse at an impact): ``{f:
         owner}``, ``owner = f`` for one whose stick row (an isotropic cone: both) is independent of ``rows``
@@ -396,6 +430,7 @@ class ImpulseLaw:
         act = self.act.copy()
         try:
             self.act[rows] = True
+            self.act[list(leave)] = False  # rows that leave in the law (_law_leaving): not tested against
             owners = [g for g, sg in enumerate(self._stick_rows) if self.act[sg] and self._partner[g] < 0]
             room = MAX_LAW_ROWS - len(rows)
             for f in landing:

@@ -2273,10 +2273,11 @@ static int star_spanned(const double *grad, const int *rows, const int *tight, i
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int star_law_once(const star_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[STAR_N], mass[STAR_N * STAR_N], minv_g[STAR_R_DIM * STAR_N];
     double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
@@ -2308,6 +2309,7 @@ static int star_law_once(const star_ctx_t *c, const double *q, const double *p, 
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
+    (void)leave;
     crowded = nr > STAR_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = star_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = star_lu(STAR_N, mass, piv);
@@ -2415,7 +2417,7 @@ static int star_impulse_law(const star_ctx_t *c, const double *q, const double *
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     return star_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+        slip_own, slip_ride, land, 0, NULL);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -1988,10 +1988,11 @@ static int ball_to_rest_spanned(const double *grad, const int *rows, const int *
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int ball_to_rest_law_once(const ball_to_rest_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], minv_g[BALL_TO_REST_R_DIM * BALL_TO_REST_N];
     double psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
@@ -2023,6 +2024,7 @@ static int ball_to_rest_law_once(const ball_to_rest_ctx_t *c, const double *q, c
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
+    (void)leave;
     crowded = nr > BALL_TO_REST_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = ball_to_rest_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = ball_to_rest_lu(BALL_TO_REST_N, mass, piv);
@@ -2130,7 +2132,7 @@ static int ball_to_rest_impulse_law(const ball_to_rest_ctx_t *c, const double *q
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     return ball_to_rest_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+        slip_own, slip_ride, land, 0, NULL);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -2491,10 +2491,11 @@ static int four_bar_spanned(const double *grad, const int *rows, const int *tigh
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int four_bar_law_once(const four_bar_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[FOUR_BAR_N], mass[FOUR_BAR_N * FOUR_BAR_N], minv_g[FOUR_BAR_R_DIM * FOUR_BAR_N];
     double psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
@@ -2526,6 +2527,7 @@ static int four_bar_law_once(const four_bar_ctx_t *c, const double *q, const dou
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
+    (void)leave;
     crowded = nr > FOUR_BAR_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = four_bar_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = four_bar_lu(FOUR_BAR_N, mass, piv);
@@ -2633,7 +2635,7 @@ static int four_bar_impulse_law(const four_bar_ctx_t *c, const double *q, const 
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     return four_bar_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+        slip_own, slip_ride, land, 0, NULL);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -2194,10 +2194,11 @@ static int slide_off_dome_spanned(const double *grad, const int *rows, const int
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int slide_off_dome_law_once(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
@@ -2229,6 +2230,7 @@ static int slide_off_dome_law_once(const slide_off_dome_ctx_t *c, const double *
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
+    (void)leave;
     crowded = nr > SLIDE_OFF_DOME_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = slide_off_dome_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv);
@@ -2336,7 +2338,7 @@ static int slide_off_dome_impulse_law(const slide_off_dome_ctx_t *c, const doubl
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     return slide_off_dome_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+        slip_own, slip_ride, land, 0, NULL);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -1818,10 +1818,11 @@ static int impact_oscillator_spanned(const double *grad, const int *rows, const 
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
@@ -1853,6 +1854,7 @@ static int impact_oscillator_law_once(const impact_oscillator_ctx_t *c, const do
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
+    (void)leave;
     crowded = nr > IMPACT_OSCILLATOR_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = impact_oscillator_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv);
@@ -1960,7 +1962,7 @@ static int impact_oscillator_impulse_law(const impact_oscillator_ctx_t *c, const
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     return impact_oscillator_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+        slip_own, slip_ride, land, 0, NULL);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */

@@ -2500,9 +2500,10 @@ static void rough_disk_law_slips(const rough_disk_ctx_t *c, const double *grad, 
  * contact among them, none held) whose friction joins it: land[f] = f for one whose stick row is independent of the rows and of the stick rows of those before it (appended to rows), else
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
  * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
- * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). */
+ * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). leave (or NULL): rows the
+ * landing stick rows are not tested against (law_leaving). */
 static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land, int *loose)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose, const int *leave)
 {
     double psi[ROUGH_DISK_R_DIM], curv[ROUGH_DISK_R_DIM];
     int act[ROUGH_DISK_R_DIM], hit[ROUGH_DISK_M_DIM] = {0}, f, g, k, r, sr, any = 0;
@@ -2535,6 +2536,9 @@ static int rough_disk_law_lands(const rough_disk_ctx_t *c, const double *q, cons
     rough_disk_rows(q, vel, c->par, psi, grad, curv);
     for (k = 0; k < *nr; ++k) {
         c->sus->act[rows[k]] = 1;
+    }
+    for (r = 0; leave && r < ROUGH_DISK_R; ++r) { /* rows that leave in the law (law_leaving): not tested against */
+        c->sus->act[r] = c->sus->act[r] && !leave[r];
     }
     for (f = 0; f < ROUGH_DISK_NF; ++f) {
         if (land[f] != -2) {
@@ -2611,10 +2615,11 @@ static int rough_disk_law_gains(const int *rows, int nr, const double *tgt, cons
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N], minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
@@ -2650,7 +2655,7 @@ static int rough_disk_law_once(const rough_disk_ctx_t *c, const double *q, const
         }
     }
     rough_disk_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    rough_disk_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose);
+    rough_disk_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, leave);
     crowded = nr > ROUGH_DISK_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = rough_disk_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = rough_disk_lu(ROUGH_DISK_N, mass, piv);
@@ -2861,22 +2866,91 @@ static int rough_disk_cut_riders(const rough_disk_ctx_t *c, const double *q, con
     return n_cut;
 }
 
+/* ImpulseLaw._law_leaving: where the law (law_once's outputs) left a landing contact's friction out and active rows
+ * leave in it (no impulse: a block sliding down a rough ramp lands on the rough floor at its foot; the floor's stick
+ * row is in the span of the two normal rows, though the ramp's row takes none and leaves), solved anew with the
+ * landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave), every
+ * set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in it and
+ * it leaves less friction out (the tangent stops there, law_why); else the first is solved again. counts: before the
+ * law. 0 if solved, with leave[] the rows left out of the tests (all 0 where the first stands). */
+static int rough_disk_law_leaving(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
+    const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, const long *counts, int *leave)
+{
+    int leaving[ROUGH_DISK_R_DIM], stay[ROUGH_DISK_M_DIM] = {0}, gone[ROUGH_DISK_M_DIM] = {0}, act[ROUGH_DISK_R_DIM];
+    int ride[ROUGH_DISK_NF_DIM], r, f, k, on, any = 0, ok;
+    const long first[2] = {c->sus->least_splits, c->sus->friction_dropped};
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        leave[r] = 0;
+        leaving[r] = c->sus->act[r] && dropped[r] && rough_disk_row_stick[r] < 0;
+        any = any || leaving[r];
+        for (k = 0, on = c->sus->act[r]; k < n_hit && !on; ++k) {
+            on = hit[k] == r;
+        }
+        if (on && !dropped[r] && rough_disk_row_contact[r] >= 0) {
+            stay[rough_disk_row_contact[r]] = 1;
+        }
+    }
+    if (c->sus->friction_dropped == counts[1] || !any) {
+        return 0;
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        if (leaving[r] && rough_disk_row_contact[r] >= 0 && !stay[rough_disk_row_contact[r]]) {
+            gone[rough_disk_row_contact[r]] = 1; /* a contact none of whose rows stays */
+        }
+        leave[r] = leaving[r];
+    }
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        if (gone[rough_disk_fric_contact[f]]) {
+            leave[rough_disk_stick_row[f]] = 1;
+        }
+    }
+    rough_disk_law_save(c, act, ride);
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    ok = !rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 1, leave);
+    for (r = 0; ok && r < ROUGH_DISK_R; ++r) {
+        ok = !leaving[r] || dropped[r];
+    }
+    if (ok && c->sus->friction_dropped < first[1]) {
+        c->sus->law_why = 1;
+        return 0;
+    }
+    rough_disk_law_state(c, act, ride); /* the first stands */
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        leave[r] = 0;
+    }
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    return rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land, 0, NULL);
+}
+
 /* ImpulseLaw._impulse_law: law_once, and again where its solution cut a dependent stick from its owner (cut_riders:
  * two disks side by side on a rough floor, the first riding on the second's stick row through the row between
  * them, which the impact leaves with no impulse): solved anew with the rider's stick row its own, every set of
  * tight rows that is dependent (stick rows too) left out, and taken if it has a solution (counted, riders_cut; the
- * tangent stops there, law_why); else the first solution stands. */
+ * tangent stops there, law_why); else the first solution stands. First, where the law left a landing contact's
+ * friction out and active rows leave in it, law_leaving. */
 static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
-    int cut[ROUGH_DISK_NF_DIM], act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM], g;
+    int cut[ROUGH_DISK_NF_DIM], act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM], leave[ROUGH_DISK_R_DIM], g, r, any;
     const long counts[2] = {c->sus->least_splits, c->sus->friction_dropped}; /* the law taken counts */
     if (rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-            slip_own, slip_ride, land, 0)) {
+            slip_own, slip_ride, land, 0, NULL)) {
         return 1;
     }
     c->sus->law_why = 0;
+    if (rough_disk_law_leaving(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+            slip_own, slip_ride, land, counts, leave)) {
+        return 1;
+    }
+    for (r = 0, any = 0; r < ROUGH_DISK_R; ++r) {
+        any = any || leave[r];
+    }
     if (!rough_disk_cut_riders(c, q, vel_m, hit, n_hit, dropped, slipped, cut)) {
         return 0;
     }
@@ -2890,7 +2964,7 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
         }
     }
     if (!rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-            slip_own, slip_ride, land, 1)) {
+            slip_own, slip_ride, land, 1, any ? leave : NULL)) {
         ++c->sus->riders_cut;
         c->sus->law_why = 1;
         return 0;
@@ -2898,8 +2972,12 @@ static int rough_disk_impulse_law(const rough_disk_ctx_t *c, const double *q, co
     rough_disk_law_state(c, act, ride); /* no solution: the first stands */
     c->sus->least_splits = counts[0];
     c->sus->friction_dropped = counts[1];
-    return rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+    if (rough_disk_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
+            slip_own, slip_ride, land, 0, NULL)) {
+        return 1;
+    }
+    return rough_disk_law_leaving(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped,
+        slipped, slip_own, slip_ride, land, counts, leave);
 }
 
 /* The sliding velocity grad t_f . u of frictional contact f (grad: all rows at q). */

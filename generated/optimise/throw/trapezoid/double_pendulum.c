@@ -2405,10 +2405,11 @@ static int double_pendulum_spanned(const double *grad, const int *rows, const in
  * the sets of tight rows from the largest down; the first solution is taken. Out: p+, Lam (per row), the
  * velocities before and after, the rows left with no impulse (dropped), the stick rows that slipped (slipped), the
  * slipping contacts that joined (slip_own, slip_ride) and the landing ones (land: their owners; slip_ride too).
- * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try). */
+ * every: a set of tight rows may not be dependent at all, stick rows too (impulse_law's second try); leave (or
+ * NULL): rows the landing stick rows are not tested against (law_leaving). */
 static int double_pendulum_law_once(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
-    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every)
+    int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, int every, const int *leave)
 {
     double mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
@@ -2440,6 +2441,7 @@ static int double_pendulum_law_once(const double_pendulum_ctx_t *c, const double
     slip_own[0] = 0;
     slip_ride[0] = -1;
     land[0] = -1;
+    (void)leave;
     crowded = nr > DOUBLE_PENDULUM_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = double_pendulum_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv);
@@ -2547,7 +2549,7 @@ static int double_pendulum_impulse_law(const double_pendulum_ctx_t *c, const dou
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land)
 {
     return double_pendulum_law_once(c, q, p, guess, hit, n_hit, tgt, p_plus, lam_full, vel_m, vel_p, dropped, slipped,
-        slip_own, slip_ride, land, 0);
+        slip_own, slip_ride, land, 0, NULL);
 }
 
 /* Half the kinetic energy lost between the velocities vel_m and vel_p at q (impulse law). */
