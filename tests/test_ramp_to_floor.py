@@ -50,7 +50,7 @@ def test_a_block_sliding_off_a_rough_ramp_lands_with_coulombs_impulse_and_stops_
     backend, a, mu
 ):
     """The landing at the foot, the ramp's release there, and the stop: exact to 1e-12 (a = 1, mu = 1: it
-    sticks at the landing, mu >= cot a, and stays at the foot)."""
+    sticks at the landing, mu >= cot a, and stays at the foot, touching the ramp with no force)."""
     accel = G * (math.sin(a) - mu * math.cos(a))
     v_b = math.sqrt(2 * accel)
     t_b = v_b / accel
@@ -64,7 +64,12 @@ def test_a_block_sliding_off_a_rough_ramp_lands_with_coulombs_impulse_and_stops_
     )
     assert [(i.contact, i.kind) for i in res.impacts] == [("floor", "plastic")]
     assert res.impacts[0].t == pytest.approx(t_b, abs=1e-12)
-    assert [j for _, j in res.liftoffs] == ["ramp"] and res.liftoffs[0][0] == pytest.approx(t_b, abs=1e-12)
     assert res.stats["landing_friction_dropped"] == 0
     assert res.q[-1] == pytest.approx([v_t**2 / (2 * mu * G), 0.0], abs=1e-12)
-    assert np.abs(res.p[-1]).max() < 1e-12 and res.active[-1].tolist() == [False, True]
+    assert np.abs(res.p[-1]).max() < 1e-12
+    if v_t > 0.0:  # the ramp's row leaves at the landing, moving away at v_t sin a
+        assert [j for _, j in res.liftoffs] == ["ramp"] and res.active[-1].tolist() == [False, True]
+        assert res.liftoffs[0][0] == pytest.approx(t_b, abs=1e-12)
+    else:  # stopped in the corner: the ramp's row, at rest in the span of the floor's rows, stays held with 0
+        assert not res.liftoffs and res.active[-1].all()
+        assert res.contact_force[-1] == pytest.approx([0.0, G], abs=1e-12)

@@ -68,3 +68,20 @@ def test_random_rough_v_groove_drops_rest_by_the_closed_forms_alike_on_both_back
             assert exact, (where, params, res.contact_force[-1])
             ends.append(where)
     assert ends.count("vertex") >= 2 and ends.count("wall") >= 2  # the case that raised is met, and the other
+
+
+def test_a_wall_left_at_rest_in_the_span_of_the_landings_rows_stays_held_alike_on_both_backends():
+    """Drop 17 of ``python -m bench.groove_drops --seed 1``: at the vertex the other wall's row leaves the
+    impulse law, solved again with the landing's friction (``_law_leaving``). At rest there and in the span of
+    the rows held after with the landing's stick row, its acceleration after was 0 to round-off: -1.8e-15 on
+    CasADi (it stayed held), +8.8e-16 in C (released, then landed again at once: two more impacts booked). It
+    now stays on both (``HeldImpacts._chain_impact``, C ``chain_impact``): the same books, at rest at the
+    vertex with ``m g / 2`` on each wall."""
+    rng = np.random.default_rng(1)
+    params, q0, v0 = [draw(rng) for _ in range(18)][17]
+    a, b = (run(be, q0, v0, params) for be in ("c", "casadi"))
+    books = [[(i.contact, i.kind, i.step) for i in res.impacts] for res in (a, b)]
+    assert books[0] == books[1] and len(books[0]) == 7
+    assert a.liftoffs == [] and b.liftoffs == [] and np.abs(a.q - b.q).max() < 1e-12
+    for res in (a, b):
+        assert res.active[-1].all() and res.contact_force[-1] == pytest.approx([G / 2, G / 2], rel=1e-9)

@@ -4340,6 +4340,13 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
             for (i = 0; i < PYRAMID_N; ++i) {
                 rate += grad[r * PYRAMID_N + i] * vel_p[i];
             }
+            /* at rest and in their span with the landing's stick rows: its acceleration after is theirs, 0 to
+             * round-off, whose sign decided its settle test; it stays (not after a cut: there it leaves, below) */
+            if (c->sus->riders_cut <= counts[2]
+                && fabs(rate) <= PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel_p))
+                && pyramid_rides_after(c, grad, r, leaving, on, 1)) {
+                continue;
+            }
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && pyramid_rides_after(c, grad, r, leaving, plastic, 1))
                 || !pyramid_settles(c, rate, racc[r], 1.0)) {

@@ -3252,6 +3252,13 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             for (i = 0; i < BLOCK_N; ++i) {
                 rate += grad[r * BLOCK_N + i] * vel_p[i];
             }
+            /* at rest and in their span with the landing's stick rows: its acceleration after is theirs, 0 to
+             * round-off, whose sign decided its settle test; it stays (not after a cut: there it leaves, below) */
+            if (c->sus->riders_cut <= counts[2]
+                && fabs(rate) <= BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel_p))
+                && block_rides_after(c, grad, r, leaving, on, 1)) {
+                continue;
+            }
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && block_rides_after(c, grad, r, leaving, plastic, 1))
                 || !block_settles(c, rate, racc[r], 1.0)) {

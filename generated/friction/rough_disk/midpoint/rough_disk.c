@@ -3331,6 +3331,13 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 rate += grad[r * ROUGH_DISK_N + i] * vel_p[i];
             }
+            /* at rest and in their span with the landing's stick rows: its acceleration after is theirs, 0 to
+             * round-off, whose sign decided its settle test; it stays (not after a cut: there it leaves, below) */
+            if (c->sus->riders_cut <= counts[2]
+                && fabs(rate) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel_p))
+                && rough_disk_rides_after(c, grad, r, leaving, on, 1)) {
+                continue;
+            }
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && rough_disk_rides_after(c, grad, r, leaving, plastic, 1))
                 || !rough_disk_settles(c, rate, racc[r], 1.0)) {

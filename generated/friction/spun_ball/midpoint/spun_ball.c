@@ -4966,6 +4966,13 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 rate += grad[r * SPUN_BALL_N + i] * vel_p[i];
             }
+            /* at rest and in their span with the landing's stick rows: its acceleration after is theirs, 0 to
+             * round-off, whose sign decided its settle test; it stays (not after a cut: there it leaves, below) */
+            if (c->sus->riders_cut <= counts[2]
+                && fabs(rate) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel_p))
+                && spun_ball_rides_after(c, grad, r, leaving, on, 1)) {
+                continue;
+            }
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && spun_ball_rides_after(c, grad, r, leaving, plastic, 1))
                 || !spun_ball_settles(c, rate, racc[r], 1.0)) {

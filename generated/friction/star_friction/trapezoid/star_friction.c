@@ -3539,6 +3539,13 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
             }
+            /* at rest and in their span with the landing's stick rows: its acceleration after is theirs, 0 to
+             * round-off, whose sign decided its settle test; it stays (not after a cut: there it leaves, below) */
+            if (c->sus->riders_cut <= counts[2]
+                && fabs(rate) <= STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel_p))
+                && star_friction_rides_after(c, grad, r, leaving, on, 1)) {
+                continue;
+            }
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && star_friction_rides_after(c, grad, r, leaving, plastic, 1))
                 || !star_friction_settles(c, rate, racc[r], 1.0)) {
