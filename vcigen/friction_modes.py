@@ -541,16 +541,18 @@ class FrictionModes:
             self._slip[f] = -self._mu_f[f] * math.copysign(1.0, sliding)  # an impact turned it: slip that way
         elif kind == "stop":
             self._stick(f, q, u)
-        elif (joint := self._stick_split(f, self._contact_forces(q, u), self.k.rows(q, u)[1])) is not None:
-            self._stick_split_slide(joint, q, u)
         else:
-            lam = self._contact_forces(q, u)[sr]
-            self.act[sr] = False
-            self._slip[f] = -self._mu_f[f] * math.copysign(1.0, -lam)  # it slides the way the force pushes
-            grad = self.k.rows(q, u)[1]
-            for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
-                if owner == f and g != f and self._partner[g] < 0:
-                    along = float(grad[self._stick_rows[g]] @ grad[sr])
-                    self._slip[g] = -self._mu_f[g] * math.copysign(1.0, -lam * along)
-                    self._ride[g] = -1
+            forces, grad = self._contact_forces(q, u), self.k.rows(q, u)[1]
+            joint = self._stick_split(f, forces, grad)
+            if joint is not None:  # dependent sticks it carries: the contacts at the edge of their split slip
+                self._stick_split_slide(joint, q, u)
+            else:
+                lam = forces[sr]
+                self.act[sr] = False
+                self._slip[f] = -self._mu_f[f] * math.copysign(1.0, -lam)  # slides the way the force pushes
+                for g, owner in enumerate(self._ride):  # its dependent sticks slide with it, the same way
+                    if owner == f and g != f and self._partner[g] < 0:
+                        along = float(grad[self._stick_rows[g]] @ grad[sr])
+                        self._slip[g] = -self._mu_f[g] * math.copysign(1.0, -lam * along)
+                        self._ride[g] = -1
         self._set_friction()
