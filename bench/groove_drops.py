@@ -17,15 +17,13 @@ the span of that wall's normal row and its own: 133 of C's 200 drops (seed 1) en
 
 from __future__ import annotations
 
-import argparse
-import time
-import warnings
 from collections import Counter
 
 import numpy as np
 import sympy as sp
 
 import vcigen
+from bench import drop_campaigns
 
 G = 9.81
 H = 0.01
@@ -81,59 +79,20 @@ def end(res: vcigen.Result, params: dict) -> tuple[str, bool]:
     return "wall", bool(held and abs(force.sum() - wall) <= 1e-9 * wall)
 
 
+def tally(res: vcigen.Result, params: dict, counts: Counter) -> None:
+    """Counts where a run ends and whether its rest's force is the closed form (:func:`end`)."""
+    where, exact = end(res, params)
+    counts[where] += 1
+    counts["force not the closed form"] += not exact
+
+
 def campaign(sim: vcigen.Simulator, drops: list) -> tuple[Counter, list, dict]:
     """Runs ``drops``: ``(counts, results, extremes)``, a result None where it raised."""
-    counts, results = Counter(), []
-    low, rise = np.inf, -np.inf
-    for params, q0, v0 in drops:
-        try:
-            res = sim.simulate(q0=q0, v0=v0, h=H, t_end=T_END, params=params)
-        except vcigen.SolverError as err:
-            counts["SolverError: " + str(err).split(": ", 1)[1].split(";")[0]] += 1
-            results.append(None)
-            continue
-        where, exact = end(res, params)
-        counts[where] += 1
-        counts["force not the closed form"] += not exact
-        low = min(low, float(gaps(res, params["s"]).min()))
-        rise = max(rise, float(res.energy.max() - res.energy[0]))
-        results.append(res)
-    return counts, results, {"lowest gap": low, "E_d rise": rise}
+    return drop_campaigns.campaign(sim, drops, H, T_END, tally, lambda res, p: gaps(res, p["s"]).min())
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--drops", type=int, default=200)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--backends", nargs="+", default=["c", "casadi"], choices=["c", "casadi"])
-    a = ap.parse_args(argv)
-    warnings.simplefilter("ignore", RuntimeWarning)  # landings at the vertex: friction left out, counted
-    rng = np.random.default_rng(a.seed)
-    drops = [draw(rng) for _ in range(a.drops)]
-    out = {}
-    for backend in a.backends:
-        sim = vcigen.build(model(), backend=backend)
-        n = a.drops if backend == "c" else max(1, a.drops // 5)
-        start = time.perf_counter()
-        counts, results, ext = campaign(sim, drops[:n])
-        out[backend] = results
-        print(f"[{backend}] {n} drops (seed {a.seed}), {time.perf_counter() - start:.1f} s")
-        for key, value in sorted(counts.items()):
-            print(f"  {key}: {value}")
-        print(
-            f"  lowest gap {ext['lowest gap']:.1e}; E_d above its start at most {ext['E_d rise']:.2e}"
-            f" (g^2 h^2 / 8 = {G**2 * H**2 / 8:.2e})"
-        )
-    if len(out) == 2:
-        pairs = [(a_, b_) for a_, b_ in zip(out["c"], out["casadi"]) if a_ is not None and b_ is not None]
-        apart = sum(
-            [(i.contact, i.kind, i.step) for i in x.impacts]
-            != [(i.contact, i.kind, i.step) for i in y.impacts]
-            for x, y in pairs
-        )
-        dq = max((float(np.abs(x.q - y.q).max()) for x, y in pairs), default=0.0)
-        print(f"C against CasADi on {len(pairs)} drops: impacts apart in {apart}; largest q apart {dq:.1e}")
-    return 0
+    return drop_campaigns.main(argv, __doc__, model, draw, campaign, 200, G**2 * H**2 / 8)
 
 
 if __name__ == "__main__":

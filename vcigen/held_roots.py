@@ -35,7 +35,7 @@ DEP_EPS = 1e-9  # a stick row this close (relative) to the span of the active ro
 STICK_CYCLES = 2  # slides from rest of one stick row in a step, each stopped at once, before it sticks on
 JAM_CYCLES = 2  # landings of one row in a step after it lifted off before the held contacts stick (a jam)
 LIFT_CYCLES = 2  # pulls of one row at an instant it lifted off and was met again at, before it is held on
-BOUNCE_CYCLES = 4  # impacts of one row in a step's held chain before the next holds it (Zeno: a few)
+BOUNCE_CYCLES = 4  # impacts of one row in a step's held chains before the next holds it (Zeno: a few)
 RESTITUTION_BISECTIONS = 30  # halvings of the restitution kept where friction would raise the energy
 ONTO_ITER = 2  # Gauss-Newton steps moving a segment's start onto its rows (SustainedSteps._onto_rows)
 # A held segment whose root is spurious (the kinetic energy of its velocity above SPURIOUS times its

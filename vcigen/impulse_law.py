@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import SolverError
 from .friction import cone_slide, line_slide
-from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_SWEEPS, SLIDE_TOL, in_span, span_add
+from .held_roots import DEP_EPS, EPS_LAM, MAX_LAW_ROWS, SLIDE_EPS, SLIDE_SWEEPS, SLIDE_TOL, in_span, span_add
 from .law_pgs import pgs
 from .law_split import fit
 from .law_split import least_split as _least_split
@@ -98,18 +98,23 @@ class ImpulseLaw:
         friction out and active rows leave in it (no impulse): a block sliding down a rough ramp onto a rough
         floor lands on the floor at the foot of the ramp, whose row is then held; the floor's stick row is in
         the span of the two normal rows, so its friction was left out, though the ramp's row takes no impulse
-        and leaves. The landing stick rows are tested anew against the rows but those leaving and the stick
-        rows of their contacts (:meth:`_law_lands`' ``leave``: the ramp's stick row carried the floor's
-        friction along the ramp), every set of tight rows that is dependent left out, and the new
-        solution taken where it exists, the leaving rows still leave in it, and it leaves less friction out
-        (the tangent stops there, ``why``); else the first stands. ``before``: the counts before the law.
-        Returns ``(law, leave)``, ``leave`` the rows left out of the dependence tests (for a second try)."""
+        and leaves. Likewise where a landing contact's friction rides on the stick row of a contact that
+        leaves (:meth:`_astray`). The landing stick rows are tested anew against the rows but those leaving
+        and the stick rows of their contacts (:meth:`_law_lands`' ``leave``: the ramp's stick row carried the
+        floor's friction along the ramp), every set of tight rows that is dependent left out, and the new
+        solution taken where it exists, the leaving rows still leave in it, and it leaves fewer landing
+        contacts without friction of their own (left out or astray; the tangent stops there, ``why``); else
+        the first stands. ``before``: the counts before the law. Returns ``(law, leave)``, ``leave`` the rows
+        left out of the dependence tests (for a second try)."""
         k = self.k
         leaving = [r for r in law[4] if self.act[r] and not (k.row_stick and k.row_stick[r] >= 0)]
-        if self.friction_dropped == before[1] or not leaving:
+        if not leaving:
             return law, ()
         stay = {k.row_contact[r] for r in range(k.r) if (self.act[r] or r in hit) and r not in law[4]}
         gone = {k.row_contact[r] for r in leaving} - stay  # the contacts none of whose rows stays
+        astray = self._astray(law[7], gone)
+        if self.friction_dropped == before[1] and not astray:
+            return law, ()
         leave = leaving + [self._stick_rows[f] for f, j in enumerate(k.frictional) if j in gone]
         state = self._law_state()
         counts = self.least_splits, self.friction_dropped
@@ -118,11 +123,24 @@ class ImpulseLaw:
             again = self._law_once(step, t_k, q, p, guess, hit, targets, every=True, leave=leave)
         except SolverError:
             again = None
-        if again is None or not set(leaving) <= set(again[4]) or self.friction_dropped >= counts[1]:
+        if (
+            again is None
+            or not set(leaving) <= set(again[4])
+            or self.friction_dropped + self._astray(again[7], gone) >= counts[1] + astray
+        ):
             self._set_law_state(state)
             self.least_splits, self.friction_dropped = counts
             return law, ()
         return (*again[:8], again[8] or "friction at an impact"), leave
+
+    def _astray(self, lands: dict[int, int], gone: set[int]) -> int:
+        """How many landing contacts (``lands``, :meth:`_law_lands`) ride on the stick row of a contact in
+        ``gone`` (none of its rows stays after the law): their friction acts along a leaving contact's tangent
+        (a disk rolling down a rough ramp onto a rough floor: its floor's stick row is in the span of the two
+        normal rows and the ramp's stick row, so it rode on that, and the ramp's row carried the floor's
+        friction along the ramp; the disk left the landing sliding, 0.3 % slow once rolling again)."""
+        k = self.k
+        return sum(o != f and k.frictional[o] in gone for f, o in lands.items())
 
     def _law_state(self) -> tuple:
         """What a law's second try (:meth:`_impulse_law`) changes: the rows held, the dependent sticks' owners
@@ -203,7 +221,7 @@ class ImpulseLaw:
         slips = self._law_slips(grad, rows)
         for f, _ in slips:  # a cone's two stick rows, its first tangent's first
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
-        lands, loose, grad = self._law_lands(q, vel, rows, grad, leave)
+        lands, loose, grad, bare = self._law_lands(q, vel, rows, grad, leave)
         for f in [f for f, o in lands.items() if o == f]:  # landing with a row of its own (or loose)
             rows += [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]
         crowded = len(rows) > MAX_LAW_ROWS  # too many to enumerate: the projected Gauss-Seidel alone, below
@@ -338,13 +356,26 @@ class ImpulseLaw:
         for iso in isos:
             if iso[0] in left:  # a loose landing cone left out: README, Known limits
                 del lands[iso[5]]
-                self.friction_dropped += 1
+                bare.append(iso[5])
         for (i, o, _, _, on, f), slid in zip(isos, slides):
             if on and slid and lam[i] == 0.0 and lam[o] == 0.0:  # no normal impulse: it slips on as before
                 slips = [s for s in slips if s[0] != f]
                 slipped = [r for r in slipped if r not in (rows[i], rows[o])]
         p_plus = p + grad.T @ lam_full
-        return p_plus, lam_full, vel, self._velocity(q, vel, p_plus), dropped, slipped, slips, lands, why
+        vel_p = self._velocity(q, vel, p_plus)
+        self.friction_dropped += self._bare_slides(grad, vel_p, bare)
+        return p_plus, lam_full, vel, vel_p, dropped, slipped, slips, lands, why
+
+    def _bare_slides(self, grad, vel_p, bare) -> int:
+        """How many of the landing contacts ``bare`` that took no friction impulse (:meth:`_law_lands`, a
+        loose cone left out) slide after the law (``vel_p``): their friction was left out (README, Known
+        limits). One whose stick rows' velocities are 0 (``SLIDE_EPS``) sticks with a tangential impulse of
+        0, inside its cone: Coulomb's law holds (a box landing with a vertex on one wall of a V while its face
+        rests on the other: the three normal rows fix the body; its friction is then indeterminate, 0 one
+        value)."""
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel_p))))
+        rows = lambda f: [self._stick_rows[x] for x in (f, self._partner[f]) if x >= 0]  # noqa: E731
+        return sum(any(abs(float(grad[r] @ vel_p)) > tiny for r in rows(f)) for f in bare)
 
     def _law_slips(self, grad, rows) -> list[tuple[int, list[int]]]:
         """The one-tangent contacts held and slipping whose friction joins the impulse law on ``rows``
@@ -395,7 +426,9 @@ class ImpulseLaw:
             self.act[sr] = False
         return False
 
-    def _law_lands(self, q, vel, rows, grad, leave=()) -> tuple[dict[int, int], set[int], np.ndarray]:
+    def _law_lands(
+        self, q, vel, rows, grad, leave=()
+    ) -> tuple[dict[int, int], set[int], np.ndarray, list[int]]:
         """The frictional contacts landing in the impulse law on ``rows`` (a row of their contact among them,
         none held) whose friction joins it (MATH.md *Friction*: Coulomb's impulse at an impact): ``{f:
         owner}``, ``owner = f`` for one whose stick row (an isotropic cone: both) is independent of ``rows``
@@ -407,12 +440,14 @@ class ImpulseLaw:
         sliding impulse needs no row held) or, where it would stick, is left out (:meth:`_impulse_law`), while
         the law has room for its rows (``MAX_LAW_ROWS``). Their branches are frozen where they land
         (:meth:`_freeze_branch`); with any landing, ``grad`` (the rows' gradients at ``(q, vel)``) is taken
-        anew. Returns ``(lands, loose, grad)``."""
+        anew. Returns ``(lands, loose, grad, bare)``, ``bare`` the landing contacts whose friction takes no
+        impulse (counted where they slide after the law, :meth:`_bare_slides`)."""
         k = self.k
         out: dict[int, int] = {}
         loose: set[int] = set()
+        bare: list[int] = []
         if not self._stick_rows:
-            return out, loose, grad
+            return out, loose, grad, bare
         held = {k.row_contact[r] for r in np.flatnonzero(self.act)}
         hit = {k.row_contact[r] for r in rows} - held
         landing = [
@@ -421,7 +456,7 @@ class ImpulseLaw:
             if j in hit and self._mu_f[f] > 0.0 and not 0 <= self._partner[f] < f
         ]
         if not landing:
-            return out, loose, grad
+            return out, loose, grad, bare
         for f in landing:
             for x in (f, self._partner[f]):
                 if x >= 0:
@@ -443,7 +478,7 @@ class ImpulseLaw:
                         out[f] = f
                         room -= 2
                     else:
-                        self.friction_dropped += 1  # its friction left out: README, Known limits
+                        bare.append(f)  # no friction impulse (_bare_slides)
                     continue
                 if not self._dependent(grad, sr):
                     self.act[sr] = True
@@ -455,10 +490,11 @@ class ImpulseLaw:
                     if not self._dependent(grad, sr, self._stick_rows[g]):
                         out[f] = g
                         break
-                self.friction_dropped += f not in out
+                if f not in out:
+                    bare.append(f)
         finally:
             self.act = act
-        return out, loose, grad
+        return out, loose, grad, bare
 
     def _law_cones(self, rows, slips=(), lands=None, loose=()):
         """The held stick rows of the impulse law on ``rows`` with Coulomb's cone: ``[(i, pools)]`` of each

@@ -240,6 +240,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
             self._cforce[:] = 0.0
             self._booked = False
         self._events = 0
+        self._bounces: dict[int, int] = {}  # impacts of each row in this step's held chains (_chain)
         self._h = h
         self._chained = False
         self._at(t)
@@ -371,11 +372,11 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
     """Say how many landing contacts took no friction impulse (``res.stats["landing_friction_dropped"]``)."""
     if count:
         warnings.warn(
-            f"{count} landing contact(s) took no friction impulse: their stick rows depend on the other "
-            "contacts' and neither a slide nor a stick on the least split of the impulses solved the law "
-            "(a box landing on rough vertices; sliding ones take Coulomb's impulse, sticking ones where "
-            "that split fits the cones), so the landing's tangential impulse may be short (docs/limits.md: "
-            "Friction); the sustained friction after the landing is right",
+            f"{count} landing contact(s) took no friction impulse and slide after it: their stick rows "
+            "depend on the other contacts' and neither a slide nor a stick on the least split of the "
+            "impulses solved the law (a box landing on rough vertices; sliding ones take Coulomb's impulse, "
+            "sticking ones where that split fits the cones), so the landing's tangential impulse may be "
+            "short (docs/limits.md: Friction); the sustained friction after the landing is right",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

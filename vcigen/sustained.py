@@ -381,7 +381,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         # held on to the next instant)
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
-        bounces: dict[int, int] = {}  # impacts of each row in this step's chain (BOUNCE_CYCLES: then held)
+        bounces = self._bounces  # impacts of each row in this step's chains (BOUNCE_CYCLES: then held)
         self._stuck_on.clear()
         self._jammed = False
         rest = tau  # the time left of the grid step; tau: the segment's (less where _split_segment halved it)

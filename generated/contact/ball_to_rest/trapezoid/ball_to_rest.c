@@ -2467,7 +2467,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     int hit[BALL_TO_REST_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[BALL_TO_REST_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[BALL_TO_REST_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[BALL_TO_REST_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -3598,6 +3598,9 @@ static int ball_to_rest_step(const ball_to_rest_ctx_t *c, double *q, double *p, 
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < BALL_TO_REST_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (ball_to_rest_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

@@ -2965,7 +2965,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     int hit[FOUR_BAR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[FOUR_BAR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[FOUR_BAR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[FOUR_BAR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -4456,6 +4456,9 @@ static int four_bar_step(const four_bar_ctx_t *c, double *q, double *p, double *
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < FOUR_BAR_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (four_bar_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

@@ -2698,7 +2698,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[PENDULUM_WALL_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[PENDULUM_WALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[PENDULUM_WALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -4232,6 +4232,9 @@ static int pendulum_wall_step(const pendulum_wall_ctx_t *c, double *q, double *p
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < PENDULUM_WALL_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (pendulum_wall_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

@@ -3510,9 +3510,10 @@ static void pyramid_law_slips(const pyramid_ctx_t *c, const double *grad, int *r
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
  * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
  * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). leave (or NULL): rows the
- * landing stick rows are not tested against (law_leaving). */
+ * landing stick rows are not tested against (law_leaving). bare[f] = 1 for a landing contact whose friction takes no
+ * impulse (counted where it slides after the law: bare_slides). */
 static int pyramid_law_lands(const pyramid_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land, int *loose, const int *leave)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose, int *bare, const int *leave)
 {
     double psi[PYRAMID_R_DIM], curv[PYRAMID_R_DIM];
     int act[PYRAMID_R_DIM], hit[PYRAMID_M_DIM] = {0}, f, g, k, r, sr, any = 0;
@@ -3520,6 +3521,7 @@ static int pyramid_law_lands(const pyramid_ctx_t *c, const double *q, const doub
     for (f = 0; f < PYRAMID_NF; ++f) {
         land[f] = -1;
         loose[f] = 0;
+        bare[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (pyramid_row_contact[rows[k]] >= 0) {
@@ -3570,12 +3572,40 @@ static int pyramid_law_lands(const pyramid_ctx_t *c, const double *q, const doub
                 break;
             }
         }
-        c->sus->friction_dropped += land[f] < 0;
+        bare[f] = land[f] < 0;
     }
     for (r = 0; r < PYRAMID_R; ++r) {
         c->sus->act[r] = act[r];
     }
     return 1;
+}
+
+/* ImpulseLaw._bare_slides: how many of the landing contacts with bare[f] (no friction impulse: law_lands, a loose
+ * cone left out) slide after the law (vel_p): their friction was left out (README, Known limits). One whose stick
+ * rows' velocities are 0 (SLIDE_EPS) sticks with a tangential impulse of 0, inside its cone. */
+static long pyramid_bare_slides(const double *grad, const double *vel_p, const int *bare)
+{
+    const double tiny = PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel_p));
+    double rate;
+    long n = 0;
+    int f, x, k, i, r, slides;
+    for (f = 0; f < PYRAMID_NF; ++f) {
+        slides = 0;
+        for (k = 0; bare[f] && k < 2; ++k) {
+            x = k ? -1 : f;
+            if (x < 0) {
+                continue;
+            }
+            r = pyramid_stick_row[x];
+            rate = 0.0;
+            for (i = 0; i < PYRAMID_N; ++i) {
+                rate += grad[r * PYRAMID_N + i] * vel_p[i];
+            }
+            slides = slides || fabs(rate) > tiny;
+        }
+        n += slides;
+    }
+    return n;
 }
 
 /* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
@@ -3638,7 +3668,7 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
     int rows[PYRAMID_R_DIM], tight[PYRAMID_R_DIM] = {0}, piv[PYRAMID_R_DIM > PYRAMID_N ? PYRAMID_R_DIM : PYRAMID_N];
     int sliding[PYRAMID_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
-    int loose[PYRAMID_NF_DIM];
+    int loose[PYRAMID_NF_DIM], bare[PYRAMID_NF_DIM];
     int cone_i[PYRAMID_NF_DIM], cone_f[PYRAMID_NF_DIM], cone_on[PYRAMID_NF_DIM], strict_i[PYRAMID_NF_DIM];
     int strict_f[PYRAMID_NF_DIM], strict_o[PYRAMID_NF_DIM], mode[PYRAMID_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -3664,7 +3694,7 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
         }
     }
     pyramid_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    pyramid_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, leave);
+    pyramid_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, bare, leave);
     crowded = nr > PYRAMID_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = pyramid_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = pyramid_lu(PYRAMID_N, mass, piv);
@@ -3803,6 +3833,7 @@ static int pyramid_law_once(const pyramid_ctx_t *c, const double *q, const doubl
         }
     }
     pyramid_velocity(c, q, vel_m, p_plus, vel_p);
+    c->sus->friction_dropped += pyramid_bare_slides(grad, vel_p, bare);
     return 0;
 }
 
@@ -3875,19 +3906,32 @@ static int pyramid_cut_riders(const pyramid_ctx_t *c, const double *q, const dou
     return n_cut;
 }
 
+/* ImpulseLaw._astray: how many landing contacts (land[f] = owner, law_lands) ride on the stick row of a contact with
+ * gone[] (none of its rows stays after the law): their friction acts along a leaving contact's tangent. */
+static int pyramid_astray(const int *land, const int *gone)
+{
+    int f, n = 0;
+    for (f = 0; f < PYRAMID_NF; ++f) {
+        n += land[f] >= 0 && land[f] != f && gone[pyramid_fric_contact[land[f]]];
+    }
+    return n;
+}
+
 /* ImpulseLaw._law_leaving: where the law (law_once's outputs) left a landing contact's friction out and active rows
  * leave in it (no impulse: a block sliding down a rough ramp lands on the rough floor at its foot; the floor's stick
- * row is in the span of the two normal rows, though the ramp's row takes none and leaves), solved anew with the
- * landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave), every
- * set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in it and
- * it leaves less friction out (the tangent stops there, law_why); else the first is solved again. counts: before the
- * law. 0 if solved, with leave[] the rows left out of the tests (all 0 where the first stands). */
+ * row is in the span of the two normal rows, though the ramp's row takes none and leaves), or a landing contact's
+ * friction rides on the stick row of a contact that leaves (astray: a disk rolling down the ramp), solved anew with
+ * the landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave),
+ * every set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in
+ * it and it leaves fewer landing contacts without friction of their own (left out or astray; the tangent stops
+ * there, law_why); else the first is solved again. counts: before the law. 0 if solved, with leave[] the rows left
+ * out of the tests (all 0 where the first stands). */
 static int pyramid_law_leaving(const pyramid_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, const long *counts, int *leave)
 {
     int leaving[PYRAMID_R_DIM], stay[PYRAMID_M_DIM] = {0}, gone[PYRAMID_M_DIM] = {0}, act[PYRAMID_R_DIM];
-    int ride[PYRAMID_NF_DIM], r, f, k, on, any = 0, ok;
+    int ride[PYRAMID_NF_DIM], r, f, k, on, any = 0, ok, astray;
     const long first[2] = {c->sus->least_splits, c->sus->friction_dropped};
     for (r = 0; r < PYRAMID_R; ++r) {
         leave[r] = 0;
@@ -3900,13 +3944,19 @@ static int pyramid_law_leaving(const pyramid_ctx_t *c, const double *q, const do
             stay[pyramid_row_contact[r]] = 1;
         }
     }
-    if (c->sus->friction_dropped == counts[1] || !any) {
+    if (!any) {
         return 0;
     }
     for (r = 0; r < PYRAMID_R; ++r) {
         if (leaving[r] && pyramid_row_contact[r] >= 0 && !stay[pyramid_row_contact[r]]) {
             gone[pyramid_row_contact[r]] = 1; /* a contact none of whose rows stays */
         }
+    }
+    astray = pyramid_astray(land, gone);
+    if (c->sus->friction_dropped == counts[1] && !astray) {
+        return 0;
+    }
+    for (r = 0; r < PYRAMID_R; ++r) {
         leave[r] = leaving[r];
     }
     for (f = 0; f < PYRAMID_NF; ++f) {
@@ -3922,7 +3972,7 @@ static int pyramid_law_leaving(const pyramid_ctx_t *c, const double *q, const do
     for (r = 0; ok && r < PYRAMID_R; ++r) {
         ok = !leaving[r] || dropped[r];
     }
-    if (ok && c->sus->friction_dropped < first[1]) {
+    if (ok && c->sus->friction_dropped + pyramid_astray(land, gone) < first[1] + astray) {
         c->sus->law_why = 1;
         return 0;
     }
@@ -4556,7 +4606,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int hit[PYRAMID_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[PYRAMID_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[PYRAMID_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[PYRAMID_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -5420,6 +5470,9 @@ static int pyramid_step(const pyramid_ctx_t *c, double *q, double *p, double *v,
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < PYRAMID_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (pyramid_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

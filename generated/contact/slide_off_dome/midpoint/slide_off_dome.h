@@ -119,6 +119,7 @@ typedef struct {
     unsigned long held_rows[SLIDE_OFF_DOME_NF_DIM]; /* the active rows (bitmask) each friction mode was set on */
     int ride[SLIDE_OFF_DOME_NF_DIM];     /* per frictional contact: the stick holding it too (a dependent stick), or -1 */
     int on_rows[SLIDE_OFF_DOME_R_DIM];   /* the active rows the state was last put on (onto_rows) */
+    int bounces[SLIDE_OFF_DOME_R_DIM];   /* impacts of each row in this step's held chains (BOUNCE_CYCLES: then held) */
 } slide_off_dome_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

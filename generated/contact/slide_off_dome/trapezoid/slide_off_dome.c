@@ -2668,7 +2668,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     int hit[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[SLIDE_OFF_DOME_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[SLIDE_OFF_DOME_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -4148,6 +4148,9 @@ static int slide_off_dome_step(const slide_off_dome_ctx_t *c, double *q, double 
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < SLIDE_OFF_DOME_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (slide_off_dome_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

@@ -2293,7 +2293,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[IMPACT_OSCILLATOR_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -2919,6 +2919,9 @@ static int impact_oscillator_step(const impact_oscillator_ctx_t *c, double *q, d
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < IMPACT_OSCILLATOR_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (impact_oscillator_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

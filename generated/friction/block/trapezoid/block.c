@@ -2422,9 +2422,10 @@ static void block_law_slips(const block_ctx_t *c, const double *grad, int *rows,
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
  * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
  * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). leave (or NULL): rows the
- * landing stick rows are not tested against (law_leaving). */
+ * landing stick rows are not tested against (law_leaving). bare[f] = 1 for a landing contact whose friction takes no
+ * impulse (counted where it slides after the law: bare_slides). */
 static int block_law_lands(const block_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land, int *loose, const int *leave)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose, int *bare, const int *leave)
 {
     double psi[BLOCK_R_DIM], curv[BLOCK_R_DIM];
     int act[BLOCK_R_DIM], hit[BLOCK_M_DIM] = {0}, f, g, k, r, sr, any = 0;
@@ -2432,6 +2433,7 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
     for (f = 0; f < BLOCK_NF; ++f) {
         land[f] = -1;
         loose[f] = 0;
+        bare[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (block_row_contact[rows[k]] >= 0) {
@@ -2482,12 +2484,40 @@ static int block_law_lands(const block_ctx_t *c, const double *q, const double *
                 break;
             }
         }
-        c->sus->friction_dropped += land[f] < 0;
+        bare[f] = land[f] < 0;
     }
     for (r = 0; r < BLOCK_R; ++r) {
         c->sus->act[r] = act[r];
     }
     return 1;
+}
+
+/* ImpulseLaw._bare_slides: how many of the landing contacts with bare[f] (no friction impulse: law_lands, a loose
+ * cone left out) slide after the law (vel_p): their friction was left out (README, Known limits). One whose stick
+ * rows' velocities are 0 (SLIDE_EPS) sticks with a tangential impulse of 0, inside its cone. */
+static long block_bare_slides(const double *grad, const double *vel_p, const int *bare)
+{
+    const double tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel_p));
+    double rate;
+    long n = 0;
+    int f, x, k, i, r, slides;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        slides = 0;
+        for (k = 0; bare[f] && k < 2; ++k) {
+            x = k ? -1 : f;
+            if (x < 0) {
+                continue;
+            }
+            r = block_stick_row[x];
+            rate = 0.0;
+            for (i = 0; i < BLOCK_N; ++i) {
+                rate += grad[r * BLOCK_N + i] * vel_p[i];
+            }
+            slides = slides || fabs(rate) > tiny;
+        }
+        n += slides;
+    }
+    return n;
 }
 
 /* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
@@ -2550,7 +2580,7 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
     int rows[BLOCK_R_DIM], tight[BLOCK_R_DIM] = {0}, piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
     int sliding[BLOCK_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
-    int loose[BLOCK_NF_DIM];
+    int loose[BLOCK_NF_DIM], bare[BLOCK_NF_DIM];
     int cone_i[BLOCK_NF_DIM], cone_f[BLOCK_NF_DIM], cone_on[BLOCK_NF_DIM], strict_i[BLOCK_NF_DIM];
     int strict_f[BLOCK_NF_DIM], strict_o[BLOCK_NF_DIM], mode[BLOCK_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2576,7 +2606,7 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
         }
     }
     block_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    block_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, leave);
+    block_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, bare, leave);
     crowded = nr > BLOCK_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = block_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = block_lu(BLOCK_N, mass, piv);
@@ -2715,6 +2745,7 @@ static int block_law_once(const block_ctx_t *c, const double *q, const double *p
         }
     }
     block_velocity(c, q, vel_m, p_plus, vel_p);
+    c->sus->friction_dropped += block_bare_slides(grad, vel_p, bare);
     return 0;
 }
 
@@ -2787,19 +2818,32 @@ static int block_cut_riders(const block_ctx_t *c, const double *q, const double 
     return n_cut;
 }
 
+/* ImpulseLaw._astray: how many landing contacts (land[f] = owner, law_lands) ride on the stick row of a contact with
+ * gone[] (none of its rows stays after the law): their friction acts along a leaving contact's tangent. */
+static int block_astray(const int *land, const int *gone)
+{
+    int f, n = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        n += land[f] >= 0 && land[f] != f && gone[block_fric_contact[land[f]]];
+    }
+    return n;
+}
+
 /* ImpulseLaw._law_leaving: where the law (law_once's outputs) left a landing contact's friction out and active rows
  * leave in it (no impulse: a block sliding down a rough ramp lands on the rough floor at its foot; the floor's stick
- * row is in the span of the two normal rows, though the ramp's row takes none and leaves), solved anew with the
- * landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave), every
- * set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in it and
- * it leaves less friction out (the tangent stops there, law_why); else the first is solved again. counts: before the
- * law. 0 if solved, with leave[] the rows left out of the tests (all 0 where the first stands). */
+ * row is in the span of the two normal rows, though the ramp's row takes none and leaves), or a landing contact's
+ * friction rides on the stick row of a contact that leaves (astray: a disk rolling down the ramp), solved anew with
+ * the landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave),
+ * every set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in
+ * it and it leaves fewer landing contacts without friction of their own (left out or astray; the tangent stops
+ * there, law_why); else the first is solved again. counts: before the law. 0 if solved, with leave[] the rows left
+ * out of the tests (all 0 where the first stands). */
 static int block_law_leaving(const block_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, const long *counts, int *leave)
 {
     int leaving[BLOCK_R_DIM], stay[BLOCK_M_DIM] = {0}, gone[BLOCK_M_DIM] = {0}, act[BLOCK_R_DIM];
-    int ride[BLOCK_NF_DIM], r, f, k, on, any = 0, ok;
+    int ride[BLOCK_NF_DIM], r, f, k, on, any = 0, ok, astray;
     const long first[2] = {c->sus->least_splits, c->sus->friction_dropped};
     for (r = 0; r < BLOCK_R; ++r) {
         leave[r] = 0;
@@ -2812,13 +2856,19 @@ static int block_law_leaving(const block_ctx_t *c, const double *q, const double
             stay[block_row_contact[r]] = 1;
         }
     }
-    if (c->sus->friction_dropped == counts[1] || !any) {
+    if (!any) {
         return 0;
     }
     for (r = 0; r < BLOCK_R; ++r) {
         if (leaving[r] && block_row_contact[r] >= 0 && !stay[block_row_contact[r]]) {
             gone[block_row_contact[r]] = 1; /* a contact none of whose rows stays */
         }
+    }
+    astray = block_astray(land, gone);
+    if (c->sus->friction_dropped == counts[1] && !astray) {
+        return 0;
+    }
+    for (r = 0; r < BLOCK_R; ++r) {
         leave[r] = leaving[r];
     }
     for (f = 0; f < BLOCK_NF; ++f) {
@@ -2834,7 +2884,7 @@ static int block_law_leaving(const block_ctx_t *c, const double *q, const double
     for (r = 0; ok && r < BLOCK_R; ++r) {
         ok = !leaving[r] || dropped[r];
     }
-    if (ok && c->sus->friction_dropped < first[1]) {
+    if (ok && c->sus->friction_dropped + block_astray(land, gone) < first[1] + astray) {
         c->sus->law_why = 1;
         return 0;
     }
@@ -3468,7 +3518,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[BLOCK_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[BLOCK_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[BLOCK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -4332,6 +4382,9 @@ static int block_step(const block_ctx_t *c, double *q, double *p, double *v, dou
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < BLOCK_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (block_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

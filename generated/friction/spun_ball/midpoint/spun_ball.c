@@ -3281,9 +3281,10 @@ static void spun_ball_law_slips(const spun_ball_ctx_t *c, const double *grad, in
  * isotropic cone with a dependent row joins loose (loose[f] = 1, land[f] = f) while the law has room for its rows
  * (MAX_LAW_ROWS): it slides or, where it would stick, is left out (impulse_law). Their branches are frozen
  * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). leave (or NULL): rows the
- * landing stick rows are not tested against (law_leaving). */
+ * landing stick rows are not tested against (law_leaving). bare[f] = 1 for a landing contact whose friction takes no
+ * impulse (counted where it slides after the law: bare_slides). */
 static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land, int *loose, const int *leave)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose, int *bare, const int *leave)
 {
     double psi[SPUN_BALL_R_DIM], curv[SPUN_BALL_R_DIM];
     int act[SPUN_BALL_R_DIM], hit[SPUN_BALL_M_DIM] = {0}, f, g, k, r, sr, any = 0;
@@ -3292,6 +3293,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
     for (f = 0; f < SPUN_BALL_NF; ++f) {
         land[f] = -1;
         loose[f] = 0;
+        bare[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (spun_ball_row_contact[rows[k]] >= 0) {
@@ -3339,7 +3341,7 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
                 rows[(*nr)++] = spun_ball_stick_row[pf];
                 room -= 2;
             } else {
-                ++c->sus->friction_dropped; /* its friction left out: README, Known limits */
+                bare[f] = 1; /* no friction impulse (bare_slides) */
             }
             continue;
         }
@@ -3358,12 +3360,40 @@ static int spun_ball_law_lands(const spun_ball_ctx_t *c, const double *q, const 
                 break;
             }
         }
-        c->sus->friction_dropped += land[f] < 0;
+        bare[f] = land[f] < 0;
     }
     for (r = 0; r < SPUN_BALL_R; ++r) {
         c->sus->act[r] = act[r];
     }
     return 1;
+}
+
+/* ImpulseLaw._bare_slides: how many of the landing contacts with bare[f] (no friction impulse: law_lands, a loose
+ * cone left out) slide after the law (vel_p): their friction was left out (README, Known limits). One whose stick
+ * rows' velocities are 0 (SLIDE_EPS) sticks with a tangential impulse of 0, inside its cone. */
+static long spun_ball_bare_slides(const double *grad, const double *vel_p, const int *bare)
+{
+    const double tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel_p));
+    double rate;
+    long n = 0;
+    int f, x, k, i, r, slides;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        slides = 0;
+        for (k = 0; bare[f] && k < 2; ++k) {
+            x = k ? spun_ball_partner[f] : f;
+            if (x < 0) {
+                continue;
+            }
+            r = spun_ball_stick_row[x];
+            rate = 0.0;
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                rate += grad[r * SPUN_BALL_N + i] * vel_p[i];
+            }
+            slides = slides || fabs(rate) > tiny;
+        }
+        n += slides;
+    }
+    return n;
 }
 
 
@@ -4060,7 +4090,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
     int rows[SPUN_BALL_R_DIM], tight[SPUN_BALL_R_DIM] = {0}, piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
     int sliding[SPUN_BALL_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
-    int loose[SPUN_BALL_NF_DIM];
+    int loose[SPUN_BALL_NF_DIM], bare[SPUN_BALL_NF_DIM];
     int cone_i[SPUN_BALL_NF_DIM], cone_f[SPUN_BALL_NF_DIM], cone_on[SPUN_BALL_NF_DIM], strict_i[SPUN_BALL_NF_DIM];
     int strict_f[SPUN_BALL_NF_DIM], strict_o[SPUN_BALL_NF_DIM], mode[SPUN_BALL_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -4094,7 +4124,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
         }
     }
     spun_ball_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    spun_ball_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, leave);
+    spun_ball_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, bare, leave);
     crowded = nr > SPUN_BALL_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = spun_ball_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = spun_ball_lu(SPUN_BALL_N, mass, piv);
@@ -4365,7 +4395,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
     for (i = 0; i < n_iso; ++i) { /* a loose landing cone left out: README, Known limits */
         if (left[iso_i[i]]) {
             land[iso_f[i]] = -1;
-            ++c->sus->friction_dropped;
+            bare[iso_f[i]] = 1;
         }
     }
     for (i = 0; i < n_iso; ++i) { /* a slipping cone with no normal impulse: it slips on as before */
@@ -4382,6 +4412,7 @@ static int spun_ball_law_once(const spun_ball_ctx_t *c, const double *q, const d
         }
     }
     spun_ball_velocity(c, q, vel_m, p_plus, vel_p);
+    c->sus->friction_dropped += spun_ball_bare_slides(grad, vel_p, bare);
     return 0;
 }
 
@@ -4454,19 +4485,32 @@ static int spun_ball_cut_riders(const spun_ball_ctx_t *c, const double *q, const
     return n_cut;
 }
 
+/* ImpulseLaw._astray: how many landing contacts (land[f] = owner, law_lands) ride on the stick row of a contact with
+ * gone[] (none of its rows stays after the law): their friction acts along a leaving contact's tangent. */
+static int spun_ball_astray(const int *land, const int *gone)
+{
+    int f, n = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        n += land[f] >= 0 && land[f] != f && gone[spun_ball_fric_contact[land[f]]];
+    }
+    return n;
+}
+
 /* ImpulseLaw._law_leaving: where the law (law_once's outputs) left a landing contact's friction out and active rows
  * leave in it (no impulse: a block sliding down a rough ramp lands on the rough floor at its foot; the floor's stick
- * row is in the span of the two normal rows, though the ramp's row takes none and leaves), solved anew with the
- * landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave), every
- * set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in it and
- * it leaves less friction out (the tangent stops there, law_why); else the first is solved again. counts: before the
- * law. 0 if solved, with leave[] the rows left out of the tests (all 0 where the first stands). */
+ * row is in the span of the two normal rows, though the ramp's row takes none and leaves), or a landing contact's
+ * friction rides on the stick row of a contact that leaves (astray: a disk rolling down the ramp), solved anew with
+ * the landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave),
+ * every set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in
+ * it and it leaves fewer landing contacts without friction of their own (left out or astray; the tangent stops
+ * there, law_why); else the first is solved again. counts: before the law. 0 if solved, with leave[] the rows left
+ * out of the tests (all 0 where the first stands). */
 static int spun_ball_law_leaving(const spun_ball_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, const long *counts, int *leave)
 {
     int leaving[SPUN_BALL_R_DIM], stay[SPUN_BALL_M_DIM] = {0}, gone[SPUN_BALL_M_DIM] = {0}, act[SPUN_BALL_R_DIM];
-    int ride[SPUN_BALL_NF_DIM], r, f, k, on, any = 0, ok;
+    int ride[SPUN_BALL_NF_DIM], r, f, k, on, any = 0, ok, astray;
     const long first[2] = {c->sus->least_splits, c->sus->friction_dropped};
     for (r = 0; r < SPUN_BALL_R; ++r) {
         leave[r] = 0;
@@ -4479,13 +4523,19 @@ static int spun_ball_law_leaving(const spun_ball_ctx_t *c, const double *q, cons
             stay[spun_ball_row_contact[r]] = 1;
         }
     }
-    if (c->sus->friction_dropped == counts[1] || !any) {
+    if (!any) {
         return 0;
     }
     for (r = 0; r < SPUN_BALL_R; ++r) {
         if (leaving[r] && spun_ball_row_contact[r] >= 0 && !stay[spun_ball_row_contact[r]]) {
             gone[spun_ball_row_contact[r]] = 1; /* a contact none of whose rows stays */
         }
+    }
+    astray = spun_ball_astray(land, gone);
+    if (c->sus->friction_dropped == counts[1] && !astray) {
+        return 0;
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
         leave[r] = leaving[r];
     }
     for (f = 0; f < SPUN_BALL_NF; ++f) {
@@ -4501,7 +4551,7 @@ static int spun_ball_law_leaving(const spun_ball_ctx_t *c, const double *q, cons
     for (r = 0; ok && r < SPUN_BALL_R; ++r) {
         ok = !leaving[r] || dropped[r];
     }
-    if (ok && c->sus->friction_dropped < first[1]) {
+    if (ok && c->sus->friction_dropped + spun_ball_astray(land, gone) < first[1] + astray) {
         c->sus->law_why = 1;
         return 0;
     }
@@ -5182,7 +5232,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[SPUN_BALL_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[SPUN_BALL_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[SPUN_BALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -6302,6 +6352,9 @@ static int spun_ball_step(const spun_ball_ctx_t *c, double *q, double *p, double
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < SPUN_BALL_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (spun_ball_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

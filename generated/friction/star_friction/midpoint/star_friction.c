@@ -2707,9 +2707,10 @@ static void star_friction_law_slips(const star_friction_ctx_t *c, const double *
  * the one-tangent contact whose stick row carries its tangent (held and sticking, slipping and joined, or landing
  * before it; also slip_ride[f], its pool); -1 else (one whose stick row depends on the normal rows alone). Their branches are frozen
  * where they land (freeze_branch). 1 if any lands (grad is then taken anew at q, vel). leave (or NULL): rows the
- * landing stick rows are not tested against (law_leaving). */
+ * landing stick rows are not tested against (law_leaving). bare[f] = 1 for a landing contact whose friction takes no
+ * impulse (counted where it slides after the law: bare_slides). */
 static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q, const double *vel, double *grad,
-    int *rows, int *nr, int *slip_ride, int *land, int *loose, const int *leave)
+    int *rows, int *nr, int *slip_ride, int *land, int *loose, int *bare, const int *leave)
 {
     double psi[STAR_FRICTION_R_DIM], curv[STAR_FRICTION_R_DIM];
     int act[STAR_FRICTION_R_DIM], hit[STAR_FRICTION_M_DIM] = {0}, f, g, k, r, sr, any = 0;
@@ -2717,6 +2718,7 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
         land[f] = -1;
         loose[f] = 0;
+        bare[f] = 0;
     }
     for (k = 0; k < *nr; ++k) {
         if (star_friction_row_contact[rows[k]] >= 0) {
@@ -2767,12 +2769,40 @@ static int star_friction_law_lands(const star_friction_ctx_t *c, const double *q
                 break;
             }
         }
-        c->sus->friction_dropped += land[f] < 0;
+        bare[f] = land[f] < 0;
     }
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         c->sus->act[r] = act[r];
     }
     return 1;
+}
+
+/* ImpulseLaw._bare_slides: how many of the landing contacts with bare[f] (no friction impulse: law_lands, a loose
+ * cone left out) slide after the law (vel_p): their friction was left out (README, Known limits). One whose stick
+ * rows' velocities are 0 (SLIDE_EPS) sticks with a tangential impulse of 0, inside its cone. */
+static long star_friction_bare_slides(const double *grad, const double *vel_p, const int *bare)
+{
+    const double tiny = STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel_p));
+    double rate;
+    long n = 0;
+    int f, x, k, i, r, slides;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        slides = 0;
+        for (k = 0; bare[f] && k < 2; ++k) {
+            x = k ? -1 : f;
+            if (x < 0) {
+                continue;
+            }
+            r = star_friction_stick_row[x];
+            rate = 0.0;
+            for (i = 0; i < STAR_FRICTION_N; ++i) {
+                rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
+            }
+            slides = slides || fabs(rate) > tiny;
+        }
+        n += slides;
+    }
+    return n;
 }
 
 /* impulse_law._spanned: is a normal row (all: any row) among the tight ones (tight[0..nt), indices of rows; NULL:
@@ -2835,7 +2865,7 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
     int rows[STAR_FRICTION_R_DIM], tight[STAR_FRICTION_R_DIM] = {0}, piv[STAR_FRICTION_R_DIM > STAR_FRICTION_N ? STAR_FRICTION_R_DIM : STAR_FRICTION_N];
     int sliding[STAR_FRICTION_R_DIM] = {0}, nr = 0, nt, i, k, l, r, ok, found = 0, n_modes = 1, modes, out = 0;
     int dependent, crowded;
-    int loose[STAR_FRICTION_NF_DIM];
+    int loose[STAR_FRICTION_NF_DIM], bare[STAR_FRICTION_NF_DIM];
     int cone_i[STAR_FRICTION_NF_DIM], cone_f[STAR_FRICTION_NF_DIM], cone_on[STAR_FRICTION_NF_DIM], strict_i[STAR_FRICTION_NF_DIM];
     int strict_f[STAR_FRICTION_NF_DIM], strict_o[STAR_FRICTION_NF_DIM], mode[STAR_FRICTION_NF_DIM] = {0};
     int n_cones = 0, n_strict = 0;
@@ -2861,7 +2891,7 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
         }
     }
     star_friction_law_slips(c, grad, rows, &nr, slip_own, slip_ride);
-    star_friction_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, leave);
+    star_friction_law_lands(c, q, vel_m, grad, rows, &nr, slip_ride, land, loose, bare, leave);
     crowded = nr > STAR_FRICTION_MAX_LAW_ROWS; /* too many to enumerate: the projected Gauss-Seidel alone, below */
     dependent = star_friction_spanned(grad, rows, NULL, nr, every); /* only then may a set of tight rows be dependent */
     ok = star_friction_lu(STAR_FRICTION_N, mass, piv);
@@ -3000,6 +3030,7 @@ static int star_friction_law_once(const star_friction_ctx_t *c, const double *q,
         }
     }
     star_friction_velocity(c, q, vel_m, p_plus, vel_p);
+    c->sus->friction_dropped += star_friction_bare_slides(grad, vel_p, bare);
     return 0;
 }
 
@@ -3072,19 +3103,32 @@ static int star_friction_cut_riders(const star_friction_ctx_t *c, const double *
     return n_cut;
 }
 
+/* ImpulseLaw._astray: how many landing contacts (land[f] = owner, law_lands) ride on the stick row of a contact with
+ * gone[] (none of its rows stays after the law): their friction acts along a leaving contact's tangent. */
+static int star_friction_astray(const int *land, const int *gone)
+{
+    int f, n = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        n += land[f] >= 0 && land[f] != f && gone[star_friction_fric_contact[land[f]]];
+    }
+    return n;
+}
+
 /* ImpulseLaw._law_leaving: where the law (law_once's outputs) left a landing contact's friction out and active rows
  * leave in it (no impulse: a block sliding down a rough ramp lands on the rough floor at its foot; the floor's stick
- * row is in the span of the two normal rows, though the ramp's row takes none and leaves), solved anew with the
- * landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave), every
- * set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in it and
- * it leaves less friction out (the tangent stops there, law_why); else the first is solved again. counts: before the
- * law. 0 if solved, with leave[] the rows left out of the tests (all 0 where the first stands). */
+ * row is in the span of the two normal rows, though the ramp's row takes none and leaves), or a landing contact's
+ * friction rides on the stick row of a contact that leaves (astray: a disk rolling down the ramp), solved anew with
+ * the landing stick rows tested against the rows but those leaving and the stick rows of their contacts (leave),
+ * every set of tight rows that is dependent left out, and taken where it is solved, the leaving rows still leave in
+ * it and it leaves fewer landing contacts without friction of their own (left out or astray; the tangent stops
+ * there, law_why); else the first is solved again. counts: before the law. 0 if solved, with leave[] the rows left
+ * out of the tests (all 0 where the first stands). */
 static int star_friction_law_leaving(const star_friction_ctx_t *c, const double *q, const double *p, const double *guess,
     const int *hit, int n_hit, const double *tgt, double *p_plus, double *lam_full, double *vel_m, double *vel_p,
     int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land, const long *counts, int *leave)
 {
     int leaving[STAR_FRICTION_R_DIM], stay[STAR_FRICTION_M_DIM] = {0}, gone[STAR_FRICTION_M_DIM] = {0}, act[STAR_FRICTION_R_DIM];
-    int ride[STAR_FRICTION_NF_DIM], r, f, k, on, any = 0, ok;
+    int ride[STAR_FRICTION_NF_DIM], r, f, k, on, any = 0, ok, astray;
     const long first[2] = {c->sus->least_splits, c->sus->friction_dropped};
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         leave[r] = 0;
@@ -3097,13 +3141,19 @@ static int star_friction_law_leaving(const star_friction_ctx_t *c, const double 
             stay[star_friction_row_contact[r]] = 1;
         }
     }
-    if (c->sus->friction_dropped == counts[1] || !any) {
+    if (!any) {
         return 0;
     }
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         if (leaving[r] && star_friction_row_contact[r] >= 0 && !stay[star_friction_row_contact[r]]) {
             gone[star_friction_row_contact[r]] = 1; /* a contact none of whose rows stays */
         }
+    }
+    astray = star_friction_astray(land, gone);
+    if (c->sus->friction_dropped == counts[1] && !astray) {
+        return 0;
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
         leave[r] = leaving[r];
     }
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
@@ -3119,7 +3169,7 @@ static int star_friction_law_leaving(const star_friction_ctx_t *c, const double 
     for (r = 0; ok && r < STAR_FRICTION_R; ++r) {
         ok = !leaving[r] || dropped[r];
     }
-    if (ok && c->sus->friction_dropped < first[1]) {
+    if (ok && c->sus->friction_dropped + star_friction_astray(land, gone) < first[1] + astray) {
         c->sus->law_why = 1;
         return 0;
     }
@@ -3753,7 +3803,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[STAR_FRICTION_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[STAR_FRICTION_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[STAR_FRICTION_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -4617,6 +4667,9 @@ static int star_friction_step(const star_friction_ctx_t *c, double *q, double *p
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < STAR_FRICTION_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (star_friction_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
 

@@ -2822,7 +2822,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int hit[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
-    int bounces[DOUBLE_PENDULUM_R_DIM] = {0}; /* impacts of each row in this step's chain (BOUNCE_CYCLES: then held) */
+    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[DOUBLE_PENDULUM_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -3448,6 +3448,9 @@ static int double_pendulum_step(const double_pendulum_ctx_t *c, double *q, doubl
         c->sus->cforce[j] = 0.0;
     }
     c->sus->events = 0;
+    for (j = 0; j < DOUBLE_PENDULUM_R; ++j) {
+        c->sus->bounces[j] = 0;
+    }
     if (double_pendulum_held(c->sus)) { /* sustained contact or bilateral constraints: SustainedSteps._chain */
         double e_step = NAN;
         if (c->carry) { /* the held step moves (q, p) another way: the next free step starts afresh */
