@@ -1,7 +1,8 @@
 """Random drops of a rough box into a rough V (walls ``y = s |x|``) on both backends: errors, where the box
 ends, landings whose friction was left out, and C against CasADi.
 
-    .venv/bin/python -m bench.box_v_drops [--drops 100] [--seed 1] [--backends c casadi]
+    .venv/bin/python -m bench.box_v_drops [--drops 100] [--seed 1] [--backends c casadi] [--rule lobatto3]
+                                          [--smooth]
 
 The box has half sides 0.3 and 0.15 and unit mass; each of its four corners is a contact on each wall (eight
 contacts, one tangent each). Each drop: slope ``s`` in [0.3, 2.5], ``e`` 0 in half the drops (else in [0,
@@ -11,7 +12,8 @@ message), those at rest at the end and those still moving, the runs whose warnin
 was left out (``res.stats["landing_friction_dropped"]``) or a restitution reduced, the lowest gap, the
 largest rise of ``E_d`` above its start (in flight it swings by ``g^2 h^2 / 8``) and the wall time; CasADi's
 drops are C's first ones, and C against them (the drops whose impacts differ, the largest difference of
-``q``, and the drops more than 1e-6 apart, by index).
+``q``, and the drops more than 1e-6 apart, by index). ``--smooth``: frictionless walls (``mu`` dropped), as
+``rule="lobatto3"`` needs.
 
 Till stop 47 a landing whose stick row was in the span of the normal rows was counted as friction left out
 (and warned of) even where the box was at rest after it: a tangential impulse of 0 then sticks inside the
@@ -36,9 +38,9 @@ HALF = (0.3, 0.15)
 CORNERS = [(HALF[0], HALF[1]), (-HALF[0], HALF[1]), (-HALF[0], -HALF[1]), (HALF[0], -HALF[1])]
 
 
-def model() -> vcigen.Model:
+def model(rough: bool = True) -> vcigen.Model:
     """The box between the walls ``y = -s x`` (``l0..l3``) and ``y = s x`` (``r0..r3``), rough (``mu``, unit
-    tangents along each wall) with restitution ``e``."""
+    tangents along each wall; frictionless where not ``rough``) with restitution ``e``."""
     x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
     s, e, mu = sp.symbols("s e mu", positive=True)
     n = sp.sqrt(1 + s**2)
@@ -55,8 +57,8 @@ def model() -> vcigen.Model:
         lagrangian=(xd**2 + yd**2) / 2 + (HALF[0] ** 2 + HALF[1] ** 2) / 6 * thd**2 - G * y,
         contacts=contacts,
         restitution=dict.fromkeys(contacts, e),
-        friction=friction,
-        params={s: 1.0, e: 0.5, mu: 0.4},
+        friction=friction if rough else {},
+        params={s: 1.0, e: 0.5, mu: 0.4} if rough else {s: 1.0, e: 0.5},
     )
 
 
@@ -100,7 +102,7 @@ def campaign(sim: vcigen.Simulator, drops: list) -> tuple[Counter, list, dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return drop_campaigns.main(argv, __doc__, model, draw, campaign, 100, G**2 * H**2 / 8)
+    return drop_campaigns.main(argv, __doc__, model, draw, campaign, 100, G**2 * H**2 / 8, smooth=True)
 
 
 if __name__ == "__main__":

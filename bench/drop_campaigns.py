@@ -27,7 +27,9 @@ def campaign(
     ``gap(res, params)`` is a run's lowest gap."""
     counts, results = Counter(), []
     low, rise = np.inf, -np.inf
+    names = {p.name for p in sim.model.defaults}
     for params, q0, v0 in drops:
+        params = {k: v for k, v in params.items() if k in names}  # (--smooth: no mu)
         try:
             res = sim.simulate(q0=q0, v0=v0, h=h, t_end=t_end, params=params)
         except vcigen.SolverError as err:
@@ -49,8 +51,10 @@ def main(
     campaign: Callable[[vcigen.Simulator, list], tuple],
     drops: int,
     swing: float,
+    smooth: bool = False,
 ) -> int:
-    """Parses ``--drops`` (default ``drops``), ``--seed`` and ``--backends``; runs ``campaign(sim, draws)`` (a
+    """Parses ``--drops`` (default ``drops``), ``--seed``, ``--backends``, ``--rule`` and, where ``smooth``,
+    ``--smooth`` (``model(rough=False)``: frictionless walls); runs ``campaign(sim, draws)`` (a
     result None where it raised; ``(counts, results, {"lowest gap", "E_d rise"})``) on C and on a fifth of the
     draws on CasADi, prints each backend's counts and extremes (``swing``: ``E_d``'s own swing in flight) and
     the drops whose impacts differ between the backends or whose ``q`` are more than 1e-6 apart."""
@@ -58,18 +62,23 @@ def main(
     ap.add_argument("--drops", type=int, default=drops)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--backends", nargs="+", default=["c", "casadi"], choices=["c", "casadi"])
+    ap.add_argument("--rule", default="trapezoid", choices=sorted(vcigen.RULES))
+    if smooth:
+        ap.add_argument("--smooth", action="store_true", help="frictionless walls (any rule)")
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore", RuntimeWarning)  # friction left out, restitution reduced: counted
     rng = np.random.default_rng(a.seed)
     draws = [draw(rng) for _ in range(a.drops)]
     out = {}
     for backend in a.backends:
-        sim = vcigen.build(model(), backend=backend)
+        sim = vcigen.build(
+            model(rough=False) if getattr(a, "smooth", False) else model(), backend=backend, rule=a.rule
+        )
         n = a.drops if backend == "c" else max(1, a.drops // 5)
         start = time.perf_counter()
         counts, results, ext = campaign(sim, draws[:n])
         out[backend] = results
-        print(f"[{backend}] {n} drops (seed {a.seed}), {time.perf_counter() - start:.1f} s")
+        print(f"[{backend}, {a.rule}] {n} drops (seed {a.seed}), {time.perf_counter() - start:.1f} s")
         for key, value in sorted(counts.items()):
             print(f"  {key}: {value}")
         print(
