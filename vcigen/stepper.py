@@ -103,6 +103,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self._law = None  # the last jump's frictional law (contact, normal before it): Tracker.jump's
         self._fswitch = False  # a held step's first event was a friction switch (Stepper._tangent_held)
         self._sw_stop = None  # (step, events) after a carried friction stop (SustainedSteps._sw_back)
+        self._bounces: dict[int, int] = {}  # impacts of each row in this step's held chains (step resets it)
         self.tol = tol or Tolerances()
         self.reflected = 0  # grazing impacts that took the continuous law (Tolerances.grazing)
         self.fallbacks = 0  # impacts re-resolved by the continuous law where (78) had no solution
@@ -240,7 +241,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
             self._cforce[:] = 0.0
             self._booked = False
         self._events = 0
-        self._bounces: dict[int, int] = {}  # impacts of each row in this step's held chains (_chain)
+        self._bounces = {}
         self._h = h
         self._chained = False
         self._at(t)
