@@ -9,7 +9,8 @@ and, where ``tan |theta| <= mu``, stays there (at ``mu = 0.2`` after one swing a
 theta = 0.1522). The reference integrates each slide with ``scipy.integrate.solve_ivp`` (rtol 1e-12) to its
 turn (an event). vcigen's angle at every grid point is within 1.40 h^2 of it (h = 0.01, 0.005, 0.0025; the
 largest error at t = 0.67, in the first slide), it never leaves the circle, and it rests within 0.0627 h^2 of
-the reference's rest angle, the same on both backends.
+the reference's rest angle, the same on both backends. And a particle sliding off a rough dome: its lift-off
+where the normal force vanishes, against scipy's event, at order 2.
 """
 
 from __future__ import annotations
@@ -95,3 +96,45 @@ def test_a_particle_slides_in_a_rough_bowl_at_order_2_and_rests_where_scipy_does
         errors.append(max(abs(a - reference_angle(float(t))) for a, t in zip(theta, res.t)))
         assert abs(theta[-1] - theta_stop) < 0.07 * h * h and np.abs(res.v[-1]).max() < 1e-12
     assert errors[0] < 1.5 * 0.01**2 and errors[0] / errors[1] > 3.9
+
+
+def dome() -> vcigen.Model:
+    """The unit particle on the rough dome ``|q| >= R`` (``mu``), the tangent the arc ``R atan2(x, y)``."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    return vcigen.Model(
+        name="rough_dome_slide",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - G * y,
+        contacts={"dome": sp.sqrt(x**2 + y**2) - R},
+        restitution={"dome": 0.0},
+        friction={"dome": (MU, R * sp.atan2(x, y))},
+    )
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_particle_slides_off_a_rough_dome_where_its_normal_force_vanishes_at_order_2(backend: str) -> None:
+    """Started on the dome at ``theta = 0.3`` from its top, moving down at ``thetad = 0.5``, held: ``R
+    thetadd = g sin theta - mu (g cos theta - R thetad^2)``, and it leaves where ``N = m (g cos theta - R
+    thetad^2)`` reaches 0 (scipy's event: t = 0.64028, theta = 0.96755). The lift-off is located 0.360 h^2
+    late (h = 0.01, 0.005, 0.0025: ratios 4.000), the same on both backends."""
+
+    def rhs(_t, s):
+        return [s[1], (G * math.sin(s[0]) - MU * (G * math.cos(s[0]) - R * s[1] ** 2)) / R]
+
+    def leaves(_t, s):
+        return G * math.cos(s[0]) - R * s[1] ** 2
+
+    leaves.terminal, leaves.direction = True, -1
+    theta0, w0 = 0.3, 0.5
+    sol = solve_ivp(rhs, (0.0, 5.0), [theta0, w0], rtol=1e-12, atol=1e-13, events=leaves)
+    t_off = float(sol.t_events[0][0])
+    sim = vcigen.build(dome(), backend=backend)
+    q0 = [R * math.sin(theta0), R * math.cos(theta0)]
+    v0 = [R * w0 * math.cos(theta0), -R * w0 * math.sin(theta0)]
+    late = []
+    for h in (0.01, 0.005, 0.0025):
+        res = sim.simulate(q0, v0, h, t_end=t_off + 0.2)
+        assert res.active[0].all() and not res.impacts and [j for _, j in res.liftoffs] == ["dome"]
+        late.append(res.liftoffs[0][0] - t_off)
+    assert 0 < late[0] < 0.37 * 0.01**2 and all(3.9 < a / b < 4.1 for a, b in zip(late, late[1:]))
