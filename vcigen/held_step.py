@@ -252,6 +252,6 @@ class HeldSteps:
             u1 = self._velocity(out.q1, out.v, out.p1)
             lam_m = np.zeros(0)  # no internal points (a rule with them has no held grid step)
             self._held_seg = (out.v, out.lam, out.lam1, lam_m, u1, self.act.copy())
-        self._book(out.lam + out.lam1)
+        self._book(out.lam + out.lam1, out.q1)
         self._lam = np.where(self.act, out.lam * (self._h / h), 0.0)
         return out.q1, out.p1, out.energy, out.v

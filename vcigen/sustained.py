@@ -437,14 +437,16 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             f1 = self._forces(end)
             if self._stick_rows:
                 self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
-            pulled = unilateral & (f1 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1)))))
+            f1p = self._pressed(f1, end.grad)
+            pulled = unilateral & (f1p < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1p)))))
             pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
             if pulled.any():
-                f0 = self._contact_forces(q, self._velocity(q, v, p))
+                u0 = self._velocity(q, v, p)
+                f0 = self._pressed(self._contact_forces(q, u0), k.rows(q, u0)[1])
                 for r in np.flatnonzero(pulled):
                     events[int(r)] = (
                         "lift",
-                        self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1[r]),
+                        self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1p[r]),
                     )
             for r, (kind, s) in events.items():  # within the least sub-step (1e-13 h): at the start
                 events[r] = (kind, 0.0 if s * tau <= 1e-13 * h else s)
@@ -487,7 +489,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             dips = self._row_dips(step, t_k, q, p, tau, v, u1, end, cross)
             if not events and not cross.any() and not dips:
                 if tau < rest:  # a halved segment: the rest of the step next
-                    self._book(lam + lam1)
+                    self._book(lam + lam1, q1)
                     self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                     t, rest, q, p, guess = t + tau, rest - tau, q1, p1, v
                     continue
@@ -497,7 +499,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self._ev_tan.events_begin(self._ev_entry)
                     self._ev_tan.held(q, p, tau, v, lam, *self._seg_inner, u1, self.act.copy(), True)
                     self._ev_done = True
-                self._book(lam + lam1)
+                self._book(lam + lam1, q1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                 return q1, p1, e_step, v
             for r in np.flatnonzero(cross):
@@ -525,7 +527,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False
             e_step = e_sub if self._forced else e_step  # forces: the step's energy is its last segment's
-            self._book(lam + lam1)
+            self._book(lam + lam1, q)
             t, rest, guess = t + s * tau, (1.0 - s) * tau if tau == rest else rest - s * tau, v
             turn = -1
             if s > tol.simultaneous:  # a later instant (within Tolerances.simultaneous: this one)
@@ -816,10 +818,16 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 return i
         return -1
 
-    def _book(self, impulses) -> None:
-        """Add the constraint impulses of a segment (``Lam + Lam'``, per row) to the step's forces."""
+    def _book(self, impulses, q_end) -> None:
+        """Add the constraint impulses of a segment (``Lam + Lam'``, per row; ``q_end`` its end) to the step's
+        forces. Where a stick row rides they are one split of many: booked as their best split
+        (:meth:`_pressed`, the split homogeneous in the impulses), so that a resting body's forces are the
+        same whichever stick row holds (a rod stopped in a rough bowl reported -0.51 on one end or 2.9 and
+        5.5 against 5.5 and 8.1, as round-off chose)."""
         k = self.k
         self._booked = True
+        if self._owners():
+            impulses = self._pressed(impulses, k.rows(q_end, np.zeros(k.n))[1])
         for r in np.flatnonzero(impulses):
             if k.row_stick and k.row_stick[r] >= 0:
                 continue  # a stick row's force is tangential: not a normal force
@@ -853,7 +861,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         return v, end, u1
 
     def _liftoff_fraction(self, step, t_k, q, p, tau, guess, r, f0, f1) -> float:
-        """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end) vanishes.
+        """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end, :meth:`_pressed`)
+        vanishes.
 
         ``0`` if the force at the segment start ``f0`` is already negative (release at the start); else the
         root in ``[0, 1]`` of the force along the sub-step map (Illinois): where ``|force| <= EPS_LAM`` scale,
@@ -865,7 +874,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
 
         def force(c, v):
             v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
-            return float(self._forces(end)[r]), v
+            return float(self._pressed(self._forces(end), end.grad)[r]), v
 
         return illinois(force, ga, gb, EPS_LAM * (1.0 + abs(ga) + abs(gb)), 1e-12, LIFT_ITER, guess)
 

@@ -1756,12 +1756,18 @@ static void particle_release(const particle_ctx_t *c, double t, int r, int rider
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void particle_book(const particle_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void particle_book(const particle_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[PARTICLE_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < PARTICLE_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < PARTICLE_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || particle_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -1812,7 +1818,7 @@ static int particle_sub_end(const particle_ctx_t *c, const double *q, const doub
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -2458,6 +2464,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double psi1[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PARTICLE_R_DIM] = {0.0}, g_dip[PARTICLE_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -2494,11 +2501,11 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             *e_step = e_seg;
         }
         particle_end_forces(c, q1, u1, tau, f1);
-        f_eps = PARTICLE_EPS_LIFT * (1.0 + particle_norm_inf(PARTICLE_R, f1));
+        f_eps = PARTICLE_EPS_LIFT * (1.0 + particle_norm_inf(PARTICLE_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < PARTICLE_R; ++r) {
-            ev[r] = c->sus->act[r] && !particle_row_free[r] && pulls[r] < PARTICLE_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !particle_row_free[r] && pulls[r] < PARTICLE_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2506,7 +2513,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             particle_contact_forces(c, q, vel, f0);
             for (r = 0; r < PARTICLE_R; ++r) {
                 if (ev[r]) {
-                    if (particle_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (particle_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -2536,7 +2543,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && particle_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            particle_book(c, lam, lam1);
+            particle_book(c, lam, lam1, q1);
             for (r = 0; r < PARTICLE_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -2550,7 +2557,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             continue;
         }
         if (!any) {
-            particle_book(c, lam, lam1);
+            particle_book(c, lam, lam1, q1);
             for (r = 0; r < PARTICLE_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -2601,7 +2608,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         } else if (particle_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        particle_book(c, lam, lam1);
+        particle_book(c, lam, lam1, q1);
         for (i = 0; i < PARTICLE_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

@@ -2543,12 +2543,18 @@ static void cube_settles_release(const cube_settles_ctx_t *c, double t, int r, i
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void cube_settles_book(const cube_settles_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void cube_settles_book(const cube_settles_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[CUBE_SETTLES_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || cube_settles_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2599,7 +2605,7 @@ static int cube_settles_sub_end(const cube_settles_ctx_t *c, const double *q, co
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -3245,6 +3251,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     double psi1[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
     double s_ev[CUBE_SETTLES_R_DIM] = {0.0}, e_seg, e_sub, s, u1[CUBE_SETTLES_N], f0[CUBE_SETTLES_R_DIM];
     double f1[CUBE_SETTLES_R_DIM], vel[CUBE_SETTLES_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[CUBE_SETTLES_R_DIM] = {0.0}, g_dip[CUBE_SETTLES_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[CUBE_SETTLES_R_DIM], group[CUBE_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -3281,11 +3288,11 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             *e_step = e_seg;
         }
         cube_settles_end_forces(c, q1, u1, tau, f1);
-        f_eps = CUBE_SETTLES_EPS_LIFT * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_R, f1));
+        f_eps = CUBE_SETTLES_EPS_LIFT * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < CUBE_SETTLES_R; ++r) {
-            ev[r] = c->sus->act[r] && !cube_settles_row_free[r] && pulls[r] < CUBE_SETTLES_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !cube_settles_row_free[r] && pulls[r] < CUBE_SETTLES_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3293,7 +3300,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             cube_settles_contact_forces(c, q, vel, f0);
             for (r = 0; r < CUBE_SETTLES_R; ++r) {
                 if (ev[r]) {
-                    if (cube_settles_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (cube_settles_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -3323,7 +3330,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && cube_settles_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            cube_settles_book(c, lam, lam1);
+            cube_settles_book(c, lam, lam1, q1);
             for (r = 0; r < CUBE_SETTLES_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -3337,7 +3344,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             continue;
         }
         if (!any) {
-            cube_settles_book(c, lam, lam1);
+            cube_settles_book(c, lam, lam1, q1);
             for (r = 0; r < CUBE_SETTLES_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -3388,7 +3395,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         } else if (cube_settles_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        cube_settles_book(c, lam, lam1);
+        cube_settles_book(c, lam, lam1, q1);
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

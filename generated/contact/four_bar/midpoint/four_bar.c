@@ -2255,12 +2255,18 @@ static void four_bar_release(const four_bar_ctx_t *c, double t, int r, int rider
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void four_bar_book(const four_bar_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void four_bar_book(const four_bar_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[FOUR_BAR_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < FOUR_BAR_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || four_bar_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2311,7 +2317,7 @@ static int four_bar_sub_end(const four_bar_ctx_t *c, const double *q, const doub
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -2957,6 +2963,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     double psi1[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
     double s_ev[FOUR_BAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[FOUR_BAR_N], f0[FOUR_BAR_R_DIM];
     double f1[FOUR_BAR_R_DIM], vel[FOUR_BAR_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[FOUR_BAR_R_DIM] = {0.0}, g_dip[FOUR_BAR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[FOUR_BAR_R_DIM], group[FOUR_BAR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -2993,11 +3000,11 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             *e_step = e_seg;
         }
         four_bar_end_forces(c, q1, u1, tau, f1);
-        f_eps = FOUR_BAR_EPS_LIFT * (1.0 + four_bar_norm_inf(FOUR_BAR_R, f1));
+        f_eps = FOUR_BAR_EPS_LIFT * (1.0 + four_bar_norm_inf(FOUR_BAR_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < FOUR_BAR_R; ++r) {
-            ev[r] = c->sus->act[r] && !four_bar_row_free[r] && pulls[r] < FOUR_BAR_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !four_bar_row_free[r] && pulls[r] < FOUR_BAR_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3005,7 +3012,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             four_bar_contact_forces(c, q, vel, f0);
             for (r = 0; r < FOUR_BAR_R; ++r) {
                 if (ev[r]) {
-                    if (four_bar_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (four_bar_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -3035,7 +3042,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && four_bar_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            four_bar_book(c, lam, lam1);
+            four_bar_book(c, lam, lam1, q1);
             for (r = 0; r < FOUR_BAR_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -3049,7 +3056,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             continue;
         }
         if (!any) {
-            four_bar_book(c, lam, lam1);
+            four_bar_book(c, lam, lam1, q1);
             for (r = 0; r < FOUR_BAR_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -3100,7 +3107,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         } else if (four_bar_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        four_bar_book(c, lam, lam1);
+        four_bar_book(c, lam, lam1, q1);
         for (i = 0; i < FOUR_BAR_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

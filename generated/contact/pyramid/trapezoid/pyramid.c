@@ -2685,12 +2685,32 @@ static void pyramid_release(const pyramid_ctx_t *c, double t, int r, int rider)
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void pyramid_book(const pyramid_ctx_t *c, const double *lam, const double *lam1)
+static void pyramid_pressed(const pyramid_ctx_t *c, const double *forces, const double *grad, double *out);
+
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void pyramid_book(const pyramid_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[PYRAMID_R_DIM];
     int r;
+    int g, owns = 0;
+    for (g = 0; g < PYRAMID_NF; ++g) {
+        owns = owns || (c->sus->ride[g] >= 0 && c->sus->ride[g] != g);
+    }
     for (r = 0; r < PYRAMID_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    if (owns) {
+        double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
+        double zero[PYRAMID_N] = {0.0}, split[PYRAMID_R_DIM];
+        pyramid_rows(q_end, zero, c->par, psi, grad, curv);
+        pyramid_pressed(c, imps, grad, split);
+        for (r = 0; r < PYRAMID_R; ++r) {
+            imps[r] = split[r];
+        }
+    }
+    for (r = 0; r < PYRAMID_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || pyramid_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2740,7 +2760,7 @@ static int pyramid_sub_end(const pyramid_ctx_t *c, const double *q, const double
 }
 
 static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
-    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs);
+    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null);
 
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
  * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
@@ -2752,7 +2772,7 @@ static double pyramid_cone_margin(const pyramid_ctx_t *c, int f, const double *f
     double l_margin, l_alpha, l_values[PYRAMID_M_DIM], l_lams[PYRAMID_M_DIM], l_dirs[PYRAMID_M_DIM];
     int l_contacts[PYRAMID_M_DIM];
     if (pyramid_stick_split(c, f, forces, grad, &l_margin, &l_alpha, l_values,
-            l_contacts, l_lams, l_dirs)) {
+            l_contacts, l_lams, l_dirs, NULL)) {
         return l_margin;
     }
     for (r = 0; r < PYRAMID_R; ++r) {
@@ -2919,10 +2939,11 @@ static double pyramid_split_line(int nc, const double *caps, const double *slope
 /* SustainedSteps._stick_split: the contacts coupled with one-tangent contact f by the dependent sticks it carries
  * (ride[g] = f) and their best split along the line of each one's null combination (split_line): 1 and the least
  * margin over those sticks, with its alpha, each term, each coupled contact (its frictional index, -1 without
- * friction), stick force and null combination on it; 0 if f carries none or a cone is coupled. A contact with
- * friction keeps mu_c (N_c + alpha sum n_r) - |F_c + alpha n_t|, one without N_c + alpha sum n_r >= 0. */
+ * friction), stick force and null combination on it, and (null, if not NULL) that stick's null combination over
+ * the rows; 0 if f carries none or a cone is coupled. A contact with friction keeps mu_c (N_c + alpha sum n_r) -
+ * |F_c + alpha n_t|, one without N_c + alpha sum n_r >= 0. */
 static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
-    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs)
+    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null)
 {
     double n[PYRAMID_R_DIM], caps[PYRAMID_M_DIM], slopes[PYRAMID_M_DIM], ls[PYRAMID_M_DIM];
     double ds[PYRAMID_M_DIM], vs[PYRAMID_M_DIM], m, a, d, shift, normal, mu_c;
@@ -2975,9 +2996,36 @@ static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forc
                 lams[i] = i < nc ? ls[i] : 0.0;
                 dirs[i] = i < nc ? ds[i] : 0.0;
             }
+            for (r = 0; null && r < PYRAMID_R; ++r) {
+                null[r] = n[r];
+            }
         }
     }
     return found;
+}
+
+/* SustainedSteps._pressed: the held rows' forces as the lift-off test reads them (out), shifted along the null
+ * combination of each one-tangent contact's dependent sticks by their best split (stick_split: forces + alpha n,
+ * the same joint force on the body), whose normal forces are those Coulomb's law holds the stick with. Exact for
+ * one dependence, as the split is. */
+static void pyramid_pressed(const pyramid_ctx_t *c, const double *forces, const double *grad, double *out)
+{
+    double margin, alpha, values[PYRAMID_M_DIM], lams[PYRAMID_M_DIM], dirs[PYRAMID_M_DIM];
+    double n[PYRAMID_R_DIM];
+    int contacts[PYRAMID_M_DIM], f, g, r, owns;
+    for (r = 0; r < PYRAMID_R; ++r) {
+        out[r] = forces[r];
+    }
+    for (f = 0; f < PYRAMID_NF; ++f) {
+        for (g = 0, owns = 0; g < PYRAMID_NF; ++g) {
+            owns = owns || (c->sus->ride[g] == f && g != f);
+        }
+        if (owns && pyramid_stick_split(c, f, forces, grad, &margin, &alpha, values, contacts, lams, dirs, n)) {
+            for (r = 0; r < PYRAMID_R; ++r) {
+                out[r] += alpha * n[r];
+            }
+        }
+    }
 }
 
 /* SustainedSteps._stick_split_slide: a stick split's stick breaks (stick_split): the contacts with friction at the
@@ -3199,7 +3247,7 @@ static void pyramid_friction_switch(const pyramid_ctx_t *c, int kind, int sr, co
         pyramid_stick(c, f, q, u);
     } else {
         pyramid_contact_forces(c, q, u, fr);
-        if (pyramid_stick_split(c, f, fr, grad, &margin, &alpha, values, contacts, lams, dirs)) {
+        if (pyramid_stick_split(c, f, fr, grad, &margin, &alpha, values, contacts, lams, dirs, NULL)) {
             pyramid_stick_split_slide(c, margin, alpha, values, contacts, lams, dirs, q, u);
             pyramid_set_friction(c);
             return;
@@ -3221,7 +3269,7 @@ static void pyramid_friction_switch(const pyramid_ctx_t *c, int kind, int sr, co
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -3248,6 +3296,14 @@ static int pyramid_illinois(const pyramid_ctx_t *c, int r, int height, const dou
             pyramid_rows(q1, v, c->par, f, grad, curv);
         } else {
             pyramid_end_forces(c, q1, u1, cc * tau, f);
+            if (height == 0) { /* a lift-off reads the best split where a stick row rides (pressed) */
+                double fh[PYRAMID_R_DIM];
+                pyramid_rows(q1, u1, c->par, fh, grad, curv);
+                pyramid_pressed(c, f, grad, fh);
+                for (i = 0; i < PYRAMID_R; ++i) {
+                    f[i] = fh[i];
+                }
+            }
         }
         gc = f[r];
         if (height == 2) {
@@ -4598,6 +4654,8 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     double psi1[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
     double s_ev[PYRAMID_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PYRAMID_N], f0[PYRAMID_R_DIM];
     double f1[PYRAMID_R_DIM], vel[PYRAMID_N], f_eps;
+    double fpress[PYRAMID_R_DIM]; /* f1 as the lift-off test reads it (pressed) */
+    const double *fp = fpress;
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PYRAMID_R_DIM] = {0.0}, g_dip[PYRAMID_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PYRAMID_R_DIM], group[PYRAMID_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -4657,19 +4715,33 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             *e_step = e_seg;
         }
         pyramid_end_forces(c, q1, u1, tau, f1);
-        f_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, f1));
+        { /* the lift-off test reads the best split where a stick row rides (pressed) */
+            double psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N], curvp[PYRAMID_R_DIM];
+            pyramid_rows(q1, u1, c->par, psip, gradp, curvp);
+            pyramid_pressed(c, f1, gradp, fpress);
+        }
+        f_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < PYRAMID_R; ++r) {
-            ev[r] = c->sus->act[r] && !pyramid_row_free[r] && pulls[r] < PYRAMID_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !pyramid_row_free[r] && pulls[r] < PYRAMID_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
             pyramid_velocity(c, q, vv, p, vel);
             pyramid_contact_forces(c, q, vel, f0);
+            { /* pressed, as at the end */
+                double fh[PYRAMID_R_DIM], psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N];
+                double curvp[PYRAMID_R_DIM];
+                pyramid_rows(q, vel, c->par, psip, gradp, curvp);
+                pyramid_pressed(c, f0, gradp, fh);
+                for (r = 0; r < PYRAMID_R; ++r) {
+                    f0[r] = fh[r];
+                }
+            }
             for (r = 0; r < PYRAMID_R; ++r) {
                 if (ev[r]) {
-                    if (pyramid_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (pyramid_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -4793,7 +4865,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && pyramid_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            pyramid_book(c, lam, lam1);
+            pyramid_book(c, lam, lam1, q1);
             for (r = 0; r < PYRAMID_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -4807,7 +4879,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             continue;
         }
         if (!any) {
-            pyramid_book(c, lam, lam1);
+            pyramid_book(c, lam, lam1, q1);
             for (r = 0; r < PYRAMID_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -4858,7 +4930,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         } else if (pyramid_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        pyramid_book(c, lam, lam1);
+        pyramid_book(c, lam, lam1, q1);
         for (i = 0; i < PYRAMID_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

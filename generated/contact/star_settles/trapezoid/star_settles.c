@@ -2038,12 +2038,18 @@ static void star_settles_release(const star_settles_ctx_t *c, double t, int r, i
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void star_settles_book(const star_settles_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void star_settles_book(const star_settles_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[STAR_SETTLES_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < STAR_SETTLES_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || star_settles_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2094,7 +2100,7 @@ static int star_settles_sub_end(const star_settles_ctx_t *c, const double *q, co
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -2740,6 +2746,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     double psi1[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
     double s_ev[STAR_SETTLES_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_SETTLES_N], f0[STAR_SETTLES_R_DIM];
     double f1[STAR_SETTLES_R_DIM], vel[STAR_SETTLES_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[STAR_SETTLES_R_DIM] = {0.0}, g_dip[STAR_SETTLES_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[STAR_SETTLES_R_DIM], group[STAR_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -2776,11 +2783,11 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             *e_step = e_seg;
         }
         star_settles_end_forces(c, q1, u1, tau, f1);
-        f_eps = STAR_SETTLES_EPS_LIFT * (1.0 + star_settles_norm_inf(STAR_SETTLES_R, f1));
+        f_eps = STAR_SETTLES_EPS_LIFT * (1.0 + star_settles_norm_inf(STAR_SETTLES_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < STAR_SETTLES_R; ++r) {
-            ev[r] = c->sus->act[r] && !star_settles_row_free[r] && pulls[r] < STAR_SETTLES_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_settles_row_free[r] && pulls[r] < STAR_SETTLES_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2788,7 +2795,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             star_settles_contact_forces(c, q, vel, f0);
             for (r = 0; r < STAR_SETTLES_R; ++r) {
                 if (ev[r]) {
-                    if (star_settles_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (star_settles_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -2818,7 +2825,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && star_settles_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            star_settles_book(c, lam, lam1);
+            star_settles_book(c, lam, lam1, q1);
             for (r = 0; r < STAR_SETTLES_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -2832,7 +2839,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             continue;
         }
         if (!any) {
-            star_settles_book(c, lam, lam1);
+            star_settles_book(c, lam, lam1, q1);
             for (r = 0; r < STAR_SETTLES_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -2883,7 +2890,7 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         } else if (star_settles_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        star_settles_book(c, lam, lam1);
+        star_settles_book(c, lam, lam1, q1);
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

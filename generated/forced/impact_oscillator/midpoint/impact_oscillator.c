@@ -1573,12 +1573,18 @@ static void impact_oscillator_release(const impact_oscillator_ctx_t *c, double t
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void impact_oscillator_book(const impact_oscillator_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void impact_oscillator_book(const impact_oscillator_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[IMPACT_OSCILLATOR_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || impact_oscillator_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -1631,7 +1637,7 @@ static int impact_oscillator_sub_end(const impact_oscillator_ctx_t *c, const dou
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -2278,6 +2284,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     double psi1[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     double s_ev[IMPACT_OSCILLATOR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM];
     double f1[IMPACT_OSCILLATOR_R_DIM], vel[IMPACT_OSCILLATOR_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[IMPACT_OSCILLATOR_R_DIM] = {0.0}, g_dip[IMPACT_OSCILLATOR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -2314,11 +2321,11 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             *e_step = e_seg;
         }
         impact_oscillator_end_forces(c, q1, u1, tau, f1);
-        f_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, f1));
+        f_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-            ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && pulls[r] < IMPACT_OSCILLATOR_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && pulls[r] < IMPACT_OSCILLATOR_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2326,7 +2333,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             impact_oscillator_contact_forces(c, q, vel, f0);
             for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
                 if (ev[r]) {
-                    if (impact_oscillator_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (impact_oscillator_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -2356,7 +2363,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && impact_oscillator_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            impact_oscillator_book(c, lam, lam1);
+            impact_oscillator_book(c, lam, lam1, q1);
             for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -2370,7 +2377,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             continue;
         }
         if (!any) {
-            impact_oscillator_book(c, lam, lam1);
+            impact_oscillator_book(c, lam, lam1, q1);
             for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -2422,7 +2429,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             return 1;
         }
         *e_step = e_sub; /* forces: the step's energy is its last segment's */
-        impact_oscillator_book(c, lam, lam1);
+        impact_oscillator_book(c, lam, lam1, q1);
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

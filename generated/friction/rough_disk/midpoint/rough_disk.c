@@ -1915,12 +1915,18 @@ static void rough_disk_release(const rough_disk_ctx_t *c, double t, int r, int r
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void rough_disk_book(const rough_disk_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void rough_disk_book(const rough_disk_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[ROUGH_DISK_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || rough_disk_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2212,7 +2218,7 @@ static void rough_disk_friction_switch(const rough_disk_ctx_t *c, int kind, int 
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -3589,6 +3595,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double psi1[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[ROUGH_DISK_R_DIM] = {0.0}, g_dip[ROUGH_DISK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -3648,11 +3655,11 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             *e_step = e_seg;
         }
         rough_disk_end_forces(c, q1, u1, tau, f1);
-        f_eps = ROUGH_DISK_EPS_LIFT * (1.0 + rough_disk_norm_inf(ROUGH_DISK_R, f1));
+        f_eps = ROUGH_DISK_EPS_LIFT * (1.0 + rough_disk_norm_inf(ROUGH_DISK_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {
-            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && pulls[r] < ROUGH_DISK_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && pulls[r] < ROUGH_DISK_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3660,7 +3667,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             rough_disk_contact_forces(c, q, vel, f0);
             for (r = 0; r < ROUGH_DISK_R; ++r) {
                 if (ev[r]) {
-                    if (rough_disk_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (rough_disk_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -3784,7 +3791,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            rough_disk_book(c, lam, lam1);
+            rough_disk_book(c, lam, lam1, q1);
             for (r = 0; r < ROUGH_DISK_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -3798,7 +3805,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             continue;
         }
         if (!any) {
-            rough_disk_book(c, lam, lam1);
+            rough_disk_book(c, lam, lam1, q1);
             for (r = 0; r < ROUGH_DISK_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -3849,7 +3856,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         } else if (rough_disk_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        rough_disk_book(c, lam, lam1);
+        rough_disk_book(c, lam, lam1, q1);
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

@@ -2005,12 +2005,18 @@ static void spun_ball_release(const spun_ball_ctx_t *c, double t, int r, int rid
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void spun_ball_book(const spun_ball_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void spun_ball_book(const spun_ball_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[SPUN_BALL_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < SPUN_BALL_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || spun_ball_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2874,7 +2880,7 @@ static void spun_ball_friction_switch(const spun_ball_ctx_t *c, int kind, int sr
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -5224,6 +5230,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double psi1[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[SPUN_BALL_R_DIM] = {0.0}, g_dip[SPUN_BALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -5283,11 +5290,11 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             *e_step = e_seg;
         }
         spun_ball_end_forces(c, q1, u1, tau, f1);
-        f_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, f1));
+        f_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < SPUN_BALL_R; ++r) {
-            ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && pulls[r] < SPUN_BALL_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && pulls[r] < SPUN_BALL_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -5295,7 +5302,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             spun_ball_contact_forces(c, q, vel, f0);
             for (r = 0; r < SPUN_BALL_R; ++r) {
                 if (ev[r]) {
-                    if (spun_ball_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (spun_ball_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -5427,7 +5434,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && spun_ball_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            spun_ball_book(c, lam, lam1);
+            spun_ball_book(c, lam, lam1, q1);
             for (r = 0; r < SPUN_BALL_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -5441,7 +5448,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             continue;
         }
         if (!any) {
-            spun_ball_book(c, lam, lam1);
+            spun_ball_book(c, lam, lam1, q1);
             for (r = 0; r < SPUN_BALL_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -5492,7 +5499,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         } else if (spun_ball_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        spun_ball_book(c, lam, lam1);
+        spun_ball_book(c, lam, lam1, q1);
         for (i = 0; i < SPUN_BALL_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];

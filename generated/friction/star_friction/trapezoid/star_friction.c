@@ -2123,12 +2123,18 @@ static void star_friction_release(const star_friction_ctx_t *c, double t, int r,
     }
 }
 
-/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row) into the step's forces. */
-static void star_friction_book(const star_friction_ctx_t *c, const double *lam, const double *lam1)
+/* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
+ * forces; where a stick row rides, their best split (pressed). */
+static void star_friction_book(const star_friction_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
+    double imps[STAR_FRICTION_R_DIM];
     int r;
+    (void)q_end;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
-        const double imp = lam[r] + lam1[r];
+        imps[r] = lam[r] + lam1[r];
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        const double imp = imps[r];
         if (imp == 0.0 || star_friction_row_stick[r] >= 0) { /* a stick row's force is tangential */
             continue;
         }
@@ -2420,7 +2426,7 @@ static void star_friction_friction_switch(const star_friction_ctx_t *c, int kind
 
 /* sustained._illinois: Illinois regula falsi on [lo, hi] for the root of row r's value along the constrained
  * sub-step map (value(lo) = ga >= 0 > gb = value(hi)): its height psi_r (height = 1) or its force (contact_forces,
- * height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
+ * pressed, height = 0) at the sub-step's end; for a stick row r of frictional contact f, the sliding velocity along
  * the sliding direction (height = 2) or the margin of Coulomb's cone (height = 3; SustainedSteps._friction_events),
  * for a cone's first stick row its sliding velocity along the frozen slip direction (height = 5;
  * SustainedSteps._cone_stop). *s_out: the first s with |value| <= tiny, or else, once the bracket is
@@ -3797,6 +3803,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     double psi1[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double s_ev[STAR_FRICTION_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM];
     double f1[STAR_FRICTION_R_DIM], vel[STAR_FRICTION_N], f_eps;
+    const double *fp = f1; /* f1 as the lift-off test reads it */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[STAR_FRICTION_R_DIM] = {0.0}, g_dip[STAR_FRICTION_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -3856,11 +3863,11 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             *e_step = e_seg;
         }
         star_friction_end_forces(c, q1, u1, tau, f1);
-        f_eps = STAR_FRICTION_EPS_LIFT * (1.0 + star_friction_norm_inf(STAR_FRICTION_R, f1));
+        f_eps = STAR_FRICTION_EPS_LIFT * (1.0 + star_friction_norm_inf(STAR_FRICTION_R, fp));
         start = -1;
         pulled = 0;
         for (r = 0; r < STAR_FRICTION_R; ++r) {
-            ev[r] = c->sus->act[r] && !star_friction_row_free[r] && pulls[r] < STAR_FRICTION_LIFT_CYCLES && f1[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_friction_row_free[r] && pulls[r] < STAR_FRICTION_LIFT_CYCLES && fp[r] < -f_eps;
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3868,7 +3875,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             star_friction_contact_forces(c, q, vel, f0);
             for (r = 0; r < STAR_FRICTION_R; ++r) {
                 if (ev[r]) {
-                    if (star_friction_liftoff_fraction(c, q, p, tau, vv, r, f0[r], f1[r], &s_ev[r])) {
+                    if (star_friction_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
                         return 1;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
@@ -3992,7 +3999,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             any = any || ev[r] || dip[r] || (!c->sus->act[r] && star_friction_row_stick[r] < 0 && psi1[r] < -c->tol->phi);
         }
         if (!any && tau < rest) { /* a halved segment: the rest of the step next */
-            star_friction_book(c, lam, lam1);
+            star_friction_book(c, lam, lam1, q1);
             for (r = 0; r < STAR_FRICTION_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -4006,7 +4013,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             continue;
         }
         if (!any) {
-            star_friction_book(c, lam, lam1);
+            star_friction_book(c, lam, lam1, q1);
             for (r = 0; r < STAR_FRICTION_R; ++r) {
                 c->sus->lam[r] = c->sus->act[r] ? lam[r] * (c->h / tau) : 0.0;
             }
@@ -4057,7 +4064,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         } else if (star_friction_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
             return 1;
         }
-        star_friction_book(c, lam, lam1);
+        star_friction_book(c, lam, lam1, q1);
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             q[i] = q1[i];
             p[i] = p1[i];
