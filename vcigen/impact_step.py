@@ -21,6 +21,10 @@ from .friction import cone_law, impact_law
 from .held_roots import LEAVE_FRACTIONS, illinois_point, illinois_update
 from .result import Impact
 
+# A (78) root or a sub-solve's whose impulse is more than SINK_GAP of the jump's below it, and that leaves the
+# contact just hit moving in, is the jump's mirror root (ImpactSteps._sinks)
+SINK_GAP = 0.1
+
 
 @dataclass
 class Seg:
@@ -386,8 +390,29 @@ class ImpactSteps:
         s = float(x[-1])
         ok = res <= self._scale(seg.p_in, seg.e_in) and lo - 1e-12 <= s <= hi + 1e-12
         if ok and not first:
-            ok = x[self.k.n] > 0 and (s > lo or lo == 0)
+            ok = x[self.k.n] > 0 and (s > lo or lo == 0) and not self._sinks(seg, float(x[self.k.n]))
         return s, ok
+
+    def _sinks(self, seg: Seg, mu: float) -> bool:
+        """Is impulse ``mu`` of the jump at ``seg``'s start its mirror root: more than ``SINK_GAP`` of the
+        jump's own (``seg.x``) below it, and the normal velocity it leaves the contact just hit, ``n . M^-1
+        (p~- + mu n)``, below ``-1/2`` of the jump's?
+
+        Under restitution ``e`` the energy balance (48a) has a second root beside the jump's, its mirror
+        about the plastic impulse: the normal velocity ``-e v_n`` where the jump's is ``+e v_n``, the same
+        kinetic energy, ``(1 - e)/(1 + e)`` of its impulse. A (78) Newton or a sub-solve at a fraction far
+        from the jump's can converge to it: C did on a frictionless box wedged in a V (``e = 0.195``,
+        lobatto3, ``bench.box_v_drops --smooth --rule lobatto3`` drop 95), its corner sank through the wall
+        it had just hit, and the run raised "more than 64 impacts in one step". Where the two roots are
+        closer than ``SINK_GAP`` (a rattle's last impacts, a normal velocity of 1e-9 after them) a
+        sub-solve's own drift of ``mu`` is no mirror."""
+        k = self.k
+        mu_jump = float(seg.x[k.n])
+        if not mu < (1.0 - SINK_GAP) * mu_jump:
+            return False
+        n = seg.nrm
+        out = float(n @ self._velocity(seg.q, seg.x[: k.n], seg.p_in + mu_jump * n))
+        return out > 0.0 and float(n @ self._velocity(seg.q, seg.x[: k.n], seg.p_in + mu * n)) < -0.5 * out
 
     @staticmethod
     def _leave_guess(lo: float, phi_lo: float, hi: float, g_hi: float) -> float:
@@ -425,7 +450,9 @@ class ImpactSteps:
 
     def _sub_solve(self, seg: Seg, s: float, guess) -> tuple[np.ndarray, np.ndarray, float]:
         """The segment map at fraction ``s``: its unknowns, ``phi`` at its end and the residual of the jump
-        (48) at ``s`` (0 on a first segment, whose smooth step (46) is solved as in a grid step)."""
+        (48) at ``s`` (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's
+        root (converged) that :meth:`_sinks` is solved again from the smooth step (46) of the jump's momentum
+        over ``s`` with the jump's impulse."""
         k = self.k
         self._at(seg.t)
         res = 0.0
@@ -433,6 +460,13 @@ class ImpactSteps:
             x, _ = k.solve("smooth", guess, seg.q, seg.p_in, s * seg.tau)
         else:
             x, res = k.solve("jump", guess, seg.q, seg.nrm, seg.p_in, seg.e_in, s * seg.tau)
+            if res <= self._scale(seg.p_in, seg.e_in) and self._sinks(seg, float(x[k.n])):
+                # a root, the jump's mirror (_sinks): again from the jump's impulse
+                mu = float(seg.x[k.n])
+                start = k.solve("smooth", seg.x[: k.n], seg.q, seg.p_in + mu * seg.nrm, s * seg.tau)[0]
+                x, res = k.solve(
+                    "jump", np.append(start, mu), seg.q, seg.nrm, seg.p_in, seg.e_in, s * seg.tau
+                )
         return x, k.contacts(seg.q + s * seg.tau * x[: k.n])[0], res
 
     def _leave(self, seg: Seg, j: int):

@@ -771,8 +771,37 @@ static void ball_to_rest_seg_args(const ball_to_rest_seg_t *seg, const double *t
     }
 }
 
+#define BALL_TO_REST_SINK_GAP 0.1 /* impact_step.SINK_GAP */
+
+/* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
+ * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
+ * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
+ * normal velocity -e v_n for +e v_n). */
+static int ball_to_rest_sinks(const ball_to_rest_ctx_t *c, const ball_to_rest_seg_t *seg, double mu)
+{
+    double pm[BALL_TO_REST_N], vel[BALL_TO_REST_N], out = 0.0, in = 0.0;
+    int i;
+    if (!(mu < (1.0 - BALL_TO_REST_SINK_GAP) * seg->x[BALL_TO_REST_N])) {
+        return 0;
+    }
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        pm[i] = seg->p_in[i] + seg->x[BALL_TO_REST_N] * seg->nrm[i];
+    }
+    ball_to_rest_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        out += seg->nrm[i] * vel[i];
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+    ball_to_rest_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        in += seg->nrm[i] * vel[i];
+    }
+    return out > 0.0 && in < -0.5 * out;
+}
+
 /* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
- * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's root (converged)
+ * that sinks is solved again from the smooth step (46) of the jump's momentum over s with the jump's impulse. */
 static double ball_to_rest_sub_solve(const ball_to_rest_ctx_t *c, const ball_to_rest_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
@@ -792,6 +821,17 @@ static double ball_to_rest_sub_solve(const ball_to_rest_ctx_t *c, const ball_to_
         }
         ball_to_rest_seg_args(seg, &tau, c->par, arg);
         ball_to_rest_newton(ball_to_rest_fn_jump, arg, BALL_TO_REST_N1, x, &res);
+        if (res <= ball_to_rest_scale(c, seg->p_in, seg->e_in) && ball_to_rest_sinks(c, seg, x[BALL_TO_REST_N])) {
+            /* a root, the jump's mirror (sinks): again from the jump's impulse */
+            double pm[BALL_TO_REST_N];
+            for (i = 0; i < BALL_TO_REST_N; ++i) {
+                x[i] = seg->x[i];
+                pm[i] = seg->p_in[i] + seg->x[BALL_TO_REST_N] * seg->nrm[i];
+            }
+            ball_to_rest_solve_smooth(seg->q, pm, tau, c->par, x);
+            x[BALL_TO_REST_N] = seg->x[BALL_TO_REST_N];
+            ball_to_rest_newton(ball_to_rest_fn_jump, arg, BALL_TO_REST_N1, x, &res);
+        }
     }
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
@@ -1070,7 +1110,7 @@ static int ball_to_rest_contact_root(const ball_to_rest_ctx_t *c, const ball_to_
     s = x[nx - 1];
     ok = res <= ball_to_rest_scale(c, seg->p_in, seg->e_in) && lo - 1e-12 <= s && s <= hi + 1e-12;
     if (ok && !first) {
-        ok = x[BALL_TO_REST_N] > 0 && (s > lo || lo == 0);
+        ok = x[BALL_TO_REST_N] > 0 && (s > lo || lo == 0) && !ball_to_rest_sinks(c, seg, x[BALL_TO_REST_N]);
     }
     if (!ok && ball_to_rest_bracketed_root(c, seg, j, phase, lo, phi_lo, hi, g_hi, x, &s, &res)) {
         return 1;

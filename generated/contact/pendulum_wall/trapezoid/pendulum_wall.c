@@ -1007,8 +1007,37 @@ static void pendulum_wall_seg_args(const pendulum_wall_seg_t *seg, const double 
     }
 }
 
+#define PENDULUM_WALL_SINK_GAP 0.1 /* impact_step.SINK_GAP */
+
+/* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
+ * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
+ * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
+ * normal velocity -e v_n for +e v_n). */
+static int pendulum_wall_sinks(const pendulum_wall_ctx_t *c, const pendulum_wall_seg_t *seg, double mu)
+{
+    double pm[PENDULUM_WALL_N], vel[PENDULUM_WALL_N], out = 0.0, in = 0.0;
+    int i;
+    if (!(mu < (1.0 - PENDULUM_WALL_SINK_GAP) * seg->x[PENDULUM_WALL_N])) {
+        return 0;
+    }
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        pm[i] = seg->p_in[i] + seg->x[PENDULUM_WALL_N] * seg->nrm[i];
+    }
+    pendulum_wall_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        out += seg->nrm[i] * vel[i];
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+    pendulum_wall_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        in += seg->nrm[i] * vel[i];
+    }
+    return out > 0.0 && in < -0.5 * out;
+}
+
 /* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
- * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's root (converged)
+ * that sinks is solved again from the smooth step (46) of the jump's momentum over s with the jump's impulse. */
 static double pendulum_wall_sub_solve(const pendulum_wall_ctx_t *c, const pendulum_wall_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
@@ -1028,6 +1057,17 @@ static double pendulum_wall_sub_solve(const pendulum_wall_ctx_t *c, const pendul
         }
         pendulum_wall_seg_args(seg, &tau, c->par, arg);
         pendulum_wall_newton(pendulum_wall_fn_jump, arg, PENDULUM_WALL_N1, x, &res);
+        if (res <= pendulum_wall_scale(c, seg->p_in, seg->e_in) && pendulum_wall_sinks(c, seg, x[PENDULUM_WALL_N])) {
+            /* a root, the jump's mirror (sinks): again from the jump's impulse */
+            double pm[PENDULUM_WALL_N];
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                x[i] = seg->x[i];
+                pm[i] = seg->p_in[i] + seg->x[PENDULUM_WALL_N] * seg->nrm[i];
+            }
+            pendulum_wall_solve_smooth(seg->q, pm, tau, c->par, x);
+            x[PENDULUM_WALL_N] = seg->x[PENDULUM_WALL_N];
+            pendulum_wall_newton(pendulum_wall_fn_jump, arg, PENDULUM_WALL_N1, x, &res);
+        }
     }
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
@@ -1306,7 +1346,7 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
     s = x[nx - 1];
     ok = res <= pendulum_wall_scale(c, seg->p_in, seg->e_in) && lo - 1e-12 <= s && s <= hi + 1e-12;
     if (ok && !first) {
-        ok = x[PENDULUM_WALL_N] > 0 && (s > lo || lo == 0);
+        ok = x[PENDULUM_WALL_N] > 0 && (s > lo || lo == 0) && !pendulum_wall_sinks(c, seg, x[PENDULUM_WALL_N]);
     }
     if (!ok && pendulum_wall_bracketed_root(c, seg, j, phase, lo, phi_lo, hi, g_hi, x, &s, &res)) {
         return 1;

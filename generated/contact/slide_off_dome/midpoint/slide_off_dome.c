@@ -972,8 +972,37 @@ static void slide_off_dome_seg_args(const slide_off_dome_seg_t *seg, const doubl
     }
 }
 
+#define SLIDE_OFF_DOME_SINK_GAP 0.1 /* impact_step.SINK_GAP */
+
+/* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
+ * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
+ * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
+ * normal velocity -e v_n for +e v_n). */
+static int slide_off_dome_sinks(const slide_off_dome_ctx_t *c, const slide_off_dome_seg_t *seg, double mu)
+{
+    double pm[SLIDE_OFF_DOME_N], vel[SLIDE_OFF_DOME_N], out = 0.0, in = 0.0;
+    int i;
+    if (!(mu < (1.0 - SLIDE_OFF_DOME_SINK_GAP) * seg->x[SLIDE_OFF_DOME_N])) {
+        return 0;
+    }
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        pm[i] = seg->p_in[i] + seg->x[SLIDE_OFF_DOME_N] * seg->nrm[i];
+    }
+    slide_off_dome_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        out += seg->nrm[i] * vel[i];
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+    slide_off_dome_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        in += seg->nrm[i] * vel[i];
+    }
+    return out > 0.0 && in < -0.5 * out;
+}
+
 /* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
- * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's root (converged)
+ * that sinks is solved again from the smooth step (46) of the jump's momentum over s with the jump's impulse. */
 static double slide_off_dome_sub_solve(const slide_off_dome_ctx_t *c, const slide_off_dome_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
@@ -993,6 +1022,17 @@ static double slide_off_dome_sub_solve(const slide_off_dome_ctx_t *c, const slid
         }
         slide_off_dome_seg_args(seg, &tau, c->par, arg);
         slide_off_dome_newton(slide_off_dome_fn_jump, arg, SLIDE_OFF_DOME_N1, x, &res);
+        if (res <= slide_off_dome_scale(c, seg->p_in, seg->e_in) && slide_off_dome_sinks(c, seg, x[SLIDE_OFF_DOME_N])) {
+            /* a root, the jump's mirror (sinks): again from the jump's impulse */
+            double pm[SLIDE_OFF_DOME_N];
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                x[i] = seg->x[i];
+                pm[i] = seg->p_in[i] + seg->x[SLIDE_OFF_DOME_N] * seg->nrm[i];
+            }
+            slide_off_dome_solve_smooth(seg->q, pm, tau, c->par, x);
+            x[SLIDE_OFF_DOME_N] = seg->x[SLIDE_OFF_DOME_N];
+            slide_off_dome_newton(slide_off_dome_fn_jump, arg, SLIDE_OFF_DOME_N1, x, &res);
+        }
     }
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
@@ -1271,7 +1311,7 @@ static int slide_off_dome_contact_root(const slide_off_dome_ctx_t *c, const slid
     s = x[nx - 1];
     ok = res <= slide_off_dome_scale(c, seg->p_in, seg->e_in) && lo - 1e-12 <= s && s <= hi + 1e-12;
     if (ok && !first) {
-        ok = x[SLIDE_OFF_DOME_N] > 0 && (s > lo || lo == 0);
+        ok = x[SLIDE_OFF_DOME_N] > 0 && (s > lo || lo == 0) && !slide_off_dome_sinks(c, seg, x[SLIDE_OFF_DOME_N]);
     }
     if (!ok && slide_off_dome_bracketed_root(c, seg, j, phase, lo, phi_lo, hi, g_hi, x, &s, &res)) {
         return 1;

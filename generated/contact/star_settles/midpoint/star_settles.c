@@ -1055,8 +1055,37 @@ static void star_settles_seg_args(const star_settles_seg_t *seg, const double *t
     }
 }
 
+#define STAR_SETTLES_SINK_GAP 0.1 /* impact_step.SINK_GAP */
+
+/* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
+ * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
+ * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
+ * normal velocity -e v_n for +e v_n). */
+static int star_settles_sinks(const star_settles_ctx_t *c, const star_settles_seg_t *seg, double mu)
+{
+    double pm[STAR_SETTLES_N], vel[STAR_SETTLES_N], out = 0.0, in = 0.0;
+    int i;
+    if (!(mu < (1.0 - STAR_SETTLES_SINK_GAP) * seg->x[STAR_SETTLES_N])) {
+        return 0;
+    }
+    for (i = 0; i < STAR_SETTLES_N; ++i) {
+        pm[i] = seg->p_in[i] + seg->x[STAR_SETTLES_N] * seg->nrm[i];
+    }
+    star_settles_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < STAR_SETTLES_N; ++i) {
+        out += seg->nrm[i] * vel[i];
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+    star_settles_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < STAR_SETTLES_N; ++i) {
+        in += seg->nrm[i] * vel[i];
+    }
+    return out > 0.0 && in < -0.5 * out;
+}
+
 /* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
- * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's root (converged)
+ * that sinks is solved again from the smooth step (46) of the jump's momentum over s with the jump's impulse. */
 static double star_settles_sub_solve(const star_settles_ctx_t *c, const star_settles_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
@@ -1076,6 +1105,17 @@ static double star_settles_sub_solve(const star_settles_ctx_t *c, const star_set
         }
         star_settles_seg_args(seg, &tau, c->par, arg);
         star_settles_newton(star_settles_fn_jump, arg, STAR_SETTLES_N1, x, &res);
+        if (res <= star_settles_scale(c, seg->p_in, seg->e_in) && star_settles_sinks(c, seg, x[STAR_SETTLES_N])) {
+            /* a root, the jump's mirror (sinks): again from the jump's impulse */
+            double pm[STAR_SETTLES_N];
+            for (i = 0; i < STAR_SETTLES_N; ++i) {
+                x[i] = seg->x[i];
+                pm[i] = seg->p_in[i] + seg->x[STAR_SETTLES_N] * seg->nrm[i];
+            }
+            star_settles_solve_smooth(seg->q, pm, tau, c->par, x);
+            x[STAR_SETTLES_N] = seg->x[STAR_SETTLES_N];
+            star_settles_newton(star_settles_fn_jump, arg, STAR_SETTLES_N1, x, &res);
+        }
     }
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
@@ -1354,7 +1394,7 @@ static int star_settles_contact_root(const star_settles_ctx_t *c, const star_set
     s = x[nx - 1];
     ok = res <= star_settles_scale(c, seg->p_in, seg->e_in) && lo - 1e-12 <= s && s <= hi + 1e-12;
     if (ok && !first) {
-        ok = x[STAR_SETTLES_N] > 0 && (s > lo || lo == 0);
+        ok = x[STAR_SETTLES_N] > 0 && (s > lo || lo == 0) && !star_settles_sinks(c, seg, x[STAR_SETTLES_N]);
     }
     if (!ok && star_settles_bracketed_root(c, seg, j, phase, lo, phi_lo, hi, g_hi, x, &s, &res)) {
         return 1;

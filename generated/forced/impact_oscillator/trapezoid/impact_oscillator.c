@@ -642,8 +642,37 @@ static void impact_oscillator_seg_args(const impact_oscillator_seg_t *seg, const
     }
 }
 
+#define IMPACT_OSCILLATOR_SINK_GAP 0.1 /* impact_step.SINK_GAP */
+
+/* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
+ * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
+ * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
+ * normal velocity -e v_n for +e v_n). */
+static int impact_oscillator_sinks(const impact_oscillator_ctx_t *c, const impact_oscillator_seg_t *seg, double mu)
+{
+    double pm[IMPACT_OSCILLATOR_N], vel[IMPACT_OSCILLATOR_N], out = 0.0, in = 0.0;
+    int i;
+    if (!(mu < (1.0 - IMPACT_OSCILLATOR_SINK_GAP) * seg->x[IMPACT_OSCILLATOR_N])) {
+        return 0;
+    }
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        pm[i] = seg->p_in[i] + seg->x[IMPACT_OSCILLATOR_N] * seg->nrm[i];
+    }
+    impact_oscillator_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        out += seg->nrm[i] * vel[i];
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+    impact_oscillator_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        in += seg->nrm[i] * vel[i];
+    }
+    return out > 0.0 && in < -0.5 * out;
+}
+
 /* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
- * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's root (converged)
+ * that sinks is solved again from the smooth step (46) of the jump's momentum over s with the jump's impulse. */
 static double impact_oscillator_sub_solve(const impact_oscillator_ctx_t *c, const impact_oscillator_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
@@ -663,6 +692,17 @@ static double impact_oscillator_sub_solve(const impact_oscillator_ctx_t *c, cons
         }
         impact_oscillator_seg_args(seg, &tau, c->par, arg);
         impact_oscillator_newton(impact_oscillator_fn_jump, arg, IMPACT_OSCILLATOR_N1, x, &res);
+        if (res <= impact_oscillator_scale(c, seg->p_in, seg->e_in) && impact_oscillator_sinks(c, seg, x[IMPACT_OSCILLATOR_N])) {
+            /* a root, the jump's mirror (sinks): again from the jump's impulse */
+            double pm[IMPACT_OSCILLATOR_N];
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                x[i] = seg->x[i];
+                pm[i] = seg->p_in[i] + seg->x[IMPACT_OSCILLATOR_N] * seg->nrm[i];
+            }
+            impact_oscillator_solve_smooth(seg->q, pm, tau, c->par, x);
+            x[IMPACT_OSCILLATOR_N] = seg->x[IMPACT_OSCILLATOR_N];
+            impact_oscillator_newton(impact_oscillator_fn_jump, arg, IMPACT_OSCILLATOR_N1, x, &res);
+        }
     }
     for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
@@ -898,7 +938,7 @@ static int impact_oscillator_contact_root(const impact_oscillator_ctx_t *c, cons
     s = x[nx - 1];
     ok = res <= impact_oscillator_scale(c, seg->p_in, seg->e_in) && lo - 1e-12 <= s && s <= hi + 1e-12;
     if (ok && !first) {
-        ok = x[IMPACT_OSCILLATOR_N] > 0 && (s > lo || lo == 0);
+        ok = x[IMPACT_OSCILLATOR_N] > 0 && (s > lo || lo == 0) && !impact_oscillator_sinks(c, seg, x[IMPACT_OSCILLATOR_N]);
     }
     if (!ok && impact_oscillator_bracketed_root(c, seg, j, phase, lo, phi_lo, hi, g_hi, x, &s, &res)) {
         return 1;

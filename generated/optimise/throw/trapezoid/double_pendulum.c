@@ -1230,8 +1230,37 @@ static void double_pendulum_seg_args(const double_pendulum_seg_t *seg, const dou
     }
 }
 
+#define DOUBLE_PENDULUM_SINK_GAP 0.1 /* impact_step.SINK_GAP */
+
+/* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
+ * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
+ * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
+ * normal velocity -e v_n for +e v_n). */
+static int double_pendulum_sinks(const double_pendulum_ctx_t *c, const double_pendulum_seg_t *seg, double mu)
+{
+    double pm[DOUBLE_PENDULUM_N], vel[DOUBLE_PENDULUM_N], out = 0.0, in = 0.0;
+    int i;
+    if (!(mu < (1.0 - DOUBLE_PENDULUM_SINK_GAP) * seg->x[DOUBLE_PENDULUM_N])) {
+        return 0;
+    }
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        pm[i] = seg->p_in[i] + seg->x[DOUBLE_PENDULUM_N] * seg->nrm[i];
+    }
+    double_pendulum_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        out += seg->nrm[i] * vel[i];
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+    double_pendulum_velocity_par(c->par, seg->q, seg->x, pm, vel);
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        in += seg->nrm[i] * vel[i];
+    }
+    return out > 0.0 && in < -0.5 * out;
+}
+
 /* Stepper._sub_solve: the segment map at fraction s, its unknowns x and phi at its end; returns the residual of the
- * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). */
+ * jump (48) at s (0 on a first segment, whose smooth step (46) is solved as in a grid step). A jump's root (converged)
+ * that sinks is solved again from the smooth step (46) of the jump's momentum over s with the jump's impulse. */
 static double double_pendulum_sub_solve(const double_pendulum_ctx_t *c, const double_pendulum_seg_t *seg, double s,
     const double *guess, double *x, double *phi)
 {
@@ -1251,6 +1280,17 @@ static double double_pendulum_sub_solve(const double_pendulum_ctx_t *c, const do
         }
         double_pendulum_seg_args(seg, &tau, c->par, arg);
         double_pendulum_newton(double_pendulum_fn_jump, arg, DOUBLE_PENDULUM_N1, x, &res);
+        if (res <= double_pendulum_scale(c, seg->p_in, seg->e_in) && double_pendulum_sinks(c, seg, x[DOUBLE_PENDULUM_N])) {
+            /* a root, the jump's mirror (sinks): again from the jump's impulse */
+            double pm[DOUBLE_PENDULUM_N];
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                x[i] = seg->x[i];
+                pm[i] = seg->p_in[i] + seg->x[DOUBLE_PENDULUM_N] * seg->nrm[i];
+            }
+            double_pendulum_solve_smooth(seg->q, pm, tau, c->par, x);
+            x[DOUBLE_PENDULUM_N] = seg->x[DOUBLE_PENDULUM_N];
+            double_pendulum_newton(double_pendulum_fn_jump, arg, DOUBLE_PENDULUM_N1, x, &res);
+        }
     }
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         q_end[i] = seg->q[i] + s * seg->tau * x[i];
@@ -1486,7 +1526,7 @@ static int double_pendulum_contact_root(const double_pendulum_ctx_t *c, const do
     s = x[nx - 1];
     ok = res <= double_pendulum_scale(c, seg->p_in, seg->e_in) && lo - 1e-12 <= s && s <= hi + 1e-12;
     if (ok && !first) {
-        ok = x[DOUBLE_PENDULUM_N] > 0 && (s > lo || lo == 0);
+        ok = x[DOUBLE_PENDULUM_N] > 0 && (s > lo || lo == 0) && !double_pendulum_sinks(c, seg, x[DOUBLE_PENDULUM_N]);
     }
     if (!ok && double_pendulum_bracketed_root(c, seg, j, phase, lo, phi_lo, hi, g_hi, x, &s, &res)) {
         return 1;
