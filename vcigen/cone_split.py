@@ -25,7 +25,7 @@ friction lifts the ladder off the floor): exact for one dependence. A contact wi
 rows ``n`` involves keeps ``N_c(alpha) >= 0``: its term is ``N_c(alpha)``.
 
 Pure NumPy; ``templates/sustained_cone_split.c.j2`` has the same functions (``null_combination``, ``split``),
-``templates/sustained_stick_split.c.j2`` ``split_line``.
+``templates/sustained_stick_split.c.j2`` ``split_line`` and ``line_turns``.
 """
 
 from __future__ import annotations
@@ -111,6 +111,16 @@ def _line_least(caps, slopes, forces, dirs, alpha: float) -> tuple[float, float]
         if value < least:
             least, slope = value, s - (d if x > 0.0 else -d if x < 0.0 else 0.0)
     return least, slope
+
+
+def line_turns(caps, slopes, forces, dirs, alpha: float) -> bool:
+    """Whether the least term of :func:`split_line` turns at ``alpha`` (its slope ``>= 0`` just left of it and
+    ``<= 0`` just right, 1e-9 relative away): a maximum, not a jam's widest bracket, where it still rose."""
+    w = 1e-9 * (1.0 + abs(alpha))
+    return (
+        _line_least(caps, slopes, forces, dirs, alpha - w)[1] >= 0.0
+        and _line_least(caps, slopes, forces, dirs, alpha + w)[1] <= 0.0
+    )
 
 
 def split_line(caps, slopes, forces, dirs) -> tuple[float, float, list[float]]:

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .cone_split import null_combination, split, split_line
+from .cone_split import line_turns, null_combination, split, split_line
 from .coupling import coupled_cones
 from .derive import KINK
 from .held_roots import (
@@ -345,8 +345,9 @@ class FrictionModes:
         """The contacts coupled with one-tangent contact ``f`` by the dependent sticks it carries (``_ride[g]
         = f``) and their best split along the line of each one's null combination
         (:func:`vcigen.cone_split.split_line`): ``(margin, alpha, values, contacts, stick forces, null
-        combinations, null combination over the rows)``, the least margin over those sticks; None if ``f``
-        carries none or a cone is coupled.
+        combinations, null combination over the rows, whether the margin turns at alpha``
+        (:func:`vcigen.cone_split.line_turns`; not in a jam)), the least margin over those sticks; None if
+        ``f`` carries none or a cone is coupled.
         A contact is coupled where the null combination is on its stick row or its normal rows: one with
         friction keeps its force in its cone with its normal force shifted, ``mu_c (N_c + alpha sum n_r) -
         |F_c + alpha n_t|``; one without keeps ``N_c + alpha sum n_r >= 0``. A part of ``n`` within
@@ -380,7 +381,8 @@ class FrictionModes:
                 continue
             margin, alpha, values = split_line(caps, slopes, lams, dirs)
             if best is None or margin < best[0]:
-                best = (margin, alpha, values, contacts, lams, dirs, n)
+                turns = line_turns(caps, slopes, lams, dirs, alpha)
+                best = (margin, alpha, values, contacts, lams, dirs, n, turns)
         return best
 
     def _owners(self) -> list[int]:
@@ -394,14 +396,17 @@ class FrictionModes:
         holds the stick with. Where a stick row rides the held rows' forces are one split of many: a rod with
         both ends stopping in a rough bowl put all its friction on the held stick row's end, whose normal
         force came out -0.51 (a spurious lift-off and landing 3e-12 s later), where the best split presses
-        both ends (``tests/test_rod_in_a_rough_bowl.py``). Exact for one dependence, as the split is."""
+        both ends (``tests/test_rod_in_a_rough_bowl.py``). Exact for one dependence, as the split is. Not
+        where friction jams (the margin rises without bound along ``n``, :func:`vcigen.cone_split.line_turns`:
+        a rod at ``mu = 2`` in the bowl, wedged): the split's ``alpha`` is then its widest bracket's, 1e19,
+        and the held rows' own forces are read."""
         owners = self._owners()
         if not owners:
             return forces
         out = np.array(forces, dtype=float)
         for f in owners:
             joint = self._stick_split(f, forces, grad)
-            if joint is not None:
+            if joint is not None and joint[7]:
                 out += joint[1] * joint[6]
         return out
 
@@ -410,7 +415,7 @@ class FrictionModes:
         their cone in the best split (within ``DEP_EPS`` of the least margin) slip the way their split force
         pushes, ``slip = mu_c sign(F_c + alpha d_c)``; the others stick on, a stick row that no longer depends
         on the rest held by its own again."""
-        margin, alpha, values, contacts, lams, dirs, _ = joint
+        margin, alpha, values, contacts, lams, dirs, _, _ = joint
         for c, value, lam, d in zip(contacts, values, lams, dirs):
             if c >= 0 and value <= margin + DEP_EPS * (1.0 + abs(value)):
                 self.act[self._stick_rows[c]] = False

@@ -37,6 +37,7 @@ BREAK_REASONS: tuple[tuple[str, str], ...] = (
     ("ONTO_ROWS", "start moved onto the held rows"),
     ("HALVED", "held segment halved"),
     ("PROJECTED", "held rows projected at an event's start"),
+    ("PRESSED_LIFT", "lift-off while a stick rides"),
 )
 _BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
 

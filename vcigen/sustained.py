@@ -523,6 +523,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)
             else:  # one event of several, an impact while held, a lift-off under friction, a friction switch
+                if events[r0][0] == "lift" and f1p[r0] != f1[r0]:  # located on the best split (_pressed): the
+                    self._sw_lose("lift-off while a stick rides")  # tangent's force law is the held rows'
                 self._ev_event((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s, events[r0][0])
             self._fswitch = self._fswitch or (plain and events[r0][0] in ("stop", "slide"))
             plain = False

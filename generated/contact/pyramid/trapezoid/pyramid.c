@@ -2800,7 +2800,7 @@ static int pyramid_sub_end(const pyramid_ctx_t *c, const double *q, const double
 }
 
 static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
-    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null);
+    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null, int *turns);
 
 /* SustainedSteps._cone_margin: mu_f sum lambda_rows - |lambda_stick| of frictional contact f (forces per row):
  * negative when the stick force leaves Coulomb's cone. A cone coupled to others by a dependent stick row: the
@@ -2812,7 +2812,7 @@ static double pyramid_cone_margin(const pyramid_ctx_t *c, int f, const double *f
     double l_margin, l_alpha, l_values[PYRAMID_M_DIM], l_lams[PYRAMID_M_DIM], l_dirs[PYRAMID_M_DIM];
     int l_contacts[PYRAMID_M_DIM];
     if (pyramid_stick_split(c, f, forces, grad, &l_margin, &l_alpha, l_values,
-            l_contacts, l_lams, l_dirs, NULL)) {
+            l_contacts, l_lams, l_dirs, NULL, NULL)) {
         return l_margin;
     }
     for (r = 0; r < PYRAMID_R; ++r) {
@@ -2976,14 +2976,27 @@ static double pyramid_split_line(int nc, const double *caps, const double *slope
     return least;
 }
 
+/* cone_split.line_turns: whether the least term of split_line turns at alpha (its slope >= 0 just left of it and
+ * <= 0 just right, 1e-9 relative away): a maximum, not a jam's widest bracket, where it still rose. */
+static int pyramid_line_turns(int nc, const double *caps, const double *slopes, const double *forces,
+    const double *dirs, double alpha)
+{
+    const double w = 1e-9 * (1.0 + fabs(alpha));
+    double left, right;
+    pyramid_line_least(nc, caps, slopes, forces, dirs, alpha - w, &left);
+    pyramid_line_least(nc, caps, slopes, forces, dirs, alpha + w, &right);
+    return left >= 0.0 && right <= 0.0;
+}
+
 /* SustainedSteps._stick_split: the contacts coupled with one-tangent contact f by the dependent sticks it carries
  * (ride[g] = f) and their best split along the line of each one's null combination (split_line): 1 and the least
  * margin over those sticks, with its alpha, each term, each coupled contact (its frictional index, -1 without
- * friction), stick force and null combination on it, and (null, if not NULL) that stick's null combination over
- * the rows; 0 if f carries none or a cone is coupled. A contact with friction keeps mu_c (N_c + alpha sum n_r) -
+ * friction), stick force and null combination on it, and (if not NULL) that stick's null combination over the rows
+ * (null) and whether the margin turns at alpha (turns: line_turns; not in a jam); 0 if f carries none or a cone is
+ * coupled. A contact with friction keeps mu_c (N_c + alpha sum n_r) -
  * |F_c + alpha n_t|, one without N_c + alpha sum n_r >= 0. */
 static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
-    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null)
+    double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null, int *turns)
 {
     double n[PYRAMID_R_DIM], caps[PYRAMID_M_DIM], slopes[PYRAMID_M_DIM], ls[PYRAMID_M_DIM];
     double ds[PYRAMID_M_DIM], vs[PYRAMID_M_DIM], m, a, d, shift, normal, mu_c;
@@ -3039,6 +3052,9 @@ static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forc
             for (r = 0; null && r < PYRAMID_R; ++r) {
                 null[r] = n[r];
             }
+            if (turns) {
+                *turns = pyramid_line_turns(nc, caps, slopes, ls, ds, a);
+            }
         }
     }
     return found;
@@ -3047,12 +3063,12 @@ static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forc
 /* SustainedSteps._pressed: the held rows' forces as the lift-off test reads them (out), shifted along the null
  * combination of each one-tangent contact's dependent sticks by their best split (stick_split: forces + alpha n,
  * the same joint force on the body), whose normal forces are those Coulomb's law holds the stick with. Exact for
- * one dependence, as the split is. */
+ * one dependence, as the split is. Not where friction jams (line_turns): the held rows' own forces then. */
 static void pyramid_pressed(const pyramid_ctx_t *c, const double *forces, const double *grad, double *out)
 {
     double margin, alpha, values[PYRAMID_M_DIM], lams[PYRAMID_M_DIM], dirs[PYRAMID_M_DIM];
     double n[PYRAMID_R_DIM];
-    int contacts[PYRAMID_M_DIM], f, g, r, owns;
+    int contacts[PYRAMID_M_DIM], f, g, r, owns, turns = 0;
     for (r = 0; r < PYRAMID_R; ++r) {
         out[r] = forces[r];
     }
@@ -3060,7 +3076,8 @@ static void pyramid_pressed(const pyramid_ctx_t *c, const double *forces, const 
         for (g = 0, owns = 0; g < PYRAMID_NF; ++g) {
             owns = owns || (c->sus->ride[g] == f && g != f);
         }
-        if (owns && pyramid_stick_split(c, f, forces, grad, &margin, &alpha, values, contacts, lams, dirs, n)) {
+        if (owns && pyramid_stick_split(c, f, forces, grad, &margin, &alpha, values, contacts, lams, dirs, n, &turns)
+            && turns) {
             for (r = 0; r < PYRAMID_R; ++r) {
                 out[r] += alpha * n[r];
             }
@@ -3287,7 +3304,7 @@ static void pyramid_friction_switch(const pyramid_ctx_t *c, int kind, int sr, co
         pyramid_stick(c, f, q, u);
     } else {
         pyramid_contact_forces(c, q, u, fr);
-        if (pyramid_stick_split(c, f, fr, grad, &margin, &alpha, values, contacts, lams, dirs, NULL)) {
+        if (pyramid_stick_split(c, f, fr, grad, &margin, &alpha, values, contacts, lams, dirs, NULL, NULL)) {
             pyramid_stick_split_slide(c, margin, alpha, values, contacts, lams, dirs, q, u);
             pyramid_set_friction(c);
             return;
