@@ -69,7 +69,8 @@ turned, a dependent stick, a stop or slide in a model with isotropic cones, a sl
 slips, a contact on another face), several cones aimed implicitly near rest (``SustainedSteps._cone_brake``),
 an isotropic cone's impulse at its degenerate 0 (``"friction at an impact"``: round-off only), a landing
 cone's second split, least split beside a slide or slide along a line (``"friction at an impact"``; a plain
-least split is carried, :func:`vcigen.sensitivity_held._least_tangent`), the
+least split is carried, :func:`vcigen.sensitivity_held._least_tangent`), a lift-off located on the best
+split of dependent sticks (``"lift-off while a stick rides"``: ``FrictionModes._pressed``), the
 ``_restart`` fallback. From the first such step ``k`` on the tangent is NaN (``S_j`` for ``j > k``),
 ``Result.stats["sensitivity_lost"] = k`` and ``Result.sensitivity_breaks`` lists ``(step, reason)``.
 """
