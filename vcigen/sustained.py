@@ -442,7 +442,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
             if pulled.any():
                 u0 = self._velocity(q, v, p)
-                f0 = self._pressed(self._contact_forces(q, u0), k.rows(q, u0)[1])
+                f0 = self._contact_forces(q, u0)
+                if self._owners():  # as at the end (_pressed): the rows only where a stick rides
+                    f0 = self._pressed(f0, k.rows(q, u0)[1])
                 for r in np.flatnonzero(pulled):
                     events[int(r)] = (
                         "lift",

@@ -772,6 +772,15 @@ static void particle_seg_args(const particle_seg_t *seg, const double *tau, cons
 
 #define PARTICLE_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void particle_kicked(const particle_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < PARTICLE_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -783,14 +792,12 @@ static int particle_sinks(const particle_ctx_t *c, const particle_seg_t *seg, do
     if (!(mu < (1.0 - PARTICLE_SINK_GAP) * seg->x[PARTICLE_N])) {
         return 0;
     }
-    for (i = 0; i < PARTICLE_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[PARTICLE_N] * seg->nrm[i];
-    }
+    particle_kicked(seg, seg->x[PARTICLE_N], pm);
     particle_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < PARTICLE_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    particle_kicked(seg, mu, pm);
     particle_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < PARTICLE_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -825,8 +832,8 @@ static double particle_sub_solve(const particle_ctx_t *c, const particle_seg_t *
             double pm[PARTICLE_N];
             for (i = 0; i < PARTICLE_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[PARTICLE_N] * seg->nrm[i];
             }
+            particle_kicked(seg, seg->x[PARTICLE_N], pm);
             particle_solve_smooth(seg->q, pm, tau, c->par, x);
             x[PARTICLE_N] = seg->x[PARTICLE_N];
             particle_newton(particle_fn_jump, arg, PARTICLE_N1, x, &res);
@@ -2499,7 +2506,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double psi1[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PARTICLE_R_DIM] = {0.0}, g_dip[PARTICLE_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

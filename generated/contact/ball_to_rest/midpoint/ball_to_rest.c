@@ -773,6 +773,15 @@ static void ball_to_rest_seg_args(const ball_to_rest_seg_t *seg, const double *t
 
 #define BALL_TO_REST_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void ball_to_rest_kicked(const ball_to_rest_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -784,14 +793,12 @@ static int ball_to_rest_sinks(const ball_to_rest_ctx_t *c, const ball_to_rest_se
     if (!(mu < (1.0 - BALL_TO_REST_SINK_GAP) * seg->x[BALL_TO_REST_N])) {
         return 0;
     }
-    for (i = 0; i < BALL_TO_REST_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[BALL_TO_REST_N] * seg->nrm[i];
-    }
+    ball_to_rest_kicked(seg, seg->x[BALL_TO_REST_N], pm);
     ball_to_rest_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    ball_to_rest_kicked(seg, mu, pm);
     ball_to_rest_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -826,8 +833,8 @@ static double ball_to_rest_sub_solve(const ball_to_rest_ctx_t *c, const ball_to_
             double pm[BALL_TO_REST_N];
             for (i = 0; i < BALL_TO_REST_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[BALL_TO_REST_N] * seg->nrm[i];
             }
+            ball_to_rest_kicked(seg, seg->x[BALL_TO_REST_N], pm);
             ball_to_rest_solve_smooth(seg->q, pm, tau, c->par, x);
             x[BALL_TO_REST_N] = seg->x[BALL_TO_REST_N];
             ball_to_rest_newton(ball_to_rest_fn_jump, arg, BALL_TO_REST_N1, x, &res);
@@ -2500,7 +2507,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     double psi1[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
     double s_ev[BALL_TO_REST_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_TO_REST_N], f0[BALL_TO_REST_R_DIM];
     double f1[BALL_TO_REST_R_DIM], vel[BALL_TO_REST_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[BALL_TO_REST_R_DIM] = {0.0}, g_dip[BALL_TO_REST_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[BALL_TO_REST_R_DIM], group[BALL_TO_REST_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

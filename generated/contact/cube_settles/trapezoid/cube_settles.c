@@ -1606,6 +1606,15 @@ static void cube_settles_seg_args(const cube_settles_seg_t *seg, const double *t
 
 #define CUBE_SETTLES_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void cube_settles_kicked(const cube_settles_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -1617,14 +1626,12 @@ static int cube_settles_sinks(const cube_settles_ctx_t *c, const cube_settles_se
     if (!(mu < (1.0 - CUBE_SETTLES_SINK_GAP) * seg->x[CUBE_SETTLES_N])) {
         return 0;
     }
-    for (i = 0; i < CUBE_SETTLES_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[CUBE_SETTLES_N] * seg->nrm[i];
-    }
+    cube_settles_kicked(seg, seg->x[CUBE_SETTLES_N], pm);
     cube_settles_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < CUBE_SETTLES_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    cube_settles_kicked(seg, mu, pm);
     cube_settles_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < CUBE_SETTLES_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1659,8 +1666,8 @@ static double cube_settles_sub_solve(const cube_settles_ctx_t *c, const cube_set
             double pm[CUBE_SETTLES_N];
             for (i = 0; i < CUBE_SETTLES_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[CUBE_SETTLES_N] * seg->nrm[i];
             }
+            cube_settles_kicked(seg, seg->x[CUBE_SETTLES_N], pm);
             cube_settles_solve_smooth(seg->q, pm, tau, c->par, x);
             x[CUBE_SETTLES_N] = seg->x[CUBE_SETTLES_N];
             cube_settles_newton(cube_settles_fn_jump, arg, CUBE_SETTLES_N1, x, &res);
@@ -3291,7 +3298,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     double psi1[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
     double s_ev[CUBE_SETTLES_R_DIM] = {0.0}, e_seg, e_sub, s, u1[CUBE_SETTLES_N], f0[CUBE_SETTLES_R_DIM];
     double f1[CUBE_SETTLES_R_DIM], vel[CUBE_SETTLES_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[CUBE_SETTLES_R_DIM] = {0.0}, g_dip[CUBE_SETTLES_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[CUBE_SETTLES_R_DIM], group[CUBE_SETTLES_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

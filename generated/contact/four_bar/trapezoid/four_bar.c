@@ -1276,6 +1276,15 @@ static void four_bar_seg_args(const four_bar_seg_t *seg, const double *tau, cons
 
 #define FOUR_BAR_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void four_bar_kicked(const four_bar_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < FOUR_BAR_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -1287,14 +1296,12 @@ static int four_bar_sinks(const four_bar_ctx_t *c, const four_bar_seg_t *seg, do
     if (!(mu < (1.0 - FOUR_BAR_SINK_GAP) * seg->x[FOUR_BAR_N])) {
         return 0;
     }
-    for (i = 0; i < FOUR_BAR_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[FOUR_BAR_N] * seg->nrm[i];
-    }
+    four_bar_kicked(seg, seg->x[FOUR_BAR_N], pm);
     four_bar_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < FOUR_BAR_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    four_bar_kicked(seg, mu, pm);
     four_bar_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < FOUR_BAR_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1329,8 +1336,8 @@ static double four_bar_sub_solve(const four_bar_ctx_t *c, const four_bar_seg_t *
             double pm[FOUR_BAR_N];
             for (i = 0; i < FOUR_BAR_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[FOUR_BAR_N] * seg->nrm[i];
             }
+            four_bar_kicked(seg, seg->x[FOUR_BAR_N], pm);
             four_bar_solve_smooth(seg->q, pm, tau, c->par, x);
             x[FOUR_BAR_N] = seg->x[FOUR_BAR_N];
             four_bar_newton(four_bar_fn_jump, arg, FOUR_BAR_N1, x, &res);
@@ -3003,7 +3010,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     double psi1[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
     double s_ev[FOUR_BAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[FOUR_BAR_N], f0[FOUR_BAR_R_DIM];
     double f1[FOUR_BAR_R_DIM], vel[FOUR_BAR_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[FOUR_BAR_R_DIM] = {0.0}, g_dip[FOUR_BAR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[FOUR_BAR_R_DIM], group[FOUR_BAR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

@@ -1004,6 +1004,15 @@ static void pendulum_wall_seg_args(const pendulum_wall_seg_t *seg, const double 
 
 #define PENDULUM_WALL_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void pendulum_wall_kicked(const pendulum_wall_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -1015,14 +1024,12 @@ static int pendulum_wall_sinks(const pendulum_wall_ctx_t *c, const pendulum_wall
     if (!(mu < (1.0 - PENDULUM_WALL_SINK_GAP) * seg->x[PENDULUM_WALL_N])) {
         return 0;
     }
-    for (i = 0; i < PENDULUM_WALL_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[PENDULUM_WALL_N] * seg->nrm[i];
-    }
+    pendulum_wall_kicked(seg, seg->x[PENDULUM_WALL_N], pm);
     pendulum_wall_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    pendulum_wall_kicked(seg, mu, pm);
     pendulum_wall_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1057,8 +1064,8 @@ static double pendulum_wall_sub_solve(const pendulum_wall_ctx_t *c, const pendul
             double pm[PENDULUM_WALL_N];
             for (i = 0; i < PENDULUM_WALL_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[PENDULUM_WALL_N] * seg->nrm[i];
             }
+            pendulum_wall_kicked(seg, seg->x[PENDULUM_WALL_N], pm);
             pendulum_wall_solve_smooth(seg->q, pm, tau, c->par, x);
             x[PENDULUM_WALL_N] = seg->x[PENDULUM_WALL_N];
             pendulum_wall_newton(pendulum_wall_fn_jump, arg, PENDULUM_WALL_N1, x, &res);
@@ -2731,7 +2738,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     double psi1[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
     double s_ev[PENDULUM_WALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PENDULUM_WALL_N], f0[PENDULUM_WALL_R_DIM];
     double f1[PENDULUM_WALL_R_DIM], vel[PENDULUM_WALL_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PENDULUM_WALL_R_DIM] = {0.0}, g_dip[PENDULUM_WALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

@@ -1620,6 +1620,15 @@ static void pyramid_seg_args(const pyramid_seg_t *seg, const double *tau, const 
 
 #define PYRAMID_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void pyramid_kicked(const pyramid_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < PYRAMID_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -1631,14 +1640,12 @@ static int pyramid_sinks(const pyramid_ctx_t *c, const pyramid_seg_t *seg, doubl
     if (!(mu < (1.0 - PYRAMID_SINK_GAP) * seg->x[PYRAMID_N])) {
         return 0;
     }
-    for (i = 0; i < PYRAMID_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[PYRAMID_N] * seg->nrm[i];
-    }
+    pyramid_kicked(seg, seg->x[PYRAMID_N], pm);
     pyramid_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < PYRAMID_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    pyramid_kicked(seg, mu, pm);
     pyramid_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < PYRAMID_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1673,8 +1680,8 @@ static double pyramid_sub_solve(const pyramid_ctx_t *c, const pyramid_seg_t *seg
             double pm[PYRAMID_N];
             for (i = 0; i < PYRAMID_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[PYRAMID_N] * seg->nrm[i];
             }
+            pyramid_kicked(seg, seg->x[PYRAMID_N], pm);
             pyramid_solve_smooth(seg->q, pm, tau, c->par, x);
             x[PYRAMID_N] = seg->x[PYRAMID_N];
             pyramid_newton(pyramid_fn_jump, arg, PYRAMID_N1, x, &res);
@@ -2727,20 +2734,29 @@ static void pyramid_release(const pyramid_ctx_t *c, double t, int r, int rider)
 
 static void pyramid_pressed(const pyramid_ctx_t *c, const double *forces, const double *grad, double *out);
 
+/* FrictionModes._owners (not empty): whether a one-tangent contact carries another's dependent stick, where the
+ * lift-off test and the booked forces read the best split (pressed). */
+static int pyramid_riders(const pyramid_ctx_t *c)
+{
+    int g;
+    for (g = 0; g < PYRAMID_NF; ++g) {
+        if (c->sus->ride[g] >= 0 && c->sus->ride[g] != g) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._book: the constraint impulses of a segment (Lam + Lam', per row; q_end its end) into the step's
  * forces; where a stick row rides, their best split (pressed). */
 static void pyramid_book(const pyramid_ctx_t *c, const double *lam, const double *lam1, const double *q_end)
 {
     double imps[PYRAMID_R_DIM];
     int r;
-    int g, owns = 0;
-    for (g = 0; g < PYRAMID_NF; ++g) {
-        owns = owns || (c->sus->ride[g] >= 0 && c->sus->ride[g] != g);
-    }
     for (r = 0; r < PYRAMID_R; ++r) {
         imps[r] = lam[r] + lam1[r];
     }
-    if (owns) {
+    if (pyramid_riders(c)) {
         double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
         double zero[PYRAMID_N] = {0.0}, split[PYRAMID_R_DIM];
         pyramid_rows(q_end, zero, c->par, psi, grad, curv);
@@ -2993,8 +3009,8 @@ static int pyramid_line_turns(int nc, const double *caps, const double *slopes, 
  * margin over those sticks, with its alpha, each term, each coupled contact (its frictional index, -1 without
  * friction), stick force and null combination on it, and (if not NULL) that stick's null combination over the rows
  * (null) and whether the margin turns at alpha (turns: line_turns; not in a jam); 0 if f carries none or a cone is
- * coupled. A contact with friction keeps mu_c (N_c + alpha sum n_r) -
- * |F_c + alpha n_t|, one without N_c + alpha sum n_r >= 0. */
+ * coupled. A contact with friction keeps mu_c (N_c + alpha sum n_r) - |F_c + alpha n_t|, one without N_c + alpha
+ * sum n_r >= 0. */
 static int pyramid_stick_split(const pyramid_ctx_t *c, int f, const double *forces, const double *grad,
     double *margin, double *alpha, double *values, int *contacts, double *lams, double *dirs, double *null, int *turns)
 {
@@ -3353,7 +3369,7 @@ static int pyramid_illinois(const pyramid_ctx_t *c, int r, int height, const dou
             pyramid_rows(q1, v, c->par, f, grad, curv);
         } else {
             pyramid_end_forces(c, q1, u1, cc * tau, f);
-            if (height == 0) { /* a lift-off reads the best split where a stick row rides (pressed) */
+            if (height == 0 && pyramid_riders(c)) { /* a lift-off reads the best split where a stick rides (pressed) */
                 double fh[PYRAMID_R_DIM];
                 pyramid_rows(q1, u1, c->par, fh, grad, curv);
                 pyramid_pressed(c, f, grad, fh);
@@ -4711,8 +4727,8 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     double psi1[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
     double s_ev[PYRAMID_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PYRAMID_N], f0[PYRAMID_R_DIM];
     double f1[PYRAMID_R_DIM], vel[PYRAMID_N], f_eps;
-    double fpress[PYRAMID_R_DIM]; /* f1 as the lift-off test reads it (pressed) */
-    const double *fp = fpress;
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
+    double fpress[PYRAMID_R_DIM];
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PYRAMID_R_DIM] = {0.0}, g_dip[PYRAMID_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[PYRAMID_R_DIM], group[PYRAMID_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
@@ -4772,10 +4788,12 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             *e_step = e_seg;
         }
         pyramid_end_forces(c, q1, u1, tau, f1);
-        { /* the lift-off test reads the best split where a stick row rides (pressed) */
+        fp = f1;
+        if (pyramid_riders(c)) { /* the lift-off test reads the best split where a stick row rides (pressed) */
             double psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N], curvp[PYRAMID_R_DIM];
             pyramid_rows(q1, u1, c->par, psip, gradp, curvp);
             pyramid_pressed(c, f1, gradp, fpress);
+            fp = fpress;
         }
         f_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, fp));
         start = -1;
@@ -4787,7 +4805,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         if (pulled) {
             pyramid_velocity(c, q, vv, p, vel);
             pyramid_contact_forces(c, q, vel, f0);
-            { /* pressed, as at the end */
+            if (pyramid_riders(c)) { /* pressed, as at the end */
                 double fh[PYRAMID_R_DIM], psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N];
                 double curvp[PYRAMID_R_DIM];
                 pyramid_rows(q, vel, c->par, psip, gradp, curvp);

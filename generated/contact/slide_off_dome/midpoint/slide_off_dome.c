@@ -974,6 +974,15 @@ static void slide_off_dome_seg_args(const slide_off_dome_seg_t *seg, const doubl
 
 #define SLIDE_OFF_DOME_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void slide_off_dome_kicked(const slide_off_dome_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -985,14 +994,12 @@ static int slide_off_dome_sinks(const slide_off_dome_ctx_t *c, const slide_off_d
     if (!(mu < (1.0 - SLIDE_OFF_DOME_SINK_GAP) * seg->x[SLIDE_OFF_DOME_N])) {
         return 0;
     }
-    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[SLIDE_OFF_DOME_N] * seg->nrm[i];
-    }
+    slide_off_dome_kicked(seg, seg->x[SLIDE_OFF_DOME_N], pm);
     slide_off_dome_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    slide_off_dome_kicked(seg, mu, pm);
     slide_off_dome_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1027,8 +1034,8 @@ static double slide_off_dome_sub_solve(const slide_off_dome_ctx_t *c, const slid
             double pm[SLIDE_OFF_DOME_N];
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[SLIDE_OFF_DOME_N] * seg->nrm[i];
             }
+            slide_off_dome_kicked(seg, seg->x[SLIDE_OFF_DOME_N], pm);
             slide_off_dome_solve_smooth(seg->q, pm, tau, c->par, x);
             x[SLIDE_OFF_DOME_N] = seg->x[SLIDE_OFF_DOME_N];
             slide_off_dome_newton(slide_off_dome_fn_jump, arg, SLIDE_OFF_DOME_N1, x, &res);
@@ -2701,7 +2708,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     double psi1[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double s_ev[SLIDE_OFF_DOME_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM];
     double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[SLIDE_OFF_DOME_R_DIM] = {0.0}, g_dip[SLIDE_OFF_DOME_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[SLIDE_OFF_DOME_R_DIM], group[SLIDE_OFF_DOME_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

@@ -637,6 +637,15 @@ static void impact_oscillator_seg_args(const impact_oscillator_seg_t *seg, const
 
 #define IMPACT_OSCILLATOR_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void impact_oscillator_kicked(const impact_oscillator_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -648,14 +657,12 @@ static int impact_oscillator_sinks(const impact_oscillator_ctx_t *c, const impac
     if (!(mu < (1.0 - IMPACT_OSCILLATOR_SINK_GAP) * seg->x[IMPACT_OSCILLATOR_N])) {
         return 0;
     }
-    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[IMPACT_OSCILLATOR_N] * seg->nrm[i];
-    }
+    impact_oscillator_kicked(seg, seg->x[IMPACT_OSCILLATOR_N], pm);
     impact_oscillator_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    impact_oscillator_kicked(seg, mu, pm);
     impact_oscillator_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -690,8 +697,8 @@ static double impact_oscillator_sub_solve(const impact_oscillator_ctx_t *c, cons
             double pm[IMPACT_OSCILLATOR_N];
             for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[IMPACT_OSCILLATOR_N] * seg->nrm[i];
             }
+            impact_oscillator_kicked(seg, seg->x[IMPACT_OSCILLATOR_N], pm);
             impact_oscillator_solve_smooth(seg->q, pm, tau, c->par, x);
             x[IMPACT_OSCILLATOR_N] = seg->x[IMPACT_OSCILLATOR_N];
             impact_oscillator_newton(impact_oscillator_fn_jump, arg, IMPACT_OSCILLATOR_N1, x, &res);
@@ -2324,7 +2331,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     double psi1[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
     double s_ev[IMPACT_OSCILLATOR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM];
     double f1[IMPACT_OSCILLATOR_R_DIM], vel[IMPACT_OSCILLATOR_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[IMPACT_OSCILLATOR_R_DIM] = {0.0}, g_dip[IMPACT_OSCILLATOR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[IMPACT_OSCILLATOR_R_DIM], group[IMPACT_OSCILLATOR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

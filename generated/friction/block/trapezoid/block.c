@@ -776,6 +776,15 @@ static void block_seg_args(const block_seg_t *seg, const double *tau, const doub
 
 #define BLOCK_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void block_kicked(const block_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < BLOCK_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -787,14 +796,12 @@ static int block_sinks(const block_ctx_t *c, const block_seg_t *seg, double mu)
     if (!(mu < (1.0 - BLOCK_SINK_GAP) * seg->x[BLOCK_N])) {
         return 0;
     }
-    for (i = 0; i < BLOCK_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[BLOCK_N] * seg->nrm[i];
-    }
+    block_kicked(seg, seg->x[BLOCK_N], pm);
     block_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < BLOCK_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    block_kicked(seg, mu, pm);
     block_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < BLOCK_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -829,8 +836,8 @@ static double block_sub_solve(const block_ctx_t *c, const block_seg_t *seg, doub
             double pm[BLOCK_N];
             for (i = 0; i < BLOCK_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[BLOCK_N] * seg->nrm[i];
             }
+            block_kicked(seg, seg->x[BLOCK_N], pm);
             block_solve_smooth(seg->q, pm, tau, c->par, x);
             x[BLOCK_N] = seg->x[BLOCK_N];
             block_newton(block_fn_jump, arg, BLOCK_N1, x, &res);
@@ -3556,7 +3563,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double psi1[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[BLOCK_R_DIM] = {0.0}, g_dip[BLOCK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

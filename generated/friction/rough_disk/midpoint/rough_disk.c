@@ -855,6 +855,15 @@ static void rough_disk_seg_args(const rough_disk_seg_t *seg, const double *tau, 
 
 #define ROUGH_DISK_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void rough_disk_kicked(const rough_disk_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -866,14 +875,12 @@ static int rough_disk_sinks(const rough_disk_ctx_t *c, const rough_disk_seg_t *s
     if (!(mu < (1.0 - ROUGH_DISK_SINK_GAP) * seg->x[ROUGH_DISK_N])) {
         return 0;
     }
-    for (i = 0; i < ROUGH_DISK_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[ROUGH_DISK_N] * seg->nrm[i];
-    }
+    rough_disk_kicked(seg, seg->x[ROUGH_DISK_N], pm);
     rough_disk_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    rough_disk_kicked(seg, mu, pm);
     rough_disk_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -908,8 +915,8 @@ static double rough_disk_sub_solve(const rough_disk_ctx_t *c, const rough_disk_s
             double pm[ROUGH_DISK_N];
             for (i = 0; i < ROUGH_DISK_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[ROUGH_DISK_N] * seg->nrm[i];
             }
+            rough_disk_kicked(seg, seg->x[ROUGH_DISK_N], pm);
             rough_disk_solve_smooth(seg->q, pm, tau, c->par, x);
             x[ROUGH_DISK_N] = seg->x[ROUGH_DISK_N];
             rough_disk_newton(rough_disk_fn_jump, arg, ROUGH_DISK_N1, x, &res);
@@ -3635,7 +3642,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     double psi1[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
     double s_ev[ROUGH_DISK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM];
     double f1[ROUGH_DISK_R_DIM], vel[ROUGH_DISK_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[ROUGH_DISK_R_DIM] = {0.0}, g_dip[ROUGH_DISK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[ROUGH_DISK_R_DIM], group[ROUGH_DISK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

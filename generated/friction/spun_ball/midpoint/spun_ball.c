@@ -943,6 +943,15 @@ static void spun_ball_seg_args(const spun_ball_seg_t *seg, const double *tau, co
 
 #define SPUN_BALL_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void spun_ball_kicked(const spun_ball_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -954,14 +963,12 @@ static int spun_ball_sinks(const spun_ball_ctx_t *c, const spun_ball_seg_t *seg,
     if (!(mu < (1.0 - SPUN_BALL_SINK_GAP) * seg->x[SPUN_BALL_N])) {
         return 0;
     }
-    for (i = 0; i < SPUN_BALL_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[SPUN_BALL_N] * seg->nrm[i];
-    }
+    spun_ball_kicked(seg, seg->x[SPUN_BALL_N], pm);
     spun_ball_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < SPUN_BALL_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    spun_ball_kicked(seg, mu, pm);
     spun_ball_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < SPUN_BALL_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -996,8 +1003,8 @@ static double spun_ball_sub_solve(const spun_ball_ctx_t *c, const spun_ball_seg_
             double pm[SPUN_BALL_N];
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[SPUN_BALL_N] * seg->nrm[i];
             }
+            spun_ball_kicked(seg, seg->x[SPUN_BALL_N], pm);
             spun_ball_solve_smooth(seg->q, pm, tau, c->par, x);
             x[SPUN_BALL_N] = seg->x[SPUN_BALL_N];
             spun_ball_newton(spun_ball_fn_jump, arg, SPUN_BALL_N1, x, &res);
@@ -5270,7 +5277,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     double psi1[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
     double s_ev[SPUN_BALL_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SPUN_BALL_N], f0[SPUN_BALL_R_DIM];
     double f1[SPUN_BALL_R_DIM], vel[SPUN_BALL_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[SPUN_BALL_R_DIM] = {0.0}, g_dip[SPUN_BALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

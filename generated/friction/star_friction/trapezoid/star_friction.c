@@ -1054,6 +1054,15 @@ static void star_friction_seg_args(const star_friction_seg_t *seg, const double 
 
 #define STAR_FRICTION_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void star_friction_kicked(const star_friction_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < STAR_FRICTION_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -1065,14 +1074,12 @@ static int star_friction_sinks(const star_friction_ctx_t *c, const star_friction
     if (!(mu < (1.0 - STAR_FRICTION_SINK_GAP) * seg->x[STAR_FRICTION_N])) {
         return 0;
     }
-    for (i = 0; i < STAR_FRICTION_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[STAR_FRICTION_N] * seg->nrm[i];
-    }
+    star_friction_kicked(seg, seg->x[STAR_FRICTION_N], pm);
     star_friction_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < STAR_FRICTION_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    star_friction_kicked(seg, mu, pm);
     star_friction_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < STAR_FRICTION_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1107,8 +1114,8 @@ static double star_friction_sub_solve(const star_friction_ctx_t *c, const star_f
             double pm[STAR_FRICTION_N];
             for (i = 0; i < STAR_FRICTION_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[STAR_FRICTION_N] * seg->nrm[i];
             }
+            star_friction_kicked(seg, seg->x[STAR_FRICTION_N], pm);
             star_friction_solve_smooth(seg->q, pm, tau, c->par, x);
             x[STAR_FRICTION_N] = seg->x[STAR_FRICTION_N];
             star_friction_newton(star_friction_fn_jump, arg, STAR_FRICTION_N1, x, &res);
@@ -3843,7 +3850,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     double psi1[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double s_ev[STAR_FRICTION_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM];
     double f1[STAR_FRICTION_R_DIM], vel[STAR_FRICTION_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[STAR_FRICTION_R_DIM] = {0.0}, g_dip[STAR_FRICTION_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

@@ -985,6 +985,15 @@ static void ball_box_seg_args(const ball_box_seg_t *seg, const double *tau, cons
 
 #define BALL_BOX_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void ball_box_kicked(const ball_box_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -996,14 +1005,12 @@ static int ball_box_sinks(const ball_box_ctx_t *c, const ball_box_seg_t *seg, do
     if (!(mu < (1.0 - BALL_BOX_SINK_GAP) * seg->x[BALL_BOX_N])) {
         return 0;
     }
-    for (i = 0; i < BALL_BOX_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[BALL_BOX_N] * seg->nrm[i];
-    }
+    ball_box_kicked(seg, seg->x[BALL_BOX_N], pm);
     ball_box_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < BALL_BOX_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    ball_box_kicked(seg, mu, pm);
     ball_box_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < BALL_BOX_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1038,8 +1045,8 @@ static double ball_box_sub_solve(const ball_box_ctx_t *c, const ball_box_seg_t *
             double pm[BALL_BOX_N];
             for (i = 0; i < BALL_BOX_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[BALL_BOX_N] * seg->nrm[i];
             }
+            ball_box_kicked(seg, seg->x[BALL_BOX_N], pm);
             ball_box_solve_smooth(seg->q, pm, tau, c->par, x);
             x[BALL_BOX_N] = seg->x[BALL_BOX_N];
             ball_box_newton(ball_box_fn_jump, arg, BALL_BOX_N1, x, &res);
@@ -2715,7 +2722,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     double psi1[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
     double s_ev[BALL_BOX_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_BOX_N], f0[BALL_BOX_R_DIM];
     double f1[BALL_BOX_R_DIM], vel[BALL_BOX_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[BALL_BOX_R_DIM] = {0.0}, g_dip[BALL_BOX_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;

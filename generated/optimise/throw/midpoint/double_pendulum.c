@@ -1175,6 +1175,15 @@ static void double_pendulum_seg_args(const double_pendulum_seg_t *seg, const dou
 
 #define DOUBLE_PENDULUM_SINK_GAP 0.1 /* impact_step.SINK_GAP */
 
+/* The momentum after the jump at seg's start with impulse mu: p~- + mu n. */
+static void double_pendulum_kicked(const double_pendulum_seg_t *seg, double mu, double *pm)
+{
+    int i;
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
+    }
+}
+
 /* Stepper._sinks: is impulse mu of the jump at seg's start its mirror root, more than SINK_GAP of the jump's own
  * (seg->x) below it, and the normal velocity it leaves the contact just hit, n . M^-1 (p~- + mu n), below -1/2 of
  * the jump's? Under restitution (48a) has a second root beside the jump's, its mirror about the plastic impulse (the
@@ -1186,14 +1195,12 @@ static int double_pendulum_sinks(const double_pendulum_ctx_t *c, const double_pe
     if (!(mu < (1.0 - DOUBLE_PENDULUM_SINK_GAP) * seg->x[DOUBLE_PENDULUM_N])) {
         return 0;
     }
-    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-        pm[i] = seg->p_in[i] + seg->x[DOUBLE_PENDULUM_N] * seg->nrm[i];
-    }
+    double_pendulum_kicked(seg, seg->x[DOUBLE_PENDULUM_N], pm);
     double_pendulum_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         out += seg->nrm[i] * vel[i];
-        pm[i] = seg->p_in[i] + mu * seg->nrm[i];
     }
+    double_pendulum_kicked(seg, mu, pm);
     double_pendulum_velocity_par(c->par, seg->q, seg->x, pm, vel);
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         in += seg->nrm[i] * vel[i];
@@ -1228,8 +1235,8 @@ static double double_pendulum_sub_solve(const double_pendulum_ctx_t *c, const do
             double pm[DOUBLE_PENDULUM_N];
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
                 x[i] = seg->x[i];
-                pm[i] = seg->p_in[i] + seg->x[DOUBLE_PENDULUM_N] * seg->nrm[i];
             }
+            double_pendulum_kicked(seg, seg->x[DOUBLE_PENDULUM_N], pm);
             double_pendulum_solve_smooth(seg->q, pm, tau, c->par, x);
             x[DOUBLE_PENDULUM_N] = seg->x[DOUBLE_PENDULUM_N];
             double_pendulum_newton(double_pendulum_fn_jump, arg, DOUBLE_PENDULUM_N1, x, &res);
@@ -2860,7 +2867,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double psi1[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
     double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
-    const double *fp = f1; /* f1 as the lift-off test reads it */
+    const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[DOUBLE_PENDULUM_R_DIM] = {0.0}, g_dip[DOUBLE_PENDULUM_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
     int ev[DOUBLE_PENDULUM_R_DIM], group[DOUBLE_PENDULUM_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
