@@ -242,23 +242,24 @@ def test_forces_after_an_edge_landing_pivot_the_cube_on_the_edge():
     np.testing.assert_allclose(acc[[0, 1, 4, 5, 6, 7]], 0.0, atol=1e-12)
 
 
-def test_a_vertex_that_crosses_back_at_once_after_a_grazing_impact_is_held_alike_on_both_backends():
+def test_cube_drop_988_lands_its_vertex_plastic_once_alike_on_both_backends():
     """Frictionless drop 988 of ``python -m bench.cube_drops --seed 21`` (``e = 0``). At step 31 vertex v2
-    takes a grazing impact (the continuous law leaves it no normal speed) and crosses back at once. The (78)
-    sub-solves that look for it leaving took another root there, whose ``phi`` is not this path's: in C a
-    bracket ended 1.2e-8 deep and the run stopped ("no sign change of phi_v2"), while CasADi took the root at
-    the segment's start. Now ``_leave`` (C ``leave``) sees ``phi_v2`` below ``-phi`` at its first fraction and
-    the impact restarts by the continuous law. Both backends run to t = 3, log v2 grazing then plastic at one
-    time and the same impacts after, agree to 1e-9, stay above the floor, add no energy at an impact and end
-    at rest on the face."""
+    lands spinning: at its incoming velocity the spin pulls it up (not pressed in), but once its normal speed
+    is gone gravity presses it in, so since stop 49 the landing is plastic at once (``ImpactSteps._jump``, C
+    ``solve_jump``: pressed is also read at the velocity a plastic impact leaves). Before stop 49 (48a) at
+    ``e = 0`` had no root there: v2 took the continuous law as grazing, crossed back at once and was held by a
+    restart at the same instant (``_leave``, C ``leave``, stop 35; before stop 35 C stopped at step 31, "no
+    sign change of phi_v2", a bracket 1.2e-8 deep, while CasADi ran on). Both backends run to t = 3 with one
+    plastic impact at step 31, no continuous law and no restart, the same impacts after, agree to 1e-9, stay
+    above the floor, add no energy at an impact and end at rest on the face."""
     q0 = [0.0, 0.0, 1.0, 1.6389064567424714, 0.025262809178760892, 0.18246718551249597]
     v0 = [-1.3398377399813683, 1.0114322845485364, -0.7246497700805112]
     v0 += [2.4229773512771997, -2.7708696094874226, -2.86003007486737]
     a, b = (sim(be).simulate(params=E0, q0=q0, v0=v0, h=0.005, t_end=3.0) for be in ("c", "casadi"))
     for res in (a, b):
         first = [(i.step, i.contact, i.kind) for i in res.impacts[:2]]
-        assert first == [(31, "v2", "grazing"), (31, "v2", "plastic")]
-        assert res.impacts[0].t == res.impacts[1].t
+        assert first[0] == (31, "v2", "plastic") and first[1][0] > 31
+        assert res.stats["jump_fallbacks"] == 0 and res.stats["impacts_grazing"] == 0
         assert vertex_heights(res.q).min() > -1e-9
         assert all(i.energy_after <= i.energy_before + 1e-9 * abs(i.energy_before) for i in res.impacts)
         assert np.abs(vertex_heights(res.q[-1:])).max() < 1e-9 and np.abs(res.p[-1, [2, 4, 5]]).max() < 1e-9
@@ -769,6 +770,30 @@ def test_a_slide_from_rest_whose_last_halving_reverses_it_is_kept_alike_on_both_
     for res in (a, b):
         assert res.t[-1] == pytest.approx(3.0) and vertex_heights(res.q).min() > -1e-9
         assert np.abs(vertex_heights(res.q[-1:])).max() < 1e-9 and np.abs(res.p[-1]).max() < 1e-9
+
+
+def test_the_last_instant_of_a_stop_closes_the_stick_rows_offsets_alike_on_both_backends():
+    """Rough drop 636 of ``python -m bench.cube_drops --seed 21`` (``mu = 0.165``, ``e = 0.555``). Flat on
+    the floor on three vertices, the cube's slide stops 1.6e-9 s before the end of step 245: the rest of the
+    step holds the stick rows of two vertices, whose anchors are 1e-16 off the vertices (round-off). Over that
+    piece RATTLE's root closes the offsets at 7e-8 m/s, 5e8 times the kinetic energy the rest and the
+    forces give over it, and every halving of the piece raised the ratio: both backends raised "a held
+    segment's root is spurious" after 6 halvings. The spurious test now also allows the least kinetic energy
+    that closes the held rows' offsets over the piece (``SustainedSteps._gap_energy``, C ``gap_energy``):
+    both run to t = 3 with no halving and the same impacts, never below the floor, and rest on the face."""
+    q0 = [0.0, 0.0, 1.0, 0.8265291833129917, -0.4016390324378756, -0.1518309685803373]
+    v0 = [-0.502318616248683, -0.8848092139841124, -0.7984245841658679]
+    v0 += [-0.35915141293601627, 2.9763689624363403, -1.4486714579996745]
+    a, b = rough_on_both(q0, v0, {"e": 0.5552261392974128, "mu": 0.16507686074527927})
+    books = [[(i.contact, i.kind, i.step) for i in res.impacts] for res in (a, b)]
+    assert books[0] == books[1]
+    assert_same_liftoffs(a, b)
+    assert (a.active == b.active).all() and np.abs(a.q - b.q).max() < 1e-10
+    for res in (a, b):
+        assert res.stats["halvings"] == 0 and res.active[245:, [0, 1, 3]].all()
+        assert res.t[-1] == pytest.approx(3.0) and vertex_heights(res.q).min() > -1e-9
+        assert np.abs(vertex_heights(res.q[-1:])).max() < 1e-9 and np.abs(res.p[-1]).max() < 1e-9
+        assert all(i.energy_after <= i.energy_before + 1e-9 * abs(i.energy_before) for i in res.impacts)
 
 
 TANGENT_DROPS = {  # bench.cube_drops' rough drops (seed 7) whose tangent breaks the backends listed apart

@@ -289,6 +289,10 @@ class ImpactSteps:
         vel, minv_n, nv, nmn, mu0 = self._continuous_law(seg.q, v_in, seg.p_in, seg.nrm, restitution)
         sustain = self.tol.grazing == "contact" and k.r > 0
         accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
+        if sustain and accel >= 0.0 and nv < 0.0:  # not pressed at qdot-: is it at the velocity it leaves,
+            # n.qdot = 0? A double pendulum's tip swung down onto a floor at e = 0 was pulled up by its own
+            # normal speed, not once that was gone; (48a) had no root, it took the continuous law as grazing
+            accel = self._contact_accel(seg.q, vel - (nv / nmn) * minv_n, seg.nrm, group, weights)
         pressed = accel < 0.0
         if pressed and self._settles(nv, accel, restitution, self._h):
             return None, "plastic"

@@ -1421,6 +1421,27 @@ static void particle_row_accel(const particle_ctx_t *c, const double *q, const d
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void particle_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < PARTICLE_N; ++i) {
+            minv_g[k * PARTICLE_N + i] = dirs[rows[k] * PARTICLE_N + i];
+        }
+        particle_lu_solve(PARTICLE_N, lu, piv, minv_g + k * PARTICLE_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < PARTICLE_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void particle_forces_to(const particle_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1440,7 +1461,7 @@ static void particle_forces_to(const particle_ctx_t *c, const double *q, const d
     double minv_g[PARTICLE_R_DIM * PARTICLE_N], a[PARTICLE_R_DIM * PARTICLE_R_DIM], b[PARTICLE_R_DIM];
     double dirs[PARTICLE_R_DIM * PARTICLE_N];
     int rows[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < PARTICLE_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1458,22 +1479,11 @@ static void particle_forces_to(const particle_ctx_t *c, const double *q, const d
         return;
     }
     particle_lu_solve(PARTICLE_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < PARTICLE_N; ++i) {
-            minv_g[k * PARTICLE_N + i] = dirs[rows[k] * PARTICLE_N + i];
-        }
-        particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
-    }
+    particle_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < PARTICLE_N; ++i) {
             b[k] -= grad[rows[k] * PARTICLE_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < PARTICLE_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
-            }
         }
     }
     if (!particle_lu(nr, a, piv)) {
@@ -1497,7 +1507,7 @@ static int particle_onto_rows(const particle_ctx_t *c, double *q, const double *
     double u[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], minv_g[PARTICLE_R_DIM * PARTICLE_N];
     double a[PARTICLE_R_DIM * PARTICLE_R_DIM], b[PARTICLE_R_DIM], off = 0.0;
     int rows[PARTICLE_R_DIM], fresh[PARTICLE_R_DIM], piv[PARTICLE_R_DIM > PARTICLE_N ? PARTICLE_R_DIM : PARTICLE_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < PARTICLE_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1526,20 +1536,9 @@ static int particle_onto_rows(const particle_ctx_t *c, double *q, const double *
         if (it > 0) {
             particle_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < PARTICLE_N; ++i) {
-                minv_g[k * PARTICLE_N + i] = grad[rows[k] * PARTICLE_N + i];
-            }
-            particle_lu_solve(PARTICLE_N, mass, piv, minv_g + k * PARTICLE_N);
-        }
+        particle_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < PARTICLE_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * PARTICLE_N + i] * minv_g[l * PARTICLE_N + i];
-                }
-            }
         }
         if (!particle_lu(nr, a, pa)) {
             return it > 0;
@@ -1552,6 +1551,38 @@ static int particle_onto_rows(const particle_ctx_t *c, double *q, const double *
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double particle_gap_energy(const particle_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
+    double minv_g[PARTICLE_R_DIM * PARTICLE_N], a[PARTICLE_R_DIM * PARTICLE_R_DIM], b[PARTICLE_R_DIM];
+    double out = 0.0;
+    int rows[PARTICLE_R_DIM], pa[PARTICLE_R_DIM], nr = 0, k, r;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    particle_rows(q, u, c->par, psi, grad, curv);
+    particle_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!particle_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    particle_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1689,7 +1720,7 @@ static int particle_held_limit(const particle_ctx_t *c, const double *q, const d
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double particle_spurious(const particle_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1715,6 +1746,9 @@ static double particle_spurious(const particle_ctx_t *c, const double *q, const 
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > PARTICLE_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += particle_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > PARTICLE_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3310,6 +3344,13 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
     }
     if (sustain) {
         accel = particle_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[PARTICLE_N];
+            for (i = 0; i < PARTICLE_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = particle_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && particle_settles(c, nv, accel, e_rest)) {
             return 2;

@@ -1707,6 +1707,27 @@ static void star_row_accel(const star_ctx_t *c, const double *q, const double *u
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void star_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < STAR_N; ++i) {
+            minv_g[k * STAR_N + i] = dirs[rows[k] * STAR_N + i];
+        }
+        star_lu_solve(STAR_N, lu, piv, minv_g + k * STAR_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < STAR_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void star_forces_to(const star_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1726,7 +1747,7 @@ static void star_forces_to(const star_ctx_t *c, const double *q, const double *u
     double minv_g[STAR_R_DIM * STAR_N], a[STAR_R_DIM * STAR_R_DIM], b[STAR_R_DIM];
     double dirs[STAR_R_DIM * STAR_N];
     int rows[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < STAR_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1744,22 +1765,11 @@ static void star_forces_to(const star_ctx_t *c, const double *q, const double *u
         return;
     }
     star_lu_solve(STAR_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < STAR_N; ++i) {
-            minv_g[k * STAR_N + i] = dirs[rows[k] * STAR_N + i];
-        }
-        star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
-    }
+    star_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < STAR_N; ++i) {
             b[k] -= grad[rows[k] * STAR_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < STAR_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
-            }
         }
     }
     if (!star_lu(nr, a, piv)) {
@@ -1783,7 +1793,7 @@ static int star_onto_rows(const star_ctx_t *c, double *q, const double *v, const
     double u[STAR_N], mom[STAR_N], mass[STAR_N * STAR_N], minv_g[STAR_R_DIM * STAR_N];
     double a[STAR_R_DIM * STAR_R_DIM], b[STAR_R_DIM], off = 0.0;
     int rows[STAR_R_DIM], fresh[STAR_R_DIM], piv[STAR_R_DIM > STAR_N ? STAR_R_DIM : STAR_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < STAR_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1812,20 +1822,9 @@ static int star_onto_rows(const star_ctx_t *c, double *q, const double *v, const
         if (it > 0) {
             star_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < STAR_N; ++i) {
-                minv_g[k * STAR_N + i] = grad[rows[k] * STAR_N + i];
-            }
-            star_lu_solve(STAR_N, mass, piv, minv_g + k * STAR_N);
-        }
+        star_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < STAR_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * STAR_N + i] * minv_g[l * STAR_N + i];
-                }
-            }
         }
         if (!star_lu(nr, a, pa)) {
             return it > 0;
@@ -1838,6 +1837,38 @@ static int star_onto_rows(const star_ctx_t *c, double *q, const double *v, const
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double star_gap_energy(const star_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    double minv_g[STAR_R_DIM * STAR_N], a[STAR_R_DIM * STAR_R_DIM], b[STAR_R_DIM];
+    double out = 0.0;
+    int rows[STAR_R_DIM], pa[STAR_R_DIM], nr = 0, k, r;
+    for (r = 0; r < STAR_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    star_rows(q, u, c->par, psi, grad, curv);
+    star_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!star_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    star_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1975,7 +2006,7 @@ static int star_held_limit(const star_ctx_t *c, const double *q, const double *p
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double star_spurious(const star_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -2001,6 +2032,9 @@ static double star_spurious(const star_ctx_t *c, const double *q, const double *
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > STAR_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += star_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > STAR_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3705,6 +3739,13 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     }
     if (sustain) {
         accel = star_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[STAR_N];
+            for (i = 0; i < STAR_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = star_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && star_settles(c, nv, accel, e_rest)) {
             return 2;

@@ -2212,6 +2212,27 @@ static void cube_settles_row_accel(const cube_settles_ctx_t *c, const double *q,
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void cube_settles_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            minv_g[k * CUBE_SETTLES_N + i] = dirs[rows[k] * CUBE_SETTLES_N + i];
+        }
+        cube_settles_lu_solve(CUBE_SETTLES_N, lu, piv, minv_g + k * CUBE_SETTLES_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * CUBE_SETTLES_N + i] * minv_g[l * CUBE_SETTLES_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void cube_settles_forces_to(const cube_settles_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -2231,7 +2252,7 @@ static void cube_settles_forces_to(const cube_settles_ctx_t *c, const double *q,
     double minv_g[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], a[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM], b[CUBE_SETTLES_R_DIM];
     double dirs[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     int rows[CUBE_SETTLES_R_DIM], piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -2249,22 +2270,11 @@ static void cube_settles_forces_to(const cube_settles_ctx_t *c, const double *q,
         return;
     }
     cube_settles_lu_solve(CUBE_SETTLES_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < CUBE_SETTLES_N; ++i) {
-            minv_g[k * CUBE_SETTLES_N + i] = dirs[rows[k] * CUBE_SETTLES_N + i];
-        }
-        cube_settles_lu_solve(CUBE_SETTLES_N, mass, piv, minv_g + k * CUBE_SETTLES_N);
-    }
+    cube_settles_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             b[k] -= grad[rows[k] * CUBE_SETTLES_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < CUBE_SETTLES_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * CUBE_SETTLES_N + i] * minv_g[l * CUBE_SETTLES_N + i];
-            }
         }
     }
     if (!cube_settles_lu(nr, a, piv)) {
@@ -2288,7 +2298,7 @@ static int cube_settles_onto_rows(const cube_settles_ctx_t *c, double *q, const 
     double u[CUBE_SETTLES_N], mom[CUBE_SETTLES_N], mass[CUBE_SETTLES_N * CUBE_SETTLES_N], minv_g[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     double a[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM], b[CUBE_SETTLES_R_DIM], off = 0.0;
     int rows[CUBE_SETTLES_R_DIM], fresh[CUBE_SETTLES_R_DIM], piv[CUBE_SETTLES_R_DIM > CUBE_SETTLES_N ? CUBE_SETTLES_R_DIM : CUBE_SETTLES_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -2317,20 +2327,9 @@ static int cube_settles_onto_rows(const cube_settles_ctx_t *c, double *q, const 
         if (it > 0) {
             cube_settles_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < CUBE_SETTLES_N; ++i) {
-                minv_g[k * CUBE_SETTLES_N + i] = grad[rows[k] * CUBE_SETTLES_N + i];
-            }
-            cube_settles_lu_solve(CUBE_SETTLES_N, mass, piv, minv_g + k * CUBE_SETTLES_N);
-        }
+        cube_settles_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < CUBE_SETTLES_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * CUBE_SETTLES_N + i] * minv_g[l * CUBE_SETTLES_N + i];
-                }
-            }
         }
         if (!cube_settles_lu(nr, a, pa)) {
             return it > 0;
@@ -2343,6 +2342,38 @@ static int cube_settles_onto_rows(const cube_settles_ctx_t *c, double *q, const 
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double cube_settles_gap_energy(const cube_settles_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[CUBE_SETTLES_R_DIM], grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], curv[CUBE_SETTLES_R_DIM];
+    double minv_g[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N], a[CUBE_SETTLES_R_DIM * CUBE_SETTLES_R_DIM], b[CUBE_SETTLES_R_DIM];
+    double out = 0.0;
+    int rows[CUBE_SETTLES_R_DIM], pa[CUBE_SETTLES_R_DIM], nr = 0, k, r;
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    cube_settles_rows(q, u, c->par, psi, grad, curv);
+    cube_settles_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!cube_settles_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    cube_settles_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2481,7 +2512,7 @@ static int cube_settles_held_limit(const cube_settles_ctx_t *c, const double *q,
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double cube_settles_spurious(const cube_settles_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -2507,6 +2538,9 @@ static double cube_settles_spurious(const cube_settles_ctx_t *c, const double *q
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > CUBE_SETTLES_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += cube_settles_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > CUBE_SETTLES_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3604,6 +3638,13 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
     }
     if (sustain) {
         accel = cube_settles_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[CUBE_SETTLES_N];
+            for (i = 0; i < CUBE_SETTLES_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = cube_settles_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && cube_settles_settles(c, nv, accel, e_rest)) {
             return 2;

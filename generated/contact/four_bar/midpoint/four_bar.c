@@ -1925,6 +1925,27 @@ static void four_bar_row_accel(const four_bar_ctx_t *c, const double *q, const d
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void four_bar_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < FOUR_BAR_N; ++i) {
+            minv_g[k * FOUR_BAR_N + i] = dirs[rows[k] * FOUR_BAR_N + i];
+        }
+        four_bar_lu_solve(FOUR_BAR_N, lu, piv, minv_g + k * FOUR_BAR_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < FOUR_BAR_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * FOUR_BAR_N + i] * minv_g[l * FOUR_BAR_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void four_bar_forces_to(const four_bar_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1944,7 +1965,7 @@ static void four_bar_forces_to(const four_bar_ctx_t *c, const double *q, const d
     double minv_g[FOUR_BAR_R_DIM * FOUR_BAR_N], a[FOUR_BAR_R_DIM * FOUR_BAR_R_DIM], b[FOUR_BAR_R_DIM];
     double dirs[FOUR_BAR_R_DIM * FOUR_BAR_N];
     int rows[FOUR_BAR_R_DIM], piv[FOUR_BAR_R_DIM > FOUR_BAR_N ? FOUR_BAR_R_DIM : FOUR_BAR_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < FOUR_BAR_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1962,22 +1983,11 @@ static void four_bar_forces_to(const four_bar_ctx_t *c, const double *q, const d
         return;
     }
     four_bar_lu_solve(FOUR_BAR_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < FOUR_BAR_N; ++i) {
-            minv_g[k * FOUR_BAR_N + i] = dirs[rows[k] * FOUR_BAR_N + i];
-        }
-        four_bar_lu_solve(FOUR_BAR_N, mass, piv, minv_g + k * FOUR_BAR_N);
-    }
+    four_bar_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < FOUR_BAR_N; ++i) {
             b[k] -= grad[rows[k] * FOUR_BAR_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < FOUR_BAR_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * FOUR_BAR_N + i] * minv_g[l * FOUR_BAR_N + i];
-            }
         }
     }
     if (!four_bar_lu(nr, a, piv)) {
@@ -2001,7 +2011,7 @@ static int four_bar_onto_rows(const four_bar_ctx_t *c, double *q, const double *
     double u[FOUR_BAR_N], mom[FOUR_BAR_N], mass[FOUR_BAR_N * FOUR_BAR_N], minv_g[FOUR_BAR_R_DIM * FOUR_BAR_N];
     double a[FOUR_BAR_R_DIM * FOUR_BAR_R_DIM], b[FOUR_BAR_R_DIM], off = 0.0;
     int rows[FOUR_BAR_R_DIM], fresh[FOUR_BAR_R_DIM], piv[FOUR_BAR_R_DIM > FOUR_BAR_N ? FOUR_BAR_R_DIM : FOUR_BAR_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < FOUR_BAR_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -2030,20 +2040,9 @@ static int four_bar_onto_rows(const four_bar_ctx_t *c, double *q, const double *
         if (it > 0) {
             four_bar_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < FOUR_BAR_N; ++i) {
-                minv_g[k * FOUR_BAR_N + i] = grad[rows[k] * FOUR_BAR_N + i];
-            }
-            four_bar_lu_solve(FOUR_BAR_N, mass, piv, minv_g + k * FOUR_BAR_N);
-        }
+        four_bar_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < FOUR_BAR_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * FOUR_BAR_N + i] * minv_g[l * FOUR_BAR_N + i];
-                }
-            }
         }
         if (!four_bar_lu(nr, a, pa)) {
             return it > 0;
@@ -2056,6 +2055,38 @@ static int four_bar_onto_rows(const four_bar_ctx_t *c, double *q, const double *
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double four_bar_gap_energy(const four_bar_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
+    double minv_g[FOUR_BAR_R_DIM * FOUR_BAR_N], a[FOUR_BAR_R_DIM * FOUR_BAR_R_DIM], b[FOUR_BAR_R_DIM];
+    double out = 0.0;
+    int rows[FOUR_BAR_R_DIM], pa[FOUR_BAR_R_DIM], nr = 0, k, r;
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    four_bar_rows(q, u, c->par, psi, grad, curv);
+    four_bar_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!four_bar_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    four_bar_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2193,7 +2224,7 @@ static int four_bar_held_limit(const four_bar_ctx_t *c, const double *q, const d
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double four_bar_spurious(const four_bar_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -2219,6 +2250,9 @@ static double four_bar_spurious(const four_bar_ctx_t *c, const double *q, const 
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > FOUR_BAR_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += four_bar_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > FOUR_BAR_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -4174,6 +4208,13 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
     }
     if (sustain) {
         accel = four_bar_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[FOUR_BAR_N];
+            for (i = 0; i < FOUR_BAR_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = four_bar_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && four_bar_settles(c, nv, accel, e_rest)) {
             return 2;

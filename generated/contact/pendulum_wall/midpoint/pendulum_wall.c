@@ -1653,6 +1653,27 @@ static void pendulum_wall_row_accel(const pendulum_wall_ctx_t *c, const double *
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void pendulum_wall_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            minv_g[k * PENDULUM_WALL_N + i] = dirs[rows[k] * PENDULUM_WALL_N + i];
+        }
+        pendulum_wall_lu_solve(PENDULUM_WALL_N, lu, piv, minv_g + k * PENDULUM_WALL_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * PENDULUM_WALL_N + i] * minv_g[l * PENDULUM_WALL_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void pendulum_wall_forces_to(const pendulum_wall_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1672,7 +1693,7 @@ static void pendulum_wall_forces_to(const pendulum_wall_ctx_t *c, const double *
     double minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], a[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM], b[PENDULUM_WALL_R_DIM];
     double dirs[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     int rows[PENDULUM_WALL_R_DIM], piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1690,22 +1711,11 @@ static void pendulum_wall_forces_to(const pendulum_wall_ctx_t *c, const double *
         return;
     }
     pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < PENDULUM_WALL_N; ++i) {
-            minv_g[k * PENDULUM_WALL_N + i] = dirs[rows[k] * PENDULUM_WALL_N + i];
-        }
-        pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_g + k * PENDULUM_WALL_N);
-    }
+    pendulum_wall_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             b[k] -= grad[rows[k] * PENDULUM_WALL_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * PENDULUM_WALL_N + i] * minv_g[l * PENDULUM_WALL_N + i];
-            }
         }
     }
     if (!pendulum_wall_lu(nr, a, piv)) {
@@ -1729,7 +1739,7 @@ static int pendulum_wall_onto_rows(const pendulum_wall_ctx_t *c, double *q, cons
     double u[PENDULUM_WALL_N], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double a[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM], b[PENDULUM_WALL_R_DIM], off = 0.0;
     int rows[PENDULUM_WALL_R_DIM], fresh[PENDULUM_WALL_R_DIM], piv[PENDULUM_WALL_R_DIM > PENDULUM_WALL_N ? PENDULUM_WALL_R_DIM : PENDULUM_WALL_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1758,20 +1768,9 @@ static int pendulum_wall_onto_rows(const pendulum_wall_ctx_t *c, double *q, cons
         if (it > 0) {
             pendulum_wall_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                minv_g[k * PENDULUM_WALL_N + i] = grad[rows[k] * PENDULUM_WALL_N + i];
-            }
-            pendulum_wall_lu_solve(PENDULUM_WALL_N, mass, piv, minv_g + k * PENDULUM_WALL_N);
-        }
+        pendulum_wall_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < PENDULUM_WALL_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * PENDULUM_WALL_N + i] * minv_g[l * PENDULUM_WALL_N + i];
-                }
-            }
         }
         if (!pendulum_wall_lu(nr, a, pa)) {
             return it > 0;
@@ -1784,6 +1783,38 @@ static int pendulum_wall_onto_rows(const pendulum_wall_ctx_t *c, double *q, cons
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double pendulum_wall_gap_energy(const pendulum_wall_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[PENDULUM_WALL_R_DIM], grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], curv[PENDULUM_WALL_R_DIM];
+    double minv_g[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N], a[PENDULUM_WALL_R_DIM * PENDULUM_WALL_R_DIM], b[PENDULUM_WALL_R_DIM];
+    double out = 0.0;
+    int rows[PENDULUM_WALL_R_DIM], pa[PENDULUM_WALL_R_DIM], nr = 0, k, r;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    pendulum_wall_rows(q, u, c->par, psi, grad, curv);
+    pendulum_wall_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!pendulum_wall_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    pendulum_wall_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1921,7 +1952,7 @@ static int pendulum_wall_held_limit(const pendulum_wall_ctx_t *c, const double *
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double pendulum_wall_spurious(const pendulum_wall_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1947,6 +1978,9 @@ static double pendulum_wall_spurious(const pendulum_wall_ctx_t *c, const double 
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > PENDULUM_WALL_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += pendulum_wall_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > PENDULUM_WALL_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3945,6 +3979,13 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
     }
     if (sustain) {
         accel = pendulum_wall_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[PENDULUM_WALL_N];
+            for (i = 0; i < PENDULUM_WALL_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = pendulum_wall_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && pendulum_wall_settles(c, nv, accel, e_rest)) {
             return 2;

@@ -2335,6 +2335,27 @@ static void pyramid_row_accel(const pyramid_ctx_t *c, const double *q, const dou
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void pyramid_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < PYRAMID_N; ++i) {
+            minv_g[k * PYRAMID_N + i] = dirs[rows[k] * PYRAMID_N + i];
+        }
+        pyramid_lu_solve(PYRAMID_N, lu, piv, minv_g + k * PYRAMID_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < PYRAMID_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * PYRAMID_N + i] * minv_g[l * PYRAMID_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void pyramid_forces_to(const pyramid_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -2354,7 +2375,7 @@ static void pyramid_forces_to(const pyramid_ctx_t *c, const double *q, const dou
     double minv_g[PYRAMID_R_DIM * PYRAMID_N], a[PYRAMID_R_DIM * PYRAMID_R_DIM], b[PYRAMID_R_DIM];
     double dirs[PYRAMID_R_DIM * PYRAMID_N];
     int rows[PYRAMID_R_DIM], piv[PYRAMID_R_DIM > PYRAMID_N ? PYRAMID_R_DIM : PYRAMID_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < PYRAMID_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -2372,22 +2393,11 @@ static void pyramid_forces_to(const pyramid_ctx_t *c, const double *q, const dou
         return;
     }
     pyramid_lu_solve(PYRAMID_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < PYRAMID_N; ++i) {
-            minv_g[k * PYRAMID_N + i] = dirs[rows[k] * PYRAMID_N + i];
-        }
-        pyramid_lu_solve(PYRAMID_N, mass, piv, minv_g + k * PYRAMID_N);
-    }
+    pyramid_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < PYRAMID_N; ++i) {
             b[k] -= grad[rows[k] * PYRAMID_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < PYRAMID_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * PYRAMID_N + i] * minv_g[l * PYRAMID_N + i];
-            }
         }
     }
     if (!pyramid_lu(nr, a, piv)) {
@@ -2411,7 +2421,7 @@ static int pyramid_onto_rows(const pyramid_ctx_t *c, double *q, const double *v,
     double u[PYRAMID_N], mom[PYRAMID_N], mass[PYRAMID_N * PYRAMID_N], minv_g[PYRAMID_R_DIM * PYRAMID_N];
     double a[PYRAMID_R_DIM * PYRAMID_R_DIM], b[PYRAMID_R_DIM], off = 0.0;
     int rows[PYRAMID_R_DIM], fresh[PYRAMID_R_DIM], piv[PYRAMID_R_DIM > PYRAMID_N ? PYRAMID_R_DIM : PYRAMID_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < PYRAMID_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -2440,20 +2450,9 @@ static int pyramid_onto_rows(const pyramid_ctx_t *c, double *q, const double *v,
         if (it > 0) {
             pyramid_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < PYRAMID_N; ++i) {
-                minv_g[k * PYRAMID_N + i] = grad[rows[k] * PYRAMID_N + i];
-            }
-            pyramid_lu_solve(PYRAMID_N, mass, piv, minv_g + k * PYRAMID_N);
-        }
+        pyramid_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < PYRAMID_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * PYRAMID_N + i] * minv_g[l * PYRAMID_N + i];
-                }
-            }
         }
         if (!pyramid_lu(nr, a, pa)) {
             return it > 0;
@@ -2466,6 +2465,38 @@ static int pyramid_onto_rows(const pyramid_ctx_t *c, double *q, const double *v,
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double pyramid_gap_energy(const pyramid_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
+    double minv_g[PYRAMID_R_DIM * PYRAMID_N], a[PYRAMID_R_DIM * PYRAMID_R_DIM], b[PYRAMID_R_DIM];
+    double out = 0.0;
+    int rows[PYRAMID_R_DIM], pa[PYRAMID_R_DIM], nr = 0, k, r;
+    for (r = 0; r < PYRAMID_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    pyramid_rows(q, u, c->par, psi, grad, curv);
+    pyramid_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!pyramid_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    pyramid_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2603,7 +2634,7 @@ static int pyramid_held_limit(const pyramid_ctx_t *c, const double *q, const dou
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double pyramid_spurious(const pyramid_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -2629,6 +2660,9 @@ static double pyramid_spurious(const pyramid_ctx_t *c, const double *q, const do
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > PYRAMID_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += pyramid_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > PYRAMID_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -5275,6 +5309,13 @@ static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const 
     }
     if (sustain) {
         accel = pyramid_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[PYRAMID_N];
+            for (i = 0; i < PYRAMID_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = pyramid_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && pyramid_settles(c, nv, accel, e_rest)) {
             return 2;

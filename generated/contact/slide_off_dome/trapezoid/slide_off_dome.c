@@ -1628,6 +1628,27 @@ static void slide_off_dome_row_accel(const slide_off_dome_ctx_t *c, const double
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void slide_off_dome_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            minv_g[k * SLIDE_OFF_DOME_N + i] = dirs[rows[k] * SLIDE_OFF_DOME_N + i];
+        }
+        slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, lu, piv, minv_g + k * SLIDE_OFF_DOME_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * SLIDE_OFF_DOME_N + i] * minv_g[l * SLIDE_OFF_DOME_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void slide_off_dome_forces_to(const slide_off_dome_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1647,7 +1668,7 @@ static void slide_off_dome_forces_to(const slide_off_dome_ctx_t *c, const double
     double minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM], b[SLIDE_OFF_DOME_R_DIM];
     double dirs[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     int rows[SLIDE_OFF_DOME_R_DIM], piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1665,22 +1686,11 @@ static void slide_off_dome_forces_to(const slide_off_dome_ctx_t *c, const double
         return;
     }
     slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-            minv_g[k * SLIDE_OFF_DOME_N + i] = dirs[rows[k] * SLIDE_OFF_DOME_N + i];
-        }
-        slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_g + k * SLIDE_OFF_DOME_N);
-    }
+    slide_off_dome_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             b[k] -= grad[rows[k] * SLIDE_OFF_DOME_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * SLIDE_OFF_DOME_N + i] * minv_g[l * SLIDE_OFF_DOME_N + i];
-            }
         }
     }
     if (!slide_off_dome_lu(nr, a, piv)) {
@@ -1704,7 +1714,7 @@ static int slide_off_dome_onto_rows(const slide_off_dome_ctx_t *c, double *q, co
     double u[SLIDE_OFF_DOME_N], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM], b[SLIDE_OFF_DOME_R_DIM], off = 0.0;
     int rows[SLIDE_OFF_DOME_R_DIM], fresh[SLIDE_OFF_DOME_R_DIM], piv[SLIDE_OFF_DOME_R_DIM > SLIDE_OFF_DOME_N ? SLIDE_OFF_DOME_R_DIM : SLIDE_OFF_DOME_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1733,20 +1743,9 @@ static int slide_off_dome_onto_rows(const slide_off_dome_ctx_t *c, double *q, co
         if (it > 0) {
             slide_off_dome_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-                minv_g[k * SLIDE_OFF_DOME_N + i] = grad[rows[k] * SLIDE_OFF_DOME_N + i];
-            }
-            slide_off_dome_lu_solve(SLIDE_OFF_DOME_N, mass, piv, minv_g + k * SLIDE_OFF_DOME_N);
-        }
+        slide_off_dome_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * SLIDE_OFF_DOME_N + i] * minv_g[l * SLIDE_OFF_DOME_N + i];
-                }
-            }
         }
         if (!slide_off_dome_lu(nr, a, pa)) {
             return it > 0;
@@ -1759,6 +1758,38 @@ static int slide_off_dome_onto_rows(const slide_off_dome_ctx_t *c, double *q, co
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double slide_off_dome_gap_energy(const slide_off_dome_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
+    double minv_g[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], a[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_R_DIM], b[SLIDE_OFF_DOME_R_DIM];
+    double out = 0.0;
+    int rows[SLIDE_OFF_DOME_R_DIM], pa[SLIDE_OFF_DOME_R_DIM], nr = 0, k, r;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    slide_off_dome_rows(q, u, c->par, psi, grad, curv);
+    slide_off_dome_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!slide_off_dome_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    slide_off_dome_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1896,7 +1927,7 @@ static int slide_off_dome_held_limit(const slide_off_dome_ctx_t *c, const double
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double slide_off_dome_spurious(const slide_off_dome_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1922,6 +1953,9 @@ static double slide_off_dome_spurious(const slide_off_dome_ctx_t *c, const doubl
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > SLIDE_OFF_DOME_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += slide_off_dome_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > SLIDE_OFF_DOME_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3866,6 +3900,13 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
     }
     if (sustain) {
         accel = slide_off_dome_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[SLIDE_OFF_DOME_N];
+            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = slide_off_dome_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && slide_off_dome_settles(c, nv, accel, e_rest)) {
             return 2;

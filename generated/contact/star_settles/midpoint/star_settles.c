@@ -1706,6 +1706,27 @@ static void star_settles_row_accel(const star_settles_ctx_t *c, const double *q,
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void star_settles_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < STAR_SETTLES_N; ++i) {
+            minv_g[k * STAR_SETTLES_N + i] = dirs[rows[k] * STAR_SETTLES_N + i];
+        }
+        star_settles_lu_solve(STAR_SETTLES_N, lu, piv, minv_g + k * STAR_SETTLES_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < STAR_SETTLES_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * STAR_SETTLES_N + i] * minv_g[l * STAR_SETTLES_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void star_settles_forces_to(const star_settles_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1725,7 +1746,7 @@ static void star_settles_forces_to(const star_settles_ctx_t *c, const double *q,
     double minv_g[STAR_SETTLES_R_DIM * STAR_SETTLES_N], a[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM], b[STAR_SETTLES_R_DIM];
     double dirs[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     int rows[STAR_SETTLES_R_DIM], piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1743,22 +1764,11 @@ static void star_settles_forces_to(const star_settles_ctx_t *c, const double *q,
         return;
     }
     star_settles_lu_solve(STAR_SETTLES_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < STAR_SETTLES_N; ++i) {
-            minv_g[k * STAR_SETTLES_N + i] = dirs[rows[k] * STAR_SETTLES_N + i];
-        }
-        star_settles_lu_solve(STAR_SETTLES_N, mass, piv, minv_g + k * STAR_SETTLES_N);
-    }
+    star_settles_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             b[k] -= grad[rows[k] * STAR_SETTLES_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < STAR_SETTLES_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * STAR_SETTLES_N + i] * minv_g[l * STAR_SETTLES_N + i];
-            }
         }
     }
     if (!star_settles_lu(nr, a, piv)) {
@@ -1782,7 +1792,7 @@ static int star_settles_onto_rows(const star_settles_ctx_t *c, double *q, const 
     double u[STAR_SETTLES_N], mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N], minv_g[STAR_SETTLES_R_DIM * STAR_SETTLES_N];
     double a[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM], b[STAR_SETTLES_R_DIM], off = 0.0;
     int rows[STAR_SETTLES_R_DIM], fresh[STAR_SETTLES_R_DIM], piv[STAR_SETTLES_R_DIM > STAR_SETTLES_N ? STAR_SETTLES_R_DIM : STAR_SETTLES_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < STAR_SETTLES_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1811,20 +1821,9 @@ static int star_settles_onto_rows(const star_settles_ctx_t *c, double *q, const 
         if (it > 0) {
             star_settles_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < STAR_SETTLES_N; ++i) {
-                minv_g[k * STAR_SETTLES_N + i] = grad[rows[k] * STAR_SETTLES_N + i];
-            }
-            star_settles_lu_solve(STAR_SETTLES_N, mass, piv, minv_g + k * STAR_SETTLES_N);
-        }
+        star_settles_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < STAR_SETTLES_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * STAR_SETTLES_N + i] * minv_g[l * STAR_SETTLES_N + i];
-                }
-            }
         }
         if (!star_settles_lu(nr, a, pa)) {
             return it > 0;
@@ -1837,6 +1836,38 @@ static int star_settles_onto_rows(const star_settles_ctx_t *c, double *q, const 
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double star_settles_gap_energy(const star_settles_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[STAR_SETTLES_R_DIM], grad[STAR_SETTLES_R_DIM * STAR_SETTLES_N], curv[STAR_SETTLES_R_DIM];
+    double minv_g[STAR_SETTLES_R_DIM * STAR_SETTLES_N], a[STAR_SETTLES_R_DIM * STAR_SETTLES_R_DIM], b[STAR_SETTLES_R_DIM];
+    double out = 0.0;
+    int rows[STAR_SETTLES_R_DIM], pa[STAR_SETTLES_R_DIM], nr = 0, k, r;
+    for (r = 0; r < STAR_SETTLES_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    star_settles_rows(q, u, c->par, psi, grad, curv);
+    star_settles_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!star_settles_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    star_settles_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1974,7 +2005,7 @@ static int star_settles_held_limit(const star_settles_ctx_t *c, const double *q,
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double star_settles_spurious(const star_settles_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -2000,6 +2031,9 @@ static double star_settles_spurious(const star_settles_ctx_t *c, const double *q
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > STAR_SETTLES_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += star_settles_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > STAR_SETTLES_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3704,6 +3738,13 @@ static int star_settles_solve_jump(const star_settles_ctx_t *c, star_settles_seg
     }
     if (sustain) {
         accel = star_settles_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[STAR_SETTLES_N];
+            for (i = 0; i < STAR_SETTLES_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = star_settles_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && star_settles_settles(c, nv, accel, e_rest)) {
             return 2;

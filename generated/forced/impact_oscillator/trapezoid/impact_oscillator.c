@@ -1250,6 +1250,27 @@ static void impact_oscillator_row_accel(const impact_oscillator_ctx_t *c, const 
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void impact_oscillator_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            minv_g[k * IMPACT_OSCILLATOR_N + i] = dirs[rows[k] * IMPACT_OSCILLATOR_N + i];
+        }
+        impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, lu, piv, minv_g + k * IMPACT_OSCILLATOR_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * IMPACT_OSCILLATOR_N + i] * minv_g[l * IMPACT_OSCILLATOR_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void impact_oscillator_forces_to(const impact_oscillator_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1269,7 +1290,7 @@ static void impact_oscillator_forces_to(const impact_oscillator_ctx_t *c, const 
     double minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], a[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM], b[IMPACT_OSCILLATOR_R_DIM];
     double dirs[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     int rows[IMPACT_OSCILLATOR_R_DIM], piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1287,22 +1308,11 @@ static void impact_oscillator_forces_to(const impact_oscillator_ctx_t *c, const 
         return;
     }
     impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-            minv_g[k * IMPACT_OSCILLATOR_N + i] = dirs[rows[k] * IMPACT_OSCILLATOR_N + i];
-        }
-        impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, mass, piv, minv_g + k * IMPACT_OSCILLATOR_N);
-    }
+    impact_oscillator_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             b[k] -= grad[rows[k] * IMPACT_OSCILLATOR_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * IMPACT_OSCILLATOR_N + i] * minv_g[l * IMPACT_OSCILLATOR_N + i];
-            }
         }
     }
     if (!impact_oscillator_lu(nr, a, piv)) {
@@ -1326,7 +1336,7 @@ static int impact_oscillator_onto_rows(const impact_oscillator_ctx_t *c, double 
     double u[IMPACT_OSCILLATOR_N], mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double a[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM], b[IMPACT_OSCILLATOR_R_DIM], off = 0.0;
     int rows[IMPACT_OSCILLATOR_R_DIM], fresh[IMPACT_OSCILLATOR_R_DIM], piv[IMPACT_OSCILLATOR_R_DIM > IMPACT_OSCILLATOR_N ? IMPACT_OSCILLATOR_R_DIM : IMPACT_OSCILLATOR_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1355,20 +1365,9 @@ static int impact_oscillator_onto_rows(const impact_oscillator_ctx_t *c, double 
         if (it > 0) {
             impact_oscillator_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-                minv_g[k * IMPACT_OSCILLATOR_N + i] = grad[rows[k] * IMPACT_OSCILLATOR_N + i];
-            }
-            impact_oscillator_lu_solve(IMPACT_OSCILLATOR_N, mass, piv, minv_g + k * IMPACT_OSCILLATOR_N);
-        }
+        impact_oscillator_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * IMPACT_OSCILLATOR_N + i] * minv_g[l * IMPACT_OSCILLATOR_N + i];
-                }
-            }
         }
         if (!impact_oscillator_lu(nr, a, pa)) {
             return it > 0;
@@ -1381,6 +1380,38 @@ static int impact_oscillator_onto_rows(const impact_oscillator_ctx_t *c, double 
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double impact_oscillator_gap_energy(const impact_oscillator_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
+    double minv_g[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], a[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_R_DIM], b[IMPACT_OSCILLATOR_R_DIM];
+    double out = 0.0;
+    int rows[IMPACT_OSCILLATOR_R_DIM], pa[IMPACT_OSCILLATOR_R_DIM], nr = 0, k, r;
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    impact_oscillator_rows(q, u, c->par, psi, grad, curv);
+    impact_oscillator_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!impact_oscillator_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    impact_oscillator_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1518,7 +1549,7 @@ static int impact_oscillator_held_limit(const impact_oscillator_ctx_t *c, const 
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double impact_oscillator_spurious(const impact_oscillator_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1544,6 +1575,9 @@ static double impact_oscillator_spurious(const impact_oscillator_ctx_t *c, const
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > IMPACT_OSCILLATOR_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += impact_oscillator_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > IMPACT_OSCILLATOR_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -2645,6 +2679,13 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
     }
     if (sustain) {
         accel = impact_oscillator_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[IMPACT_OSCILLATOR_N];
+            for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = impact_oscillator_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && impact_oscillator_settles(c, nv, accel, e_rest)) {
             return 2;

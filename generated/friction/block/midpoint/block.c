@@ -1486,6 +1486,27 @@ static void block_row_accel(const block_ctx_t *c, const double *q, const double 
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void block_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < BLOCK_N; ++i) {
+            minv_g[k * BLOCK_N + i] = dirs[rows[k] * BLOCK_N + i];
+        }
+        block_lu_solve(BLOCK_N, lu, piv, minv_g + k * BLOCK_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < BLOCK_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * BLOCK_N + i] * minv_g[l * BLOCK_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void block_forces_to(const block_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1505,7 +1526,7 @@ static void block_forces_to(const block_ctx_t *c, const double *q, const double 
     double minv_g[BLOCK_R_DIM * BLOCK_N], a[BLOCK_R_DIM * BLOCK_R_DIM], b[BLOCK_R_DIM];
     double dirs[BLOCK_R_DIM * BLOCK_N];
     int rows[BLOCK_R_DIM], piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < BLOCK_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1523,22 +1544,11 @@ static void block_forces_to(const block_ctx_t *c, const double *q, const double 
         return;
     }
     block_lu_solve(BLOCK_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < BLOCK_N; ++i) {
-            minv_g[k * BLOCK_N + i] = dirs[rows[k] * BLOCK_N + i];
-        }
-        block_lu_solve(BLOCK_N, mass, piv, minv_g + k * BLOCK_N);
-    }
+    block_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < BLOCK_N; ++i) {
             b[k] -= grad[rows[k] * BLOCK_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < BLOCK_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * BLOCK_N + i] * minv_g[l * BLOCK_N + i];
-            }
         }
     }
     if (!block_lu(nr, a, piv)) {
@@ -1562,7 +1572,7 @@ static int block_onto_rows(const block_ctx_t *c, double *q, const double *v, con
     double u[BLOCK_N], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N], minv_g[BLOCK_R_DIM * BLOCK_N];
     double a[BLOCK_R_DIM * BLOCK_R_DIM], b[BLOCK_R_DIM], off = 0.0;
     int rows[BLOCK_R_DIM], fresh[BLOCK_R_DIM], piv[BLOCK_R_DIM > BLOCK_N ? BLOCK_R_DIM : BLOCK_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < BLOCK_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1591,20 +1601,9 @@ static int block_onto_rows(const block_ctx_t *c, double *q, const double *v, con
         if (it > 0) {
             block_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < BLOCK_N; ++i) {
-                minv_g[k * BLOCK_N + i] = grad[rows[k] * BLOCK_N + i];
-            }
-            block_lu_solve(BLOCK_N, mass, piv, minv_g + k * BLOCK_N);
-        }
+        block_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < BLOCK_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * BLOCK_N + i] * minv_g[l * BLOCK_N + i];
-                }
-            }
         }
         if (!block_lu(nr, a, pa)) {
             return it > 0;
@@ -1617,6 +1616,38 @@ static int block_onto_rows(const block_ctx_t *c, double *q, const double *v, con
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double block_gap_energy(const block_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
+    double minv_g[BLOCK_R_DIM * BLOCK_N], a[BLOCK_R_DIM * BLOCK_R_DIM], b[BLOCK_R_DIM];
+    double out = 0.0;
+    int rows[BLOCK_R_DIM], pa[BLOCK_R_DIM], nr = 0, k, r;
+    for (r = 0; r < BLOCK_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    block_rows(q, u, c->par, psi, grad, curv);
+    block_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!block_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    block_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1754,7 +1785,7 @@ static int block_held_limit(const block_ctx_t *c, const double *q, const double 
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double block_spurious(const block_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1780,6 +1811,9 @@ static double block_spurious(const block_ctx_t *c, const double *q, const double
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > BLOCK_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += block_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > BLOCK_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -4094,6 +4128,13 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
     }
     if (sustain) {
         accel = block_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[BLOCK_N];
+            for (i = 0; i < BLOCK_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = block_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && block_settles(c, nv, accel, e_rest)) {
             return 2;

@@ -1566,6 +1566,27 @@ static void rough_disk_row_accel(const rough_disk_ctx_t *c, const double *q, con
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void rough_disk_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            minv_g[k * ROUGH_DISK_N + i] = dirs[rows[k] * ROUGH_DISK_N + i];
+        }
+        rough_disk_lu_solve(ROUGH_DISK_N, lu, piv, minv_g + k * ROUGH_DISK_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * ROUGH_DISK_N + i] * minv_g[l * ROUGH_DISK_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void rough_disk_forces_to(const rough_disk_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1585,7 +1606,7 @@ static void rough_disk_forces_to(const rough_disk_ctx_t *c, const double *q, con
     double minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N], a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM], b[ROUGH_DISK_R_DIM];
     double dirs[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     int rows[ROUGH_DISK_R_DIM], piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1603,22 +1624,11 @@ static void rough_disk_forces_to(const rough_disk_ctx_t *c, const double *q, con
         return;
     }
     rough_disk_lu_solve(ROUGH_DISK_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < ROUGH_DISK_N; ++i) {
-            minv_g[k * ROUGH_DISK_N + i] = dirs[rows[k] * ROUGH_DISK_N + i];
-        }
-        rough_disk_lu_solve(ROUGH_DISK_N, mass, piv, minv_g + k * ROUGH_DISK_N);
-    }
+    rough_disk_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             b[k] -= grad[rows[k] * ROUGH_DISK_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < ROUGH_DISK_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * ROUGH_DISK_N + i] * minv_g[l * ROUGH_DISK_N + i];
-            }
         }
     }
     if (!rough_disk_lu(nr, a, piv)) {
@@ -1642,7 +1652,7 @@ static int rough_disk_onto_rows(const rough_disk_ctx_t *c, double *q, const doub
     double u[ROUGH_DISK_N], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N], minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM], b[ROUGH_DISK_R_DIM], off = 0.0;
     int rows[ROUGH_DISK_R_DIM], fresh[ROUGH_DISK_R_DIM], piv[ROUGH_DISK_R_DIM > ROUGH_DISK_N ? ROUGH_DISK_R_DIM : ROUGH_DISK_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1671,20 +1681,9 @@ static int rough_disk_onto_rows(const rough_disk_ctx_t *c, double *q, const doub
         if (it > 0) {
             rough_disk_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < ROUGH_DISK_N; ++i) {
-                minv_g[k * ROUGH_DISK_N + i] = grad[rows[k] * ROUGH_DISK_N + i];
-            }
-            rough_disk_lu_solve(ROUGH_DISK_N, mass, piv, minv_g + k * ROUGH_DISK_N);
-        }
+        rough_disk_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < ROUGH_DISK_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * ROUGH_DISK_N + i] * minv_g[l * ROUGH_DISK_N + i];
-                }
-            }
         }
         if (!rough_disk_lu(nr, a, pa)) {
             return it > 0;
@@ -1697,6 +1696,38 @@ static int rough_disk_onto_rows(const rough_disk_ctx_t *c, double *q, const doub
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double rough_disk_gap_energy(const rough_disk_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double minv_g[ROUGH_DISK_R_DIM * ROUGH_DISK_N], a[ROUGH_DISK_R_DIM * ROUGH_DISK_R_DIM], b[ROUGH_DISK_R_DIM];
+    double out = 0.0;
+    int rows[ROUGH_DISK_R_DIM], pa[ROUGH_DISK_R_DIM], nr = 0, k, r;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    rough_disk_rows(q, u, c->par, psi, grad, curv);
+    rough_disk_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!rough_disk_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    rough_disk_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1834,7 +1865,7 @@ static int rough_disk_held_limit(const rough_disk_ctx_t *c, const double *q, con
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1860,6 +1891,9 @@ static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, co
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > ROUGH_DISK_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += rough_disk_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > ROUGH_DISK_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -4174,6 +4208,13 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
     }
     if (sustain) {
         accel = rough_disk_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[ROUGH_DISK_N];
+            for (i = 0; i < ROUGH_DISK_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = rough_disk_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && rough_disk_settles(c, nv, accel, e_rest)) {
             return 2;

@@ -1655,6 +1655,27 @@ static void spun_ball_row_accel(const spun_ball_ctx_t *c, const double *q, const
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void spun_ball_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            minv_g[k * SPUN_BALL_N + i] = dirs[rows[k] * SPUN_BALL_N + i];
+        }
+        spun_ball_lu_solve(SPUN_BALL_N, lu, piv, minv_g + k * SPUN_BALL_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * SPUN_BALL_N + i] * minv_g[l * SPUN_BALL_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void spun_ball_forces_to(const spun_ball_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1674,7 +1695,7 @@ static void spun_ball_forces_to(const spun_ball_ctx_t *c, const double *q, const
     double minv_g[SPUN_BALL_R_DIM * SPUN_BALL_N], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM];
     double dirs[SPUN_BALL_R_DIM * SPUN_BALL_N];
     int rows[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1692,22 +1713,11 @@ static void spun_ball_forces_to(const spun_ball_ctx_t *c, const double *q, const
         return;
     }
     spun_ball_lu_solve(SPUN_BALL_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < SPUN_BALL_N; ++i) {
-            minv_g[k * SPUN_BALL_N + i] = dirs[rows[k] * SPUN_BALL_N + i];
-        }
-        spun_ball_lu_solve(SPUN_BALL_N, mass, piv, minv_g + k * SPUN_BALL_N);
-    }
+    spun_ball_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < SPUN_BALL_N; ++i) {
             b[k] -= grad[rows[k] * SPUN_BALL_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < SPUN_BALL_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * SPUN_BALL_N + i] * minv_g[l * SPUN_BALL_N + i];
-            }
         }
     }
     if (!spun_ball_lu(nr, a, piv)) {
@@ -1731,7 +1741,7 @@ static int spun_ball_onto_rows(const spun_ball_ctx_t *c, double *q, const double
     double u[SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], minv_g[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM], off = 0.0;
     int rows[SPUN_BALL_R_DIM], fresh[SPUN_BALL_R_DIM], piv[SPUN_BALL_R_DIM > SPUN_BALL_N ? SPUN_BALL_R_DIM : SPUN_BALL_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1760,20 +1770,9 @@ static int spun_ball_onto_rows(const spun_ball_ctx_t *c, double *q, const double
         if (it > 0) {
             spun_ball_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < SPUN_BALL_N; ++i) {
-                minv_g[k * SPUN_BALL_N + i] = grad[rows[k] * SPUN_BALL_N + i];
-            }
-            spun_ball_lu_solve(SPUN_BALL_N, mass, piv, minv_g + k * SPUN_BALL_N);
-        }
+        spun_ball_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < SPUN_BALL_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * SPUN_BALL_N + i] * minv_g[l * SPUN_BALL_N + i];
-                }
-            }
         }
         if (!spun_ball_lu(nr, a, pa)) {
             return it > 0;
@@ -1786,6 +1785,38 @@ static int spun_ball_onto_rows(const spun_ball_ctx_t *c, double *q, const double
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double spun_ball_gap_energy(const spun_ball_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM];
+    double minv_g[SPUN_BALL_R_DIM * SPUN_BALL_N], a[SPUN_BALL_R_DIM * SPUN_BALL_R_DIM], b[SPUN_BALL_R_DIM];
+    double out = 0.0;
+    int rows[SPUN_BALL_R_DIM], pa[SPUN_BALL_R_DIM], nr = 0, k, r;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    spun_ball_rows(q, u, c->par, psi, grad, curv);
+    spun_ball_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!spun_ball_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    spun_ball_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1923,7 +1954,7 @@ static int spun_ball_held_limit(const spun_ball_ctx_t *c, const double *q, const
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1949,6 +1980,9 @@ static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, cons
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > SPUN_BALL_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += spun_ball_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > SPUN_BALL_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -6064,6 +6098,13 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
     }
     if (sustain) {
         accel = spun_ball_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[SPUN_BALL_N];
+            for (i = 0; i < SPUN_BALL_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = spun_ball_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && spun_ball_settles(c, nv, accel, e_rest)) {
             return 2;

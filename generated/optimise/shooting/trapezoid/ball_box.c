@@ -1640,6 +1640,27 @@ static void ball_box_row_accel(const ball_box_ctx_t *c, const double *q, const d
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void ball_box_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            minv_g[k * BALL_BOX_N + i] = dirs[rows[k] * BALL_BOX_N + i];
+        }
+        ball_box_lu_solve(BALL_BOX_N, lu, piv, minv_g + k * BALL_BOX_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < BALL_BOX_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * BALL_BOX_N + i] * minv_g[l * BALL_BOX_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void ball_box_forces_to(const ball_box_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1659,7 +1680,7 @@ static void ball_box_forces_to(const ball_box_ctx_t *c, const double *q, const d
     double minv_g[BALL_BOX_R_DIM * BALL_BOX_N], a[BALL_BOX_R_DIM * BALL_BOX_R_DIM], b[BALL_BOX_R_DIM];
     double dirs[BALL_BOX_R_DIM * BALL_BOX_N];
     int rows[BALL_BOX_R_DIM], piv[BALL_BOX_R_DIM > BALL_BOX_N ? BALL_BOX_R_DIM : BALL_BOX_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < BALL_BOX_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1677,22 +1698,11 @@ static void ball_box_forces_to(const ball_box_ctx_t *c, const double *q, const d
         return;
     }
     ball_box_lu_solve(BALL_BOX_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < BALL_BOX_N; ++i) {
-            minv_g[k * BALL_BOX_N + i] = dirs[rows[k] * BALL_BOX_N + i];
-        }
-        ball_box_lu_solve(BALL_BOX_N, mass, piv, minv_g + k * BALL_BOX_N);
-    }
+    ball_box_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < BALL_BOX_N; ++i) {
             b[k] -= grad[rows[k] * BALL_BOX_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < BALL_BOX_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * BALL_BOX_N + i] * minv_g[l * BALL_BOX_N + i];
-            }
         }
     }
     if (!ball_box_lu(nr, a, piv)) {
@@ -1716,7 +1726,7 @@ static int ball_box_onto_rows(const ball_box_ctx_t *c, double *q, const double *
     double u[BALL_BOX_N], mom[BALL_BOX_N], mass[BALL_BOX_N * BALL_BOX_N], minv_g[BALL_BOX_R_DIM * BALL_BOX_N];
     double a[BALL_BOX_R_DIM * BALL_BOX_R_DIM], b[BALL_BOX_R_DIM], off = 0.0;
     int rows[BALL_BOX_R_DIM], fresh[BALL_BOX_R_DIM], piv[BALL_BOX_R_DIM > BALL_BOX_N ? BALL_BOX_R_DIM : BALL_BOX_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < BALL_BOX_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1745,20 +1755,9 @@ static int ball_box_onto_rows(const ball_box_ctx_t *c, double *q, const double *
         if (it > 0) {
             ball_box_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < BALL_BOX_N; ++i) {
-                minv_g[k * BALL_BOX_N + i] = grad[rows[k] * BALL_BOX_N + i];
-            }
-            ball_box_lu_solve(BALL_BOX_N, mass, piv, minv_g + k * BALL_BOX_N);
-        }
+        ball_box_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < BALL_BOX_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * BALL_BOX_N + i] * minv_g[l * BALL_BOX_N + i];
-                }
-            }
         }
         if (!ball_box_lu(nr, a, pa)) {
             return it > 0;
@@ -1771,6 +1770,38 @@ static int ball_box_onto_rows(const ball_box_ctx_t *c, double *q, const double *
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double ball_box_gap_energy(const ball_box_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
+    double minv_g[BALL_BOX_R_DIM * BALL_BOX_N], a[BALL_BOX_R_DIM * BALL_BOX_R_DIM], b[BALL_BOX_R_DIM];
+    double out = 0.0;
+    int rows[BALL_BOX_R_DIM], pa[BALL_BOX_R_DIM], nr = 0, k, r;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    ball_box_rows(q, u, c->par, psi, grad, curv);
+    ball_box_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!ball_box_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    ball_box_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -1908,7 +1939,7 @@ static int ball_box_held_limit(const ball_box_ctx_t *c, const double *q, const d
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double ball_box_spurious(const ball_box_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -1934,6 +1965,9 @@ static double ball_box_spurious(const ball_box_ctx_t *c, const double *q, const 
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > BALL_BOX_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += ball_box_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > BALL_BOX_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3622,6 +3656,13 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
     }
     if (sustain) {
         accel = ball_box_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[BALL_BOX_N];
+            for (i = 0; i < BALL_BOX_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = ball_box_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && ball_box_settles(c, nv, accel, e_rest)) {
             return 2;

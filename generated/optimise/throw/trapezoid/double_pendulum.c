@@ -1838,6 +1838,27 @@ static void double_pendulum_row_accel(const double_pendulum_ctx_t *c, const doub
     }
 }
 
+/* The rows listed (rows[0..nr)): minv_g[k] = M^-1 dirs_k and a = G M^-1 dirs^T (nr x nr), given M's LU (lu, piv). */
+static void double_pendulum_row_matrix(int nr, const int *rows, const double *grad, const double *dirs, const double *lu,
+    const int *piv, double *minv_g, double *a)
+{
+    int i, k, l;
+    for (k = 0; k < nr; ++k) {
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            minv_g[k * DOUBLE_PENDULUM_N + i] = dirs[rows[k] * DOUBLE_PENDULUM_N + i];
+        }
+        double_pendulum_lu_solve(DOUBLE_PENDULUM_N, lu, piv, minv_g + k * DOUBLE_PENDULUM_N);
+    }
+    for (k = 0; k < nr; ++k) {
+        for (l = 0; l < nr; ++l) {
+            a[k * nr + l] = 0.0;
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                a[k * nr + l] += grad[rows[k] * DOUBLE_PENDULUM_N + i] * minv_g[l * DOUBLE_PENDULUM_N + i];
+            }
+        }
+    }
+}
+
 /* SustainedSteps._contact_forces: the force lambda_r of every active row that keeps d2 psi_r/dt2 = 0 at
  * (q, u), 0 elsewhere: G M^-1 (rhs + G^T lambda) + curv = 0 over the active rows. */
 static void double_pendulum_forces_to(const double_pendulum_ctx_t *c, const double *q, const double *u, const double *extra,
@@ -1857,7 +1878,7 @@ static void double_pendulum_forces_to(const double_pendulum_ctx_t *c, const doub
     double minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], a[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM], b[DOUBLE_PENDULUM_R_DIM];
     double dirs[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     int rows[DOUBLE_PENDULUM_R_DIM], piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
-    int nr = 0, i, k, l, r;
+    int nr = 0, i, k, r;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         out[r] = 0.0;
         if (c->sus->act[r]) {
@@ -1875,22 +1896,11 @@ static void double_pendulum_forces_to(const double_pendulum_ctx_t *c, const doub
         return;
     }
     double_pendulum_lu_solve(DOUBLE_PENDULUM_N, mass, piv, rhs);
-    for (k = 0; k < nr; ++k) {
-        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-            minv_g[k * DOUBLE_PENDULUM_N + i] = dirs[rows[k] * DOUBLE_PENDULUM_N + i];
-        }
-        double_pendulum_lu_solve(DOUBLE_PENDULUM_N, mass, piv, minv_g + k * DOUBLE_PENDULUM_N);
-    }
+    double_pendulum_row_matrix(nr, rows, grad, dirs, mass, piv, minv_g, a);
     for (k = 0; k < nr; ++k) {
         b[k] = -curv[rows[k]] - (extra ? extra[rows[k]] : 0.0);
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             b[k] -= grad[rows[k] * DOUBLE_PENDULUM_N + i] * rhs[i];
-        }
-        for (l = 0; l < nr; ++l) {
-            a[k * nr + l] = 0.0;
-            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-                a[k * nr + l] += grad[rows[k] * DOUBLE_PENDULUM_N + i] * minv_g[l * DOUBLE_PENDULUM_N + i];
-            }
         }
     }
     if (!double_pendulum_lu(nr, a, piv)) {
@@ -1914,7 +1924,7 @@ static int double_pendulum_onto_rows(const double_pendulum_ctx_t *c, double *q, 
     double u[DOUBLE_PENDULUM_N], mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double a[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM], b[DOUBLE_PENDULUM_R_DIM], off = 0.0;
     int rows[DOUBLE_PENDULUM_R_DIM], fresh[DOUBLE_PENDULUM_R_DIM], piv[DOUBLE_PENDULUM_R_DIM > DOUBLE_PENDULUM_N ? DOUBLE_PENDULUM_R_DIM : DOUBLE_PENDULUM_N];
-    int nr = 0, any = 0, it, i, k, l, r;
+    int nr = 0, any = 0, it, i, k, r;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         fresh[r] = c->sus->act[r] && !c->sus->on_rows[r];
         any = any || fresh[r];
@@ -1943,20 +1953,9 @@ static int double_pendulum_onto_rows(const double_pendulum_ctx_t *c, double *q, 
         if (it > 0) {
             double_pendulum_rows(q, u, c->par, psi, grad, curv);
         }
-        for (k = 0; k < nr; ++k) {
-            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-                minv_g[k * DOUBLE_PENDULUM_N + i] = grad[rows[k] * DOUBLE_PENDULUM_N + i];
-            }
-            double_pendulum_lu_solve(DOUBLE_PENDULUM_N, mass, piv, minv_g + k * DOUBLE_PENDULUM_N);
-        }
+        double_pendulum_row_matrix(nr, rows, grad, grad, mass, piv, minv_g, a);
         for (k = 0; k < nr; ++k) {
             b[k] = psi[rows[k]];
-            for (l = 0; l < nr; ++l) {
-                a[k * nr + l] = 0.0;
-                for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
-                    a[k * nr + l] += grad[rows[k] * DOUBLE_PENDULUM_N + i] * minv_g[l * DOUBLE_PENDULUM_N + i];
-                }
-            }
         }
         if (!double_pendulum_lu(nr, a, pa)) {
             return it > 0;
@@ -1969,6 +1968,38 @@ static int double_pendulum_onto_rows(const double_pendulum_ctx_t *c, double *q, 
         }
     }
     return 1;
+}
+
+/* SustainedSteps._gap_energy: the least kinetic energy that closes the active rows' offsets psi_r(q) over tau,
+ * psi . (G M^-1 G^T)^-1 psi / (2 tau^2) (lu, piv: M's LU); 0 where the rows are dependent. */
+static double double_pendulum_gap_energy(const double_pendulum_ctx_t *c, const double *q, const double *u, const double *lu,
+    const int *piv, double tau)
+{
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
+    double minv_g[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], a[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_R_DIM], b[DOUBLE_PENDULUM_R_DIM];
+    double out = 0.0;
+    int rows[DOUBLE_PENDULUM_R_DIM], pa[DOUBLE_PENDULUM_R_DIM], nr = 0, k, r;
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        if (c->sus->act[r]) {
+            rows[nr++] = r;
+        }
+    }
+    if (nr == 0) {
+        return 0.0;
+    }
+    double_pendulum_rows(q, u, c->par, psi, grad, curv);
+    double_pendulum_row_matrix(nr, rows, grad, grad, lu, piv, minv_g, a);
+    for (k = 0; k < nr; ++k) {
+        b[k] = psi[rows[k]];
+    }
+    if (!double_pendulum_lu(nr, a, pa)) {
+        return 0.0;
+    }
+    double_pendulum_lu_solve(nr, a, pa, b);
+    for (k = 0; k < nr; ++k) {
+        out += psi[rows[k]] * b[k];
+    }
+    return 0.5 * out / (tau * tau);
 }
 
 /* SustainedSteps._contact_accel: d2 phi/dt2 along the impulse direction nrm of a free impact on group. */
@@ -2107,7 +2138,7 @@ static int double_pendulum_held_limit(const double_pendulum_ctx_t *c, const doub
 
 /* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy); else 0. */
+ * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
 static double double_pendulum_spurious(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess)
 {
@@ -2133,6 +2164,9 @@ static double double_pendulum_spurious(const double_pendulum_ctx_t *c, const dou
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
+    if (kinetic > DOUBLE_PENDULUM_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget += double_pendulum_gap_energy(c, q, u0, mass, piv, tau);
+    }
     return kinetic > DOUBLE_PENDULUM_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
 }
 
@@ -3230,6 +3264,13 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
     }
     if (sustain) {
         accel = double_pendulum_contact_accel(c, seg->q, vel, seg->nrm, group, wgt, n_group);
+        if (accel >= 0.0 && nv < 0.0) { /* not pressed at qdot-: at the velocity it leaves, n.qdot = 0 (_jump) */
+            double u_p[DOUBLE_PENDULUM_N];
+            for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+                u_p[i] = vel[i] - nv / nmn * minv_n[i];
+            }
+            accel = double_pendulum_contact_accel(c, seg->q, u_p, seg->nrm, group, wgt, n_group);
+        }
         pressed = accel < 0.0;
         if (pressed && double_pendulum_settles(c, nv, accel, e_rest)) {
             return 2;
