@@ -14,6 +14,10 @@ floor ``y = FLOOR`` is the contact, its abscissa the friction's tangent.
   force the statics give (two equations, the tip's two forces). Before the fix the landing was tested at the
   incoming velocity: (48a) had no root, the impact took the continuous law as *grazing*, a restart followed,
   and the tangent broke there. Now the tangent goes through the landing and equals central differences.
+* **A landing at e = 0 stopped by friction**: here even the velocity a frictionless plastic impact leaves
+  does not press the tip in (its tangential speed pulls it up), but Coulomb's impulse stops the tip too, and
+  stopped it is pressed. Where (48a) has no root, "pressed in" is also read at the velocity the continuous
+  law (with Coulomb's impulse) leaves; the landing is one plastic impact, as above.
 """
 
 from __future__ import annotations
@@ -38,8 +42,14 @@ Q, QD = sp.Matrix([T1, T2]), sp.Matrix([D1, D2])
 _V1, _V2 = sp.Matrix([X1, Y1]).jacobian(Q) * QD, sp.Matrix([X2, Y2]).jacobian(Q) * QD
 LAGRANGIAN = (_V1.dot(_V1) + _V2.dot(_V2)) / 2 - G * (Y1 + Y2)
 
-# the landing: swung down onto the floor, the tip's normal speed pulling it up at the impact
-LAND_Q0, LAND_V0 = [-1.80394644, -0.44161886], [-0.80376566, 0.14088473]
+# landings at e = 0, mu = 0.5 that the incoming velocity does not press in: swung down onto the floor, the
+# tip's normal speed pulling it up at the impact ("pulled up"); and one that the velocity a frictionless
+# plastic impact leaves does not press either, its tangential speed pulling it up, but Coulomb's impulse stops
+# it ("stopped")
+LANDINGS = {
+    "pulled up": ([-1.80394644, -0.44161886], [-0.80376566, 0.14088473]),
+    "stopped": ([1.9833499167701847, -1.6379564551951975], [2.319657588962981, -0.8007779233815802]),
+}
 
 
 @cache
@@ -142,16 +152,17 @@ def test_the_tip_held_on_the_floor_follows_the_dae(backend, mu, a1, speed, lifts
     assert errs[0] / errs[2] > 14.0  # second order: 16 from h to h/4
 
 
-def _landing(backend: str, q0=LAND_Q0, v0=LAND_V0, mu: float = 0.5, sensitivities: bool = False):
+def _landing(backend: str, q0, v0, mu: float = 0.5, sensitivities: bool = False):
     params = {"mu": mu, "e": 0.0}
     return simulator(backend).simulate(
-        q0=q0, v0=v0, h=0.005, t_end=1.0, params=params, progress=False, sensitivities=sensitivities
+        q0=q0, v0=v0, h=0.005, t_end=1.5, params=params, progress=False, sensitivities=sensitivities
     )
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_a_landing_pulled_up_by_its_own_speed_is_plastic_and_rests_on_the_statics(backend):
-    res = _landing(backend)
+@pytest.mark.parametrize("landing", LANDINGS)
+def test_a_landing_not_pressed_coming_in_is_plastic_and_rests_on_the_statics(backend, landing):
+    res = _landing(backend, *LANDINGS[landing])
     (imp,) = res.impacts
     assert imp.kind == "plastic" and imp.contact == "tip" and imp.impulse > 1.0
     assert res.stats["jump_fallbacks"] == 0 and res.stats["impacts_grazing"] == 0
@@ -172,9 +183,9 @@ def test_a_landing_pulled_up_by_its_own_speed_is_plastic_and_rests_on_the_static
     assert abs(friction) < 0.5 * normal
 
 
-def _landing_end(backend: str, column: int, name: str, step: float) -> np.ndarray:
+def _landing_end(backend: str, landing: str, column: int, name: str, step: float) -> np.ndarray:
     """``(q, p)`` at the end of the landing run with its start (``column`` of ``q0, v0``) or ``mu`` moved."""
-    x, mu = [*LAND_Q0, *LAND_V0], 0.5
+    x, mu = [*LANDINGS[landing][0], *LANDINGS[landing][1]], 0.5
     if name == "mu":
         mu += step
     else:
@@ -185,13 +196,14 @@ def _landing_end(backend: str, column: int, name: str, step: float) -> np.ndarra
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_the_tangent_goes_through_the_landing(backend):
-    res = _landing(backend, sensitivities=True)
+@pytest.mark.parametrize("landing", LANDINGS)
+def test_the_tangent_goes_through_the_landing(backend, landing):
+    res = _landing(backend, *LANDINGS[landing], sensitivities=True)
     assert not res.sensitivity_breaks and np.isfinite(res.sensitivity[-1]).all()
     names = list(res.sensitivity_names)
     eps = 1e-6
     for column, name in enumerate(names[:4] + ["mu"]):
-        ahead, behind = (_landing_end(backend, column, name, step) for step in (eps, -eps))
+        ahead, behind = (_landing_end(backend, landing, column, name, step) for step in (eps, -eps))
         central = (ahead - behind) / (2.0 * eps)
         tangent = res.sensitivity[-1][:, names.index(name)]
         assert np.abs(central - tangent).max() <= 1e-6 * (1.0 + np.abs(central).max()), name

@@ -324,6 +324,10 @@ class ImpactSteps:
                 if x[n] > 0:
                     return x, "jump"
                 roots.append(float(x[n]))
+        if sustain and not pressed and mu0 > 0.0:  # no root: pressed at the velocity the continuous law
+            # leaves? (with Coulomb's impulse: a tip landing on a rough floor at e = 0 stopped, pressed, the
+            # centripetal pull of its tangential speed gone with it)
+            pressed = self._contact_accel(seg.q, vel + mu0 * minv_n, nrm0, group, weights) < 0.0
         if pressed:
             return None, "plastic"
         reflect = self.tol.grazing == "reflect" and mu0 > 0.0

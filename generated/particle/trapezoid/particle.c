@@ -3336,6 +3336,7 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[PARTICLE_N];
     double coef[3], w0[PARTICLE_N], dw[PARTICLE_N], mu_q;
     *kind = PARTICLE_KIND_ELASTIC;
     (void)group;
@@ -3360,6 +3361,9 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
         if (pressed && particle_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < PARTICLE_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -3391,6 +3395,13 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[PARTICLE_N];
+        for (i = 0; i < PARTICLE_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = particle_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

@@ -3726,6 +3726,7 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[STAR_N];
     double coef[3], w0[STAR_N], dw[STAR_N], mu_q;
     *kind = STAR_KIND_ELASTIC;
     (void)group;
@@ -3750,6 +3751,9 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
         if (pressed && star_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < STAR_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -3781,6 +3785,13 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[STAR_N];
+        for (i = 0; i < STAR_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = star_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

@@ -3619,6 +3619,7 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[CUBE_SETTLES_N];
     *kind = CUBE_SETTLES_KIND_ELASTIC;
     (void)group;
     (void)wgt;
@@ -3643,6 +3644,9 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
             return 2;
         }
     }
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        nrm0[i] = seg->nrm[i];
+    }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
     }
@@ -3665,6 +3669,13 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[CUBE_SETTLES_N];
+        for (i = 0; i < CUBE_SETTLES_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = cube_settles_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

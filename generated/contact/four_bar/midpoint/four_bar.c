@@ -4195,6 +4195,7 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[FOUR_BAR_N];
     double coef[3], w0[FOUR_BAR_N], dw[FOUR_BAR_N], mu_q;
     *kind = FOUR_BAR_KIND_ELASTIC;
     (void)group;
@@ -4219,6 +4220,9 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
         if (pressed && four_bar_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < FOUR_BAR_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -4250,6 +4254,13 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[FOUR_BAR_N];
+        for (i = 0; i < FOUR_BAR_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = four_bar_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

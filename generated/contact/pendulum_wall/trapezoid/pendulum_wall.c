@@ -3971,6 +3971,7 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[PENDULUM_WALL_N];
     double coef[3], w0[PENDULUM_WALL_N], dw[PENDULUM_WALL_N], mu_q;
     *kind = PENDULUM_WALL_KIND_ELASTIC;
     (void)group;
@@ -3995,6 +3996,9 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
         if (pressed && pendulum_wall_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -4026,6 +4030,13 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[PENDULUM_WALL_N];
+        for (i = 0; i < PENDULUM_WALL_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = pendulum_wall_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

@@ -5295,6 +5295,7 @@ static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const 
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[PYRAMID_N];
     double dk = 0.0;
     double coef[3], w0[PYRAMID_N], dw[PYRAMID_N], mu_q;
     *kind = PYRAMID_KIND_ELASTIC;
@@ -5320,6 +5321,9 @@ static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const 
         if (pressed && pyramid_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < PYRAMID_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (nv < 0.0 && pyramid_frictional_law(c, seg, vel, group, n_group, e_rest, &mu0, minv_n, &dk)) {
         seg->e_in += dk; /* Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK */
@@ -5357,6 +5361,13 @@ static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const 
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[PYRAMID_N];
+        for (i = 0; i < PYRAMID_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = pyramid_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

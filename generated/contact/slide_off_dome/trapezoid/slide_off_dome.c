@@ -3887,6 +3887,7 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[SLIDE_OFF_DOME_N];
     double coef[3], w0[SLIDE_OFF_DOME_N], dw[SLIDE_OFF_DOME_N], mu_q;
     *kind = SLIDE_OFF_DOME_KIND_ELASTIC;
     (void)group;
@@ -3911,6 +3912,9 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
         if (pressed && slide_off_dome_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -3942,6 +3946,13 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[SLIDE_OFF_DOME_N];
+        for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = slide_off_dome_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

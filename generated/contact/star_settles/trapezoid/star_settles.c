@@ -3727,6 +3727,7 @@ static int star_settles_solve_jump(const star_settles_ctx_t *c, star_settles_seg
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[STAR_SETTLES_N];
     double coef[3], w0[STAR_SETTLES_N], dw[STAR_SETTLES_N], mu_q;
     *kind = STAR_SETTLES_KIND_ELASTIC;
     (void)group;
@@ -3751,6 +3752,9 @@ static int star_settles_solve_jump(const star_settles_ctx_t *c, star_settles_seg
         if (pressed && star_settles_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < STAR_SETTLES_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -3782,6 +3786,13 @@ static int star_settles_solve_jump(const star_settles_ctx_t *c, star_settles_seg
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[STAR_SETTLES_N];
+        for (i = 0; i < STAR_SETTLES_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = star_settles_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

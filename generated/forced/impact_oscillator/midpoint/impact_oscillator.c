@@ -2660,6 +2660,7 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[IMPACT_OSCILLATOR_N];
     *kind = IMPACT_OSCILLATOR_KIND_ELASTIC;
     (void)group;
     (void)wgt;
@@ -2684,6 +2685,9 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
             return 2;
         }
     }
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        nrm0[i] = seg->nrm[i];
+    }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
     }
@@ -2706,6 +2710,13 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[IMPACT_OSCILLATOR_N];
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = impact_oscillator_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

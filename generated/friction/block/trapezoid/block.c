@@ -4114,6 +4114,7 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[BLOCK_N];
     double dk = 0.0;
     double coef[3], w0[BLOCK_N], dw[BLOCK_N], mu_q;
     *kind = BLOCK_KIND_ELASTIC;
@@ -4139,6 +4140,9 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
         if (pressed && block_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < BLOCK_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (nv < 0.0 && block_frictional_law(c, seg, vel, group, n_group, e_rest, &mu0, minv_n, &dk)) {
         seg->e_in += dk; /* Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK */
@@ -4176,6 +4180,13 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[BLOCK_N];
+        for (i = 0; i < BLOCK_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = block_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

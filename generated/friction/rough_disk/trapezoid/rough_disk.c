@@ -4194,6 +4194,7 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[ROUGH_DISK_N];
     double dk = 0.0;
     double coef[3], w0[ROUGH_DISK_N], dw[ROUGH_DISK_N], mu_q;
     *kind = ROUGH_DISK_KIND_ELASTIC;
@@ -4219,6 +4220,9 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
         if (pressed && rough_disk_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (nv < 0.0 && rough_disk_frictional_law(c, seg, vel, group, n_group, e_rest, &mu0, minv_n, &dk)) {
         seg->e_in += dk; /* Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK */
@@ -4256,6 +4260,13 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[ROUGH_DISK_N];
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = rough_disk_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

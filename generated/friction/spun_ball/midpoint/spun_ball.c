@@ -6084,6 +6084,7 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[SPUN_BALL_N];
     double dk = 0.0;
     double coef[3], w0[SPUN_BALL_N], dw[SPUN_BALL_N], mu_q;
     *kind = SPUN_BALL_KIND_ELASTIC;
@@ -6109,6 +6110,9 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
         if (pressed && spun_ball_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (nv < 0.0 && spun_ball_frictional_law(c, seg, vel, group, n_group, e_rest, &mu0, minv_n, &dk)) {
         seg->e_in += dk; /* Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK */
@@ -6146,6 +6150,13 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[SPUN_BALL_N];
+        for (i = 0; i < SPUN_BALL_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = spun_ball_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

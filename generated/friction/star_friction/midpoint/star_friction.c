@@ -4399,6 +4399,7 @@ static int star_friction_solve_jump(const star_friction_ctx_t *c, star_friction_
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[STAR_FRICTION_N];
     double dk = 0.0;
     double coef[3], w0[STAR_FRICTION_N], dw[STAR_FRICTION_N], mu_q;
     *kind = STAR_FRICTION_KIND_ELASTIC;
@@ -4424,6 +4425,9 @@ static int star_friction_solve_jump(const star_friction_ctx_t *c, star_friction_
         if (pressed && star_friction_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < STAR_FRICTION_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (nv < 0.0 && star_friction_frictional_law(c, seg, vel, group, n_group, e_rest, &mu0, minv_n, &dk)) {
         seg->e_in += dk; /* Coulomb friction: the impulse along n + (mu_t/mu_n) t, the energy less dK */
@@ -4461,6 +4465,13 @@ static int star_friction_solve_jump(const star_friction_ctx_t *c, star_friction_
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[STAR_FRICTION_N];
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = star_friction_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

@@ -3643,6 +3643,7 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[BALL_BOX_N];
     double coef[3], w0[BALL_BOX_N], dw[BALL_BOX_N], mu_q;
     *kind = BALL_BOX_KIND_ELASTIC;
     (void)group;
@@ -3667,6 +3668,9 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
         if (pressed && ball_box_settles(c, nv, accel, e_rest)) {
             return 2;
         }
+    }
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        nrm0[i] = seg->nrm[i];
     }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
@@ -3698,6 +3702,13 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[BALL_BOX_N];
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = ball_box_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;

@@ -3252,6 +3252,7 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
     const double *arg[6];
     int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
     double accel = 0.0;
+    double nrm0[DOUBLE_PENDULUM_N];
     *kind = DOUBLE_PENDULUM_KIND_ELASTIC;
     (void)group;
     (void)wgt;
@@ -3276,6 +3277,9 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
             return 2;
         }
     }
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        nrm0[i] = seg->nrm[i];
+    }
     if (e_rest < 1.0 && nv < 0.0) { /* (39): the energy the normal velocity loses */
         seg->e_in -= (1.0 - e_rest * e_rest) * nv * nv / (2.0 * nmn);
     }
@@ -3298,6 +3302,13 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
             }
             ++n_roots;
         }
+    }
+    if (sustain && !pressed && mu0 > 0.0) { /* no root: pressed at the velocity the continuous law leaves? */
+        double u_c[DOUBLE_PENDULUM_N];
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            u_c[i] = vel[i] + mu0 * minv_n[i];
+        }
+        pressed = double_pendulum_contact_accel(c, seg->q, u_c, nrm0, group, wgt, n_group) < 0.0;
     }
     if (pressed) {
         return 2;
