@@ -293,9 +293,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         "a held segment's root is spurious", drop 636 of ``bench.cube_drops --seed 21``, rough)."""
         rows = np.flatnonzero(self.act)
         psi, grad, _ = self.k.rows(q, u)
-        g, off = grad[rows], psi[rows]
+        off = psi[rows]
         try:
-            return 0.5 * float(off @ np.linalg.solve(g @ np.linalg.solve(mass, g.T), off)) / (tau * tau)
+            return 0.5 * float(off @ np.linalg.solve(row_matrix(grad[rows], mass)[1], off)) / (tau * tau)
         except np.linalg.LinAlgError:
             return 0.0
 
@@ -343,10 +343,9 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         moved = None  # q after the last step that could be taken (C returns whether one was)
         for _ in range(ONTO_ITER):
             psi, grad, _ = k.rows(q, u)
-            g = grad[rows]
             try:
-                minv_g = np.linalg.solve(mass, g.T)
-                q = moved = q - minv_g @ np.linalg.solve(g @ minv_g, psi[rows])
+                minv_g, delassus = row_matrix(grad[rows], mass)
+                q = moved = q - minv_g @ np.linalg.solve(delassus, psi[rows])
             except np.linalg.LinAlgError:
                 break
         return moved
@@ -953,6 +952,13 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                         break
         self._seg_inner = inner
         return out
+
+
+def row_matrix(g, mass) -> tuple[np.ndarray, np.ndarray]:
+    """``(M^-1 G^T, G M^-1 G^T)`` of the rows ``g`` (C ``row_matrix``): the least move onto them
+    (:meth:`SustainedSteps._onto_rows`) and the energy that closes their offsets (``_gap_energy``)."""
+    minv_g = np.linalg.solve(mass, g.T)
+    return minv_g, g @ minv_g
 
 
 def held_contacts(kernels, act) -> np.ndarray:
