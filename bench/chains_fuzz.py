@@ -20,7 +20,9 @@ rows' forces at an impact were read at its state (``HeldImpacts._chain_impact``)
 0 errors, 0 below, 7 apart (all ``e = 0``, impact counts alone: bounces of 1e-8 before the bob was held);
 four_bar seed 2: 0 errors, 0 below, 36 apart (the same). After: 0 apart and 12 apart (all ``e = 0``, both bobs
 landing at once: round-off decides whether the second row's crossing joins the instant; the states agree to
-1e-12).
+1e-12). Stop 50, since an impact while held that the incoming velocity does not press in is read again once
+stopped (``HeldImpacts._stopped_pressed``: the bob is held at its landing, not stopped, let go and met again
+at once): pendulum seed 1 and four_bar seeds 1 and 2, 150 draws each: 0 errors, 0 below, 0 apart.
 """
 
 from __future__ import annotations

@@ -97,7 +97,8 @@ class HeldImpacts(ImpulseLaw):
         """An impact on rows ``group`` during sustained contact; returns the momentum after it. A row hit
         settles (plastic, held) where the forces of the rows held at ``(q, vel)`` press it in and its outgoing
         normal speed is below the resolution (:meth:`_settles`), or where it is in ``again`` (met by an impact
-        at this instant already: it left at a normal speed of 0 and sank again at once)."""
+        at this instant already: it left at a normal speed of 0 and sank again at once). One the incoming
+        velocity does not press in is read again once the impact has stopped it (:meth:`_stopped_pressed`)."""
         k = self.k
         self._at(t)
         rest = k.restitution()
@@ -106,7 +107,7 @@ class HeldImpacts(ImpulseLaw):
         # chain changed them: a double pendulum's bob stopped on the floor by e = 0, the rods pulling it in)
         acc = self._held_accel(q, vel, (), ())
         grad = k.rows(q, vel)[1]
-        targets, plastic = {}, []
+        targets, plastic, pulled = {}, [], {}
         for r in group:
             e = float(rest[k.row_contact[r]])
             rate = float(grad[r] @ vel)
@@ -114,8 +115,12 @@ class HeldImpacts(ImpulseLaw):
                 plastic.append(r)
             else:
                 targets[r] = -e * rate
+                if self.tol.grazing == "contact" and acc[r] >= 0.0 and rate < 0.0:
+                    pulled[r] = (rate, e)
         counts = self.least_splits, self.friction_dropped
         state = self._law_state()  # before the law (its cut riders)
+        if pulled:
+            self._stopped_pressed(step, t_k, q, p, v, group, targets, plastic, pulled, counts, state)
         law = self._impulse_law(step, t_k, q, p, v, group, targets)
         reduced = bool(targets) and bool(self._stick_rows) and self._law_raises(q, law)
         if reduced:  # Newton's restitution with Coulomb's friction raising the kinetic energy
@@ -174,6 +179,30 @@ class HeldImpacts(ImpulseLaw):
                 kind,
             )
         return p_plus
+
+    def _stopped_pressed(self, step, t_k, q, p, v, group, targets, plastic, pulled, counts, state) -> None:
+        """Rows of an impact while held that the incoming velocity does not press in (``pulled``: ``{r: (rate,
+        e)}``, ``d2 psi_r/dt2 >= 0`` at ``qdot-``), read again at the velocity the impulse law leaves with
+        their targets 0 (a plastic impact on them, Coulomb's cone as they land): those that settle there
+        (:meth:`_settles`) are plastic, moved from ``targets`` to ``plastic`` (MATH.md *Entry*; free flight's
+        ``ImpactSteps._jump`` reads a free impact the same way). A double pendulum in maximal coordinates (its
+        rods held) whose tip swings down onto the floor at ``e = 0``: the tip's normal speed along the rods'
+        circles pulls it up at the impact, gravity presses it in once stopped; read at the incoming velocity
+        alone, the tip was stopped but not held and sank again at once, a second (plastic) impact of 2e-8
+        after it. The trial is taken from the law's counters and state before it (``counts``, ``state``)."""
+        trial = {r: x for r, x in targets.items() if r not in pulled}
+        try:
+            law = self._impulse_law(step, t_k, q, p, v, group, trial)
+        except SolverError:  # no trial law: the targets stand (the law proper raises, if it must)
+            return
+        finally:
+            self.least_splits, self.friction_dropped = counts
+            self._set_law_state(state)
+        acc = self._held_accel(q, law[3], (), ())
+        for r, (rate, e) in pulled.items():
+            if self._settles(rate, float(acc[r]), e, self._h):
+                plastic.append(r)
+                del targets[r]
 
     def _held_limit(self, step, t_k, q, p, v):
         """An event within the chain's least sub-step (``1e-13 h``) is at the segment's start, with no

@@ -2289,9 +2289,38 @@ static void particle_held_accel(const particle_ctx_t *c, const double *q, const 
     particle_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void particle_stopped_pressed(const particle_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[PARTICLE_R_DIM], p_plus[PARTICLE_N], lam[PARTICLE_R_DIM], vel_m[PARTICLE_N];
+    double vel_p[PARTICLE_N], racc[PARTICLE_R_DIM];
+    int dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], none[PARTICLE_R_DIM] = {0};
+    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], r, failed;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = particle_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    particle_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < PARTICLE_R; ++r) {
+        if (pulled[r] && particle_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int particle_chain_impact(const particle_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2299,8 +2328,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double vel[PARTICLE_N], racc[PARTICLE_R_DIM], psi[PARTICLE_R_DIM];
     double grad[PARTICLE_R_DIM * PARTICLE_N];
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
-    double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp;
+    double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp, rates[PARTICLE_R_DIM], es[PARTICLE_R_DIM];
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
+    int pulled[PARTICLE_R_DIM], n_pulled = 0;
     int none[PARTICLE_R_DIM] = {0};
     int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], leaving[PARTICLE_R_DIM];
     particle_at(c, t);
@@ -2309,6 +2339,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     for (r = 0; r < PARTICLE_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     particle_held_accel(c, q, vel, none, none, racc);
@@ -2325,7 +2356,16 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        particle_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

@@ -2568,9 +2568,38 @@ static void star_held_accel(const star_ctx_t *c, const double *q, const double *
     star_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void star_stopped_pressed(const star_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[STAR_R_DIM], p_plus[STAR_N], lam[STAR_R_DIM], vel_m[STAR_N];
+    double vel_p[STAR_N], racc[STAR_R_DIM];
+    int dropped[STAR_R_DIM], slipped[STAR_R_DIM], none[STAR_R_DIM] = {0};
+    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], r, failed;
+    for (r = 0; r < STAR_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = star_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    star_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < STAR_R; ++r) {
+        if (pulled[r] && star_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2578,8 +2607,9 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double vel[STAR_N], racc[STAR_R_DIM], psi[STAR_R_DIM];
     double grad[STAR_R_DIM * STAR_N];
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
-    double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp;
+    double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp, rates[STAR_R_DIM], es[STAR_R_DIM];
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
+    int pulled[STAR_R_DIM], n_pulled = 0;
     int none[STAR_R_DIM] = {0};
     int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], leaving[STAR_R_DIM];
     star_at(c, t);
@@ -2588,6 +2618,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     for (r = 0; r < STAR_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     star_held_accel(c, q, vel, none, none, racc);
@@ -2604,7 +2635,16 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        star_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (star_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

@@ -3069,9 +3069,38 @@ static void cube_settles_held_accel(const cube_settles_ctx_t *c, const double *q
     cube_settles_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void cube_settles_stopped_pressed(const cube_settles_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[CUBE_SETTLES_R_DIM], p_plus[CUBE_SETTLES_N], lam[CUBE_SETTLES_R_DIM], vel_m[CUBE_SETTLES_N];
+    double vel_p[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM];
+    int dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], none[CUBE_SETTLES_R_DIM] = {0};
+    int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], r, failed;
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = cube_settles_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    cube_settles_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        if (pulled[r] && cube_settles_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -3079,8 +3108,9 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     double vel[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM], psi[CUBE_SETTLES_R_DIM];
     double grad[CUBE_SETTLES_R_DIM * CUBE_SETTLES_N];
     double curv[CUBE_SETTLES_R_DIM], tgt[CUBE_SETTLES_R_DIM], p_plus[CUBE_SETTLES_N] = {0.0}, lam[CUBE_SETTLES_R_DIM];
-    double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp;
+    double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp, rates[CUBE_SETTLES_R_DIM], es[CUBE_SETTLES_R_DIM];
     int plastic[CUBE_SETTLES_R_DIM], dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], i, g, r, j, any, done;
+    int pulled[CUBE_SETTLES_R_DIM], n_pulled = 0;
     int none[CUBE_SETTLES_R_DIM] = {0};
     int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], leaving[CUBE_SETTLES_R_DIM];
     cube_settles_at(c, t);
@@ -3089,6 +3119,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     cube_settles_held_accel(c, q, vel, none, none, racc);
@@ -3105,7 +3136,16 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        cube_settles_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (cube_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

@@ -2788,9 +2788,38 @@ static void four_bar_held_accel(const four_bar_ctx_t *c, const double *q, const 
     four_bar_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void four_bar_stopped_pressed(const four_bar_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[FOUR_BAR_R_DIM], p_plus[FOUR_BAR_N], lam[FOUR_BAR_R_DIM], vel_m[FOUR_BAR_N];
+    double vel_p[FOUR_BAR_N], racc[FOUR_BAR_R_DIM];
+    int dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], none[FOUR_BAR_R_DIM] = {0};
+    int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], r, failed;
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = four_bar_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    four_bar_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        if (pulled[r] && four_bar_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2798,8 +2827,9 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     double vel[FOUR_BAR_N], racc[FOUR_BAR_R_DIM], psi[FOUR_BAR_R_DIM];
     double grad[FOUR_BAR_R_DIM * FOUR_BAR_N];
     double curv[FOUR_BAR_R_DIM], tgt[FOUR_BAR_R_DIM], p_plus[FOUR_BAR_N] = {0.0}, lam[FOUR_BAR_R_DIM];
-    double vel_m[FOUR_BAR_N], vel_p[FOUR_BAR_N], rate, e, loss, imp;
+    double vel_m[FOUR_BAR_N], vel_p[FOUR_BAR_N], rate, e, loss, imp, rates[FOUR_BAR_R_DIM], es[FOUR_BAR_R_DIM];
     int plastic[FOUR_BAR_R_DIM], dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], i, g, r, j, any, done;
+    int pulled[FOUR_BAR_R_DIM], n_pulled = 0;
     int none[FOUR_BAR_R_DIM] = {0};
     int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], leaving[FOUR_BAR_R_DIM];
     four_bar_at(c, t);
@@ -2808,6 +2838,7 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     for (r = 0; r < FOUR_BAR_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     four_bar_held_accel(c, q, vel, none, none, racc);
@@ -2824,7 +2855,16 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        four_bar_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (four_bar_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

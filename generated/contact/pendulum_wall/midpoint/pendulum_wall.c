@@ -2516,9 +2516,38 @@ static void pendulum_wall_held_accel(const pendulum_wall_ctx_t *c, const double 
     pendulum_wall_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void pendulum_wall_stopped_pressed(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N], lam[PENDULUM_WALL_R_DIM], vel_m[PENDULUM_WALL_N];
+    double vel_p[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM];
+    int dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], none[PENDULUM_WALL_R_DIM] = {0};
+    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], r, failed;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = pendulum_wall_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    pendulum_wall_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        if (pulled[r] && pendulum_wall_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2526,8 +2555,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double vel[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM], psi[PENDULUM_WALL_R_DIM];
     double grad[PENDULUM_WALL_R_DIM * PENDULUM_WALL_N];
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
-    double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp;
+    double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp, rates[PENDULUM_WALL_R_DIM], es[PENDULUM_WALL_R_DIM];
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
+    int pulled[PENDULUM_WALL_R_DIM], n_pulled = 0;
     int none[PENDULUM_WALL_R_DIM] = {0};
     int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
@@ -2536,6 +2566,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     pendulum_wall_held_accel(c, q, vel, none, none, racc);
@@ -2552,7 +2583,16 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        pendulum_wall_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (pendulum_wall_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

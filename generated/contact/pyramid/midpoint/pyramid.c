@@ -4465,9 +4465,43 @@ static int pyramid_reduced_restitution(const pyramid_ctx_t *c, const double *q, 
     return 0;
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void pyramid_stopped_pressed(const pyramid_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es,
+    const long *counts, const int *act, const int *ride)
+{
+    double trial[PYRAMID_R_DIM], p_plus[PYRAMID_N], lam[PYRAMID_R_DIM], vel_m[PYRAMID_N];
+    double vel_p[PYRAMID_N], racc[PYRAMID_R_DIM];
+    int dropped[PYRAMID_R_DIM], slipped[PYRAMID_R_DIM], none[PYRAMID_R_DIM] = {0};
+    int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], r, failed;
+    for (r = 0; r < PYRAMID_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = pyramid_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    c->sus->riders_cut = counts[2];
+    pyramid_law_state(c, act, ride);
+    if (failed) {
+        return;
+    }
+    pyramid_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < PYRAMID_R; ++r) {
+        if (pulled[r] && pyramid_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -4475,8 +4509,9 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     double vel[PYRAMID_N], racc[PYRAMID_R_DIM], psi[PYRAMID_R_DIM];
     double grad[PYRAMID_R_DIM * PYRAMID_N];
     double curv[PYRAMID_R_DIM], tgt[PYRAMID_R_DIM], p_plus[PYRAMID_N] = {0.0}, lam[PYRAMID_R_DIM];
-    double vel_m[PYRAMID_N], vel_p[PYRAMID_N], rate, e, loss, imp;
+    double vel_m[PYRAMID_N], vel_p[PYRAMID_N], rate, e, loss, imp, rates[PYRAMID_R_DIM], es[PYRAMID_R_DIM];
     int plastic[PYRAMID_R_DIM], dropped[PYRAMID_R_DIM], slipped[PYRAMID_R_DIM], i, g, r, j, any, done;
+    int pulled[PYRAMID_R_DIM], n_pulled = 0;
     int none[PYRAMID_R_DIM] = {0};
     int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], leaving[PYRAMID_R_DIM];
     long counts[3];
@@ -4487,6 +4522,7 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     for (r = 0; r < PYRAMID_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     pyramid_held_accel(c, q, vel, none, none, racc);
@@ -4503,12 +4539,22 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
     }
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
     counts[2] = c->sus->riders_cut;
     pyramid_law_save(c, act, ride); /* before the law (its cut riders) */
+    if (n_pulled) {
+        pyramid_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
+            ride);
+    }
     if (pyramid_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;

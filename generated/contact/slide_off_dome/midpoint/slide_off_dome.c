@@ -2486,9 +2486,38 @@ static void slide_off_dome_held_accel(const slide_off_dome_ctx_t *c, const doubl
     slide_off_dome_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void slide_off_dome_stopped_pressed(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N], lam[SLIDE_OFF_DOME_R_DIM], vel_m[SLIDE_OFF_DOME_N];
+    double vel_p[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM];
+    int dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], none[SLIDE_OFF_DOME_R_DIM] = {0};
+    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], r, failed;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = slide_off_dome_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    slide_off_dome_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        if (pulled[r] && slide_off_dome_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2496,8 +2525,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double vel[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM], psi[SLIDE_OFF_DOME_R_DIM];
     double grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N];
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
-    double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp;
+    double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp, rates[SLIDE_OFF_DOME_R_DIM], es[SLIDE_OFF_DOME_R_DIM];
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
+    int pulled[SLIDE_OFF_DOME_R_DIM], n_pulled = 0;
     int none[SLIDE_OFF_DOME_R_DIM] = {0};
     int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], leaving[SLIDE_OFF_DOME_R_DIM];
     slide_off_dome_at(c, t);
@@ -2506,6 +2536,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     slide_off_dome_held_accel(c, q, vel, none, none, racc);
@@ -2522,7 +2553,16 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        slide_off_dome_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

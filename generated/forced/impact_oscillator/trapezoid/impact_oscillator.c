@@ -2115,9 +2115,38 @@ static void impact_oscillator_held_accel(const impact_oscillator_ctx_t *c, const
     impact_oscillator_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void impact_oscillator_stopped_pressed(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N], lam[IMPACT_OSCILLATOR_R_DIM], vel_m[IMPACT_OSCILLATOR_N];
+    double vel_p[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM];
+    int dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], none[IMPACT_OSCILLATOR_R_DIM] = {0};
+    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], r, failed;
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = impact_oscillator_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    impact_oscillator_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        if (pulled[r] && impact_oscillator_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2125,8 +2154,9 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     double vel[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM], psi[IMPACT_OSCILLATOR_R_DIM];
     double grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N];
     double curv[IMPACT_OSCILLATOR_R_DIM], tgt[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N] = {0.0}, lam[IMPACT_OSCILLATOR_R_DIM];
-    double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp;
+    double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp, rates[IMPACT_OSCILLATOR_R_DIM], es[IMPACT_OSCILLATOR_R_DIM];
     int plastic[IMPACT_OSCILLATOR_R_DIM], dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], i, g, r, j, any, done;
+    int pulled[IMPACT_OSCILLATOR_R_DIM], n_pulled = 0;
     int none[IMPACT_OSCILLATOR_R_DIM] = {0};
     int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], leaving[IMPACT_OSCILLATOR_R_DIM];
     impact_oscillator_at(c, t);
@@ -2135,6 +2165,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     impact_oscillator_held_accel(c, q, vel, none, none, racc);
@@ -2151,7 +2182,16 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        impact_oscillator_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (impact_oscillator_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

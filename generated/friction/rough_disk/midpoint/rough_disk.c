@@ -3380,9 +3380,43 @@ static int rough_disk_reduced_restitution(const rough_disk_ctx_t *c, const doubl
     return 0;
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void rough_disk_stopped_pressed(const rough_disk_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es,
+    const long *counts, const int *act, const int *ride)
+{
+    double trial[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N], lam[ROUGH_DISK_R_DIM], vel_m[ROUGH_DISK_N];
+    double vel_p[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM];
+    int dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], none[ROUGH_DISK_R_DIM] = {0};
+    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], r, failed;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = rough_disk_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    c->sus->riders_cut = counts[2];
+    rough_disk_law_state(c, act, ride);
+    if (failed) {
+        return;
+    }
+    rough_disk_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        if (pulled[r] && rough_disk_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -3390,8 +3424,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double vel[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM];
     double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
-    double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp;
+    double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp, rates[ROUGH_DISK_R_DIM], es[ROUGH_DISK_R_DIM];
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
+    int pulled[ROUGH_DISK_R_DIM], n_pulled = 0;
     int none[ROUGH_DISK_R_DIM] = {0};
     int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     long counts[3];
@@ -3402,6 +3437,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     rough_disk_held_accel(c, q, vel, none, none, racc);
@@ -3418,12 +3454,22 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
     }
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
     counts[2] = c->sus->riders_cut;
     rough_disk_law_save(c, act, ride); /* before the law (its cut riders) */
+    if (n_pulled) {
+        rough_disk_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
+            ride);
+    }
     if (rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;

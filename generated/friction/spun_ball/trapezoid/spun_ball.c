@@ -5014,9 +5014,43 @@ static int spun_ball_reduced_restitution(const spun_ball_ctx_t *c, const double 
     return 0;
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void spun_ball_stopped_pressed(const spun_ball_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es,
+    const long *counts, const int *act, const int *ride)
+{
+    double trial[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N], lam[SPUN_BALL_R_DIM], vel_m[SPUN_BALL_N];
+    double vel_p[SPUN_BALL_N], racc[SPUN_BALL_R_DIM];
+    int dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], none[SPUN_BALL_R_DIM] = {0};
+    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], r, failed;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = spun_ball_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    c->sus->riders_cut = counts[2];
+    spun_ball_law_state(c, act, ride);
+    if (failed) {
+        return;
+    }
+    spun_ball_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        if (pulled[r] && spun_ball_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -5024,8 +5058,9 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double vel[SPUN_BALL_N], racc[SPUN_BALL_R_DIM], psi[SPUN_BALL_R_DIM];
     double grad[SPUN_BALL_R_DIM * SPUN_BALL_N];
     double curv[SPUN_BALL_R_DIM], tgt[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N] = {0.0}, lam[SPUN_BALL_R_DIM];
-    double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp;
+    double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp, rates[SPUN_BALL_R_DIM], es[SPUN_BALL_R_DIM];
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
+    int pulled[SPUN_BALL_R_DIM], n_pulled = 0;
     int none[SPUN_BALL_R_DIM] = {0};
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     long counts[3];
@@ -5036,6 +5071,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     for (r = 0; r < SPUN_BALL_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     spun_ball_held_accel(c, q, vel, none, none, racc);
@@ -5052,12 +5088,22 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
     }
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
     counts[2] = c->sus->riders_cut;
     spun_ball_law_save(c, act, ride); /* before the law (its cut riders) */
+    if (n_pulled) {
+        spun_ball_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
+            ride);
+    }
     if (spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;

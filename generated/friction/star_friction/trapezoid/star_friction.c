@@ -3588,9 +3588,43 @@ static int star_friction_reduced_restitution(const star_friction_ctx_t *c, const
     return 0;
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void star_friction_stopped_pressed(const star_friction_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es,
+    const long *counts, const int *act, const int *ride)
+{
+    double trial[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N], lam[STAR_FRICTION_R_DIM], vel_m[STAR_FRICTION_N];
+    double vel_p[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM];
+    int dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], none[STAR_FRICTION_R_DIM] = {0};
+    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], r, failed;
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = star_friction_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    c->sus->least_splits = counts[0];
+    c->sus->friction_dropped = counts[1];
+    c->sus->riders_cut = counts[2];
+    star_friction_law_state(c, act, ride);
+    if (failed) {
+        return;
+    }
+    star_friction_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        if (pulled[r] && star_friction_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int star_friction_chain_impact(const star_friction_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -3598,8 +3632,9 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double vel[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM];
     double grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N];
     double curv[STAR_FRICTION_R_DIM], tgt[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N] = {0.0}, lam[STAR_FRICTION_R_DIM];
-    double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp;
+    double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp, rates[STAR_FRICTION_R_DIM], es[STAR_FRICTION_R_DIM];
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
+    int pulled[STAR_FRICTION_R_DIM], n_pulled = 0;
     int none[STAR_FRICTION_R_DIM] = {0};
     int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], leaving[STAR_FRICTION_R_DIM];
     long counts[3];
@@ -3610,6 +3645,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     star_friction_held_accel(c, q, vel, none, none, racc);
@@ -3626,12 +3662,22 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
     }
     counts[0] = c->sus->least_splits;
     counts[1] = c->sus->friction_dropped;
     counts[2] = c->sus->riders_cut;
     star_friction_law_save(c, act, ride); /* before the law (its cut riders) */
+    if (n_pulled) {
+        star_friction_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
+            ride);
+    }
     if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;

@@ -2500,9 +2500,38 @@ static void ball_box_held_accel(const ball_box_ctx_t *c, const double *q, const 
     ball_box_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void ball_box_stopped_pressed(const ball_box_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[BALL_BOX_R_DIM], p_plus[BALL_BOX_N], lam[BALL_BOX_R_DIM], vel_m[BALL_BOX_N];
+    double vel_p[BALL_BOX_N], racc[BALL_BOX_R_DIM];
+    int dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], none[BALL_BOX_R_DIM] = {0};
+    int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], land[BALL_BOX_NF_DIM], r, failed;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = ball_box_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    ball_box_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        if (pulled[r] && ball_box_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2510,8 +2539,9 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     double vel[BALL_BOX_N], racc[BALL_BOX_R_DIM], psi[BALL_BOX_R_DIM];
     double grad[BALL_BOX_R_DIM * BALL_BOX_N];
     double curv[BALL_BOX_R_DIM], tgt[BALL_BOX_R_DIM], p_plus[BALL_BOX_N] = {0.0}, lam[BALL_BOX_R_DIM];
-    double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp;
+    double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp, rates[BALL_BOX_R_DIM], es[BALL_BOX_R_DIM];
     int plastic[BALL_BOX_R_DIM], dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], i, g, r, j, any, done;
+    int pulled[BALL_BOX_R_DIM], n_pulled = 0;
     int none[BALL_BOX_R_DIM] = {0};
     int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], land[BALL_BOX_NF_DIM], leaving[BALL_BOX_R_DIM];
     ball_box_at(c, t);
@@ -2520,6 +2550,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     for (r = 0; r < BALL_BOX_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     ball_box_held_accel(c, q, vel, none, none, racc);
@@ -2536,7 +2567,16 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        ball_box_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (ball_box_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

@@ -2702,9 +2702,38 @@ static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const dou
     double_pendulum_row_accel(c, q, u, acc, racc);
 }
 
+/* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
+ * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
+ * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
+ * taken from the law's counters and state before it (counts, act, ride); no trial law: the targets stand. */
+static void double_pendulum_stopped_pressed(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *group, int n_group, double *tgt, int *plastic, const int *pulled, const double *rates, const double *es)
+{
+    double trial[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N], lam[DOUBLE_PENDULUM_R_DIM], vel_m[DOUBLE_PENDULUM_N];
+    double vel_p[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM];
+    int dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], none[DOUBLE_PENDULUM_R_DIM] = {0};
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], r, failed;
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        trial[r] = pulled[r] ? 0.0 : tgt[r];
+    }
+    failed = double_pendulum_impulse_law(c, q, p, v, group, n_group, trial, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (failed) {
+        return;
+    }
+    double_pendulum_held_accel(c, q, vel_p, none, none, racc);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        if (pulled[r] && double_pendulum_settles(c, rates[r], racc[r], es[r])) {
+            plastic[r] = 1;
+            tgt[r] = 0.0;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
- * speed of 0 and sank again at once) settles: held. */
+ * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
+ * once the impact has stopped it (stopped_pressed). */
 static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
 {
@@ -2712,8 +2741,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double vel[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM], psi[DOUBLE_PENDULUM_R_DIM];
     double grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N];
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
-    double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp;
+    double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp, rates[DOUBLE_PENDULUM_R_DIM], es[DOUBLE_PENDULUM_R_DIM];
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
+    int pulled[DOUBLE_PENDULUM_R_DIM], n_pulled = 0;
     int none[DOUBLE_PENDULUM_R_DIM] = {0};
     int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
@@ -2722,6 +2752,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         tgt[r] = 0.0;
         plastic[r] = 0;
+        pulled[r] = 0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     double_pendulum_held_accel(c, q, vel, none, none, racc);
@@ -2738,7 +2769,16 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
+                pulled[r] = 1;
+                rates[r] = rate;
+                es[r] = e;
+                ++n_pulled;
+            }
         }
+    }
+    if (n_pulled) {
+        double_pendulum_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
     if (double_pendulum_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {

@@ -1,0 +1,144 @@
+"""A double pendulum in maximal coordinates (two bobs, its rods bilateral constraints, held throughout) whose
+tip lands on a rough floor (MATH.md *Sustained contact*: an impact while rows are held, and *Entry*).
+
+Unit masses and rods, the pivot at the origin, the floor ``y = FLOOR``; the same pendulum as
+``tests/test_double_pendulum_floor.py``, in the bobs' coordinates. Every impact of it is an impact while
+held (the rods are), resolved by the impulse law (``SustainedSteps._chain_impact``), not by the jump (48).
+
+* **A landing at e = 0 pulled up by its own normal speed**: the tip swings down onto the floor; at the
+  incoming velocity its normal speed along the rods' circles pulls it up (``d2 phi/dt2 > 0``, computed here
+  from the index-1 equations), once the impact has stopped it gravity presses it in. The landing is one
+  plastic impact and the tip stays held: read at the incoming velocity alone it was stopped but let go, sank
+  again at once and took a second, plastic impact of 2e-8 at the same instant (``_stopped_pressed``).
+  Checked against statics: at rest, the tip's normal force is the one that, with the rods' tensions and the
+  tip's friction, balances gravity (four equations, four forces).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+import pytest
+import sympy as sp
+from hard_scenes import BACKENDS, G
+
+import vcigen
+
+FLOOR = -1.4
+X1, Y1, X2, Y2, U1, V1, U2, V2 = sp.symbols("x1 y1 x2 y2 u1 v1 u2 v2")
+MU, E = sp.symbols("mu e")
+
+# (t1, t2, d1, d2): angles from the downward vertical and their rates (tests/test_double_pendulum_floor.py)
+LANDINGS = {
+    "pulled up": (-1.80394644, -0.44161886, -0.80376566, 0.14088473),
+    "stopped": (1.9833499167701847, -1.6379564551951975, 2.319657588962981, -0.8007779233815802),
+}
+
+
+def bobs(t1: float, t2: float, d1: float, d2: float) -> tuple[list[float], list[float]]:
+    """``(q, v)`` of the bobs from the angles and their rates."""
+    q = [math.sin(t1), -math.cos(t1), math.sin(t1) + math.sin(t2), -math.cos(t1) - math.cos(t2)]
+    u1, w1 = d1 * math.cos(t1), d1 * math.sin(t1)
+    return q, [u1, w1, u1 + d2 * math.cos(t2), w1 + d2 * math.sin(t2)]
+
+
+@cache
+def simulator(backend: str) -> vcigen.Simulator:
+    model = vcigen.Model(
+        name="dp_rods",
+        q=[X1, Y1, X2, Y2],
+        qdot=[U1, V1, U2, V2],
+        lagrangian=(U1**2 + V1**2 + U2**2 + V2**2) / 2 - G * (Y1 + Y2),
+        contacts={"tip": Y2 - FLOOR, "elbow": Y1 - FLOOR},
+        constraints={"rod1": X1**2 + Y1**2 - 1, "rod2": (X2 - X1) ** 2 + (Y2 - Y1) ** 2 - 1},
+        restitution={"tip": E, "elbow": E},
+        friction={"tip": (MU, X2), "elbow": (MU, X1)},
+        params={MU: 0.5, E: 0.0},
+    )
+    return vcigen.build(model, backend=backend)
+
+
+def rods(q) -> np.ndarray:
+    """The rods' gradients (rows) at ``q``."""
+    x1, y1, x2, y2 = q
+    return np.array([[2 * x1, 2 * y1, 0, 0], [-2 * (x2 - x1), -2 * (y2 - y1), 2 * (x2 - x1), 2 * (y2 - y1)]])
+
+
+def tip_accel(q, v) -> float:
+    """``d2 phi/dt2`` of the tip, the rods held (index 1: ``a = f + G^T lam``, ``G a + dG v = 0``)."""
+    g = rods(q)
+    u1, w1, u2, w2 = v
+    dgv = np.array([2 * (u1 * u1 + w1 * w1), 2 * ((u2 - u1) ** 2 + (w2 - w1) ** 2)])
+    f = np.array([0.0, -G, 0.0, -G])
+    lam = np.linalg.solve(g @ g.T, -(g @ f + dgv))
+    return float((f + g.T @ lam)[3])
+
+
+def stopped(q, v, rows) -> np.ndarray:
+    """``v`` with the rods' rates and those of ``rows`` made 0 at the least kinetic energy (plastic)."""
+    g = np.vstack([rods(q), rows])
+    return np.asarray(v) - g.T @ np.linalg.solve(g @ g.T, g @ v)
+
+
+def _landing(backend: str, landing: str):
+    q0, v0 = bobs(*LANDINGS[landing])
+    return simulator(backend).simulate(q0=q0, v0=v0, h=0.005, t_end=1.5, params={"mu": 0.5}, progress=False)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("landing", LANDINGS)
+def test_a_landing_while_held_not_pressed_coming_in_is_one_plastic_impact(backend, landing):
+    res = _landing(backend, landing)
+    (imp,) = res.impacts
+    assert imp.kind == "plastic" and imp.contact == "tip" and imp.impulse > 1.0
+    assert res.stats["impacts_grazing"] == 0 and res.stats["restitution_reduced"] == 0
+    # the incoming velocity (the last grid step's) pulls the tip up; stopped, gravity presses it in
+    k = imp.step
+    v_in = (res.q[k] - res.q[k - 1]) / 0.005
+    assert tip_accel(imp.q, v_in) > 1.0
+    tip_normal, tip_tangent = [0, 0, 0, 1.0], [0, 0, 1.0, 0]
+    frictionless = stopped(imp.q, v_in, [tip_normal])
+    assert (tip_accel(imp.q, frictionless) < -1.0) == (landing == "pulled up")
+    assert tip_accel(imp.q, stopped(imp.q, v_in, [tip_normal, tip_tangent])) < -1.0
+    # held from the landing on, no lift-off; it sticks where it landed and rests there
+    after = res.t > imp.t + 0.01
+    assert res.active[after, 0].all() and not res.liftoffs
+    assert np.abs(res.q[after] - res.q[-1]).max() <= 1e-12
+    x1, y1, x2, y2 = res.q[-1]
+    assert abs(y2 - FLOOR) <= 1e-12 and abs(x1 * x1 + y1 * y1 - 1) <= 1e-12
+    # statics: gravity balanced by the rods' tensions and the tip's normal force and friction
+    a = np.column_stack([rods(res.q[-1]).T, [0, 0, 0, 1.0], [0, 0, 1.0, 0]])
+    *_, normal, friction = np.linalg.solve(a, [0.0, G, 0.0, G])
+    assert normal > 0.0 and abs(res.contact_force[-1, 0] - normal) <= 1e-9 * normal
+    assert abs(friction) < 0.5 * normal
+
+
+def _landing_end(backend: str, start, mu: float) -> np.ndarray:
+    q0, v0 = bobs(*start)
+    res = simulator(backend).simulate(q0=q0, v0=v0, h=0.005, t_end=1.5, params={"mu": mu}, progress=False)
+    assert len(res.impacts) == 1
+    return np.concatenate([res.q[-1], res.p[-1]])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("landing", LANDINGS)
+def test_the_tangent_goes_through_the_landing_while_held(backend, landing):
+    """Against central differences in the start's angles and rates (a start on the rods moves along them: the
+    tangent times the bobs' derivative) and in ``mu``."""
+    start = np.array(LANDINGS[landing])
+    q0, v0 = bobs(*start)
+    res = simulator(backend).simulate(
+        q0=q0, v0=v0, h=0.005, t_end=1.5, params={"mu": 0.5}, progress=False, sensitivities=True
+    )
+    assert not res.sensitivity_breaks and np.isfinite(res.sensitivity[-1]).all()
+    eps, tangent = 1e-6, res.sensitivity[-1]
+    for i in range(4):
+        d = np.eye(4)[i] * eps
+        central = (_landing_end(backend, start + d, 0.5) - _landing_end(backend, start - d, 0.5)) / (2 * eps)
+        moved = (np.concatenate(bobs(*(start + d))) - np.concatenate(bobs(*(start - d)))) / (2 * eps)
+        assert np.abs(central - tangent[:, :8] @ moved).max() <= 1e-6 * (1.0 + np.abs(central).max()), i
+    central = (_landing_end(backend, start, 0.5 + eps) - _landing_end(backend, start, 0.5 - eps)) / (2 * eps)
+    mu = tangent[:, list(res.sensitivity_names).index("mu")]
+    assert np.abs(central - mu).max() <= 1e-6 * (1.0 + np.abs(central).max())
