@@ -12,6 +12,13 @@ held (the rods are), resolved by the impulse law (``SustainedSteps._chain_impact
   again at once and took a second, plastic impact of 2e-8 at the same instant (``_stopped_pressed``).
   Checked against statics: at rest, the tip's normal force is the one that, with the rods' tensions and the
   tip's friction, balances gravity (four equations, four forces).
+* **A lift-off the map sinks after**: frictionless, the tip held on the floor slides until its force
+  vanishes and lifts off; the exact tip rises as the cube of the time since, the map (its error of that
+  order) sank 1e-7 below the floor in the rest of the step. The crossing located there met the tip moving
+  away: six impacts of impulse 0 and two more lift-offs followed. Now such a crossing is a segment's end with
+  no impulse and no log (``SustainedSteps._met_back``): one lift-off, the hop's landing the next impact.
+  Against scipy (the pendulum with its rods, DOP853 at 1e-12, the landing, the lift-off and the hop's landing
+  located): the lift-off time and the hop's landing at second order.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ import numpy as np
 import pytest
 import sympy as sp
 from hard_scenes import BACKENDS, G
+from scipy.integrate import solve_ivp
 
 import vcigen
 
@@ -142,3 +150,70 @@ def test_the_tangent_goes_through_the_landing_while_held(backend, landing):
     central = (_landing_end(backend, start, 0.5 + eps) - _landing_end(backend, start, 0.5 - eps)) / (2 * eps)
     mu = tangent[:, list(res.sensitivity_names).index("mu")]
     assert np.abs(central - mu).max() <= 1e-6 * (1.0 + np.abs(central).max())
+
+
+# the tip lands (e = 0), is held, lifts off where its force vanishes, hops 1.7e-5 m and lands again (mu = 0)
+HOP = (
+    [0.07420917759518242, -0.9972426976221218, 0.38045397076295834, -0.045289901178082737],
+    [0.6590519224949751, 0.0490429273410516, 3.1401402641590623, -0.7491273063744863],
+)
+
+
+def _accel(y, floor: bool):
+    """The bobs' accelerations and the multipliers (the rods', then the floor's if ``floor``), index 1."""
+    q, v = y[:4], y[4:]
+    g = rods(q)
+    u1, w1, u2, w2 = v
+    dgv = [2 * (u1 * u1 + w1 * w1), 2 * ((u2 - u1) ** 2 + (w2 - w1) ** 2)]
+    if floor:
+        g, dgv = np.vstack([g, [0, 0, 0, 1.0]]), [*dgv, 0.0]
+    f = np.array([0.0, -G, 0.0, -G])
+    lam = np.linalg.solve(g @ g.T, -(g @ f + np.array(dgv)))
+    return f + g.T @ lam, lam
+
+
+@cache
+def hop_reference() -> tuple[float, float, float]:
+    """scipy: the landing, the lift-off (the floor's multiplier reaching 0) and the hop's landing times."""
+    kw = {"method": "DOP853", "rtol": 1e-12, "atol": 1e-13}
+    land = lambda t, y: y[3] - FLOOR  # noqa: E731
+    lift = lambda t, y: _accel(y, True)[1][2]  # noqa: E731
+    land.terminal = lift.terminal = True
+    land.direction = lift.direction = -1
+    fall = solve_ivp(
+        lambda t, y: [*y[4:], *_accel(y, False)[0]], (0, 2), [*HOP[0], *HOP[1]], events=land, **kw
+    )
+    t1, y1 = fall.t_events[0][0], fall.y_events[0][0]
+    v1 = stopped(y1[:4], y1[4:], [[0, 0, 0, 1.0]])
+    held = solve_ivp(lambda t, y: [*y[4:], *_accel(y, True)[0]], (t1, 2), [*y1[:4], *v1], events=lift, **kw)
+    t2, y2 = held.t_events[0][0], held.y_events[0][0]
+    hop = solve_ivp(lambda t, y: [*y[4:], *_accel(y, False)[0]], (t2 + 1e-9, 2), y2, events=land, **kw)
+    return float(t1), float(t2), float(hop.t_events[0][0])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_lift_off_the_map_sinks_after_is_held_on_with_no_impact(backend):
+    t_land, t_lift, t_hop = hop_reference()
+    assert 0.04 < t_hop - t_lift < 0.06
+    errors, hops = [], []
+    for h in (0.005, 0.0025):
+        res = simulator(backend).simulate(
+            q0=HOP[0], v0=HOP[1], h=h, t_end=0.6, params={"mu": 0.0}, progress=False
+        )
+        assert [i.kind for i in res.impacts] == ["plastic", "plastic"] and min(
+            i.impulse for i in res.impacts
+        ) > 1e-3
+        assert [c for _, c in res.liftoffs] == ["tip"]
+        assert res.q[:, 3].min() - FLOOR >= -1e-12
+        assert abs(res.impacts[0].t - t_land) <= h * h
+        errors.append(abs(res.liftoffs[0][0] - t_lift))
+        assert errors[-1] <= 11.0 * h * h, (h, errors[-1])
+        hops.append(abs(res.impacts[1].t - t_hop))
+        assert hops[-1] <= 70.0 * h * h, (h, hops[-1])
+    assert errors[0] / errors[1] > 3.8 and hops[0] / hops[1] > 3.8
+    # the hold is a move the tangent has no derivative of: the step breaks there, on both backends alike
+    res = simulator(backend).simulate(
+        q0=HOP[0], v0=HOP[1], h=0.005, t_end=0.6, params={"mu": 0.0}, progress=False, sensitivities=True
+    )
+    step = int((res.liftoffs[0][0] - res.t[0]) // 0.005)
+    assert res.sensitivity_breaks == [(step, "a lift-off met again moving away")]

@@ -38,6 +38,7 @@ BREAK_REASONS: tuple[tuple[str, str], ...] = (
     ("HALVED", "held segment halved"),
     ("PROJECTED", "held rows projected at an event's start"),
     ("PRESSED_LIFT", "lift-off while a stick rides"),
+    ("MET_BACK", "a lift-off met again moving away"),
 )
 _BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
 

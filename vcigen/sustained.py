@@ -33,12 +33,14 @@ from .errors import SolverError
 from .friction_modes import FrictionModes
 from .held_impacts import HeldImpacts
 from .held_roots import (
+    BACK_CYCLES,
     BOUNCE_CYCLES,
     DEP_EPS,
     EPS_LAM,
     EPS_LIFT,
     JAM_CYCLES,
     LEAVE_FRACTIONS,
+    LEAVE_STEPS,
     LIFT_CYCLES,
     LIFT_ITER,
     ONTO_ITER,
@@ -116,6 +118,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.passes = 0  # lift-offs whose load a riding row took (_pass_load)
         self.sticks_kept = 0  # stick <-> slip cycles (STICK_CYCLES slides in a step) cut by sticking on
         self.lifts_kept = 0  # lift-off <-> landing cycles at one instant cut by holding the row on (_chain)
+        self._left_step: dict[int, int] = {}  # the grid step of each row's last release (_met_back)
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
         self.jams = 0  # Painleve jams (JAM_CYCLES lift-offs in a step, _painleve) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
@@ -396,6 +399,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         # held on to the next instant)
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
+        backs: dict[int, int] = {}  # rows met again moving away after their release (_met_back): how often
         bounces = self._bounces  # impacts of each row in this step's chains (BOUNCE_CYCLES: then held)
         self._stuck_on.clear()
         self._jammed = False
@@ -565,6 +569,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._sw_check(events[r0][0], r0, before)
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
+            back = self._met_back(step, q, self._velocity(q, v, p), group, backs)
+            if back:  # released lately, met again moving away: a segment's end, no impact
+                group = [r for r in group if r not in back]
+                if not group:
+                    continue
             again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again)
             guess = self._velocity(q, v, p)  # the next segment's Newton from the velocity after the impact
@@ -575,6 +584,30 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 relands[r] += 1
                 if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:
                     self._jam(q, self._velocity(q, v, p))
+
+    def _met_back(self, step: int, q, u, group, backs) -> list[int]:
+        """Rows of the crossing ``group`` at ``(q, u)`` released in this grid step or the ``LEAVE_STEPS``
+        before it that meet their contact again moving away from it (``grad psi_r . u >= 0``): after a
+        lift-off the exact row rises as the cube of the time since, and the map, whose error is of that order,
+        sank instead; the root located is where the row has not left yet, not an impact. The crossing is a
+        segment's end with no impulse and no log (the next segment starts there, on the contact; counted in
+        ``backs``, the chain's; from the ``BACK_CYCLES``-th on, an impact as before). A double pendulum in its
+        bobs' coordinates whose tip lifted off a floor logged six impacts of impulse 0 and two more lift-offs
+        in the step of its lift-off (``tests/test_double_pendulum_rods.py``). The tangent stops there."""
+        if not group:
+            return []
+        grad = self.k.rows(q, u)[1]
+        recent = {r for r, k in self._left_step.items() if step - k <= LEAVE_STEPS}
+        back = [
+            r
+            for r in group
+            if r in recent and not self.act[r] and float(grad[r] @ u) >= 0.0 and backs.get(r, 0) < BACK_CYCLES
+        ]
+        for r in back:
+            backs[r] = backs.get(r, 0) + 1
+        if back:
+            self._sw_lose("a lift-off met again moving away")
+        return back
 
     def _free_rest(self, step, t_k, h, q, p, t, tau, guess, impacts, e_step):
         """A free remainder of the grid step from ``(q, p)``: smooth (46), or the impact chain (47)-(79)."""
@@ -765,6 +798,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self.passes += 1
             self._sw_lose("load passed to a riding row")
             return
+        self._left_step[r] = step
         j = k.row_contact[r]
         if not any(self.act[i] for i in range(k.r) if k.row_contact[i] == j):
             self.liftoffs.append((float(t), k.contact_names[j]))

@@ -1210,8 +1210,10 @@ static inline int ball_to_rest_held(const ball_to_rest_sustain_t *sus)
 #define BALL_TO_REST_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define BALL_TO_REST_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define BALL_TO_REST_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define BALL_TO_REST_LEAVE_STEPS 2 /* held_roots.LEAVE_STEPS: steps after a release in which met_back holds a row */
 #define BALL_TO_REST_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define BALL_TO_REST_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define BALL_TO_REST_BACK_CYCLES 16 /* held_roots.BACK_CYCLES: crossings met moving away in a chain before held on */
 #define BALL_TO_REST_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define BALL_TO_REST_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define BALL_TO_REST_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
@@ -1828,6 +1830,7 @@ static void ball_to_rest_release(const ball_to_rest_ctx_t *c, double t, int r, i
         ++s->passes;
         return;
     }
+    s->left_step[r] = c->step + 1;
     for (i = 0; i < BALL_TO_REST_R; ++i) {
         held = held || (s->act[i] && ball_to_rest_row_contact[i] == j);
     }
@@ -2577,6 +2580,40 @@ static int ball_to_rest_free_rest(const ball_to_rest_ctx_t *c, double *q, double
     return 0;
 }
 
+/* SustainedSteps._met_back: the rows of the crossing group at (q, velocity of v, p) released in this grid step or
+ * the LEAVE_STEPS before it that meet their contact again moving away (grad psi_r . u >= 0: the map's error sank
+ * a row that leaves as the cube of the time since its lift-off; the root is no impact). The crossing is a
+ * segment's end with no impulse and no log (counted in backs, the chain's; from the BACK_CYCLES-th on, an impact
+ * as before). They leave the group (n_group in/out); the tangent stops there. */
+static void ball_to_rest_met_back(const ball_to_rest_ctx_t *c, const double *q, const double *p, const double *v,
+    int *group, int *n_group, int *backs)
+{
+    double vel[BALL_TO_REST_N], psi[BALL_TO_REST_R_DIM], grad[BALL_TO_REST_R_DIM * BALL_TO_REST_N], curv[BALL_TO_REST_R_DIM];
+    double rate;
+    int g, r, i, n = 0, back = 0;
+    if (*n_group == 0) {
+        return;
+    }
+    ball_to_rest_velocity(c, q, v, p, vel);
+    ball_to_rest_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < *n_group; ++g) {
+        r = group[g];
+        rate = 0.0;
+        for (i = 0; i < BALL_TO_REST_N; ++i) {
+            rate += grad[r * BALL_TO_REST_N + i] * vel[i];
+        }
+        if (c->sus->left_step[r] > 0 && c->step + 1 - c->sus->left_step[r] <= BALL_TO_REST_LEAVE_STEPS
+            && !c->sus->act[r] && rate >= 0.0 && backs[r] < BALL_TO_REST_BACK_CYCLES) {
+            ++backs[r];
+            back = 1;
+        } else {
+            group[n++] = r;
+        }
+    }
+    *n_group = n;
+    (void)back;
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -2595,6 +2632,7 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
     int hit[BALL_TO_REST_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[BALL_TO_REST_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
+    int backs[BALL_TO_REST_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[BALL_TO_REST_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2752,6 +2790,10 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
             if (ev[r] == 2 && s_ev[r] - s <= c->tol->simultaneous) {
                 group[n_group++] = r;
             }
+        }
+        ball_to_rest_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (n_group == 0) {
+            continue;
         }
         for (r = 0; r < BALL_TO_REST_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= BALL_TO_REST_BOUNCE_CYCLES;

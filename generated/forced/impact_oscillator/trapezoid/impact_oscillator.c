@@ -1033,8 +1033,10 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define IMPACT_OSCILLATOR_LEAVE_STEPS 2 /* held_roots.LEAVE_STEPS: steps after a release in which met_back holds a row */
 #define IMPACT_OSCILLATOR_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define IMPACT_OSCILLATOR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define IMPACT_OSCILLATOR_BACK_CYCLES 16 /* held_roots.BACK_CYCLES: crossings met moving away in a chain before held on */
 #define IMPACT_OSCILLATOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define IMPACT_OSCILLATOR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define IMPACT_OSCILLATOR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
@@ -1651,6 +1653,7 @@ static void impact_oscillator_release(const impact_oscillator_ctx_t *c, double t
         ++s->passes;
         return;
     }
+    s->left_step[r] = c->step + 1;
     for (i = 0; i < IMPACT_OSCILLATOR_R; ++i) {
         held = held || (s->act[i] && impact_oscillator_row_contact[i] == j);
     }
@@ -2403,6 +2406,40 @@ static int impact_oscillator_free_rest(const impact_oscillator_ctx_t *c, double 
     return 0;
 }
 
+/* SustainedSteps._met_back: the rows of the crossing group at (q, velocity of v, p) released in this grid step or
+ * the LEAVE_STEPS before it that meet their contact again moving away (grad psi_r . u >= 0: the map's error sank
+ * a row that leaves as the cube of the time since its lift-off; the root is no impact). The crossing is a
+ * segment's end with no impulse and no log (counted in backs, the chain's; from the BACK_CYCLES-th on, an impact
+ * as before). They leave the group (n_group in/out); the tangent stops there. */
+static void impact_oscillator_met_back(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
+    int *group, int *n_group, int *backs)
+{
+    double vel[IMPACT_OSCILLATOR_N], psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
+    double rate;
+    int g, r, i, n = 0, back = 0;
+    if (*n_group == 0) {
+        return;
+    }
+    impact_oscillator_velocity(c, q, v, p, vel);
+    impact_oscillator_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < *n_group; ++g) {
+        r = group[g];
+        rate = 0.0;
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel[i];
+        }
+        if (c->sus->left_step[r] > 0 && c->step + 1 - c->sus->left_step[r] <= IMPACT_OSCILLATOR_LEAVE_STEPS
+            && !c->sus->act[r] && rate >= 0.0 && backs[r] < IMPACT_OSCILLATOR_BACK_CYCLES) {
+            ++backs[r];
+            back = 1;
+        } else {
+            group[n++] = r;
+        }
+    }
+    *n_group = n;
+    (void)back;
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -2421,6 +2458,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int hit[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
+    int backs[IMPACT_OSCILLATOR_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -2579,6 +2617,10 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             if (ev[r] == 2 && s_ev[r] - s <= c->tol->simultaneous) {
                 group[n_group++] = r;
             }
+        }
+        impact_oscillator_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (n_group == 0) {
+            continue;
         }
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= IMPACT_OSCILLATOR_BOUNCE_CYCLES;

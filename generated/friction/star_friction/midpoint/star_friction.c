@@ -1484,8 +1484,10 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define STAR_FRICTION_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define STAR_FRICTION_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
+#define STAR_FRICTION_LEAVE_STEPS 2 /* held_roots.LEAVE_STEPS: steps after a release in which met_back holds a row */
 #define STAR_FRICTION_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define STAR_FRICTION_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
+#define STAR_FRICTION_BACK_CYCLES 16 /* held_roots.BACK_CYCLES: crossings met moving away in a chain before held on */
 #define STAR_FRICTION_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define STAR_FRICTION_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define STAR_FRICTION_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
@@ -2192,6 +2194,7 @@ static void star_friction_release(const star_friction_ctx_t *c, double t, int r,
         ++s->passes;
         return;
     }
+    s->left_step[r] = c->step + 1;
     for (i = 0; i < STAR_FRICTION_R; ++i) {
         held = held || (s->act[i] && star_friction_row_contact[i] == j);
     }
@@ -3919,6 +3922,40 @@ static int star_friction_free_rest(const star_friction_ctx_t *c, double *q, doub
     return 0;
 }
 
+/* SustainedSteps._met_back: the rows of the crossing group at (q, velocity of v, p) released in this grid step or
+ * the LEAVE_STEPS before it that meet their contact again moving away (grad psi_r . u >= 0: the map's error sank
+ * a row that leaves as the cube of the time since its lift-off; the root is no impact). The crossing is a
+ * segment's end with no impulse and no log (counted in backs, the chain's; from the BACK_CYCLES-th on, an impact
+ * as before). They leave the group (n_group in/out); the tangent stops there. */
+static void star_friction_met_back(const star_friction_ctx_t *c, const double *q, const double *p, const double *v,
+    int *group, int *n_group, int *backs)
+{
+    double vel[STAR_FRICTION_N], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double rate;
+    int g, r, i, n = 0, back = 0;
+    if (*n_group == 0) {
+        return;
+    }
+    star_friction_velocity(c, q, v, p, vel);
+    star_friction_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < *n_group; ++g) {
+        r = group[g];
+        rate = 0.0;
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            rate += grad[r * STAR_FRICTION_N + i] * vel[i];
+        }
+        if (c->sus->left_step[r] > 0 && c->step + 1 - c->sus->left_step[r] <= STAR_FRICTION_LEAVE_STEPS
+            && !c->sus->act[r] && rate >= 0.0 && backs[r] < STAR_FRICTION_BACK_CYCLES) {
+            ++backs[r];
+            back = 1;
+        } else {
+            group[n++] = r;
+        }
+    }
+    *n_group = n;
+    (void)back;
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -3937,6 +3974,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
     int pulls[STAR_FRICTION_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
+    int backs[STAR_FRICTION_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[STAR_FRICTION_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
@@ -4220,6 +4258,10 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             if (ev[r] == 2 && s_ev[r] - s <= c->tol->simultaneous) {
                 group[n_group++] = r;
             }
+        }
+        star_friction_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (n_group == 0) {
+            continue;
         }
         for (r = 0; r < STAR_FRICTION_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= STAR_FRICTION_BOUNCE_CYCLES;
