@@ -1033,10 +1033,10 @@ static inline int impact_oscillator_held(const impact_oscillator_sustain_t *sus)
 #define IMPACT_OSCILLATOR_SLIDE_TOL 1e-14 /* held_roots.SLIDE_TOL: their impulses settled (relative to 1 + max |m|) */
 #define IMPACT_OSCILLATOR_DEP_EPS 1e-9 /* sustained.DEP_EPS: a row this close to the active rows' span is dependent */
 #define IMPACT_OSCILLATOR_STICK_CYCLES 2 /* held_roots.STICK_CYCLES: slides from rest in a step before it sticks on */
-#define IMPACT_OSCILLATOR_LEAVE_STEPS 2 /* held_roots.LEAVE_STEPS: steps after a release in which met_back holds a row */
+#define IMPACT_OSCILLATOR_LEAVE_STEPS 2 /* held_roots.LEAVE_STEPS: steps after a release: a crossing moving away no impact */
 #define IMPACT_OSCILLATOR_LIFT_CYCLES 2 /* held_roots.LIFT_CYCLES: pulls at an instant a row lifted off and was met at */
 #define IMPACT_OSCILLATOR_JAM_CYCLES 2 /* held_roots.JAM_CYCLES: landings in a step after a lift-off before a jam */
-#define IMPACT_OSCILLATOR_BACK_CYCLES 16 /* held_roots.BACK_CYCLES: crossings met moving away in a chain before held on */
+#define IMPACT_OSCILLATOR_BACK_CYCLES 16 /* held_roots.BACK_CYCLES: such crossings in a chain before one is an impact */
 #define IMPACT_OSCILLATOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define IMPACT_OSCILLATOR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define IMPACT_OSCILLATOR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
