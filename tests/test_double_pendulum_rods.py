@@ -19,11 +19,15 @@ held (the rods are), resolved by the impulse law (``SustainedSteps._chain_impact
   no impulse and no log (``SustainedSteps._met_back``): one lift-off, the hop's landing the next impact.
   Against scipy (the pendulum with its rods, DOP853 at 1e-12, the landing, the lift-off and the hop's landing
   located): the lift-off time and the hop's landing at second order.
+* **No jam without friction**: frictionless drops whose tip, released, sank and was met again at one instant
+  until held on (``lifts_kept``) counted a Painleve jam and warned of it, on the backend that cycled; a jam
+  needs sliding friction (``SustainedSteps._jam``).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from functools import cache
 
 import numpy as np
@@ -217,3 +221,28 @@ def test_a_lift_off_the_map_sinks_after_is_held_on_with_no_impact(backend):
     )
     step = int((res.liftoffs[0][0] - res.t[0]) // 0.005)
     assert res.sensitivity_breaks == [(step, "a lift-off met again moving away")]
+
+
+# frictionless drops (e = 0) whose tip cycled between lift-off and landing at one instant on one backend
+CYCLING = {
+    "C's": (
+        [-0.8751118755794097, -0.48392066004654904, -0.3235998659407694, 0.3502462916030283],
+        [-0.8663208048232616, 1.566636200838011, -2.532951774975987, 2.6685343207014993],
+    ),
+    "CasADi's": (
+        [-0.5677331285827147, -0.8232126667573105, -1.4193220425284543, -1.3474228551786307],
+        [-1.597710796549552, 1.10187000968836, -1.8488623447580006, 1.5098702334511325],
+    ),
+}
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("drop", CYCLING)
+def test_a_frictionless_cycle_at_one_instant_is_no_painleve_jam(backend, drop):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no warning of Painleve's inconsistency
+        res = simulator(backend).simulate(
+            q0=CYCLING[drop][0], v0=CYCLING[drop][1], h=0.005, t_end=5.0, params={"mu": 0.0}, progress=False
+        )
+    assert res.stats["jams"] == 0 and res.liftoffs
+    assert res.q[:, 3].min() - FLOOR >= -1e-12

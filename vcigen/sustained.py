@@ -569,7 +569,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._sw_check(events[r0][0], r0, before)
                 continue
             group = [r for r, (kind, sr) in events.items() if kind == "cross" and sr - s <= tol.simultaneous]
-            back = self._met_back(step, q, self._velocity(q, v, p), group, backs)
+            ahead = s * tau > 1e-13 * h  # met at the segment's start: no end there (an impact, below)
+            back = self._met_back(step, q, self._velocity(q, v, p), group, backs) if ahead else []
             if back:  # released lately, met again moving away: a segment's end, no impact
                 group = [r for r in group if r not in back]
                 if not group:
@@ -591,9 +592,13 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         lift-off the exact row rises as the cube of the time since, and the map, whose error is of that order,
         sank instead; the root located is where the row has not left yet, not an impact. The crossing is a
         segment's end with no impulse and no log (the next segment starts there, on the contact; counted in
-        ``backs``, the chain's; from the ``BACK_CYCLES``-th on, an impact as before). A double pendulum in its
-        bobs' coordinates whose tip lifted off a floor logged six impacts of impulse 0 and two more lift-offs
-        in the step of its lift-off (``tests/test_double_pendulum_rods.py``). The tangent stops there."""
+        ``backs``, the chain's; from the ``BACK_CYCLES``-th on, an impact as before). The caller does not ask
+        where the crossing is at the segment's start (within ``1e-13 h``): the next segment would start where
+        this one did and meet it there again (a tip 1e-11 m/s off its floor met 20 times at one point); the
+        map does not let the row leave from there, and the impact holds it, as before. A double pendulum in
+        its bobs' coordinates whose tip lifted off a floor logged six impacts of impulse 0 and two more
+        lift-offs in the step of its lift-off (``tests/test_double_pendulum_rods.py``). The tangent stops
+        there."""
         if not group:
             return []
         grad = self.k.rows(q, u)[1]
@@ -808,8 +813,18 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         free: Painleve's inconsistency under sliding friction, high ``mu``), or a held slipping contact past
         Painleve's boundary at a segment's end (:meth:`_painleve`): every held frictional contact
         sticks from here (the tangential impact of its theory, the sliding stopped at once by the stick rows'
-        impulse, not bounded by the cones), counted in ``jams``."""
+        impulse, not bounded by the cones), counted in ``jams``. Where no held contact has friction (``mu =
+        0`` on each) there is no Painleve inconsistency and no jam: nothing sticks, nothing is counted (a
+        double pendulum on a frictionless floor whose tip cycled at one instant counted two, and the run
+        warned of Painleve's inconsistency; stop 50)."""
         k = self.k
+        rough = [
+            f
+            for f, j in enumerate(k.frictional)
+            if self._mu_f[f] > 0.0 and any(self.act[r] and k.row_contact[r] == j for r in range(k.r))
+        ]
+        if not rough:
+            return
         self.jams += 1
         self._jammed = True
         for f, j in enumerate(k.frictional):

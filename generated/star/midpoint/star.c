@@ -3069,7 +3069,9 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
                 group[n_group++] = r;
             }
         }
-        star_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            star_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

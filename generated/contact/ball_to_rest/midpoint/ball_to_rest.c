@@ -2786,7 +2786,9 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
                 group[n_group++] = r;
             }
         }
-        ball_to_rest_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            ball_to_rest_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

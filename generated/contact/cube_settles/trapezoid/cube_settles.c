@@ -3577,7 +3577,9 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
                 group[n_group++] = r;
             }
         }
-        cube_settles_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            cube_settles_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

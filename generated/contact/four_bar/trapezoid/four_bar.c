@@ -3289,7 +3289,9 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                 group[n_group++] = r;
             }
         }
-        four_bar_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            four_bar_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

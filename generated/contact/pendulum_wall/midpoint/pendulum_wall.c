@@ -3017,7 +3017,9 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
                 group[n_group++] = r;
             }
         }
-        pendulum_wall_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            pendulum_wall_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

@@ -3200,10 +3200,20 @@ static void pyramid_stick(const pyramid_ctx_t *c, int f, const double *q, const 
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
  * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
  * every held frictional contact sticks from here (the tangential
- * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
+ * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. Where
+ * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void pyramid_jam(const pyramid_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, held;
+    int f, r, held, rough = 0;
+    for (f = 0; f < PYRAMID_NF; ++f) {
+        for (r = 0, held = 0; r < PYRAMID_R; ++r) {
+            held = held || (c->sus->act[r] && pyramid_row_contact[r] == pyramid_fric_contact[f]);
+        }
+        rough = rough || (held && c->mu_f[f] > 0.0);
+    }
+    if (!rough) {
+        return;
+    }
     ++c->sus->jams;
     c->sus->jammed = 1;
     for (f = 0; f < PYRAMID_NF; ++f) {
@@ -5155,7 +5165,9 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 group[n_group++] = r;
             }
         }
-        pyramid_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            pyramid_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

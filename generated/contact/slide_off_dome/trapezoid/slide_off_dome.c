@@ -2992,7 +2992,9 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
                 group[n_group++] = r;
             }
         }
-        slide_off_dome_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            slide_off_dome_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

@@ -3070,7 +3070,9 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
                 group[n_group++] = r;
             }
         }
-        star_settles_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            star_settles_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

@@ -2611,7 +2611,9 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
                 group[n_group++] = r;
             }
         }
-        impact_oscillator_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            impact_oscillator_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

@@ -2131,10 +2131,20 @@ static void rough_disk_stick(const rough_disk_ctx_t *c, int f, const double *q, 
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
  * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
  * every held frictional contact sticks from here (the tangential
- * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
+ * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. Where
+ * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void rough_disk_jam(const rough_disk_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, held;
+    int f, r, held, rough = 0;
+    for (f = 0; f < ROUGH_DISK_NF; ++f) {
+        for (r = 0, held = 0; r < ROUGH_DISK_R; ++r) {
+            held = held || (c->sus->act[r] && rough_disk_row_contact[r] == rough_disk_fric_contact[f]);
+        }
+        rough = rough || (held && c->mu_f[f] > 0.0);
+    }
+    if (!rough) {
+        return;
+    }
     ++c->sus->jams;
     c->sus->jammed = 1;
     for (f = 0; f < ROUGH_DISK_NF; ++f) {
@@ -4054,7 +4064,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 group[n_group++] = r;
             }
         }
-        rough_disk_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            rough_disk_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

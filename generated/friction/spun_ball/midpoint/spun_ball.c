@@ -2277,10 +2277,20 @@ static void spun_ball_stick(const spun_ball_ctx_t *c, int f, const double *q, co
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
  * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
  * every held frictional contact sticks from here (the tangential
- * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
+ * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. Where
+ * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void spun_ball_jam(const spun_ball_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, held;
+    int f, r, held, rough = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        for (r = 0, held = 0; r < SPUN_BALL_R; ++r) {
+            held = held || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
+        }
+        rough = rough || (held && c->mu_f[f] > 0.0);
+    }
+    if (!rough) {
+        return;
+    }
     ++c->sus->jams;
     c->sus->jammed = 1;
     for (f = 0; f < SPUN_BALL_NF; ++f) {
@@ -5696,7 +5706,9 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 group[n_group++] = r;
             }
         }
-        spun_ball_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            spun_ball_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

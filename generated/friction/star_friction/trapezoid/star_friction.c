@@ -2338,10 +2338,20 @@ static void star_friction_stick(const star_friction_ctx_t *c, int f, const doubl
 /* SustainedSteps._jam: a row released and landed again at one instant (its force below 0 held, sinking free:
  * Painleve's inconsistency under sliding friction), or a slipping contact past Painleve's boundary (painleve):
  * every held frictional contact sticks from here (the tangential
- * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. */
+ * impact of its theory, the sliding stopped by the stick rows' impulse, not bounded by the cones); counted. Where
+ * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void star_friction_jam(const star_friction_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, held;
+    int f, r, held, rough = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        for (r = 0, held = 0; r < STAR_FRICTION_R; ++r) {
+            held = held || (c->sus->act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
+        }
+        rough = rough || (held && c->mu_f[f] > 0.0);
+    }
+    if (!rough) {
+        return;
+    }
     ++c->sus->jams;
     c->sus->jammed = 1;
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
@@ -4261,7 +4271,9 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 group[n_group++] = r;
             }
         }
-        star_friction_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            star_friction_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

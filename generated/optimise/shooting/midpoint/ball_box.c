@@ -3001,7 +3001,9 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 group[n_group++] = r;
             }
         }
-        ball_box_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            ball_box_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }

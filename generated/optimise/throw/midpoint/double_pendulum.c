@@ -3146,7 +3146,9 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                 group[n_group++] = r;
             }
         }
-        double_pendulum_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        if (s * tau > 1e-13 * c->h) { /* met at the segment's start: no end there (an impact, below) */
+            double_pendulum_met_back(c, q, p, v, group, &n_group, backs); /* released lately, met again moving away */
+        }
         if (n_group == 0) {
             continue;
         }
