@@ -602,11 +602,13 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         if not group:
             return []
         grad = self.k.rows(q, u)[1]
-        recent = {r for r, k in self._left_step.items() if step - k <= LEAVE_STEPS}
         back = [
             r
             for r in group
-            if r in recent and not self.act[r] and float(grad[r] @ u) >= 0.0 and backs.get(r, 0) < BACK_CYCLES
+            if step - self._left_step.get(r, step - LEAVE_STEPS - 1) <= LEAVE_STEPS
+            and not self.act[r]
+            and float(grad[r] @ u) >= 0.0
+            and backs.get(r, 0) < BACK_CYCLES
         ]
         for r in back:
             backs[r] = backs.get(r, 0) + 1
@@ -817,19 +819,14 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         0`` on each) there is no Painleve inconsistency and no jam: nothing sticks, nothing is counted (a
         double pendulum on a frictionless floor whose tip cycled at one instant counted two, and the run
         warned of Painleve's inconsistency; stop 50)."""
-        k = self.k
-        rough = [
-            f
-            for f, j in enumerate(k.frictional)
-            if self._mu_f[f] > 0.0 and any(self.act[r] and k.row_contact[r] == j for r in range(k.r))
-        ]
+        held = held_contacts(self.k, self.act)
+        rough = [f for f, j in enumerate(self.k.frictional) if held[j] and self._mu_f[f] > 0.0]
         if not rough:
             return
         self.jams += 1
         self._jammed = True
-        for f, j in enumerate(k.frictional):
-            held = any(self.act[r] and k.row_contact[r] == j for r in range(k.r))
-            if held and self._mu_f[f] > 0.0 and not self.act[self._stick_rows[f]] and self._ride[f] < 0:
+        for f in rough:
+            if not self.act[self._stick_rows[f]] and self._ride[f] < 0:
                 self._stick(f, q, u)
         self._set_friction()
 

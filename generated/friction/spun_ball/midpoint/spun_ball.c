@@ -2281,23 +2281,21 @@ static void spun_ball_stick(const spun_ball_ctx_t *c, int f, const double *q, co
  * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void spun_ball_jam(const spun_ball_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, held, rough = 0;
+    int f, r, any = 0, rough[SPUN_BALL_NF_DIM]; /* held with mu > 0, before any sticks */
     for (f = 0; f < SPUN_BALL_NF; ++f) {
-        for (r = 0, held = 0; r < SPUN_BALL_R; ++r) {
-            held = held || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
+        for (r = 0, rough[f] = 0; r < SPUN_BALL_R; ++r) {
+            rough[f] = rough[f] || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
         }
-        rough = rough || (held && c->mu_f[f] > 0.0);
+        rough[f] = rough[f] && c->mu_f[f] > 0.0;
+        any = any || rough[f];
     }
-    if (!rough) {
+    if (!any) {
         return;
     }
     ++c->sus->jams;
     c->sus->jammed = 1;
     for (f = 0; f < SPUN_BALL_NF; ++f) {
-        for (r = 0, held = 0; r < SPUN_BALL_R; ++r) {
-            held = held || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
-        }
-        if (held && c->mu_f[f] > 0.0 && !c->sus->act[spun_ball_stick_row[f]] && c->sus->ride[f] < 0) {
+        if (rough[f] && !c->sus->act[spun_ball_stick_row[f]] && c->sus->ride[f] < 0) {
             spun_ball_stick(c, f, q, u);
         }
     }

@@ -2342,23 +2342,21 @@ static void star_friction_stick(const star_friction_ctx_t *c, int f, const doubl
  * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void star_friction_jam(const star_friction_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, held, rough = 0;
+    int f, r, any = 0, rough[STAR_FRICTION_NF_DIM]; /* held with mu > 0, before any sticks */
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
-        for (r = 0, held = 0; r < STAR_FRICTION_R; ++r) {
-            held = held || (c->sus->act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
+        for (r = 0, rough[f] = 0; r < STAR_FRICTION_R; ++r) {
+            rough[f] = rough[f] || (c->sus->act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
         }
-        rough = rough || (held && c->mu_f[f] > 0.0);
+        rough[f] = rough[f] && c->mu_f[f] > 0.0;
+        any = any || rough[f];
     }
-    if (!rough) {
+    if (!any) {
         return;
     }
     ++c->sus->jams;
     c->sus->jammed = 1;
     for (f = 0; f < STAR_FRICTION_NF; ++f) {
-        for (r = 0, held = 0; r < STAR_FRICTION_R; ++r) {
-            held = held || (c->sus->act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
-        }
-        if (held && c->mu_f[f] > 0.0 && !c->sus->act[star_friction_stick_row[f]] && c->sus->ride[f] < 0) {
+        if (rough[f] && !c->sus->act[star_friction_stick_row[f]] && c->sus->ride[f] < 0) {
             star_friction_stick(c, f, q, u);
         }
     }
