@@ -575,8 +575,10 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 group = [r for r in group if r not in back]
                 if not group:
                     continue
+            joined = self._joined(q, self._velocity(q, v, p), group, hit)  # touching, met at this instant
+            group += joined
             again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
-            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again)
+            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again, joined)
             guess = self._velocity(q, v, p)  # the next segment's Newton from the velocity after the impact
             hit |= set(group)
             for r in group:

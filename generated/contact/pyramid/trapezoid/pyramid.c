@@ -2084,7 +2084,7 @@ static int pyramid_slips(const pyramid_ctx_t *c)
     return slips;
 }
 
-#define PYRAMID_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
+#define PYRAMID_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 (joined: a normal one) */
 #define PYRAMID_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define PYRAMID_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 #define PYRAMID_LINE_WIDEN 60 /* cone_split.LINE_WIDEN: doublings of a line split's bracket */
@@ -4509,13 +4509,60 @@ static void pyramid_stopped_pressed(const pyramid_ctx_t *c, const double *q, con
     }
 }
 
+/* HeldImpacts._joined: rows that join an impact while held on group at (q, p) where a row of it was met at this
+ * instant already (hit): the other rows hit at this instant that touch (|psi| <= Tolerances.phi), at rest along
+ * their normal (|grad psi . u| <= SLIDE_EPS (1 + |u|)), not held; appended to group (n_group in/out) and flagged
+ * in joined. They take the impulse law with the group at a target of 0, held where they take an impulse, as the
+ * rows met again are (chain_impact's again): two contacts a chain touches at once at e = 0, met alone, stopped
+ * each other in turn, each impact leaving the other moving in. */
+static void pyramid_joined(const pyramid_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *hit, int *group, int *n_group, int *joined)
+{
+    double vel[PYRAMID_N], psi[PYRAMID_R_DIM], grad[PYRAMID_R_DIM * PYRAMID_N], curv[PYRAMID_R_DIM];
+    double rate, tiny;
+    int g, r, i, n = *n_group, any = 0, in_group;
+    for (r = 0; r < PYRAMID_R; ++r) {
+        joined[r] = 0;
+    }
+    for (g = 0; g < n; ++g) {
+        any = any || hit[group[g]];
+    }
+    if (!any) {
+        return;
+    }
+    pyramid_velocity(c, q, v, p, vel);
+    pyramid_rows(q, vel, c->par, psi, grad, curv);
+    tiny = PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel));
+    for (r = 0; r < PYRAMID_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        if (!hit[r] || in_group || c->sus->act[r] || pyramid_row_contact[r] < 0 || pyramid_row_stick[r] >= 0
+            || fabs(psi[r]) > c->tol->phi) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < PYRAMID_N; ++i) {
+            rate += grad[r * PYRAMID_N + i] * vel[i];
+        }
+        if (fabs(rate) <= tiny && *n_group < PYRAMID_R) { /* (not in group: there is room; for gcc) */
+            group[(*n_group)++] = r;
+            joined[r] = 1;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
- * once the impact has stopped it (stopped_pressed). */
+ * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
+ * that the law leaves with no impulse are not of the impact: not held, not logged. */
 static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
+    double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
+    const int *joined)
 {
+    int group[PYRAMID_R_DIM] = {0}, n_group = n_group_in; /* the impact's rows (joined ones with no impulse out) */
     double rest[PYRAMID_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
     double vel[PYRAMID_N], racc[PYRAMID_R_DIM], psi[PYRAMID_R_DIM];
     double grad[PYRAMID_R_DIM * PYRAMID_N];
@@ -4538,6 +4585,9 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     pyramid_held_accel(c, q, vel, none, none, racc);
     pyramid_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        group[g] = group_in[g];
+    }
     for (g = 0; g < n_group; ++g) {
         r = group[g];
         j = pyramid_row_contact[r];
@@ -4578,6 +4628,16 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
         if (pyramid_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;
+        }
+    }
+    if (joined) { /* touching rows the law did not push: not of the impact */
+        for (g = 0, n_group = 0; g < n_group_in; ++g) {
+            r = group_in[g];
+            if (!joined[r] || lam[r] > 0.0) {
+                group[n_group++] = r;
+            } else {
+                plastic[r] = 0;
+            }
         }
     }
     why = pyramid_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land) ? 1 : 2 * (reduced || c->sus->law_why);
@@ -4865,6 +4925,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int backs[PYRAMID_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[PYRAMID_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
+    int joined[PYRAMID_R_DIM]; /* the touching rows that join it (joined) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[PYRAMID_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -5169,10 +5230,11 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         if (n_group == 0) {
             continue;
         }
+        pyramid_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < PYRAMID_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= PYRAMID_BOUNCE_CYCLES;
         }
-        if (pyramid_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
+        if (pyramid_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
         pyramid_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
@@ -5664,7 +5726,7 @@ static int pyramid_impact_step(const pyramid_ctx_t *c, pyramid_seg_t *seg, int *
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (pyramid_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+            if (pyramid_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
             }
             pyramid_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */

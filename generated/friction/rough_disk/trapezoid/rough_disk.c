@@ -1315,7 +1315,7 @@ static int rough_disk_slips(const rough_disk_ctx_t *c)
     return slips;
 }
 
-#define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 */
+#define ROUGH_DISK_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 (joined: a normal one) */
 #define ROUGH_DISK_BRAKE 2.0 /* sustained.BRAKE: cones this slow (times tau and friction's rate) aimed implicitly */
 #define ROUGH_DISK_SPLIT_ITER 100 /* cone_split.SPLIT_ITER: bisection halvings of the split's bracket */
 #define ROUGH_DISK_LINE_WIDEN 60 /* cone_split.LINE_WIDEN: doublings of a line split's bracket */
@@ -3425,13 +3425,60 @@ static void rough_disk_stopped_pressed(const rough_disk_ctx_t *c, const double *
     }
 }
 
+/* HeldImpacts._joined: rows that join an impact while held on group at (q, p) where a row of it was met at this
+ * instant already (hit): the other rows hit at this instant that touch (|psi| <= Tolerances.phi), at rest along
+ * their normal (|grad psi . u| <= SLIDE_EPS (1 + |u|)), not held; appended to group (n_group in/out) and flagged
+ * in joined. They take the impulse law with the group at a target of 0, held where they take an impulse, as the
+ * rows met again are (chain_impact's again): two contacts a chain touches at once at e = 0, met alone, stopped
+ * each other in turn, each impact leaving the other moving in. */
+static void rough_disk_joined(const rough_disk_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *hit, int *group, int *n_group, int *joined)
+{
+    double vel[ROUGH_DISK_N], psi[ROUGH_DISK_R_DIM], grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv[ROUGH_DISK_R_DIM];
+    double rate, tiny;
+    int g, r, i, n = *n_group, any = 0, in_group;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        joined[r] = 0;
+    }
+    for (g = 0; g < n; ++g) {
+        any = any || hit[group[g]];
+    }
+    if (!any) {
+        return;
+    }
+    rough_disk_velocity(c, q, v, p, vel);
+    rough_disk_rows(q, vel, c->par, psi, grad, curv);
+    tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel));
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        if (!hit[r] || in_group || c->sus->act[r] || rough_disk_row_contact[r] < 0 || rough_disk_row_stick[r] >= 0
+            || fabs(psi[r]) > c->tol->phi) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < ROUGH_DISK_N; ++i) {
+            rate += grad[r * ROUGH_DISK_N + i] * vel[i];
+        }
+        if (fabs(rate) <= tiny && *n_group < ROUGH_DISK_R) { /* (not in group: there is room; for gcc) */
+            group[(*n_group)++] = r;
+            joined[r] = 1;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
- * once the impact has stopped it (stopped_pressed). */
+ * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
+ * that the law leaves with no impulse are not of the impact: not held, not logged. */
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
+    double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
+    const int *joined)
 {
+    int group[ROUGH_DISK_R_DIM] = {0}, n_group = n_group_in; /* the impact's rows (joined ones with no impulse out) */
     double rest[ROUGH_DISK_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
     double vel[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM], psi[ROUGH_DISK_R_DIM];
     double grad[ROUGH_DISK_R_DIM * ROUGH_DISK_N];
@@ -3454,6 +3501,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     rough_disk_held_accel(c, q, vel, none, none, racc);
     rough_disk_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        group[g] = group_in[g];
+    }
     for (g = 0; g < n_group; ++g) {
         r = group[g];
         j = rough_disk_row_contact[r];
@@ -3494,6 +3544,16 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         if (rough_disk_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;
+        }
+    }
+    if (joined) { /* touching rows the law did not push: not of the impact */
+        for (g = 0, n_group = 0; g < n_group_in; ++g) {
+            r = group_in[g];
+            if (!joined[r] || lam[r] > 0.0) {
+                group[n_group++] = r;
+            } else {
+                plastic[r] = 0;
+            }
         }
     }
     why = rough_disk_slip_at_impact(c, q, vel_p, slipped, slip_own, slip_ride, land) ? 1 : 2 * (reduced || c->sus->law_why);
@@ -3780,6 +3840,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int backs[ROUGH_DISK_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
+    int joined[ROUGH_DISK_R_DIM]; /* the touching rows that join it (joined) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -4068,10 +4129,11 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         if (n_group == 0) {
             continue;
         }
+        rough_disk_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < ROUGH_DISK_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= ROUGH_DISK_BOUNCE_CYCLES;
         }
-        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
+        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
         rough_disk_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
@@ -4563,7 +4625,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
             }
             rough_disk_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */

@@ -1447,6 +1447,7 @@ static int ball_box_slips(const ball_box_ctx_t *c)
     return 0;
 }
 
+#define BALL_BOX_SLIDE_EPS 1e-12 /* sustained.SLIDE_EPS: a sliding velocity below this is 0 (joined: a normal one) */
 
 /* SustainedSteps._dirs: the force direction of each row, grad psi_r plus slip_f grad tangent_f on the rows of
  * a slipping frictional contact f (the derived rattle's). */
@@ -2534,13 +2535,60 @@ static void ball_box_stopped_pressed(const ball_box_ctx_t *c, const double *q, c
     }
 }
 
+/* HeldImpacts._joined: rows that join an impact while held on group at (q, p) where a row of it was met at this
+ * instant already (hit): the other rows hit at this instant that touch (|psi| <= Tolerances.phi), at rest along
+ * their normal (|grad psi . u| <= SLIDE_EPS (1 + |u|)), not held; appended to group (n_group in/out) and flagged
+ * in joined. They take the impulse law with the group at a target of 0, held where they take an impulse, as the
+ * rows met again are (chain_impact's again): two contacts a chain touches at once at e = 0, met alone, stopped
+ * each other in turn, each impact leaving the other moving in. */
+static void ball_box_joined(const ball_box_ctx_t *c, const double *q, const double *p, const double *v,
+    const int *hit, int *group, int *n_group, int *joined)
+{
+    double vel[BALL_BOX_N], psi[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
+    double rate, tiny;
+    int g, r, i, n = *n_group, any = 0, in_group;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        joined[r] = 0;
+    }
+    for (g = 0; g < n; ++g) {
+        any = any || hit[group[g]];
+    }
+    if (!any) {
+        return;
+    }
+    ball_box_velocity(c, q, v, p, vel);
+    ball_box_rows(q, vel, c->par, psi, grad, curv);
+    tiny = BALL_BOX_SLIDE_EPS * (1.0 + ball_box_norm_inf(BALL_BOX_N, vel));
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        if (!hit[r] || in_group || c->sus->act[r] || ball_box_row_contact[r] < 0 || ball_box_row_stick[r] >= 0
+            || fabs(psi[r]) > c->tol->phi) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < BALL_BOX_N; ++i) {
+            rate += grad[r * BALL_BOX_N + i] * vel[i];
+        }
+        if (fabs(rate) <= tiny && *n_group < BALL_BOX_R) { /* (not in group: there is room; for gcc) */
+            group[(*n_group)++] = r;
+            joined[r] = 1;
+        }
+    }
+}
+
 /* SustainedSteps._chain_impact: an impact on rows group during sustained contact; p becomes the momentum
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
- * once the impact has stopped it (stopped_pressed). */
+ * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
+ * that the law leaves with no impulse are not of the impact: not held, not logged. */
 static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, double *p, const double *v,
-    double t, const int *group, int n_group, double e_before, double *rec, long *n_rec, const int *again)
+    double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
+    const int *joined)
 {
+    int group[BALL_BOX_R_DIM] = {0}, n_group = n_group_in; /* the impact's rows (joined ones with no impulse out) */
     double rest[BALL_BOX_M_DIM] = {0.0}; /* set: a model of constraints alone has none to read (gcc warned) */
     double vel[BALL_BOX_N], racc[BALL_BOX_R_DIM], psi[BALL_BOX_R_DIM];
     double grad[BALL_BOX_R_DIM * BALL_BOX_N];
@@ -2561,6 +2609,9 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     ball_box_held_accel(c, q, vel, none, none, racc);
     ball_box_rows(q, vel, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        group[g] = group_in[g];
+    }
     for (g = 0; g < n_group; ++g) {
         r = group[g];
         j = ball_box_row_contact[r];
@@ -2587,6 +2638,16 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     if (ball_box_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
         slip_ride, land)) {
         return 1;
+    }
+    if (joined) { /* touching rows the law did not push: not of the impact */
+        for (g = 0, n_group = 0; g < n_group_in; ++g) {
+            r = group_in[g];
+            if (!joined[r] || lam[r] > 0.0) {
+                group[n_group++] = r;
+            } else {
+                plastic[r] = 0;
+            }
+        }
     }
     (void)slipped;
     (void)slip_own;
@@ -2848,6 +2909,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     int backs[BALL_BOX_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[BALL_BOX_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
+    int joined[BALL_BOX_R_DIM]; /* the touching rows that join it (joined) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         ball_box_at(c, t);
@@ -3010,10 +3072,11 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         if (n_group == 0) {
             continue;
         }
+        ball_box_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < BALL_BOX_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= BALL_BOX_BOUNCE_CYCLES;
         }
-        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again)) {
+        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
         ball_box_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
@@ -3991,7 +4054,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL)) {
+            if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
             }
             ball_box_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
