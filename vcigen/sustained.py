@@ -400,6 +400,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         slid: dict[int, int] = {}  # stick rows that slid from rest in this step, how often
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
         backs: dict[int, int] = {}  # rows met again moving away after their release (_met_back): how often
+        struck = False  # an impact at this segment's start: the held rows' forces are read there too
         bounces = self._bounces  # impacts of each row in this step's chains (BOUNCE_CYCLES: then held)
         self._stuck_on.clear()
         self._jammed = False
@@ -458,6 +459,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
             f1p = self._pressed(f1, end.grad)
             pulled = unilateral & (f1p < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1p)))))
+            if struck:  # pulled at the impact's instant, pushed again by the segment's end: it leaves there
+                pulled |= unilateral & self._pulled_at_start(q, self._velocity(q, v, p))
             pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
             if pulled.any():
                 u0 = self._velocity(q, v, p)
@@ -505,6 +508,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self._sw_check(events[r][0], r, before)
                     turn = r if kind == "slide" else -1
                 continue
+            struck = False
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
             dips = self._row_dips(step, t_k, q, p, tau, v, u1, end, cross)
@@ -579,6 +583,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             group += joined
             again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again, joined)
+            struck = True
             guess = self._velocity(q, v, p)  # the next segment's Newton from the velocity after the impact
             hit |= set(group)
             for r in group:
@@ -587,6 +592,18 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 relands[r] += 1
                 if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:
                     self._jam(q, self._velocity(q, v, p))
+
+    def _pulled_at_start(self, q, u) -> np.ndarray:
+        """The rows whose force at ``(q, u)`` (:meth:`_contact_forces`, :meth:`_pressed` where a stick rides)
+        pulls, below ``-EPS_LIFT`` scale: read at a segment's start after an impact while held. A row the
+        incoming velocity pressed in is held by the impact and may be pulled once stopped: it lifts off at the
+        impact's instant (MATH.md *Entry*, as free flight's plastic entry reads it). The end's force alone,
+        pushing again 0.98 h later, held a chain's tip with a mean force of -4.36 over the step (a force of
+        -9.28 at its start; at h / 2 and below, the same landing lifted off at once)."""
+        f0 = self._contact_forces(q, u)
+        if self._owners():  # as at the end (_pressed): the rows only where a stick rides
+            f0 = self._pressed(f0, self.k.rows(q, u)[1])
+        return f0 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f0))))
 
     def _met_back(self, step: int, q, u, group, backs) -> list[int]:
         """Rows of the crossing ``group`` at ``(q, u)`` released in this grid step or the ``LEAVE_STEPS``

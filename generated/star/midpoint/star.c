@@ -2953,6 +2953,22 @@ static void star_met_back(const star_ctx_t *c, const double *q, const double *p,
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void star_pulled_at_start(const star_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[STAR_N], f0[STAR_R_DIM], f_eps;
+    int r;
+    star_velocity(c, q, v, p, vel);
+    star_contact_forces(c, q, vel, f0);
+    f_eps = STAR_EPS_LIFT * (1.0 + star_norm_inf(STAR_R, f0));
+    for (r = 0; r < STAR_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int star_chain(const star_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -2975,6 +2991,8 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[STAR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[STAR_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[STAR_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         star_at(c, t);
@@ -3004,8 +3022,12 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         f_eps = STAR_EPS_LIFT * (1.0 + star_norm_inf(STAR_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            star_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < STAR_R; ++r) {
-            ev[r] = c->sus->act[r] && !star_row_free[r] && pulls[r] < STAR_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_row_free[r] && pulls[r] < STAR_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3034,6 +3056,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
             passed[start] = 1;
             continue;
         }
+        struck = 0;
         star_rows(q1, vv, c->par, psi1, grad, curv);
         if (star_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -3144,6 +3167,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (star_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         star_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < STAR_N; ++i) {
             v[i] = vel[i];

@@ -3461,6 +3461,22 @@ static void cube_settles_met_back(const cube_settles_ctx_t *c, const double *q, 
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void cube_settles_pulled_at_start(const cube_settles_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[CUBE_SETTLES_N], f0[CUBE_SETTLES_R_DIM], f_eps;
+    int r;
+    cube_settles_velocity(c, q, v, p, vel);
+    cube_settles_contact_forces(c, q, vel, f0);
+    f_eps = CUBE_SETTLES_EPS_LIFT * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_R, f0));
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -3483,6 +3499,8 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[CUBE_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[CUBE_SETTLES_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[CUBE_SETTLES_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         cube_settles_at(c, t);
@@ -3512,8 +3530,12 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         f_eps = CUBE_SETTLES_EPS_LIFT * (1.0 + cube_settles_norm_inf(CUBE_SETTLES_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            cube_settles_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < CUBE_SETTLES_R; ++r) {
-            ev[r] = c->sus->act[r] && !cube_settles_row_free[r] && pulls[r] < CUBE_SETTLES_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !cube_settles_row_free[r] && pulls[r] < CUBE_SETTLES_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3542,6 +3564,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             passed[start] = 1;
             continue;
         }
+        struck = 0;
         cube_settles_rows(q1, vv, c->par, psi1, grad, curv);
         if (cube_settles_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -3652,6 +3675,7 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         if (cube_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         cube_settles_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             v[i] = vel[i];

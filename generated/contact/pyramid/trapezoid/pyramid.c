@@ -4903,6 +4903,31 @@ static void pyramid_met_back(const pyramid_ctx_t *c, const double *q, const doub
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void pyramid_pulled_at_start(const pyramid_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[PYRAMID_N], f0[PYRAMID_R_DIM], f_eps;
+    int r;
+    pyramid_velocity(c, q, v, p, vel);
+    pyramid_contact_forces(c, q, vel, f0);
+    if (pyramid_riders(c)) { /* as at the end (pressed) */
+        double fh[PYRAMID_R_DIM], psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N];
+        double curvp[PYRAMID_R_DIM];
+        pyramid_rows(q, vel, c->par, psip, gradp, curvp);
+        pyramid_pressed(c, f0, gradp, fh);
+        for (r = 0; r < PYRAMID_R; ++r) {
+            f0[r] = fh[r];
+        }
+    }
+    f_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, f0));
+    for (r = 0; r < PYRAMID_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -4926,6 +4951,8 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[PYRAMID_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[PYRAMID_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[PYRAMID_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[PYRAMID_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -4985,8 +5012,12 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         f_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            pyramid_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < PYRAMID_R; ++r) {
-            ev[r] = c->sus->act[r] && !pyramid_row_free[r] && pulls[r] < PYRAMID_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !pyramid_row_free[r] && pulls[r] < PYRAMID_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -5118,6 +5149,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
+        struck = 0;
         pyramid_rows(q1, vv, c->par, psi1, grad, curv);
         if (pyramid_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -5237,6 +5269,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         if (pyramid_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         pyramid_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < PYRAMID_N; ++i) {
             v[i] = vel[i];

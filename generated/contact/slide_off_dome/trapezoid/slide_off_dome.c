@@ -2876,6 +2876,22 @@ static void slide_off_dome_met_back(const slide_off_dome_ctx_t *c, const double 
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void slide_off_dome_pulled_at_start(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM], f_eps;
+    int r;
+    slide_off_dome_velocity(c, q, v, p, vel);
+    slide_off_dome_contact_forces(c, q, vel, f0);
+    f_eps = SLIDE_OFF_DOME_EPS_LIFT * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, f0));
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -2898,6 +2914,8 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[SLIDE_OFF_DOME_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[SLIDE_OFF_DOME_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[SLIDE_OFF_DOME_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         slide_off_dome_at(c, t);
@@ -2927,8 +2945,12 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         f_eps = SLIDE_OFF_DOME_EPS_LIFT * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            slide_off_dome_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            ev[r] = c->sus->act[r] && !slide_off_dome_row_free[r] && pulls[r] < SLIDE_OFF_DOME_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !slide_off_dome_row_free[r] && pulls[r] < SLIDE_OFF_DOME_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2957,6 +2979,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
             passed[start] = 1;
             continue;
         }
+        struck = 0;
         slide_off_dome_rows(q1, vv, c->par, psi1, grad, curv);
         if (slide_off_dome_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -3067,6 +3090,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         slide_off_dome_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             v[i] = vel[i];

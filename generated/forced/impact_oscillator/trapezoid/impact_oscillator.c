@@ -2501,6 +2501,22 @@ static void impact_oscillator_met_back(const impact_oscillator_ctx_t *c, const d
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void impact_oscillator_pulled_at_start(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM], f_eps;
+    int r;
+    impact_oscillator_velocity(c, q, v, p, vel);
+    impact_oscillator_contact_forces(c, q, vel, f0);
+    f_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, f0));
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -2523,6 +2539,8 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[IMPACT_OSCILLATOR_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[IMPACT_OSCILLATOR_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         impact_oscillator_at(c, t);
@@ -2552,8 +2570,12 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         f_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            impact_oscillator_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-            ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && pulls[r] < IMPACT_OSCILLATOR_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && pulls[r] < IMPACT_OSCILLATOR_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -2582,6 +2604,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             passed[start] = 1;
             continue;
         }
+        struck = 0;
         impact_oscillator_rows(q1, vv, c->par, psi1, grad, curv);
         if (impact_oscillator_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -2693,6 +2716,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         if (impact_oscillator_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         impact_oscillator_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             v[i] = vel[i];

@@ -3739,6 +3739,22 @@ static void block_met_back(const block_ctx_t *c, const double *q, const double *
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void block_pulled_at_start(const block_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[BLOCK_N], f0[BLOCK_R_DIM], f_eps;
+    int r;
+    block_velocity(c, q, v, p, vel);
+    block_contact_forces(c, q, vel, f0);
+    f_eps = BLOCK_EPS_LIFT * (1.0 + block_norm_inf(BLOCK_R, f0));
+    for (r = 0; r < BLOCK_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int block_chain(const block_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -3761,6 +3777,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[BLOCK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[BLOCK_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[BLOCK_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[BLOCK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -3813,8 +3831,12 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         f_eps = BLOCK_EPS_LIFT * (1.0 + block_norm_inf(BLOCK_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            block_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < BLOCK_R; ++r) {
-            ev[r] = c->sus->act[r] && !block_row_free[r] && pulls[r] < BLOCK_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !block_row_free[r] && pulls[r] < BLOCK_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3937,6 +3959,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
+        struck = 0;
         block_rows(q1, vv, c->par, psi1, grad, curv);
         if (block_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -4056,6 +4079,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         block_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < BLOCK_N; ++i) {
             v[i] = vel[i];

@@ -3819,6 +3819,22 @@ static void rough_disk_met_back(const rough_disk_ctx_t *c, const double *q, cons
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void rough_disk_pulled_at_start(const rough_disk_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[ROUGH_DISK_N], f0[ROUGH_DISK_R_DIM], f_eps;
+    int r;
+    rough_disk_velocity(c, q, v, p, vel);
+    rough_disk_contact_forces(c, q, vel, f0);
+    f_eps = ROUGH_DISK_EPS_LIFT * (1.0 + rough_disk_norm_inf(ROUGH_DISK_R, f0));
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -3841,6 +3857,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[ROUGH_DISK_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[ROUGH_DISK_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[ROUGH_DISK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -3893,8 +3911,12 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         f_eps = ROUGH_DISK_EPS_LIFT * (1.0 + rough_disk_norm_inf(ROUGH_DISK_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            rough_disk_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < ROUGH_DISK_R; ++r) {
-            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && pulls[r] < ROUGH_DISK_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !rough_disk_row_free[r] && pulls[r] < ROUGH_DISK_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -4017,6 +4039,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
+        struck = 0;
         rough_disk_rows(q1, vv, c->par, psi1, grad, curv);
         if (rough_disk_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -4136,6 +4159,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         rough_disk_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             v[i] = vel[i];

@@ -5453,6 +5453,22 @@ static void spun_ball_met_back(const spun_ball_ctx_t *c, const double *q, const 
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void spun_ball_pulled_at_start(const spun_ball_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[SPUN_BALL_N], f0[SPUN_BALL_R_DIM], f_eps;
+    int r;
+    spun_ball_velocity(c, q, v, p, vel);
+    spun_ball_contact_forces(c, q, vel, f0);
+    f_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, f0));
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -5475,6 +5491,8 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[SPUN_BALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[SPUN_BALL_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[SPUN_BALL_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[SPUN_BALL_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -5527,8 +5545,12 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         f_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            spun_ball_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < SPUN_BALL_R; ++r) {
-            ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && pulls[r] < SPUN_BALL_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && pulls[r] < SPUN_BALL_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -5659,6 +5681,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
+        struck = 0;
         spun_ball_rows(q1, vv, c->par, psi1, grad, curv);
         if (spun_ball_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -5778,6 +5801,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         spun_ball_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < SPUN_BALL_N; ++i) {
             v[i] = vel[i];

@@ -4026,6 +4026,22 @@ static void star_friction_met_back(const star_friction_ctx_t *c, const double *q
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void star_friction_pulled_at_start(const star_friction_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM], f_eps;
+    int r;
+    star_friction_velocity(c, q, v, p, vel);
+    star_friction_contact_forces(c, q, vel, f0);
+    f_eps = STAR_FRICTION_EPS_LIFT * (1.0 + star_friction_norm_inf(STAR_FRICTION_R, f0));
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -4048,6 +4064,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[STAR_FRICTION_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[STAR_FRICTION_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[STAR_FRICTION_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[STAR_FRICTION_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -4100,8 +4118,12 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         f_eps = STAR_FRICTION_EPS_LIFT * (1.0 + star_friction_norm_inf(STAR_FRICTION_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            star_friction_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < STAR_FRICTION_R; ++r) {
-            ev[r] = c->sus->act[r] && !star_friction_row_free[r] && pulls[r] < STAR_FRICTION_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !star_friction_row_free[r] && pulls[r] < STAR_FRICTION_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -4224,6 +4246,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
         }
+        struck = 0;
         star_friction_rows(q1, vv, c->par, psi1, grad, curv);
         if (star_friction_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -4343,6 +4366,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         star_friction_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             v[i] = vel[i];

@@ -3087,6 +3087,22 @@ static void double_pendulum_met_back(const double_pendulum_ctx_t *c, const doubl
     (void)back;
 }
 
+/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
+ * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
+ * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
+static void double_pendulum_pulled_at_start(const double_pendulum_ctx_t *c, const double *q, const double *p, const double *v,
+    int *out)
+{
+    double vel[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM], f_eps;
+    int r;
+    double_pendulum_velocity(c, q, v, p, vel);
+    double_pendulum_contact_forces(c, q, vel, f0);
+    f_eps = DOUBLE_PENDULUM_EPS_LIFT * (1.0 + double_pendulum_norm_inf(DOUBLE_PENDULUM_R, f0));
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        out[r] = f0[r] < -f_eps;
+    }
+}
+
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
  * constrained segments cut at lift-offs and at impacts of inactive rows. q, p, v in/out. */
 static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -3109,6 +3125,8 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
     int again[DOUBLE_PENDULUM_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[DOUBLE_PENDULUM_R_DIM]; /* the touching rows that join it (joined) */
+    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int at_start[DOUBLE_PENDULUM_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         double_pendulum_at(c, t);
@@ -3138,8 +3156,12 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         f_eps = DOUBLE_PENDULUM_EPS_LIFT * (1.0 + double_pendulum_norm_inf(DOUBLE_PENDULUM_R, fp));
         start = -1;
         pulled = 0;
+        if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
+            double_pendulum_pulled_at_start(c, q, p, vv, at_start);
+        }
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-            ev[r] = c->sus->act[r] && !double_pendulum_row_free[r] && pulls[r] < DOUBLE_PENDULUM_LIFT_CYCLES && fp[r] < -f_eps;
+            ev[r] = c->sus->act[r] && !double_pendulum_row_free[r] && pulls[r] < DOUBLE_PENDULUM_LIFT_CYCLES
+                && (fp[r] < -f_eps || (struck && at_start[r]));
             pulled = pulled || ev[r];
         }
         if (pulled) {
@@ -3168,6 +3190,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             passed[start] = 1;
             continue;
         }
+        struck = 0;
         double_pendulum_rows(q1, vv, c->par, psi1, grad, curv);
         if (double_pendulum_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
             return 1;
@@ -3278,6 +3301,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        struck = 1;
         double_pendulum_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             v[i] = vel[i];
