@@ -369,7 +369,7 @@ class ImpactSteps:
         phase = "contact time" if first else "jump to contact"
         self._at(seg.t)
         lo, phi_lo = 0.0, k.contacts(seg.q)[0][j]
-        if first and phi_lo < 0.0:  # it starts below the contact (within Tolerances.admissible): hit at once
+        if first and phi_lo < -self.tol.phi:  # it starts below the contact (within admissible): hit at once
             return np.append(self._velocity(seg.q, seg.x[: k.n], seg.p_in), 0.0), 0.0
         if first and phi_lo <= self.tol.phi:  # touching at the start, not held (a rough one moving out): step
             lo, phi_lo = self._leave(seg, j)  # off the trivial root at s = 0 to the landing, if it leaves

@@ -1082,7 +1082,7 @@ static int ball_to_rest_contact_root(const ball_to_rest_ctx_t *c, const ball_to_
     ball_to_rest_at(c, seg->t);
     ball_to_rest_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         ball_to_rest_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

@@ -1585,7 +1585,7 @@ static int four_bar_contact_root(const four_bar_ctx_t *c, const four_bar_seg_t *
     four_bar_at(c, seg->t);
     four_bar_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         four_bar_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

@@ -1313,7 +1313,7 @@ static int pendulum_wall_contact_root(const pendulum_wall_ctx_t *c, const pendul
     pendulum_wall_at(c, seg->t);
     pendulum_wall_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         pendulum_wall_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

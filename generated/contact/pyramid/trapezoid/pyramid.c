@@ -1934,7 +1934,7 @@ static int pyramid_contact_root(const pyramid_ctx_t *c, const pyramid_seg_t *seg
     pyramid_at(c, seg->t);
     pyramid_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         pyramid_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

@@ -1288,7 +1288,7 @@ static int slide_off_dome_contact_root(const slide_off_dome_ctx_t *c, const slid
     slide_off_dome_at(c, seg->t);
     slide_off_dome_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         slide_off_dome_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

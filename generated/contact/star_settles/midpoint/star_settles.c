@@ -1366,7 +1366,7 @@ static int star_settles_contact_root(const star_settles_ctx_t *c, const star_set
     star_settles_at(c, seg->t);
     star_settles_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         star_settles_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

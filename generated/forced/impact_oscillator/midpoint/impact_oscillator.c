@@ -908,7 +908,7 @@ static int impact_oscillator_contact_root(const impact_oscillator_ctx_t *c, cons
     impact_oscillator_at(c, seg->t);
     impact_oscillator_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         impact_oscillator_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

@@ -1165,7 +1165,7 @@ static int rough_disk_contact_root(const rough_disk_ctx_t *c, const rough_disk_s
     rough_disk_at(c, seg->t);
     rough_disk_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         rough_disk_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;

@@ -1252,7 +1252,7 @@ static int spun_ball_contact_root(const spun_ball_ctx_t *c, const spun_ball_seg_
     spun_ball_at(c, seg->t);
     spun_ball_phi(seg->q, c->par, phi);
     phi_lo = phi[j];
-    if (first && phi_lo < 0.0) { /* it starts below the contact (within Tolerances.admissible): hit at once */
+    if (first && phi_lo < -c->tol->phi) { /* it starts below the contact (within Tolerances.admissible): hit at once */
         spun_ball_velocity_par(c->par, seg->q, seg->x, seg->p_in, x); /* Stepper._velocity */
         x[nx - 1] = 0.0;
         *s_out = 0.0;
