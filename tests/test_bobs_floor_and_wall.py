@@ -19,7 +19,7 @@ A second start (drop 2476 of the same campaign, at t = 0.5): the tip lands on th
 incoming velocity; once stopped, the rods pull it up (its held force -9.28). The impact is plastic and the tip
 lifts off at its instant (MATH.md *Entry*); read at the end of the rest of the step alone (0.98 h later),
 where its force pushes again, the tip was held through the step at a mean force of -4.36
-(``SustainedSteps._pulled_at_start``: after an impact while held, the held rows' forces are read at the
+(``SustainedSteps._start_forces``: after an impact while held, the held rows' forces are read at the
 segment's start too).
 """
 

@@ -459,14 +459,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
             f1p = self._pressed(f1, end.grad)
             pulled = unilateral & (f1p < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1p)))))
-            if struck:  # pulled at the impact's instant, pushed again by the segment's end: it leaves there
-                pulled |= unilateral & self._pulled_at_start(q, self._velocity(q, v, p))
+            f0 = self._start_forces(q, self._velocity(q, v, p)) if struck else None
+            if f0 is not None:  # pulled at the impact's instant, pushed again by the segment's end: it leaves
+                pulled |= unilateral & (f0 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f0)))))
             pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
             if pulled.any():
-                u0 = self._velocity(q, v, p)
-                f0 = self._contact_forces(q, u0)
-                if self._owners():  # as at the end (_pressed): the rows only where a stick rides
-                    f0 = self._pressed(f0, k.rows(q, u0)[1])
+                f0 = self._start_forces(q, self._velocity(q, v, p)) if f0 is None else f0
                 for r in np.flatnonzero(pulled):
                     events[int(r)] = (
                         "lift",
@@ -593,17 +591,18 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:
                     self._jam(q, self._velocity(q, v, p))
 
-    def _pulled_at_start(self, q, u) -> np.ndarray:
-        """The rows whose force at ``(q, u)`` (:meth:`_contact_forces`, :meth:`_pressed` where a stick rides)
-        pulls, below ``-EPS_LIFT`` scale: read at a segment's start after an impact while held. A row the
-        incoming velocity pressed in is held by the impact and may be pulled once stopped: it lifts off at the
-        impact's instant (MATH.md *Entry*, as free flight's plastic entry reads it). The end's force alone,
-        pushing again 0.98 h later, held a chain's tip with a mean force of -4.36 over the step (a force of
-        -9.28 at its start; at h / 2 and below, the same landing lifted off at once)."""
+    def _start_forces(self, q, u) -> np.ndarray:
+        """The held rows' forces at a segment's start ``(q, u)``, read as at its end: :meth:`_contact_forces`,
+        their best split (:meth:`_pressed`) where a stick row rides. The lift-off's search starts there
+        (:meth:`_liftoff_fraction`); after an impact while held (``struck`` in :meth:`_chain`) a row pulled
+        there lifts off there: one the incoming velocity pressed in, held by the impact, may be pulled once
+        stopped (MATH.md *Entry*, as free flight's plastic entry reads it). The end's force alone, pushing
+        again 0.98 h later, held a chain's tip with a mean force of -4.36 over the step (-9.28 at its start;
+        at h / 2 and below, the same landing lifted off at once)."""
         f0 = self._contact_forces(q, u)
         if self._owners():  # as at the end (_pressed): the rows only where a stick rides
             f0 = self._pressed(f0, self.k.rows(q, u)[1])
-        return f0 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f0))))
+        return f0
 
     def _met_back(self, step: int, q, u, group, backs) -> list[int]:
         """Rows of the crossing ``group`` at ``(q, u)`` released in this grid step or the ``LEAVE_STEPS``

@@ -2906,20 +2906,16 @@ static void pendulum_wall_met_back(const pendulum_wall_ctx_t *c, const double *q
     (void)back;
 }
 
-/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
- * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
- * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
-static void pendulum_wall_pulled_at_start(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *v,
-    int *out)
+/* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
+ * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
+ * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
+ * incoming velocity pressed in, held by the impact, pulled once stopped). */
+static void pendulum_wall_start_forces(const pendulum_wall_ctx_t *c, const double *q, const double *p, const double *v,
+    double *f0)
 {
-    double vel[PENDULUM_WALL_N], f0[PENDULUM_WALL_R_DIM], f_eps;
-    int r;
+    double vel[PENDULUM_WALL_N];
     pendulum_wall_velocity(c, q, v, p, vel);
     pendulum_wall_contact_forces(c, q, vel, f0);
-    f_eps = PENDULUM_WALL_EPS_LIFT * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_R, f0));
-    for (r = 0; r < PENDULUM_WALL_R; ++r) {
-        out[r] = f0[r] < -f_eps;
-    }
 }
 
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
@@ -2945,7 +2941,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int again[PENDULUM_WALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[PENDULUM_WALL_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
-    int at_start[PENDULUM_WALL_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
+    double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         pendulum_wall_at(c, t);
@@ -2976,16 +2972,18 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         start = -1;
         pulled = 0;
         if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
-            pendulum_wall_pulled_at_start(c, q, p, vv, at_start);
+            pendulum_wall_start_forces(c, q, p, vv, f0);
+            f0_eps = PENDULUM_WALL_EPS_LIFT * (1.0 + pendulum_wall_norm_inf(PENDULUM_WALL_R, f0));
         }
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
             ev[r] = c->sus->act[r] && !pendulum_wall_row_free[r] && pulls[r] < PENDULUM_WALL_LIFT_CYCLES
-                && (fp[r] < -f_eps || (struck && at_start[r]));
+                && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
         if (pulled) {
-            pendulum_wall_velocity(c, q, vv, p, vel);
-            pendulum_wall_contact_forces(c, q, vel, f0);
+            if (!struck) {
+                pendulum_wall_start_forces(c, q, p, vv, f0);
+            }
             for (r = 0; r < PENDULUM_WALL_R; ++r) {
                 if (ev[r]) {
                     if (pendulum_wall_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {

@@ -4903,28 +4903,25 @@ static void pyramid_met_back(const pyramid_ctx_t *c, const double *q, const doub
     (void)back;
 }
 
-/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
- * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
- * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
-static void pyramid_pulled_at_start(const pyramid_ctx_t *c, const double *q, const double *p, const double *v,
-    int *out)
+/* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
+ * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
+ * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
+ * incoming velocity pressed in, held by the impact, pulled once stopped). */
+static void pyramid_start_forces(const pyramid_ctx_t *c, const double *q, const double *p, const double *v,
+    double *f0)
 {
-    double vel[PYRAMID_N], f0[PYRAMID_R_DIM], f_eps;
-    int r;
+    double vel[PYRAMID_N];
     pyramid_velocity(c, q, v, p, vel);
     pyramid_contact_forces(c, q, vel, f0);
     if (pyramid_riders(c)) { /* as at the end (pressed) */
         double fh[PYRAMID_R_DIM], psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N];
         double curvp[PYRAMID_R_DIM];
+        int r;
         pyramid_rows(q, vel, c->par, psip, gradp, curvp);
         pyramid_pressed(c, f0, gradp, fh);
         for (r = 0; r < PYRAMID_R; ++r) {
             f0[r] = fh[r];
         }
-    }
-    f_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, f0));
-    for (r = 0; r < PYRAMID_R; ++r) {
-        out[r] = f0[r] < -f_eps;
     }
 }
 
@@ -4952,7 +4949,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int again[PYRAMID_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[PYRAMID_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
-    int at_start[PYRAMID_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
+    double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[PYRAMID_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -5013,24 +5010,17 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         start = -1;
         pulled = 0;
         if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
-            pyramid_pulled_at_start(c, q, p, vv, at_start);
+            pyramid_start_forces(c, q, p, vv, f0);
+            f0_eps = PYRAMID_EPS_LIFT * (1.0 + pyramid_norm_inf(PYRAMID_R, f0));
         }
         for (r = 0; r < PYRAMID_R; ++r) {
             ev[r] = c->sus->act[r] && !pyramid_row_free[r] && pulls[r] < PYRAMID_LIFT_CYCLES
-                && (fp[r] < -f_eps || (struck && at_start[r]));
+                && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
         if (pulled) {
-            pyramid_velocity(c, q, vv, p, vel);
-            pyramid_contact_forces(c, q, vel, f0);
-            if (pyramid_riders(c)) { /* pressed, as at the end */
-                double fh[PYRAMID_R_DIM], psip[PYRAMID_R_DIM], gradp[PYRAMID_R_DIM * PYRAMID_N];
-                double curvp[PYRAMID_R_DIM];
-                pyramid_rows(q, vel, c->par, psip, gradp, curvp);
-                pyramid_pressed(c, f0, gradp, fh);
-                for (r = 0; r < PYRAMID_R; ++r) {
-                    f0[r] = fh[r];
-                }
+            if (!struck) {
+                pyramid_start_forces(c, q, p, vv, f0);
             }
             for (r = 0; r < PYRAMID_R; ++r) {
                 if (ev[r]) {

@@ -2871,20 +2871,16 @@ static void slide_off_dome_met_back(const slide_off_dome_ctx_t *c, const double 
     (void)back;
 }
 
-/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
- * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
- * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
-static void slide_off_dome_pulled_at_start(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *v,
-    int *out)
+/* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
+ * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
+ * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
+ * incoming velocity pressed in, held by the impact, pulled once stopped). */
+static void slide_off_dome_start_forces(const slide_off_dome_ctx_t *c, const double *q, const double *p, const double *v,
+    double *f0)
 {
-    double vel[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM], f_eps;
-    int r;
+    double vel[SLIDE_OFF_DOME_N];
     slide_off_dome_velocity(c, q, v, p, vel);
     slide_off_dome_contact_forces(c, q, vel, f0);
-    f_eps = SLIDE_OFF_DOME_EPS_LIFT * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, f0));
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-        out[r] = f0[r] < -f_eps;
-    }
 }
 
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
@@ -2910,7 +2906,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     int again[SLIDE_OFF_DOME_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[SLIDE_OFF_DOME_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
-    int at_start[SLIDE_OFF_DOME_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
+    double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         slide_off_dome_at(c, t);
@@ -2941,16 +2937,18 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         start = -1;
         pulled = 0;
         if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
-            slide_off_dome_pulled_at_start(c, q, p, vv, at_start);
+            slide_off_dome_start_forces(c, q, p, vv, f0);
+            f0_eps = SLIDE_OFF_DOME_EPS_LIFT * (1.0 + slide_off_dome_norm_inf(SLIDE_OFF_DOME_R, f0));
         }
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
             ev[r] = c->sus->act[r] && !slide_off_dome_row_free[r] && pulls[r] < SLIDE_OFF_DOME_LIFT_CYCLES
-                && (fp[r] < -f_eps || (struck && at_start[r]));
+                && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
         if (pulled) {
-            slide_off_dome_velocity(c, q, vv, p, vel);
-            slide_off_dome_contact_forces(c, q, vel, f0);
+            if (!struck) {
+                slide_off_dome_start_forces(c, q, p, vv, f0);
+            }
             for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
                 if (ev[r]) {
                     if (slide_off_dome_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {

@@ -2494,20 +2494,16 @@ static void impact_oscillator_met_back(const impact_oscillator_ctx_t *c, const d
     (void)back;
 }
 
-/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
- * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
- * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
-static void impact_oscillator_pulled_at_start(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
-    int *out)
+/* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
+ * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
+ * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
+ * incoming velocity pressed in, held by the impact, pulled once stopped). */
+static void impact_oscillator_start_forces(const impact_oscillator_ctx_t *c, const double *q, const double *p, const double *v,
+    double *f0)
 {
-    double vel[IMPACT_OSCILLATOR_N], f0[IMPACT_OSCILLATOR_R_DIM], f_eps;
-    int r;
+    double vel[IMPACT_OSCILLATOR_N];
     impact_oscillator_velocity(c, q, v, p, vel);
     impact_oscillator_contact_forces(c, q, vel, f0);
-    f_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, f0));
-    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        out[r] = f0[r] < -f_eps;
-    }
 }
 
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
@@ -2533,7 +2529,7 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
     int again[IMPACT_OSCILLATOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[IMPACT_OSCILLATOR_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
-    int at_start[IMPACT_OSCILLATOR_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
+    double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
         impact_oscillator_at(c, t);
@@ -2564,16 +2560,18 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         start = -1;
         pulled = 0;
         if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
-            impact_oscillator_pulled_at_start(c, q, p, vv, at_start);
+            impact_oscillator_start_forces(c, q, p, vv, f0);
+            f0_eps = IMPACT_OSCILLATOR_EPS_LIFT * (1.0 + impact_oscillator_norm_inf(IMPACT_OSCILLATOR_R, f0));
         }
         for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
             ev[r] = c->sus->act[r] && !impact_oscillator_row_free[r] && pulls[r] < IMPACT_OSCILLATOR_LIFT_CYCLES
-                && (fp[r] < -f_eps || (struck && at_start[r]));
+                && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
         if (pulled) {
-            impact_oscillator_velocity(c, q, vv, p, vel);
-            impact_oscillator_contact_forces(c, q, vel, f0);
+            if (!struck) {
+                impact_oscillator_start_forces(c, q, p, vv, f0);
+            }
             for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
                 if (ev[r]) {
                     if (impact_oscillator_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {

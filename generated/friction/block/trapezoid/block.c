@@ -3739,20 +3739,16 @@ static void block_met_back(const block_ctx_t *c, const double *q, const double *
     (void)back;
 }
 
-/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
- * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
- * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
-static void block_pulled_at_start(const block_ctx_t *c, const double *q, const double *p, const double *v,
-    int *out)
+/* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
+ * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
+ * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
+ * incoming velocity pressed in, held by the impact, pulled once stopped). */
+static void block_start_forces(const block_ctx_t *c, const double *q, const double *p, const double *v,
+    double *f0)
 {
-    double vel[BLOCK_N], f0[BLOCK_R_DIM], f_eps;
-    int r;
+    double vel[BLOCK_N];
     block_velocity(c, q, v, p, vel);
     block_contact_forces(c, q, vel, f0);
-    f_eps = BLOCK_EPS_LIFT * (1.0 + block_norm_inf(BLOCK_R, f0));
-    for (r = 0; r < BLOCK_R; ++r) {
-        out[r] = f0[r] < -f_eps;
-    }
 }
 
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
@@ -3778,7 +3774,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int again[BLOCK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[BLOCK_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
-    int at_start[BLOCK_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
+    double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[BLOCK_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -3832,16 +3828,18 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         start = -1;
         pulled = 0;
         if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
-            block_pulled_at_start(c, q, p, vv, at_start);
+            block_start_forces(c, q, p, vv, f0);
+            f0_eps = BLOCK_EPS_LIFT * (1.0 + block_norm_inf(BLOCK_R, f0));
         }
         for (r = 0; r < BLOCK_R; ++r) {
             ev[r] = c->sus->act[r] && !block_row_free[r] && pulls[r] < BLOCK_LIFT_CYCLES
-                && (fp[r] < -f_eps || (struck && at_start[r]));
+                && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
         if (pulled) {
-            block_velocity(c, q, vv, p, vel);
-            block_contact_forces(c, q, vel, f0);
+            if (!struck) {
+                block_start_forces(c, q, p, vv, f0);
+            }
             for (r = 0; r < BLOCK_R; ++r) {
                 if (ev[r]) {
                     if (block_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {

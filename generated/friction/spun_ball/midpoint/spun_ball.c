@@ -5453,20 +5453,16 @@ static void spun_ball_met_back(const spun_ball_ctx_t *c, const double *q, const 
     (void)back;
 }
 
-/* SustainedSteps._pulled_at_start: the rows whose force at (q, p) (contact_forces, pressed where a stick rides)
- * pulls, below -EPS_LIFT scale, flagged in out: read at a segment's start after an impact while held (a row the
- * incoming velocity pressed in, held by the impact, pulled once stopped: it lifts off at the impact's instant). */
-static void spun_ball_pulled_at_start(const spun_ball_ctx_t *c, const double *q, const double *p, const double *v,
-    int *out)
+/* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
+ * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
+ * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
+ * incoming velocity pressed in, held by the impact, pulled once stopped). */
+static void spun_ball_start_forces(const spun_ball_ctx_t *c, const double *q, const double *p, const double *v,
+    double *f0)
 {
-    double vel[SPUN_BALL_N], f0[SPUN_BALL_R_DIM], f_eps;
-    int r;
+    double vel[SPUN_BALL_N];
     spun_ball_velocity(c, q, v, p, vel);
     spun_ball_contact_forces(c, q, vel, f0);
-    f_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, f0));
-    for (r = 0; r < SPUN_BALL_R; ++r) {
-        out[r] = f0[r] < -f_eps;
-    }
 }
 
 /* SustainedSteps._chain: the rest of a grid step from (q, p) at t (tau left) with the active rows held:
@@ -5492,7 +5488,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int again[SPUN_BALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[SPUN_BALL_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
-    int at_start[SPUN_BALL_R_DIM] = {0}; /* the rows pulled there (pulled_at_start) */
+    double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
     int slid[SPUN_BALL_R_DIM] = {0}; /* stick rows that slid from rest in this step, how often */
@@ -5546,16 +5542,18 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         start = -1;
         pulled = 0;
         if (struck) { /* pulled at the impact's instant, pushed again by the segment's end: it leaves there */
-            spun_ball_pulled_at_start(c, q, p, vv, at_start);
+            spun_ball_start_forces(c, q, p, vv, f0);
+            f0_eps = SPUN_BALL_EPS_LIFT * (1.0 + spun_ball_norm_inf(SPUN_BALL_R, f0));
         }
         for (r = 0; r < SPUN_BALL_R; ++r) {
             ev[r] = c->sus->act[r] && !spun_ball_row_free[r] && pulls[r] < SPUN_BALL_LIFT_CYCLES
-                && (fp[r] < -f_eps || (struck && at_start[r]));
+                && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
         if (pulled) {
-            spun_ball_velocity(c, q, vv, p, vel);
-            spun_ball_contact_forces(c, q, vel, f0);
+            if (!struck) {
+                spun_ball_start_forces(c, q, p, vv, f0);
+            }
             for (r = 0; r < SPUN_BALL_R; ++r) {
                 if (ev[r]) {
                     if (spun_ball_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
