@@ -39,6 +39,7 @@ BREAK_REASONS: tuple[tuple[str, str], ...] = (
     ("PROJECTED", "held rows projected at an event's start"),
     ("PRESSED_LIFT", "lift-off while a stick rides"),
     ("MET_BACK", "a lift-off met again moving away"),
+    ("SINKS_FREE", "a lift-off sinking at once"),
 )
 _BREAK_ORDER = {why: i for i, (_, why) in enumerate(BREAK_REASONS)}
 

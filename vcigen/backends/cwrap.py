@@ -107,6 +107,7 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("on_rows", ctypes.c_int * max(r, 1)),
             ("bounces", ctypes.c_int * max(r, 1)),
             ("left_step", ctypes.c_long * max(r, 1)),
+            ("sunk", ctypes.c_long * max(r, 1)),
         ]
 
     return _Sustain

@@ -119,6 +119,7 @@ typedef struct {
     int on_rows[FOUR_BAR_R_DIM];   /* the active rows the state was last put on (onto_rows) */
     int bounces[FOUR_BAR_R_DIM];   /* impacts of each row in this step's held chains (BOUNCE_CYCLES: then held) */
     long left_step[FOUR_BAR_R_DIM]; /* 1 + the grid step of each row's last release (0: none; met_back) */
+    long sunk[FOUR_BAR_R_DIM];     /* 1 + the grid step each row was last held on by sinks_free (0: none) */
 } four_bar_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

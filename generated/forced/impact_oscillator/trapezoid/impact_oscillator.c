@@ -1600,6 +1600,19 @@ static int impact_oscillator_reverses(const impact_oscillator_ctx_t *c, const do
     return 0;
 }
 
+/* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
+ * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
+static int impact_oscillator_sunk_held(const impact_oscillator_ctx_t *c)
+{
+    int r;
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
@@ -1629,7 +1642,8 @@ static int impact_oscillator_split_segment(const impact_oscillator_ctx_t *c, con
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, IMPACT_OSCILLATOR_SPLITS);
             }
-        } else if (*halved == IMPACT_OSCILLATOR_SPLITS || !impact_oscillator_slips(c)) { /* frictionless: too coarse, not halved */
+        } else if (*halved == IMPACT_OSCILLATOR_SPLITS || !(impact_oscillator_slips(c) || impact_oscillator_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
             return 1;
         }
         ++*halved;
@@ -2416,6 +2430,27 @@ static int impact_oscillator_plastic_entry(const impact_oscillator_ctx_t *c, con
     return 0;
 }
 
+/* The first segment of a free remainder from (q, p) at t (tau left), v its smooth step's velocity (a Seg of
+ * SustainedSteps._free_rest). */
+static void impact_oscillator_free_seg(impact_oscillator_seg_t *seg, const double *q, const double *p, const double *v, double t,
+    double tau)
+{
+    int i;
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        seg->q[i] = q[i];
+        seg->p_in[i] = p[i];
+        seg->nrm[i] = 0.0;
+    }
+    for (i = 0; i < IMPACT_OSCILLATOR_NX_MAX; ++i) {
+        seg->x[i] = i < IMPACT_OSCILLATOR_N ? v[i] : 0.0;
+    }
+    seg->t = t;
+    seg->tau = tau;
+    seg->e_in = NAN;
+    seg->contact = -1;
+    seg->rest = 1.0;
+}
+
 /* SustainedSteps._free_rest: a free remainder of the grid step from (q, p) at t (tau left): the smooth
  * step (46), or the impact chain (47)-(79). q, p, v in/out; *e_step the grid step's E_d (NaN: not yet). */
 static int impact_oscillator_free_rest(const impact_oscillator_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -2439,19 +2474,7 @@ static int impact_oscillator_free_rest(const impact_oscillator_ctx_t *c, double 
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
     }
     if (!inside) {
-        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
-            seg.q[i] = q[i];
-            seg.p_in[i] = p[i];
-            seg.nrm[i] = 0.0;
-        }
-        for (i = 0; i < IMPACT_OSCILLATOR_NX_MAX; ++i) {
-            seg.x[i] = i < IMPACT_OSCILLATOR_N ? v1[i] : 0.0;
-        }
-        seg.t = t;
-        seg.tau = tau;
-        seg.e_in = NAN;
-        seg.contact = -1;
-        seg.rest = 1.0;
+        impact_oscillator_free_seg(&seg, q, p, v1, t, tau);
         if (impact_oscillator_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
             const int rc = impact_oscillator_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
                 rec, n_rec, *e_step);
@@ -2499,6 +2522,41 @@ static void impact_oscillator_met_back(const impact_oscillator_ctx_t *c, const d
     }
     *n_group = n;
     (void)back;
+}
+
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
+ * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+ * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
+ * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
+ * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
+static int impact_oscillator_sinks_free(const impact_oscillator_ctx_t *c, const double *q, const double *p, double t, const double *v,
+    int r, const int *passed)
+{
+    double vel[IMPACT_OSCILLATOR_N], phi0[IMPACT_OSCILLATOR_M_DIM], grad0[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N];
+    double phi1[IMPACT_OSCILLATOR_M_DIM], grad1[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N], d0[IMPACT_OSCILLATOR_M_DIM];
+    double d1[IMPACT_OSCILLATOR_M_DIM], v1[IMPACT_OSCILLATOR_N], p1[IMPACT_OSCILLATOR_N], s_hi[IMPACT_OSCILLATOR_M_DIM], g_hi[IMPACT_OSCILLATOR_M_DIM];
+    double res, e1;
+    const int j = impact_oscillator_row_contact[r];
+    int crossed[IMPACT_OSCILLATOR_M_DIM], i;
+    impact_oscillator_seg_t seg;
+    for (i = 0; i < IMPACT_OSCILLATOR_R; ++i) { /* another row held: the chain's own (met_back, LIFT_CYCLES) */
+        if (c->sus->act[i] && i != r) {
+            return 0;
+        }
+    }
+    impact_oscillator_velocity(c, q, v, p, vel);
+    if (impact_oscillator_pass_load(c, q, vel, r, passed) >= 0) {
+        return 0;
+    }
+    impact_oscillator_at(c, t);
+    impact_oscillator_contacts(q, c->par, phi0, grad0);
+    impact_oscillator_smooth_step(q, p, c->h, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+    impact_oscillator_free_seg(&seg, q, p, v1, t, c->h);
+    if (!impact_oscillator_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
+        return 0; /* as the free rest would meet it (free_rest) */
+    }
+    c->sus->sunk[r] = c->step + 1;
+    return 1;
 }
 
 /* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
@@ -2596,6 +2654,11 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
                 ++c->sus->lifts_kept;
                 continue;
             }
+            if (impact_oscillator_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+                pulls[start] = IMPACT_OSCILLATOR_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             impact_oscillator_velocity(c, q, vv, p, vel);
             rider = impact_oscillator_pass_load(c, q, vel, start, passed);
             impact_oscillator_release(c, t, start, rider);
@@ -2687,6 +2750,11 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         rest = tau == rest ? (1.0 - s) * tau : rest - s * tau;
         for (r = 0; r < IMPACT_OSCILLATOR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
+        }
+        if (ev[r0] == 1 && impact_oscillator_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
+            pulls[r0] = IMPACT_OSCILLATOR_LIFT_CYCLES;
+            ++c->sus->lifts_kept;
+            continue;
         }
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);

@@ -2142,6 +2142,19 @@ static int star_friction_reverses(const star_friction_ctx_t *c, const double *q,
     return 0;
 }
 
+/* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
+ * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
+static int star_friction_sunk_held(const star_friction_ctx_t *c)
+{
+    int r;
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
@@ -2171,7 +2184,8 @@ static int star_friction_split_segment(const star_friction_ctx_t *c, const doubl
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, STAR_FRICTION_SPLITS);
             }
-        } else if (*halved == STAR_FRICTION_SPLITS || !star_friction_slips(c)) { /* frictionless: too coarse, not halved */
+        } else if (*halved == STAR_FRICTION_SPLITS || !(star_friction_slips(c) || star_friction_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
             return 1;
         }
         ++*halved;
@@ -3942,6 +3956,27 @@ static int star_friction_plastic_entry(const star_friction_ctx_t *c, const doubl
     return 0;
 }
 
+/* The first segment of a free remainder from (q, p) at t (tau left), v its smooth step's velocity (a Seg of
+ * SustainedSteps._free_rest). */
+static void star_friction_free_seg(star_friction_seg_t *seg, const double *q, const double *p, const double *v, double t,
+    double tau)
+{
+    int i;
+    for (i = 0; i < STAR_FRICTION_N; ++i) {
+        seg->q[i] = q[i];
+        seg->p_in[i] = p[i];
+        seg->nrm[i] = 0.0;
+    }
+    for (i = 0; i < STAR_FRICTION_NX_MAX; ++i) {
+        seg->x[i] = i < STAR_FRICTION_N ? v[i] : 0.0;
+    }
+    seg->t = t;
+    seg->tau = tau;
+    seg->e_in = NAN;
+    seg->contact = -1;
+    seg->rest = 1.0;
+}
+
 /* SustainedSteps._free_rest: a free remainder of the grid step from (q, p) at t (tau left): the smooth
  * step (46), or the impact chain (47)-(79). q, p, v in/out; *e_step the grid step's E_d (NaN: not yet). */
 static int star_friction_free_rest(const star_friction_ctx_t *c, double *q, double *p, double t, double tau, double *v,
@@ -3965,19 +4000,7 @@ static int star_friction_free_rest(const star_friction_ctx_t *c, double *q, doub
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
     }
     if (!inside) {
-        for (i = 0; i < STAR_FRICTION_N; ++i) {
-            seg.q[i] = q[i];
-            seg.p_in[i] = p[i];
-            seg.nrm[i] = 0.0;
-        }
-        for (i = 0; i < STAR_FRICTION_NX_MAX; ++i) {
-            seg.x[i] = i < STAR_FRICTION_N ? v1[i] : 0.0;
-        }
-        seg.t = t;
-        seg.tau = tau;
-        seg.e_in = NAN;
-        seg.contact = -1;
-        seg.rest = 1.0;
+        star_friction_free_seg(&seg, q, p, v1, t, tau);
         if (star_friction_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi)) {
             const int rc = star_friction_impact_step(c, &seg, crossed, s_hi, g_hi, q, p, &e_imp, v, phi1, grad1,
                 rec, n_rec, *e_step);
@@ -4024,6 +4047,46 @@ static void star_friction_met_back(const star_friction_ctx_t *c, const double *q
     }
     *n_group = n;
     (void)back;
+}
+
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
+ * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+ * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
+ * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
+ * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
+static int star_friction_sinks_free(const star_friction_ctx_t *c, const double *q, const double *p, double t, const double *v,
+    int r, const int *passed)
+{
+    double vel[STAR_FRICTION_N], phi0[STAR_FRICTION_M_DIM], grad0[STAR_FRICTION_M_DIM * STAR_FRICTION_N];
+    double phi1[STAR_FRICTION_M_DIM], grad1[STAR_FRICTION_M_DIM * STAR_FRICTION_N], d0[STAR_FRICTION_M_DIM];
+    double d1[STAR_FRICTION_M_DIM], v1[STAR_FRICTION_N], p1[STAR_FRICTION_N], s_hi[STAR_FRICTION_M_DIM], g_hi[STAR_FRICTION_M_DIM];
+    double res, e1;
+    const int j = star_friction_row_contact[r];
+    int crossed[STAR_FRICTION_M_DIM], i;
+    star_friction_seg_t seg;
+    for (i = 0; i < STAR_FRICTION_R; ++i) { /* another row held: the chain's own (met_back, LIFT_CYCLES) */
+        if (c->sus->act[i] && i != r
+            && !(star_friction_row_stick[i] >= 0 && star_friction_fric_contact[star_friction_row_stick[i]] == j)) {
+            return 0;
+        }
+    }
+    star_friction_velocity(c, q, v, p, vel);
+    if (star_friction_pass_load(c, q, vel, r, passed) >= 0) {
+        return 0;
+    }
+    if (star_friction_slips(c) && star_friction_painleve(c, q, vel)) { /* sliding past Painleve's boundary: released,
+                                                                   * it sinks at second order (jam's) */
+        return 0;
+    }
+    star_friction_at(c, t);
+    star_friction_contacts(q, c->par, phi0, grad0);
+    star_friction_smooth_step(q, p, c->h, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+    star_friction_free_seg(&seg, q, p, v1, t, c->h);
+    if (!star_friction_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
+        return 0; /* as the free rest would meet it (free_rest) */
+    }
+    c->sus->sunk[r] = c->step + 1;
+    return 1;
 }
 
 /* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
@@ -4237,6 +4300,11 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 ++c->sus->lifts_kept;
                 continue;
             }
+            if (star_friction_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+                pulls[start] = STAR_FRICTION_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             star_friction_velocity(c, q, vv, p, vel);
             rider = star_friction_pass_load(c, q, vel, start, passed);
             star_friction_release(c, t, start, rider);
@@ -4331,6 +4399,11 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             passed[r] = hit[r] = pulls[r] = 0;
             stuck[r] = 0;
             c->sus->jammed = 0;
+        }
+        if (ev[r0] == 1 && star_friction_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
+            pulls[r0] = STAR_FRICTION_LIFT_CYCLES;
+            ++c->sus->lifts_kept;
+            continue;
         }
         if (ev[r0] == 1) {
             star_friction_velocity(c, q, v, p, vel);
