@@ -25,7 +25,7 @@ import vcigen
 
 R = 1.0
 x, y, th, xd, yd, thd = sp.symbols("x y th xd yd thd")
-MU, MASS = sp.symbols("mu m", positive=True)
+MU, MASS, E = sp.symbols("mu m e", nonnegative=True)
 
 # (m, mu, th0, xd0, thd0): sliding from the floor at y = R, yd = 0. SINKS: the free step after the located
 # lift-off sinks at once (C: 9 plastic impacts of impulse 0 and 9 lift-offs at one instant at h = 0.005 on
@@ -46,8 +46,8 @@ def hoop() -> vcigen.Model:
         lagrangian=kinetic - G * y - MASS * G * py,
         contacts={"floor": y - R},
         friction={"floor": (MU, x + R * th)},
-        restitution={"floor": 0.0},
-        params={MU: 0.1, MASS: 3.0},
+        restitution={"floor": E},
+        params={MU: 0.1, MASS: 3.0, E: 0.0},  # e = 0 in the tests; bench.hoop_drops draws it
     )
 
 
@@ -167,3 +167,47 @@ def test_the_backends_agree_through_the_held_on_lift_off(backend, start):
     assert [t for t, _ in c.liftoffs] == pytest.approx([t for t, _ in cas.liftoffs], abs=1e-12)
     assert [im.kind for im in c.impacts] == [im.kind for im in cas.impacts]
     assert [im.t for im in c.impacts] == pytest.approx([im.t for im in cas.impacts], abs=1e-12)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_tangent_holds_to_the_held_on_lift_off_and_breaks_there(backend):
+    """``sensitivities=True``: before the lift-off the tangent is the run's derivative (central differences in
+    ``thd0``, 1e-6); the step where the lift-off is held on breaks it, named, on both backends alike."""
+    m, mu, th0, xd0, thd0 = SINKS_LONG
+    t_lift, _ = reference(*SINKS_LONG)
+
+    def run(w, sens=False):
+        return simulator(backend).simulate(
+            q0=[0.0, R, th0],
+            v0=[xd0, 0.0, w],
+            h=0.005,
+            t_end=0.5,
+            params={"m": m, "mu": mu},
+            progress=False,
+            sensitivities=sens,
+        )
+
+    res = run(thd0, True)
+    step, why = res.sensitivity_breaks[0]
+    assert why == "a lift-off sinking at once" and t_lift <= (step + 1) * 0.005 and step * 0.005 <= t_lift
+    k = int(0.3 / 0.005)
+    eps = 1e-6
+    fd = (run(thd0 + eps).q[k] - run(thd0 - eps).q[k]) / (2 * eps)
+    np.testing.assert_allclose(res.sensitivity[k, :3, 5], fd, rtol=1e-6, atol=1e-8)
+    assert np.isfinite(res.sensitivity[: step + 1]).all() and not np.isfinite(res.sensitivity[-1]).all()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_random_run_that_cycled_at_a_lift_off_runs_to_its_end(backend):
+    """Run 695 of ``python -m bench.hoop_drops --seed 1 --h 0.01`` (``m = 4.56``, ``mu = 0.1``, ``e = 0.3``):
+    on 1c05f95 both backends raised "more than 64 impacts in one step" at t = 2.06, where a lift-off's free
+    step sank; now held on there, it runs to t = 4 with no impact of impulse 0, never below the floor."""
+    from bench.hoop_drops import draw
+
+    rng = np.random.default_rng(1)
+    starts = [draw(rng) for _ in range(696)]
+    q0, v0, params = starts[695]
+    res = simulator(backend).simulate(q0=q0, v0=v0, h=0.01, t_end=4.0, params=params, progress=False)
+    assert res.stats["lifts_kept"] >= 1
+    assert all(abs(im.impulse) > 1e-12 for im in res.impacts)
+    assert (res.q[:, 1] - R).min() >= -1e-9
