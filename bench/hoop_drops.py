@@ -12,8 +12,8 @@ runs with an impact of impulse 0, a grazing impact, a restart (``jump_fallbacks`
 (``lifts_kept``), a booked force below -1e-9 (and the least), a jam; the most impacts, the lowest height,
 the largest energy rise at an impact. ``--agree``: each draw on both backends, those more than 1e-6 apart
 printed. Stop 52 (docs/limits.md): seeds 1 and 2 at ``h = 0.005`` in C, 0 errors; impacts of impulse 0 in 0
-and 3 runs (3 and 6 before the free step's sink was held on); ``--agree --seed 2``: 0 of 1000 apart (1
-before, by 5.5e-2).
+and 3 runs (2 and 5 on 1c05f95, before a lift-off whose free step sinks was held on); at ``h = 0.01`` seed 1,
+errors 1 -> 0; ``--agree --seed 2``: 0 of 1000 apart, the largest 1.8e-10 (on 1c05f95 1, run 794 by 5.5e-2).
 """
 
 from __future__ import annotations
