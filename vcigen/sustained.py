@@ -494,14 +494,15 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     # lift-off <-> landing cycling at one instant (pulled held, falling in free: its force 0
                     # to the method's order): held on to the next instant (counted)
                     self.lifts_kept += 1
-                elif events[r][0] == "lift" and self._sinks_free(step, q, p, t, v, r, passed):
-                    pulls[r] = LIFT_CYCLES  # the free rest sinks it at once: held on (counted)
-                    self.lifts_kept += 1
                 elif events[r][0] == "lift":
                     rider = self._pass_load(q, self._velocity(q, v, p), r, passed)
-                    self._release(step, t_k, t, r, rider)
-                    passed.add(r)
-                    relands.setdefault(r, 0)
+                    if rider < 0 and self._sinks_free(step, q, p, t, v, r):
+                        pulls[r] = LIFT_CYCLES  # the free rest sinks it at once: held on (counted)
+                        self.lifts_kept += 1
+                    else:
+                        self._release(step, t_k, t, r, rider)
+                        passed.add(r)
+                        relands.setdefault(r, 0)
                 else:
                     kind = "turn" if events[r][0] == "stop" and r == turn else events[r][0]
                     before = self._sw_state()
@@ -563,12 +564,12 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 passed, hit, pulls = set(), set(), {}
                 self._jammed = False
                 self._stuck_on.clear()
-            if events[r0][0] == "lift" and self._sinks_free(step, q, p, t, v, r0, passed):
-                pulls[r0] = LIFT_CYCLES  # the free rest sinks it at once: held on (counted)
-                self.lifts_kept += 1
-                continue
             if events[r0][0] == "lift":
                 rider = self._pass_load(q, self._velocity(q, v, p), r0, passed)
+                if rider < 0 and self._sinks_free(step, q, p, t, v, r0):
+                    pulls[r0] = LIFT_CYCLES  # the free rest sinks it at once: held on (counted)
+                    self.lifts_kept += 1
+                    continue
                 self._release(step, t_k, t, r0, rider)
                 passed.add(r0)
                 relands.setdefault(r0, 0)
@@ -612,34 +613,33 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             f0 = self._pressed(f0, self.k.rows(q, u)[1])
         return f0
 
-    def _sinks_free(self, step: int, q, p, t: float, guess, r: int, passed) -> bool:
-        """Would row ``r``'s lift-off at ``(q, p)``, ``t`` leave nothing held (no row of another contact, no
-        rider: :meth:`_pass_load`, not sliding past Painleve's boundary) and a free step (46) of ``h`` from
-        there meet its contact (``Stepper._crossings``: below ``-Tolerances.phi`` at its end, or a dip
-        inside)? The exact row leaves as the cube of the time since its lift-off and the smooth step's error
-        is of that order: where the free step sinks, the row has not left at this ``h``. A full step, not the
-        grid step's rest: a lift-off 27 us before a step's end flew that rest and sank at once in the next
-        step. Such a row is held on to the step's end (``LIFT_CYCLES``, counted in ``lifts_kept``; its force
-        there within the method's order of 0; ``_sunk`` for :meth:`_sunk_held`) and lifts off in a later step:
-        0.16-1.54 h after the exact lift-off, not to second order. Released, the free flight met the contact
-        at once with no normal speed, and what followed hung on round-off: a hoop with a mass on its rim
-        hopping off a rough floor logged impacts at the lift-off's instant (of impulse 1e-15, grazing and
-        plastic; a restitution kick of 6e-4 ... 7e-3 at ``e = 0``) and more lift-offs, other ones on each
-        backend; it raised "more than 64 impacts in one step" from one start at ``h = 0.0025`` (C) and in a
-        random run at ``h = 0.01`` (both); in another random run CasADi took a mirror root of (78), impulses
-        of -0.195 and 0.294, and the backends parted by 5.5e-2 (``tests/test_hopping_hoop.py``,
-        ``bench.hoop_drops``). The tangent stops there."""
+    def _sinks_free(self, step: int, q, p, t: float, guess, r: int) -> bool:
+        """Would row ``r``'s lift-off at ``(q, p)``, ``t``, which no rider takes (the caller's
+        :meth:`_pass_load`), leave nothing held (no row of another contact, not sliding past Painleve's
+        boundary) and a free step (46) of ``h`` from there meet its contact (``Stepper._crossings``: below
+        ``-Tolerances.phi`` at its end, or a dip inside)? The exact row leaves as the cube of the time since
+        its lift-off and the smooth step's error is of that order: where the free step sinks, the row has not
+        left at this ``h``. A full step, not the grid step's rest: a lift-off 27 us before a step's end flew
+        that rest and sank at once in the next step. Such a row is held on to the step's end (``LIFT_CYCLES``,
+        counted in ``lifts_kept``; its force there within the method's order of 0; ``_sunk`` for
+        :meth:`_sunk_held`) and lifts off in a later step: 0.16-1.54 h after the exact lift-off, not to second
+        order. Released, the free flight met the contact at once with no normal speed, and what followed hung
+        on round-off: a hoop with a mass on its rim hopping off a rough floor logged impacts at the lift-off's
+        instant (of impulse 1e-15, grazing and plastic; a restitution kick of 6e-4 ... 7e-3 at ``e = 0``) and
+        more lift-offs, other ones on each backend; it raised "more than 64 impacts in one step" from one
+        start at ``h = 0.0025`` (C) and in a random run at ``h = 0.01`` (both); in another random run CasADi
+        took a mirror root of (78), impulses of -0.195 and 0.294, and the backends parted by 5.5e-2
+        (``tests/test_hopping_hoop.py``, ``bench.hoop_drops``). The tangent stops there."""
         k = self.k
         j = k.row_contact[r]
         stick = k.row_stick
         for i in np.flatnonzero(self.act):
             if i != r and not (stick and stick[i] >= 0 and k.frictional[stick[i]] == j):
                 return False  # another row held: the chain's own (_met_back, LIFT_CYCLES)
-        u = self._velocity(q, guess, p)
-        if self._pass_load(q, u, r, passed) >= 0:
-            return False
-        if self._slip.any() and self._painleve(k.rows(q, u)[1], k.legendre(q, u)[1]):
-            return False  # sliding past Painleve's boundary: released, it sinks at second order (_jam's)
+        if self._slip.any():  # sliding past Painleve's boundary: released, it sinks at second order (_jam's)
+            u = self._velocity(q, guess, p)
+            if self._painleve(k.rows(q, u)[1], k.legendre(q, u)[1]):
+                return False
         self._at(t)
         v, _, _, _, phi0, phi1, d0, d1 = k.smooth_step(q, p, self._h, guess)
         seg = Seg(q=q, t=t, tau=self._h, p_in=p, e_in=math.nan, nrm=None, contact=-1, x=v)

@@ -2692,15 +2692,16 @@ static void particle_met_back(const particle_ctx_t *c, const double *q, const do
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int particle_sinks_free(const particle_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[PARTICLE_N], phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N];
+    double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N];
     double phi1[PARTICLE_M_DIM], grad1[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM];
     double d1[PARTICLE_M_DIM], v1[PARTICLE_N], p1[PARTICLE_N], s_hi[PARTICLE_M_DIM], g_hi[PARTICLE_M_DIM];
     double res, e1;
@@ -2711,10 +2712,6 @@ static int particle_sinks_free(const particle_ctx_t *c, const double *q, const d
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    particle_velocity(c, q, v, p, vel);
-    if (particle_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     particle_at(c, t);
     particle_contacts(q, c->par, phi0, grad0);
@@ -2822,13 +2819,13 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (particle_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            particle_velocity(c, q, vv, p, vel);
+            rider = particle_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && particle_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = PARTICLE_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            particle_velocity(c, q, vv, p, vel);
-            rider = particle_pass_load(c, q, vel, start, passed);
             particle_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -2918,14 +2915,14 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         for (r = 0; r < PARTICLE_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && particle_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = PARTICLE_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             particle_velocity(c, q, v, p, vel);
             rider = particle_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && particle_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = PARTICLE_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             particle_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

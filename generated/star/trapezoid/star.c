@@ -2978,15 +2978,16 @@ static void star_met_back(const star_ctx_t *c, const double *q, const double *p,
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int star_sinks_free(const star_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[STAR_N], phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N];
+    double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N];
     double phi1[STAR_M_DIM], grad1[STAR_M_DIM * STAR_N], d0[STAR_M_DIM];
     double d1[STAR_M_DIM], v1[STAR_N], p1[STAR_N], s_hi[STAR_M_DIM], g_hi[STAR_M_DIM];
     double res, e1;
@@ -2997,10 +2998,6 @@ static int star_sinks_free(const star_ctx_t *c, const double *q, const double *p
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    star_velocity(c, q, v, p, vel);
-    if (star_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     star_at(c, t);
     star_contacts(q, c->par, phi0, grad0);
@@ -3108,13 +3105,13 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (star_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            star_velocity(c, q, vv, p, vel);
+            rider = star_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && star_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = STAR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            star_velocity(c, q, vv, p, vel);
-            rider = star_pass_load(c, q, vel, start, passed);
             star_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3204,14 +3201,14 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         for (r = 0; r < STAR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && star_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = STAR_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             star_velocity(c, q, v, p, vel);
             rider = star_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && star_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = STAR_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             star_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

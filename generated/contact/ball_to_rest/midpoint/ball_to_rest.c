@@ -2693,15 +2693,16 @@ static void ball_to_rest_met_back(const ball_to_rest_ctx_t *c, const double *q, 
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int ball_to_rest_sinks_free(const ball_to_rest_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[BALL_TO_REST_N], phi0[BALL_TO_REST_M_DIM], grad0[BALL_TO_REST_M_DIM * BALL_TO_REST_N];
+    double phi0[BALL_TO_REST_M_DIM], grad0[BALL_TO_REST_M_DIM * BALL_TO_REST_N];
     double phi1[BALL_TO_REST_M_DIM], grad1[BALL_TO_REST_M_DIM * BALL_TO_REST_N], d0[BALL_TO_REST_M_DIM];
     double d1[BALL_TO_REST_M_DIM], v1[BALL_TO_REST_N], p1[BALL_TO_REST_N], s_hi[BALL_TO_REST_M_DIM], g_hi[BALL_TO_REST_M_DIM];
     double res, e1;
@@ -2712,10 +2713,6 @@ static int ball_to_rest_sinks_free(const ball_to_rest_ctx_t *c, const double *q,
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    ball_to_rest_velocity(c, q, v, p, vel);
-    if (ball_to_rest_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     ball_to_rest_at(c, t);
     ball_to_rest_contacts(q, c->par, phi0, grad0);
@@ -2823,13 +2820,13 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (ball_to_rest_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            ball_to_rest_velocity(c, q, vv, p, vel);
+            rider = ball_to_rest_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && ball_to_rest_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = BALL_TO_REST_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            ball_to_rest_velocity(c, q, vv, p, vel);
-            rider = ball_to_rest_pass_load(c, q, vel, start, passed);
             ball_to_rest_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -2919,14 +2916,14 @@ static int ball_to_rest_chain(const ball_to_rest_ctx_t *c, double *q, double *p,
         for (r = 0; r < BALL_TO_REST_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && ball_to_rest_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = BALL_TO_REST_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             ball_to_rest_velocity(c, q, v, p, vel);
             rider = ball_to_rest_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && ball_to_rest_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = BALL_TO_REST_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             ball_to_rest_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

@@ -3484,15 +3484,16 @@ static void cube_settles_met_back(const cube_settles_ctx_t *c, const double *q, 
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int cube_settles_sinks_free(const cube_settles_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[CUBE_SETTLES_N], phi0[CUBE_SETTLES_M_DIM], grad0[CUBE_SETTLES_M_DIM * CUBE_SETTLES_N];
+    double phi0[CUBE_SETTLES_M_DIM], grad0[CUBE_SETTLES_M_DIM * CUBE_SETTLES_N];
     double phi1[CUBE_SETTLES_M_DIM], grad1[CUBE_SETTLES_M_DIM * CUBE_SETTLES_N], d0[CUBE_SETTLES_M_DIM];
     double d1[CUBE_SETTLES_M_DIM], v1[CUBE_SETTLES_N], p1[CUBE_SETTLES_N], s_hi[CUBE_SETTLES_M_DIM], g_hi[CUBE_SETTLES_M_DIM];
     double res, e1;
@@ -3503,10 +3504,6 @@ static int cube_settles_sinks_free(const cube_settles_ctx_t *c, const double *q,
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    cube_settles_velocity(c, q, v, p, vel);
-    if (cube_settles_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     cube_settles_at(c, t);
     cube_settles_contacts(q, c->par, phi0, grad0);
@@ -3614,13 +3611,13 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (cube_settles_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            cube_settles_velocity(c, q, vv, p, vel);
+            rider = cube_settles_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && cube_settles_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = CUBE_SETTLES_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            cube_settles_velocity(c, q, vv, p, vel);
-            rider = cube_settles_pass_load(c, q, vel, start, passed);
             cube_settles_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3710,14 +3707,14 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         for (r = 0; r < CUBE_SETTLES_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && cube_settles_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = CUBE_SETTLES_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             cube_settles_velocity(c, q, v, p, vel);
             rider = cube_settles_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && cube_settles_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = CUBE_SETTLES_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             cube_settles_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

@@ -3196,15 +3196,16 @@ static void four_bar_met_back(const four_bar_ctx_t *c, const double *q, const do
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int four_bar_sinks_free(const four_bar_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[FOUR_BAR_N], phi0[FOUR_BAR_M_DIM], grad0[FOUR_BAR_M_DIM * FOUR_BAR_N];
+    double phi0[FOUR_BAR_M_DIM], grad0[FOUR_BAR_M_DIM * FOUR_BAR_N];
     double phi1[FOUR_BAR_M_DIM], grad1[FOUR_BAR_M_DIM * FOUR_BAR_N], d0[FOUR_BAR_M_DIM];
     double d1[FOUR_BAR_M_DIM], v1[FOUR_BAR_N], p1[FOUR_BAR_N], s_hi[FOUR_BAR_M_DIM], g_hi[FOUR_BAR_M_DIM];
     double res, e1;
@@ -3215,10 +3216,6 @@ static int four_bar_sinks_free(const four_bar_ctx_t *c, const double *q, const d
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    four_bar_velocity(c, q, v, p, vel);
-    if (four_bar_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     four_bar_at(c, t);
     four_bar_contacts(q, c->par, phi0, grad0);
@@ -3326,13 +3323,13 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (four_bar_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            four_bar_velocity(c, q, vv, p, vel);
+            rider = four_bar_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && four_bar_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = FOUR_BAR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            four_bar_velocity(c, q, vv, p, vel);
-            rider = four_bar_pass_load(c, q, vel, start, passed);
             four_bar_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3422,14 +3419,14 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         for (r = 0; r < FOUR_BAR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && four_bar_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = FOUR_BAR_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             four_bar_velocity(c, q, v, p, vel);
             rider = four_bar_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && four_bar_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = FOUR_BAR_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             four_bar_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

@@ -2924,15 +2924,16 @@ static void pendulum_wall_met_back(const pendulum_wall_ctx_t *c, const double *q
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int pendulum_wall_sinks_free(const pendulum_wall_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[PENDULUM_WALL_N], phi0[PENDULUM_WALL_M_DIM], grad0[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N];
+    double phi0[PENDULUM_WALL_M_DIM], grad0[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N];
     double phi1[PENDULUM_WALL_M_DIM], grad1[PENDULUM_WALL_M_DIM * PENDULUM_WALL_N], d0[PENDULUM_WALL_M_DIM];
     double d1[PENDULUM_WALL_M_DIM], v1[PENDULUM_WALL_N], p1[PENDULUM_WALL_N], s_hi[PENDULUM_WALL_M_DIM], g_hi[PENDULUM_WALL_M_DIM];
     double res, e1;
@@ -2943,10 +2944,6 @@ static int pendulum_wall_sinks_free(const pendulum_wall_ctx_t *c, const double *
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    pendulum_wall_velocity(c, q, v, p, vel);
-    if (pendulum_wall_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     pendulum_wall_at(c, t);
     pendulum_wall_contacts(q, c->par, phi0, grad0);
@@ -3054,13 +3051,13 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (pendulum_wall_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            pendulum_wall_velocity(c, q, vv, p, vel);
+            rider = pendulum_wall_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && pendulum_wall_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = PENDULUM_WALL_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            pendulum_wall_velocity(c, q, vv, p, vel);
-            rider = pendulum_wall_pass_load(c, q, vel, start, passed);
             pendulum_wall_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3150,14 +3147,14 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         for (r = 0; r < PENDULUM_WALL_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && pendulum_wall_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = PENDULUM_WALL_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             pendulum_wall_velocity(c, q, v, p, vel);
             rider = pendulum_wall_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && pendulum_wall_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = PENDULUM_WALL_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             pendulum_wall_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

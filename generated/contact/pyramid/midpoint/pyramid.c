@@ -4926,15 +4926,16 @@ static void pyramid_met_back(const pyramid_ctx_t *c, const double *q, const doub
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int pyramid_sinks_free(const pyramid_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[PYRAMID_N], phi0[PYRAMID_M_DIM], grad0[PYRAMID_M_DIM * PYRAMID_N];
+    double phi0[PYRAMID_M_DIM], grad0[PYRAMID_M_DIM * PYRAMID_N];
     double phi1[PYRAMID_M_DIM], grad1[PYRAMID_M_DIM * PYRAMID_N], d0[PYRAMID_M_DIM];
     double d1[PYRAMID_M_DIM], v1[PYRAMID_N], p1[PYRAMID_N], s_hi[PYRAMID_M_DIM], g_hi[PYRAMID_M_DIM];
     double res, e1;
@@ -4947,13 +4948,12 @@ static int pyramid_sinks_free(const pyramid_ctx_t *c, const double *q, const dou
             return 0;
         }
     }
-    pyramid_velocity(c, q, v, p, vel);
-    if (pyramid_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
-    }
-    if (pyramid_slips(c) && pyramid_painleve(c, q, vel)) { /* sliding past Painleve's boundary: released,
-                                                                   * it sinks at second order (jam's) */
-        return 0;
+    if (pyramid_slips(c)) { /* sliding past Painleve's boundary: released, it sinks at second order (jam's) */
+        double vel[PYRAMID_N];
+        pyramid_velocity(c, q, v, p, vel);
+        if (pyramid_painleve(c, q, vel)) {
+            return 0;
+        }
     }
     pyramid_at(c, t);
     pyramid_contacts(q, c->par, phi0, grad0);
@@ -5195,13 +5195,13 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (pyramid_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            pyramid_velocity(c, q, vv, p, vel);
+            rider = pyramid_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && pyramid_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = PYRAMID_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            pyramid_velocity(c, q, vv, p, vel);
-            rider = pyramid_pass_load(c, q, vel, start, passed);
             pyramid_release(c, t, start, rider);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
@@ -5295,14 +5295,14 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
-        if (ev[r0] == 1 && pyramid_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = PYRAMID_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             pyramid_velocity(c, q, v, p, vel);
             rider = pyramid_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && pyramid_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = PYRAMID_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             pyramid_release(c, t, r0, rider);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];

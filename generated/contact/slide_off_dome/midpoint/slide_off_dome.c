@@ -2894,15 +2894,16 @@ static void slide_off_dome_met_back(const slide_off_dome_ctx_t *c, const double 
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int slide_off_dome_sinks_free(const slide_off_dome_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[SLIDE_OFF_DOME_N], phi0[SLIDE_OFF_DOME_M_DIM], grad0[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N];
+    double phi0[SLIDE_OFF_DOME_M_DIM], grad0[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N];
     double phi1[SLIDE_OFF_DOME_M_DIM], grad1[SLIDE_OFF_DOME_M_DIM * SLIDE_OFF_DOME_N], d0[SLIDE_OFF_DOME_M_DIM];
     double d1[SLIDE_OFF_DOME_M_DIM], v1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N], s_hi[SLIDE_OFF_DOME_M_DIM], g_hi[SLIDE_OFF_DOME_M_DIM];
     double res, e1;
@@ -2913,10 +2914,6 @@ static int slide_off_dome_sinks_free(const slide_off_dome_ctx_t *c, const double
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    slide_off_dome_velocity(c, q, v, p, vel);
-    if (slide_off_dome_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     slide_off_dome_at(c, t);
     slide_off_dome_contacts(q, c->par, phi0, grad0);
@@ -3024,13 +3021,13 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (slide_off_dome_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            slide_off_dome_velocity(c, q, vv, p, vel);
+            rider = slide_off_dome_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && slide_off_dome_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = SLIDE_OFF_DOME_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            slide_off_dome_velocity(c, q, vv, p, vel);
-            rider = slide_off_dome_pass_load(c, q, vel, start, passed);
             slide_off_dome_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3120,14 +3117,14 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         for (r = 0; r < SLIDE_OFF_DOME_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && slide_off_dome_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = SLIDE_OFF_DOME_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             slide_off_dome_velocity(c, q, v, p, vel);
             rider = slide_off_dome_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && slide_off_dome_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = SLIDE_OFF_DOME_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             slide_off_dome_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

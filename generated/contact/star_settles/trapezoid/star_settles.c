@@ -2979,15 +2979,16 @@ static void star_settles_met_back(const star_settles_ctx_t *c, const double *q, 
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int star_settles_sinks_free(const star_settles_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[STAR_SETTLES_N], phi0[STAR_SETTLES_M_DIM], grad0[STAR_SETTLES_M_DIM * STAR_SETTLES_N];
+    double phi0[STAR_SETTLES_M_DIM], grad0[STAR_SETTLES_M_DIM * STAR_SETTLES_N];
     double phi1[STAR_SETTLES_M_DIM], grad1[STAR_SETTLES_M_DIM * STAR_SETTLES_N], d0[STAR_SETTLES_M_DIM];
     double d1[STAR_SETTLES_M_DIM], v1[STAR_SETTLES_N], p1[STAR_SETTLES_N], s_hi[STAR_SETTLES_M_DIM], g_hi[STAR_SETTLES_M_DIM];
     double res, e1;
@@ -2998,10 +2999,6 @@ static int star_settles_sinks_free(const star_settles_ctx_t *c, const double *q,
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    star_settles_velocity(c, q, v, p, vel);
-    if (star_settles_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     star_settles_at(c, t);
     star_settles_contacts(q, c->par, phi0, grad0);
@@ -3109,13 +3106,13 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (star_settles_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            star_settles_velocity(c, q, vv, p, vel);
+            rider = star_settles_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && star_settles_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = STAR_SETTLES_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            star_settles_velocity(c, q, vv, p, vel);
-            rider = star_settles_pass_load(c, q, vel, start, passed);
             star_settles_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3205,14 +3202,14 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         for (r = 0; r < STAR_SETTLES_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && star_settles_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = STAR_SETTLES_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             star_settles_velocity(c, q, v, p, vel);
             rider = star_settles_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && star_settles_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = STAR_SETTLES_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             star_settles_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

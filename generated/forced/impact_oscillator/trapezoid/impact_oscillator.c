@@ -2524,15 +2524,16 @@ static void impact_oscillator_met_back(const impact_oscillator_ctx_t *c, const d
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int impact_oscillator_sinks_free(const impact_oscillator_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[IMPACT_OSCILLATOR_N], phi0[IMPACT_OSCILLATOR_M_DIM], grad0[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N];
+    double phi0[IMPACT_OSCILLATOR_M_DIM], grad0[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N];
     double phi1[IMPACT_OSCILLATOR_M_DIM], grad1[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N], d0[IMPACT_OSCILLATOR_M_DIM];
     double d1[IMPACT_OSCILLATOR_M_DIM], v1[IMPACT_OSCILLATOR_N], p1[IMPACT_OSCILLATOR_N], s_hi[IMPACT_OSCILLATOR_M_DIM], g_hi[IMPACT_OSCILLATOR_M_DIM];
     double res, e1;
@@ -2543,10 +2544,6 @@ static int impact_oscillator_sinks_free(const impact_oscillator_ctx_t *c, const 
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    impact_oscillator_velocity(c, q, v, p, vel);
-    if (impact_oscillator_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     impact_oscillator_at(c, t);
     impact_oscillator_contacts(q, c->par, phi0, grad0);
@@ -2654,13 +2651,13 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (impact_oscillator_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            impact_oscillator_velocity(c, q, vv, p, vel);
+            rider = impact_oscillator_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && impact_oscillator_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = IMPACT_OSCILLATOR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            impact_oscillator_velocity(c, q, vv, p, vel);
-            rider = impact_oscillator_pass_load(c, q, vel, start, passed);
             impact_oscillator_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -2751,14 +2748,14 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         for (r = 0; r < IMPACT_OSCILLATOR_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && impact_oscillator_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = IMPACT_OSCILLATOR_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);
             rider = impact_oscillator_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && impact_oscillator_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = IMPACT_OSCILLATOR_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             impact_oscillator_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;

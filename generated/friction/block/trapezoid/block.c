@@ -3762,15 +3762,16 @@ static void block_met_back(const block_ctx_t *c, const double *q, const double *
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int block_sinks_free(const block_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[BLOCK_N], phi0[BLOCK_M_DIM], grad0[BLOCK_M_DIM * BLOCK_N];
+    double phi0[BLOCK_M_DIM], grad0[BLOCK_M_DIM * BLOCK_N];
     double phi1[BLOCK_M_DIM], grad1[BLOCK_M_DIM * BLOCK_N], d0[BLOCK_M_DIM];
     double d1[BLOCK_M_DIM], v1[BLOCK_N], p1[BLOCK_N], s_hi[BLOCK_M_DIM], g_hi[BLOCK_M_DIM];
     double res, e1;
@@ -3783,13 +3784,12 @@ static int block_sinks_free(const block_ctx_t *c, const double *q, const double 
             return 0;
         }
     }
-    block_velocity(c, q, v, p, vel);
-    if (block_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
-    }
-    if (block_slips(c) && block_painleve(c, q, vel)) { /* sliding past Painleve's boundary: released,
-                                                                   * it sinks at second order (jam's) */
-        return 0;
+    if (block_slips(c)) { /* sliding past Painleve's boundary: released, it sinks at second order (jam's) */
+        double vel[BLOCK_N];
+        block_velocity(c, q, v, p, vel);
+        if (block_painleve(c, q, vel)) {
+            return 0;
+        }
     }
     block_at(c, t);
     block_contacts(q, c->par, phi0, grad0);
@@ -4013,13 +4013,13 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (block_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            block_velocity(c, q, vv, p, vel);
+            rider = block_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && block_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = BLOCK_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            block_velocity(c, q, vv, p, vel);
-            rider = block_pass_load(c, q, vel, start, passed);
             block_release(c, t, start, rider);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
@@ -4113,14 +4113,14 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
-        if (ev[r0] == 1 && block_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = BLOCK_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             block_velocity(c, q, v, p, vel);
             rider = block_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && block_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = BLOCK_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             block_release(c, t, r0, rider);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];

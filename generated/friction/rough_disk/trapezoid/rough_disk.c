@@ -3842,15 +3842,16 @@ static void rough_disk_met_back(const rough_disk_ctx_t *c, const double *q, cons
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int rough_disk_sinks_free(const rough_disk_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[ROUGH_DISK_N], phi0[ROUGH_DISK_M_DIM], grad0[ROUGH_DISK_M_DIM * ROUGH_DISK_N];
+    double phi0[ROUGH_DISK_M_DIM], grad0[ROUGH_DISK_M_DIM * ROUGH_DISK_N];
     double phi1[ROUGH_DISK_M_DIM], grad1[ROUGH_DISK_M_DIM * ROUGH_DISK_N], d0[ROUGH_DISK_M_DIM];
     double d1[ROUGH_DISK_M_DIM], v1[ROUGH_DISK_N], p1[ROUGH_DISK_N], s_hi[ROUGH_DISK_M_DIM], g_hi[ROUGH_DISK_M_DIM];
     double res, e1;
@@ -3863,13 +3864,12 @@ static int rough_disk_sinks_free(const rough_disk_ctx_t *c, const double *q, con
             return 0;
         }
     }
-    rough_disk_velocity(c, q, v, p, vel);
-    if (rough_disk_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
-    }
-    if (rough_disk_slips(c) && rough_disk_painleve(c, q, vel)) { /* sliding past Painleve's boundary: released,
-                                                                   * it sinks at second order (jam's) */
-        return 0;
+    if (rough_disk_slips(c)) { /* sliding past Painleve's boundary: released, it sinks at second order (jam's) */
+        double vel[ROUGH_DISK_N];
+        rough_disk_velocity(c, q, v, p, vel);
+        if (rough_disk_painleve(c, q, vel)) {
+            return 0;
+        }
     }
     rough_disk_at(c, t);
     rough_disk_contacts(q, c->par, phi0, grad0);
@@ -4093,13 +4093,13 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (rough_disk_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            rough_disk_velocity(c, q, vv, p, vel);
+            rider = rough_disk_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && rough_disk_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = ROUGH_DISK_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            rough_disk_velocity(c, q, vv, p, vel);
-            rider = rough_disk_pass_load(c, q, vel, start, passed);
             rough_disk_release(c, t, start, rider);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
@@ -4193,14 +4193,14 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
-        if (ev[r0] == 1 && rough_disk_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = ROUGH_DISK_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             rough_disk_velocity(c, q, v, p, vel);
             rider = rough_disk_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && rough_disk_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = ROUGH_DISK_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             rough_disk_release(c, t, r0, rider);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];

@@ -5477,15 +5477,16 @@ static void spun_ball_met_back(const spun_ball_ctx_t *c, const double *q, const 
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int spun_ball_sinks_free(const spun_ball_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[SPUN_BALL_N], phi0[SPUN_BALL_M_DIM], grad0[SPUN_BALL_M_DIM * SPUN_BALL_N];
+    double phi0[SPUN_BALL_M_DIM], grad0[SPUN_BALL_M_DIM * SPUN_BALL_N];
     double phi1[SPUN_BALL_M_DIM], grad1[SPUN_BALL_M_DIM * SPUN_BALL_N], d0[SPUN_BALL_M_DIM];
     double d1[SPUN_BALL_M_DIM], v1[SPUN_BALL_N], p1[SPUN_BALL_N], s_hi[SPUN_BALL_M_DIM], g_hi[SPUN_BALL_M_DIM];
     double res, e1;
@@ -5498,13 +5499,12 @@ static int spun_ball_sinks_free(const spun_ball_ctx_t *c, const double *q, const
             return 0;
         }
     }
-    spun_ball_velocity(c, q, v, p, vel);
-    if (spun_ball_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
-    }
-    if (spun_ball_slips(c) && spun_ball_painleve(c, q, vel)) { /* sliding past Painleve's boundary: released,
-                                                                   * it sinks at second order (jam's) */
-        return 0;
+    if (spun_ball_slips(c)) { /* sliding past Painleve's boundary: released, it sinks at second order (jam's) */
+        double vel[SPUN_BALL_N];
+        spun_ball_velocity(c, q, v, p, vel);
+        if (spun_ball_painleve(c, q, vel)) {
+            return 0;
+        }
     }
     spun_ball_at(c, t);
     spun_ball_contacts(q, c->par, phi0, grad0);
@@ -5736,13 +5736,13 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (spun_ball_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            spun_ball_velocity(c, q, vv, p, vel);
+            rider = spun_ball_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && spun_ball_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = SPUN_BALL_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            spun_ball_velocity(c, q, vv, p, vel);
-            rider = spun_ball_pass_load(c, q, vel, start, passed);
             spun_ball_release(c, t, start, rider);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
@@ -5836,14 +5836,14 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
-        if (ev[r0] == 1 && spun_ball_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = SPUN_BALL_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             spun_ball_velocity(c, q, v, p, vel);
             rider = spun_ball_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && spun_ball_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = SPUN_BALL_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             spun_ball_release(c, t, r0, rider);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];

@@ -4049,15 +4049,16 @@ static void star_friction_met_back(const star_friction_ctx_t *c, const double *q
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int star_friction_sinks_free(const star_friction_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[STAR_FRICTION_N], phi0[STAR_FRICTION_M_DIM], grad0[STAR_FRICTION_M_DIM * STAR_FRICTION_N];
+    double phi0[STAR_FRICTION_M_DIM], grad0[STAR_FRICTION_M_DIM * STAR_FRICTION_N];
     double phi1[STAR_FRICTION_M_DIM], grad1[STAR_FRICTION_M_DIM * STAR_FRICTION_N], d0[STAR_FRICTION_M_DIM];
     double d1[STAR_FRICTION_M_DIM], v1[STAR_FRICTION_N], p1[STAR_FRICTION_N], s_hi[STAR_FRICTION_M_DIM], g_hi[STAR_FRICTION_M_DIM];
     double res, e1;
@@ -4070,13 +4071,12 @@ static int star_friction_sinks_free(const star_friction_ctx_t *c, const double *
             return 0;
         }
     }
-    star_friction_velocity(c, q, v, p, vel);
-    if (star_friction_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
-    }
-    if (star_friction_slips(c) && star_friction_painleve(c, q, vel)) { /* sliding past Painleve's boundary: released,
-                                                                   * it sinks at second order (jam's) */
-        return 0;
+    if (star_friction_slips(c)) { /* sliding past Painleve's boundary: released, it sinks at second order (jam's) */
+        double vel[STAR_FRICTION_N];
+        star_friction_velocity(c, q, v, p, vel);
+        if (star_friction_painleve(c, q, vel)) {
+            return 0;
+        }
     }
     star_friction_at(c, t);
     star_friction_contacts(q, c->par, phi0, grad0);
@@ -4300,13 +4300,13 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (star_friction_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            star_friction_velocity(c, q, vv, p, vel);
+            rider = star_friction_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && star_friction_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = STAR_FRICTION_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            star_friction_velocity(c, q, vv, p, vel);
-            rider = star_friction_pass_load(c, q, vel, start, passed);
             star_friction_release(c, t, start, rider);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
@@ -4400,14 +4400,14 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             stuck[r] = 0;
             c->sus->jammed = 0;
         }
-        if (ev[r0] == 1 && star_friction_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = STAR_FRICTION_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             star_friction_velocity(c, q, v, p, vel);
             rider = star_friction_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && star_friction_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = STAR_FRICTION_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             star_friction_release(c, t, r0, rider);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];

@@ -3110,15 +3110,16 @@ static void double_pendulum_met_back(const double_pendulum_ctx_t *c, const doubl
     (void)back;
 }
 
-/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t leave nothing held (no row of another contact, no
- * rider: pass_load, not sliding past Painleve's boundary) and a free step (46) of h from there meet its contact
+/* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
+ * meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int double_pendulum_sinks_free(const double_pendulum_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, const int *passed)
+    int r)
 {
-    double vel[DOUBLE_PENDULUM_N], phi0[DOUBLE_PENDULUM_M_DIM], grad0[DOUBLE_PENDULUM_M_DIM * DOUBLE_PENDULUM_N];
+    double phi0[DOUBLE_PENDULUM_M_DIM], grad0[DOUBLE_PENDULUM_M_DIM * DOUBLE_PENDULUM_N];
     double phi1[DOUBLE_PENDULUM_M_DIM], grad1[DOUBLE_PENDULUM_M_DIM * DOUBLE_PENDULUM_N], d0[DOUBLE_PENDULUM_M_DIM];
     double d1[DOUBLE_PENDULUM_M_DIM], v1[DOUBLE_PENDULUM_N], p1[DOUBLE_PENDULUM_N], s_hi[DOUBLE_PENDULUM_M_DIM], g_hi[DOUBLE_PENDULUM_M_DIM];
     double res, e1;
@@ -3129,10 +3130,6 @@ static int double_pendulum_sinks_free(const double_pendulum_ctx_t *c, const doub
         if (c->sus->act[i] && i != r) {
             return 0;
         }
-    }
-    double_pendulum_velocity(c, q, v, p, vel);
-    if (double_pendulum_pass_load(c, q, vel, r, passed) >= 0) {
-        return 0;
     }
     double_pendulum_at(c, t);
     double_pendulum_contacts(q, c->par, phi0, grad0);
@@ -3240,13 +3237,13 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                 ++c->sus->lifts_kept;
                 continue;
             }
-            if (double_pendulum_sinks_free(c, q, p, t, vv, start, passed)) { /* the free rest sinks it at once: held on */
+            double_pendulum_velocity(c, q, vv, p, vel);
+            rider = double_pendulum_pass_load(c, q, vel, start, passed);
+            if (rider < 0 && double_pendulum_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
                 pulls[start] = DOUBLE_PENDULUM_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            double_pendulum_velocity(c, q, vv, p, vel);
-            rider = double_pendulum_pass_load(c, q, vel, start, passed);
             double_pendulum_release(c, t, start, rider);
             passed[start] = 1;
             continue;
@@ -3336,14 +3333,14 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         for (r = 0; r < DOUBLE_PENDULUM_R && s > c->tol->simultaneous; ++r) { /* a later instant */
             passed[r] = hit[r] = pulls[r] = 0;
         }
-        if (ev[r0] == 1 && double_pendulum_sinks_free(c, q, p, t, v, r0, passed)) { /* sinks at once: held on */
-            pulls[r0] = DOUBLE_PENDULUM_LIFT_CYCLES;
-            ++c->sus->lifts_kept;
-            continue;
-        }
         if (ev[r0] == 1) {
             double_pendulum_velocity(c, q, v, p, vel);
             rider = double_pendulum_pass_load(c, q, vel, r0, passed);
+            if (rider < 0 && double_pendulum_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+                pulls[r0] = DOUBLE_PENDULUM_LIFT_CYCLES;
+                ++c->sus->lifts_kept;
+                continue;
+            }
             double_pendulum_release(c, t, r0, rider);
             passed[r0] = 1;
             continue;
