@@ -21,8 +21,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +30,8 @@ import vcigen
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_hopping_hoop import R, simulator  # noqa: E402
+
+from bench.random_runs import agree, contact_flags, least_force, tally  # noqa: E402
 
 
 def draw(rng: np.random.Generator) -> tuple[list[float], list[float], dict[str, float]]:
@@ -49,65 +49,14 @@ def draw(rng: np.random.Generator) -> tuple[list[float], list[float], dict[str, 
     return [0.0, R + gap, th], v, {"m": m, "mu": mu, "e": e}
 
 
-def run(backend: str, start, h: float, t_end: float) -> vcigen.Result:
-    q0, v0, params = start
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return simulator(backend).simulate(q0=q0, v0=v0, h=h, t_end=t_end, params=params, progress=False)
-
-
-def tally(backend: str, drops: int, seed: int, h: float, t_end: float) -> None:
-    rng = np.random.default_rng(seed)
-    keys = ("impulse 0", "grazing", "restart", "held on", "force below 0", "jam")
-    count = dict.fromkeys(keys, 0)
-    errors, least, most, lowest, rise = 0, 0.0, 0, math.inf, 0.0
-    t0 = time.perf_counter()
-    for i in range(drops):
-        start = draw(rng)
-        try:
-            res = run(backend, start, h, t_end)
-        except vcigen.SolverError as exc:
-            errors += 1
-            print(f"  drop {i} {start}: {str(exc)[:200]}")
-            continue
-        st, kinds = res.stats, [im.kind for im in res.impacts]
-        force = float(res.contact_force.min()) if res.contact_force.size else 0.0
-        flags = (
-            any(abs(im.impulse) < 1e-12 for im in res.impacts),
-            "grazing" in kinds,
-            st["jump_fallbacks"] > 0,
-            st["lifts_kept"] > 0,
-            force < -1e-9,
-            st["jams"] > 0,
-        )
-        for key, flag in zip(keys, flags):
-            count[key] += bool(flag)
-        least, most = min(least, force), max(most, len(res.impacts))
-        lowest = min(lowest, float((res.q[:, 1] - R).min()))
-        rise = max([rise] + [im.energy_after - im.energy_before for im in res.impacts])
-    wall = time.perf_counter() - t0
-    print(f"[{backend}] {drops} runs (seed {seed}, h = {h}), {wall:.1f} s: errors {errors}")
-    print("  runs with " + ", ".join(f"{k} {v}" for k, v in count.items()) + f" (least force {least:.3g})")
-    print(f"  most impacts in a run {most}; lowest height {lowest:.1e}; largest rise at an impact {rise:.1e}")
-
-
-def agree(drops: int, seed: int, h: float, t_end: float) -> None:
-    rng = np.random.default_rng(seed)
-    apart, worst = [], 0.0
-    for i in range(drops):
-        start = draw(rng)
-        try:
-            c, cas = run("c", start, h, t_end), run("casadi", start, h, t_end)
-        except vcigen.SolverError as exc:
-            print(f"  drop {i} {start}: {str(exc)[:200]}")
-            continue
-        gap = float(np.abs(c.q - cas.q).max())
-        worst = max(worst, gap)
-        if gap > 1e-6 or len(c.impacts) != len(cas.impacts):
-            apart.append(i)
-            counts = f"impacts C {len(c.impacts)}, CasADi {len(cas.impacts)}"
-            print(f"  drop {i} {start[2]}: {gap:.2e} apart; {counts}")
-    print(f"C against CasADi, {drops} runs (seed {seed}): apart {len(apart)}; largest q apart {worst:.1e}")
+def extremes(res: vcigen.Result) -> dict[str, float]:
+    rise = max([0.0] + [im.energy_after - im.energy_before for im in res.impacts])
+    return {
+        "least force": least_force(res),
+        "most impacts in a run": len(res.impacts),
+        "lowest height": float((res.q[:, 1] - R).min()),
+        "largest rise at an impact": rise,
+    }
 
 
 def main() -> None:
@@ -120,10 +69,11 @@ def main() -> None:
     ap.add_argument("--agree", action="store_true", help="each run on both backends")
     args = ap.parse_args()
     if args.agree:
-        agree(args.drops, args.seed, args.h, args.t_end)
+        sims = {b: simulator(b) for b in ("c", "casadi")}
+        agree(sims, draw, args.drops, args.seed, args.h, args.t_end)
         return
     for backend in args.backend:
-        tally(backend, args.drops, args.seed, args.h, args.t_end)
+        tally(simulator(backend), draw, contact_flags, extremes, args.drops, args.seed, args.h, args.t_end)
 
 
 if __name__ == "__main__":

@@ -165,7 +165,7 @@ def test_a_rod_lifted_by_its_upper_end_leaves_the_bowl_there_at_half_its_weight(
     split's share of the friction is 0 there and the tangent is carried across the lift-off (test below);
     lifted at the owner (``e0``), the lift-off is located on the best split (``FrictionModes._pressed``),
     which the tangent does not carry: that step breaks, with "lift-off while a stick rides" among its
-    reasons."""
+    reasons (or a friction switch's, where round-off cycled the riding row's stick at that instant)."""
     res = lift(backend, end, tilt, mu, sens=True)
     t_star = G / 20.0
     assert [name for _, name in res.liftoffs] == [f"e{end}"] and abs(res.liftoffs[0][0] - t_star) < 1e-12
@@ -174,8 +174,12 @@ def test_a_rod_lifted_by_its_upper_end_leaves_the_bowl_there_at_half_its_weight(
     assert np.abs(res.contact_force).max() < 10.0 * G
     assert res.active[-1, 1 - end] and not res.active[-1, end]
     step = int(t_star / 0.01)
-    if end == 0:
-        assert "lift-off while a stick rides" in {why for k, why in res.sensitivity_breaks if k == step}
+    if end == 0:  # where round-off slid and stuck the riding row at that instant first (sticks_kept:
+        # CasADi on an Intel Xeon, stop 53; C there and both on an AMD EPYC take the lift-off alone), the
+        # switch breaks it
+        reasons = {why for k, why in res.sensitivity_breaks if k == step}
+        switched = res.stats["sticks_kept"] > 0 and "friction switch in a held step" in reasons
+        assert "lift-off while a stick rides" in reasons or switched
     else:
         assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
 

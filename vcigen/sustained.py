@@ -120,6 +120,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         self.lifts_kept = 0  # lift-off <-> landing cycles at one instant cut by holding the row on (_chain)
         self._left_step: dict[int, int] = {}  # the grid step of each row's last release (_met_back)
         self._sunk: dict[int, int] = {}  # the grid step each row was last held on by _sinks_free
+        self._sunk_at: dict[int, float] = {}  # where its force vanished, logged at its release (_sinks_free)
         self._stuck_on: set[int] = set()  # stick rows held on at this instant, their force out of the cone
         self.jams = 0  # Painleve jams (JAM_CYCLES lift-offs in a step, _painleve) resolved by sticking (_jam)
         self._jammed = False  # at a jam: every held frictional contact sticks (_friction_modes)
@@ -496,11 +497,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                     self.lifts_kept += 1
                 elif events[r][0] == "lift":
                     rider = self._pass_load(q, self._velocity(q, v, p), r, passed)
-                    if rider < 0 and self._sinks_free(step, q, p, t, v, r):
+                    if rider < 0 and self._sinks_free(step, q, p, t, v, r, True):
                         pulls[r] = LIFT_CYCLES  # the free rest sinks it at once: held on (counted)
                         self.lifts_kept += 1
                     else:
-                        self._release(step, t_k, t, r, rider)
+                        self._release(step, t_k, t, r, rider, True)
                         passed.add(r)
                         relands.setdefault(r, 0)
                 else:
@@ -566,7 +567,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 self._stuck_on.clear()
             if events[r0][0] == "lift":
                 rider = self._pass_load(q, self._velocity(q, v, p), r0, passed)
-                if rider < 0 and self._sinks_free(step, q, p, t, v, r0):
+                if rider < 0 and self._sinks_free(step, q, p, t, v, r0, False):
                     pulls[r0] = LIFT_CYCLES  # the free rest sinks it at once: held on (counted)
                     self.lifts_kept += 1
                     continue
@@ -613,7 +614,7 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             f0 = self._pressed(f0, self.k.rows(q, u)[1])
         return f0
 
-    def _sinks_free(self, step: int, q, p, t: float, guess, r: int) -> bool:
+    def _sinks_free(self, step: int, q, p, t: float, guess, r: int, start: bool) -> bool:
         """Would row ``r``'s lift-off at ``(q, p)``, ``t``, which no rider takes (the caller's
         :meth:`_pass_load`), leave nothing held (no row of another contact, not sliding past Painleve's
         boundary) and a free step (46) of ``h`` from there meet its contact (``Stepper._crossings``: below
@@ -623,7 +624,8 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         that rest and sank at once in the next step. Such a row is held on to the step's end (``LIFT_CYCLES``,
         counted in ``lifts_kept``; its force there within the method's order of 0; ``_sunk`` for
         :meth:`_sunk_held`) and lifts off in a later step: 0.16-1.54 h after the exact lift-off, not to second
-        order. Released, the free flight met the contact at once with no normal speed, and what followed hung
+        order; its log keeps the instant its force vanished (``_sunk_at``, :meth:`_held_since`), second order.
+        Released, the free flight met the contact at once with no normal speed, and what followed hung
         on round-off: a hoop with a mass on its rim hopping off a rough floor logged impacts at the lift-off's
         instant (of impulse 1e-15, grazing and plastic; a restitution kick of 6e-4 ... 7e-3 at ``e = 0``) and
         more lift-offs, other ones on each backend; it raised "more than 64 impacts in one step" from one
@@ -646,8 +648,17 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         if j not in self._crossings(seg, phi0, phi1, d0, d1):  # as the free rest would meet it (_free_rest)
             return False
         self._sw_lose("a lift-off sinking at once")
+        if not self._held_since(step, r, start):  # a new lift-off: its instant, to log at its release
+            self._sunk_at[r] = t
         self._sunk[r] = step
         return True
+
+    def _held_since(self, step: int, r: int, start: bool) -> bool:
+        """Is row ``r``'s lift-off at a segment's ``start`` the one :meth:`_sinks_free` held it on at in
+        this grid step or the one before, not logged yet (``_sunk_at``)? Held on, its force below 0, it is met
+        again at the start of the next segment (after another event) or grid step; a lift-off inside a
+        segment is new."""
+        return start and r in self._sunk_at and step - self._sunk.get(r, step - 2) <= 1
 
     def _sunk_held(self, step: int) -> bool:
         """Is a row held on by :meth:`_sinks_free` in this grid step or the one before held still? Its held
@@ -865,10 +876,14 @@ class SustainedSteps(FrictionModes, HeldImpacts):
             self._held_seg = self._lift_seg = self._free_seg = None
             self._ev_done = True
 
-    def _release(self, step, t_k, t, r: int, rider: int = -1) -> None:
-        """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact. With a
+    def _release(self, step, t_k, t, r: int, rider: int = -1, start: bool = False) -> None:
+        """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact, at the
+        instant its force vanished where :meth:`_sinks_free` held it on since (:meth:`_held_since`). With a
         ``rider`` (:meth:`_pass_load`) that row is held in its place and nothing leaves: ``r`` rides on."""
         k = self.k
+        if self._held_since(step, r, start):
+            t = self._sunk_at[r]
+        self._sunk_at.pop(r, None)
         self.act[r] = False
         if rider >= 0:
             self.act[rider] = True

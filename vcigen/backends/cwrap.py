@@ -108,6 +108,8 @@ def sustain_struct(r: int, m: int, nc: int, nf: int = 0, nb: int = 0) -> type[ct
             ("bounces", ctypes.c_int * max(r, 1)),
             ("left_step", ctypes.c_long * max(r, 1)),
             ("sunk", ctypes.c_long * max(r, 1)),
+            ("sunk_at", ctypes.c_double * max(r, 1)),
+            ("sunk_open", ctypes.c_int * max(r, 1)),
         ]
 
     return _Sustain

@@ -2068,6 +2068,14 @@ static int star_sunk_held(const star_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
+ * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
+ * next segment (after another event) or grid step; a lift-off inside a segment is new. */
+static int star_held_since(const star_ctx_t *c, int r, int start)
+{
+    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
@@ -2110,13 +2118,18 @@ static int star_split_segment(const star_ctx_t *c, const double *q, const double
     }
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
- * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
-static void star_release(const star_ctx_t *c, double t, int r, int rider)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
+ * instant its force vanished where sinks_free held it on since (held_since). With a rider (pass_load) that row is
+ * held in its place and nothing leaves: r rides on. */
+static void star_release(const star_ctx_t *c, double t, int r, int rider, int start)
 {
     star_sustain_t *s = c->sus;
     const int j = star_row_contact[r];
     int i, held = 0;
+    if (star_held_since(c, r, start)) {
+        t = s->sunk_at[r];
+    }
+    s->sunk_open[r] = 0;
     s->act[r] = 0;
     if (rider >= 0) {
         s->act[rider] = 1;
@@ -2757,7 +2770,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
                 rate += grad[r * STAR_N + i] * vel_p[i];
             }
             if (!star_settles(c, rate, racc[r], 1.0)) {
-                star_release(c, t, r, -1);
+                star_release(c, t, r, -1, 0);
             }
         }
     }
@@ -2983,7 +2996,7 @@ static void star_met_back(const star_ctx_t *c, const double *q, const double *p,
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int star_sinks_free(const star_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r)
+    int r, int start)
 {
     double phi0[STAR_M_DIM], grad0[STAR_M_DIM * STAR_N];
     double phi1[STAR_M_DIM], grad1[STAR_M_DIM * STAR_N], d0[STAR_M_DIM];
@@ -3003,6 +3016,10 @@ static int star_sinks_free(const star_ctx_t *c, const double *q, const double *p
     star_free_seg(&seg, q, p, v1, t, c->h);
     if (!star_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
         return 0; /* as the free rest would meet it (free_rest) */
+    }
+    if (!star_held_since(c, r, start)) { /* a new lift-off: its instant, to log at its release */
+        c->sus->sunk_at[r] = t;
+        c->sus->sunk_open[r] = 1;
     }
     c->sus->sunk[r] = c->step + 1;
     return 1;
@@ -3105,12 +3122,12 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
             }
             star_velocity(c, q, vv, p, vel);
             rider = star_pass_load(c, q, vel, start, passed);
-            if (rider < 0 && star_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
+            if (rider < 0 && star_sinks_free(c, q, p, t, vv, start, 1)) { /* the free rest sinks it at once: held on */
                 pulls[start] = STAR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            star_release(c, t, start, rider);
+            star_release(c, t, start, rider, 1);
             passed[start] = 1;
             continue;
         }
@@ -3202,12 +3219,12 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (ev[r0] == 1) {
             star_velocity(c, q, v, p, vel);
             rider = star_pass_load(c, q, vel, r0, passed);
-            if (rider < 0 && star_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+            if (rider < 0 && star_sinks_free(c, q, p, t, v, r0, 0)) { /* sinks at once: held on */
                 pulls[r0] = STAR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            star_release(c, t, r0, rider);
+            star_release(c, t, r0, rider, 0);
             passed[r0] = 1;
             continue;
         }

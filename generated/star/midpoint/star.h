@@ -116,6 +116,8 @@ typedef struct {
     int bounces[STAR_R_DIM];   /* impacts of each row in this step's held chains (BOUNCE_CYCLES: then held) */
     long left_step[STAR_R_DIM]; /* 1 + the grid step of each row's last release (0: none; met_back) */
     long sunk[STAR_R_DIM];     /* 1 + the grid step each row was last held on by sinks_free (0: none) */
+    double sunk_at[STAR_R_DIM]; /* the instant its force vanished, to log at its release (sinks_free) */
+    int sunk_open[STAR_R_DIM]; /* 1 where sunk_at is not logged yet */
 } star_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

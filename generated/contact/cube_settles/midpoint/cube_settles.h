@@ -105,6 +105,8 @@ typedef struct {
     int bounces[CUBE_SETTLES_R_DIM];   /* impacts of each row in this step's held chains (BOUNCE_CYCLES: then held) */
     long left_step[CUBE_SETTLES_R_DIM]; /* 1 + the grid step of each row's last release (0: none; met_back) */
     long sunk[CUBE_SETTLES_R_DIM];     /* 1 + the grid step each row was last held on by sinks_free (0: none) */
+    double sunk_at[CUBE_SETTLES_R_DIM]; /* the instant its force vanished, to log at its release (sinks_free) */
+    int sunk_open[CUBE_SETTLES_R_DIM]; /* 1 where sunk_at is not logged yet */
 } cube_settles_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -122,6 +122,8 @@ typedef struct {
     int bounces[PENDULUM_WALL_R_DIM];   /* impacts of each row in this step's held chains (BOUNCE_CYCLES: then held) */
     long left_step[PENDULUM_WALL_R_DIM]; /* 1 + the grid step of each row's last release (0: none; met_back) */
     long sunk[PENDULUM_WALL_R_DIM];     /* 1 + the grid step each row was last held on by sinks_free (0: none) */
+    double sunk_at[PENDULUM_WALL_R_DIM]; /* the instant its force vanished, to log at its release (sinks_free) */
+    int sunk_open[PENDULUM_WALL_R_DIM]; /* 1 where sunk_at is not logged yet */
 } pendulum_wall_sustain_t;
 
 /* Where and why a step failed, as vcigen.SolverError. */

@@ -2717,6 +2717,14 @@ static int pyramid_sunk_held(const pyramid_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
+ * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
+ * next segment (after another event) or grid step; a lift-off inside a segment is new. */
+static int pyramid_held_since(const pyramid_ctx_t *c, int r, int start)
+{
+    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
@@ -2759,13 +2767,18 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
     }
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
- * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
-static void pyramid_release(const pyramid_ctx_t *c, double t, int r, int rider)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
+ * instant its force vanished where sinks_free held it on since (held_since). With a rider (pass_load) that row is
+ * held in its place and nothing leaves: r rides on. */
+static void pyramid_release(const pyramid_ctx_t *c, double t, int r, int rider, int start)
 {
     pyramid_sustain_t *s = c->sus;
     const int j = pyramid_row_contact[r];
     int i, held = 0;
+    if (pyramid_held_since(c, r, start)) {
+        t = s->sunk_at[r];
+    }
+    s->sunk_open[r] = 0;
     s->act[r] = 0;
     if (rider >= 0) {
         s->act[rider] = 1;
@@ -4694,7 +4707,7 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && pyramid_rides_after(c, grad, r, leaving, plastic, 1))
                 || !pyramid_settles(c, rate, racc[r], 1.0)) {
-                pyramid_release(c, t, r, -1);
+                pyramid_release(c, t, r, -1, 0);
             }
         }
     }
@@ -4933,7 +4946,7 @@ static void pyramid_met_back(const pyramid_ctx_t *c, const double *q, const doub
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int pyramid_sinks_free(const pyramid_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r)
+    int r, int start)
 {
     double phi0[PYRAMID_M_DIM], grad0[PYRAMID_M_DIM * PYRAMID_N];
     double phi1[PYRAMID_M_DIM], grad1[PYRAMID_M_DIM * PYRAMID_N], d0[PYRAMID_M_DIM];
@@ -4961,6 +4974,10 @@ static int pyramid_sinks_free(const pyramid_ctx_t *c, const double *q, const dou
     pyramid_free_seg(&seg, q, p, v1, t, c->h);
     if (!pyramid_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
         return 0; /* as the free rest would meet it (free_rest) */
+    }
+    if (!pyramid_held_since(c, r, start)) { /* a new lift-off: its instant, to log at its release */
+        c->sus->sunk_at[r] = t;
+        c->sus->sunk_open[r] = 1;
     }
     c->sus->sunk[r] = c->step + 1;
     return 1;
@@ -5197,12 +5214,12 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             }
             pyramid_velocity(c, q, vv, p, vel);
             rider = pyramid_pass_load(c, q, vel, start, passed);
-            if (rider < 0 && pyramid_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
+            if (rider < 0 && pyramid_sinks_free(c, q, p, t, vv, start, 1)) { /* the free rest sinks it at once: held on */
                 pulls[start] = PYRAMID_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            pyramid_release(c, t, start, rider);
+            pyramid_release(c, t, start, rider, 1);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
@@ -5298,12 +5315,12 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         if (ev[r0] == 1) {
             pyramid_velocity(c, q, v, p, vel);
             rider = pyramid_pass_load(c, q, vel, r0, passed);
-            if (rider < 0 && pyramid_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+            if (rider < 0 && pyramid_sinks_free(c, q, p, t, v, r0, 0)) { /* sinks at once: held on */
                 pulls[r0] = PYRAMID_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            pyramid_release(c, t, r0, rider);
+            pyramid_release(c, t, r0, rider, 0);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];
             continue;

@@ -1613,6 +1613,14 @@ static int impact_oscillator_sunk_held(const impact_oscillator_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
+ * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
+ * next segment (after another event) or grid step; a lift-off inside a segment is new. */
+static int impact_oscillator_held_since(const impact_oscillator_ctx_t *c, int r, int start)
+{
+    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
@@ -1655,13 +1663,18 @@ static int impact_oscillator_split_segment(const impact_oscillator_ctx_t *c, con
     }
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
- * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
-static void impact_oscillator_release(const impact_oscillator_ctx_t *c, double t, int r, int rider)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
+ * instant its force vanished where sinks_free held it on since (held_since). With a rider (pass_load) that row is
+ * held in its place and nothing leaves: r rides on. */
+static void impact_oscillator_release(const impact_oscillator_ctx_t *c, double t, int r, int rider, int start)
 {
     impact_oscillator_sustain_t *s = c->sus;
     const int j = impact_oscillator_row_contact[r];
     int i, held = 0;
+    if (impact_oscillator_held_since(c, r, start)) {
+        t = s->sunk_at[r];
+    }
+    s->sunk_open[r] = 0;
     s->act[r] = 0;
     if (rider >= 0) {
         s->act[rider] = 1;
@@ -2304,7 +2317,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
                 rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel_p[i];
             }
             if (!impact_oscillator_settles(c, rate, racc[r], 1.0)) {
-                impact_oscillator_release(c, t, r, -1);
+                impact_oscillator_release(c, t, r, -1, 0);
             }
         }
     }
@@ -2531,7 +2544,7 @@ static void impact_oscillator_met_back(const impact_oscillator_ctx_t *c, const d
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int impact_oscillator_sinks_free(const impact_oscillator_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r)
+    int r, int start)
 {
     double phi0[IMPACT_OSCILLATOR_M_DIM], grad0[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N];
     double phi1[IMPACT_OSCILLATOR_M_DIM], grad1[IMPACT_OSCILLATOR_M_DIM * IMPACT_OSCILLATOR_N], d0[IMPACT_OSCILLATOR_M_DIM];
@@ -2551,6 +2564,10 @@ static int impact_oscillator_sinks_free(const impact_oscillator_ctx_t *c, const 
     impact_oscillator_free_seg(&seg, q, p, v1, t, c->h);
     if (!impact_oscillator_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
         return 0; /* as the free rest would meet it (free_rest) */
+    }
+    if (!impact_oscillator_held_since(c, r, start)) { /* a new lift-off: its instant, to log at its release */
+        c->sus->sunk_at[r] = t;
+        c->sus->sunk_open[r] = 1;
     }
     c->sus->sunk[r] = c->step + 1;
     return 1;
@@ -2653,12 +2670,12 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
             }
             impact_oscillator_velocity(c, q, vv, p, vel);
             rider = impact_oscillator_pass_load(c, q, vel, start, passed);
-            if (rider < 0 && impact_oscillator_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
+            if (rider < 0 && impact_oscillator_sinks_free(c, q, p, t, vv, start, 1)) { /* the free rest sinks it at once: held on */
                 pulls[start] = IMPACT_OSCILLATOR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            impact_oscillator_release(c, t, start, rider);
+            impact_oscillator_release(c, t, start, rider, 1);
             passed[start] = 1;
             continue;
         }
@@ -2751,12 +2768,12 @@ static int impact_oscillator_chain(const impact_oscillator_ctx_t *c, double *q, 
         if (ev[r0] == 1) {
             impact_oscillator_velocity(c, q, v, p, vel);
             rider = impact_oscillator_pass_load(c, q, vel, r0, passed);
-            if (rider < 0 && impact_oscillator_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+            if (rider < 0 && impact_oscillator_sinks_free(c, q, p, t, v, r0, 0)) { /* sinks at once: held on */
                 pulls[r0] = IMPACT_OSCILLATOR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            impact_oscillator_release(c, t, r0, rider);
+            impact_oscillator_release(c, t, r0, rider, 0);
             passed[r0] = 1;
             continue;
         }

@@ -2037,6 +2037,14 @@ static int spun_ball_sunk_held(const spun_ball_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
+ * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
+ * next segment (after another event) or grid step; a lift-off inside a segment is new. */
+static int spun_ball_held_since(const spun_ball_ctx_t *c, int r, int start)
+{
+    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
@@ -2079,13 +2087,18 @@ static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, co
     }
 }
 
-/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact. With a
- * rider (pass_load) that row is held in its place and nothing leaves: r rides on. */
-static void spun_ball_release(const spun_ball_ctx_t *c, double t, int r, int rider)
+/* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
+ * instant its force vanished where sinks_free held it on since (held_since). With a rider (pass_load) that row is
+ * held in its place and nothing leaves: r rides on. */
+static void spun_ball_release(const spun_ball_ctx_t *c, double t, int r, int rider, int start)
 {
     spun_ball_sustain_t *s = c->sus;
     const int j = spun_ball_row_contact[r];
     int i, held = 0;
+    if (spun_ball_held_since(c, r, start)) {
+        t = s->sunk_at[r];
+    }
+    s->sunk_open[r] = 0;
     s->act[r] = 0;
     if (rider >= 0) {
         s->act[rider] = 1;
@@ -5244,7 +5257,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             /* after a cut, one in the span of the rows held after with their stick rows leaves (held: dependent) */
             if ((c->sus->riders_cut > counts[2] && spun_ball_rides_after(c, grad, r, leaving, plastic, 1))
                 || !spun_ball_settles(c, rate, racc[r], 1.0)) {
-                spun_ball_release(c, t, r, -1);
+                spun_ball_release(c, t, r, -1, 0);
             }
         }
     }
@@ -5483,7 +5496,7 @@ static void spun_ball_met_back(const spun_ball_ctx_t *c, const double *q, const 
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int spun_ball_sinks_free(const spun_ball_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r)
+    int r, int start)
 {
     double phi0[SPUN_BALL_M_DIM], grad0[SPUN_BALL_M_DIM * SPUN_BALL_N];
     double phi1[SPUN_BALL_M_DIM], grad1[SPUN_BALL_M_DIM * SPUN_BALL_N], d0[SPUN_BALL_M_DIM];
@@ -5511,6 +5524,10 @@ static int spun_ball_sinks_free(const spun_ball_ctx_t *c, const double *q, const
     spun_ball_free_seg(&seg, q, p, v1, t, c->h);
     if (!spun_ball_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
         return 0; /* as the free rest would meet it (free_rest) */
+    }
+    if (!spun_ball_held_since(c, r, start)) { /* a new lift-off: its instant, to log at its release */
+        c->sus->sunk_at[r] = t;
+        c->sus->sunk_open[r] = 1;
     }
     c->sus->sunk[r] = c->step + 1;
     return 1;
@@ -5737,12 +5754,12 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             }
             spun_ball_velocity(c, q, vv, p, vel);
             rider = spun_ball_pass_load(c, q, vel, start, passed);
-            if (rider < 0 && spun_ball_sinks_free(c, q, p, t, vv, start)) { /* the free rest sinks it at once: held on */
+            if (rider < 0 && spun_ball_sinks_free(c, q, p, t, vv, start, 1)) { /* the free rest sinks it at once: held on */
                 pulls[start] = SPUN_BALL_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            spun_ball_release(c, t, start, rider);
+            spun_ball_release(c, t, start, rider, 1);
             passed[start] = 1;
             relands[start] = relands[start] < 0 ? 0 : relands[start];
             continue;
@@ -5838,12 +5855,12 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         if (ev[r0] == 1) {
             spun_ball_velocity(c, q, v, p, vel);
             rider = spun_ball_pass_load(c, q, vel, r0, passed);
-            if (rider < 0 && spun_ball_sinks_free(c, q, p, t, v, r0)) { /* sinks at once: held on */
+            if (rider < 0 && spun_ball_sinks_free(c, q, p, t, v, r0, 0)) { /* sinks at once: held on */
                 pulls[r0] = SPUN_BALL_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
             }
-            spun_ball_release(c, t, r0, rider);
+            spun_ball_release(c, t, r0, rider, 0);
             passed[r0] = 1;
             relands[r0] = relands[r0] < 0 ? 0 : relands[r0];
             continue;

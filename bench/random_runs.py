@@ -1,0 +1,108 @@
+"""Random runs of one scene (``bench.hoop_drops``, ``bench.cam_drops``): each backend's tallies of what the
+runs met, and C against CasADi, over draws ``(q0, v0, params)`` from a seeded generator."""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+
+import vcigen
+
+Start = tuple[list[float], list[float], dict[str, float]]
+
+
+def quiet(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> vcigen.Result:
+    """One run from ``start`` to ``t_end`` at ``h``, its warnings (counted in its stats) not printed."""
+    q0, v0, params = start
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return sim.simulate(q0=q0, v0=v0, h=h, t_end=t_end, params=params, progress=False)
+
+
+def least_force(res: vcigen.Result) -> float:
+    """The least force a run booked (0 where it held nothing)."""
+    return float(res.contact_force.min()) if res.contact_force.size else 0.0
+
+
+def contact_flags(res: vcigen.Result) -> dict[str, bool]:
+    """What a run of the contact regimes met: an impact of impulse 0, a grazing impact, a restart of the jump
+    (``jump_fallbacks``), a lift-off held on (``lifts_kept``), a booked force below -1e-9, a jam."""
+    st = res.stats
+    return {
+        "impulse 0": any(abs(im.impulse) < 1e-12 for im in res.impacts),
+        "grazing": any(im.kind == "grazing" for im in res.impacts),
+        "restart": st["jump_fallbacks"] > 0,
+        "held on": st["lifts_kept"] > 0,
+        "force below 0": least_force(res) < -1e-9,
+        "jam": st["jams"] > 0,
+    }
+
+
+def tally(
+    sim: vcigen.Simulator,
+    draw: Callable[[np.random.Generator], Start],
+    flags: Callable[[vcigen.Result], dict[str, bool]],
+    extremes: Callable[[vcigen.Result], dict[str, float]],
+    drops: int,
+    seed: int,
+    h: float,
+    t_end: float,
+) -> None:
+    """Prints the runs that raise a ``SolverError``, how many runs each of ``flags`` holds in, and the
+    extremes over the runs of ``extremes`` (a name starting with "least" or "lowest" the least, else the
+    largest)."""
+    rng = np.random.default_rng(seed)
+    count: dict[str, int] = {}
+    most: dict[str, float] = {}
+    errors = 0
+    t0 = time.perf_counter()
+    for i in range(drops):
+        start = draw(rng)
+        try:
+            res = quiet(sim, start, h, t_end)
+        except vcigen.SolverError as exc:
+            errors += 1
+            print(f"  drop {i} {start}: {str(exc)[:200]}")
+            continue
+        for key, flag in flags(res).items():
+            count[key] = count.get(key, 0) + bool(flag)
+        for key, value in extremes(res).items():
+            low = key.startswith(("least", "lowest"))
+            old = most.get(key, math.inf if low else -math.inf)
+            most[key] = min(old, value) if low else max(old, value)
+    wall = time.perf_counter() - t0
+    print(f"[{sim.backend}] {drops} runs (seed {seed}, h = {h}), {wall:.1f} s: errors {errors}")
+    print("  runs with " + ", ".join(f"{k} {v}" for k, v in count.items()))
+    print("  " + "; ".join(f"{k} {v:.3g}" for k, v in most.items()))
+
+
+def agree(
+    sims: dict[str, vcigen.Simulator],
+    draw: Callable[[np.random.Generator], Start],
+    drops: int,
+    seed: int,
+    h: float,
+    t_end: float,
+) -> None:
+    """Each draw on both backends (``sims["c"]``, ``sims["casadi"]``): the runs more than 1e-6 apart in ``q``
+    or with other impact counts printed, then how many and the largest gap."""
+    rng = np.random.default_rng(seed)
+    apart, worst = 0, 0.0
+    for i in range(drops):
+        start = draw(rng)
+        try:
+            c, cas = quiet(sims["c"], start, h, t_end), quiet(sims["casadi"], start, h, t_end)
+        except vcigen.SolverError as exc:
+            print(f"  drop {i} {start}: {str(exc)[:200]}")
+            continue
+        gap = float(np.abs(c.q - cas.q).max())
+        worst = max(worst, gap)
+        if gap > 1e-6 or len(c.impacts) != len(cas.impacts):
+            apart += 1
+            counts = f"impacts C {len(c.impacts)}, CasADi {len(cas.impacts)}"
+            print(f"  drop {i} {start[2]}: {gap:.2e} apart; {counts}")
+    print(f"C against CasADi, {drops} runs (seed {seed}, h = {h}): apart {apart}; largest apart {worst:.1e}")
