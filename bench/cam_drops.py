@@ -17,13 +17,15 @@ pull; three in four start on the cam at its speed, one in four dropped from up t
 * ``--agree``: each draw on both backends (to ``t = 2``), those more than 1e-6 apart printed.
 * ``--lift-offs``: the draws that start on the cam, pressed, and jump within 3 s (``reference``, the test's
   event-driven scipy reference), run at ``h`` and ``h / 2`` in C: the first lift-off's error against the
-  reference in units of ``h^2``, for those held on (``lifts_kept``) and those not; the order between the two.
+  reference in units of ``h^2``, for those held on (``lifts_kept``) and those not; the order between the two
+  (a reference that takes more than ``REFERENCE_SECONDS`` is skipped, counted).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 from pathlib import Path
 
@@ -35,6 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from hard_scenes import G  # noqa: E402
 from test_cam_follower import reference, simulator  # noqa: E402
+
+REFERENCE_SECONDS = 20  # a reference that takes longer is skipped (counted)
 
 from bench.random_runs import agree, contact_flags, least_force, quiet, tally  # noqa: E402
 
@@ -73,14 +77,26 @@ def extremes(res: vcigen.Result) -> dict[str, float]:
 def lift_offs(drops: int, seed: int, h: float) -> None:
     rng = np.random.default_rng(seed)
     rows = {True: [], False: []}  # held on or not: (error at h, at h / 2) in units of h^2 and (h / 2)^2
+    slow = 0
+
+    def late(*_):
+        raise TimeoutError
+
+    signal.signal(signal.SIGALRM, late)
     for _ in range(drops):
         (th0, y0_), (w, _vy), p = draw(rng)
         if y0_ != 1.0 + p["eps"] * math.sin(th0):
             continue
+        signal.alarm(REFERENCE_SECONDS)
         try:
             t_lift, _, _ = reference(th0, w, p)
         except (AssertionError, IndexError):
             continue
+        except TimeoutError:
+            slow += 1
+            continue
+        finally:
+            signal.alarm(0)
         errs, kept = [], False
         for hh in (h, h / 2):
             res = quiet(simulator("c"), ([th0, y0_], [w, p["eps"] * math.cos(th0) * w], p), hh, t_lift + 0.05)
@@ -90,6 +106,7 @@ def lift_offs(drops: int, seed: int, h: float) -> None:
             kept = kept or res.stats["lifts_kept"] > 0
         if len(errs) == 2:
             rows[kept].append(errs)
+    print(f"  references skipped after {REFERENCE_SECONDS} s (counted): {slow}")
     for kept, name in ((True, "held on"), (False, "released at once")):
         e = np.abs(np.array(rows[kept])).reshape(-1, 2)
         if not len(e):
