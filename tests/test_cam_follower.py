@@ -37,16 +37,18 @@ HELD_ON_ROUGH = (-0.4378, 3.9774, {"I": 19.27, "eps": 0.455, "k": 151.4, "y0": 0
 CLEAN = (3.0206, 33.815, {"I": 10.97, "eps": 0.168, "k": 151.3, "y0": 0.2524, "mu": 0.0, "e": 0.3})
 
 
-def cam() -> vcigen.Model:
+def cam(rough: bool = True) -> vcigen.Model:
+    """The cam and its follower; ``rough=False``: no friction (``mu`` not a parameter)."""
+    friction = {"friction": {"cam": (MU, EPS * sp.cos(th) - th)}} if rough else {}
     return vcigen.Model(
-        name="cam_follower",
+        name="cam_follower" if rough else "cam_follower_smooth",
         q=[th, y],
         qdot=[thd, yd],
         lagrangian=INERTIA * thd**2 / 2 + yd**2 / 2 - K * (y - Y0) ** 2 / 2 - G * y,
         contacts={"cam": y - 1 - EPS * sp.sin(th)},
-        friction={"cam": (MU, EPS * sp.cos(th) - th)},
         restitution={"cam": E},
-        params={INERTIA: 10.0, EPS: 0.3, K: 50.0, Y0: 0.5, MU: 0.0, E: 0.0},
+        params={INERTIA: 10.0, EPS: 0.3, K: 50.0, Y0: 0.5, E: 0.0, **({MU: 0.0} if rough else {})},
+        **friction,
     )
 
 
@@ -174,16 +176,7 @@ def test_the_backends_agree_through_the_jump(backend):
 @cache
 def smooth_simulator(backend: str) -> vcigen.Simulator:
     """The cam without friction under ``rule="lobatto3"`` (which does not take friction)."""
-    model = vcigen.Model(
-        name="cam_follower_smooth",
-        q=[th, y],
-        qdot=[thd, yd],
-        lagrangian=INERTIA * thd**2 / 2 + yd**2 / 2 - K * (y - Y0) ** 2 / 2 - G * y,
-        contacts={"cam": y - 1 - EPS * sp.sin(th)},
-        restitution={"cam": E},
-        params={INERTIA: 10.0, EPS: 0.3, K: 50.0, Y0: 0.5, E: 0.0},
-    )
-    return vcigen.build(model, backend=backend, rule="lobatto3")
+    return vcigen.build(cam(rough=False), backend=backend, rule="lobatto3")
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
