@@ -658,14 +658,18 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         this grid step or the one before, not logged yet (``_sunk_at``)? Held on, its force below 0, it is met
         again at the start of the next segment (after another event) or grid step; a lift-off inside a
         segment is new."""
-        return start and r in self._sunk_at and step - self._sunk.get(r, step - 2) <= 1
+        return start and r in self._sunk_at and self._sunk_lately(step, r)
+
+    def _sunk_lately(self, step: int, r: int) -> bool:
+        """Was row ``r`` held on by :meth:`_sinks_free` in grid step ``step`` or the one before?"""
+        return step - self._sunk.get(r, step - 2) <= 1
 
     def _sunk_held(self, step: int) -> bool:
         """Is a row held on by :meth:`_sinks_free` in this grid step or the one before held still? Its held
         segment whose Newton fails is halved (:meth:`_split_segment`), as a slipping contact's: held on at its
         lift-off, a frictionless cube rocking on one vertex as its Euler angles neared their singularity
         (pitch -1.57, angle rates of 2e3) had no held step of ``h`` in the next step, one of ``h / 2``."""
-        return any(self.act[r] and step - s <= 1 for r, s in self._sunk.items())
+        return any(self.act[r] and self._sunk_lately(step, r) for r in self._sunk)
 
     def _met_back(self, step: int, q, u, group, backs) -> list[int]:
         """Rows of the crossing ``group`` at ``(q, u)`` released in this grid step or the ``LEAVE_STEPS``

@@ -2563,13 +2563,19 @@ static int cube_settles_reverses(const cube_settles_ctx_t *c, const double *q, c
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int cube_settles_sunk_lately(const cube_settles_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int cube_settles_sunk_held(const cube_settles_ctx_t *c)
 {
     int r;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && cube_settles_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -2581,7 +2587,7 @@ static int cube_settles_sunk_held(const cube_settles_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int cube_settles_held_since(const cube_settles_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && cube_settles_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its

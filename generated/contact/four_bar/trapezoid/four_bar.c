@@ -2275,13 +2275,19 @@ static int four_bar_reverses(const four_bar_ctx_t *c, const double *q, const dou
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int four_bar_sunk_lately(const four_bar_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int four_bar_sunk_held(const four_bar_ctx_t *c)
 {
     int r;
     for (r = 0; r < FOUR_BAR_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && four_bar_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -2293,7 +2299,7 @@ static int four_bar_sunk_held(const four_bar_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int four_bar_held_since(const four_bar_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && four_bar_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its

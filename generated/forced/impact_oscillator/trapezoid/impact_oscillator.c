@@ -1600,13 +1600,19 @@ static int impact_oscillator_reverses(const impact_oscillator_ctx_t *c, const do
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int impact_oscillator_sunk_lately(const impact_oscillator_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int impact_oscillator_sunk_held(const impact_oscillator_ctx_t *c)
 {
     int r;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && impact_oscillator_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -1618,7 +1624,7 @@ static int impact_oscillator_sunk_held(const impact_oscillator_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int impact_oscillator_held_since(const impact_oscillator_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && impact_oscillator_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its

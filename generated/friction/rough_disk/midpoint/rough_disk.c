@@ -1934,13 +1934,19 @@ static int rough_disk_reverses(const rough_disk_ctx_t *c, const double *q, const
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int rough_disk_sunk_lately(const rough_disk_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int rough_disk_sunk_held(const rough_disk_ctx_t *c)
 {
     int r;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && rough_disk_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -1952,7 +1958,7 @@ static int rough_disk_sunk_held(const rough_disk_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int rough_disk_held_since(const rough_disk_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && rough_disk_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its

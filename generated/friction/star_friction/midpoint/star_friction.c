@@ -2140,13 +2140,19 @@ static int star_friction_reverses(const star_friction_ctx_t *c, const double *q,
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int star_friction_sunk_lately(const star_friction_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int star_friction_sunk_held(const star_friction_ctx_t *c)
 {
     int r;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && star_friction_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -2158,7 +2164,7 @@ static int star_friction_sunk_held(const star_friction_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int star_friction_held_since(const star_friction_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && star_friction_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its

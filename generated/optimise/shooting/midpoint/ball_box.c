@@ -1987,13 +1987,19 @@ static int ball_box_reverses(const ball_box_ctx_t *c, const double *q, const dou
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int ball_box_sunk_lately(const ball_box_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int ball_box_sunk_held(const ball_box_ctx_t *c)
 {
     int r;
     for (r = 0; r < BALL_BOX_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && ball_box_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -2005,7 +2011,7 @@ static int ball_box_sunk_held(const ball_box_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int ball_box_held_since(const ball_box_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && ball_box_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its

@@ -2189,13 +2189,19 @@ static int double_pendulum_reverses(const double_pendulum_ctx_t *c, const double
     return 0;
 }
 
+/* SustainedSteps._sunk_lately: was row r held on by sinks_free in this grid step or the one before? */
+static int double_pendulum_sunk_lately(const double_pendulum_ctx_t *c, int r)
+{
+    return c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+}
+
 /* SustainedSteps._sunk_held: is a row held on by sinks_free in this grid step or the one before held still? Its held
  * segment whose Newton fails is halved (split_segment), as a slipping contact's. */
 static int double_pendulum_sunk_held(const double_pendulum_ctx_t *c)
 {
     int r;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
-        if (c->sus->act[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1) {
+        if (c->sus->act[r] && double_pendulum_sunk_lately(c, r)) {
             return 1;
         }
     }
@@ -2207,7 +2213,7 @@ static int double_pendulum_sunk_held(const double_pendulum_ctx_t *c)
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
 static int double_pendulum_held_since(const double_pendulum_ctx_t *c, int r, int start)
 {
-    return start && c->sus->sunk_open[r] && c->sus->sunk[r] > 0 && c->step + 1 - c->sus->sunk[r] <= 1;
+    return start && c->sus->sunk_open[r] && double_pendulum_sunk_lately(c, r);
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
