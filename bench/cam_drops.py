@@ -23,7 +23,6 @@ pull; three in four start on the cam at its speed, one in four dropped from up t
 
 from __future__ import annotations
 
-import argparse
 import math
 import signal
 import sys
@@ -38,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from hard_scenes import G  # noqa: E402
 from test_cam_follower import reference, simulator  # noqa: E402
 
-from bench.random_runs import agree, contact_flags, least_force, quiet, tally  # noqa: E402
+from bench.random_runs import agree, arguments, contact_flags, least_force, quiet, tally  # noqa: E402
 
 REFERENCE_SECONDS = 20  # a reference that takes longer is skipped (counted)
 
@@ -120,12 +119,7 @@ def lift_offs(drops: int, seed: int, h: float) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--drops", type=int, default=None)
-    ap.add_argument("--seed", type=int, default=2)
-    ap.add_argument("--h", type=float, default=0.005)
-    ap.add_argument("--backend", nargs="+", default=["c"], choices=["c", "casadi"])
-    ap.add_argument("--agree", action="store_true", help="each run on both backends")
+    ap = arguments(__doc__, seed=2, h=0.005)
     ap.add_argument("--lift-offs", action="store_true", help="lift-off times against the reference")
     args = ap.parse_args()
     if args.agree:

@@ -18,7 +18,6 @@ errors 1 -> 0; ``--agree --seed 2``: 0 of 1000 apart, the largest 1.8e-10 (on 1c
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -31,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_hopping_hoop import R, simulator  # noqa: E402
 
-from bench.random_runs import agree, contact_flags, least_force, tally  # noqa: E402
+from bench.random_runs import agree, arguments, contact_flags, least_force, tally  # noqa: E402
 
 
 def draw(rng: np.random.Generator) -> tuple[list[float], list[float], dict[str, float]]:
@@ -60,13 +59,8 @@ def extremes(res: vcigen.Result) -> dict[str, float]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--drops", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--h", type=float, default=0.005)
+    ap = arguments(__doc__, seed=1, h=0.005, drops=1000)
     ap.add_argument("--t-end", type=float, default=4.0)
-    ap.add_argument("--backend", nargs="+", default=["c"], choices=["c", "casadi"])
-    ap.add_argument("--agree", action="store_true", help="each run on both backends")
     args = ap.parse_args()
     if args.agree:
         sims = {b: simulator(b) for b in ("c", "casadi")}

@@ -3,6 +3,7 @@ runs met, and C against CasADi, over draws ``(q0, v0, params)`` from a seeded ge
 
 from __future__ import annotations
 
+import argparse
 import math
 import time
 import warnings
@@ -13,6 +14,18 @@ import numpy as np
 import vcigen
 
 Start = tuple[list[float], list[float], dict[str, float]]
+
+
+def arguments(doc: str, seed: int, h: float, drops: int | None = None) -> argparse.ArgumentParser:
+    """The options every random-run bench takes: ``--drops`` (``None``: the bench's own default per mode),
+    ``--seed``, ``--h``, ``--backend`` (one or both) and ``--agree`` (each run on both backends)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--drops", type=int, default=drops)
+    ap.add_argument("--seed", type=int, default=seed)
+    ap.add_argument("--h", type=float, default=h)
+    ap.add_argument("--backend", nargs="+", default=["c"], choices=["c", "casadi"])
+    ap.add_argument("--agree", action="store_true", help="each run on both backends")
+    return ap
 
 
 def quiet(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> vcigen.Result:

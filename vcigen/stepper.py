@@ -311,14 +311,19 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
     def _crossings(self, seg: Seg, phi0, phi1, d0, d1) -> dict[int, tuple[float, float]]:
         """Contacts crossed in the segment, each with ``(s_hi, phi_j(q(s_hi)) < 0)``.
 
-        A contact is crossed if ``phi_j < 0`` at the end; or, with both ends admissible,
-        if ``phi_j`` dips below 0 inside (tunnelling, a grazing approach): the cubic
-        through the end values and slopes ``d = tau grad phi . v`` flags a dip, and the
-        segment map of (47)/(78) itself is then sampled at the dip.
+        A contact is crossed if ``phi_j < 0`` at the end (the contact the segment leaves from,
+        ``seg.contact``, only below its start: the impact point is on it to the contact time's tolerance,
+        and a slow rebound from a point found at ``phi = -1.35e-10`` ended below ``-Tolerances.phi`` and was
+        met again there, at ``s = 0`` with no impulse, till ``max_impacts_per_step``:
+        ``bench.table_drops --plastic``); or, with both ends admissible, if ``phi_j`` dips below 0 inside
+        (tunnelling, a grazing approach): the cubic through the end values and slopes
+        ``d = tau grad phi . v`` flags a dip, and the segment map of (47)/(78) itself is then sampled at the
+        dip.
         """
         tol = self.tol
         self._at(seg.t)
-        out = {int(j): (1.0, float(phi1[j])) for j in np.flatnonzero(phi1 < -tol.phi)}
+        below = (phi1 < -tol.phi) & ((np.arange(phi1.size) != seg.contact) | (phi1 < phi0))
+        out = {int(j): (1.0, float(phi1[j])) for j in np.flatnonzero(below)}
         for j in np.flatnonzero((phi1 >= -tol.phi) & (d0 < 0) & (d1 > 0)):
             if j == seg.contact:
                 continue

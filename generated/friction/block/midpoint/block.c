@@ -943,7 +943,8 @@ static int block_sample_dip(const block_ctx_t *c, const block_seg_t *seg, int j,
 }
 
 /* Stepper._crossings: the contacts crossed in the segment, each with (s_hi, phi_j(q(s_hi)) < 0).
- * A contact is crossed if phi_j < 0 at the end; or, with both ends admissible, if the cubic through
+ * A contact is crossed if phi_j < 0 at the end (the contact the segment leaves from, seg->contact, only below its
+ * start: the impact point is on it to the contact time's tolerance); or, with both ends admissible, if the cubic through
  * the end values and slopes dips (tunnelling, a grazing approach) and the segment map, sampled at the
  * dip, goes below 0. Returns the number of contacts crossed. */
 static int block_crossings(const block_ctx_t *c, const block_seg_t *seg, const double *phi0,
@@ -954,7 +955,7 @@ static int block_crossings(const block_ctx_t *c, const block_seg_t *seg, const d
     block_at(c, seg->t);
     for (j = 0; j < BLOCK_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi) {
+        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi1[j] < phi0[j])) { /* left from: below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];

@@ -1,0 +1,101 @@
+"""Random runs of a ball on a shaken table: it rests, leaves where the table falls faster than gravity, flies,
+lands, bounces to rest (Zeno) or locks in a cycle, or bounces chaotically.
+
+    .venv/bin/python -m bench.table_drops [--drops 3000] [--seed 1] [--h 0.001] [--backend c]
+    .venv/bin/python -m bench.table_drops --plastic [--drops 1000] [--seed 1] [--h 0.001]
+    .venv/bin/python -m bench.table_drops --agree [--drops 1000] [--seed 5]
+
+The model of ``tests/test_shaken_table.py`` (the table's frame: ``y'' = -g + A W^2 sin(W t)``, ``y >= 0``,
+restitution ``e``). Each draw: ``Gamma = A W^2 / g`` uniform in (1.05, 8), ``W`` in (5, 120), ``e``
+from {0, 0.1, 0.3, 0.5, 0.7, 0.9, 0.95}, at rest on the table or (one in two) dropped from up to 5 cm; to
+``t = 2``.
+
+* Tallies per backend: the runs that end in a ``SolverError`` (each printed), the flags of
+  ``bench.random_runs.contact_flags``, a lift-off more than 1e-9 from an exact lift-off instant
+  (``sin(W t) = 1 / Gamma``, rising), the ball below the table by more than 1e-9; the extremes.
+* ``--plastic``: draws with ``e = 0`` and ``Gamma`` in (1.05, 3.3) against the test's event-driven closed-form
+  reference: the runs whose lift-offs before ``t = 1.95`` differ from the reference's in number or by more
+  than 1e-9 (each printed). With ``e > 0`` bounces shorter than a step land at first order and the cycle a
+  run locks into can differ (e.g. ``Gamma = 2.6``, ``W = 66.8``, ``e = 0.1``: alike from ``h = 2.5e-4``).
+* ``--agree``: each draw on both backends, those more than 1e-6 apart printed.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import vcigen
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from test_shaken_table import ES, phase_error, reference, shake, simulator  # noqa: E402
+
+from bench.random_runs import agree, arguments, contact_flags, least_force, quiet, tally  # noqa: E402
+
+DRAWN: dict[str, float] = {}  # the parameters of the last draw: the run tally reads next
+
+
+def draw(rng: np.random.Generator, plastic: bool = False):
+    """One start ``(q0, v0, params)``."""
+    gamma = float(rng.uniform(1.05, 3.3 if plastic else 8.0))
+    p = shake(gamma, float(rng.uniform(5, 120)), 0.0 if plastic else float(rng.choice(ES)))
+    DRAWN.update(p)
+    return [float(rng.choice([0.0, rng.uniform(0, 0.05)]))], [0.0], p
+
+
+def extremes(res: vcigen.Result) -> dict[str, float]:
+    p = DRAWN
+    return {
+        "largest lift-off error": max((phase_error(t, p) for t, _ in res.liftoffs), default=0.0),
+        "lowest y": float(res.q[:, 0].min()),
+        "least force": least_force(res),
+        "most impacts in a step": int(np.bincount([im.step for im in res.impacts]).max(initial=0)),
+        "most impacts in a run": len(res.impacts),
+    }
+
+
+def flags(res: vcigen.Result) -> dict[str, bool]:
+    most = extremes(res)
+    off = most["largest lift-off error"] > 1e-9
+    return {**contact_flags(res), "lift-off off its instant": off, "below": most["lowest y"] < -1e-9}
+
+
+def plastic(drops: int, seed: int, h: float) -> None:
+    rng = np.random.default_rng(seed)
+    differ = errors = 0
+    for i in range(drops):
+        start = draw(rng, plastic=True)
+        try:
+            res = quiet(simulator("c"), start, h, 2.0)
+        except vcigen.SolverError as exc:
+            errors += 1
+            print(f"  drop {i} {start[2]} y0 {start[0][0]!r}: {str(exc)[:200]}")
+            continue
+        lifts = [ev[1] for ev in reference(start[0][0], start[2], 1.95) if ev[0] == "lift" and ev[1] < 1.95]
+        mine = [t for t, _ in res.liftoffs if t < 1.95]
+        if len(mine) != len(lifts) or any(abs(t - u) > 1e-9 for t, u in zip(mine, lifts)):
+            differ += 1
+            counts = f"lift-offs {len(mine)}, reference {len(lifts)}"
+            print(f"  drop {i} {start[2]} y0 {start[0][0]:.4f}: {counts}")
+    head = f"[c] {drops} plastic runs (seed {seed}, h = {h}): errors {errors}"
+    print(f"{head}; lift-offs other than the reference's in {differ}")
+
+
+def main() -> None:
+    ap = arguments(__doc__, seed=1, h=0.001)
+    ap.add_argument("--plastic", action="store_true", help="e = 0: lift-offs against the reference")
+    args = ap.parse_args()
+    if args.agree:
+        agree({b: simulator(b) for b in ("c", "casadi")}, draw, args.drops or 1000, args.seed, args.h, 2.0)
+    elif args.plastic:
+        plastic(args.drops or 1000, args.seed, args.h)
+    else:
+        for backend in args.backend:
+            tally(simulator(backend), draw, flags, extremes, args.drops or 3000, args.seed, args.h, 2.0)
+
+
+if __name__ == "__main__":
+    main()
