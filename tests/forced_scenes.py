@@ -3,7 +3,8 @@
 The damped, driven oscillator ``x'' + c x' + w^2 x = A cos(W t)`` against a wall ``x <= d`` with
 restitution ``e``: between impacts the flow is the exact solution of the linear ODE (homogeneous plus
 particular), an impact is located on it by ``scipy.optimize.brentq`` to round-off, and the velocity leaves
-with ``-e`` times its incoming value. No vcigen inside.
+with ``-e`` times its incoming value. A vibratory conveyor's particle (:func:`conveyor_reference`): its
+phases on a rough vibrating plate chained by events. No vcigen inside.
 """
 
 from __future__ import annotations
@@ -12,11 +13,13 @@ import math
 
 import numpy as np
 import sympy as sp
+from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 import vcigen
 
 DAMPING, STIFFNESS, AMPLITUDE, DRIVE, WALL, REST = 0.3, 4.0, 2.0, 1.7, 0.5, 0.8
+G = 9.81  # gravity (hard_scenes.G)
 
 
 def driven_oscillator(time_symbol: bool = True) -> vcigen.Model:
@@ -206,3 +209,102 @@ def driven_wall_errors(sim, hs: list[float]) -> tuple[list[float], list[float]]:
         assert all(im.kind == "restitution" for im in res.impacts)
         hit_errs.append(max(abs(im.t - th) for im, th in zip(res.impacts, hits)))
     return errs, hit_errs
+
+
+def conveyor_reference(p, t_end: float):
+    """A particle on a rough plate vibrating as ``A sin(W t)`` along the angle ``beta`` from it
+    (``examples/forced/conveyor.py``), in the plate's frame, ``e = 0``, from rest on the plate: the events
+    ``(kind, t)`` (slide, stop, lift, land) and ``(x, y)`` at a time. On the plate the normal force is
+    ``N = g - a sin beta`` (``a = A W^2 sin(W t)``) and friction ``mu N`` holds it while
+    ``|a cos beta| <= mu N``, else it slides; where ``N`` falls to 0 it flies, and lands with Coulomb's
+    impulse (the sliding speed falls by at most ``mu`` times the normal one). Each phase by DOP853
+    (rtol 1e-12) to its events."""
+    drive = lambda t: p["A"] * p["W"] ** 2 * math.sin(p["W"] * t)  # noqa: E731
+    cb, sb, mu = math.cos(p["beta"]), math.sin(p["beta"]), p["mu"]
+    normal = lambda t: G - drive(t) * sb  # noqa: E731
+    opts = dict(method="DOP853", rtol=1e-12, atol=1e-13, max_step=0.2 / p["W"])
+    t, s, mode = 0.0, np.zeros(4), "rest"
+    events: list[tuple[str, float]] = []
+    pieces = []
+
+    def run(rhs, stops):
+        sol = solve_ivp(rhs, (t, t_end), s, events=stops, dense_output=True, **opts)
+        pieces.append((t, sol.t[-1], sol.sol))
+        hits = [(float(te[0]), i) for i, te in enumerate(sol.t_events) if te.size]
+        return (min(hits), sol) if hits and sol.status == 1 else (None, sol)
+
+    while t < t_end:
+        if mode == "rest":  # on the plate at a sliding speed of 0
+            if normal(t) <= 0.0:
+                mode = "flight"
+                continue
+            if abs(drive(t) * cb) > mu * normal(t):
+                mode, way = "slide", math.copysign(1.0, drive(t) * cb)
+                events.append(("slide", t))
+                continue
+
+            def lift(tt, z):
+                return normal(tt)
+
+            def slide(tt, z):
+                return mu * normal(tt) - abs(drive(tt) * cb)
+
+            lift.terminal = slide.terminal = True
+            hit, sol = run(lambda tt, z: [0.0, 0.0, 0.0, 0.0], [lift, slide])
+            if hit is None:
+                break
+            t = hit[0]
+            if hit[1] == 0:
+                mode = "flight"
+                events.append(("lift", t))
+            else:
+                mode, way = "slide", math.copysign(1.0, drive(t) * cb)
+                events.append(("slide", t))
+        elif mode == "slide":
+
+            def stop(tt, z, t0=t, way=way):
+                return z[2] if tt > t0 + 1e-9 else way
+
+            def sliding(tt, z, way=way):
+                return [z[2], 0.0, drive(tt) * cb - mu * normal(tt) * way, 0.0]
+
+            def lift(tt, z):
+                return normal(tt)
+
+            stop.terminal = lift.terminal = True
+            hit, sol = run(sliding, [stop, lift])
+            if hit is None:
+                break
+            t, s = hit[0], sol.sol(hit[0]).copy()
+            if hit[1] == 0:
+                s[2], mode = 0.0, "rest"
+                events.append(("stop", t))
+            else:
+                mode = "flight"
+                events.append(("lift", t))
+        else:  # flight, to a landing
+
+            def land(tt, z, t0=t):
+                return z[1] if tt > t0 + 1e-9 else 1.0
+
+            land.terminal, land.direction = True, -1
+            hit, sol = run(lambda tt, z: [z[2], z[3], drive(tt) * cb, -G + drive(tt) * sb], [land])
+            if hit is None:
+                break
+            t, s = hit[0], sol.sol(hit[0]).copy()
+            events.append(("land", t))
+            vx, vy = s[2], s[3]
+            s[1], s[3] = 0.0, 0.0
+            s[2] = vx - math.copysign(min(abs(vx), mu * abs(vy)), vx)  # Coulomb's impulse, e = 0
+            if s[2] != 0.0:
+                mode, way = "slide", math.copysign(1.0, s[2])
+            else:
+                mode = "rest"
+
+    def at(tt: float) -> np.ndarray:
+        for t0, t1, sol in pieces:
+            if t0 <= tt <= t1:
+                return sol(tt)[:2]
+        raise ValueError(f"no reference at t = {tt}")
+
+    return events, at
