@@ -502,9 +502,11 @@ def test_a_vertex_bouncing_beside_held_ones_settles_where_its_flights_are_below_
     (``psi_sl`` 1.4e-19 above 0 there, the crossing search's first point 1.7e-16 in, within its tolerance)
     and held with no impulse, where C bounced on; a row on the contact at a segment's start is bracketed
     from where it is above it (as free flight's). Both backends log the same impacts, ``q`` to 1e-12, above
-    the lower box."""
+    the lower box. Since stop 54 (``ImpactSteps._missed``) nine times: in the step before, after an impact on
+    ``fr``, ``sr`` dipped 6.7e-5 into the lower box before the next impact found, unseen by the segment's
+    end and the cubic; that impact was taken with ``sr`` inside, and now ``sr``'s is located first."""
     start = [0.0, 0.25, 0.0, -0.10886022511403867, 0.9320877425687052, 0.1430585133571342]
-    for rest, kinds in ((1.0, ["plastic"]), (0.01, ["restitution"] * 5 + ["plastic"])):
+    for rest, kinds in ((1.0, ["plastic"]), (0.01, ["restitution"] * 9 + ["plastic"])):
         res = {}
         for b in ("c", "casadi"):
             s = vcigen.build(two_boxes(), backend=b, tol=vcigen.Tolerances(rest=rest))

@@ -312,7 +312,8 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         """Contacts crossed in the segment, each with ``(s_hi, phi_j(q(s_hi)) < 0)``.
 
         A contact is crossed if ``phi_j < 0`` at the end (the contact the segment leaves from,
-        ``seg.contact``, only below its start: the impact point is on it to the contact time's tolerance,
+        ``seg.contact``, from a start within ``Tolerances.admissible`` only below that start: the impact
+        point is on it to the contact time's tolerance,
         and a slow rebound from a point found at ``phi = -1.35e-10`` ended below ``-Tolerances.phi`` and was
         met again there, at ``s = 0`` with no impulse, till ``max_impacts_per_step``:
         ``bench.table_drops --plastic``); or, with both ends admissible, if ``phi_j`` dips below 0 inside
@@ -322,7 +323,8 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         """
         tol = self.tol
         self._at(seg.t)
-        below = (phi1 < -tol.phi) & ((np.arange(phi1.size) != seg.contact) | (phi1 < phi0))
+        left = (np.arange(phi1.size) == seg.contact) & (phi0 >= -tol.admissible) & (phi1 >= phi0)
+        below = (phi1 < -tol.phi) & ~left
         out = {int(j): (1.0, float(phi1[j])) for j in np.flatnonzero(below)}
         for j in np.flatnonzero((phi1 >= -tol.phi) & (d0 < 0) & (d1 > 0)):
             if j == seg.contact:

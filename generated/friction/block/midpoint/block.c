@@ -861,17 +861,19 @@ static void block_leave(const block_ctx_t *c, const block_seg_t *seg, int j, dou
     double *phi_lo)
 {
     double x[BLOCK_NX_MAX], phi[BLOCK_M_DIM];
-    int k;
+    int k, solved;
     for (k = 0; k < 3; ++k) {
-        block_sub_solve(c, seg, block_leave_fractions[k], seg->x, x, phi);
-        if (phi[j] > c->tol->phi) {
+        solved = block_sub_solve(c, seg, block_leave_fractions[k], seg->x, x, phi)
+            <= block_scale(c, seg->p_in, seg->e_in); /* unconverged: no evidence */
+        if (solved && phi[j] > c->tol->phi) {
             *lo = block_leave_fractions[k];
             *phi_lo = phi[j];
             return;
         }
-        if (phi[j] < -c->tol->phi && k == 0 && seg->rest == 0.0 && c->tol->grazing_contact) {
+        if ((phi[j] < -c->tol->phi || !solved) && k == 0 && seg->rest == 0.0
+            && c->tol->grazing_contact) { /* crossed back at once, or (78) unsolvable there */
             *lo = 0.0;
-            *phi_lo = phi[j];
+            *phi_lo = phi[j] < -c->tol->phi ? phi[j] : -c->tol->phi;
             return;
         }
     }
@@ -943,8 +945,9 @@ static int block_sample_dip(const block_ctx_t *c, const block_seg_t *seg, int j,
 }
 
 /* Stepper._crossings: the contacts crossed in the segment, each with (s_hi, phi_j(q(s_hi)) < 0).
- * A contact is crossed if phi_j < 0 at the end (the contact the segment leaves from, seg->contact, only below its
- * start: the impact point is on it to the contact time's tolerance); or, with both ends admissible, if the cubic through
+ * A contact is crossed if phi_j < 0 at the end (the contact the segment leaves from, seg->contact, from a start within
+ * Tolerances.admissible only below that start: the impact point is on it to the contact time's tolerance); or, with both
+ * ends admissible, if the cubic through
  * the end values and slopes dips (tunnelling, a grazing approach) and the segment map, sampled at the
  * dip, goes below 0. Returns the number of contacts crossed. */
 static int block_crossings(const block_ctx_t *c, const block_seg_t *seg, const double *phi0,
@@ -955,7 +958,8 @@ static int block_crossings(const block_ctx_t *c, const block_seg_t *seg, const d
     block_at(c, seg->t);
     for (j = 0; j < BLOCK_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi1[j] < phi0[j])) { /* left from: below its start */
+        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
+            /* the contact left from (within admissible of it): only below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];
@@ -4552,6 +4556,29 @@ static int block_restart(const block_ctx_t *c, block_seg_t *seg, double *e_new, 
     return block_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* ImpactSteps._missed: contacts not crossed that are below -Tolerances.admissible at the impact (x, s) found first are
+ * crossed inside [0, s] (the root's bracket): the contact the segment leaves from is no dip of the cubic test, whose
+ * start slope leaves it (a rocking box's vertex met again before its other vertex landed). Returns how many. */
+static int block_missed(const block_ctx_t *c, const block_seg_t *seg, int *crossed, double *s_hi,
+    double *g_hi, const double *x, double s)
+{
+    double q[BLOCK_N], phi[BLOCK_M_DIM], grad[BLOCK_M_DIM * BLOCK_N];
+    int i, j, count = 0;
+    for (i = 0; i < BLOCK_N; ++i) {
+        q[i] = seg->q[i] + s * seg->tau * x[i];
+    }
+    block_contacts(q, c->par, phi, grad);
+    for (j = 0; j < BLOCK_M; ++j) {
+        if (!crossed[j] && phi[j] < -c->tol->admissible) {
+            crossed[j] = 1;
+            s_hi[j] = s;
+            g_hi[j] = phi[j];
+            ++count;
+        }
+    }
+    return count;
+}
+
 /* Stepper._impact_step: chain of segments (47), (48), (78), (79) until one ends inside C at t_k + h.
  * Impact records go to rec at *n_rec (room for max_impacts_per_step); on success (q, p, e, v) and
  * phi, grad phi at q are the step's results. */
@@ -4615,6 +4642,9 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
         }
         if (restarted) {
             continue;
+        }
+        if (block_missed(c, seg, crossed, s_hi, g_hi, x_best, s_best)) {
+            continue; /* crossed before this impact (a dip the end and the cubic missed): located first */
         }
         n_group = 0;
         for (j = 0; j < BLOCK_M; ++j) {

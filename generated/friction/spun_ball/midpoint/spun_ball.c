@@ -1028,17 +1028,19 @@ static void spun_ball_leave(const spun_ball_ctx_t *c, const spun_ball_seg_t *seg
     double *phi_lo)
 {
     double x[SPUN_BALL_NX_MAX], phi[SPUN_BALL_M_DIM];
-    int k;
+    int k, solved;
     for (k = 0; k < 3; ++k) {
-        spun_ball_sub_solve(c, seg, spun_ball_leave_fractions[k], seg->x, x, phi);
-        if (phi[j] > c->tol->phi) {
+        solved = spun_ball_sub_solve(c, seg, spun_ball_leave_fractions[k], seg->x, x, phi)
+            <= spun_ball_scale(c, seg->p_in, seg->e_in); /* unconverged: no evidence */
+        if (solved && phi[j] > c->tol->phi) {
             *lo = spun_ball_leave_fractions[k];
             *phi_lo = phi[j];
             return;
         }
-        if (phi[j] < -c->tol->phi && k == 0 && seg->rest == 0.0 && c->tol->grazing_contact) {
+        if ((phi[j] < -c->tol->phi || !solved) && k == 0 && seg->rest == 0.0
+            && c->tol->grazing_contact) { /* crossed back at once, or (78) unsolvable there */
             *lo = 0.0;
-            *phi_lo = phi[j];
+            *phi_lo = phi[j] < -c->tol->phi ? phi[j] : -c->tol->phi;
             return;
         }
     }
@@ -1110,8 +1112,9 @@ static int spun_ball_sample_dip(const spun_ball_ctx_t *c, const spun_ball_seg_t 
 }
 
 /* Stepper._crossings: the contacts crossed in the segment, each with (s_hi, phi_j(q(s_hi)) < 0).
- * A contact is crossed if phi_j < 0 at the end (the contact the segment leaves from, seg->contact, only below its
- * start: the impact point is on it to the contact time's tolerance); or, with both ends admissible, if the cubic through
+ * A contact is crossed if phi_j < 0 at the end (the contact the segment leaves from, seg->contact, from a start within
+ * Tolerances.admissible only below that start: the impact point is on it to the contact time's tolerance); or, with both
+ * ends admissible, if the cubic through
  * the end values and slopes dips (tunnelling, a grazing approach) and the segment map, sampled at the
  * dip, goes below 0. Returns the number of contacts crossed. */
 static int spun_ball_crossings(const spun_ball_ctx_t *c, const spun_ball_seg_t *seg, const double *phi0,
@@ -1122,7 +1125,8 @@ static int spun_ball_crossings(const spun_ball_ctx_t *c, const spun_ball_seg_t *
     spun_ball_at(c, seg->t);
     for (j = 0; j < SPUN_BALL_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi1[j] < phi0[j])) { /* left from: below its start */
+        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
+            /* the contact left from (within admissible of it): only below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];
@@ -6522,6 +6526,29 @@ static int spun_ball_restart(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, dou
     return spun_ball_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* ImpactSteps._missed: contacts not crossed that are below -Tolerances.admissible at the impact (x, s) found first are
+ * crossed inside [0, s] (the root's bracket): the contact the segment leaves from is no dip of the cubic test, whose
+ * start slope leaves it (a rocking box's vertex met again before its other vertex landed). Returns how many. */
+static int spun_ball_missed(const spun_ball_ctx_t *c, const spun_ball_seg_t *seg, int *crossed, double *s_hi,
+    double *g_hi, const double *x, double s)
+{
+    double q[SPUN_BALL_N], phi[SPUN_BALL_M_DIM], grad[SPUN_BALL_M_DIM * SPUN_BALL_N];
+    int i, j, count = 0;
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        q[i] = seg->q[i] + s * seg->tau * x[i];
+    }
+    spun_ball_contacts(q, c->par, phi, grad);
+    for (j = 0; j < SPUN_BALL_M; ++j) {
+        if (!crossed[j] && phi[j] < -c->tol->admissible) {
+            crossed[j] = 1;
+            s_hi[j] = s;
+            g_hi[j] = phi[j];
+            ++count;
+        }
+    }
+    return count;
+}
+
 /* Stepper._impact_step: chain of segments (47), (48), (78), (79) until one ends inside C at t_k + h.
  * Impact records go to rec at *n_rec (room for max_impacts_per_step); on success (q, p, e, v) and
  * phi, grad phi at q are the step's results. */
@@ -6585,6 +6612,9 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
         }
         if (restarted) {
             continue;
+        }
+        if (spun_ball_missed(c, seg, crossed, s_hi, g_hi, x_best, s_best)) {
+            continue; /* crossed before this impact (a dip the end and the cubic missed): located first */
         }
         n_group = 0;
         for (j = 0; j < SPUN_BALL_M; ++j) {

@@ -1,0 +1,71 @@
+"""Random runs of a box on a rough vibrating plate: it sticks, slides, rocks, hops and lands on its vertices.
+
+    .venv/bin/python -m bench.plate_drops [--drops 1500] [--seed 1] [--h 0.005] [--backend c]
+    .venv/bin/python -m bench.plate_drops --agree [--drops 300] [--seed 7]
+
+The model of ``tests/test_box_on_a_vibrating_plate.py`` (the plate's frame: a force of time on the box's
+centre, two lower vertices with Coulomb friction ``mu`` and restitution ``e``; its ``draw``); to ``t = 2``.
+
+* Tallies per backend: the runs that end in a ``SolverError`` (each printed), the flags of
+  ``bench.random_runs.contact_flags``, a vertex below the plate by more than 1e-9, friction work above 1e-9
+  in a step, more than 3 impacts in a step; the extremes.
+* ``--agree``: each draw on both backends, those more than 1e-6 apart printed.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import vcigen
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from test_box_on_a_vibrating_plate import draw as _draw  # noqa: E402
+from test_box_on_a_vibrating_plate import lowest, simulator  # noqa: E402
+
+from bench.random_runs import agree, arguments, contact_flags, least_force, tally  # noqa: E402
+
+DRAWN: dict[str, float] = {}  # the parameters of the last draw: the run tally reads next
+
+
+def draw(rng: np.random.Generator):
+    start = _draw(rng)
+    DRAWN.clear()
+    DRAWN.update(start[2])
+    return start
+
+
+def extremes(res: vcigen.Result) -> dict[str, float]:
+    fw = res.friction_work
+    return {
+        "lowest vertex": lowest(res, DRAWN),
+        "least force": least_force(res),
+        "most friction work in a step": float(fw.max()) if fw is not None and fw.size else 0.0,
+        "most impacts in a step": int(np.bincount([im.step for im in res.impacts]).max(initial=0)),
+    }
+
+
+def flags(res: vcigen.Result) -> dict[str, bool]:
+    most = extremes(res)
+    return {
+        **contact_flags(res),
+        "below": most["lowest vertex"] < -1e-9,
+        "friction pushing": most["most friction work in a step"] > 1e-9,
+        "4+ impacts in a step": most["most impacts in a step"] > 3,
+    }
+
+
+def main() -> None:
+    args = arguments(__doc__, seed=1, h=0.005).parse_args()
+    if args.agree:
+        agree({b: simulator(b) for b in ("c", "casadi")}, draw, args.drops or 300, args.seed, args.h, 2.0)
+    else:
+        for backend in args.backend:
+            tally(simulator(backend), draw, flags, extremes, args.drops or 1500, args.seed, args.h, 2.0)
+
+
+if __name__ == "__main__":
+    main()
