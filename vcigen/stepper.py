@@ -313,13 +313,12 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
 
         A contact is crossed if ``phi_j < 0`` at the end (the contact the segment leaves from,
         ``seg.contact``, from a start within ``Tolerances.admissible`` only below that start: the impact
-        point is on it to the contact time's tolerance,
-        and a slow rebound from a point found at ``phi = -1.35e-10`` ended below ``-Tolerances.phi`` and was
-        met again there, at ``s = 0`` with no impulse, till ``max_impacts_per_step``:
-        ``bench.table_drops --plastic``); or, with both ends admissible, if ``phi_j`` dips below 0 inside
-        (tunnelling, a grazing approach): the cubic through the end values and slopes
-        ``d = tau grad phi . v`` flags a dip, and the segment map of (47)/(78) itself is then sampled at the
-        dip.
+        point is on it to the contact time's tolerance, and a slow rebound from a point found at
+        ``phi = -1.35e-10`` ended below ``-Tolerances.phi`` and was met again there, at ``s = 0`` with no
+        impulse, till ``max_impacts_per_step``: ``bench.table_drops --plastic``); or, with both ends
+        admissible, if ``phi_j`` dips below 0 inside (tunnelling, a grazing approach): the cubic through the
+        end values and slopes ``d = tau grad phi . v`` flags a dip, and the segment map of (47)/(78) itself
+        is then sampled at the dip. A dip both miss is found at the next impact (:meth:`_missed`).
         """
         tol = self.tol
         self._at(seg.t)

@@ -3747,8 +3747,8 @@ static int ball_to_rest_restart(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t 
 }
 
 /* ImpactSteps._missed: contacts not crossed that are below -Tolerances.admissible at the impact (x, s) found first are
- * crossed inside [0, s] (the root's bracket): the contact the segment leaves from is no dip of the cubic test, whose
- * start slope leaves it (a rocking box's vertex met again before its other vertex landed). Returns how many. */
+ * crossed inside [0, s] (the root's bracket): a dip the segment's end and the cubic test missed (the contact the
+ * segment leaves from, whose start slope the test leaves; another's between the cubic's samples). Returns how many. */
 static int ball_to_rest_missed(const ball_to_rest_ctx_t *c, const ball_to_rest_seg_t *seg, int *crossed, double *s_hi,
     double *g_hi, const double *x, double s)
 {
