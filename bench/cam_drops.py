@@ -59,11 +59,11 @@ def draw(rng: np.random.Generator) -> tuple[list[float], list[float], dict[str, 
     return [th0, 1.0 + p["eps"] * math.sin(th0) + gap], [w, vy], p
 
 
-def flags(res: vcigen.Result) -> dict[str, bool]:
+def flags(res: vcigen.Result, params: dict | None = None) -> dict[str, bool]:
     return {**contact_flags(res), "friction pushing": extremes(res)["most friction work in a step"] > 1e-12}
 
 
-def extremes(res: vcigen.Result) -> dict[str, float]:
+def extremes(res: vcigen.Result, params: dict | None = None) -> dict[str, float]:
     fw = res.friction_work
     return {
         "least force": least_force(res),

@@ -48,7 +48,7 @@ def draw(rng: np.random.Generator) -> tuple[list[float], list[float], dict[str, 
     return [0.0, R + gap, th], v, {"m": m, "mu": mu, "e": e}
 
 
-def extremes(res: vcigen.Result) -> dict[str, float]:
+def extremes(res: vcigen.Result, params: dict | None = None) -> dict[str, float]:
     rise = max([0.0] + [im.energy_after - im.energy_before for im in res.impacts])
     return {
         "least force": least_force(res),

@@ -23,33 +23,23 @@ import vcigen
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from test_box_on_a_vibrating_plate import draw as _draw  # noqa: E402
-from test_box_on_a_vibrating_plate import lowest, simulator  # noqa: E402
+from test_box_on_a_vibrating_plate import draw, lowest, simulator  # noqa: E402
 
 from bench.random_runs import agree, arguments, contact_flags, least_force, tally  # noqa: E402
 
-DRAWN: dict[str, float] = {}  # the parameters of the last draw: the run tally reads next
 
-
-def draw(rng: np.random.Generator):
-    start = _draw(rng)
-    DRAWN.clear()
-    DRAWN.update(start[2])
-    return start
-
-
-def extremes(res: vcigen.Result) -> dict[str, float]:
+def extremes(res: vcigen.Result, params: dict) -> dict[str, float]:
     fw = res.friction_work
     return {
-        "lowest vertex": lowest(res, DRAWN),
+        "lowest vertex": lowest(res, params),
         "least force": least_force(res),
         "most friction work in a step": float(fw.max()) if fw is not None and fw.size else 0.0,
         "most impacts in a step": int(np.bincount([im.step for im in res.impacts]).max(initial=0)),
     }
 
 
-def flags(res: vcigen.Result) -> dict[str, bool]:
-    most = extremes(res)
+def flags(res: vcigen.Result, params: dict) -> dict[str, bool]:
+    most = extremes(res, params)
     return {
         **contact_flags(res),
         "below": most["lowest vertex"] < -1e-9,

@@ -41,7 +41,7 @@ def least_force(res: vcigen.Result) -> float:
     return float(res.contact_force.min()) if res.contact_force.size else 0.0
 
 
-def contact_flags(res: vcigen.Result) -> dict[str, bool]:
+def contact_flags(res: vcigen.Result, params: dict | None = None) -> dict[str, bool]:
     """What a run of the contact regimes met: an impact of impulse 0, a grazing impact, a restart of the jump
     (``jump_fallbacks``), a lift-off held on (``lifts_kept``), a booked force below -1e-9, a jam."""
     st = res.stats
@@ -58,8 +58,8 @@ def contact_flags(res: vcigen.Result) -> dict[str, bool]:
 def tally(
     sim: vcigen.Simulator,
     draw: Callable[[np.random.Generator], Start],
-    flags: Callable[[vcigen.Result], dict[str, bool]],
-    extremes: Callable[[vcigen.Result], dict[str, float]],
+    flags: Callable[[vcigen.Result, dict], dict[str, bool]],
+    extremes: Callable[[vcigen.Result, dict], dict[str, float]],
     drops: int,
     seed: int,
     h: float,
@@ -67,7 +67,7 @@ def tally(
 ) -> None:
     """Prints the runs that raise a ``SolverError``, how many runs each of ``flags`` holds in, and the
     extremes over the runs of ``extremes`` (a name starting with "least" or "lowest" the least, else the
-    largest)."""
+    largest); both are called with the run and its start's parameters."""
     rng = np.random.default_rng(seed)
     count: dict[str, int] = {}
     most: dict[str, float] = {}
@@ -81,9 +81,9 @@ def tally(
             errors += 1
             print(f"  drop {i} {start}: {str(exc)[:200]}")
             continue
-        for key, flag in flags(res).items():
+        for key, flag in flags(res, start[2]).items():
             count[key] = count.get(key, 0) + bool(flag)
-        for key, value in extremes(res).items():
+        for key, value in extremes(res, start[2]).items():
             low = key.startswith(("least", "lowest"))
             old = most.get(key, math.inf if low else -math.inf)
             most[key] = min(old, value) if low else max(old, value)

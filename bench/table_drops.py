@@ -35,19 +35,15 @@ from test_shaken_table import ES, phase_error, reference, shake, simulator  # no
 
 from bench.random_runs import agree, arguments, contact_flags, least_force, quiet, tally  # noqa: E402
 
-DRAWN: dict[str, float] = {}  # the parameters of the last draw: the run tally reads next
-
 
 def draw(rng: np.random.Generator, plastic: bool = False):
     """One start ``(q0, v0, params)``."""
     gamma = float(rng.uniform(1.05, 3.3 if plastic else 8.0))
     p = shake(gamma, float(rng.uniform(5, 120)), 0.0 if plastic else float(rng.choice(ES)))
-    DRAWN.update(p)
     return [float(rng.choice([0.0, rng.uniform(0, 0.05)]))], [0.0], p
 
 
-def extremes(res: vcigen.Result) -> dict[str, float]:
-    p = DRAWN
+def extremes(res: vcigen.Result, p: dict) -> dict[str, float]:
     return {
         "largest lift-off error": max((phase_error(t, p) for t, _ in res.liftoffs), default=0.0),
         "lowest y": float(res.q[:, 0].min()),
@@ -57,8 +53,8 @@ def extremes(res: vcigen.Result) -> dict[str, float]:
     }
 
 
-def flags(res: vcigen.Result) -> dict[str, bool]:
-    most = extremes(res)
+def flags(res: vcigen.Result, p: dict) -> dict[str, bool]:
+    most = extremes(res, p)
     off = most["largest lift-off error"] > 1e-9
     return {**contact_flags(res), "lift-off off its instant": off, "below": most["lowest y"] < -1e-9}
 
