@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from hard_scenes import G  # noqa: E402
 from test_cam_follower import reference, simulator  # noqa: E402
 
-from bench.random_runs import agree, arguments, contact_flags, least_force, quiet, tally  # noqa: E402
+from bench.random_runs import arguments, contact_flags, dispatch, least_force, quiet  # noqa: E402
 
 REFERENCE_SECONDS = 20  # a reference that takes longer is skipped (counted)
 
@@ -121,15 +121,9 @@ def lift_offs(drops: int, seed: int, h: float) -> None:
 def main() -> None:
     ap = arguments(__doc__, seed=2, h=0.005)
     ap.add_argument("--lift-offs", action="store_true", help="lift-off times against the reference")
-    args = ap.parse_args()
-    if args.agree:
-        sims = {b: simulator(b) for b in ("c", "casadi")}
-        agree(sims, draw, args.drops or 1000, args.seed, args.h, 2.0)
-    elif args.lift_offs:
-        lift_offs(args.drops or 600, args.seed, args.h)
-    else:
-        for backend in args.backend:
-            tally(simulator(backend), draw, flags, extremes, args.drops or 3000, args.seed, args.h, 4.0)
+    drops = {"agree": 1000, "lift_offs": 600, "tally": 3000}
+    modes = {"lift_offs": lift_offs}
+    dispatch(ap.parse_args(), simulator, draw, flags, extremes, 4.0, drops, modes, agree_t_end=2.0)
 
 
 if __name__ == "__main__":

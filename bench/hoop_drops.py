@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_hopping_hoop import R, simulator  # noqa: E402
 
-from bench.random_runs import agree, arguments, contact_flags, least_force, tally  # noqa: E402
+from bench.random_runs import arguments, contact_flags, dispatch, least_force  # noqa: E402
 
 
 def draw(rng: np.random.Generator) -> tuple[list[float], list[float], dict[str, float]]:
@@ -62,12 +62,7 @@ def main() -> None:
     ap = arguments(__doc__, seed=1, h=0.005, drops=1000)
     ap.add_argument("--t-end", type=float, default=4.0)
     args = ap.parse_args()
-    if args.agree:
-        sims = {b: simulator(b) for b in ("c", "casadi")}
-        agree(sims, draw, args.drops, args.seed, args.h, args.t_end)
-        return
-    for backend in args.backend:
-        tally(simulator(backend), draw, contact_flags, extremes, args.drops, args.seed, args.h, args.t_end)
+    dispatch(args, simulator, draw, contact_flags, extremes, args.t_end, {"agree": 1000, "tally": 1000})
 
 
 if __name__ == "__main__":

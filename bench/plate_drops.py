@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_box_on_a_vibrating_plate import draw, lowest, simulator  # noqa: E402
 
-from bench.random_runs import agree, arguments, contact_flags, least_force, tally  # noqa: E402
+from bench.random_runs import arguments, contact_flags, dispatch, least_force  # noqa: E402
 
 
 def extremes(res: vcigen.Result, params: dict) -> dict[str, float]:
@@ -50,11 +50,7 @@ def flags(res: vcigen.Result, params: dict) -> dict[str, bool]:
 
 def main() -> None:
     args = arguments(__doc__, seed=1, h=0.005).parse_args()
-    if args.agree:
-        agree({b: simulator(b) for b in ("c", "casadi")}, draw, args.drops or 300, args.seed, args.h, 2.0)
-    else:
-        for backend in args.backend:
-            tally(simulator(backend), draw, flags, extremes, args.drops or 1500, args.seed, args.h, 2.0)
+    dispatch(args, simulator, draw, flags, extremes, 2.0, {"agree": 300, "tally": 1500})
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
-"""Random runs of one scene (``bench.hoop_drops``, ``bench.cam_drops``): each backend's tallies of what the
-runs met, and C against CasADi, over draws ``(q0, v0, params)`` from a seeded generator."""
+"""Random runs of one scene (``bench.hoop_drops``, ``bench.cam_drops``, ...): each backend's tallies of what
+the runs met, and C against CasADi, over draws ``(q0, v0, params)`` from a seeded generator; :func:`dispatch`
+runs the mode a bench's command line asks for."""
 
 from __future__ import annotations
 
@@ -119,3 +120,30 @@ def agree(
             counts = f"impacts C {len(c.impacts)}, CasADi {len(cas.impacts)}"
             print(f"  drop {i} {start[2]}: {gap:.2e} apart; {counts}")
     print(f"C against CasADi, {drops} runs (seed {seed}, h = {h}): apart {apart}; largest apart {worst:.1e}")
+
+
+def dispatch(
+    args: argparse.Namespace,
+    simulator: Callable[[str], vcigen.Simulator],
+    draw: Callable[[np.random.Generator], Start],
+    flags: Callable[[vcigen.Result, dict], dict[str, bool]],
+    extremes: Callable[[vcigen.Result, dict], dict[str, float]],
+    t_end: float,
+    drops: dict[str, int],
+    modes: dict[str, Callable[[int, int, float], None]] | None = None,
+    agree_t_end: float | None = None,
+) -> None:
+    """Runs the mode of a bench's parsed ``args`` (:func:`arguments`): ``--agree`` (:func:`agree`), else the
+    first of ``modes`` whose option is set (called with the drops, seed and h), else each backend's
+    :func:`tally`; ``--drops`` or, unset, ``drops[mode]`` (``"agree"``, ``"tally"``, each of ``modes``); runs
+    to ``t_end`` (``--agree``'s to ``agree_t_end`` where given)."""
+    chosen = "agree" if args.agree else next((m for m in modes or {} if getattr(args, m)), "tally")
+    count = args.drops or drops[chosen]
+    if chosen == "agree":
+        sims = {b: simulator(b) for b in ("c", "casadi")}
+        agree(sims, draw, count, args.seed, args.h, t_end if agree_t_end is None else agree_t_end)
+    elif chosen == "tally":
+        for backend in args.backend:
+            tally(simulator(backend), draw, flags, extremes, count, args.seed, args.h, t_end)
+    else:
+        modes[chosen](count, args.seed, args.h)

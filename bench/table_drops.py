@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_shaken_table import ES, phase_error, reference, shake, simulator  # noqa: E402
 
-from bench.random_runs import agree, arguments, contact_flags, least_force, quiet, tally  # noqa: E402
+from bench.random_runs import arguments, contact_flags, dispatch, least_force, quiet  # noqa: E402
 
 
 def draw(rng: np.random.Generator, plastic: bool = False):
@@ -83,14 +83,8 @@ def plastic(drops: int, seed: int, h: float) -> None:
 def main() -> None:
     ap = arguments(__doc__, seed=1, h=0.001)
     ap.add_argument("--plastic", action="store_true", help="e = 0: lift-offs against the reference")
-    args = ap.parse_args()
-    if args.agree:
-        agree({b: simulator(b) for b in ("c", "casadi")}, draw, args.drops or 1000, args.seed, args.h, 2.0)
-    elif args.plastic:
-        plastic(args.drops or 1000, args.seed, args.h)
-    else:
-        for backend in args.backend:
-            tally(simulator(backend), draw, flags, extremes, args.drops or 3000, args.seed, args.h, 2.0)
+    drops = {"agree": 1000, "plastic": 1000, "tally": 3000}
+    dispatch(ap.parse_args(), simulator, draw, flags, extremes, 2.0, drops, {"plastic": plastic})
 
 
 if __name__ == "__main__":

@@ -296,7 +296,9 @@ class ImpactSteps:
 
         Mode ``"contact"`` (default, :mod:`vcigen.sustained`): ``(None, "plastic")`` where forces press
         the body in and the outgoing normal speed is below the jump's resolution, or (48a) has no root;
-        a rootless impact not pressed in takes the continuous law (``"grazing"``). Returns ``(x, kind)``.
+        a rootless impact not pressed in takes the continuous law (``"grazing"``), as does one not pressed
+        in whose outgoing normal speed is below the resolution (``_departs``: (48a)'s roots leave at +-O(h)
+        there; stop 55). Returns ``(x, kind)``.
         """
         k = self.k
         n = k.n
@@ -322,9 +324,12 @@ class ImpactSteps:
             seg.e_in -= (1.0 - restitution * restitution) * nv * nv / (2.0 * nmn)
         mu_scale = mu0 if mu0 > 0 else float(np.linalg.norm(seg.p_in)) / float(np.linalg.norm(seg.nrm))
         roots = []
+        # not pressed, leaving slower than the jump resolves: (48a)'s roots leave at O(h) either way (one
+        # into the contact), the continuous law at -e v_n (a damper's ball at e = 0 left its wall inwards)
+        departs = sustain and nv < 0.0 and self._departs(nv, accel, restitution, self._h)
         quad = k.jump_quadratic(seg.q, seg.nrm, seg.p_in, seg.e_in, seg.tau)
         staged = bool(getattr(getattr(k, "system", None), "stages", 0))
-        for factor in self.tol.jump_restarts:
+        for factor in () if departs else self.tol.jump_restarts:
             mu_try = mu_scale * factor
             x0 = np.append(vel + mu_try * minv_n, mu_try)
             if staged:  # (48b) alone at mu_try: the segment map's own w (internal points: no quadratic)

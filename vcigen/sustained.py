@@ -198,6 +198,11 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         """Forces press the row in and the outgoing normal speed is below the jump's resolution."""
         return acc < 0.0 and e * abs(rate) <= self.tol.rest * h * abs(acc)
 
+    def _departs(self, rate: float, acc: float, e: float, h: float) -> bool:
+        """Restitution ``e < 1``, forces not pressing the row in, and the outgoing normal speed below the
+        jump's resolution: completed as plastic, it touches and goes (MATH.md *Entry*, ``"grazing"``)."""
+        return e < 1.0 and acc >= 0.0 and e * abs(rate) <= self.tol.rest * h * abs(acc)
+
     def _accel(self, q, u, lam_rows) -> np.ndarray:
         """``qddot`` from ``M qddot = rhs + sum lam_r grad psi_r`` (lam: force per unit time)."""
         k = self.k

@@ -2167,6 +2167,13 @@ static int cube_settles_settles(const cube_settles_ctx_t *c, double rate, double
     return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
 }
 
+/* SustainedSteps._departs: restitution e < 1, forces not pressing the row in, and the outgoing normal speed
+ * below the jump's resolution: completed as plastic, it touches and goes. */
+static int cube_settles_departs(const cube_settles_ctx_t *c, double rate, double acc, double e)
+{
+    return e < 1.0 && acc >= 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
  * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
  * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
@@ -3879,7 +3886,7 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
     double minv_n[CUBE_SETTLES_N], x[CUBE_SETTLES_N1];
     double vel[CUBE_SETTLES_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0, departs = 0;
     double accel = 0.0;
     double nrm0[CUBE_SETTLES_N];
     *kind = CUBE_SETTLES_KIND_ELASTIC;
@@ -3914,8 +3921,10 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
     }
 
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
+    /* not pressed, leaving slower than the jump resolves: the continuous law at -e v_n (_jump) */
+    departs = sustain && nv < 0.0 && cube_settles_departs(c, nv, accel, e_rest);
     cube_settles_seg_args(seg, &seg->tau, c->par, arg);
-    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
+    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]) && !departs; ++k) {
         mu_try = mu_scale * restarts[k];
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             x[i] = vel[i] + mu_try * minv_n[i];

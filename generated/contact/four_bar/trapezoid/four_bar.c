@@ -1887,6 +1887,13 @@ static int four_bar_settles(const four_bar_ctx_t *c, double rate, double acc, do
     return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
 }
 
+/* SustainedSteps._departs: restitution e < 1, forces not pressing the row in, and the outgoing normal speed
+ * below the jump's resolution: completed as plastic, it touches and goes. */
+static int four_bar_departs(const four_bar_ctx_t *c, double rate, double acc, double e)
+{
+    return e < 1.0 && acc >= 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
  * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
  * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
@@ -4455,7 +4462,7 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
     double minv_n[FOUR_BAR_N], x[FOUR_BAR_N1];
     double vel[FOUR_BAR_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0, departs = 0;
     double accel = 0.0;
     double nrm0[FOUR_BAR_N];
     double coef[3], w0[FOUR_BAR_N], dw[FOUR_BAR_N], mu_q;
@@ -4492,8 +4499,10 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
     four_bar_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
 
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
+    /* not pressed, leaving slower than the jump resolves: the continuous law at -e v_n (_jump) */
+    departs = sustain && nv < 0.0 && four_bar_departs(c, nv, accel, e_rest);
     four_bar_seg_args(seg, &seg->tau, c->par, arg);
-    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
+    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]) && !departs; ++k) {
         mu_try = mu_scale * restarts[k];
         for (i = 0; i < FOUR_BAR_N; ++i) {
             x[i] = vel[i] + mu_try * minv_n[i];

@@ -1205,6 +1205,13 @@ static int impact_oscillator_settles(const impact_oscillator_ctx_t *c, double ra
     return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
 }
 
+/* SustainedSteps._departs: restitution e < 1, forces not pressing the row in, and the outgoing normal speed
+ * below the jump's resolution: completed as plastic, it touches and goes. */
+static int impact_oscillator_departs(const impact_oscillator_ctx_t *c, double rate, double acc, double e)
+{
+    return e < 1.0 && acc >= 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
  * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
  * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
@@ -2920,7 +2927,7 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
     double minv_n[IMPACT_OSCILLATOR_N], x[IMPACT_OSCILLATOR_N1];
     double vel[IMPACT_OSCILLATOR_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0, departs = 0;
     double accel = 0.0;
     double nrm0[IMPACT_OSCILLATOR_N];
     *kind = IMPACT_OSCILLATOR_KIND_ELASTIC;
@@ -2955,8 +2962,10 @@ static int impact_oscillator_solve_jump(const impact_oscillator_ctx_t *c, impact
     }
 
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
+    /* not pressed, leaving slower than the jump resolves: the continuous law at -e v_n (_jump) */
+    departs = sustain && nv < 0.0 && impact_oscillator_departs(c, nv, accel, e_rest);
     impact_oscillator_seg_args(seg, &seg->tau, c->par, arg);
-    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
+    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]) && !departs; ++k) {
         mu_try = mu_scale * restarts[k];
         for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
             x[i] = vel[i] + mu_try * minv_n[i];

@@ -1447,6 +1447,13 @@ static int block_settles(const block_ctx_t *c, double rate, double acc, double e
     return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
 }
 
+/* SustainedSteps._departs: restitution e < 1, forces not pressing the row in, and the outgoing normal speed
+ * below the jump's resolution: completed as plastic, it touches and goes. */
+static int block_departs(const block_ctx_t *c, double rate, double acc, double e)
+{
+    return e < 1.0 && acc >= 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
  * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
  * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
@@ -4395,7 +4402,7 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
     double minv_n[BLOCK_N], x[BLOCK_N1];
     double vel[BLOCK_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0, departs = 0;
     double accel = 0.0;
     double nrm0[BLOCK_N];
     double dk = 0.0;
@@ -4439,8 +4446,10 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
     block_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
 
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
+    /* not pressed, leaving slower than the jump resolves: the continuous law at -e v_n (_jump) */
+    departs = sustain && nv < 0.0 && block_departs(c, nv, accel, e_rest);
     block_seg_args(seg, &seg->tau, c->par, arg);
-    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
+    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]) && !departs; ++k) {
         mu_try = mu_scale * restarts[k];
         for (i = 0; i < BLOCK_N; ++i) {
             x[i] = vel[i] + mu_try * minv_n[i];

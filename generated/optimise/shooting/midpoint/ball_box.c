@@ -1599,6 +1599,13 @@ static int ball_box_settles(const ball_box_ctx_t *c, double rate, double acc, do
     return acc < 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
 }
 
+/* SustainedSteps._departs: restitution e < 1, forces not pressing the row in, and the outgoing normal speed
+ * below the jump's resolution: completed as plastic, it touches and goes. */
+static int ball_box_departs(const ball_box_ctx_t *c, double rate, double acc, double e)
+{
+    return e < 1.0 && acc >= 0.0 && e * fabs(rate) <= c->tol->rest * c->h * fabs(acc);
+}
+
 /* SustainedSteps._start_sustained: the rows held at the start (q0, v0): the bilateral constraints, and
  * contacts touched (|psi| <= admissible) at rest to the resolution of the jump with forces pressing in (those of
  * the bilateral rows and of the rows held so far, tested again till none is added); sus->lam: the forces holding them (the first held step's Newton start). */
@@ -3900,7 +3907,7 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
     double minv_n[BALL_BOX_N], x[BALL_BOX_N1];
     double vel[BALL_BOX_N], nv, nmn, nn = 0.0, pp = 0.0, mu0, mu_scale, mu_try, res;
     const double *arg[6];
-    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0;
+    int i, k, n_roots = 0, sustain = c->tol->grazing_contact, pressed = 0, departs = 0;
     double accel = 0.0;
     double nrm0[BALL_BOX_N];
     double coef[3], w0[BALL_BOX_N], dw[BALL_BOX_N], mu_q;
@@ -3937,8 +3944,10 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
     ball_box_jump_quadratic(seg->q, seg->nrm, seg->p_in, &seg->e_in, &seg->tau, c->par, coef, w0, dw);
 
     mu_scale = mu0 > 0 ? mu0 : sqrt(pp) / sqrt(nn);
+    /* not pressed, leaving slower than the jump resolves: the continuous law at -e v_n (_jump) */
+    departs = sustain && nv < 0.0 && ball_box_departs(c, nv, accel, e_rest);
     ball_box_seg_args(seg, &seg->tau, c->par, arg);
-    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]); ++k) {
+    for (k = 0; k < (int)(sizeof restarts / sizeof restarts[0]) && !departs; ++k) {
         mu_try = mu_scale * restarts[k];
         for (i = 0; i < BALL_BOX_N; ++i) {
             x[i] = vel[i] + mu_try * minv_n[i];
