@@ -5,11 +5,11 @@ wall, leaves it, touches and goes.
     .venv/bin/python -m bench.damper_drops --plastic [--drops 1000] [--seed 1] [--h 0.002]
     .venv/bin/python -m bench.damper_drops --agree [--drops 300] [--seed 5]
 
-The model of ``tests/test_impact_damper.py`` (``M = 1``, ``k = 4 pi^2``, no gravity). Each draw: ``m`` in
-(0.02, 3), the drive ``F`` in (2, 60) at ``W`` 0.4-2.5 times the primary's frequency (not within 2 of a
-resonance of ``M`` or ``M + m``: the reference's closed forms divide by it), half-gap ``d`` in (0.2, 100) mm,
-``e`` from {0, 0.1, 0.3, 0.5, 0.7, 0.9, 0.95}; the primary from ``X`` in (-0.1, 0.1), the ball anywhere in the
-cavity, both at speeds up to 1; to ``t = 3``.
+The model of ``tests/test_impact_damper.py`` (``M = 1``, ``k = 4 pi^2``). Each draw: ``m`` in (0.02, 3), the
+drive ``F`` in (2, 60) at ``W`` 0.4-2.5 times the primary's frequency (not within 2 of a resonance of ``M`` or
+``M + m``: the reference's closed forms divide by it), half-gap ``d`` in (0.2, 100) mm, ``e`` from {0, 0.1,
+0.3, 0.5, 0.7, 0.9, 0.95}, level or upright (``g`` 0 or 9.81 along ``-X``); the primary from ``X`` in (-0.1,
+0.1), the ball anywhere in the cavity, both at speeds up to 1; to ``t = 3``.
 
 * Tallies per backend: the runs that end in a ``SolverError`` (each printed), the flags of
   ``bench.random_runs.contact_flags``, the ball outside the cavity by more than 1e-9; the extremes.
@@ -50,6 +50,7 @@ def draw_params(rng: np.random.Generator, plastic: bool = False) -> dict[str, fl
             W,
             float(rng.uniform(2e-4, 0.1)),
             0.0 if plastic else float(rng.choice(ES)),
+            float(rng.choice([0.0, 9.81])),
         )
         if min(abs(K - W * W), abs(K - (1 + m) * W * W)) >= 2.0:
             return p

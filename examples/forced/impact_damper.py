@@ -1,9 +1,10 @@
 """An impact damper: a ball rattling in a cavity of a driven primary takes the top off its resonance.
 
 The primary (mass M = 1 on a spring k = 4 pi^2: 1 Hz, viscous damping c) is driven by F cos(W t); a ball
-of mass m = 0.1 moves freely in its cavity of half-gap d (horizontal: no gravity) and hits its walls with
-restitution e. Two bodies, both sides of each contact move: at e = 0 the ball rides a wall while the wall
-decelerates into it and leaves where that stops (its force m/(M+m) (-k X - c V + F cos(W t)) vanishes).
+of mass m = 0.1 moves freely in its cavity of half-gap d (level here: the parameter g, gravity along -X, is
+0; the tests run it upright too) and hits its walls with restitution e. Two bodies, both sides of each
+contact move: at e = 0 the ball rides a wall while the wall decelerates into it and leaves where that stops
+(its force m/(M+m) (-k X - c V + F cos(W t)) vanishes).
 
 Printed: a plastic run (e = 0, c = 0, near resonance) against an event-driven reference of closed forms
 (``tests/test_impact_damper.reference``) at two steps, with the order of its landings and lift-offs; the
@@ -29,24 +30,24 @@ from _common import args, build, save  # noqa: E402
 
 K = 4 * math.pi**2  # the primary alone at 1 Hz
 SETUP = {"q0": [0.0, 0.0], "v0": [0.0, 0.0], "h": 1e-3, "t_end": 60.0}
-SWEEP = {"M": 1.0, "m": 0.1, "k": K, "c": 0.3, "F": 2.0, "d": 0.3}
+SWEEP = {"M": 1.0, "m": 0.1, "k": K, "c": 0.3, "F": 2.0, "d": 0.3, "g": 0.0}
 RATIOS = np.linspace(0.7, 1.3, 31)  # W over the primary's frequency
 CASES = (("bare primary", 1e3, 0.0), ("ball, e = 0", SWEEP["d"], 0.0), ("ball, e = 0.6", SWEEP["d"], 0.6))
 
 
 def model() -> vcigen.Model:
     X, x, V, v, t = sp.symbols("X x V v t")
-    M, m, k, c, F, W, d, e = sp.symbols("M m k c F W d e")
+    M, m, k, c, F, W, d, e, g = sp.symbols("M m k c F W d e g")
     return vcigen.Model(
         name="impact_damper",
         q=[X, x],
         qdot=[V, v],
-        lagrangian=M * V**2 / 2 + m * v**2 / 2 - k * X**2 / 2,
+        lagrangian=M * V**2 / 2 + m * v**2 / 2 - k * X**2 / 2 - g * (M * X + m * x),
         contacts={"right": X + d - x, "left": x - X + d},
         forces=[F * sp.cos(W * t) - c * V, 0],
         time=t,
         restitution={"right": e, "left": e},
-        params={M: 1.0, m: 0.2, k: K, c: 0.0, F: 10.0, W: 6.0, d: 0.02, e: 0.0},
+        params={M: 1.0, m: 0.2, k: K, c: 0.0, F: 10.0, W: 6.0, d: 0.02, e: 0.0, g: 0.0},
     )
 
 
