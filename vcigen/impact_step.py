@@ -126,7 +126,7 @@ class ImpactSteps:
             seg.rest = e_rest
             x_jump, kind = self._jump(step, t_k, seg, v_c, e_rest, group, weights)
             if self._tan is not None:
-                self._tan.jump(seg, v_c, e_rest, kind, self._law)
+                self._tan.jump(seg, v_c, e_rest, kind, self._law, self._touch)
             if x_jump is None:  # plastic: the contact is held for the rest of the step
                 self._count_event(step, t_k)
                 p_plus, lam, loss, rows, law = self._plastic_entry(
@@ -304,6 +304,7 @@ class ImpactSteps:
         n = k.n
         self._at(seg.t)
         self._law = None
+        self._touch = False  # took the continuous law as a touch and go (_departs): the tangent covers it
         vel, minv_n, nv, nmn, mu0 = self._continuous_law(seg.q, v_in, seg.p_in, seg.nrm, restitution)
         sustain = self.tol.grazing == "contact" and k.r > 0
         accel = self._contact_accel(seg.q, vel, seg.nrm, group, weights) if sustain else 0.0
@@ -359,6 +360,7 @@ class ImpactSteps:
                 # forces: the energy at the segment's start, as after (48a) (segment gives its end's)
                 e_in = k.start_energy(seg.q, w, seg.tau) if self._forced else k.segment(seg.q, w, seg.tau)[2]
                 seg.e_in = e_in
+                self._touch = departs
                 return np.append(w, mu0), "grazing"
         vn = nv / float(np.linalg.norm(seg.nrm))
         found = ", ".join(sorted({f"{r:.3e}" for r in roots})) or "none"

@@ -231,6 +231,7 @@ class Tracker(HeldTangents, SwitchTangents):
         self._par0 = base
         self._slots: np.ndarray | None = None  # the friction slots' tangent in a held step (_friction_slots)
         self.step = -1
+        self.graze = False
         self.cur: np.ndarray | None = None  # S_k
         self.next: np.ndarray | None = None  # S_k+1, once a hook has it
         self._ev_step = -1  # the grid step whose events carry the segment's tangents (events_begin)
@@ -273,6 +274,7 @@ class Tracker(HeldTangents, SwitchTangents):
     def begin(self, step: int, t: float) -> None:
         """Grid step ``step`` from ``t``: its tangent is ``S_step``."""
         self.step, self.t, self.next = step, t, None
+        self.graze = False  # the segment after a continuous-law impact (:meth:`jump`, :meth:`jump_end`)
 
     def end(self, step: int) -> None:
         """Store ``S_step+1``; a step no hook resolved loses the tangent (never silently wrong)."""
@@ -336,6 +338,7 @@ class Tracker(HeldTangents, SwitchTangents):
         self.dtau, self.dt = np.zeros((1, self.K)), np.zeros(self.K)
         self.de = np.zeros((1, self.K))
         self.dnrm = None
+        self.graze = False
 
     def _data(self, seg) -> tuple[tuple, np.ndarray]:
         """The data of the residuals of segment ``seg`` (after ``x``) and their tangent."""
@@ -352,6 +355,9 @@ class Tracker(HeldTangents, SwitchTangents):
             return
         if len(group) > 1:
             self.lose("simultaneous impact")
+            return
+        if self.graze:  # a segment after the continuous law meets a contact: (78) holds an energy it reset
+            self.lose("grazing impact")
             return
         n, k = self.n, self.k
         name = ("contact_time_" if seg.contact < 0 else "jump_contact_") + k.contact_names[j]
@@ -373,21 +379,24 @@ class Tracker(HeldTangents, SwitchTangents):
         self.dvin, self.t_seg = dv, t_c
 
     @_guarded
-    def jump(self, seg, v_in, rest: float, kind: str, law=None) -> None:
-        """After the jump (48) on ``seg``: plastic and grazing are not covered; the loss of (39), or with
-        Coulomb friction (``law = (j, n)``: the contact and its normal before the impulse direction became
-        ``n + rho t``) the tangent of its impulse law (:meth:`_friction_impact`)."""
+    def jump(self, seg, v_in, rest: float, kind: str, law=None, touch: bool = False) -> None:
+        """After the jump (48) on ``seg``: the loss of (39), or with Coulomb friction (``law = (j, n)``: the
+        contact and its normal before the impulse direction became ``n + rho t``) the tangent of its impulse
+        law (:meth:`_friction_impact`). Plastic follows (:meth:`plastic`); grazing is not covered but for a
+        frictionless touch and go (``touch``: ``ImpactSteps._departs``, rules without internal points): the
+        continuous law's ``p~- + mu0 n`` into ``dp``, then :meth:`jump_end` solves (48b) alone."""
         if not self.active:
             return
         if kind == "plastic":  # the impulse law and the constrained rest of the step follow (plastic, held)
             return
-        if kind != "jump":
+        grazing = kind == "grazing" and touch and law is None and not self.tg.ns
+        if kind != "jump" and not grazing:
             self.lose(f"{kind} impact")
             return
         if law is not None:
             self._friction_impact(seg, v_in, rest, *law)
             return
-        if rest >= 1.0:
+        if rest >= 1.0 and not grazing:
             return
         par = self.par(seg.t)
         leg, dleg = self.tg.get("legendre"), self.tg.get("d_legendre")
@@ -398,6 +407,8 @@ class Tracker(HeldTangents, SwitchTangents):
         minv_n = np.linalg.solve(mass1, seg.nrm)
         nv, nmn = float(seg.nrm @ vel), float(seg.nrm @ minv_n)
         if not nv < 0.0:
+            if grazing:  # mu0 = 0 (max(., 0) at its kink): no derivative
+                self.lose(f"{kind} impact")
             return
         dpar = self.dpar(self.dt)
         dvel = self._dvel(seg.q, v_in, a, mass0, par, dpar)
@@ -407,6 +418,12 @@ class Tracker(HeldTangents, SwitchTangents):
         dnmn = minv_n @ self.dnrm + seg.nrm @ dminv
         j = seg.contact
         de_rest = self.tg.get("d_restitution")(par)[0][j] @ dpar
+        if grazing:  # the continuous law: p+ = p~- + mu0 n, mu0 = -(1 + e) n.qdot / n.M^-1 n
+            mu0 = -(1.0 + rest) * nv / nmn
+            dmu = -(1.0 + rest) * (dnv / nmn - nv * dnmn / (nmn * nmn)) - de_rest * nv / nmn
+            self.dp = self.dp + np.outer(seg.nrm, dmu) + mu0 * self.dnrm
+            self.graze = True
+            return
         dloss = -rest * de_rest * nv * nv / nmn + (1.0 - rest * rest) * (
             nv * dnv / nmn - 0.5 * nv * nv * dnmn / (nmn * nmn)
         )
@@ -471,10 +488,17 @@ class Tracker(HeldTangents, SwitchTangents):
         if not self.active:
             return
         n = self.n
-        data, dd = self._data(seg)
         x = seg.x
-        dx, u, du = self._ift_staged("jump", x[: n + 1], data, dd, seg.t)
-        dw, w = dx[:n], x[:n]
+        if self.graze:  # (48b) alone from p~- + mu0 n (dp its tangent, :meth:`jump`)
+            self.graze = False
+            p_t = seg.p_in + x[n] * seg.nrm
+            dd = np.vstack([self.dq, self.dp, self.dtau, self.dpar(self.dt)])
+            dw, u, du = self._ift("smooth", x[:n], (seg.q, p_t, seg.tau), dd, seg.t), None, None
+        else:
+            data, dd = self._data(seg)
+            dx, u, du = self._ift_staged("jump", x[: n + 1], data, dd, seg.t)
+            dw = dx[:n]
+        w = x[:n]
         dq_end = self.dq + np.outer(w, self.dtau) + seg.tau * dw
         _, dp_end, _ = self._segment(seg.q, w, seg.tau, seg.t, self.dq, dw, self.dtau, self.dt, u, du)
         self.next = np.vstack([dq_end, dp_end])

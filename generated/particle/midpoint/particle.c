@@ -3589,10 +3589,11 @@ static double particle_continuous_law(const particle_ctx_t *c, const double *q, 
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[PARTICLE_N], x[PARTICLE_N1];
@@ -3603,6 +3604,7 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
     double nrm0[PARTICLE_N];
     double coef[3], w0[PARTICLE_N], dw[PARTICLE_N], mu_q;
     *kind = PARTICLE_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -3687,6 +3689,7 @@ static int particle_solve_jump(const particle_ctx_t *c, particle_seg_t *seg, con
         if (res <= particle_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = PARTICLE_KIND_GRAZING;
+            *touch = departs;
             particle_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < PARTICLE_N; ++i) {
@@ -3790,7 +3793,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
     double q_end[PARTICLE_N], *r, s_all[PARTICLE_M_DIM] = {0.0}, wgt[PARTICLE_M_DIM], pend_w[PARTICLE_M_DIM] = {0.0};
     particle_seg_t next;
     double rest[PARTICLE_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[PARTICLE_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     particle_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -3910,7 +3913,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = particle_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = particle_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

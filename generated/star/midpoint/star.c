@@ -3982,10 +3982,11 @@ static double star_continuous_law(const star_ctx_t *c, const double *q, const do
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[STAR_N], x[STAR_N1];
@@ -3996,6 +3997,7 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
     double nrm0[STAR_N];
     double coef[3], w0[STAR_N], dw[STAR_N], mu_q;
     *kind = STAR_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4080,6 +4082,7 @@ static int star_solve_jump(const star_ctx_t *c, star_seg_t *seg, const double *v
         if (res <= star_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = STAR_KIND_GRAZING;
+            *touch = departs;
             star_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < STAR_N; ++i) {
@@ -4183,7 +4186,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
     double q_end[STAR_N], *r, s_all[STAR_M_DIM] = {0.0}, wgt[STAR_M_DIM], pend_w[STAR_M_DIM] = {0.0};
     star_seg_t next;
     double rest[STAR_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[STAR_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     star_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4303,7 +4306,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = star_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = star_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

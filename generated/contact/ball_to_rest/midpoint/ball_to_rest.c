@@ -3590,10 +3590,11 @@ static double ball_to_rest_continuous_law(const ball_to_rest_ctx_t *c, const dou
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int ball_to_rest_solve_jump(const ball_to_rest_ctx_t *c, ball_to_rest_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[BALL_TO_REST_N], x[BALL_TO_REST_N1];
@@ -3604,6 +3605,7 @@ static int ball_to_rest_solve_jump(const ball_to_rest_ctx_t *c, ball_to_rest_seg
     double nrm0[BALL_TO_REST_N];
     double coef[3], w0[BALL_TO_REST_N], dw[BALL_TO_REST_N], mu_q;
     *kind = BALL_TO_REST_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -3688,6 +3690,7 @@ static int ball_to_rest_solve_jump(const ball_to_rest_ctx_t *c, ball_to_rest_seg
         if (res <= ball_to_rest_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = BALL_TO_REST_KIND_GRAZING;
+            *touch = departs;
             ball_to_rest_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < BALL_TO_REST_N; ++i) {
@@ -3791,7 +3794,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
     double q_end[BALL_TO_REST_N], *r, s_all[BALL_TO_REST_M_DIM] = {0.0}, wgt[BALL_TO_REST_M_DIM], pend_w[BALL_TO_REST_M_DIM] = {0.0};
     ball_to_rest_seg_t next;
     double rest[BALL_TO_REST_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[BALL_TO_REST_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[BALL_TO_REST_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     ball_to_rest_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -3911,7 +3914,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = ball_to_rest_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = ball_to_rest_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

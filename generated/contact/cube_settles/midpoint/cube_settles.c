@@ -3877,10 +3877,11 @@ static double cube_settles_continuous_law(const cube_settles_ctx_t *c, const dou
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[CUBE_SETTLES_N], x[CUBE_SETTLES_N1];
@@ -3890,6 +3891,7 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
     double accel = 0.0;
     double nrm0[CUBE_SETTLES_N];
     *kind = CUBE_SETTLES_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -3966,6 +3968,7 @@ static int cube_settles_solve_jump(const cube_settles_ctx_t *c, cube_settles_seg
         if (res <= cube_settles_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = CUBE_SETTLES_KIND_GRAZING;
+            *touch = departs;
             cube_settles_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < CUBE_SETTLES_N; ++i) {
@@ -4069,7 +4072,7 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
     double q_end[CUBE_SETTLES_N], *r, s_all[CUBE_SETTLES_M_DIM] = {0.0}, wgt[CUBE_SETTLES_M_DIM], pend_w[CUBE_SETTLES_M_DIM] = {0.0};
     cube_settles_seg_t next;
     double rest[CUBE_SETTLES_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[CUBE_SETTLES_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[CUBE_SETTLES_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     cube_settles_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4189,7 +4192,7 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = cube_settles_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = cube_settles_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -4453,10 +4453,11 @@ static double four_bar_continuous_law(const four_bar_ctx_t *c, const double *q, 
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[FOUR_BAR_N], x[FOUR_BAR_N1];
@@ -4467,6 +4468,7 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
     double nrm0[FOUR_BAR_N];
     double coef[3], w0[FOUR_BAR_N], dw[FOUR_BAR_N], mu_q;
     *kind = FOUR_BAR_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4551,6 +4553,7 @@ static int four_bar_solve_jump(const four_bar_ctx_t *c, four_bar_seg_t *seg, con
         if (res <= four_bar_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = FOUR_BAR_KIND_GRAZING;
+            *touch = departs;
             four_bar_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < FOUR_BAR_N; ++i) {
@@ -4654,7 +4657,7 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
     double q_end[FOUR_BAR_N], *r, s_all[FOUR_BAR_M_DIM] = {0.0}, wgt[FOUR_BAR_M_DIM], pend_w[FOUR_BAR_M_DIM] = {0.0};
     four_bar_seg_t next;
     double rest[FOUR_BAR_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[FOUR_BAR_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[FOUR_BAR_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     four_bar_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4774,7 +4777,7 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = four_bar_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = four_bar_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

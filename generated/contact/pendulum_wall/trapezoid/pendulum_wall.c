@@ -4229,10 +4229,11 @@ static double pendulum_wall_continuous_law(const pendulum_wall_ctx_t *c, const d
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[PENDULUM_WALL_N], x[PENDULUM_WALL_N1];
@@ -4243,6 +4244,7 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
     double nrm0[PENDULUM_WALL_N];
     double coef[3], w0[PENDULUM_WALL_N], dw[PENDULUM_WALL_N], mu_q;
     *kind = PENDULUM_WALL_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4327,6 +4329,7 @@ static int pendulum_wall_solve_jump(const pendulum_wall_ctx_t *c, pendulum_wall_
         if (res <= pendulum_wall_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = PENDULUM_WALL_KIND_GRAZING;
+            *touch = departs;
             pendulum_wall_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < PENDULUM_WALL_N; ++i) {
@@ -4430,7 +4433,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
     double q_end[PENDULUM_WALL_N], *r, s_all[PENDULUM_WALL_M_DIM] = {0.0}, wgt[PENDULUM_WALL_M_DIM], pend_w[PENDULUM_WALL_M_DIM] = {0.0};
     pendulum_wall_seg_t next;
     double rest[PENDULUM_WALL_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[PENDULUM_WALL_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[PENDULUM_WALL_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     pendulum_wall_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4550,7 +4553,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = pendulum_wall_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = pendulum_wall_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -5575,10 +5575,11 @@ static int pyramid_frictional_law(const pyramid_ctx_t *c, pyramid_seg_t *seg, co
     return 1;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[PYRAMID_N], x[PYRAMID_N1];
@@ -5590,6 +5591,7 @@ static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const 
     double dk = 0.0;
     double coef[3], w0[PYRAMID_N], dw[PYRAMID_N], mu_q;
     *kind = PYRAMID_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -5680,6 +5682,7 @@ static int pyramid_solve_jump(const pyramid_ctx_t *c, pyramid_seg_t *seg, const 
         if (res <= pyramid_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = PYRAMID_KIND_GRAZING;
+            *touch = departs;
             pyramid_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < PYRAMID_N; ++i) {
@@ -5783,7 +5786,7 @@ static int pyramid_impact_step(const pyramid_ctx_t *c, pyramid_seg_t *seg, int *
     double q_end[PYRAMID_N], *r, s_all[PYRAMID_M_DIM] = {0.0}, wgt[PYRAMID_M_DIM], pend_w[PYRAMID_M_DIM] = {0.0};
     pyramid_seg_t next;
     double rest[PYRAMID_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[PYRAMID_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[PYRAMID_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     pyramid_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -5903,7 +5906,7 @@ static int pyramid_impact_step(const pyramid_ctx_t *c, pyramid_seg_t *seg, int *
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = pyramid_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = pyramid_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -4140,10 +4140,11 @@ static double slide_off_dome_continuous_law(const slide_off_dome_ctx_t *c, const
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_dome_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[SLIDE_OFF_DOME_N], x[SLIDE_OFF_DOME_N1];
@@ -4154,6 +4155,7 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
     double nrm0[SLIDE_OFF_DOME_N];
     double coef[3], w0[SLIDE_OFF_DOME_N], dw[SLIDE_OFF_DOME_N], mu_q;
     *kind = SLIDE_OFF_DOME_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4238,6 +4240,7 @@ static int slide_off_dome_solve_jump(const slide_off_dome_ctx_t *c, slide_off_do
         if (res <= slide_off_dome_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = SLIDE_OFF_DOME_KIND_GRAZING;
+            *touch = departs;
             slide_off_dome_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
@@ -4341,7 +4344,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
     double q_end[SLIDE_OFF_DOME_N], *r, s_all[SLIDE_OFF_DOME_M_DIM] = {0.0}, wgt[SLIDE_OFF_DOME_M_DIM], pend_w[SLIDE_OFF_DOME_M_DIM] = {0.0};
     slide_off_dome_seg_t next;
     double rest[SLIDE_OFF_DOME_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[SLIDE_OFF_DOME_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[SLIDE_OFF_DOME_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     slide_off_dome_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4461,7 +4464,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = slide_off_dome_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = slide_off_dome_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -4267,10 +4267,11 @@ static int conveyor_frictional_law(const conveyor_ctx_t *c, conveyor_seg_t *seg,
     return 1;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int conveyor_solve_jump(const conveyor_ctx_t *c, conveyor_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[CONVEYOR_N], x[CONVEYOR_N1];
@@ -4281,6 +4282,7 @@ static int conveyor_solve_jump(const conveyor_ctx_t *c, conveyor_seg_t *seg, con
     double nrm0[CONVEYOR_N];
     double dk = 0.0;
     *kind = CONVEYOR_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4363,6 +4365,7 @@ static int conveyor_solve_jump(const conveyor_ctx_t *c, conveyor_seg_t *seg, con
         if (res <= conveyor_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = CONVEYOR_KIND_GRAZING;
+            *touch = departs;
             seg->e_in = conveyor_start_energy(seg->q, x, seg->tau, c->par); /* the energy at its start */
 
             for (i = 0; i < CONVEYOR_N; ++i) {
@@ -4466,7 +4469,7 @@ static int conveyor_impact_step(const conveyor_ctx_t *c, conveyor_seg_t *seg, in
     double q_end[CONVEYOR_N], *r, s_all[CONVEYOR_M_DIM] = {0.0}, wgt[CONVEYOR_M_DIM], pend_w[CONVEYOR_M_DIM] = {0.0};
     conveyor_seg_t next;
     double rest[CONVEYOR_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[CONVEYOR_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[CONVEYOR_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     conveyor_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4586,7 +4589,7 @@ static int conveyor_impact_step(const conveyor_ctx_t *c, conveyor_seg_t *seg, in
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = conveyor_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = conveyor_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -3073,10 +3073,11 @@ static double impact_damper_continuous_law(const impact_damper_ctx_t *c, const d
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int impact_damper_solve_jump(const impact_damper_ctx_t *c, impact_damper_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[IMPACT_DAMPER_N], x[IMPACT_DAMPER_N1];
@@ -3086,6 +3087,7 @@ static int impact_damper_solve_jump(const impact_damper_ctx_t *c, impact_damper_
     double accel = 0.0;
     double nrm0[IMPACT_DAMPER_N];
     *kind = IMPACT_DAMPER_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -3162,6 +3164,7 @@ static int impact_damper_solve_jump(const impact_damper_ctx_t *c, impact_damper_
         if (res <= impact_damper_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = IMPACT_DAMPER_KIND_GRAZING;
+            *touch = departs;
             seg->e_in = impact_damper_start_energy(seg->q, x, seg->tau, c->par); /* the energy at its start */
 
             for (i = 0; i < IMPACT_DAMPER_N; ++i) {
@@ -3265,7 +3268,7 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
     double q_end[IMPACT_DAMPER_N], *r, s_all[IMPACT_DAMPER_M_DIM] = {0.0}, wgt[IMPACT_DAMPER_M_DIM], pend_w[IMPACT_DAMPER_M_DIM] = {0.0};
     impact_damper_seg_t next;
     double rest[IMPACT_DAMPER_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[IMPACT_DAMPER_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[IMPACT_DAMPER_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     impact_damper_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -3385,7 +3388,7 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = impact_damper_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = impact_damper_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -4393,10 +4393,11 @@ static int block_frictional_law(const block_ctx_t *c, block_seg_t *seg, const do
     return 1;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[BLOCK_N], x[BLOCK_N1];
@@ -4408,6 +4409,7 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
     double dk = 0.0;
     double coef[3], w0[BLOCK_N], dw[BLOCK_N], mu_q;
     *kind = BLOCK_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4498,6 +4500,7 @@ static int block_solve_jump(const block_ctx_t *c, block_seg_t *seg, const double
         if (res <= block_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = BLOCK_KIND_GRAZING;
+            *touch = departs;
             block_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < BLOCK_N; ++i) {
@@ -4601,7 +4604,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
     double q_end[BLOCK_N], *r, s_all[BLOCK_M_DIM] = {0.0}, wgt[BLOCK_M_DIM], pend_w[BLOCK_M_DIM] = {0.0};
     block_seg_t next;
     double rest[BLOCK_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[BLOCK_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[BLOCK_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     block_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4721,7 +4724,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = block_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = block_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -4472,10 +4472,11 @@ static int rough_disk_frictional_law(const rough_disk_ctx_t *c, rough_disk_seg_t
     return 1;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[ROUGH_DISK_N], x[ROUGH_DISK_N1];
@@ -4487,6 +4488,7 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
     double dk = 0.0;
     double coef[3], w0[ROUGH_DISK_N], dw[ROUGH_DISK_N], mu_q;
     *kind = ROUGH_DISK_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -4577,6 +4579,7 @@ static int rough_disk_solve_jump(const rough_disk_ctx_t *c, rough_disk_seg_t *se
         if (res <= rough_disk_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = ROUGH_DISK_KIND_GRAZING;
+            *touch = departs;
             rough_disk_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < ROUGH_DISK_N; ++i) {
@@ -4680,7 +4683,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
     double q_end[ROUGH_DISK_N], *r, s_all[ROUGH_DISK_M_DIM] = {0.0}, wgt[ROUGH_DISK_M_DIM], pend_w[ROUGH_DISK_M_DIM] = {0.0};
     rough_disk_seg_t next;
     double rest[ROUGH_DISK_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[ROUGH_DISK_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[ROUGH_DISK_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     rough_disk_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4800,7 +4803,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = rough_disk_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = rough_disk_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

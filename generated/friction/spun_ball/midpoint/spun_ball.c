@@ -6363,10 +6363,11 @@ static int spun_ball_frictional_law(const spun_ball_ctx_t *c, spun_ball_seg_t *s
     return 1;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[SPUN_BALL_N], x[SPUN_BALL_N1];
@@ -6378,6 +6379,7 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
     double dk = 0.0;
     double coef[3], w0[SPUN_BALL_N], dw[SPUN_BALL_N], mu_q;
     *kind = SPUN_BALL_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -6468,6 +6470,7 @@ static int spun_ball_solve_jump(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, 
         if (res <= spun_ball_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = SPUN_BALL_KIND_GRAZING;
+            *touch = departs;
             spun_ball_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < SPUN_BALL_N; ++i) {
@@ -6571,7 +6574,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
     double q_end[SPUN_BALL_N], *r, s_all[SPUN_BALL_M_DIM] = {0.0}, wgt[SPUN_BALL_M_DIM], pend_w[SPUN_BALL_M_DIM] = {0.0};
     spun_ball_seg_t next;
     double rest[SPUN_BALL_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[SPUN_BALL_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[SPUN_BALL_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     spun_ball_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -6691,7 +6694,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = spun_ball_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = spun_ball_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

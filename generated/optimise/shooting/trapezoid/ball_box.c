@@ -3901,10 +3901,11 @@ static double ball_box_continuous_law(const ball_box_ctx_t *c, const double *q, 
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[BALL_BOX_N], x[BALL_BOX_N1];
@@ -3915,6 +3916,7 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
     double nrm0[BALL_BOX_N];
     double coef[3], w0[BALL_BOX_N], dw[BALL_BOX_N], mu_q;
     *kind = BALL_BOX_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -3999,6 +4001,7 @@ static int ball_box_solve_jump(const ball_box_ctx_t *c, ball_box_seg_t *seg, con
         if (res <= ball_box_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = BALL_BOX_KIND_GRAZING;
+            *touch = departs;
             ball_box_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < BALL_BOX_N; ++i) {
@@ -4102,7 +4105,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
     double q_end[BALL_BOX_N], *r, s_all[BALL_BOX_M_DIM] = {0.0}, wgt[BALL_BOX_M_DIM], pend_w[BALL_BOX_M_DIM] = {0.0};
     ball_box_seg_t next;
     double rest[BALL_BOX_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[BALL_BOX_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[BALL_BOX_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     ball_box_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -4222,7 +4225,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = ball_box_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = ball_box_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }

@@ -3453,10 +3453,11 @@ static double double_pendulum_continuous_law(const double_pendulum_ctx_t *c, con
     return mu0 > 0.0 ? mu0 : 0.0;
 }
 
-/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law), 1 with err
- * filled, or 2: plastic (mode "contact": the contact is held for the rest of the step). */
+/* Returns 0 with seg->x the root (*kind: KIND_ELASTIC, or KIND_GRAZING for the continuous law; *touch: that
+ * as a touch and go, departs), 1 with err filled, or 2: plastic (mode "contact": the contact is held for the
+ * rest of the step). */
 static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pendulum_seg_t *seg, const double *v_in,
-    double e_rest, const int *group, const double *wgt, int n_group, int *kind)
+    double e_rest, const int *group, const double *wgt, int n_group, int *kind, int *touch)
 {
     static const double restarts[] = { 1.0, 2.0, 4.0, 0.5, 8.0, 16.0, 0.25, };
     double minv_n[DOUBLE_PENDULUM_N], x[DOUBLE_PENDULUM_N1];
@@ -3466,6 +3467,7 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
     double accel = 0.0;
     double nrm0[DOUBLE_PENDULUM_N];
     *kind = DOUBLE_PENDULUM_KIND_ELASTIC;
+    *touch = 0;
     (void)group;
     (void)wgt;
     (void)n_group;
@@ -3542,6 +3544,7 @@ static int double_pendulum_solve_jump(const double_pendulum_ctx_t *c, double_pen
         if (res <= double_pendulum_scale(c, seg->p_in, seg->e_in)) {
             c->err->reflected += c->tol->grazing_reflect && mu0 > 0.0;
             *kind = DOUBLE_PENDULUM_KIND_GRAZING;
+            *touch = departs;
             double_pendulum_segment(seg->q, x, &seg->tau, c->par, pm, pp, &seg->e_in);
 
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
@@ -3645,7 +3648,7 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
     double q_end[DOUBLE_PENDULUM_N], *r, s_all[DOUBLE_PENDULUM_M_DIM] = {0.0}, wgt[DOUBLE_PENDULUM_M_DIM], pend_w[DOUBLE_PENDULUM_M_DIM] = {0.0};
     double_pendulum_seg_t next;
     double rest[DOUBLE_PENDULUM_M_DIM], e_rest, e_before, e_step = e_step_in;
-    int i, j, k, g, best, n_pend = 0, group[DOUBLE_PENDULUM_M_DIM], n_group, elastic, kind, rc, restarted;
+    int i, j, k, g, best, n_pend = 0, group[DOUBLE_PENDULUM_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
     double_pendulum_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
@@ -3765,7 +3768,7 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
             e_rest += wgt[g] * rest[group[g]];
         }
         seg->rest = elastic ? 1.0 : e_rest;
-        rc = double_pendulum_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind);
+        rc = double_pendulum_solve_jump(c, seg, v_c, elastic ? 1.0 : e_rest, group, wgt, n_group, &kind, &touch);
         if (rc == 1) {
             return 1;
         }
