@@ -147,3 +147,42 @@ def dispatch(
             tally(simulator(backend), draw, flags, extremes, count, args.seed, args.h, t_end)
     else:
         modes[chosen](count, args.seed, args.h)
+
+
+def lift_offs_against(
+    sim: vcigen.Simulator,
+    draw: Callable[[np.random.Generator], Start],
+    reference: Callable[[Start, float], list[float]],
+    drops: int,
+    seed: int,
+    h: float,
+    t_end: float,
+    until: float,
+    tol: float,
+) -> None:
+    """Each draw's run to ``t_end`` against ``reference(start, t_end)``, its lift-off times: the runs that
+    raise a ``SolverError`` and those whose lift-offs before ``until`` differ from the reference's in number
+    or by more than ``tol`` (each printed), then how many, and the largest difference over h^2 of the
+    others."""
+    rng = np.random.default_rng(seed)
+    differ = errors = 0
+    worst = 0.0
+    for i in range(drops):
+        start = draw(rng)
+        try:
+            res = quiet(sim, start, h, t_end)
+        except vcigen.SolverError as exc:
+            errors += 1
+            print(f"  drop {i} {start}: {str(exc)[:200]}")
+            continue
+        lifts = [u for u in reference(start, t_end) if u < until]
+        mine = [t for t, _ in res.liftoffs if t < until]
+        apart = max((abs(t - u) for t, u in zip(mine, lifts)), default=0.0)
+        if len(mine) != len(lifts) or apart > tol:
+            differ += 1
+            counts = f"lift-offs {len(mine)}, reference {len(lifts)}"
+            print(f"  drop {i} {start}: {counts}; apart {apart / h**2:.3g} h^2")
+        else:
+            worst = max(worst, apart / h**2)
+    head = f"[{sim.backend}] {drops} runs (seed {seed}, h = {h}): errors {errors}"
+    print(f"{head}; lift-offs other than the reference's in {differ}; the others within {worst:.3g} h^2")

@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_shaken_table import ES, phase_error, reference, shake, simulator  # noqa: E402
 
-from bench.random_runs import arguments, contact_flags, dispatch, least_force, quiet  # noqa: E402
+from bench.random_runs import arguments, contact_flags, dispatch, least_force, lift_offs_against  # noqa: E402
 
 
 def draw(rng: np.random.Generator, plastic: bool = False):
@@ -60,24 +60,15 @@ def flags(res: vcigen.Result, p: dict) -> dict[str, bool]:
 
 
 def plastic(drops: int, seed: int, h: float) -> None:
-    rng = np.random.default_rng(seed)
-    differ = errors = 0
-    for i in range(drops):
-        start = draw(rng, plastic=True)
-        try:
-            res = quiet(simulator("c"), start, h, 2.0)
-        except vcigen.SolverError as exc:
-            errors += 1
-            print(f"  drop {i} {start[2]} y0 {start[0][0]!r}: {str(exc)[:200]}")
-            continue
-        lifts = [ev[1] for ev in reference(start[0][0], start[2], 1.95) if ev[0] == "lift" and ev[1] < 1.95]
-        mine = [t for t, _ in res.liftoffs if t < 1.95]
-        if len(mine) != len(lifts) or any(abs(t - u) > 1e-9 for t, u in zip(mine, lifts)):
-            differ += 1
-            counts = f"lift-offs {len(mine)}, reference {len(lifts)}"
-            print(f"  drop {i} {start[2]} y0 {start[0][0]:.4f}: {counts}")
-    head = f"[c] {drops} plastic runs (seed {seed}, h = {h}): errors {errors}"
-    print(f"{head}; lift-offs other than the reference's in {differ}")
+    """``e = 0`` draws' lift-offs before ``t = 1.95`` against the reference, each to 1e-9."""
+
+    def lifts(start, t_end: float) -> list[float]:
+        return [ev[1] for ev in reference(start[0][0], start[2], t_end - 0.05) if ev[0] == "lift"]
+
+    def draw_plastic(rng: np.random.Generator):
+        return draw(rng, plastic=True)
+
+    lift_offs_against(simulator("c"), draw_plastic, lifts, drops, seed, h, 2.0, 1.95, 1e-9)
 
 
 def main() -> None:
