@@ -8,7 +8,7 @@ import argparse
 import math
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -56,6 +56,29 @@ def contact_flags(res: vcigen.Result, params: dict | None = None) -> dict[str, b
     }
 
 
+def runs(
+    sim: vcigen.Simulator,
+    draw: Callable[[np.random.Generator], Start],
+    drops: int,
+    seed: int,
+    h: float,
+    t_end: float,
+    failed: list[int],
+) -> Iterator[tuple[int, Start, vcigen.Result]]:
+    """Each draw's index, start and run to ``t_end``; a run that raises a ``SolverError`` is printed, its
+    index appended to ``failed``, and skipped."""
+    rng = np.random.default_rng(seed)
+    for i in range(drops):
+        start = draw(rng)
+        try:
+            res = quiet(sim, start, h, t_end)
+        except vcigen.SolverError as exc:
+            failed.append(i)
+            print(f"  drop {i} {start}: {str(exc)[:200]}")
+            continue
+        yield i, start, res
+
+
 def tally(
     sim: vcigen.Simulator,
     draw: Callable[[np.random.Generator], Start],
@@ -69,19 +92,11 @@ def tally(
     """Prints the runs that raise a ``SolverError``, how many runs each of ``flags`` holds in, and the
     extremes over the runs of ``extremes`` (a name starting with "least" or "lowest" the least, else the
     largest); both are called with the run and its start's parameters."""
-    rng = np.random.default_rng(seed)
     count: dict[str, int] = {}
     most: dict[str, float] = {}
-    errors = 0
+    failed: list[int] = []
     t0 = time.perf_counter()
-    for i in range(drops):
-        start = draw(rng)
-        try:
-            res = quiet(sim, start, h, t_end)
-        except vcigen.SolverError as exc:
-            errors += 1
-            print(f"  drop {i} {start}: {str(exc)[:200]}")
-            continue
+    for _, start, res in runs(sim, draw, drops, seed, h, t_end, failed):
         for key, flag in flags(res, start[2]).items():
             count[key] = count.get(key, 0) + bool(flag)
         for key, value in extremes(res, start[2]).items():
@@ -89,7 +104,7 @@ def tally(
             old = most.get(key, math.inf if low else -math.inf)
             most[key] = min(old, value) if low else max(old, value)
     wall = time.perf_counter() - t0
-    print(f"[{sim.backend}] {drops} runs (seed {seed}, h = {h}), {wall:.1f} s: errors {errors}")
+    print(f"[{sim.backend}] {drops} runs (seed {seed}, h = {h}), {wall:.1f} s: errors {len(failed)}")
     print("  runs with " + ", ".join(f"{k} {v}" for k, v in count.items()))
     print("  " + "; ".join(f"{k} {v:.3g}" for k, v in most.items()))
 
@@ -164,17 +179,8 @@ def lift_offs_against(
     raise a ``SolverError`` and those whose lift-offs before ``until`` differ from the reference's in number
     or by more than ``tol`` (each printed), then how many, and the largest difference over h^2 of the
     others."""
-    rng = np.random.default_rng(seed)
-    differ = errors = 0
-    worst = 0.0
-    for i in range(drops):
-        start = draw(rng)
-        try:
-            res = quiet(sim, start, h, t_end)
-        except vcigen.SolverError as exc:
-            errors += 1
-            print(f"  drop {i} {start}: {str(exc)[:200]}")
-            continue
+    differ, worst, failed = 0, 0.0, []
+    for i, start, res in runs(sim, draw, drops, seed, h, t_end, failed):
         lifts = [u for u in reference(start, t_end) if u < until]
         mine = [t for t, _ in res.liftoffs if t < until]
         apart = max((abs(t - u) for t, u in zip(mine, lifts)), default=0.0)
@@ -184,5 +190,5 @@ def lift_offs_against(
             print(f"  drop {i} {start}: {counts}; apart {apart / h**2:.3g} h^2")
         else:
             worst = max(worst, apart / h**2)
-    head = f"[{sim.backend}] {drops} runs (seed {seed}, h = {h}): errors {errors}"
+    head = f"[{sim.backend}] {drops} runs (seed {seed}, h = {h}): errors {len(failed)}"
     print(f"{head}; lift-offs other than the reference's in {differ}; the others within {worst:.3g} h^2")
