@@ -79,6 +79,32 @@ MISSED = (  # draw 614 of bench.plate_drops --seed 4 --h 0.005
     | {"a": 0.057278131194087555, "b": 0.05645873151712954},
 )
 
+ROCKER = (  # draw 8 of bench.plate_drops --seed 1: rocking at e = 0
+    [0.0, 0.04890290072114106, -0.1425031723499391],
+    [-0.013865532509133733, 0.0, 0.03300010398406011],
+    {"A": 0.01955515047520169, "W": 32.1716716589875, "beta": 0.9678718493888377, "mu": 0.6, "e": 0.0}
+    | {"a": 0.026071469035693476, "b": 0.04566305459952879},
+)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("h", [0.005, 0.0025])
+def test_a_corner_landing_while_the_other_is_held_is_one_plastic_impact(backend, h):
+    """Rocking at ``e = 0``: each corner lands while the other is held, plastic, and the other lifts off at
+    that instant. Read with the pivot held, the landing corner of t = 0.954 was not pressed in: it was stopped
+    (logged ``"restitution"``), the pivot was pulled off and let go, and the corner sank again at once: a
+    second impact at the same instant, ``"plastic"``, of impulse 4e-17 (six impacts of impulse at most
+    1e-12 in the run at h = 0.005, five at 0.0025, on 6b69dd3). Read with the pivot let go
+    (``HeldImpacts._let_go``, C ``let_go``), it is one plastic impact; the trajectory is the same."""
+    res = _run(backend, ROCKER, h)
+    near = [im for im in res.impacts if 0.95 < im.t < 0.96]
+    assert [(im.contact, im.kind) for im in near] == [("right", "plastic")]
+    assert near[0].impulse > 0.5
+    assert [c for t, c in res.liftoffs if t == near[0].t] == ["left"]
+    assert all(im.impulse > 1e-12 for im in res.impacts)
+    assert {im.kind for im in res.impacts} == {"plastic"}
+    assert lowest(res, ROCKER[2]) > -1e-12
+
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_vertex_met_again_before_the_other_lands_is_located_first(backend):

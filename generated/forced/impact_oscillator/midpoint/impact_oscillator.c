@@ -2157,6 +2157,44 @@ static void impact_oscillator_held_accel(const impact_oscillator_ctx_t *c, const
     impact_oscillator_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
+ * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
+ * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
+ * of rest that settle; settles with e = 1, as chain_impact releases it). 1: rest holds those rows (flags out);
+ * 0: none. A box rocking on a vibrating plate at e = 0: its landing corner, read with the pivot held, was not
+ * pressed in; stopped, the pivot let go, it sank again at once (an impact of impulse 4e-17). */
+static int impact_oscillator_let_go(const impact_oscillator_ctx_t *c, const double *q, const double *vel_p, const int *leaving,
+    const int *plastic, int *rest, const double *rates, const double *es)
+{
+    double racc[IMPACT_OSCILLATOR_R_DIM], psi[IMPACT_OSCILLATOR_R_DIM], grad[IMPACT_OSCILLATOR_R_DIM * IMPACT_OSCILLATOR_N], curv[IMPACT_OSCILLATOR_R_DIM];
+    double rate;
+    int on[IMPACT_OSCILLATOR_R_DIM], none[IMPACT_OSCILLATOR_R_DIM] = {0}, r, i, more = 0;
+    impact_oscillator_held_accel(c, q, vel_p, leaving, none, racc);
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        rest[r] = rest[r] && impact_oscillator_settles(c, rates[r], racc[r], es[r]);
+        more = more || rest[r];
+        on[r] = plastic[r] || rest[r];
+    }
+    if (!more) {
+        return 0;
+    }
+    impact_oscillator_held_accel(c, q, vel_p, leaving, on, racc);
+    impact_oscillator_rows(q, vel_p, c->par, psi, grad, curv);
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        if (!leaving[r]) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+            rate += grad[r * IMPACT_OSCILLATOR_N + i] * vel_p[i];
+        }
+        if (impact_oscillator_settles(c, rate, racc[r], 1.0)) {
+            return 0; /* it stays: the rows it pulls off are not let go */
+        }
+    }
+    return 1;
+}
+
 /* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
  * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
  * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
@@ -2167,7 +2205,8 @@ static void impact_oscillator_stopped_pressed(const impact_oscillator_ctx_t *c, 
     double trial[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N], lam[IMPACT_OSCILLATOR_R_DIM], vel_m[IMPACT_OSCILLATOR_N];
     double vel_p[IMPACT_OSCILLATOR_N], racc[IMPACT_OSCILLATOR_R_DIM];
     int dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], none[IMPACT_OSCILLATOR_R_DIM] = {0};
-    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], r, failed;
+    int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], r, g, failed;
+    int rest[IMPACT_OSCILLATOR_R_DIM], leaving[IMPACT_OSCILLATOR_R_DIM], in_group, any_rest = 0, any_leaving = 0;
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2178,9 +2217,29 @@ static void impact_oscillator_stopped_pressed(const impact_oscillator_ctx_t *c, 
     }
     impact_oscillator_held_accel(c, q, vel_p, none, none, racc);
     for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+        rest[r] = 0;
         if (pulled[r] && impact_oscillator_settles(c, rates[r], racc[r], es[r])) {
             plastic[r] = 1;
             tgt[r] = 0.0;
+        } else if (pulled[r]) {
+            rest[r] = 1;
+            any_rest = 1;
+        }
+    }
+    for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) { /* the active rows the trial law pulls off */
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any_leaving = any_leaving || leaving[r];
+    }
+    if (any_rest && any_leaving && impact_oscillator_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+        for (r = 0; r < IMPACT_OSCILLATOR_R; ++r) {
+            if (rest[r]) {
+                plastic[r] = 1;
+                tgt[r] = 0.0;
+            }
         }
     }
 }
@@ -2255,6 +2314,8 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
+        es[r] = 0.0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     impact_oscillator_held_accel(c, q, vel, none, none, racc);

@@ -3644,6 +3644,44 @@ static int star_friction_reduced_restitution(const star_friction_ctx_t *c, const
     return 0;
 }
 
+/* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
+ * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
+ * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
+ * of rest that settle; settles with e = 1, as chain_impact releases it). 1: rest holds those rows (flags out);
+ * 0: none. A box rocking on a vibrating plate at e = 0: its landing corner, read with the pivot held, was not
+ * pressed in; stopped, the pivot let go, it sank again at once (an impact of impulse 4e-17). */
+static int star_friction_let_go(const star_friction_ctx_t *c, const double *q, const double *vel_p, const int *leaving,
+    const int *plastic, int *rest, const double *rates, const double *es)
+{
+    double racc[STAR_FRICTION_R_DIM], psi[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
+    double rate;
+    int on[STAR_FRICTION_R_DIM], none[STAR_FRICTION_R_DIM] = {0}, r, i, more = 0;
+    star_friction_held_accel(c, q, vel_p, leaving, none, racc);
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        rest[r] = rest[r] && star_friction_settles(c, rates[r], racc[r], es[r]);
+        more = more || rest[r];
+        on[r] = plastic[r] || rest[r];
+    }
+    if (!more) {
+        return 0;
+    }
+    star_friction_held_accel(c, q, vel_p, leaving, on, racc);
+    star_friction_rows(q, vel_p, c->par, psi, grad, curv);
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        if (!leaving[r]) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < STAR_FRICTION_N; ++i) {
+            rate += grad[r * STAR_FRICTION_N + i] * vel_p[i];
+        }
+        if (star_friction_settles(c, rate, racc[r], 1.0)) {
+            return 0; /* it stays: the rows it pulls off are not let go */
+        }
+    }
+    return 1;
+}
+
 /* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
  * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
  * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
@@ -3655,7 +3693,8 @@ static void star_friction_stopped_pressed(const star_friction_ctx_t *c, const do
     double trial[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N], lam[STAR_FRICTION_R_DIM], vel_m[STAR_FRICTION_N];
     double vel_p[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM];
     int dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], none[STAR_FRICTION_R_DIM] = {0};
-    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], r, failed;
+    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], r, g, failed;
+    int rest[STAR_FRICTION_R_DIM], leaving[STAR_FRICTION_R_DIM], in_group, any_rest = 0, any_leaving = 0;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -3670,9 +3709,29 @@ static void star_friction_stopped_pressed(const star_friction_ctx_t *c, const do
     }
     star_friction_held_accel(c, q, vel_p, none, none, racc);
     for (r = 0; r < STAR_FRICTION_R; ++r) {
+        rest[r] = 0;
         if (pulled[r] && star_friction_settles(c, rates[r], racc[r], es[r])) {
             plastic[r] = 1;
             tgt[r] = 0.0;
+        } else if (pulled[r]) {
+            rest[r] = 1;
+            any_rest = 1;
+        }
+    }
+    for (r = 0; r < STAR_FRICTION_R; ++r) { /* the active rows the trial law pulls off */
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any_leaving = any_leaving || leaving[r];
+    }
+    if (any_rest && any_leaving && star_friction_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+        for (r = 0; r < STAR_FRICTION_R; ++r) {
+            if (rest[r]) {
+                plastic[r] = 1;
+                tgt[r] = 0.0;
+            }
         }
     }
 }
@@ -3749,6 +3808,8 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
+        es[r] = 0.0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     star_friction_held_accel(c, q, vel, none, none, racc);

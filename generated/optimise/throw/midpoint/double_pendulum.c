@@ -2694,6 +2694,44 @@ static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const dou
     double_pendulum_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
+ * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
+ * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
+ * of rest that settle; settles with e = 1, as chain_impact releases it). 1: rest holds those rows (flags out);
+ * 0: none. A box rocking on a vibrating plate at e = 0: its landing corner, read with the pivot held, was not
+ * pressed in; stopped, the pivot let go, it sank again at once (an impact of impulse 4e-17). */
+static int double_pendulum_let_go(const double_pendulum_ctx_t *c, const double *q, const double *vel_p, const int *leaving,
+    const int *plastic, int *rest, const double *rates, const double *es)
+{
+    double racc[DOUBLE_PENDULUM_R_DIM], psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
+    double rate;
+    int on[DOUBLE_PENDULUM_R_DIM], none[DOUBLE_PENDULUM_R_DIM] = {0}, r, i, more = 0;
+    double_pendulum_held_accel(c, q, vel_p, leaving, none, racc);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        rest[r] = rest[r] && double_pendulum_settles(c, rates[r], racc[r], es[r]);
+        more = more || rest[r];
+        on[r] = plastic[r] || rest[r];
+    }
+    if (!more) {
+        return 0;
+    }
+    double_pendulum_held_accel(c, q, vel_p, leaving, on, racc);
+    double_pendulum_rows(q, vel_p, c->par, psi, grad, curv);
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        if (!leaving[r]) {
+            continue;
+        }
+        rate = 0.0;
+        for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+            rate += grad[r * DOUBLE_PENDULUM_N + i] * vel_p[i];
+        }
+        if (double_pendulum_settles(c, rate, racc[r], 1.0)) {
+            return 0; /* it stays: the rows it pulls off are not let go */
+        }
+    }
+    return 1;
+}
+
 /* SustainedSteps._stopped_pressed: the rows of an impact while held that the incoming velocity does not press
  * in (pulled, with their rates and restitutions), read again at the velocity the impulse law leaves with their
  * targets 0 (a plastic impact on them): those that settle there are plastic (their targets 0). The trial is
@@ -2704,7 +2742,8 @@ static void double_pendulum_stopped_pressed(const double_pendulum_ctx_t *c, cons
     double trial[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N], lam[DOUBLE_PENDULUM_R_DIM], vel_m[DOUBLE_PENDULUM_N];
     double vel_p[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM];
     int dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], none[DOUBLE_PENDULUM_R_DIM] = {0};
-    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], r, failed;
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], r, g, failed;
+    int rest[DOUBLE_PENDULUM_R_DIM], leaving[DOUBLE_PENDULUM_R_DIM], in_group, any_rest = 0, any_leaving = 0;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2715,9 +2754,29 @@ static void double_pendulum_stopped_pressed(const double_pendulum_ctx_t *c, cons
     }
     double_pendulum_held_accel(c, q, vel_p, none, none, racc);
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        rest[r] = 0;
         if (pulled[r] && double_pendulum_settles(c, rates[r], racc[r], es[r])) {
             plastic[r] = 1;
             tgt[r] = 0.0;
+        } else if (pulled[r]) {
+            rest[r] = 1;
+            any_rest = 1;
+        }
+    }
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* the active rows the trial law pulls off */
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any_leaving = any_leaving || leaving[r];
+    }
+    if (any_rest && any_leaving && double_pendulum_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+        for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+            if (rest[r]) {
+                plastic[r] = 1;
+                tgt[r] = 0.0;
+            }
         }
     }
 }
@@ -2792,6 +2851,8 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
+        es[r] = 0.0;
     }
     /* pressed in by the forces of the rows held at this state, not the step's (an impact before it changed them) */
     double_pendulum_held_accel(c, q, vel, none, none, racc);
