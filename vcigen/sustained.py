@@ -20,7 +20,10 @@ forces do not press it in, a rootless impact is *grazing*: the continuous law
 
 The impulse law of an impact with rows active and of the plastic entry is :mod:`vcigen.held_impacts`;
 the friction modes of the held rows (MATH.md *Friction*) are :mod:`vcigen.friction_modes`; what the phases
-share (tolerances, :class:`~vcigen.held_roots.End`, the Illinois root finder) is :mod:`vcigen.held_roots`.
+share (tolerances, :class:`~vcigen.held_roots.End`, the Illinois root finder) is :mod:`vcigen.held_roots`;
+the events located inside a constrained segment (lift-off, a row crossed or dipped) are
+:mod:`vcigen.held_locate`, and the hooks of the tangent through a held step's events
+:mod:`vcigen.held_tangent`.
 """
 
 from __future__ import annotations
@@ -32,28 +35,24 @@ import numpy as np
 from .errors import SolverError
 from .friction_modes import FrictionModes
 from .held_impacts import HeldImpacts
+from .held_locate import HeldLocate
 from .held_roots import (
     BACK_CYCLES,
     BOUNCE_CYCLES,
     DEP_EPS,
-    EPS_LAM,
     EPS_LIFT,
     JAM_CYCLES,
-    LEAVE_FRACTIONS,
     LEAVE_STEPS,
     LIFT_CYCLES,
-    LIFT_ITER,
     ONTO_ITER,
-    ROOT_EPS,
     SLIDE_EPS,
     SPLITS,
     SPURIOUS,
     STICK_CYCLES,
     End,
-    hermite_min,
-    illinois,
     span_add,
 )
+from .held_tangent import HeldTangent
 from .impact_step import Seg
 from .result import KINDS
 
@@ -88,7 +87,7 @@ def rattle_segment(k, q, p, tau, x0, act):
     return x, res, p_plus, e_seg, y, res1, end
 
 
-class SustainedSteps(FrictionModes, HeldImpacts):
+class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
     """The sustained-contact phases; mixed into :class:`~vcigen.stepper.Stepper`."""
 
     # -- state of a run ------------------------------------------------------------
@@ -726,165 +725,6 @@ class SustainedSteps(FrictionModes, HeldImpacts):
         q1, p1, e_end, w = self._ev_impacts(step, t_k, h, seg, crossings, impacts, e_step)
         return q1, p1, (e_end if self._forced else e_step), w
 
-    # -- the tangent through events inside a held step (vcigen.sensitivity.Tracker.event) -----------------
-    def _events_tangent(self, tan):
-        """The tangent a held step's events are carried by (``Stepper._tangent_held``): frictionless or with
-        Coulomb friction (isotropic cones but under forces of time: ``Tracker._cone_slots`` holds the time
-        fixed), under any rule (internal points are held in each constrained sub-step,
-        ``Tracker._held_sub``); else None (the step breaks as before). A friction switch in it is a located
-        event if :meth:`_sw_covered`, else a break (:meth:`_sw_lose`); cones aimed implicitly (``_braked``)
-        break."""
-        cones = any(g >= 0 for g in self._partner) if self._stick_rows else False
-        return tan if tan is not None and not (cones and self._timed) else None
-
-    def _friction_state(self) -> tuple:
-        """The friction mode as arrays (:meth:`_no_switch`): stick rows held, slips, references, branch signs,
-        dependent sticks, each contact's held rows."""
-        return (
-            self.act.copy(),
-            self._slip.copy(),
-            self._ref.copy(),
-            self._branch.copy(),
-            list(self._ride),
-            list(self._held_rows),
-        )
-
-    def _no_switch(self, before: tuple) -> bool:
-        """Whether the friction mode changed from ``before`` (:meth:`_friction_state`) only by frictional
-        contacts let go (no row of theirs held any more: their friction ends with their normal force) or held
-        anew (slipping or sticking from the impact that put them in contact), each at an event whose time the
-        tangent has. Anything else (stick <-> slip, the sliding turned, a contact on another face) is a
-        switch. A slipping cone's direction is aimed anew at every segment's start, within the mode: its slips
-        count as 1 (:meth:`_mode_slips`)."""
-        act, slip, ref, branch, ride, held = before
-        slip, slip_now = self._mode_slips(slip), self._mode_slips(self._slip)
-        for f, sr in enumerate(self._stick_rows):
-            if not self._held_rows[f] or not held[f]:
-                continue  # let go, or held anew
-            now = (self._held_rows[f], self.act[sr], slip_now[f], self._ref[f], self._ride[f])
-            if (held[f], act[sr], slip[f], ref[f], ride[f]) != now:
-                return False
-            if any(branch[b] != self._branch[b] for b in self._branch_of[f]):
-                return False
-        return True
-
-    def _ev_event(self, sub, r: int, s: float, tau: float, kind: str) -> None:
-        """A constrained sub-step to an event of row ``r`` (``"lift"``, ``"cross"``, a friction switch
-        ``"stop"`` or ``"slide"``): ``Tracker.event``."""
-        if self._ev_tan is not None and not self._sw_covered(kind, r):
-            return
-        if self._ev_tan is not None:
-            self._ev_tan.events_begin(self._ev_entry)
-            self._ev_tan.event(sub, r, s, tau, kind)
-
-    # -- a friction switch inside a held step (vcigen.sensitivity_switch): a located event ----------------
-    def _sw_covered(self, kind: str, r: int = -1) -> bool:
-        """Whether the tangent carries an event of ``kind`` (of row ``r``) in the current friction mode: a
-        lift-off or a row crossed in any mode (``Tracker.event``: the sub-step's friction slots, the slipping
-        contacts' directions); without isotropic cones a slipping contact's stop and a lone sticking contact's
-        slide (no contact slipping, no dependent stick: the force law of the stick row alone); with them a
-        slipping cone's stop (its root along its slip, ``SwitchTangents._switch_root``) where no stick is
-        dependent. Else the step breaks here (``"friction switch in a held step"``)."""
-        if kind in ("lift", "cross"):
-            return True
-        if not any(g >= 0 for g in self._partner):  # no cone: one-tangent switches (SwitchTangents)
-            if kind == "stop" or (not self._slip.any() and all(o < 0 for o in self._ride)):
-                return True
-        elif kind == "stop" and r >= 0 and self._partner[self.k.row_stick[r]] >= 0:
-            if all(o < 0 for o in self._ride):
-                return True
-        self._sw_lose()
-        return False
-
-    def _sw_lose(self, why: str = "friction switch in a held step") -> None:
-        """A friction switch the tangent of a held step's events does not carry (stick <-> slip at a
-        segment's start or not of one contact alone, the sliding direction turned, a contact set on another
-        face, a cone's stop or slide): a mode change, no derivative; the step breaks with ``"friction switch
-        in a held step"`` (the later hooks find the tangent lost). ``why``: another reason (``"friction at an
-        impact"``: a slipping contact's sliding impulse at an impact while held, :meth:`_chain_impact`)."""
-        if self._ev_tan is not None:
-            self._ev_tan.lose(why)
-            self._ev_done = True
-
-    def _sw_state(self) -> tuple:
-        """The rows held, slips and dependent sticks before a located switch (:meth:`_sw_check`)."""
-        return self.act.copy(), self._slip.copy(), list(self._ride)
-
-    def _sw_check(self, kind: str, sr: int, before: tuple) -> None:
-        """After a located switch of stick row ``sr`` (:meth:`_friction_switch`): carried if it switched that
-        contact alone, into a stick on its own row (``"stop"``) or a slip (``"slide"``); else (the sliding
-        turned by an impact, a dependent stick, others switched with it) the step breaks. With isotropic cones
-        a cone's stop, into a stick on both its rows (:meth:`_sw_covered`); any other switch broke already."""
-        f = self.k.row_stick[sr]
-        own = [f] if self._partner[f] < 0 else [f, self._partner[f]]
-        if any(g >= 0 for g in self._partner) and (kind != "stop" or len(own) == 1):
-            return
-        act, slip, ride = before
-        rows = {self._stick_rows[g] for g in own}
-        others = [g for g in range(len(self._stick_rows)) if g not in own]
-        same = all(slip[g] == self._slip[g] and ride[g] == self._ride[g] for g in others)
-        same = same and all(act[x] == self.act[x] for x in range(self.k.r) if x not in rows)
-        if kind == "stop":
-            ok = all(self.act[self._stick_rows[g]] and not self._slip[g] and self._ride[g] < 0 for g in own)
-        else:
-            ok = not self.act[sr] and self._slip[f] != 0.0
-        if not (ok and same):
-            self._sw_lose()
-        elif kind == "stop" and self._ev_tan is not None and len(own) == 1:  # a slide back at once (_sw_back)
-            self._sw_stop = (self._ev_tan.step, self._events)
-
-    def _sw_back(self, kind: str) -> bool:
-        """A slide at the start of a segment right after a carried stop, no event between (a body stopped on a
-        slope steeper than its friction angle slides back at once): its time is the stop's, whose tangent the
-        events' tangent has, and the rest of the step slips from there (its slot by ``_friction_slots``)."""
-        tan = self._ev_tan
-        return kind == "slide" and tan is not None and self._sw_stop == (tan.step, self._events)
-
-    def _ev_impulse(self, q, v, p, lam, targets, group, law) -> None:
-        """The impulse law of an impact while held (:meth:`_chain_impact`): ``Tracker.impulse`` on its rows
-        with an impulse (``law``, :meth:`_law_tangent`), each with the contact whose restitution sets its
-        target (-1: target 0), the normal rows of the contacts slipping on or landing and sliding through it
-        with their sliding impulse along their owner's stick row (whose own impulse follows from theirs: not
-        a row of the law); a group of rows hit at once (the weights of its impulse switch) breaks."""
-        tan = self._ev_tan
-        if tan is None:
-            return
-        if len(group) > 1:
-            tan.lose("simultaneous impact")
-            return
-        k = self.k
-        tight, slides, _ = law
-        contact = [k.row_contact[r] if r in targets else -1 for r in tight]
-        tan.impulse(q, v, p, tight, contact, slides)
-
-    def _ev_free(self, q, p, w, tau: float) -> None:
-        """The free rest after a held step's events (``Tracker.free_end``); a lone lift-off before it is
-        ``Tracker.liftoff``'s (``_lift_seg``)."""
-        if self._ev_tan is not None and self._lift_seg is None:
-            self._ev_tan.events_begin(self._ev_entry)
-            self._ev_tan.free_end(q, p, w, tau)
-            self._ev_done = True
-
-    def _ev_impacts(self, step, t_k, h, seg, crossings, impacts, e_step):
-        """The impact chain (47)-(79) of a held step's free rest (``Stepper._impact_step``). With the tangent
-        of its events (a pending lone lift-off is one first) the free impact hooks (``Tracker.contact``,
-        ``jump``, ``jump_end``; a plastic impact's own held rest) carry it from the segment's tangents: the
-        step is covered as far as they cover it."""
-        tan = self._ev_tan
-        if tan is None:
-            return self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
-        if self._lift_seg is not None:
-            self._ev_event(*self._lift_seg, "lift")
-            self._lift_seg = None
-        tan.events_begin(self._ev_entry)
-        entry, self._tan = self._ev_entry, tan
-        try:
-            return self._impact_step(step, t_k, h, seg, crossings, impacts, e_step)
-        finally:  # a plastic impact in it ran its own held rest (Stepper._tangent_held): the flags back
-            self._tan, self._ev_tan, self._ev_entry, self._record_held = None, tan, entry, True
-            self._held_seg = self._lift_seg = self._free_seg = None
-            self._ev_done = True
-
     def _release(self, step, t_k, t, r: int, rider: int = -1, start: bool = False) -> None:
         """Lift-off of row ``r`` at ``t``: logged once per contact that leaves sustained contact, at the
         instant its force vanished where :meth:`_sinks_free` held it on since (:meth:`_held_since`). With a
@@ -1005,93 +845,6 @@ class SustainedSteps(FrictionModes, HeldImpacts):
                 0.0,
                 f"more than {self.tol.max_impacts_per_step} impacts and lift-offs in one step; reduce h",
             )
-
-    # -- events inside a constrained segment -------------------------------------------
-    def _sub_end(self, step, t_k, q, p, tau, s, guess):
-        """The constrained sub-step map at fraction ``s``: ``(v, end, u_end)`` (the evaluations at its end and
-        the end velocity). A sub-step no longer than the chain's least (``1e-13 h``: a root finder's point at
-        the segment's start) is its start, ``(guess, start, u)``: its solve, at ``tau ~ 1e-18``, had no
-        reliable Newton (NaN on CasADi's path)."""
-        if s * tau <= 1e-13 * self._h:
-            u = self._velocity(q, guess, p)
-            psi, grad, curv = self.k.rows(q, u)
-            return guess, End(psi, grad, curv, self.k.dynamics(q, u)[0], self.k.legendre(q, u)[1]), u
-        v, *_, u1, end = self._constrained(step, t_k, q, p, s * tau, guess)
-        return v, end, u1
-
-    def _liftoff_fraction(self, step, t_k, q, p, tau, guess, r, f0, f1) -> float:
-        """Fraction where row ``r``'s force (:meth:`_contact_forces` at the sub-step's end, :meth:`_pressed`)
-        vanishes.
-
-        ``0`` if the force at the segment start ``f0`` is already negative (release at the start); else the
-        root in ``[0, 1]`` of the force along the sub-step map (Illinois): where ``|force| <= EPS_LAM`` scale,
-        or else the bracket's negative end, so that the released body leaves.
-        """
-        if f0 < 0:
-            return 0.0
-        ga, gb = float(f0), float(f1)
-
-        def force(c, v):
-            v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
-            return float(self._pressed(self._forces(end), end.grad)[r]), v
-
-        return illinois(force, ga, gb, EPS_LAM * (1.0 + abs(ga) + abs(gb)), 1e-12, LIFT_ITER, guess)
-
-    def _row_crossing(self, step, t_k, q, p, tau, guess, r, g1, s_hi: float = 1.0) -> float:
-        """Fraction where inactive row ``r`` reaches 0 along the constrained sub-step map (Illinois) on ``[0,
-        s_hi]`` (``g1 < 0`` its value at ``s_hi``).
-
-        A row on the contact at the start (``|psi_r| <= Tolerances.phi``: an impact on it at this instant, or
-        its lift-off) is bracketed from the first of ``LEAVE_FRACTIONS`` (times ``s_hi``) where it is above
-        ``phi``, as free flight's :meth:`_leave`: the root at the start is the one it leaves. With ``psi_r``
-        1e-19 above 0 there, the secant's first point (1e-16) took it: box on box draw 94's bounce was met
-        again at once and held, where C, whose ``psi_r`` was below 0, bounced on."""
-        psi0 = float(self.k.rows(q, guess)[0][r])
-        lo, ga, gb = 0.0, max(psi0, 0.0), float(g1)
-
-        def height(c, v):
-            v, end, _ = self._sub_end(step, t_k, q, p, tau, c, v)
-            return float(end.psi[r]), v
-
-        if abs(psi0) <= self.tol.phi:
-            for s in LEAVE_FRACTIONS:
-                g, _ = height(s * s_hi, guess)
-                if g > self.tol.phi:
-                    lo, ga = s * s_hi, g
-                    break
-        return illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess, lo=lo, hi=s_hi)
-
-    def _row_dips(self, step, t_k, q, p, tau, v, u1, end, cross) -> dict[int, tuple[float, float]]:
-        """Inactive contact rows admissible at both ends of the segment that dip below 0 inside it (a rod's
-        bob across the corner its circle cuts off a wall at ``h = 0.1``: it ended past the corner, on the
-        wall's side again): ``{r: (s, psi_r < 0 at s)}``, as free flight's (``Stepper._crossings``): the
-        cubic through the ends' values and slopes ``d = tau grad psi . u`` flags a dip, and the sub-step map
-        is sampled there and at ``Tolerances.bracket_samples`` points (a dip within
-        ``Tolerances.admissible`` is none). A row moving in at its start by less than ``admissible`` over the
-        segment (``d0 >= -admissible``) is not tested: after an impact that left it at a normal speed of 0
-        the sign of ``d0`` is round-off's, and C and CasADi parted on a rough star whose second face vertex
-        then sank 4.9e-4 under the rotation (a dip the cubic misses, as free flight's does)."""
-        k, tol = self.k, self.tol
-        idle = ~self.act & ~cross & (np.asarray(k.row_stick) < 0) & (end.psi >= -tol.phi)
-        d1 = tau * (end.grad @ u1)
-        if not (idle & (d1 > 0.0)).any():
-            return {}
-        u0 = self._velocity(q, v, p)
-        psi0, grad0, _ = k.rows(q, u0)
-        d0 = tau * (grad0 @ u0)
-        out, inner = {}, self._seg_inner  # the segment's, for its tangent: the samples' solves overwrite it
-        for r in np.flatnonzero(idle & (d0 < -tol.admissible) & (d1 > 0.0)):
-            s_min, g_min = hermite_min(float(psi0[r]), float(end.psi[r]), float(d0[r]), float(d1[r]))
-            if g_min < tol.dip * (abs(d0[r]) + abs(d1[r])):
-                for s in (s_min, *np.linspace(0.0, 1.0, tol.bracket_samples + 2)[1:-1]):
-                    psi_s = (
-                        self._sub_end(step, t_k, q, p, tau, float(s), v)[1].psi[r] if 0.0 < s < 1.0 else 0.0
-                    )
-                    if psi_s < -tol.admissible:
-                        out[int(r)] = (float(s), float(psi_s))
-                        break
-        self._seg_inner = inner
-        return out
 
 
 def row_matrix(g, mass) -> tuple[np.ndarray, np.ndarray]:
