@@ -140,7 +140,7 @@ class HeldImpacts(ImpulseLaw):
             self._ev_impulse(q, v, p, lam, targets, group, self._law_tangent(lam, slipped, slips, lands))
         mass = k.legendre(q, vel_m)[1]
         loss = 0.5 * (vel_m @ mass @ vel_m - vel_p @ mass @ vel_p)
-        leaving = [r for r in dropped if self.act[r] and r not in group]  # active rows the impact pulls off
+        leaving = self._leaving(dropped, group)
         if leaving:  # each stays unless it leaves below the resolution, pulled back by the rows held after
             landed = self._landed(lands, slipped, plastic, leaving)
             after = self._held_accel(q, vel_p, leaving, plastic + landed)
@@ -240,12 +240,16 @@ class HeldImpacts(ImpulseLaw):
         acc = self._held_accel(q, vel_p, (), ())
         settle = [r for r, (rate, e) in pulled.items() if self._settles(rate, float(acc[r]), e, self._h)]
         rest = [r for r in pulled if r not in settle]
-        leaving = [r for r in dropped if self.act[r] and r not in group]
+        leaving = self._leaving(dropped, group)
         if rest and leaving:
             settle += self._let_go(q, vel_p, leaving, plastic + settle, {r: pulled[r] for r in rest})
         for r in settle:
             plastic.append(r)
             del targets[r]
+
+    def _leaving(self, dropped, group) -> list[int]:
+        """The active rows an impact's law pulls off (``dropped``), not of its ``group`` (C ``leaving``)."""
+        return [r for r in dropped if self.act[r] and r not in group]
 
     def _let_go(self, q, vel_p, leaving, plastic, rest) -> list[int]:
         """Of the stopped rows ``rest`` (``{r: (rate, e)}``) of :meth:`_stopped_pressed`, those that settle

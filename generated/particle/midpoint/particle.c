@@ -2333,6 +2333,23 @@ static void particle_held_accel(const particle_ctx_t *c, const double *q, const 
     particle_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int particle_leaving(const particle_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < PARTICLE_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2381,8 +2398,8 @@ static void particle_stopped_pressed(const particle_ctx_t *c, const double *q, c
     double trial[PARTICLE_R_DIM], p_plus[PARTICLE_N], lam[PARTICLE_R_DIM], vel_m[PARTICLE_N];
     double vel_p[PARTICLE_N], racc[PARTICLE_R_DIM];
     int dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], none[PARTICLE_R_DIM] = {0};
-    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], r, g, failed;
-    int rest[PARTICLE_R_DIM], leaving[PARTICLE_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], r, failed;
+    int rest[PARTICLE_R_DIM], leaving[PARTICLE_R_DIM], any_rest = 0;
     for (r = 0; r < PARTICLE_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2402,15 +2419,7 @@ static void particle_stopped_pressed(const particle_ctx_t *c, const double *q, c
             any_rest = 1;
         }
     }
-    for (r = 0; r < PARTICLE_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && particle_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && particle_leaving(c, dropped, group, n_group, leaving) && particle_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < PARTICLE_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2541,16 +2550,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     (void)slip_ride;
     (void)land;
     loss = particle_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < PARTICLE_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (particle_leaving(c, dropped, group, n_group, leaving)) {
         particle_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < PARTICLE_R; ++r) {

@@ -2617,6 +2617,23 @@ static void star_held_accel(const star_ctx_t *c, const double *q, const double *
     star_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int star_leaving(const star_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < STAR_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2665,8 +2682,8 @@ static void star_stopped_pressed(const star_ctx_t *c, const double *q, const dou
     double trial[STAR_R_DIM], p_plus[STAR_N], lam[STAR_R_DIM], vel_m[STAR_N];
     double vel_p[STAR_N], racc[STAR_R_DIM];
     int dropped[STAR_R_DIM], slipped[STAR_R_DIM], none[STAR_R_DIM] = {0};
-    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], r, g, failed;
-    int rest[STAR_R_DIM], leaving[STAR_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], r, failed;
+    int rest[STAR_R_DIM], leaving[STAR_R_DIM], any_rest = 0;
     for (r = 0; r < STAR_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2686,15 +2703,7 @@ static void star_stopped_pressed(const star_ctx_t *c, const double *q, const dou
             any_rest = 1;
         }
     }
-    for (r = 0; r < STAR_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && star_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && star_leaving(c, dropped, group, n_group, leaving) && star_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < STAR_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2825,16 +2834,9 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     (void)slip_ride;
     (void)land;
     loss = star_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < STAR_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (star_leaving(c, dropped, group, n_group, leaving)) {
         star_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < STAR_R; ++r) {

@@ -2334,6 +2334,23 @@ static void ball_to_rest_held_accel(const ball_to_rest_ctx_t *c, const double *q
     ball_to_rest_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int ball_to_rest_leaving(const ball_to_rest_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < BALL_TO_REST_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2382,8 +2399,8 @@ static void ball_to_rest_stopped_pressed(const ball_to_rest_ctx_t *c, const doub
     double trial[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N], lam[BALL_TO_REST_R_DIM], vel_m[BALL_TO_REST_N];
     double vel_p[BALL_TO_REST_N], racc[BALL_TO_REST_R_DIM];
     int dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], none[BALL_TO_REST_R_DIM] = {0};
-    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM], r, g, failed;
-    int rest[BALL_TO_REST_R_DIM], leaving[BALL_TO_REST_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM], r, failed;
+    int rest[BALL_TO_REST_R_DIM], leaving[BALL_TO_REST_R_DIM], any_rest = 0;
     for (r = 0; r < BALL_TO_REST_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2403,15 +2420,7 @@ static void ball_to_rest_stopped_pressed(const ball_to_rest_ctx_t *c, const doub
             any_rest = 1;
         }
     }
-    for (r = 0; r < BALL_TO_REST_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && ball_to_rest_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && ball_to_rest_leaving(c, dropped, group, n_group, leaving) && ball_to_rest_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < BALL_TO_REST_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2542,16 +2551,9 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     (void)slip_ride;
     (void)land;
     loss = ball_to_rest_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < BALL_TO_REST_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (ball_to_rest_leaving(c, dropped, group, n_group, leaving)) {
         ball_to_rest_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < BALL_TO_REST_R; ++r) {

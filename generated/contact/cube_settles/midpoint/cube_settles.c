@@ -3118,6 +3118,23 @@ static void cube_settles_held_accel(const cube_settles_ctx_t *c, const double *q
     cube_settles_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int cube_settles_leaving(const cube_settles_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < CUBE_SETTLES_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -3166,8 +3183,8 @@ static void cube_settles_stopped_pressed(const cube_settles_ctx_t *c, const doub
     double trial[CUBE_SETTLES_R_DIM], p_plus[CUBE_SETTLES_N], lam[CUBE_SETTLES_R_DIM], vel_m[CUBE_SETTLES_N];
     double vel_p[CUBE_SETTLES_N], racc[CUBE_SETTLES_R_DIM];
     int dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], none[CUBE_SETTLES_R_DIM] = {0};
-    int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], r, g, failed;
-    int rest[CUBE_SETTLES_R_DIM], leaving[CUBE_SETTLES_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], r, failed;
+    int rest[CUBE_SETTLES_R_DIM], leaving[CUBE_SETTLES_R_DIM], any_rest = 0;
     for (r = 0; r < CUBE_SETTLES_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -3187,15 +3204,7 @@ static void cube_settles_stopped_pressed(const cube_settles_ctx_t *c, const doub
             any_rest = 1;
         }
     }
-    for (r = 0; r < CUBE_SETTLES_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && cube_settles_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && cube_settles_leaving(c, dropped, group, n_group, leaving) && cube_settles_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < CUBE_SETTLES_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -3326,16 +3335,9 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     (void)slip_ride;
     (void)land;
     loss = cube_settles_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < CUBE_SETTLES_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (cube_settles_leaving(c, dropped, group, n_group, leaving)) {
         cube_settles_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < CUBE_SETTLES_R; ++r) {

@@ -2837,6 +2837,23 @@ static void four_bar_held_accel(const four_bar_ctx_t *c, const double *q, const 
     four_bar_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int four_bar_leaving(const four_bar_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2885,8 +2902,8 @@ static void four_bar_stopped_pressed(const four_bar_ctx_t *c, const double *q, c
     double trial[FOUR_BAR_R_DIM], p_plus[FOUR_BAR_N], lam[FOUR_BAR_R_DIM], vel_m[FOUR_BAR_N];
     double vel_p[FOUR_BAR_N], racc[FOUR_BAR_R_DIM];
     int dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], none[FOUR_BAR_R_DIM] = {0};
-    int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], r, g, failed;
-    int rest[FOUR_BAR_R_DIM], leaving[FOUR_BAR_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], r, failed;
+    int rest[FOUR_BAR_R_DIM], leaving[FOUR_BAR_R_DIM], any_rest = 0;
     for (r = 0; r < FOUR_BAR_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2906,15 +2923,7 @@ static void four_bar_stopped_pressed(const four_bar_ctx_t *c, const double *q, c
             any_rest = 1;
         }
     }
-    for (r = 0; r < FOUR_BAR_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && four_bar_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && four_bar_leaving(c, dropped, group, n_group, leaving) && four_bar_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < FOUR_BAR_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -3045,16 +3054,9 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     (void)slip_ride;
     (void)land;
     loss = four_bar_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < FOUR_BAR_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (four_bar_leaving(c, dropped, group, n_group, leaving)) {
         four_bar_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < FOUR_BAR_R; ++r) {

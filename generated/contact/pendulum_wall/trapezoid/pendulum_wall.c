@@ -2570,6 +2570,23 @@ static void pendulum_wall_held_accel(const pendulum_wall_ctx_t *c, const double 
     pendulum_wall_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int pendulum_wall_leaving(const pendulum_wall_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < PENDULUM_WALL_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2618,8 +2635,8 @@ static void pendulum_wall_stopped_pressed(const pendulum_wall_ctx_t *c, const do
     double trial[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N], lam[PENDULUM_WALL_R_DIM], vel_m[PENDULUM_WALL_N];
     double vel_p[PENDULUM_WALL_N], racc[PENDULUM_WALL_R_DIM];
     int dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], none[PENDULUM_WALL_R_DIM] = {0};
-    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], r, g, failed;
-    int rest[PENDULUM_WALL_R_DIM], leaving[PENDULUM_WALL_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], r, failed;
+    int rest[PENDULUM_WALL_R_DIM], leaving[PENDULUM_WALL_R_DIM], any_rest = 0;
     for (r = 0; r < PENDULUM_WALL_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2639,15 +2656,7 @@ static void pendulum_wall_stopped_pressed(const pendulum_wall_ctx_t *c, const do
             any_rest = 1;
         }
     }
-    for (r = 0; r < PENDULUM_WALL_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && pendulum_wall_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && pendulum_wall_leaving(c, dropped, group, n_group, leaving) && pendulum_wall_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < PENDULUM_WALL_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2778,16 +2787,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     (void)slip_ride;
     (void)land;
     loss = pendulum_wall_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < PENDULUM_WALL_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (pendulum_wall_leaving(c, dropped, group, n_group, leaving)) {
         pendulum_wall_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < PENDULUM_WALL_R; ++r) {

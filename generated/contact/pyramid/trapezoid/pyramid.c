@@ -4521,6 +4521,23 @@ static int pyramid_reduced_restitution(const pyramid_ctx_t *c, const double *q, 
     return 0;
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int pyramid_leaving(const pyramid_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < PYRAMID_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -4570,8 +4587,8 @@ static void pyramid_stopped_pressed(const pyramid_ctx_t *c, const double *q, con
     double trial[PYRAMID_R_DIM], p_plus[PYRAMID_N], lam[PYRAMID_R_DIM], vel_m[PYRAMID_N];
     double vel_p[PYRAMID_N], racc[PYRAMID_R_DIM];
     int dropped[PYRAMID_R_DIM], slipped[PYRAMID_R_DIM], none[PYRAMID_R_DIM] = {0};
-    int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], r, g, failed;
-    int rest[PYRAMID_R_DIM], leaving[PYRAMID_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], r, failed;
+    int rest[PYRAMID_R_DIM], leaving[PYRAMID_R_DIM], any_rest = 0;
     for (r = 0; r < PYRAMID_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -4595,15 +4612,7 @@ static void pyramid_stopped_pressed(const pyramid_ctx_t *c, const double *q, con
             any_rest = 1;
         }
     }
-    for (r = 0; r < PYRAMID_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && pyramid_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && pyramid_leaving(c, dropped, group, n_group, leaving) && pyramid_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < PYRAMID_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -4751,16 +4760,9 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = pyramid_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < PYRAMID_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (pyramid_leaving(c, dropped, group, n_group, leaving)) {
         int on[PYRAMID_R_DIM];
         pyramid_landed(c, land, slipped, plastic, leaving, on);
         pyramid_held_accel(c, q, vel_p, leaving, on, racc);

@@ -2535,6 +2535,23 @@ static void slide_off_dome_held_accel(const slide_off_dome_ctx_t *c, const doubl
     slide_off_dome_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int slide_off_dome_leaving(const slide_off_dome_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2583,8 +2600,8 @@ static void slide_off_dome_stopped_pressed(const slide_off_dome_ctx_t *c, const 
     double trial[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N], lam[SLIDE_OFF_DOME_R_DIM], vel_m[SLIDE_OFF_DOME_N];
     double vel_p[SLIDE_OFF_DOME_N], racc[SLIDE_OFF_DOME_R_DIM];
     int dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], none[SLIDE_OFF_DOME_R_DIM] = {0};
-    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], r, g, failed;
-    int rest[SLIDE_OFF_DOME_R_DIM], leaving[SLIDE_OFF_DOME_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], r, failed;
+    int rest[SLIDE_OFF_DOME_R_DIM], leaving[SLIDE_OFF_DOME_R_DIM], any_rest = 0;
     for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2604,15 +2621,7 @@ static void slide_off_dome_stopped_pressed(const slide_off_dome_ctx_t *c, const 
             any_rest = 1;
         }
     }
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && slide_off_dome_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && slide_off_dome_leaving(c, dropped, group, n_group, leaving) && slide_off_dome_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2743,16 +2752,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     (void)slip_ride;
     (void)land;
     loss = slide_off_dome_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (slide_off_dome_leaving(c, dropped, group, n_group, leaving)) {
         slide_off_dome_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {

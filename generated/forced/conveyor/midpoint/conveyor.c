@@ -3275,6 +3275,23 @@ static int conveyor_reduced_restitution(const conveyor_ctx_t *c, const double *q
     return 0;
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int conveyor_leaving(const conveyor_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < CONVEYOR_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -3324,8 +3341,8 @@ static void conveyor_stopped_pressed(const conveyor_ctx_t *c, const double *q, c
     double trial[CONVEYOR_R_DIM], p_plus[CONVEYOR_N], lam[CONVEYOR_R_DIM], vel_m[CONVEYOR_N];
     double vel_p[CONVEYOR_N], racc[CONVEYOR_R_DIM];
     int dropped[CONVEYOR_R_DIM], slipped[CONVEYOR_R_DIM], none[CONVEYOR_R_DIM] = {0};
-    int slip_own[CONVEYOR_NF_DIM], slip_ride[CONVEYOR_NF_DIM], land[CONVEYOR_NF_DIM], r, g, failed;
-    int rest[CONVEYOR_R_DIM], leaving[CONVEYOR_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[CONVEYOR_NF_DIM], slip_ride[CONVEYOR_NF_DIM], land[CONVEYOR_NF_DIM], r, failed;
+    int rest[CONVEYOR_R_DIM], leaving[CONVEYOR_R_DIM], any_rest = 0;
     for (r = 0; r < CONVEYOR_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -3349,15 +3366,7 @@ static void conveyor_stopped_pressed(const conveyor_ctx_t *c, const double *q, c
             any_rest = 1;
         }
     }
-    for (r = 0; r < CONVEYOR_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && conveyor_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && conveyor_leaving(c, dropped, group, n_group, leaving) && conveyor_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < CONVEYOR_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -3505,16 +3514,9 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = conveyor_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < CONVEYOR_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (conveyor_leaving(c, dropped, group, n_group, leaving)) {
         int on[CONVEYOR_R_DIM];
         conveyor_landed(c, land, slipped, plastic, leaving, on);
         conveyor_held_accel(c, q, vel_p, leaving, on, racc);

@@ -2304,6 +2304,23 @@ static void impact_damper_held_accel(const impact_damper_ctx_t *c, const double 
     impact_damper_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int impact_damper_leaving(const impact_damper_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < IMPACT_DAMPER_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2352,8 +2369,8 @@ static void impact_damper_stopped_pressed(const impact_damper_ctx_t *c, const do
     double trial[IMPACT_DAMPER_R_DIM], p_plus[IMPACT_DAMPER_N], lam[IMPACT_DAMPER_R_DIM], vel_m[IMPACT_DAMPER_N];
     double vel_p[IMPACT_DAMPER_N], racc[IMPACT_DAMPER_R_DIM];
     int dropped[IMPACT_DAMPER_R_DIM], slipped[IMPACT_DAMPER_R_DIM], none[IMPACT_DAMPER_R_DIM] = {0};
-    int slip_own[IMPACT_DAMPER_NF_DIM], slip_ride[IMPACT_DAMPER_NF_DIM], land[IMPACT_DAMPER_NF_DIM], r, g, failed;
-    int rest[IMPACT_DAMPER_R_DIM], leaving[IMPACT_DAMPER_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[IMPACT_DAMPER_NF_DIM], slip_ride[IMPACT_DAMPER_NF_DIM], land[IMPACT_DAMPER_NF_DIM], r, failed;
+    int rest[IMPACT_DAMPER_R_DIM], leaving[IMPACT_DAMPER_R_DIM], any_rest = 0;
     for (r = 0; r < IMPACT_DAMPER_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2373,15 +2390,7 @@ static void impact_damper_stopped_pressed(const impact_damper_ctx_t *c, const do
             any_rest = 1;
         }
     }
-    for (r = 0; r < IMPACT_DAMPER_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && impact_damper_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && impact_damper_leaving(c, dropped, group, n_group, leaving) && impact_damper_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < IMPACT_DAMPER_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2512,16 +2521,9 @@ static int impact_damper_chain_impact(const impact_damper_ctx_t *c, const double
     (void)slip_ride;
     (void)land;
     loss = impact_damper_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < IMPACT_DAMPER_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (impact_damper_leaving(c, dropped, group, n_group, leaving)) {
         impact_damper_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < IMPACT_DAMPER_R; ++r) {

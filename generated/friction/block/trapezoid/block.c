@@ -3357,6 +3357,23 @@ static int block_reduced_restitution(const block_ctx_t *c, const double *q, cons
     return 0;
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int block_leaving(const block_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < BLOCK_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -3406,8 +3423,8 @@ static void block_stopped_pressed(const block_ctx_t *c, const double *q, const d
     double trial[BLOCK_R_DIM], p_plus[BLOCK_N], lam[BLOCK_R_DIM], vel_m[BLOCK_N];
     double vel_p[BLOCK_N], racc[BLOCK_R_DIM];
     int dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], none[BLOCK_R_DIM] = {0};
-    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], r, g, failed;
-    int rest[BLOCK_R_DIM], leaving[BLOCK_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], r, failed;
+    int rest[BLOCK_R_DIM], leaving[BLOCK_R_DIM], any_rest = 0;
     for (r = 0; r < BLOCK_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -3431,15 +3448,7 @@ static void block_stopped_pressed(const block_ctx_t *c, const double *q, const d
             any_rest = 1;
         }
     }
-    for (r = 0; r < BLOCK_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && block_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && block_leaving(c, dropped, group, n_group, leaving) && block_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < BLOCK_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -3587,16 +3596,9 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = block_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < BLOCK_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (block_leaving(c, dropped, group, n_group, leaving)) {
         int on[BLOCK_R_DIM];
         block_landed(c, land, slipped, plastic, leaving, on);
         block_held_accel(c, q, vel_p, leaving, on, racc);

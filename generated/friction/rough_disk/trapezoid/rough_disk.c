@@ -3437,6 +3437,23 @@ static int rough_disk_reduced_restitution(const rough_disk_ctx_t *c, const doubl
     return 0;
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int rough_disk_leaving(const rough_disk_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -3486,8 +3503,8 @@ static void rough_disk_stopped_pressed(const rough_disk_ctx_t *c, const double *
     double trial[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N], lam[ROUGH_DISK_R_DIM], vel_m[ROUGH_DISK_N];
     double vel_p[ROUGH_DISK_N], racc[ROUGH_DISK_R_DIM];
     int dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], none[ROUGH_DISK_R_DIM] = {0};
-    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], r, g, failed;
-    int rest[ROUGH_DISK_R_DIM], leaving[ROUGH_DISK_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], r, failed;
+    int rest[ROUGH_DISK_R_DIM], leaving[ROUGH_DISK_R_DIM], any_rest = 0;
     for (r = 0; r < ROUGH_DISK_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -3511,15 +3528,7 @@ static void rough_disk_stopped_pressed(const rough_disk_ctx_t *c, const double *
             any_rest = 1;
         }
     }
-    for (r = 0; r < ROUGH_DISK_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && rough_disk_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && rough_disk_leaving(c, dropped, group, n_group, leaving) && rough_disk_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < ROUGH_DISK_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -3667,16 +3676,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = rough_disk_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < ROUGH_DISK_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (rough_disk_leaving(c, dropped, group, n_group, leaving)) {
         int on[ROUGH_DISK_R_DIM];
         rough_disk_landed(c, land, slipped, plastic, leaving, on);
         rough_disk_held_accel(c, q, vel_p, leaving, on, racc);

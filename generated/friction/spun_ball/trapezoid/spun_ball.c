@@ -5070,6 +5070,23 @@ static int spun_ball_reduced_restitution(const spun_ball_ctx_t *c, const double 
     return 0;
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int spun_ball_leaving(const spun_ball_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < SPUN_BALL_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -5119,8 +5136,8 @@ static void spun_ball_stopped_pressed(const spun_ball_ctx_t *c, const double *q,
     double trial[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N], lam[SPUN_BALL_R_DIM], vel_m[SPUN_BALL_N];
     double vel_p[SPUN_BALL_N], racc[SPUN_BALL_R_DIM];
     int dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], none[SPUN_BALL_R_DIM] = {0};
-    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], r, g, failed;
-    int rest[SPUN_BALL_R_DIM], leaving[SPUN_BALL_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], r, failed;
+    int rest[SPUN_BALL_R_DIM], leaving[SPUN_BALL_R_DIM], any_rest = 0;
     for (r = 0; r < SPUN_BALL_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -5144,15 +5161,7 @@ static void spun_ball_stopped_pressed(const spun_ball_ctx_t *c, const double *q,
             any_rest = 1;
         }
     }
-    for (r = 0; r < SPUN_BALL_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && spun_ball_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && spun_ball_leaving(c, dropped, group, n_group, leaving) && spun_ball_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < SPUN_BALL_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -5302,16 +5311,9 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     } else { /* the contacts slipping on: their sliding impulse in sens_ev_impulse */
     }
     loss = spun_ball_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < SPUN_BALL_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (spun_ball_leaving(c, dropped, group, n_group, leaving)) {
         int on[SPUN_BALL_R_DIM];
         spun_ball_landed(c, land, slipped, plastic, leaving, on);
         spun_ball_held_accel(c, q, vel_p, leaving, on, racc);

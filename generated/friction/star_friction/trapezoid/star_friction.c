@@ -3644,6 +3644,23 @@ static int star_friction_reduced_restitution(const star_friction_ctx_t *c, const
     return 0;
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int star_friction_leaving(const star_friction_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < STAR_FRICTION_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -3693,8 +3710,8 @@ static void star_friction_stopped_pressed(const star_friction_ctx_t *c, const do
     double trial[STAR_FRICTION_R_DIM], p_plus[STAR_FRICTION_N], lam[STAR_FRICTION_R_DIM], vel_m[STAR_FRICTION_N];
     double vel_p[STAR_FRICTION_N], racc[STAR_FRICTION_R_DIM];
     int dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], none[STAR_FRICTION_R_DIM] = {0};
-    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], r, g, failed;
-    int rest[STAR_FRICTION_R_DIM], leaving[STAR_FRICTION_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], r, failed;
+    int rest[STAR_FRICTION_R_DIM], leaving[STAR_FRICTION_R_DIM], any_rest = 0;
     for (r = 0; r < STAR_FRICTION_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -3718,15 +3735,7 @@ static void star_friction_stopped_pressed(const star_friction_ctx_t *c, const do
             any_rest = 1;
         }
     }
-    for (r = 0; r < STAR_FRICTION_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && star_friction_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && star_friction_leaving(c, dropped, group, n_group, leaving) && star_friction_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < STAR_FRICTION_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -3874,16 +3883,9 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     } else { /* the contacts slipping on or landing: their sliding impulse in sens_ev_impulse */
     }
     loss = star_friction_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < STAR_FRICTION_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (star_friction_leaving(c, dropped, group, n_group, leaving)) {
         int on[STAR_FRICTION_R_DIM];
         star_friction_landed(c, land, slipped, plastic, leaving, on);
         star_friction_held_accel(c, q, vel_p, leaving, on, racc);

@@ -2694,6 +2694,23 @@ static void double_pendulum_held_accel(const double_pendulum_ctx_t *c, const dou
     double_pendulum_row_accel(c, q, u, acc, racc);
 }
 
+/* HeldImpacts._leaving: the active rows an impact's law pulls off (dropped), not of its group; flags out, returns
+ * whether there is one. */
+static int double_pendulum_leaving(const double_pendulum_ctx_t *c, const int *dropped, const int *group, int n_group,
+    int *leaving)
+{
+    int r, g, in_group, any = 0;
+    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
+        in_group = 0;
+        for (g = 0; g < n_group; ++g) {
+            in_group = in_group || group[g] == r;
+        }
+        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
+        any = any || leaving[r];
+    }
+    return any;
+}
+
 /* HeldImpacts._let_go: whether the stopped rows flagged in rest (their rates and restitutions) of stopped_pressed
  * settle under the rows held once the active rows its trial law pulls off (leaving) are let go, each of those then
  * leaving (a normal speed above the resolution of its pull-back under the rows held after: plastic and the rows
@@ -2742,8 +2759,8 @@ static void double_pendulum_stopped_pressed(const double_pendulum_ctx_t *c, cons
     double trial[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N], lam[DOUBLE_PENDULUM_R_DIM], vel_m[DOUBLE_PENDULUM_N];
     double vel_p[DOUBLE_PENDULUM_N], racc[DOUBLE_PENDULUM_R_DIM];
     int dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], none[DOUBLE_PENDULUM_R_DIM] = {0};
-    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], r, g, failed;
-    int rest[DOUBLE_PENDULUM_R_DIM], leaving[DOUBLE_PENDULUM_R_DIM], in_group, any_rest = 0, any_leaving = 0;
+    int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], r, failed;
+    int rest[DOUBLE_PENDULUM_R_DIM], leaving[DOUBLE_PENDULUM_R_DIM], any_rest = 0;
     for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
         trial[r] = pulled[r] ? 0.0 : tgt[r];
     }
@@ -2763,15 +2780,7 @@ static void double_pendulum_stopped_pressed(const double_pendulum_ctx_t *c, cons
             any_rest = 1;
         }
     }
-    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* the active rows the trial law pulls off */
-        in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any_leaving = any_leaving || leaving[r];
-    }
-    if (any_rest && any_leaving && double_pendulum_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
+    if (any_rest && double_pendulum_leaving(c, dropped, group, n_group, leaving) && double_pendulum_let_go(c, q, vel_p, leaving, plastic, rest, rates, es)) {
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
             if (rest[r]) {
                 plastic[r] = 1;
@@ -2902,16 +2911,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     (void)slip_ride;
     (void)land;
     loss = double_pendulum_loss(c, q, vel_m, vel_p);
-    any = 0;
-    for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* the active rows the impact pulls off */
-        int in_group = 0;
-        for (g = 0; g < n_group; ++g) {
-            in_group = in_group || group[g] == r;
-        }
-        leaving[r] = dropped[r] && c->sus->act[r] && !in_group;
-        any = any || leaving[r];
-    }
-    if (any) { /* each stays unless it leaves below the resolution, pulled back by the rows held after */
+    /* the active rows the impact pulls off: each stays unless it leaves below the resolution, pulled back by the
+     * rows held after */
+    if (double_pendulum_leaving(c, dropped, group, n_group, leaving)) {
         double_pendulum_held_accel(c, q, vel_p, leaving, plastic, racc);
 
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) {
