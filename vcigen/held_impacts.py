@@ -109,7 +109,7 @@ class HeldImpacts(ImpulseLaw):
         # chain changed them: a double pendulum's bob stopped on the floor by e = 0, the rods pulling it in)
         acc = self._held_accel(q, vel, (), ())
         grad = k.rows(q, vel)[1]
-        targets, plastic, pulled = {}, [], {}
+        targets, plastic, pulled, departing = {}, [], {}, set()
         for r in group:
             e = float(rest[k.row_contact[r]])
             rate = float(grad[r] @ vel)
@@ -117,6 +117,8 @@ class HeldImpacts(ImpulseLaw):
                 plastic.append(r)
             else:
                 targets[r] = -e * rate
+                if self.tol.grazing == "contact" and self._departs(rate, acc[r], e, h):
+                    departing.add(r)  # not held after: it touches and goes, as a free impact does
                 if self.tol.grazing == "contact" and acc[r] >= 0.0 and rate < 0.0:
                     pulled[r] = (rate, e)
         counts = self.least_splits, self.friction_dropped
@@ -166,11 +168,12 @@ class HeldImpacts(ImpulseLaw):
         for r in group:
             by_contact.setdefault(k.row_contact[r], []).append(r)
         for j, rs in by_contact.items():
-            kind = (
-                "plastic"
-                if any(self.act[r] or r in plastic for r in rs)  # held, or riding on the rows held
-                else ("elastic" if rest[j] == 1.0 else "restitution")
-            )
+            if any(self.act[r] or r in plastic for r in rs):  # held, or riding on the rows held
+                kind = "plastic"
+            elif all(r in departing for r in rs):  # leaving below the resolution, not pressed (MATH.md Entry)
+                kind = "grazing"
+            else:
+                kind = "elastic" if rest[j] == 1.0 else "restitution"
             self._log(
                 impacts,
                 t,

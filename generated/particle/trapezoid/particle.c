@@ -2494,7 +2494,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double curv[PARTICLE_R_DIM], tgt[PARTICLE_R_DIM], p_plus[PARTICLE_N] = {0.0}, lam[PARTICLE_R_DIM];
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp, rates[PARTICLE_R_DIM], es[PARTICLE_R_DIM];
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
-    int pulled[PARTICLE_R_DIM], n_pulled = 0;
+    int pulled[PARTICLE_R_DIM], n_pulled = 0, departing[PARTICLE_R_DIM], all;
     int none[PARTICLE_R_DIM] = {0};
     int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], leaving[PARTICLE_R_DIM];
     particle_at(c, t);
@@ -2504,6 +2504,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2525,6 +2526,8 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && particle_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2594,15 +2597,18 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (particle_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         particle_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? PARTICLE_KIND_PLASTIC
-            : (rest[j] == 1.0 ? PARTICLE_KIND_ELASTIC : PARTICLE_KIND_RESTITUTION));
+            : (all ? PARTICLE_KIND_GRAZING : (rest[j] == 1.0 ? PARTICLE_KIND_ELASTIC
+            : PARTICLE_KIND_RESTITUTION)));
     }
     for (i = 0; i < PARTICLE_N; ++i) {
         p[i] = p_plus[i];

@@ -2775,7 +2775,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double curv[STAR_R_DIM], tgt[STAR_R_DIM], p_plus[STAR_N] = {0.0}, lam[STAR_R_DIM];
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp, rates[STAR_R_DIM], es[STAR_R_DIM];
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
-    int pulled[STAR_R_DIM], n_pulled = 0;
+    int pulled[STAR_R_DIM], n_pulled = 0, departing[STAR_R_DIM], all;
     int none[STAR_R_DIM] = {0};
     int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], leaving[STAR_R_DIM];
     star_at(c, t);
@@ -2785,6 +2785,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2806,6 +2807,8 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && star_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2875,15 +2878,18 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (star_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         star_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? STAR_KIND_PLASTIC
-            : (rest[j] == 1.0 ? STAR_KIND_ELASTIC : STAR_KIND_RESTITUTION));
+            : (all ? STAR_KIND_GRAZING : (rest[j] == 1.0 ? STAR_KIND_ELASTIC
+            : STAR_KIND_RESTITUTION)));
     }
     for (i = 0; i < STAR_N; ++i) {
         p[i] = p_plus[i];

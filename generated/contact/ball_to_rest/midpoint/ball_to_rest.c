@@ -2490,7 +2490,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double curv[BALL_TO_REST_R_DIM], tgt[BALL_TO_REST_R_DIM], p_plus[BALL_TO_REST_N] = {0.0}, lam[BALL_TO_REST_R_DIM];
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp, rates[BALL_TO_REST_R_DIM], es[BALL_TO_REST_R_DIM];
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
-    int pulled[BALL_TO_REST_R_DIM], n_pulled = 0;
+    int pulled[BALL_TO_REST_R_DIM], n_pulled = 0, departing[BALL_TO_REST_R_DIM], all;
     int none[BALL_TO_REST_R_DIM] = {0};
     int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM], leaving[BALL_TO_REST_R_DIM];
     ball_to_rest_at(c, t);
@@ -2500,6 +2500,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2521,6 +2522,8 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && ball_to_rest_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2590,15 +2593,18 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (ball_to_rest_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         ball_to_rest_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? BALL_TO_REST_KIND_PLASTIC
-            : (rest[j] == 1.0 ? BALL_TO_REST_KIND_ELASTIC : BALL_TO_REST_KIND_RESTITUTION));
+            : (all ? BALL_TO_REST_KIND_GRAZING : (rest[j] == 1.0 ? BALL_TO_REST_KIND_ELASTIC
+            : BALL_TO_REST_KIND_RESTITUTION)));
     }
     for (i = 0; i < BALL_TO_REST_N; ++i) {
         p[i] = p_plus[i];

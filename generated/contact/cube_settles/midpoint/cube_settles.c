@@ -3274,7 +3274,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     double curv[CUBE_SETTLES_R_DIM], tgt[CUBE_SETTLES_R_DIM], p_plus[CUBE_SETTLES_N] = {0.0}, lam[CUBE_SETTLES_R_DIM];
     double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp, rates[CUBE_SETTLES_R_DIM], es[CUBE_SETTLES_R_DIM];
     int plastic[CUBE_SETTLES_R_DIM], dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], i, g, r, j, any, done;
-    int pulled[CUBE_SETTLES_R_DIM], n_pulled = 0;
+    int pulled[CUBE_SETTLES_R_DIM], n_pulled = 0, departing[CUBE_SETTLES_R_DIM], all;
     int none[CUBE_SETTLES_R_DIM] = {0};
     int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], leaving[CUBE_SETTLES_R_DIM];
     cube_settles_at(c, t);
@@ -3284,6 +3284,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -3305,6 +3306,8 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && cube_settles_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -3374,15 +3377,18 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (cube_settles_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         cube_settles_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? CUBE_SETTLES_KIND_PLASTIC
-            : (rest[j] == 1.0 ? CUBE_SETTLES_KIND_ELASTIC : CUBE_SETTLES_KIND_RESTITUTION));
+            : (all ? CUBE_SETTLES_KIND_GRAZING : (rest[j] == 1.0 ? CUBE_SETTLES_KIND_ELASTIC
+            : CUBE_SETTLES_KIND_RESTITUTION)));
     }
     for (i = 0; i < CUBE_SETTLES_N; ++i) {
         p[i] = p_plus[i];

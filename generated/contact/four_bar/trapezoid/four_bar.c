@@ -2993,7 +2993,7 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     double curv[FOUR_BAR_R_DIM], tgt[FOUR_BAR_R_DIM], p_plus[FOUR_BAR_N] = {0.0}, lam[FOUR_BAR_R_DIM];
     double vel_m[FOUR_BAR_N], vel_p[FOUR_BAR_N], rate, e, loss, imp, rates[FOUR_BAR_R_DIM], es[FOUR_BAR_R_DIM];
     int plastic[FOUR_BAR_R_DIM], dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], i, g, r, j, any, done;
-    int pulled[FOUR_BAR_R_DIM], n_pulled = 0;
+    int pulled[FOUR_BAR_R_DIM], n_pulled = 0, departing[FOUR_BAR_R_DIM], all;
     int none[FOUR_BAR_R_DIM] = {0};
     int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], leaving[FOUR_BAR_R_DIM];
     four_bar_at(c, t);
@@ -3003,6 +3003,7 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -3024,6 +3025,8 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && four_bar_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -3093,15 +3096,18 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (four_bar_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         four_bar_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? FOUR_BAR_KIND_PLASTIC
-            : (rest[j] == 1.0 ? FOUR_BAR_KIND_ELASTIC : FOUR_BAR_KIND_RESTITUTION));
+            : (all ? FOUR_BAR_KIND_GRAZING : (rest[j] == 1.0 ? FOUR_BAR_KIND_ELASTIC
+            : FOUR_BAR_KIND_RESTITUTION)));
     }
     for (i = 0; i < FOUR_BAR_N; ++i) {
         p[i] = p_plus[i];

@@ -2721,7 +2721,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double curv[PENDULUM_WALL_R_DIM], tgt[PENDULUM_WALL_R_DIM], p_plus[PENDULUM_WALL_N] = {0.0}, lam[PENDULUM_WALL_R_DIM];
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp, rates[PENDULUM_WALL_R_DIM], es[PENDULUM_WALL_R_DIM];
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
-    int pulled[PENDULUM_WALL_R_DIM], n_pulled = 0;
+    int pulled[PENDULUM_WALL_R_DIM], n_pulled = 0, departing[PENDULUM_WALL_R_DIM], all;
     int none[PENDULUM_WALL_R_DIM] = {0};
     int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
@@ -2731,6 +2731,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2752,6 +2753,8 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && pendulum_wall_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2821,15 +2824,18 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (pendulum_wall_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         pendulum_wall_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? PENDULUM_WALL_KIND_PLASTIC
-            : (rest[j] == 1.0 ? PENDULUM_WALL_KIND_ELASTIC : PENDULUM_WALL_KIND_RESTITUTION));
+            : (all ? PENDULUM_WALL_KIND_GRAZING : (rest[j] == 1.0 ? PENDULUM_WALL_KIND_ELASTIC
+            : PENDULUM_WALL_KIND_RESTITUTION)));
     }
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         p[i] = p_plus[i];

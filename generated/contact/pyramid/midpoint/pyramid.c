@@ -4682,7 +4682,7 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     double curv[PYRAMID_R_DIM], tgt[PYRAMID_R_DIM], p_plus[PYRAMID_N] = {0.0}, lam[PYRAMID_R_DIM];
     double vel_m[PYRAMID_N], vel_p[PYRAMID_N], rate, e, loss, imp, rates[PYRAMID_R_DIM], es[PYRAMID_R_DIM];
     int plastic[PYRAMID_R_DIM], dropped[PYRAMID_R_DIM], slipped[PYRAMID_R_DIM], i, g, r, j, any, done;
-    int pulled[PYRAMID_R_DIM], n_pulled = 0;
+    int pulled[PYRAMID_R_DIM], n_pulled = 0, departing[PYRAMID_R_DIM], all;
     int none[PYRAMID_R_DIM] = {0};
     int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], leaving[PYRAMID_R_DIM];
     long counts[3];
@@ -4694,6 +4694,7 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -4715,6 +4716,8 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && pyramid_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -4810,15 +4813,18 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (pyramid_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         pyramid_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? PYRAMID_KIND_PLASTIC
-            : (rest[j] == 1.0 ? PYRAMID_KIND_ELASTIC : PYRAMID_KIND_RESTITUTION));
+            : (all ? PYRAMID_KIND_GRAZING : (rest[j] == 1.0 ? PYRAMID_KIND_ELASTIC
+            : PYRAMID_KIND_RESTITUTION)));
     }
     for (i = 0; i < PYRAMID_N; ++i) {
         p[i] = p_plus[i];

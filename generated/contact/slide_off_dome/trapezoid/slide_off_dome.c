@@ -2696,7 +2696,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double curv[SLIDE_OFF_DOME_R_DIM], tgt[SLIDE_OFF_DOME_R_DIM], p_plus[SLIDE_OFF_DOME_N] = {0.0}, lam[SLIDE_OFF_DOME_R_DIM];
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp, rates[SLIDE_OFF_DOME_R_DIM], es[SLIDE_OFF_DOME_R_DIM];
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
-    int pulled[SLIDE_OFF_DOME_R_DIM], n_pulled = 0;
+    int pulled[SLIDE_OFF_DOME_R_DIM], n_pulled = 0, departing[SLIDE_OFF_DOME_R_DIM], all;
     int none[SLIDE_OFF_DOME_R_DIM] = {0};
     int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], leaving[SLIDE_OFF_DOME_R_DIM];
     slide_off_dome_at(c, t);
@@ -2706,6 +2706,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2727,6 +2728,8 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && slide_off_dome_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2796,15 +2799,18 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (slide_off_dome_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         slide_off_dome_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? SLIDE_OFF_DOME_KIND_PLASTIC
-            : (rest[j] == 1.0 ? SLIDE_OFF_DOME_KIND_ELASTIC : SLIDE_OFF_DOME_KIND_RESTITUTION));
+            : (all ? SLIDE_OFF_DOME_KIND_GRAZING : (rest[j] == 1.0 ? SLIDE_OFF_DOME_KIND_ELASTIC
+            : SLIDE_OFF_DOME_KIND_RESTITUTION)));
     }
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         p[i] = p_plus[i];

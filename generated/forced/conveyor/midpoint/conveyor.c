@@ -3436,7 +3436,7 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
     double curv[CONVEYOR_R_DIM], tgt[CONVEYOR_R_DIM], p_plus[CONVEYOR_N] = {0.0}, lam[CONVEYOR_R_DIM];
     double vel_m[CONVEYOR_N], vel_p[CONVEYOR_N], rate, e, loss, imp, rates[CONVEYOR_R_DIM], es[CONVEYOR_R_DIM];
     int plastic[CONVEYOR_R_DIM], dropped[CONVEYOR_R_DIM], slipped[CONVEYOR_R_DIM], i, g, r, j, any, done;
-    int pulled[CONVEYOR_R_DIM], n_pulled = 0;
+    int pulled[CONVEYOR_R_DIM], n_pulled = 0, departing[CONVEYOR_R_DIM], all;
     int none[CONVEYOR_R_DIM] = {0};
     int slip_own[CONVEYOR_NF_DIM], slip_ride[CONVEYOR_NF_DIM], land[CONVEYOR_NF_DIM], leaving[CONVEYOR_R_DIM];
     long counts[3];
@@ -3448,6 +3448,7 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -3469,6 +3470,8 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && conveyor_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -3564,15 +3567,18 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (conveyor_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         conveyor_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? CONVEYOR_KIND_PLASTIC
-            : (rest[j] == 1.0 ? CONVEYOR_KIND_ELASTIC : CONVEYOR_KIND_RESTITUTION));
+            : (all ? CONVEYOR_KIND_GRAZING : (rest[j] == 1.0 ? CONVEYOR_KIND_ELASTIC
+            : CONVEYOR_KIND_RESTITUTION)));
     }
     for (i = 0; i < CONVEYOR_N; ++i) {
         p[i] = p_plus[i];

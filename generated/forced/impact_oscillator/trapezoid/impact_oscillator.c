@@ -2320,7 +2320,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     double curv[IMPACT_OSCILLATOR_R_DIM], tgt[IMPACT_OSCILLATOR_R_DIM], p_plus[IMPACT_OSCILLATOR_N] = {0.0}, lam[IMPACT_OSCILLATOR_R_DIM];
     double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp, rates[IMPACT_OSCILLATOR_R_DIM], es[IMPACT_OSCILLATOR_R_DIM];
     int plastic[IMPACT_OSCILLATOR_R_DIM], dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], i, g, r, j, any, done;
-    int pulled[IMPACT_OSCILLATOR_R_DIM], n_pulled = 0;
+    int pulled[IMPACT_OSCILLATOR_R_DIM], n_pulled = 0, departing[IMPACT_OSCILLATOR_R_DIM], all;
     int none[IMPACT_OSCILLATOR_R_DIM] = {0};
     int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], leaving[IMPACT_OSCILLATOR_R_DIM];
     impact_oscillator_at(c, t);
@@ -2330,6 +2330,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2351,6 +2352,8 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && impact_oscillator_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2420,15 +2423,18 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (impact_oscillator_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         impact_oscillator_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? IMPACT_OSCILLATOR_KIND_PLASTIC
-            : (rest[j] == 1.0 ? IMPACT_OSCILLATOR_KIND_ELASTIC : IMPACT_OSCILLATOR_KIND_RESTITUTION));
+            : (all ? IMPACT_OSCILLATOR_KIND_GRAZING : (rest[j] == 1.0 ? IMPACT_OSCILLATOR_KIND_ELASTIC
+            : IMPACT_OSCILLATOR_KIND_RESTITUTION)));
     }
     for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
         p[i] = p_plus[i];

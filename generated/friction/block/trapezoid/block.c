@@ -3518,7 +3518,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double curv[BLOCK_R_DIM], tgt[BLOCK_R_DIM], p_plus[BLOCK_N] = {0.0}, lam[BLOCK_R_DIM];
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp, rates[BLOCK_R_DIM], es[BLOCK_R_DIM];
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
-    int pulled[BLOCK_R_DIM], n_pulled = 0;
+    int pulled[BLOCK_R_DIM], n_pulled = 0, departing[BLOCK_R_DIM], all;
     int none[BLOCK_R_DIM] = {0};
     int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
     long counts[3];
@@ -3530,6 +3530,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -3551,6 +3552,8 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && block_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -3646,15 +3649,18 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (block_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         block_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? BLOCK_KIND_PLASTIC
-            : (rest[j] == 1.0 ? BLOCK_KIND_ELASTIC : BLOCK_KIND_RESTITUTION));
+            : (all ? BLOCK_KIND_GRAZING : (rest[j] == 1.0 ? BLOCK_KIND_ELASTIC
+            : BLOCK_KIND_RESTITUTION)));
     }
     for (i = 0; i < BLOCK_N; ++i) {
         p[i] = p_plus[i];

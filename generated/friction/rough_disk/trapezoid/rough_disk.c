@@ -3598,7 +3598,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double curv[ROUGH_DISK_R_DIM], tgt[ROUGH_DISK_R_DIM], p_plus[ROUGH_DISK_N] = {0.0}, lam[ROUGH_DISK_R_DIM];
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp, rates[ROUGH_DISK_R_DIM], es[ROUGH_DISK_R_DIM];
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
-    int pulled[ROUGH_DISK_R_DIM], n_pulled = 0;
+    int pulled[ROUGH_DISK_R_DIM], n_pulled = 0, departing[ROUGH_DISK_R_DIM], all;
     int none[ROUGH_DISK_R_DIM] = {0};
     int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     long counts[3];
@@ -3610,6 +3610,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -3631,6 +3632,8 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && rough_disk_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -3726,15 +3729,18 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (rough_disk_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         rough_disk_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? ROUGH_DISK_KIND_PLASTIC
-            : (rest[j] == 1.0 ? ROUGH_DISK_KIND_ELASTIC : ROUGH_DISK_KIND_RESTITUTION));
+            : (all ? ROUGH_DISK_KIND_GRAZING : (rest[j] == 1.0 ? ROUGH_DISK_KIND_ELASTIC
+            : ROUGH_DISK_KIND_RESTITUTION)));
     }
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         p[i] = p_plus[i];

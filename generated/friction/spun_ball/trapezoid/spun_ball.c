@@ -5231,7 +5231,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double curv[SPUN_BALL_R_DIM], tgt[SPUN_BALL_R_DIM], p_plus[SPUN_BALL_N] = {0.0}, lam[SPUN_BALL_R_DIM];
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp, rates[SPUN_BALL_R_DIM], es[SPUN_BALL_R_DIM];
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
-    int pulled[SPUN_BALL_R_DIM], n_pulled = 0;
+    int pulled[SPUN_BALL_R_DIM], n_pulled = 0, departing[SPUN_BALL_R_DIM], all;
     int none[SPUN_BALL_R_DIM] = {0};
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     long counts[3];
@@ -5243,6 +5243,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -5264,6 +5265,8 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && spun_ball_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -5361,15 +5364,18 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (spun_ball_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         spun_ball_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? SPUN_BALL_KIND_PLASTIC
-            : (rest[j] == 1.0 ? SPUN_BALL_KIND_ELASTIC : SPUN_BALL_KIND_RESTITUTION));
+            : (all ? SPUN_BALL_KIND_GRAZING : (rest[j] == 1.0 ? SPUN_BALL_KIND_ELASTIC
+            : SPUN_BALL_KIND_RESTITUTION)));
     }
     for (i = 0; i < SPUN_BALL_N; ++i) {
         p[i] = p_plus[i];

@@ -2708,7 +2708,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     double curv[BALL_BOX_R_DIM], tgt[BALL_BOX_R_DIM], p_plus[BALL_BOX_N] = {0.0}, lam[BALL_BOX_R_DIM];
     double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp, rates[BALL_BOX_R_DIM], es[BALL_BOX_R_DIM];
     int plastic[BALL_BOX_R_DIM], dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], i, g, r, j, any, done;
-    int pulled[BALL_BOX_R_DIM], n_pulled = 0;
+    int pulled[BALL_BOX_R_DIM], n_pulled = 0, departing[BALL_BOX_R_DIM], all;
     int none[BALL_BOX_R_DIM] = {0};
     int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], land[BALL_BOX_NF_DIM], leaving[BALL_BOX_R_DIM];
     ball_box_at(c, t);
@@ -2718,6 +2718,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2739,6 +2740,8 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && ball_box_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -2808,15 +2811,18 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (ball_box_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         ball_box_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? BALL_BOX_KIND_PLASTIC
-            : (rest[j] == 1.0 ? BALL_BOX_KIND_ELASTIC : BALL_BOX_KIND_RESTITUTION));
+            : (all ? BALL_BOX_KIND_GRAZING : (rest[j] == 1.0 ? BALL_BOX_KIND_ELASTIC
+            : BALL_BOX_KIND_RESTITUTION)));
     }
     for (i = 0; i < BALL_BOX_N; ++i) {
         p[i] = p_plus[i];

@@ -2907,7 +2907,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double curv[DOUBLE_PENDULUM_R_DIM], tgt[DOUBLE_PENDULUM_R_DIM], p_plus[DOUBLE_PENDULUM_N] = {0.0}, lam[DOUBLE_PENDULUM_R_DIM];
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp, rates[DOUBLE_PENDULUM_R_DIM], es[DOUBLE_PENDULUM_R_DIM];
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
-    int pulled[DOUBLE_PENDULUM_R_DIM], n_pulled = 0;
+    int pulled[DOUBLE_PENDULUM_R_DIM], n_pulled = 0, departing[DOUBLE_PENDULUM_R_DIM], all;
     int none[DOUBLE_PENDULUM_R_DIM] = {0};
     int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
@@ -2917,6 +2917,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
         tgt[r] = 0.0;
         plastic[r] = 0;
         pulled[r] = 0;
+        departing[r] = 0;
         rates[r] = 0.0; /* read for pulled rows alone (let_go: set, for gcc) */
         es[r] = 0.0;
     }
@@ -2938,6 +2939,8 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
+            /* not held after: it touches and goes, as a free impact does */
+            departing[r] = c->tol->grazing_contact && double_pendulum_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
                 rates[r] = rate;
@@ -3007,15 +3010,18 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
             continue;
         }
         any = 0;
+        all = 1;
         imp = 0.0;
         for (r = g; r < n_group; ++r) {
             if (double_pendulum_row_contact[group[r]] == j) {
                 any = any || c->sus->act[group[r]] || plastic[group[r]]; /* held, or riding on the rows held */
+                all = all && departing[group[r]]; /* leaving below the resolution, not pressed (MATH.md Entry) */
                 imp += lam[group[r]];
             }
         }
         double_pendulum_log(c, rec, n_rec, t, j, q, imp, e_before, e_before - loss, any ? DOUBLE_PENDULUM_KIND_PLASTIC
-            : (rest[j] == 1.0 ? DOUBLE_PENDULUM_KIND_ELASTIC : DOUBLE_PENDULUM_KIND_RESTITUTION));
+            : (all ? DOUBLE_PENDULUM_KIND_GRAZING : (rest[j] == 1.0 ? DOUBLE_PENDULUM_KIND_ELASTIC
+            : DOUBLE_PENDULUM_KIND_RESTITUTION)));
     }
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         p[i] = p_plus[i];
