@@ -71,9 +71,12 @@ def main(
     draws = [draw(rng) for _ in range(a.drops)]
     out = {}
     for backend in a.backends:
-        sim = vcigen.build(
-            model(rough=False) if getattr(a, "smooth", False) else model(), backend=backend, rule=a.rule
-        )
+        try:
+            sim = vcigen.build(
+                model(rough=False) if getattr(a, "smooth", False) else model(), backend=backend, rule=a.rule
+            )
+        except ValueError as exc:  # a rule without friction (lobatto3): the walls must be smooth
+            ap.error(f"{exc}{'; add --smooth (frictionless walls)' if smooth and not a.smooth else ''}")
         n = a.drops if backend == "c" else max(1, a.drops // 5)
         start = time.perf_counter()
         counts, results, ext = campaign(sim, draws[:n])

@@ -206,3 +206,16 @@ def test_the_wedged_rattle_is_the_same_on_both_backends() -> None:
     books = [[(i.contact, i.kind, i.step) for i in r.impacts] for r in (c, ca)]
     assert books[0] == books[1]
     assert np.abs(c.q - ca.q).max() < 1e-12
+
+
+def test_the_campaign_asks_for_smooth_walls_under_a_rule_without_friction(capsys) -> None:
+    """``bench.box_v_drops --rule lobatto3`` without ``--smooth``: lobatto3 takes no friction, so the
+    campaign stops at once with a usage error that names the rule and ``--smooth`` (not a traceback from
+    inside the build)."""
+    from bench.box_v_drops import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--rule", "lobatto3", "--drops", "1", "--backends", "c"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "'lobatto3'" in err and "friction" in err and "add --smooth" in err
