@@ -17,7 +17,8 @@ backends named (``--strict c``), or on every ``--backend`` if none is named; on 
 Per backend, mode and decile of e: runs; SolverErrors (target 0 in the default mode); share
 of runs at rest at the end (some contact active at the last grid point); mean impacts per run;
 the most impacts in one grid step (from ``Impact.step``); the largest energy rise at an impact
-``max(E_after - E_before) / max(1, max|E|)`` (should be <= ~1e-10); the smallest phi over the
+``max(E_after - E_before) / max(1, max|E|)`` (<= ~1e-10, but at a touch and go by the continuous law,
+``"grazing"``: within its bias ``g^2 h^2 / 8``, docs/limits.md *Grazing impacts*); the smallest phi over the
 grid (admissibility); the wall time of ``simulate`` summed over the decile. A run that ends in
 a SolverError is counted with its partial ``err.result``. The first SolverErrors of the default
 mode are printed with a reproducer. One CSV row per (backend, mode, decile) goes to ``--csv``.
