@@ -100,7 +100,9 @@ class HeldImpacts(ImpulseLaw):
         at this instant already: it left at a normal speed of 0 and sank again at once). One the incoming
         velocity does not press in is read again once the impact has stopped it (:meth:`_stopped_pressed`).
         Rows of ``group`` in ``joined`` (:meth:`_joined`, all in ``again``) that the law leaves with no
-        impulse are not of the impact: not held, not logged."""
+        impulse are not of the impact: not held, not logged. Each contact of the impact is logged once:
+        ``"plastic"`` where a row of it is held after, ``"grazing"`` where none is and all its rows touch and
+        go (:meth:`_departs` at the state met, as a free impact's; MATH.md *Entry*), else by restitution."""
         k = self.k
         self._at(t)
         rest = k.restitution()
@@ -118,7 +120,7 @@ class HeldImpacts(ImpulseLaw):
             else:
                 targets[r] = -e * rate
                 if self.tol.grazing == "contact" and self._departs(rate, acc[r], e, h):
-                    departing.add(r)  # not held after: it touches and goes, as a free impact does
+                    departing.add(r)  # below the resolution, not pressed: a touch and go where not held after
                 if self.tol.grazing == "contact" and acc[r] >= 0.0 and rate < 0.0:
                     pulled[r] = (rate, e)
         counts = self.least_splits, self.friction_dropped

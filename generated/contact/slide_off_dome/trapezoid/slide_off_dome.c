@@ -2728,7 +2728,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
-            /* not held after: it touches and goes, as a free impact does */
+            /* below the resolution, not pressed: a touch and go where not held after (logged "grazing") */
             departing[r] = c->tol->grazing_contact && slide_off_dome_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;

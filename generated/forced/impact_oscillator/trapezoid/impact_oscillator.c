@@ -2352,7 +2352,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
-            /* not held after: it touches and goes, as a free impact does */
+            /* below the resolution, not pressed: a touch and go where not held after (logged "grazing") */
             departing[r] = c->tol->grazing_contact && impact_oscillator_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;

@@ -5265,7 +5265,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
-            /* not held after: it touches and goes, as a free impact does */
+            /* below the resolution, not pressed: a touch and go where not held after (logged "grazing") */
             departing[r] = c->tol->grazing_contact && spun_ball_departs(c, rate, racc[r], e);
             if (c->tol->grazing_contact && racc[r] >= 0.0 && rate < 0.0) {
                 pulled[r] = 1;
