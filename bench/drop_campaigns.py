@@ -70,13 +70,12 @@ def main(
     rng = np.random.default_rng(a.seed)
     draws = [draw(rng) for _ in range(a.drops)]
     out = {}
+    smooth_walls = getattr(a, "smooth", False)
     for backend in a.backends:
         try:
-            sim = vcigen.build(
-                model(rough=False) if getattr(a, "smooth", False) else model(), backend=backend, rule=a.rule
-            )
+            sim = vcigen.build(model(rough=False) if smooth_walls else model(), backend=backend, rule=a.rule)
         except ValueError as exc:  # a rule without friction (lobatto3): the walls must be smooth
-            ap.error(f"{exc}{'; add --smooth (frictionless walls)' if smooth and not a.smooth else ''}")
+            ap.error(f"{exc}{'; add --smooth (frictionless walls)' if smooth and not smooth_walls else ''}")
         n = a.drops if backend == "c" else max(1, a.drops // 5)
         start = time.perf_counter()
         counts, results, ext = campaign(sim, draws[:n])
