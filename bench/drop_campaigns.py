@@ -56,8 +56,9 @@ def main(
     """Parses ``--drops`` (default ``drops``), ``--seed``, ``--backends``, ``--rule`` and, where ``smooth``,
     ``--smooth`` (``model(rough=False)``: frictionless walls); runs ``campaign(sim, draws)`` (a
     result None where it raised; ``(counts, results, {"lowest gap", "E_d rise"})``) on C and on a fifth of the
-    draws on CasADi, prints each backend's counts and extremes (``swing``: ``E_d``'s own swing in flight) and
-    the drops whose impacts differ between the backends or whose ``q`` are more than 1e-6 apart."""
+    draws on CasADi, prints each backend's counts, the indices of the drops that raised and the extremes
+    (``swing``: ``E_d``'s own swing in flight), and the drops whose impacts differ between the backends or
+    whose ``q`` are more than 1e-6 apart."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--drops", type=int, default=drops)
     ap.add_argument("--seed", type=int, default=1)
@@ -83,6 +84,9 @@ def main(
         print(f"[{backend}, {a.rule}] {n} drops (seed {a.seed}), {time.perf_counter() - start:.1f} s")
         for key, value in sorted(counts.items()):
             print(f"  {key}: {value}")
+        raised = [i for i, res in enumerate(results) if res is None]
+        if raised:  # to rerun one: its draw is the i-th of the seed's generator
+            print(f"  drops that raised (by index): {raised[:20]}{' ...' if len(raised) > 20 else ''}")
         print(
             f"  lowest gap {ext['lowest gap']:.1e}; E_d above its start at most {ext['E_d rise']:.2e}"
             f" (g^2 h^2 / 8 = {swing:.2e})"

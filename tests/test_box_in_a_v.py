@@ -162,6 +162,54 @@ def test_the_rattle_is_the_same_on_both_backends() -> None:
     assert np.abs(c.q - ca.q).max() < 1e-9
 
 
+# Drop 169 of `bench.box_v_drops --seed 21`: the box's face on the right wall (r1 held), a corner on the left
+# (l3 held), and the face's other corner (r0) landing at e = 0.587: with the rows held, friction (mu = 1.12)
+# wedges the box, and Newton's law with any fraction of the restitution has no solution, only the plastic one.
+JAMMED = (
+    {"s": 1.6804145886579973, "e": 0.5872062526457372, "mu": 1.1183246798658038},
+    [0.2176700280471398, 1.4989131145900076, -1.3791757922764336],
+    [1.9681747491101262, -0.88019107897783, -1.3603466451100474],
+)
+
+
+@cache
+def jammed_run(backend: str) -> vcigen.Result:
+    from bench.box_v_drops import H, model
+
+    params, q0, v0 = JAMMED
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # restitution reduced: counted
+        return vcigen.build(model(), backend=backend).simulate(q0, v0, H, t_end=3.0, params=params)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_landing_whose_law_has_no_solution_with_restitution_takes_less(backend: str) -> None:
+    """An impact while held whose Newton's restitution with Coulomb's friction has no solution takes the
+    largest fraction of its restitution that has one (``HeldImpacts._reduced_restitution``, C
+    ``reduced_restitution``: as one whose law raises the kinetic energy), here none: the corner lands
+    plastic, and the box rests wedged. Till stop 58 both backends raised "impulse law: no solution on 4
+    contacts" at t = 1.50. No corner below a wall; ``E_d`` never above its start by more than the flight's
+    swing ``g^2 h^2 / 8``."""
+    from bench.box_v_drops import H, lowest_gap
+
+    res = jammed_run(backend)
+    assert res.t[-1] >= 3.0 and np.abs(res.v[-1]).max() < 1e-9
+    landing = [i for i in res.impacts if i.contact == "r0" and 1.5 < i.t < 1.51]
+    assert [i.kind for i in landing] == ["plastic"] and landing[0].impulse > 0.1
+    assert res.stats["restitution_reduced"] >= 1
+    held = {res.contact_names[j][0] for j in np.flatnonzero(res.active[-1])}
+    assert held == {"l", "r"}
+    assert lowest_gap(res.q, JAMMED[0]["s"]) > -1e-12
+    assert (res.energy - res.energy[0]).max() <= G**2 * H**2 / 8 * (1 + 1e-9)
+
+
+def test_the_jammed_landing_is_the_same_on_both_backends() -> None:
+    c, ca = jammed_run("c"), jammed_run("casadi")
+    books = [[(i.contact, i.kind, i.step) for i in r.impacts] for r in (c, ca)]
+    assert books[0] == books[1]
+    assert np.abs(c.q - ca.q).max() < 1e-9
+
+
 # A drop of `bench.box_v_drops --smooth --rule lobatto3` (seed 1, drop 95): a frictionless box wedged in the V
 # (e = 0.195) rattles between a corner on each wall, faster and faster, then rests wedged.
 MIRROR = (

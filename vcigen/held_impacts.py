@@ -127,9 +127,14 @@ class HeldImpacts(ImpulseLaw):
         state = self._law_state()  # before the law (its cut riders)
         if pulled:
             self._stopped_pressed(step, t_k, q, p, v, group, targets, plastic, pulled, counts, state)
-        law = self._impulse_law(step, t_k, q, p, v, group, targets)
-        reduced = bool(targets) and bool(self._stick_rows) and self._law_raises(q, law)
-        if reduced:  # Newton's restitution with Coulomb's friction raising the kinetic energy
+        try:
+            law = self._impulse_law(step, t_k, q, p, v, group, targets)
+        except SolverError:
+            if not (targets and self._stick_rows):
+                raise
+            law = None  # Newton's restitution with Coulomb's friction has no solution (a box wedged in a V)
+        reduced = bool(targets) and bool(self._stick_rows) and (law is None or self._law_raises(q, law))
+        if reduced:  # Newton's restitution with Coulomb's friction raising the kinetic energy, or unsolvable
             cut = self._reduced_restitution(step, t_k, q, p, v, group, targets, plastic, counts, state)
             law, targets, plastic = cut
         p_plus, lam, vel_m, vel_p, dropped, slipped, slips, lands, law_why = law
@@ -299,7 +304,9 @@ class HeldImpacts(ImpulseLaw):
 
     def _reduced_restitution(self, step, t_k, q, p, v, group, targets, plastic, counts, state):
         """An impact whose Newton's restitution with Coulomb's friction raises the kinetic energy (a body
-        rocking onto a second vertex beside a held one; MATH.md *Friction*: energy never rises): the largest
+        rocking onto a second vertex beside a held one; MATH.md *Friction*: energy never rises), or has no
+        solution (a box wedged in a V, a corner landing at ``e > 0`` beside two held: its law is solvable only
+        plastic, ``bench.box_v_drops --seed 21`` drop 169): the largest
         fraction ``s`` of its targets whose law does not, by ``RESTITUTION_BISECTIONS`` bisections of ``[0,
         1]`` (counted, ``res.stats["restitution_reduced"]``; README, Known limits: Friction); ``s = 0`` is the
         plastic law, which cannot raise it, and holds the rows it stopped. ``counts``: the law's counters

@@ -391,13 +391,15 @@ def warn_friction_dropped(count: int, stacklevel: int = 2) -> None:
 
 def warn_restitution_reduced(count: int, stacklevel: int = 2) -> None:
     """Say at how many impacts the restitution was reduced because Newton's restitution with Coulomb's
-    friction would have raised the kinetic energy (``res.stats["restitution_reduced"]``)."""
+    friction would have raised the kinetic energy, or had no solution (``res.stats["restitution_reduced"]``).
+    """
     if count:
         warnings.warn(
             f"{count} impact(s) with friction took less restitution than their coefficient (the largest "
             "fraction that adds no kinetic energy; none: plastic): Newton's restitution with Coulomb's "
             "friction would have raised the kinetic energy there (a body rocking onto a second contact, a "
-            "spinning one landing), which the law refuses (docs/limits.md: Friction)",
+            "spinning one landing), which the law refuses, or had no solution (a body wedged by friction) "
+            "(docs/limits.md: Friction)",
             RuntimeWarning,
             stacklevel=stacklevel + 1,
         )

@@ -2495,7 +2495,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp, rates[PARTICLE_R_DIM], es[PARTICLE_R_DIM];
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
     int pulled[PARTICLE_R_DIM], n_pulled = 0, departing[PARTICLE_R_DIM], all;
-    int none[PARTICLE_R_DIM] = {0};
+    int none[PARTICLE_R_DIM] = {0}, unsolved;
     int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], leaving[PARTICLE_R_DIM];
     particle_at(c, t);
     particle_restitution(c->par, rest);
@@ -2539,8 +2539,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     if (n_pulled) {
         particle_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = particle_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

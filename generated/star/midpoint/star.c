@@ -2774,7 +2774,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp, rates[STAR_R_DIM], es[STAR_R_DIM];
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
     int pulled[STAR_R_DIM], n_pulled = 0, departing[STAR_R_DIM], all;
-    int none[STAR_R_DIM] = {0};
+    int none[STAR_R_DIM] = {0}, unsolved;
     int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], leaving[STAR_R_DIM];
     star_at(c, t);
     star_restitution(c->par, rest);
@@ -2818,8 +2818,9 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     if (n_pulled) {
         star_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (star_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = star_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

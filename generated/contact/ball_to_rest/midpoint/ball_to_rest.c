@@ -2491,7 +2491,7 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     double vel_m[BALL_TO_REST_N], vel_p[BALL_TO_REST_N], rate, e, loss, imp, rates[BALL_TO_REST_R_DIM], es[BALL_TO_REST_R_DIM];
     int plastic[BALL_TO_REST_R_DIM], dropped[BALL_TO_REST_R_DIM], slipped[BALL_TO_REST_R_DIM], i, g, r, j, any, done;
     int pulled[BALL_TO_REST_R_DIM], n_pulled = 0, departing[BALL_TO_REST_R_DIM], all;
-    int none[BALL_TO_REST_R_DIM] = {0};
+    int none[BALL_TO_REST_R_DIM] = {0}, unsolved;
     int slip_own[BALL_TO_REST_NF_DIM], slip_ride[BALL_TO_REST_NF_DIM], land[BALL_TO_REST_NF_DIM], leaving[BALL_TO_REST_R_DIM];
     ball_to_rest_at(c, t);
     ball_to_rest_restitution(c->par, rest);
@@ -2535,8 +2535,9 @@ static int ball_to_rest_chain_impact(const ball_to_rest_ctx_t *c, const double *
     if (n_pulled) {
         ball_to_rest_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (ball_to_rest_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = ball_to_rest_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

@@ -3282,7 +3282,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp, rates[CUBE_SETTLES_R_DIM], es[CUBE_SETTLES_R_DIM];
     int plastic[CUBE_SETTLES_R_DIM], dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], i, g, r, j, any, done;
     int pulled[CUBE_SETTLES_R_DIM], n_pulled = 0, departing[CUBE_SETTLES_R_DIM], all;
-    int none[CUBE_SETTLES_R_DIM] = {0};
+    int none[CUBE_SETTLES_R_DIM] = {0}, unsolved;
     int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], leaving[CUBE_SETTLES_R_DIM];
     cube_settles_at(c, t);
     cube_settles_restitution(c->par, rest);
@@ -3326,8 +3326,9 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     if (n_pulled) {
         cube_settles_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (cube_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = cube_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

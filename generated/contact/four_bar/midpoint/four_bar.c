@@ -2994,7 +2994,7 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     double vel_m[FOUR_BAR_N], vel_p[FOUR_BAR_N], rate, e, loss, imp, rates[FOUR_BAR_R_DIM], es[FOUR_BAR_R_DIM];
     int plastic[FOUR_BAR_R_DIM], dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], i, g, r, j, any, done;
     int pulled[FOUR_BAR_R_DIM], n_pulled = 0, departing[FOUR_BAR_R_DIM], all;
-    int none[FOUR_BAR_R_DIM] = {0};
+    int none[FOUR_BAR_R_DIM] = {0}, unsolved;
     int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], leaving[FOUR_BAR_R_DIM];
     four_bar_at(c, t);
     four_bar_restitution(c->par, rest);
@@ -3038,8 +3038,9 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     if (n_pulled) {
         four_bar_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (four_bar_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = four_bar_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

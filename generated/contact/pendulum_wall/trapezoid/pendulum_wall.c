@@ -2727,7 +2727,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp, rates[PENDULUM_WALL_R_DIM], es[PENDULUM_WALL_R_DIM];
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
     int pulled[PENDULUM_WALL_R_DIM], n_pulled = 0, departing[PENDULUM_WALL_R_DIM], all;
-    int none[PENDULUM_WALL_R_DIM] = {0};
+    int none[PENDULUM_WALL_R_DIM] = {0}, unsolved;
     int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
@@ -2771,8 +2771,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     if (n_pulled) {
         pendulum_wall_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (pendulum_wall_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = pendulum_wall_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

@@ -4471,8 +4471,8 @@ static int pyramid_law_gains_all(const pyramid_ctx_t *c, const double *q, const 
     return pyramid_law_gains(rows, PYRAMID_R, zero, b, after, lam);
 }
 
-/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+/* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
  * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
  * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
  * outputs as impulse_law's; 1 if the last solve failed. */
@@ -4683,7 +4683,7 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
     double vel_m[PYRAMID_N], vel_p[PYRAMID_N], rate, e, loss, imp, rates[PYRAMID_R_DIM], es[PYRAMID_R_DIM];
     int plastic[PYRAMID_R_DIM], dropped[PYRAMID_R_DIM], slipped[PYRAMID_R_DIM], i, g, r, j, any, done;
     int pulled[PYRAMID_R_DIM], n_pulled = 0, departing[PYRAMID_R_DIM], all;
-    int none[PYRAMID_R_DIM] = {0};
+    int none[PYRAMID_R_DIM] = {0}, unsolved;
     int slip_own[PYRAMID_NF_DIM], slip_ride[PYRAMID_NF_DIM], land[PYRAMID_NF_DIM], leaving[PYRAMID_R_DIM];
     long counts[3];
     int reduced, why, act[PYRAMID_R_DIM], ride[PYRAMID_NF_DIM];
@@ -4734,15 +4734,18 @@ static int pyramid_chain_impact(const pyramid_ctx_t *c, const double *q, double 
         pyramid_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
             ride);
     }
-    if (pyramid_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
-        return 1;
-    }
+    unsolved = pyramid_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
     for (g = 0, any = 0; g < n_group; ++g) {
         any = any || !plastic[group[g]];
     }
-    reduced = any && pyramid_law_gains_all(c, q, lam, vel_m, vel_p);
-    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+    if (unsolved && !any) {
+        return 1;
+    }
+    /* Newton's restitution with Coulomb's friction raising the kinetic energy, or with no solution (a box wedged
+     * in a V): reduced_restitution */
+    reduced = any && (unsolved || pyramid_law_gains_all(c, q, lam, vel_m, vel_p));
+    if (reduced) {
         if (pyramid_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;

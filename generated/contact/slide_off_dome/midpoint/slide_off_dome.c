@@ -2692,7 +2692,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp, rates[SLIDE_OFF_DOME_R_DIM], es[SLIDE_OFF_DOME_R_DIM];
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
     int pulled[SLIDE_OFF_DOME_R_DIM], n_pulled = 0, departing[SLIDE_OFF_DOME_R_DIM], all;
-    int none[SLIDE_OFF_DOME_R_DIM] = {0};
+    int none[SLIDE_OFF_DOME_R_DIM] = {0}, unsolved;
     int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], leaving[SLIDE_OFF_DOME_R_DIM];
     slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
@@ -2736,8 +2736,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     if (n_pulled) {
         slide_off_dome_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = slide_off_dome_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

@@ -2777,7 +2777,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     double vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N], rate, e, loss, imp, rates[STAR_SETTLES_R_DIM], es[STAR_SETTLES_R_DIM];
     int plastic[STAR_SETTLES_R_DIM], dropped[STAR_SETTLES_R_DIM], slipped[STAR_SETTLES_R_DIM], i, g, r, j, any, done;
     int pulled[STAR_SETTLES_R_DIM], n_pulled = 0, departing[STAR_SETTLES_R_DIM], all;
-    int none[STAR_SETTLES_R_DIM] = {0};
+    int none[STAR_SETTLES_R_DIM] = {0}, unsolved;
     int slip_own[STAR_SETTLES_NF_DIM], slip_ride[STAR_SETTLES_NF_DIM], land[STAR_SETTLES_NF_DIM], leaving[STAR_SETTLES_R_DIM];
     star_settles_at(c, t);
     star_settles_restitution(c->par, rest);
@@ -2821,8 +2821,9 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     if (n_pulled) {
         star_settles_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (star_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = star_settles_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

@@ -3211,8 +3211,8 @@ static int conveyor_law_gains_all(const conveyor_ctx_t *c, const double *q, cons
     return conveyor_law_gains(rows, CONVEYOR_R, zero, b, after, lam);
 }
 
-/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+/* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
  * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
  * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
  * outputs as impulse_law's; 1 if the last solve failed. */
@@ -3423,7 +3423,7 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
     double vel_m[CONVEYOR_N], vel_p[CONVEYOR_N], rate, e, loss, imp, rates[CONVEYOR_R_DIM], es[CONVEYOR_R_DIM];
     int plastic[CONVEYOR_R_DIM], dropped[CONVEYOR_R_DIM], slipped[CONVEYOR_R_DIM], i, g, r, j, any, done;
     int pulled[CONVEYOR_R_DIM], n_pulled = 0, departing[CONVEYOR_R_DIM], all;
-    int none[CONVEYOR_R_DIM] = {0};
+    int none[CONVEYOR_R_DIM] = {0}, unsolved;
     int slip_own[CONVEYOR_NF_DIM], slip_ride[CONVEYOR_NF_DIM], land[CONVEYOR_NF_DIM], leaving[CONVEYOR_R_DIM];
     long counts[3];
     int reduced, why, act[CONVEYOR_R_DIM], ride[CONVEYOR_NF_DIM];
@@ -3474,15 +3474,18 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
         conveyor_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
             ride);
     }
-    if (conveyor_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
-        return 1;
-    }
+    unsolved = conveyor_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
     for (g = 0, any = 0; g < n_group; ++g) {
         any = any || !plastic[group[g]];
     }
-    reduced = any && conveyor_law_gains_all(c, q, lam, vel_m, vel_p);
-    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+    if (unsolved && !any) {
+        return 1;
+    }
+    /* Newton's restitution with Coulomb's friction raising the kinetic energy, or with no solution (a box wedged
+     * in a V): reduced_restitution */
+    reduced = any && (unsolved || conveyor_law_gains_all(c, q, lam, vel_m, vel_p));
+    if (reduced) {
         if (conveyor_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;

@@ -2469,7 +2469,7 @@ static int impact_damper_chain_impact(const impact_damper_ctx_t *c, const double
     double vel_m[IMPACT_DAMPER_N], vel_p[IMPACT_DAMPER_N], rate, e, loss, imp, rates[IMPACT_DAMPER_R_DIM], es[IMPACT_DAMPER_R_DIM];
     int plastic[IMPACT_DAMPER_R_DIM], dropped[IMPACT_DAMPER_R_DIM], slipped[IMPACT_DAMPER_R_DIM], i, g, r, j, any, done;
     int pulled[IMPACT_DAMPER_R_DIM], n_pulled = 0, departing[IMPACT_DAMPER_R_DIM], all;
-    int none[IMPACT_DAMPER_R_DIM] = {0};
+    int none[IMPACT_DAMPER_R_DIM] = {0}, unsolved;
     int slip_own[IMPACT_DAMPER_NF_DIM], slip_ride[IMPACT_DAMPER_NF_DIM], land[IMPACT_DAMPER_NF_DIM], leaving[IMPACT_DAMPER_R_DIM];
     impact_damper_at(c, t);
     impact_damper_restitution(c->par, rest);
@@ -2513,8 +2513,9 @@ static int impact_damper_chain_impact(const impact_damper_ctx_t *c, const double
     if (n_pulled) {
         impact_damper_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (impact_damper_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = impact_damper_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

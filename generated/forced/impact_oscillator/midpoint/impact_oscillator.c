@@ -2314,7 +2314,7 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     double vel_m[IMPACT_OSCILLATOR_N], vel_p[IMPACT_OSCILLATOR_N], rate, e, loss, imp, rates[IMPACT_OSCILLATOR_R_DIM], es[IMPACT_OSCILLATOR_R_DIM];
     int plastic[IMPACT_OSCILLATOR_R_DIM], dropped[IMPACT_OSCILLATOR_R_DIM], slipped[IMPACT_OSCILLATOR_R_DIM], i, g, r, j, any, done;
     int pulled[IMPACT_OSCILLATOR_R_DIM], n_pulled = 0, departing[IMPACT_OSCILLATOR_R_DIM], all;
-    int none[IMPACT_OSCILLATOR_R_DIM] = {0};
+    int none[IMPACT_OSCILLATOR_R_DIM] = {0}, unsolved;
     int slip_own[IMPACT_OSCILLATOR_NF_DIM], slip_ride[IMPACT_OSCILLATOR_NF_DIM], land[IMPACT_OSCILLATOR_NF_DIM], leaving[IMPACT_OSCILLATOR_R_DIM];
     impact_oscillator_at(c, t);
     impact_oscillator_restitution(c->par, rest);
@@ -2358,8 +2358,9 @@ static int impact_oscillator_chain_impact(const impact_oscillator_ctx_t *c, cons
     if (n_pulled) {
         impact_oscillator_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (impact_oscillator_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = impact_oscillator_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

@@ -3307,8 +3307,8 @@ static int block_law_gains_all(const block_ctx_t *c, const double *q, const doub
     return block_law_gains(rows, BLOCK_R, zero, b, after, lam);
 }
 
-/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+/* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
  * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
  * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
  * outputs as impulse_law's; 1 if the last solve failed. */
@@ -3519,7 +3519,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp, rates[BLOCK_R_DIM], es[BLOCK_R_DIM];
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
     int pulled[BLOCK_R_DIM], n_pulled = 0, departing[BLOCK_R_DIM], all;
-    int none[BLOCK_R_DIM] = {0};
+    int none[BLOCK_R_DIM] = {0}, unsolved;
     int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
     long counts[3];
     int reduced, why, act[BLOCK_R_DIM], ride[BLOCK_NF_DIM];
@@ -3570,15 +3570,18 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         block_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
             ride);
     }
-    if (block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
-        return 1;
-    }
+    unsolved = block_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
     for (g = 0, any = 0; g < n_group; ++g) {
         any = any || !plastic[group[g]];
     }
-    reduced = any && block_law_gains_all(c, q, lam, vel_m, vel_p);
-    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+    if (unsolved && !any) {
+        return 1;
+    }
+    /* Newton's restitution with Coulomb's friction raising the kinetic energy, or with no solution (a box wedged
+     * in a V): reduced_restitution */
+    reduced = any && (unsolved || block_law_gains_all(c, q, lam, vel_m, vel_p));
+    if (reduced) {
         if (block_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;

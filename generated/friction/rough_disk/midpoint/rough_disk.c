@@ -3386,8 +3386,8 @@ static int rough_disk_law_gains_all(const rough_disk_ctx_t *c, const double *q, 
     return rough_disk_law_gains(rows, ROUGH_DISK_R, zero, b, after, lam);
 }
 
-/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+/* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
  * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
  * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
  * outputs as impulse_law's; 1 if the last solve failed. */
@@ -3598,7 +3598,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp, rates[ROUGH_DISK_R_DIM], es[ROUGH_DISK_R_DIM];
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
     int pulled[ROUGH_DISK_R_DIM], n_pulled = 0, departing[ROUGH_DISK_R_DIM], all;
-    int none[ROUGH_DISK_R_DIM] = {0};
+    int none[ROUGH_DISK_R_DIM] = {0}, unsolved;
     int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     long counts[3];
     int reduced, why, act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM];
@@ -3649,15 +3649,18 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         rough_disk_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
             ride);
     }
-    if (rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
-        return 1;
-    }
+    unsolved = rough_disk_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
     for (g = 0, any = 0; g < n_group; ++g) {
         any = any || !plastic[group[g]];
     }
-    reduced = any && rough_disk_law_gains_all(c, q, lam, vel_m, vel_p);
-    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+    if (unsolved && !any) {
+        return 1;
+    }
+    /* Newton's restitution with Coulomb's friction raising the kinetic energy, or with no solution (a box wedged
+     * in a V): reduced_restitution */
+    reduced = any && (unsolved || rough_disk_law_gains_all(c, q, lam, vel_m, vel_p));
+    if (reduced) {
         if (rough_disk_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;

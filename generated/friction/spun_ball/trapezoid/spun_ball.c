@@ -5020,8 +5020,8 @@ static int spun_ball_law_gains_all(const spun_ball_ctx_t *c, const double *q, co
     return spun_ball_law_gains(rows, SPUN_BALL_R, zero, b, after, lam);
 }
 
-/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+/* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
  * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
  * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
  * outputs as impulse_law's; 1 if the last solve failed. */
@@ -5232,7 +5232,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp, rates[SPUN_BALL_R_DIM], es[SPUN_BALL_R_DIM];
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
     int pulled[SPUN_BALL_R_DIM], n_pulled = 0, departing[SPUN_BALL_R_DIM], all;
-    int none[SPUN_BALL_R_DIM] = {0};
+    int none[SPUN_BALL_R_DIM] = {0}, unsolved;
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     long counts[3];
     int reduced, why, act[SPUN_BALL_R_DIM], ride[SPUN_BALL_NF_DIM];
@@ -5283,15 +5283,18 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         spun_ball_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
             ride);
     }
-    if (spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
-        return 1;
-    }
+    unsolved = spun_ball_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
     for (g = 0, any = 0; g < n_group; ++g) {
         any = any || !plastic[group[g]];
     }
-    reduced = any && spun_ball_law_gains_all(c, q, lam, vel_m, vel_p);
-    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+    if (unsolved && !any) {
+        return 1;
+    }
+    /* Newton's restitution with Coulomb's friction raising the kinetic energy, or with no solution (a box wedged
+     * in a V): reduced_restitution */
+    reduced = any && (unsolved || spun_ball_law_gains_all(c, q, lam, vel_m, vel_p));
+    if (reduced) {
         if (spun_ball_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;

@@ -3594,8 +3594,8 @@ static int star_friction_law_gains_all(const star_friction_ctx_t *c, const doubl
     return star_friction_law_gains(rows, STAR_FRICTION_R, zero, b, after, lam);
 }
 
-/* SustainedSteps._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
+/* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
  * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
  * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
  * outputs as impulse_law's; 1 if the last solve failed. */
@@ -3806,7 +3806,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp, rates[STAR_FRICTION_R_DIM], es[STAR_FRICTION_R_DIM];
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
     int pulled[STAR_FRICTION_R_DIM], n_pulled = 0, departing[STAR_FRICTION_R_DIM], all;
-    int none[STAR_FRICTION_R_DIM] = {0};
+    int none[STAR_FRICTION_R_DIM] = {0}, unsolved;
     int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], leaving[STAR_FRICTION_R_DIM];
     long counts[3];
     int reduced, why, act[STAR_FRICTION_R_DIM], ride[STAR_FRICTION_NF_DIM];
@@ -3857,15 +3857,18 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
         star_friction_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es, counts, act,
             ride);
     }
-    if (star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
-        return 1;
-    }
+    unsolved = star_friction_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
     for (g = 0, any = 0; g < n_group; ++g) {
         any = any || !plastic[group[g]];
     }
-    reduced = any && star_friction_law_gains_all(c, q, lam, vel_m, vel_p);
-    if (reduced) { /* Newton's restitution with Coulomb's friction raising the kinetic energy (reduced_restitution) */
+    if (unsolved && !any) {
+        return 1;
+    }
+    /* Newton's restitution with Coulomb's friction raising the kinetic energy, or with no solution (a box wedged
+     * in a V): reduced_restitution */
+    reduced = any && (unsolved || star_friction_law_gains_all(c, q, lam, vel_m, vel_p));
+    if (reduced) {
         if (star_friction_reduced_restitution(c, q, p, v, group, n_group, tgt, plastic, counts, p_plus, lam, vel_m,
                 vel_p, dropped, slipped, slip_own, slip_ride, land, act, ride)) {
             return 1;

@@ -2706,7 +2706,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp, rates[BALL_BOX_R_DIM], es[BALL_BOX_R_DIM];
     int plastic[BALL_BOX_R_DIM], dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], i, g, r, j, any, done;
     int pulled[BALL_BOX_R_DIM], n_pulled = 0, departing[BALL_BOX_R_DIM], all;
-    int none[BALL_BOX_R_DIM] = {0};
+    int none[BALL_BOX_R_DIM] = {0}, unsolved;
     int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], land[BALL_BOX_NF_DIM], leaving[BALL_BOX_R_DIM];
     ball_box_at(c, t);
     ball_box_restitution(c->par, rest);
@@ -2750,8 +2750,9 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     if (n_pulled) {
         ball_box_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (ball_box_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = ball_box_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */

@@ -2908,7 +2908,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp, rates[DOUBLE_PENDULUM_R_DIM], es[DOUBLE_PENDULUM_R_DIM];
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
     int pulled[DOUBLE_PENDULUM_R_DIM], n_pulled = 0, departing[DOUBLE_PENDULUM_R_DIM], all;
-    int none[DOUBLE_PENDULUM_R_DIM] = {0};
+    int none[DOUBLE_PENDULUM_R_DIM] = {0}, unsolved;
     int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
     double_pendulum_restitution(c->par, rest);
@@ -2952,8 +2952,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     if (n_pulled) {
         double_pendulum_stopped_pressed(c, q, p, v, group, n_group, tgt, plastic, pulled, rates, es);
     }
-    if (double_pendulum_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped, slip_own,
-        slip_ride, land)) {
+    unsolved = double_pendulum_impulse_law(c, q, p, v, group, n_group, tgt, p_plus, lam, vel_m, vel_p, dropped, slipped,
+        slip_own, slip_ride, land);
+    if (unsolved) {
         return 1;
     }
     if (joined) { /* touching rows the law did not push: not of the impact */
