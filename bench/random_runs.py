@@ -64,9 +64,11 @@ def runs(
     h: float,
     t_end: float,
     failed: list[int],
+    flags: Callable[[vcigen.Result, dict], dict[str, bool]] | None = None,
 ) -> Iterator[tuple[int, Start, vcigen.Result]]:
-    """Each draw's index, start and run to ``t_end``; a run that raises a ``SolverError`` is printed, its
-    index appended to ``failed``, and skipped."""
+    """Each draw's index, start and run to ``t_end``; a run that raises a ``SolverError`` is printed (with the
+    ``flags`` that hold on its run so far, ``SolverError.result``), its index appended to ``failed``, and
+    skipped."""
     rng = np.random.default_rng(seed)
     for i in range(drops):
         start = draw(rng)
@@ -74,7 +76,10 @@ def runs(
             res = quiet(sim, start, h, t_end)
         except vcigen.SolverError as exc:
             failed.append(i)
-            print(f"  drop {i} {start}: {str(exc)[:200]}")
+            so_far = exc.result if flags is not None else None
+            held = [k for k, v in flags(so_far, start[2]).items() if v] if so_far is not None else []
+            so_far = f" [the run so far: {', '.join(held)}]" if held else ""
+            print(f"  drop {i} {start}: {str(exc)[:200]}{so_far}")
             continue
         yield i, start, res
 
@@ -89,14 +94,14 @@ def tally(
     h: float,
     t_end: float,
 ) -> None:
-    """Prints the runs that raise a ``SolverError``, how many runs each of ``flags`` holds in, and the
-    extremes over the runs of ``extremes`` (a name starting with "least" or "lowest" the least, else the
-    largest); both are called with the run and its start's parameters."""
+    """Prints the runs that raise a ``SolverError`` (and the ``flags`` their runs so far hold), how many runs
+    each of ``flags`` holds in, and the extremes over the runs of ``extremes`` (a name starting with "least"
+    or "lowest" the least, else the largest); both are called with the run and its start's parameters."""
     count: dict[str, int] = {}
     most: dict[str, float] = {}
     failed: list[int] = []
     t0 = time.perf_counter()
-    for _, start, res in runs(sim, draw, drops, seed, h, t_end, failed):
+    for _, start, res in runs(sim, draw, drops, seed, h, t_end, failed, flags):
         for key, flag in flags(res, start[2]).items():
             count[key] = count.get(key, 0) + bool(flag)
         for key, value in extremes(res, start[2]).items():

@@ -1,7 +1,8 @@
 """A box on a rough plate vibrating as ``A sin(W t)`` along the angle ``beta`` from it, in the plate's frame
-(a force of time on the box's centre): its two lower vertices stick, slide, rock, hop and land, one while the
-other is held or both at once; friction ``mu`` on each, restitution ``e``. ``bench.plate_drops`` runs
-thousands of random plates; here the one that found a missed crossing, random plates and the backends."""
+(a force of time on the box's centre): its corners stick, slide, rock, hop and land, one while another is
+held or two at once, and the box turns over onto its other face; friction ``mu`` on each, restitution ``e``.
+``bench.plate_drops`` runs thousands of random plates; here the one that found a missed crossing, random
+plates and the backends."""
 
 from __future__ import annotations
 
@@ -16,33 +17,36 @@ from hard_scenes import BACKENDS, G
 
 import vcigen
 
+CORNERS = (("left", -1, -1), ("right", 1, -1), ("upper_left", -1, 1), ("upper_right", 1, 1))
 
-def box_on_plate() -> vcigen.Model:
-    """Half-width ``a``, half-height ``b``, mass 1, its centre at ``(x, y)``, turned by ``th``."""
+
+def box_on_plate(corners: int = 4) -> vcigen.Model:
+    """Half-width ``a``, half-height ``b``, mass 1, its centre at ``(x, y)``, turned by ``th``; a contact on
+    each of its four corners (``corners=2``: the two lower ones alone, a box that cannot turn over)."""
     x, y, th, xd, yd, thd, t = sp.symbols("x y th xd yd thd t")
     amp, w, beta, mu, e, a, b = sp.symbols("A W beta mu e a b")
     push = amp * w**2 * sp.sin(w * t)
     contacts, friction = {}, {}
-    for name, side in (("left", -1), ("right", 1)):
-        contacts[name] = y + side * a * sp.sin(th) - b * sp.cos(th)
-        friction[name] = (mu, x + side * a * sp.cos(th) + b * sp.sin(th))
+    for name, side, up in CORNERS[:corners]:
+        contacts[name] = y + side * a * sp.sin(th) + up * b * sp.cos(th)
+        friction[name] = (mu, x + side * a * sp.cos(th) - up * b * sp.sin(th))
     return vcigen.Model(
-        name="box_on_plate",
+        name=f"box_on_plate{'' if corners == 4 else corners}",
         q=[x, y, th],
         qdot=[xd, yd, thd],
         lagrangian=(xd**2 + yd**2) / 2 + (a**2 + b**2) / 6 * thd**2 - G * y,
         contacts=contacts,
         forces=[push * sp.cos(beta), push * sp.sin(beta), 0],
         time=t,
-        restitution={"left": e, "right": e},
+        restitution={name: e for name in contacts},
         friction=friction,
         params={amp: 0.01, w: 40.0, beta: 0.5, mu: 0.3, e: 0.0, a: 0.05, b: 0.03},
     )
 
 
 @cache
-def simulator(backend: str) -> vcigen.Simulator:
-    return vcigen.build(box_on_plate(), backend=backend)
+def simulator(backend: str, corners: int = 4) -> vcigen.Simulator:
+    return vcigen.build(box_on_plate(corners), backend=backend)
 
 
 def draw(rng: np.random.Generator):
@@ -58,18 +62,18 @@ def draw(rng: np.random.Generator):
     return [0.0, y0, th0], [float(rng.normal(0, 0.1)), 0.0, float(rng.normal(0, 1.0))], p
 
 
-def lowest(res: vcigen.Result, p) -> float:
-    """The lowest vertex height over the grid."""
+def lowest(res: vcigen.Result, p, corners: int = 4) -> float:
+    """The lowest height over the grid of the model's ``corners``."""
     y, th = res.q[:, 1], res.q[:, 2]
-    sides = [y + s * p["a"] * np.sin(th) - p["b"] * np.cos(th) for s in (-1, 1)]
-    return float(np.minimum(*sides).min())
+    heights = (y + s * p["a"] * np.sin(th) + up * p["b"] * np.cos(th) for _, s, up in CORNERS[:corners])
+    return min(float(z.min()) for z in heights)
 
 
-def _run(backend, start, h, t_end=2.0):
+def _run(backend, start, h, t_end=2.0, corners=4):
     q0, v0, p = start
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return simulator(backend).simulate(q0, v0, h, t_end=t_end, params=p, progress=False)
+        return simulator(backend, corners).simulate(q0, v0, h, t_end=t_end, params=p, progress=False)
 
 
 MISSED = (  # draw 614 of bench.plate_drops --seed 4 --h 0.005
@@ -79,7 +83,7 @@ MISSED = (  # draw 614 of bench.plate_drops --seed 4 --h 0.005
     | {"a": 0.057278131194087555, "b": 0.05645873151712954},
 )
 
-ROCKER = (  # draw 8 of bench.plate_drops --seed 1: rocking at e = 0
+ROCKER = (  # draw 8 of bench.plate_drops --seed 1 (its two-corner model before stop 58): rocking at e = 0
     [0.0, 0.04890290072114106, -0.1425031723499391],
     [-0.013865532509133733, 0.0, 0.03300010398406011],
     {"A": 0.01955515047520169, "W": 32.1716716589875, "beta": 0.9678718493888377, "mu": 0.6, "e": 0.0}
@@ -95,14 +99,34 @@ def test_a_corner_landing_while_the_other_is_held_is_one_plastic_impact(backend,
     (logged ``"restitution"``), the pivot was pulled off and let go, and the corner sank again at once: a
     second impact at the same instant, ``"plastic"``, of impulse 4e-17 (six impacts of impulse at most
     1e-12 in the run at h = 0.005, five at 0.0025, on 6b69dd3). Read with the pivot let go
-    (``HeldImpacts._let_go``, C ``let_go``), it is one plastic impact; the trajectory is the same."""
-    res = _run(backend, ROCKER, h)
+    (``HeldImpacts._let_go``, C ``let_go``), it is one plastic impact; the trajectory is the same. The body
+    of two contacts (``corners=2``, the campaign's model till stop 58): the box turns over at 0.56 s, and the
+    rocking this pins is on its two lower corners alone, its upper ones through the plate (the four-corner
+    box: the next test)."""
+    res = _run(backend, ROCKER, h, corners=2)
     near = [im for im in res.impacts if 0.95 < im.t < 0.96]
     assert [(im.contact, im.kind) for im in near] == [("right", "plastic")]
     assert near[0].impulse > 0.5
     assert [c for t, c in res.liftoffs if t == near[0].t] == ["left"]
     assert all(im.impulse > 1e-12 for im in res.impacts)
     assert {im.kind for im in res.impacts} == {"plastic"}
+    assert lowest(res, ROCKER[2], corners=2) > -1e-12
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("h", [0.005, 0.0025])
+def test_a_box_rocked_over_lands_on_its_upper_corner_and_hops_on_its_side(backend, h):
+    """The same plate on the box of four corners: the left corner held, the box turns over it, and its upper
+    left corner lands (t = 0.555 s, plastic); from then the box lies on its left side (``th = pi/2``) and
+    hops with the plate (``Gamma`` = 2.1), its side landing flat: its two corners at one instant, both
+    plastic. Never below the plate; the two lower corners alone went 9 cm through it (the test before)."""
+    res = _run(backend, ROCKER, h)
+    turn = [im for im in res.impacts if im.contact.startswith("upper")]
+    assert (turn[0].contact, turn[0].kind) == ("upper_left", "plastic") and 0.55 < turn[0].t < 0.56
+    later = [im for im in res.impacts if im.t > 0.6]
+    assert later and {im.kind for im in later} == {"plastic"}
+    assert {(im.t, im.contact) for im in later} == {(im.t, c) for im in later for c in ("left", "upper_left")}
+    assert np.abs(res.q[res.t > 0.7, 2] - np.pi / 2).max() < 1e-9
     assert lowest(res, ROCKER[2]) > -1e-12
 
 
