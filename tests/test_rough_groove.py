@@ -85,3 +85,21 @@ def test_a_wall_left_at_rest_in_the_span_of_the_landings_rows_stays_held_alike_o
     assert a.liftoffs == [] and b.liftoffs == [] and np.abs(a.q - b.q).max() < 1e-12
     for res in (a, b):
         assert res.active[-1].all() and res.contact_force[-1] == pytest.approx([G / 2, G / 2], rel=1e-9)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_drop_at_rest_from_an_impact_in_its_last_step_is_settling_then_rests_by_the_closed_form(backend):
+    """Drop 366 of ``python -m bench.groove_drops --seed 22`` (``mu`` = 0.0045 < ``s``) lands at the vertex
+    in its last step (t = 3.9991): that step's booked force is its mean over the step, 2.29 and 0.43, not the
+    rest's. The campaign called it a rest off the closed form; ``end`` now calls it ``"settling"``, and one
+    step later it rests at the vertex with ``m g / 2`` on each wall."""
+    rng = np.random.default_rng(22)
+    params, q0, v0 = [draw(rng) for _ in range(367)][-1]
+    res = run(backend, q0, v0, params)
+    assert any(i.step == len(res.t) - 2 for i in res.impacts)
+    assert end(res, params) == ("settling", True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        after = groove(backend).simulate(q0=q0, v0=v0, h=H, t_end=T_END + H, params=params)
+    assert end(after, params) == ("vertex", True)
+    assert after.contact_force[-1] == pytest.approx([G / 2, G / 2], rel=1e-9)
