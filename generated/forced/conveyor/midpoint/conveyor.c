@@ -3226,10 +3226,10 @@ static int conveyor_law_gains_all(const conveyor_ctx_t *c, const double *q, cons
 }
 
 /* HeldImpacts._reduced_restitution: an impact whose Newton's restitution with Coulomb's friction raises the
- * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not plastic) whose law does
- * not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic law, which holds the rows it
- * stopped (plastic, in/out). counts: the law's counters before it (each trial is taken from them). The law's
- * outputs as impulse_law's; 1 if the last solve failed. */
+ * kinetic energy, or has no solution: the largest fraction s of its targets (tgt, in/out; the rows of group not
+ * plastic) whose law does not, by RESTITUTION_BISECTIONS bisections of [0, 1] (counted); s = 0 is the plastic
+ * law, which holds the rows it stopped (plastic, in/out). counts: the law's counters before it (each trial is
+ * taken from them). The law's outputs as impulse_law's; 1 if the last solve failed. */
 static int conveyor_reduced_restitution(const conveyor_ctx_t *c, const double *q, const double *p,
     const double *v, const int *group, int n_group, double *tgt, int *plastic, const long *counts, double *p_plus,
     double *lam, double *vel_m, double *vel_p, int *dropped, int *slipped, int *slip_own, int *slip_ride, int *land,
