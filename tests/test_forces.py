@@ -235,6 +235,23 @@ def test_bad_forces_are_refused():
     assert vcigen.Model(forces=[sp.cos(x), 0], time=t, **base).time_symbol is None  # no time in the force
 
 
+def test_time_in_a_contact_constraint_or_lagrangian_is_refused_naming_the_way_round():
+    """Time enters through forces only: a contact, a constraint or a Lagrangian of the time symbol is a
+    ``ValueError`` that says so and names the way round (the boundary's frame, a force of time), not the
+    parameter hint a stray symbol gets."""
+    x, y, xd, yd, t = sp.symbols("x y xd yd t")
+    base = dict(name="bad", q=[x, y], qdot=[xd, yd], time=t, forces=[0, sp.cos(t)])
+    lag = (xd**2 + yd**2) / 2 - 9.81 * y
+    cases = [
+        ("contact 'floor'", dict(lagrangian=lag, contacts={"floor": y - sp.sin(30 * t) / 100})),
+        ("constraint 'rod'", dict(lagrangian=lag, constraints={"rod": x**2 + y**2 - 1 - t})),
+        ("the Lagrangian", dict(lagrangian=lag * (1 + t))),
+    ]
+    for what, extra in cases:
+        with pytest.raises(ValueError, match=rf"{what} depends on the time symbol t: .*a force of time"):
+            vcigen.Model(**base, **extra)
+
+
 def test_forced_scene_is_never_explicit():
     """The explicit straight-line step hoists (h, par); with forces (and their time slot) it must not."""
     from vcigen.derive import derive

@@ -279,6 +279,13 @@ class Model:
         ]:
             stray = expr.free_symbols - allowed
             funcs = expr.atoms(sp.core.function.AppliedUndef, sp.Derivative)
+            if self.time is not None and any(s.name == self.time.name for s in stray):
+                raise ValueError(
+                    f"{what} depends on the time symbol {self.time}: time enters through forces only (the "
+                    "Lagrangian is L(q, qdot), contacts and constraints are functions of q, with "
+                    "parameters); for a moving boundary write the scene in the boundary's frame with a force "
+                    "of time, as examples/forced/conveyor.py does"
+                )
             if stray or funcs:
                 bad = ", ".join(sorted(str(s) for s in stray | funcs))
                 raise ValueError(
