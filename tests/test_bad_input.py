@@ -31,6 +31,7 @@ def model(**change):
         ({"lagrangian": m / 2 * (xd**2 + yd**2) - m * g * y * sp.Symbol("k")}, "k"),
         ({"contacts": {"floor": y - sp.Symbol("c")}}, "c"),
         ({"contacts": {"floor": y + xd}}, "velocity"),
+        ({"contacts": {"floor": g - 1}}, "does not depend on any coordinate"),
         ({"name": "my model"}, "C identifier"),
         ({"name": "double"}, "reserved"),
         ({"contacts": {"2floor": y}}, "C identifier"),

@@ -300,6 +300,10 @@ class Model:
         for n, e in self._phis.items():
             if e.free_symbols & set(self._vels):
                 raise ValueError(f"contact {n!r} depends on a velocity; phi must be a function of q only")
+            if not e.free_symbols & set(self._coords):
+                raise ValueError(
+                    f"contact {n!r} = {e} does not depend on any coordinate; phi(q) >= 0 bounds nothing"
+                )
 
     def _check_constraints(self) -> None:
         """Bilateral constraints ``g_i(q) = 0``: functions of ``q`` that depend on ``q``."""
