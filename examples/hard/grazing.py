@@ -1,7 +1,9 @@
 """Grazing: a parabola whose apex is delta from the ceiling y = 1 (tangent or a 1e-10 crossing).
 
-Run with the default ``Tolerances(grazing="error")`` and with ``grazing="reflect"`` (the
-continuous elastic law where (48a) has no root mu > 0).
+Run with the default ``Tolerances()`` (``grazing="contact"``: where (48a) has no root mu > 0 and nothing
+presses the ball in, the continuous law, an impact of kind ``"grazing"``), the paper's method alone
+``Tolerances(grazing="error")`` (a SolverError there) and ``grazing="reflect"`` (the continuous elastic
+law there).
 """
 
 import warnings
@@ -15,7 +17,7 @@ import vcigen
 if __name__ == "__main__":
     a = args(__doc__)
     warnings.simplefilter("ignore", RuntimeWarning)  # the reflect count is printed instead
-    for grazing in ("error", "reflect"):
+    for grazing in ("contact", "error", "reflect"):
         print(f"Tolerances(grazing={grazing!r}):")
         sim = simulator("ceiling", a.backend, a.rule, tol=vcigen.Tolerances(grazing=grazing))
         for delta in (-1e-10, 0.0, 1e-10, 1e-8):
@@ -28,7 +30,8 @@ if __name__ == "__main__":
                     print(f"delta = {delta:g}, apex t = {t_apex}: SolverError: {err}")
                     continue
                 dev = np.abs(res.q - parabola(q0, v0, res.t)).max()
-                imp = [f"{im.impulse:.1e} (2 v_n = {2 * np.sqrt(2 * G * delta):.1e})" for im in res.impacts]
+                v_n = np.sqrt(2 * G * delta) if delta > 0 else 0.0
+                imp = [f"{im.impulse:.1e} {im.kind} (2 v_n = {2 * v_n:.1e})" for im in res.impacts]
                 jump = [f"{im.energy_after - im.energy_before:.1e}" for im in res.impacts]
                 print(
                     f"delta = {delta:g}, apex t = {t_apex}: impulses {imp}, energy jumps {jump}, "
