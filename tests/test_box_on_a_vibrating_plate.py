@@ -164,3 +164,26 @@ def test_the_backends_agree_on_random_plates():
         same = len(c.impacts) == len(cas.impacts) and np.abs(c.q - cas.q).max() < 1e-8
         apart += not same
     assert apart <= 1
+
+
+TUMBLER = (  # draw 731 of bench.plate_drops --seed 23 --h 0.05: at that h the box turns 1.3 rad in a step
+    [0.0, 0.07310186585853934, 0.0],
+    [0.020345497516129997, 0.0, 0.27185297258408053],
+    {"A": 0.026567605180436757, "W": 37.95039942191194, "beta": 1.2292197573763208, "mu": 0.6, "e": 0.6}
+    | {"a": 0.03623300754991652, "b": 0.07253360140893986},
+)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_an_impact_while_held_that_cannot_be_located_raises_not_starts_below_the_plate(backend):
+    """At ``h = 0.05`` the box, held on its right corner, turns 1.3 rad in a step: its left corner's height
+    along the held segment jumps from +0.023 to -0.043 at the segment's end (the sub-step map changes
+    branch), Illinois' bracket closes on that end, and the impact was met there, 4.3 cm below the plate,
+    and held so (``bench.plate_drops --seed 23 --h 0.05``: three runs below the plate, no error). Now a row
+    admissible at the segment's start and below ``-Tolerances.admissible`` where its impact is taken is a
+    ``SolverError`` naming it (``HeldLocate._located``, C ``located``), the run so far above the plate."""
+    with pytest.raises(vcigen.SolverError, match="impact while held on 'left' was not located") as err:
+        _run(backend, TUMBLER, 0.05)
+    assert err.value.result.t[-1] == pytest.approx(0.75)
+    assert lowest(err.value.result, TUMBLER[2]) > -1e-9
+    assert _run(backend, TUMBLER, 0.005).t[-1] >= 2.0  # at the campaign's h it runs

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import SolverError
 from .held_roots import EPS_LAM, LEAVE_FRACTIONS, LIFT_ITER, ROOT_EPS, End, hermite_min, illinois
 
 
@@ -67,6 +68,28 @@ class HeldLocate:
                     lo, ga = s * s_hi, g
                     break
         return illinois(height, ga, gb, ROOT_EPS * max(ga, -gb), 4e-16, 200, guess, lo=lo, hi=s_hi)
+
+    def _located(self, step, t_k, q_s, q, v, group) -> None:
+        """An impact while held meets its rows ``group`` at ``q`` on their contacts: one admissible at the
+        segment's start ``q_s`` and still below ``-Tolerances.admissible`` at ``q`` was not located (its
+        height along the sub-step map jumps across 0, the map changing branch, and Illinois' bracket closed
+        on its end without a root) and is a ``SolverError``, not an impact started below its contact (a box
+        rotating 1.3 rad a step on a plate at ``h = 0.05``: a corner held 4.3 cm below it,
+        ``bench.plate_drops --seed 23 --h 0.05``, drop 731). One below at the start already (a box in a V
+        met again 2.6e-5 below, within a step's error at ``h = 0.01``: ``bench.box_v_drops --seed 21``,
+        drops 183 and 284) is met as before."""
+        start, psi = self.k.rows(q_s, v)[0], self.k.rows(q, v)[0]
+        for r in group:
+            if psi[r] < -self.tol.admissible <= start[r]:
+                raise SolverError(
+                    step,
+                    t_k,
+                    "sustained",
+                    float(-psi[r]),
+                    f"an impact while held on '{self.k.row_names[r]}' was not located: it is {psi[r]:.3e} "
+                    "below its contact where taken (its height along the held segment jumps across 0); "
+                    "reduce h",
+                )
 
     def _row_dips(self, step, t_k, q, p, tau, v, u1, end, cross) -> dict[int, tuple[float, float]]:
         """Inactive contact rows admissible at both ends of the segment that dip below 0 inside it (a rod's

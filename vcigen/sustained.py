@@ -594,6 +594,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             joined = self._joined(q, self._velocity(q, v, p), group, hit)  # touching, met at this instant
             group += joined
             again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
+            self._located(step, t_k, q_s, q, v, group)  # on its rows, not below them
             p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again, joined)
             struck = True
             guess = self._velocity(q, v, p)  # the next segment's Newton from the velocity after the impact

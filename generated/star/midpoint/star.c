@@ -2311,6 +2311,27 @@ static int star_row_crossing(const star_ctx_t *c, const double *q, const double 
         4e-16, 200, s_out);
 }
 
+/* HeldLocate._located: an impact while held meets its rows (group) at q on their contacts: one admissible at the
+ * segment's start (psi_s) and still below -admissible at q was not located (its height along the sub-step map
+ * jumps across 0, the map changing branch, and illinois' bracket closed on its end without a root): 1, failed,
+ * not an impact started below its contact. One below at the start already is met as before. */
+static int star_located(const star_ctx_t *c, const double *psi_s, const double *q, const double *v,
+    const int *group, int n_group)
+{
+    double psi[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
+    int g, r;
+    star_rows(q, v, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        r = group[g];
+        if (psi[r] < -c->tol->admissible && psi_s[r] >= -c->tol->admissible) {
+            return star_fail(c, STAR_PHASE_SUSTAINED, -psi[r], "an impact while held on '%s' was not "
+                "located: it is %.3e below its contact where taken (its height along the held segment jumps across 0); "
+                "reduce h", star_row_names[r], psi[r]);
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
  * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
  * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
@@ -3133,7 +3154,7 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     double vv[STAR_N], lam[STAR_R_DIM], lam1[STAR_R_DIM], q1[STAR_N], p1[STAR_N];
     double psi1[STAR_R_DIM], grad[STAR_R_DIM * STAR_N], curv[STAR_R_DIM];
     double s_ev[STAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_N], f0[STAR_R_DIM];
-    double f1[STAR_R_DIM], vel[STAR_N], f_eps;
+    double f1[STAR_R_DIM], vel[STAR_N], f_eps, psi_s[STAR_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[STAR_R_DIM] = {0.0}, g_dip[STAR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
@@ -3277,6 +3298,9 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         if (star_count_event(c)) {
             return 1;
         }
+        if (ev[r0] == 2) { /* the rows at the segment's start, for located */
+            star_rows(q, vv, c->par, psi_s, grad, curv);
+        }
         if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
             for (i = 0; i < STAR_N; ++i) {
                 v[i] = vv[i];
@@ -3331,6 +3355,9 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         star_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < STAR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= STAR_BOUNCE_CYCLES;
+        }
+        if (star_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
+            return 1;
         }
         if (star_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;

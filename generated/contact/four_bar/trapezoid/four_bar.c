@@ -2531,6 +2531,27 @@ static int four_bar_row_crossing(const four_bar_ctx_t *c, const double *q, const
         4e-16, 200, s_out);
 }
 
+/* HeldLocate._located: an impact while held meets its rows (group) at q on their contacts: one admissible at the
+ * segment's start (psi_s) and still below -admissible at q was not located (its height along the sub-step map
+ * jumps across 0, the map changing branch, and illinois' bracket closed on its end without a root): 1, failed,
+ * not an impact started below its contact. One below at the start already is met as before. */
+static int four_bar_located(const four_bar_ctx_t *c, const double *psi_s, const double *q, const double *v,
+    const int *group, int n_group)
+{
+    double psi[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
+    int g, r;
+    four_bar_rows(q, v, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        r = group[g];
+        if (psi[r] < -c->tol->admissible && psi_s[r] >= -c->tol->admissible) {
+            return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, -psi[r], "an impact while held on '%s' was not "
+                "located: it is %.3e below its contact where taken (its height along the held segment jumps across 0); "
+                "reduce h", four_bar_row_names[r], psi[r]);
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
  * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
  * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
@@ -3353,7 +3374,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     double vv[FOUR_BAR_N], lam[FOUR_BAR_R_DIM], lam1[FOUR_BAR_R_DIM], q1[FOUR_BAR_N], p1[FOUR_BAR_N];
     double psi1[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
     double s_ev[FOUR_BAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[FOUR_BAR_N], f0[FOUR_BAR_R_DIM];
-    double f1[FOUR_BAR_R_DIM], vel[FOUR_BAR_N], f_eps;
+    double f1[FOUR_BAR_R_DIM], vel[FOUR_BAR_N], f_eps, psi_s[FOUR_BAR_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[FOUR_BAR_R_DIM] = {0.0}, g_dip[FOUR_BAR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
@@ -3497,6 +3518,9 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         if (four_bar_count_event(c)) {
             return 1;
         }
+        if (ev[r0] == 2) { /* the rows at the segment's start, for located */
+            four_bar_rows(q, vv, c->par, psi_s, grad, curv);
+        }
         if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
             for (i = 0; i < FOUR_BAR_N; ++i) {
                 v[i] = vv[i];
@@ -3551,6 +3575,9 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         four_bar_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < FOUR_BAR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= FOUR_BAR_BOUNCE_CYCLES;
+        }
+        if (four_bar_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
+            return 1;
         }
         if (four_bar_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;

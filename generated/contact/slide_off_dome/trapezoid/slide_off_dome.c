@@ -2234,6 +2234,27 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
         4e-16, 200, s_out);
 }
 
+/* HeldLocate._located: an impact while held meets its rows (group) at q on their contacts: one admissible at the
+ * segment's start (psi_s) and still below -admissible at q was not located (its height along the sub-step map
+ * jumps across 0, the map changing branch, and illinois' bracket closed on its end without a root): 1, failed,
+ * not an impact started below its contact. One below at the start already is met as before. */
+static int slide_off_dome_located(const slide_off_dome_ctx_t *c, const double *psi_s, const double *q, const double *v,
+    const int *group, int n_group)
+{
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
+    int g, r;
+    slide_off_dome_rows(q, v, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        r = group[g];
+        if (psi[r] < -c->tol->admissible && psi_s[r] >= -c->tol->admissible) {
+            return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, -psi[r], "an impact while held on '%s' was not "
+                "located: it is %.3e below its contact where taken (its height along the held segment jumps across 0); "
+                "reduce h", slide_off_dome_row_names[r], psi[r]);
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
  * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
  * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
@@ -3056,7 +3077,7 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     double vv[SLIDE_OFF_DOME_N], lam[SLIDE_OFF_DOME_R_DIM], lam1[SLIDE_OFF_DOME_R_DIM], q1[SLIDE_OFF_DOME_N], p1[SLIDE_OFF_DOME_N];
     double psi1[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
     double s_ev[SLIDE_OFF_DOME_R_DIM] = {0.0}, e_seg, e_sub, s, u1[SLIDE_OFF_DOME_N], f0[SLIDE_OFF_DOME_R_DIM];
-    double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps;
+    double f1[SLIDE_OFF_DOME_R_DIM], vel[SLIDE_OFF_DOME_N], f_eps, psi_s[SLIDE_OFF_DOME_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[SLIDE_OFF_DOME_R_DIM] = {0.0}, g_dip[SLIDE_OFF_DOME_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
@@ -3200,6 +3221,9 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         if (slide_off_dome_count_event(c)) {
             return 1;
         }
+        if (ev[r0] == 2) { /* the rows at the segment's start, for located */
+            slide_off_dome_rows(q, vv, c->par, psi_s, grad, curv);
+        }
         if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
             for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
                 v[i] = vv[i];
@@ -3254,6 +3278,9 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         slide_off_dome_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= SLIDE_OFF_DOME_BOUNCE_CYCLES;
+        }
+        if (slide_off_dome_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
+            return 1;
         }
         if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;

@@ -2388,6 +2388,27 @@ static int double_pendulum_row_crossing(const double_pendulum_ctx_t *c, const do
         4e-16, 200, s_out);
 }
 
+/* HeldLocate._located: an impact while held meets its rows (group) at q on their contacts: one admissible at the
+ * segment's start (psi_s) and still below -admissible at q was not located (its height along the sub-step map
+ * jumps across 0, the map changing branch, and illinois' bracket closed on its end without a root): 1, failed,
+ * not an impact started below its contact. One below at the start already is met as before. */
+static int double_pendulum_located(const double_pendulum_ctx_t *c, const double *psi_s, const double *q, const double *v,
+    const int *group, int n_group)
+{
+    double psi[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
+    int g, r;
+    double_pendulum_rows(q, v, c->par, psi, grad, curv);
+    for (g = 0; g < n_group; ++g) {
+        r = group[g];
+        if (psi[r] < -c->tol->admissible && psi_s[r] >= -c->tol->admissible) {
+            return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, -psi[r], "an impact while held on '%s' was not "
+                "located: it is %.3e below its contact where taken (its height along the held segment jumps across 0); "
+                "reduce h", double_pendulum_row_names[r], psi[r]);
+        }
+    }
+    return 0;
+}
+
 /* SustainedSteps._row_dips: the inactive contact rows admissible at both ends of the segment from (q, p) over tau
  * (vv its velocity; psi1, grad1 the rows at its end (q1, u1)) that dip below 0 inside it: dip[r] = 1 with s_dip[r]
  * and g_dip[r] < 0 there, as free flight's (crossings): the cubic through the ends' values and slopes
@@ -3210,7 +3231,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     double vv[DOUBLE_PENDULUM_N], lam[DOUBLE_PENDULUM_R_DIM], lam1[DOUBLE_PENDULUM_R_DIM], q1[DOUBLE_PENDULUM_N], p1[DOUBLE_PENDULUM_N];
     double psi1[DOUBLE_PENDULUM_R_DIM], grad[DOUBLE_PENDULUM_R_DIM * DOUBLE_PENDULUM_N], curv[DOUBLE_PENDULUM_R_DIM];
     double s_ev[DOUBLE_PENDULUM_R_DIM] = {0.0}, e_seg, e_sub, s, u1[DOUBLE_PENDULUM_N], f0[DOUBLE_PENDULUM_R_DIM];
-    double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps;
+    double f1[DOUBLE_PENDULUM_R_DIM], vel[DOUBLE_PENDULUM_N], f_eps, psi_s[DOUBLE_PENDULUM_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[DOUBLE_PENDULUM_R_DIM] = {0.0}, g_dip[DOUBLE_PENDULUM_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
@@ -3354,6 +3375,9 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         if (double_pendulum_count_event(c)) {
             return 1;
         }
+        if (ev[r0] == 2) { /* the rows at the segment's start, for located */
+            double_pendulum_rows(q, vv, c->par, psi_s, grad, curv);
+        }
         if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
             for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
                 v[i] = vv[i];
@@ -3408,6 +3432,9 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         double_pendulum_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
         for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
             again[r] = hit[r] || bounces[r] >= DOUBLE_PENDULUM_BOUNCE_CYCLES;
+        }
+        if (double_pendulum_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
+            return 1;
         }
         if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
