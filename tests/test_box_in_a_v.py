@@ -126,13 +126,18 @@ WEDGE = (
 
 
 @cache
-def wedge_run(backend: str) -> vcigen.Result:
+def rough_run(drop: str, backend: str) -> vcigen.Result:
+    """The rough box's drop ``ROUGH_DROPS[drop]`` to t = 3 at the campaign's h."""
     from bench.box_v_drops import H, model
 
-    params, q0, v0 = WEDGE
+    params, q0, v0 = ROUGH_DROPS[drop]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # restitution reduced, friction left out: counted
         return vcigen.build(model(), backend=backend).simulate(q0, v0, H, t_end=3.0, params=params)
+
+
+def wedge_run(backend: str) -> vcigen.Result:
+    return rough_run("wedge", backend)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -155,13 +160,6 @@ def test_a_rattle_between_the_walls_ends_wedged_at_rest(backend: str) -> None:
     assert (res.energy - res.energy[0]).max() <= G**2 * H**2 / 8 * (1 + 1e-9)
 
 
-def test_the_rattle_is_the_same_on_both_backends() -> None:
-    c, ca = wedge_run("c"), wedge_run("casadi")
-    books = [[(i.contact, i.kind, i.step) for i in r.impacts] for r in (c, ca)]
-    assert books[0] == books[1]
-    assert np.abs(c.q - ca.q).max() < 1e-9
-
-
 # Drop 169 of `bench.box_v_drops --seed 21`: the box's face on the right wall (r1 held), a corner on the left
 # (l3 held), and the face's other corner (r0) landing at e = 0.587: with the rows held, friction (mu = 1.12)
 # wedges the box, and Newton's law with any fraction of the restitution has no solution, only the plastic one.
@@ -172,14 +170,11 @@ JAMMED = (
 )
 
 
-@cache
-def jammed_run(backend: str) -> vcigen.Result:
-    from bench.box_v_drops import H, model
+ROUGH_DROPS = {"wedge": WEDGE, "jammed": JAMMED}
 
-    params, q0, v0 = JAMMED
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # restitution reduced: counted
-        return vcigen.build(model(), backend=backend).simulate(q0, v0, H, t_end=3.0, params=params)
+
+def jammed_run(backend: str) -> vcigen.Result:
+    return rough_run("jammed", backend)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -203,8 +198,10 @@ def test_a_landing_whose_law_has_no_solution_with_restitution_takes_less(backend
     assert (res.energy - res.energy[0]).max() <= G**2 * H**2 / 8 * (1 + 1e-9)
 
 
-def test_the_jammed_landing_is_the_same_on_both_backends() -> None:
-    c, ca = jammed_run("c"), jammed_run("casadi")
+@pytest.mark.parametrize("drop", sorted(ROUGH_DROPS))
+def test_the_rough_drops_are_the_same_on_both_backends(drop: str) -> None:
+    """The rattle that ends wedged and the jammed landing: the same impacts, ``q`` within 1e-9."""
+    c, ca = rough_run(drop, "c"), rough_run(drop, "casadi")
     books = [[(i.contact, i.kind, i.step) for i in r.impacts] for r in (c, ca)]
     assert books[0] == books[1]
     assert np.abs(c.q - ca.q).max() < 1e-9
