@@ -76,10 +76,9 @@ def runs(
             res = quiet(sim, start, h, t_end)
         except vcigen.SolverError as exc:
             failed.append(i)
-            so_far = exc.result if flags is not None else None
-            held = [k for k, v in flags(so_far, start[2]).items() if v] if so_far is not None else []
-            so_far = f" [the run so far: {', '.join(held)}]" if held else ""
-            print(f"  drop {i} {start}: {str(exc)[:200]}{so_far}")
+            held = flags(exc.result, start[2]) if flags is not None and exc.result is not None else {}
+            noted = ", ".join(k for k, v in held.items() if v)
+            print(f"  drop {i} {start}: {str(exc)[:200]}" + (f" [the run so far: {noted}]" if noted else ""))
             continue
         yield i, start, res
 
