@@ -35,6 +35,9 @@ INERTIA, EPS, K, Y0, MU, E = sp.symbols("I eps k y0 mu e", nonnegative=True)
 HELD_ON = (2.4933, 2.6636, {"I": 16.72, "eps": 0.308, "k": 121.4, "y0": 0.8994, "mu": 0.0, "e": 0.0})
 HELD_ON_ROUGH = (-0.4378, 3.9774, {"I": 19.27, "eps": 0.455, "k": 151.4, "y0": 0.8825, "mu": 0.1, "e": 0.6})
 CLEAN = (3.0206, 33.815, {"I": 10.97, "eps": 0.168, "k": 151.3, "y0": 0.2524, "mu": 0.0, "e": 0.3})
+# jumps of 4.2e-5 m every 0.86 s (lift-offs at 0.5033, 1.3633, ...: h = 0.001); at h = 0.05 the cam turns 0.37
+# rad a step (bench.cam_drops --seed 23 --h 0.05, drop 202)
+HOPS = (0.95173, 7.26009, {"I": 31.819, "eps": 0.37053, "k": 140.606, "y0": 0.84228, "mu": 0.0, "e": 0.3})
 
 
 def cam(rough: bool = True) -> vcigen.Model:
@@ -161,6 +164,24 @@ def test_the_held_force_and_the_braked_cam_follow_the_reference(backend):
     assert errs[1][0] <= errs[0][0] / 3.5 and errs[1][1] <= errs[0][1] / 3.5
     assert errs[0][0] <= 1e-3 * np.abs(force).max()
     assert HELD_ON_ROUGH[1] - sol(0.9)[2] > 0.1  # the friction brakes it
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_coarse_steps_hold_the_follower_through_jumps_below_their_resolution(backend):
+    """``HOPS`` at h = 0.05 and 0.025: the jumps (4.2e-5 m high, 48 ms long; the first lifts off at the
+    reference's instant) are held through (``lifts_kept``), never below the cam, no impact. At h = 0.05 the
+    fourth lift-off's free rest of the grid step sank (6.6e-6) where a free step of h rose (4e-6): released,
+    it met the cam at once, an impact of impulse 0 held it, it was pulled off again, and the run raised "more
+    than 64 impacts and lift-offs in one step" at t = 3.05 (``SustainedSteps._sinks_free`` now tries both)."""
+    t_lift, t_land, _ = reference(*HOPS)
+    assert 0.50 < t_lift < t_land < t_lift + 0.05  # the first jump: 48 ms
+    for h in (0.05, 0.025):
+        res = _run(backend, HOPS, h, 4.0)
+        assert res.t[-1] == pytest.approx(4.0)
+        assert res.stats["lifts_kept"] >= 1 and not res.impacts and not res.liftoffs
+        gap = res.q[:, 1] - 1 - HOPS[2]["eps"] * np.sin(res.q[:, 0])
+        assert np.abs(gap).max() <= 1e-9
+        assert res.active[:, 0].all()
 
 
 @pytest.mark.parametrize("backend", [b for b in BACKENDS if b.id == "c"])

@@ -2815,20 +2815,20 @@ static void particle_met_back(const particle_ctx_t *c, const double *q, const do
 }
 
 /* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
- * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
- * meet its contact
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h, or of the
+ * grid step's rest where shorter (free_lengths: each length is its own map), from there meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int particle_sinks_free(const particle_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, int start)
+    int r, int start, double rest)
 {
     double phi0[PARTICLE_M_DIM], grad0[PARTICLE_M_DIM * PARTICLE_N];
     double phi1[PARTICLE_M_DIM], grad1[PARTICLE_M_DIM * PARTICLE_N], d0[PARTICLE_M_DIM];
     double d1[PARTICLE_M_DIM], v1[PARTICLE_N], p1[PARTICLE_N], s_hi[PARTICLE_M_DIM], g_hi[PARTICLE_M_DIM];
-    double res, e1;
+    double res, e1, len[2];
     const int j = particle_row_contact[r];
-    int crossed[PARTICLE_M_DIM], i;
+    int crossed[PARTICLE_M_DIM], i, n_len = 1, meets = 0;
     particle_seg_t seg;
     for (i = 0; i < PARTICLE_R; ++i) { /* another row held: the chain's own (met_back, LIFT_CYCLES) */
         if (c->sus->act[i] && i != r) {
@@ -2837,10 +2837,17 @@ static int particle_sinks_free(const particle_ctx_t *c, const double *q, const d
     }
     particle_at(c, t);
     particle_contacts(q, c->par, phi0, grad0);
-    particle_smooth_step(q, p, c->h, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
-    particle_free_seg(&seg, q, p, v1, t, c->h);
-    if (!particle_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
-        return 0; /* as the free rest would meet it (free_rest) */
+    len[0] = c->h;
+    if (1e-13 * c->h < rest && rest < c->h) { /* free_lengths */
+        len[n_len++] = rest;
+    }
+    for (i = 0; i < n_len && !meets; ++i) { /* as the free rest would meet it (free_rest): meets_free */
+        particle_smooth_step(q, p, len[i], v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+        particle_free_seg(&seg, q, p, v1, t, len[i]);
+        meets = particle_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) && crossed[j];
+    }
+    if (!meets) {
+        return 0;
     }
     if (!particle_held_since(c, r, start)) { /* a new lift-off: its instant, to log at its release */
         c->sus->sunk_at[r] = t;
@@ -2947,7 +2954,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             }
             particle_velocity(c, q, vv, p, vel);
             rider = particle_pass_load(c, q, vel, start, passed);
-            if (rider < 0 && particle_sinks_free(c, q, p, t, vv, start, 1)) { /* the free rest sinks it at once: held on */
+            if (rider < 0 && particle_sinks_free(c, q, p, t, vv, start, 1, rest)) { /* the free rest sinks it at once: held on */
                 pulls[start] = PARTICLE_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
@@ -3047,7 +3054,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         if (ev[r0] == 1) {
             particle_velocity(c, q, v, p, vel);
             rider = particle_pass_load(c, q, vel, r0, passed);
-            if (rider < 0 && particle_sinks_free(c, q, p, t, v, r0, 0)) { /* sinks at once: held on */
+            if (rider < 0 && particle_sinks_free(c, q, p, t, v, r0, 0, rest)) { /* sinks at once: held on */
                 pulls[r0] = PARTICLE_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;

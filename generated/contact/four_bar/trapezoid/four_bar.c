@@ -3319,20 +3319,20 @@ static void four_bar_met_back(const four_bar_ctx_t *c, const double *q, const do
 }
 
 /* SustainedSteps._sinks_free: would row r's lift-off at (q, p), t, which no rider takes (the caller's pass_load), leave
- * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h from there
- * meet its contact
+ * nothing held (no row of another contact, not sliding past Painleve's boundary) and a free step (46) of h, or of the
+ * grid step's rest where shorter (free_lengths: each length is its own map), from there meet its contact
  * (crossings: below -Tolerances.phi at its end, or a dip inside)? The row leaves as the cube of the time since its
  * lift-off and the smooth step's error is of that order: where it sinks, it has not left at this h (held on to the
  * step's end instead: LIFT_CYCLES, counted in lifts_kept; sunk, for split_segment). The tangent stops there. */
 static int four_bar_sinks_free(const four_bar_ctx_t *c, const double *q, const double *p, double t, const double *v,
-    int r, int start)
+    int r, int start, double rest)
 {
     double phi0[FOUR_BAR_M_DIM], grad0[FOUR_BAR_M_DIM * FOUR_BAR_N];
     double phi1[FOUR_BAR_M_DIM], grad1[FOUR_BAR_M_DIM * FOUR_BAR_N], d0[FOUR_BAR_M_DIM];
     double d1[FOUR_BAR_M_DIM], v1[FOUR_BAR_N], p1[FOUR_BAR_N], s_hi[FOUR_BAR_M_DIM], g_hi[FOUR_BAR_M_DIM];
-    double res, e1;
+    double res, e1, len[2];
     const int j = four_bar_row_contact[r];
-    int crossed[FOUR_BAR_M_DIM], i;
+    int crossed[FOUR_BAR_M_DIM], i, n_len = 1, meets = 0;
     four_bar_seg_t seg;
     for (i = 0; i < FOUR_BAR_R; ++i) { /* another row held: the chain's own (met_back, LIFT_CYCLES) */
         if (c->sus->act[i] && i != r) {
@@ -3341,10 +3341,17 @@ static int four_bar_sinks_free(const four_bar_ctx_t *c, const double *q, const d
     }
     four_bar_at(c, t);
     four_bar_contacts(q, c->par, phi0, grad0);
-    four_bar_smooth_step(q, p, c->h, v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
-    four_bar_free_seg(&seg, q, p, v1, t, c->h);
-    if (!four_bar_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) || !crossed[j]) {
-        return 0; /* as the free rest would meet it (free_rest) */
+    len[0] = c->h;
+    if (1e-13 * c->h < rest && rest < c->h) { /* free_lengths */
+        len[n_len++] = rest;
+    }
+    for (i = 0; i < n_len && !meets; ++i) { /* as the free rest would meet it (free_rest): meets_free */
+        four_bar_smooth_step(q, p, len[i], v, c->par, grad0, v1, &res, p1, &e1, phi1, grad1, d0, d1);
+        four_bar_free_seg(&seg, q, p, v1, t, len[i]);
+        meets = four_bar_crossings(c, &seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi) && crossed[j];
+    }
+    if (!meets) {
+        return 0;
     }
     if (!four_bar_held_since(c, r, start)) { /* a new lift-off: its instant, to log at its release */
         c->sus->sunk_at[r] = t;
@@ -3451,7 +3458,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             }
             four_bar_velocity(c, q, vv, p, vel);
             rider = four_bar_pass_load(c, q, vel, start, passed);
-            if (rider < 0 && four_bar_sinks_free(c, q, p, t, vv, start, 1)) { /* the free rest sinks it at once: held on */
+            if (rider < 0 && four_bar_sinks_free(c, q, p, t, vv, start, 1, rest)) { /* the free rest sinks it at once: held on */
                 pulls[start] = FOUR_BAR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
@@ -3551,7 +3558,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         if (ev[r0] == 1) {
             four_bar_velocity(c, q, v, p, vel);
             rider = four_bar_pass_load(c, q, vel, r0, passed);
-            if (rider < 0 && four_bar_sinks_free(c, q, p, t, v, r0, 0)) { /* sinks at once: held on */
+            if (rider < 0 && four_bar_sinks_free(c, q, p, t, v, r0, 0, rest)) { /* sinks at once: held on */
                 pulls[r0] = FOUR_BAR_LIFT_CYCLES;
                 ++c->sus->lifts_kept;
                 continue;
