@@ -32,6 +32,8 @@ def model(**change):
         ({"contacts": {"floor": y - sp.Symbol("c")}}, "c"),
         ({"contacts": {"floor": y + xd}}, "velocity"),
         ({"contacts": {"floor": g - 1}}, "does not depend on any coordinate"),
+        ({"contacts": {"floor": y**2}}, "'floor' = y\\*\\*2 is never negative"),
+        ({"contacts": {"floor": sp.sqrt(x**2 + y**2) + g}}, "never negative"),
         ({"name": "my model"}, "C identifier"),
         ({"name": "double"}, "reserved"),
         ({"contacts": {"2floor": y}}, "C identifier"),

@@ -304,6 +304,11 @@ class Model:
                 raise ValueError(
                     f"contact {n!r} = {e} does not depend on any coordinate; phi(q) >= 0 bounds nothing"
                 )
+            if e.is_nonnegative:  # SymPy proves it for every real q (and the parameters' assumptions)
+                raise ValueError(
+                    f"contact {n!r} = {e} is never negative, so nothing can cross it and it bounds nothing; "
+                    "phi is a signed gap, below 0 on the forbidden side (a floor at y = 0 is y, not y**2)"
+                )
 
     def _check_constraints(self) -> None:
         """Bilateral constraints ``g_i(q) = 0``: functions of ``q`` that depend on ``q``."""
