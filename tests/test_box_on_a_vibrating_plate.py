@@ -64,7 +64,12 @@ def draw(rng: np.random.Generator):
 
 def lowest(res: vcigen.Result, p, corners: int = 4) -> float:
     """The lowest height over the grid of the model's ``corners``."""
-    y, th = res.q[:, 1], res.q[:, 2]
+    return lowest_at(res.q, p, corners)
+
+
+def lowest_at(q, p, corners: int = 4) -> float:
+    """The lowest height of the model's ``corners`` over the states ``q`` (one a row)."""
+    y, th = q[:, 1], q[:, 2]
     heights = (y + s * p["a"] * np.sin(th) + up * p["b"] * np.cos(th) for _, s, up in CORNERS[:corners])
     return min(float(z.min()) for z in heights)
 
@@ -140,6 +145,35 @@ def test_a_vertex_met_again_before_the_other_lands_is_located_first(backend):
     run ends, both vertices above the plate to round-off."""
     res = _run(backend, MISSED, 0.005)
     assert res.t[-1] >= 2.0 and lowest(res, MISSED[2]) > -1e-12
+
+
+DIPPED = (  # draw 1397 of bench.plate_drops --seed 21 --h 0.02
+    [0.0, 0.07177623521492174, 0.17617837966653432],
+    [-0.24925646745612162, 0.0, 0.7729089661076718],
+    {
+        "A": 0.008324558400775554,
+        "W": 68.63184164764652,
+        "beta": 0.3821287801903023,
+        "a": 0.03251567297442516,
+        "b": 0.05069964912676383,
+        "mu": 1.0,
+        "e": 0.0,
+    },
+)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_corner_below_the_plate_where_another_event_is_taken_crossed_first(backend):
+    """At ``h = 0.02`` the right corner, met and released at a normal speed of 0 (its force below 0 at once),
+    ends the next held segment 3.9e-5 above the plate moving in, and its sub-step map dips below inside; the
+    left corner's lift-off, located inside that dip, found it 2.5e-5 below the plate, and the chain went on
+    from there and met it that far below (an impact logged below the plate). Now a row below where an event
+    of the held chain is taken crossed before it and is located first (``SustainedSteps._sunk_at_event``, C
+    ``sunk_at_event``; free flight's ``_missed``): no impact below the plate, nor any grid point."""
+    res = _run(backend, DIPPED, 0.02)
+    assert res.t[-1] >= 2.0 and len(res.impacts) >= 5
+    assert lowest_at(np.array([im.q for im in res.impacts]), DIPPED[2]) > -1e-12
+    assert lowest(res, DIPPED[2]) > -1e-12
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -75,9 +75,10 @@ class HeldLocate:
         height along the sub-step map jumps across 0, the map changing branch, and Illinois' bracket closed
         on its end without a root) and is a ``SolverError``, not an impact started below its contact (a box
         rotating 1.3 rad a step on a plate at ``h = 0.05``: a corner held 4.3 cm below it,
-        ``bench.plate_drops --seed 23 --h 0.05``, drop 731). One below at the start already (a box in a V
-        met again 2.6e-5 below, within a step's error at ``h = 0.01``: ``bench.box_v_drops --seed 21``,
-        drops 183 and 284) is met as before."""
+        ``bench.plate_drops --seed 23 --h 0.05``, drop 731). One below at the start already is met as before
+        (a box in a V met a corner again 2.6e-5 below at ``h = 0.01`` till stop 59, ``bench.box_v_drops
+        --seed 21``, drops 183 and 284: an event before had been taken with it below, which
+        ``SustainedSteps._sunk_at_event`` now locates first)."""
         start, psi = self.k.rows(q_s, v)[0], self.k.rows(q, v)[0]
         for r in group:
             if psi[r] < -self.tol.admissible <= start[r]:

@@ -2234,6 +2234,25 @@ static int slide_off_dome_row_crossing(const slide_off_dome_ctx_t *c, const doub
         4e-16, 200, s_out);
 }
 
+/* SustainedSteps._sunk_at_event: the inactive contact rows below -admissible at (q, u), where the segment's first
+ * event r0 (at s) is taken, none of its instant (within simultaneous): sunk[r] = 1 with g_sunk[r] = psi_r. Each
+ * crossed before it, and the caller locates that crossing (a row released at a normal speed of 0 whose dip the
+ * ends' tests miss). Returns how many. */
+static int slide_off_dome_sunk_at_event(const slide_off_dome_ctx_t *c, const double *q, const double *u, const int *ev,
+    const double *s_ev, int r0, double s, int *sunk, double *g_sunk)
+{
+    double psi[SLIDE_OFF_DOME_R_DIM], grad[SLIDE_OFF_DOME_R_DIM * SLIDE_OFF_DOME_N], curv[SLIDE_OFF_DOME_R_DIM];
+    int r, n = 0;
+    slide_off_dome_rows(q, u, c->par, psi, grad, curv);
+    for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+        sunk[r] = !c->sus->act[r] && slide_off_dome_row_stick[r] < 0 && psi[r] < -c->tol->admissible && r != r0
+            && !(ev[r] && s_ev[r] - s <= c->tol->simultaneous);
+        g_sunk[r] = psi[r];
+        n += sunk[r];
+    }
+    return n;
+}
+
 /* HeldLocate._located: an impact while held meets its rows (group) at q on their contacts: one admissible at the
  * segment's start (psi_s) and still below -admissible at q was not located (its height along the sub-step map
  * jumps across 0, the map changing branch, and illinois' bracket closed on its end without a root): 1, failed,
@@ -3218,35 +3237,50 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
                 ev[r] = 2;
             }
         }
-        r0 = -1;
-        for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-            if (ev[r] && (r0 < 0 || s_ev[r] < s_ev[r0])) {
-                r0 = r;
-            }
-        }
-        s = s_ev[r0];
-        if (slide_off_dome_count_event(c)) {
-            return 1;
-        }
-        if (ev[r0] == 2) { /* the rows at the segment's start, for located */
-            slide_off_dome_rows(q, vv, c->par, psi_s, grad, curv);
-        }
-        if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
-            for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
-                v[i] = vv[i];
-                q1[i] = q[i];
-                p1[i] = p[i];
-            }
+        for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
+            r0 = -1;
             for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
-                lam[r] = lam1[r] = 0.0;
+                if (ev[r] && (r0 < 0 || s_ev[r] < s_ev[r0])) {
+                    r0 = r;
+                }
             }
-            e_sub = e_seg;
-            slide_off_dome_velocity(c, q, vv, p, u1);
-            if (slide_off_dome_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
+            s = s_ev[r0];
+            if (slide_off_dome_count_event(c)) {
                 return 1;
             }
-        } else if (slide_off_dome_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-            return 1;
+            if (ev[r0] == 2) { /* the rows at the segment's start, for located */
+                slide_off_dome_rows(q, vv, c->par, psi_s, grad, curv);
+            }
+            if (s * tau <= 1e-13 * c->h) { /* within the least sub-step: the event at the segment's start (sub_end) */
+                for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+                    v[i] = vv[i];
+                    q1[i] = q[i];
+                    p1[i] = p[i];
+                }
+                for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+                    lam[r] = lam1[r] = 0.0;
+                }
+                e_sub = e_seg;
+                slide_off_dome_velocity(c, q, vv, p, u1);
+                if (slide_off_dome_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
+                    return 1;
+                }
+                break;
+            }
+            if (slide_off_dome_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
+                return 1;
+            }
+            if (!slide_off_dome_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
+                break;
+            }
+            for (r = 0; r < SLIDE_OFF_DOME_R; ++r) {
+                if (dip[r]) {
+                    if (slide_off_dome_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r])) {
+                        return 1;
+                    }
+                    ev[r] = 2;
+                }
+            }
         }
         slide_off_dome_book(c, lam, lam1, q1);
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
