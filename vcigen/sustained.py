@@ -545,9 +545,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 s = events[r0][1]
                 self._count_event(step, t_k)
                 act0 = self.act.copy()
-                if (
-                    s * tau <= 1e-13 * h
-                ):  # within the least sub-step: the event at the segment's start (_sub_end)
+                if s * tau <= 1e-13 * h:  # within the least sub-step: the event at the segment's start
                     lam, e_sub, lam1, u1 = np.zeros(k.r), e_seg, np.zeros(k.r), self._velocity(q, v, p)
                     self._seg_inner = lam1, np.zeros(k.r * self._stages)
                     limit = self._held_limit(step, t_k, q, p, v)  # held rows an impact left moving: projected
@@ -628,9 +626,10 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         psi = k.rows(q, u)[0]
         s = events[r0][1]
         out = {}
-        for r in np.flatnonzero(~self.act & (np.asarray(k.row_stick) < 0) & (psi < -tol.admissible)):
-            if int(r) != r0 and not (r in events and events[r][1] - s <= tol.simultaneous):
-                out[int(r)] = float(psi[r])
+        below = ~self.act & (np.asarray(k.row_stick) < 0) & (psi < -tol.admissible)
+        for r in map(int, np.flatnonzero(below)):
+            if r != r0 and not (r in events and events[r][1] - s <= tol.simultaneous):
+                out[r] = float(psi[r])
         return out
 
     def _start_forces(self, q, u) -> np.ndarray:
