@@ -185,7 +185,15 @@ RELEASED = {
     ),
 }
 
-ROUGH_DROPS = {"wedge": WEDGE, "jammed": JAMMED, **RELEASED}
+# Drop 32 of `bench.box_v_drops --seed 51`: a box standing nearly on end in a shallow rough V (slope 0.33,
+# mu = 1.09, e = 0) rocks from a corner on one wall to one on the other, faster and faster, to rest wedged.
+ROCKED = (
+    {"s": 0.3337081759523304, "e": 0.0, "mu": 1.086665999257763},
+    [-0.2739634934603993, 1.2638376677030427, -0.20657057497460718],
+    [0.34257316804239846, 1.757401582929155, -1.671361719418352],
+)
+
+ROUGH_DROPS = {"wedge": WEDGE, "jammed": JAMMED, "rocked": ROCKED, **RELEASED}
 
 
 def jammed_run(backend: str) -> vcigen.Result:
@@ -210,6 +218,33 @@ def test_a_landing_whose_law_has_no_solution_with_restitution_takes_less(backend
     held = {res.contact_names[j][0] for j in np.flatnonzero(res.active[-1])}
     assert held == {"l", "r"}
     assert lowest_gap(res.q, JAMMED[0]["s"]) > -1e-12
+    assert (res.energy - res.energy[0]).max() <= G**2 * H**2 / 8 * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_box_rocked_to_rest_between_the_walls_jams_where_both_corners_slide(backend: str) -> None:
+    """The box rocks between a corner on each wall, each landing plastic and the other corner lifting off,
+    ever faster. At t = 2.83 both corners are held, at rest, both sliding from rest against their friction:
+    no held segment down to ``h / 2^6`` has a root that is not spurious (its velocity tends to a jump's,
+    -0.34 rad/s, as the segment shrinks: Painleve's inconsistency of the two contacts at once). Till stop 59
+    both backends raised "a held segment's root is spurious ... after 6 halvings" there; now the chain
+    takes the tangential impact (``SustainedSteps._jam``, C ``jam``) as past Painleve's boundary, and the
+    box rests wedged where h / 10 leaves it too (at (0.0126, 0.3488, -1.4867)), with no corner below a wall
+    and ``E_d`` never above its start by more than the flight's swing ``g^2 h^2 / 8``."""
+    from bench.box_v_drops import H, lowest_gap
+    from bench.box_v_drops import model as model_v
+
+    res = rough_run("rocked", backend)
+    assert res.t[-1] >= 3.0 and np.abs(res.v[-1]).max() < 1e-9
+    assert res.stats["jams"] >= 1
+    held = {res.contact_names[j][0] for j in np.flatnonzero(res.active[-1])}
+    assert held == {"l", "r"}
+    params, q0, v0 = ROCKED
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a jam: counted
+        fine = vcigen.build(model_v(), backend="c").simulate(q0, v0, H / 10, t_end=3.0, params=params)
+    assert np.abs(res.q[-1] - fine.q[-1]).max() < 1e-7
+    assert lowest_gap(res.q, ROCKED[0]["s"]) > -1e-12
     assert (res.energy - res.energy[0]).max() <= G**2 * H**2 / 8 * (1 + 1e-9)
 
 

@@ -249,7 +249,12 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         within a millisecond, took over ``h = 0.1`` a root that turned it 20 rad with a pulling normal force;
         rough stars started sliding on a corner at ``h = 0.05`` failed their first Newton. A frictionless
         segment whose Newton fails is a step too coarse for its row and raises as before: halved, a particle
-        in an ellipse of radius 0.02 at ``h = 0.01`` ran on, its energy up 3.6e11-fold, to a later failure."""
+        in an ellipse of radius 0.02 at ``h = 0.01`` ran on, its energy up 3.6e11-fold, to a later failure.
+        ``None`` where every halving's root is spurious while a held rough contact slips (not in a jam): the
+        slide has no root down to ``tau / 2^SPLITS``, whose velocity tends to a jump's, Painleve's
+        inconsistency of two contacts at once (a box wedged in a rough V rocking to rest on a corner of each
+        wall, both sliding from rest: ``bench.box_v_drops --seed 51``, drop 32), which the chain resolves as
+        :meth:`_painleve`'s, by the tangential impact at the segment's start (:meth:`_jam`)."""
         halved = 0
         while True:
             try:
@@ -265,6 +270,8 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 if halved == SPLITS:
                     if self._reverses(q, p, seg, guess):  # its slide stops inside: the chain keeps that part
                         return tau, halved, seg
+                    if self._slip.any() and not self._jammed and self._rough_held():
+                        return None  # wedged: no slide the halvings resolve; the chain jams (_jam)
                     raise SolverError(
                         step,
                         t_k,
@@ -444,7 +451,10 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             u0 = self._velocity(q, guess, p) if slips else None  # the jam's (past only where slipping)
             past = slips and self._painleve(k.rows(q, u0)[1], k.legendre(q, u0)[1])
             if not past:
-                tau, halved, seg = self._split_segment(step, t_k, q, p, rest, guess)
+                split = self._split_segment(step, t_k, q, p, rest, guess)
+                past = split is None  # wedged: jammed as past Painleve's boundary
+            if not past:
+                tau, halved, seg = split
                 v, lam, q1, _, e_seg, lam1, p1, u1, end = seg
                 self.halvings += halved
                 if halved:  # not a segment of the step's map: the tangent has none
@@ -789,8 +799,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         0`` on each) there is no Painleve inconsistency and no jam: nothing sticks, nothing is counted (a
         double pendulum on a frictionless floor whose tip cycled at one instant counted two, and the run
         warned of Painleve's inconsistency; stop 50)."""
-        held = held_contacts(self.k, self.act)
-        rough = [f for f, j in enumerate(self.k.frictional) if held[j] and self._mu_f[f] > 0.0]
+        rough = self._rough_held()
         if not rough:
             return
         self.jams += 1
@@ -799,6 +808,11 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             if not self.act[self._stick_rows[f]] and self._ride[f] < 0:
                 self._stick(f, q, u)
         self._set_friction()
+
+    def _rough_held(self) -> list[int]:
+        """The frictional contacts held with ``mu > 0`` (by their index in ``frictional``)."""
+        held = held_contacts(self.k, self.act)
+        return [f for f, j in enumerate(self.k.frictional) if held[j] and self._mu_f[f] > 0.0]
 
     def _painleve(self, grad, mass) -> bool:
         """Is a held contact slipping past Painleve's boundary at a segment's start or end (the rows'

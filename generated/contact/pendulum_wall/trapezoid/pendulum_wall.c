@@ -3137,7 +3137,7 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PENDULUM_WALL_R_DIM] = {0.0}, g_dip[PENDULUM_WALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int ev[PENDULUM_WALL_R_DIM], group[PENDULUM_WALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
     int dip[PENDULUM_WALL_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PENDULUM_WALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PENDULUM_WALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -3165,7 +3165,8 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         if (pendulum_wall_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
         tau = rest;
-        if (pendulum_wall_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
+        rc = pendulum_wall_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
+        if (rc == 1) {
             return 1;
         }
         c->sus->halvings += halved;

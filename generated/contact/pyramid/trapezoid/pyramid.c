@@ -2101,6 +2101,20 @@ static int pyramid_slips(const pyramid_ctx_t *c)
 static const int pyramid_fric_contact[PYRAMID_NF] = { 0, 1, 2, };
 static const int pyramid_stick_row[PYRAMID_NF] = { 6, 7, 8, };
 
+/* SustainedSteps._rough_held: the frictional contacts held with mu > 0 (rough[f]); returns whether any is. */
+static int pyramid_rough_held(const pyramid_ctx_t *c, int *rough)
+{
+    int f, r, any = 0;
+    for (f = 0; f < PYRAMID_NF; ++f) {
+        for (r = 0, rough[f] = 0; r < PYRAMID_R; ++r) {
+            rough[f] = rough[f] || (c->sus->act[r] && pyramid_row_contact[r] == pyramid_fric_contact[f]);
+        }
+        rough[f] = rough[f] && c->mu_f[f] > 0.0;
+        any = any || rough[f];
+    }
+    return any;
+}
+
 /* SustainedSteps._set_friction: the friction state into the parameter slots the routines read. */
 static void pyramid_set_friction(const pyramid_ctx_t *c)
 {
@@ -2747,7 +2761,8 @@ static int pyramid_held_since(const pyramid_ctx_t *c, int r, int start)
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
- * failure, or its spurious root. */
+ * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
+ * slips (not in a jam): wedged, the chain jams (jam). */
 static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -2766,6 +2781,12 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
             }
             if (*halved == PYRAMID_SPLITS && pyramid_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
+            }
+            if (*halved == PYRAMID_SPLITS && pyramid_slips(c) && !c->sus->jammed) {
+                int rough[PYRAMID_NF_DIM];
+                if (pyramid_rough_held(c, rough)) {
+                    return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
+                }
             }
             if (*halved == PYRAMID_SPLITS) {
                 return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
@@ -3249,15 +3270,8 @@ static void pyramid_stick(const pyramid_ctx_t *c, int f, const double *q, const 
  * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void pyramid_jam(const pyramid_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, any = 0, rough[PYRAMID_NF_DIM]; /* held with mu > 0, before any sticks */
-    for (f = 0; f < PYRAMID_NF; ++f) {
-        for (r = 0, rough[f] = 0; r < PYRAMID_R; ++r) {
-            rough[f] = rough[f] || (c->sus->act[r] && pyramid_row_contact[r] == pyramid_fric_contact[f]);
-        }
-        rough[f] = rough[f] && c->mu_f[f] > 0.0;
-        any = any || rough[f];
-    }
-    if (!any) {
+    int f, rough[PYRAMID_NF_DIM]; /* held with mu > 0, before any sticks */
+    if (!pyramid_rough_held(c, rough)) {
         return;
     }
     ++c->sus->jams;
@@ -5155,7 +5169,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     double fpress[PYRAMID_R_DIM];
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PYRAMID_R_DIM] = {0.0}, g_dip[PYRAMID_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[PYRAMID_R_DIM], group[PYRAMID_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int ev[PYRAMID_R_DIM], group[PYRAMID_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
     int dip[PYRAMID_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PYRAMID_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PYRAMID_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -5200,9 +5214,13 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         }
         if (!past) {
             tau = rest;
-            if (pyramid_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
+            rc = pyramid_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
+            if (rc == 1) {
                 return 1;
             }
+            past = rc == 2; /* wedged: jammed as past Painleve's boundary */
+        }
+        if (!past) {
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }

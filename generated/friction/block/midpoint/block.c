@@ -1252,6 +1252,20 @@ static int block_slips(const block_ctx_t *c)
 static const int block_fric_contact[BLOCK_NF] = { 0, };
 static const int block_stick_row[BLOCK_NF] = { 1, };
 
+/* SustainedSteps._rough_held: the frictional contacts held with mu > 0 (rough[f]); returns whether any is. */
+static int block_rough_held(const block_ctx_t *c, int *rough)
+{
+    int f, r, any = 0;
+    for (f = 0; f < BLOCK_NF; ++f) {
+        for (r = 0, rough[f] = 0; r < BLOCK_R; ++r) {
+            rough[f] = rough[f] || (c->sus->act[r] && block_row_contact[r] == block_fric_contact[f]);
+        }
+        rough[f] = rough[f] && c->mu_f[f] > 0.0;
+        any = any || rough[f];
+    }
+    return any;
+}
+
 /* SustainedSteps._set_friction: the friction state into the parameter slots the routines read. */
 static void block_set_friction(const block_ctx_t *c)
 {
@@ -1898,7 +1912,8 @@ static int block_held_since(const block_ctx_t *c, int r, int start)
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
- * failure, or its spurious root. */
+ * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
+ * slips (not in a jam): wedged, the chain jams (jam). */
 static int block_split_segment(const block_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1917,6 +1932,12 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
             }
             if (*halved == BLOCK_SPLITS && block_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
+            }
+            if (*halved == BLOCK_SPLITS && block_slips(c) && !c->sus->jammed) {
+                int rough[BLOCK_NF_DIM];
+                if (block_rough_held(c, rough)) {
+                    return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
+                }
             }
             if (*halved == BLOCK_SPLITS) {
                 return block_fail(c, BLOCK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
@@ -2100,15 +2121,8 @@ static void block_stick(const block_ctx_t *c, int f, const double *q, const doub
  * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void block_jam(const block_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, any = 0, rough[BLOCK_NF_DIM]; /* held with mu > 0, before any sticks */
-    for (f = 0; f < BLOCK_NF; ++f) {
-        for (r = 0, rough[f] = 0; r < BLOCK_R; ++r) {
-            rough[f] = rough[f] || (c->sus->act[r] && block_row_contact[r] == block_fric_contact[f]);
-        }
-        rough[f] = rough[f] && c->mu_f[f] > 0.0;
-        any = any || rough[f];
-    }
-    if (!any) {
+    int f, rough[BLOCK_NF_DIM]; /* held with mu > 0, before any sticks */
+    if (!block_rough_held(c, rough)) {
         return;
     }
     ++c->sus->jams;
@@ -3980,7 +3994,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[BLOCK_R_DIM] = {0.0}, g_dip[BLOCK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
     int dip[BLOCK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -4025,9 +4039,13 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         }
         if (!past) {
             tau = rest;
-            if (block_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
+            rc = block_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
+            if (rc == 1) {
                 return 1;
             }
+            past = rc == 2; /* wedged: jammed as past Painleve's boundary */
+        }
+        if (!past) {
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }

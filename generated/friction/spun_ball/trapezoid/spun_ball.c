@@ -1422,6 +1422,20 @@ static const int spun_ball_stick_row[SPUN_BALL_NF] = { 1, 2, };
 /* Each frictional contact's partner: the other tangent of a cone contact (vcigen.rows). */
 static const int spun_ball_partner[SPUN_BALL_NF] = { 1, 0, };
 
+/* SustainedSteps._rough_held: the frictional contacts held with mu > 0 (rough[f]); returns whether any is. */
+static int spun_ball_rough_held(const spun_ball_ctx_t *c, int *rough)
+{
+    int f, r, any = 0;
+    for (f = 0; f < SPUN_BALL_NF; ++f) {
+        for (r = 0, rough[f] = 0; r < SPUN_BALL_R; ++r) {
+            rough[f] = rough[f] || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
+        }
+        rough[f] = rough[f] && c->mu_f[f] > 0.0;
+        any = any || rough[f];
+    }
+    return any;
+}
+
 /* SustainedSteps._set_friction: the friction state into the parameter slots the routines read. */
 static void spun_ball_set_friction(const spun_ball_ctx_t *c)
 {
@@ -2068,7 +2082,8 @@ static int spun_ball_held_since(const spun_ball_ctx_t *c, int r, int start)
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
- * failure, or its spurious root. */
+ * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
+ * slips (not in a jam): wedged, the chain jams (jam). */
 static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -2087,6 +2102,12 @@ static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, co
             }
             if (*halved == SPUN_BALL_SPLITS && spun_ball_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
+            }
+            if (*halved == SPUN_BALL_SPLITS && spun_ball_slips(c) && !c->sus->jammed) {
+                int rough[SPUN_BALL_NF_DIM];
+                if (spun_ball_rough_held(c, rough)) {
+                    return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
+                }
             }
             if (*halved == SPUN_BALL_SPLITS) {
                 return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
@@ -2327,15 +2348,8 @@ static void spun_ball_stick(const spun_ball_ctx_t *c, int f, const double *q, co
  * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void spun_ball_jam(const spun_ball_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, any = 0, rough[SPUN_BALL_NF_DIM]; /* held with mu > 0, before any sticks */
-    for (f = 0; f < SPUN_BALL_NF; ++f) {
-        for (r = 0, rough[f] = 0; r < SPUN_BALL_R; ++r) {
-            rough[f] = rough[f] || (c->sus->act[r] && spun_ball_row_contact[r] == spun_ball_fric_contact[f]);
-        }
-        rough[f] = rough[f] && c->mu_f[f] > 0.0;
-        any = any || rough[f];
-    }
-    if (!any) {
+    int f, rough[SPUN_BALL_NF_DIM]; /* held with mu > 0, before any sticks */
+    if (!spun_ball_rough_held(c, rough)) {
         return;
     }
     ++c->sus->jams;
@@ -5695,7 +5709,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[SPUN_BALL_R_DIM] = {0.0}, g_dip[SPUN_BALL_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int ev[SPUN_BALL_R_DIM], group[SPUN_BALL_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
     int dip[SPUN_BALL_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[SPUN_BALL_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[SPUN_BALL_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -5740,9 +5754,13 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         }
         if (!past) {
             tau = rest;
-            if (spun_ball_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
+            rc = spun_ball_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
+            if (rc == 1) {
                 return 1;
             }
+            past = rc == 2; /* wedged: jammed as past Painleve's boundary */
+        }
+        if (!past) {
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }

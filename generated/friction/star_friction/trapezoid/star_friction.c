@@ -1530,6 +1530,20 @@ static int star_friction_slips(const star_friction_ctx_t *c)
 static const int star_friction_fric_contact[STAR_FRICTION_NF] = { 0, };
 static const int star_friction_stick_row[STAR_FRICTION_NF] = { 4, };
 
+/* SustainedSteps._rough_held: the frictional contacts held with mu > 0 (rough[f]); returns whether any is. */
+static int star_friction_rough_held(const star_friction_ctx_t *c, int *rough)
+{
+    int f, r, any = 0;
+    for (f = 0; f < STAR_FRICTION_NF; ++f) {
+        for (r = 0, rough[f] = 0; r < STAR_FRICTION_R; ++r) {
+            rough[f] = rough[f] || (c->sus->act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
+        }
+        rough[f] = rough[f] && c->mu_f[f] > 0.0;
+        any = any || rough[f];
+    }
+    return any;
+}
+
 /* SustainedSteps._set_friction: the friction state into the parameter slots the routines read. */
 static void star_friction_set_friction(const star_friction_ctx_t *c)
 {
@@ -2185,7 +2199,8 @@ static int star_friction_held_since(const star_friction_ctx_t *c, int r, int sta
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
- * failure, or its spurious root. */
+ * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
+ * slips (not in a jam): wedged, the chain jams (jam). */
 static int star_friction_split_segment(const star_friction_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -2204,6 +2219,12 @@ static int star_friction_split_segment(const star_friction_ctx_t *c, const doubl
             }
             if (*halved == STAR_FRICTION_SPLITS && star_friction_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
+            }
+            if (*halved == STAR_FRICTION_SPLITS && star_friction_slips(c) && !c->sus->jammed) {
+                int rough[STAR_FRICTION_NF_DIM];
+                if (star_friction_rough_held(c, rough)) {
+                    return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
+                }
             }
             if (*halved == STAR_FRICTION_SPLITS) {
                 return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
@@ -2387,15 +2408,8 @@ static void star_friction_stick(const star_friction_ctx_t *c, int f, const doubl
  * no held contact has friction (mu = 0 on each): no jam, nothing counted. */
 static void star_friction_jam(const star_friction_ctx_t *c, const double *q, const double *u)
 {
-    int f, r, any = 0, rough[STAR_FRICTION_NF_DIM]; /* held with mu > 0, before any sticks */
-    for (f = 0; f < STAR_FRICTION_NF; ++f) {
-        for (r = 0, rough[f] = 0; r < STAR_FRICTION_R; ++r) {
-            rough[f] = rough[f] || (c->sus->act[r] && star_friction_row_contact[r] == star_friction_fric_contact[f]);
-        }
-        rough[f] = rough[f] && c->mu_f[f] > 0.0;
-        any = any || rough[f];
-    }
-    if (!any) {
+    int f, rough[STAR_FRICTION_NF_DIM]; /* held with mu > 0, before any sticks */
+    if (!star_friction_rough_held(c, rough)) {
         return;
     }
     ++c->sus->jams;
@@ -4267,7 +4281,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[STAR_FRICTION_R_DIM] = {0.0}, g_dip[STAR_FRICTION_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved;
+    int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
     int dip[STAR_FRICTION_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -4312,9 +4326,13 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         }
         if (!past) {
             tau = rest;
-            if (star_friction_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved)) {
+            rc = star_friction_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
+            if (rc == 1) {
                 return 1;
             }
+            past = rc == 2; /* wedged: jammed as past Painleve's boundary */
+        }
+        if (!past) {
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }
