@@ -311,8 +311,8 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
     def _crossings(self, seg: Seg, phi0, phi1, d0, d1) -> dict[int, tuple[float, float]]:
         """Contacts crossed in the segment, each with ``(s_hi, phi_j(q(s_hi)) < 0)``.
 
-        A contact is crossed if ``phi_j < 0`` at the end (the contact the segment leaves from,
-        ``seg.contact``, from a start within ``Tolerances.admissible`` only below that start: the impact
+        A contact is crossed if ``phi_j < 0`` at the end (the contact the segment leaves from, ``seg.contact``
+        or ``seg.leaves``, from a start within ``Tolerances.admissible`` only below that start: the impact
         point is on it to the contact time's tolerance, and a slow rebound from a point found at
         ``phi = -1.35e-10`` ended below ``-Tolerances.phi`` and was met again there, at ``s = 0`` with no
         impulse, till ``max_impacts_per_step``: ``bench.table_drops --plastic``); or, with both ends
@@ -322,11 +322,12 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         """
         tol = self.tol
         self._at(seg.t)
-        left = (np.arange(phi1.size) == seg.contact) & (phi0 >= -tol.admissible) & (phi1 >= phi0)
+        own = seg.contact if seg.contact >= 0 else seg.leaves
+        left = (np.arange(phi1.size) == own) & (phi0 >= -tol.admissible) & (phi1 >= phi0)
         below = (phi1 < -tol.phi) & ~left
         out = {int(j): (1.0, float(phi1[j])) for j in np.flatnonzero(below)}
         for j in np.flatnonzero((phi1 >= -tol.phi) & (d0 < 0) & (d1 > 0)):
-            if j == seg.contact:
+            if j == own:
                 continue
             s_min, g_min = hermite_min(phi0[j], phi1[j], d0[j], d1[j])
             if g_min < tol.dip * (abs(d0[j]) + abs(d1[j])):

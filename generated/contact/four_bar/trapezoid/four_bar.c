@@ -1095,6 +1095,7 @@ typedef struct {
     int contact;                   /* contact hit at the start, -1 for the first segment */
     double x[FOUR_BAR_NX_MAX]; /* the segment's unknowns: v, or (w, mu) after an impact */
     double rest;                   /* the coefficient of restitution of the impact at the start */
+    int leaves;                    /* a first segment's: the contact an impact by a fixed impulse at its start left */
 } four_bar_seg_t;
 
 static const four_bar_fun four_bar_contact_time_fns[FOUR_BAR_M_DIM] = {
@@ -1353,16 +1354,19 @@ static double four_bar_sub_solve(const four_bar_ctx_t *c, const four_bar_seg_t *
 /* held_roots.LEAVE_FRACTIONS: where a row just hit is sought above its contact (leave, row_crossing). */
 static const double four_bar_leave_fractions[3] = {1e-3, 1e-6, 1e-9};
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+/* Stepper._leave: after an impact on j, a small fraction below hi (the crossing's) where phi_j > 0 again, else (0, 0). After an impact with no
  * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
  * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
  * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
-static void four_bar_leave(const four_bar_ctx_t *c, const four_bar_seg_t *seg, int j, double *lo,
+static void four_bar_leave(const four_bar_ctx_t *c, const four_bar_seg_t *seg, int j, double hi, double *lo,
     double *phi_lo)
 {
     double x[FOUR_BAR_NX_MAX], phi[FOUR_BAR_M_DIM];
     int k, solved;
     for (k = 0; k < 3; ++k) {
+        if (four_bar_leave_fractions[k] >= hi) {
+            continue;
+        }
         solved = four_bar_sub_solve(c, seg, four_bar_leave_fractions[k], seg->x, x, phi)
             <= four_bar_scale(c, seg->p_in, seg->e_in); /* unconverged: no evidence */
         if (solved && phi[j] > c->tol->phi) {
@@ -1454,16 +1458,17 @@ static int four_bar_crossings(const four_bar_ctx_t *c, const four_bar_seg_t *seg
     const double *phi1, const double *d0, const double *d1, int *crossed, double *s_hi, double *g_hi)
 {
     double s_min, g_min;
+    const int own = seg->contact >= 0 ? seg->contact : seg->leaves;
     int j, count = 0;
     four_bar_at(c, seg->t);
     for (j = 0; j < FOUR_BAR_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
+        if (phi1[j] < -c->tol->phi && (j != own || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
             /* the contact left from (within admissible of it): only below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];
-        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != seg->contact) {
+        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != own) {
             four_bar_hermite_min(phi0[j], phi1[j], d0[j], d1[j], &s_min, &g_min);
             if (g_min < c->tol->dip * (fabs(d0[j]) + fabs(d1[j]))) {
                 crossed[j] = four_bar_sample_dip(c, seg, j, s_min, &s_hi[j], &g_hi[j]);
@@ -1598,10 +1603,10 @@ static int four_bar_contact_root(const four_bar_ctx_t *c, const four_bar_seg_t *
     }
     if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
                                            * off the trivial root at s = 0 to the landing, if it leaves */
-        four_bar_leave(c, seg, j, &lo, &phi_lo);
+        four_bar_leave(c, seg, j, hi, &lo, &phi_lo);
     }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
-        four_bar_leave(c, seg, j, &lo, &phi_lo);
+        four_bar_leave(c, seg, j, hi, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return four_bar_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 four_bar_contact_names[j]);
@@ -3262,6 +3267,7 @@ static void four_bar_free_seg(four_bar_seg_t *seg, const double *q, const double
     seg->tau = tau;
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
 }
 
@@ -4728,6 +4734,26 @@ static int four_bar_segment_end(const four_bar_ctx_t *c, const four_bar_seg_t *s
     return four_bar_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* ImpactSteps._fixed: the rest of the step after an impact on seg by the continuous law (grazing), in place: a first
+ * segment from p~- + mu0 n with the jump's w, leaving seg->contact. Its map over a fraction s is the smooth step (46) of
+ * that momentum (the jump's (48) at s, an energy balance the law reset, has no root in general). */
+static void four_bar_fixed(four_bar_seg_t *seg)
+{
+    const double mu = seg->x[FOUR_BAR_N];
+    int i;
+    for (i = 0; i < FOUR_BAR_N; ++i) {
+        seg->p_in[i] += mu * seg->nrm[i];
+        seg->nrm[i] = 0.0;
+    }
+    for (i = FOUR_BAR_N; i < FOUR_BAR_NX_MAX; ++i) {
+        seg->x[i] = 0.0;
+    }
+    seg->e_in = NAN;
+    seg->leaves = seg->contact;
+    seg->contact = -1;
+    seg->rest = 1.0;
+}
+
 /* Stepper._restart: the impact at the start of seg by the continuous law n.qdot -> -e n.qdot; the rest of the
  * step as a first segment from there (seg in place). Out: E_d after, mu; returns the number of contacts the
  * fresh segment crosses (crossed, s_hi, g_hi). */
@@ -4756,6 +4782,7 @@ static int four_bar_restart(const four_bar_ctx_t *c, four_bar_seg_t *seg, double
     }
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
     return four_bar_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
@@ -4794,7 +4821,7 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
     double x[FOUR_BAR_NX_MAX] = {0.0}, x_best[FOUR_BAR_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[FOUR_BAR_N], pm[FOUR_BAR_N], p_c[FOUR_BAR_N], p_end[FOUR_BAR_N];
     double q_end[FOUR_BAR_N], *r, s_all[FOUR_BAR_M_DIM] = {0.0}, wgt[FOUR_BAR_M_DIM], pend_w[FOUR_BAR_M_DIM] = {0.0};
-    four_bar_seg_t next;
+    four_bar_seg_t next, after;
     double rest[FOUR_BAR_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[FOUR_BAR_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
@@ -4873,6 +4900,7 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
+        next.leaves = -1;
         next.rest = 1.0;
         four_bar_contacts(next.q, par, phi, grad);
         for (i = 0; i < FOUR_BAR_N; ++i) {
@@ -4968,7 +4996,11 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
             pend_w[g] = wgt[g];
         }
         n_pend = n_group;
-        if (!four_bar_segment_end(c, seg, q_end, phi, grad, crossed, s_hi, g_hi)) {
+        after = *seg;
+        if (kind == FOUR_BAR_KIND_GRAZING) {
+            four_bar_fixed(&after);
+        }
+        if (!four_bar_segment_end(c, &after, q_end, phi, grad, crossed, s_hi, g_hi)) {
             *n_rec += n_pend;
             for (i = 0; i < FOUR_BAR_N; ++i) {
                 q[i] = q_end[i];
@@ -4977,6 +5009,11 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
             }
             *e = e_step;
             return 0;
+        }
+        if (kind == FOUR_BAR_KIND_GRAZING) { /* the continuous law's impulse is final: the contacts met after it, (47) */
+            *n_rec += n_pend;
+            n_pend = 0;
+            *seg = after;
         }
     }
     return four_bar_fail(c, FOUR_BAR_PHASE_JUMP, 0.0, "more than %d impacts in one step "
@@ -5025,6 +5062,7 @@ static int four_bar_step(const four_bar_ctx_t *c, double *q, double *p, double *
         return 1;
     }
     seg.contact = -1;
+    seg.leaves = -1;
     seg.rest = 1.0;
     for (j = 0; j < FOUR_BAR_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);

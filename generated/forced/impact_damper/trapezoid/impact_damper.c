@@ -603,6 +603,7 @@ typedef struct {
     int contact;                   /* contact hit at the start, -1 for the first segment */
     double x[IMPACT_DAMPER_NX_MAX]; /* the segment's unknowns: v, or (w, mu) after an impact */
     double rest;                   /* the coefficient of restitution of the impact at the start */
+    int leaves;                    /* a first segment's: the contact an impact by a fixed impulse at its start left */
 } impact_damper_seg_t;
 
 static const impact_damper_fun impact_damper_contact_time_fns[IMPACT_DAMPER_M_DIM] = {
@@ -861,16 +862,19 @@ static double impact_damper_sub_solve(const impact_damper_ctx_t *c, const impact
 /* held_roots.LEAVE_FRACTIONS: where a row just hit is sought above its contact (leave, row_crossing). */
 static const double impact_damper_leave_fractions[3] = {1e-3, 1e-6, 1e-9};
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+/* Stepper._leave: after an impact on j, a small fraction below hi (the crossing's) where phi_j > 0 again, else (0, 0). After an impact with no
  * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
  * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
  * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
-static void impact_damper_leave(const impact_damper_ctx_t *c, const impact_damper_seg_t *seg, int j, double *lo,
+static void impact_damper_leave(const impact_damper_ctx_t *c, const impact_damper_seg_t *seg, int j, double hi, double *lo,
     double *phi_lo)
 {
     double x[IMPACT_DAMPER_NX_MAX], phi[IMPACT_DAMPER_M_DIM];
     int k, solved;
     for (k = 0; k < 3; ++k) {
+        if (impact_damper_leave_fractions[k] >= hi) {
+            continue;
+        }
         solved = impact_damper_sub_solve(c, seg, impact_damper_leave_fractions[k], seg->x, x, phi)
             <= impact_damper_scale(c, seg->p_in, seg->e_in); /* unconverged: no evidence */
         if (solved && phi[j] > c->tol->phi) {
@@ -962,16 +966,17 @@ static int impact_damper_crossings(const impact_damper_ctx_t *c, const impact_da
     const double *phi1, const double *d0, const double *d1, int *crossed, double *s_hi, double *g_hi)
 {
     double s_min, g_min;
+    const int own = seg->contact >= 0 ? seg->contact : seg->leaves;
     int j, count = 0;
     impact_damper_at(c, seg->t);
     for (j = 0; j < IMPACT_DAMPER_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
+        if (phi1[j] < -c->tol->phi && (j != own || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
             /* the contact left from (within admissible of it): only below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];
-        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != seg->contact) {
+        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != own) {
             impact_damper_hermite_min(phi0[j], phi1[j], d0[j], d1[j], &s_min, &g_min);
             if (g_min < c->tol->dip * (fabs(d0[j]) + fabs(d1[j]))) {
                 crossed[j] = impact_damper_sample_dip(c, seg, j, s_min, &s_hi[j], &g_hi[j]);
@@ -1068,10 +1073,10 @@ static int impact_damper_contact_root(const impact_damper_ctx_t *c, const impact
     }
     if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
                                            * off the trivial root at s = 0 to the landing, if it leaves */
-        impact_damper_leave(c, seg, j, &lo, &phi_lo);
+        impact_damper_leave(c, seg, j, hi, &lo, &phi_lo);
     }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
-        impact_damper_leave(c, seg, j, &lo, &phi_lo);
+        impact_damper_leave(c, seg, j, hi, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return impact_damper_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 impact_damper_contact_names[j]);
@@ -2729,6 +2734,7 @@ static void impact_damper_free_seg(impact_damper_seg_t *seg, const double *q, co
     seg->tau = tau;
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
 }
 
@@ -3331,6 +3337,26 @@ static int impact_damper_segment_end(const impact_damper_ctx_t *c, const impact_
     return impact_damper_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* ImpactSteps._fixed: the rest of the step after an impact on seg by the continuous law (grazing), in place: a first
+ * segment from p~- + mu0 n with the jump's w, leaving seg->contact. Its map over a fraction s is the smooth step (46) of
+ * that momentum (the jump's (48) at s, an energy balance the law reset, has no root in general). */
+static void impact_damper_fixed(impact_damper_seg_t *seg)
+{
+    const double mu = seg->x[IMPACT_DAMPER_N];
+    int i;
+    for (i = 0; i < IMPACT_DAMPER_N; ++i) {
+        seg->p_in[i] += mu * seg->nrm[i];
+        seg->nrm[i] = 0.0;
+    }
+    for (i = IMPACT_DAMPER_N; i < IMPACT_DAMPER_NX_MAX; ++i) {
+        seg->x[i] = 0.0;
+    }
+    seg->e_in = NAN;
+    seg->leaves = seg->contact;
+    seg->contact = -1;
+    seg->rest = 1.0;
+}
+
 /* Stepper._restart: the impact at the start of seg by the continuous law n.qdot -> -e n.qdot; the rest of the
  * step as a first segment from there (seg in place). Out: E_d after, mu; returns the number of contacts the
  * fresh segment crosses (crossed, s_hi, g_hi). */
@@ -3359,6 +3385,7 @@ static int impact_damper_restart(const impact_damper_ctx_t *c, impact_damper_seg
     }
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
     return impact_damper_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
@@ -3397,7 +3424,7 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
     double x[IMPACT_DAMPER_NX_MAX] = {0.0}, x_best[IMPACT_DAMPER_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[IMPACT_DAMPER_N], pm[IMPACT_DAMPER_N], p_c[IMPACT_DAMPER_N], p_end[IMPACT_DAMPER_N];
     double q_end[IMPACT_DAMPER_N], *r, s_all[IMPACT_DAMPER_M_DIM] = {0.0}, wgt[IMPACT_DAMPER_M_DIM], pend_w[IMPACT_DAMPER_M_DIM] = {0.0};
-    impact_damper_seg_t next;
+    impact_damper_seg_t next, after;
     double rest[IMPACT_DAMPER_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[IMPACT_DAMPER_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
@@ -3476,6 +3503,7 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
+        next.leaves = -1;
         next.rest = 1.0;
         impact_damper_contacts(next.q, par, phi, grad);
         for (i = 0; i < IMPACT_DAMPER_N; ++i) {
@@ -3571,7 +3599,11 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
             pend_w[g] = wgt[g];
         }
         n_pend = n_group;
-        if (!impact_damper_segment_end(c, seg, q_end, phi, grad, crossed, s_hi, g_hi)) {
+        after = *seg;
+        if (kind == IMPACT_DAMPER_KIND_GRAZING) {
+            impact_damper_fixed(&after);
+        }
+        if (!impact_damper_segment_end(c, &after, q_end, phi, grad, crossed, s_hi, g_hi)) {
             *n_rec += n_pend;
             for (i = 0; i < IMPACT_DAMPER_N; ++i) {
                 q[i] = q_end[i];
@@ -3580,6 +3612,11 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
             }
             *e = e_after; /* forces: the energy at the end of the last segment */
             return 0;
+        }
+        if (kind == IMPACT_DAMPER_KIND_GRAZING) { /* the continuous law's impulse is final: the contacts met after it, (47) */
+            *n_rec += n_pend;
+            n_pend = 0;
+            *seg = after;
         }
     }
     return impact_damper_fail(c, IMPACT_DAMPER_PHASE_JUMP, 0.0, "more than %d impacts in one step "
@@ -3628,6 +3665,7 @@ static int impact_damper_step(const impact_damper_ctx_t *c, double *q, double *p
         return 1;
     }
     seg.contact = -1;
+    seg.leaves = -1;
     seg.rest = 1.0;
     for (j = 0; j < IMPACT_DAMPER_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);

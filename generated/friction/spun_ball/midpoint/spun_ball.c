@@ -762,6 +762,7 @@ typedef struct {
     int contact;                   /* contact hit at the start, -1 for the first segment */
     double x[SPUN_BALL_NX_MAX]; /* the segment's unknowns: v, or (w, mu) after an impact */
     double rest;                   /* the coefficient of restitution of the impact at the start */
+    int leaves;                    /* a first segment's: the contact an impact by a fixed impulse at its start left */
 } spun_ball_seg_t;
 
 static const spun_ball_fun spun_ball_contact_time_fns[SPUN_BALL_M_DIM] = {
@@ -1020,16 +1021,19 @@ static double spun_ball_sub_solve(const spun_ball_ctx_t *c, const spun_ball_seg_
 /* held_roots.LEAVE_FRACTIONS: where a row just hit is sought above its contact (leave, row_crossing). */
 static const double spun_ball_leave_fractions[3] = {1e-3, 1e-6, 1e-9};
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+/* Stepper._leave: after an impact on j, a small fraction below hi (the crossing's) where phi_j > 0 again, else (0, 0). After an impact with no
  * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
  * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
  * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
-static void spun_ball_leave(const spun_ball_ctx_t *c, const spun_ball_seg_t *seg, int j, double *lo,
+static void spun_ball_leave(const spun_ball_ctx_t *c, const spun_ball_seg_t *seg, int j, double hi, double *lo,
     double *phi_lo)
 {
     double x[SPUN_BALL_NX_MAX], phi[SPUN_BALL_M_DIM];
     int k, solved;
     for (k = 0; k < 3; ++k) {
+        if (spun_ball_leave_fractions[k] >= hi) {
+            continue;
+        }
         solved = spun_ball_sub_solve(c, seg, spun_ball_leave_fractions[k], seg->x, x, phi)
             <= spun_ball_scale(c, seg->p_in, seg->e_in); /* unconverged: no evidence */
         if (solved && phi[j] > c->tol->phi) {
@@ -1121,16 +1125,17 @@ static int spun_ball_crossings(const spun_ball_ctx_t *c, const spun_ball_seg_t *
     const double *phi1, const double *d0, const double *d1, int *crossed, double *s_hi, double *g_hi)
 {
     double s_min, g_min;
+    const int own = seg->contact >= 0 ? seg->contact : seg->leaves;
     int j, count = 0;
     spun_ball_at(c, seg->t);
     for (j = 0; j < SPUN_BALL_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
+        if (phi1[j] < -c->tol->phi && (j != own || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
             /* the contact left from (within admissible of it): only below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];
-        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != seg->contact) {
+        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != own) {
             spun_ball_hermite_min(phi0[j], phi1[j], d0[j], d1[j], &s_min, &g_min);
             if (g_min < c->tol->dip * (fabs(d0[j]) + fabs(d1[j]))) {
                 crossed[j] = spun_ball_sample_dip(c, seg, j, s_min, &s_hi[j], &g_hi[j]);
@@ -1265,10 +1270,10 @@ static int spun_ball_contact_root(const spun_ball_ctx_t *c, const spun_ball_seg_
     }
     if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
                                            * off the trivial root at s = 0 to the landing, if it leaves */
-        spun_ball_leave(c, seg, j, &lo, &phi_lo);
+        spun_ball_leave(c, seg, j, hi, &lo, &phi_lo);
     }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
-        spun_ball_leave(c, seg, j, &lo, &phi_lo);
+        spun_ball_leave(c, seg, j, hi, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return spun_ball_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 spun_ball_contact_names[j]);
@@ -5558,6 +5563,7 @@ static void spun_ball_free_seg(spun_ball_seg_t *seg, const double *q, const doub
     seg->tau = tau;
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
 }
 
@@ -6664,6 +6670,26 @@ static int spun_ball_segment_end(const spun_ball_ctx_t *c, const spun_ball_seg_t
     return spun_ball_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* ImpactSteps._fixed: the rest of the step after an impact on seg by the continuous law (grazing), in place: a first
+ * segment from p~- + mu0 n with the jump's w, leaving seg->contact. Its map over a fraction s is the smooth step (46) of
+ * that momentum (the jump's (48) at s, an energy balance the law reset, has no root in general). */
+static void spun_ball_fixed(spun_ball_seg_t *seg)
+{
+    const double mu = seg->x[SPUN_BALL_N];
+    int i;
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        seg->p_in[i] += mu * seg->nrm[i];
+        seg->nrm[i] = 0.0;
+    }
+    for (i = SPUN_BALL_N; i < SPUN_BALL_NX_MAX; ++i) {
+        seg->x[i] = 0.0;
+    }
+    seg->e_in = NAN;
+    seg->leaves = seg->contact;
+    seg->contact = -1;
+    seg->rest = 1.0;
+}
+
 /* Stepper._restart: the impact at the start of seg by the continuous law n.qdot -> -e n.qdot; the rest of the
  * step as a first segment from there (seg in place). Out: E_d after, mu; returns the number of contacts the
  * fresh segment crosses (crossed, s_hi, g_hi). */
@@ -6692,6 +6718,7 @@ static int spun_ball_restart(const spun_ball_ctx_t *c, spun_ball_seg_t *seg, dou
     }
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
     return spun_ball_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
@@ -6730,7 +6757,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
     double x[SPUN_BALL_NX_MAX] = {0.0}, x_best[SPUN_BALL_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[SPUN_BALL_N], pm[SPUN_BALL_N], p_c[SPUN_BALL_N], p_end[SPUN_BALL_N];
     double q_end[SPUN_BALL_N], *r, s_all[SPUN_BALL_M_DIM] = {0.0}, wgt[SPUN_BALL_M_DIM], pend_w[SPUN_BALL_M_DIM] = {0.0};
-    spun_ball_seg_t next;
+    spun_ball_seg_t next, after;
     double rest[SPUN_BALL_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[SPUN_BALL_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
@@ -6809,6 +6836,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
+        next.leaves = -1;
         next.rest = 1.0;
         spun_ball_contacts(next.q, par, phi, grad);
         for (i = 0; i < SPUN_BALL_N; ++i) {
@@ -6904,7 +6932,11 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
             pend_w[g] = wgt[g];
         }
         n_pend = n_group;
-        if (!spun_ball_segment_end(c, seg, q_end, phi, grad, crossed, s_hi, g_hi)) {
+        after = *seg;
+        if (kind == SPUN_BALL_KIND_GRAZING) {
+            spun_ball_fixed(&after);
+        }
+        if (!spun_ball_segment_end(c, &after, q_end, phi, grad, crossed, s_hi, g_hi)) {
             *n_rec += n_pend;
             for (i = 0; i < SPUN_BALL_N; ++i) {
                 q[i] = q_end[i];
@@ -6913,6 +6945,11 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
             }
             *e = e_step;
             return 0;
+        }
+        if (kind == SPUN_BALL_KIND_GRAZING) { /* the continuous law's impulse is final: the contacts met after it, (47) */
+            *n_rec += n_pend;
+            n_pend = 0;
+            *seg = after;
         }
     }
     return spun_ball_fail(c, SPUN_BALL_PHASE_JUMP, 0.0, "more than %d impacts in one step "
@@ -6961,6 +6998,7 @@ static int spun_ball_step(const spun_ball_ctx_t *c, double *q, double *p, double
         return 1;
     }
     seg.contact = -1;
+    seg.leaves = -1;
     seg.rest = 1.0;
     for (j = 0; j < SPUN_BALL_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);

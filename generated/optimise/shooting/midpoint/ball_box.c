@@ -798,6 +798,7 @@ typedef struct {
     int contact;                   /* contact hit at the start, -1 for the first segment */
     double x[BALL_BOX_NX_MAX]; /* the segment's unknowns: v, or (w, mu) after an impact */
     double rest;                   /* the coefficient of restitution of the impact at the start */
+    int leaves;                    /* a first segment's: the contact an impact by a fixed impulse at its start left */
 } ball_box_seg_t;
 
 static const ball_box_fun ball_box_contact_time_fns[BALL_BOX_M_DIM] = {
@@ -1062,16 +1063,19 @@ static double ball_box_sub_solve(const ball_box_ctx_t *c, const ball_box_seg_t *
 /* held_roots.LEAVE_FRACTIONS: where a row just hit is sought above its contact (leave, row_crossing). */
 static const double ball_box_leave_fractions[3] = {1e-3, 1e-6, 1e-9};
 
-/* Stepper._leave: after an impact on j, a small fraction where phi_j > 0 again, else (0, 0). After an impact with no
+/* Stepper._leave: after an impact on j, a small fraction below hi (the crossing's) where phi_j > 0 again, else (0, 0). After an impact with no
  * outgoing normal speed (seg->rest 0, grazing "contact"), (0, phi_j < 0) where phi_j is below -phi at the largest
  * fraction already (j crossed back at once; smaller fractions may take another root of (78)): contact_root then
  * fails, which impact_step takes as (78) unsolvable (a restart). Elsewhere the smaller fractions as before. */
-static void ball_box_leave(const ball_box_ctx_t *c, const ball_box_seg_t *seg, int j, double *lo,
+static void ball_box_leave(const ball_box_ctx_t *c, const ball_box_seg_t *seg, int j, double hi, double *lo,
     double *phi_lo)
 {
     double x[BALL_BOX_NX_MAX], phi[BALL_BOX_M_DIM];
     int k, solved;
     for (k = 0; k < 3; ++k) {
+        if (ball_box_leave_fractions[k] >= hi) {
+            continue;
+        }
         solved = ball_box_sub_solve(c, seg, ball_box_leave_fractions[k], seg->x, x, phi)
             <= ball_box_scale(c, seg->p_in, seg->e_in); /* unconverged: no evidence */
         if (solved && phi[j] > c->tol->phi) {
@@ -1163,16 +1167,17 @@ static int ball_box_crossings(const ball_box_ctx_t *c, const ball_box_seg_t *seg
     const double *phi1, const double *d0, const double *d1, int *crossed, double *s_hi, double *g_hi)
 {
     double s_min, g_min;
+    const int own = seg->contact >= 0 ? seg->contact : seg->leaves;
     int j, count = 0;
     ball_box_at(c, seg->t);
     for (j = 0; j < BALL_BOX_M; ++j) {
         crossed[j] = 0;
-        if (phi1[j] < -c->tol->phi && (j != seg->contact || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
+        if (phi1[j] < -c->tol->phi && (j != own || phi0[j] < -c->tol->admissible || phi1[j] < phi0[j])) {
             /* the contact left from (within admissible of it): only below its start */
             crossed[j] = 1;
             s_hi[j] = 1.0;
             g_hi[j] = phi1[j];
-        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != seg->contact) {
+        } else if (phi1[j] >= -c->tol->phi && d0[j] < 0 && d1[j] > 0 && j != own) {
             ball_box_hermite_min(phi0[j], phi1[j], d0[j], d1[j], &s_min, &g_min);
             if (g_min < c->tol->dip * (fabs(d0[j]) + fabs(d1[j]))) {
                 crossed[j] = ball_box_sample_dip(c, seg, j, s_min, &s_hi[j], &g_hi[j]);
@@ -1310,10 +1315,10 @@ static int ball_box_contact_root(const ball_box_ctx_t *c, const ball_box_seg_t *
     }
     if (first && phi_lo <= c->tol->phi) { /* touching at the start, not held (a rough contact moving out): step
                                            * off the trivial root at s = 0 to the landing, if it leaves */
-        ball_box_leave(c, seg, j, &lo, &phi_lo);
+        ball_box_leave(c, seg, j, hi, &lo, &phi_lo);
     }
     if (!first && j == seg->contact) { /* leaving the contact just hit: step off the trivial root */
-        ball_box_leave(c, seg, j, &lo, &phi_lo);
+        ball_box_leave(c, seg, j, hi, &lo, &phi_lo);
         if (phi_lo < 0.0) { /* crossed back at once after an impact that left it no normal speed: a restart */
             return ball_box_fail(c, phase, fabs(phi_lo), "phi_%s crossed back at once after its impact",
                 ball_box_contact_names[j]);
@@ -2974,6 +2979,7 @@ static void ball_box_free_seg(ball_box_seg_t *seg, const double *q, const double
     seg->tau = tau;
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
 }
 
@@ -4173,6 +4179,26 @@ static int ball_box_segment_end(const ball_box_ctx_t *c, const ball_box_seg_t *s
     return ball_box_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
 
+/* ImpactSteps._fixed: the rest of the step after an impact on seg by the continuous law (grazing), in place: a first
+ * segment from p~- + mu0 n with the jump's w, leaving seg->contact. Its map over a fraction s is the smooth step (46) of
+ * that momentum (the jump's (48) at s, an energy balance the law reset, has no root in general). */
+static void ball_box_fixed(ball_box_seg_t *seg)
+{
+    const double mu = seg->x[BALL_BOX_N];
+    int i;
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        seg->p_in[i] += mu * seg->nrm[i];
+        seg->nrm[i] = 0.0;
+    }
+    for (i = BALL_BOX_N; i < BALL_BOX_NX_MAX; ++i) {
+        seg->x[i] = 0.0;
+    }
+    seg->e_in = NAN;
+    seg->leaves = seg->contact;
+    seg->contact = -1;
+    seg->rest = 1.0;
+}
+
 /* Stepper._restart: the impact at the start of seg by the continuous law n.qdot -> -e n.qdot; the rest of the
  * step as a first segment from there (seg in place). Out: E_d after, mu; returns the number of contacts the
  * fresh segment crosses (crossed, s_hi, g_hi). */
@@ -4201,6 +4227,7 @@ static int ball_box_restart(const ball_box_ctx_t *c, ball_box_seg_t *seg, double
     }
     seg->e_in = NAN;
     seg->contact = -1;
+    seg->leaves = -1;
     seg->rest = 1.0;
     return ball_box_crossings(c, seg, phi0, phi1, d0, d1, crossed, s_hi, g_hi);
 }
@@ -4239,7 +4266,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
     double x[BALL_BOX_NX_MAX] = {0.0}, x_best[BALL_BOX_NX_MAX] = {0.0}, s = 0.0, s_best = 0.0, tau_c;
     double e_c, e_after, v_c[BALL_BOX_N], pm[BALL_BOX_N], p_c[BALL_BOX_N], p_end[BALL_BOX_N];
     double q_end[BALL_BOX_N], *r, s_all[BALL_BOX_M_DIM] = {0.0}, wgt[BALL_BOX_M_DIM], pend_w[BALL_BOX_M_DIM] = {0.0};
-    ball_box_seg_t next;
+    ball_box_seg_t next, after;
     double rest[BALL_BOX_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[BALL_BOX_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
     int kink;
@@ -4318,6 +4345,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
         next.t = seg->t + tau_c;
         next.tau = seg->tau - tau_c;
         next.contact = best;
+        next.leaves = -1;
         next.rest = 1.0;
         ball_box_contacts(next.q, par, phi, grad);
         for (i = 0; i < BALL_BOX_N; ++i) {
@@ -4413,7 +4441,11 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
             pend_w[g] = wgt[g];
         }
         n_pend = n_group;
-        if (!ball_box_segment_end(c, seg, q_end, phi, grad, crossed, s_hi, g_hi)) {
+        after = *seg;
+        if (kind == BALL_BOX_KIND_GRAZING) {
+            ball_box_fixed(&after);
+        }
+        if (!ball_box_segment_end(c, &after, q_end, phi, grad, crossed, s_hi, g_hi)) {
             *n_rec += n_pend;
             for (i = 0; i < BALL_BOX_N; ++i) {
                 q[i] = q_end[i];
@@ -4422,6 +4454,11 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
             }
             *e = e_step;
             return 0;
+        }
+        if (kind == BALL_BOX_KIND_GRAZING) { /* the continuous law's impulse is final: the contacts met after it, (47) */
+            *n_rec += n_pend;
+            n_pend = 0;
+            *seg = after;
         }
     }
     return ball_box_fail(c, BALL_BOX_PHASE_JUMP, 0.0, "more than %d impacts in one step "
@@ -4470,6 +4507,7 @@ static int ball_box_step(const ball_box_ctx_t *c, double *q, double *p, double *
         return 1;
     }
     seg.contact = -1;
+    seg.leaves = -1;
     seg.rest = 1.0;
     for (j = 0; j < BALL_BOX_M; ++j) { /* cheap pre-test: only these can be crossings (Stepper._crossings) */
         inside = inside && !(phi1[j] < -c->tol->phi) && !(d0[j] < 0 && d1[j] > 0);
