@@ -48,6 +48,16 @@ def test_bad_model(change, words):
         model(**change)
 
 
+@pytest.mark.parametrize("tangent", [y, 2 * y + g, sp.sin(y)])
+def test_a_friction_tangent_along_the_normal_is_refused(tangent):
+    """A tangent whose gradient is parallel to the contact's normal everywhere measures no sliding: till
+    stop 60 it was accepted, and the floor's friction acted along its normal."""
+    with pytest.raises(ValueError, match="parallel to the contact's normal"):
+        model(friction={"floor": (0.5, tangent)})
+    # a tangent not parallel to the normal is kept
+    assert str(model(friction={"floor": (0.5, x + y)}).friction_of["floor"][1]) == "x + y"
+
+
 @pytest.fixture(scope="module")
 def sim():
     return simulator("particle")

@@ -444,6 +444,8 @@ def test_bad_cone_friction_is_refused():
         vcigen.Model(friction={"floor": (0.3, (x, x))}, **base)
     with pytest.raises(ValueError, match="must be an expression of the coordinates"):
         vcigen.Model(friction={"floor": (0.3, (x, yd))}, **base)
+    with pytest.raises(ValueError, match="two tangents and the contact's normal grad phi are dependent"):
+        vcigen.Model(friction={"floor": (0.3, (x, 2 * x + z))}, **base)
     tangents = vcigen.Model(friction={"floor": (0.3, (x, y))}, **base).tangents_of
     assert [str(t) for t in tangents["floor"]] == ["x", "y"]
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
+from .model_checks import dependent_everywhere
+
 _C_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for "
@@ -241,6 +243,17 @@ class Model:
                 tans.append(tan)
             if len(tans) == 2 and sp.simplify(tans[0] - tans[1]) == 0:
                 raise ValueError(f"friction of {name!r}: its two tangents are the same expression")
+            if dependent_everywhere([contacts[name], *tans], real_q, params):
+                what = (
+                    f"the gradient of its tangent {tans[0]} is parallel to the contact's normal grad phi"
+                    if len(tans) == 1
+                    else "the gradients of its two tangents and the contact's normal grad phi are dependent"
+                )
+                raise ValueError(
+                    f"friction of {name!r}: {what} everywhere (tested at random q), so it measures no "
+                    "sliding along the contact; a tangent's rate is the sliding velocity (for a floor "
+                    "phi = y, the tangent is x)"
+                )
             out[name] = (mu, tans[0] if len(tans) == 1 else tuple(tans))
         return out
 
