@@ -3966,7 +3966,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
     ball_to_rest_seg_t next, after;
     double rest[BALL_TO_REST_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[BALL_TO_REST_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
-    int kink;
+    int kink, again, struck[BALL_TO_REST_M_DIM] = {0}; /* struck: the contacts met at the last impact's instant */
     ball_to_rest_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -4025,6 +4025,28 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
                 group[n_group++] = j;
             }
         }
+        if (s_best * seg->tau > c->tol->simultaneous * c->h) { /* a later instant */
+            for (j = 0; j < BALL_TO_REST_M; ++j) {
+                struck[j] = 0;
+            }
+        }
+        for (g = 0, again = 0; g < n_group; ++g) {
+            again = again || (c->tol->grazing_contact && struck[group[g]]);
+        }
+        if (again) { /* met again at the instant it was met: with the contacts met there, at once (below) */
+            int in_group[BALL_TO_REST_M_DIM] = {0};
+            for (g = 0; g < n_group; ++g) {
+                in_group[group[g]] = 1;
+            }
+            for (j = 0, n_group = 0; j < BALL_TO_REST_M; ++j) {
+                if (in_group[j] || struck[j]) {
+                    group[n_group++] = j;
+                }
+            }
+        }
+        for (g = 0; g < n_group; ++g) {
+            struck[group[g]] = 1;
+        }
         for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
             rec[(*n_rec + g) * BALL_TO_REST_W + 4] = x_best[BALL_TO_REST_N] * pend_w[g];
         }
@@ -4054,10 +4076,11 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
         }
         *seg = next;
         kink = n_group == 1 && ball_to_rest_kinked(c, next.q, v_c, p_c, group[0]);
-        if (kink) {
-            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
-             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
-             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+        if (kink || again) {
+            /* several contacts at once, one with friction, or a kink's rows, or a contact met again at the instant
+             * it was met (SustainedSteps._rough_rest): an impact while held with none held (chain_impact: Newton's
+             * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
+             * contact (simultaneous impact) */
             int rows[BALL_TO_REST_R_DIM] = {0}, lowest[BALL_TO_REST_R_DIM] = {0}, n_rows = 0;
             if (ball_to_rest_count_event(c)) {
                 return 1;

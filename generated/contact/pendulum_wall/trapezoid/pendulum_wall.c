@@ -4600,7 +4600,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
     pendulum_wall_seg_t next, after;
     double rest[PENDULUM_WALL_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[PENDULUM_WALL_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
-    int kink;
+    int kink, again, struck[PENDULUM_WALL_M_DIM] = {0}; /* struck: the contacts met at the last impact's instant */
     pendulum_wall_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -4659,6 +4659,28 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
                 group[n_group++] = j;
             }
         }
+        if (s_best * seg->tau > c->tol->simultaneous * c->h) { /* a later instant */
+            for (j = 0; j < PENDULUM_WALL_M; ++j) {
+                struck[j] = 0;
+            }
+        }
+        for (g = 0, again = 0; g < n_group; ++g) {
+            again = again || (c->tol->grazing_contact && struck[group[g]]);
+        }
+        if (again) { /* met again at the instant it was met: with the contacts met there, at once (below) */
+            int in_group[PENDULUM_WALL_M_DIM] = {0};
+            for (g = 0; g < n_group; ++g) {
+                in_group[group[g]] = 1;
+            }
+            for (j = 0, n_group = 0; j < PENDULUM_WALL_M; ++j) {
+                if (in_group[j] || struck[j]) {
+                    group[n_group++] = j;
+                }
+            }
+        }
+        for (g = 0; g < n_group; ++g) {
+            struck[group[g]] = 1;
+        }
         for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
             rec[(*n_rec + g) * PENDULUM_WALL_W + 4] = x_best[PENDULUM_WALL_N] * pend_w[g];
         }
@@ -4688,10 +4710,11 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
         }
         *seg = next;
         kink = n_group == 1 && pendulum_wall_kinked(c, next.q, v_c, p_c, group[0]);
-        if (kink) {
-            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
-             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
-             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+        if (kink || again) {
+            /* several contacts at once, one with friction, or a kink's rows, or a contact met again at the instant
+             * it was met (SustainedSteps._rough_rest): an impact while held with none held (chain_impact: Newton's
+             * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
+             * contact (simultaneous impact) */
             int rows[PENDULUM_WALL_R_DIM] = {0}, lowest[PENDULUM_WALL_R_DIM] = {0}, n_rows = 0;
             if (pendulum_wall_count_event(c)) {
                 return 1;

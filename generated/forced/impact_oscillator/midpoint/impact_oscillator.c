@@ -3280,7 +3280,7 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
     impact_oscillator_seg_t next, after;
     double rest[IMPACT_OSCILLATOR_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[IMPACT_OSCILLATOR_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
-    int kink;
+    int kink, again, struck[IMPACT_OSCILLATOR_M_DIM] = {0}; /* struck: the contacts met at the last impact's instant */
     impact_oscillator_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -3339,6 +3339,28 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
                 group[n_group++] = j;
             }
         }
+        if (s_best * seg->tau > c->tol->simultaneous * c->h) { /* a later instant */
+            for (j = 0; j < IMPACT_OSCILLATOR_M; ++j) {
+                struck[j] = 0;
+            }
+        }
+        for (g = 0, again = 0; g < n_group; ++g) {
+            again = again || (c->tol->grazing_contact && struck[group[g]]);
+        }
+        if (again) { /* met again at the instant it was met: with the contacts met there, at once (below) */
+            int in_group[IMPACT_OSCILLATOR_M_DIM] = {0};
+            for (g = 0; g < n_group; ++g) {
+                in_group[group[g]] = 1;
+            }
+            for (j = 0, n_group = 0; j < IMPACT_OSCILLATOR_M; ++j) {
+                if (in_group[j] || struck[j]) {
+                    group[n_group++] = j;
+                }
+            }
+        }
+        for (g = 0; g < n_group; ++g) {
+            struck[group[g]] = 1;
+        }
         for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
             rec[(*n_rec + g) * IMPACT_OSCILLATOR_W + 4] = x_best[IMPACT_OSCILLATOR_N] * pend_w[g];
         }
@@ -3368,10 +3390,11 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
         }
         *seg = next;
         kink = n_group == 1 && impact_oscillator_kinked(c, next.q, v_c, p_c, group[0]);
-        if (kink) {
-            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
-             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
-             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+        if (kink || again) {
+            /* several contacts at once, one with friction, or a kink's rows, or a contact met again at the instant
+             * it was met (SustainedSteps._rough_rest): an impact while held with none held (chain_impact: Newton's
+             * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
+             * contact (simultaneous impact) */
             int rows[IMPACT_OSCILLATOR_R_DIM] = {0}, lowest[IMPACT_OSCILLATOR_R_DIM] = {0}, n_rows = 0;
             if (impact_oscillator_count_event(c)) {
                 return 1;

@@ -4790,7 +4790,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
     block_seg_t next, after;
     double rest[BLOCK_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[BLOCK_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
-    int kink;
+    int kink, again, struck[BLOCK_M_DIM] = {0}; /* struck: the contacts met at the last impact's instant */
     block_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -4849,6 +4849,28 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
                 group[n_group++] = j;
             }
         }
+        if (s_best * seg->tau > c->tol->simultaneous * c->h) { /* a later instant */
+            for (j = 0; j < BLOCK_M; ++j) {
+                struck[j] = 0;
+            }
+        }
+        for (g = 0, again = 0; g < n_group; ++g) {
+            again = again || (c->tol->grazing_contact && struck[group[g]]);
+        }
+        if (again) { /* met again at the instant it was met: with the contacts met there, at once (below) */
+            int in_group[BLOCK_M_DIM] = {0};
+            for (g = 0; g < n_group; ++g) {
+                in_group[group[g]] = 1;
+            }
+            for (j = 0, n_group = 0; j < BLOCK_M; ++j) {
+                if (in_group[j] || struck[j]) {
+                    group[n_group++] = j;
+                }
+            }
+        }
+        for (g = 0; g < n_group; ++g) {
+            struck[group[g]] = 1;
+        }
         for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
             rec[(*n_rec + g) * BLOCK_W + 4] = x_best[BLOCK_N] * pend_w[g];
         }
@@ -4878,10 +4900,11 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
         }
         *seg = next;
         kink = n_group == 1 && block_kinked(c, next.q, v_c, p_c, group[0]);
-        if ((n_group > 1 && block_rough(c, group, n_group)) || kink) {
-            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
-             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
-             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+        if ((n_group > 1 && block_rough(c, group, n_group)) || kink || again) {
+            /* several contacts at once, one with friction, or a kink's rows, or a contact met again at the instant
+             * it was met (SustainedSteps._rough_rest): an impact while held with none held (chain_impact: Newton's
+             * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
+             * contact (simultaneous impact) */
             int rows[BLOCK_R_DIM] = {0}, lowest[BLOCK_R_DIM] = {0}, n_rows = 0;
             if (block_count_event(c)) {
                 return 1;

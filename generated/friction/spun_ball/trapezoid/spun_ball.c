@@ -6761,7 +6761,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
     spun_ball_seg_t next, after;
     double rest[SPUN_BALL_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[SPUN_BALL_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
-    int kink;
+    int kink, again, struck[SPUN_BALL_M_DIM] = {0}; /* struck: the contacts met at the last impact's instant */
     spun_ball_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -6820,6 +6820,28 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
                 group[n_group++] = j;
             }
         }
+        if (s_best * seg->tau > c->tol->simultaneous * c->h) { /* a later instant */
+            for (j = 0; j < SPUN_BALL_M; ++j) {
+                struck[j] = 0;
+            }
+        }
+        for (g = 0, again = 0; g < n_group; ++g) {
+            again = again || (c->tol->grazing_contact && struck[group[g]]);
+        }
+        if (again) { /* met again at the instant it was met: with the contacts met there, at once (below) */
+            int in_group[SPUN_BALL_M_DIM] = {0};
+            for (g = 0; g < n_group; ++g) {
+                in_group[group[g]] = 1;
+            }
+            for (j = 0, n_group = 0; j < SPUN_BALL_M; ++j) {
+                if (in_group[j] || struck[j]) {
+                    group[n_group++] = j;
+                }
+            }
+        }
+        for (g = 0; g < n_group; ++g) {
+            struck[group[g]] = 1;
+        }
         for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
             rec[(*n_rec + g) * SPUN_BALL_W + 4] = x_best[SPUN_BALL_N] * pend_w[g];
         }
@@ -6849,10 +6871,11 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
         }
         *seg = next;
         kink = n_group == 1 && spun_ball_kinked(c, next.q, v_c, p_c, group[0]);
-        if ((n_group > 1 && spun_ball_rough(c, group, n_group)) || kink) {
-            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
-             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
-             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+        if ((n_group > 1 && spun_ball_rough(c, group, n_group)) || kink || again) {
+            /* several contacts at once, one with friction, or a kink's rows, or a contact met again at the instant
+             * it was met (SustainedSteps._rough_rest): an impact while held with none held (chain_impact: Newton's
+             * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
+             * contact (simultaneous impact) */
             int rows[SPUN_BALL_R_DIM] = {0}, lowest[SPUN_BALL_R_DIM] = {0}, n_rows = 0;
             if (spun_ball_count_event(c)) {
                 return 1;

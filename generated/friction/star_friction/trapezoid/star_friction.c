@@ -5077,7 +5077,7 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
     star_friction_seg_t next, after;
     double rest[STAR_FRICTION_M_DIM], e_rest, e_before, e_step = e_step_in;
     int i, j, k, g, best, n_pend = 0, group[STAR_FRICTION_M_DIM], n_group, elastic, kind, touch = 0, rc, restarted;
-    int kink;
+    int kink, again, struck[STAR_FRICTION_M_DIM] = {0}; /* struck: the contacts met at the last impact's instant */
     star_friction_restitution(par, rest);
     for (k = 0; k < c->tol->max_impacts_per_step; ++k) {
         /* Earliest crossing over all crossed contacts (47)/(78); ties are one impact. */
@@ -5136,6 +5136,28 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
                 group[n_group++] = j;
             }
         }
+        if (s_best * seg->tau > c->tol->simultaneous * c->h) { /* a later instant */
+            for (j = 0; j < STAR_FRICTION_M; ++j) {
+                struck[j] = 0;
+            }
+        }
+        for (g = 0, again = 0; g < n_group; ++g) {
+            again = again || (c->tol->grazing_contact && struck[group[g]]);
+        }
+        if (again) { /* met again at the instant it was met: with the contacts met there, at once (below) */
+            int in_group[STAR_FRICTION_M_DIM] = {0};
+            for (g = 0; g < n_group; ++g) {
+                in_group[group[g]] = 1;
+            }
+            for (j = 0, n_group = 0; j < STAR_FRICTION_M; ++j) {
+                if (in_group[j] || struck[j]) {
+                    group[n_group++] = j;
+                }
+            }
+        }
+        for (g = 0; g < n_group; ++g) {
+            struck[group[g]] = 1;
+        }
         for (g = 0; g < n_pend; ++g) { /* the impulse at the previous impact, re-solved with beta (78) */
             rec[(*n_rec + g) * STAR_FRICTION_W + 4] = x_best[STAR_FRICTION_N] * pend_w[g];
         }
@@ -5165,10 +5187,11 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
         }
         *seg = next;
         kink = n_group == 1 && star_friction_kinked(c, next.q, v_c, p_c, group[0]);
-        if ((n_group > 1 && star_friction_rough(c, group, n_group)) || kink) {
-            /* several contacts at once, one with friction, or a kink's rows (SustainedSteps._rough_rest): an impact
-             * while held with none held (chain_impact: Newton's law, Coulomb's cone as they land), then the rest of
-             * the step (chain); the tangent broke at the contact (simultaneous impact) */
+        if ((n_group > 1 && star_friction_rough(c, group, n_group)) || kink || again) {
+            /* several contacts at once, one with friction, or a kink's rows, or a contact met again at the instant
+             * it was met (SustainedSteps._rough_rest): an impact while held with none held (chain_impact: Newton's
+             * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
+             * contact (simultaneous impact) */
             int rows[STAR_FRICTION_R_DIM] = {0}, lowest[STAR_FRICTION_R_DIM] = {0}, n_rows = 0;
             if (star_friction_count_event(c)) {
                 return 1;
