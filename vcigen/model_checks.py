@@ -9,9 +9,8 @@ import sympy as sp
 
 SAMPLES = 8  # random configurations a dependence is tested at
 SEED = 20261207  # fixed: a model is accepted or refused the same way every time
-INDEPENDENT = (
-    1e-12  # the normalised Gram determinant below which gradients are dependent (two: sin^2 of their angle)
-)
+# the normalised Gram determinant below which gradients are dependent (of two: the sin^2 of their angle)
+INDEPENDENT = 1e-12
 
 
 def dependent_everywhere(
