@@ -92,7 +92,7 @@ def test_fine_steps_only_for_compiled_vcigen_and_two_accuracies_in_the_summary(t
     assert setup.hs_for("vcigen_casadi_trapezoid") == setup.hs == setup.hs_for("verlet_full_flip")
     fine = setup.hs_for("vcigen_c_trapezoid")
     assert fine[: len(setup.hs)] == setup.hs and min(fine) < min(setup.hs) / 100
-    argv = ["--scenes", "particle", "--methods", "vcigen_casadi_trapezoid", "--hs", "0.01,0.005"]
+    argv = ["--scenes", "particle", "--methods", "vcigen_casadi_trapezoid", "--hs", "0.01,0.001"]
     argv += ["--phases", "1", "--no-long", "--targets", "1e-3,1e-9", "--out", str(tmp_path)]
     assert run.main(argv) == 0
     summary = (tmp_path / "summary.md").read_text()
