@@ -1223,6 +1223,7 @@ static inline int particle_held(const particle_sustain_t *sus)
 #define PARTICLE_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define PARTICLE_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
 #define PARTICLE_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define PARTICLE_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define PARTICLE_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
@@ -2902,11 +2903,12 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     double vv[PARTICLE_N], lam[PARTICLE_R_DIM], lam1[PARTICLE_R_DIM], q1[PARTICLE_N], p1[PARTICLE_N];
     double psi1[PARTICLE_R_DIM], grad[PARTICLE_R_DIM * PARTICLE_N], curv[PARTICLE_R_DIM];
     double s_ev[PARTICLE_R_DIM] = {0.0}, e_seg, e_sub, s, u1[PARTICLE_N], f0[PARTICLE_R_DIM];
+    double e_at = 0.0; /* E_d at the segment's start where known (at_known): its last event's; an impact's after it */
     double f1[PARTICLE_R_DIM], vel[PARTICLE_N], f_eps, psi_s[PARTICLE_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[PARTICLE_R_DIM] = {0.0}, g_dip[PARTICLE_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
+    int ev[PARTICLE_R_DIM], group[PARTICLE_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc, at_known = 0;
     int dip[PARTICLE_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[PARTICLE_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[PARTICLE_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -3010,6 +3012,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             }
             t += tau;
             rest -= tau;
+            e_at = e_seg;
+            at_known = 1;
             continue;
         }
         if (!any) {
@@ -3060,7 +3064,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
                 for (r = 0; r < PARTICLE_R; ++r) {
                     lam[r] = lam1[r] = 0.0;
                 }
-                e_sub = e_seg;
+                e_sub = at_known ? e_at : e_seg; /* its E_d the start's where known (E_SHORT), not the segment's end's */
                 particle_velocity(c, q, vv, p, u1);
                 if (particle_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
                     return 1;
@@ -3070,6 +3074,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             if (particle_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            e_sub = s * tau <= PARTICLE_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!particle_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
@@ -3082,6 +3087,8 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
                 }
             }
         }
+        e_at = e_sub;
+        at_known = 1;
         particle_book(c, lam, lam1, q1);
         for (i = 0; i < PARTICLE_N; ++i) {
             q[i] = q1[i];
@@ -3126,6 +3133,7 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        e_at = rec[(*n_rec - 1) * PARTICLE_W + 6]; /* the last impact's energy_after (log) */
         struck = 1;
         particle_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < PARTICLE_N; ++i) {

@@ -1727,6 +1727,7 @@ static inline int four_bar_held(const four_bar_sustain_t *sus)
 #define FOUR_BAR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define FOUR_BAR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
 #define FOUR_BAR_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define FOUR_BAR_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define FOUR_BAR_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
@@ -3406,11 +3407,12 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     double vv[FOUR_BAR_N], lam[FOUR_BAR_R_DIM], lam1[FOUR_BAR_R_DIM], q1[FOUR_BAR_N], p1[FOUR_BAR_N];
     double psi1[FOUR_BAR_R_DIM], grad[FOUR_BAR_R_DIM * FOUR_BAR_N], curv[FOUR_BAR_R_DIM];
     double s_ev[FOUR_BAR_R_DIM] = {0.0}, e_seg, e_sub, s, u1[FOUR_BAR_N], f0[FOUR_BAR_R_DIM];
+    double e_at = 0.0; /* E_d at the segment's start where known (at_known): its last event's; an impact's after it */
     double f1[FOUR_BAR_R_DIM], vel[FOUR_BAR_N], f_eps, psi_s[FOUR_BAR_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[FOUR_BAR_R_DIM] = {0.0}, g_dip[FOUR_BAR_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[FOUR_BAR_R_DIM], group[FOUR_BAR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
+    int ev[FOUR_BAR_R_DIM], group[FOUR_BAR_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc, at_known = 0;
     int dip[FOUR_BAR_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[FOUR_BAR_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[FOUR_BAR_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -3514,6 +3516,8 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             }
             t += tau;
             rest -= tau;
+            e_at = e_seg;
+            at_known = 1;
             continue;
         }
         if (!any) {
@@ -3564,7 +3568,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                 for (r = 0; r < FOUR_BAR_R; ++r) {
                     lam[r] = lam1[r] = 0.0;
                 }
-                e_sub = e_seg;
+                e_sub = at_known ? e_at : e_seg; /* its E_d the start's where known (E_SHORT), not the segment's end's */
                 four_bar_velocity(c, q, vv, p, u1);
                 if (four_bar_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
                     return 1;
@@ -3574,6 +3578,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             if (four_bar_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            e_sub = s * tau <= FOUR_BAR_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!four_bar_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
@@ -3586,6 +3591,8 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                 }
             }
         }
+        e_at = e_sub;
+        at_known = 1;
         four_bar_book(c, lam, lam1, q1);
         for (i = 0; i < FOUR_BAR_N; ++i) {
             q[i] = q1[i];
@@ -3630,6 +3637,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         if (four_bar_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        e_at = rec[(*n_rec - 1) * FOUR_BAR_W + 6]; /* the last impact's energy_after (log) */
         struck = 1;
         four_bar_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < FOUR_BAR_N; ++i) {

@@ -1200,6 +1200,7 @@ static inline int impact_damper_held(const impact_damper_sustain_t *sus)
 #define IMPACT_DAMPER_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define IMPACT_DAMPER_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
 #define IMPACT_DAMPER_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define IMPACT_DAMPER_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define IMPACT_DAMPER_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
@@ -2882,11 +2883,12 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
     double vv[IMPACT_DAMPER_N], lam[IMPACT_DAMPER_R_DIM], lam1[IMPACT_DAMPER_R_DIM], q1[IMPACT_DAMPER_N], p1[IMPACT_DAMPER_N];
     double psi1[IMPACT_DAMPER_R_DIM], grad[IMPACT_DAMPER_R_DIM * IMPACT_DAMPER_N], curv[IMPACT_DAMPER_R_DIM];
     double s_ev[IMPACT_DAMPER_R_DIM] = {0.0}, e_seg, e_sub, s, u1[IMPACT_DAMPER_N], f0[IMPACT_DAMPER_R_DIM];
+    double e_at = 0.0; /* E_d at the segment's start where known (at_known): its last event's; an impact's after it */
     double f1[IMPACT_DAMPER_R_DIM], vel[IMPACT_DAMPER_N], f_eps, psi_s[IMPACT_DAMPER_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[IMPACT_DAMPER_R_DIM] = {0.0}, g_dip[IMPACT_DAMPER_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[IMPACT_DAMPER_R_DIM], group[IMPACT_DAMPER_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
+    int ev[IMPACT_DAMPER_R_DIM], group[IMPACT_DAMPER_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc, at_known = 0;
     int dip[IMPACT_DAMPER_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[IMPACT_DAMPER_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[IMPACT_DAMPER_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -2990,6 +2992,8 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
             }
             t += tau;
             rest -= tau;
+            e_at = e_seg;
+            at_known = 1;
             continue;
         }
         if (!any) {
@@ -3040,7 +3044,7 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
                 for (r = 0; r < IMPACT_DAMPER_R; ++r) {
                     lam[r] = lam1[r] = 0.0;
                 }
-                e_sub = e_seg;
+                e_sub = at_known ? e_at : e_seg; /* its E_d the start's where known (E_SHORT), not the segment's end's */
                 impact_damper_velocity(c, q, vv, p, u1);
                 if (impact_damper_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
                     return 1;
@@ -3050,6 +3054,7 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
             if (impact_damper_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            e_sub = s * tau <= IMPACT_DAMPER_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!impact_damper_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
@@ -3063,6 +3068,8 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
             }
         }
         *e_step = e_sub; /* forces: the step's energy is its last segment's */
+        e_at = e_sub;
+        at_known = 1;
         impact_damper_book(c, lam, lam1, q1);
         for (i = 0; i < IMPACT_DAMPER_N; ++i) {
             q[i] = q1[i];
@@ -3107,6 +3114,7 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
         if (impact_damper_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        e_at = rec[(*n_rec - 1) * IMPACT_DAMPER_W + 6]; /* the last impact's energy_after (log) */
         struck = 1;
         impact_damper_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < IMPACT_DAMPER_N; ++i) {

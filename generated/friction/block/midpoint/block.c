@@ -1227,6 +1227,7 @@ static inline int block_held(const block_sustain_t *sus)
 #define BLOCK_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define BLOCK_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
 #define BLOCK_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define BLOCK_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define BLOCK_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
@@ -3996,11 +3997,12 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     double vv[BLOCK_N], lam[BLOCK_R_DIM], lam1[BLOCK_R_DIM], q1[BLOCK_N], p1[BLOCK_N];
     double psi1[BLOCK_R_DIM], grad[BLOCK_R_DIM * BLOCK_N], curv[BLOCK_R_DIM];
     double s_ev[BLOCK_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BLOCK_N], f0[BLOCK_R_DIM];
+    double e_at = 0.0; /* E_d at the segment's start where known (at_known): its last event's; an impact's after it */
     double f1[BLOCK_R_DIM], vel[BLOCK_N], f_eps, psi_s[BLOCK_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[BLOCK_R_DIM] = {0.0}, g_dip[BLOCK_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
+    int ev[BLOCK_R_DIM], group[BLOCK_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc, at_known = 0;
     int dip[BLOCK_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BLOCK_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BLOCK_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -4224,6 +4226,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             }
             t += tau;
             rest -= tau;
+            e_at = e_seg;
+            at_known = 1;
             continue;
         }
         if (!any) {
@@ -4258,6 +4262,17 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     r0 = r;
                 }
             }
+            if (ev[r0] >= 2) { /* of a landing's instant (simultaneous), a friction switch first, as at a segment's
+                                * start; of a switch's, a lift-off (the rows' forces change with it) */
+                const double s_near = s_ev[r0] + c->tol->simultaneous;
+                const int first = r0;
+                for (r = 0; r < BLOCK_R; ++r) {
+                    const int take = ev[first] == 2 ? ev[r] >= 3 : ev[r] == 1;
+                    if (take && s_ev[r] <= s_near && (r0 == first || s_ev[r] < s_ev[r0])) {
+                        r0 = r;
+                    }
+                }
+            }
             s = s_ev[r0];
             if (block_count_event(c)) {
                 return 1;
@@ -4274,7 +4289,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 for (r = 0; r < BLOCK_R; ++r) {
                     lam[r] = lam1[r] = 0.0;
                 }
-                e_sub = e_seg;
+                e_sub = at_known ? e_at : e_seg; /* its E_d the start's where known (E_SHORT), not the segment's end's */
                 block_velocity(c, q, vv, p, u1);
                 if (block_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
                     return 1;
@@ -4284,6 +4299,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             if (block_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            e_sub = s * tau <= BLOCK_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!block_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
@@ -4296,6 +4312,8 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 }
             }
         }
+        e_at = e_sub;
+        at_known = 1;
         block_book(c, lam, lam1, q1);
         for (i = 0; i < BLOCK_N; ++i) {
             q[i] = q1[i];
@@ -4349,6 +4367,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        e_at = rec[(*n_rec - 1) * BLOCK_W + 6]; /* the last impact's energy_after (log) */
         struck = 1;
         block_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < BLOCK_N; ++i) {

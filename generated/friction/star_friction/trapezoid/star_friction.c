@@ -1505,6 +1505,7 @@ static inline int star_friction_held(const star_friction_sustain_t *sus)
 #define STAR_FRICTION_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define STAR_FRICTION_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
 #define STAR_FRICTION_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define STAR_FRICTION_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define STAR_FRICTION_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
@@ -4283,11 +4284,12 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     double vv[STAR_FRICTION_N], lam[STAR_FRICTION_R_DIM], lam1[STAR_FRICTION_R_DIM], q1[STAR_FRICTION_N], p1[STAR_FRICTION_N];
     double psi1[STAR_FRICTION_R_DIM], grad[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv[STAR_FRICTION_R_DIM];
     double s_ev[STAR_FRICTION_R_DIM] = {0.0}, e_seg, e_sub, s, u1[STAR_FRICTION_N], f0[STAR_FRICTION_R_DIM];
+    double e_at = 0.0; /* E_d at the segment's start where known (at_known): its last event's; an impact's after it */
     double f1[STAR_FRICTION_R_DIM], vel[STAR_FRICTION_N], f_eps, psi_s[STAR_FRICTION_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[STAR_FRICTION_R_DIM] = {0.0}, g_dip[STAR_FRICTION_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
+    int ev[STAR_FRICTION_R_DIM], group[STAR_FRICTION_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc, at_known = 0;
     int dip[STAR_FRICTION_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[STAR_FRICTION_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[STAR_FRICTION_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -4511,6 +4513,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             }
             t += tau;
             rest -= tau;
+            e_at = e_seg;
+            at_known = 1;
             continue;
         }
         if (!any) {
@@ -4545,6 +4549,17 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     r0 = r;
                 }
             }
+            if (ev[r0] >= 2) { /* of a landing's instant (simultaneous), a friction switch first, as at a segment's
+                                * start; of a switch's, a lift-off (the rows' forces change with it) */
+                const double s_near = s_ev[r0] + c->tol->simultaneous;
+                const int first = r0;
+                for (r = 0; r < STAR_FRICTION_R; ++r) {
+                    const int take = ev[first] == 2 ? ev[r] >= 3 : ev[r] == 1;
+                    if (take && s_ev[r] <= s_near && (r0 == first || s_ev[r] < s_ev[r0])) {
+                        r0 = r;
+                    }
+                }
+            }
             s = s_ev[r0];
             if (star_friction_count_event(c)) {
                 return 1;
@@ -4561,7 +4576,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 for (r = 0; r < STAR_FRICTION_R; ++r) {
                     lam[r] = lam1[r] = 0.0;
                 }
-                e_sub = e_seg;
+                e_sub = at_known ? e_at : e_seg; /* its E_d the start's where known (E_SHORT), not the segment's end's */
                 star_friction_velocity(c, q, vv, p, u1);
                 if (star_friction_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
                     return 1;
@@ -4571,6 +4586,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             if (star_friction_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            e_sub = s * tau <= STAR_FRICTION_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!star_friction_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
@@ -4583,6 +4599,8 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 }
             }
         }
+        e_at = e_sub;
+        at_known = 1;
         star_friction_book(c, lam, lam1, q1);
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             q[i] = q1[i];
@@ -4636,6 +4654,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        e_at = rec[(*n_rec - 1) * STAR_FRICTION_W + 6]; /* the last impact's energy_after (log) */
         struck = 1;
         star_friction_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < STAR_FRICTION_N; ++i) {

@@ -1442,6 +1442,7 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
 #define BALL_BOX_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
 #define BALL_BOX_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
+#define BALL_BOX_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define BALL_BOX_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
 
 /* Row r's contact (-1 for a bilateral constraint) and constraint (-1 for a contact row) (vcigen.rows). */
@@ -3121,11 +3122,12 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     double vv[BALL_BOX_N], lam[BALL_BOX_R_DIM], lam1[BALL_BOX_R_DIM], q1[BALL_BOX_N], p1[BALL_BOX_N];
     double psi1[BALL_BOX_R_DIM], grad[BALL_BOX_R_DIM * BALL_BOX_N], curv[BALL_BOX_R_DIM];
     double s_ev[BALL_BOX_R_DIM] = {0.0}, e_seg, e_sub, s, u1[BALL_BOX_N], f0[BALL_BOX_R_DIM];
+    double e_at = 0.0; /* E_d at the segment's start where known (at_known): its last event's; an impact's after it */
     double f1[BALL_BOX_R_DIM], vel[BALL_BOX_N], f_eps, psi_s[BALL_BOX_R_DIM] = {0.0};
     const double *fp = f1; /* f1 as the lift-off test reads it (pressed: fpress where a stick rides) */
     double rest = tau; /* the time left of the grid step; tau: the segment's (less where split_segment halved it) */
     double s_dip[BALL_BOX_R_DIM] = {0.0}, g_dip[BALL_BOX_R_DIM] = {0.0}; /* {0}: for -O3 (a false warning) */
-    int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc;
+    int ev[BALL_BOX_R_DIM], group[BALL_BOX_R_DIM], i, g, r, r0, start, any, pulled, n_group, halved, rc, at_known = 0;
     int dip[BALL_BOX_R_DIM]; /* inactive rows that dip below 0 inside the segment (row_dips) */
     int passed[BALL_BOX_R_DIM] = {0}; /* rows that passed their load at this instant (pass_load): none passes back */
     int hit[BALL_BOX_R_DIM] = {0}; /* rows an impact while held met at this instant (chain_impact: again, held) */
@@ -3229,6 +3231,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             }
             t += tau;
             rest -= tau;
+            e_at = e_seg;
+            at_known = 1;
             continue;
         }
         if (!any) {
@@ -3279,7 +3283,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 for (r = 0; r < BALL_BOX_R; ++r) {
                     lam[r] = lam1[r] = 0.0;
                 }
-                e_sub = e_seg;
+                e_sub = at_known ? e_at : e_seg; /* its E_d the start's where known (E_SHORT), not the segment's end's */
                 ball_box_velocity(c, q, vv, p, u1);
                 if (ball_box_held_limit(c, q, p, vv, lam1, p1, u1)) { /* held rows an impact left moving: projected */
                     return 1;
@@ -3289,6 +3293,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             if (ball_box_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            e_sub = s * tau <= BALL_BOX_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!ball_box_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
@@ -3301,6 +3306,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 }
             }
         }
+        e_at = e_sub;
+        at_known = 1;
         ball_box_book(c, lam, lam1, q1);
         for (i = 0; i < BALL_BOX_N; ++i) {
             q[i] = q1[i];
@@ -3345,6 +3352,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
             return 1;
         }
+        e_at = rec[(*n_rec - 1) * BALL_BOX_W + 6]; /* the last impact's energy_after (log) */
         struck = 1;
         ball_box_velocity(c, q, v, p, vel); /* the next segment's first guess: the velocity after the impact */
         for (i = 0; i < BALL_BOX_N; ++i) {
