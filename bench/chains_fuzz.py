@@ -137,7 +137,8 @@ def main() -> None:
     errors, below = t["errors"], t["below"]
     print(
         f"{a.scene}: {a.draws} draws (seed {a.seed}): errors C {errors['c']}, CasADi {errors['casadi']}; "
-        f"below a row by more than 1e-9: C {below['c']}, CasADi {below['casadi']}; apart: {t['apart']}"
+        f"below a row by more than 1e-9: C {below['c']}, CasADi {below['casadi']}; apart: {t['apart']} "
+        f"(parted in one step: {t['parted']})"
     )
 
 

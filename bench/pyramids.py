@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import vcigen
+from bench.random_runs import how_apart, parted
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "contact"))
 import pyramid  # noqa: E402 - examples/contact/pyramid.py: the model, R, gaps
@@ -61,7 +62,7 @@ def fuzz(model: vcigen.Model, draw, gap, t_end: float, draws: int, seed: int, ou
     sims = {b: vcigen.build(model, backend=b) for b in ("c", "casadi")}
     rng = np.random.default_rng(seed)
     tally: dict = {key: dict.fromkeys(sims, 0) for key in ("errors", "below", "cuts")}
-    tally |= {"outside": 0, "apart": 0}
+    tally |= {"outside": 0, "apart": 0, "parted": 0}
     for k in range(draws):
         d = draw(rng)
         res, why = {}, []
@@ -84,7 +85,8 @@ def fuzz(model: vcigen.Model, draw, gap, t_end: float, draws: int, seed: int, ou
         dq = float(np.abs(c.q[-1] - k_.q[-1]).max()) if c.t.size == k_.t.size else float("inf")
         if dq > 1e-6 or len(c.impacts) != len(k_.impacts):
             tally["apart"] += 1
-            why.append(f"apart by {dq:.2e}, impacts {len(c.impacts)} / {len(k_.impacts)}")
+            tally["parted"] += parted(c, k_) is not None
+            why.append(f"apart by {dq:.2e}, impacts {len(c.impacts)} / {len(k_.impacts)}; {how_apart(c, k_)}")
             why.append("first apart by 1e-12, 1e-9, 1e-6 at t = " + str(divergence(c, k_)))
         if why:
             print(f"draw {k} {d}:\n  " + "\n  ".join(why), flush=True)
@@ -101,8 +103,8 @@ def main() -> None:
     errors, below, cuts = t["errors"], t["below"], t["cuts"]
     print(
         f"{a.draws} draws (seed {a.seed}): errors C {errors['c']}, CasADi {errors['casadi']}; below a row by "
-        f"more than 1e-9: C {below['c']}, CasADi {below['casadi']}; backends apart: {t['apart']}; riders "
-        f"cut: C {cuts['c']}, CasADi {cuts['casadi']}"
+        f"more than 1e-9: C {below['c']}, CasADi {below['casadi']}; backends apart: {t['apart']} "
+        f"(parted in one step: {t['parted']}); riders cut: C {cuts['c']}, CasADi {cuts['casadi']}"
     )
 
 

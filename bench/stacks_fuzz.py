@@ -102,7 +102,7 @@ def main() -> None:
     print(
         f"{a.scene}: {a.draws} draws (seed {a.seed}): errors C {errors['c']}, CasADi {errors['casadi']}; "
         f"below a row by more than 1e-9: C {below['c']}, CasADi {below['casadi']}; out of the model: "
-        f"{t['outside']}; backends apart: {t['apart']}"
+        f"{t['outside']}; backends apart: {t['apart']} (parted in one step: {t['parted']})"
     )
 
 
