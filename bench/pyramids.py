@@ -85,8 +85,9 @@ def fuzz(model: vcigen.Model, draw, gap, t_end: float, draws: int, seed: int, ou
         dq = float(np.abs(c.q[-1] - k_.q[-1]).max()) if c.t.size == k_.t.size else float("inf")
         if dq > 1e-6 or len(c.impacts) != len(k_.impacts):
             tally["apart"] += 1
-            tally["parted"] += parted(c, k_) is not None
-            why.append(f"apart by {dq:.2e}, impacts {len(c.impacts)} / {len(k_.impacts)}; {how_apart(c, k_)}")
+            where = parted(c, k_)
+            tally["parted"] += where is not None
+            why.append(f"apart by {dq:.2e}, impacts {len(c.impacts)} / {len(k_.impacts)}; {how_apart(where)}")
             why.append("first apart by 1e-12, 1e-9, 1e-6 at t = " + str(divergence(c, k_)))
         if why:
             print(f"draw {k} {d}:\n  " + "\n  ".join(why), flush=True)

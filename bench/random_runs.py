@@ -128,9 +128,8 @@ def parted(a: vcigen.Result, b: vcigen.Result) -> tuple[float, float, float] | N
     return float(a.t[j]), float(gap[j - 1]), float(gap[j])
 
 
-def how_apart(a: vcigen.Result, b: vcigen.Result) -> str:
-    """:func:`parted`'s answer as a phrase."""
-    where = parted(a, b)
+def how_apart(where: tuple[float, float, float] | None) -> str:
+    """:func:`parted`'s answer ``where`` as a phrase."""
     if where is None:
         return "round-off grown"
     return f"parted in the step to t = {where[0]:.6g} ({where[1]:.1e} -> {where[2]:.1e})"
@@ -160,9 +159,10 @@ def agree(
         worst = max(worst, gap)
         if gap > 1e-6 or len(c.impacts) != len(cas.impacts):
             apart += 1
-            split += parted(c, cas) is not None
+            where = parted(c, cas)
+            split += where is not None
             counts = f"impacts C {len(c.impacts)}, CasADi {len(cas.impacts)}"
-            print(f"  drop {i} {start[2]}: {gap:.2e} apart; {counts}; {how_apart(c, cas)}")
+            print(f"  drop {i} {start[2]}: {gap:.2e} apart; {counts}; {how_apart(where)}")
     print(
         f"C against CasADi, {drops} runs (seed {seed}, h = {h}): apart {apart} "
         f"(parted in one step: {split}); largest apart {worst:.1e}"

@@ -22,7 +22,7 @@ def test_a_gap_grown_impact_by_impact_is_round_off() -> None:
     gaps = 1e-16 * np.cumprod(np.r_[1.0, np.where(np.arange(99) % 8 == 0, 25.0, 1.05)])
     a, b = _runs(gaps)
     assert gaps[-1] > 1e-6 and parted(a, b) is None
-    assert how_apart(a, b) == "round-off grown"
+    assert how_apart(parted(a, b)) == "round-off grown"
 
 
 def test_a_gap_that_jumps_in_one_step_is_where_they_parted() -> None:
@@ -31,7 +31,7 @@ def test_a_gap_that_jumps_in_one_step_is_where_they_parted() -> None:
     a, b = _runs(gaps)
     t, before, after = parted(a, b)
     assert np.isclose(t, 0.26) and before == 3.6e-17 and after == 5.9e-4
-    assert how_apart(a, b).startswith("parted in the step to t = 0.26 ")
+    assert how_apart(parted(a, b)).startswith("parted in the step to t = 0.26 ")
 
 
 def test_a_jump_below_1e_9_or_below_the_factor_is_not_a_parting() -> None:

@@ -277,8 +277,8 @@ def test_a_contact_lifting_off_as_its_friction_slides_lifts_off_first_on_both_ba
     """At t = 0.2410 the left corner, held and sticking, lifts off as the plate falls away: its normal force
     reaches 0, and with it its cone, so its slide is located at the same instant (1.3e-16 of the step apart,
     each backend's round-off ordering them its own way). Till stop 60 C took the slide first and CasADi the
-    lift-off, and the runs parted there by 5.9e-4. Of a friction switch and its contact's lift-off of one
-    instant (``Tolerances.simultaneous``) the lift-off is taken first on both: the same impacts, lift-offs
+    lift-off, and the runs parted there by 5.9e-4. Of a friction switch and a lift-off of one instant
+    (``Tolerances.simultaneous``) the lift-off is taken first on both: the same impacts, lift-offs
     and ``q`` within 1e-9 to t = 2."""
     c, cas = (_run(b, LIFTED, 0.02) for b in ("c", "casadi"))
     assert [(i.contact, i.kind, i.step) for i in c.impacts] == [
