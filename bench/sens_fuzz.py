@@ -1,0 +1,246 @@
+"""Sensitivities of random runs against central differences: ``res.sensitivity`` (API.md, *Sensitivities*)
+through impacts, held steps, lift-offs and friction, column by column, over the random campaigns' draws.
+
+    .venv/bin/python -m bench.sens_fuzz [--scene plate hoop ...] [--draws 100] [--seed 1] [--backend c]
+
+For each draw of a scene (the draws of its campaign bench, below) the run with ``sensitivities=True`` gives
+``S_K = d(q_K, p_K) / d(q0, v0, params)`` at ``K``, the grid point where its first break is booked
+(``res.sensitivity_breaks``: NaN from there) or the run's end. Each column ``x`` of ``S_K`` is checked against
+central differences of runs from ``x +- eps`` and ``x +- eps / 4`` (``eps = 1e-5 max(1, |x|)``), where:
+
+* each of those four runs has the run's mode sequence up to ``K`` (the same impacts, of the same kind on the
+  same contacts in the same steps; the same lift-offs; the same held contacts at every grid point), else the
+  column is *skipped*: the tangent is the derivative "for the mode sequence of the run" (API.md) and a
+  difference across a mode change is not one;
+* the map is smooth there (:func:`classify`): at a *kink*, where the one-sided differences part by the same
+  amount at ``eps`` and ``eps / 4``, the column is not checked either. Kinks are the discrete map's: a hoop
+  started rolling exactly (``bench.hoop_drops``' draws) slips for ``O(eps)`` on either side of it and stops
+  inside the first step, and the two one-sided derivatives differ at ``O(h^2)`` (measured: 3.0e-3, 7.5e-4,
+  1.9e-4, 4.7e-5 at ``h`` = 0.01 to 0.00125 at t = 0.02; the tangent, the rolling mode's, between them).
+
+A checked column's error is ``(max |S_K[:, j] - D_j| - d) / max(|D_j|, |S_K[:, j]|, 1e-3)`` with ``D_j`` the
+central difference at ``eps / 4`` and ``d`` its distance from the one at ``eps`` (at most 1e-4 of that scale):
+what the differences cannot resolve, the runs' solver tolerance over ``eps`` (a cam's flywheel, ``d(q, p) /
+dk`` of 1e-4: the tangent within 3e-8 of the difference at ``eps = 1e-4``, 1.8e-5 of the scale at 1e-6, 3e-4
+at 1e-8). Printed per scene: the columns checked, skipped and at a kink, the largest error and the draws
+above ``--tol`` (1e-4).
+
+Scenes (``h``, ``t_end``): ``plate`` (``tests/test_box_on_a_vibrating_plate.py``; 0.005, 1), ``hoop``
+(``bench.hoop_drops``; 0.01, 1), ``cam`` (``bench.cam_drops``), ``table`` (``bench.table_drops``), ``damper``
+(``bench.damper_drops``) (0.01, 1 each), ``box_v`` and ``groove`` (``bench.box_v_drops``,
+``bench.groove_drops``; 0.01, 2), ``tumbling`` (``bench.tumbling``; 0.005, 2). Models with bilateral
+constraints (``bench.chains_fuzz``) are not drawn: a start moved off its constraints is refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+import vcigen
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+Start = tuple[list[float], list[float], dict[str, float]]
+EPS = 1e-5  # the larger difference step, relative to max(1, |x|)
+AGREE = 1e-4  # the two central differences agree to this of the column's scale
+KINK = 1e-4  # one-sided differences parting by more than this of the scale, not shrinking with eps: a kink
+# (a smaller kink would be checked, its error below --tol's default)
+FLOOR = 1e-3  # the least scale of a column
+
+# name: (module with the model, module with the draw, h, t_end)
+SCENES = {
+    "plate": ("test_box_on_a_vibrating_plate", "test_box_on_a_vibrating_plate", 0.005, 1.0),
+    "hoop": ("test_hopping_hoop", "bench.hoop_drops", 0.01, 1.0),
+    "cam": ("test_cam_follower", "bench.cam_drops", 0.01, 1.0),
+    "table": ("test_shaken_table", "bench.table_drops", 0.01, 1.0),
+    "damper": ("test_impact_damper", "bench.damper_drops", 0.01, 1.0),
+    "box_v": ("bench.box_v_drops", "bench.box_v_drops", 0.01, 2.0),
+    "groove": ("bench.groove_drops", "bench.groove_drops", 0.01, 2.0),
+    "tumbling": ("test_tumbling_box", "bench.tumbling", 0.005, 2.0),
+}
+
+
+def scene(name: str, backend: str) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start]]:
+    """The scene's simulator and its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order)."""
+    model_mod, draw_mod = (importlib.import_module(m) for m in SCENES[name][:2])
+    if name in ("box_v", "groove"):
+        sim = vcigen.build(model_mod.model(), backend=backend)
+
+        def draw(rng: np.random.Generator) -> Start:
+            params, q0, v0 = draw_mod.draw(rng)
+            return q0, v0, params
+
+    elif name == "tumbling":
+        sim = vcigen.build(model_mod.tumble(), backend=backend)
+
+        def draw(rng: np.random.Generator) -> Start:
+            d = draw_mod.drop(rng)
+            return d["q0"], d["v0"], d["params"]
+
+    else:
+        sim, draw = model_mod.simulator(backend), draw_mod.draw
+    return sim, draw
+
+
+def run(sim: vcigen.Simulator, start: Start, h: float, t_end: float, sens: bool = False) -> vcigen.Result:
+    q0, v0, params = start
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return sim.simulate(q0, v0, h, t_end=t_end, params=params, progress=False, sensitivities=sens)
+
+
+def modes(res: vcigen.Result, k: int) -> tuple:
+    """The run's mode sequence up to grid point ``k``: impacts (step, contact, kind), lift-offs (step,
+    contact) and the held contacts at each grid point."""
+    h, t0 = res.h, float(res.t[0])
+    impacts = [(im.step, im.contact, im.kind) for im in res.impacts if im.step < k]
+    lifts = [(int((t - t0) // h), c) for t, c in res.liftoffs if t < t0 + k * h - 1e-12 * h]
+    held = res.active[: k + 1].tobytes() if res.active is not None else b""
+    return impacts, lifts, held
+
+
+def moved(start: Start, names: list[str], j: int, dx: float) -> Start:
+    """``start`` with its ``j``-th column (of ``res.sensitivity_names``: q0, v0, then params) moved by dx."""
+    q0, v0, params = list(start[0]), list(start[1]), dict(start[2])
+    n = len(q0)
+    if j < n:
+        q0[j] += dx
+    elif j < 2 * n:
+        v0[j - n] += dx
+    else:
+        params[names[j]] += dx
+    return q0, v0, params
+
+
+def value(start: Start, names: list[str], j: int) -> float:
+    n = len(start[0])
+    return float(start[0][j] if j < n else start[1][j - n] if j < 2 * n else start[2][names[j]])
+
+
+def classify(base, ends: dict[float, np.ndarray], eps: float, tangent) -> tuple[str, float]:
+    """``("checked", error)`` or ``("kink", nan)`` from the ends ``ends[dx]`` of the runs moved by ``dx`` in
+    ``(eps, -eps, eps/4, -eps/4)`` and the unmoved run's ``base``: a kink where the one-sided differences part
+    by more than ``KINK`` of the scale and by more than half as much at ``eps / 4`` as at ``eps`` (on a smooth
+    map they part by ``O(eps)``), or where the two central differences disagree by more than ``AGREE``."""
+    if not np.isfinite(tangent).all():  # before the first break the tangent is finite: an error
+        return "checked", float("inf")
+    e4 = eps / 4
+    central = (ends[e4] - ends[-e4]) / (2 * e4)
+    scale = max(float(np.abs(central).max()), float(np.abs(tangent).max()), FLOOR)
+    parted = float(np.abs(ends[eps] + ends[-eps] - 2 * base).max()) / eps
+    parted4 = float(np.abs(ends[e4] + ends[-e4] - 2 * base).max()) / e4
+    wide = (ends[eps] - ends[-eps]) / (2 * eps)
+    spread = float(np.abs(wide - central).max())
+    if (parted4 > KINK * scale and parted4 > 0.5 * parted) or spread > AGREE * scale:
+        return "kink", float("nan")
+    return "checked", max(0.0, float(np.abs(np.asarray(tangent) - central).max()) - spread) / scale
+
+
+def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> dict:
+    """The columns of one draw: ``{"k": K, "columns": {name: ("checked", error) | ("kink", nan) | ("skipped",
+    nan)}, "impacts": impacts before K, "breaks": the first break}``; None where the run raises."""
+    try:
+        res = run(sim, start, h, t_end, sens=True)
+    except vcigen.SolverError:
+        return None
+    k = res.sensitivity_breaks[0][0] if res.sensitivity_breaks else len(res.t) - 1
+    names, sig = res.sensitivity_names, modes(res, k)
+    base = np.concatenate([res.q[k], res.p[k]])
+    columns = {}
+    for j, name in enumerate(names):
+        eps = EPS * max(1.0, abs(value(start, names, j)))
+        ends = {}
+        for dx in (eps, -eps, eps / 4, -eps / 4):
+            try:
+                other = run(sim, moved(start, names, j, dx), h, t_end)
+            except (vcigen.SolverError, ValueError):  # ValueError: moved out of the admissible set
+                break
+            if modes(other, k) != sig:
+                break
+            ends[dx] = np.concatenate([other.q[k], other.p[k]])
+        if len(ends) < 4:
+            columns[name] = ("skipped", float("nan"))
+        else:
+            columns[name] = classify(base, ends, eps, res.sensitivity[k][:, j])
+    impacts = sum(1 for im in res.impacts if im.step < k)
+    held = int(res.active[:k].any(axis=1).sum()) if res.active is not None else 0
+    lifts = sum(1 for t, _ in res.liftoffs if t < float(res.t[k]))
+    return {
+        "k": k,
+        "columns": columns,
+        "impacts": impacts,
+        "held": held,
+        "lifts": lifts,
+        "breaks": res.sensitivity_breaks[:1],
+    }
+
+
+def fuzz(name: str, draws: int, seed: int, backend: str = "c", h: float | None = None, t_end=None) -> dict:
+    """Every draw of the scene: the tallies of its columns and each draw's largest error."""
+    sim, draw = scene(name, backend)
+    h = SCENES[name][2] if h is None else h
+    t_end = SCENES[name][3] if t_end is None else t_end
+    rng = np.random.default_rng(seed)
+    tally = {"checked": 0, "skipped": 0, "kink": 0}
+    through = {"impacts": 0, "held": 0, "lifts": 0}  # the events before the points of the draws checked
+    worst, errors = [], 0
+    for i in range(draws):
+        out = check_draw(sim, draw(rng), h, t_end)
+        if out is None:
+            errors += 1
+            continue
+        checked = [(err, col) for col, (kind, err) in out["columns"].items() if kind == "checked"]
+        for kind, _ in out["columns"].values():
+            tally[kind] += 1
+        if checked:
+            for key in through:
+                through[key] += out[key]
+            err, col = max(checked)
+            worst.append((err, i, col, out["k"], out["impacts"], out["breaks"]))
+    worst.sort(reverse=True)
+    return {"tally": tally, "through": through, "worst": worst, "errors": errors, "h": h, "t_end": t_end}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", nargs="+", choices=sorted(SCENES), default=sorted(SCENES))
+    ap.add_argument("--draws", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--backend", choices=["c", "casadi"], default="c")
+    ap.add_argument("--h", type=float, default=None)
+    ap.add_argument("--t-end", type=float, default=None)
+    ap.add_argument("--tol", type=float, default=1e-4, help="print the draws whose error is above this")
+    a = ap.parse_args(argv)
+    above = 0
+    for name in a.scene:
+        t0 = time.perf_counter()
+        out = fuzz(name, a.draws, a.seed, a.backend, a.h, a.t_end)
+        tally, worst, through = out["tally"], out["worst"], out["through"]
+        largest = f"{worst[0][0]:.1e} (draw {worst[0][1]}, {worst[0][2]})" if worst else "-"
+        print(
+            f"{name} [{a.backend}, h = {out['h']}, t_end = {out['t_end']}], {a.draws} draws (seed {a.seed}), "
+            f"{time.perf_counter() - t0:.0f} s: columns checked {tally['checked']}, skipped (mode changed) "
+            f"{tally['skipped']}, at a kink {tally['kink']}; runs raising {out['errors']}; largest error "
+            f"{largest}; through {through['impacts']} impacts, {through['held']} held steps, "
+            f"{through['lifts']} lift-offs",
+            flush=True,
+        )
+        for err, i, col, k, impacts, breaks in worst:
+            if err > a.tol:
+                above += 1
+                why = f"its first break {breaks[0]}" if breaks else "no break"
+                print(f"  draw {i}: {col} {err:.2e} at grid point {k} ({impacts} impacts before it; {why})")
+    print(f"draws with an error above {a.tol:g}: {above}")
+    return 1 if above else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,92 @@
+"""bench.sens_fuzz: its test of a column (smooth, wrong, at a kink) on maps known in closed form, and a few
+random rough drops into a V-groove, whose tangents match central differences on both backends."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bench import sens_fuzz
+
+EPS = 1e-6
+
+
+def _ends(f, x0: float, eps: float = EPS) -> tuple[np.ndarray, dict[float, np.ndarray]]:
+    return f(x0), {dx: f(x0 + dx) for dx in (eps, -eps, eps / 4, -eps / 4)}
+
+
+def smooth(x: float) -> np.ndarray:
+    return np.array([math.sin(3 * x), x**3, math.exp(x)])
+
+
+def smooth_slope(x: float) -> np.ndarray:
+    return np.array([3 * math.cos(3 * x), 3 * x**2, math.exp(x)])
+
+
+def test_a_smooth_map_is_checked_and_its_exact_slope_passes():
+    base, ends = _ends(smooth, 0.7)
+    kind, err = sens_fuzz.classify(base, ends, EPS, smooth_slope(0.7))
+    assert kind == "checked" and err < 1e-8
+
+
+def test_a_slope_off_by_one_percent_is_an_error_of_one_percent():
+    base, ends = _ends(smooth, 0.7)
+    slope = smooth_slope(0.7)
+    assert np.argmax(np.abs(slope)) == 2  # the column's scale: the larger of that entry's two values
+    kind, err = sens_fuzz.classify(base, ends, EPS, slope * [1.0, 1.0, 1.01])
+    assert kind == "checked"
+    assert err == pytest.approx(0.01 / 1.01, rel=1e-5)
+
+
+def test_a_tangent_not_finite_is_an_error():
+    base, ends = _ends(smooth, 0.7)
+    assert sens_fuzz.classify(base, ends, EPS, smooth_slope(0.7) * [1.0, np.nan, 1.0]) == (
+        "checked",
+        math.inf,
+    )
+
+
+def test_a_kink_is_not_checked():
+    """``|x|`` at 0 (one-sided slopes 1 and -1), and a kink of 1e-3 of the slope beside a smooth part: the
+    central difference is the mean of the one-sided ones, which no tangent of one side matches."""
+
+    def kinked(x: float) -> np.ndarray:
+        return smooth(x) + np.array([abs(x), 0.0, 1e-3 * abs(x)])
+
+    base, ends = _ends(lambda x: np.array([abs(x), x]), 0.0)
+    assert sens_fuzz.classify(base, ends, EPS, np.array([1.0, 1.0]))[0] == "kink"
+    base, ends = _ends(kinked, 0.0)
+    assert sens_fuzz.classify(base, ends, EPS, smooth_slope(0.0))[0] == "kink"
+
+
+def test_a_kink_below_the_tolerance_is_checked_with_an_error_below_it():
+    def kinked(x: float) -> np.ndarray:
+        return smooth(x) + np.array([0.0, 0.0, 1e-6 * abs(x)])
+
+    base, ends = _ends(kinked, 0.0)
+    kind, err = sens_fuzz.classify(base, ends, EPS, smooth_slope(0.0))
+    assert kind == "checked" and err < sens_fuzz.AGREE
+
+
+def test_moved_moves_one_column_of_the_start():
+    start = ([1.0, 2.0], [3.0, 4.0], {"mu": 0.5, "e": 0.2})
+    names = ["q0[x]", "q0[y]", "v0[x]", "v0[y]", "mu", "e"]
+    assert sens_fuzz.moved(start, names, 1, 0.5) == ([1.0, 2.5], [3.0, 4.0], {"mu": 0.5, "e": 0.2})
+    assert sens_fuzz.moved(start, names, 2, 0.5) == ([1.0, 2.0], [3.5, 4.0], {"mu": 0.5, "e": 0.2})
+    assert sens_fuzz.moved(start, names, 5, 0.5) == ([1.0, 2.0], [3.0, 4.0], {"mu": 0.5, "e": 0.7})
+    assert start == ([1.0, 2.0], [3.0, 4.0], {"mu": 0.5, "e": 0.2})  # not changed
+    assert [sens_fuzz.value(start, names, j) for j in range(6)] == [1.0, 2.0, 3.0, 4.0, 0.5, 0.2]
+
+
+@pytest.mark.parametrize("backend", ["c", "casadi"])
+def test_rough_drops_into_a_groove_match_central_differences(backend):
+    """A particle dropped into a rough V (``bench.groove_drops``' draws: impacts with friction, held on one
+    wall or both, sliding and sticking): every column's tangent, up to its first break, within 1e-4 of the
+    central differences wherever the moved runs keep its mode sequence, and most columns checked."""
+    out = sens_fuzz.fuzz("groove", 4 if backend == "c" else 2, 2, backend)
+    tally = out["tally"]
+    assert out["errors"] == 0
+    assert tally["checked"] >= 0.8 * sum(tally.values())
+    assert out["worst"] and out["worst"][0][0] < 1e-4
