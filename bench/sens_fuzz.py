@@ -1,7 +1,8 @@
-"""Sensitivities of random runs against central differences: ``res.sensitivity`` (API.md, *Sensitivities*)
+r"""Sensitivities of random runs against central differences: ``res.sensitivity`` (API.md, *Sensitivities*)
 through impacts, held steps, lift-offs and friction, column by column, over the random campaigns' draws.
 
     .venv/bin/python -m bench.sens_fuzz [--scene plate hoop ...] [--draws 100] [--seed 1] [--backend c]
+        [--rule trapezoid]
 
 For each draw of a scene (the draws of its campaign bench, below) the run with ``sensitivities=True`` gives
 ``S_K = d(q_K, p_K) / d(q0, v0, params)`` at ``K``, the grid point where its first break is booked
@@ -28,8 +29,14 @@ above ``--tol`` (1e-4).
 Scenes (``h``, ``t_end``): ``plate`` (``tests/test_box_on_a_vibrating_plate.py``; 0.005, 1), ``hoop``
 (``bench.hoop_drops``; 0.01, 1), ``cam`` (``bench.cam_drops``), ``table`` (``bench.table_drops``), ``damper``
 (``bench.damper_drops``) (0.01, 1 each), ``box_v`` and ``groove`` (``bench.box_v_drops``,
-``bench.groove_drops``; 0.01, 2), ``tumbling`` (``bench.tumbling``; 0.005, 2). Models with bilateral
-constraints (``bench.chains_fuzz``) are not drawn: a start moved off its constraints is refused.
+``bench.groove_drops``; 0.01, 2), ``tumbling`` (``bench.tumbling``; 0.005, 2); and ``box_v_smooth``,
+``groove_smooth``, ``cam_smooth``, the frictionless variants of three of them on the same draws (less
+``mu``): with ``table`` and ``damper`` what ``--rule lobatto3`` builds (no friction under that rule yet).
+Models with bilateral constraints (``bench.chains_fuzz``) are not drawn: a start moved off its constraints is
+refused.
+
+    .venv/bin/python -m bench.sens_fuzz --rule lobatto3 \
+        --scene box_v_smooth groove_smooth cam_smooth table damper
 """
 
 from __future__ import annotations
@@ -55,38 +62,55 @@ KINK = 1e-4  # one-sided differences parting by more than this of the scale, not
 # (a smaller kink would be checked, its error below --tol's default)
 FLOOR = 1e-3  # the least scale of a column
 
-# name: (module with the model, module with the draw, h, t_end)
+# name: (module with the model, its model function and keywords, module with the draw, h, t_end); the
+# *_smooth scenes are the frictionless variants of their models (what lobatto3 builds), on the same draws
 SCENES = {
-    "plate": ("test_box_on_a_vibrating_plate", "test_box_on_a_vibrating_plate", 0.005, 1.0),
-    "hoop": ("test_hopping_hoop", "bench.hoop_drops", 0.01, 1.0),
-    "cam": ("test_cam_follower", "bench.cam_drops", 0.01, 1.0),
-    "table": ("test_shaken_table", "bench.table_drops", 0.01, 1.0),
-    "damper": ("test_impact_damper", "bench.damper_drops", 0.01, 1.0),
-    "box_v": ("bench.box_v_drops", "bench.box_v_drops", 0.01, 2.0),
-    "groove": ("bench.groove_drops", "bench.groove_drops", 0.01, 2.0),
-    "tumbling": ("test_tumbling_box", "bench.tumbling", 0.005, 2.0),
+    "plate": (
+        "test_box_on_a_vibrating_plate",
+        "box_on_plate",
+        {},
+        "test_box_on_a_vibrating_plate",
+        0.005,
+        1.0,
+    ),
+    "hoop": ("test_hopping_hoop", "hoop", {}, "bench.hoop_drops", 0.01, 1.0),
+    "cam": ("test_cam_follower", "cam", {}, "bench.cam_drops", 0.01, 1.0),
+    "cam_smooth": ("test_cam_follower", "cam", {"rough": False}, "bench.cam_drops", 0.01, 1.0),
+    "table": ("test_shaken_table", "table", {}, "bench.table_drops", 0.01, 1.0),
+    "damper": ("test_impact_damper", "impact_damper.model", {}, "bench.damper_drops", 0.01, 1.0),
+    "box_v": ("bench.box_v_drops", "model", {}, "bench.box_v_drops", 0.01, 2.0),
+    "box_v_smooth": ("bench.box_v_drops", "model", {"rough": False}, "bench.box_v_drops", 0.01, 2.0),
+    "groove": ("bench.groove_drops", "model", {}, "bench.groove_drops", 0.01, 2.0),
+    "groove_smooth": ("bench.groove_drops", "model", {"rough": False}, "bench.groove_drops", 0.01, 2.0),
+    "tumbling": ("test_tumbling_box", "tumble", {}, "bench.tumbling", 0.005, 2.0),
 }
+ROUGH = ["box_v", "cam", "damper", "groove", "hoop", "plate", "table", "tumbling"]  # the default scenes
 
 
-def scene(name: str, backend: str) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start]]:
-    """The scene's simulator and its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order)."""
-    model_mod, draw_mod = (importlib.import_module(m) for m in SCENES[name][:2])
-    if name in ("box_v", "groove"):
-        sim = vcigen.build(model_mod.model(), backend=backend)
+def scene(
+    name: str, backend: str, rule: str = "trapezoid"
+) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start]]:
+    """The scene's simulator and its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order;
+    the parameters the model does not have, a smooth variant's ``mu``, left out)."""
+    model_mod, model_fn, keywords, draw_mod = SCENES[name][:4]
+    make = importlib.import_module(model_mod)
+    for part in model_fn.split("."):
+        make = getattr(make, part)
+    model = make(**keywords)
+    sim = vcigen.build(model, backend=backend, rule=rule)
+    known = {str(k) for k in model.params}
+    draw_mod = importlib.import_module(draw_mod)
 
-        def draw(rng: np.random.Generator) -> Start:
+    def draw(rng: np.random.Generator) -> Start:
+        if name.startswith(("box_v", "groove")):
             params, q0, v0 = draw_mod.draw(rng)
-            return q0, v0, params
-
-    elif name == "tumbling":
-        sim = vcigen.build(model_mod.tumble(), backend=backend)
-
-        def draw(rng: np.random.Generator) -> Start:
+        elif name == "tumbling":
             d = draw_mod.drop(rng)
-            return d["q0"], d["v0"], d["params"]
+            q0, v0, params = d["q0"], d["v0"], d["params"]
+        else:
+            q0, v0, params = draw_mod.draw(rng)
+        return q0, v0, {k: v for k, v in params.items() if k in known}
 
-    else:
-        sim, draw = model_mod.simulator(backend), draw_mod.draw
     return sim, draw
 
 
@@ -183,11 +207,13 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> d
     }
 
 
-def fuzz(name: str, draws: int, seed: int, backend: str = "c", h: float | None = None, t_end=None) -> dict:
+def fuzz(
+    name: str, draws: int, seed: int, backend: str = "c", h: float | None = None, t_end=None, rule="trapezoid"
+) -> dict:
     """Every draw of the scene: the tallies of its columns and each draw's largest error."""
-    sim, draw = scene(name, backend)
-    h = SCENES[name][2] if h is None else h
-    t_end = SCENES[name][3] if t_end is None else t_end
+    sim, draw = scene(name, backend, rule)
+    h = SCENES[name][4] if h is None else h
+    t_end = SCENES[name][5] if t_end is None else t_end
     rng = np.random.default_rng(seed)
     tally = {"checked": 0, "skipped": 0, "kink": 0}
     through = {"impacts": 0, "held": 0, "lifts": 0}  # the events before the points of the draws checked
@@ -211,10 +237,11 @@ def fuzz(name: str, draws: int, seed: int, backend: str = "c", h: float | None =
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scene", nargs="+", choices=sorted(SCENES), default=sorted(SCENES))
+    ap.add_argument("--scene", nargs="+", choices=sorted(SCENES), default=ROUGH)
     ap.add_argument("--draws", type=int, default=100)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--backend", choices=["c", "casadi"], default="c")
+    ap.add_argument("--rule", choices=sorted(vcigen.RULES), default="trapezoid")
     ap.add_argument("--h", type=float, default=None)
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--tol", type=float, default=1e-4, help="print the draws whose error is above this")
@@ -222,11 +249,16 @@ def main(argv: list[str] | None = None) -> int:
     above = 0
     for name in a.scene:
         t0 = time.perf_counter()
-        out = fuzz(name, a.draws, a.seed, a.backend, a.h, a.t_end)
+        try:
+            out = fuzz(name, a.draws, a.seed, a.backend, a.h, a.t_end, a.rule)
+        except ValueError as err:  # a rule that does not support the model (lobatto3: friction)
+            print(f"{name} [{a.backend}, {a.rule}]: not built: {err}", flush=True)
+            continue
         tally, worst, through = out["tally"], out["worst"], out["through"]
         largest = f"{worst[0][0]:.1e} (draw {worst[0][1]}, {worst[0][2]})" if worst else "-"
         print(
-            f"{name} [{a.backend}, h = {out['h']}, t_end = {out['t_end']}], {a.draws} draws (seed {a.seed}), "
+            f"{name} [{a.backend}, {a.rule}, h = {out['h']}, t_end = {out['t_end']}], {a.draws} draws "
+            f"(seed {a.seed}), "
             f"{time.perf_counter() - t0:.0f} s: columns checked {tally['checked']}, skipped (mode changed) "
             f"{tally['skipped']}, at a kink {tally['kink']}; runs raising {out['errors']}; largest error "
             f"{largest}; through {through['impacts']} impacts, {through['held']} held steps, "

@@ -90,3 +90,19 @@ def test_rough_drops_into_a_groove_match_central_differences(backend):
     assert out["errors"] == 0
     assert tally["checked"] >= 0.8 * sum(tally.values())
     assert out["worst"] and out["worst"][0][0] < 1e-4
+
+
+def test_frictionless_drops_into_a_groove_under_lobatto3_match_central_differences():
+    """The same draws on the frictionless groove (``mu`` left out) under the fourth-order rule, in C: impacts,
+    held steps on one wall or both and lift-offs, every column within 1e-4."""
+    out = sens_fuzz.fuzz("groove_smooth", 3, 2, "c", rule="lobatto3")
+    assert out["errors"] == 0 and out["through"]["impacts"] > 0 and out["through"]["held"] > 0
+    assert out["tally"]["checked"] >= 0.8 * sum(out["tally"].values())
+    assert out["worst"][0][0] < 1e-4
+
+
+def test_a_smooth_variant_leaves_out_the_parameters_its_model_has_not():
+    _, draw = sens_fuzz.scene("groove_smooth", "c")
+    _, rough = sens_fuzz.scene("groove", "c")
+    a, b = draw(np.random.default_rng(3)), rough(np.random.default_rng(3))
+    assert a[:2] == b[:2] and "mu" in b[2] and a[2] == {k: v for k, v in b[2].items() if k != "mu"}
