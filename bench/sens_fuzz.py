@@ -32,8 +32,9 @@ Scenes (``h``, ``t_end``): ``plate`` (``tests/test_box_on_a_vibrating_plate.py``
 ``bench.groove_drops``; 0.01, 2), ``tumbling`` (``bench.tumbling``; 0.005, 2); and ``box_v_smooth``,
 ``groove_smooth``, ``cam_smooth``, the frictionless variants of three of them on the same draws (less
 ``mu``): with ``table`` and ``damper`` what ``--rule lobatto3`` builds (no friction under that rule yet).
-Models with bilateral constraints (``bench.chains_fuzz``) are not drawn: a start moved off its constraints is
-refused.
+``pendulum`` and ``four_bar`` (``bench.chains_fuzz``: a double pendulum on two rods, a parallelogram linkage,
+over a rough floor; 0.01, 2): with bilateral constraints a moved start is taken back onto them, ``v0``
+tangent (:func:`onto_constraints`), and the column's tangent is ``S_K dz`` along that path.
 
     .venv/bin/python -m bench.sens_fuzz --rule lobatto3 \
         --scene box_v_smooth groove_smooth cam_smooth table damper
@@ -50,6 +51,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
 import vcigen
 
@@ -83,15 +85,45 @@ SCENES = {
     "groove": ("bench.groove_drops", "model", {}, "bench.groove_drops", 0.01, 2.0),
     "groove_smooth": ("bench.groove_drops", "model", {"rough": False}, "bench.groove_drops", 0.01, 2.0),
     "tumbling": ("test_tumbling_box", "tumble", {}, "bench.tumbling", 0.005, 2.0),
+    "pendulum": ("bench.chains_fuzz", "pendulum", {}, "bench.chains_fuzz", 0.01, 2.0),
+    "four_bar": ("bench.chains_fuzz", "linkage", {}, "bench.chains_fuzz", 0.01, 2.0),
 }
 ROUGH = ["box_v", "cam", "damper", "groove", "hoop", "plate", "table", "tumbling"]  # the default scenes
 
 
+def onto_constraints(model: vcigen.Model) -> Callable[[Start], Start] | None:
+    """``start -> start`` onto the model's bilateral constraints ``g(q) = 0`` (Newton along ``grad g``) with
+    ``v0`` tangent to them (``v0 - G^T (G G^T)^-1 G v0``): the start a moved column leaves; None without
+    constraints."""
+    if not model.constraints:
+        return None
+    q, pars = list(model.q), list(model.params)
+    g = sp.Matrix(list(model.constraints.values()))
+    g_fn, jac_fn = sp.lambdify([q, pars], g, "numpy"), sp.lambdify([q, pars], g.jacobian(q), "numpy")
+    defaults = {str(k): float(v) for k, v in model.params.items()}
+
+    def onto(start: Start) -> Start:
+        par = [start[2].get(str(k), defaults[str(k)]) for k in pars]
+        x = np.array(start[0], dtype=float)
+        for _ in range(50):
+            r = np.asarray(g_fn(x, par), dtype=float).ravel()
+            if np.abs(r).max() <= 1e-15:
+                break
+            jac = np.asarray(jac_fn(x, par), dtype=float)
+            x = x - jac.T @ np.linalg.solve(jac @ jac.T, r)
+        jac = np.asarray(jac_fn(x, par), dtype=float)
+        v = np.array(start[1], dtype=float)
+        v = v - jac.T @ np.linalg.solve(jac @ jac.T, jac @ v)
+        return x.tolist(), v.tolist(), dict(start[2])
+
+    return onto
+
+
 def scene(
     name: str, backend: str, rule: str = "trapezoid"
-) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start]]:
-    """The scene's simulator and its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order;
-    the parameters the model does not have, a smooth variant's ``mu``, left out)."""
+) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start], Callable[[Start], Start] | None]:
+    """The scene's simulator, its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order; the
+    parameters the model does not have, a smooth variant's ``mu``, left out) and :func:`onto_constraints`."""
     model_mod, model_fn, keywords, draw_mod = SCENES[name][:4]
     make = importlib.import_module(model_mod)
     for part in model_fn.split("."):
@@ -107,11 +139,14 @@ def scene(
         elif name == "tumbling":
             d = draw_mod.drop(rng)
             q0, v0, params = d["q0"], d["v0"], d["params"]
+        elif name in ("pendulum", "four_bar"):
+            d = (draw_mod.pendulum_draw if name == "pendulum" else draw_mod.linkage_draw)(rng)
+            q0, v0, params = d["q0"], d["v0"], d["params"]
         else:
             q0, v0, params = draw_mod.draw(rng)
         return q0, v0, {k: v for k, v in params.items() if k in known}
 
-    return sim, draw
+    return sim, draw, onto_constraints(model)
 
 
 def run(sim: vcigen.Simulator, start: Start, h: float, t_end: float, sens: bool = False) -> vcigen.Result:
@@ -168,9 +203,17 @@ def classify(base, ends: dict[float, np.ndarray], eps: float, tangent) -> tuple[
     return "checked", max(0.0, float(np.abs(np.asarray(tangent) - central).max()) - spread) / scale
 
 
-def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> dict:
+def flat(start: Start, names: list[str]) -> np.ndarray:
+    """``(q0, v0, params)`` in the order of the tangent's columns."""
+    n = len(start[0])
+    return np.array([*start[0], *start[1], *(start[2][name] for name in names[2 * n :])], dtype=float)
+
+
+def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float, onto=None) -> dict:
     """The columns of one draw: ``{"k": K, "columns": {name: ("checked", error) | ("kink", nan) | ("skipped",
-    nan)}, "impacts": impacts before K, "breaks": the first break}``; None where the run raises."""
+    nan)}, "impacts": impacts before K, "breaks": the first break}``; None where the run raises. With
+    ``onto`` (:func:`onto_constraints`) each moved start is taken onto the constraints, and the column's
+    tangent is ``S_K dz``, ``dz`` the central difference of those starts: the derivative along that path."""
     try:
         res = run(sim, start, h, t_end, sens=True)
     except vcigen.SolverError:
@@ -181,10 +224,11 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> d
     columns = {}
     for j, name in enumerate(names):
         eps = EPS * max(1.0, abs(value(start, names, j)))
-        ends = {}
+        ends, starts = {}, {}
         for dx in (eps, -eps, eps / 4, -eps / 4):
+            starts[dx] = moved(start, names, j, dx) if onto is None else onto(moved(start, names, j, dx))
             try:
-                other = run(sim, moved(start, names, j, dx), h, t_end)
+                other = run(sim, starts[dx], h, t_end)
             except (vcigen.SolverError, ValueError):  # ValueError: moved out of the admissible set
                 break
             if modes(other, k) != sig:
@@ -192,8 +236,12 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> d
             ends[dx] = np.concatenate([other.q[k], other.p[k]])
         if len(ends) < 4:
             columns[name] = ("skipped", float("nan"))
-        else:
+        elif onto is None:
             columns[name] = classify(base, ends, eps, res.sensitivity[k][:, j])
+        else:
+            e4 = eps / 4
+            dz = (flat(starts[e4], names) - flat(starts[-e4], names)) / (2 * e4)
+            columns[name] = classify(base, ends, eps, res.sensitivity[k] @ dz)
     impacts = sum(1 for im in res.impacts if im.step < k)
     held = int(res.active[:k].any(axis=1).sum()) if res.active is not None else 0
     lifts = sum(1 for t, _ in res.liftoffs if t < float(res.t[k]))
@@ -211,7 +259,7 @@ def fuzz(
     name: str, draws: int, seed: int, backend: str = "c", h: float | None = None, t_end=None, rule="trapezoid"
 ) -> dict:
     """Every draw of the scene: the tallies of its columns and each draw's largest error."""
-    sim, draw = scene(name, backend, rule)
+    sim, draw, onto = scene(name, backend, rule)
     h = SCENES[name][4] if h is None else h
     t_end = SCENES[name][5] if t_end is None else t_end
     rng = np.random.default_rng(seed)
@@ -219,7 +267,8 @@ def fuzz(
     through = {"impacts": 0, "held": 0, "lifts": 0}  # the events before the points of the draws checked
     worst, errors = [], 0
     for i in range(draws):
-        out = check_draw(sim, draw(rng), h, t_end)
+        start = draw(rng)
+        out = check_draw(sim, start if onto is None else onto(start), h, t_end, onto)
         if out is None:
             errors += 1
             continue

@@ -102,7 +102,40 @@ def test_frictionless_drops_into_a_groove_under_lobatto3_match_central_differenc
 
 
 def test_a_smooth_variant_leaves_out_the_parameters_its_model_has_not():
-    _, draw = sens_fuzz.scene("groove_smooth", "c")
-    _, rough = sens_fuzz.scene("groove", "c")
+    _, draw, onto = sens_fuzz.scene("groove_smooth", "c")
+    _, rough, _ = sens_fuzz.scene("groove", "c")
     a, b = draw(np.random.default_rng(3)), rough(np.random.default_rng(3))
     assert a[:2] == b[:2] and "mu" in b[2] and a[2] == {k: v for k, v in b[2].items() if k != "mu"}
+    assert onto is None  # no constraints
+
+
+def test_a_moved_start_of_a_chain_is_taken_onto_its_rods():
+    """The double pendulum of ``bench.chains_fuzz`` (two unit rods): a start moved off the rods comes back
+    onto them, its velocity tangent to them, and a start on them is kept."""
+    _, draw, onto = sens_fuzz.scene("pendulum", "c")
+    q0, v0, params = draw(np.random.default_rng(4))
+    q, v, _ = onto(([x + 0.01 for x in q0], [x + 0.3 for x in v0], params))
+    assert abs(q[0] ** 2 + q[1] ** 2 - 1) < 1e-14 and abs((q[2] - q[0]) ** 2 + (q[3] - q[1]) ** 2 - 1) < 1e-14
+    assert abs(q[0] * v[0] + q[1] * v[1]) < 1e-14
+    assert abs((q[2] - q[0]) * (v[2] - v[0]) + (q[3] - q[1]) * (v[3] - v[1])) < 1e-14
+    q, v, _ = onto((q, v, params))
+    assert np.allclose(onto((q, v, params))[0], q, atol=1e-15, rtol=0)
+
+
+def test_chains_match_central_differences_along_their_rods():
+    """Random double pendulums on two rods over a rough floor (``bench.chains_fuzz``' draws): each column's
+    path taken onto the rods, ``S dz`` within 1e-4 of the central differences, ``q0`` and ``v0`` columns
+    among those checked."""
+    sim, draw, onto = sens_fuzz.scene("pendulum", "c")
+    rng = np.random.default_rng(1)
+    kinds = {}
+    for _ in range(3):
+        out = sens_fuzz.check_draw(sim, onto(draw(rng)), 0.01, 2.0, onto)
+        assert out is not None
+        for name, (kind, err) in out["columns"].items():
+            kinds.setdefault(kind, []).append(name)
+            assert kind != "checked" or err < 1e-4, (name, err)
+    assert len(kinds["checked"]) >= 0.8 * sum(len(v) for v in kinds.values())
+    assert any(c.startswith("q0") for c in kinds["checked"]) and any(
+        c.startswith("v0") for c in kinds["checked"]
+    )
