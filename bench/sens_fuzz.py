@@ -16,8 +16,9 @@ central differences of runs from ``x +- eps`` and ``x +- eps / 4`` (``eps = 1e-5
 * the map is smooth there (:func:`classify`): at a *kink*, where the one-sided differences part by the same
   amount at ``eps`` and ``eps / 4``, the column is not checked either. Kinks are the discrete map's: a hoop
   started rolling exactly (``bench.hoop_drops``' draws) slips for ``O(eps)`` on either side of it and stops
-  inside the first step, and the two one-sided derivatives differ at ``O(h^2)`` (measured: 3.0e-3, 7.5e-4,
-  1.9e-4, 4.7e-5 at ``h`` = 0.01 to 0.00125 at t = 0.02; the tangent, the rolling mode's, between them).
+  inside the first step, and the two one-sided derivatives differ at ``O(h^2)`` (``d(q, p) / d v0[x]`` at t =
+  0.02: 1.2e-1, 2.9e-2, 7.3e-3, 1.8e-3 at ``h`` = 0.01 to 0.00125; the tangent, the rolling mode's, 4.6e-3 to
+  7.2e-5 from their mean: ``--scene hoop --seed 1 --kink 4 'v0[x]'``).
 
 A checked column's error is ``(max |S_K[:, j] - D_j| - d) / max(|D_j|, |S_K[:, j]|, 1e-3)`` with ``D_j`` the
 central difference at ``eps / 4`` and ``d`` its distance from the one at ``eps`` (at most 1e-4 of that scale):
@@ -63,6 +64,7 @@ AGREE = 1e-4  # the two central differences agree to this of the column's scale
 KINK = 1e-4  # one-sided differences parting by more than this of the scale, not shrinking with eps: a kink
 # (a smaller kink would be checked, its error below --tol's default)
 FLOOR = 1e-3  # the least scale of a column
+KINK_HS = (0.01, 0.005, 0.0025, 0.00125)  # --kink's steps
 
 # name: (module with the model, its model function and keywords, module with the draw, h, t_end); the
 # *_smooth scenes are the frictionless variants of their models (what lobatto3 builds), on the same draws
@@ -284,6 +286,35 @@ def fuzz(
     return {"tally": tally, "through": through, "worst": worst, "errors": errors, "h": h, "t_end": t_end}
 
 
+def kink_widths(
+    name: str, seed: int, index: int, column: str, t: float, hs, eps: float = 1e-7
+) -> list[tuple]:
+    """At the draw ``index`` of the scene's seed, for each ``h`` in ``hs``: ``(h, the one-sided differences'
+    gap, the tangent's distance from their mean)`` of ``(q, p)`` at ``t`` in ``column`` (max norms, steps of
+    ``eps``). A kink of the discrete map whose gap shrinks as ``h^2`` is the method's error, not the tangent's
+    (``--kink``)."""
+    sim, draw, onto = scene(name, "c")
+    rng = np.random.default_rng(seed)
+    for _ in range(index + 1):
+        start = draw(rng)
+    start = start if onto is None else onto(start)
+    out = []
+    for h in hs:
+        k = round(t / h)
+        res = run(sim, start, h, k * h + h / 2, sens=True)
+        names = res.sensitivity_names
+        j = names.index(column)
+        base = np.concatenate([res.q[k], res.p[k]])
+        side = []
+        for dx in (eps, -eps):
+            other = run(sim, moved(start, names, j, dx), h, k * h + h / 2)
+            side.append((np.concatenate([other.q[k], other.p[k]]) - base) / dx)
+        gap = float(np.abs(side[0] - side[1]).max())
+        off = float(np.abs(res.sensitivity[k][:, j] - (side[0] + side[1]) / 2).max())
+        out.append((h, gap, off))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", nargs="+", choices=sorted(SCENES), default=ROUGH)
@@ -294,7 +325,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--h", type=float, default=None)
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--tol", type=float, default=1e-4, help="print the draws whose error is above this")
+    ap.add_argument(
+        "--kink",
+        nargs=2,
+        metavar=("DRAW", "COLUMN"),
+        help="the one-sided differences of that draw of the first --scene at --at, h = 0.01 / 2^i (C)",
+    )
+    ap.add_argument("--at", type=float, default=0.02)
     a = ap.parse_args(argv)
+    if a.kink:
+        print(f"{a.scene[0]}, seed {a.seed}, draw {a.kink[0]}, d(q, p)(t = {a.at}) / d {a.kink[1]}:")
+        for h, gap, off in kink_widths(a.scene[0], a.seed, int(a.kink[0]), a.kink[1], a.at, KINK_HS):
+            print(
+                f"  h = {h:<8g} one-sided differences apart {gap:.2e}; the tangent from their mean {off:.2e}"
+            )
+        return 0
     above = 0
     for name in a.scene:
         t0 = time.perf_counter()

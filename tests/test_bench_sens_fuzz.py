@@ -139,3 +139,16 @@ def test_chains_match_central_differences_along_their_rods():
     assert any(c.startswith("q0") for c in kinds["checked"]) and any(
         c.startswith("v0") for c in kinds["checked"]
     )
+
+
+def test_the_kink_of_a_hoop_started_rolling_exactly_shrinks_as_h_squared():
+    """``bench.hoop_drops``' seed 1, draw 4 starts rolling exactly: moved in ``v0[x]`` either way it slips and
+    stops inside the first step, and the one-sided derivatives of ``(q, p)`` at t = 0.02 part by a gap that
+    quarters as ``h`` halves (the discrete map's kink, O(h^2)), the tangent (the rolling mode's) within a
+    fraction of it of their mean: why ``classify`` leaves kinks unchecked."""
+    widths = sens_fuzz.kink_widths("hoop", 1, 4, "v0[x]", 0.02, sens_fuzz.KINK_HS)
+    gaps = [gap for _, gap, _ in widths]
+    assert gaps[0] > 1e-2  # a kink at h = 0.01, not round-off
+    for a, b in zip(gaps, gaps[1:]):
+        assert 3.5 < a / b < 4.5
+    assert all(off < 0.1 * gap for _, gap, off in widths)
