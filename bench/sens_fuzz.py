@@ -35,7 +35,10 @@ Scenes (``h``, ``t_end``): ``plate`` (``tests/test_box_on_a_vibrating_plate.py``
 ``mu``): with ``table`` and ``damper`` what ``--rule lobatto3`` builds (no friction under that rule yet).
 ``pendulum`` and ``four_bar`` (``bench.chains_fuzz``: a double pendulum on two rods, a parallelogram linkage,
 over a rough floor; 0.01, 2): with bilateral constraints a moved start is taken back onto them, ``v0``
-tangent (:func:`onto_constraints`), and the column's tangent is ``S_K dz`` along that path.
+tangent (:func:`onto_constraints`), and the column's tangent is ``S_K dz`` along that path. Bodies on bodies
+and isotropic cones: ``puck`` (``bench.puck_drops``: three pucks on a rough plane; 0.01, 1), ``pyramid``
+(``bench.pyramids``: three disks; 0.01, 2), ``pile`` and ``boxes`` (``bench.stacks_fuzz``: four balls in a
+tetrahedron, isotropic cones on the floor, 0.005, 1; a box dropped on a box, 0.01, 2).
 
     .venv/bin/python -m bench.sens_fuzz --rule lobatto3 \
         --scene box_v_smooth groove_smooth cam_smooth table damper
@@ -66,29 +69,42 @@ KINK = 1e-4  # one-sided differences parting by more than this of the scale, not
 FLOOR = 1e-3  # the least scale of a column
 KINK_HS = (0.01, 0.005, 0.0025, 0.00125)  # --kink's steps
 
-# name: (module with the model, its model function and keywords, module with the draw, h, t_end); the
-# *_smooth scenes are the frictionless variants of their models (what lobatto3 builds), on the same draws
+# name: (module with the model, its model function and keywords, module and function of the draw, h, t_end);
+# the *_smooth scenes are the frictionless variants of their models (what lobatto3 builds), on the same draws
 SCENES = {
     "plate": (
         "test_box_on_a_vibrating_plate",
         "box_on_plate",
         {},
         "test_box_on_a_vibrating_plate",
+        "draw",
         0.005,
         1.0,
     ),
-    "hoop": ("test_hopping_hoop", "hoop", {}, "bench.hoop_drops", 0.01, 1.0),
-    "cam": ("test_cam_follower", "cam", {}, "bench.cam_drops", 0.01, 1.0),
-    "cam_smooth": ("test_cam_follower", "cam", {"rough": False}, "bench.cam_drops", 0.01, 1.0),
-    "table": ("test_shaken_table", "table", {}, "bench.table_drops", 0.01, 1.0),
-    "damper": ("test_impact_damper", "impact_damper.model", {}, "bench.damper_drops", 0.01, 1.0),
-    "box_v": ("bench.box_v_drops", "model", {}, "bench.box_v_drops", 0.01, 2.0),
-    "box_v_smooth": ("bench.box_v_drops", "model", {"rough": False}, "bench.box_v_drops", 0.01, 2.0),
-    "groove": ("bench.groove_drops", "model", {}, "bench.groove_drops", 0.01, 2.0),
-    "groove_smooth": ("bench.groove_drops", "model", {"rough": False}, "bench.groove_drops", 0.01, 2.0),
-    "tumbling": ("test_tumbling_box", "tumble", {}, "bench.tumbling", 0.005, 2.0),
-    "pendulum": ("bench.chains_fuzz", "pendulum", {}, "bench.chains_fuzz", 0.01, 2.0),
-    "four_bar": ("bench.chains_fuzz", "linkage", {}, "bench.chains_fuzz", 0.01, 2.0),
+    "hoop": ("test_hopping_hoop", "hoop", {}, "bench.hoop_drops", "draw", 0.01, 1.0),
+    "cam": ("test_cam_follower", "cam", {}, "bench.cam_drops", "draw", 0.01, 1.0),
+    "cam_smooth": ("test_cam_follower", "cam", {"rough": False}, "bench.cam_drops", "draw", 0.01, 1.0),
+    "table": ("test_shaken_table", "table", {}, "bench.table_drops", "draw", 0.01, 1.0),
+    "damper": ("test_impact_damper", "impact_damper.model", {}, "bench.damper_drops", "draw", 0.01, 1.0),
+    "box_v": ("bench.box_v_drops", "model", {}, "bench.box_v_drops", "draw", 0.01, 2.0),
+    "box_v_smooth": ("bench.box_v_drops", "model", {"rough": False}, "bench.box_v_drops", "draw", 0.01, 2.0),
+    "groove": ("bench.groove_drops", "model", {}, "bench.groove_drops", "draw", 0.01, 2.0),
+    "groove_smooth": (
+        "bench.groove_drops",
+        "model",
+        {"rough": False},
+        "bench.groove_drops",
+        "draw",
+        0.01,
+        2.0,
+    ),
+    "tumbling": ("test_tumbling_box", "tumble", {}, "bench.tumbling", "drop", 0.005, 2.0),
+    "puck": ("bench.puck_drops", "model", {}, "bench.puck_drops", "scene", 0.01, 1.0),
+    "pyramid": ("bench.pyramids", "pyramid.model", {}, "bench.pyramids", "draw", 0.01, 2.0),
+    "pile": ("bench.stacks_fuzz", "tetra_pile", {}, "bench.stacks_fuzz", "pile_draw", 0.005, 1.0),
+    "boxes": ("bench.stacks_fuzz", "two_boxes", {}, "bench.stacks_fuzz", "boxes_draw", 0.01, 2.0),
+    "pendulum": ("bench.chains_fuzz", "pendulum", {}, "bench.chains_fuzz", "pendulum_draw", 0.01, 2.0),
+    "four_bar": ("bench.chains_fuzz", "linkage", {}, "bench.chains_fuzz", "linkage_draw", 0.01, 2.0),
 }
 ROUGH = ["box_v", "cam", "damper", "groove", "hoop", "plate", "table", "tumbling"]  # the default scenes
 
@@ -126,26 +142,24 @@ def scene(
 ) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start], Callable[[Start], Start] | None]:
     """The scene's simulator, its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order; the
     parameters the model does not have, a smooth variant's ``mu``, left out) and :func:`onto_constraints`."""
-    model_mod, model_fn, keywords, draw_mod = SCENES[name][:4]
+    model_mod, model_fn, keywords, draw_mod, draw_fn = SCENES[name][:5]
     make = importlib.import_module(model_mod)
     for part in model_fn.split("."):
         make = getattr(make, part)
     model = make(**keywords)
     sim = vcigen.build(model, backend=backend, rule=rule)
     known = {str(k) for k in model.params}
-    draw_mod = importlib.import_module(draw_mod)
+    drawn = getattr(importlib.import_module(draw_mod), draw_fn)
 
     def draw(rng: np.random.Generator) -> Start:
-        if name.startswith(("box_v", "groove")):
-            params, q0, v0 = draw_mod.draw(rng)
-        elif name == "tumbling":
-            d = draw_mod.drop(rng)
-            q0, v0, params = d["q0"], d["v0"], d["params"]
-        elif name in ("pendulum", "four_bar"):
-            d = (draw_mod.pendulum_draw if name == "pendulum" else draw_mod.linkage_draw)(rng)
-            q0, v0, params = d["q0"], d["v0"], d["params"]
+        d = drawn(rng)  # a dict of simulate's arguments, (params, q0, v0) or (q0, v0, params)
+        if isinstance(d, dict):
+            q0, v0, params = d["q0"], d["v0"], d.get("params", {})
+        elif isinstance(d[0], dict):
+            params, q0, v0 = d
         else:
-            q0, v0, params = draw_mod.draw(rng)
+            q0, v0, params = d
+        q0, v0 = [float(x) for x in q0], [float(x) for x in v0]
         return q0, v0, {k: v for k, v in params.items() if k in known}
 
     return sim, draw, onto_constraints(model)
@@ -262,8 +276,8 @@ def fuzz(
 ) -> dict:
     """Every draw of the scene: the tallies of its columns and each draw's largest error."""
     sim, draw, onto = scene(name, backend, rule)
-    h = SCENES[name][4] if h is None else h
-    t_end = SCENES[name][5] if t_end is None else t_end
+    h = SCENES[name][5] if h is None else h
+    t_end = SCENES[name][6] if t_end is None else t_end
     rng = np.random.default_rng(seed)
     tally = {"checked": 0, "skipped": 0, "kink": 0}
     through = {"impacts": 0, "held": 0, "lifts": 0}  # the events before the points of the draws checked
