@@ -53,6 +53,7 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import sympy as sp
@@ -69,42 +70,39 @@ KINK = 1e-4  # one-sided differences parting by more than this of the scale, not
 FLOOR = 1e-3  # the least scale of a column
 KINK_HS = (0.01, 0.005, 0.0025, 0.00125)  # --kink's steps
 
-# name: (module with the model, its model function and keywords, module and function of the draw, h, t_end);
-# the *_smooth scenes are the frictionless variants of their models (what lobatto3 builds), on the same draws
+
+class Scene(NamedTuple):
+    """A scene: its model's maker and its draw as ``"module:function"`` (``bench.*`` or a test module), the
+    step and the end time, the maker's keywords."""
+
+    model: str
+    draw: str
+    h: float
+    t_end: float
+    keywords: dict = {}
+
+
+# the *_smooth scenes: the models without friction (what lobatto3 builds), on the same draws
+SMOOTH = {"rough": False}
+PLATE = "test_box_on_a_vibrating_plate"
 SCENES = {
-    "plate": (
-        "test_box_on_a_vibrating_plate",
-        "box_on_plate",
-        {},
-        "test_box_on_a_vibrating_plate",
-        "draw",
-        0.005,
-        1.0,
-    ),
-    "hoop": ("test_hopping_hoop", "hoop", {}, "bench.hoop_drops", "draw", 0.01, 1.0),
-    "cam": ("test_cam_follower", "cam", {}, "bench.cam_drops", "draw", 0.01, 1.0),
-    "cam_smooth": ("test_cam_follower", "cam", {"rough": False}, "bench.cam_drops", "draw", 0.01, 1.0),
-    "table": ("test_shaken_table", "table", {}, "bench.table_drops", "draw", 0.01, 1.0),
-    "damper": ("test_impact_damper", "impact_damper.model", {}, "bench.damper_drops", "draw", 0.01, 1.0),
-    "box_v": ("bench.box_v_drops", "model", {}, "bench.box_v_drops", "draw", 0.01, 2.0),
-    "box_v_smooth": ("bench.box_v_drops", "model", {"rough": False}, "bench.box_v_drops", "draw", 0.01, 2.0),
-    "groove": ("bench.groove_drops", "model", {}, "bench.groove_drops", "draw", 0.01, 2.0),
-    "groove_smooth": (
-        "bench.groove_drops",
-        "model",
-        {"rough": False},
-        "bench.groove_drops",
-        "draw",
-        0.01,
-        2.0,
-    ),
-    "tumbling": ("test_tumbling_box", "tumble", {}, "bench.tumbling", "drop", 0.005, 2.0),
-    "puck": ("bench.puck_drops", "model", {}, "bench.puck_drops", "scene", 0.01, 1.0),
-    "pyramid": ("bench.pyramids", "pyramid.model", {}, "bench.pyramids", "draw", 0.01, 2.0),
-    "pile": ("bench.stacks_fuzz", "tetra_pile", {}, "bench.stacks_fuzz", "pile_draw", 0.005, 1.0),
-    "boxes": ("bench.stacks_fuzz", "two_boxes", {}, "bench.stacks_fuzz", "boxes_draw", 0.01, 2.0),
-    "pendulum": ("bench.chains_fuzz", "pendulum", {}, "bench.chains_fuzz", "pendulum_draw", 0.01, 2.0),
-    "four_bar": ("bench.chains_fuzz", "linkage", {}, "bench.chains_fuzz", "linkage_draw", 0.01, 2.0),
+    "plate": Scene(f"{PLATE}:box_on_plate", f"{PLATE}:draw", 0.005, 1.0),
+    "hoop": Scene("test_hopping_hoop:hoop", "bench.hoop_drops:draw", 0.01, 1.0),
+    "cam": Scene("test_cam_follower:cam", "bench.cam_drops:draw", 0.01, 1.0),
+    "cam_smooth": Scene("test_cam_follower:cam", "bench.cam_drops:draw", 0.01, 1.0, SMOOTH),
+    "table": Scene("test_shaken_table:table", "bench.table_drops:draw", 0.01, 1.0),
+    "damper": Scene("test_impact_damper:impact_damper.model", "bench.damper_drops:draw", 0.01, 1.0),
+    "box_v": Scene("bench.box_v_drops:model", "bench.box_v_drops:draw", 0.01, 2.0),
+    "box_v_smooth": Scene("bench.box_v_drops:model", "bench.box_v_drops:draw", 0.01, 2.0, SMOOTH),
+    "groove": Scene("bench.groove_drops:model", "bench.groove_drops:draw", 0.01, 2.0),
+    "groove_smooth": Scene("bench.groove_drops:model", "bench.groove_drops:draw", 0.01, 2.0, SMOOTH),
+    "tumbling": Scene("test_tumbling_box:tumble", "bench.tumbling:drop", 0.005, 2.0),
+    "puck": Scene("bench.puck_drops:model", "bench.puck_drops:scene", 0.01, 1.0),
+    "pyramid": Scene("bench.pyramids:pyramid.model", "bench.pyramids:draw", 0.01, 2.0),
+    "pile": Scene("bench.stacks_fuzz:tetra_pile", "bench.stacks_fuzz:pile_draw", 0.005, 1.0),
+    "boxes": Scene("bench.stacks_fuzz:two_boxes", "bench.stacks_fuzz:boxes_draw", 0.01, 2.0),
+    "pendulum": Scene("bench.chains_fuzz:pendulum", "bench.chains_fuzz:pendulum_draw", 0.01, 2.0),
+    "four_bar": Scene("bench.chains_fuzz:linkage", "bench.chains_fuzz:linkage_draw", 0.01, 2.0),
 }
 ROUGH = ["box_v", "cam", "damper", "groove", "hoop", "plate", "table", "tumbling"]  # the default scenes
 
@@ -137,19 +135,25 @@ def onto_constraints(model: vcigen.Model) -> Callable[[Start], Start] | None:
     return onto
 
 
+def _named(where: str) -> Callable:
+    """``"module:a.b"``: that module's ``a.b``."""
+    module, path = where.split(":")
+    obj = importlib.import_module(module)
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
 def scene(
     name: str, backend: str, rule: str = "trapezoid"
 ) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start], Callable[[Start], Start] | None]:
     """The scene's simulator, its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order; the
     parameters the model does not have, a smooth variant's ``mu``, left out) and :func:`onto_constraints`."""
-    model_mod, model_fn, keywords, draw_mod, draw_fn = SCENES[name][:5]
-    make = importlib.import_module(model_mod)
-    for part in model_fn.split("."):
-        make = getattr(make, part)
-    model = make(**keywords)
+    sc = SCENES[name]
+    model = _named(sc.model)(**sc.keywords)
     sim = vcigen.build(model, backend=backend, rule=rule)
     known = {str(k) for k in model.params}
-    drawn = getattr(importlib.import_module(draw_mod), draw_fn)
+    drawn = _named(sc.draw)
 
     def draw(rng: np.random.Generator) -> Start:
         d = drawn(rng)  # a dict of simulate's arguments, (params, q0, v0) or (q0, v0, params)
@@ -276,8 +280,8 @@ def fuzz(
 ) -> dict:
     """Every draw of the scene: the tallies of its columns and each draw's largest error."""
     sim, draw, onto = scene(name, backend, rule)
-    h = SCENES[name][5] if h is None else h
-    t_end = SCENES[name][6] if t_end is None else t_end
+    h = SCENES[name].h if h is None else h
+    t_end = SCENES[name].t_end if t_end is None else t_end
     rng = np.random.default_rng(seed)
     tally = {"checked": 0, "skipped": 0, "kink": 0}
     through = {"impacts": 0, "held": 0, "lifts": 0}  # the events before the points of the draws checked
