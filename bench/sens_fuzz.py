@@ -30,7 +30,8 @@ above ``--tol`` (1e-4).
 Scenes (``h``, ``t_end``): ``plate`` (``tests/test_box_on_a_vibrating_plate.py``; 0.005, 1), ``hoop``
 (``bench.hoop_drops``; 0.01, 1), ``cam`` (``bench.cam_drops``), ``table`` (``bench.table_drops``), ``damper``
 (``bench.damper_drops``) (0.01, 1 each), ``box_v`` and ``groove`` (``bench.box_v_drops``,
-``bench.groove_drops``; 0.01, 2), ``tumbling`` (``bench.tumbling``; 0.005, 2); and ``box_v_smooth``,
+``bench.groove_drops``; 0.01, 2), ``tumbling`` (``bench.tumbling``; 0.005, 2): those eight the default
+(``--h``, ``--t-end`` override theirs); and ``box_v_smooth``,
 ``groove_smooth``, ``cam_smooth``, the frictionless variants of three of them on the same draws (less
 ``mu``): with ``table`` and ``damper`` what ``--rule lobatto3`` builds (no friction under that rule yet).
 ``pendulum`` and ``four_bar`` (``bench.chains_fuzz``: a double pendulum on two rods, a parallelogram linkage,
