@@ -43,6 +43,9 @@ tetrahedron, isotropic cones on the floor, 0.005, 1; a box dropped on a box, 0.0
 
     .venv/bin/python -m bench.sens_fuzz --rule lobatto3 \
         --scene box_v_smooth groove_smooth cam_smooth table damper
+
+``--agree``: C's tangent against CasADi's on each draw (:func:`agree`): the breaks, and the tangents up to the
+earlier first break, beside the runs' own gap. ``--kink DRAW COLUMN``: :func:`kink_widths`.
 """
 
 from __future__ import annotations
@@ -305,6 +308,48 @@ def fuzz(
     return {"tally": tally, "through": through, "worst": worst, "errors": errors, "h": h, "t_end": t_end}
 
 
+def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, rule="trapezoid") -> dict:
+    """The tangents of C and CasADi on the same draws: the breaks (each backend's ``sensitivity_breaks``) and,
+    up to the earlier first break, ``max |S_C - S_CasADi| / max(|S_CasADi|, 1)`` over the grid, beside the
+    runs' gap in ``(q, p)`` there (round-off grown by chaos parts the tangents with the runs)."""
+    sims = {}
+    for backend in ("c", "casadi"):
+        sims[backend], draw, onto = scene(name, backend, rule)
+    h = SCENES[name].h if h is None else h
+    t_end = SCENES[name].t_end if t_end is None else t_end
+    rng = np.random.default_rng(seed)
+    rows, errors = [], 0
+    for i in range(draws):
+        start = draw(rng)
+        start = start if onto is None else onto(start)
+        try:
+            res = {b: run(sims[b], start, h, t_end, sens=True) for b in sims}
+        except vcigen.SolverError:
+            errors += 1
+            continue
+        a, b = res["c"], res["casadi"]
+        ka = a.sensitivity_breaks[0][0] if a.sensitivity_breaks else len(a.t) - 1
+        kb = b.sensitivity_breaks[0][0] if b.sensitivity_breaks else len(b.t) - 1
+        k = min(ka, kb, len(a.t) - 1, len(b.t) - 1)
+        sa, sb = a.sensitivity[: k + 1], b.sensitivity[: k + 1]
+        gap_s = float(np.abs(sa - sb).max() / max(float(np.abs(sb).max()), 1.0))
+        states = np.abs(np.concatenate([a.q[: k + 1] - b.q[: k + 1], a.p[: k + 1] - b.p[: k + 1]], axis=1))
+        same_breaks = [x for x in a.sensitivity_breaks] == [x for x in b.sensitivity_breaks]
+        rows.append(
+            (
+                gap_s,
+                i,
+                k,
+                float(states.max()),
+                same_breaks,
+                a.sensitivity_breaks[:1],
+                b.sensitivity_breaks[:1],
+            )
+        )
+    rows.sort(reverse=True)
+    return {"rows": rows, "errors": errors, "h": h, "t_end": t_end}
+
+
 def kink_widths(
     name: str, seed: int, index: int, column: str, t: float, hs, eps: float = 1e-7
 ) -> list[tuple]:
@@ -351,7 +396,10 @@ def main(argv: list[str] | None = None) -> int:
         help="the one-sided differences of that draw of the first --scene at --at, h = 0.01 / 2^i (C)",
     )
     ap.add_argument("--at", type=float, default=0.02)
+    ap.add_argument("--agree", action="store_true", help="C's tangent against CasADi's on each draw instead")
     a = ap.parse_args(argv)
+    if a.agree:
+        return main_agree(a)
     if a.kink:
         print(f"{a.scene[0]}, seed {a.seed}, draw {a.kink[0]}, d(q, p)(t = {a.at}) / d {a.kink[1]}:")
         for h, gap, off in kink_widths(a.scene[0], a.seed, int(a.kink[0]), a.kink[1], a.at, KINK_HS):
@@ -385,6 +433,36 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"  draw {i}: {col} {err:.2e} at grid point {k} ({impacts} impacts before it; {why})")
     print(f"draws with an error above {a.tol:g}: {above}")
     return 1 if above else 0
+
+
+def main_agree(a: argparse.Namespace) -> int:
+    """``--agree``: per scene, the draws whose tangents or breaks differ between the backends."""
+    apart = 0
+    for name in a.scene:
+        t0 = time.perf_counter()
+        try:
+            out = agree(name, a.draws, a.seed, a.h, a.t_end, a.rule)
+        except ValueError as err:
+            print(f"{name} [{a.rule}]: not built: {err}", flush=True)
+            continue
+        rows = out["rows"]
+        breaks = sum(1 for r in rows if not r[4])
+        largest = f"{rows[0][0]:.1e} (draw {rows[0][1]}, the runs {rows[0][3]:.1e} apart)" if rows else "-"
+        print(
+            f"{name} [C against CasADi, {a.rule}, h = {out['h']}, t_end = {out['t_end']}], {a.draws} draws "
+            f"(seed {a.seed}), {time.perf_counter() - t0:.0f} s: runs raising {out['errors']}; other breaks "
+            f"{breaks}; largest tangent gap {largest}",
+            flush=True,
+        )
+        for gap_s, i, k, gap_q, same, ba, bb in rows:
+            if gap_s > a.tol or not same:
+                apart += 1
+                print(
+                    f"  draw {i}: tangents {gap_s:.2e} apart to grid point {k} (runs {gap_q:.1e}); breaks "
+                    f"C {ba}, CasADi {bb}{'' if same else ' (the lists differ)'}"
+                )
+    print(f"draws whose tangents part by more than {a.tol:g} or whose breaks differ: {apart}")
+    return 1 if apart else 0
 
 
 if __name__ == "__main__":

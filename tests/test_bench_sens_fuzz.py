@@ -152,3 +152,12 @@ def test_the_kink_of_a_hoop_started_rolling_exactly_shrinks_as_h_squared():
     for a, b in zip(gaps, gaps[1:]):
         assert 3.5 < a / b < 4.5
     assert all(off < 0.1 * gap for _, gap, off in widths)
+
+
+def test_the_backends_tangents_agree_on_rough_groove_drops():
+    """``--agree``: C's tangent (the generated loop's) and CasADi's (the Python stepper's) on the same draws,
+    the same breaks and the tangents within 1e-10 of each other up to the first."""
+    out = sens_fuzz.agree("groove", 3, 2)
+    assert out["errors"] == 0 and len(out["rows"]) == 3
+    for gap_s, _, k, gap_q, same, _, _ in out["rows"]:
+        assert same and k > 10 and gap_s < 1e-10 and gap_q < 1e-10
