@@ -30,12 +30,16 @@ def arguments(doc: str, seed: int, h: float, drops: int | None = None) -> argpar
     return ap
 
 
-def quiet(sim: vcigen.Simulator, start: Start, h: float, t_end: float) -> vcigen.Result:
+def quiet(
+    sim: vcigen.Simulator, start: Start, h: float, t_end: float, sensitivities: bool = False
+) -> vcigen.Result:
     """One run from ``start`` to ``t_end`` at ``h``, its warnings (counted in its stats) not printed."""
     q0, v0, params = start
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return sim.simulate(q0=q0, v0=v0, h=h, t_end=t_end, params=params, progress=False)
+        return sim.simulate(
+            q0=q0, v0=v0, h=h, t_end=t_end, params=params, progress=False, sensitivities=sensitivities
+        )
 
 
 def least_force(res: vcigen.Result) -> float:

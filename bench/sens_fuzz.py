@@ -54,7 +54,6 @@ import argparse
 import importlib
 import sys
 import time
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
@@ -63,10 +62,10 @@ import numpy as np
 import sympy as sp
 
 import vcigen
+from bench.random_runs import Start, quiet
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-Start = tuple[list[float], list[float], dict[str, float]]
 EPS = 1e-5  # the larger difference step, relative to max(1, |x|)
 AGREE = 1e-4  # the two central differences agree to this of the column's scale
 KINK = 1e-4  # one-sided differences parting by more than this of the scale, not shrinking with eps: a kink
@@ -173,13 +172,6 @@ def scene(
     return sim, draw, onto_constraints(model)
 
 
-def run(sim: vcigen.Simulator, start: Start, h: float, t_end: float, sens: bool = False) -> vcigen.Result:
-    q0, v0, params = start
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return sim.simulate(q0, v0, h, t_end=t_end, params=params, progress=False, sensitivities=sens)
-
-
 def modes(res: vcigen.Result, k: int) -> tuple:
     """The run's mode sequence up to grid point ``k``: impacts (step, contact, kind), lift-offs (step,
     contact) and the held contacts at each grid point."""
@@ -239,7 +231,7 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float, onto
     ``onto`` (:func:`onto_constraints`) each moved start is taken onto the constraints, and the column's
     tangent is ``S_K dz``, ``dz`` the central difference of those starts: the derivative along that path."""
     try:
-        res = run(sim, start, h, t_end, sens=True)
+        res = quiet(sim, start, h, t_end, sensitivities=True)
     except vcigen.SolverError:
         return None
     k = res.sensitivity_breaks[0][0] if res.sensitivity_breaks else len(res.t) - 1
@@ -252,7 +244,7 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float, onto
         for dx in (eps, -eps, eps / 4, -eps / 4):
             starts[dx] = moved(start, names, j, dx) if onto is None else onto(moved(start, names, j, dx))
             try:
-                other = run(sim, starts[dx], h, t_end)
+                other = quiet(sim, starts[dx], h, t_end)
             except (vcigen.SolverError, ValueError):  # ValueError: moved out of the admissible set
                 break
             if modes(other, k) != sig:
@@ -323,7 +315,7 @@ def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, 
         start = draw(rng)
         start = start if onto is None else onto(start)
         try:
-            res = {b: run(sims[b], start, h, t_end, sens=True) for b in sims}
+            res = {b: quiet(sims[b], start, h, t_end, sensitivities=True) for b in sims}
         except vcigen.SolverError:
             errors += 1
             continue
@@ -365,13 +357,13 @@ def kink_widths(
     out = []
     for h in hs:
         k = round(t / h)
-        res = run(sim, start, h, k * h + h / 2, sens=True)
+        res = quiet(sim, start, h, k * h + h / 2, sensitivities=True)
         names = res.sensitivity_names
         j = names.index(column)
         base = np.concatenate([res.q[k], res.p[k]])
         side = []
         for dx in (eps, -eps):
-            other = run(sim, moved(start, names, j, dx), h, k * h + h / 2)
+            other = quiet(sim, moved(start, names, j, dx), h, k * h + h / 2)
             side.append((np.concatenate([other.q[k], other.p[k]]) - base) / dx)
         gap = float(np.abs(side[0] - side[1]).max())
         off = float(np.abs(res.sensitivity[k][:, j] - (side[0] + side[1]) / 2).max())
