@@ -151,12 +151,14 @@ def scene(
     name: str, backend: str, rule: str = "trapezoid"
 ) -> tuple[vcigen.Simulator, Callable[[np.random.Generator], Start], Callable[[Start], Start] | None]:
     """The scene's simulator, its draw ``rng -> (q0, v0, params)`` (its campaign's draws, in its order; the
-    parameters the model does not have, a smooth variant's ``mu``, left out) and :func:`onto_constraints`."""
+    parameters the model does not have, a smooth variant's ``mu``, left out; on the model's constraints) and
+    :func:`onto_constraints`."""
     sc = SCENES[name]
     model = _named(sc.model)(**sc.keywords)
     sim = vcigen.build(model, backend=backend, rule=rule)
     known = {str(k) for k in model.params}
     drawn = _named(sc.draw)
+    onto = onto_constraints(model)
 
     def draw(rng: np.random.Generator) -> Start:
         d = drawn(rng)  # a dict of simulate's arguments, (params, q0, v0) or (q0, v0, params)
@@ -167,9 +169,10 @@ def scene(
         else:
             q0, v0, params = d
         q0, v0 = [float(x) for x in q0], [float(x) for x in v0]
-        return q0, v0, {k: v for k, v in params.items() if k in known}
+        start = q0, v0, {k: v for k, v in params.items() if k in known}
+        return start if onto is None else onto(start)
 
-    return sim, draw, onto_constraints(model)
+    return sim, draw, onto
 
 
 def modes(res: vcigen.Result, k: int) -> tuple:
@@ -284,7 +287,7 @@ def fuzz(
     worst, errors = [], 0
     for i in range(draws):
         start = draw(rng)
-        out = check_draw(sim, start if onto is None else onto(start), h, t_end, onto)
+        out = check_draw(sim, start, h, t_end, onto)
         if out is None:
             errors += 1
             continue
@@ -306,14 +309,13 @@ def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, 
     runs' gap in ``(q, p)`` there (round-off grown by chaos parts the tangents with the runs)."""
     sims = {}
     for backend in ("c", "casadi"):
-        sims[backend], draw, onto = scene(name, backend, rule)
+        sims[backend], draw, _ = scene(name, backend, rule)
     h = SCENES[name].h if h is None else h
     t_end = SCENES[name].t_end if t_end is None else t_end
     rng = np.random.default_rng(seed)
     rows, errors = [], 0
     for i in range(draws):
         start = draw(rng)
-        start = start if onto is None else onto(start)
         try:
             res = {b: quiet(sims[b], start, h, t_end, sensitivities=True) for b in sims}
         except vcigen.SolverError:
@@ -326,7 +328,7 @@ def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, 
         sa, sb = a.sensitivity[: k + 1], b.sensitivity[: k + 1]
         gap_s = float(np.abs(sa - sb).max() / max(float(np.abs(sb).max()), 1.0))
         states = np.abs(np.concatenate([a.q[: k + 1] - b.q[: k + 1], a.p[: k + 1] - b.p[: k + 1]], axis=1))
-        same_breaks = [x for x in a.sensitivity_breaks] == [x for x in b.sensitivity_breaks]
+        same_breaks = list(a.sensitivity_breaks) == list(b.sensitivity_breaks)
         rows.append(
             (
                 gap_s,
@@ -349,11 +351,10 @@ def kink_widths(
     gap, the tangent's distance from their mean)`` of ``(q, p)`` at ``t`` in ``column`` (max norms, steps of
     ``eps``). A kink of the discrete map whose gap shrinks as ``h^2`` is the method's error, not the tangent's
     (``--kink``)."""
-    sim, draw, onto = scene(name, "c")
+    sim, draw, _ = scene(name, "c")
     rng = np.random.default_rng(seed)
     for _ in range(index + 1):
         start = draw(rng)
-    start = start if onto is None else onto(start)
     out = []
     for h in hs:
         k = round(t / h)
