@@ -175,6 +175,21 @@ def scene(
     return sim, draw, onto
 
 
+def first_break(res: vcigen.Result) -> int:
+    """The grid point where the tangent's first break is booked (NaN after it), or the run's last."""
+    return res.sensitivity_breaks[0][0] if res.sensitivity_breaks else len(res.t) - 1
+
+
+def end_state(res: vcigen.Result, k: int) -> np.ndarray:
+    """``(q_k, p_k)``: the rows of the tangent ``res.sensitivity[k]``."""
+    return np.concatenate([res.q[k], res.p[k]])
+
+
+def steps(name: str, h: float | None, t_end: float | None) -> tuple[float, float]:
+    """The scene's ``h`` and ``t_end`` unless given."""
+    return (SCENES[name].h if h is None else h), (SCENES[name].t_end if t_end is None else t_end)
+
+
 def modes(res: vcigen.Result, k: int) -> tuple:
     """The run's mode sequence up to grid point ``k``: impacts (step, contact, kind), lift-offs (step,
     contact) and the held contacts at each grid point."""
@@ -237,9 +252,9 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float, onto
         res = quiet(sim, start, h, t_end, sensitivities=True)
     except vcigen.SolverError:
         return None
-    k = res.sensitivity_breaks[0][0] if res.sensitivity_breaks else len(res.t) - 1
+    k = first_break(res)
     names, sig = res.sensitivity_names, modes(res, k)
-    base = np.concatenate([res.q[k], res.p[k]])
+    base = end_state(res, k)
     columns = {}
     for j, name in enumerate(names):
         eps = EPS * max(1.0, abs(value(start, names, j)))
@@ -252,7 +267,7 @@ def check_draw(sim: vcigen.Simulator, start: Start, h: float, t_end: float, onto
                 break
             if modes(other, k) != sig:
                 break
-            ends[dx] = np.concatenate([other.q[k], other.p[k]])
+            ends[dx] = end_state(other, k)
         if len(ends) < 4:
             columns[name] = ("skipped", float("nan"))
         elif onto is None:
@@ -279,8 +294,7 @@ def fuzz(
 ) -> dict:
     """Every draw of the scene: the tallies of its columns and each draw's largest error."""
     sim, draw, onto = scene(name, backend, rule)
-    h = SCENES[name].h if h is None else h
-    t_end = SCENES[name].t_end if t_end is None else t_end
+    h, t_end = steps(name, h, t_end)
     rng = np.random.default_rng(seed)
     tally = {"checked": 0, "skipped": 0, "kink": 0}
     through = {"impacts": 0, "held": 0, "lifts": 0}  # the events before the points of the draws checked
@@ -310,8 +324,7 @@ def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, 
     sims = {}
     for backend in ("c", "casadi"):
         sims[backend], draw, _ = scene(name, backend, rule)
-    h = SCENES[name].h if h is None else h
-    t_end = SCENES[name].t_end if t_end is None else t_end
+    h, t_end = steps(name, h, t_end)
     rng = np.random.default_rng(seed)
     rows, errors = [], 0
     for i in range(draws):
@@ -322,9 +335,7 @@ def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, 
             errors += 1
             continue
         a, b = res["c"], res["casadi"]
-        ka = a.sensitivity_breaks[0][0] if a.sensitivity_breaks else len(a.t) - 1
-        kb = b.sensitivity_breaks[0][0] if b.sensitivity_breaks else len(b.t) - 1
-        k = min(ka, kb, len(a.t) - 1, len(b.t) - 1)
+        k = min(first_break(a), first_break(b))
         sa, sb = a.sensitivity[: k + 1], b.sensitivity[: k + 1]
         gap_s = float(np.abs(sa - sb).max() / max(float(np.abs(sb).max()), 1.0))
         states = np.abs(np.concatenate([a.q[: k + 1] - b.q[: k + 1], a.p[: k + 1] - b.p[: k + 1]], axis=1))
@@ -361,11 +372,11 @@ def kink_widths(
         res = quiet(sim, start, h, k * h + h / 2, sensitivities=True)
         names = res.sensitivity_names
         j = names.index(column)
-        base = np.concatenate([res.q[k], res.p[k]])
+        base = end_state(res, k)
         side = []
         for dx in (eps, -eps):
             other = quiet(sim, moved(start, names, j, dx), h, k * h + h / 2)
-            side.append((np.concatenate([other.q[k], other.p[k]]) - base) / dx)
+            side.append((end_state(other, k) - base) / dx)
         gap = float(np.abs(side[0] - side[1]).max())
         off = float(np.abs(res.sensitivity[k][:, j] - (side[0] + side[1]) / 2).max())
         out.append((h, gap, off))
