@@ -44,8 +44,9 @@ tetrahedron, isotropic cones on the floor, 0.005, 1; a box dropped on a box, 0.0
     .venv/bin/python -m bench.sens_fuzz --rule lobatto3 \
         --scene box_v_smooth groove_smooth cam_smooth table damper
 
-``--agree``: C's tangent against CasADi's on each draw (:func:`agree`): the breaks, and the tangents up to the
-earlier first break, beside the runs' own gap. ``--kink DRAW COLUMN``: :func:`kink_widths`.
+``--agree``: C's tangent against CasADi's on each draw (:func:`agree`; ``--only I ...``: those draws alone):
+the breaks, and the tangents up to the earlier first break, beside the runs' own gap. ``--kink DRAW
+COLUMN``: :func:`kink_widths`.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ import argparse
 import importlib
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -317,10 +318,19 @@ def fuzz(
     return {"tally": tally, "through": through, "worst": worst, "errors": errors, "h": h, "t_end": t_end}
 
 
-def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, rule="trapezoid") -> dict:
-    """The tangents of C and CasADi on the same draws: the breaks (each backend's ``sensitivity_breaks``) and,
-    up to the earlier first break, ``max |S_C - S_CasADi| / max(|S_CasADi|, 1)`` over the grid, beside the
-    runs' gap in ``(q, p)`` there (round-off grown by chaos parts the tangents with the runs)."""
+def agree(
+    name: str,
+    draws: int,
+    seed: int,
+    h: float | None = None,
+    t_end=None,
+    rule="trapezoid",
+    only: Sequence[int] | None = None,
+) -> dict:
+    """The tangents of C and CasADi on the same draws (``only``: those of them alone): the breaks (each
+    backend's ``sensitivity_breaks``) and, up to the earlier first break, ``max |S_C - S_CasADi| /
+    max(|S_CasADi|, 1)`` over the grid, beside the runs' gap in ``(q, p)`` there (round-off grown by chaos
+    parts the tangents with the runs)."""
     sims = {}
     for backend in ("c", "casadi"):
         sims[backend], draw, _ = scene(name, backend, rule)
@@ -329,6 +339,8 @@ def agree(name: str, draws: int, seed: int, h: float | None = None, t_end=None, 
     rows, errors = [], 0
     for i in range(draws):
         start = draw(rng)
+        if only is not None and i not in only:
+            continue
         try:
             res = {b: quiet(sims[b], start, h, t_end, sensitivities=True) for b in sims}
         except vcigen.SolverError:
@@ -401,6 +413,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--at", type=float, default=0.02)
     ap.add_argument("--agree", action="store_true", help="C's tangent against CasADi's on each draw instead")
+    ap.add_argument("--only", type=int, nargs="+", help="--agree: these draws (of --draws) alone")
     a = ap.parse_args(argv)
     if a.agree:
         return main_agree(a)
@@ -445,15 +458,16 @@ def main_agree(a: argparse.Namespace) -> int:
     for name in a.scene:
         t0 = time.perf_counter()
         try:
-            out = agree(name, a.draws, a.seed, a.h, a.t_end, a.rule)
+            out = agree(name, a.draws, a.seed, a.h, a.t_end, a.rule, a.only)
         except ValueError as err:
             print(f"{name} [{a.rule}]: not built: {err}", flush=True)
             continue
         rows = out["rows"]
         breaks = sum(1 for r in rows if not r[4])
         largest = f"{rows[0][0]:.1e} (draw {rows[0][1]}, the runs {rows[0][3]:.1e} apart)" if rows else "-"
+        which = f"{a.draws} draws" if a.only is None else f"draws {', '.join(map(str, a.only))} of {a.draws}"
         print(
-            f"{name} [C against CasADi, {a.rule}, h = {out['h']}, t_end = {out['t_end']}], {a.draws} draws "
+            f"{name} [C against CasADi, {a.rule}, h = {out['h']}, t_end = {out['t_end']}], {which} "
             f"(seed {a.seed}), {time.perf_counter() - t0:.0f} s: runs raising {out['errors']}; other breaks "
             f"{breaks}; largest tangent gap {largest}",
             flush=True,

@@ -161,3 +161,15 @@ def test_the_backends_tangents_agree_on_rough_groove_drops():
     assert out["errors"] == 0 and len(out["rows"]) == 3
     for gap_s, _, k, gap_q, same, _, _ in out["rows"]:
         assert same and k > 10 and gap_s < 1e-10 and gap_q < 1e-10
+
+
+def test_the_backends_break_at_the_same_step_where_a_box_stops_pinned_at_a_grid_point():
+    """A rough box landing its second corner in the V (``box_v`` seed 1, draws 26 and 59) is pinned by its
+    three rows and ends the step at rest: its slipping corner's sliding at the segment's end is round-off's
+    (6.9e-19 on CasADi), whose sign the stop test read. C located a stop there and broke one step earlier
+    than CasADi; a turn below ``SLIDE_EPS`` is no stop on either (``SustainedSteps._friction_events``)."""
+    out = sens_fuzz.agree("box_v", 60, 1, only=[26, 59])
+    assert out["errors"] == 0 and sorted(r[1] for r in out["rows"]) == [26, 59]
+    for gap_s, _, k, gap_q, same, ba, bb in out["rows"]:
+        assert same, (ba, bb)
+        assert k > 40 and gap_s < 1e-8 and gap_q < 1e-10

@@ -5291,7 +5291,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                     g1 += grad0[sr * PYRAMID_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < 0.0) {
+                if (g1 < -PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel0))) { /* turned, not by round-off alone */
                     pyramid_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < PYRAMID_N; ++l) {
                         g0 += grad0[sr * PYRAMID_N + l] * vel0[l];

@@ -4028,7 +4028,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                     g1 += grad0[sr * CONVEYOR_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < 0.0) {
+                if (g1 < -CONVEYOR_SLIDE_EPS * (1.0 + conveyor_norm_inf(CONVEYOR_N, vel0))) { /* turned, not by round-off alone */
                     conveyor_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < CONVEYOR_N; ++l) {
                         g0 += grad0[sr * CONVEYOR_N + l] * vel0[l];

@@ -4109,7 +4109,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     g1 += grad0[sr * BLOCK_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < 0.0) {
+                if (g1 < -BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel0))) { /* turned, not by round-off alone */
                     block_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < BLOCK_N; ++l) {
                         g0 += grad0[sr * BLOCK_N + l] * vel0[l];

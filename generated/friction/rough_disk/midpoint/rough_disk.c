@@ -4188,7 +4188,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     g1 += grad0[sr * ROUGH_DISK_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < 0.0) {
+                if (g1 < -ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0))) { /* turned, not by round-off alone */
                     rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < ROUGH_DISK_N; ++l) {
                         g0 += grad0[sr * ROUGH_DISK_N + l] * vel0[l];

@@ -3248,7 +3248,7 @@ static int spun_ball_row_dips(const spun_ball_ctx_t *c, const double *q, const d
 }
 
 /* SustainedSteps._cone_stop: a slipping cone (f, p) that stops inside the segment: its sliding velocity along the
- * frozen slip direction s at the segment's end (q1, u1) is negative; located along the sub-step map (illinois,
+ * frozen slip direction s at the segment's end (q1, u1) is negative (below round-off, SLIDE_EPS); located along the sub-step map (illinois,
  * height 5) where it is 0 (0 if it is not positive at the start, vel0). *ev = 3 with *s_out. */
 static int spun_ball_cone_stop(const spun_ball_ctx_t *c, int f, int p, const double *q, const double *pp,
     double tau, const double *guess, const double *q1, const double *u1, const double *vel0, double *s_out, int *ev)
@@ -3258,8 +3258,8 @@ static int spun_ball_cone_stop(const spun_ball_ctx_t *c, int f, int p, const dou
     spun_ball_rows(q1, u1, c->par, psi, grad, curv);
     spun_ball_sliding(f, p, grad, u1, w);
     g1 = s0 * w[0] + s1 * w[1];
-    if (g1 >= 0.0) {
-        return 0;
+    if (g1 >= -SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) {
+        return 0; /* not turned, or by round-off alone (a body pinned by its rows): the next segment's start */
     }
     spun_ball_rows(q, vel0, c->par, psi, grad, curv);
     spun_ball_sliding(f, p, grad, vel0, w);
@@ -5832,7 +5832,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     g1 += grad0[sr * SPUN_BALL_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < 0.0) {
+                if (g1 < -SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) { /* turned, not by round-off alone */
                     spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < SPUN_BALL_N; ++l) {
                         g0 += grad0[sr * SPUN_BALL_N + l] * vel0[l];

@@ -4394,7 +4394,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     g1 += grad0[sr * STAR_FRICTION_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < 0.0) {
+                if (g1 < -STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel0))) { /* turned, not by round-off alone */
                     star_friction_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < STAR_FRICTION_N; ++l) {
                         g0 += grad0[sr * STAR_FRICTION_N + l] * vel0[l];
