@@ -166,10 +166,11 @@ def test_the_backends_tangents_agree_on_rough_groove_drops():
 def test_the_backends_break_at_the_same_step_where_a_box_stops_pinned_at_a_grid_point():
     """A rough box landing its second corner in the V (``box_v`` seed 1, draws 26 and 59) is pinned by its
     three rows and ends the step at rest: its slipping corner's sliding at the segment's end is round-off's
-    (6.9e-19 on CasADi), whose sign the stop test read. C located a stop there and broke one step earlier
-    than CasADi; a turn below ``SLIDE_EPS`` is no stop on either (``SustainedSteps._friction_events``)."""
+    (6.9e-19 on CasADi), whose sign the stop test read. C located a stop there and broke in that step, CasADi
+    met it at the next step's start and broke there; a sliding within ``SLIDE_EPS`` of 0 at the end is a stop
+    at the end on both (``SustainedSteps._friction_events``): the same breaks, the tangents alike."""
     out = sens_fuzz.agree("box_v", 60, 1, only=[26, 59])
     assert out["errors"] == 0 and sorted(r[1] for r in out["rows"]) == [26, 59]
     for gap_s, _, k, gap_q, same, ba, bb in out["rows"]:
         assert same, (ba, bb)
-        assert k > 40 and gap_s < 1e-8 and gap_q < 1e-10
+        assert k >= 40 and gap_s < 1e-8 and gap_q < 1e-10

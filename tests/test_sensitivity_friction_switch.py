@@ -162,6 +162,35 @@ def test_stop_is_the_closed_form(backend: str, rule: str, a: float, h: float) ->
     assert np.abs(S[1:, [1, 3]]).max() <= 1e-12  # held on the floor: y and p_y do not move
 
 
+@pytest.mark.parametrize("steps", [20, 41])
+@pytest.mark.parametrize("a", [0.0, 0.25])
+@pytest.mark.parametrize("rule", RULES)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_stop_on_a_grid_point_is_the_closed_form(backend: str, rule: str, a: float, steps: int) -> None:
+    """The stop on a grid point (``h = t_stop / steps``): the sliding at that step's end is round-off's. It is
+    located at the step's end (``SLIDE_EPS``) and the tangent goes on through it (``Tracker.rest_end``: the
+    event point's tangents moved along the stick by the tangent of the empty rest's length), the closed form
+    at every grid point; at the stop's own, the stick's side (``p``'s tangent 0: the map has a kink there).
+    Before stop 63 it broke there, ``"friction switch in a held step"``, on both backends."""
+    t_stop = V0 / (G * (MU * math.cos(a) - math.sin(a)))
+    h = t_stop / steps
+    res = run("block", backend, rule, [0.0, 0.0], [V0, 0.0], h, 1.5 * t_stop, {"a": a})
+    assert res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    assert abs(res.t[steps] - t_stop) < 1e-12 * t_stop
+    t = res.t.copy()
+    t[steps] = t_stop * (1.0 + 1e-12)  # the stick's side
+    want = stop_closed_form(t, a)
+    assert np.allclose(res.q[:, 0], want["x"][0], atol=1e-12, rtol=0)
+    assert np.abs(res.p[steps:, 0]).max() <= 1e-12
+    S = res.sensitivity
+    col = {name: i for i, name in enumerate(res.sensitivity_names)}
+    for name, (dx, dp) in want.items():
+        if name == "x":
+            continue
+        assert np.allclose(S[:, 0, col[name]], dx, atol=1e-10, rtol=0), name
+        assert np.allclose(S[:, 2, col[name]], dp, atol=1e-10, rtol=0), name
+
+
 @pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_stop_matches_finite_differences(backend: str, rule: str) -> None:

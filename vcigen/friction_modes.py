@@ -278,14 +278,20 @@ class FrictionModes:
 
     def _cone_stop(self, f: int, p: int, step, t_k, q, p0, tau, v, u1, end, vel0, events) -> None:
         """A slipping cone that stops inside the segment: its sliding velocity along the frozen slip direction
-        ``s`` at the segment's end is negative (below round-off, ``SLIDE_EPS``: where rows pin the body its
-        sign is round-off's, and the backends would part on it); located along the sub-step map (Illinois)
-        where it is 0."""
+        ``s`` at the segment's end is negative; located along the sub-step map (Illinois) where it is 0.
+        Within round-off of 0 there (``SLIDE_EPS``), having slid at the start, it stops at the end (fraction
+        1): its sign is round-off's, and the backends parted on it (a box pinned by three rows, at rest by the
+        step's end; a block whose stop falls on a grid point)."""
         s = -self._slip[[f, p]] / self._mu_f[f]
         g1 = float(s @ self._sliding(f, p, end.grad, u1))
-        if g1 >= -SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0)))):
-            return  # not turned, or by round-off alone (a body pinned by its rows): the next segment's start
+        tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0))))
+        if g1 > tiny:
+            return
         g0 = float(s @ self._sliding(f, p, self.k.rows(q, vel0)[1], vel0))
+        if g1 >= -tiny:  # stopped at the end to round-off: there if it slid at the start
+            if g0 > tiny:
+                events[self._stick_rows[f]] = ("stop", 1.0)
+            return
 
         def along(c, w):
             w, end_c, u_c = self._sub_end(step, t_k, q, p0, tau, c, w)
@@ -506,10 +512,9 @@ class FrictionModes:
         return float(self._mu_f[f] * normal - abs(forces[self._stick_rows[f]]))
 
     def _friction_events(self, step, t_k, q, p, tau, v, u1, end, f1, events) -> None:
-        """A slipping contact that stops inside the segment ("stop": its sliding turned at the end by more
-        than round-off, ``SLIDE_EPS``; less is met at the next segment's start), a sticking one whose
-        force leaves the cone ("slide"): each located as a root along the sub-step map (Illinois), as a
-        lift-off is."""
+        """A slipping contact that stops inside the segment ("stop"; at its end where its sliding there is
+        round-off's, ``SLIDE_EPS``, :meth:`_cone_stop`), a sticking one whose force leaves the cone
+        ("slide"): each located as a root along the sub-step map (Illinois), as a lift-off is."""
         k = self.k
         vel0 = self._velocity(q, v, p)
         for f in range(len(self._stick_rows)):
@@ -521,7 +526,11 @@ class FrictionModes:
             elif self._slip[f]:
                 s = -math.copysign(1.0, self._slip[f])  # the sliding direction
                 g1 = s * float(end.grad[sr] @ u1)
-                if g1 < -SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0)))):  # turned, not by round-off alone
+                tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0))))
+                if abs(g1) <= tiny:  # stopped at the end to round-off: there if it slid at the start
+                    if s * float(k.rows(q, vel0)[1][sr] @ vel0) > tiny:
+                        events[sr] = ("stop", 1.0)
+                elif g1 < 0.0:  # turned inside
                     g0 = s * float(k.rows(q, vel0)[1][sr] @ vel0)
 
                     def sliding(c, w, s=s, sr=sr):

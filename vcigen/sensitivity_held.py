@@ -534,6 +534,20 @@ class HeldTangents:
         self.dt, self.dtau, self.t_seg = self.dt + dtau_s[0], self.dtau - dtau_s, self.t_seg + s * tau
 
     @_event_hook
+    def rest_end(self, q, u, force) -> None:
+        """Nothing left of a held step after its events (the last within its least sub-step of the step's
+        end): ``S_k+1`` is the event point's tangents moved along the flow of the mode the step ends in by the
+        tangent ``dtau`` of that empty rest's length (``-dt`` of the event's time), ``dq + u dtau`` and ``dp +
+        pdot dtau``, ``pdot = M qddot + (dp/dq) u`` (``force = M qddot = rhs + D^T lambda``, the stepper's).
+        A block stopping on a grid point: the stick's tangent after the stop (``p`` 0 for any start)."""
+        if not self.active:
+            return
+        n = self.n
+        dmom, _ = self.tg.get("d_legendre")(q, u, np.zeros(n), self.par(self.t_seg))
+        pdot = np.asarray(force, dtype=float) + dmom[:, :n] @ u
+        self.next = np.vstack([self.dq + np.outer(u, self.dtau[0]), self.dp + np.outer(pdot, self.dtau[0])])
+
+    @_event_hook
     def free_end(self, q, p, w, tau: float) -> None:
         """The free rest (46) of a held step after its events (:meth:`event`), from the segment's tangents."""
         if self.active:

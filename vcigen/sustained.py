@@ -423,6 +423,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         while True:
             self._at(t)
             if rest <= 1e-13 * h:
+                self._ev_rest_end(q, p, guess)  # events carried to the step's end: the tangent there
                 return q, p, (e_step if e_step is not None else math.nan), guess
             if self._stick_rows:
                 mode = self._friction_mode()

@@ -5281,7 +5281,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         for (i = 0; i < PYRAMID_NF; ++i) {
             const int sr = pyramid_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn, lo;
+            double g0, g1 = 0.0, sgn, lo, tiny;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[PYRAMID_R_DIM], grad0[PYRAMID_R_DIM * PYRAMID_N], curv0[PYRAMID_R_DIM];
@@ -5291,7 +5291,17 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                     g1 += grad0[sr * PYRAMID_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < -PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel0))) { /* turned, not by round-off alone */
+                tiny = PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel0));
+                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                    pyramid_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    for (l = 0, g0 = 0.0; l < PYRAMID_N; ++l) {
+                        g0 += grad0[sr * PYRAMID_N + l] * vel0[l];
+                    }
+                    if (sgn * g0 > tiny) {
+                        s_ev[sr] = 1.0;
+                        ev[sr] = 3;
+                    }
+                } else if (g1 < 0.0) { /* turned inside */
                     pyramid_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < PYRAMID_N; ++l) {
                         g0 += grad0[sr * PYRAMID_N + l] * vel0[l];

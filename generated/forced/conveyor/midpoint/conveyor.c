@@ -4018,7 +4018,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
         for (i = 0; i < CONVEYOR_NF; ++i) {
             const int sr = conveyor_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn, lo;
+            double g0, g1 = 0.0, sgn, lo, tiny;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[CONVEYOR_R_DIM], grad0[CONVEYOR_R_DIM * CONVEYOR_N], curv0[CONVEYOR_R_DIM];
@@ -4028,7 +4028,17 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                     g1 += grad0[sr * CONVEYOR_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < -CONVEYOR_SLIDE_EPS * (1.0 + conveyor_norm_inf(CONVEYOR_N, vel0))) { /* turned, not by round-off alone */
+                tiny = CONVEYOR_SLIDE_EPS * (1.0 + conveyor_norm_inf(CONVEYOR_N, vel0));
+                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                    conveyor_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    for (l = 0, g0 = 0.0; l < CONVEYOR_N; ++l) {
+                        g0 += grad0[sr * CONVEYOR_N + l] * vel0[l];
+                    }
+                    if (sgn * g0 > tiny) {
+                        s_ev[sr] = 1.0;
+                        ev[sr] = 3;
+                    }
+                } else if (g1 < 0.0) { /* turned inside */
                     conveyor_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < CONVEYOR_N; ++l) {
                         g0 += grad0[sr * CONVEYOR_N + l] * vel0[l];

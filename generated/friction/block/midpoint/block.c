@@ -4099,7 +4099,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         for (i = 0; i < BLOCK_NF; ++i) {
             const int sr = block_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn, lo;
+            double g0, g1 = 0.0, sgn, lo, tiny;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[BLOCK_R_DIM], grad0[BLOCK_R_DIM * BLOCK_N], curv0[BLOCK_R_DIM];
@@ -4109,7 +4109,17 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     g1 += grad0[sr * BLOCK_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < -BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel0))) { /* turned, not by round-off alone */
+                tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel0));
+                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                    block_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    for (l = 0, g0 = 0.0; l < BLOCK_N; ++l) {
+                        g0 += grad0[sr * BLOCK_N + l] * vel0[l];
+                    }
+                    if (sgn * g0 > tiny) {
+                        s_ev[sr] = 1.0;
+                        ev[sr] = 3;
+                    }
+                } else if (g1 < 0.0) { /* turned inside */
                     block_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < BLOCK_N; ++l) {
                         g0 += grad0[sr * BLOCK_N + l] * vel0[l];

@@ -4178,7 +4178,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         for (i = 0; i < ROUGH_DISK_NF; ++i) {
             const int sr = rough_disk_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn, lo;
+            double g0, g1 = 0.0, sgn, lo, tiny;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[ROUGH_DISK_R_DIM], grad0[ROUGH_DISK_R_DIM * ROUGH_DISK_N], curv0[ROUGH_DISK_R_DIM];
@@ -4188,7 +4188,17 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     g1 += grad0[sr * ROUGH_DISK_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < -ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0))) { /* turned, not by round-off alone */
+                tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0));
+                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                    rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    for (l = 0, g0 = 0.0; l < ROUGH_DISK_N; ++l) {
+                        g0 += grad0[sr * ROUGH_DISK_N + l] * vel0[l];
+                    }
+                    if (sgn * g0 > tiny) {
+                        s_ev[sr] = 1.0;
+                        ev[sr] = 3;
+                    }
+                } else if (g1 < 0.0) { /* turned inside */
                     rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < ROUGH_DISK_N; ++l) {
                         g0 += grad0[sr * ROUGH_DISK_N + l] * vel0[l];

@@ -3248,22 +3248,31 @@ static int spun_ball_row_dips(const spun_ball_ctx_t *c, const double *q, const d
 }
 
 /* SustainedSteps._cone_stop: a slipping cone (f, p) that stops inside the segment: its sliding velocity along the
- * frozen slip direction s at the segment's end (q1, u1) is negative (below round-off, SLIDE_EPS); located along the sub-step map (illinois,
- * height 5) where it is 0 (0 if it is not positive at the start, vel0). *ev = 3 with *s_out. */
+ * frozen slip direction s at the segment's end (q1, u1) is negative; located along the sub-step map (illinois,
+ * height 5) where it is 0 (0 if it is not positive at the start, vel0). *ev = 3 with *s_out. Within round-off of 0
+ * there (SLIDE_EPS), having slid at the start, it stops at the end (*s_out 1): its sign is round-off's. */
 static int spun_ball_cone_stop(const spun_ball_ctx_t *c, int f, int p, const double *q, const double *pp,
     double tau, const double *guess, const double *q1, const double *u1, const double *vel0, double *s_out, int *ev)
 {
-    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], w[2], g0, g1;
+    double psi[SPUN_BALL_R_DIM], grad[SPUN_BALL_R_DIM * SPUN_BALL_N], curv[SPUN_BALL_R_DIM], w[2], g0, g1, tiny;
     const double s0 = -c->sus->slip[f] / c->mu_f[f], s1 = -c->sus->slip[p] / c->mu_f[f];
     spun_ball_rows(q1, u1, c->par, psi, grad, curv);
     spun_ball_sliding(f, p, grad, u1, w);
     g1 = s0 * w[0] + s1 * w[1];
-    if (g1 >= -SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) {
-        return 0; /* not turned, or by round-off alone (a body pinned by its rows): the next segment's start */
+    tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0));
+    if (g1 > tiny) {
+        return 0;
     }
     spun_ball_rows(q, vel0, c->par, psi, grad, curv);
     spun_ball_sliding(f, p, grad, vel0, w);
     g0 = s0 * w[0] + s1 * w[1];
+    if (g1 >= -tiny) { /* stopped at the end to round-off: there if it slid at the start */
+        if (g0 > tiny) {
+            *s_out = 1.0;
+            *ev = 3;
+        }
+        return 0;
+    }
     *s_out = 0.0;
     if (g0 > 0.0 && spun_ball_illinois(c, spun_ball_stick_row[f], 5, q, pp, tau, guess, 0.0, 1.0, g0, g1, 1e-14, 1e-13,
             SPUN_BALL_LIFT_ITER, s_out)) {
@@ -5814,7 +5823,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         for (i = 0; i < SPUN_BALL_NF; ++i) {
             const int sr = spun_ball_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn, lo;
+            double g0, g1 = 0.0, sgn, lo, tiny;
             int l;
             if (spun_ball_partner[i] >= 0 && spun_ball_partner[i] < i) {
                 continue; /* a cone's second tangent: its events are its first's */
@@ -5832,7 +5841,17 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     g1 += grad0[sr * SPUN_BALL_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < -SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) { /* turned, not by round-off alone */
+                tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0));
+                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                    spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    for (l = 0, g0 = 0.0; l < SPUN_BALL_N; ++l) {
+                        g0 += grad0[sr * SPUN_BALL_N + l] * vel0[l];
+                    }
+                    if (sgn * g0 > tiny) {
+                        s_ev[sr] = 1.0;
+                        ev[sr] = 3;
+                    }
+                } else if (g1 < 0.0) { /* turned inside */
                     spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < SPUN_BALL_N; ++l) {
                         g0 += grad0[sr * SPUN_BALL_N + l] * vel0[l];

@@ -4384,7 +4384,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         for (i = 0; i < STAR_FRICTION_NF; ++i) {
             const int sr = star_friction_stick_row[i];
             const double *vel0 = vel;
-            double g0, g1 = 0.0, sgn, lo;
+            double g0, g1 = 0.0, sgn, lo, tiny;
             int l;
             if (c->sus->slip[i] != 0.0) { /* slipping: does it stop inside the segment? */
                 double psi0[STAR_FRICTION_R_DIM], grad0[STAR_FRICTION_R_DIM * STAR_FRICTION_N], curv0[STAR_FRICTION_R_DIM];
@@ -4394,7 +4394,17 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     g1 += grad0[sr * STAR_FRICTION_N + l] * u1[l];
                 }
                 g1 *= sgn;
-                if (g1 < -STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel0))) { /* turned, not by round-off alone */
+                tiny = STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel0));
+                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                    star_friction_rows(q, vel0, c->par, psi0, grad0, curv0);
+                    for (l = 0, g0 = 0.0; l < STAR_FRICTION_N; ++l) {
+                        g0 += grad0[sr * STAR_FRICTION_N + l] * vel0[l];
+                    }
+                    if (sgn * g0 > tiny) {
+                        s_ev[sr] = 1.0;
+                        ev[sr] = 3;
+                    }
+                } else if (g1 < 0.0) { /* turned inside */
                     star_friction_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < STAR_FRICTION_N; ++l) {
                         g0 += grad0[sr * STAR_FRICTION_N + l] * vel0[l];
