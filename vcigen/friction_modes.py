@@ -527,11 +527,12 @@ class FrictionModes:
                 s = -math.copysign(1.0, self._slip[f])  # the sliding direction
                 g1 = s * float(end.grad[sr] @ u1)
                 tiny = SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0))))
-                if abs(g1) <= tiny:  # stopped at the end to round-off: there if it slid at the start
-                    if s * float(k.rows(q, vel0)[1][sr] @ vel0) > tiny:
-                        events[sr] = ("stop", 1.0)
-                elif g1 < 0.0:  # turned inside
+                if g1 < tiny:  # turned inside, or stopped at the end to round-off
                     g0 = s * float(k.rows(q, vel0)[1][sr] @ vel0)
+                    if g1 >= -tiny:  # stopped at the end to round-off: there if it slid at the start
+                        if g0 > tiny:
+                            events[sr] = ("stop", 1.0)
+                        continue
 
                     def sliding(c, w, s=s, sr=sr):
                         w, end_c, u_c = self._sub_end(step, t_k, q, p, tau, c, w)

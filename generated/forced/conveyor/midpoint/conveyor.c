@@ -4029,21 +4029,19 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                 }
                 g1 *= sgn;
                 tiny = CONVEYOR_SLIDE_EPS * (1.0 + conveyor_norm_inf(CONVEYOR_N, vel0));
-                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
-                    conveyor_rows(q, vel0, c->par, psi0, grad0, curv0);
-                    for (l = 0, g0 = 0.0; l < CONVEYOR_N; ++l) {
-                        g0 += grad0[sr * CONVEYOR_N + l] * vel0[l];
-                    }
-                    if (sgn * g0 > tiny) {
-                        s_ev[sr] = 1.0;
-                        ev[sr] = 3;
-                    }
-                } else if (g1 < 0.0) { /* turned inside */
+                if (g1 < tiny) { /* turned inside, or stopped at the end to round-off */
                     conveyor_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < CONVEYOR_N; ++l) {
                         g0 += grad0[sr * CONVEYOR_N + l] * vel0[l];
                     }
                     g0 *= sgn;
+                    if (g1 >= -tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                        if (g0 > tiny) {
+                            s_ev[sr] = 1.0;
+                            ev[sr] = 3;
+                        }
+                        continue;
+                    }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
                     if (fabs(g0) <= CONVEYOR_SLIDE_EPS * (1.0 + conveyor_norm_inf(CONVEYOR_N, vel0))) {

@@ -4110,21 +4110,19 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 }
                 g1 *= sgn;
                 tiny = BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel0));
-                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
-                    block_rows(q, vel0, c->par, psi0, grad0, curv0);
-                    for (l = 0, g0 = 0.0; l < BLOCK_N; ++l) {
-                        g0 += grad0[sr * BLOCK_N + l] * vel0[l];
-                    }
-                    if (sgn * g0 > tiny) {
-                        s_ev[sr] = 1.0;
-                        ev[sr] = 3;
-                    }
-                } else if (g1 < 0.0) { /* turned inside */
+                if (g1 < tiny) { /* turned inside, or stopped at the end to round-off */
                     block_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < BLOCK_N; ++l) {
                         g0 += grad0[sr * BLOCK_N + l] * vel0[l];
                     }
                     g0 *= sgn;
+                    if (g1 >= -tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                        if (g0 > tiny) {
+                            s_ev[sr] = 1.0;
+                            ev[sr] = 3;
+                        }
+                        continue;
+                    }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
                     if (fabs(g0) <= BLOCK_SLIDE_EPS * (1.0 + block_norm_inf(BLOCK_N, vel0))) {

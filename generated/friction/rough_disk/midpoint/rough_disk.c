@@ -4189,21 +4189,19 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 }
                 g1 *= sgn;
                 tiny = ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0));
-                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
-                    rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
-                    for (l = 0, g0 = 0.0; l < ROUGH_DISK_N; ++l) {
-                        g0 += grad0[sr * ROUGH_DISK_N + l] * vel0[l];
-                    }
-                    if (sgn * g0 > tiny) {
-                        s_ev[sr] = 1.0;
-                        ev[sr] = 3;
-                    }
-                } else if (g1 < 0.0) { /* turned inside */
+                if (g1 < tiny) { /* turned inside, or stopped at the end to round-off */
                     rough_disk_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < ROUGH_DISK_N; ++l) {
                         g0 += grad0[sr * ROUGH_DISK_N + l] * vel0[l];
                     }
                     g0 *= sgn;
+                    if (g1 >= -tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                        if (g0 > tiny) {
+                            s_ev[sr] = 1.0;
+                            ev[sr] = 3;
+                        }
+                        continue;
+                    }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
                     if (fabs(g0) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0))) {

@@ -5841,21 +5841,19 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                 }
                 g1 *= sgn;
                 tiny = SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0));
-                if (fabs(g1) <= tiny) { /* stopped at the end to round-off: there if it slid at the start */
-                    spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
-                    for (l = 0, g0 = 0.0; l < SPUN_BALL_N; ++l) {
-                        g0 += grad0[sr * SPUN_BALL_N + l] * vel0[l];
-                    }
-                    if (sgn * g0 > tiny) {
-                        s_ev[sr] = 1.0;
-                        ev[sr] = 3;
-                    }
-                } else if (g1 < 0.0) { /* turned inside */
+                if (g1 < tiny) { /* turned inside, or stopped at the end to round-off */
                     spun_ball_rows(q, vel0, c->par, psi0, grad0, curv0);
                     for (l = 0, g0 = 0.0; l < SPUN_BALL_N; ++l) {
                         g0 += grad0[sr * SPUN_BALL_N + l] * vel0[l];
                     }
                     g0 *= sgn;
+                    if (g1 >= -tiny) { /* stopped at the end to round-off: there if it slid at the start */
+                        if (g0 > tiny) {
+                            s_ev[sr] = 1.0;
+                            ev[sr] = 3;
+                        }
+                        continue;
+                    }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
                     if (fabs(g0) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) {
