@@ -297,13 +297,16 @@ def test_slide_then_stop_matches_finite_differences(backend: str, rule: str) -> 
 @needs_c
 @pytest.mark.parametrize("rule", RULES)
 def test_c_equals_casadi(rule: str) -> None:
-    """Each scene through its switches: the C tangent (sens_switch.c.j2) against the CasADi one."""
-    scenes = {
-        "block": ([0.0, 0.0], [V0, 0.0], 0.01, 1.0, {"a": 0.25}),
-        "disk": ([0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], 0.01, 0.5, None),
-        "spring_disk": ([0.0, 1.0, 0.0], [2.0, 0.0, 2.0], 0.01, 3.0, None),  # 5 switches
-    }
-    for name, (q0, v0, h, t_end, par) in scenes.items():
+    """Each scene through its switches: the C tangent (sens_switch.c.j2) against the CasADi one; the block
+    also with its stop on grid point 20 (at a step's end: sens_ev_rest_end against Tracker.rest_end)."""
+    on_grid = V0 / (G * (MU * math.cos(0.25) - math.sin(0.25))) / 20
+    scenes = [
+        ("block", [0.0, 0.0], [V0, 0.0], 0.01, 1.0, {"a": 0.25}),
+        ("block", [0.0, 0.0], [V0, 0.0], on_grid, 1.0, {"a": 0.25}),
+        ("disk", [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], 0.01, 0.5, None),
+        ("spring_disk", [0.0, 1.0, 0.0], [2.0, 0.0, 2.0], 0.01, 3.0, None),  # 5 switches
+    ]
+    for name, q0, v0, h, t_end, par in scenes:
         a, b = (run(name, backend, rule, q0, v0, h, t_end, par) for backend in ("casadi", "c"))
         rel = float(np.abs(a.sensitivity - b.sensitivity).max() / np.abs(a.sensitivity).max())
         print(f"{name} ({rule}): C against CasADi {rel:.1e}")
