@@ -539,7 +539,7 @@ class FrictionModes:
                         return s * float(end_c.grad[sr] @ u_c), w
 
                     lo, w = 0.0, v
-                    if abs(g0) <= SLIDE_EPS * (1.0 + float(np.max(np.abs(vel0)))):
+                    if abs(g0) <= tiny:
                         # slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a
                         # stop is where the sliding, grown, comes back to 0 (none grown: a stop at the start)
                         g0 = 0.0

@@ -60,19 +60,19 @@ class HeldTangent:
         if self._ev_tan is not None:
             self._ev_tan.events_begin(self._ev_entry)
             self._ev_tan.event(sub, r, s, tau, kind)
-            self._ev_open = True
+            self._ev_carried = True
 
     def _ev_rest_end(self, q, p, guess) -> None:
         """Events carried and nothing left of the step after them (the last within the least sub-step of its
         end: a block's stop on a grid point): ``Tracker.rest_end`` with the state's velocity and ``M qddot``
         of the mode it ends in, ``rhs + D^T lambda`` (:meth:`_contact_forces`). Forces of time: a break, as
         before (their slots move with the time)."""
-        if self._ev_tan is None or not self._ev_open or self._ev_done or self._timed:
+        if self._ev_tan is None or not self._ev_carried or self._ev_done or self._timed:
             return
         k = self.k
         u = self._velocity(q, guess, p)
         lam = self._contact_forces(q, u)
-        force = k.dynamics(q, u)[0] + self._dirs(k.rows(q, u)[1]).T @ lam if k.r else k.dynamics(q, u)[0]
+        force = k.dynamics(q, u)[0] + self._dirs(k.rows(q, u)[1]).T @ lam
         self._ev_tan.rest_end(q, u, force)
         self._ev_done = True
 

@@ -99,7 +99,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self._record_held = False  # a held step keeps its solution for the tangent (Stepper.step)
         self._lift_seg = self._free_seg = None  # a lift-off, then a free rest: the tangent (Tracker.liftoff)
         self._ev_tan = None  # inside a held step: the tangent its events are carried by (SustainedSteps)
-        self._ev_entry = self._ev_done = self._ev_open = False  # _ev_open: an event carried (_ev_rest_end)
+        self._ev_entry = self._ev_done = self._ev_carried = False  # _ev_carried: C ev_carried (_ev_rest_end)
         self._law = None  # the last jump's frictional law (contact, normal before it): Tracker.jump's
         self._fswitch = False  # a held step's first event was a friction switch (Stepper._tangent_held)
         self._sw_stop = None  # (step, events) after a carried friction stop (SustainedSteps._sw_back)
@@ -284,7 +284,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         self._held_seg, self._record_held = None, tan is not None
         self._lift_seg = self._free_seg = None
         self._ev_tan, self._ev_entry, self._ev_done = self._events_tangent(tan), entry, False
-        self._ev_open = False
+        self._ev_carried = False
         self._fswitch = False
         try:
             out = run(*args)

@@ -5307,7 +5307,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                     }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
-                    if (fabs(g0) <= PYRAMID_SLIDE_EPS * (1.0 + pyramid_norm_inf(PYRAMID_N, vel0))) {
+                    if (fabs(g0) <= tiny) {
                         /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
                          * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
                         g0 = 0.0;

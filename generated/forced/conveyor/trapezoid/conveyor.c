@@ -4030,7 +4030,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                     }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
-                    if (fabs(g0) <= CONVEYOR_SLIDE_EPS * (1.0 + conveyor_norm_inf(CONVEYOR_N, vel0))) {
+                    if (fabs(g0) <= tiny) {
                         /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
                          * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
                         g0 = 0.0;

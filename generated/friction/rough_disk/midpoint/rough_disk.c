@@ -4204,7 +4204,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
-                    if (fabs(g0) <= ROUGH_DISK_SLIDE_EPS * (1.0 + rough_disk_norm_inf(ROUGH_DISK_N, vel0))) {
+                    if (fabs(g0) <= tiny) {
                         /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
                          * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
                         g0 = 0.0;

@@ -5856,7 +5856,7 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
                     }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
-                    if (fabs(g0) <= SPUN_BALL_SLIDE_EPS * (1.0 + spun_ball_norm_inf(SPUN_BALL_N, vel0))) {
+                    if (fabs(g0) <= tiny) {
                         /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
                          * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
                         g0 = 0.0;

@@ -4410,7 +4410,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     }
                     s_ev[sr] = 0.0;
                     lo = 0.0;
-                    if (fabs(g0) <= STAR_FRICTION_SLIDE_EPS * (1.0 + star_friction_norm_inf(STAR_FRICTION_N, vel0))) {
+                    if (fabs(g0) <= tiny) {
                         /* slipping from rest (a slide at the segment's start): s = 0 is a root of its own; a stop
                          * is where the sliding, grown, comes back to 0 (SLIDE_LEAVE; none grown: a stop at the start) */
                         g0 = 0.0;
