@@ -3,6 +3,7 @@
 the Python stepper's, and a lift-off driven by a force of time (the time slot of ``par`` in the located root)
 agrees with finite differences and with the closed form of the lift-off time on both backends; so does a
 lift-off in the same step as the plastic impact that started the contact (the rest of that step, ``entry``).
+A lift-off on a grid point is a kink of the run: the tangent is the earlier lift-off's side, no break.
 """
 
 from __future__ import annotations
@@ -149,3 +150,56 @@ def test_liftoff_in_the_step_of_a_plastic_impact(backend: str) -> None:
             [0.0, Y_DROP], [0.5, 0.0], 0.01, t_end=T_END, sensitivities=True, progress=False
         )
         print(f"  C against CasADi {assert_same_tangent(ref, res):.1e}")
+
+
+def _pulled() -> vcigen.Model:
+    """A unit particle sliding on the floor ``y >= 0`` under gravity ``g``, pulled up by ``c x``: the normal
+    force ``g - c x`` vanishes at ``x = g / c`` (no force of time: the lift-off is the rows' own root)."""
+    x, y, xd, yd = sp.symbols("x y xd yd")
+    g, c = sp.symbols("g c")
+    return vcigen.Model(
+        name="pulled_up",
+        q=[x, y],
+        qdot=[xd, yd],
+        lagrangian=(xd**2 + yd**2) / 2 - g * y + c * x * y,
+        contacts={"floor": y},
+        params={g: 10.0, c: 10.0},
+    )
+
+
+# column -> (run's data moved by e, the sign of e that lifts off earlier)
+PULLED = {
+    "q0[x]": (lambda e: ([e, 0.0], [1.0, 0.0], {}), 1.0),
+    "v0[x]": (lambda e: ([0.0, 0.0], [1.0 + e, 0.0], {}), 1.0),
+    "g": (lambda e: ([0.0, 0.0], [1.0, 0.0], {"g": 10.0 + e}), -1.0),
+    "c": (lambda e: ([0.0, 0.0], [1.0, 0.0], {"c": 10.0 + e}), 1.0),
+}
+
+
+@pytest.mark.parametrize("rule", ["trapezoid", "midpoint"])
+@pytest.mark.parametrize("backend", ["casadi", C])
+def test_a_liftoff_on_a_grid_point_is_one_sided(backend: str, rule: str) -> None:
+    """From ``x = 0`` at speed 1 with ``g = c = 10`` the normal force vanishes at ``t = 1``, grid point 20 of
+    ``h = 0.05``: the run is a kink there (an earlier lift-off is located at the end of step 19, a later one
+    at the start of step 20, whose held sub-step the tangent does not see). No break: the tangent at every
+    grid point is the earlier lift-off's one-sided derivative (one-sided differences of whole runs, 1e-6 of
+    the largest entry), and the later side's differs by more than the kink (1e-4); C's is CasADi's."""
+    sim = vcigen.build(_pulled(), backend=backend, rule=rule)
+    kw = {"h": 0.05, "t_end": 1.25, "progress": False}
+    res = sim.simulate([0.0, 0.0], [1.0, 0.0], sensitivities=True, **kw)
+    ((t_l, _),) = res.liftoffs
+    assert abs(t_l - 1.0) <= 1e-12 and res.sensitivity_breaks == [] and np.isfinite(res.sensitivity).all()
+    base, eps = np.hstack([res.q, res.p]), 1e-7
+    for name, (moved, early) in PULLED.items():
+        tangent = res.sensitivity[:, :, res.sensitivity_names.index(name)]
+        errs = []
+        for side in (early, -early):
+            run = sim.simulate(*moved(side * eps)[:2], params=moved(side * eps)[2], **kw)
+            fd = (np.hstack([run.q, run.p]) - base) / (side * eps)
+            errs.append(float(np.abs(fd - tangent).max() / np.abs(fd).max()))
+        print(f"{name}: the earlier side {errs[0]:.1e}, the later {errs[1]:.1e}")
+        assert errs[0] <= 1e-6 and errs[1] >= 1e-4, (name, errs)
+    if backend != "casadi":
+        ref = vcigen.build(_pulled(), backend="casadi", rule=rule)
+        ref_res = ref.simulate([0.0, 0.0], [1.0, 0.0], sensitivities=True, **kw)
+        print(f"C against CasADi {assert_same_tangent(ref_res, res):.1e}")
