@@ -311,3 +311,33 @@ def test_an_impact_while_held_that_cannot_be_located_raises_not_starts_below_the
     assert err.value.result.t[-1] == pytest.approx(0.75)
     assert lowest(err.value.result, TUMBLER[2]) > -1e-9
     assert _run(backend, TUMBLER, 0.005).t[-1] >= 2.0  # at the campaign's h it runs
+
+
+WEDGED = (  # draw 175 of bench.plate_drops --seed 135 --h 0.02 (and --h 0.01)
+    [0.0, 0.09423070707174128, 0.0],
+    [0.013669067789761586, 0.0, -0.3291724590109141],
+    {"A": 0.01427495771764271, "W": 40.68762247100673, "beta": 0.23951958880885604, "mu": 1.0, "e": 0.0}
+    | {"a": 0.05141639921384045, "b": 0.08294085970703866},
+)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("h", [0.02, 0.01])
+def test_a_slide_wedged_again_after_its_jam_jams_again_and_then_sticks_on(backend, h):
+    """A tall box (``b / a = 1.6``, ``mu = 1``) rocks back onto its face on its right corner, which slips; at
+    t = 0.1999 (``h = 0.01``) the slip stops and slides on at once, and that slide has no root down to
+    ``h / 2^6`` (its velocity's kinetic energy 5.64 times the start's at every halving: Painleve's
+    inconsistency), so the chain jams (the tangential impact: the corner sticks). Sticking, its force is out
+    of the cone: it slides at once again, wedged again. A second wedge at the instant of a jam raised
+    "a held segment's root is spurious ... reduce h" at ``h = 0.02`` and ``0.01`` alike (both backends, till
+    stop 64). Now it jams again, and the next slide from it sticks on (``STICK_CYCLES``): the run goes on to
+    t = 2 above the plate, on both backends alike (``SustainedSteps._split_segment``, C ``split_segment``)."""
+    res = _run(backend, WEDGED, h)
+    assert res.t[-1] >= 2.0 - 1e-12 and lowest(res, WEDGED[2]) > -1e-9
+    assert res.stats["jams"] >= 2 and res.stats["sticks_kept"] >= 1
+    if backend != "casadi":
+        ref = _run("casadi", WEDGED, h)
+        assert [(im.step, im.contact, im.kind) for im in res.impacts] == [
+            (im.step, im.contact, im.kind) for im in ref.impacts
+        ]
+        assert np.abs(res.q - ref.q).max() <= 1e-9 and np.abs(res.p - ref.p).max() <= 1e-9

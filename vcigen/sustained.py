@@ -251,7 +251,8 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         rough stars started sliding on a corner at ``h = 0.05`` failed their first Newton. A frictionless
         segment whose Newton fails is a step too coarse for its row and raises as before: halved, a particle
         in an ellipse of radius 0.02 at ``h = 0.01`` ran on, its energy up 3.6e11-fold, to a later failure.
-        ``None`` where every halving's root is spurious while a held rough contact slips (not in a jam): the
+        ``None`` where every halving's root is spurious while a held rough contact slips (also after a jam at
+        this instant, a stick row having slid from it: the next slide there sticks on, ``STICK_CYCLES``): the
         slide has no root down to ``tau / 2^SPLITS``, whose velocity tends to a jump's, Painleve's
         inconsistency of two contacts at once (a box wedged in a rough V rocking to rest on a corner of each
         wall, both sliding from rest: ``bench.box_v_drops --seed 51``, drop 32), which the chain resolves as
@@ -271,7 +272,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 if halved == SPLITS:
                     if self._reverses(q, p, seg, guess):  # its slide stops inside: the chain keeps that part
                         return tau, halved, seg
-                    if self._slip.any() and not self._jammed and self._rough_held():
+                    if self._slip.any() and self._rough_held():  # also after a jam at this instant
                         return None  # wedged: no slide the halvings resolve; the chain jams (_jam)
                     raise SolverError(
                         step,
@@ -465,6 +466,8 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                     plain = False
                 past = slips and self._painleve(end.grad, end.mass)
             if past:
+                if u0 is None:  # wedged after a jam at this instant (its slips not read at the start)
+                    u0 = self._velocity(q, guess, p)
                 self._jam(q, u0)  # the tangential impact, at the segment's start
                 self._fswitch = self._fswitch or plain
                 self._sw_lose()

@@ -1919,7 +1919,8 @@ static int block_held_since(const block_ctx_t *c, int r, int start)
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
- * slips (not in a jam): wedged, the chain jams (jam). */
+ * slips (also after a jam at this instant, a stick row having slid from it: the next slide there sticks on,
+ * STICK_CYCLES): wedged, the chain jams (jam). */
 static int block_split_segment(const block_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -1939,7 +1940,7 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
             if (*halved == BLOCK_SPLITS && block_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == BLOCK_SPLITS && block_slips(c) && !c->sus->jammed) {
+            if (*halved == BLOCK_SPLITS && block_slips(c)) { /* also after a jam at this instant */
                 int rough[BLOCK_NF_DIM];
                 if (block_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
@@ -4052,6 +4053,9 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 return 1;
             }
             past = rc == 2; /* wedged: jammed as past Painleve's boundary */
+            if (past && c->sus->jammed) { /* wedged after a jam at this instant (its slips not read at the start) */
+                block_velocity(c, q, v, p, vel);
+            }
         }
         if (!past) {
             c->sus->halvings += halved;

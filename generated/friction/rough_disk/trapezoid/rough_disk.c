@@ -1999,7 +1999,8 @@ static int rough_disk_held_since(const rough_disk_ctx_t *c, int r, int start)
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
- * slips (not in a jam): wedged, the chain jams (jam). */
+ * slips (also after a jam at this instant, a stick row having slid from it: the next slide there sticks on,
+ * STICK_CYCLES): wedged, the chain jams (jam). */
 static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -2019,7 +2020,7 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
             if (*halved == ROUGH_DISK_SPLITS && rough_disk_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == ROUGH_DISK_SPLITS && rough_disk_slips(c) && !c->sus->jammed) {
+            if (*halved == ROUGH_DISK_SPLITS && rough_disk_slips(c)) { /* also after a jam at this instant */
                 int rough[ROUGH_DISK_NF_DIM];
                 if (rough_disk_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
@@ -4132,6 +4133,9 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 return 1;
             }
             past = rc == 2; /* wedged: jammed as past Painleve's boundary */
+            if (past && c->sus->jammed) { /* wedged after a jam at this instant (its slips not read at the start) */
+                rough_disk_velocity(c, q, v, p, vel);
+            }
         }
         if (!past) {
             c->sus->halvings += halved;
