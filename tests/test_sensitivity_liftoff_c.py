@@ -194,7 +194,8 @@ def test_a_liftoff_on_a_grid_point_is_one_sided(backend: str, rule: str) -> None
         tangent = res.sensitivity[:, :, res.sensitivity_names.index(name)]
         errs = []
         for side in (early, -early):
-            run = sim.simulate(*moved(side * eps)[:2], params=moved(side * eps)[2], **kw)
+            q0, v0, params = moved(side * eps)
+            run = sim.simulate(q0, v0, params=params, **kw)
             fd = (np.hstack([run.q, run.p]) - base) / (side * eps)
             errs.append(float(np.abs(fd - tangent).max() / np.abs(fd).max()))
         print(f"{name}: the earlier side {errs[0]:.1e}, the later {errs[1]:.1e}")
