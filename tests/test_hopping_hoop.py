@@ -231,3 +231,96 @@ def test_a_random_run_that_cycled_at_a_lift_off_runs_to_its_end(backend):
     assert res.stats["lifts_kept"] >= 1
     assert all(abs(im.impulse) > 1e-12 for im in res.impacts)
     assert (res.q[:, 1] - R).min() >= -1e-9
+
+
+# Slipping just inside Painleve's boundary (bench.hoop_drops --seed 232 --h 0.05, drop 767: m = 0.836, mu = 3,
+# the slip xd + R thd = -1.36): grad . M^-1 d is 1.3e-3 of grad . M^-1 grad, the floor pushes with 12 587
+# (700 times the weight) and the slip stops in 4.2e-5 s.
+NEAR_PAINLEVE = (0.8355592415869011, 3.0, 1.0881801078793005, 1.0375363845892622, -2.39778098420953)
+
+
+def rolling_reference(m, mu, th0, xd0, thd0, t_end):
+    """``(stop time, slip at the stop, dense solution)``: the hoop sliding from ``(0, R, th0)`` at ``(xd0, 0,
+    thd0)`` until its slip ``xd + R thd`` stops (an event), then rolling (``y = R``, ``x + R th`` fixed; its
+    normal force asserted positive and its friction inside the cone) to ``t_end``."""
+    opts = dict(method="DOP853", rtol=1e-12, atol=1e-12)
+
+    def stop(t, s):
+        return s[3] + R * s[5]
+
+    stop.terminal = True
+    start = np.array([0.0, R, th0, xd0, 0.0, thd0])
+    slide = solve_ivp(
+        lambda t, s: np.append(s[3:], _sliding(s, m, mu)[0]), (0, t_end), start, events=[stop], **opts
+    )
+    t_stop, s_stop = slide.t_events[0][0], slide.y_events[0][0]
+    rows = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, R]])  # the floor, the rolling (x + R th)
+
+    def rolling(s):
+        k = np.zeros((5, 5))
+        k[:3, :3], k[:3, 3:], k[3:, :3] = _mass(s, m), -rows.T, rows
+        sol = np.linalg.solve(k, np.append(_force(s, m), [0.0, 0.0]))
+        return sol[:3], sol[3:]
+
+    roll = solve_ivp(
+        lambda t, s: np.append(s[3:], rolling(s)[0]), (t_stop, t_end), s_stop, dense_output=True, **opts
+    )
+    forces = np.array([rolling(roll.sol(t))[1] for t in np.linspace(t_stop, t_end, 400)])
+    assert forces[:, 0].min() > 0 and (np.abs(forces[:, 1]) < mu * forces[:, 0]).all()  # it rolls on to t_end
+    return float(t_stop), float(s_stop[0] + R * s_stop[2] - R * th0), roll.sol
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("h", [0.05, 0.045])
+def test_a_slip_with_no_root_just_inside_painleves_boundary_jams(backend, h):
+    """Drop 767 of ``python -m bench.hoop_drops --seed 232 --h 0.05``: the held slide's Newton has no root at
+    ``h`` nor at any of its six halvings (down to 7.8e-4 s, where the exact slide stops in 4.2e-5 s), which
+    raised "sustained solve failed" at t = 0 on both backends at h = 0.05 and 0.045 (at 0.04 the last
+    halving's root was spurious and the chain jammed). Now it jams as there (the tangential impact: the slip
+    stopped at the start) and rolls on: its slip within the exact stop's (2.8e-5) of none, its turn within 2
+    h^2 of the event-located reference's to t = 4 (1.52 h^2 at h = 0.05, as the runs at h = 0.025 and 0.0125
+    that resolve the stop), no impact, no lift-off, the backends to 1e-9."""
+    m, mu, th0, xd0, thd0 = NEAR_PAINLEVE
+    t_stop, slip, ref = rolling_reference(*NEAR_PAINLEVE, 4.0)
+    assert t_stop < 1e-3 * h and 0 < abs(slip) < 1e-4
+    res = _run(backend, NEAR_PAINLEVE, h, 4.0)
+    assert res.stats["jams"] >= 1 and len(res.impacts) == 0 and len(res.liftoffs) == 0
+    assert np.abs(res.q[:, 0] + R * res.q[:, 2] - R * th0).max() <= abs(slip) + 1e-12
+    assert np.abs(res.q[:, 1] - R).max() < 1e-12
+    t = np.maximum(np.arange(len(res.q)) * h, t_stop)
+    assert np.abs(res.q[:, 2] - ref(t)[2]).max() < 2 * h * h
+    if backend == "c":
+        other = _run("casadi", NEAR_PAINLEVE, h, 4.0)
+        np.testing.assert_allclose(res.q, other.q, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(res.p, other.p, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_slide_that_meets_painleves_boundary_inside_a_segment_jams_there(backend):
+    """Drop 270 of ``python -m bench.hoop_drops --seed 233 --h 0.05`` (``m = 5.87``, ``mu = 1``, ``e = 0``,
+    thrown at 17 m/s spinning at 11 rad/s): landing at t = 1.30, jammed, its slide from the stick located a
+    stop 0.72 of the way through the segment, at Painleve's boundary (``grad . M^-1 d`` -5.2e-8), where the
+    end's projection took an impulse of 1.4e8: C recorded ``p`` ~1e9 and raised at the next step, CasADi
+    raised at step 26. Now the part to the event is read as a segment's end is (``_painleve``): the
+    tangential impact at the segment's start (a second jam at that instant). Runs to t = 4 on both backends,
+    never below the floor, ``|p|`` under twice its start's, the energy (at the grid points) within
+    5 % of its start's, the backends to 1e-9."""
+    from bench.hoop_drops import draw
+
+    rng = np.random.default_rng(233)
+    starts = [draw(rng) for _ in range(271)]
+    q0, v0, params = starts[270]
+    res = simulator(backend).simulate(q0=q0, v0=v0, h=0.05, t_end=4.0, params=params, progress=False)
+    m = params["m"]
+    assert res.stats["jams"] >= 2 and (res.q[:, 1] - R).min() >= -1e-9
+    assert np.abs(res.p).max() < 2 * np.abs(res.p[0]).max()
+    energy = [
+        0.5 * pk @ np.linalg.solve(_mass(qk, m), pk) + (1 + m) * G * qk[1] - m * G * R * np.cos(qk[2])
+        for qk, pk in zip(res.q, res.p)
+    ]
+    assert max(energy) <= 1.05 * energy[0]  # the flight's energy error at 0.55 rad a step: 3.0 %
+    if backend == "c":
+        other = simulator("casadi").simulate(q0=q0, v0=v0, h=0.05, t_end=4.0, params=params, progress=False)
+        assert len(other.impacts) == len(res.impacts)
+        np.testing.assert_allclose(res.q, other.q, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(res.p, other.p, rtol=0, atol=1e-9)

@@ -251,17 +251,22 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         rough stars started sliding on a corner at ``h = 0.05`` failed their first Newton. A frictionless
         segment whose Newton fails is a step too coarse for its row and raises as before: halved, a particle
         in an ellipse of radius 0.02 at ``h = 0.01`` ran on, its energy up 3.6e11-fold, to a later failure.
-        ``None`` where every halving's root is spurious while a held rough contact slips (also after a jam at
-        this instant, a stick row having slid from it: the next slide there sticks on, ``STICK_CYCLES``): the
-        slide has no root down to ``tau / 2^SPLITS``, whose velocity tends to a jump's, Painleve's
-        inconsistency of two contacts at once (a box wedged in a rough V rocking to rest on a corner of each
-        wall, both sliding from rest: ``bench.box_v_drops --seed 51``, drop 32), which the chain resolves as
-        :meth:`_painleve`'s, by the tangential impact at the segment's start (:meth:`_jam`)."""
+        ``None`` where every halving's root is spurious, or the last one's Newton fails, while a held rough
+        contact slips (also after a jam at this instant, a stick row having slid from it: the next slide there
+        sticks on, ``STICK_CYCLES``): the slide has no root down to ``tau / 2^SPLITS``, whose velocity tends
+        to a jump's, Painleve's inconsistency of two contacts at once (a box wedged in a rough V rocking to
+        rest on a corner of each wall, both sliding from rest: ``bench.box_v_drops --seed 51``, drop 32), or
+        none at all (a hoop with a mass on its rim slipping at ``mu = 3`` just inside Painleve's boundary,
+        ``grad . M^-1 d`` 1.3e-3 of ``grad . M^-1 grad``: ``bench.hoop_drops --seed 232 --h 0.05``, drop 767),
+        which the chain resolves as :meth:`_painleve`'s, by the tangential impact at the segment's start
+        (:meth:`_jam`)."""
         halved = 0
         while True:
             try:
                 seg = self._constrained(step, t_k, q, p, tau, guess)
             except SolverError:
+                if halved == SPLITS and self._slip.any() and self._rough_held():
+                    return None  # no root down to tau / 2^SPLITS while it slips: wedged, as below
                 if halved == SPLITS or not (self._slip.any() or self._sunk_held(step)):
                     raise  # frictionless: too coarse a step, not halved (but a row held on: _sunk_held)
                 seg = None
@@ -557,6 +562,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             for r, (s_hi, g_hi) in dips.items():  # both ends admissible, below 0 inside: located before s_hi
                 events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g_hi, s_hi))
             q_s, p_s, tau_s, v_s = q, p, tau, v
+            wedged = False
             while True:  # the first event; a row below where it is taken crossed before it (_sunk_at_event)
                 r0 = min(events, key=lambda r: (events[r][1], r))
                 if events[r0][0] != "lift":  # of a landing's instant (Tolerances.simultaneous), a friction
@@ -583,7 +589,11 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                     if limit is not None:
                         lam1, p, u1 = limit
                     break
-                v, lam, q, _, e_sub, lam1, p, u1, _ = self._constrained(step, t_k, q, p, s * tau, v)
+                sub = self._constrained(step, t_k, q, p, s * tau, v)
+                if self._slip.any() and self._painleve(sub[8].grad, sub[8].mass):
+                    wedged = True  # its part to the event ends past Painleve's boundary: as a segment's end
+                    break
+                v, lam, q, _, e_sub, lam1, p, u1, _ = sub
                 e_sub = e_at if (s * tau <= E_SHORT * h and e_at is not None) else e_sub  # too short for it
                 sunk = self._sunk_at_event(q, u1, events, r0)
                 if not sunk:
@@ -591,6 +601,13 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 q, p, v = q_s, p_s, v_s
                 for r, g in sunk.items():
                     events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g, s))
+            if wedged:  # the tangential impact at the segment's start (_jam), as past the boundary at its end
+                self._jam(q_s, self._velocity(q_s, v_s, p_s))
+                guess = sub[0]  # the next segment's Newton from the part's root (C: v, its output)
+                self._fswitch = self._fswitch or plain
+                self._sw_lose()
+                plain = False
+                continue
             if plain and self._record_held and events[r0][0] == "lift" and not self._friction_acts():
                 # the tangent: Tracker.liftoff (its force law frictionless)
                 self._lift_seg = ((q_s, p_s, v, lam, *self._seg_inner, u1, act0), r0, s, tau_s)

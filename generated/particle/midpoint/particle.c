@@ -1845,9 +1845,11 @@ static int particle_split_segment(const particle_ctx_t *c, const double *q, cons
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, PARTICLE_SPLITS);
             }
-        } else if (*halved == PARTICLE_SPLITS || !(particle_slips(c) || particle_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == PARTICLE_SPLITS || !(particle_slips(c) || particle_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

@@ -2129,9 +2129,11 @@ static int star_split_segment(const star_ctx_t *c, const double *q, const double
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, STAR_SPLITS);
             }
-        } else if (*halved == STAR_SPLITS || !(star_slips(c) || star_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == STAR_SPLITS || !(star_slips(c) || star_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

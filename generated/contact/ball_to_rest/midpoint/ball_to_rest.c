@@ -1846,9 +1846,11 @@ static int ball_to_rest_split_segment(const ball_to_rest_ctx_t *c, const double 
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, BALL_TO_REST_SPLITS);
             }
-        } else if (*halved == BALL_TO_REST_SPLITS || !(ball_to_rest_slips(c) || ball_to_rest_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == BALL_TO_REST_SPLITS || !(ball_to_rest_slips(c) || ball_to_rest_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

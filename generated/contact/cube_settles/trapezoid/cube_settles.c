@@ -2637,9 +2637,11 @@ static int cube_settles_split_segment(const cube_settles_ctx_t *c, const double 
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, CUBE_SETTLES_SPLITS);
             }
-        } else if (*halved == CUBE_SETTLES_SPLITS || !(cube_settles_slips(c) || cube_settles_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == CUBE_SETTLES_SPLITS || !(cube_settles_slips(c) || cube_settles_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

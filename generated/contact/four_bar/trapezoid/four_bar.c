@@ -2349,9 +2349,11 @@ static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, cons
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, FOUR_BAR_SPLITS);
             }
-        } else if (*halved == FOUR_BAR_SPLITS || !(four_bar_slips(c) || four_bar_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == FOUR_BAR_SPLITS || !(four_bar_slips(c) || four_bar_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

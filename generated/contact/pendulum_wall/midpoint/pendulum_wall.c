@@ -2077,9 +2077,11 @@ static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const doubl
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, PENDULUM_WALL_SPLITS);
             }
-        } else if (*halved == PENDULUM_WALL_SPLITS || !(pendulum_wall_slips(c) || pendulum_wall_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == PENDULUM_WALL_SPLITS || !(pendulum_wall_slips(c) || pendulum_wall_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

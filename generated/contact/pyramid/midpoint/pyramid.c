@@ -2767,9 +2767,9 @@ static int pyramid_held_since(const pyramid_ctx_t *c, int r, int start)
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
- * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
- * slips (also after a jam at this instant, a stick row having slid from it: the next slide there sticks on,
- * STICK_CYCLES): wedged, the chain jams (jam). */
+ * failure, or its spurious root, or 2 where every halving's root is spurious, or the last one's
+ * Newton fails, while a held rough contact slips (also after a jam at this instant, a stick row having slid from
+ * it: the next slide there sticks on, STICK_CYCLES): wedged, the chain jams (jam). */
 static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -2800,9 +2800,17 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, PYRAMID_SPLITS);
             }
-        } else if (*halved == PYRAMID_SPLITS || !(pyramid_slips(c) || pyramid_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == PYRAMID_SPLITS && pyramid_slips(c)) { /* no root down to tau / 2^SPLITS */
+                int rough[PYRAMID_NF_DIM];
+                if (pyramid_rough_held(c, rough)) {
+                    return 2;
+                }
+            }
+            if (*halved == PYRAMID_SPLITS || !(pyramid_slips(c) || pyramid_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;
@@ -5449,6 +5457,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 ev[r] = 2;
             }
         }
+        past = 0; /* the part to the event ends past Painleve's boundary (painleve) */
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
             r0 = -1;
             for (r = 0; r < PYRAMID_R; ++r) {
@@ -5493,6 +5502,10 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             if (pyramid_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            past = pyramid_painleve(c, q1, u1);
+            if (past) { /* as a segment's end */
+                break;
+            }
             e_sub = s * tau <= PYRAMID_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!pyramid_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
@@ -5505,6 +5518,11 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                     ev[r] = 2;
                 }
             }
+        }
+        if (past) { /* the tangential impact at the segment's start (jam), as past the boundary at its end */
+            pyramid_velocity(c, q, vv, p, vel);
+            pyramid_jam(c, q, vel);
+            continue;
         }
         e_at = e_sub;
         at_known = 1;

@@ -2052,9 +2052,11 @@ static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const dou
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, SLIDE_OFF_DOME_SPLITS);
             }
-        } else if (*halved == SLIDE_OFF_DOME_SPLITS || !(slide_off_dome_slips(c) || slide_off_dome_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == SLIDE_OFF_DOME_SPLITS || !(slide_off_dome_slips(c) || slide_off_dome_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

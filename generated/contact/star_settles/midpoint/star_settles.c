@@ -2130,9 +2130,11 @@ static int star_settles_split_segment(const star_settles_ctx_t *c, const double 
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, STAR_SETTLES_SPLITS);
             }
-        } else if (*halved == STAR_SETTLES_SPLITS || !(star_settles_slips(c) || star_settles_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == STAR_SETTLES_SPLITS || !(star_settles_slips(c) || star_settles_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

@@ -1822,9 +1822,11 @@ static int impact_damper_split_segment(const impact_damper_ctx_t *c, const doubl
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, IMPACT_DAMPER_SPLITS);
             }
-        } else if (*halved == IMPACT_DAMPER_SPLITS || !(impact_damper_slips(c) || impact_damper_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == IMPACT_DAMPER_SPLITS || !(impact_damper_slips(c) || impact_damper_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

@@ -1674,9 +1674,11 @@ static int impact_oscillator_split_segment(const impact_oscillator_ctx_t *c, con
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, IMPACT_OSCILLATOR_SPLITS);
             }
-        } else if (*halved == IMPACT_OSCILLATOR_SPLITS || !(impact_oscillator_slips(c) || impact_oscillator_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == IMPACT_OSCILLATOR_SPLITS || !(impact_oscillator_slips(c) || impact_oscillator_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

@@ -2205,9 +2205,9 @@ static int star_friction_held_since(const star_friction_ctx_t *c, int r, int sta
  * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
  * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
- * failure, or its spurious root, or 2 where every halving's root is spurious while a held rough contact
- * slips (also after a jam at this instant, a stick row having slid from it: the next slide there sticks on,
- * STICK_CYCLES): wedged, the chain jams (jam). */
+ * failure, or its spurious root, or 2 where every halving's root is spurious, or the last one's
+ * Newton fails, while a held rough contact slips (also after a jam at this instant, a stick row having slid from
+ * it: the next slide there sticks on, STICK_CYCLES): wedged, the chain jams (jam). */
 static int star_friction_split_segment(const star_friction_ctx_t *c, const double *q, const double *p, double *tau,
     const double *guess, double *v, double *lam, double *q1, double *e_seg, double *lam1, double *p1, double *u1,
     int *halved)
@@ -2238,9 +2238,17 @@ static int star_friction_split_segment(const star_friction_ctx_t *c, const doubl
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, STAR_FRICTION_SPLITS);
             }
-        } else if (*halved == STAR_FRICTION_SPLITS || !(star_friction_slips(c) || star_friction_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == STAR_FRICTION_SPLITS && star_friction_slips(c)) { /* no root down to tau / 2^SPLITS */
+                int rough[STAR_FRICTION_NF_DIM];
+                if (star_friction_rough_held(c, rough)) {
+                    return 2;
+                }
+            }
+            if (*halved == STAR_FRICTION_SPLITS || !(star_friction_slips(c) || star_friction_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;
@@ -4554,6 +4562,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 ev[r] = 2;
             }
         }
+        past = 0; /* the part to the event ends past Painleve's boundary (painleve) */
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
             r0 = -1;
             for (r = 0; r < STAR_FRICTION_R; ++r) {
@@ -4598,6 +4607,10 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             if (star_friction_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
                 return 1;
             }
+            past = star_friction_painleve(c, q1, u1);
+            if (past) { /* as a segment's end */
+                break;
+            }
             e_sub = s * tau <= STAR_FRICTION_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!star_friction_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
@@ -4610,6 +4623,11 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                     ev[r] = 2;
                 }
             }
+        }
+        if (past) { /* the tangential impact at the segment's start (jam), as past the boundary at its end */
+            star_friction_velocity(c, q, vv, p, vel);
+            star_friction_jam(c, q, vel);
+            continue;
         }
         e_at = e_sub;
         at_known = 1;

@@ -2061,9 +2061,11 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, BALL_BOX_SPLITS);
             }
-        } else if (*halved == BALL_BOX_SPLITS || !(ball_box_slips(c) || ball_box_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == BALL_BOX_SPLITS || !(ball_box_slips(c) || ball_box_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;

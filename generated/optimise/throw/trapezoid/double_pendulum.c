@@ -2263,9 +2263,11 @@ static int double_pendulum_split_segment(const double_pendulum_ctx_t *c, const d
                     "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
                     ratio, DOUBLE_PENDULUM_SPLITS);
             }
-        } else if (*halved == DOUBLE_PENDULUM_SPLITS || !(double_pendulum_slips(c) || double_pendulum_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
-            return 1;
+        } else {
+            if (*halved == DOUBLE_PENDULUM_SPLITS || !(double_pendulum_slips(c) || double_pendulum_sunk_held(c))) { /* frictionless:
+                                                        * too coarse, not halved (but a row held on by sinks_free) */
+                return 1;
+            }
         }
         ++*halved;
         *tau *= 0.5;
