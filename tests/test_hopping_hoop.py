@@ -304,7 +304,7 @@ def test_a_slide_that_meets_painleves_boundary_inside_a_segment_jams_there(backe
     raised at step 26. Now the part to the event is read as a segment's end is (``_painleve``): the
     tangential impact at the segment's start (a second jam at that instant). Runs to t = 4 on both backends,
     never below the floor, ``|p|`` under twice its start's, the energy (at the grid points) within
-    5 % of its start's, the backends to 1e-9."""
+    5 % of its start's, the backends to 1e-9, their tangents alike up to the jam and broken there."""
     from bench.hoop_drops import draw
 
     rng = np.random.default_rng(233)
@@ -324,3 +324,14 @@ def test_a_slide_that_meets_painleves_boundary_inside_a_segment_jams_there(backe
         assert len(other.impacts) == len(res.impacts)
         np.testing.assert_allclose(res.q, other.q, rtol=0, atol=1e-9)
         np.testing.assert_allclose(res.p, other.p, rtol=0, atol=1e-9)
+        # the tangent stops at the jam (a friction switch at an instant with a tangential impact), alike
+        tangents = [
+            simulator(b).simulate(
+                q0=q0, v0=v0, h=0.05, t_end=1.5, params=params, progress=False, sensitivities=True
+            )
+            for b in ("c", "casadi")
+        ]
+        assert tangents[0].sensitivity_breaks[:1] == [(26, "friction switch in a held step")]
+        assert tangents[0].sensitivity_breaks == tangents[1].sensitivity_breaks
+        before = [t.sensitivity[:27] for t in tangents]
+        np.testing.assert_allclose(before[0], before[1], rtol=0, atol=1e-8)
