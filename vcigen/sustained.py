@@ -262,32 +262,33 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         (:meth:`_jam`)."""
         halved = 0
         while True:
+            failed = None  # the Newton's failure, or None: a root
             try:
                 seg = self._constrained(step, t_k, q, p, tau, guess)
-            except SolverError:
-                if halved == SPLITS and self._slip.any() and self._rough_held():
-                    return None  # no root down to tau / 2^SPLITS while it slips: wedged, as below
-                if halved == SPLITS or not (self._slip.any() or self._sunk_held(step)):
+            except SolverError as exc:
+                if halved < SPLITS and not (self._slip.any() or self._sunk_held(step)):
                     raise  # frictionless: too coarse a step, not halved (but a row held on: _sunk_held)
-                seg = None
+                seg, failed = None, exc
             if seg is not None:
                 ratio = self._spurious(q, p, tau, seg, guess)
                 if ratio is None:
                     return tau, halved, seg
-                if halved == SPLITS:
-                    if self._reverses(q, p, seg, guess):  # its slide stops inside: the chain keeps that part
-                        return tau, halved, seg
-                    if self._slip.any() and self._rough_held():  # also after a jam at this instant
-                        return None  # wedged: no slide the halvings resolve; the chain jams (_jam)
-                    raise SolverError(
-                        step,
-                        t_k,
-                        "sustained",
-                        0.0,
-                        f"a held segment's root is spurious: the kinetic energy of its velocity is "
-                        f"{ratio:.3g} times its start's and the forces' over it, after {SPLITS} halvings; "
-                        "reduce h",
-                    )
+                if halved == SPLITS and self._reverses(q, p, seg, guess):
+                    return tau, halved, seg  # its slide stops inside: the chain keeps that part
+            if halved == SPLITS:
+                if self._slip.any() and self._rough_held():  # also after a jam at this instant
+                    return None  # wedged: no slide the halvings resolve; the chain jams (_jam)
+                if failed is not None:
+                    raise failed
+                raise SolverError(
+                    step,
+                    t_k,
+                    "sustained",
+                    0.0,
+                    f"a held segment's root is spurious: the kinetic energy of its velocity is "
+                    f"{ratio:.3g} times its start's and the forces' over it, after {SPLITS} halvings; "
+                    "reduce h",
+                )
             halved += 1
             tau *= 0.5
             guess = self._velocity(q, guess, p)

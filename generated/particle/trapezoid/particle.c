@@ -1837,6 +1837,7 @@ static int particle_split_segment(const particle_ctx_t *c, const double *q, cons
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!particle_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = particle_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -1845,16 +1846,17 @@ static int particle_split_segment(const particle_ctx_t *c, const double *q, cons
             if (*halved == PARTICLE_SPLITS && particle_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == PARTICLE_SPLITS) {
-                return particle_fail(c, PARTICLE_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, PARTICLE_SPLITS);
+        } else if (*halved < PARTICLE_SPLITS && !(particle_slips(c) || particle_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == PARTICLE_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == PARTICLE_SPLITS || !(particle_slips(c) || particle_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return particle_fail(c, PARTICLE_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, PARTICLE_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

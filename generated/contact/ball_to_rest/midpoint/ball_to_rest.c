@@ -1833,6 +1833,7 @@ static int ball_to_rest_split_segment(const ball_to_rest_ctx_t *c, const double 
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!ball_to_rest_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = ball_to_rest_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -1841,16 +1842,17 @@ static int ball_to_rest_split_segment(const ball_to_rest_ctx_t *c, const double 
             if (*halved == BALL_TO_REST_SPLITS && ball_to_rest_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == BALL_TO_REST_SPLITS) {
-                return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, BALL_TO_REST_SPLITS);
+        } else if (*halved < BALL_TO_REST_SPLITS && !(ball_to_rest_slips(c) || ball_to_rest_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == BALL_TO_REST_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == BALL_TO_REST_SPLITS || !(ball_to_rest_slips(c) || ball_to_rest_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return ball_to_rest_fail(c, BALL_TO_REST_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, BALL_TO_REST_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

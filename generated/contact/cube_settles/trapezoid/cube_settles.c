@@ -2624,6 +2624,7 @@ static int cube_settles_split_segment(const cube_settles_ctx_t *c, const double 
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!cube_settles_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = cube_settles_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2632,16 +2633,17 @@ static int cube_settles_split_segment(const cube_settles_ctx_t *c, const double 
             if (*halved == CUBE_SETTLES_SPLITS && cube_settles_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == CUBE_SETTLES_SPLITS) {
-                return cube_settles_fail(c, CUBE_SETTLES_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, CUBE_SETTLES_SPLITS);
+        } else if (*halved < CUBE_SETTLES_SPLITS && !(cube_settles_slips(c) || cube_settles_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == CUBE_SETTLES_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == CUBE_SETTLES_SPLITS || !(cube_settles_slips(c) || cube_settles_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return cube_settles_fail(c, CUBE_SETTLES_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, CUBE_SETTLES_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2336,6 +2336,7 @@ static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, cons
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!four_bar_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = four_bar_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2344,16 +2345,17 @@ static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, cons
             if (*halved == FOUR_BAR_SPLITS && four_bar_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == FOUR_BAR_SPLITS) {
-                return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, FOUR_BAR_SPLITS);
+        } else if (*halved < FOUR_BAR_SPLITS && !(four_bar_slips(c) || four_bar_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == FOUR_BAR_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == FOUR_BAR_SPLITS || !(four_bar_slips(c) || four_bar_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, FOUR_BAR_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

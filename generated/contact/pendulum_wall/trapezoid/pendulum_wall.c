@@ -2069,6 +2069,7 @@ static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const doubl
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!pendulum_wall_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = pendulum_wall_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2077,16 +2078,17 @@ static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const doubl
             if (*halved == PENDULUM_WALL_SPLITS && pendulum_wall_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == PENDULUM_WALL_SPLITS) {
-                return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, PENDULUM_WALL_SPLITS);
+        } else if (*halved < PENDULUM_WALL_SPLITS && !(pendulum_wall_slips(c) || pendulum_wall_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == PENDULUM_WALL_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == PENDULUM_WALL_SPLITS || !(pendulum_wall_slips(c) || pendulum_wall_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return pendulum_wall_fail(c, PENDULUM_WALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, PENDULUM_WALL_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2781,6 +2781,7 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!pyramid_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = pyramid_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2789,28 +2790,23 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
             if (*halved == PYRAMID_SPLITS && pyramid_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == PYRAMID_SPLITS && pyramid_slips(c)) { /* also after a jam at this instant */
+        } else if (*halved < PYRAMID_SPLITS && !(pyramid_slips(c) || pyramid_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == PYRAMID_SPLITS) {
+            if (pyramid_slips(c)) { /* also after a jam at this instant */
                 int rough[PYRAMID_NF_DIM];
                 if (pyramid_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
                 }
             }
-            if (*halved == PYRAMID_SPLITS) {
-                return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, PYRAMID_SPLITS);
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == PYRAMID_SPLITS && pyramid_slips(c)) { /* no root down to tau / 2^SPLITS */
-                int rough[PYRAMID_NF_DIM];
-                if (pyramid_rough_held(c, rough)) {
-                    return 2;
-                }
-            }
-            if (*halved == PYRAMID_SPLITS || !(pyramid_slips(c) || pyramid_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, PYRAMID_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2034,6 +2034,7 @@ static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const dou
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!slide_off_dome_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = slide_off_dome_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2042,16 +2043,17 @@ static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const dou
             if (*halved == SLIDE_OFF_DOME_SPLITS && slide_off_dome_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == SLIDE_OFF_DOME_SPLITS) {
-                return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, SLIDE_OFF_DOME_SPLITS);
+        } else if (*halved < SLIDE_OFF_DOME_SPLITS && !(slide_off_dome_slips(c) || slide_off_dome_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == SLIDE_OFF_DOME_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == SLIDE_OFF_DOME_SPLITS || !(slide_off_dome_slips(c) || slide_off_dome_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return slide_off_dome_fail(c, SLIDE_OFF_DOME_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, SLIDE_OFF_DOME_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2117,6 +2117,7 @@ static int star_settles_split_segment(const star_settles_ctx_t *c, const double 
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!star_settles_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = star_settles_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2125,16 +2126,17 @@ static int star_settles_split_segment(const star_settles_ctx_t *c, const double 
             if (*halved == STAR_SETTLES_SPLITS && star_settles_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == STAR_SETTLES_SPLITS) {
-                return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, STAR_SETTLES_SPLITS);
+        } else if (*halved < STAR_SETTLES_SPLITS && !(star_settles_slips(c) || star_settles_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == STAR_SETTLES_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == STAR_SETTLES_SPLITS || !(star_settles_slips(c) || star_settles_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return star_settles_fail(c, STAR_SETTLES_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, STAR_SETTLES_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -1848,6 +1848,7 @@ static int conveyor_split_segment(const conveyor_ctx_t *c, const double *q, cons
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!conveyor_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = conveyor_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -1856,28 +1857,23 @@ static int conveyor_split_segment(const conveyor_ctx_t *c, const double *q, cons
             if (*halved == CONVEYOR_SPLITS && conveyor_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == CONVEYOR_SPLITS && conveyor_slips(c)) { /* also after a jam at this instant */
+        } else if (*halved < CONVEYOR_SPLITS && !(conveyor_slips(c) || conveyor_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == CONVEYOR_SPLITS) {
+            if (conveyor_slips(c)) { /* also after a jam at this instant */
                 int rough[CONVEYOR_NF_DIM];
                 if (conveyor_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
                 }
             }
-            if (*halved == CONVEYOR_SPLITS) {
-                return conveyor_fail(c, CONVEYOR_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, CONVEYOR_SPLITS);
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == CONVEYOR_SPLITS && conveyor_slips(c)) { /* no root down to tau / 2^SPLITS */
-                int rough[CONVEYOR_NF_DIM];
-                if (conveyor_rough_held(c, rough)) {
-                    return 2;
-                }
-            }
-            if (*halved == CONVEYOR_SPLITS || !(conveyor_slips(c) || conveyor_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return conveyor_fail(c, CONVEYOR_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, CONVEYOR_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -1809,6 +1809,7 @@ static int impact_damper_split_segment(const impact_damper_ctx_t *c, const doubl
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!impact_damper_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = impact_damper_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -1817,16 +1818,17 @@ static int impact_damper_split_segment(const impact_damper_ctx_t *c, const doubl
             if (*halved == IMPACT_DAMPER_SPLITS && impact_damper_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == IMPACT_DAMPER_SPLITS) {
-                return impact_damper_fail(c, IMPACT_DAMPER_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, IMPACT_DAMPER_SPLITS);
+        } else if (*halved < IMPACT_DAMPER_SPLITS && !(impact_damper_slips(c) || impact_damper_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == IMPACT_DAMPER_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == IMPACT_DAMPER_SPLITS || !(impact_damper_slips(c) || impact_damper_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return impact_damper_fail(c, IMPACT_DAMPER_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, IMPACT_DAMPER_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

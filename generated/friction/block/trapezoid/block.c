@@ -1932,6 +1932,7 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!block_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = block_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -1940,28 +1941,23 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
             if (*halved == BLOCK_SPLITS && block_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == BLOCK_SPLITS && block_slips(c)) { /* also after a jam at this instant */
+        } else if (*halved < BLOCK_SPLITS && !(block_slips(c) || block_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == BLOCK_SPLITS) {
+            if (block_slips(c)) { /* also after a jam at this instant */
                 int rough[BLOCK_NF_DIM];
                 if (block_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
                 }
             }
-            if (*halved == BLOCK_SPLITS) {
-                return block_fail(c, BLOCK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, BLOCK_SPLITS);
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == BLOCK_SPLITS && block_slips(c)) { /* no root down to tau / 2^SPLITS */
-                int rough[BLOCK_NF_DIM];
-                if (block_rough_held(c, rough)) {
-                    return 2;
-                }
-            }
-            if (*halved == BLOCK_SPLITS || !(block_slips(c) || block_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return block_fail(c, BLOCK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, BLOCK_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

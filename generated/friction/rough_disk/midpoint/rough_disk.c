@@ -2011,6 +2011,7 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!rough_disk_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = rough_disk_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2019,28 +2020,23 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
             if (*halved == ROUGH_DISK_SPLITS && rough_disk_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == ROUGH_DISK_SPLITS && rough_disk_slips(c)) { /* also after a jam at this instant */
+        } else if (*halved < ROUGH_DISK_SPLITS && !(rough_disk_slips(c) || rough_disk_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == ROUGH_DISK_SPLITS) {
+            if (rough_disk_slips(c)) { /* also after a jam at this instant */
                 int rough[ROUGH_DISK_NF_DIM];
                 if (rough_disk_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
                 }
             }
-            if (*halved == ROUGH_DISK_SPLITS) {
-                return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, ROUGH_DISK_SPLITS);
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == ROUGH_DISK_SPLITS && rough_disk_slips(c)) { /* no root down to tau / 2^SPLITS */
-                int rough[ROUGH_DISK_NF_DIM];
-                if (rough_disk_rough_held(c, rough)) {
-                    return 2;
-                }
-            }
-            if (*halved == ROUGH_DISK_SPLITS || !(rough_disk_slips(c) || rough_disk_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, ROUGH_DISK_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

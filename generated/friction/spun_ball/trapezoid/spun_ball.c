@@ -2102,6 +2102,7 @@ static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, co
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!spun_ball_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = spun_ball_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2110,28 +2111,23 @@ static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, co
             if (*halved == SPUN_BALL_SPLITS && spun_ball_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == SPUN_BALL_SPLITS && spun_ball_slips(c)) { /* also after a jam at this instant */
+        } else if (*halved < SPUN_BALL_SPLITS && !(spun_ball_slips(c) || spun_ball_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == SPUN_BALL_SPLITS) {
+            if (spun_ball_slips(c)) { /* also after a jam at this instant */
                 int rough[SPUN_BALL_NF_DIM];
                 if (spun_ball_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
                 }
             }
-            if (*halved == SPUN_BALL_SPLITS) {
-                return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, SPUN_BALL_SPLITS);
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == SPUN_BALL_SPLITS && spun_ball_slips(c)) { /* no root down to tau / 2^SPLITS */
-                int rough[SPUN_BALL_NF_DIM];
-                if (spun_ball_rough_held(c, rough)) {
-                    return 2;
-                }
-            }
-            if (*halved == SPUN_BALL_SPLITS || !(spun_ball_slips(c) || spun_ball_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return spun_ball_fail(c, SPUN_BALL_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, SPUN_BALL_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2217,6 +2217,7 @@ static int star_friction_split_segment(const star_friction_ctx_t *c, const doubl
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!star_friction_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = star_friction_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2225,28 +2226,23 @@ static int star_friction_split_segment(const star_friction_ctx_t *c, const doubl
             if (*halved == STAR_FRICTION_SPLITS && star_friction_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == STAR_FRICTION_SPLITS && star_friction_slips(c)) { /* also after a jam at this instant */
+        } else if (*halved < STAR_FRICTION_SPLITS && !(star_friction_slips(c) || star_friction_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == STAR_FRICTION_SPLITS) {
+            if (star_friction_slips(c)) { /* also after a jam at this instant */
                 int rough[STAR_FRICTION_NF_DIM];
                 if (star_friction_rough_held(c, rough)) {
                     return 2; /* wedged: no slide the halvings resolve; the chain jams (jam) */
                 }
             }
-            if (*halved == STAR_FRICTION_SPLITS) {
-                return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, STAR_FRICTION_SPLITS);
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == STAR_FRICTION_SPLITS && star_friction_slips(c)) { /* no root down to tau / 2^SPLITS */
-                int rough[STAR_FRICTION_NF_DIM];
-                if (star_friction_rough_held(c, rough)) {
-                    return 2;
-                }
-            }
-            if (*halved == STAR_FRICTION_SPLITS || !(star_friction_slips(c) || star_friction_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return star_friction_fail(c, STAR_FRICTION_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, STAR_FRICTION_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2051,6 +2051,7 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!ball_box_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = ball_box_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2059,16 +2060,17 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
             if (*halved == BALL_BOX_SPLITS && ball_box_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == BALL_BOX_SPLITS) {
-                return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, BALL_BOX_SPLITS);
+        } else if (*halved < BALL_BOX_SPLITS && !(ball_box_slips(c) || ball_box_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == BALL_BOX_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == BALL_BOX_SPLITS || !(ball_box_slips(c) || ball_box_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, BALL_BOX_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;

@@ -2250,6 +2250,7 @@ static int double_pendulum_split_segment(const double_pendulum_ctx_t *c, const d
     }
     *halved = 0;
     for (;;) {
+        ratio = -1.0; /* the Newton failed: no ratio */
         if (!double_pendulum_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
             ratio = double_pendulum_spurious(c, q, p, *tau, v, g);
             if (ratio == 0.0) {
@@ -2258,16 +2259,17 @@ static int double_pendulum_split_segment(const double_pendulum_ctx_t *c, const d
             if (*halved == DOUBLE_PENDULUM_SPLITS && double_pendulum_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-            if (*halved == DOUBLE_PENDULUM_SPLITS) {
-                return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
-                    "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
-                    ratio, DOUBLE_PENDULUM_SPLITS);
+        } else if (*halved < DOUBLE_PENDULUM_SPLITS && !(double_pendulum_slips(c) || double_pendulum_sunk_held(c))) { /* frictionless:
+                                                    * too coarse, not halved (but a row held on by sinks_free) */
+            return 1;
+        }
+        if (*halved == DOUBLE_PENDULUM_SPLITS) {
+            if (ratio < 0.0) {
+                return 1; /* the Newton's failure (c->err) */
             }
-        } else {
-            if (*halved == DOUBLE_PENDULUM_SPLITS || !(double_pendulum_slips(c) || double_pendulum_sunk_held(c))) { /* frictionless:
-                                                        * too coarse, not halved (but a row held on by sinks_free) */
-                return 1;
-            }
+            return double_pendulum_fail(c, DOUBLE_PENDULUM_PHASE_SUSTAINED, 0.0, "a held segment's root is spurious: the kinetic "
+                "energy of its velocity is %.3g times its start's and the forces' over it, after %d halvings; reduce h",
+                ratio, DOUBLE_PENDULUM_SPLITS);
         }
         ++*halved;
         *tau *= 0.5;
