@@ -77,20 +77,27 @@ def _sliding(s, m, mu):
     return sol[:3], sol[3]
 
 
+ODE = dict(method="DOP853", rtol=1e-12, atol=1e-12)  # the references' integrator
+
+
+def _slip_stops(t, s):
+    """The slip ``xd + R thd``: a terminal event where it stops."""
+    return s[3] + R * s[5]
+
+
+_slip_stops.terminal = True
+
+
 def reference(m, mu, th0, xd0, thd0) -> tuple[float, float]:
     """(lift-off time, landing time) of the hoop sliding from ``(0, R, th0)`` at ``(xd0, 0, thd0)``."""
-    opts = dict(method="DOP853", rtol=1e-12, atol=1e-12)
 
     def lift(t, s):
         return _sliding(s, m, mu)[1]
 
-    def stop(t, s):
-        return s[3] + R * s[5]
-
-    lift.terminal, lift.direction, stop.terminal = True, -1, True
+    lift.terminal, lift.direction = True, -1
     start = np.array([0.0, R, th0, xd0, 0.0, thd0])
     held = solve_ivp(
-        lambda t, s: np.append(s[3:], _sliding(s, m, mu)[0]), (0, 5), start, events=[lift, stop], **opts
+        lambda t, s: np.append(s[3:], _sliding(s, m, mu)[0]), (0, 5), start, events=[lift, _slip_stops], **ODE
     )
     assert held.t_events[0].size == 1 and held.t_events[1].size == 0  # it hops, sliding all along
     t_lift, s_lift = held.t_events[0][0], held.y_events[0][0]
@@ -104,9 +111,19 @@ def reference(m, mu, th0, xd0, thd0) -> tuple[float, float]:
         (t_lift, t_lift + 5),
         s_lift,
         events=[land],
-        **opts,
+        **ODE,
     )
     return float(t_lift), float(free.t_events[0][0])
+
+
+def _drawn(seed: int, index: int):
+    """Drop ``index`` of ``python -m bench.hoop_drops --seed seed``: ``(q0, v0, params)``."""
+    from bench.hoop_drops import draw
+
+    rng = np.random.default_rng(seed)
+    for _ in range(index):
+        draw(rng)
+    return draw(rng)
 
 
 @cache
@@ -222,11 +239,7 @@ def test_a_random_run_that_cycled_at_a_lift_off_runs_to_its_end(backend):
     """Run 695 of ``python -m bench.hoop_drops --seed 1 --h 0.01`` (``m = 4.56``, ``mu = 0.1``, ``e = 0.3``):
     on 1c05f95 both backends raised "more than 64 impacts in one step" at t = 2.06, where a lift-off's free
     step sank; now held on there, it runs to t = 4 with no impact of impulse 0, never below the floor."""
-    from bench.hoop_drops import draw
-
-    rng = np.random.default_rng(1)
-    starts = [draw(rng) for _ in range(696)]
-    q0, v0, params = starts[695]
+    q0, v0, params = _drawn(1, 695)
     res = simulator(backend).simulate(q0=q0, v0=v0, h=0.01, t_end=4.0, params=params, progress=False)
     assert res.stats["lifts_kept"] >= 1
     assert all(abs(im.impulse) > 1e-12 for im in res.impacts)
@@ -243,15 +256,9 @@ def rolling_reference(m, mu, th0, xd0, thd0, t_end):
     """``(stop time, slip at the stop, dense solution)``: the hoop sliding from ``(0, R, th0)`` at ``(xd0, 0,
     thd0)`` until its slip ``xd + R thd`` stops (an event), then rolling (``y = R``, ``x + R th`` fixed; its
     normal force asserted positive and its friction inside the cone) to ``t_end``."""
-    opts = dict(method="DOP853", rtol=1e-12, atol=1e-12)
-
-    def stop(t, s):
-        return s[3] + R * s[5]
-
-    stop.terminal = True
     start = np.array([0.0, R, th0, xd0, 0.0, thd0])
     slide = solve_ivp(
-        lambda t, s: np.append(s[3:], _sliding(s, m, mu)[0]), (0, t_end), start, events=[stop], **opts
+        lambda t, s: np.append(s[3:], _sliding(s, m, mu)[0]), (0, t_end), start, events=[_slip_stops], **ODE
     )
     t_stop, s_stop = slide.t_events[0][0], slide.y_events[0][0]
     rows = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, R]])  # the floor, the rolling (x + R th)
@@ -263,7 +270,7 @@ def rolling_reference(m, mu, th0, xd0, thd0, t_end):
         return sol[:3], sol[3:]
 
     roll = solve_ivp(
-        lambda t, s: np.append(s[3:], rolling(s)[0]), (t_stop, t_end), s_stop, dense_output=True, **opts
+        lambda t, s: np.append(s[3:], rolling(s)[0]), (t_stop, t_end), s_stop, dense_output=True, **ODE
     )
     forces = np.array([rolling(roll.sol(t))[1] for t in np.linspace(t_stop, t_end, 400)])
     assert forces[:, 0].min() > 0 and (np.abs(forces[:, 1]) < mu * forces[:, 0]).all()  # it rolls on to t_end
@@ -305,11 +312,7 @@ def test_a_slide_that_meets_painleves_boundary_inside_a_segment_jams_there(backe
     tangential impact at the segment's start (a second jam at that instant). Runs to t = 4 on both backends,
     never below the floor, ``|p|`` under twice its start's, the energy (at the grid points) within
     5 % of its start's, the backends to 1e-9, their tangents alike up to the jam and broken there."""
-    from bench.hoop_drops import draw
-
-    rng = np.random.default_rng(233)
-    starts = [draw(rng) for _ in range(271)]
-    q0, v0, params = starts[270]
+    q0, v0, params = _drawn(233, 270)
     res = simulator(backend).simulate(q0=q0, v0=v0, h=0.05, t_end=4.0, params=params, progress=False)
     m = params["m"]
     assert res.stats["jams"] >= 2 and (res.q[:, 1] - R).min() >= -1e-9
