@@ -4088,6 +4088,7 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[PARTICLE_R_DIM] = {0}, lowest[PARTICLE_R_DIM] = {0}, n_rows = 0;
+            int again_rows[PARTICLE_R_DIM] = {0};
             if (particle_count_event(c)) {
                 return 1;
             }
@@ -4097,8 +4098,14 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (particle_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= PARTICLE_BOUNCE_CYCLES;
+            }
+            if (particle_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             particle_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = particle_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -4483,6 +4483,7 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[STAR_R_DIM] = {0}, lowest[STAR_R_DIM] = {0}, n_rows = 0;
+            int again_rows[STAR_R_DIM] = {0};
             if (star_count_event(c)) {
                 return 1;
             }
@@ -4492,8 +4493,14 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (star_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= STAR_BOUNCE_CYCLES;
+            }
+            if (star_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             star_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -4089,6 +4089,7 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[BALL_TO_REST_R_DIM] = {0}, lowest[BALL_TO_REST_R_DIM] = {0}, n_rows = 0;
+            int again_rows[BALL_TO_REST_R_DIM] = {0};
             if (ball_to_rest_count_event(c)) {
                 return 1;
             }
@@ -4098,8 +4099,14 @@ static int ball_to_rest_impact_step(const ball_to_rest_ctx_t *c, ball_to_rest_se
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (ball_to_rest_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= BALL_TO_REST_BOUNCE_CYCLES;
+            }
+            if (ball_to_rest_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             ball_to_rest_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_to_rest_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -4374,6 +4374,7 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[CUBE_SETTLES_R_DIM] = {0}, lowest[CUBE_SETTLES_R_DIM] = {0}, n_rows = 0;
+            int again_rows[CUBE_SETTLES_R_DIM] = {0};
             if (cube_settles_count_event(c)) {
                 return 1;
             }
@@ -4383,8 +4384,14 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (cube_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= CUBE_SETTLES_BOUNCE_CYCLES;
+            }
+            if (cube_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             cube_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = cube_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

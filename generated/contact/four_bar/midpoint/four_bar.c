@@ -4952,6 +4952,7 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[FOUR_BAR_R_DIM] = {0}, lowest[FOUR_BAR_R_DIM] = {0}, n_rows = 0;
+            int again_rows[FOUR_BAR_R_DIM] = {0};
             if (four_bar_count_event(c)) {
                 return 1;
             }
@@ -4961,8 +4962,14 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (four_bar_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= FOUR_BAR_BOUNCE_CYCLES;
+            }
+            if (four_bar_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             four_bar_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = four_bar_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -4723,6 +4723,7 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[PENDULUM_WALL_R_DIM] = {0}, lowest[PENDULUM_WALL_R_DIM] = {0}, n_rows = 0;
+            int again_rows[PENDULUM_WALL_R_DIM] = {0};
             if (pendulum_wall_count_event(c)) {
                 return 1;
             }
@@ -4732,8 +4733,14 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (pendulum_wall_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= PENDULUM_WALL_BOUNCE_CYCLES;
+            }
+            if (pendulum_wall_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             pendulum_wall_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = pendulum_wall_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -6133,6 +6133,7 @@ static int pyramid_impact_step(const pyramid_ctx_t *c, pyramid_seg_t *seg, int *
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[PYRAMID_R_DIM] = {0}, lowest[PYRAMID_R_DIM] = {0}, n_rows = 0;
+            int again_rows[PYRAMID_R_DIM] = {0};
             if (pyramid_count_event(c)) {
                 return 1;
             }
@@ -6142,8 +6143,14 @@ static int pyramid_impact_step(const pyramid_ctx_t *c, pyramid_seg_t *seg, int *
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (pyramid_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= PYRAMID_BOUNCE_CYCLES;
+            }
+            if (pyramid_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             pyramid_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = pyramid_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

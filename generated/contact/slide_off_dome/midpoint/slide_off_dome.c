@@ -4639,6 +4639,7 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[SLIDE_OFF_DOME_R_DIM] = {0}, lowest[SLIDE_OFF_DOME_R_DIM] = {0}, n_rows = 0;
+            int again_rows[SLIDE_OFF_DOME_R_DIM] = {0};
             if (slide_off_dome_count_event(c)) {
                 return 1;
             }
@@ -4648,8 +4649,14 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (slide_off_dome_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= SLIDE_OFF_DOME_BOUNCE_CYCLES;
+            }
+            if (slide_off_dome_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             slide_off_dome_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = slide_off_dome_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -4816,6 +4816,7 @@ static int conveyor_impact_step(const conveyor_ctx_t *c, conveyor_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[CONVEYOR_R_DIM] = {0}, lowest[CONVEYOR_R_DIM] = {0}, n_rows = 0;
+            int again_rows[CONVEYOR_R_DIM] = {0};
             if (conveyor_count_event(c)) {
                 return 1;
             }
@@ -4825,8 +4826,14 @@ static int conveyor_impact_step(const conveyor_ctx_t *c, conveyor_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (conveyor_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= CONVEYOR_BOUNCE_CYCLES;
+            }
+            if (conveyor_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             conveyor_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = conveyor_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -3555,6 +3555,7 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[IMPACT_DAMPER_R_DIM] = {0}, lowest[IMPACT_DAMPER_R_DIM] = {0}, n_rows = 0;
+            int again_rows[IMPACT_DAMPER_R_DIM] = {0};
             if (impact_damper_count_event(c)) {
                 return 1;
             }
@@ -3564,8 +3565,14 @@ static int impact_damper_impact_step(const impact_damper_ctx_t *c, impact_damper
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (impact_damper_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= IMPACT_DAMPER_BOUNCE_CYCLES;
+            }
+            if (impact_damper_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             impact_damper_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = impact_damper_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -3415,6 +3415,7 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[IMPACT_OSCILLATOR_R_DIM] = {0}, lowest[IMPACT_OSCILLATOR_R_DIM] = {0}, n_rows = 0;
+            int again_rows[IMPACT_OSCILLATOR_R_DIM] = {0};
             if (impact_oscillator_count_event(c)) {
                 return 1;
             }
@@ -3424,8 +3425,14 @@ static int impact_oscillator_impact_step(const impact_oscillator_ctx_t *c, impac
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (impact_oscillator_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= IMPACT_OSCILLATOR_BOUNCE_CYCLES;
+            }
+            if (impact_oscillator_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             impact_oscillator_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = impact_oscillator_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

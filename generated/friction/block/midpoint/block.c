@@ -4951,6 +4951,7 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[BLOCK_R_DIM] = {0}, lowest[BLOCK_R_DIM] = {0}, n_rows = 0;
+            int again_rows[BLOCK_R_DIM] = {0};
             if (block_count_event(c)) {
                 return 1;
             }
@@ -4960,8 +4961,14 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= BLOCK_BOUNCE_CYCLES;
+            }
+            if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             block_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = block_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -5031,6 +5031,7 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[ROUGH_DISK_R_DIM] = {0}, lowest[ROUGH_DISK_R_DIM] = {0}, n_rows = 0;
+            int again_rows[ROUGH_DISK_R_DIM] = {0};
             if (rough_disk_count_event(c)) {
                 return 1;
             }
@@ -5040,8 +5041,14 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= ROUGH_DISK_BOUNCE_CYCLES;
+            }
+            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             rough_disk_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = rough_disk_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

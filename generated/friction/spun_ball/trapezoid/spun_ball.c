@@ -6931,6 +6931,7 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[SPUN_BALL_R_DIM] = {0}, lowest[SPUN_BALL_R_DIM] = {0}, n_rows = 0;
+            int again_rows[SPUN_BALL_R_DIM] = {0};
             if (spun_ball_count_event(c)) {
                 return 1;
             }
@@ -6940,8 +6941,14 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= SPUN_BALL_BOUNCE_CYCLES;
+            }
+            if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             spun_ball_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = spun_ball_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -4400,6 +4400,7 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[BALL_BOX_R_DIM] = {0}, lowest[BALL_BOX_R_DIM] = {0}, n_rows = 0;
+            int again_rows[BALL_BOX_R_DIM] = {0};
             if (ball_box_count_event(c)) {
                 return 1;
             }
@@ -4409,8 +4410,14 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= BALL_BOX_BOUNCE_CYCLES;
+            }
+            if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             ball_box_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_box_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -3943,6 +3943,7 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[DOUBLE_PENDULUM_R_DIM] = {0}, lowest[DOUBLE_PENDULUM_R_DIM] = {0}, n_rows = 0;
+            int again_rows[DOUBLE_PENDULUM_R_DIM] = {0};
             if (double_pendulum_count_event(c)) {
                 return 1;
             }
@@ -3952,8 +3953,14 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            if (double_pendulum_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
+            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
+                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= DOUBLE_PENDULUM_BOUNCE_CYCLES;
+            }
+            if (double_pendulum_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
                 return 1;
+            }
+            for (i = 0; i < n_rows; ++i) {
+                ++c->sus->bounces[rows[i]];
             }
             double_pendulum_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = double_pendulum_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
