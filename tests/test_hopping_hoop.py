@@ -90,32 +90,73 @@ def _slip_stops(t, s):
 _slip_stops.terminal = True
 
 
+def _rolling(s, m):
+    """Accelerations and the floor's ``(N, F)`` (normal, along ``x + R th``) of the hoop rolling on it."""
+    rows = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, R]])  # the floor, the rolling (x + R th)
+    k = np.zeros((5, 5))
+    k[:3, :3], k[:3, 3:], k[3:, :3] = _mass(s, m), -rows.T, rows
+    sol = np.linalg.solve(k, np.append(_force(s, m), [0.0, 0.0]))
+    return sol[:3], sol[3:]
+
+
+def hop_reference(m, mu, th0, xd0, thd0) -> list[tuple[str, float]]:
+    """The hoop on the floor from ``(0, R, th0)`` at ``(xd0, 0, thd0)`` to its first landing, event-driven
+    (scipy, ``ODE``): sliding till its slip stops (``"stop"``), rolling till its friction leaves the cone
+    (``"slides"``: sliding again, against that friction) or its normal force vanishes (``"lift"``, as sliding
+    too), then flying till it meets the floor (``"land"``). No event is sought in a phase's first
+    millisecond (a slip starting from 0; a start whose force changes sign there)."""
+
+    def phase(t0, s0, accel, *events):
+        def located(fun, direction):
+            def event(t, x):
+                return fun(x) if t > t0 + 1e-3 else 1.0
+
+            event.terminal, event.direction = True, direction
+            return event
+
+        out = solve_ivp(
+            lambda t, x: np.append(x[3:], accel(x)),
+            (t0, t0 + 5),
+            s0,
+            events=[located(fun, direction) for fun, direction in events],
+            **ODE,
+        )
+        i = next(i for i, times in enumerate(out.t_events) if times.size)
+        return i, float(out.t_events[i][0]), out.y_events[i][0]
+
+    t, s, log = 0.0, np.array([0.0, R, th0, xd0, 0.0, thd0]), []
+    sign = float(np.sign(xd0 + R * thd0))
+    while not log or log[-1][0] != "lift":
+        if sign:
+            i, t, s = phase(
+                t,
+                s,
+                lambda x, sg=sign: _sliding(x, m, mu, sg)[0],
+                (lambda x, sg=sign: sg * (x[3] + R * x[5]), -1),
+                (lambda x, sg=sign: _sliding(x, m, mu, sg)[1], -1),
+            )
+            log.append((("stop", "lift")[i], t))
+            sign = 0.0
+        else:
+            i, t, s = phase(
+                t,
+                s,
+                lambda x: _rolling(x, m)[0],
+                (lambda x: mu * _rolling(x, m)[1][0] - abs(_rolling(x, m)[1][1]), -1),
+                (lambda x: _rolling(x, m)[1][0], -1),
+            )
+            log.append((("slides", "lift")[i], t))
+            sign = -float(np.sign(_rolling(s, m)[1][1]))
+    _, t_land, _ = phase(t, s, lambda x: np.linalg.solve(_mass(x, m), _force(x, m)), (lambda x: x[1] - R, -1))
+    return log + [("land", t_land)]
+
+
 def reference(m, mu, th0, xd0, thd0) -> tuple[float, float]:
-    """(lift-off time, landing time) of the hoop sliding from ``(0, R, th0)`` at ``(xd0, 0, thd0)``."""
-
-    def lift(t, s):
-        return _sliding(s, m, mu)[1]
-
-    lift.terminal, lift.direction = True, -1
-    start = np.array([0.0, R, th0, xd0, 0.0, thd0])
-    held = solve_ivp(
-        lambda t, s: np.append(s[3:], _sliding(s, m, mu)[0]), (0, 5), start, events=[lift, _slip_stops], **ODE
-    )
-    assert held.t_events[0].size == 1 and held.t_events[1].size == 0  # it hops, sliding all along
-    t_lift, s_lift = held.t_events[0][0], held.y_events[0][0]
-
-    def land(t, s):
-        return s[1] - R if t > t_lift + 1e-6 else 1.0
-
-    land.terminal, land.direction = True, -1
-    free = solve_ivp(
-        lambda t, s: np.append(s[3:], np.linalg.solve(_mass(s, m), _force(s, m))),
-        (t_lift, t_lift + 5),
-        s_lift,
-        events=[land],
-        **ODE,
-    )
-    return float(t_lift), float(free.t_events[0][0])
+    """(lift-off time, landing time) of the hoop sliding from ``(0, R, th0)`` at ``(xd0, 0, thd0)``: it hops,
+    sliding all along (:func:`hop_reference`)."""
+    log = hop_reference(m, mu, th0, xd0, thd0)
+    assert [name for name, _ in log] == ["lift", "land"]  # it hops, sliding all along
+    return log[0][1], log[1][1]
 
 
 def _drawn(seed: int, index: int):
@@ -254,15 +295,6 @@ def test_a_random_run_that_cycled_at_a_lift_off_runs_to_its_end(backend):
 NEAR_PAINLEVE = (0.8355592415869011, 3.0, 1.0881801078793005, 1.0375363845892622, -2.39778098420953)
 
 
-def _rolling(s, m):
-    """Accelerations and the floor's ``(N, F)`` (normal, along ``x + R th``) of the hoop rolling on it."""
-    rows = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, R]])  # the floor, the rolling (x + R th)
-    k = np.zeros((5, 5))
-    k[:3, :3], k[:3, 3:], k[3:, :3] = _mass(s, m), -rows.T, rows
-    sol = np.linalg.solve(k, np.append(_force(s, m), [0.0, 0.0]))
-    return sol[:3], sol[3:]
-
-
 def rolling_reference(m, mu, th0, xd0, thd0, t_end):
     """``(stop time, slip at the stop, dense solution)``: the hoop sliding from ``(0, R, th0)`` at ``(xd0, 0,
     thd0)`` until its slip ``xd + R thd`` stops (an event), then rolling (``y = R``, ``x + R th`` fixed; its
@@ -341,58 +373,6 @@ def test_a_slide_that_meets_painleves_boundary_inside_a_segment_jams_there(backe
         assert tangents[0].sensitivity_breaks == tangents[1].sensitivity_breaks
         before = [t.sensitivity[:27] for t in tangents]
         np.testing.assert_allclose(before[0], before[1], rtol=0, atol=1e-8)
-
-
-def hop_reference(m, mu, th0, xd0, thd0) -> list[tuple[str, float]]:
-    """The hoop on the floor from ``(0, R, th0)`` at ``(xd0, 0, thd0)`` to its first landing, event-driven
-    (scipy, ``ODE``): sliding till its slip stops (``"stop"``), rolling till its friction leaves the cone
-    (``"slides"``: sliding again, against that friction) or its normal force vanishes (``"lift"``, as sliding
-    too), then flying till it meets the floor (``"land"``). No event is sought in a phase's first
-    millisecond (a slip starting from 0; a start whose force changes sign there)."""
-
-    def phase(t0, s0, accel, *events):
-        def located(fun, direction):
-            def event(t, x):
-                return fun(x) if t > t0 + 1e-3 else 1.0
-
-            event.terminal, event.direction = True, direction
-            return event
-
-        out = solve_ivp(
-            lambda t, x: np.append(x[3:], accel(x)),
-            (t0, t0 + 5),
-            s0,
-            events=[located(fun, direction) for fun, direction in events],
-            **ODE,
-        )
-        i = next(i for i, times in enumerate(out.t_events) if times.size)
-        return i, float(out.t_events[i][0]), out.y_events[i][0]
-
-    t, s, log = 0.0, np.array([0.0, R, th0, xd0, 0.0, thd0]), []
-    sign = float(np.sign(xd0 + R * thd0))
-    while not log or log[-1][0] != "lift":
-        if sign:
-            i, t, s = phase(
-                t,
-                s,
-                lambda x, sg=sign: _sliding(x, m, mu, sg)[0],
-                (lambda x, sg=sign: sg * (x[3] + R * x[5]), -1),
-                (lambda x, sg=sign: _sliding(x, m, mu, sg)[1], -1),
-            )
-            log.append((("stop", "lift")[i], t))
-            sign = 0.0
-        else:
-            i, t, s = phase(
-                t,
-                s,
-                lambda x: _rolling(x, m)[0],
-                (lambda x: mu * _rolling(x, m)[1][0] - abs(_rolling(x, m)[1][1]), -1),
-                (lambda x: _rolling(x, m)[1][0], -1),
-            )
-            log.append((("slides", "lift")[i], t))
-            sign = -float(np.sign(_rolling(s, m)[1][1]))
-    _, t_land, _ = phase(t, s, lambda x: np.linalg.solve(_mass(x, m), _force(x, m)), (lambda x: x[1] - R, -1))
-    return log + [("land", t_land)]
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
