@@ -102,8 +102,12 @@ class HeldImpacts(ImpulseLaw):
         Rows of ``group`` in ``joined`` (:meth:`_joined`, all in ``again``) that the law leaves with no
         impulse are not of the impact: not held, not logged. Each contact of the impact is logged once:
         ``"plastic"`` where a row of it is held after, ``"grazing"`` where none is and all its rows touch and
-        go (:meth:`_departs` at the state met, as a free impact's; MATH.md *Entry*), else by restitution."""
+        go (:meth:`_departs` at the state met, as a free impact's; MATH.md *Entry*), else by restitution. Each
+        row of ``group`` counts in the step's bounces (``_bounces``, ``joined`` ones too); one met
+        ``BOUNCE_CYCLES`` times in the step already settles as one in ``again`` does (Zeno: a few a step)."""
         k = self.k
+        met = list(group)  # the rows met, for the step's bounces (joined ones with no impulse too)
+        again = set(again) | {r for r in group if self._bounces.get(r, 0) >= BOUNCE_CYCLES}
         self._at(t)
         rest = k.restitution()
         vel = self._velocity(q, v, p)
@@ -193,6 +197,8 @@ class HeldImpacts(ImpulseLaw):
                 e_before - loss,
                 kind,
             )
+        for r in met:
+            self._bounces[r] = self._bounces.get(r, 0) + 1
         return p_plus
 
     def _joined(self, q, u, group, hit) -> list[int]:
@@ -438,18 +444,15 @@ class HeldImpacts(ImpulseLaw):
         held, or free). The tangent broke at the contact (``"simultaneous impact"``, ``Tracker.contact``; at
         a kink, here); the impact itself runs without the events' tangent, as C's (its ``hold`` is set after
         ``<model>_chain_impact``), so that it books no more breaks. Its rows count in the step's bounces as a
-        held chain's do: ``BOUNCE_CYCLES`` in the step, the next settles (``again``). A rough hoop starting
-        on the floor, its free path leaving at second order and back at third within the step, met the floor
-        again at t = 0 through the free rest after each such impact, holding nothing, 64 times
+        held chain's do (:meth:`_chain_impact`: ``BOUNCE_CYCLES`` in the step, the next settles). A rough hoop
+        starting on the floor, its free path leaving at second order and back at third within the step, met
+        the floor again at t = 0 through the free rest after each such impact, holding nothing, 64 times
         (``bench.hoop_drops --seed 321``, drop 32)."""
-        again = {r for r in rows if self._bounces.get(r, 0) >= BOUNCE_CYCLES}
         tan, self._ev_tan = self._ev_tan, None
         try:
-            p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before, again)
+            p = self._chain_impact(step, t_k, h, q, p, v, t, rows, impacts, e_before)
         finally:
             self._ev_tan = tan
-        for r in rows:
-            self._bounces[r] = self._bounces.get(r, 0) + 1
         return self._chain(step, t_k, h, q, p, t, tau, self._velocity(q, v, p), impacts, e_step)
 
     def _touching(self, q, v, group_contacts) -> tuple[list[int], list[int]]:

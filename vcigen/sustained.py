@@ -38,7 +38,6 @@ from .held_impacts import HeldImpacts
 from .held_locate import HeldLocate
 from .held_roots import (
     BACK_CYCLES,
-    BOUNCE_CYCLES,
     DEP_EPS,
     E_SHORT,
     EPS_LIFT,
@@ -422,7 +421,6 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         relands: dict[int, int] = {}  # rows that lifted off (or passed their load) in this step: landings
         backs: dict[int, int] = {}  # rows met again moving away after their release (_met_back): how often
         struck = False  # an impact at this segment's start: the held rows' forces are read there too
-        bounces = self._bounces  # impacts of each row in this step's chains (BOUNCE_CYCLES: then held)
         self._stuck_on.clear()
         self._jammed = False
         rest = tau  # the time left of the grid step; tau: the segment's (less where _split_segment halved it)
@@ -651,15 +649,12 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                     continue
             joined = self._joined(q, self._velocity(q, v, p), group, hit)  # touching, met at this instant
             group += joined
-            again = {r for r in group if r in hit or bounces.get(r, 0) >= BOUNCE_CYCLES}
             self._located(step, t_k, q_s, q, v, group)  # on its rows, not below them
-            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, again, joined)
+            p = self._chain_impact(step, t_k, h, q, p, v, t, group, impacts, e_sub, hit, joined)
             e_at = impacts[-1].energy_after
             struck = True
             guess = self._velocity(q, v, p)  # the next segment's Newton from the velocity after the impact
             hit |= set(group)
-            for r in group:
-                bounces[r] = bounces.get(r, 0) + 1
             for r in [r for r in group if r in relands and self.act[r]]:  # lifted off, landed again, held
                 relands[r] += 1
                 if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:

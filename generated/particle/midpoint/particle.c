@@ -2527,7 +2527,8 @@ static void particle_joined(const particle_ctx_t *c, const double *q, const doub
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int particle_chain_impact(const particle_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2540,7 +2541,7 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     double vel_m[PARTICLE_N], vel_p[PARTICLE_N], rate, e, loss, imp, rates[PARTICLE_R_DIM], es[PARTICLE_R_DIM];
     int plastic[PARTICLE_R_DIM], dropped[PARTICLE_R_DIM], slipped[PARTICLE_R_DIM], i, g, r, j, any, done;
     int pulled[PARTICLE_R_DIM], n_pulled = 0, departing[PARTICLE_R_DIM], all;
-    int none[PARTICLE_R_DIM] = {0}, unsolved;
+    int none[PARTICLE_R_DIM] = {0}, unsolved, met;
     int slip_own[PARTICLE_NF_DIM], slip_ride[PARTICLE_NF_DIM], land[PARTICLE_NF_DIM], leaving[PARTICLE_R_DIM];
     particle_at(c, t);
     particle_restitution(c->par, rest);
@@ -2567,7 +2568,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
         for (i = 0; i < PARTICLE_N; ++i) {
             rate += grad[r * PARTICLE_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || particle_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= PARTICLE_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || particle_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2658,6 +2661,9 @@ static int particle_chain_impact(const particle_ctx_t *c, const double *q, doubl
     }
     for (i = 0; i < PARTICLE_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -2919,8 +2925,6 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
     int pulls[PARTICLE_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[PARTICLE_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[PARTICLE_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[PARTICLE_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3128,13 +3132,10 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
             continue;
         }
         particle_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < PARTICLE_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= PARTICLE_BOUNCE_CYCLES;
-        }
         if (particle_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (particle_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * PARTICLE_W + 6]; /* the last impact's energy_after (log) */
@@ -3145,7 +3146,6 @@ static int particle_chain(const particle_ctx_t *c, double *q, double *p, double 
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4088,7 +4088,6 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[PARTICLE_R_DIM] = {0}, lowest[PARTICLE_R_DIM] = {0}, n_rows = 0;
-            int again_rows[PARTICLE_R_DIM] = {0};
             if (particle_count_event(c)) {
                 return 1;
             }
@@ -4098,14 +4097,8 @@ static int particle_impact_step(const particle_ctx_t *c, particle_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= PARTICLE_BOUNCE_CYCLES;
-            }
-            if (particle_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (particle_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             particle_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = particle_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

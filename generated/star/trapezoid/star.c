@@ -2813,7 +2813,8 @@ static void star_joined(const star_ctx_t *c, const double *q, const double *p, c
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2826,7 +2827,7 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     double vel_m[STAR_N], vel_p[STAR_N], rate, e, loss, imp, rates[STAR_R_DIM], es[STAR_R_DIM];
     int plastic[STAR_R_DIM], dropped[STAR_R_DIM], slipped[STAR_R_DIM], i, g, r, j, any, done;
     int pulled[STAR_R_DIM], n_pulled = 0, departing[STAR_R_DIM], all;
-    int none[STAR_R_DIM] = {0}, unsolved;
+    int none[STAR_R_DIM] = {0}, unsolved, met;
     int slip_own[STAR_NF_DIM], slip_ride[STAR_NF_DIM], land[STAR_NF_DIM], leaving[STAR_R_DIM];
     star_at(c, t);
     star_restitution(c->par, rest);
@@ -2853,7 +2854,9 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
         for (i = 0; i < STAR_N; ++i) {
             rate += grad[r * STAR_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || star_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= STAR_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || star_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2944,6 +2947,9 @@ static int star_chain_impact(const star_ctx_t *c, const double *q, double *p, co
     }
     for (i = 0; i < STAR_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3205,8 +3211,6 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
     int pulls[STAR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[STAR_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[STAR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[STAR_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3414,13 +3418,10 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
             continue;
         }
         star_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < STAR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= STAR_BOUNCE_CYCLES;
-        }
         if (star_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (star_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (star_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * STAR_W + 6]; /* the last impact's energy_after (log) */
@@ -3431,7 +3432,6 @@ static int star_chain(const star_ctx_t *c, double *q, double *p, double t, doubl
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4483,7 +4483,6 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[STAR_R_DIM] = {0}, lowest[STAR_R_DIM] = {0}, n_rows = 0;
-            int again_rows[STAR_R_DIM] = {0};
             if (star_count_event(c)) {
                 return 1;
             }
@@ -4493,14 +4492,8 @@ static int star_impact_step(const star_ctx_t *c, star_seg_t *seg, int *crossed,
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= STAR_BOUNCE_CYCLES;
-            }
-            if (star_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (star_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             star_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -3312,7 +3312,8 @@ static void cube_settles_joined(const cube_settles_ctx_t *c, const double *q, co
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -3325,7 +3326,7 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     double vel_m[CUBE_SETTLES_N], vel_p[CUBE_SETTLES_N], rate, e, loss, imp, rates[CUBE_SETTLES_R_DIM], es[CUBE_SETTLES_R_DIM];
     int plastic[CUBE_SETTLES_R_DIM], dropped[CUBE_SETTLES_R_DIM], slipped[CUBE_SETTLES_R_DIM], i, g, r, j, any, done;
     int pulled[CUBE_SETTLES_R_DIM], n_pulled = 0, departing[CUBE_SETTLES_R_DIM], all;
-    int none[CUBE_SETTLES_R_DIM] = {0}, unsolved;
+    int none[CUBE_SETTLES_R_DIM] = {0}, unsolved, met;
     int slip_own[CUBE_SETTLES_NF_DIM], slip_ride[CUBE_SETTLES_NF_DIM], land[CUBE_SETTLES_NF_DIM], leaving[CUBE_SETTLES_R_DIM];
     cube_settles_at(c, t);
     cube_settles_restitution(c->par, rest);
@@ -3352,7 +3353,9 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
         for (i = 0; i < CUBE_SETTLES_N; ++i) {
             rate += grad[r * CUBE_SETTLES_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || cube_settles_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= CUBE_SETTLES_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || cube_settles_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3443,6 +3446,9 @@ static int cube_settles_chain_impact(const cube_settles_ctx_t *c, const double *
     }
     for (i = 0; i < CUBE_SETTLES_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3704,8 +3710,6 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
     int pulls[CUBE_SETTLES_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[CUBE_SETTLES_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[CUBE_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[CUBE_SETTLES_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3913,13 +3917,10 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
             continue;
         }
         cube_settles_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < CUBE_SETTLES_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= CUBE_SETTLES_BOUNCE_CYCLES;
-        }
         if (cube_settles_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (cube_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (cube_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * CUBE_SETTLES_W + 6]; /* the last impact's energy_after (log) */
@@ -3930,7 +3931,6 @@ static int cube_settles_chain(const cube_settles_ctx_t *c, double *q, double *p,
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4367,7 +4367,6 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[CUBE_SETTLES_R_DIM] = {0}, lowest[CUBE_SETTLES_R_DIM] = {0}, n_rows = 0;
-            int again_rows[CUBE_SETTLES_R_DIM] = {0};
             if (cube_settles_count_event(c)) {
                 return 1;
             }
@@ -4377,14 +4376,8 @@ static int cube_settles_impact_step(const cube_settles_ctx_t *c, cube_settles_se
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= CUBE_SETTLES_BOUNCE_CYCLES;
-            }
-            if (cube_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (cube_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             cube_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = cube_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -3031,7 +3031,8 @@ static void four_bar_joined(const four_bar_ctx_t *c, const double *q, const doub
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -3044,7 +3045,7 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     double vel_m[FOUR_BAR_N], vel_p[FOUR_BAR_N], rate, e, loss, imp, rates[FOUR_BAR_R_DIM], es[FOUR_BAR_R_DIM];
     int plastic[FOUR_BAR_R_DIM], dropped[FOUR_BAR_R_DIM], slipped[FOUR_BAR_R_DIM], i, g, r, j, any, done;
     int pulled[FOUR_BAR_R_DIM], n_pulled = 0, departing[FOUR_BAR_R_DIM], all;
-    int none[FOUR_BAR_R_DIM] = {0}, unsolved;
+    int none[FOUR_BAR_R_DIM] = {0}, unsolved, met;
     int slip_own[FOUR_BAR_NF_DIM], slip_ride[FOUR_BAR_NF_DIM], land[FOUR_BAR_NF_DIM], leaving[FOUR_BAR_R_DIM];
     four_bar_at(c, t);
     four_bar_restitution(c->par, rest);
@@ -3071,7 +3072,9 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
         for (i = 0; i < FOUR_BAR_N; ++i) {
             rate += grad[r * FOUR_BAR_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || four_bar_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= FOUR_BAR_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || four_bar_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3162,6 +3165,9 @@ static int four_bar_chain_impact(const four_bar_ctx_t *c, const double *q, doubl
     }
     for (i = 0; i < FOUR_BAR_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3423,8 +3429,6 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     int pulls[FOUR_BAR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[FOUR_BAR_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[FOUR_BAR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[FOUR_BAR_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3632,13 +3636,10 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             continue;
         }
         four_bar_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < FOUR_BAR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= FOUR_BAR_BOUNCE_CYCLES;
-        }
         if (four_bar_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (four_bar_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (four_bar_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * FOUR_BAR_W + 6]; /* the last impact's energy_after (log) */
@@ -3649,7 +3650,6 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4952,7 +4952,6 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[FOUR_BAR_R_DIM] = {0}, lowest[FOUR_BAR_R_DIM] = {0}, n_rows = 0;
-            int again_rows[FOUR_BAR_R_DIM] = {0};
             if (four_bar_count_event(c)) {
                 return 1;
             }
@@ -4962,14 +4961,8 @@ static int four_bar_impact_step(const four_bar_ctx_t *c, four_bar_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= FOUR_BAR_BOUNCE_CYCLES;
-            }
-            if (four_bar_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (four_bar_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             four_bar_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = four_bar_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -2759,7 +2759,8 @@ static void pendulum_wall_joined(const pendulum_wall_ctx_t *c, const double *q, 
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2772,7 +2773,7 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     double vel_m[PENDULUM_WALL_N], vel_p[PENDULUM_WALL_N], rate, e, loss, imp, rates[PENDULUM_WALL_R_DIM], es[PENDULUM_WALL_R_DIM];
     int plastic[PENDULUM_WALL_R_DIM], dropped[PENDULUM_WALL_R_DIM], slipped[PENDULUM_WALL_R_DIM], i, g, r, j, any, done;
     int pulled[PENDULUM_WALL_R_DIM], n_pulled = 0, departing[PENDULUM_WALL_R_DIM], all;
-    int none[PENDULUM_WALL_R_DIM] = {0}, unsolved;
+    int none[PENDULUM_WALL_R_DIM] = {0}, unsolved, met;
     int slip_own[PENDULUM_WALL_NF_DIM], slip_ride[PENDULUM_WALL_NF_DIM], land[PENDULUM_WALL_NF_DIM], leaving[PENDULUM_WALL_R_DIM];
     pendulum_wall_at(c, t);
     pendulum_wall_restitution(c->par, rest);
@@ -2799,7 +2800,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
         for (i = 0; i < PENDULUM_WALL_N; ++i) {
             rate += grad[r * PENDULUM_WALL_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || pendulum_wall_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= PENDULUM_WALL_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || pendulum_wall_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2890,6 +2893,9 @@ static int pendulum_wall_chain_impact(const pendulum_wall_ctx_t *c, const double
     }
     for (i = 0; i < PENDULUM_WALL_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3151,8 +3157,6 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
     int pulls[PENDULUM_WALL_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[PENDULUM_WALL_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[PENDULUM_WALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[PENDULUM_WALL_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3360,13 +3364,10 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
             continue;
         }
         pendulum_wall_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < PENDULUM_WALL_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= PENDULUM_WALL_BOUNCE_CYCLES;
-        }
         if (pendulum_wall_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (pendulum_wall_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * PENDULUM_WALL_W + 6]; /* the last impact's energy_after (log) */
@@ -3377,7 +3378,6 @@ static int pendulum_wall_chain(const pendulum_wall_ctx_t *c, double *q, double *
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4723,7 +4723,6 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[PENDULUM_WALL_R_DIM] = {0}, lowest[PENDULUM_WALL_R_DIM] = {0}, n_rows = 0;
-            int again_rows[PENDULUM_WALL_R_DIM] = {0};
             if (pendulum_wall_count_event(c)) {
                 return 1;
             }
@@ -4733,14 +4732,8 @@ static int pendulum_wall_impact_step(const pendulum_wall_ctx_t *c, pendulum_wall
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= PENDULUM_WALL_BOUNCE_CYCLES;
-            }
-            if (pendulum_wall_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (pendulum_wall_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             pendulum_wall_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = pendulum_wall_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -2729,7 +2729,8 @@ static void slide_off_dome_joined(const slide_off_dome_ctx_t *c, const double *q
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2742,7 +2743,7 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     double vel_m[SLIDE_OFF_DOME_N], vel_p[SLIDE_OFF_DOME_N], rate, e, loss, imp, rates[SLIDE_OFF_DOME_R_DIM], es[SLIDE_OFF_DOME_R_DIM];
     int plastic[SLIDE_OFF_DOME_R_DIM], dropped[SLIDE_OFF_DOME_R_DIM], slipped[SLIDE_OFF_DOME_R_DIM], i, g, r, j, any, done;
     int pulled[SLIDE_OFF_DOME_R_DIM], n_pulled = 0, departing[SLIDE_OFF_DOME_R_DIM], all;
-    int none[SLIDE_OFF_DOME_R_DIM] = {0}, unsolved;
+    int none[SLIDE_OFF_DOME_R_DIM] = {0}, unsolved, met;
     int slip_own[SLIDE_OFF_DOME_NF_DIM], slip_ride[SLIDE_OFF_DOME_NF_DIM], land[SLIDE_OFF_DOME_NF_DIM], leaving[SLIDE_OFF_DOME_R_DIM];
     slide_off_dome_at(c, t);
     slide_off_dome_restitution(c->par, rest);
@@ -2769,7 +2770,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
         for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
             rate += grad[r * SLIDE_OFF_DOME_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || slide_off_dome_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= SLIDE_OFF_DOME_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || slide_off_dome_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2860,6 +2863,9 @@ static int slide_off_dome_chain_impact(const slide_off_dome_ctx_t *c, const doub
     }
     for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3121,8 +3127,6 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
     int pulls[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[SLIDE_OFF_DOME_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[SLIDE_OFF_DOME_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[SLIDE_OFF_DOME_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3330,13 +3334,10 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
             continue;
         }
         slide_off_dome_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < SLIDE_OFF_DOME_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= SLIDE_OFF_DOME_BOUNCE_CYCLES;
-        }
         if (slide_off_dome_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (slide_off_dome_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * SLIDE_OFF_DOME_W + 6]; /* the last impact's energy_after (log) */
@@ -3347,7 +3348,6 @@ static int slide_off_dome_chain(const slide_off_dome_ctx_t *c, double *q, double
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4639,7 +4639,6 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[SLIDE_OFF_DOME_R_DIM] = {0}, lowest[SLIDE_OFF_DOME_R_DIM] = {0}, n_rows = 0;
-            int again_rows[SLIDE_OFF_DOME_R_DIM] = {0};
             if (slide_off_dome_count_event(c)) {
                 return 1;
             }
@@ -4649,14 +4648,8 @@ static int slide_off_dome_impact_step(const slide_off_dome_ctx_t *c, slide_off_d
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= SLIDE_OFF_DOME_BOUNCE_CYCLES;
-            }
-            if (slide_off_dome_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (slide_off_dome_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             slide_off_dome_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = slide_off_dome_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -2814,7 +2814,8 @@ static void star_settles_joined(const star_settles_ctx_t *c, const double *q, co
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2827,7 +2828,7 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     double vel_m[STAR_SETTLES_N], vel_p[STAR_SETTLES_N], rate, e, loss, imp, rates[STAR_SETTLES_R_DIM], es[STAR_SETTLES_R_DIM];
     int plastic[STAR_SETTLES_R_DIM], dropped[STAR_SETTLES_R_DIM], slipped[STAR_SETTLES_R_DIM], i, g, r, j, any, done;
     int pulled[STAR_SETTLES_R_DIM], n_pulled = 0, departing[STAR_SETTLES_R_DIM], all;
-    int none[STAR_SETTLES_R_DIM] = {0}, unsolved;
+    int none[STAR_SETTLES_R_DIM] = {0}, unsolved, met;
     int slip_own[STAR_SETTLES_NF_DIM], slip_ride[STAR_SETTLES_NF_DIM], land[STAR_SETTLES_NF_DIM], leaving[STAR_SETTLES_R_DIM];
     star_settles_at(c, t);
     star_settles_restitution(c->par, rest);
@@ -2854,7 +2855,9 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
         for (i = 0; i < STAR_SETTLES_N; ++i) {
             rate += grad[r * STAR_SETTLES_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || star_settles_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= STAR_SETTLES_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || star_settles_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2945,6 +2948,9 @@ static int star_settles_chain_impact(const star_settles_ctx_t *c, const double *
     }
     for (i = 0; i < STAR_SETTLES_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3206,8 +3212,6 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
     int pulls[STAR_SETTLES_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[STAR_SETTLES_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[STAR_SETTLES_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[STAR_SETTLES_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3415,13 +3419,10 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
             continue;
         }
         star_settles_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < STAR_SETTLES_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= STAR_SETTLES_BOUNCE_CYCLES;
-        }
         if (star_settles_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (star_settles_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * STAR_SETTLES_W + 6]; /* the last impact's energy_after (log) */
@@ -3432,7 +3433,6 @@ static int star_settles_chain(const star_settles_ctx_t *c, double *q, double *p,
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4484,7 +4484,6 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[STAR_SETTLES_R_DIM] = {0}, lowest[STAR_SETTLES_R_DIM] = {0}, n_rows = 0;
-            int again_rows[STAR_SETTLES_R_DIM] = {0};
             if (star_settles_count_event(c)) {
                 return 1;
             }
@@ -4494,14 +4493,8 @@ static int star_settles_impact_step(const star_settles_ctx_t *c, star_settles_se
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= STAR_SETTLES_BOUNCE_CYCLES;
-            }
-            if (star_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (star_settles_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             star_settles_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_settles_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

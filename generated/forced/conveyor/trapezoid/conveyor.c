@@ -3475,7 +3475,8 @@ static void conveyor_joined(const conveyor_ctx_t *c, const double *q, const doub
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -3488,7 +3489,7 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
     double vel_m[CONVEYOR_N], vel_p[CONVEYOR_N], rate, e, loss, imp, rates[CONVEYOR_R_DIM], es[CONVEYOR_R_DIM];
     int plastic[CONVEYOR_R_DIM], dropped[CONVEYOR_R_DIM], slipped[CONVEYOR_R_DIM], i, g, r, j, any, done;
     int pulled[CONVEYOR_R_DIM], n_pulled = 0, departing[CONVEYOR_R_DIM], all;
-    int none[CONVEYOR_R_DIM] = {0}, unsolved;
+    int none[CONVEYOR_R_DIM] = {0}, unsolved, met;
     int slip_own[CONVEYOR_NF_DIM], slip_ride[CONVEYOR_NF_DIM], land[CONVEYOR_NF_DIM], leaving[CONVEYOR_R_DIM];
     long counts[3];
     int reduced, why, act[CONVEYOR_R_DIM], ride[CONVEYOR_NF_DIM];
@@ -3517,7 +3518,9 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
         for (i = 0; i < CONVEYOR_N; ++i) {
             rate += grad[r * CONVEYOR_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || conveyor_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= CONVEYOR_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || conveyor_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3636,6 +3639,9 @@ static int conveyor_chain_impact(const conveyor_ctx_t *c, const double *q, doubl
     }
     for (i = 0; i < CONVEYOR_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3919,8 +3925,6 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
     int pulls[CONVEYOR_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[CONVEYOR_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[CONVEYOR_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[CONVEYOR_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -4290,13 +4294,10 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
             continue;
         }
         conveyor_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < CONVEYOR_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= CONVEYOR_BOUNCE_CYCLES;
-        }
         if (conveyor_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (conveyor_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (conveyor_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * CONVEYOR_W + 6]; /* the last impact's energy_after (log) */
@@ -4307,7 +4308,6 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= CONVEYOR_JAM_CYCLES && !c->sus->jammed) {
                 conveyor_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
@@ -4816,7 +4816,6 @@ static int conveyor_impact_step(const conveyor_ctx_t *c, conveyor_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[CONVEYOR_R_DIM] = {0}, lowest[CONVEYOR_R_DIM] = {0}, n_rows = 0;
-            int again_rows[CONVEYOR_R_DIM] = {0};
             if (conveyor_count_event(c)) {
                 return 1;
             }
@@ -4826,14 +4825,8 @@ static int conveyor_impact_step(const conveyor_ctx_t *c, conveyor_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= CONVEYOR_BOUNCE_CYCLES;
-            }
-            if (conveyor_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (conveyor_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             conveyor_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = conveyor_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

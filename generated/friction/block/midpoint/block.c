@@ -3571,7 +3571,8 @@ static void block_joined(const block_ctx_t *c, const double *q, const double *p,
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -3584,7 +3585,7 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     double vel_m[BLOCK_N], vel_p[BLOCK_N], rate, e, loss, imp, rates[BLOCK_R_DIM], es[BLOCK_R_DIM];
     int plastic[BLOCK_R_DIM], dropped[BLOCK_R_DIM], slipped[BLOCK_R_DIM], i, g, r, j, any, done;
     int pulled[BLOCK_R_DIM], n_pulled = 0, departing[BLOCK_R_DIM], all;
-    int none[BLOCK_R_DIM] = {0}, unsolved;
+    int none[BLOCK_R_DIM] = {0}, unsolved, met;
     int slip_own[BLOCK_NF_DIM], slip_ride[BLOCK_NF_DIM], land[BLOCK_NF_DIM], leaving[BLOCK_R_DIM];
     long counts[3];
     int reduced, why, act[BLOCK_R_DIM], ride[BLOCK_NF_DIM];
@@ -3613,7 +3614,9 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
         for (i = 0; i < BLOCK_N; ++i) {
             rate += grad[r * BLOCK_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || block_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= BLOCK_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || block_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3732,6 +3735,9 @@ static int block_chain_impact(const block_ctx_t *c, const double *q, double *p, 
     }
     for (i = 0; i < BLOCK_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -4014,8 +4020,6 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int pulls[BLOCK_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[BLOCK_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[BLOCK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[BLOCK_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -4384,13 +4388,10 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
             continue;
         }
         block_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < BLOCK_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= BLOCK_BOUNCE_CYCLES;
-        }
         if (block_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (block_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * BLOCK_W + 6]; /* the last impact's energy_after (log) */
@@ -4401,7 +4402,6 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= BLOCK_JAM_CYCLES && !c->sus->jammed) {
                 block_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
@@ -4951,7 +4951,6 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[BLOCK_R_DIM] = {0}, lowest[BLOCK_R_DIM] = {0}, n_rows = 0;
-            int again_rows[BLOCK_R_DIM] = {0};
             if (block_count_event(c)) {
                 return 1;
             }
@@ -4961,14 +4960,8 @@ static int block_impact_step(const block_ctx_t *c, block_seg_t *seg, int *crosse
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= BLOCK_BOUNCE_CYCLES;
-            }
-            if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (block_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             block_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = block_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

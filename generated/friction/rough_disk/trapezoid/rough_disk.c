@@ -3651,7 +3651,8 @@ static void rough_disk_joined(const rough_disk_ctx_t *c, const double *q, const 
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -3664,7 +3665,7 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     double vel_m[ROUGH_DISK_N], vel_p[ROUGH_DISK_N], rate, e, loss, imp, rates[ROUGH_DISK_R_DIM], es[ROUGH_DISK_R_DIM];
     int plastic[ROUGH_DISK_R_DIM], dropped[ROUGH_DISK_R_DIM], slipped[ROUGH_DISK_R_DIM], i, g, r, j, any, done;
     int pulled[ROUGH_DISK_R_DIM], n_pulled = 0, departing[ROUGH_DISK_R_DIM], all;
-    int none[ROUGH_DISK_R_DIM] = {0}, unsolved;
+    int none[ROUGH_DISK_R_DIM] = {0}, unsolved, met;
     int slip_own[ROUGH_DISK_NF_DIM], slip_ride[ROUGH_DISK_NF_DIM], land[ROUGH_DISK_NF_DIM], leaving[ROUGH_DISK_R_DIM];
     long counts[3];
     int reduced, why, act[ROUGH_DISK_R_DIM], ride[ROUGH_DISK_NF_DIM];
@@ -3693,7 +3694,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
         for (i = 0; i < ROUGH_DISK_N; ++i) {
             rate += grad[r * ROUGH_DISK_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || rough_disk_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= ROUGH_DISK_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || rough_disk_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3812,6 +3815,9 @@ static int rough_disk_chain_impact(const rough_disk_ctx_t *c, const double *q, d
     }
     for (i = 0; i < ROUGH_DISK_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -4094,8 +4100,6 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int pulls[ROUGH_DISK_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[ROUGH_DISK_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[ROUGH_DISK_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[ROUGH_DISK_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -4464,13 +4468,10 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             continue;
         }
         rough_disk_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < ROUGH_DISK_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= ROUGH_DISK_BOUNCE_CYCLES;
-        }
         if (rough_disk_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (rough_disk_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * ROUGH_DISK_W + 6]; /* the last impact's energy_after (log) */
@@ -4481,7 +4482,6 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= ROUGH_DISK_JAM_CYCLES && !c->sus->jammed) {
                 rough_disk_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
@@ -5031,7 +5031,6 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[ROUGH_DISK_R_DIM] = {0}, lowest[ROUGH_DISK_R_DIM] = {0}, n_rows = 0;
-            int again_rows[ROUGH_DISK_R_DIM] = {0};
             if (rough_disk_count_event(c)) {
                 return 1;
             }
@@ -5041,14 +5040,8 @@ static int rough_disk_impact_step(const rough_disk_ctx_t *c, rough_disk_seg_t *s
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= ROUGH_DISK_BOUNCE_CYCLES;
-            }
-            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (rough_disk_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             rough_disk_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = rough_disk_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

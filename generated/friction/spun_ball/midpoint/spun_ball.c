@@ -5292,7 +5292,8 @@ static void spun_ball_joined(const spun_ball_ctx_t *c, const double *q, const do
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -5305,7 +5306,7 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     double vel_m[SPUN_BALL_N], vel_p[SPUN_BALL_N], rate, e, loss, imp, rates[SPUN_BALL_R_DIM], es[SPUN_BALL_R_DIM];
     int plastic[SPUN_BALL_R_DIM], dropped[SPUN_BALL_R_DIM], slipped[SPUN_BALL_R_DIM], i, g, r, j, any, done;
     int pulled[SPUN_BALL_R_DIM], n_pulled = 0, departing[SPUN_BALL_R_DIM], all;
-    int none[SPUN_BALL_R_DIM] = {0}, unsolved;
+    int none[SPUN_BALL_R_DIM] = {0}, unsolved, met;
     int slip_own[SPUN_BALL_NF_DIM], slip_ride[SPUN_BALL_NF_DIM], land[SPUN_BALL_NF_DIM], leaving[SPUN_BALL_R_DIM];
     long counts[3];
     int reduced, why, act[SPUN_BALL_R_DIM], ride[SPUN_BALL_NF_DIM];
@@ -5334,7 +5335,9 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
         for (i = 0; i < SPUN_BALL_N; ++i) {
             rate += grad[r * SPUN_BALL_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || spun_ball_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= SPUN_BALL_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || spun_ball_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -5455,6 +5458,9 @@ static int spun_ball_chain_impact(const spun_ball_ctx_t *c, const double *q, dou
     }
     for (i = 0; i < SPUN_BALL_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -5737,8 +5743,6 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
     int pulls[SPUN_BALL_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[SPUN_BALL_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[SPUN_BALL_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[SPUN_BALL_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -6115,13 +6119,10 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
             continue;
         }
         spun_ball_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < SPUN_BALL_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= SPUN_BALL_BOUNCE_CYCLES;
-        }
         if (spun_ball_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (spun_ball_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * SPUN_BALL_W + 6]; /* the last impact's energy_after (log) */
@@ -6132,7 +6133,6 @@ static int spun_ball_chain(const spun_ball_ctx_t *c, double *q, double *p, doubl
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= SPUN_BALL_JAM_CYCLES && !c->sus->jammed) {
                 spun_ball_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
@@ -6930,7 +6930,6 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[SPUN_BALL_R_DIM] = {0}, lowest[SPUN_BALL_R_DIM] = {0}, n_rows = 0;
-            int again_rows[SPUN_BALL_R_DIM] = {0};
             if (spun_ball_count_event(c)) {
                 return 1;
             }
@@ -6940,14 +6939,8 @@ static int spun_ball_impact_step(const spun_ball_ctx_t *c, spun_ball_seg_t *seg,
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= SPUN_BALL_BOUNCE_CYCLES;
-            }
-            if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (spun_ball_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             spun_ball_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = spun_ball_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

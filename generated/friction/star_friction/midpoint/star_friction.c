@@ -3856,7 +3856,8 @@ static void star_friction_joined(const star_friction_ctx_t *c, const double *q, 
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int star_friction_chain_impact(const star_friction_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -3869,7 +3870,7 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     double vel_m[STAR_FRICTION_N], vel_p[STAR_FRICTION_N], rate, e, loss, imp, rates[STAR_FRICTION_R_DIM], es[STAR_FRICTION_R_DIM];
     int plastic[STAR_FRICTION_R_DIM], dropped[STAR_FRICTION_R_DIM], slipped[STAR_FRICTION_R_DIM], i, g, r, j, any, done;
     int pulled[STAR_FRICTION_R_DIM], n_pulled = 0, departing[STAR_FRICTION_R_DIM], all;
-    int none[STAR_FRICTION_R_DIM] = {0}, unsolved;
+    int none[STAR_FRICTION_R_DIM] = {0}, unsolved, met;
     int slip_own[STAR_FRICTION_NF_DIM], slip_ride[STAR_FRICTION_NF_DIM], land[STAR_FRICTION_NF_DIM], leaving[STAR_FRICTION_R_DIM];
     long counts[3];
     int reduced, why, act[STAR_FRICTION_R_DIM], ride[STAR_FRICTION_NF_DIM];
@@ -3898,7 +3899,9 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
         for (i = 0; i < STAR_FRICTION_N; ++i) {
             rate += grad[r * STAR_FRICTION_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || star_friction_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= STAR_FRICTION_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || star_friction_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -4017,6 +4020,9 @@ static int star_friction_chain_impact(const star_friction_ctx_t *c, const double
     }
     for (i = 0; i < STAR_FRICTION_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -4299,8 +4305,6 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
     int pulls[STAR_FRICTION_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[STAR_FRICTION_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[STAR_FRICTION_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[STAR_FRICTION_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -4669,13 +4673,10 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
             continue;
         }
         star_friction_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < STAR_FRICTION_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= STAR_FRICTION_BOUNCE_CYCLES;
-        }
         if (star_friction_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (star_friction_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * STAR_FRICTION_W + 6]; /* the last impact's energy_after (log) */
@@ -4686,7 +4687,6 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
             r = group[g];
             if (relands[r] >= 0 && c->sus->act[r] && ++relands[r] >= STAR_FRICTION_JAM_CYCLES && !c->sus->jammed) {
                 star_friction_velocity(c, q, v, p, vel); /* lifted off, landed again, held: a jam */
@@ -5236,7 +5236,6 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[STAR_FRICTION_R_DIM] = {0}, lowest[STAR_FRICTION_R_DIM] = {0}, n_rows = 0;
-            int again_rows[STAR_FRICTION_R_DIM] = {0};
             if (star_friction_count_event(c)) {
                 return 1;
             }
@@ -5246,14 +5245,8 @@ static int star_friction_impact_step(const star_friction_ctx_t *c, star_friction
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= STAR_FRICTION_BOUNCE_CYCLES;
-            }
-            if (star_friction_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (star_friction_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             star_friction_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = star_friction_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

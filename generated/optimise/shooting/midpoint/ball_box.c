@@ -2743,7 +2743,8 @@ static void ball_box_joined(const ball_box_ctx_t *c, const double *q, const doub
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2756,7 +2757,7 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     double vel_m[BALL_BOX_N], vel_p[BALL_BOX_N], rate, e, loss, imp, rates[BALL_BOX_R_DIM], es[BALL_BOX_R_DIM];
     int plastic[BALL_BOX_R_DIM], dropped[BALL_BOX_R_DIM], slipped[BALL_BOX_R_DIM], i, g, r, j, any, done;
     int pulled[BALL_BOX_R_DIM], n_pulled = 0, departing[BALL_BOX_R_DIM], all;
-    int none[BALL_BOX_R_DIM] = {0}, unsolved;
+    int none[BALL_BOX_R_DIM] = {0}, unsolved, met;
     int slip_own[BALL_BOX_NF_DIM], slip_ride[BALL_BOX_NF_DIM], land[BALL_BOX_NF_DIM], leaving[BALL_BOX_R_DIM];
     ball_box_at(c, t);
     ball_box_restitution(c->par, rest);
@@ -2783,7 +2784,9 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
         for (i = 0; i < BALL_BOX_N; ++i) {
             rate += grad[r * BALL_BOX_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || ball_box_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= BALL_BOX_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || ball_box_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -2874,6 +2877,9 @@ static int ball_box_chain_impact(const ball_box_ctx_t *c, const double *q, doubl
     }
     for (i = 0; i < BALL_BOX_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3135,8 +3141,6 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     int pulls[BALL_BOX_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[BALL_BOX_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[BALL_BOX_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[BALL_BOX_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3344,13 +3348,10 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             continue;
         }
         ball_box_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < BALL_BOX_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= BALL_BOX_BOUNCE_CYCLES;
-        }
         if (ball_box_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (ball_box_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * BALL_BOX_W + 6]; /* the last impact's energy_after (log) */
@@ -3361,7 +3362,6 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -4397,7 +4397,6 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[BALL_BOX_R_DIM] = {0}, lowest[BALL_BOX_R_DIM] = {0}, n_rows = 0;
-            int again_rows[BALL_BOX_R_DIM] = {0};
             if (ball_box_count_event(c)) {
                 return 1;
             }
@@ -4407,14 +4406,8 @@ static int ball_box_impact_step(const ball_box_ctx_t *c, ball_box_seg_t *seg, in
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= BALL_BOX_BOUNCE_CYCLES;
-            }
-            if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (ball_box_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             ball_box_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = ball_box_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);

@@ -2888,7 +2888,8 @@ static void double_pendulum_joined(const double_pendulum_ctx_t *c, const double 
  * after it. A row flagged in again (NULL: none; met by an impact at this instant already: it left at a normal
  * speed of 0 and sank again at once) settles: held; one the incoming velocity does not press in is read again
  * once the impact has stopped it (stopped_pressed). Rows flagged in joined (NULL: none; joined, all in again)
- * that the law leaves with no impulse are not of the impact: not held, not logged. */
+ * that the law leaves with no impulse are not of the impact: not held, not logged. Each row of group_in counts
+ * in the step's bounces; one met BOUNCE_CYCLES times in the step already settles as one in again does. */
 static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const double *q, double *p, const double *v,
     double t, const int *group_in, int n_group_in, double e_before, double *rec, long *n_rec, const int *again,
     const int *joined)
@@ -2901,7 +2902,7 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     double vel_m[DOUBLE_PENDULUM_N], vel_p[DOUBLE_PENDULUM_N], rate, e, loss, imp, rates[DOUBLE_PENDULUM_R_DIM], es[DOUBLE_PENDULUM_R_DIM];
     int plastic[DOUBLE_PENDULUM_R_DIM], dropped[DOUBLE_PENDULUM_R_DIM], slipped[DOUBLE_PENDULUM_R_DIM], i, g, r, j, any, done;
     int pulled[DOUBLE_PENDULUM_R_DIM], n_pulled = 0, departing[DOUBLE_PENDULUM_R_DIM], all;
-    int none[DOUBLE_PENDULUM_R_DIM] = {0}, unsolved;
+    int none[DOUBLE_PENDULUM_R_DIM] = {0}, unsolved, met;
     int slip_own[DOUBLE_PENDULUM_NF_DIM], slip_ride[DOUBLE_PENDULUM_NF_DIM], land[DOUBLE_PENDULUM_NF_DIM], leaving[DOUBLE_PENDULUM_R_DIM];
     double_pendulum_at(c, t);
     double_pendulum_restitution(c->par, rest);
@@ -2928,7 +2929,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
         for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
             rate += grad[r * DOUBLE_PENDULUM_N + i] * vel[i];
         }
-        if (c->tol->grazing_contact && ((again && again[r]) || double_pendulum_settles(c, rate, racc[r], e))) {
+        /* met at this instant already (again), or BOUNCE_CYCLES times in this step's impacts: it settles, held */
+        met = (again && again[r]) || c->sus->bounces[r] >= DOUBLE_PENDULUM_BOUNCE_CYCLES;
+        if (c->tol->grazing_contact && (met || double_pendulum_settles(c, rate, racc[r], e))) {
             plastic[r] = 1;
         } else {
             tgt[r] = -e * rate;
@@ -3019,6 +3022,9 @@ static int double_pendulum_chain_impact(const double_pendulum_ctx_t *c, const do
     }
     for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
         p[i] = p_plus[i];
+    }
+    for (g = 0; g < n_group_in; ++g) { /* the rows met count in the step's bounces (joined ones too) */
+        ++c->sus->bounces[group_in[g]];
     }
     return 0;
 }
@@ -3280,8 +3286,6 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int pulls[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows lifted off and met again at this instant: pulls since (LIFT_CYCLES:
                                          * held on to the next instant) */
     int backs[DOUBLE_PENDULUM_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
-    int *bounces = c->sus->bounces; /* impacts of each row in this step's chains (BOUNCE_CYCLES: then held) */
-    int again[DOUBLE_PENDULUM_R_DIM]; /* the rows of the next impact that it holds (chain_impact) */
     int joined[DOUBLE_PENDULUM_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
@@ -3489,13 +3493,10 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
             continue;
         }
         double_pendulum_joined(c, q, p, v, hit, group, &n_group, joined); /* touching, met at this instant */
-        for (r = 0; r < DOUBLE_PENDULUM_R; ++r) { /* met at this instant already, or BOUNCE_CYCLES times in this step */
-            again[r] = hit[r] || bounces[r] >= DOUBLE_PENDULUM_BOUNCE_CYCLES;
-        }
         if (double_pendulum_located(c, psi_s, q, v, group, n_group)) { /* on its rows, not below them */
             return 1;
         }
-        if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, again, joined)) {
+        if (double_pendulum_chain_impact(c, q, p, v, t, group, n_group, e_sub, rec, n_rec, hit, joined)) {
             return 1;
         }
         e_at = rec[(*n_rec - 1) * DOUBLE_PENDULUM_W + 6]; /* the last impact's energy_after (log) */
@@ -3506,7 +3507,6 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
         }
         for (g = 0; g < n_group; ++g) {
             hit[group[g]] = 1;
-            ++bounces[group[g]];
         }
     }
 }
@@ -3943,7 +3943,6 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
              * law, Coulomb's cone as they land), then the rest of the step (chain); the tangent broke at the
              * contact (simultaneous impact) */
             int rows[DOUBLE_PENDULUM_R_DIM] = {0}, lowest[DOUBLE_PENDULUM_R_DIM] = {0}, n_rows = 0;
-            int again_rows[DOUBLE_PENDULUM_R_DIM] = {0};
             if (double_pendulum_count_event(c)) {
                 return 1;
             }
@@ -3953,14 +3952,8 @@ static int double_pendulum_impact_step(const double_pendulum_ctx_t *c, double_pe
                 p[i] = seg->p_in[i];
                 v[i] = v_c[i];
             }
-            for (i = 0; i < n_rows; ++i) { /* BOUNCE_CYCLES impacts of a row in this step: it settles, held */
-                again_rows[rows[i]] = c->sus->bounces[rows[i]] >= DOUBLE_PENDULUM_BOUNCE_CYCLES;
-            }
-            if (double_pendulum_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, again_rows, NULL)) {
+            if (double_pendulum_chain_impact(c, q, p, v, seg->t, rows, n_rows, e_before, rec, n_rec, NULL, NULL)) {
                 return 1;
-            }
-            for (i = 0; i < n_rows; ++i) {
-                ++c->sus->bounces[rows[i]];
             }
             double_pendulum_velocity(c, q, v_c, p, v); /* the chain's first guess: the velocity after the impact */
             rc = double_pendulum_chain(c, q, p, seg->t, seg->tau, v, &e_step, rec, n_rec);
