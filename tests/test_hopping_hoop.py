@@ -99,12 +99,13 @@ def _rolling(s, m):
     return sol[:3], sol[3:]
 
 
-def hop_reference(m, mu, th0, xd0, thd0) -> list[tuple[str, float]]:
+def hop_reference(m, mu, th0, xd0, thd0, sign=None) -> list[tuple[str, float]]:
     """The hoop on the floor from ``(0, R, th0)`` at ``(xd0, 0, thd0)`` to its first landing, event-driven
     (scipy, ``ODE``): sliding till its slip stops (``"stop"``), rolling till its friction leaves the cone
     (``"slides"``: sliding again, against that friction) or its normal force vanishes (``"lift"``, as sliding
     too), then flying till it meets the floor (``"land"``). No event is sought in a phase's first
-    millisecond (a slip starting from 0; a start whose force changes sign there)."""
+    millisecond (a slip starting from 0; a start whose force changes sign there). ``sign``: the first
+    phase's slide (by default the slip's sign; 0: rolling)."""
 
     def phase(t0, s0, accel, *events):
         def located(fun, direction):
@@ -125,7 +126,7 @@ def hop_reference(m, mu, th0, xd0, thd0) -> list[tuple[str, float]]:
         return i, float(out.t_events[i][0]), out.y_events[i][0]
 
     t, s, log = 0.0, np.array([0.0, R, th0, xd0, 0.0, thd0]), []
-    sign = float(np.sign(xd0 + R * thd0))
+    sign = float(np.sign(xd0 + R * thd0)) if sign is None else sign
     while not log or log[-1][0] != "lift":
         if sign:
             i, t, s = phase(
@@ -400,5 +401,60 @@ def test_a_start_whose_free_path_comes_back_within_the_step_settles(backend, h):
     assert (res.q[:, 1] - R).min() >= -1e-9
     if backend == "c":
         other = simulator("casadi").simulate(q0=q0, v0=v0, h=h, t_end=4.0, params=params, progress=False)
+        np.testing.assert_allclose(res.q, other.q, rtol=0, atol=1e-9)
+        assert [im.kind for im in res.impacts] == [im.kind for im in other.impacts]
+
+
+def _jammed(m, th0, xd0, thd0):
+    """The tangential impact at ``(0, R, th0)`` moving at ``(xd0, 0, thd0)``: the floor and the rolling held
+    at once, plastic (``M (v+ - v) = J^T P``, ``J v+ = 0``); ``(v+, P_normal)``."""
+    rows = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, R]])  # the floor, the rolling (x + R th)
+    k = np.zeros((5, 5))
+    mass = _mass([0.0, R, th0], m)
+    k[:3, :3], k[:3, 3:], k[3:, :3] = mass, -rows.T, rows
+    sol = np.linalg.solve(k, np.append(mass @ [xd0, 0.0, thd0], [0.0, 0.0]))
+    return sol[:3], sol[3]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("h", [0.05, 0.025])
+def test_a_start_past_painleves_boundary_takes_the_tangential_impact_and_slides_on(backend, h):
+    """Drop 384 of ``python -m bench.hoop_drops --seed 419 --h 0.05`` (``m = 5.49``, ``mu = 1``, ``e = 0``):
+    on the floor slipping backwards, past Painleve's boundary: sliding the floor would pull, rolling too, and
+    the free hoop sinks. Its theory's tangential impact (the floor and the rolling held at once, plastic)
+    leaves it rolling with its friction out of the cone: it slides forward, pressed, stops, rolls, slides
+    again and hops (the event-located reference from that impact). At h = 0.05 both backends raised "smooth
+    solve failed" at step 0: after the jam its stick force left the cone, the slide back turned at once, and
+    that slide, pulling the floor at its start, was held, the end's force alone read; the end a coarse step
+    past the pole of the end's projection, the slide's stop was located on that pole, 2.3e8 m/s after it
+    (at h / 2 the end pulled too, and it ran). Now the held forces are read at a segment's start after a
+    friction switch there, as after an impact: it lifts off there and meets the floor at once, and Newton's
+    law with Coulomb's at e = 0 is that tangential impact: its impulse to 1e-9; the state at t = 0.25
+    (sliding) within 6 h^2 (5.0 and 5.4 h^2 measured) and 30 h^2 in velocity (26, 28); the hop's lift-off
+    within 12 h^2 (11.4 and 5.3); C = CasADi to 1e-9."""
+    q0, v0, params = _drawn(419, 384)
+    m, mu = params["m"], params["mu"]
+    assert params["e"] == 0.0 and q0[1] == R and v0[1] == 0.0
+    start = np.array([*q0, *v0])
+    assert _sliding(start, m, mu)[1] < 0.0 and _rolling(start, m)[1][0] < 0.0  # the floor would pull
+    assert np.linalg.solve(_mass(start, m), _force(start, m))[1] < 0.0  # and the free hoop sinks
+    vel, impulse = _jammed(m, q0[2], v0[0], v0[2])
+    after = np.array([*q0, *vel])
+    normal, friction = _rolling(after, m)[1]
+    sign = -float(np.sign(friction))  # out of the cone: it slides against that friction, pressed
+    assert mu * normal < abs(friction) and _sliding(after, m, mu, sign)[1] > 0.0
+    ref = dict(hop_reference(m, mu, q0[2], vel[0], vel[2], sign))
+    assert list(ref) == ["stop", "slides", "lift", "land"] and ref["stop"] > 0.25
+    sliding = solve_ivp(lambda t, s: np.append(s[3:], _sliding(s, m, mu, sign)[0]), (0.0, 0.25), after, **ODE)
+    res = simulator(backend).simulate(q0=q0, v0=v0, h=h, t_end=1.0, params=params, progress=False)
+    assert len(res.impacts) == 1 and res.impacts[0].t == 0.0 and res.impacts[0].kind == "plastic"
+    assert abs(res.impacts[0].impulse - impulse) <= 1e-9
+    i = round(0.25 / h)
+    assert np.abs(res.q[i] - sliding.y[:3, -1]).max() <= 6 * h * h
+    assert np.abs(res.v[i] - sliding.y[3:, -1]).max() <= 30 * h * h
+    hops = [t for t, _ in res.liftoffs if t > 0.0]
+    assert abs(hops[0] - ref["lift"]) <= 12 * h * h
+    if backend == "c":
+        other = simulator("casadi").simulate(q0=q0, v0=v0, h=h, t_end=1.0, params=params, progress=False)
         np.testing.assert_allclose(res.q, other.q, rtol=0, atol=1e-9)
         assert [im.kind for im in res.impacts] == [im.kind for im in other.impacts]

@@ -5154,8 +5154,8 @@ static int pyramid_sinks_free(const pyramid_ctx_t *c, const double *q, const dou
 
 /* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
  * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
- * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
- * incoming velocity pressed in, held by the impact, pulled once stopped). */
+ * (liftoff_fraction); after an impact while held or a friction switch at the start (struck, chain) a row pulled
+ * there lifts off there (one the incoming velocity pressed in, held by the impact, pulled once stopped). */
 static void pyramid_start_forces(const pyramid_ctx_t *c, const double *q, const double *p, const double *v,
     double *f0)
 {
@@ -5196,7 +5196,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                                          * held on to the next instant) */
     int backs[PYRAMID_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[PYRAMID_R_DIM]; /* the touching rows that join it (joined) */
-    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -5389,6 +5389,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 kind = ev[start] == 3 && start == turn ? 5 : ev[start];
                 pyramid_friction_switch(c, kind, start, q, vel);
                 turn = kind == 4 ? start : -1;
+                struck = 1; /* its forces changed at the start: a row pulled there leaves there */
                 continue;
             }
             if (passed[start] && hit[start] && ++pulls[start] >= PYRAMID_LIFT_CYCLES) { /* cycling: held on */

@@ -4277,8 +4277,8 @@ static int star_friction_sinks_free(const star_friction_ctx_t *c, const double *
 
 /* SustainedSteps._start_forces: the held rows' forces at a segment's start (q, p) into f0, read as at its end:
  * contact_forces, their best split (pressed) where a stick row rides. The lift-off's search starts there
- * (liftoff_fraction); after an impact while held (struck, chain) a row pulled there lifts off there (one the
- * incoming velocity pressed in, held by the impact, pulled once stopped). */
+ * (liftoff_fraction); after an impact while held or a friction switch at the start (struck, chain) a row pulled
+ * there lifts off there (one the incoming velocity pressed in, held by the impact, pulled once stopped). */
 static void star_friction_start_forces(const star_friction_ctx_t *c, const double *q, const double *p, const double *v,
     double *f0)
 {
@@ -4308,7 +4308,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                                          * held on to the next instant) */
     int backs[STAR_FRICTION_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[STAR_FRICTION_R_DIM]; /* the touching rows that join it (joined) */
-    int struck = 0; /* an impact at this segment's start: the held rows' forces are read there too */
+    int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -4494,6 +4494,7 @@ static int star_friction_chain(const star_friction_ctx_t *c, double *q, double *
                 kind = ev[start] == 3 && start == turn ? 5 : ev[start];
                 star_friction_friction_switch(c, kind, start, q, vel);
                 turn = kind == 4 ? start : -1;
+                struck = 1; /* its forces changed at the start: a row pulled there leaves there */
                 continue;
             }
             if (passed[start] && hit[start] && ++pulls[start] >= STAR_FRICTION_LIFT_CYCLES) { /* cycling: held on */
