@@ -167,6 +167,7 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
                 kept = [im for im in impacts if im.step < step]
                 err.result = _result(t0, h, step, Q, P, E, kept, n, time.perf_counter() - wall)
                 sus.attach(err.result, step, [lo for lo in self.liftoffs if lo[0] < t])
+                self._counts(err.result)
                 if tan is not None:
                     tan.attach(err.result, step)
                 raise
@@ -186,10 +187,18 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
                     stacklevel=2,
                 )
         res = _result(t0, h, step, Q, P, E, impacts, n, time.perf_counter() - wall)
-        res.stats["grazing_reflected"] = self.reflected
         sus.attach(res, step, self.liftoffs)
+        self._counts(res)
+        if tan is not None:
+            tan.attach(res, step)
+        return res
+
+    def _counts(self, res: Result) -> None:
+        """The run's counters into ``res.stats``, as they stand: a completed run's, and the run so far of a
+        failed one (``SolverError.result``, as C's ``crun.stats``; it held the timings alone)."""
+        res.stats["grazing_reflected"] = self.reflected
         res.stats.update({f"impacts_{kind}": count for kind, count in self.kinds.items()})
-        res.stats["liftoffs"] = len(self.liftoffs)
+        res.stats["liftoffs"] = len(res.liftoffs)
         res.stats["jump_fallbacks"] = self.fallbacks
         res.stats["landing_friction_dropped"] = self.friction_dropped
         res.stats["restitution_reduced"] = self.restitution_reduced
@@ -200,9 +209,6 @@ class Stepper(ImpactSteps, SustainedSteps, HeldSteps):
         res.stats["jams"] = self.jams
         res.stats["halvings"] = self.halvings
         res.stats["riders_cut"] = self.riders_cut
-        if tan is not None:
-            tan.attach(res, step)
-        return res
 
     def contact_activity(self) -> np.ndarray:
         """Per contact: is any of its rows active (in sustained contact)?"""

@@ -1739,15 +1739,22 @@ static int particle_held_limit(const particle_ctx_t *c, const double *q, const d
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double particle_spurious(const particle_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[PARTICLE_N], mom[PARTICLE_N], mass[PARTICLE_N * PARTICLE_N], rhs[PARTICLE_N];
-    double ccurv[PARTICLE_M_DIM], w[PARTICLE_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[PARTICLE_M_DIM], w[PARTICLE_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[PARTICLE_N], i, j;
+    particle_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < PARTICLE_N; ++i) {
+        for (j = 0; j < PARTICLE_N; ++j) {
+            end += u1[i] * mass[i * PARTICLE_N + j] * u1[j];
+        }
+    }
     particle_velocity(c, q, guess, p, u0);
     particle_legendre(q, u0, c->par, mom, mass);
     particle_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1758,6 +1765,7 @@ static double particle_spurious(const particle_ctx_t *c, const double *q, const 
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!particle_lu(PARTICLE_N, mass, piv)) {
         return 0.0;
     }
@@ -1834,7 +1842,7 @@ static int particle_split_segment(const particle_ctx_t *c, const double *q, cons
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!particle_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = particle_spurious(c, q, p, *tau, v, g);
+            ratio = particle_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

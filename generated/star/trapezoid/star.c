@@ -2025,15 +2025,22 @@ static int star_held_limit(const star_ctx_t *c, const double *q, const double *p
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double star_spurious(const star_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[STAR_N], mom[STAR_N], mass[STAR_N * STAR_N], rhs[STAR_N];
-    double ccurv[STAR_M_DIM], w[STAR_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[STAR_M_DIM], w[STAR_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[STAR_N], i, j;
+    star_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < STAR_N; ++i) {
+        for (j = 0; j < STAR_N; ++j) {
+            end += u1[i] * mass[i * STAR_N + j] * u1[j];
+        }
+    }
     star_velocity(c, q, guess, p, u0);
     star_legendre(q, u0, c->par, mom, mass);
     star_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2044,6 +2051,7 @@ static double star_spurious(const star_ctx_t *c, const double *q, const double *
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!star_lu(STAR_N, mass, piv)) {
         return 0.0;
     }
@@ -2120,7 +2128,7 @@ static int star_split_segment(const star_ctx_t *c, const double *q, const double
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!star_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = star_spurious(c, q, p, *tau, v, g);
+            ratio = star_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

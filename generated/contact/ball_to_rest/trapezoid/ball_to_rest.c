@@ -1745,15 +1745,22 @@ static int ball_to_rest_held_limit(const ball_to_rest_ctx_t *c, const double *q,
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double ball_to_rest_spurious(const ball_to_rest_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[BALL_TO_REST_N], mom[BALL_TO_REST_N], mass[BALL_TO_REST_N * BALL_TO_REST_N], rhs[BALL_TO_REST_N];
-    double ccurv[BALL_TO_REST_M_DIM], w[BALL_TO_REST_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[BALL_TO_REST_M_DIM], w[BALL_TO_REST_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[BALL_TO_REST_N], i, j;
+    ball_to_rest_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < BALL_TO_REST_N; ++i) {
+        for (j = 0; j < BALL_TO_REST_N; ++j) {
+            end += u1[i] * mass[i * BALL_TO_REST_N + j] * u1[j];
+        }
+    }
     ball_to_rest_velocity(c, q, guess, p, u0);
     ball_to_rest_legendre(q, u0, c->par, mom, mass);
     ball_to_rest_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1764,6 +1771,7 @@ static double ball_to_rest_spurious(const ball_to_rest_ctx_t *c, const double *q
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!ball_to_rest_lu(BALL_TO_REST_N, mass, piv)) {
         return 0.0;
     }
@@ -1840,7 +1848,7 @@ static int ball_to_rest_split_segment(const ball_to_rest_ctx_t *c, const double 
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!ball_to_rest_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = ball_to_rest_spurious(c, q, p, *tau, v, g);
+            ratio = ball_to_rest_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

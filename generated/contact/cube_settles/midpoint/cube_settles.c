@@ -2524,15 +2524,22 @@ static int cube_settles_held_limit(const cube_settles_ctx_t *c, const double *q,
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double cube_settles_spurious(const cube_settles_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[CUBE_SETTLES_N], mom[CUBE_SETTLES_N], mass[CUBE_SETTLES_N * CUBE_SETTLES_N], rhs[CUBE_SETTLES_N];
-    double ccurv[CUBE_SETTLES_M_DIM], w[CUBE_SETTLES_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[CUBE_SETTLES_M_DIM], w[CUBE_SETTLES_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[CUBE_SETTLES_N], i, j;
+    cube_settles_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < CUBE_SETTLES_N; ++i) {
+        for (j = 0; j < CUBE_SETTLES_N; ++j) {
+            end += u1[i] * mass[i * CUBE_SETTLES_N + j] * u1[j];
+        }
+    }
     cube_settles_velocity(c, q, guess, p, u0);
     cube_settles_legendre(q, u0, c->par, mom, mass);
     cube_settles_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2543,6 +2550,7 @@ static double cube_settles_spurious(const cube_settles_ctx_t *c, const double *q
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!cube_settles_lu(CUBE_SETTLES_N, mass, piv)) {
         return 0.0;
     }
@@ -2619,7 +2627,7 @@ static int cube_settles_split_segment(const cube_settles_ctx_t *c, const double 
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!cube_settles_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = cube_settles_spurious(c, q, p, *tau, v, g);
+            ratio = cube_settles_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

@@ -2243,15 +2243,22 @@ static int four_bar_held_limit(const four_bar_ctx_t *c, const double *q, const d
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double four_bar_spurious(const four_bar_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[FOUR_BAR_N], mom[FOUR_BAR_N], mass[FOUR_BAR_N * FOUR_BAR_N], rhs[FOUR_BAR_N];
-    double ccurv[FOUR_BAR_M_DIM], w[FOUR_BAR_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[FOUR_BAR_M_DIM], w[FOUR_BAR_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[FOUR_BAR_N], i, j;
+    four_bar_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < FOUR_BAR_N; ++i) {
+        for (j = 0; j < FOUR_BAR_N; ++j) {
+            end += u1[i] * mass[i * FOUR_BAR_N + j] * u1[j];
+        }
+    }
     four_bar_velocity(c, q, guess, p, u0);
     four_bar_legendre(q, u0, c->par, mom, mass);
     four_bar_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2262,6 +2269,7 @@ static double four_bar_spurious(const four_bar_ctx_t *c, const double *q, const 
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!four_bar_lu(FOUR_BAR_N, mass, piv)) {
         return 0.0;
     }
@@ -2338,7 +2346,7 @@ static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, cons
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!four_bar_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = four_bar_spurious(c, q, p, *tau, v, g);
+            ratio = four_bar_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

@@ -1976,15 +1976,22 @@ static int pendulum_wall_held_limit(const pendulum_wall_ctx_t *c, const double *
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double pendulum_wall_spurious(const pendulum_wall_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[PENDULUM_WALL_N], mom[PENDULUM_WALL_N], mass[PENDULUM_WALL_N * PENDULUM_WALL_N], rhs[PENDULUM_WALL_N];
-    double ccurv[PENDULUM_WALL_M_DIM], w[PENDULUM_WALL_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[PENDULUM_WALL_M_DIM], w[PENDULUM_WALL_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[PENDULUM_WALL_N], i, j;
+    pendulum_wall_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < PENDULUM_WALL_N; ++i) {
+        for (j = 0; j < PENDULUM_WALL_N; ++j) {
+            end += u1[i] * mass[i * PENDULUM_WALL_N + j] * u1[j];
+        }
+    }
     pendulum_wall_velocity(c, q, guess, p, u0);
     pendulum_wall_legendre(q, u0, c->par, mom, mass);
     pendulum_wall_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1995,6 +2002,7 @@ static double pendulum_wall_spurious(const pendulum_wall_ctx_t *c, const double 
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!pendulum_wall_lu(PENDULUM_WALL_N, mass, piv)) {
         return 0.0;
     }
@@ -2071,7 +2079,7 @@ static int pendulum_wall_split_segment(const pendulum_wall_ctx_t *c, const doubl
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!pendulum_wall_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = pendulum_wall_spurious(c, q, p, *tau, v, g);
+            ratio = pendulum_wall_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

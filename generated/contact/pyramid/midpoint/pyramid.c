@@ -2666,15 +2666,22 @@ static int pyramid_held_limit(const pyramid_ctx_t *c, const double *q, const dou
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double pyramid_spurious(const pyramid_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[PYRAMID_N], mom[PYRAMID_N], mass[PYRAMID_N * PYRAMID_N], rhs[PYRAMID_N];
-    double ccurv[PYRAMID_M_DIM], w[PYRAMID_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[PYRAMID_M_DIM], w[PYRAMID_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[PYRAMID_N], i, j;
+    pyramid_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < PYRAMID_N; ++i) {
+        for (j = 0; j < PYRAMID_N; ++j) {
+            end += u1[i] * mass[i * PYRAMID_N + j] * u1[j];
+        }
+    }
     pyramid_velocity(c, q, guess, p, u0);
     pyramid_legendre(q, u0, c->par, mom, mass);
     pyramid_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2685,6 +2692,7 @@ static double pyramid_spurious(const pyramid_ctx_t *c, const double *q, const do
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!pyramid_lu(PYRAMID_N, mass, piv)) {
         return 0.0;
     }
@@ -2783,7 +2791,7 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!pyramid_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = pyramid_spurious(c, q, p, *tau, v, g);
+            ratio = pyramid_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

@@ -1946,15 +1946,22 @@ static int slide_off_dome_held_limit(const slide_off_dome_ctx_t *c, const double
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double slide_off_dome_spurious(const slide_off_dome_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[SLIDE_OFF_DOME_N], mom[SLIDE_OFF_DOME_N], mass[SLIDE_OFF_DOME_N * SLIDE_OFF_DOME_N], rhs[SLIDE_OFF_DOME_N];
-    double ccurv[SLIDE_OFF_DOME_M_DIM], w[SLIDE_OFF_DOME_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[SLIDE_OFF_DOME_M_DIM], w[SLIDE_OFF_DOME_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[SLIDE_OFF_DOME_N], i, j;
+    slide_off_dome_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < SLIDE_OFF_DOME_N; ++i) {
+        for (j = 0; j < SLIDE_OFF_DOME_N; ++j) {
+            end += u1[i] * mass[i * SLIDE_OFF_DOME_N + j] * u1[j];
+        }
+    }
     slide_off_dome_velocity(c, q, guess, p, u0);
     slide_off_dome_legendre(q, u0, c->par, mom, mass);
     slide_off_dome_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1965,6 +1972,7 @@ static double slide_off_dome_spurious(const slide_off_dome_ctx_t *c, const doubl
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!slide_off_dome_lu(SLIDE_OFF_DOME_N, mass, piv)) {
         return 0.0;
     }
@@ -2041,7 +2049,7 @@ static int slide_off_dome_split_segment(const slide_off_dome_ctx_t *c, const dou
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!slide_off_dome_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = slide_off_dome_spurious(c, q, p, *tau, v, g);
+            ratio = slide_off_dome_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

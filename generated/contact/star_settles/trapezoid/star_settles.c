@@ -2026,15 +2026,22 @@ static int star_settles_held_limit(const star_settles_ctx_t *c, const double *q,
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double star_settles_spurious(const star_settles_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[STAR_SETTLES_N], mom[STAR_SETTLES_N], mass[STAR_SETTLES_N * STAR_SETTLES_N], rhs[STAR_SETTLES_N];
-    double ccurv[STAR_SETTLES_M_DIM], w[STAR_SETTLES_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[STAR_SETTLES_M_DIM], w[STAR_SETTLES_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[STAR_SETTLES_N], i, j;
+    star_settles_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < STAR_SETTLES_N; ++i) {
+        for (j = 0; j < STAR_SETTLES_N; ++j) {
+            end += u1[i] * mass[i * STAR_SETTLES_N + j] * u1[j];
+        }
+    }
     star_settles_velocity(c, q, guess, p, u0);
     star_settles_legendre(q, u0, c->par, mom, mass);
     star_settles_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2045,6 +2052,7 @@ static double star_settles_spurious(const star_settles_ctx_t *c, const double *q
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!star_settles_lu(STAR_SETTLES_N, mass, piv)) {
         return 0.0;
     }
@@ -2121,7 +2129,7 @@ static int star_settles_split_segment(const star_settles_ctx_t *c, const double 
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!star_settles_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = star_settles_spurious(c, q, p, *tau, v, g);
+            ratio = star_settles_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

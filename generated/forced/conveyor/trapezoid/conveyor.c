@@ -1719,15 +1719,22 @@ static int conveyor_held_limit(const conveyor_ctx_t *c, const double *q, const d
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double conveyor_spurious(const conveyor_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[CONVEYOR_N], mom[CONVEYOR_N], mass[CONVEYOR_N * CONVEYOR_N], rhs[CONVEYOR_N];
-    double ccurv[CONVEYOR_M_DIM], w[CONVEYOR_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[CONVEYOR_M_DIM], w[CONVEYOR_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[CONVEYOR_N], i, j;
+    conveyor_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < CONVEYOR_N; ++i) {
+        for (j = 0; j < CONVEYOR_N; ++j) {
+            end += u1[i] * mass[i * CONVEYOR_N + j] * u1[j];
+        }
+    }
     conveyor_velocity(c, q, guess, p, u0);
     conveyor_legendre(q, u0, c->par, mom, mass);
     conveyor_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1738,6 +1745,7 @@ static double conveyor_spurious(const conveyor_ctx_t *c, const double *q, const 
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!conveyor_lu(CONVEYOR_N, mass, piv)) {
         return 0.0;
     }
@@ -1836,7 +1844,7 @@ static int conveyor_split_segment(const conveyor_ctx_t *c, const double *q, cons
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!conveyor_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = conveyor_spurious(c, q, p, *tau, v, g);
+            ratio = conveyor_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

@@ -1568,15 +1568,22 @@ static int impact_oscillator_held_limit(const impact_oscillator_ctx_t *c, const 
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double impact_oscillator_spurious(const impact_oscillator_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[IMPACT_OSCILLATOR_N], mom[IMPACT_OSCILLATOR_N], mass[IMPACT_OSCILLATOR_N * IMPACT_OSCILLATOR_N], rhs[IMPACT_OSCILLATOR_N];
-    double ccurv[IMPACT_OSCILLATOR_M_DIM], w[IMPACT_OSCILLATOR_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[IMPACT_OSCILLATOR_M_DIM], w[IMPACT_OSCILLATOR_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[IMPACT_OSCILLATOR_N], i, j;
+    impact_oscillator_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < IMPACT_OSCILLATOR_N; ++i) {
+        for (j = 0; j < IMPACT_OSCILLATOR_N; ++j) {
+            end += u1[i] * mass[i * IMPACT_OSCILLATOR_N + j] * u1[j];
+        }
+    }
     impact_oscillator_velocity(c, q, guess, p, u0);
     impact_oscillator_legendre(q, u0, c->par, mom, mass);
     impact_oscillator_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1587,6 +1594,7 @@ static double impact_oscillator_spurious(const impact_oscillator_ctx_t *c, const
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!impact_oscillator_lu(IMPACT_OSCILLATOR_N, mass, piv)) {
         return 0.0;
     }
@@ -1663,7 +1671,7 @@ static int impact_oscillator_split_segment(const impact_oscillator_ctx_t *c, con
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!impact_oscillator_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = impact_oscillator_spurious(c, q, p, *tau, v, g);
+            ratio = impact_oscillator_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

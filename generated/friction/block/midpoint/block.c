@@ -1817,15 +1817,22 @@ static int block_held_limit(const block_ctx_t *c, const double *q, const double 
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double block_spurious(const block_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[BLOCK_N], mom[BLOCK_N], mass[BLOCK_N * BLOCK_N], rhs[BLOCK_N];
-    double ccurv[BLOCK_M_DIM], w[BLOCK_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[BLOCK_M_DIM], w[BLOCK_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[BLOCK_N], i, j;
+    block_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < BLOCK_N; ++i) {
+        for (j = 0; j < BLOCK_N; ++j) {
+            end += u1[i] * mass[i * BLOCK_N + j] * u1[j];
+        }
+    }
     block_velocity(c, q, guess, p, u0);
     block_legendre(q, u0, c->par, mom, mass);
     block_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1836,6 +1843,7 @@ static double block_spurious(const block_ctx_t *c, const double *q, const double
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!block_lu(BLOCK_N, mass, piv)) {
         return 0.0;
     }
@@ -1934,7 +1942,7 @@ static int block_split_segment(const block_ctx_t *c, const double *q, const doub
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!block_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = block_spurious(c, q, p, *tau, v, g);
+            ratio = block_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

@@ -1897,15 +1897,22 @@ static int rough_disk_held_limit(const rough_disk_ctx_t *c, const double *q, con
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[ROUGH_DISK_N], mom[ROUGH_DISK_N], mass[ROUGH_DISK_N * ROUGH_DISK_N], rhs[ROUGH_DISK_N];
-    double ccurv[ROUGH_DISK_M_DIM], w[ROUGH_DISK_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[ROUGH_DISK_M_DIM], w[ROUGH_DISK_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[ROUGH_DISK_N], i, j;
+    rough_disk_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < ROUGH_DISK_N; ++i) {
+        for (j = 0; j < ROUGH_DISK_N; ++j) {
+            end += u1[i] * mass[i * ROUGH_DISK_N + j] * u1[j];
+        }
+    }
     rough_disk_velocity(c, q, guess, p, u0);
     rough_disk_legendre(q, u0, c->par, mom, mass);
     rough_disk_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1916,6 +1923,7 @@ static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, co
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!rough_disk_lu(ROUGH_DISK_N, mass, piv)) {
         return 0.0;
     }
@@ -2014,7 +2022,7 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!rough_disk_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = rough_disk_spurious(c, q, p, *tau, v, g);
+            ratio = rough_disk_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

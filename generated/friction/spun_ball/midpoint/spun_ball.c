@@ -1986,15 +1986,22 @@ static int spun_ball_held_limit(const spun_ball_ctx_t *c, const double *q, const
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[SPUN_BALL_N], mom[SPUN_BALL_N], mass[SPUN_BALL_N * SPUN_BALL_N], rhs[SPUN_BALL_N];
-    double ccurv[SPUN_BALL_M_DIM], w[SPUN_BALL_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[SPUN_BALL_M_DIM], w[SPUN_BALL_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[SPUN_BALL_N], i, j;
+    spun_ball_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < SPUN_BALL_N; ++i) {
+        for (j = 0; j < SPUN_BALL_N; ++j) {
+            end += u1[i] * mass[i * SPUN_BALL_N + j] * u1[j];
+        }
+    }
     spun_ball_velocity(c, q, guess, p, u0);
     spun_ball_legendre(q, u0, c->par, mom, mass);
     spun_ball_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2005,6 +2012,7 @@ static double spun_ball_spurious(const spun_ball_ctx_t *c, const double *q, cons
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!spun_ball_lu(SPUN_BALL_N, mass, piv)) {
         return 0.0;
     }
@@ -2103,7 +2111,7 @@ static int spun_ball_split_segment(const spun_ball_ctx_t *c, const double *q, co
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!spun_ball_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = spun_ball_spurious(c, q, p, *tau, v, g);
+            ratio = spun_ball_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

@@ -2104,15 +2104,22 @@ static int star_friction_held_limit(const star_friction_ctx_t *c, const double *
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double star_friction_spurious(const star_friction_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[STAR_FRICTION_N], mom[STAR_FRICTION_N], mass[STAR_FRICTION_N * STAR_FRICTION_N], rhs[STAR_FRICTION_N];
-    double ccurv[STAR_FRICTION_M_DIM], w[STAR_FRICTION_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[STAR_FRICTION_M_DIM], w[STAR_FRICTION_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[STAR_FRICTION_N], i, j;
+    star_friction_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < STAR_FRICTION_N; ++i) {
+        for (j = 0; j < STAR_FRICTION_N; ++j) {
+            end += u1[i] * mass[i * STAR_FRICTION_N + j] * u1[j];
+        }
+    }
     star_friction_velocity(c, q, guess, p, u0);
     star_friction_legendre(q, u0, c->par, mom, mass);
     star_friction_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2123,6 +2130,7 @@ static double star_friction_spurious(const star_friction_ctx_t *c, const double 
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!star_friction_lu(STAR_FRICTION_N, mass, piv)) {
         return 0.0;
     }
@@ -2221,7 +2229,7 @@ static int star_friction_split_segment(const star_friction_ctx_t *c, const doubl
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!star_friction_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = star_friction_spurious(c, q, p, *tau, v, g);
+            ratio = star_friction_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

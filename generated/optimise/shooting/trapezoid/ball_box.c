@@ -1958,15 +1958,22 @@ static int ball_box_held_limit(const ball_box_ctx_t *c, const double *q, const d
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double ball_box_spurious(const ball_box_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[BALL_BOX_N], mom[BALL_BOX_N], mass[BALL_BOX_N * BALL_BOX_N], rhs[BALL_BOX_N];
-    double ccurv[BALL_BOX_M_DIM], w[BALL_BOX_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[BALL_BOX_M_DIM], w[BALL_BOX_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[BALL_BOX_N], i, j;
+    ball_box_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < BALL_BOX_N; ++i) {
+        for (j = 0; j < BALL_BOX_N; ++j) {
+            end += u1[i] * mass[i * BALL_BOX_N + j] * u1[j];
+        }
+    }
     ball_box_velocity(c, q, guess, p, u0);
     ball_box_legendre(q, u0, c->par, mom, mass);
     ball_box_dynamics(q, u0, c->par, rhs, ccurv);
@@ -1977,6 +1984,7 @@ static double ball_box_spurious(const ball_box_ctx_t *c, const double *q, const 
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!ball_box_lu(BALL_BOX_N, mass, piv)) {
         return 0.0;
     }
@@ -2053,7 +2061,7 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!ball_box_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = ball_box_spurious(c, q, p, *tau, v, g);
+            ratio = ball_box_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }

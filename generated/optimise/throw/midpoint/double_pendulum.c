@@ -2100,15 +2100,22 @@ static int double_pendulum_held_limit(const double_pendulum_ctx_t *c, const doub
     return 0;
 }
 
-/* SustainedSteps._spurious: T(v) / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
- * p, from guess; T the kinetic energy): a segment velocity no start and no applied force over tau gives (the rows'
- * forces do no work, friction takes energy), nor the rows' offsets closed over tau (gap_energy); else 0. */
+/* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
+ * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
+ * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
+ * offsets closed over tau (gap_energy); else 0. */
 static double double_pendulum_spurious(const double_pendulum_ctx_t *c, const double *q, const double *p, double tau,
-    const double *v, const double *guess)
+    const double *v, const double *guess, const double *q1, const double *u1)
 {
     double u0[DOUBLE_PENDULUM_N], mom[DOUBLE_PENDULUM_N], mass[DOUBLE_PENDULUM_N * DOUBLE_PENDULUM_N], rhs[DOUBLE_PENDULUM_N];
-    double ccurv[DOUBLE_PENDULUM_M_DIM], w[DOUBLE_PENDULUM_N], start = 0.0, kinetic = 0.0, work = 0.0, budget;
+    double ccurv[DOUBLE_PENDULUM_M_DIM], w[DOUBLE_PENDULUM_N], start = 0.0, kinetic = 0.0, end = 0.0, work = 0.0, budget;
     int piv[DOUBLE_PENDULUM_N], i, j;
+    double_pendulum_legendre(q1, u1, c->par, mom, mass); /* the end's kinetic energy, at (q1, u1) */
+    for (i = 0; i < DOUBLE_PENDULUM_N; ++i) {
+        for (j = 0; j < DOUBLE_PENDULUM_N; ++j) {
+            end += u1[i] * mass[i * DOUBLE_PENDULUM_N + j] * u1[j];
+        }
+    }
     double_pendulum_velocity(c, q, guess, p, u0);
     double_pendulum_legendre(q, u0, c->par, mom, mass);
     double_pendulum_dynamics(q, u0, c->par, rhs, ccurv);
@@ -2119,6 +2126,7 @@ static double double_pendulum_spurious(const double_pendulum_ctx_t *c, const dou
         }
         w[i] = rhs[i];
     }
+    kinetic = kinetic > end ? kinetic : end;
     if (!double_pendulum_lu(DOUBLE_PENDULUM_N, mass, piv)) {
         return 0.0;
     }
@@ -2195,7 +2203,7 @@ static int double_pendulum_split_segment(const double_pendulum_ctx_t *c, const d
     for (;;) {
         ratio = -1.0; /* the Newton failed: no ratio */
         if (!double_pendulum_constrained(c, q, p, *tau, g, v, lam, q1, e_seg, lam1, p1, u1)) {
-            ratio = double_pendulum_spurious(c, q, p, *tau, v, g);
+            ratio = double_pendulum_spurious(c, q, p, *tau, v, g, q1, u1);
             if (ratio == 0.0) {
                 return 0;
             }
