@@ -11,9 +11,11 @@ in {0, 0.3, 0.6}; to ``t = 4``. Per backend: the runs that end in a ``SolverErro
 runs with an impact of impulse 0, a grazing impact, a restart (``jump_fallbacks``), a lift-off held on
 (``lifts_kept``), a booked force below -1e-9 (and the least), a jam; the most impacts, the lowest height,
 the largest energy rise at an impact; since stop 67 the runs whose ``E_d`` rose 10 % above its first step's
-and the largest such rise (the hoop has no force of time: friction and impacts take energy, the map's
-error at these steps is a few per cent; a held segment ending on a spurious root, ``_spurious``, took the
-energy 84.5 -> 711 in one step: ``--seed 417 --h 0.025``, drop 843). ``--agree``: each draw on both
+and the largest such rise (the hoop has no force of time: friction and impacts take energy; a held segment
+ending on a spurious root, ``_spurious``, took the energy 84.5 -> 711 in one step: ``--seed 417 --h 0.025``,
+drop 843; stop 67: 211 of 20 000 runs 10 % up at ``h = 0.05``, seeds 413-432; 4 and 1 of 10 000 at 0.025
+and 0.01, seeds 413-422).
+``--agree``: each draw on both
 backends, those more than 1e-6 apart printed. Stop 52 (docs/limits.md): seeds 1 and 2 at ``h = 0.005`` in
 C, 0 errors; impacts of impulse 0 in 0 and 3 runs (2 and 5 on 1c05f95, before a lift-off whose free step
 sinks was held on); at ``h = 0.01`` seed 1, errors 1 -> 0; ``--agree --seed 2``: 0 of 1000 apart, the
