@@ -242,31 +242,31 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
 
     def _split_segment(self, step, t_k, q, p, tau, guess):
         """The chain's constrained segment from ``(q, p)`` over ``tau`` (:meth:`_constrained`); where its root
-        is spurious (:meth:`_spurious`), or its Newton fails while a contact slips, over ``tau / 2``, ``tau /
-        4``, ... (``SPLITS`` halvings at most), each from the velocity of ``p``: ``(the length taken, the
-        halvings, the segment)``. None holding: the last one's ``SolverError``, or one naming its spurious
-        root. A rough star sliding on a vertex at ``mu = 5`` near Painleve's boundary, its slide stopping
-        within a millisecond, took over ``h = 0.1`` a root that turned it 20 rad with a pulling normal force;
-        rough stars started sliding on a corner at ``h = 0.05`` failed their first Newton. A frictionless
-        segment whose Newton fails is a step too coarse for its row and raises as before: halved, a particle
-        in an ellipse of radius 0.02 at ``h = 0.01`` ran on, its energy up 3.6e11-fold, to a later failure.
-        ``None`` where every halving's root is spurious, or the last one's Newton fails, while a held rough
-        contact slips (also after a jam at this instant, a stick row having slid from it: the next slide there
-        sticks on, ``STICK_CYCLES``): the slide has no root down to ``tau / 2^SPLITS``, whose velocity tends
-        to a jump's, Painleve's inconsistency of two contacts at once (a box wedged in a rough V rocking to
-        rest on a corner of each wall, both sliding from rest: ``bench.box_v_drops --seed 51``, drop 32), or
-        none at all (a hoop with a mass on its rim slipping at ``mu = 3`` just inside Painleve's boundary,
-        ``grad . M^-1 d`` 1.3e-3 of ``grad . M^-1 grad``: ``bench.hoop_drops --seed 232 --h 0.05``, drop 767),
-        which the chain resolves as :meth:`_painleve`'s, by the tangential impact at the segment's start
-        (:meth:`_jam`)."""
+        is spurious (:meth:`_spurious`), or its Newton fails while a rough contact is held
+        (:meth:`_halvable`), over ``tau / 2``, ``tau / 4``, ... (``SPLITS`` halvings at most), each from the
+        velocity of ``p``: ``(the length taken, the halvings, the segment)``. None holding: the last one's
+        ``SolverError``, or one naming its spurious root. A rough star sliding on a vertex at ``mu = 5`` near
+        Painleve's boundary, its slide stopping within a millisecond, took over ``h = 0.1`` a root that turned
+        it 20 rad with a pulling normal force; rough stars started sliding on a corner at ``h = 0.05`` failed
+        their first Newton. A frictionless segment whose Newton fails is a step too coarse for its row and
+        raises as before: halved, a particle in an ellipse of radius 0.02 at ``h = 0.01`` ran on, its energy
+        up 3.6e11-fold, to a later failure. ``None`` where every halving's root is spurious, or the last one's
+        Newton fails, while a held rough contact slips (also after a jam at this instant, a stick row having
+        slid from it: the next slide there sticks on, ``STICK_CYCLES``): the slide has no root down to ``tau /
+        2^SPLITS``, whose velocity tends to a jump's, Painleve's inconsistency of two contacts at once (a box
+        wedged in a rough V rocking to rest on a corner of each wall, both sliding from rest:
+        ``bench.box_v_drops --seed 51``, drop 32), or none at all (a hoop with a mass on its rim slipping at
+        ``mu = 3`` just inside Painleve's boundary, ``grad . M^-1 d`` 1.3e-3 of ``grad . M^-1 grad``:
+        ``bench.hoop_drops --seed 232 --h 0.05``, drop 767), which the chain resolves as :meth:`_painleve`'s,
+        by the tangential impact at the segment's start (:meth:`_jam`)."""
         halved = 0
         while True:
             failed = None  # the Newton's failure, or None: a root
             try:
                 seg = self._constrained(step, t_k, q, p, tau, guess)
             except SolverError as exc:
-                if halved < SPLITS and not (self._slip.any() or self._sunk_held(step)):
-                    raise  # frictionless: too coarse a step, not halved (but a row held on: _sunk_held)
+                if halved < SPLITS and not self._halvable(step):
+                    raise  # frictionless: too coarse a step, not halved (_halvable)
                 seg, failed = None, exc
             if seg is not None:
                 ratio = self._spurious(q, p, tau, seg, guess)
@@ -293,20 +293,30 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             guess = self._velocity(q, guess, p)
 
     def _spurious(self, q, p, tau: float, seg, guess) -> float | None:
-        """``T / (T(u0) + tau^2 rhs . M^-1 rhs / 2)`` of the segment ``seg`` (:meth:`_constrained`'s) where
-        it exceeds ``SPURIOUS`` (``u0`` the velocity of ``p``; ``T`` the kinetic energy of its velocity ``v``
-        or of its end's ``u1``, the larger): a velocity no start and no applied force over ``tau`` gives (the
+        """``T / (T(u0) + tau^2 rhs . M^-1 rhs / 2)`` of the segment ``seg`` (:meth:`_constrained`'s) where it
+        exceeds ``SPURIOUS`` (``u0`` the velocity of ``p``; ``T`` the kinetic energy of its velocity ``v`` or
+        of its end's ``u1``, the larger): a velocity no start and no applied force over ``tau`` gives (the
         rows' forces do no work, friction takes energy), nor the rows' offsets closed over ``tau``
-        (:meth:`_gap_energy`); else ``None``. The bound holds for the exact motion's velocity at every
-        instant (``SPURIOUS``), so for the end's too: a rough hoop's segment of 0.025 whose velocity was
-        within it ended at 87 m/s from 2.2 (its lift-off's part then took a root of that kind, the energy
-        84.5 -> 711 in one step: ``bench.hoop_drops --seed 417``, drop 843, at ``h`` = 0.025 and 0.05)."""
+        (:meth:`_gap_energy`); else ``None``. Forces of time are read at the segment's start and end (at ``q,
+        u0``), the larger (since stop 68): read at the start alone, where the plate's force was small, a box
+        on a vibrating plate had its segments halved 23 times in a run, 4 now (``bench.plate_drops --seed 444
+        --h 0.01``, drop 992). The bound holds for the exact motion's velocity at every instant
+        (``SPURIOUS``), so for the end's too: a rough hoop's segment of 0.025 whose velocity was within it
+        ended at 87 m/s from 2.2 (its lift-off's part then took a root of that kind, the energy 84.5 -> 711 in
+        one step: ``bench.hoop_drops --seed 417``, drop 843, at ``h`` = 0.025 and 0.05)."""
         k = self.k
         v, u1, end = seg[0], seg[7], seg[8]
         u0 = self._velocity(q, guess, p)
         mass = k.legendre(q, u0)[1]
         rhs = k.dynamics(q, u0)[0]
-        budget = 0.5 * float(u0 @ mass @ u0) + 0.5 * tau * tau * float(rhs @ np.linalg.solve(mass, rhs))
+        work = float(rhs @ np.linalg.solve(mass, rhs))
+        if self._timed:  # forces of time: at the segment's end too, the larger
+            t0 = self.k.t
+            self._at(t0 + tau)
+            rhs = k.dynamics(q, u0)[0]
+            self._at(t0)
+            work = max(work, float(rhs @ np.linalg.solve(mass, rhs)))
+        budget = 0.5 * float(u0 @ mass @ u0) + 0.5 * tau * tau * work
         kinetic = max(0.5 * float(v @ mass @ v), 0.5 * float(u1 @ end.mass @ u1))
         if kinetic > SPURIOUS * budget + 1e-24:  # and the rows' offsets: the root closes them over tau
             budget += self._gap_energy(q, u0, mass, tau)
@@ -429,6 +439,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         self._jammed = False
         rest = tau  # the time left of the grid step; tau: the segment's (less where _split_segment halved it)
         e_at = None  # E_d at the segment's start where known (its last event's; an impact's after it)
+        cap = (math.nan, rest, 0)  # (t, the longest segment from t, its halvings): _halve_part's
         while True:
             self._at(t)
             if rest <= 1e-13 * h:
@@ -463,11 +474,13 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             u0 = self._velocity(q, guess, p) if slips else None  # the jam's (past only where slipping)
             past = slips and self._painleve(k.rows(q, u0)[1], k.legendre(q, u0)[1])
             if not past:
-                split = self._split_segment(step, t_k, q, p, rest, guess)
+                length = min(rest, cap[1]) if cap[0] == t else rest  # halved for its event (_halve_part)
+                split = self._split_segment(step, t_k, q, p, length, guess)
                 past = split is None  # wedged: jammed as past Painleve's boundary
             if not past:
                 tau, halved, seg = split
                 v, lam, q1, _, e_seg, lam1, p1, u1, end = seg
+                struck_seg = struck  # restored where the segment is halved for its event (_halve_part)
                 self.halvings += halved
                 if halved:  # not a segment of the step's map: the tangent has none
                     self._sw_lose("held segment halved")
@@ -485,21 +498,26 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             unilateral = self.act & ~np.asarray(k.row_bilateral, dtype=bool) & (np.asarray(k.row_stick) < 0)
             events = {}
             f1 = self._forces(end)
-            if self._stick_rows:
-                self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
-            f1p = self._pressed(f1, end.grad)
-            pulled = unilateral & (f1p < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1p)))))
-            f0 = self._start_forces(q, self._velocity(q, v, p)) if struck else None
-            if f0 is not None:  # pulled at the impact's instant, pushed again by the segment's end: it leaves
-                pulled |= unilateral & (f0 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f0)))))
-            pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
-            if pulled.any():
-                f0 = self._start_forces(q, self._velocity(q, v, p)) if f0 is None else f0
-                for r in np.flatnonzero(pulled):
-                    events[int(r)] = (
-                        "lift",
-                        self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1p[r]),
-                    )
+            try:  # a location failing while a rough contact is held: the segment halved (_halve_part)
+                if self._stick_rows:
+                    self._friction_events(step, t_k, q, p, tau, v, u1, end, f1, events)
+                f1p = self._pressed(f1, end.grad)
+                pulled = unilateral & (f1p < -EPS_LIFT * (1.0 + float(np.max(np.abs(f1p)))))
+                f0 = self._start_forces(q, self._velocity(q, v, p)) if struck else None
+                if f0 is not None:  # pulled at the impact's instant, pushed again by the segment's end
+                    pulled |= unilateral & (f0 < -EPS_LIFT * (1.0 + float(np.max(np.abs(f0)))))
+                pulled[[r for r, n in pulls.items() if n >= LIFT_CYCLES]] = False  # held on
+                if pulled.any():
+                    f0 = self._start_forces(q, self._velocity(q, v, p)) if f0 is None else f0
+                    for r in np.flatnonzero(pulled):
+                        events[int(r)] = (
+                            "lift",
+                            self._liftoff_fraction(step, t_k, q, p, tau, v, int(r), f0[r], f1p[r]),
+                        )
+            except SolverError as exc:
+                cap = self._halve_part(step, t_k, t, tau, cap, exc=exc)
+                struck, plain = struck_seg, False
+                continue
             for r, (kind, s) in events.items():  # within the least sub-step (1e-13 h): at the start
                 events[r] = (kind, 0.0 if s * tau <= 1e-13 * h else s)
             if any(s == 0.0 for _, s in events.values()):  # at the segment start: release or switch there
@@ -544,8 +562,17 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
             struck = False
             psi1 = end.psi
             cross = ~self.act & (psi1 < -tol.phi) & (np.asarray(k.row_stick) < 0)
-            dips = self._row_dips(step, t_k, q, p, tau, v, u1, end, cross)
-            if not events and not cross.any() and not dips:
+            try:  # a location failing while a rough contact is held: the segment halved (_halve_part)
+                dips = self._row_dips(step, t_k, q, p, tau, v, u1, end, cross)
+                for r in np.flatnonzero(cross):
+                    events[int(r)] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, int(r), psi1[r]))
+                for r, (s_hi, g_hi) in dips.items():  # both ends admissible, below 0 inside: before s_hi
+                    events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g_hi, s_hi))
+            except SolverError as exc:
+                cap = self._halve_part(step, t_k, t, tau, cap, exc=exc)
+                struck, plain = struck_seg, False
+                continue
+            if not events:
                 if tau < rest:  # a halved segment: the rest of the step next
                     self._book(lam + lam1, q1)
                     self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
@@ -561,12 +588,8 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 self._book(lam + lam1, q1)
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                 return q1, p1, e_step, v
-            for r in np.flatnonzero(cross):
-                events[int(r)] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, int(r), psi1[r]))
-            for r, (s_hi, g_hi) in dips.items():  # both ends admissible, below 0 inside: located before s_hi
-                events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g_hi, s_hi))
             q_s, p_s, tau_s, v_s = q, p, tau, v
-            wedged = False
+            wedged = halve = False
             while True:  # the first event; a row below where it is taken crossed before it (_sunk_at_event)
                 r0 = min(events, key=lambda r: (events[r][1], r))
                 if events[r0][0] != "lift":  # of a landing's instant (Tolerances.simultaneous), a friction
@@ -593,7 +616,18 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                     if limit is not None:
                         lam1, p, u1 = limit
                     break
-                sub = self._constrained(step, t_k, q, p, s * tau, v)
+                try:
+                    sub = self._constrained(step, t_k, q, p, s * tau, v)
+                except SolverError as exc:  # while a rough contact is held: the segment halved (_halve_part)
+                    cap, halve = self._halve_part(step, t_k, t, tau, cap, exc=exc), True
+                    break
+                # tested as a segment is (_split_segment), but a part too short for its own E_d (E_SHORT): its
+                # velocity closes the rows' round-off offsets (a plate's box, 2.5e-13 s: 11 times its start's
+                # kinetic energy, its end's the start's; bench.plate_drops --seed 414 --h 0.01, drop 1044)
+                ratio = self._spurious(q, p, s * tau, sub, v) if s * tau > E_SHORT * h else None
+                if ratio is not None:
+                    cap, halve = self._halve_part(step, t_k, t, tau, cap, ratio=ratio), True
+                    break
                 if self._slip.any() and self._painleve(sub[8].grad, sub[8].mass):
                     wedged = True  # its part to the event ends past Painleve's boundary: as a segment's end
                     break
@@ -603,8 +637,15 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 if not sunk:
                     break
                 q, p, v = q_s, p_s, v_s
-                for r, g in sunk.items():
-                    events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g, s))
+                try:
+                    for r, g in sunk.items():
+                        events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g, s))
+                except SolverError as exc:  # while a rough contact is held: the segment halved (_halve_part)
+                    cap, halve = self._halve_part(step, t_k, t, tau, cap, exc=exc), True
+                    break
+            if halve:  # the segment from its start again, halved (_halve_part)
+                struck, plain = struck_seg, False
+                continue
             if wedged:  # the tangential impact at the segment's start (_jam), as past the boundary at its end
                 self._jam(q_s, self._velocity(q_s, v_s, p_s))
                 guess = sub[0]  # the next segment's Newton from the part's root (C: v, its output)
@@ -664,6 +705,35 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 relands[r] += 1
                 if relands[r] >= JAM_CYCLES and self._stick_rows and not self._jammed:
                     self._jam(q, self._velocity(q, v, p))
+
+    def _halve_part(self, step, t_k, t: float, tau: float, cap: tuple, ratio: float = 0.0, exc=None) -> tuple:
+        """The chain's ``cap`` (``(t, the longest segment from t, its halvings)``) after the segment of length
+        ``tau`` from ``t`` had no part to its first event it can take: the part's root spurious
+        (:meth:`_spurious`, ``ratio``), or its Newton, or the location of an event (a lift-off, a slide's
+        stop, a stick force leaving its cone, an inactive row's crossing or dip), failing while a rough
+        contact is held (``exc``, :meth:`_halvable`). The segment is taken again from ``t`` over ``tau / 2``,
+        as a spurious segment is (:meth:`_split_segment`); after ``SPLITS`` such halvings at ``t`` (a
+        frictionless Newton's failure at once: too coarse a step) it raises ``exc``, or a ``SolverError``
+        naming the spurious root (C ``halve_part``). A rough hoop's slide turned past a jam took over 0.025 a
+        segment whose lift-off's part had a root 19 times that budget: in C the energy went 952 -> 5543 in one
+        step, silently, and on CasADi the location's Newton failed (``bench.hoop_drops --seed 418 --h 0.025``,
+        drop 427)."""
+        halvings = cap[2] if cap[0] == t else 0
+        if exc is not None and (halvings >= SPLITS or not self._halvable(step)):
+            raise exc
+        if halvings >= SPLITS:
+            raise SolverError(
+                step,
+                t_k,
+                "sustained",
+                0.0,
+                f"the part of a held segment to its event has a spurious root: the kinetic energy of its "
+                f"velocity is {ratio:.3g} times its start's and the forces' over it, after {SPLITS} "
+                "halvings; reduce h",
+            )
+        self.halvings += 1
+        self._sw_lose("held segment halved")
+        return (t, 0.5 * tau, halvings + 1)
 
     def _sunk_at_event(self, q, u, events, r0: int) -> dict[int, float]:
         """Inactive contact rows below ``-Tolerances.admissible`` at ``(q, u)``, where the segment's first
@@ -767,6 +837,17 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         lift-off, a frictionless cube rocking on one vertex as its Euler angles neared their singularity
         (pitch -1.57, angle rates of 2e3) had no held step of ``h`` in the next step, one of ``h / 2``."""
         return any(self.act[r] and self._sunk_lately(step, r) for r in self._sunk)
+
+    def _halvable(self, step: int) -> bool:
+        """Is a held segment whose Newton fails halved (:meth:`_split_segment`, :meth:`_halve_part`)? Where a
+        rough contact is held, slipping or (since stop 68) sticking, or a row held on by :meth:`_sinks_free`
+        (:meth:`_sunk_held`); a frictionless segment whose Newton fails is a step too coarse for its row (C
+        ``halvable``). Sticking: a box thrown by a vibrating plate, held on a corner sticking after a landing,
+        had no held root over ``h = 0.02`` on either backend; halved, it runs on as at ``h = 0.01`` and 0.005
+        (``bench.plate_drops --seed 426 --h 0.02``, drop 656: at t = 2 within 0.02 of them; drops 1096 and
+        1309 of seeds 427 and 428, ...)."""
+        sticks = self.act & (np.asarray(self.k.row_stick) >= 0)
+        return bool(self._slip.any() or self._sunk_held(step) or sticks.any())
 
     def _met_back(self, step: int, q, u, group, backs) -> list[int]:
         """Rows of the crossing ``group`` at ``(q, u)`` released in this grid step or the ``LEAVE_STEPS``

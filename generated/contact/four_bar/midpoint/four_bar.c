@@ -1725,7 +1725,7 @@ static inline int four_bar_held(const four_bar_sustain_t *sus)
 #define FOUR_BAR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define FOUR_BAR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define FOUR_BAR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
-#define FOUR_BAR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
+#define FOUR_BAR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails: halvable) */
 #define FOUR_BAR_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
 #define FOUR_BAR_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define FOUR_BAR_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
@@ -2246,7 +2246,8 @@ static int four_bar_held_limit(const four_bar_ctx_t *c, const double *q, const d
 /* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
  * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
- * offsets closed over tau (gap_energy); else 0. */
+ * offsets closed over tau (gap_energy); else 0. Forces of time are read at the segment's start and end (at q, u0),
+ * the larger. */
 static double four_bar_spurious(const four_bar_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess, const double *q1, const double *u1)
 {
@@ -2320,6 +2321,18 @@ static int four_bar_sunk_held(const four_bar_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._halvable: is a held segment whose Newton fails halved (split_segment, halve_part)? Where a rough
+ * contact is held, slipping or sticking, or a row held on by sinks_free (sunk_held); a frictionless segment whose
+ * Newton fails is a step too coarse for its row. */
+static int four_bar_halvable(const four_bar_ctx_t *c)
+{
+    int r, sticks = 0;
+    for (r = 0; r < FOUR_BAR_R; ++r) {
+        sticks = sticks || (c->sus->act[r] && four_bar_row_stick[r] >= 0);
+    }
+    return four_bar_slips(c) || four_bar_sunk_held(c) || sticks;
+}
+
 /* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
  * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
@@ -2329,8 +2342,8 @@ static int four_bar_held_since(const four_bar_ctx_t *c, int r, int start)
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
- * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * root is spurious (spurious), or its Newton fails while a rough contact is held (halvable; frictionless, a step
+ * too coarse for its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root. */
 static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, const double *p, double *tau,
@@ -2353,8 +2366,7 @@ static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, cons
             if (*halved == FOUR_BAR_SPLITS && four_bar_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-        } else if (*halved < FOUR_BAR_SPLITS && !(four_bar_slips(c) || four_bar_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
+        } else if (*halved < FOUR_BAR_SPLITS && !four_bar_halvable(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         if (*halved == FOUR_BAR_SPLITS) {
@@ -2372,6 +2384,31 @@ static int four_bar_split_segment(const four_bar_ctx_t *c, const double *q, cons
             g[i] = u0[i];
         }
     }
+}
+
+/* SustainedSteps._halve_part: the chain's cap (*cap_t; *cap_len, the longest segment from it; *cap_n, its halvings)
+ * after the segment of length tau from t had no part to its first event it can take: the part's root spurious
+ * (spurious: ratio > 0), or its Newton's or its lift-off's location's failing (ratio < 0, c->err set) while a
+ * contact slips. The segment is taken again from t over tau / 2, as a spurious segment is (split_segment); after
+ * SPLITS such halvings at t (a frictionless Newton's failure at once: too coarse a step) it returns 1 with c->err:
+ * the Newton's failure, or the spurious root. */
+static int four_bar_halve_part(const four_bar_ctx_t *c, double t, double tau, double ratio, double *cap_t,
+    double *cap_len, int *cap_n)
+{
+    const int halvings = *cap_t == t ? *cap_n : 0;
+    if (ratio < 0.0 && (halvings >= FOUR_BAR_SPLITS || !four_bar_halvable(c))) {
+        return 1; /* the Newton's failure (c->err) */
+    }
+    if (halvings >= FOUR_BAR_SPLITS) {
+        return four_bar_fail(c, FOUR_BAR_PHASE_SUSTAINED, 0.0, "the part of a held segment to its event has a "
+            "spurious root: the kinetic energy of its velocity is %.3g times its start's and the forces' over it, after "
+            "%d halvings; reduce h", ratio, FOUR_BAR_SPLITS);
+    }
+    ++c->sus->halvings;
+    *cap_t = t;
+    *cap_len = 0.5 * tau;
+    *cap_n = halvings + 1;
+    return 0;
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
@@ -3439,6 +3476,10 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
     int backs[FOUR_BAR_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[FOUR_BAR_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
+    int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
+    double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
+    int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
+    double ratio; /* the part to an event's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -3455,11 +3496,12 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         }
         if (four_bar_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        tau = rest;
+        tau = cap_t == t && cap_len < rest ? cap_len : rest; /* halved for its event (halve_part) */
         rc = four_bar_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
         if (rc == 1) {
             return 1;
         }
+        struck_seg = struck; /* restored where the segment is halved for its event (halve_part) */
         c->sus->halvings += halved;
         if (halved) { /* not a segment of the step's map: the tangent has none */
         }
@@ -3479,6 +3521,7 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                 && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
+        halve = 0;
         if (pulled) {
             if (!struck) {
                 four_bar_start_forces(c, q, p, vv, f0);
@@ -3486,7 +3529,8 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             for (r = 0; r < FOUR_BAR_R; ++r) {
                 if (ev[r]) {
                     if (four_bar_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
-                        return 1;
+                        halve = 1; /* the segment halved while a rough contact is held (halve_part, below) */
+                        break;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
@@ -3494,6 +3538,13 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                     }
                 }
             }
+        }
+        if (halve) { /* a location failed while a rough contact is held: the segment halved (halve_part) */
+            if (four_bar_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= FOUR_BAR_LIFT_CYCLES) { /* cycling: held on */
@@ -3513,8 +3564,23 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
         }
         struck = 0;
         four_bar_rows(q1, vv, c->par, psi1, grad, curv);
-        if (four_bar_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
-            return 1;
+        /* a location failing while a rough contact is held: the segment halved (halve_part) */
+        halve = four_bar_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip);
+        for (r = 0; r < FOUR_BAR_R && !halve; ++r) {
+            if (!c->sus->act[r] && four_bar_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
+                halve = four_bar_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r]);
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                halve = four_bar_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r]);
+                ev[r] = 2;
+            }
+        }
+        if (halve) {
+            if (four_bar_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         any = 0;
         for (r = 0; r < FOUR_BAR_R; ++r) {
@@ -3548,19 +3614,6 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
             }
             return 0;
         }
-        for (r = 0; r < FOUR_BAR_R; ++r) {
-            if (!c->sus->act[r] && four_bar_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (four_bar_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
-                if (four_bar_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            }
-        }
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
             r0 = -1;
             for (r = 0; r < FOUR_BAR_R; ++r) {
@@ -3592,20 +3645,41 @@ static int four_bar_chain(const four_bar_ctx_t *c, double *q, double *p, double 
                 break;
             }
             if (four_bar_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                return 1;
+                if (four_bar_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
+                    return 1;
+                }
+                halve = 1;
+                break;
+            }
+            /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
+            ratio = s * tau > FOUR_BAR_E_SHORT * c->h ? four_bar_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
+            if (ratio != 0.0) {
+                if (four_bar_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                halve = 1;
+                break;
             }
             e_sub = s * tau <= FOUR_BAR_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!four_bar_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
-            for (r = 0; r < FOUR_BAR_R; ++r) {
+            for (r = 0; r < FOUR_BAR_R && !halve; ++r) {
                 if (dip[r]) {
-                    if (four_bar_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r])) {
-                        return 1;
-                    }
+                    halve = four_bar_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r]);
                     ev[r] = 2;
                 }
             }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
+                if (four_bar_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                break;
+            }
+        }
+        if (halve) { /* the segment from its start again, halved (halve_part) */
+            struck = struck_seg;
+            continue;
         }
         e_at = e_sub;
         at_known = 1;

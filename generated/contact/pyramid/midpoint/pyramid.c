@@ -2074,7 +2074,7 @@ static inline int pyramid_held(const pyramid_sustain_t *sus)
 #define PYRAMID_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define PYRAMID_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define PYRAMID_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
-#define PYRAMID_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
+#define PYRAMID_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails: halvable) */
 #define PYRAMID_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
 #define PYRAMID_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define PYRAMID_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
@@ -2669,7 +2669,8 @@ static int pyramid_held_limit(const pyramid_ctx_t *c, const double *q, const dou
 /* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
  * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
- * offsets closed over tau (gap_energy); else 0. */
+ * offsets closed over tau (gap_energy); else 0. Forces of time are read at the segment's start and end (at q, u0),
+ * the larger. */
 static double pyramid_spurious(const pyramid_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess, const double *q1, const double *u1)
 {
@@ -2763,6 +2764,18 @@ static int pyramid_sunk_held(const pyramid_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._halvable: is a held segment whose Newton fails halved (split_segment, halve_part)? Where a rough
+ * contact is held, slipping or sticking, or a row held on by sinks_free (sunk_held); a frictionless segment whose
+ * Newton fails is a step too coarse for its row. */
+static int pyramid_halvable(const pyramid_ctx_t *c)
+{
+    int r, sticks = 0;
+    for (r = 0; r < PYRAMID_R; ++r) {
+        sticks = sticks || (c->sus->act[r] && pyramid_row_stick[r] >= 0);
+    }
+    return pyramid_slips(c) || pyramid_sunk_held(c) || sticks;
+}
+
 /* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
  * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
@@ -2772,8 +2785,8 @@ static int pyramid_held_since(const pyramid_ctx_t *c, int r, int start)
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
- * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * root is spurious (spurious), or its Newton fails while a rough contact is held (halvable; frictionless, a step
+ * too coarse for its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root, or 2 where every halving's root is spurious, or the last one's
  * Newton fails, while a held rough contact slips (also after a jam at this instant, a stick row having slid from
@@ -2798,8 +2811,7 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
             if (*halved == PYRAMID_SPLITS && pyramid_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-        } else if (*halved < PYRAMID_SPLITS && !(pyramid_slips(c) || pyramid_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
+        } else if (*halved < PYRAMID_SPLITS && !pyramid_halvable(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         if (*halved == PYRAMID_SPLITS) {
@@ -2823,6 +2835,31 @@ static int pyramid_split_segment(const pyramid_ctx_t *c, const double *q, const 
             g[i] = u0[i];
         }
     }
+}
+
+/* SustainedSteps._halve_part: the chain's cap (*cap_t; *cap_len, the longest segment from it; *cap_n, its halvings)
+ * after the segment of length tau from t had no part to its first event it can take: the part's root spurious
+ * (spurious: ratio > 0), or its Newton's or its lift-off's location's failing (ratio < 0, c->err set) while a
+ * contact slips. The segment is taken again from t over tau / 2, as a spurious segment is (split_segment); after
+ * SPLITS such halvings at t (a frictionless Newton's failure at once: too coarse a step) it returns 1 with c->err:
+ * the Newton's failure, or the spurious root. */
+static int pyramid_halve_part(const pyramid_ctx_t *c, double t, double tau, double ratio, double *cap_t,
+    double *cap_len, int *cap_n)
+{
+    const int halvings = *cap_t == t ? *cap_n : 0;
+    if (ratio < 0.0 && (halvings >= PYRAMID_SPLITS || !pyramid_halvable(c))) {
+        return 1; /* the Newton's failure (c->err) */
+    }
+    if (halvings >= PYRAMID_SPLITS) {
+        return pyramid_fail(c, PYRAMID_PHASE_SUSTAINED, 0.0, "the part of a held segment to its event has a "
+            "spurious root: the kinetic energy of its velocity is %.3g times its start's and the forces' over it, after "
+            "%d halvings; reduce h", ratio, PYRAMID_SPLITS);
+    }
+    ++c->sus->halvings;
+    *cap_t = t;
+    *cap_len = 0.5 * tau;
+    *cap_n = halvings + 1;
+    return 0;
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
@@ -5205,6 +5242,10 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
     int backs[PYRAMID_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[PYRAMID_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
+    int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
+    double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
+    int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
+    double ratio; /* the part to an event's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -5238,7 +5279,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             past = pyramid_painleve(c, q, vel);
         }
         if (!past) {
-            tau = rest;
+            tau = cap_t == t && cap_len < rest ? cap_len : rest; /* halved for its event (halve_part) */
             rc = pyramid_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
             if (rc == 1) {
                 return 1;
@@ -5249,6 +5290,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             }
         }
         if (!past) {
+            struck_seg = struck; /* restored where the segment is halved for its event (halve_part) */
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }
@@ -5281,6 +5323,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
+        halve = 0;
         if (pulled) {
             if (!struck) {
                 pyramid_start_forces(c, q, p, vv, f0);
@@ -5288,7 +5331,8 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             for (r = 0; r < PYRAMID_R; ++r) {
                 if (ev[r]) {
                     if (pyramid_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
-                        return 1;
+                        halve = 1; /* the segment halved while a rough contact is held (halve_part, below) */
+                        break;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
@@ -5298,7 +5342,7 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             }
         }
         pyramid_velocity(c, q, vv, p, vel); /* SustainedSteps._friction_events */
-        for (i = 0; i < PYRAMID_NF; ++i) {
+        for (i = 0; i < PYRAMID_NF && !halve; ++i) {
             const int sr = pyramid_stick_row[i];
             const double *vel0 = vel;
             double g0, g1 = 0.0, sgn, lo, tiny;
@@ -5336,7 +5380,8 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                             const double s_try = l == 0 ? 1e-3 : 1e-6;
                             int m;
                             if (pyramid_sub_end(c, q, p, tau, s_try, vv, v_try, q_try, u_try)) {
-                                return 1;
+                                halve = 1;
+                                break;
                             }
                             pyramid_rows(q_try, u_try, c->par, psi0, grad0, curv0);
                             for (m = 0; m < PYRAMID_N; ++m) {
@@ -5348,10 +5393,14 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                                 break;
                             }
                         }
+                        if (halve) {
+                            break;
+                        }
                     }
                     if (g0 > 0.0 && pyramid_illinois(c, sr, 2, q, p, tau, vv, lo, 1.0, g0, g1, 1e-14, 1e-13,
                             PYRAMID_LIFT_ITER, &s_ev[sr])) {
-                        return 1;
+                        halve = 1;
+                        break;
                     }
                     ev[sr] = 3;
                 }
@@ -5367,11 +5416,19 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && pyramid_illinois(c, sr, 3, q, p, tau, vv, 0.0, 1.0, g0, g1,
                             PYRAMID_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, PYRAMID_LIFT_ITER, &s_ev[sr])) {
-                        return 1;
+                        halve = 1;
+                        break;
                     }
                     ev[sr] = 4;
                 }
             }
+        }
+        if (halve) { /* a location failed while a rough contact is held: the segment halved (halve_part) */
+            if (pyramid_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         start = -1;
         for (r = 0; r < PYRAMID_R; ++r) { /* an event within the least sub-step (1e-13 h) is at the start */
@@ -5418,8 +5475,23 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
         }
         struck = 0;
         pyramid_rows(q1, vv, c->par, psi1, grad, curv);
-        if (pyramid_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
-            return 1;
+        /* a location failing while a rough contact is held: the segment halved (halve_part) */
+        halve = pyramid_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip);
+        for (r = 0; r < PYRAMID_R && !halve; ++r) {
+            if (!c->sus->act[r] && pyramid_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
+                halve = pyramid_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r]);
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                halve = pyramid_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r]);
+                ev[r] = 2;
+            }
+        }
+        if (halve) {
+            if (pyramid_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         any = 0;
         for (r = 0; r < PYRAMID_R; ++r) {
@@ -5452,19 +5524,6 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 v[i] = vv[i];
             }
             return 0;
-        }
-        for (r = 0; r < PYRAMID_R; ++r) {
-            if (!c->sus->act[r] && pyramid_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (pyramid_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
-                if (pyramid_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            }
         }
         past = 0; /* the part to the event ends past Painleve's boundary (painleve) */
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
@@ -5509,7 +5568,20 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
                 break;
             }
             if (pyramid_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                return 1;
+                if (pyramid_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
+                    return 1;
+                }
+                halve = 1;
+                break;
+            }
+            /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
+            ratio = s * tau > PYRAMID_E_SHORT * c->h ? pyramid_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
+            if (ratio != 0.0) {
+                if (pyramid_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                halve = 1;
+                break;
             }
             past = pyramid_painleve(c, q1, u1);
             if (past) { /* as a segment's end */
@@ -5519,14 +5591,22 @@ static int pyramid_chain(const pyramid_ctx_t *c, double *q, double *p, double t,
             if (!pyramid_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
-            for (r = 0; r < PYRAMID_R; ++r) {
+            for (r = 0; r < PYRAMID_R && !halve; ++r) {
                 if (dip[r]) {
-                    if (pyramid_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r])) {
-                        return 1;
-                    }
+                    halve = pyramid_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r]);
                     ev[r] = 2;
                 }
             }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
+                if (pyramid_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                break;
+            }
+        }
+        if (halve) { /* the segment from its start again, halved (halve_part) */
+            struck = struck_seg;
+            continue;
         }
         if (past) { /* the tangential impact at the segment's start (jam), as past the boundary at its end */
             pyramid_velocity(c, q, vv, p, vel);

@@ -1127,7 +1127,7 @@ static inline int conveyor_held(const conveyor_sustain_t *sus)
 #define CONVEYOR_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define CONVEYOR_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define CONVEYOR_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
-#define CONVEYOR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
+#define CONVEYOR_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails: halvable) */
 #define CONVEYOR_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
 #define CONVEYOR_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define CONVEYOR_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
@@ -1722,7 +1722,8 @@ static int conveyor_held_limit(const conveyor_ctx_t *c, const double *q, const d
 /* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
  * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
- * offsets closed over tau (gap_energy); else 0. */
+ * offsets closed over tau (gap_energy); else 0. Forces of time are read at the segment's start and end (at q, u0),
+ * the larger. */
 static double conveyor_spurious(const conveyor_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess, const double *q1, const double *u1)
 {
@@ -1752,6 +1753,21 @@ static double conveyor_spurious(const conveyor_ctx_t *c, const double *q, const 
     conveyor_lu_solve(CONVEYOR_N, mass, piv, w);
     for (i = 0; i < CONVEYOR_N; ++i) {
         work += rhs[i] * w[i];
+    }
+    { /* forces of time: at the segment's end too, the larger */
+        const double t0 = c->par[CONVEYOR_NPAR - 1];
+        double work1 = 0.0;
+        conveyor_at(c, t0 + tau);
+        conveyor_dynamics(q, u0, c->par, rhs, ccurv);
+        conveyor_at(c, t0);
+        for (i = 0; i < CONVEYOR_N; ++i) {
+            w[i] = rhs[i];
+        }
+        conveyor_lu_solve(CONVEYOR_N, mass, piv, w);
+        for (i = 0; i < CONVEYOR_N; ++i) {
+            work1 += rhs[i] * w[i];
+        }
+        work = work > work1 ? work : work1;
     }
     budget = 0.5 * start + 0.5 * tau * tau * work;
     kinetic *= 0.5;
@@ -1816,6 +1832,18 @@ static int conveyor_sunk_held(const conveyor_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._halvable: is a held segment whose Newton fails halved (split_segment, halve_part)? Where a rough
+ * contact is held, slipping or sticking, or a row held on by sinks_free (sunk_held); a frictionless segment whose
+ * Newton fails is a step too coarse for its row. */
+static int conveyor_halvable(const conveyor_ctx_t *c)
+{
+    int r, sticks = 0;
+    for (r = 0; r < CONVEYOR_R; ++r) {
+        sticks = sticks || (c->sus->act[r] && conveyor_row_stick[r] >= 0);
+    }
+    return conveyor_slips(c) || conveyor_sunk_held(c) || sticks;
+}
+
 /* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
  * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
@@ -1825,8 +1853,8 @@ static int conveyor_held_since(const conveyor_ctx_t *c, int r, int start)
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
- * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * root is spurious (spurious), or its Newton fails while a rough contact is held (halvable; frictionless, a step
+ * too coarse for its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root, or 2 where every halving's root is spurious, or the last one's
  * Newton fails, while a held rough contact slips (also after a jam at this instant, a stick row having slid from
@@ -1851,8 +1879,7 @@ static int conveyor_split_segment(const conveyor_ctx_t *c, const double *q, cons
             if (*halved == CONVEYOR_SPLITS && conveyor_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-        } else if (*halved < CONVEYOR_SPLITS && !(conveyor_slips(c) || conveyor_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
+        } else if (*halved < CONVEYOR_SPLITS && !conveyor_halvable(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         if (*halved == CONVEYOR_SPLITS) {
@@ -1876,6 +1903,31 @@ static int conveyor_split_segment(const conveyor_ctx_t *c, const double *q, cons
             g[i] = u0[i];
         }
     }
+}
+
+/* SustainedSteps._halve_part: the chain's cap (*cap_t; *cap_len, the longest segment from it; *cap_n, its halvings)
+ * after the segment of length tau from t had no part to its first event it can take: the part's root spurious
+ * (spurious: ratio > 0), or its Newton's or its lift-off's location's failing (ratio < 0, c->err set) while a
+ * contact slips. The segment is taken again from t over tau / 2, as a spurious segment is (split_segment); after
+ * SPLITS such halvings at t (a frictionless Newton's failure at once: too coarse a step) it returns 1 with c->err:
+ * the Newton's failure, or the spurious root. */
+static int conveyor_halve_part(const conveyor_ctx_t *c, double t, double tau, double ratio, double *cap_t,
+    double *cap_len, int *cap_n)
+{
+    const int halvings = *cap_t == t ? *cap_n : 0;
+    if (ratio < 0.0 && (halvings >= CONVEYOR_SPLITS || !conveyor_halvable(c))) {
+        return 1; /* the Newton's failure (c->err) */
+    }
+    if (halvings >= CONVEYOR_SPLITS) {
+        return conveyor_fail(c, CONVEYOR_PHASE_SUSTAINED, 0.0, "the part of a held segment to its event has a "
+            "spurious root: the kinetic energy of its velocity is %.3g times its start's and the forces' over it, after "
+            "%d halvings; reduce h", ratio, CONVEYOR_SPLITS);
+    }
+    ++c->sus->halvings;
+    *cap_t = t;
+    *cap_len = 0.5 * tau;
+    *cap_n = halvings + 1;
+    return 0;
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
@@ -3935,6 +3987,10 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
     int backs[CONVEYOR_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[CONVEYOR_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
+    int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
+    double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
+    int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
+    double ratio; /* the part to an event's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -3968,7 +4024,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
             past = conveyor_painleve(c, q, vel);
         }
         if (!past) {
-            tau = rest;
+            tau = cap_t == t && cap_len < rest ? cap_len : rest; /* halved for its event (halve_part) */
             rc = conveyor_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
             if (rc == 1) {
                 return 1;
@@ -3979,6 +4035,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
             }
         }
         if (!past) {
+            struck_seg = struck; /* restored where the segment is halved for its event (halve_part) */
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }
@@ -4004,6 +4061,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                 && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
+        halve = 0;
         if (pulled) {
             if (!struck) {
                 conveyor_start_forces(c, q, p, vv, f0);
@@ -4011,7 +4069,8 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
             for (r = 0; r < CONVEYOR_R; ++r) {
                 if (ev[r]) {
                     if (conveyor_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
-                        return 1;
+                        halve = 1; /* the segment halved while a rough contact is held (halve_part, below) */
+                        break;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
@@ -4021,7 +4080,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
             }
         }
         conveyor_velocity(c, q, vv, p, vel); /* SustainedSteps._friction_events */
-        for (i = 0; i < CONVEYOR_NF; ++i) {
+        for (i = 0; i < CONVEYOR_NF && !halve; ++i) {
             const int sr = conveyor_stick_row[i];
             const double *vel0 = vel;
             double g0, g1 = 0.0, sgn, lo, tiny;
@@ -4059,7 +4118,8 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                             const double s_try = l == 0 ? 1e-3 : 1e-6;
                             int m;
                             if (conveyor_sub_end(c, q, p, tau, s_try, vv, v_try, q_try, u_try)) {
-                                return 1;
+                                halve = 1;
+                                break;
                             }
                             conveyor_rows(q_try, u_try, c->par, psi0, grad0, curv0);
                             for (m = 0; m < CONVEYOR_N; ++m) {
@@ -4071,10 +4131,14 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                                 break;
                             }
                         }
+                        if (halve) {
+                            break;
+                        }
                     }
                     if (g0 > 0.0 && conveyor_illinois(c, sr, 2, q, p, tau, vv, lo, 1.0, g0, g1, 1e-14, 1e-13,
                             CONVEYOR_LIFT_ITER, &s_ev[sr])) {
-                        return 1;
+                        halve = 1;
+                        break;
                     }
                     ev[sr] = 3;
                 }
@@ -4090,11 +4154,19 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && conveyor_illinois(c, sr, 3, q, p, tau, vv, 0.0, 1.0, g0, g1,
                             CONVEYOR_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, CONVEYOR_LIFT_ITER, &s_ev[sr])) {
-                        return 1;
+                        halve = 1;
+                        break;
                     }
                     ev[sr] = 4;
                 }
             }
+        }
+        if (halve) { /* a location failed while a rough contact is held: the segment halved (halve_part) */
+            if (conveyor_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         start = -1;
         for (r = 0; r < CONVEYOR_R; ++r) { /* an event within the least sub-step (1e-13 h) is at the start */
@@ -4141,8 +4213,23 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
         }
         struck = 0;
         conveyor_rows(q1, vv, c->par, psi1, grad, curv);
-        if (conveyor_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
-            return 1;
+        /* a location failing while a rough contact is held: the segment halved (halve_part) */
+        halve = conveyor_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip);
+        for (r = 0; r < CONVEYOR_R && !halve; ++r) {
+            if (!c->sus->act[r] && conveyor_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
+                halve = conveyor_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r]);
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                halve = conveyor_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r]);
+                ev[r] = 2;
+            }
+        }
+        if (halve) {
+            if (conveyor_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         any = 0;
         for (r = 0; r < CONVEYOR_R; ++r) {
@@ -4175,19 +4262,6 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                 v[i] = vv[i];
             }
             return 0;
-        }
-        for (r = 0; r < CONVEYOR_R; ++r) {
-            if (!c->sus->act[r] && conveyor_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (conveyor_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
-                if (conveyor_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            }
         }
         past = 0; /* the part to the event ends past Painleve's boundary (painleve) */
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
@@ -4232,7 +4306,20 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                 break;
             }
             if (conveyor_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                return 1;
+                if (conveyor_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
+                    return 1;
+                }
+                halve = 1;
+                break;
+            }
+            /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
+            ratio = s * tau > CONVEYOR_E_SHORT * c->h ? conveyor_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
+            if (ratio != 0.0) {
+                if (conveyor_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                halve = 1;
+                break;
             }
             past = conveyor_painleve(c, q1, u1);
             if (past) { /* as a segment's end */
@@ -4242,14 +4329,22 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
             if (!conveyor_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
-            for (r = 0; r < CONVEYOR_R; ++r) {
+            for (r = 0; r < CONVEYOR_R && !halve; ++r) {
                 if (dip[r]) {
-                    if (conveyor_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r])) {
-                        return 1;
-                    }
+                    halve = conveyor_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r]);
                     ev[r] = 2;
                 }
             }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
+                if (conveyor_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                break;
+            }
+        }
+        if (halve) { /* the segment from its start again, halved (halve_part) */
+            struck = struck_seg;
+            continue;
         }
         if (past) { /* the tangential impact at the segment's start (jam), as past the boundary at its end */
             conveyor_velocity(c, q, vv, p, vel);

@@ -1305,7 +1305,7 @@ static inline int rough_disk_held(const rough_disk_sustain_t *sus)
 #define ROUGH_DISK_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define ROUGH_DISK_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define ROUGH_DISK_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
-#define ROUGH_DISK_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
+#define ROUGH_DISK_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails: halvable) */
 #define ROUGH_DISK_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
 #define ROUGH_DISK_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define ROUGH_DISK_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
@@ -1900,7 +1900,8 @@ static int rough_disk_held_limit(const rough_disk_ctx_t *c, const double *q, con
 /* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
  * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
- * offsets closed over tau (gap_energy); else 0. */
+ * offsets closed over tau (gap_energy); else 0. Forces of time are read at the segment's start and end (at q, u0),
+ * the larger. */
 static double rough_disk_spurious(const rough_disk_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess, const double *q1, const double *u1)
 {
@@ -1994,6 +1995,18 @@ static int rough_disk_sunk_held(const rough_disk_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._halvable: is a held segment whose Newton fails halved (split_segment, halve_part)? Where a rough
+ * contact is held, slipping or sticking, or a row held on by sinks_free (sunk_held); a frictionless segment whose
+ * Newton fails is a step too coarse for its row. */
+static int rough_disk_halvable(const rough_disk_ctx_t *c)
+{
+    int r, sticks = 0;
+    for (r = 0; r < ROUGH_DISK_R; ++r) {
+        sticks = sticks || (c->sus->act[r] && rough_disk_row_stick[r] >= 0);
+    }
+    return rough_disk_slips(c) || rough_disk_sunk_held(c) || sticks;
+}
+
 /* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
  * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
@@ -2003,8 +2016,8 @@ static int rough_disk_held_since(const rough_disk_ctx_t *c, int r, int start)
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
- * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * root is spurious (spurious), or its Newton fails while a rough contact is held (halvable; frictionless, a step
+ * too coarse for its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root, or 2 where every halving's root is spurious, or the last one's
  * Newton fails, while a held rough contact slips (also after a jam at this instant, a stick row having slid from
@@ -2029,8 +2042,7 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
             if (*halved == ROUGH_DISK_SPLITS && rough_disk_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-        } else if (*halved < ROUGH_DISK_SPLITS && !(rough_disk_slips(c) || rough_disk_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
+        } else if (*halved < ROUGH_DISK_SPLITS && !rough_disk_halvable(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         if (*halved == ROUGH_DISK_SPLITS) {
@@ -2054,6 +2066,31 @@ static int rough_disk_split_segment(const rough_disk_ctx_t *c, const double *q, 
             g[i] = u0[i];
         }
     }
+}
+
+/* SustainedSteps._halve_part: the chain's cap (*cap_t; *cap_len, the longest segment from it; *cap_n, its halvings)
+ * after the segment of length tau from t had no part to its first event it can take: the part's root spurious
+ * (spurious: ratio > 0), or its Newton's or its lift-off's location's failing (ratio < 0, c->err set) while a
+ * contact slips. The segment is taken again from t over tau / 2, as a spurious segment is (split_segment); after
+ * SPLITS such halvings at t (a frictionless Newton's failure at once: too coarse a step) it returns 1 with c->err:
+ * the Newton's failure, or the spurious root. */
+static int rough_disk_halve_part(const rough_disk_ctx_t *c, double t, double tau, double ratio, double *cap_t,
+    double *cap_len, int *cap_n)
+{
+    const int halvings = *cap_t == t ? *cap_n : 0;
+    if (ratio < 0.0 && (halvings >= ROUGH_DISK_SPLITS || !rough_disk_halvable(c))) {
+        return 1; /* the Newton's failure (c->err) */
+    }
+    if (halvings >= ROUGH_DISK_SPLITS) {
+        return rough_disk_fail(c, ROUGH_DISK_PHASE_SUSTAINED, 0.0, "the part of a held segment to its event has a "
+            "spurious root: the kinetic energy of its velocity is %.3g times its start's and the forces' over it, after "
+            "%d halvings; reduce h", ratio, ROUGH_DISK_SPLITS);
+    }
+    ++c->sus->halvings;
+    *cap_t = t;
+    *cap_len = 0.5 * tau;
+    *cap_n = halvings + 1;
+    return 0;
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
@@ -4110,6 +4147,10 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
     int backs[ROUGH_DISK_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[ROUGH_DISK_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
+    int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
+    double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
+    int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
+    double ratio; /* the part to an event's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -4143,7 +4184,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             past = rough_disk_painleve(c, q, vel);
         }
         if (!past) {
-            tau = rest;
+            tau = cap_t == t && cap_len < rest ? cap_len : rest; /* halved for its event (halve_part) */
             rc = rough_disk_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
             if (rc == 1) {
                 return 1;
@@ -4154,6 +4195,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             }
         }
         if (!past) {
+            struck_seg = struck; /* restored where the segment is halved for its event (halve_part) */
             c->sus->halvings += halved;
             if (halved) { /* not a segment of the step's map: the tangent has none */
             }
@@ -4179,6 +4221,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
+        halve = 0;
         if (pulled) {
             if (!struck) {
                 rough_disk_start_forces(c, q, p, vv, f0);
@@ -4186,7 +4229,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             for (r = 0; r < ROUGH_DISK_R; ++r) {
                 if (ev[r]) {
                     if (rough_disk_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
-                        return 1;
+                        halve = 1; /* the segment halved while a rough contact is held (halve_part, below) */
+                        break;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
@@ -4196,7 +4240,7 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             }
         }
         rough_disk_velocity(c, q, vv, p, vel); /* SustainedSteps._friction_events */
-        for (i = 0; i < ROUGH_DISK_NF; ++i) {
+        for (i = 0; i < ROUGH_DISK_NF && !halve; ++i) {
             const int sr = rough_disk_stick_row[i];
             const double *vel0 = vel;
             double g0, g1 = 0.0, sgn, lo, tiny;
@@ -4234,7 +4278,8 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                             const double s_try = l == 0 ? 1e-3 : 1e-6;
                             int m;
                             if (rough_disk_sub_end(c, q, p, tau, s_try, vv, v_try, q_try, u_try)) {
-                                return 1;
+                                halve = 1;
+                                break;
                             }
                             rough_disk_rows(q_try, u_try, c->par, psi0, grad0, curv0);
                             for (m = 0; m < ROUGH_DISK_N; ++m) {
@@ -4246,10 +4291,14 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                                 break;
                             }
                         }
+                        if (halve) {
+                            break;
+                        }
                     }
                     if (g0 > 0.0 && rough_disk_illinois(c, sr, 2, q, p, tau, vv, lo, 1.0, g0, g1, 1e-14, 1e-13,
                             ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
-                        return 1;
+                        halve = 1;
+                        break;
                     }
                     ev[sr] = 3;
                 }
@@ -4265,11 +4314,19 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                     s_ev[sr] = 0.0;
                     if (!(g0 < 0.0) && rough_disk_illinois(c, sr, 3, q, p, tau, vv, 0.0, 1.0, g0, g1,
                             ROUGH_DISK_EPS_LAM * (1.0 + fabs(g0) + fabs(g1)), 1e-12, ROUGH_DISK_LIFT_ITER, &s_ev[sr])) {
-                        return 1;
+                        halve = 1;
+                        break;
                     }
                     ev[sr] = 4;
                 }
             }
+        }
+        if (halve) { /* a location failed while a rough contact is held: the segment halved (halve_part) */
+            if (rough_disk_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         start = -1;
         for (r = 0; r < ROUGH_DISK_R; ++r) { /* an event within the least sub-step (1e-13 h) is at the start */
@@ -4316,8 +4373,23 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
         }
         struck = 0;
         rough_disk_rows(q1, vv, c->par, psi1, grad, curv);
-        if (rough_disk_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
-            return 1;
+        /* a location failing while a rough contact is held: the segment halved (halve_part) */
+        halve = rough_disk_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip);
+        for (r = 0; r < ROUGH_DISK_R && !halve; ++r) {
+            if (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
+                halve = rough_disk_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r]);
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                halve = rough_disk_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r]);
+                ev[r] = 2;
+            }
+        }
+        if (halve) {
+            if (rough_disk_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         any = 0;
         for (r = 0; r < ROUGH_DISK_R; ++r) {
@@ -4350,19 +4422,6 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 v[i] = vv[i];
             }
             return 0;
-        }
-        for (r = 0; r < ROUGH_DISK_R; ++r) {
-            if (!c->sus->act[r] && rough_disk_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (rough_disk_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
-                if (rough_disk_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            }
         }
         past = 0; /* the part to the event ends past Painleve's boundary (painleve) */
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
@@ -4407,7 +4466,20 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
                 break;
             }
             if (rough_disk_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                return 1;
+                if (rough_disk_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
+                    return 1;
+                }
+                halve = 1;
+                break;
+            }
+            /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
+            ratio = s * tau > ROUGH_DISK_E_SHORT * c->h ? rough_disk_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
+            if (ratio != 0.0) {
+                if (rough_disk_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                halve = 1;
+                break;
             }
             past = rough_disk_painleve(c, q1, u1);
             if (past) { /* as a segment's end */
@@ -4417,14 +4489,22 @@ static int rough_disk_chain(const rough_disk_ctx_t *c, double *q, double *p, dou
             if (!rough_disk_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
-            for (r = 0; r < ROUGH_DISK_R; ++r) {
+            for (r = 0; r < ROUGH_DISK_R && !halve; ++r) {
                 if (dip[r]) {
-                    if (rough_disk_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r])) {
-                        return 1;
-                    }
+                    halve = rough_disk_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r]);
                     ev[r] = 2;
                 }
             }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
+                if (rough_disk_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                break;
+            }
+        }
+        if (halve) { /* the segment from its start again, halved (halve_part) */
+            struck = struck_seg;
+            continue;
         }
         if (past) { /* the tangential impact at the segment's start (jam), as past the boundary at its end */
             rough_disk_velocity(c, q, vv, p, vel);

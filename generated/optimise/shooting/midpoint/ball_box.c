@@ -1437,7 +1437,7 @@ static inline int ball_box_held(const ball_box_sustain_t *sus)
 #define BALL_BOX_BOUNCE_CYCLES 4 /* held_roots.BOUNCE_CYCLES: impacts of a row in a step's chain before it is held */
 #define BALL_BOX_RESTITUTION_BISECTIONS 30 /* held_roots.RESTITUTION_BISECTIONS: halvings of the restitution kept */
 #define BALL_BOX_ONTO_ITER 2 /* held_roots.ONTO_ITER: Gauss-Newton steps moving a start onto its rows */
-#define BALL_BOX_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails while a contact slips) */
+#define BALL_BOX_SPLITS 6 /* held_roots.SPLITS: halvings of a held segment whose root is spurious (or Newton fails: halvable) */
 #define BALL_BOX_REACH 2.0 /* held_roots.REACH: an inactive row within REACH times a held step's move: a dip? */
 #define BALL_BOX_E_SHORT 1e-6 /* held_roots.E_SHORT: a piece of a segment this short (times h) logs the E_d at its start */
 #define BALL_BOX_SPURIOUS 4.0 /* held_roots.SPURIOUS: its velocity's kinetic energy over its start's and the forces' */
@@ -1958,7 +1958,8 @@ static int ball_box_held_limit(const ball_box_ctx_t *c, const double *q, const d
 /* SustainedSteps._spurious: T / (T(u0) + tau^2 rhs . M^-1 rhs / 2) where it exceeds SPURIOUS (u0 the velocity of
  * p, from guess; T the kinetic energy of the segment's velocity v or of its end's u1 at q1, the larger): a velocity
  * no start and no applied force over tau gives (the rows' forces do no work, friction takes energy), nor the rows'
- * offsets closed over tau (gap_energy); else 0. */
+ * offsets closed over tau (gap_energy); else 0. Forces of time are read at the segment's start and end (at q, u0),
+ * the larger. */
 static double ball_box_spurious(const ball_box_ctx_t *c, const double *q, const double *p, double tau,
     const double *v, const double *guess, const double *q1, const double *u1)
 {
@@ -2032,6 +2033,18 @@ static int ball_box_sunk_held(const ball_box_ctx_t *c)
     return 0;
 }
 
+/* SustainedSteps._halvable: is a held segment whose Newton fails halved (split_segment, halve_part)? Where a rough
+ * contact is held, slipping or sticking, or a row held on by sinks_free (sunk_held); a frictionless segment whose
+ * Newton fails is a step too coarse for its row. */
+static int ball_box_halvable(const ball_box_ctx_t *c)
+{
+    int r, sticks = 0;
+    for (r = 0; r < BALL_BOX_R; ++r) {
+        sticks = sticks || (c->sus->act[r] && ball_box_row_stick[r] >= 0);
+    }
+    return ball_box_slips(c) || ball_box_sunk_held(c) || sticks;
+}
+
 /* SustainedSteps._held_since: is row r's lift-off at a segment's start the one sinks_free held it on at in this grid
  * step or the one before, not logged yet (sunk_at)? Held on, its force below 0, it is met again at the start of the
  * next segment (after another event) or grid step; a lift-off inside a segment is new. */
@@ -2041,8 +2054,8 @@ static int ball_box_held_since(const ball_box_ctx_t *c, int r, int start)
 }
 
 /* SustainedSteps._split_segment: the chain's constrained segment from (q, p) over *tau (constrained); where its
- * root is spurious (spurious), or its Newton fails while a contact slips (slips; frictionless, a step too coarse for
- * its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
+ * root is spurious (spurious), or its Newton fails while a rough contact is held (halvable; frictionless, a step
+ * too coarse for its row raises as before), over tau / 2, tau / 4, ... (SPLITS halvings at most), each from the velocity of p.
  * *tau out: the length taken; *halved: the halvings. Returns 0, or 1 with c->err set: the last one's Newton
  * failure, or its spurious root. */
 static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, const double *p, double *tau,
@@ -2065,8 +2078,7 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
             if (*halved == BALL_BOX_SPLITS && ball_box_reverses(c, q, p, g, q1, u1)) {
                 return 0; /* its slide stops inside: the chain keeps that part */
             }
-        } else if (*halved < BALL_BOX_SPLITS && !(ball_box_slips(c) || ball_box_sunk_held(c))) { /* frictionless:
-                                                    * too coarse, not halved (but a row held on by sinks_free) */
+        } else if (*halved < BALL_BOX_SPLITS && !ball_box_halvable(c)) { /* frictionless: too coarse, not halved */
             return 1;
         }
         if (*halved == BALL_BOX_SPLITS) {
@@ -2084,6 +2096,31 @@ static int ball_box_split_segment(const ball_box_ctx_t *c, const double *q, cons
             g[i] = u0[i];
         }
     }
+}
+
+/* SustainedSteps._halve_part: the chain's cap (*cap_t; *cap_len, the longest segment from it; *cap_n, its halvings)
+ * after the segment of length tau from t had no part to its first event it can take: the part's root spurious
+ * (spurious: ratio > 0), or its Newton's or its lift-off's location's failing (ratio < 0, c->err set) while a
+ * contact slips. The segment is taken again from t over tau / 2, as a spurious segment is (split_segment); after
+ * SPLITS such halvings at t (a frictionless Newton's failure at once: too coarse a step) it returns 1 with c->err:
+ * the Newton's failure, or the spurious root. */
+static int ball_box_halve_part(const ball_box_ctx_t *c, double t, double tau, double ratio, double *cap_t,
+    double *cap_len, int *cap_n)
+{
+    const int halvings = *cap_t == t ? *cap_n : 0;
+    if (ratio < 0.0 && (halvings >= BALL_BOX_SPLITS || !ball_box_halvable(c))) {
+        return 1; /* the Newton's failure (c->err) */
+    }
+    if (halvings >= BALL_BOX_SPLITS) {
+        return ball_box_fail(c, BALL_BOX_PHASE_SUSTAINED, 0.0, "the part of a held segment to its event has a "
+            "spurious root: the kinetic energy of its velocity is %.3g times its start's and the forces' over it, after "
+            "%d halvings; reduce h", ratio, BALL_BOX_SPLITS);
+    }
+    ++c->sus->halvings;
+    *cap_t = t;
+    *cap_len = 0.5 * tau;
+    *cap_n = halvings + 1;
+    return 0;
 }
 
 /* SustainedSteps._release: lift-off of row r at t, logged once per contact that leaves sustained contact, at the
@@ -3151,6 +3188,10 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
     int backs[BALL_BOX_R_DIM] = {0}; /* rows met again moving away after their release (met_back): how often */
     int joined[BALL_BOX_R_DIM]; /* the touching rows that join it (joined) */
     int struck = 0; /* an impact or a friction switch at this segment's start: the held rows' forces are read there too */
+    int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
+    double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
+    int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
+    double ratio; /* the part to an event's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -3167,11 +3208,12 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         if (ball_box_onto_rows(c, q, v, p)) { /* a move, not a segment: the tangent has no derivative of it */
         }
-        tau = rest;
+        tau = cap_t == t && cap_len < rest ? cap_len : rest; /* halved for its event (halve_part) */
         rc = ball_box_split_segment(c, q, p, &tau, v, vv, lam, q1, &e_seg, lam1, p1, u1, &halved);
         if (rc == 1) {
             return 1;
         }
+        struck_seg = struck; /* restored where the segment is halved for its event (halve_part) */
         c->sus->halvings += halved;
         if (halved) { /* not a segment of the step's map: the tangent has none */
         }
@@ -3191,6 +3233,7 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 && (fp[r] < -f_eps || (struck && f0[r] < -f0_eps));
             pulled = pulled || ev[r];
         }
+        halve = 0;
         if (pulled) {
             if (!struck) {
                 ball_box_start_forces(c, q, p, vv, f0);
@@ -3198,7 +3241,8 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             for (r = 0; r < BALL_BOX_R; ++r) {
                 if (ev[r]) {
                     if (ball_box_liftoff_fraction(c, q, p, tau, vv, r, f0[r], fp[r], &s_ev[r])) {
-                        return 1;
+                        halve = 1; /* the segment halved while a rough contact is held (halve_part, below) */
+                        break;
                     }
                     s_ev[r] = s_ev[r] * tau <= 1e-13 * c->h ? 0.0 : s_ev[r]; /* within the least sub-step: the start */
                     if (s_ev[r] == 0.0 && start < 0) {
@@ -3206,6 +3250,13 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                     }
                 }
             }
+        }
+        if (halve) { /* a location failed while a rough contact is held: the segment halved (halve_part) */
+            if (ball_box_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         if (start >= 0) { /* at the segment start: release (or a friction switch) there */
             if (passed[start] && hit[start] && ++pulls[start] >= BALL_BOX_LIFT_CYCLES) { /* cycling: held on */
@@ -3225,8 +3276,23 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
         }
         struck = 0;
         ball_box_rows(q1, vv, c->par, psi1, grad, curv);
-        if (ball_box_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip)) {
-            return 1;
+        /* a location failing while a rough contact is held: the segment halved (halve_part) */
+        halve = ball_box_row_dips(c, q, p, tau, vv, u1, psi1, grad, dip, s_dip, g_dip);
+        for (r = 0; r < BALL_BOX_R && !halve; ++r) {
+            if (!c->sus->act[r] && ball_box_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
+                halve = ball_box_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r]);
+                ev[r] = 2;
+            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
+                halve = ball_box_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r]);
+                ev[r] = 2;
+            }
+        }
+        if (halve) {
+            if (ball_box_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
+            struck = struck_seg;
+            continue;
         }
         any = 0;
         for (r = 0; r < BALL_BOX_R; ++r) {
@@ -3260,19 +3326,6 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
             }
             return 0;
         }
-        for (r = 0; r < BALL_BOX_R; ++r) {
-            if (!c->sus->act[r] && ball_box_row_stick[r] < 0 && psi1[r] < -c->tol->phi) {
-                if (ball_box_row_crossing(c, q, p, tau, vv, r, psi1[r], 1.0, &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            } else if (dip[r]) { /* both ends admissible, below 0 inside: located before s_dip */
-                if (ball_box_row_crossing(c, q, p, tau, vv, r, g_dip[r], s_dip[r], &s_ev[r])) {
-                    return 1;
-                }
-                ev[r] = 2;
-            }
-        }
         for (;;) { /* the first event; a row below where it is taken crossed before it (sunk_at_event) */
             r0 = -1;
             for (r = 0; r < BALL_BOX_R; ++r) {
@@ -3304,20 +3357,41 @@ static int ball_box_chain(const ball_box_ctx_t *c, double *q, double *p, double 
                 break;
             }
             if (ball_box_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                return 1;
+                if (ball_box_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
+                    return 1;
+                }
+                halve = 1;
+                break;
+            }
+            /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
+            ratio = s * tau > BALL_BOX_E_SHORT * c->h ? ball_box_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
+            if (ratio != 0.0) {
+                if (ball_box_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                halve = 1;
+                break;
             }
             e_sub = s * tau <= BALL_BOX_E_SHORT * c->h && at_known ? e_at : e_sub; /* too short for its own */
             if (!ball_box_sunk_at_event(c, q1, u1, ev, s_ev, r0, s, dip, g_dip)) { /* dip, g_dip: the rows sunk there */
                 break;
             }
-            for (r = 0; r < BALL_BOX_R; ++r) {
+            for (r = 0; r < BALL_BOX_R && !halve; ++r) {
                 if (dip[r]) {
-                    if (ball_box_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r])) {
-                        return 1;
-                    }
+                    halve = ball_box_row_crossing(c, q, p, tau, vv, r, g_dip[r], s, &s_ev[r]);
                     ev[r] = 2;
                 }
             }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
+                if (ball_box_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
+                    return 1;
+                }
+                break;
+            }
+        }
+        if (halve) { /* the segment from its start again, halved (halve_part) */
+            struck = struck_seg;
+            continue;
         }
         e_at = e_sub;
         at_known = 1;
