@@ -310,15 +310,16 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
         mass = k.legendre(q, u0)[1]
         rhs = k.dynamics(q, u0)[0]
         work = float(rhs @ np.linalg.solve(mass, rhs))
-        if self._timed:  # forces of time: at the segment's end too, the larger
-            t0 = self.k.t
-            self._at(t0 + tau)
-            rhs = k.dynamics(q, u0)[0]
-            self._at(t0)
-            work = max(work, float(rhs @ np.linalg.solve(mass, rhs)))
         budget = 0.5 * float(u0 @ mass @ u0) + 0.5 * tau * tau * work
         kinetic = max(0.5 * float(v @ mass @ v), 0.5 * float(u1 @ end.mass @ u1))
         if kinetic > SPURIOUS * budget + 1e-24:  # and the rows' offsets: the root closes them over tau
+            if self._timed:  # forces of time: at the segment's end too, the larger (read only here: a budget
+                t0 = self.k.t  # that already holds needs no more)
+                self._at(t0 + tau)
+                rhs = k.dynamics(q, u0)[0]
+                self._at(t0)
+                work = max(work, float(rhs @ np.linalg.solve(mass, rhs)))
+                budget = 0.5 * float(u0 @ mass @ u0) + 0.5 * tau * tau * work
             budget += self._gap_energy(q, u0, mass, tau)
         return kinetic / budget if kinetic > SPURIOUS * budget + 1e-24 else None
 
@@ -589,7 +590,7 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 self._lam = np.where(self.act, lam * (self._h / tau), 0.0)
                 return q1, p1, e_step, v
             q_s, p_s, tau_s, v_s = q, p, tau, v
-            wedged = halve = False
+            wedged, halve = False, None  # halve: _halve_part's ratio or exc, the part having no root to take
             while True:  # the first event; a row below where it is taken crossed before it (_sunk_at_event)
                 r0 = min(events, key=lambda r: (events[r][1], r))
                 if events[r0][0] != "lift":  # of a landing's instant (Tolerances.simultaneous), a friction
@@ -619,14 +620,14 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                 try:
                     sub = self._constrained(step, t_k, q, p, s * tau, v)
                 except SolverError as exc:  # while a rough contact is held: the segment halved (_halve_part)
-                    cap, halve = self._halve_part(step, t_k, t, tau, cap, exc=exc), True
+                    halve = {"exc": exc}
                     break
                 # tested as a segment is (_split_segment), but a part too short for its own E_d (E_SHORT): its
                 # velocity closes the rows' round-off offsets (a plate's box, 2.5e-13 s: 11 times its start's
                 # kinetic energy, its end's the start's; bench.plate_drops --seed 414 --h 0.01, drop 1044)
                 ratio = self._spurious(q, p, s * tau, sub, v) if s * tau > E_SHORT * h else None
                 if ratio is not None:
-                    cap, halve = self._halve_part(step, t_k, t, tau, cap, ratio=ratio), True
+                    halve = {"ratio": ratio}
                     break
                 if self._slip.any() and self._painleve(sub[8].grad, sub[8].mass):
                     wedged = True  # its part to the event ends past Painleve's boundary: as a segment's end
@@ -641,9 +642,10 @@ class SustainedSteps(FrictionModes, HeldImpacts, HeldLocate, HeldTangent):
                     for r, g in sunk.items():
                         events[r] = ("cross", self._row_crossing(step, t_k, q, p, tau, v, r, g, s))
                 except SolverError as exc:  # while a rough contact is held: the segment halved (_halve_part)
-                    cap, halve = self._halve_part(step, t_k, t, tau, cap, exc=exc), True
+                    halve = {"exc": exc}
                     break
-            if halve:  # the segment from its start again, halved (_halve_part)
+            if halve is not None:  # the segment from its start again, halved (_halve_part)
+                cap = self._halve_part(step, t_k, t, tau, cap, **halve)
                 struck, plain = struck_seg, False
                 continue
             if wedged:  # the tangential impact at the segment's start (_jam), as past the boundary at its end

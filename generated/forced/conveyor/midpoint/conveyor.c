@@ -1768,7 +1768,10 @@ static double conveyor_spurious(const conveyor_ctx_t *c, const double *q, const 
     for (i = 0; i < CONVEYOR_N; ++i) {
         work += rhs[i] * w[i];
     }
-    { /* forces of time: at the segment's end too, the larger */
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    if (kinetic > CONVEYOR_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        /* forces of time: at the segment's end too, the larger (read only here: a budget that holds needs no more) */
         const double t0 = c->par[CONVEYOR_NPAR - 1];
         double work1 = 0.0;
         conveyor_at(c, t0 + tau);
@@ -1782,10 +1785,7 @@ static double conveyor_spurious(const conveyor_ctx_t *c, const double *q, const 
             work1 += rhs[i] * w[i];
         }
         work = work > work1 ? work : work1;
-    }
-    budget = 0.5 * start + 0.5 * tau * tau * work;
-    kinetic *= 0.5;
-    if (kinetic > CONVEYOR_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget = 0.5 * start + 0.5 * tau * tau * work;
         budget += conveyor_gap_energy(c, q, u0, mass, piv, tau);
     }
     return kinetic > CONVEYOR_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
@@ -4004,7 +4004,7 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
     int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
     double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
     int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
-    double ratio; /* the part to an event's spurious ratio (spurious) */
+    double ratio; /* halve_part's: -1 (a failed Newton or location, c->err) or the part's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -4319,19 +4319,14 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                 }
                 break;
             }
+            ratio = -1.0; /* halve_part's: a failed Newton or location (c->err), or the part's spurious ratio */
             if (conveyor_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                if (conveyor_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
-                    return 1;
-                }
-                halve = 1;
+                halve = 1; /* while a rough contact is held: the segment halved (halve_part, below) */
                 break;
             }
             /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
             ratio = s * tau > CONVEYOR_E_SHORT * c->h ? conveyor_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
             if (ratio != 0.0) {
-                if (conveyor_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
                 halve = 1;
                 break;
             }
@@ -4349,14 +4344,15 @@ static int conveyor_chain(const conveyor_ctx_t *c, double *q, double *p, double 
                     ev[r] = 2;
                 }
             }
-            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
-                if (conveyor_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part, below) */
+                ratio = -1.0;
                 break;
             }
         }
         if (halve) { /* the segment from its start again, halved (halve_part) */
+            if (conveyor_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
             struck = struck_seg;
             continue;
         }

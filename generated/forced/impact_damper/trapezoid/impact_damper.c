@@ -1743,7 +1743,10 @@ static double impact_damper_spurious(const impact_damper_ctx_t *c, const double 
     for (i = 0; i < IMPACT_DAMPER_N; ++i) {
         work += rhs[i] * w[i];
     }
-    { /* forces of time: at the segment's end too, the larger */
+    budget = 0.5 * start + 0.5 * tau * tau * work;
+    kinetic *= 0.5;
+    if (kinetic > IMPACT_DAMPER_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        /* forces of time: at the segment's end too, the larger (read only here: a budget that holds needs no more) */
         const double t0 = c->par[IMPACT_DAMPER_NPAR - 1];
         double work1 = 0.0;
         impact_damper_at(c, t0 + tau);
@@ -1757,10 +1760,7 @@ static double impact_damper_spurious(const impact_damper_ctx_t *c, const double 
             work1 += rhs[i] * w[i];
         }
         work = work > work1 ? work : work1;
-    }
-    budget = 0.5 * start + 0.5 * tau * tau * work;
-    kinetic *= 0.5;
-    if (kinetic > IMPACT_DAMPER_SPURIOUS * budget + 1e-24) { /* and the rows' offsets: the root closes them over tau */
+        budget = 0.5 * start + 0.5 * tau * tau * work;
         budget += impact_damper_gap_energy(c, q, u0, mass, piv, tau);
     }
     return kinetic > IMPACT_DAMPER_SPURIOUS * budget + 1e-24 ? kinetic / budget : 0.0;
@@ -2962,7 +2962,7 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
     int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
     double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
     int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
-    double ratio; /* the part to an event's spurious ratio (spurious) */
+    double ratio; /* halve_part's: -1 (a failed Newton or location, c->err) or the part's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -3127,19 +3127,14 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
                 }
                 break;
             }
+            ratio = -1.0; /* halve_part's: a failed Newton or location (c->err), or the part's spurious ratio */
             if (impact_damper_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                if (impact_damper_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
-                    return 1;
-                }
-                halve = 1;
+                halve = 1; /* while a rough contact is held: the segment halved (halve_part, below) */
                 break;
             }
             /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
             ratio = s * tau > IMPACT_DAMPER_E_SHORT * c->h ? impact_damper_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
             if (ratio != 0.0) {
-                if (impact_damper_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
                 halve = 1;
                 break;
             }
@@ -3153,14 +3148,15 @@ static int impact_damper_chain(const impact_damper_ctx_t *c, double *q, double *
                     ev[r] = 2;
                 }
             }
-            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
-                if (impact_damper_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part, below) */
+                ratio = -1.0;
                 break;
             }
         }
         if (halve) { /* the segment from its start again, halved (halve_part) */
+            if (impact_damper_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
             struck = struck_seg;
             continue;
         }

@@ -4070,7 +4070,7 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
     int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
     double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
     int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
-    double ratio; /* the part to an event's spurious ratio (spurious) */
+    double ratio; /* halve_part's: -1 (a failed Newton or location, c->err) or the part's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     int past; /* a slipping contact past Painleve's boundary (painleve) */
@@ -4385,19 +4385,14 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                 }
                 break;
             }
+            ratio = -1.0; /* halve_part's: a failed Newton or location (c->err), or the part's spurious ratio */
             if (block_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                if (block_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
-                    return 1;
-                }
-                halve = 1;
+                halve = 1; /* while a rough contact is held: the segment halved (halve_part, below) */
                 break;
             }
             /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
             ratio = s * tau > BLOCK_E_SHORT * c->h ? block_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
             if (ratio != 0.0) {
-                if (block_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
                 halve = 1;
                 break;
             }
@@ -4415,14 +4410,15 @@ static int block_chain(const block_ctx_t *c, double *q, double *p, double t, dou
                     ev[r] = 2;
                 }
             }
-            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
-                if (block_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part, below) */
+                ratio = -1.0;
                 break;
             }
         }
         if (halve) { /* the segment from its start again, halved (halve_part) */
+            if (block_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
             struck = struck_seg;
             continue;
         }

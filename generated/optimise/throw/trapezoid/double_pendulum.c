@@ -3393,7 +3393,7 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
     int struck_seg = 0; /* struck at the segment's start: restored where it is halved for its event (halve_part) */
     double cap_t = NAN, cap_len = tau; /* the longest segment from cap_t (halve_part) */
     int cap_n = 0, halve; /* its halvings; the segment is halved for its event (halve_part) */
-    double ratio; /* the part to an event's spurious ratio (spurious) */
+    double ratio; /* halve_part's: -1 (a failed Newton or location, c->err) or the part's spurious ratio (spurious) */
     double f0_eps = 0.0; /* f0's scale where struck */
     int rider; /* the riding row that takes a lift-off's load (pass_load), or -1 */
     for (;;) {
@@ -3558,19 +3558,14 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                 }
                 break;
             }
+            ratio = -1.0; /* halve_part's: a failed Newton or location (c->err), or the part's spurious ratio */
             if (double_pendulum_constrained(c, q, p, s * tau, vv, v, lam, q1, &e_sub, lam1, p1, u1)) {
-                if (double_pendulum_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) { /* while a rough contact is held */
-                    return 1;
-                }
-                halve = 1;
+                halve = 1; /* while a rough contact is held: the segment halved (halve_part, below) */
                 break;
             }
             /* tested as a segment is (split_segment), but a part too short for its own E_d (E_SHORT) */
             ratio = s * tau > DOUBLE_PENDULUM_E_SHORT * c->h ? double_pendulum_spurious(c, q, p, s * tau, v, vv, q1, u1) : 0.0;
             if (ratio != 0.0) {
-                if (double_pendulum_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
                 halve = 1;
                 break;
             }
@@ -3584,14 +3579,15 @@ static int double_pendulum_chain(const double_pendulum_ctx_t *c, double *q, doub
                     ev[r] = 2;
                 }
             }
-            if (halve) { /* while a rough contact is held: the segment halved (halve_part) */
-                if (double_pendulum_halve_part(c, t, tau, -1.0, &cap_t, &cap_len, &cap_n)) {
-                    return 1;
-                }
+            if (halve) { /* while a rough contact is held: the segment halved (halve_part, below) */
+                ratio = -1.0;
                 break;
             }
         }
         if (halve) { /* the segment from its start again, halved (halve_part) */
+            if (double_pendulum_halve_part(c, t, tau, ratio, &cap_t, &cap_len, &cap_n)) {
+                return 1;
+            }
             struck = struck_seg;
             continue;
         }
